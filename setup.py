@@ -1,0 +1,41 @@
+"""ament_python build description for polarization_compass.
+
+`colcon build` installs the node executables into lib/polarization_compass (see setup.cfg) so that
+`ros2 run polarization_compass <node>` finds them; launch files, parameter files and scenes go into
+share/polarization_compass.
+"""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "polarization_compass"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=[PACKAGE, PACKAGE + ".*"]),
+    package_data={PACKAGE: ["data/*.yaml"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+        ("share/" + PACKAGE + "/launch", glob("launch/*.launch.py")),
+        ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
+        ("share/" + PACKAGE + "/config/scenes", glob("config/scenes/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="polarization_compass developers",
+    maintainer_email="polarization-compass@example.invalid",
+    description="Heading from skylight polarization, with tilt error maps and correction (ROS 2).",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "polarization-compass = polarization_compass.cli:main",
+            "sky_simulator = polarization_compass.nodes.sky_simulator:main",
+            "heading_estimator = polarization_compass.nodes.heading_estimator:main",
+            "tilt_corrector = polarization_compass.nodes.tilt_corrector:main",
+            "error_evaluator = polarization_compass.nodes.error_evaluator:main",
+        ],
+    },
+)
