@@ -19,12 +19,14 @@ import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
+from .errors import CompassError
+
 import numpy as np
 
 __all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError"]
 
 
-class CameraError(ValueError):
+class CameraError(CompassError):
     """Invalid camera intrinsics or pixel selection."""
 
 

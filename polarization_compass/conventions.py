@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import CompassError
+
 __all__ = [
     "wrap_180_deg", "wrap_360_deg", "wrap_pi_rad", "fold_axial_deg", "fold_axial_rad", "fold_aop_rad",
     "rot_x", "rot_y", "rot_z", "R_sun_cam_from_attitude", "R_enu_cam_from_attitude",
@@ -232,7 +234,7 @@ def bearing_to_psi_deg(bearing_deg, sun_azimuth_deg):
 # --------------------------------------------------------------------------------------------
 # Quaternions (ROS order x, y, z, w; active rotation child -> parent)
 # --------------------------------------------------------------------------------------------
-class QuaternionError(ValueError):
+class QuaternionError(CompassError):
     """A quaternion that cannot be used (NaN/inf, zero, or not unit within tolerance)."""
 
 

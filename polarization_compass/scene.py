@@ -36,11 +36,12 @@ import yaml
 
 from .camera import CameraError, CameraModel, PixelSelection
 from .conventions import CameraAttitude
+from .errors import CompassError
 
 __all__ = ["Scene", "Site", "Validity", "SceneError", "load_scene", "default_scene", "parse_time_utc"]
 
 
-class SceneError(ValueError):
+class SceneError(CompassError):
     """A scene file or mapping that cannot be used; the message names the key."""
 
 

@@ -25,11 +25,13 @@ from typing import Callable
 import numpy as np
 from numba import njit, prange
 
+from .errors import CompassError
+
 __all__ = ["RayleighSky", "make_sky_model", "register_sky_model", "SkyModelError", "rayleigh_reference",
            "axial_atan2_f32", "axial_atan2_array", "validity_kernel"]
 
 
-class SkyModelError(ValueError):
+class SkyModelError(CompassError):
     """Unknown sky model or out-of-range parameter."""
 
 

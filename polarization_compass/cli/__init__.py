@@ -1,0 +1,66 @@
+"""`polarization-compass` command line: a thin adapter over the core library.
+
+Each subcommand lives in its own module ``cli/cmd_<name>.py`` exposing ``register(subparsers)``,
+which adds a parser and sets ``func`` (taking the parsed args, returning an exit code). Add a new
+command by adding its module name to ``COMMANDS``.
+
+Errors meant for users (:class:`~polarization_compass.errors.CompassError`, bad files) print one
+line and exit 2; an unexpected exception prints one line naming it and exits 70 (``--debug``
+shows the traceback). No traceback reaches a user by default.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from ..errors import CompassError
+
+COMMANDS = ["sun", "render", "estimate", "errormap", "allowable_tilt", "plot", "sim", "record_sim", "replay"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2, no usage dump
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="polarization-compass",
+                description="Heading from skylight polarization: simulate, estimate, map tilt errors, correct.")
+    p.add_argument("--debug", action="store_true", help="show tracebacks of unexpected errors")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f"{__name__}.cmd_{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"{__name__}.cmd_{name}":
+                continue            # command not built yet
+            raise
+        mod.register(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except CompassError as exc:
+        print(f"polarization-compass {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"polarization-compass {args.command}: error: {exc.strerror}: {exc.filename}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"polarization-compass {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - last line of defence: no traceback for users
+        if args.debug or os.environ.get("POLARIZATION_COMPASS_DEBUG"):
+            raise
+        print(f"polarization-compass {args.command}: internal error: {type(exc).__name__}: {exc} "
+              f"(run with --debug for the traceback)", file=sys.stderr)
+        return 70

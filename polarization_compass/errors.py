@@ -1,0 +1,15 @@
+"""The project's error base class. Every error meant for a user derives from :class:`CompassError`
+(a ``ValueError``): the CLI prints it as one line and exits 2; nodes log, count and drop."""
+
+
+class CompassError(ValueError):
+    """Bad input or configuration, with a message that says what is wrong and what to do."""
+
+
+class MissingDependencyError(CompassError):
+    """An optional ROS piece (launch, tf2_ros, rosbag2_py, ...) is not installed here."""
+
+    def __init__(self, what: str, install: str):
+        super().__init__(f"{what} is not available: install {install}")
+        self.what = what
+        self.install = install

@@ -1,0 +1,30 @@
+"""Test-wide settings: numpy floating-point errors raise, hypothesis is deterministic and bounded,
+and every ROS process stays on loopback with a domain id of its own."""
+import os
+import random
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+
+# Every warning is already an error (pytest.ini); make numpy raise even where warnings are filtered.
+np.seterr(all="raise", under="ignore")
+
+settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("thorough", max_examples=1000, deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(100, 200)))
+
+
+@pytest.fixture
+def ros_env(tmp_path):
+    """Environment for ROS subprocesses: loopback discovery, a fresh domain id, logs in tmp."""
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(random.randint(1, 100))
+    env["ROS_LOG_DIR"] = str(tmp_path / "ros_log")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
