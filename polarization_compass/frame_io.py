@@ -1,0 +1,113 @@
+"""Frame files (``.npz``) written by ``polarization-compass render`` and read by ``estimate``.
+
+Contents (all plain arrays; loading never unpickles: ``allow_pickle=False``):
+
+``aop_rad``   float32, eq 28 convention, folded to [-pi/2, pi/2)
+``dop``       float32 in [0, 1]
+``valid``     bool
+``x_px``      float64, 1-based column of each pixel (eq 20), same shape as ``aop_rad``
+``y_px``      float64, 1-based row
+``meta``      0-d unicode array holding a JSON object: sun azimuth/altitude, attitude, camera, effects
+optional: ``intensity`` (float32), ``mosaic`` (uint8/uint16 raw DoFP image), ``aop_ideal_rad``, ``dop_ideal``
+"""
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .camera import CameraModel
+from .errors import CompassError
+
+__all__ = ["save_frame_npz", "load_frame_npz", "FrameFile", "FrameFileError"]
+
+REQUIRED = ("aop_rad", "dop", "valid", "x_px", "y_px", "meta")
+OPTIONAL = ("intensity", "mosaic", "aop_ideal_rad", "dop_ideal")
+
+
+class FrameFileError(CompassError):
+    """A frame file that is missing, corrupt or inconsistent."""
+
+
+@dataclass
+class FrameFile:
+    aop_rad: np.ndarray
+    dop: np.ndarray
+    valid: np.ndarray
+    x_px: np.ndarray
+    y_px: np.ndarray
+    meta: dict
+    intensity: np.ndarray | None = None
+    mosaic: np.ndarray | None = None
+    aop_ideal_rad: np.ndarray | None = None
+    dop_ideal: np.ndarray | None = None
+
+    @property
+    def camera(self) -> CameraModel:
+        cam = self.meta.get("camera") or {}
+        try:
+            return CameraModel(**cam)
+        except (TypeError, ValueError) as exc:
+            raise FrameFileError(f"frame meta has an unusable camera description: {exc}") from None
+
+    def rays_cam(self) -> np.ndarray:
+        """(3, N) float32 unit rays of the stored pixels, from the stored camera model."""
+        rays, _ = self.camera.rays_from_pixels(self.x_px, self.y_px)
+        return rays.astype(np.float32)
+
+
+def save_frame_npz(path, frame) -> Path:
+    """Write a :class:`~polarization_compass.render.Frame` (compressed)."""
+    p = Path(path)
+    if p.suffix != ".npz":
+        raise FrameFileError(f"frame files end in .npz, got {p.name!r}")
+    arrays = {"aop_rad": frame.aop_rad, "dop": frame.dop, "valid": frame.valid,
+              "x_px": np.asarray(frame.x_px), "y_px": np.asarray(frame.y_px),
+              "meta": np.array(json.dumps(frame.meta, sort_keys=True, default=str))}
+    for k in OPTIONAL:
+        v = getattr(frame, k, None)
+        if v is not None:
+            arrays[k] = v
+    if p.parent and not p.parent.exists():
+        p.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(p, **arrays)
+    return p
+
+
+def load_frame_npz(path) -> FrameFile:
+    """Read and validate a frame file. Raises :class:`FrameFileError` with the reason."""
+    p = Path(path)
+    if not p.is_file():
+        raise FrameFileError(f"frame file {str(p)!r} does not exist")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            missing = [k for k in REQUIRED if k not in z.files]
+            if missing:
+                raise FrameFileError(f"{p.name}: missing array(s) {missing}; is it a 'render' output?")
+            data = {k: z[k] for k in z.files if k in REQUIRED + OPTIONAL}
+    except FrameFileError:
+        raise
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise FrameFileError(f"{p.name}: not a readable .npz frame file ({exc})") from None
+    try:
+        meta = json.loads(str(data.pop("meta")))
+        if not isinstance(meta, dict):
+            raise ValueError("not an object")
+    except (ValueError, TypeError) as exc:
+        raise FrameFileError(f"{p.name}: meta is not a JSON object ({exc})") from None
+    shape = data["aop_rad"].shape
+    for k in ("dop", "valid", "x_px", "y_px"):
+        if data[k].shape != shape:
+            raise FrameFileError(f"{p.name}: {k} has shape {data[k].shape}, aop_rad has {shape}")
+    if data["valid"].dtype != np.bool_:
+        raise FrameFileError(f"{p.name}: valid must be bool, got {data['valid'].dtype}")
+    for k in ("aop_rad", "dop"):
+        if not np.issubdtype(data[k].dtype, np.floating):
+            raise FrameFileError(f"{p.name}: {k} must be floating point, got {data[k].dtype}")
+        bad = ~np.isfinite(data[k]) & data["valid"]
+        if bad.any():
+            raise FrameFileError(f"{p.name}: {int(bad.sum())} valid pixel(s) have non-finite {k}")
+    return FrameFile(meta=meta, **data)
