@@ -1,0 +1,52 @@
+"""Viewable images of frames (matplotlib, Agg backend; imported only when a picture is asked for)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def save_frame_pngs(frame, out_dir) -> list[Path]:
+    """Write ``aop.png`` (cyclic colour map, degrees) and ``dop.png`` with colour bars; returns the paths.
+
+    Pixels without sky (``valid`` False) are shown in grey.
+    """
+    plt = _plt()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    aop = np.degrees(frame.aop_rad.astype(float))
+    dop = frame.dop.astype(float)
+    if aop.ndim != 2:
+        raise ValueError("PNG output needs a 2-D pixel grid (full, stride, grid or region selection)")
+    m = frame.meta
+    title = (f"sun az {m['sun_azimuth_deg']:.1f} deg, alt {m['sun_altitude_deg']:.1f} deg; "
+             f"bearing {m['bearing_deg']:.1f}, pitch {m['pitch_deg']:.1f}, roll {m['roll_deg']:.1f} deg")
+    paths = []
+    for name, img, cmap, lo, hi, label in (
+            ("aop", aop, "twilight", -90, 90, "AoP (eq 28: from +y_cam toward +x_cam), deg"),
+            ("dop", dop, "viridis", 0, 1, "DoP")):
+        fig, ax = plt.subplots(figsize=(7.2, 5.6), dpi=110)
+        shown = np.ma.masked_where(~frame.valid, img)
+        cm = plt.get_cmap(cmap).copy()
+        cm.set_bad("0.6")
+        x0, x1 = float(frame.x_px.min()), float(frame.x_px.max())
+        y0, y1 = float(frame.y_px.min()), float(frame.y_px.max())
+        im = ax.imshow(shown, cmap=cm, vmin=lo, vmax=hi, extent=(x0 - 0.5, x1 + 0.5, y1 + 0.5, y0 - 0.5),
+                       interpolation="nearest")
+        ax.set_xlabel("column x_px (camera +x)")
+        ax.set_ylabel("row y_px (camera +y)")
+        ax.set_title(title, fontsize=8)
+        fig.colorbar(im, ax=ax, label=label)
+        fig.tight_layout()
+        p = out / f"{name}.png"
+        fig.savefig(p)
+        plt.close(fig)
+        paths.append(p)
+    return paths
