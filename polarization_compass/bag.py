@@ -1,0 +1,704 @@
+"""rosbag2 field runs: the topic mapping, reading with per-topic skip accounting, writing, and the
+ROS-free conversions between the rosbags message classes and numpy.
+
+Bags are read and written with the `rosbags` library (pure Python; both rosbag2 storage formats:
+MCAP, the default of ``ros2 bag record`` since Jazzy, and sqlite3). Nothing here imports rclpy.
+
+Roles
+-----
+A field run has five roles; a small YAML file (:func:`load_topic_map`, default
+``config/replay_topics.yaml``, the names ``record-sim`` writes) maps each role to a topic and type:
+
+``image``        sensor_msgs/msg/Image: the raw 2x2 polarizer mosaic as the driver publishes it
+                 (``mono8``/``mono16``; no ROS encoding exists for polarization mosaics, the layout
+                 comes from the mapping's ``mosaic`` section).
+``camera_info``  sensor_msgs/msg/CameraInfo of the raw mosaic (``plumb_bob``/``equidistant``, no distortion).
+``imu``          sensor_msgs/msg/Imu (or geometry_msgs/msg/QuaternionStamped): body attitude in ENU;
+                 only its roll and pitch are used (the tilt), its yaw is ignored.
+``reference``    the true heading, e.g. a dual-antenna GNSS: sensor_msgs/msg/Imu (the form the
+                 estimator publishes and robot_localization reads: REP-103 yaw in ENU, frame
+                 ``base_link``) or geometry_msgs/msg/QuaternionStamped.
+``navsatfix``    sensor_msgs/msg/NavSatFix: the site, for the sun's position.
+
+Frames: the IMU and reference quaternions are the orientation of the body (REP-103 ``base_link``:
+x forward, y left, z up) in ENU. The camera is mounted by ``R_body_cam`` (mapping key
+``mounting.R_body_cam``, default :data:`~polarization_compass.conventions.R_BODY_CAM_DEFAULT`: looking
+up, camera +y forward), so ``R_enu_cam = R_enu_body @ R_body_cam``. With the default mounting the
+REP-103 yaw of the body is exactly ``90 deg - bearing`` of the camera (eq 21), tilted or not.
+
+Corrupt input
+-------------
+A message that cannot be used is never silently dropped: :class:`Tally` counts it per topic and
+reason (``bad_cdr``, ``bad_encoding``, ``bad_size``, ``non_finite``, ``bad_quaternion``, ...), it is
+skipped, and the rest of the bag is processed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .camera import CameraError, CameraModel
+from .conventions import (QuaternionError, R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, matrix_to_quat,
+                          quat_to_matrix, validate_quaternion)
+from .errors import CompassError
+
+__all__ = [
+    "BagError", "MessageError", "TopicSpec", "TopicMap", "load_topic_map", "default_topic_map", "ROLES",
+    "ROLE_TYPES", "Tally", "BagReader", "BagWriter", "typestore", "stamp_ns", "stamp_from_ns",
+    "decode_mosaic", "decode_camera_info", "decode_orientation", "decode_navsatfix", "encode_mosaic",
+    "encode_camera_info", "encode_imu", "encode_quaternion_stamped", "encode_navsatfix", "encode_clock",
+    "camera_attitude_from_quat", "quat_from_camera_attitude", "utc_from_ns",
+]
+
+ROLES = ("image", "camera_info", "imu", "reference", "navsatfix")
+
+#: Message types each role accepts.
+ROLE_TYPES = {
+    "image": ("sensor_msgs/msg/Image",),
+    "camera_info": ("sensor_msgs/msg/CameraInfo",),
+    "imu": ("sensor_msgs/msg/Imu", "geometry_msgs/msg/QuaternionStamped"),
+    "reference": ("sensor_msgs/msg/Imu", "geometry_msgs/msg/QuaternionStamped"),
+    "navsatfix": ("sensor_msgs/msg/NavSatFix",),
+}
+
+_ENCODINGS = {"mono8": np.uint8, "8UC1": np.uint8, "mono16": np.uint16, "16UC1": np.uint16}
+
+
+class BagError(CompassError):
+    """A path that is not a readable rosbag2, a bad topic mapping, or a bag that cannot be written."""
+
+
+class MessageError(CompassError):
+    """One message that cannot be used. ``reason`` is a short tag for the skip summary."""
+
+    def __init__(self, reason: str, detail: str):
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+# --------------------------------------------------------------------------------------------
+# Typestore (one, cached): ROS 2 Kilted message definitions (identical to Jazzy for these types)
+# --------------------------------------------------------------------------------------------
+_TYPESTORE = None
+
+
+def typestore():
+    """The rosbags typestore used to (de)serialize; Kilted definitions (the ROS this repo pins)."""
+    global _TYPESTORE
+    if _TYPESTORE is None:
+        from rosbags.typesys import Stores, get_typestore
+        _TYPESTORE = get_typestore(Stores.ROS2_KILTED)
+    return _TYPESTORE
+
+
+# --------------------------------------------------------------------------------------------
+# Topic mapping
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TopicSpec:
+    topic: str
+    type: str
+
+
+@dataclass(frozen=True)
+class TopicMap:
+    """Role -> topic/type, plus what a bag cannot say: the mosaic layout, the pixel pitch, the camera
+    mounting, fallbacks for a missing camera_info / NavSatFix, and synchronisation tolerances.
+
+    ``mosaic``: the sensor's mosaic description in the form of the scene's ``sensor.mosaic`` section.
+    ``pixel_pitch_um``: converts camera_info focal lengths (pixels) into the model's millimetres.
+    ``camera``: optional fallback :class:`CameraModel` fields when the bag has no camera_info.
+    ``site``: optional fallback ``{latitude_deg, longitude_deg, altitude_m}`` when it has no NavSatFix.
+    ``max_gap_s``: per role, the largest time between an image stamp and the data used with it.
+    ``lookahead_s``: how far (bag receive time) the reader looks past an image before processing it.
+    """
+
+    topics: dict
+    mosaic: dict = field(default_factory=dict)
+    pixel_pitch_um: float = 3.45
+    R_body_cam: tuple = tuple(map(tuple, R_BODY_CAM_DEFAULT))
+    camera: dict | None = None
+    site: dict | None = None
+    max_gap_s: dict = field(default_factory=lambda: {"imu": 0.1, "reference": 0.25, "navsatfix": 5.0})
+    lookahead_s: float = 0.5
+
+    def __hash__(self):
+        return id(self)
+
+    def spec(self, role: str) -> TopicSpec:
+        return self.topics[role]
+
+    def role_of_topic(self, topic: str) -> str | None:
+        for role, s in self.topics.items():
+            if s.topic == topic:
+                return role
+        return None
+
+    @property
+    def R_body_cam_array(self) -> np.ndarray:
+        return np.array(self.R_body_cam, dtype=float)
+
+    def to_dict(self) -> dict:
+        return {"topics": {r: {"topic": s.topic, "type": s.type} for r, s in self.topics.items()},
+                "mosaic": dict(self.mosaic), "pixel_pitch_um": self.pixel_pitch_um,
+                "mounting": {"R_body_cam": [list(r) for r in self.R_body_cam]},
+                "camera": self.camera, "site": self.site, "max_gap_s": dict(self.max_gap_s),
+                "lookahead_s": self.lookahead_s}
+
+
+def _topic_map_from_dict(d, where: str) -> TopicMap:
+    if not isinstance(d, dict):
+        raise BagError(f"{where}: a topic mapping must be a YAML mapping with a 'topics' section")
+    allowed = {"topics", "mosaic", "pixel_pitch_um", "mounting", "camera", "site", "max_gap_s", "lookahead_s"}
+    unknown = set(d) - allowed
+    if unknown:
+        raise BagError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}")
+    base = _builtin_defaults()
+    topics_d = d.get("topics") or {}
+    if not isinstance(topics_d, dict):
+        raise BagError(f"{where}: 'topics' must map roles ({', '.join(ROLES)}) to {{topic, type}}")
+    bad = set(topics_d) - set(ROLES)
+    if bad:
+        raise BagError(f"{where}: unknown role(s) {sorted(bad)} in topics; roles: {', '.join(ROLES)}")
+    topics = {}
+    for role in ROLES:
+        entry = topics_d.get(role, {})
+        if isinstance(entry, str):
+            entry = {"topic": entry}
+        if not isinstance(entry, dict) or set(entry) - {"topic", "type"}:
+            raise BagError(f"{where}: topics.{role} must be {{topic: /name, type: pkg/msg/Type}}")
+        topic = str(entry.get("topic", base["topics"][role]["topic"]))
+        mtype = str(entry.get("type", ROLE_TYPES[role][0]))
+        if not topic.startswith("/"):
+            raise BagError(f"{where}: topics.{role}.topic must be an absolute name starting with '/', got {topic!r}")
+        if mtype not in ROLE_TYPES[role]:
+            raise BagError(f"{where}: topics.{role}.type {mtype!r} is not supported; "
+                           f"use one of {', '.join(ROLE_TYPES[role])}")
+        topics[role] = TopicSpec(topic, mtype)
+    names = [s.topic for s in topics.values()]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise BagError(f"{where}: topic(s) {sorted(dup)} mapped to more than one role")
+    mosaic = d.get("mosaic", base["mosaic"]) or {}
+    if not isinstance(mosaic, dict):
+        raise BagError(f"{where}: 'mosaic' must be a mapping (the scene's sensor.mosaic form)")
+    pitch = _pos(d.get("pixel_pitch_um", base["pixel_pitch_um"]), f"{where}: pixel_pitch_um")
+    mounting = d.get("mounting") or {}
+    if not isinstance(mounting, dict) or set(mounting) - {"R_body_cam"}:
+        raise BagError(f"{where}: 'mounting' must be {{R_body_cam: 3x3 rotation (columns = camera axes in body)}}")
+    R = np.asarray(mounting.get("R_body_cam", R_BODY_CAM_DEFAULT), dtype=float) if mounting else R_BODY_CAM_DEFAULT
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) \
+            or abs(np.linalg.det(R) - 1) > 1e-6:
+        raise BagError(f"{where}: mounting.R_body_cam must be a 3x3 rotation matrix (orthonormal, det +1)")
+    camera = d.get("camera")
+    if camera is not None:
+        if not isinstance(camera, dict):
+            raise BagError(f"{where}: 'camera' must be null or CameraModel fields (model, width_px, ...)")
+        try:
+            CameraModel(**camera)
+        except (CameraError, TypeError) as exc:
+            raise BagError(f"{where}: camera: {exc}") from None
+    site = d.get("site")
+    if site is not None:
+        if not isinstance(site, dict) or set(site) - {"latitude_deg", "longitude_deg", "altitude_m"} \
+                or not {"latitude_deg", "longitude_deg"} <= set(site):
+            raise BagError(f"{where}: 'site' must be null or {{latitude_deg, longitude_deg[, altitude_m]}}")
+        _finite_in(site["latitude_deg"], -90, 90, f"{where}: site.latitude_deg")
+        _finite_in(site["longitude_deg"], -180, 180, f"{where}: site.longitude_deg")
+        _finite_in(site.get("altitude_m", 0.0), -500, 10000, f"{where}: site.altitude_m")
+    gaps = dict(base["max_gap_s"])
+    g = d.get("max_gap_s") or {}
+    if not isinstance(g, dict) or set(g) - set(gaps):
+        raise BagError(f"{where}: 'max_gap_s' must map {sorted(gaps)} to seconds")
+    for k, v in g.items():
+        gaps[k] = _pos(v, f"{where}: max_gap_s.{k}")
+    look = _pos(d.get("lookahead_s", base["lookahead_s"]), f"{where}: lookahead_s")
+    return TopicMap(topics, dict(mosaic), pitch, tuple(map(tuple, R)), camera, site, gaps, look)
+
+
+def _pos(v, what) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise BagError(f"{what} must be a number, got {v!r}") from None
+    if not (math.isfinite(f) and f > 0):
+        raise BagError(f"{what} must be positive and finite, got {v!r}")
+    return f
+
+
+def _finite_in(v, lo, hi, what) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise BagError(f"{what} must be a number, got {v!r}") from None
+    if not (math.isfinite(f) and lo <= f <= hi):
+        raise BagError(f"{what} must be finite and in [{lo}, {hi}], got {v!r}")
+    return f
+
+
+#: The defaults: what ``record-sim`` writes. ``config/replay_topics.yaml`` is this mapping written out
+#: for users to copy and edit (a test keeps the two identical).
+BUILTIN_TOPIC_MAP = {
+    "topics": {
+        "image": {"topic": "/polarization_camera/image_raw", "type": "sensor_msgs/msg/Image"},
+        "camera_info": {"topic": "/polarization_camera/camera_info", "type": "sensor_msgs/msg/CameraInfo"},
+        "imu": {"topic": "/imu/data", "type": "sensor_msgs/msg/Imu"},
+        "reference": {"topic": "/gnss/heading", "type": "sensor_msgs/msg/Imu"},
+        "navsatfix": {"topic": "/gnss/fix", "type": "sensor_msgs/msg/NavSatFix"},
+    },
+    "mosaic": {},
+    "pixel_pitch_um": 3.45,
+    "mounting": {"R_body_cam": [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]},
+    "camera": None,
+    "site": None,
+    "max_gap_s": {"imu": 0.1, "reference": 0.25, "navsatfix": 5.0},
+    "lookahead_s": 0.5,
+}
+
+
+def _builtin_defaults() -> dict:
+    return BUILTIN_TOPIC_MAP
+
+
+def load_topic_map(path: str | Path | None = None) -> TopicMap:
+    """Load a topic mapping YAML (safe loader); ``None`` gives the defaults (what ``record-sim`` writes).
+    Keys not given keep their defaults."""
+    if path is None:
+        return _topic_map_from_dict(_builtin_defaults(), "default topic mapping")
+    p = Path(path)
+    if not p.is_file():
+        raise BagError(f"topic mapping {str(p)!r} does not exist")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise BagError(f"{p}: not valid YAML: {str(exc).splitlines()[0]}") from None
+    return _topic_map_from_dict(data or {}, str(p))
+
+
+def default_topic_map() -> TopicMap:
+    return load_topic_map(None)
+
+
+# --------------------------------------------------------------------------------------------
+# Time
+# --------------------------------------------------------------------------------------------
+def stamp_ns(header) -> int:
+    """Nanoseconds since the epoch of a std_msgs/Header (or builtin_interfaces/Time) ``stamp``."""
+    st = getattr(header, "stamp", header)
+    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
+
+
+def stamp_from_ns(t_ns: int):
+    """builtin_interfaces/msg/Time (rosbags class) for nanoseconds since the epoch."""
+    Time = typestore().types["builtin_interfaces/msg/Time"]
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return Time(sec=int(sec), nanosec=int(nsec))
+
+
+def utc_from_ns(t_ns: int) -> _dt.datetime:
+    """Aware UTC datetime of a ROS stamp (ROS time is Unix time: UTC without leap seconds)."""
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return _dt.datetime.fromtimestamp(sec, tz=_dt.timezone.utc) + _dt.timedelta(microseconds=nsec // 1000)
+
+
+def ns_from_utc(t: _dt.datetime) -> int:
+    t = t.astimezone(_dt.timezone.utc)
+    epoch = _dt.datetime(1970, 1, 1, tzinfo=_dt.timezone.utc)
+    d = t - epoch
+    return (d.days * 86400 + d.seconds) * 1_000_000_000 + d.microseconds * 1000
+
+
+# --------------------------------------------------------------------------------------------
+# Decoding (message -> numpy). Duck-typed: works on rosbags classes and on rclpy messages alike.
+# --------------------------------------------------------------------------------------------
+def decode_mosaic(msg) -> np.ndarray:
+    """The raw mosaic of a sensor_msgs/Image as a (height, width) uint8/uint16 array (native byte order).
+
+    Raises :class:`MessageError` for an unsupported encoding (``bad_encoding``), inconsistent sizes
+    (``bad_size``: step < width * bytes per pixel, data length != step * height, odd dimensions).
+    """
+    enc = str(msg.encoding)
+    if enc not in _ENCODINGS:
+        raise MessageError("bad_encoding", f"image encoding {enc!r} is not a raw polarizer mosaic "
+                                           f"(expected one of {', '.join(_ENCODINGS)})")
+    dtype = np.dtype(_ENCODINGS[enc])
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    buf = np.frombuffer(msg.data, dtype=np.uint8) if not isinstance(msg.data, np.ndarray) \
+        else msg.data.view(np.uint8).reshape(-1)
+    if h < 2 or w < 2 or h % 2 or w % 2:
+        raise MessageError("bad_size", f"mosaic {w}x{h} must have even width and height >= 2")
+    if step < w * dtype.itemsize:
+        raise MessageError("bad_size", f"step {step} < width {w} x {dtype.itemsize} bytes")
+    if buf.size != step * h:
+        raise MessageError("bad_size", f"data has {buf.size} bytes, step x height = {step * h}")
+    rows = buf.reshape(h, step)[:, : w * dtype.itemsize]
+    img = rows.view(dtype.newbyteorder(">" if msg.is_bigendian else "<")) if dtype.itemsize > 1 else rows
+    return np.ascontiguousarray(img, dtype=dtype)   # a view when already native and unpadded
+
+
+def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
+    """A :class:`CameraModel` from sensor_msgs/CameraInfo of the raw mosaic.
+
+    ROS ``K = [fx 0 cx; 0 fy cy; 0 0 1]`` in pixels with a 0-based principal point; the model is 1-based
+    (eq 20), so ``principal_x_px = cx + 1``. The focal length in mm is ``fx * pixel_pitch``; the y pitch
+    is scaled by ``fx / fy`` so non-square pixels keep their shape. ``plumb_bob``/``rational_polynomial``
+    with zero distortion -> pinhole; ``equidistant`` with zero coefficients -> fisheye_equidistant
+    (r = f theta). Non-zero distortion, binning or a ROI are not supported (``unsupported_camera``).
+    """
+    K = np.asarray(msg.k, dtype=float).reshape(-1)
+    D = np.asarray(msg.d, dtype=float).reshape(-1)
+    if K.size != 9 or not np.all(np.isfinite(K)) or not np.all(np.isfinite(D)):
+        raise MessageError("non_finite", "camera_info K/D has NaN, inf or the wrong size")
+    fx, fy, cx, cy = K[0], K[4], K[2], K[5]
+    if not (fx > 0 and fy > 0):
+        raise MessageError("bad_camera_info", f"focal lengths must be positive, got fx={fx}, fy={fy}")
+    if np.any(D != 0):
+        raise MessageError("unsupported_camera", f"distortion {msg.distortion_model!r} with non-zero "
+                                                 "coefficients: rectification is not supported")
+    model = {"plumb_bob": "pinhole", "rational_polynomial": "pinhole", "": "pinhole",
+             "equidistant": "fisheye_equidistant"}.get(str(msg.distortion_model))
+    if model is None:
+        raise MessageError("unsupported_camera", f"distortion model {msg.distortion_model!r}")
+    if int(msg.binning_x) > 1 or int(msg.binning_y) > 1:
+        raise MessageError("unsupported_camera", "binned images are not supported")
+    roi = msg.roi
+    if int(roi.width) not in (0, int(msg.width)) or int(roi.height) not in (0, int(msg.height)):
+        raise MessageError("unsupported_camera", "a region of interest is not supported")
+    try:
+        return CameraModel(model=model, width_px=int(msg.width), height_px=int(msg.height),
+                           focal_length_mm=float(fx * pixel_pitch_um * 1e-3),
+                           pixel_pitch_x_um=float(pixel_pitch_um), pixel_pitch_y_um=float(pixel_pitch_um * fx / fy),
+                           principal_x_px=float(cx + 1.0), principal_y_px=float(cy + 1.0))
+    except CameraError as exc:
+        raise MessageError("bad_camera_info", str(exc)) from None
+
+
+def decode_orientation(msg) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) of a sensor_msgs/Imu orientation or a geometry_msgs/QuaternionStamped.
+
+    An Imu whose ``orientation_covariance[0]`` is -1 carries no orientation (REP-145): ``no_orientation``.
+    """
+    if hasattr(msg, "orientation"):
+        cov = np.asarray(msg.orientation_covariance, dtype=float).reshape(-1)
+        if cov.size and cov[0] == -1:
+            raise MessageError("no_orientation", "Imu orientation_covariance[0] = -1: no orientation given")
+        q = msg.orientation
+    else:
+        q = msg.quaternion
+    try:
+        return validate_quaternion([q.x, q.y, q.z, q.w])
+    except QuaternionError as exc:
+        reason = "non_finite" if "NaN" in str(exc) else "bad_quaternion"
+        raise MessageError(reason, str(exc)) from None
+
+
+def decode_navsatfix(msg) -> tuple[float, float, float]:
+    """(latitude_deg, longitude_deg, altitude_m) of a sensor_msgs/NavSatFix with a fix.
+
+    ``no_fix`` when status < STATUS_FIX (0); ``non_finite``/``bad_value`` for NaN or out-of-range
+    coordinates. A NaN altitude (allowed by the message: "unknown") becomes 0 m; it changes the sun by
+    far less than a microdegree.
+    """
+    status = int(msg.status.status)
+    if status < 0:
+        raise MessageError("no_fix", f"NavSatFix status {status} (no fix)")
+    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        raise MessageError("non_finite", "NavSatFix latitude/longitude is NaN or inf")
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise MessageError("bad_value", f"NavSatFix latitude {lat} / longitude {lon} out of range")
+    if not math.isfinite(alt):
+        alt = 0.0
+    return lat, lon, alt
+
+
+def camera_attitude_from_quat(q_enu_body, R_body_cam=R_BODY_CAM_DEFAULT):
+    """Camera attitude (eq 21 bearing/pitch/roll) of a body orientation quaternion (x, y, z, w) in ENU."""
+    R_enu_cam = quat_to_matrix(np.asarray(q_enu_body, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
+    return attitude_from_R_enu_cam(R_enu_cam)
+
+
+def quat_from_camera_attitude(att, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
+    """Body orientation quaternion (x, y, z, w) in ENU for a camera attitude (inverse of the above)."""
+    from .conventions import R_enu_cam_from_attitude
+    R_enu_cam = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
+    return matrix_to_quat(R_enu_cam @ np.asarray(R_body_cam, dtype=float).T)
+
+
+# --------------------------------------------------------------------------------------------
+# Encoding (numpy -> rosbags message), what a driver / GNSS / IMU would publish
+# --------------------------------------------------------------------------------------------
+def _header(t_ns: int, frame_id: str):
+    Header = typestore().types["std_msgs/msg/Header"]
+    return Header(stamp=stamp_from_ns(t_ns), frame_id=frame_id)
+
+
+def encode_mosaic(mosaic: np.ndarray, t_ns: int, frame_id: str):
+    """sensor_msgs/Image ``mono8``/``mono16`` (little endian) of a raw mosaic, as a camera driver sends it."""
+    m = np.asarray(mosaic)
+    if m.ndim != 2 or m.dtype not in (np.uint8, np.uint16):
+        raise BagError(f"a mosaic must be a 2-D uint8/uint16 array, got {m.dtype} {m.shape}")
+    enc = "mono8" if m.dtype == np.uint8 else "mono16"
+    le = np.ascontiguousarray(m, dtype=m.dtype.newbyteorder("<"))
+    Image = typestore().types["sensor_msgs/msg/Image"]
+    return Image(header=_header(t_ns, frame_id), height=int(m.shape[0]), width=int(m.shape[1]), encoding=enc,
+                 is_bigendian=0, step=int(m.shape[1] * m.dtype.itemsize), data=le.view(np.uint8).reshape(-1))
+
+
+def encode_camera_info(camera: CameraModel, t_ns: int, frame_id: str):
+    """sensor_msgs/CameraInfo of a :class:`CameraModel` (no distortion; 0-based principal point)."""
+    ts = typestore().types
+    fx = camera.focal_length_mm / (camera.pixel_pitch_x_um * 1e-3)
+    fy = camera.focal_length_mm / (camera.pixel_pitch_y_um * 1e-3)
+    cx, cy = camera.cx_px - 1.0, camera.cy_px - 1.0
+    K = np.array([fx, 0, cx, 0, fy, cy, 0, 0, 1], dtype=float)
+    P = np.array([fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0], dtype=float)
+    fisheye = camera.model == "fisheye_equidistant"
+    roi = ts["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
+    return ts["sensor_msgs/msg/CameraInfo"](
+        header=_header(t_ns, frame_id), height=int(camera.height_px), width=int(camera.width_px),
+        distortion_model="equidistant" if fisheye else "plumb_bob",
+        d=np.zeros(4 if fisheye else 5, dtype=float), k=K, r=np.eye(3).reshape(-1), p=P,
+        binning_x=0, binning_y=0, roi=roi)
+
+
+def encode_imu(q_xyzw, t_ns: int, frame_id: str, orientation_var_rad2=(0.0, 0.0, 0.0)):
+    """sensor_msgs/Imu carrying an orientation only (REP-145: angular velocity and acceleration
+    covariances -1 = not provided); ``orientation_var_rad2`` = roll, pitch, yaw variances (diagonal)."""
+    ts = typestore().types
+    q = np.asarray(q_xyzw, dtype=float)
+    Q = ts["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+    zero = ts["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    none = np.zeros(9)
+    none[0] = -1.0
+    return ts["sensor_msgs/msg/Imu"](header=_header(t_ns, frame_id), orientation=Q,
+                                     orientation_covariance=np.diag(np.asarray(orientation_var_rad2, float)).reshape(-1),
+                                     angular_velocity=zero, angular_velocity_covariance=none.copy(),
+                                     linear_acceleration=zero, linear_acceleration_covariance=none.copy())
+
+
+def encode_quaternion_stamped(q_xyzw, t_ns: int, frame_id: str):
+    ts = typestore().types
+    q = np.asarray(q_xyzw, dtype=float)
+    Q = ts["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+    return ts["geometry_msgs/msg/QuaternionStamped"](header=_header(t_ns, frame_id), quaternion=Q)
+
+
+def encode_navsatfix(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, frame_id: str,
+                     horizontal_sigma_m: float = 1.0, vertical_sigma_m: float = 2.0):
+    ts = typestore().types
+    St = ts["sensor_msgs/msg/NavSatStatus"]
+    status = St(status=0, service=1)                  # STATUS_FIX, SERVICE_GPS
+    cov = np.diag([horizontal_sigma_m ** 2, horizontal_sigma_m ** 2, vertical_sigma_m ** 2]).reshape(-1)
+    return ts["sensor_msgs/msg/NavSatFix"](header=_header(t_ns, frame_id), status=status, latitude=float(lat_deg),
+                                           longitude=float(lon_deg), altitude=float(alt_m),
+                                           position_covariance=cov, position_covariance_type=2)
+
+
+def encode_clock(t_ns: int):
+    return typestore().types["rosgraph_msgs/msg/Clock"](clock=stamp_from_ns(t_ns))
+
+
+# --------------------------------------------------------------------------------------------
+# Skip accounting
+# --------------------------------------------------------------------------------------------
+class Tally:
+    """Per-topic counts: messages read, used, and skipped by reason. Nothing leaves a bag unaccounted:
+    for every topic, ``read == used + sum(skipped)`` once a replay finishes."""
+
+    def __init__(self):
+        self.read: Counter = Counter()
+        self.used: Counter = Counter()
+        self.skipped: Counter = Counter()          # (topic, reason) -> n
+        self.notes: Counter = Counter()            # (topic, note) -> n, not skips (e.g. out_of_order)
+        self.examples: dict = {}                   # (topic, reason) -> first detail message
+
+    def skip(self, topic: str, reason: str, detail: str = "") -> None:
+        self.skipped[(topic, reason)] += 1
+        self.examples.setdefault((topic, reason), detail)
+
+    def note(self, topic: str, what: str) -> None:
+        self.notes[(topic, what)] += 1
+
+    def skipped_total(self, topic: str | None = None) -> int:
+        return sum(n for (t, _), n in self.skipped.items() if topic is None or t == topic)
+
+    def balanced(self) -> bool:
+        return all(self.read[t] == self.used[t] + self.skipped_total(t) for t in self.read)
+
+    def to_dict(self) -> dict:
+        topics = sorted(set(self.read) | {t for t, _ in self.skipped} | {t for t, _ in self.notes})
+        out = {}
+        for t in topics:
+            out[t] = {"read": self.read[t], "used": self.used[t],
+                      "skipped": {r: n for (tt, r), n in sorted(self.skipped.items()) if tt == t},
+                      "notes": {r: n for (tt, r), n in sorted(self.notes.items()) if tt == t}}
+            ex = {r: self.examples[(tt, r)] for (tt, r) in self.skipped if tt == t and self.examples.get((tt, r))}
+            if ex:
+                out[t]["first_reason"] = ex
+        return out
+
+    def lines(self) -> list[str]:
+        """Human-readable summary, one line per topic."""
+        out = []
+        for t, d in self.to_dict().items():
+            s = ", ".join(f"{r} {n}" for r, n in d["skipped"].items()) or "none"
+            extra = "; " + ", ".join(f"{r} {n}" for r, n in d["notes"].items()) if d["notes"] else ""
+            out.append(f"{t}: read {d['read']}, used {d['used']}, skipped: {s}{extra}")
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------------------------
+class BagReader:
+    """A rosbag2 (directory with metadata.yaml; MCAP or sqlite3) opened for reading.
+
+    ``BagReader(path)`` raises :class:`BagError` with one line if the path is not a readable bag.
+    Use as a context manager. :meth:`messages` yields ``(topic, msgtype, log_time_ns, raw_cdr)``
+    in the bag's receive-time order for the topics asked.
+    """
+
+    def __init__(self, path):
+        from rosbags.rosbag2 import Reader
+        p = Path(path)
+        if not p.exists():
+            raise BagError(f"bag {str(p)!r} does not exist")
+        if p.is_file() and p.suffix == ".mcap" and not (p.parent / "metadata.yaml").exists():
+            raise BagError(f"{str(p)!r} is a bare MCAP file; give the rosbag2 directory (with metadata.yaml), "
+                           "or run `ros2 bag reindex` on its directory")
+        if p.is_file() and (p.parent / "metadata.yaml").exists():
+            p = p.parent
+        if not p.is_dir():
+            raise BagError(f"{str(p)!r} is not a rosbag2 directory (a directory with metadata.yaml)")
+        if not (p / "metadata.yaml").is_file():
+            raise BagError(f"{str(p)!r} is not a rosbag2 directory: it has no metadata.yaml")
+        self.path = p
+        try:
+            self._reader = Reader(p)
+            self._reader.open()
+        except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
+            raise BagError(f"{str(p)!r} is not a readable rosbag2: {_one_line(exc)}") from None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        try:
+            self._reader.close()
+        except Exception:  # noqa: BLE001 - closing a half-broken bag must not mask the real error
+            pass
+
+    @property
+    def duration_s(self) -> float:
+        return self._reader.duration / 1e9 if self._reader.message_count else 0.0
+
+    @property
+    def message_count(self) -> int:
+        return int(self._reader.message_count)
+
+    def topics(self) -> dict:
+        """{topic: (msgtype, message count)} over all connections."""
+        out: dict = {}
+        for c in self._reader.connections:
+            t, n = out.get(c.topic, (c.msgtype, 0))
+            if t != c.msgtype:
+                t = f"{t}|{c.msgtype}"
+            out[c.topic] = (t, n + int(c.msgcount))
+        return out
+
+    def messages(self, topics):
+        """Yield ``(topic, msgtype, log_time_ns, raw)`` for the given topic names, in receive-time order.
+
+        A storage-level failure (truncated file, bad chunk) becomes a :class:`BagError` naming the bag.
+        """
+        conns = [c for c in self._reader.connections if c.topic in set(topics)]
+        if not conns:
+            return
+        try:
+            for c, t, raw in self._reader.messages(connections=conns):
+                yield c.topic, c.msgtype, int(t), raw
+        except BagError:
+            raise
+        except Exception as exc:  # noqa: BLE001
+            raise BagError(f"{self.path}: reading failed part-way: {_one_line(exc)}") from None
+
+
+def _one_line(exc) -> str:
+    s = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {s[0]}" if s else type(exc).__name__
+
+
+def deserialize(raw, msgtype: str):
+    """CDR bytes to a rosbags message; :class:`MessageError` ``bad_cdr`` if they do not parse."""
+    try:
+        return typestore().deserialize_cdr(raw, msgtype)
+    except Exception as exc:  # noqa: BLE001 - SerdeError, struct.error, ... all mean the same here
+        raise MessageError("bad_cdr", _one_line(exc)) from None
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------
+class BagWriter:
+    """Write a rosbag2 with rosbags (``storage`` 'mcap' or 'sqlite3'); one connection per role.
+
+    ``write(role, msg, log_time_ns)`` serialises a rosbags message; ``write_raw`` stores bytes as they
+    are (tests use it to plant corrupt messages). The path must not exist (rosbag2 refuses to overwrite).
+    """
+
+    def __init__(self, path, topic_map: TopicMap | None = None, storage: str = "mcap", extra_topics=None):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        p = Path(path)
+        if p.exists():
+            raise BagError(f"output {str(p)!r} already exists; rosbag2 does not overwrite bags")
+        if not p.parent.is_dir():
+            raise BagError(f"directory {str(p.parent)!r} for the output bag does not exist")
+        plugins = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+        if storage not in plugins:
+            raise BagError(f"storage must be 'mcap' or 'sqlite3', got {storage!r}")
+        self.path = p
+        self.topic_map = topic_map or default_topic_map()
+        self._writer = Writer(p, version=9, storage_plugin=plugins[storage])
+        self._writer.open()
+        self._conns = {}
+        ts = typestore()
+        for role, spec in self.topic_map.topics.items():
+            self._conns[role] = self._writer.add_connection(spec.topic, spec.type, typestore=ts)
+        for topic, mtype in (extra_topics or {}).items():
+            self._conns[topic] = self._writer.add_connection(topic, mtype, typestore=ts)
+        self.counts: Counter = Counter()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+    def write(self, role: str, msg, log_time_ns: int) -> None:
+        raw = typestore().serialize_cdr(msg, self._conns[role].msgtype)
+        self.write_raw(role, raw, log_time_ns)
+
+    def write_raw(self, role: str, raw: bytes, log_time_ns: int) -> None:
+        self._writer.write(self._conns[role], int(log_time_ns), raw)
+        self.counts[role] += 1
+
+
+def scene_camera_fields(camera: CameraModel) -> dict:
+    return {k: v for k, v in dataclasses.asdict(camera).items() if v is not None}
