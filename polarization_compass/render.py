@@ -109,27 +109,23 @@ class Renderer:
         v = scene.validity
         self._limits = (math.cos(math.radians(v.sun_exclusion_deg)), math.sin(math.radians(v.min_altitude_deg)),
                         v.min_dop)
-        self._sun_cache: dict = {}
+        self._sun_cache = None
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
-        """The sun for this scene: fixed if the scene says so, else the ephemeris (cached per time)."""
+        """The sun for this scene: fixed if the scene says so, else the ephemeris (batched ephemeris, interpolated)."""
         s = self.scene
         if s.sun_fixed is not None:
             return SunDirection(float(s.sun_fixed[0]), float(s.sun_fixed[1]))
         from .scene import parse_time_utc
-        from .solar import sun_position
         t = parse_time_utc(time_utc) if time_utc is not None else s.time_utc
-        key = (t, s.sun_model)
-        hit = self._sun_cache.get(key)
-        if hit is None:
-            p = sun_position(t, s.site.latitude_deg, s.site.longitude_deg, s.site.altitude_m, model=s.sun_model)
-            hit = SunDirection(float(p.azimuth_deg), float(p.altitude_deg),
-                               None if p.apparent_altitude_deg is None else float(p.apparent_altitude_deg))
-            if len(self._sun_cache) > 4096:
-                self._sun_cache.clear()
-            self._sun_cache[key] = hit
-        return hit
+        if self._sun_cache is None:
+            # one batched ephemeris call per 10 minutes of scene time, interpolated (< 2e-6 deg)
+            from .solar import SunCache
+            self._sun_cache = SunCache(s.site.latitude_deg, s.site.longitude_deg, s.site.altitude_m, model=s.sun_model)
+        p = self._sun_cache(t)
+        return SunDirection(float(p.azimuth_deg), float(p.altitude_deg),
+                            None if p.apparent_altitude_deg is None else float(p.apparent_altitude_deg))
 
     def render(self, attitude: CameraAttitude | None = None, sun: SunDirection | None = None,
                time_utc=None, seed: int | None = None) -> Frame:
