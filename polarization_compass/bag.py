@@ -248,11 +248,11 @@ def _finite_in(v, lo, hi, what) -> float:
 #: for users to copy and edit (a test keeps the two identical).
 BUILTIN_TOPIC_MAP = {
     "topics": {
-        "image": {"topic": "/polarization_camera/image_raw", "type": "sensor_msgs/msg/Image"},
-        "camera_info": {"topic": "/polarization_camera/camera_info", "type": "sensor_msgs/msg/CameraInfo"},
+        "image": {"topic": "/camera/image_raw", "type": "sensor_msgs/msg/Image"},
+        "camera_info": {"topic": "/camera/camera_info", "type": "sensor_msgs/msg/CameraInfo"},
         "imu": {"topic": "/imu/data", "type": "sensor_msgs/msg/Imu"},
-        "reference": {"topic": "/gnss/heading", "type": "sensor_msgs/msg/Imu"},
-        "navsatfix": {"topic": "/gnss/fix", "type": "sensor_msgs/msg/NavSatFix"},
+        "reference": {"topic": "/ground_truth/heading", "type": "sensor_msgs/msg/Imu"},
+        "navsatfix": {"topic": "/gps/fix", "type": "sensor_msgs/msg/NavSatFix"},
     },
     "mosaic": {},
     "pixel_pitch_um": 3.45,

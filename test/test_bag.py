@@ -237,12 +237,12 @@ def test_writer_reader_round_trip_in_log_time_order(tmp_path, storage):
         w.write("imu", B.encode_imu([0, 0, 0, 1], 5, "imu"), 5)
     with B.BagReader(path) as r:
         topics = r.topics()
-        assert topics["/gnss/fix"] == ("sensor_msgs/msg/NavSatFix", 3)
+        assert topics["/gps/fix"] == ("sensor_msgs/msg/NavSatFix", 3)
         assert topics["/imu/data"] == ("sensor_msgs/msg/Imu", 1)
-        assert topics["/polarization_camera/image_raw"] == ("sensor_msgs/msg/Image", 0)
+        assert topics["/camera/image_raw"] == ("sensor_msgs/msg/Image", 0)
         got = [(t, lt, B.decode_navsatfix(B.deserialize(raw, mt))[0])
-               for t, mt, lt, raw in r.messages(["/gnss/fix"])]
-    assert got == [("/gnss/fix", 0, 1.0), ("/gnss/fix", 10**9, 2.0), ("/gnss/fix", 2 * 10**9, 3.0)]
+               for t, mt, lt, raw in r.messages(["/gps/fix"])]
+    assert got == [("/gps/fix", 0, 1.0), ("/gps/fix", 10**9, 2.0), ("/gps/fix", 2 * 10**9, 3.0)]
     assert (path / "metadata.yaml").is_file()
     assert any(p.suffix == (".mcap" if storage == "mcap" else ".db3") for p in path.iterdir())
 
@@ -273,7 +273,7 @@ def test_not_a_bag_is_one_line_bag_error(tmp_path, make):
         f.write_bytes(f.read_bytes()[: f.stat().st_size // 2])
     with pytest.raises(B.BagError) as ei:
         with B.BagReader(p) as r:
-            list(r.messages(["/gnss/fix"]))
+            list(r.messages(["/gps/fix"]))
     assert "\n" not in str(ei.value)
 
 
