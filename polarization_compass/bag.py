@@ -68,7 +68,8 @@ ROLE_TYPES = {
     "navsatfix": ("sensor_msgs/msg/NavSatFix",),
 }
 
-_ENCODINGS = {"mono8": np.uint8, "8UC1": np.uint8, "mono16": np.uint16, "16UC1": np.uint16}
+_ENCODINGS = {"mono8": np.uint8, "8UC1": np.uint8, "mono16": np.uint16, "16UC1": np.uint16,
+              "32FC1": np.float32}
 
 
 class BagError(CompassError):
@@ -320,10 +321,13 @@ def ns_from_utc(t: _dt.datetime) -> int:
 # Decoding (message -> numpy). Duck-typed: works on rosbags classes and on rclpy messages alike.
 # --------------------------------------------------------------------------------------------
 def decode_mosaic(msg) -> np.ndarray:
-    """The raw mosaic of a sensor_msgs/Image as a (height, width) uint8/uint16 array (native byte order).
+    """The raw mosaic of a sensor_msgs/Image as a (height, width) array in native byte order:
+    uint8 (``mono8``/``8UC1``), uint16 (``mono16``/``16UC1``: drivers put 10/12-bit samples in these) or
+    float32 (``32FC1``: the simulator's ideal polarizer intensities, finite and >= 0).
 
     Raises :class:`MessageError` for an unsupported encoding (``bad_encoding``), inconsistent sizes
-    (``bad_size``: step < width * bytes per pixel, data length != step * height, odd dimensions).
+    (``bad_size``: step < width * bytes per pixel, data length != step * height, odd dimensions), and
+    for ``32FC1`` NaN/inf (``non_finite``) or negative intensities (``bad_value``).
     """
     enc = str(msg.encoding)
     if enc not in _ENCODINGS:
@@ -341,7 +345,13 @@ def decode_mosaic(msg) -> np.ndarray:
         raise MessageError("bad_size", f"data has {buf.size} bytes, step x height = {step * h}")
     rows = buf.reshape(h, step)[:, : w * dtype.itemsize]
     img = rows.view(dtype.newbyteorder(">" if msg.is_bigendian else "<")) if dtype.itemsize > 1 else rows
-    return np.ascontiguousarray(img, dtype=dtype)   # a view when already native and unpadded
+    img = np.ascontiguousarray(img, dtype=dtype)    # a view when already native and unpadded
+    if dtype.kind == "f":
+        if not np.isfinite(img).all():
+            raise MessageError("non_finite", f"{enc} mosaic has NaN or inf pixels")
+        if (img < 0).any():
+            raise MessageError("bad_value", f"{enc} mosaic has negative intensities")
+    return img
 
 
 def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:

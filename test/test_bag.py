@@ -79,6 +79,17 @@ def test_mono16_big_endian_and_padded_rows_from_hand_built_bytes():
     assert B.decode_mosaic(_Img(2, 4, "16UC1", 8, bytearray(little))).tolist() == vals
 
 
+def test_float_mosaic_of_the_simulator_and_its_failures():
+    vals = [[0.0, 1.5, 2.25, 1e-3], [3.0, 0.5, 7.0, 8.0]]
+    img = B.decode_mosaic(_Img(2, 4, "32FC1", 16, b"".join(struct.pack(">4f", *r) for r in vals), big=1))
+    assert img.dtype == np.float32 and img.tolist() == np.float32(vals).tolist()
+    for bad, reason in ((float("nan"), "non_finite"), (-1.0, "bad_value")):
+        raw = struct.pack("<4f", 0, 1, 2, bad) * 2
+        with pytest.raises(B.MessageError) as ei:
+            B.decode_mosaic(_Img(2, 4, "32FC1", 16, raw))
+        assert ei.value.reason == reason
+
+
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
 def test_mosaic_cdr_round_trip(dtype):
     rng = np.random.default_rng(1)
