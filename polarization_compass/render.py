@@ -94,6 +94,7 @@ class Renderer:
         self.selection = pixels if pixels is not None else scene.pixels
         self.pixels = select_pixels(scene.camera, self.selection)
         self.sky = make_sky_model(scene.sky)
+        self._all_have_rays = bool(self.pixels.has_ray.all())
         self.radiance = None
         if scene.radiance:
             from .radiance import make_radiance_model
@@ -140,8 +141,11 @@ class Renderer:
         shape = self.pixels.shape
         with instr.stage("sky." + self.sky.name):
             aop, dop, valid = self.sky.polarization(sun_cam, zenith_cam, self.pixels.rays_cam, self._limits)
-        if not self.pixels.has_ray.all():
-            valid &= self.pixels.has_ray.reshape(-1)
+        if not self._all_have_rays:          # fisheye pixels beyond the lens' field: no sky, 0/0
+            no_ray = ~self.pixels.has_ray.reshape(-1)
+            valid[no_ray] = False
+            aop[no_ray] = 0.0
+            dop[no_ray] = 0.0
         intensity = None
         if self.radiance is not None:
             with instr.stage("radiance." + self.radiance.name):

@@ -278,8 +278,6 @@ def test_rendered_aop_across_the_fold_is_axially_continuous():
 # --------------------------------------------------------------------------------------------
 # Fisheye pixels outside the lens' field
 # --------------------------------------------------------------------------------------------
-@pytest.mark.xfail(strict=True, reason="bug: render.py marks fisheye pixels beyond max_field_angle_deg invalid "
-                                      "but leaves their AoP/DoP non-zero (Frame promises 0/0) (reported)")
 def test_pixels_outside_the_fisheye_field_hold_zero():
     cam = CameraModel("fisheye_equidistant", 1, 5, 0.0126, 3.45, 3.45, max_field_angle_deg=30.0)
     f = render(camera=cam, sun=(0.0, 0.0))
