@@ -1,0 +1,28 @@
+"""Benchmark suite for polarization_compass: what accuracy costs in time (issue 7).
+
+Run with ``make bench`` (full) or ``make bench-quick`` (``python -m bench.run --quick``). Each group
+of measurements lives in its own module and writes ``bench/results/<group>.json``; ``bench.report``
+turns them into ``summary.md`` and the Pareto plot. Not part of ``make test`` (only a smoke test is).
+
+Importing this package pins BLAS/OpenMP to one thread when numpy has not been imported yet, so
+that per-estimate timings are single-core; numba's thread count is set per measurement.
+"""
+import os
+import sys
+
+if "numpy" not in sys.modules:
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[_var] = "1"
+
+__all__ = ["GROUPS"]
+
+#: Benchmark groups in run order: name -> module (``bench.<module>``) with ``run(cfg) -> dict``.
+GROUPS = {
+    "crb": "crb",
+    "accuracy": "accuracy",
+    "simulator": "simulator",
+    "solar": "solar_bench",
+    "errormap": "errormap_bench",
+    "pipeline": "pipeline",
+    "peers": "peers",
+}

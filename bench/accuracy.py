@@ -1,0 +1,378 @@
+"""Accuracy against time: every method and accuracy knob over seeded random scenes per condition.
+
+For each (condition, method, knob set) this measures the heading error over ``cfg.scenes`` seeded
+random scenes (RMS, 95th percentile and max of |error|; axial methods' errors folded to (-90, 90]),
+the time per estimate (median and 95th percentile, one core), the peak memory of one estimate and,
+for the noisy conditions, the Cramer-Rao bound of the heading for the raw pixels that knob set reads
+(:mod:`bench.crb`: the sampled pixels, each worth one superpixel after a superpixel demosaic and up to
+9/4 superpixels -- its 3 x 3 raw neighbourhood -- after a full-resolution one), so each point can be
+compared with the physical limit.
+
+Conditions
+----------
+``ideal_level``        Rayleigh sky (DoP_max 1), ideal sensor, level camera: the model error floor.
+``noise_imx250``       Rayleigh, DoP_max 0.7, IMX250MZR-like sensor: mosaic, shot noise (~5000 e- per pixel),
+                       read noise 2.3 e-, 12 bit, extinction ratio 100; both demosaics (superpixel and
+                       full-resolution). Level camera.
+``tilted``             Rayleigh, ideal sensor, camera tilted (|pitch| + |roll| <= 20 deg), no correction.
+``tilted_corrected``   the same scenes, headings corrected with an error map (when the correction exists).
+``tilted_tilt_aware``  the same scenes, ``tilt_aware`` given the true pitch and roll.
+``bdl_sky``            Berry-Dennis-Lee neutral-point sky (separation 18 deg, DoP_max 0.75), ideal sensor, level.
+``half_occluded``      ideal Rayleigh, level, half of the image masked by a half-plane through the centre at a
+                       random angle (asymmetric about the solar meridian).
+``eight_bit``          as ``noise_imx250`` but quantised to 8 bit.
+
+Scenes: sun azimuth uniform in [0, 360), sun altitude uniform in [10, 60] deg, camera bearing uniform
+in [0, 360); seeds are a function of (condition, scene index), so every method sees the same scenes.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
+from polarization_compass.render import Renderer, SunDirection
+from polarization_compass.scene import Scene
+
+from . import crb as crb_mod
+from .common import Unavailable, error_stats, optional_import, peak_memory, single_core, timing_stats
+
+from .simulator import ALL_EFFECTS as ALL_SENSOR_EFFECTS, NOISE_ELECTRONS  # noqa: E402
+NOISE_DOP_MAX = 0.7
+TILT_LIMIT_DEG = 20.0
+
+
+@dataclass
+class Condition:
+    name: str
+    description: str
+    sky: dict = field(default_factory=lambda: {"model": "rayleigh", "dop_max": 1.0})
+    sensor_bits: int | None = None          # None: ideal sensor; else all effects with this quantisation
+    tilted: bool = False
+    give_tilt: bool = False                 # pass the true pitch/roll in the observation
+    correct: bool = False                   # correct with an error map
+    occlude: bool = False
+    only_methods: tuple = ()                # empty: every method
+
+
+CONDITIONS = {c.name: c for c in (
+    Condition("ideal_level", "Rayleigh (DoP_max 1), ideal sensor, level camera"),
+    Condition("noise_imx250", "Rayleigh (DoP_max 0.7), IMX250MZR-like sensor (5000 e-, 2.3 e- read noise, 12 bit, "
+                              "ER 100), level", sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, sensor_bits=12),
+    Condition("tilted", f"Rayleigh, ideal sensor, tilted |pitch|+|roll| <= {TILT_LIMIT_DEG:g} deg, uncorrected",
+              tilted=True),
+    Condition("tilted_corrected", "as 'tilted', headings corrected with an error map", tilted=True, correct=True),
+    Condition("tilted_tilt_aware", "as 'tilted', tilt_aware given the true pitch and roll", tilted=True,
+              give_tilt=True, only_methods=("tilt_aware",)),
+    Condition("bdl_sky", "Berry-Dennis-Lee sky (separation 18 deg, DoP_max 0.75), ideal sensor, level",
+              sky={"model": "berry_dennis_lee", "separation_deg": 18.0, "dop_max": 0.75}),
+    Condition("half_occluded", "ideal Rayleigh, level, half the image masked (half-plane at a random angle)",
+              occlude=True),
+    Condition("eight_bit", "as noise_imx250 but 8-bit quantisation",
+              sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, sensor_bits=8),
+)}
+
+
+# ------------------------------------------------------------------------------------------------
+# Knob sets: (label, estimator knobs, demosaic for sensor conditions)
+# ------------------------------------------------------------------------------------------------
+def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, str | None]]:
+    """The accuracy knobs swept for a method. ``level``: quick | full | tiny."""
+    strides = {"tiny": (4,), "quick": (4, 16), "full": (2, 4, 8, 16)}[level]
+    out: list[tuple[str, dict, str | None]] = []
+    demosaics = [None] if not sensor else (["superpixel"] if level == "tiny" else ["superpixel", "bilinear"])
+    for dm in demosaics:
+        tag = "" if dm is None else (", superpixel demosaic" if dm == "superpixel" else ", full-res demosaic")
+        if method == "zenith":
+            windows = {"tiny": (9,), "quick": (5, 33), "full": (1, 5, 17, 33, 65, 129)}[level]
+            out += [(f"window {w} px{tag}", {"window_px": w}, dm) for w in windows]
+            continue
+        if level == "full":             # the method's defaults (often every pixel: slow, so full mode only)
+            out.append((f"default{tag}", {}, dm))
+        out += [(f"stride {s}{tag}", {"stride": s}, dm) for s in strides if not (s == 2 and dm == "superpixel")]
+        if method in ("least_squares", "tilt_aware") and level != "tiny":
+            regions = {"quick": (512,), "full": (256, 512, 1024)}[level]
+            out += [(f"region {r}x{r} centre, stride 4{tag}", {"region": _centre_region(r), "stride": 4}, dm)
+                    for r in regions]
+    return out
+
+
+def _centre_region(size_px: int, camera: CameraModel | None = None):
+    cam = camera or CameraModel()
+    w = min(size_px, cam.width_px)
+    h = min(size_px, cam.height_px)
+    return ((cam.width_px - w) // 2 + 1, (cam.height_px - h) // 2 + 1, w, h)
+
+
+def crb_selection(knobs: dict, demosaic: str | None, camera: CameraModel, default_stride: int = 1):
+    """The samples a knob set reads, as a PixelSelection, for the Cramer-Rao bound.
+
+    ``stride`` is in sensor pixels (estimators' convention); on a superpixel image (grid spacing 2 px)
+    it becomes ``max(1, round(stride / 2))`` superpixels, i.e. a sample spacing of 2, 4, ... px.
+    """
+    stride = max(1, int(knobs.get("stride", default_stride) or 1))
+    if demosaic == "superpixel":
+        stride = 2 * max(1, int(round(stride / 2)))
+    if "window_px" in knobs:
+        w = int(knobs["window_px"])
+        x0, y0, ww, hh = _centre_region(w, camera)
+        return PixelSelection.rect(x0, y0, ww, hh, stride=stride)
+    if knobs.get("region") is not None:
+        x0, y0, w, h = knobs["region"]
+        return PixelSelection.rect(x0, y0, w, h, stride=stride)
+    return PixelSelection.strided(stride)
+
+
+# ------------------------------------------------------------------------------------------------
+# Scenes
+# ------------------------------------------------------------------------------------------------
+def _seed(*parts) -> int:
+    h = hashlib.blake2b(":".join(map(str, parts)).encode(), digest_size=8).digest()
+    return int.from_bytes(h, "little") & 0x7FFFFFFF
+
+
+def sample_scene(condition: Condition, index: int) -> dict:
+    """Seeded random sun, attitude, noise seed and occluder angle for one scene."""
+    base = condition.name.replace("_corrected", "").replace("_tilt_aware", "")
+    rng = np.random.default_rng(_seed("scene", base, index))
+    sun = SunDirection(float(rng.uniform(0, 360)), float(rng.uniform(10, 60)))
+    bearing = float(rng.uniform(0, 360))
+    pitch = roll = 0.0
+    if condition.tilted:
+        pitch = float(rng.uniform(-TILT_LIMIT_DEG, TILT_LIMIT_DEG))
+        lim = TILT_LIMIT_DEG - abs(pitch)
+        roll = float(rng.uniform(-lim, lim))
+    return {"sun": sun, "attitude": CameraAttitude(bearing, pitch, roll), "noise_seed": _seed("noise", base, index),
+            "occluder_angle_rad": float(rng.uniform(0, 2 * math.pi))}
+
+
+def occlusion_mask(x_px, y_px, camera: CameraModel, angle_rad: float) -> np.ndarray:
+    """True for pixels kept: one side of a line through the image centre at ``angle_rad``."""
+    u = np.asarray(x_px, dtype=float) - camera.cx_px
+    v = np.asarray(y_px, dtype=float) - camera.cy_px
+    return (u * math.cos(angle_rad) + v * math.sin(angle_rad)) >= 0.0
+
+
+def heading_error_deg(result, true_psi_deg: float) -> float | None:
+    """Estimated minus true psi: folded mod 180 for axial results, wrapped mod 360 otherwise."""
+    if result is None or not result.ok or result.psi_deg is None:
+        return None
+    d = result.psi_deg - true_psi_deg
+    return float(fold_axial_deg(d)) if result.axial else float(wrap_180_deg(d))
+
+
+# ------------------------------------------------------------------------------------------------
+# Demosaic timing (shared with bench.peers)
+# ------------------------------------------------------------------------------------------------
+def time_demosaic_only(camera: CameraModel, repeats: int) -> dict:
+    """Raw mosaic -> AoP/DoP/valid (``demosaic.polarization_from_mosaic``), superpixel and full
+    resolution, single core."""
+    dm = optional_import("polarization_compass.demosaic")
+    from . import simulator
+    from .common import time_calls
+    scene = Scene(camera=camera, sensor=simulator.sensor_config(ALL_SENSOR_EFFECTS, "superpixel"))
+    frame = Renderer(scene).render(attitude=CameraAttitude(40, 0, 0), sun=SunDirection(135, 35), seed=1)
+    if frame.mosaic is None:
+        raise Unavailable("render produced no mosaic")
+    out = {}
+    for key, method in (("demosaic_superpixel_aop_dop", "superpixel"), ("demosaic_full_resolution_aop_dop", "bilinear")):
+        with single_core():
+            out[key] = timing_stats(time_calls(lambda m=method: dm.polarization_from_mosaic(frame.mosaic, method=m),
+                                               repeats))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# The sweep
+# ------------------------------------------------------------------------------------------------
+class _Cell:
+    """Accumulates one (condition, method, knob set)."""
+
+    def __init__(self, condition, method, label, knobs, demosaic):
+        self.condition, self.method, self.label, self.knobs, self.demosaic = condition, method, label, knobs, demosaic
+        self.errors: list[float] = []
+        self.failures = 0
+        self.statuses: dict = {}
+        self.times: list[float] = []
+        self.pixels: list[int] = []
+        self.sigmas: list[float] = []
+        self.crbs: list[float] = []
+        self.memory = None
+        self.status = "ok"
+        self.estimator = None
+        self.warm = False
+
+    def to_json(self) -> dict:
+        e = error_stats(self.errors, self.failures)
+        t = timing_stats(self.times)
+        crb = (float(np.sqrt(np.mean(np.square(self.crbs)))) if self.crbs else None)
+        return {"condition": self.condition, "method": self.method, "knobs_label": self.label,
+                "knobs": {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.knobs.items()},
+                "demosaic": self.demosaic, "status": self.status,
+                "error": e, "time": t, "memory": self.memory,
+                "pixels_used_median": int(np.median(self.pixels)) if self.pixels else None,
+                "sigma_reported_rms_deg": float(np.sqrt(np.mean(np.square(self.sigmas)))) if self.sigmas else None,
+                "crb_rms_deg": crb,
+                "rms_over_crb": (e["rms_deg"] / crb) if (crb and e["rms_deg"] is not None) else None,
+                "statuses": self.statuses}
+
+
+def _methods(cfg):
+    est = optional_import("polarization_compass.estimators")
+    names = list(est.estimator_names())
+    if not names:
+        raise Unavailable("no estimators registered yet")
+    if cfg.methods:
+        names = [n for n in names if n in cfg.methods]
+    return est, names
+
+
+def _corrector():
+    """An error-map corrector, if the project has one: ``correct(result, obs) -> result``."""
+    try:
+        mod = optional_import("polarization_compass.correction")
+    except Unavailable:
+        return None
+    return getattr(mod, "bench_corrector", None)
+
+
+def run(cfg) -> dict:
+    est_mod, methods = _methods(cfg)
+    from polarization_compass.estimators.base import Observation
+    level = "tiny" if cfg.tiny else cfg.knob_sets
+    camera = CameraModel(width_px=192, height_px=160) if cfg.tiny else CameraModel()
+    conds = [CONDITIONS[c] for c in (cfg.conditions or CONDITIONS)]
+    cells: list[_Cell] = []
+    skipped = []
+    t_start = time.perf_counter()
+    for cond in conds:
+        sensor = cond.sensor_bits is not None
+        cond_methods = [m for m in methods if not cond.only_methods or m in cond.only_methods]
+        corrector = _corrector() if cond.correct else None
+        if cond.correct and corrector is None:
+            skipped.append({"condition": cond.name, "reason": "no error-map correction available "
+                                                              "(polarization_compass.correction.bench_corrector)"})
+            continue
+        try:
+            base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0)
+            if sensor:
+                from . import simulator
+                base_scene = base_scene.replace(sensor=simulator.sensor_config(ALL_SENSOR_EFFECTS, "superpixel",
+                                                                               bits=cond.sensor_bits))
+                Renderer(base_scene)      # fails early if the sensor code is not there yet
+        except Exception as exc:  # noqa: BLE001
+            skipped.append({"condition": cond.name, "reason": f"{type(exc).__name__}: {exc}"})
+            continue
+        cond_cells = []
+        for m in cond_methods:
+            for label, knobs, dm in knob_sets(m, level, sensor):
+                if "region" in knobs:
+                    knobs = dict(knobs, region=_centre_region(knobs["region"][2], camera))
+                c = _Cell(cond.name, m, label, knobs, dm)
+                try:
+                    c.estimator = est_mod.make_estimator(m, **knobs)
+                except Exception as exc:  # noqa: BLE001 - a knob this method does not have
+                    c.status = f"unsupported knobs: {type(exc).__name__}: {exc}"
+                cond_cells.append(c)
+                cells.append(c)
+        renderers: dict = {}
+        for k in range(int(cfg.scenes)):
+            s = sample_scene(cond, k)
+            frames: dict = {}
+            for c in cond_cells:
+                if c.estimator is None:
+                    continue
+                try:
+                    if sensor:
+                        key = ("full", c.demosaic)
+                        if key not in renderers:
+                            sc = base_scene.replace(sensor=dict(base_scene.sensor, demosaic=c.demosaic))
+                            renderers[key] = Renderer(sc, pixels=PixelSelection.full())
+                    else:
+                        key = c.estimator.pixels_needed(camera)
+                        if key not in renderers:
+                            renderers[key] = Renderer(base_scene, pixels=key)
+                    if key not in frames:
+                        frames[key] = renderers[key].render(attitude=s["attitude"], sun=s["sun"],
+                                                            seed=s["noise_seed"])
+                    frame = frames[key]
+                    _run_cell(c, frame, s, cond, camera, Observation, cfg, corrector)
+                except Exception as exc:  # noqa: BLE001 - one broken method must not stop the suite
+                    c.status = f"failed: {type(exc).__name__}: {exc}"
+                    c.estimator = None
+                    c.traceback = traceback.format_exc(limit=3)
+    return {"conditions": {c.name: c.description for c in conds}, "skipped_conditions": skipped,
+            "scenes_per_condition": int(cfg.scenes), "repeats_per_scene": int(cfg.repeats),
+            "camera": {"model": camera.model, "width_px": camera.width_px, "height_px": camera.height_px},
+            "noise_model": {"electrons_per_pixel": NOISE_ELECTRONS, "dop_max": NOISE_DOP_MAX},
+            "scene_sampling": {"sun_azimuth_deg": [0, 360], "sun_altitude_deg": [10, 60], "bearing_deg": [0, 360],
+                               "tilt": f"|pitch|+|roll| <= {TILT_LIMIT_DEG:g} deg (tilted conditions)"},
+            "cells": [c.to_json() for c in cells], "elapsed_s": time.perf_counter() - t_start}
+
+
+def _observation(frame, s, cond, camera, Observation):
+    obs = Observation.from_frame(frame, camera=camera)
+    if cond.give_tilt:
+        obs.pitch_deg = s["attitude"].pitch_deg
+        obs.roll_deg = s["attitude"].roll_deg
+    if cond.occlude:
+        keep = occlusion_mask(frame.x_px, frame.y_px, camera, s["occluder_angle_rad"])
+        obs.valid = np.asarray(frame.valid) & keep
+    return obs
+
+
+def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg, corrector):
+    obs = _observation(frame, s, cond, camera, Observation)
+    est = c.estimator
+
+    def once():
+        r = est.estimate(obs)
+        if corrector is not None:
+            r = corrector(r, obs)
+        return r
+
+    with single_core():
+        if not c.warm:
+            once()                               # compile / caches: not timed
+            c.warm = True
+            c.memory = peak_memory(once)
+        res = None
+        for _ in range(max(1, int(cfg.repeats))):
+            t0 = time.perf_counter()
+            res = once()
+            c.times.append(time.perf_counter() - t0)
+    true_psi = frame.psi_deg
+    err = heading_error_deg(res, true_psi)
+    st = getattr(res.status, "value", str(res.status))
+    c.statuses[st] = c.statuses.get(st, 0) + 1
+    if err is None:
+        c.failures += 1
+    else:
+        c.errors.append(err)
+        c.pixels.append(int(res.pixels))
+        if res.sigma_deg is not None:
+            c.sigmas.append(float(res.sigma_deg))
+    if cond.sensor_bits is not None:
+        sel = crb_selection(c.knobs, c.demosaic, camera)
+        min_dop = float((getattr(c.estimator, "knobs", None) or c.knobs).get("min_dop", 0.0) or 0.0)
+        extra = None
+        if min_dop > 0:
+            from .crb import aop_and_derivative
+            from polarization_compass.camera import select_pixels
+            px = select_pixels(camera, sel)
+            _, dop, *_ = aop_and_derivative(px.rays_cam, s["attitude"].bearing_deg, s["attitude"].pitch_deg,
+                                            s["attitude"].roll_deg, s["sun"].azimuth_deg, s["sun"].altitude_deg,
+                                            NOISE_DOP_MAX)
+            extra = dop * (99.0 / 101.0) >= min_dop      # the sensor measures d * DoP (ER 100)
+        b = crb_mod.crb_for_selection(camera, sel, s["attitude"].bearing_deg, s["attitude"].pitch_deg,
+                                      s["attitude"].roll_deg, s["sun"].azimuth_deg, s["sun"].altitude_deg,
+                                      NOISE_ELECTRONS, NOISE_DOP_MAX, extinction_ratio=100.0, extra_mask=extra,
+                                      sample_weight=crb_mod.raw_pixel_weight(sel.stride, c.demosaic))
+        if b["crb_deg"] is not None:
+            c.crbs.append(b["crb_deg"])

@@ -1,0 +1,286 @@
+"""Shared machinery of the benchmarks: machine description, single-core timing, memory, error
+statistics, JSON output and the quick/full configuration.
+
+Timings are wall-clock (``time.perf_counter``) of one call each, reported as median and 95th
+percentile in milliseconds. "Single core" means numba's thread pool set to 1 thread and BLAS/OpenMP
+pinned to 1 thread (see ``bench/__init__``). Peak memory is measured in a separate call from the
+timed ones (tracemalloc slows allocation): ``tracemalloc`` peak (numpy buffers report to it) and
+the growth of the process' resident high-water mark (``ru_maxrss``), which also sees numba/OpenCV
+allocations but only grows when a new process-wide peak is reached.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import resource
+import subprocess
+import time
+import tracemalloc
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["BenchConfig", "machine_info", "load_average", "single_core", "time_calls", "timing_stats",
+           "peak_memory", "error_stats", "write_json", "read_json", "finite_or_none", "RESULTS_DIR",
+           "Unavailable", "optional_import"]
+
+RESULTS_DIR = Path(__file__).resolve().parent / "results"
+REPO_DIR = Path(__file__).resolve().parent.parent
+
+
+@dataclass
+class BenchConfig:
+    """How much to measure. ``quick`` is for checking the suite (< 2 min in all); ``full`` for numbers."""
+
+    mode: str = "quick"
+    scenes: int = 3                 # seeded random scenes per condition
+    repeats: int = 2                # timed calls per scene (after one untimed warm-up per configuration)
+    render_repeats: int = 3         # timed renders per simulator configuration
+    solar_batch: int = 10000        # timestamps per batch call
+    solar_calls: int = 30           # single-timestamp calls
+    errormap_cells: int = 120       # cells in the error-map throughput sweep (approximate)
+    pipeline_frames: int = 10
+    crb_sun_altitudes_deg: tuple = (10.0, 20.0, 30.0, 50.0, 80.0)
+    conditions: tuple = ()          # empty: all
+    methods: tuple = ()             # empty: all registered
+    knob_sets: str = "quick"        # "quick" | "full"
+    out_dir: Path = field(default_factory=lambda: RESULTS_DIR)
+    peers_python: str | None = None  # an interpreter where the peers are installed (subprocess)
+    tiny: bool = False               # smoke-test size: small camera, 1-2 scenes
+
+    @staticmethod
+    def quick(**kw) -> "BenchConfig":
+        return BenchConfig(**kw)
+
+    @staticmethod
+    def full(**kw) -> "BenchConfig":
+        base = dict(mode="full", scenes=24, repeats=3, render_repeats=20, solar_batch=100000, solar_calls=200,
+                    errormap_cells=2000, pipeline_frames=50,
+                    crb_sun_altitudes_deg=(5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0), knob_sets="full")
+        base.update(kw)
+        return BenchConfig(**base)
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["out_dir"] = str(self.out_dir)
+        return d
+
+
+# ------------------------------------------------------------------------------------------------
+# Machine and load
+# ------------------------------------------------------------------------------------------------
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _ram_gib() -> float | None:
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal:"):
+                return round(int(line.split()[1]) / 2 ** 20, 2)
+    except OSError:
+        pass
+    return None
+
+
+def _version(mod: str) -> str | None:
+    try:
+        m = __import__(mod)
+    except Exception:  # noqa: BLE001 - any import failure means "not available"
+        return None
+    return str(getattr(m, "__version__", "unknown"))
+
+
+def _git(*args) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=REPO_DIR, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def machine_info() -> dict:
+    """CPU, cores, RAM, library versions, date and git commit of this run."""
+    import numba
+    status = _git("status", "--porcelain", "--untracked-files=no")
+    return {
+        "cpu_model": _cpu_model(),
+        "logical_cores": os.cpu_count(),
+        "usable_cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "ram_gib": _ram_gib(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "opencv": _version("cv2"),
+        "scipy": _version("scipy"),
+        "pvlib": _version("pvlib"),
+        "date_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "git_commit": _git("rev-parse", "HEAD"),
+        "git_dirty": bool(status) if status is not None else None,
+        "numba_default_threads": int(numba.config.NUMBA_NUM_THREADS),
+        "env_threads": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                                       "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")},
+    }
+
+
+def load_average() -> list[float]:
+    """1, 5 and 15 minute load averages (other work on the machine inflates timings)."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return []
+
+
+# ------------------------------------------------------------------------------------------------
+# Timing and memory
+# ------------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def single_core():
+    """numba's parallel kernels on one thread for the duration (BLAS is pinned at import)."""
+    import numba
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
+
+
+@contextlib.contextmanager
+def numba_threads(n: int | None):
+    """numba's thread count for the duration; ``None`` leaves it (all cores)."""
+    import numba
+    previous = numba.get_num_threads()
+    if n is not None:
+        numba.set_num_threads(max(1, min(int(n), int(numba.config.NUMBA_NUM_THREADS))))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
+
+
+def time_calls(fn, repeats: int, warmup: int = 1) -> list[float]:
+    """Seconds per call of ``fn()``, ``repeats`` timed calls after ``warmup`` untimed ones."""
+    for _ in range(warmup):
+        fn()
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def timing_stats(seconds) -> dict:
+    """Median, 95th percentile, min and count of a list of durations, in milliseconds."""
+    s = np.asarray(list(seconds), dtype=float) * 1e3
+    if s.size == 0:
+        return {"n": 0, "median_ms": None, "p95_ms": None, "min_ms": None}
+    return {"n": int(s.size), "median_ms": float(np.median(s)), "p95_ms": float(np.percentile(s, 95)),
+            "min_ms": float(s.min())}
+
+
+def _maxrss_bytes() -> int:
+    # Linux reports ru_maxrss in KiB
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def peak_memory(fn) -> dict:
+    """Peak memory of one call of ``fn()``: tracemalloc peak (numpy/Python allocations) and the
+    growth of the process' resident high-water mark (includes native allocations; 0 when the call
+    stayed below an earlier peak)."""
+    was_tracing = tracemalloc.is_tracing()
+    if not was_tracing:
+        tracemalloc.start()
+    tracemalloc.reset_peak()
+    base_cur, _ = tracemalloc.get_traced_memory()
+    rss0 = _maxrss_bytes()
+    fn()
+    cur, peak = tracemalloc.get_traced_memory()
+    rss1 = _maxrss_bytes()
+    if not was_tracing:
+        tracemalloc.stop()
+    return {"tracemalloc_peak_mib": round(max(0, peak - base_cur) / 2 ** 20, 3),
+            "maxrss_growth_mib": round((rss1 - rss0) / 2 ** 20, 3)}
+
+
+# ------------------------------------------------------------------------------------------------
+# Errors
+# ------------------------------------------------------------------------------------------------
+def error_stats(errors_deg, failures: int = 0) -> dict:
+    """RMS, 95th percentile of |error|, max |error| and mean of heading errors (degrees).
+
+    ``failures`` counts estimates that returned no heading; they are not in the statistics.
+    """
+    e = np.asarray(list(errors_deg), dtype=float)
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {"n": 0, "failures": int(failures), "rms_deg": None, "p95_deg": None, "max_deg": None,
+                "mean_deg": None}
+    a = np.abs(e)
+    return {"n": int(e.size), "failures": int(failures), "rms_deg": float(np.sqrt(np.mean(e * e))),
+            "p95_deg": float(np.percentile(a, 95)), "max_deg": float(a.max()), "mean_deg": float(e.mean())}
+
+
+# ------------------------------------------------------------------------------------------------
+# JSON
+# ------------------------------------------------------------------------------------------------
+def finite_or_none(obj):
+    """Recursively replace NaN/inf by None and numpy scalars/arrays by Python values (strict JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_none(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return finite_or_none(obj.tolist())
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        f = float(obj)
+        return f if math.isfinite(f) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_json(path: Path, obj: dict) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(finite_or_none(obj), indent=1, sort_keys=False, allow_nan=False) + "\n")
+    tmp.replace(path)
+    return path
+
+
+def read_json(path: Path) -> dict:
+    return json.loads(Path(path).read_text())
+
+
+# ------------------------------------------------------------------------------------------------
+# Optional pieces (parts of the project still being written, peers)
+# ------------------------------------------------------------------------------------------------
+class Unavailable(Exception):
+    """A piece this benchmark needs is not there (module not written yet or peer not installed)."""
+
+
+def optional_import(name: str):
+    """Import ``name`` or raise :class:`Unavailable` saying what is missing."""
+    import importlib
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        raise Unavailable(f"{exc.name} not available") from None

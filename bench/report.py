@@ -1,0 +1,365 @@
+"""Builds ``summary.md``, ``pareto.png`` and ``pareto_conditions.png`` from the group JSON files.
+
+Only reads ``<dir>/*.json``; a group that is missing, unavailable or failed is listed as such.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .common import read_json
+
+PRIMARY_CONDITIONS = ("noise_imx250", "ideal_level")
+METHOD_COLOURS = {"zenith": "#1f77b4", "sm_asm": "#ff7f0e", "symmetry": "#2ca02c", "least_squares": "#d62728",
+                  "tilt_aware": "#9467bd"}
+
+
+def _load(d: Path) -> dict:
+    out = {}
+    for p in sorted(Path(d).glob("*.json")):
+        try:
+            j = read_json(p)
+        except ValueError:
+            continue
+        if isinstance(j, dict) and "benchmark" in j:
+            out[j["benchmark"]] = j
+    return out
+
+
+def _f(x, digits=3, unit=""):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, (int,)) and not isinstance(x, bool):
+        return f"{x}{unit}"
+    ax = abs(x)
+    if ax != 0 and (ax < 10 ** -(digits) or ax >= 1e5):
+        return f"{x:.{max(1, digits - 1)}e}{unit}"
+    if ax >= 100:
+        return f"{x:.0f}{unit}"
+    if ax >= 10:
+        return f"{x:.1f}{unit}"
+    return f"{x:.{digits}g}{unit}" if ax < 1 else f"{x:.{digits - 1}f}{unit}"
+
+
+def _table(header, rows) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out
+
+
+def _ok_cells(acc):
+    if not acc or acc.get("status") != "ok" or not acc.get("results"):
+        return []
+    return [c for c in acc["results"]["cells"] if c["status"] == "ok" and c["error"]["n"]]
+
+
+# ------------------------------------------------------------------------------------------------
+def pareto_front(points):
+    """Points (time, error, ...) not dominated by a faster and at least as accurate point, by time."""
+    front, best = [], math.inf
+    for p in sorted(points, key=lambda q: (q[0], q[1])):
+        if p[1] < best:
+            front.append(p)
+            best = p[1]
+    return front
+
+
+def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    cells = [c for c in acc_cells if c["condition"] == condition and c["time"]["median_ms"]]
+    if not cells:
+        return None
+    floor = 1e-5
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), dpi=110)
+    methods = sorted({c["method"] for c in cells}, key=lambda m: list(METHOD_COLOURS).index(m)
+                     if m in METHOD_COLOURS else 99)
+    crb_drawn = False
+    for m in methods:
+        col = METHOD_COLOURS.get(m, "k")
+        mc = [c for c in cells if c["method"] == m]
+        for c in mc:
+            mk = "s" if c.get("demosaic") == "bilinear" else "o"
+            y = max(c["error"]["rms_deg"], floor)
+            ax1.scatter(c["time"]["median_ms"], y, color=col, marker=mk, s=36, zorder=3, edgecolor="k",
+                        linewidth=0.4)
+            if c.get("pixels_used_median"):
+                ax2.scatter(c["pixels_used_median"], y, color=col, marker=mk, s=36, zorder=3, edgecolor="k",
+                            linewidth=0.4)
+            if c.get("crb_rms_deg"):
+                ax1.plot([c["time"]["median_ms"]] * 2, [c["crb_rms_deg"], y], ":", color=col, lw=0.8)
+                ax1.scatter(c["time"]["median_ms"], c["crb_rms_deg"], color="0.35", marker="x", s=22, zorder=2,
+                            label=None if crb_drawn else "Cramer-Rao bound, same pixels")
+                crb_drawn = True
+        front = pareto_front([(c["time"]["median_ms"], max(c["error"]["rms_deg"], floor)) for c in mc])
+        ax1.plot([p[0] for p in front], [p[1] for p in front], "-", color=col, lw=1.4, label=m)
+    # CRB against pixel budget (paper's imager, level) from crb.json
+    if crb_json and crb_json.get("status") == "ok":
+        rows = crb_json["results"]["paper_imager_budgets"]
+        for alt, ls in ((30, "--"), (50, "-.")):
+            key = f"crb_deg_sun_{alt:g}"
+            pts = [(r["samples"], r[key]) for r in rows if r.get(key)]
+            if pts:
+                ax2.plot([p[0] for p in pts], [p[1] for p in pts], ls, color="0.3",
+                         label=f"Cramer-Rao bound, sun {alt} deg (5000 e-, DoP 0.7)")
+    for m in methods:
+        ax2.scatter([], [], color=METHOD_COLOURS.get(m, "k"), marker="o", label=m)
+    ax2.scatter([], [], color="w", edgecolor="k", marker="o", label="superpixel demosaic")
+    ax2.scatter([], [], color="w", edgecolor="k", marker="s", label="full-resolution demosaic")
+    for ax in (ax1, ax2):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_ylabel("RMS heading error (deg)")
+    ax1.set_xlabel("time per estimate, median, one core (ms)")
+    ax2.set_xlabel("pixels used per estimate")
+    ax1.set_title(f"Error against time ({condition}); lines: Pareto front per method", fontsize=10)
+    ax2.set_title("Error against pixel budget, with the Cramer-Rao bound", fontsize=10)
+    ax1.legend(fontsize=8, loc="best")
+    ax2.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(out_path)
+    plt.close(fig)
+    return out_path
+
+
+def plot_conditions(acc_cells, out_path: Path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    conds = list(dict.fromkeys(c["condition"] for c in acc_cells))
+    if not conds:
+        return None
+    n = len(conds)
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), dpi=100, squeeze=False)
+    for ax, cond in zip(axes.flat, conds):
+        cc = [c for c in acc_cells if c["condition"] == cond and c["time"]["median_ms"]]
+        for m in dict.fromkeys(c["method"] for c in cc):
+            mc = [c for c in cc if c["method"] == m]
+            col = METHOD_COLOURS.get(m, "k")
+            pts = [(c["time"]["median_ms"], max(c["error"]["rms_deg"], 1e-5)) for c in mc]
+            ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=col, s=14, label=m)
+            fr = pareto_front(pts)
+            ax.plot([p[0] for p in fr], [p[1] for p in fr], color=col, lw=1)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(cond, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_xlabel("ms per estimate", fontsize=8)
+        ax.set_ylabel("RMS error (deg)", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=6)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(out_path)
+    plt.close(fig)
+    return out_path
+
+
+# ------------------------------------------------------------------------------------------------
+def _header(groups) -> list[str]:
+    anyg = next(iter(groups.values()))
+    m = anyg["machine"]
+    modes = sorted({g["mode"] for g in groups.values()})
+    lines = ["# Benchmark results", ""]
+    if modes != ["full"]:
+        lines += [f"> **Mode: {', '.join(modes)}.** Quick mode checks that the suite runs (few scenes, few knobs, "
+                  "peers at half size) on a machine that may be shared; its numbers are indicative only. "
+                  "The README's numbers come from `make bench` (full mode) on an idle machine.", ""]
+    lines += [f"- Machine: {m['cpu_model']}, {m['usable_cores']} cores, {m['ram_gib']} GiB RAM; {m['platform']}",
+              f"- Python {m['python']}, numpy {m['numpy']}, numba {m['numba']}, OpenCV {m['opencv']}, "
+              f"scipy {m['scipy']}, pvlib {m['pvlib']}",
+              f"- Date {m['date_utc']}, git commit `{(m['git_commit'] or '?')[:10]}`"
+              f"{' (working tree modified)' if m.get('git_dirty') else ''}",
+              "- Timings: one core (numba 1 thread, BLAS 1 thread), wall clock, median and 95th percentile.",
+              "", "| group | mode | status | elapsed (s) | load avg at start -> end (1 min) |", "|---|---|---|---|---|"]
+    for name, g in groups.items():
+        la = g.get("load_average", {})
+        s, e = (la.get("start") or [None])[0], (la.get("end") or [None])[0]
+        lines.append(f"| {name} | {g['mode']} | {g['status'][:80]} | {_f(g.get('elapsed_s'))} | {s} -> {e} |")
+    return lines + [""]
+
+
+def _accuracy_section(acc, crb) -> list[str]:
+    lines = ["## What accuracy costs in time", ""]
+    cells = _ok_cells(acc)
+    if not cells:
+        st = acc["status"] if acc else "not run"
+        bad = [c for c in (acc or {}).get("results", {}).get("cells", []) if c["status"] != "ok"] if acc and \
+            acc.get("results") else []
+        return lines + [f"Accuracy benchmark: {st}." + (f" {len(bad)} configurations unavailable." if bad else ""), ""]
+    r = acc["results"]
+    lines += [f"{r['scenes_per_condition']} seeded random scenes per condition (sun azimuth 0-360 deg, altitude "
+              f"10-60 deg, any bearing), {r['repeats_per_scene']} timed estimates per scene, one core. Errors: "
+              "estimated minus true heading, folded mod 180 deg for methods that only find the solar meridian. "
+              "CRB: Cramer-Rao bound of the heading for the pixels the configuration reads (AoP noise "
+              "1/(P sqrt(8N)) per superpixel, N = 5000 e-); RMS/CRB = 1 is a perfect estimator.", ""]
+    header = ["method", "knobs", "pixels", "RMS (deg)", "p95 (deg)", "max (deg)", "ms median", "ms p95",
+              "peak MiB", "CRB (deg)", "RMS/CRB", "fails"]
+    for cond in list(dict.fromkeys(c["condition"] for c in cells)):
+        cc = [c for c in cells if c["condition"] == cond]
+        lines += [f"### {cond}: {r['conditions'].get(cond, '')}", ""]
+        rows = []
+        for c in cc:
+            mem = c.get("memory") or {}
+            rows.append([c["method"], c["knobs_label"], _f(c.get("pixels_used_median")), _f(c["error"]["rms_deg"]),
+                         _f(c["error"]["p95_deg"]), _f(c["error"]["max_deg"]), _f(c["time"]["median_ms"]),
+                         _f(c["time"]["p95_ms"]), _f(mem.get("tracemalloc_peak_mib")), _f(c.get("crb_rms_deg")),
+                         _f(c.get("rms_over_crb")), c["error"]["failures"]])
+        lines += _table(header, rows) + [""]
+    bad = [c for c in r["cells"] if c["status"] != "ok"]
+    if bad:
+        lines += ["Configurations not measured: " + "; ".join(
+            sorted({f"{c['method']} ({c['knobs_label']}): {c['status'][:90]}" for c in bad})[:12]), ""]
+    for s in r.get("skipped_conditions", []):
+        lines.append(f"- condition `{s['condition']}` skipped: {s['reason']}")
+    return lines + [""]
+
+
+def _crb_section(crb) -> list[str]:
+    lines = ["## Cramer-Rao bound", ""]
+    if not crb or crb.get("status") != "ok":
+        return lines + [f"{crb['status'] if crb else 'not run'}", ""]
+    r = crb["results"]
+    lines += ["Reference check (physics notes 4): the paper's sensor behind a 180 deg equidistant fisheye, "
+              "N = 5000 e-, DoP_max 0.7, level camera, superpixels.", ""]
+    lines += _table(["sun altitude (deg)", "CRB, AoP only (deg)", "CRB, AoP + DoP (deg)", "superpixels"],
+                    [[_f(x["sun_altitude_deg"]), _f(x["crb_deg"]), _f(x.get("crb_with_dop_deg")), x["superpixels"]]
+                     for x in r["reference_fisheye"]["rows"]])
+    ch = r["reference_fisheye"]["checks"]
+    lines.append("")
+    for k, v in ch.items():
+        lines.append(f"- {k}: computed {v['computed_deg']}, reference {v['reference_deg']} deg, "
+                     f"within a factor 2: {v['within_factor_2']}")
+    lines += ["", "The paper's imager (pinhole, 2448 x 2048), level, by pixel budget (stride on the full grid):", ""]
+    rows = r["paper_imager_budgets"]
+    keys = [k for k in rows[0] if k.startswith("crb_deg_sun_")]
+    lines += _table(["pixel stride", "samples"] + [k.replace("crb_deg_sun_", "sun ") + " deg" for k in keys],
+                    [[x["pixel_stride"], x["samples"]] + [_f(x[k]) for k in keys] for x in rows])
+    return lines + [""]
+
+
+def _simulator_section(sim) -> list[str]:
+    lines = ["## Simulator", ""]
+    if not sim or sim.get("status") != "ok":
+        return lines + [f"{sim['status'] if sim else 'not run'}", ""]
+    r = sim["results"]
+    lines += [f"Camera {r['camera']['width_px']} x {r['camera']['height_px']}, tilted attitude, fixed sun. "
+              "`stages` = pipeline stages that ran (instrumentation counts): undeclared effects never run.", ""]
+    rows = []
+    for x in r["rows"]:
+        if x.get("status") != "ok":
+            rows.append([x["name"], "-", "-", "-", "-", x["status"][:60]])
+            continue
+        rows.append([x["name"], x["pixels"], _f(x["single_thread"]["median_ms"]), _f(x["all_threads"]["median_ms"]),
+                     _f(x.get("relative_to_full", {}).get("single_thread")), ", ".join(x["stages"])])
+    lines += _table(["configuration", "pixels", "ms (1 thread)", "ms (all threads)", "x full (1 thread)", "stages"],
+                    rows)
+    s = r.get("summary", {})
+    if "stride8_speedup_single_thread" in s:
+        lines += ["", f"Stride 8 against full: {_f(s['stride8_speedup_single_thread'])}x faster on one thread "
+                      f"(target >= 30x: {s['stride8_at_least_30x_single_thread']}), "
+                      f"{_f(s.get('stride8_speedup_all_threads'))}x on all threads."]
+    return lines + [""]
+
+
+def _solar_section(sol) -> list[str]:
+    lines = ["## Solar position", ""]
+    if not sol or sol.get("status") != "ok":
+        return lines + [f"{sol['status'] if sol else 'not run'}", ""]
+    r = sol["results"]
+    rows = []
+    for model, x in r["models"].items():
+        rows.append([model, _f(x["batch"]["positions_per_s"]), _f(x["per_call"]["median_ms"]),
+                     _f(x.get("cache_per_frame", {}).get("median_ms")),
+                     _f(x.get("cache_per_frame", {}).get("speedup_vs_per_call"))])
+    lines += _table(["model", f"batch ({r['batch_size']} times), positions/s", "per call (ms)",
+                     "SunCache per frame (ms)", "cache speed-up"], rows)
+    g = r.get("paper_vs_spa_great_circle_deg", {})
+    lines += ["", f"`paper` against `spa` over the batch (sun up): mean {_f(g.get('mean'))} deg, "
+                  f"max {_f(g.get('max'))} deg great-circle."]
+    return lines + [""]
+
+
+def _errormap_section(em) -> list[str]:
+    lines = ["## Error map throughput", ""]
+    if not em or em.get("status") != "ok":
+        return lines + [f"{em['status'] if em else 'not run'}", ""]
+    r = em["results"]
+    lines += _table(["workers", "cells", "wall (s)", "cells/s (steady)", "start-up (s)",
+                     "1.4e5-cell pitch-only sweep (s)", "<= 2 min"],
+                    [[x["workers"], " / ".join(map(str, x["cells"])), " / ".join(_f(t) for t in x["wall_s"]),
+                      _f(x["cells_per_s_steady"]), _f(x["startup_s"]), _f(x["paper_pitch_only_sweep_s"]),
+                      x["within_2_min_target"]] for x in r["rows"]])
+    lines += ["", "Knobs: " + "; ".join(f"{m} {k}" for m, k in r["knobs"].items())]
+    return lines + ["", f"Methods {', '.join(r['methods'])}; {r['note']}.", ""]
+
+
+def _pipeline_section(pl) -> list[str]:
+    lines = ["## Node pipeline latency", ""]
+    if not pl or pl.get("status") != "ok":
+        return lines + [f"{pl['status'] if pl else 'not run'}", ""]
+    r = pl["results"]
+    rows = [[k, _f(v.get("median_ms")), _f(v.get("p95_ms"))] for k, v in r.get("stages", {}).items()]
+    lines += _table(["stage", "ms median", "ms p95"], rows)
+    if r.get("end_to_end"):
+        e = r["end_to_end"]
+        lines += ["", f"End to end (image published -> heading received, rclpy, loopback): "
+                      f"{e.get('status')}, median {_f(e.get('median_ms'))} ms, p95 {_f(e.get('p95_ms'))} ms "
+                      f"over {e.get('n')} frames."]
+    return lines + [""]
+
+
+def _peers_section(pe) -> list[str]:
+    lines = ["## Peers", ""]
+    if not pe or pe.get("status") != "ok":
+        return lines + [f"{pe['status'] if pe else 'not run'}", ""]
+    r = pe["results"]
+    for peer in ("pyskylumos", "polanalyser"):
+        p = r["peers"].get(peer, {})
+        where = f" (Python {p.get('python')} at `{p.get('interpreter')}`)" if p.get("interpreter") else ""
+        lines.append(f"- {peer}: {p.get('status')}{' ' + str(p.get('version')) if p.get('version') else ''}{where}")
+    lines.append("")
+    if r["ratios"]:
+        lines += _table(["comparison", "peer (ms)", "ours (ms)", "peer / ours"],
+                        [[k, _f(v["peer_ms"]), _f(v["ours_ms"]), _f(v["peer_over_ours"])]
+                         for k, v in r["ratios"].items()])
+        lines += ["", f"Image size {r['image_size_px'][0]} x {r['image_size_px'][1]}, one thread each. {r['note']}."]
+    return lines + [""]
+
+
+def build(out_dir) -> list[Path]:
+    d = Path(out_dir)
+    groups = _load(d)
+    if not groups:
+        return []
+    paths = []
+    acc = groups.get("accuracy")
+    crb = groups.get("crb")
+    cells = _ok_cells(acc)
+    conds = {c["condition"] for c in cells}
+    primary = next((c for c in PRIMARY_CONDITIONS if c in conds), next(iter(conds), None))
+    if primary:
+        p = plot_pareto(cells, crb, primary, d / "pareto.png")
+        if p:
+            paths.append(p)
+        p = plot_conditions(cells, d / "pareto_conditions.png")
+        if p:
+            paths.append(p)
+    lines = _header(groups)
+    if paths:
+        lines += [f"![Pareto plot]({paths[0].name})", ""]
+    lines += _accuracy_section(acc, crb)
+    lines += _crb_section(crb)
+    lines += _simulator_section(groups.get("simulator"))
+    lines += _solar_section(groups.get("solar"))
+    lines += _errormap_section(groups.get("errormap"))
+    lines += _pipeline_section(groups.get("pipeline"))
+    lines += _peers_section(groups.get("peers"))
+    md = d / "summary.md"
+    md.write_text("\n".join(lines).rstrip() + "\n")
+    return [md] + paths
