@@ -128,7 +128,7 @@ class TopicMap:
     R_body_cam: tuple = tuple(map(tuple, R_BODY_CAM_DEFAULT))
     camera: dict | None = None
     site: dict | None = None
-    max_gap_s: dict = field(default_factory=lambda: {"imu": 0.1, "reference": 0.25, "navsatfix": 5.0})
+    max_gap_s: dict = field(default_factory=lambda: {"imu": 0.05, "reference": 0.25, "navsatfix": 5.0})
     lookahead_s: float = 0.5
 
     def __hash__(self):
@@ -260,7 +260,7 @@ BUILTIN_TOPIC_MAP = {
     "mounting": {"R_body_cam": [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]},
     "camera": None,
     "site": None,
-    "max_gap_s": {"imu": 0.1, "reference": 0.25, "navsatfix": 5.0},
+    "max_gap_s": {"imu": 0.05, "reference": 0.25, "navsatfix": 5.0},
     "lookahead_s": 0.5,
 }
 

@@ -1,0 +1,608 @@
+"""Offline replay of a recorded field run (rosbag2): every method's heading, raw and tilt-corrected,
+against the reference heading, faster than real time. ROS-free (reads bags with `rosbags`).
+
+Same code as the nodes
+----------------------
+Per image, in the order the ``heading_estimator`` node does it: the camera from camera_info
+(:func:`~polarization_compass.bag.decode_camera_info`), the sun at the image stamp for the site of the
+latest NavSatFix (:class:`~polarization_compass.pipeline.SunSource`), the IMU attitude interpolated
+to the stamp (:class:`~polarization_compass.pipeline.AttitudeBuffer`, same tolerance), the tilt given
+to ``tilt_aware`` only, the 180 deg prior from the IMU's yaw (or the last heading), and
+:class:`~polarization_compass.pipeline.HeadingFrontEnd` (demosaic -> observation -> estimator). The
+tilt correction is the ``tilt_corrector``'s, and errors and statistics are the ``error_evaluator``'s
+(:class:`~polarization_compass.evaluation.StampMatcher`, truth = the reference interpolated to the
+image stamp). Headings only known modulo 180 deg are not evaluated, as the nodes do not publish them.
+Methods that demosaic alike share one observation per frame (the front end's own ``observation``).
+
+Reading
+-------
+One pass over the bag in receive-time order. Auxiliary streams (IMU, reference, NavSatFix,
+camera_info) are buffered by header stamp; an image is processed once the reader is ``lookahead_s``
+of receive time past it (or at the end of the bag), so data stamped shortly after an image (and
+messages that arrive out of order) are used. Memory is bounded by the images inside the look-ahead.
+Every message read is accounted for (:class:`~polarization_compass.bag.Tally`): used, or skipped with
+a reason; out-of-order stamps and images without IMU/reference data near their stamp are noted.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .bag import (BagError, BagReader, MessageError, Tally, TopicMap, decode_camera_info, decode_mosaic,
+                  decode_navsatfix, decode_orientation, default_topic_map, deserialize, stamp_ns)
+from .conventions import wrap_360_deg
+from .errors import CompassError
+
+__all__ = ["SyncedFrame", "BagPlan", "plan_bag", "iter_synced_frames", "ReplayConfig", "FramePipeline",
+           "MethodRow", "ReplayResult", "replay_bag", "write_outputs", "ReplayError"]
+
+
+class ReplayError(CompassError):
+    """Bad replay configuration."""
+
+
+# ------------------------------------------------------------------------------------------------
+# What the bag holds
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class BagPlan:
+    """What a bag holds for each role, checked before any processing.
+
+    ``present``: role -> message count on its topic; ``type_mismatch``: role -> type found;
+    ``problems``: one-line statements of what is missing and what that means; ``fatal``: problems
+    that leave nothing to compute (raised as one :class:`BagError`).
+    """
+
+    topics: dict
+    present: dict
+    type_mismatch: dict
+    problems: list
+    fatal: list
+
+
+def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
+    """Compare the bag's topics with the mapping."""
+    topics = reader.topics()
+    present, mismatch, problems, fatal = {}, {}, [], []
+    for role, spec in topic_map.topics.items():
+        found = topics.get(spec.topic)
+        present[role] = found[1] if found else 0
+        if found and found[0] != spec.type:
+            mismatch[role] = found[0]
+            problems.append(f"{role}: {spec.topic} has type {found[0]}, the mapping says {spec.type}: "
+                            "its messages are skipped (fix the type in the topic mapping)")
+    listing = ", ".join(f"{t} ({v[0].split('/')[-1]}, {v[1]})" for t, v in sorted(topics.items())) or "none"
+    usable = {r: present[r] > 0 and r not in mismatch for r in present}
+    if not usable["image"]:
+        fatal.append(f"no {topic_map.spec('image').type} messages on the image topic {topic_map.spec('image').topic}"
+                     f" (topics in the bag: {listing}); map yours with --topics")
+    if not usable["camera_info"]:
+        if topic_map.camera is None:
+            fatal.append(f"no camera_info on {topic_map.spec('camera_info').topic} and no 'camera:' fallback in "
+                         "the topic mapping: the pixels' viewing rays are unknown")
+        else:
+            problems.append("camera_info: none in the bag; using the mapping's 'camera:' intrinsics")
+    if not usable["navsatfix"]:
+        if topic_map.site is None:
+            fatal.append(f"no NavSatFix on {topic_map.spec('navsatfix').topic} and no 'site:' fallback in the "
+                         "topic mapping: the sun's position is unknown")
+        else:
+            problems.append("navsatfix: none in the bag; using the mapping's 'site:'")
+    if not usable["imu"]:
+        problems.append(f"imu: none on {topic_map.spec('imu').topic}: the tilt is unknown, so tilt_aware "
+                        "estimates, tilt corrections and the IMU prior are not available")
+    if not usable["reference"]:
+        problems.append(f"reference: none on {topic_map.spec('reference').topic}: headings are computed but "
+                        "their errors are not")
+    return BagPlan(topics, present, mismatch, problems, fatal)
+
+
+# ------------------------------------------------------------------------------------------------
+# Synchronised frames
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class SyncedFrame:
+    """One image with everything needed to process it at the image's stamp.
+
+    ``tilt``: :class:`~polarization_compass.pipeline.CameraTilt` from the IMU (bearing is the IMU's
+    coarse yaw), or None. ``true_bearing_deg``: reference bearing of camera +y, [0, 360), or None.
+    ``site``: (latitude_deg, longitude_deg, altitude_m). ``camera``: CameraModel.
+    """
+
+    stamp_ns: int
+    log_ns: int
+    mosaic: np.ndarray
+    camera: object
+    site: tuple
+    tilt: object
+    true_bearing_deg: float | None
+
+
+def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None):
+    """Yield :class:`SyncedFrame` for every usable image, in receive-time order (see the module doc).
+
+    Images that cannot be processed (no camera intrinsics, size not matching camera_info, duplicate
+    stamp, no site) are counted as skipped with a reason.
+    """
+    from .camera import CameraModel
+    from .pipeline import AttitudeBuffer, camera_attitude_from_body_quat
+
+    plan = plan or plan_bag(reader, topic_map)
+    wanted = {spec.topic: role for role, spec in topic_map.topics.items() if plan.present.get(role, 0) > 0}
+    keep_ns = int(max(10.0, 4 * topic_map.lookahead_s) * 1e9)
+    imu, ref = AttitudeBuffer(keep_ns), AttitudeBuffer(keep_ns)
+    tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference", "navsatfix")}
+    look_ns = int(topic_map.lookahead_s * 1e9)
+    R_body_cam = topic_map.R_body_cam_array
+    pending: deque = deque()
+    seen_images: set = set()
+    newest_image = newest_fix = newest_info = None
+    camera = CameraModel(**topic_map.camera) if topic_map.camera is not None else None
+    site = None
+    fix_ns = None
+    if topic_map.site is not None:
+        s = topic_map.site
+        site = (float(s["latitude_deg"]), float(s["longitude_deg"]), float(s.get("altitude_m", 0.0)))
+    image_topic = topic_map.spec("image").topic
+
+    def release(item):
+        t, log_ns, mosaic, cam, fix = item
+        cam = cam if cam is not None else camera
+        if cam is None:
+            tally.skip(image_topic, "no_camera_info", "no usable camera_info before this image")
+            return None
+        if (cam.height_px, cam.width_px) != mosaic.shape:
+            tally.skip(image_topic, "size_mismatch", f"image {mosaic.shape[1]}x{mosaic.shape[0]}, "
+                                                     f"camera_info {cam.width_px}x{cam.height_px}")
+            return None
+        where = fix if fix is not None else site
+        if where is None:
+            tally.skip(image_topic, "no_site", "no usable NavSatFix before this image")
+            return None
+        tilt = imu.camera_tilt(t, tol["imu"], R_body_cam) if len(imu) else None
+        if tilt is None:
+            tally.note(image_topic, "no_imu_near_stamp")
+        hit = ref.at(t, tol["reference"]) if len(ref) else None
+        true_bearing = None
+        if hit is not None:
+            true_bearing = float(wrap_360_deg(camera_attitude_from_body_quat(hit[0], R_body_cam).bearing_deg))
+        else:
+            tally.note(image_topic, "no_reference_near_stamp")
+        tally.used[image_topic] += 1
+        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing)
+
+    for topic, mtype, log_ns, raw in reader.messages(list(wanted)):
+        role = wanted[topic]
+        tally.read[topic] += 1
+        if role in plan.type_mismatch:
+            tally.skip(topic, "type_mismatch", f"{mtype} is not {topic_map.spec(role).type}")
+            continue
+        try:
+            msg = deserialize(raw, mtype)
+            t = stamp_ns(msg.header)
+            if role == "image":
+                value = decode_mosaic(msg)
+            elif role in ("imu", "reference"):
+                value = decode_orientation(msg)
+            elif role == "navsatfix":
+                value = decode_navsatfix(msg)
+            else:
+                value = decode_camera_info(msg, topic_map.pixel_pitch_um)
+        except MessageError as exc:
+            tally.skip(topic, exc.reason, exc.detail)
+            continue
+        if role == "image":
+            if t in seen_images:
+                tally.skip(topic, "duplicate_stamp", f"a second image stamped {t} ns")
+                continue
+            seen_images.add(t)
+            if newest_image is not None and t < newest_image:
+                tally.note(topic, "out_of_order")
+            newest_image = t if newest_image is None else max(newest_image, t)
+            # the camera and site as the node has them when this image arrives; refined by later
+            # messages inside the look-ahead only if none had arrived yet
+            pending.append([t, log_ns, value, None, None])
+        else:
+            buf = imu if role == "imu" else ref if role == "reference" else None
+            newest = {"navsatfix": newest_fix, "camera_info": newest_info}.get(role) if buf is None \
+                else buf.newest_ns
+            if newest is not None and t < newest:
+                tally.note(topic, "out_of_order")
+            if buf is not None:
+                buf.add(t, value)
+            elif role == "navsatfix":
+                if newest_fix is None or t >= newest_fix:
+                    fix_ns, newest_fix = t, t
+                    site = value
+            else:
+                if newest_info is None or t >= newest_info:
+                    newest_info = t
+                    camera = value
+            tally.used[topic] += 1
+        for item in pending:
+            if item[3] is None and camera is not None:
+                item[3] = camera
+            if item[4] is None and site is not None:
+                item[4] = site
+        while pending and log_ns - pending[0][1] > look_ns:
+            f = release(pending.popleft())
+            if f is not None:
+                yield f
+    while pending:
+        f = release(pending.popleft())
+        if f is not None:
+            yield f
+
+
+# ------------------------------------------------------------------------------------------------
+# Per-frame processing (the nodes' code)
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ReplayConfig:
+    """How frames are processed; defaults are the nodes' shipped parameters (config/*.yaml).
+
+    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method; the nodes ship
+    ``stride: 8``). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
+    ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
+    corrected headings). ``direct_methods``: methods the corrector does not touch (tilt_aware).
+    """
+
+    methods: tuple = ()
+    knobs: dict = field(default_factory=lambda: {"*": {"stride": 8}})
+    demosaic: str = "superpixel"
+    use_intensity: bool = False
+    prior_source: str = "imu"
+    prior_max_age_s: float = 2.0
+    sun_model: str = "spa"
+    error_map: str | None = None
+    correction_sigma_deg: float = 0.1
+    direct_methods: tuple = ("tilt_aware",)
+
+    def method_list(self) -> list[str]:
+        from .estimators import estimator_names
+        known = estimator_names()
+        ms = list(self.methods) or known
+        bad = [m for m in ms if m not in known]
+        if bad:
+            raise ReplayError(f"unknown method(s) {', '.join(bad)}; known: {', '.join(known)}")
+        return ms
+
+    def knobs_for(self, method: str) -> dict:
+        k = dict(self.knobs.get("*", {}))
+        k.update(self.knobs.get(method, {}))
+        return k
+
+
+@dataclass
+class MethodRow:
+    """One method on one frame: the raw estimate, its tilt correction and the errors (deg).
+
+    ``raw_error_deg``/``corrected_error_deg``: estimated minus reference bearing, wrapped to (-180, 180]
+    (None when not evaluated: no reference, an ambiguous or failed estimate, no correction).
+    """
+
+    stamp_ns: int
+    method: str
+    status: str
+    reason: str
+    raw_bearing_deg: float | None
+    corrected_bearing_deg: float | None
+    correction_status: str
+    reference_bearing_deg: float | None
+    raw_error_deg: float | None
+    corrected_error_deg: float | None
+    sigma_deg: float | None
+    pixels: int
+    pitch_deg: float | None
+    roll_deg: float | None
+    sun_azimuth_deg: float
+    sun_altitude_deg: float
+    prior_bearing_deg: float | None
+
+    CSV_FIELDS = ("stamp_s", "time_s", "method", "status", "raw_bearing_deg", "corrected_bearing_deg",
+                  "reference_bearing_deg", "raw_error_deg", "corrected_error_deg", "correction_status",
+                  "sigma_deg", "pixels", "pitch_deg", "roll_deg", "sun_azimuth_deg", "sun_altitude_deg",
+                  "prior_bearing_deg", "reason")
+
+
+class FramePipeline:
+    """The nodes' per-frame chain for several methods at once (see the module docstring)."""
+
+    def __init__(self, config: ReplayConfig, topic_map: TopicMap):
+        from .pipeline import HeadingFrontEnd
+        mos = topic_map.mosaic or {}
+        layout = mos.get("layout", ((90, 45), (135, 0)))
+        pol45 = mos.get("pol45_toward", "+x+y")
+        self.config = config
+        self.methods = config.method_list()
+        self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, pol45, config.demosaic,
+                                          config.use_intensity) for m in self.methods}
+        self.last_bearing = {m: None for m in self.methods}
+        self.sun = None
+        self.corrector = None
+        if config.error_map:
+            self.corrector = _make_corrector(config)
+        self.timing_ms: dict = {m: [] for m in self.methods}
+        self.timing_ms["observation"] = []
+
+    def _sun(self, frame: SyncedFrame):
+        from .pipeline import SunSource
+        if self.sun is None:
+            self.sun = SunSource(*frame.site, model=self.config.sun_model)
+        else:
+            self.sun.set_site(*frame.site)
+        return self.sun.at_ns(frame.stamp_ns)
+
+    def process(self, frame: SyncedFrame) -> list[MethodRow]:
+        from .pipeline import PipelineError
+        c = self.config
+        t_ns = frame.stamp_ns
+        rows = []
+        try:
+            sun_az, sun_alt = self._sun(frame)
+        except PipelineError as exc:
+            return [MethodRow(t_ns, m, "bad_input", str(exc), None, None, "", frame.true_bearing_deg, None, None,
+                              None, 0, None, None, 0.0, 0.0, None) for m in self.methods]
+        tilt = frame.tilt
+        obs_cache: dict = {}
+        for m, front in self.fronts.items():
+            pitch = roll = prior = None
+            status_reason = None
+            if m == "tilt_aware":
+                if tilt is None:
+                    status_reason = "no IMU sample near the image stamp (tilt unknown)"
+                else:
+                    pitch, roll = tilt.pitch_deg, tilt.roll_deg
+            if c.prior_source == "imu" and tilt is not None:
+                prior = tilt.bearing_deg
+            elif c.prior_source == "last" and self.last_bearing[m] is not None:
+                if abs(t_ns - self.last_bearing[m][0]) <= c.prior_max_age_s * 1e9:
+                    prior = self.last_bearing[m][1]
+            if status_reason is not None:
+                rows.append(MethodRow(t_ns, m, "bad_input", status_reason, None, None, "", frame.true_bearing_deg,
+                                      None, None, None, 0, None, None, sun_az, sun_alt, prior))
+                continue
+            key = (front.superpixel_step(), front.demosaic, front.intensity, front.layout)
+            t0 = time.perf_counter()
+            try:
+                obs = obs_cache.get(key)
+                if obs is None:
+                    obs = front.observation(frame.mosaic, frame.camera, sun_az, sun_alt)
+                    obs_cache[key] = obs
+                    self.timing_ms["observation"].append((time.perf_counter() - t0) * 1e3)
+                    t0 = time.perf_counter()
+                result = front.estimator.estimate(dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll,
+                                                                      prior_bearing_deg=prior))
+            except CompassError as exc:
+                rows.append(MethodRow(t_ns, m, "bad_input", str(exc), None, None, "", frame.true_bearing_deg,
+                                      None, None, None, 0, pitch, roll, sun_az, sun_alt, prior))
+                continue
+            self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
+            raw = result.bearing_deg if result.ok and not result.axial else None
+            if raw is not None:
+                self.last_bearing[m] = (t_ns, float(raw))
+            corrected, cstatus = None, ""
+            if raw is not None and m not in c.direct_methods and self.corrector is not None:
+                corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
+            rows.append(MethodRow(t_ns, m, result.status.value, result.reason,
+                                  float(result.bearing_deg) if result.ok else None, corrected, cstatus,
+                                  frame.true_bearing_deg, None, None, result.sigma_deg, result.pixels,
+                                  tilt.pitch_deg if tilt is not None else None,
+                                  tilt.roll_deg if tilt is not None else None, sun_az, sun_alt, prior))
+        return rows
+
+
+def _make_corrector(config: ReplayConfig):
+    """The tilt_corrector's correction as a callable
+    ``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None, status)``."""
+    try:
+        from . import correction
+    except ImportError:
+        raise ReplayError("tilt correction is not available in this build (polarization_compass.correction)") \
+            from None
+    return correction.replay_corrector(config.error_map, config.correction_sigma_deg)
+
+
+# ------------------------------------------------------------------------------------------------
+# The whole bag
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class ReplayResult:
+    rows: list
+    summary: dict           # evaluator summary per stream
+    tally: Tally
+    plan: BagPlan
+    frames: int
+    bag_duration_s: float
+    wall_s: float
+    matches: list
+    timing_ms: dict
+
+    @property
+    def speed_x_real_time(self) -> float:
+        return self.bag_duration_s / self.wall_s if self.wall_s > 0 else 0.0
+
+
+def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None) -> ReplayResult:
+    """Process a bag offline. Raises :class:`BagError` (one line) for a path that is not a usable bag."""
+    from .evaluation import StampMatcher
+
+    config = config or ReplayConfig()
+    topic_map = topic_map or default_topic_map()
+    pipe = FramePipeline(config, topic_map)
+    t_wall = time.perf_counter()
+    tally = Tally()
+    rows: list[MethodRow] = []
+    matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
+    for m in pipe.methods:
+        matcher.add_stream(f"{m}/raw", False)
+        if m not in config.direct_methods and pipe.corrector is not None:
+            matcher.add_stream(f"{m}/corrected", False)
+    first_stamp = last_stamp = None
+    with BagReader(path) as reader:
+        plan = plan_bag(reader, topic_map)
+        if plan.fatal:
+            raise BagError(f"{reader.path}: " + "; ".join(plan.fatal))
+        frames = 0
+        for frame in iter_synced_frames(reader, topic_map, tally, plan):
+            frames += 1
+            first_stamp = frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
+            last_stamp = frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
+            if frame.true_bearing_deg is not None:
+                matcher.add_truth(frame.stamp_ns, frame.true_bearing_deg)
+            for r in pipe.process(frame):
+                if r.status in ("ok",) and r.raw_bearing_deg is not None:
+                    mt = matcher.add_estimate(f"{r.method}/raw", r.stamp_ns, r.raw_bearing_deg)
+                    if mt is not None:
+                        r.raw_error_deg = mt.error_deg
+                if r.corrected_bearing_deg is not None and f"{r.method}/corrected" in matcher.streams:
+                    mt = matcher.add_estimate(f"{r.method}/corrected", r.stamp_ns, r.corrected_bearing_deg)
+                    if mt is not None:
+                        r.corrected_error_deg = mt.error_deg
+                rows.append(r)
+            if progress is not None:
+                progress(frames)
+        duration = (last_stamp - first_stamp) / 1e9 if frames > 1 else 0.0
+        if frames > 1:
+            duration *= frames / (frames - 1)           # n frames cover n periods of recording
+    matcher.finish()
+    rows.sort(key=lambda r: (r.stamp_ns, pipe.methods.index(r.method)))
+    wall = time.perf_counter() - t_wall
+    return ReplayResult(rows, matcher.summary(), tally, plan, frames, duration, wall, matcher.matches,
+                        pipe.timing_ms)
+
+
+# ------------------------------------------------------------------------------------------------
+# Outputs
+# ------------------------------------------------------------------------------------------------
+def _fmt(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.6f}"
+    return v
+
+
+def write_outputs(result: ReplayResult, out_dir, bag_path: str = "", plots: bool = True) -> dict:
+    """``replay.csv`` (one row per frame and method), ``summary.csv``/``summary.json`` (the evaluator's
+    statistics per stream, skip counts per topic and reason, speed) and the figures. Returns paths."""
+    from .evaluation import write_summary_csv
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = result.rows[0].stamp_ns if result.rows else 0
+    paths = {}
+    p = out / "replay.csv"
+    with p.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(MethodRow.CSV_FIELDS)
+        for r in result.rows:
+            w.writerow([f"{r.stamp_ns / 1e9:.9f}", f"{(r.stamp_ns - t0) / 1e9:.6f}", r.method, r.status,
+                        *(_fmt(v) for v in (r.raw_bearing_deg, r.corrected_bearing_deg, r.reference_bearing_deg,
+                                            r.raw_error_deg, r.corrected_error_deg)),
+                        r.correction_status, _fmt(r.sigma_deg), r.pixels,
+                        *(_fmt(v) for v in (r.pitch_deg, r.roll_deg, r.sun_azimuth_deg, r.sun_altitude_deg,
+                                            r.prior_bearing_deg)), r.reason])
+    paths["csv"] = p
+    paths["summary_csv"] = write_summary_csv(out / "summary.csv", result.summary)
+    statuses: dict = {}
+    for r in result.rows:
+        statuses.setdefault(r.method, {}).setdefault(r.status, 0)
+        statuses[r.method][r.status] += 1
+    js = {"bag": str(bag_path), "frames": result.frames, "bag_duration_s": result.bag_duration_s,
+          "wall_s": result.wall_s, "speed_x_real_time": result.speed_x_real_time,
+          "statistics": result.summary, "statuses": statuses, "topics": result.tally.to_dict(),
+          "problems": result.plan.problems,
+          "timing_ms_median": {k: float(np.median(v)) for k, v in result.timing_ms.items() if v}}
+    p = out / "summary.json"
+    p.write_text(json.dumps(js, indent=1, default=float, allow_nan=False))
+    paths["summary_json"] = p
+    if plots:
+        paths.update(plot_replay(result, out))
+    return paths
+
+
+def plot_replay(result: ReplayResult, out_dir) -> dict:
+    """Figures like the paper's: error against time per method (Fig 17-19, raw) and raw vs corrected
+    per method (Fig 20-22); plus the evaluator's error-against-bearing figure."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .evaluation import plot_report
+
+    out = Path(out_dir)
+    paths = {}
+    rows = result.rows
+    if not rows:
+        return paths
+    t0 = rows[0].stamp_ns
+    methods = list(dict.fromkeys(r.method for r in rows))
+    series = {}
+    for r in rows:
+        s = series.setdefault(r.method, {"t": [], "raw": [], "tc": [], "cor": []})
+        if r.raw_error_deg is not None:
+            s["t"].append((r.stamp_ns - t0) / 1e9)
+            s["raw"].append(r.raw_error_deg)
+        if r.corrected_error_deg is not None:
+            s["tc"].append((r.stamp_ns - t0) / 1e9)
+            s["cor"].append(r.corrected_error_deg)
+    pitch = [r.pitch_deg for r in rows if r.pitch_deg is not None]
+    roll = [r.roll_deg for r in rows if r.roll_deg is not None]
+    tilt_txt = (f"IMU pitch {np.mean(pitch):.1f} deg, roll {np.mean(roll):.1f} deg (mean)" if pitch else "tilt unknown")
+    if not any(series[m]["raw"] for m in methods):
+        return paths
+
+    fig, ax = plt.subplots(figsize=(8.0, 4.2), dpi=110)
+    for m in methods:
+        s = series[m]
+        if s["raw"]:
+            ax.plot(s["t"], s["raw"], "-", lw=1.0, marker=".", ms=2.5, label=f"{m} (rms {_rms(s['raw']):.2f})")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("time since first image, s")
+    ax.set_ylabel("heading error (estimate - reference), deg")
+    ax.set_title(f"Raw heading error per method; {tilt_txt}", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    p = out / "errors_raw.png"
+    fig.savefig(p)
+    plt.close(fig)
+    paths["plot_raw"] = p
+
+    corrected = [m for m in methods if series[m]["cor"]]
+    if corrected:
+        n = len(corrected)
+        fig, axes = plt.subplots(n, 1, figsize=(8.0, 2.3 * n + 0.8), dpi=110, sharex=True, squeeze=False)
+        for ax, m in zip(axes[:, 0], corrected):
+            s = series[m]
+            ax.plot(s["t"], s["raw"], "-", lw=1.0, color="tab:red", label=f"raw (rms {_rms(s['raw']):.2f})")
+            ax.plot(s["tc"], s["cor"], "-", lw=1.0, color="tab:blue", label=f"corrected (rms {_rms(s['cor']):.2f})")
+            ax.axhline(0.0, color="0.5", lw=0.6)
+            ax.set_ylabel(f"{m}\nerror, deg")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="best")
+        axes[-1, 0].set_xlabel("time since first image, s")
+        fig.suptitle(f"Tilt correction with the error map; {tilt_txt}", fontsize=9)
+        fig.tight_layout()
+        p = out / "errors_corrected.png"
+        fig.savefig(p)
+        plt.close(fig)
+        paths["plot_corrected"] = p
+    p = plot_report(out / "errors_vs_bearing.png", result.matches, title="error against reference bearing")
+    if p is not None:
+        paths["plot_vs_bearing"] = p
+    return paths
+
+
+def _rms(v) -> float:
+    a = np.asarray(v, dtype=float)
+    return float(math.sqrt(float(np.mean(a * a)))) if a.size else 0.0
