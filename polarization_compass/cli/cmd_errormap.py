@@ -1,0 +1,104 @@
+"""`polarization-compass errormap`: sweep heading errors over sun altitude x yaw x pitch x roll to an .npz map."""
+from __future__ import annotations
+
+import json
+import re
+import sys
+
+from ..errors import CompassError
+
+#: Lets ``--yaw -180:180:5`` parse: argparse otherwise takes a leading '-' for an option unless the
+#: word looks like a plain negative number (``--yaw=-180:180:5`` works everywhere regardless).
+RANGE_ARG_MATCHER = re.compile(r"^-\d+$|^-\d*\.\d+$|^-\d*\.?\d*(:-?\d*\.?\d*)+$")
+
+
+def allow_negative_ranges(parser) -> None:
+    parser._negative_number_matcher = RANGE_ARG_MATCHER      # noqa: SLF001 - see RANGE_ARG_MATCHER
+
+
+def register(sub):
+    p = sub.add_parser(
+        "errormap", help="heading error of each method over sun altitude x yaw x pitch x roll",
+        description="Render the scene with the sun at azimuth 0 (so the camera bearing is the paper's yaw psi) "
+                    "at every grid cell, run each method on the pixels it reads, and store "
+                    "error_deg[method, sun altitude, yaw, pitch, roll] = fold(estimated psi - true psi) in "
+                    "(-90, 90]. Ranges are A:B:STEP, inclusive, or one value. Cells with |pitch|+|roll| > 30 "
+                    "are skipped, except the grid nodes interpolation inside that region reads "
+                    "(--support); --full-domain computes them all. Interrupt at any time: finished chunks are "
+                    "kept in OUT.partial/ and the same command resumes.")
+    p.add_argument("--scene", help="scene YAML: sky model, noise, lens (default: the paper's set-up)")
+    p.add_argument("--methods", default="all", help="all, or a comma-separated list of methods")
+    p.add_argument("--sun-altitude", required=True, metavar="A:B:STEP", help="sun altitudes, deg")
+    p.add_argument("--yaw", required=True, metavar="A:B:STEP", help="yaw psi (= camera bearing here), deg")
+    p.add_argument("--pitch", required=True, metavar="A:B:STEP", help="pitch (about camera x), deg")
+    p.add_argument("--roll", required=True, metavar="A:B:STEP", help="roll (about camera y), deg")
+    p.add_argument("--stride", type=int, help="every method reads every N-th sensor pixel (default: the "
+                                              "sweep sampling, see docs/error-maps.md)")
+    p.add_argument("--workers", type=int, help="processes (default: all cores)")
+    p.add_argument("--full-domain", action="store_true", help="also compute cells with |pitch|+|roll| > 30")
+    p.add_argument("--tilt-limit", type=float, default=30.0, help="the |pitch|+|roll| limit, deg (default 30)")
+    p.add_argument("--support", type=int, default=2, choices=(0, 1, 2),
+                   help="grid steps computed beyond the limit: 2 for cubic interpolation (default), "
+                        "1 for multilinear, 0 none")
+    p.add_argument("--float32", action="store_true", help="store error_deg as float32 (half the file)")
+    p.add_argument("--restart", action="store_true", help="discard checkpoints of an earlier run")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--out", required=True, help="output map .npz")
+    allow_negative_ranges(p)
+    p.set_defaults(func=run)
+
+
+def parse_methods(text: str) -> list[str]:
+    from ..estimators import estimator_names
+    known = estimator_names()
+    if text.strip() == "all":
+        return known
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    if not names:
+        raise CompassError("--methods is empty")
+    unknown = [m for m in names if m not in known]
+    if unknown:
+        raise CompassError(f"unknown method(s) {', '.join(unknown)}; known: {', '.join(known)}")
+    if len(set(names)) != len(names):
+        raise CompassError("--methods lists a method twice")
+    return names
+
+
+def run(args) -> int:
+    import math
+
+    import numpy as np
+
+    from ..errormap import SweepSpec, parse_range, run_sweep
+    from ..scene import load_scene
+
+    methods = parse_methods(args.methods)
+    axes = dict(sun_altitude_deg=parse_range(args.sun_altitude, "sun-altitude", -90, 90),
+                yaw_deg=parse_range(args.yaw, "yaw", -360, 720),
+                pitch_deg=parse_range(args.pitch, "pitch", -89, 89),
+                roll_deg=parse_range(args.roll, "roll", -180, 180))
+    if args.stride is not None and not (1 <= args.stride <= 1024):
+        raise CompassError(f"--stride must be in [1, 1024], got {args.stride}")
+    if args.workers is not None and not (1 <= args.workers <= 256):
+        raise CompassError(f"--workers must be in [1, 256], got {args.workers}")
+    if not (math.isfinite(args.tilt_limit) and 0 <= args.tilt_limit <= 180):
+        raise CompassError(f"--tilt-limit must be in [0, 180], got {args.tilt_limit}")
+    if not str(args.out).endswith(".npz"):
+        raise CompassError(f"--out must name an .npz file, got {args.out!r}")
+    scene = load_scene(args.scene)
+    knobs = {m: {"stride": args.stride} for m in methods} if args.stride else {}
+    spec = SweepSpec(methods, scene=scene, knobs=knobs, full_domain=args.full_domain,
+                     tilt_limit_deg=args.tilt_limit, support=args.support, **axes)
+    if spec.cell_count() == 0:
+        raise CompassError("no cell to compute: every (pitch, roll) is outside the tilt limit (use --full-domain)")
+    m = run_sweep(spec, out=args.out, workers=args.workers, progress=not args.no_progress,
+                  resume=not args.restart, float32=args.float32)
+    v = m.valid
+    summary = {"out": str(args.out), "shape": list(m.shape), "methods": list(m.methods),
+               "cells_estimated": m.meta["cells_estimated"], "valid_cells": int(v.sum()),
+               "elapsed_s": m.meta["elapsed_s_last_run"], "workers": m.meta["workers"],
+               "max_abs_error_deg": {name: float(np.abs(m.error_deg[i][v[i]]).max()) if v[i].any() else None
+                                     for i, name in enumerate(m.methods)}}
+    json.dump(summary, sys.stdout)
+    sys.stdout.write("\n")
+    return 0

@@ -1,0 +1,337 @@
+"""Tilt correction from an error map (paper, section 3.4, done properly).
+
+A tilted camera makes a classical method report ``psi_meas = psi + e(psi, h, pitch, roll)``, where the
+error ``e`` (an :class:`~polarization_compass.errormap.ErrorMap`) is a function of the *true* yaw psi,
+which the corrector does not know. Two corrections are offered:
+
+``invert`` (default)  solve ``psi + e(psi, h, pitch, roll) = psi_meas`` for psi: a 1-D search over a
+                      +-90 deg window of yaw around the measurement (the map's errors are folded to
+                      (-90, 90]), bracketing sign changes on a sub-grid of the yaw axis, then bisection
+                      to 1e-9 deg. Several roots: status ``multiple_solutions`` (the heading returned
+                      is the root nearest the ``subtract`` estimate; all roots are listed); none:
+                      ``no_solution``.
+``subtract``          the paper's reading: ``psi = psi_meas - e(psi_meas, ...)``, i.e. the error looked
+                      up at the measured yaw. Wrong by about ``e * de/dpsi``: several degrees at large
+                      tilt and high sun (docs/error-maps.md gives the numbers).
+
+Interpolation: tensor-product cubic convolution (Keys, a = -1/2; periodic along yaw, Keys' cubic
+boundary rule at the ends of the other axes) on uniform axes, multilinear on non-uniform or short
+(< 4 nodes) axes; where a cubic stencil touches a node without a valid estimate the point falls back to
+multilinear in its grid cell. ``order=1`` forces multilinear everywhere.
+
+Domain (status ``out_of_domain``, never silent extrapolation): sun altitude, pitch and roll inside
+the map's axes; |pitch| + |roll| <= the map's tilt limit unless the map was computed on the full
+domain; and every node the interpolation reads holds a valid estimate. The map's yaw axis must cover
+a full turn with a uniform step (it is periodic).
+
+Angles in degrees; psi is the paper's yaw (bearing minus sun azimuth), (-180, 180].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .conventions import wrap_180_deg
+from .errormap import ErrorMap, ErrorMapError, load_error_map
+
+__all__ = ["TiltCorrector", "Correction", "CorrectionStatus", "STATUS_INT", "default_map_path",
+           "DEFAULT_MAP_NAME", "REGENERATE_DEFAULT_MAP"]
+
+DEFAULT_MAP_NAME = "tilt_error_map.npz"
+#: The command that regenerates the shipped map (documented in docs/error-maps.md).
+REGENERATE_DEFAULT_MAP = ("polarization-compass errormap --methods zenith,sm_asm,symmetry,least_squares "
+                          "--sun-altitude 0:50:5 --yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 "
+                          "--cubic-support --float32 --out polarization_compass/data/tilt_error_map.npz")
+
+
+class CorrectionStatus(str, Enum):
+    OK = "ok"
+    OUT_OF_DOMAIN = "out_of_domain"
+    MULTIPLE_SOLUTIONS = "multiple_solutions"
+    NO_SOLUTION = "no_solution"
+
+
+#: int8 codes of :meth:`TiltCorrector.correct_many`.
+STATUS_INT = {CorrectionStatus.OK: 0, CorrectionStatus.OUT_OF_DOMAIN: 1,
+              CorrectionStatus.MULTIPLE_SOLUTIONS: 2, CorrectionStatus.NO_SOLUTION: 3}
+_FROM_INT = {v: k for k, v in STATUS_INT.items()}
+
+
+@dataclass(frozen=True)
+class Correction:
+    """One corrected heading. ``psi_deg`` is None when there is none (status says why);
+    ``error_deg`` is the map's error at the corrected yaw (psi_meas - psi); ``candidates_deg`` lists
+    every root of the inversion."""
+
+    status: CorrectionStatus
+    psi_deg: float | None = None
+    error_deg: float | None = None
+    candidates_deg: tuple = ()
+    mode: str = "invert"
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == CorrectionStatus.OK
+
+
+def default_map_path() -> Path:
+    """The shipped map (``polarization_compass/data/tilt_error_map.npz``)."""
+    return Path(str(resources.files("polarization_compass").joinpath("data/" + DEFAULT_MAP_NAME)))
+
+
+# --------------------------------------------------------------------------------------------
+# Interpolation weights along one axis
+# --------------------------------------------------------------------------------------------
+def _is_uniform(axis: np.ndarray) -> bool:
+    if axis.size < 3:
+        return True
+    d = np.diff(axis)
+    return bool(np.all(np.abs(d - d[0]) <= 1e-9 * max(1.0, abs(d[0]))))
+
+
+def _keys(t):
+    """Keys (a = -1/2) cubic convolution weights of nodes i-1, i, i+1, i+2 at fraction t in [0, 1]."""
+    t2 = t * t
+    t3 = t2 * t
+    return np.stack([-0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0,
+                     -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2], -1)
+
+
+def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
+    """Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,) bool.
+
+    Outside the axis the indices are clipped and ``inside`` is False (the caller rejects the point).
+    """
+    x = np.asarray(x, dtype=float)
+    n = axis.size
+    tol = 1e-9 * max(1.0, float(np.max(np.abs(axis))))
+    inside = (x >= axis[0] - tol) & (x <= axis[-1] + tol)
+    if n == 1:
+        return np.zeros(x.shape + (1,), dtype=np.intp), np.ones(x.shape + (1,)), inside
+    xc = np.clip(x, axis[0], axis[-1])
+    i = np.clip(np.searchsorted(axis, xc, side="right") - 1, 0, n - 2)
+    t = np.clip((xc - axis[i]) / (axis[i + 1] - axis[i]), 0.0, 1.0)
+    if order == 1 or n < 4 or not _is_uniform(axis):
+        return np.stack([i, i + 1], -1), np.stack([1.0 - t, t], -1), inside
+    w = _keys(t)
+    start = np.clip(i - 1, 0, n - 4)
+    off = (i - 1) - start                       # -1 at the low end, +1 at the high end, else 0
+    W = np.zeros_like(w)
+    rows = np.arange(x.size).reshape(x.shape)
+    for k in range(4):
+        j = off + k                              # stencil node k's slot in the 4-node window
+        lo, hi = j < 0, j > 3
+        mid = ~(lo | hi)
+        np.add.at(W, (rows[mid], j[mid]), w[..., k][mid])
+        # Keys' boundary rule: ghost f(-1) = 3 f(0) - 3 f(1) + f(2) (and mirrored at the top end)
+        for src, c in ((0, 3.0), (1, -3.0), (2, 1.0)):
+            np.add.at(W, (rows[lo], np.full(int(lo.sum()), src)), c * w[..., k][lo])
+            np.add.at(W, (rows[hi], np.full(int(hi.sum()), 3 - src)), c * w[..., k][hi])
+    return start[..., None] + np.arange(4), W, inside
+
+
+def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int):
+    """Periodic yaw axis ``y0 + step * k`` (k < n, n * step = 360): indices and weights."""
+    u = np.mod(np.asarray(psi, dtype=float) - y0, 360.0) / step
+    i = np.floor(u).astype(np.intp)
+    t = np.clip(u - i, 0.0, 1.0)
+    i = np.mod(i, n)
+    if order == 1 or n < 4:
+        return np.stack([i, (i + 1) % n], -1), np.stack([1.0 - t, t], -1)
+    return np.mod(np.stack([i - 1, i, i + 1, i + 2], -1), n), _keys(t)
+
+
+# --------------------------------------------------------------------------------------------
+# The corrector
+# --------------------------------------------------------------------------------------------
+class TiltCorrector:
+    """Corrects one method's headings with an error map. ``order``: 3 (cubic, default) or 1 (linear)."""
+
+    def __init__(self, error_map: ErrorMap, method: str, order: int = 3):
+        if order not in (1, 3):
+            raise ErrorMapError(f"interpolation order must be 1 or 3, got {order}")
+        self.map = error_map
+        self.method = method
+        self.order = order
+        m = error_map.method_index(method)
+        yaw = error_map.yaw_deg
+        if yaw.size < 4 or not _is_uniform(yaw):
+            raise ErrorMapError("correction needs a map whose yaw axis has a uniform step and covers a full turn")
+        step = float(yaw[1] - yaw[0])
+        n_turn = 360.0 / step
+        if abs(n_turn - round(n_turn)) > 1e-6:
+            raise ErrorMapError(f"the yaw step {step:g} deg does not divide 360 deg")
+        n_turn = int(round(n_turn))
+        if yaw.size == n_turn + 1 and abs(yaw[-1] - yaw[0] - 360.0) < 1e-6:
+            keep = slice(0, n_turn)              # last node repeats the first
+        elif yaw.size == n_turn:
+            keep = slice(0, n_turn)
+        else:
+            raise ErrorMapError(f"correction needs a map whose yaw axis covers a full turn "
+                                f"(it has {yaw[0]:g}..{yaw[-1]:g} in steps of {step:g})")
+        self.yaw0 = float(yaw[0])
+        self.yaw_step = step
+        self.n_yaw = n_turn
+        self.E = np.ascontiguousarray(error_map.error_deg[m][:, keep])       # (A, Y, P, R)
+        self.V = np.ascontiguousarray(error_map.valid[m][:, keep])
+        self.alt = error_map.sun_altitude_deg
+        self.pitch = error_map.pitch_deg
+        self.roll = error_map.roll_deg
+        dom = error_map.meta.get("domain", {}) if isinstance(error_map.meta, dict) else {}
+        self.full_domain = bool(dom.get("full_domain", False))
+        self.tilt_limit_deg = float(dom.get("tilt_limit_deg", math.inf))
+
+    @staticmethod
+    def from_file(path=None, method: str = "least_squares", order: int = 3) -> "TiltCorrector":
+        """From a map file (default: the shipped map)."""
+        return TiltCorrector(load_error_map(default_map_path() if path is None else path), method, order)
+
+    # ------------------------------------------------------------------------------------------
+    def _tilt_weights(self, h, p, r, order):
+        ia, wa, in_a = _axis_weights(self.alt, h, order)
+        ip, wp, in_p = _axis_weights(self.pitch, p, order)
+        ir, wr, in_r = _axis_weights(self.roll, r, order)
+        inside = in_a & in_p & in_r
+        if not self.full_domain:
+            inside &= (np.abs(p) + np.abs(r)) <= self.tilt_limit_deg + 1e-9
+        return (ia, wa), (ip, wp), (ir, wr), inside
+
+    def _curves_order(self, h, p, r, order):
+        """Error curves over the yaw nodes (N, Y), their validity (N,), and inside (N,)."""
+        (ia, wa), (ip, wp), (ir, wr), inside = self._tilt_weights(h, p, r, order)
+        N = h.size
+        out = np.zeros((N, self.n_yaw))
+        ok = inside.copy()
+        for a in range(ia.shape[1]):
+            for b in range(ip.shape[1]):
+                for c in range(ir.shape[1]):
+                    w = wa[:, a] * wp[:, b] * wr[:, c]
+                    vals = self.E[ia[:, a], :, ip[:, b], ir[:, c]]          # (N, Y)
+                    good = self.V[ia[:, a], :, ip[:, b], ir[:, c]].all(axis=1)
+                    ok &= good | (w == 0.0)
+                    out += w[:, None] * np.where(np.isfinite(vals), vals, 0.0)
+        return out, ok, inside
+
+    def curves(self, h, p, r):
+        """Error at every yaw node for each (h, pitch, roll) query: (N, Y) and validity (N,).
+
+        Cubic where every node of the stencil is valid, else multilinear in the cell, else invalid.
+        """
+        h, p, r = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(h, p, r))
+        c, ok, inside = self._curves_order(h, p, r, self.order)
+        if self.order == 3 and not ok.all():
+            bad = ~ok & inside
+            if bad.any():
+                c1, ok1, _ = self._curves_order(h[bad], p[bad], r[bad], 1)
+                c[bad] = c1
+                ok[bad] = ok1
+        return c, ok
+
+    def _eval_on_curve(self, curve, rows, psi):
+        idx, w = _yaw_weights(self.yaw0, self.yaw_step, self.n_yaw, psi, self.order)
+        return np.sum(curve[rows[..., None], idx] * w, axis=-1)
+
+    def predicted_error(self, psi_true_deg, h_deg, pitch_deg, roll_deg):
+        """The map's error at the given true yaw(s): (error_deg (N,), ok (N,)); 0 where not ok."""
+        psi, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
+                        for v in np.broadcast_arrays(psi_true_deg, h_deg, pitch_deg, roll_deg))
+        curve, ok = self.curves(h, p, r)
+        e = self._eval_on_curve(curve, np.arange(psi.size), psi)
+        return np.where(ok, e, 0.0), ok
+
+    # ------------------------------------------------------------------------------------------
+    def correct_many(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode: str = "invert",
+                     oversample: int = 4):
+        """Vectorised correction. Returns (psi_deg (N,), status int8 (N,) per :data:`STATUS_INT`,
+        n_roots (N,)). ``psi_deg`` is 0 where there is no heading (status tells)."""
+        return self._correct(psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample)[:3]
+
+    def _correct(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample=4):
+        if mode not in ("invert", "subtract"):
+            raise ErrorMapError(f"correction mode must be 'invert' or 'subtract', got {mode!r}")
+        meas, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
+                         for v in np.broadcast_arrays(psi_meas_deg, h_deg, pitch_deg, roll_deg))
+        N = meas.size
+        finite = np.isfinite(meas) & np.isfinite(h) & np.isfinite(p) & np.isfinite(r)
+        meas = np.where(finite, meas, 0.0)
+        h, p, r = (np.where(finite, v, 0.0) for v in (h, p, r))
+        curve, ok = self.curves(h, p, r)
+        ok &= finite
+        rows = np.arange(N)
+        status = np.where(ok, STATUS_INT[CorrectionStatus.OK], STATUS_INT[CorrectionStatus.OUT_OF_DOMAIN])
+        status = status.astype(np.int8)
+        sub = wrap_180_deg(meas - self._eval_on_curve(curve, rows, meas))
+        if mode == "subtract":
+            return np.where(ok, sub, 0.0), status, ok.astype(np.int64), (np.nonzero(ok)[0], sub[ok])
+        # f(u) = u + e(meas + u) for offsets u in [-90, 90]: sample, bracket sign changes, bisect
+        du = self.yaw_step / max(1, int(oversample))
+        n_s = int(math.ceil(180.0 / du)) + 1
+        u = np.linspace(-90.0, 90.0, n_s)
+        f = u[None, :] + self._eval_on_curve(curve, np.repeat(rows[:, None], n_s, 1), meas[:, None] + u[None, :])
+        zero = f[:, :-1] == 0.0
+        change = zero | (np.sign(f[:, :-1]) * np.sign(f[:, 1:]) < 0)
+        change &= ok[:, None]
+        n_roots = change.sum(axis=1)
+        qi, si = np.nonzero(change)
+        lo, hi = u[si].copy(), u[si + 1].copy()
+        flo = f[qi, si]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            fm = mid + self._eval_on_curve(curve, qi, meas[qi] + mid)
+            left = np.sign(fm) == np.sign(flo)
+            lo = np.where(left, mid, lo)
+            flo = np.where(left, fm, flo)
+            hi = np.where(left, hi, mid)
+        root_u = np.where(zero[qi, si], u[si], 0.5 * (lo + hi))
+        # pick, per query, the root nearest the subtract estimate
+        best = np.full(N, np.inf)
+        psi = np.zeros(N)
+        cand = wrap_180_deg(meas[qi] + root_u)
+        dist = np.abs(wrap_180_deg(cand - sub[qi]))
+        order = np.lexsort((dist, qi))
+        for k in order:                       # roots are few (one per query in practice)
+            q = qi[k]
+            if dist[k] < best[q]:
+                best[q] = dist[k]
+                psi[q] = cand[k]
+        status = np.where(ok & (n_roots == 0), STATUS_INT[CorrectionStatus.NO_SOLUTION], status)
+        status = np.where(ok & (n_roots > 1), STATUS_INT[CorrectionStatus.MULTIPLE_SOLUTIONS], status)
+        psi = np.where(ok & (n_roots > 0), psi, 0.0)
+        return psi, status.astype(np.int8), n_roots, (qi, cand)
+
+    def correct(self, psi_meas_deg: float, sun_altitude_deg: float, pitch_deg: float, roll_deg: float,
+                mode: str = "invert") -> Correction:
+        """Correct one heading. Never raises for out-of-domain input: the status says so."""
+        vals = (psi_meas_deg, sun_altitude_deg, pitch_deg, roll_deg)
+        if not all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(float(v)) for v in vals):
+            return Correction(CorrectionStatus.OUT_OF_DOMAIN, mode=mode, reason=f"non-finite input {vals}")
+        psi, status, n_roots, (qi, cand) = self._correct(*[float(v) for v in vals], mode=mode)
+        st = _FROM_INT[int(status[0])]
+        if st == CorrectionStatus.OUT_OF_DOMAIN:
+            return Correction(st, mode=mode, reason=self._why_out(*[float(v) for v in vals[1:]]))
+        if st == CorrectionStatus.NO_SOLUTION:
+            return Correction(st, mode=mode, reason="no yaw in +-90 deg of the measurement predicts it")
+        cands = tuple(float(c) for c in np.sort(cand[qi == 0]))
+        psi0 = float(psi[0])
+        err = float(wrap_180_deg(float(psi_meas_deg) - psi0))
+        reason = "" if st == CorrectionStatus.OK else \
+            f"{len(cands)} yaws predict this measurement; returned the one nearest the subtract estimate"
+        return Correction(st, psi0, err, cands, mode, reason)
+
+    def _why_out(self, h, p, r) -> str:
+        a = self.alt
+        if not (a[0] - 1e-9 <= h <= a[-1] + 1e-9):
+            return f"sun altitude {h:g} deg outside the map ({a[0]:g}..{a[-1]:g})"
+        if not (self.pitch[0] - 1e-9 <= p <= self.pitch[-1] + 1e-9):
+            return f"pitch {p:g} deg outside the map ({self.pitch[0]:g}..{self.pitch[-1]:g})"
+        if not (self.roll[0] - 1e-9 <= r <= self.roll[-1] + 1e-9):
+            return f"roll {r:g} deg outside the map ({self.roll[0]:g}..{self.roll[-1]:g})"
+        if not self.full_domain and abs(p) + abs(r) > self.tilt_limit_deg + 1e-9:
+            return f"|pitch| + |roll| = {abs(p) + abs(r):g} deg exceeds the map's limit {self.tilt_limit_deg:g}"
+        return "the map has no valid estimate at the nodes this point needs"
