@@ -15,15 +15,18 @@ Conditions
                        read noise 2.3 e-, 12 bit, extinction ratio 100; both demosaics (superpixel and
                        full-resolution). Level camera.
 ``tilted``             Rayleigh, ideal sensor, camera tilted (|pitch| + |roll| <= 20 deg), no correction.
-``tilted_corrected``   the same scenes, headings corrected with an error map (when the correction exists).
+``tilted_corrected``   the same scenes, headings corrected with the shipped error map
+                       (:class:`polarization_compass.correction.TiltCorrector`, true pitch and roll), both
+                       ``invert`` and ``subtract`` corrections; skipped when no map is shipped.
 ``tilted_tilt_aware``  the same scenes, ``tilt_aware`` given the true pitch and roll.
 ``bdl_sky``            Berry-Dennis-Lee neutral-point sky (separation 18 deg, DoP_max 0.75), ideal sensor, level.
 ``half_occluded``      ideal Rayleigh, level, half of the image masked by a half-plane through the centre at a
                        random angle (asymmetric about the solar meridian).
 ``eight_bit``          as ``noise_imx250`` but quantised to 8 bit.
 
-Scenes: sun azimuth uniform in [0, 360), sun altitude uniform in [10, 60] deg, camera bearing uniform
-in [0, 360); seeds are a function of (condition, scene index), so every method sees the same scenes.
+Scenes: sun azimuth uniform in [0, 360), sun altitude uniform in [10, 60] deg ([10, 50] deg for the
+tilted conditions: the paper's range and the shipped error map's domain), camera bearing uniform in
+[0, 360); seeds are a function of (condition, scene index), so every method sees the same scenes.
 """
 from __future__ import annotations
 
@@ -141,7 +144,8 @@ def sample_scene(condition: Condition, index: int) -> dict:
     """Seeded random sun, attitude, noise seed and occluder angle for one scene."""
     base = condition.name.replace("_corrected", "").replace("_tilt_aware", "")
     rng = np.random.default_rng(_seed("scene", base, index))
-    sun = SunDirection(float(rng.uniform(0, 360)), float(rng.uniform(10, 60)))
+    top = 50.0 if condition.tilted else 60.0      # tilted: the paper's range (and the error map's domain)
+    sun = SunDirection(float(rng.uniform(0, 360)), float(rng.uniform(10, top)))
     bearing = float(rng.uniform(0, 360))
     pitch = roll = 0.0
     if condition.tilted:
@@ -206,6 +210,7 @@ class _Cell:
         self.memory = None
         self.status = "ok"
         self.estimator = None
+        self.corrector = None
         self.warm = False
 
     def to_json(self) -> dict:
@@ -233,13 +238,25 @@ def _methods(cfg):
     return est, names
 
 
-def _corrector():
-    """An error-map corrector, if the project has one: ``correct(result, obs) -> result``."""
-    try:
-        mod = optional_import("polarization_compass.correction")
-    except Unavailable:
-        return None
-    return getattr(mod, "bench_corrector", None)
+def _map_corrector(method: str, mode: str):
+    """``fn(result, obs, scene) -> result`` correcting with the shipped error map, or raises."""
+    from polarization_compass.correction import TiltCorrector, default_map_path
+    from polarization_compass.estimators.base import HeadingResult, Status
+    if not default_map_path().is_file():
+        raise Unavailable(f"no shipped error map at {default_map_path()}")
+    corrector = TiltCorrector.from_file(None, method=method)
+
+    def fn(res, obs, s):
+        if not res.ok:
+            return res
+        att = s["attitude"]
+        c = corrector.correct(res.psi_deg, obs.sun_altitude_deg, att.pitch_deg, att.roll_deg, mode=mode)
+        if not c.ok or c.psi_deg is None:
+            return HeadingResult.failed(res.method, Status.OUT_OF_DOMAIN, f"correction {c.status.value}: {c.reason}",
+                                        res.pixels)
+        return HeadingResult.from_psi(res.method, c.psi_deg, obs.sun_azimuth_deg, res.sigma_deg or 0.0, res.pixels,
+                                      res.quality, res.axial)
+    return fn
 
 
 def run(cfg) -> dict:
@@ -254,11 +271,15 @@ def run(cfg) -> dict:
     for cond in conds:
         sensor = cond.sensor_bits is not None
         cond_methods = [m for m in methods if not cond.only_methods or m in cond.only_methods]
-        corrector = _corrector() if cond.correct else None
-        if cond.correct and corrector is None:
-            skipped.append({"condition": cond.name, "reason": "no error-map correction available "
-                                                              "(polarization_compass.correction.bench_corrector)"})
-            continue
+        if cond.correct:
+            try:
+                optional_import("polarization_compass.correction")
+                from polarization_compass.correction import default_map_path
+                if not default_map_path().is_file():
+                    raise Unavailable(f"no shipped error map at {default_map_path()}")
+            except Unavailable as exc:
+                skipped.append({"condition": cond.name, "reason": str(exc)})
+                continue
         try:
             base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0)
             if sensor:
@@ -274,13 +295,17 @@ def run(cfg) -> dict:
             for label, knobs, dm in knob_sets(m, level, sensor):
                 if "region" in knobs:
                     knobs = dict(knobs, region=_centre_region(knobs["region"][2], camera))
-                c = _Cell(cond.name, m, label, knobs, dm)
-                try:
-                    c.estimator = est_mod.make_estimator(m, **knobs)
-                except Exception as exc:  # noqa: BLE001 - a knob this method does not have
-                    c.status = f"unsupported knobs: {type(exc).__name__}: {exc}"
-                cond_cells.append(c)
-                cells.append(c)
+                for mode in (("invert", "subtract") if cond.correct else (None,)):
+                    c = _Cell(cond.name, m, label + (f", correction {mode}" if mode else ""), knobs, dm)
+                    try:
+                        c.estimator = est_mod.make_estimator(m, **knobs)
+                        if mode:
+                            c.corrector = _map_corrector(m, mode)
+                    except Exception as exc:  # noqa: BLE001 - a knob this method does not have, no map entry
+                        c.status = f"unavailable: {type(exc).__name__}: {exc}"
+                        c.estimator = None
+                    cond_cells.append(c)
+                    cells.append(c)
         renderers: dict = {}
         for k in range(int(cfg.scenes)):
             s = sample_scene(cond, k)
@@ -302,7 +327,7 @@ def run(cfg) -> dict:
                         frames[key] = renderers[key].render(attitude=s["attitude"], sun=s["sun"],
                                                             seed=s["noise_seed"])
                     frame = frames[key]
-                    _run_cell(c, frame, s, cond, camera, Observation, cfg, corrector)
+                    _run_cell(c, frame, s, cond, camera, Observation, cfg)
                 except Exception as exc:  # noqa: BLE001 - one broken method must not stop the suite
                     c.status = f"failed: {type(exc).__name__}: {exc}"
                     c.estimator = None
@@ -311,7 +336,8 @@ def run(cfg) -> dict:
             "scenes_per_condition": int(cfg.scenes), "repeats_per_scene": int(cfg.repeats),
             "camera": {"model": camera.model, "width_px": camera.width_px, "height_px": camera.height_px},
             "noise_model": {"electrons_per_pixel": NOISE_ELECTRONS, "dop_max": NOISE_DOP_MAX},
-            "scene_sampling": {"sun_azimuth_deg": [0, 360], "sun_altitude_deg": [10, 60], "bearing_deg": [0, 360],
+            "scene_sampling": {"sun_azimuth_deg": [0, 360], "sun_altitude_deg": [10, 60],
+                               "sun_altitude_deg_tilted": [10, 50], "bearing_deg": [0, 360],
                                "tilt": f"|pitch|+|roll| <= {TILT_LIMIT_DEG:g} deg (tilted conditions)"},
             "cells": [c.to_json() for c in cells], "elapsed_s": time.perf_counter() - t_start}
 
@@ -327,14 +353,15 @@ def _observation(frame, s, cond, camera, Observation):
     return obs
 
 
-def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg, corrector):
+def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg):
     obs = _observation(frame, s, cond, camera, Observation)
     est = c.estimator
+    corrector = c.corrector
 
     def once():
         r = est.estimate(obs)
         if corrector is not None:
-            r = corrector(r, obs)
+            r = corrector(r, obs, s)
         return r
 
     with single_core():

@@ -2,9 +2,10 @@
 timing of the same functions the node calls), and end to end through rclpy on loopback when the
 node exists.
 
-Stages: decode the ``sensor_msgs/Image`` mosaic (``nodes.msgs.decode_image``), demosaic to AoP/DoP,
+Stages (the node's own ROS-free front end, :class:`polarization_compass.pipeline.HeadingFrontEnd`):
+decode the ``sensor_msgs/Image`` mosaic (``nodes.msgs.decode_image``), demosaic to an observation,
 estimate the heading (``least_squares`` on superpixels, the node's default), build the
-robot_localization ``Imu`` message. Single core.
+robot_localization ``Imu`` message. Single core. End to end: :mod:`bench.ros_latency`.
 """
 from __future__ import annotations
 
@@ -24,18 +25,16 @@ METHOD = "least_squares"
 
 def run(cfg) -> dict:
     msgs = optional_import("polarization_compass.nodes.msgs")
-    dm = optional_import("polarization_compass.demosaic")
-    est_mod = optional_import("polarization_compass.estimators")
-    from polarization_compass.estimators.base import Observation
+    optional_import("polarization_compass.pipeline")
     from . import simulator
     cam = CameraModel(width_px=192, height_px=160) if cfg.tiny else CameraModel()
     scene = Scene(camera=cam, sky={"model": "rayleigh", "dop_max": 0.7},
                   sensor=simulator.sensor_config(simulator.ALL_EFFECTS, "superpixel"))
     renderer = Renderer(scene)
     frames = int(cfg.pipeline_frames) if not cfg.tiny else 3
-    fn = dm.polarization_from_mosaic
-    est = est_mod.make_estimator(METHOD)
-    stage_t = {k: [] for k in ("decode_image", "demosaic", "estimate", "imu_message", "total")}
+    from polarization_compass.pipeline import HeadingFrontEnd
+    front = HeadingFrontEnd(METHOD, demosaic="superpixel")
+    stage_t = {k: [] for k in ("decode_image", "demosaic_to_observation", "estimate", "imu_message", "total")}
     rng = np.random.default_rng(5)
     errors = []
     for k in range(frames + 1):
@@ -47,18 +46,17 @@ def run(cfg) -> dict:
             t0 = time.perf_counter()
             mosaic = msgs.decode_image(msg)
             t1 = time.perf_counter()
-            demo = fn(mosaic, method="superpixel")
+            obs = front.observation(mosaic, cam, sun.azimuth_deg, sun.altitude_deg)
             t2 = time.perf_counter()
-            obs = _observation(demo, frame, cam, Observation)
-            res = est.estimate(obs)
+            res = front.estimator.estimate(obs)
             t3 = time.perf_counter()
             if res.ok:
                 msgs.heading_imu(1_000_000_000 + k, "base_link", np.radians(res.yaw_enu_deg),
-                                 np.radians(res.sigma_deg) ** 2 if res.sigma_deg else 1e-4, 1e3)
+                                 np.radians(max(res.sigma_deg or 0.0, 0.01)) ** 2, 1e3)
             t4 = time.perf_counter()
         if k == 0:
             continue                          # warm-up
-        for name, dt in (("decode_image", t1 - t0), ("demosaic", t2 - t1), ("estimate", t3 - t2),
+        for name, dt in (("decode_image", t1 - t0), ("demosaic_to_observation", t2 - t1), ("estimate", t3 - t2),
                          ("imu_message", t4 - t3), ("total", t4 - t0)):
             stage_t[name].append(dt)
         if res.ok:
@@ -71,26 +69,36 @@ def run(cfg) -> dict:
     return out
 
 
-def _observation(demo, frame, cam, Observation):
-    """An Observation from the demosaic output (a Frame-like object or a dict/tuple with aop/dop/valid)."""
-    if hasattr(demo, "aop_rad"):
-        aop, dop, valid = demo.aop_rad, demo.dop, getattr(demo, "valid", None)
-    elif isinstance(demo, dict):
-        aop, dop, valid = demo["aop_rad"], demo["dop"], demo.get("valid")
-    else:
-        aop, dop = demo[0], demo[1]
-        valid = demo[2] if len(demo) > 2 else None
-    if np.shape(aop) == frame.aop_rad.shape:
-        v = frame.valid if valid is None else (np.asarray(valid) & frame.valid)
-        return Observation(aop, dop, v, frame.rays_cam, frame.x_px, frame.y_px, cam, frame.sun.azimuth_deg,
-                           frame.sun.altitude_deg)
-    raise Unavailable(f"demosaic output shape {np.shape(aop)} differs from the frame's {frame.aop_rad.shape}; "
-                      "pipeline bench needs the superpixel geometry")
-
-
 def _end_to_end(cfg) -> dict:
+    """Run :mod:`bench.ros_latency` in a child process (loopback DDS, own domain id, SHM profile)."""
+    import json
+    import os
+    import random
+    import subprocess
+    import sys
+    from pathlib import Path
     try:
+        optional_import("rclpy")
         optional_import("polarization_compass.nodes.heading_estimator")
     except Unavailable as exc:
         return {"status": f"unavailable: {exc}"}
-    return {"status": "not implemented yet"}
+    repo = Path(__file__).resolve().parent.parent
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               ROS_DOMAIN_ID=str(random.Random(os.getpid()).randint(150, 220)), PYTHONUNBUFFERED="1",
+               NUMBA_NUM_THREADS=os.environ.get("NUMBA_NUM_THREADS", "1"))
+    profile = repo / "config" / "fastdds_large_images.xml"
+    if profile.is_file():
+        env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+    args = json.dumps({"frames": 3 if cfg.tiny else int(cfg.pipeline_frames), "method": METHOD, "tiny": cfg.tiny})
+    try:
+        p = subprocess.run([sys.executable, "-m", "bench.ros_latency", args], cwd=repo, env=env, capture_output=True,
+                           text=True, timeout=300)
+    except subprocess.TimeoutExpired:
+        return {"status": "failed: timed out after 300 s"}
+    lines = [ln for ln in p.stdout.strip().splitlines() if ln.startswith("{")]
+    if p.returncode != 0 or not lines:
+        return {"status": f"failed: exit {p.returncode}: {p.stderr.strip()[-300:]}"}
+    res = json.loads(lines[-1])
+    res["fastdds_profile"] = profile.name if profile.is_file() else None
+    res["numba_threads"] = env["NUMBA_NUM_THREADS"]
+    return res
