@@ -1,0 +1,347 @@
+"""Running heading-error statistics and the stamp matching behind ``error_evaluator`` (ROS-free).
+
+Error convention (the paper's): ``error_deg = estimated bearing - true bearing``, which equals
+``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg ambiguity,
+folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an axial one, where
+a heading and its opposite are the same measurement. Statistics of a stream:
+
+``count``   matched estimates
+``mean``    mean signed error (deg)              ``std``  its standard deviation (deg)
+``rms``     sqrt(mean(error^2)) (deg)            ``p95``  95th percentile of |error| (deg)
+``max``     max |error| (deg)
+
+Every sample is kept up to ``max_samples`` (default 2 million, 16 MB), so ``p95`` is exact for any
+run this project simulates; beyond that, percentiles come from a uniform reservoir sample of that
+size (deterministic seed) while count, mean, RMS, std and max stay exact.
+
+:class:`StampMatcher` pairs estimates with the ground truth by identical stamp (the estimator stamps
+its output with the image's stamp, and the simulator stamps the truth with the same stamp): an
+estimate that arrives before its truth waits (bounded), a truth frame without an estimate on a
+stream after ``horizon_ns`` counts as *missed* for that stream.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .conventions import fold_axial_deg, wrap_180_deg
+from .errors import CompassError
+
+__all__ = ["RunningStats", "heading_error_deg", "StampMatcher", "Match", "EvaluationError",
+           "write_samples_csv", "write_summary_csv", "plot_report", "STAT_FIELDS"]
+
+STAT_FIELDS = ("count", "mean", "std", "rms", "p95", "max")
+
+
+class EvaluationError(CompassError):
+    """Bad evaluator input (non-finite angle, unknown stream)."""
+
+
+def heading_error_deg(estimated_bearing_deg, true_bearing_deg, axial: bool):
+    """Estimated minus true bearing, wrapped to (-180, 180], or folded to (-90, 90] when ``axial``."""
+    d = np.asarray(estimated_bearing_deg, dtype=float) - np.asarray(true_bearing_deg, dtype=float)
+    return fold_axial_deg(d) if axial else wrap_180_deg(d)
+
+
+class RunningStats:
+    """Mean, std, RMS, p95 and max of signed errors (deg), updated one sample at a time.
+
+    Sums are accumulated with Welford's update (mean and variance) so that long runs do not lose
+    precision; ``max`` and the sample store are updated in O(1) amortised time.
+    """
+
+    def __init__(self, max_samples: int = 2_000_000, seed: int = 0):
+        if max_samples < 1:
+            raise EvaluationError("max_samples must be >= 1")
+        self.max_samples = int(max_samples)
+        self.count = 0
+        self._mean = 0.0
+        self._m2 = 0.0           # sum of squared deviations from the mean (Welford)
+        self._sumsq = 0.0
+        self._max_abs = 0.0
+        self._buf = np.empty(min(1024, self.max_samples), dtype=float)
+        self._stored = 0
+        self._rng = np.random.default_rng(seed)
+
+    def add(self, error_deg: float) -> None:
+        e = float(error_deg)
+        if not math.isfinite(e):
+            raise EvaluationError(f"non-finite error {error_deg!r}")
+        self.count += 1
+        delta = e - self._mean
+        self._mean += delta / self.count
+        self._m2 += delta * (e - self._mean)
+        self._sumsq += e * e
+        self._max_abs = max(self._max_abs, abs(e))
+        if self._stored < self.max_samples:
+            if self._stored == self._buf.size:
+                grown = np.empty(min(self.max_samples, 2 * self._buf.size), dtype=float)
+                grown[:self._stored] = self._buf[:self._stored]
+                self._buf = grown
+            self._buf[self._stored] = e
+            self._stored += 1
+        else:                                   # reservoir sampling (Vitter's algorithm R)
+            j = int(self._rng.integers(0, self.count))
+            if j < self.max_samples:
+                self._buf[j] = e
+
+    def extend(self, errors_deg) -> None:
+        for e in np.asarray(errors_deg, dtype=float).reshape(-1):
+            self.add(e)
+
+    @property
+    def samples(self) -> np.ndarray:
+        """The stored samples (all of them while count <= max_samples), read-only view."""
+        v = self._buf[:self._stored]
+        v.setflags(write=False)
+        return v
+
+    @property
+    def exact_percentiles(self) -> bool:
+        return self.count <= self.max_samples
+
+    def summary(self) -> dict:
+        """``{count, mean, std, rms, p95, max}``; zeros (never NaN) for an empty stream."""
+        if self.count == 0:
+            return {k: 0 if k == "count" else 0.0 for k in STAT_FIELDS}
+        p95 = float(np.percentile(np.abs(self._buf[:self._stored]), 95.0))
+        return {"count": self.count, "mean": self._mean,
+                "std": math.sqrt(max(self._m2, 0.0) / self.count),
+                "rms": math.sqrt(self._sumsq / self.count), "p95": p95, "max": self._max_abs}
+
+
+@dataclass
+class Match:
+    """One estimate paired with its truth."""
+
+    stream: str
+    stamp_ns: int
+    true_bearing_deg: float
+    estimated_bearing_deg: float
+    error_deg: float
+    axial: bool
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Stream:
+    name: str
+    axial: bool
+    stats: RunningStats
+    received: int = 0
+    matched: int = 0
+    unmatched: int = 0          # estimates whose truth never arrived (dropped from the wait buffer)
+    missed: int = 0             # truth frames that got no estimate on this stream within the horizon
+    pending: OrderedDict = field(default_factory=OrderedDict)   # stamp_ns -> (bearing, extra)
+    seen: set = field(default_factory=set)                      # stamps matched, for miss accounting
+
+
+class StampMatcher:
+    """Pairs estimates with truth by identical stamp and keeps one :class:`RunningStats` per stream.
+
+    ``horizon_ns``: how long (in stamp time) a truth frame waits for each stream before it is
+    counted as missed there, and how long an early estimate waits for its truth. ``max_pending``
+    bounds memory per stream.
+    """
+
+    def __init__(self, horizon_ns: int = 5_000_000_000, max_pending: int = 1000, max_samples: int = 2_000_000):
+        if horizon_ns <= 0 or max_pending <= 0:
+            raise EvaluationError("horizon_ns and max_pending must be positive")
+        self.horizon_ns = int(horizon_ns)
+        self.max_pending = int(max_pending)
+        self.max_samples = int(max_samples)
+        self.truth: OrderedDict = OrderedDict()        # stamp_ns -> true bearing
+        self.truth_count = 0
+        self.streams: dict[str, _Stream] = {}
+        self.matches: list[Match] = []
+        self._latest_ns = None
+
+    def add_stream(self, name: str, axial: bool) -> None:
+        if name not in self.streams:
+            self.streams[name] = _Stream(name, bool(axial), RunningStats(self.max_samples))
+
+    def add_truth(self, stamp_ns: int, true_bearing_deg: float) -> list[Match]:
+        """Record a truth sample; returns the matches it completes (estimates that arrived first)."""
+        b = float(true_bearing_deg)
+        if not math.isfinite(b):
+            raise EvaluationError("non-finite true bearing")
+        stamp_ns = int(stamp_ns)
+        if stamp_ns in self.truth:
+            return []
+        self.truth[stamp_ns] = b
+        self.truth_count += 1
+        out = []
+        for s in self.streams.values():
+            if stamp_ns in s.pending:
+                est, extra, ax = s.pending.pop(stamp_ns)
+                out.append(self._match(s, stamp_ns, est, extra, ax))
+        self._advance(stamp_ns)
+        return out
+
+    def add_estimate(self, stream: str, stamp_ns: int, bearing_deg: float, axial: bool = False,
+                     extra: dict | None = None) -> Match | None:
+        """Record an estimate; returns its :class:`Match` when the truth is known already.
+
+        The error is folded (axial) when the stream was declared axial or this estimate says so."""
+        if stream not in self.streams:
+            raise EvaluationError(f"unknown stream {stream!r}")
+        b = float(bearing_deg)
+        if not math.isfinite(b):
+            raise EvaluationError("non-finite estimated bearing")
+        s = self.streams[stream]
+        s.received += 1
+        stamp_ns = int(stamp_ns)
+        ax = bool(axial)
+        if stamp_ns in self.truth:
+            return self._match(s, stamp_ns, b, extra or {}, ax)
+        s.pending[stamp_ns] = (b, extra or {}, ax)
+        while len(s.pending) > self.max_pending:
+            s.pending.popitem(last=False)
+            s.unmatched += 1
+        self._advance(stamp_ns)
+        return None
+
+    def _match(self, s: _Stream, stamp_ns: int, est: float, extra: dict, axial: bool) -> Match:
+        truth = self.truth[stamp_ns]
+        ax = s.axial or axial
+        err = float(heading_error_deg(est, truth, ax))
+        s.stats.add(err)
+        s.matched += 1
+        s.seen.add(stamp_ns)
+        m = Match(s.name, stamp_ns, truth, est, err, ax, dict(extra))
+        self.matches.append(m)
+        return m
+
+    def _advance(self, stamp_ns: int) -> None:
+        """Expire truth frames and early estimates older than the horizon (in stamp time)."""
+        if self._latest_ns is None or stamp_ns > self._latest_ns:
+            self._latest_ns = stamp_ns
+        cutoff = self._latest_ns - self.horizon_ns
+        while self.truth:
+            t0 = next(iter(self.truth))
+            if t0 >= cutoff:
+                break
+            self.truth.popitem(last=False)
+            for s in self.streams.values():
+                if t0 in s.seen:
+                    s.seen.discard(t0)
+                else:
+                    s.missed += 1
+        for s in self.streams.values():
+            while s.pending:
+                t0 = next(iter(s.pending))
+                if t0 >= cutoff:
+                    break
+                s.pending.popitem(last=False)
+                s.unmatched += 1
+
+    def finish(self) -> None:
+        """End of run: every truth frame still waiting counts as missed where nothing came."""
+        for t0 in list(self.truth):
+            for s in self.streams.values():
+                if t0 in s.seen:
+                    s.seen.discard(t0)
+                else:
+                    s.missed += 1
+        self.truth.clear()
+        for s in self.streams.values():
+            s.unmatched += len(s.pending)
+            s.pending.clear()
+
+    def missed_so_far(self, stream: str) -> int:
+        """Truth frames (all received so far) without an estimate on ``stream``, pending ones included."""
+        s = self.streams[stream]
+        waiting = sum(1 for t in self.truth if t not in s.seen)
+        return s.missed + waiting
+
+    def summary(self) -> dict:
+        """Per stream: the statistics plus received / matched / missed / unmatched counts and ``axial``."""
+        out = {}
+        for name, s in self.streams.items():
+            d = s.stats.summary()
+            d.update(received=s.received, matched=s.matched, missed=self.missed_so_far(name),
+                     unmatched=s.unmatched, axial=s.axial)
+            out[name] = d
+        return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Report files
+# ------------------------------------------------------------------------------------------------
+def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> Path:
+    """One row per matched estimate: stamp, stream, truth, estimate, error (deg), axial, extras."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with p.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stamp_s", "stream", "true_bearing_deg", "estimated_bearing_deg", "error_deg", "axial",
+                    *extra_fields])
+        for m in matches:
+            w.writerow([f"{m.stamp_ns / 1e9:.9f}", m.stream, f"{m.true_bearing_deg:.6f}",
+                        f"{m.estimated_bearing_deg:.6f}", f"{m.error_deg:.6f}", int(m.axial),
+                        *[m.extra.get(k, "") for k in extra_fields]])
+    return p
+
+
+def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
+    """One row per stream: the :meth:`StampMatcher.summary` fields (and ``extra[stream]`` columns)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    extra = extra or {}
+    extra_cols = sorted({k for v in extra.values() for k in v})
+    cols = ["stream", *STAT_FIELDS, "received", "matched", "missed", "unmatched", "axial", *extra_cols]
+    with p.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for name, d in summary.items():
+            row = [name]
+            for c in cols[1:]:
+                v = d.get(c, extra.get(name, {}).get(c, ""))
+                row.append(f"{v:.6f}" if isinstance(v, float) else (int(v) if isinstance(v, bool) else v))
+            w.writerow(row)
+    return p
+
+
+def plot_report(path, matches: list[Match], title: str = "") -> Path | None:
+    """Error against true bearing per stream (like the paper's Fig 17), one panel per method.
+
+    Streams named ``<method>/raw`` and ``<method>/corrected`` share a panel. Returns None when
+    there is nothing to plot.
+    """
+    if not matches:
+        return None
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    by_stream: dict[str, list[Match]] = {}
+    for m in matches:
+        by_stream.setdefault(m.stream, []).append(m)
+    methods = sorted({s.split("/")[0] for s in by_stream})
+    n = len(methods)
+    fig, axes = plt.subplots(n, 1, figsize=(8.0, 2.4 * n + 0.6), dpi=100, sharex=True, squeeze=False)
+    for ax, method in zip(axes[:, 0], methods):
+        for name in sorted(s for s in by_stream if s.split("/")[0] == method):
+            ms = sorted(by_stream[name], key=lambda m: m.stamp_ns)
+            x = np.array([m.true_bearing_deg for m in ms])
+            y = np.array([m.error_deg for m in ms])
+            label = name.split("/", 1)[1] if "/" in name else name
+            ax.plot(x, y, ".", ms=3, label=f"{label} (rms {math.sqrt(float(np.mean(y * y))):.2f})")
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_ylabel(f"{method}\nerror, deg")
+        ax.legend(loc="upper right", fontsize=7)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("true bearing of camera +y, deg clockwise from North")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(p)
+    plt.close(fig)
+    return p

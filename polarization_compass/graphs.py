@@ -1,0 +1,359 @@
+"""The single description of each node graph (ROS-free).
+
+``launch/sim.launch.py``, ``compass.launch.py`` and ``replay.launch.py`` build their
+LaunchDescription from here, and ``polarization-compass sim`` (``make sim``) starts the very same
+graph as subprocesses without ``ros2 launch`` (:meth:`NodeSpec.command`). A graph lists its nodes:
+executable (a console script of ``setup.py``), node name, namespace, parameter files (paths in the
+package's share directory), inline parameters (applied after the files) and remappings, plus the
+topics each node publishes and subscribes to (from :mod:`polarization_compass.nodes.topics`, the
+names the node code itself uses) so that the wiring can be checked without running anything.
+
+Graphs
+------
+``sim``      sky_simulator -> one heading_estimator per method -> one tilt_corrector per paper
+             method -> error_evaluator; sim time from the simulator's ``/clock``.
+``compass``  a real camera and IMU: one heading_estimator (``method``) and its tilt_corrector;
+             the input topics are launch arguments (remappings).
+``replay``   ``ros2 bag play --clock`` of a recorded run: the sim graph without the simulator,
+             ``use_sim_time`` on, the site from the bag's NavSatFix.
+
+Launch arguments are strings (as ``ros2 launch`` passes them); :func:`build` parses them with the
+types of :data:`ARGUMENTS`.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from .errors import CompassError
+from .nodes import topics as T
+from .nodes.params import ALL_METHODS, PAPER_METHODS
+
+__all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
+           "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE"]
+
+PACKAGE = "polarization_compass"
+GRAPH_NAMES = ("sim", "compass", "replay")
+#: Fast DDS profile for full-resolution images on one machine (shared memory with a large segment):
+#: with the default transports, best-effort 10 MB images are lost in fragments. Used by
+#: ``polarization-compass sim`` and the tests; optional on a robot (docs/ros.md).
+FASTDDS_PROFILE = "config/fastdds_large_images.xml"
+
+
+class GraphError(CompassError):
+    """Unknown graph, bad launch argument or an inconsistent graph."""
+
+
+@dataclass(frozen=True)
+class LaunchArg:
+    name: str
+    default: str
+    description: str
+    kind: str = "str"            # str | bool | float | int | list (comma separated)
+    choices: tuple = ()
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of a graph. Topic names in ``publishes``/``subscribes`` are before remapping."""
+
+    executable: str
+    name: str
+    namespace: str = ""
+    param_files: tuple = ()
+    parameters: dict = field(default_factory=dict)
+    remappings: tuple = ()                    # ((from, to), ...)
+    publishes: tuple = ()                     # ((topic, type), ...)
+    subscribes: tuple = ()
+    package: str = PACKAGE
+
+    def remap(self, topic: str) -> str:
+        for a, b in self.remappings:
+            if a == topic:
+                return b
+        return topic
+
+    def resolved(self, topic: str) -> str:
+        """Absolute name of a (possibly relative) topic after remapping and namespacing."""
+        t = self.remap(topic)
+        if t.startswith("/"):
+            return t
+        ns = self.namespace.strip("/")
+        return f"/{ns}/{t}" if ns else f"/{t}"
+
+    def resolved_publishes(self) -> list[tuple[str, str]]:
+        return [(self.resolved(t), ty) for t, ty in self.publishes]
+
+    def resolved_subscribes(self) -> list[tuple[str, str]]:
+        return [(self.resolved(t), ty) for t, ty in self.subscribes]
+
+    def ros_arguments(self, share: Path) -> list[str]:
+        """``--ros-args ...`` for running the executable directly (what ``ros2 launch`` would pass)."""
+        args = ["--ros-args", "-r", f"__node:={self.name}"]
+        if self.namespace:
+            args += ["-r", f"__ns:=/{self.namespace.strip('/')}"]
+        for f in self.param_files:
+            args += ["--params-file", str(Path(share) / f)]
+        for k, v in self.parameters.items():
+            args += ["-p", f"{k}:={_yaml_scalar(v)}"]
+        for a, b in self.remappings:
+            args += ["-r", f"{a}:={b}"]
+        return args
+
+
+def _yaml_scalar(v) -> str:
+    text = yaml.safe_dump(v, default_flow_style=True, width=10_000).strip()
+    if text.endswith("\n..."):
+        text = text[:-4].strip()
+    if text.endswith("..."):
+        text = text[:-3].strip()
+    return text
+
+
+@dataclass(frozen=True)
+class Graph:
+    name: str
+    description: str
+    nodes: tuple
+    external_inputs: tuple = ()              # absolute topics expected from outside the graph
+    shutdown_with: str | None = None         # node name whose exit ends the whole graph
+
+    def node(self, name: str) -> NodeSpec:
+        for n in self.nodes:
+            if n.name == name:
+                return n
+        raise GraphError(f"graph {self.name!r} has no node {name!r}")
+
+    def published_topics(self) -> dict:
+        out: dict = {}
+        for n in self.nodes:
+            for t, ty in n.resolved_publishes():
+                out.setdefault(t, set()).add(ty)
+        return out
+
+    def check(self) -> list[str]:
+        """Wiring problems: a subscription nobody in the graph (or outside it) publishes, a topic with
+        two types, duplicate node names. Empty when the graph is consistent."""
+        problems = []
+        names = [(n.namespace, n.name) for n in self.nodes]
+        if len(set(names)) != len(names):
+            problems.append("duplicate node names")
+        pubs = self.published_topics()
+        for t, types in pubs.items():
+            if len(types) > 1:
+                problems.append(f"{t} is published with several types {sorted(types)}")
+        for n in self.nodes:
+            for t, ty in n.resolved_subscribes():
+                if t in self.external_inputs:
+                    continue
+                if t not in pubs:
+                    problems.append(f"{n.name} subscribes to {t}, which nothing in graph {self.name!r} publishes")
+                elif ty not in pubs[t]:
+                    problems.append(f"{n.name} subscribes to {t} as {ty}, published as {sorted(pubs[t])}")
+        return problems
+
+
+# ------------------------------------------------------------------------------------------------
+# Launch arguments
+# ------------------------------------------------------------------------------------------------
+_COMMON = (
+    LaunchArg("error_map", "out/sim/error_map.npz",
+              "tilt error map (.npz) for the correctors; make one with 'polarization-compass errormap' "
+              "(polarization-compass sim builds it when missing)"),
+    LaunchArg("report_dir", "out/sim", "where error_evaluator writes its CSV and PNG report"),
+)
+
+ARGUMENTS = {
+    "sim": (
+        LaunchArg("methods", ",".join(PAPER_METHODS), "paper methods: an estimator and a corrector each",
+                  "list", PAPER_METHODS),
+        LaunchArg("tilt_aware", "true", "also run the tilt_aware estimator (IMU tilt, no corrector)", "bool"),
+        LaunchArg("encoding", "mono16", "simulated camera encoding", "str", ("mono16", "mono8", "32FC1")),
+        LaunchArg("rate_hz", "10.0", "camera frame rate (simulated time)", "float"),
+        LaunchArg("time_scale", "1.0", "simulated seconds per wall second", "float"),
+        LaunchArg("turns", "1.0", "full turns to simulate (0: until stopped)", "float"),
+        LaunchArg("turn_rate_deg_s", "10.0", "turn rate, deg/s", "float"),
+        LaunchArg("pitch_deg", "-20.0", "camera pitch during the turn (paper Fig 17: -20)", "float"),
+        LaunchArg("roll_deg", "0.0", "camera roll during the turn", "float"),
+        LaunchArg("scene", "", "scene YAML for camera, sky and sensor ('' = the paper's set-up)"),
+        LaunchArg("lockstep", "false", "simulator waits for every estimator before the next frame", "bool"),
+        LaunchArg("exit_when_done", "true", "stop the whole graph after the last frame", "bool"),
+        *_COMMON,
+    ),
+    "compass": (
+        LaunchArg("method", "least_squares", "heading method", "str", ALL_METHODS),
+        LaunchArg("correction", "error_map", "tilt correction of the heading", "str", ("error_map", "none")),
+        LaunchArg("image_topic", T.IMAGE, "raw polarizer mosaic (mono8/mono16)"),
+        LaunchArg("camera_info_topic", T.CAMERA_INFO, "camera_info of the mosaic"),
+        LaunchArg("imu_topic", T.IMU, "IMU with orientation (roll/pitch used)"),
+        LaunchArg("fix_topic", T.FIX, "NavSatFix for the site (site_source navsatfix)"),
+        LaunchArg("site_source", "navsatfix", "site from parameters or NavSatFix", "str", ("parameters", "navsatfix")),
+        LaunchArg("frame_id", "base_link", "frame_id of the published heading (z up)"),
+        LaunchArg("namespace", "", "namespace of the compass nodes"),
+        LaunchArg("use_sim_time", "false", "use /clock", "bool"),
+        _COMMON[0],
+    ),
+    "replay": (
+        LaunchArg("methods", ",".join(PAPER_METHODS), "paper methods to run on the bag", "list", PAPER_METHODS),
+        LaunchArg("tilt_aware", "true", "also run the tilt_aware estimator", "bool"),
+        LaunchArg("site_source", "navsatfix", "site from the bag's NavSatFix or parameters", "str",
+                  ("parameters", "navsatfix")),
+        _COMMON[0],
+        LaunchArg("report_dir", "out/replay", "where error_evaluator writes its CSV and PNG report"),
+    ),
+}
+
+
+def parse_arg(arg: LaunchArg, text) -> object:
+    """A launch-argument string to its value (bool: true/false/1/0; list: comma separated)."""
+    s = str(text).strip()
+    try:
+        if arg.kind == "bool":
+            low = s.lower()
+            if low not in ("true", "false", "1", "0", "yes", "no"):
+                raise ValueError(s)
+            return low in ("true", "1", "yes")
+        if arg.kind == "float":
+            v = float(s)
+            if v != v or v in (float("inf"), float("-inf")):
+                raise ValueError(s)
+            return v
+        if arg.kind == "int":
+            return int(s)
+        if arg.kind == "list":
+            items = [x.strip() for x in s.split(",") if x.strip()]
+            if arg.choices:
+                bad = [x for x in items if x not in arg.choices]
+                if bad:
+                    raise GraphError(f"{arg.name}: unknown item(s) {bad}; allowed: {', '.join(arg.choices)}")
+            return items
+    except ValueError:
+        raise GraphError(f"launch argument {arg.name}: cannot read {text!r} as {arg.kind}") from None
+    if arg.choices and s not in arg.choices:
+        raise GraphError(f"launch argument {arg.name} must be one of {', '.join(arg.choices)}, got {s!r}")
+    return s
+
+
+def build(name: str, args: dict | None = None) -> Graph:
+    """The graph ``name`` with launch arguments ``args`` (strings; missing ones take their default)."""
+    if name not in ARGUMENTS:
+        raise GraphError(f"unknown graph {name!r}; known: {', '.join(GRAPH_NAMES)}")
+    args = dict(args or {})
+    specs = {a.name: a for a in ARGUMENTS[name]}
+    unknown = set(args) - set(specs)
+    if unknown:
+        raise GraphError(f"graph {name!r} has no launch argument(s) {sorted(unknown)}; "
+                         f"known: {', '.join(sorted(specs))}")
+    values = {k: parse_arg(a, args.get(k, a.default)) for k, a in specs.items()}
+    return {"sim": sim_graph, "compass": compass_graph, "replay": replay_graph}[name](**values)
+
+
+# ------------------------------------------------------------------------------------------------
+# The graphs
+# ------------------------------------------------------------------------------------------------
+def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
+    site_source = params.get("site_source", "parameters")
+    prior = params.get("prior_source", "imu")
+    pubs, subs = T.estimator_topics(method, site_source, needs_tilt=(method == "tilt_aware"), prior_source=prior)
+    return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
+                    ("config/heading_estimator.yaml",), {"method": method, **params}, tuple(remappings),
+                    tuple(pubs), tuple(subs))
+
+
+def _corrector(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
+    pubs, subs = T.corrector_topics(method)
+    return NodeSpec("tilt_corrector", f"tilt_corrector_{method}", namespace, ("config/tilt_corrector.yaml",),
+                    {"method": method, **params}, tuple(remappings), tuple(pubs), tuple(subs))
+
+
+def _evaluator(methods, direct, params: dict) -> NodeSpec:
+    streams = T.evaluator_streams(methods, direct_methods=direct)
+    pubs, subs = T.evaluator_topics(streams)
+    return NodeSpec("error_evaluator", "error_evaluator", "", ("config/error_evaluator.yaml",),
+                    {"methods": list(methods), "direct_methods": list(direct) or [""], **params}, (),
+                    tuple(pubs), tuple(subs))
+
+
+def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
+              turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
+              exit_when_done=True, error_map="out/sim/error_map.npz", report_dir="out/sim") -> Graph:
+    methods = tuple(methods)
+    all_methods = methods + (("tilt_aware",) if tilt_aware else ())
+    if not all_methods:
+        raise GraphError("the sim graph needs at least one method")
+    sim_time = {"use_sim_time": True}
+    lock_topics = [T.method_topics(m)["status"] for m in all_methods]
+    sim_params = {"encoding": encoding, "rate_hz": float(rate_hz), "time_scale": float(time_scale),
+                  "turns": float(turns), "turn_rate_deg_s": float(turn_rate_deg_s), "pitch_deg": float(pitch_deg),
+                  "roll_deg": float(roll_deg), "scene": scene, "clock_mode": "sim",
+                  "exit_when_done": bool(exit_when_done), "lockstep": bool(lockstep),
+                  "lockstep_topics": lock_topics, "wait_for_subscribers": len(all_methods)}
+    pubs, subs = T.simulator_topics("motion", publish_clock=True)
+    if lockstep:
+        subs = list(subs) + [(t, T.T_STRING) for t in lock_topics]
+    nodes = [NodeSpec("sky_simulator", "sky_simulator", "", ("config/sky_simulator.yaml",), sim_params, (),
+                      tuple(pubs), tuple(subs))]
+    nodes += [_estimator(m, dict(sim_time)) for m in all_methods]
+    nodes += [_corrector(m, {**sim_time, "error_map": error_map}) for m in methods]
+    nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
+                            {**sim_time, "report_dir": report_dir, "time_scale": float(time_scale)}))
+    return Graph("sim", "simulated camera and IMU, every method, raw and corrected errors", tuple(nodes),
+                 shutdown_with="sky_simulator" if exit_when_done else None)
+
+
+def compass_graph(method="least_squares", correction="error_map", image_topic=T.IMAGE,
+                  camera_info_topic=T.CAMERA_INFO, imu_topic=T.IMU, fix_topic=T.FIX, site_source="navsatfix",
+                  frame_id="base_link", namespace="", use_sim_time=False,
+                  error_map="out/sim/error_map.npz") -> Graph:
+    remaps = tuple((a, b) for a, b in ((T.IMAGE, image_topic), (T.CAMERA_INFO, camera_info_topic),
+                                        (T.IMU, imu_topic), (T.FIX, fix_topic)) if a != b)
+    common = {"use_sim_time": bool(use_sim_time)}
+    nodes = [_estimator(method, {**common, "site_source": site_source, "frame_id": frame_id}, remaps, namespace)]
+    if method != "tilt_aware":
+        nodes.append(_corrector(method, {**common, "correction": correction, "error_map": error_map}, remaps,
+                                namespace))
+    probe = NodeSpec("x", "x", namespace, remappings=remaps)
+    external = tuple(probe.resolved(t) for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX))
+    return Graph("compass", "a real polarization camera and IMU: heading for robot_localization", tuple(nodes),
+                 external_inputs=external)
+
+
+def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix",
+                 error_map="out/sim/error_map.npz", report_dir="out/replay") -> Graph:
+    methods = tuple(methods)
+    all_methods = methods + (("tilt_aware",) if tilt_aware else ())
+    common = {"use_sim_time": True}
+    nodes = [_estimator(m, {**common, "site_source": site_source}) for m in all_methods]
+    nodes += [_corrector(m, {**common, "error_map": error_map}) for m in methods]
+    nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
+                            {**common, "report_dir": report_dir}))
+    external = tuple("/" + t for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX, T.TRUTH)) + (T.CLOCK,)
+    return Graph("replay", "a recorded run played with 'ros2 bag play --clock'", tuple(nodes),
+                 external_inputs=external)
+
+
+# ------------------------------------------------------------------------------------------------
+# Where the parameter files are
+# ------------------------------------------------------------------------------------------------
+def share_dir() -> Path:
+    """The package's share directory: the colcon install when this package is in the ament index,
+    else the source tree (which has the same ``config/`` and ``launch/`` layout)."""
+    env = os.environ.get("POLARIZATION_COMPASS_SHARE")
+    if env:
+        return Path(env)
+    src = Path(__file__).resolve().parent.parent
+    if (src / "config").is_dir() and (src / "setup.py").is_file():
+        return src                       # a source checkout (or an editable install of one)
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+        try:
+            return Path(get_package_share_directory(PACKAGE))
+        except (PackageNotFoundError, LookupError, ValueError):
+            pass
+    except ImportError:
+        pass
+    raise GraphError("cannot find the polarization_compass share directory (config/, launch/): install the "
+                     "package with colcon or set POLARIZATION_COMPASS_SHARE")

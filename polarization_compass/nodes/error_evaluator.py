@@ -1,0 +1,167 @@
+"""``error_evaluator``: heading errors of every method against the ground truth, live.
+
+Subscribes to ``ground_truth/heading`` and, per method, ``compass/<m>/heading_raw`` (stream
+``<m>/raw``) and ``compass/<m>/heading`` (stream ``<m>/corrected``; not for ``direct_methods``), all
+sensor_msgs/Imu. Estimates are paired with the truth by identical stamp
+(:class:`~polarization_compass.evaluation.StampMatcher`); the error is estimated minus true bearing
+(the paper's psi error), folded to (-90, 90] for ``axial_methods``.
+
+Publishes ``evaluation/summary`` (std_msgs/String, JSON: per stream count, mean, std, RMS, p95, max,
+missed frames, latency) and ``/diagnostics``. On shutdown (Ctrl-C, SIGTERM, end of the launch) it
+writes into ``report_dir``: ``evaluation_samples.csv`` (one row per estimate),
+``evaluation_summary.csv`` and ``.json`` (one row per stream) and ``evaluation.png`` (error against
+true bearing per method, raw and corrected, like the paper's Fig 17).
+
+Latency: wall time from the image stamp to the arrival here. Under ``use_sim_time`` the sim time of
+arrival is the last ``/clock`` plus the wall time since it (at most 50 ms extrapolated), converted to
+wall time with ``time_scale``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
+
+from ..bag import MessageError, decode_orientation, stamp_ns
+from ..conventions import wrap_360_deg
+from ..evaluation import StampMatcher, plot_report, write_samples_csv, write_summary_csv
+from . import topics
+from .diagnostics import Diagnostics
+from .msgs import yaw_enu_from_quat
+from .params import EVALUATOR
+from .rosparams import ParameterSet
+from .runner import run_node
+
+__all__ = ["ErrorEvaluatorNode", "main", "bearing_from_imu"]
+
+
+def bearing_from_imu(msg) -> float:
+    """True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw."""
+    q = decode_orientation(msg)
+    return float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
+
+
+class ErrorEvaluatorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("error_evaluator", **kwargs)
+        self.params = ParameterSet(self, EVALUATOR)
+        p = self.params
+        methods = p.strings("methods")
+        direct = p.strings("direct_methods")
+        self.axial = set(p.strings("axial_methods"))
+        self.streams = topics.evaluator_streams(methods, p["include_raw"], p["include_corrected"], direct)
+        self.matcher = StampMatcher(horizon_ns=int(p["horizon_s"] * 1e9))
+        self.latency_ms: dict[str, list] = {}
+        for name, _ in self.streams:
+            self.matcher.add_stream(name, name.split("/")[0] in self.axial)
+            self.latency_ms[name] = []
+        self.diag = Diagnostics(self, "error evaluator", period_s=1.0 / p["summary_rate_hz"])
+        self._last_clock = None            # (sim ns, perf_counter) of the last /clock
+        self._closed = False
+        qos = QoSProfile(depth=200)
+        self.create_subscription(Imu, topics.TRUTH, self._on_truth, qos)
+        for name, topic in self.streams:
+            self.create_subscription(Imu, topic, lambda m, n=name: self._on_estimate(n, m), qos)
+        if self.get_parameter("use_sim_time").value:
+            self.create_subscription(Clock, topics.CLOCK, self._on_clock, QoSProfile(depth=10))
+        self.pub_summary = self.create_publisher(String, topics.EVAL_SUMMARY, QoSProfile(depth=10))
+        self.create_timer(1.0 / p["summary_rate_hz"], self.publish_summary)
+        self.get_logger().info(f"evaluating {len(self.streams)} stream(s) against {topics.TRUTH}; "
+                               f"report in {p['report_dir']} at shutdown")
+
+    # inputs -------------------------------------------------------------------------------------
+    def _on_clock(self, msg):
+        self._last_clock = (stamp_ns(msg.clock), time.perf_counter())
+
+    def _arrival_latency_ms(self, t_ns: int) -> float:
+        scale = self.params["time_scale"]
+        if self._last_clock is not None:
+            sim_now = self._last_clock[0] + min(time.perf_counter() - self._last_clock[1], 0.05) * scale * 1e9
+        else:
+            sim_now = self.get_clock().now().nanoseconds
+        return (sim_now - t_ns) / scale / 1e6
+
+    def _on_truth(self, msg):
+        t_in = self.diag.input()
+        try:
+            b = bearing_from_imu(msg)
+        except MessageError as exc:
+            self.diag.reject(f"truth_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        self.matcher.add_truth(stamp_ns(msg.header), b)
+        self.diag.done(t_in, None)
+
+    def _on_estimate(self, stream: str, msg):
+        t_in = self.diag.input()
+        t_ns = stamp_ns(msg.header)
+        lat = self._arrival_latency_ms(t_ns)
+        try:
+            b = bearing_from_imu(msg)
+        except MessageError as exc:
+            self.diag.reject(f"estimate_{getattr(exc, 'reason', 'bad')}", f"{stream}: {exc}")
+            return
+        sigma = math.degrees(math.sqrt(max(float(msg.orientation_covariance[8]), 0.0)))
+        self.matcher.add_estimate(stream, t_ns, b, extra={"latency_ms": round(lat, 3), "sigma_deg": sigma})
+        self.latency_ms[stream].append(lat)
+        self.diag.done(t_in, t_ns)
+
+    # outputs ------------------------------------------------------------------------------------
+    def summary(self) -> dict:
+        s = self.matcher.summary()
+        for name, d in s.items():
+            lat = np.asarray(self.latency_ms.get(name, []), dtype=float)
+            d["latency_ms_p50"] = float(np.percentile(lat, 50)) if lat.size else 0.0
+            d["latency_ms_p95"] = float(np.percentile(lat, 95)) if lat.size else 0.0
+            d["latency_ms_max"] = float(lat.max()) if lat.size else 0.0
+        return {"truth_frames": self.matcher.truth_count, "streams": s}
+
+    def publish_summary(self) -> None:
+        s = self.summary()
+        try:
+            self.pub_summary.publish(String(data=json.dumps(s)))
+        except Exception:  # noqa: BLE001 - shutting down
+            return
+        flat = {"truth_frames": s["truth_frames"]}
+        for name, d in s["streams"].items():
+            flat[f"{name}.rms_deg"] = d["rms"]
+            flat[f"{name}.max_deg"] = d["max"]
+            flat[f"{name}.missed"] = d["missed"]
+            flat[f"{name}.latency_ms_p95"] = d["latency_ms_p95"]
+        self.diag.extra = flat
+        self.diag.last_status = f"{s['truth_frames']} truth frame(s)"
+
+    def close(self) -> None:
+        """Write the report (called once when the node stops)."""
+        if self._closed:
+            return
+        self._closed = True
+        self.matcher.finish()
+        s = self.summary()
+        out = Path(self.params["report_dir"])
+        out.mkdir(parents=True, exist_ok=True)
+        write_samples_csv(out / "evaluation_samples.csv", self.matcher.matches, ("latency_ms", "sigma_deg"))
+        extra = {n: {k: v for k, v in d.items() if k.startswith("latency")} for n, d in s["streams"].items()}
+        write_summary_csv(out / "evaluation_summary.csv", {n: d for n, d in s["streams"].items()}, extra)
+        (out / "evaluation_summary.json").write_text(json.dumps(s, indent=1, sort_keys=True) + "\n")
+        png = plot_report(out / "evaluation.png", self.matcher.matches,
+                          f"{s['truth_frames']} frames; error = estimated - true bearing")
+        written = ["evaluation_samples.csv", "evaluation_summary.csv", "evaluation_summary.json"]
+        if png is not None:
+            written.append("evaluation.png")
+        print(f"error_evaluator: report written to {out}: {', '.join(written)}", flush=True)
+
+
+def main(argv=None) -> int:
+    return run_node(ErrorEvaluatorNode, "error_evaluator", argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

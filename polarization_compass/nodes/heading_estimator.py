@@ -1,0 +1,245 @@
+"""``heading_estimator``: heading from a polarization camera, one node per method.
+
+Subscribes (relative names, remappable):
+  ``camera/image_raw``   sensor_msgs/Image, raw 2x2 mosaic (mono8/mono16, or 32FC1 ideal intensities),
+                         sensor-data QoS (REP-2003)
+  ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always: camera_info_source)
+  ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior (prior_source imu)
+  ``gps/fix``            sensor_msgs/NavSatFix when site_source is navsatfix
+Publishes, stamped with the image's header.stamp:
+  ``compass/<method>/heading_raw``      sensor_msgs/Imu as robot_localization fuses it (see nodes.msgs)
+  ``compass/<method>/bearing_raw_deg``  std_msgs/Float64, true bearing of camera +y (= body +x), deg
+  ``compass/<method>/status``           std_msgs/String, JSON, one per image, failures included
+  ``/diagnostics``
+Headings known only modulo 180 deg are not published on the Imu/Float64 topics unless
+``publish_ambiguous`` is true; their status says so.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
+from std_msgs.msg import Float64, String
+
+from ..bag import MessageError, decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
+from ..camera import CameraError, CameraModel
+from ..errors import CompassError
+from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource, warm_up
+from . import topics
+from .diagnostics import Diagnostics
+from .msgs import decode_image, heading_imu
+from .params import ESTIMATOR, KNOB_PREFIX, knob_params, knob_values, layout_from_text
+from .rosparams import ParameterSet
+from .runner import run_node
+
+__all__ = ["HeadingEstimatorNode", "main"]
+
+
+class HeadingEstimatorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("heading_estimator", **kwargs)
+        self.front = None
+        self.params = ParameterSet(self, ESTIMATOR, on_change=self._on_change)
+        self.method = self.params["method"]
+        try:
+            knobs = knob_params(self.method)
+        except CompassError as exc:
+            raise CompassError(f"method {self.method!r}: {exc}") from None
+        self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
+        p = self.params
+        self.front = HeadingFrontEnd(self.method, knob_values(self.method, self.knob_set.values),
+                                     layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
+                                     p["use_intensity"])
+        try:
+            dt = warm_up(self.front)
+            self.get_logger().info(f"warm-up (kernel compilation or cache load) took {dt:.2f} s")
+        except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
+            self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow")
+        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
+        self.camera_from_info: CameraModel | None = None
+        self.site_from_fix = None
+        self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading
+        self.needs_tilt = self.method == "tilt_aware"
+        self.diag = Diagnostics(self, f"heading estimator ({self.method})")
+
+        t = topics.method_topics(self.method)
+        self.pub_heading = self.create_publisher(Imu, t["heading_raw"], qos_profile_system_default)
+        self.pub_bearing = self.create_publisher(Float64, t["bearing_raw"], qos_profile_system_default)
+        self.pub_status = self.create_publisher(String, t["status"], QoSProfile(depth=50))
+        image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
+        self.create_subscription(Image, topics.IMAGE, self._on_image, image_qos)
+        self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data)
+        if self.needs_tilt or p["prior_source"] == "imu":
+            self.create_subscription(Imu, topics.IMU, self._on_imu, QoSProfile(depth=200))
+        if p["site_source"] == "navsatfix":
+            self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data)
+        self.get_logger().info(f"method {self.method}: {t['heading_raw']} from {topics.IMAGE}")
+
+    # parameters ---------------------------------------------------------------------------------
+    def _on_change(self, changed: dict):
+        if self.front is None:
+            return None
+        merged = {**self.params.values, **changed}
+        try:
+            if {"polarizer_layout", "pol45_toward"} & set(changed):
+                self.front.set_layout(layout_from_text(merged["polarizer_layout"]), merged["pol45_toward"])
+            if "demosaic" in changed:
+                self.front.demosaic = merged["demosaic"]
+            if "use_intensity" in changed:
+                self.front.intensity = bool(merged["use_intensity"])
+            if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
+                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
+                                     merged["sun_model"])
+        except CompassError as exc:
+            return str(exc)
+        return None
+
+    def _on_knob_change(self, changed: dict):
+        if self.front is None:
+            return None
+        merged = {**self.knob_set.values, **changed}
+        try:
+            self.front.set_knobs(knob_values(self.method, merged))
+        except (CompassError, ValueError) as exc:
+            return str(exc)
+        return None
+
+    # inputs -------------------------------------------------------------------------------------
+    def _on_camera_info(self, msg):
+        try:
+            self.camera_from_info = decode_camera_info(msg, self.params["pixel_pitch_um"])
+        except MessageError as exc:
+            self.diag.reject(f"camera_info_{exc.reason}" if hasattr(exc, "reason") else "camera_info", str(exc))
+
+    def _on_imu(self, msg):
+        try:
+            q = decode_orientation(msg)
+        except MessageError as exc:
+            self.diag.reject(f"imu_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        self.imu.add(stamp_ns(msg.header), q)
+
+    def _on_fix(self, msg):
+        try:
+            lat, lon, alt = decode_navsatfix(msg)
+        except MessageError as exc:
+            self.diag.reject(f"fix_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        self.site_from_fix = (lat, lon, alt)
+        self.sun.set_site(lat, lon, alt)
+
+    def _camera_for(self, width: int, height: int) -> CameraModel:
+        p = self.params
+        cam = self.camera_from_info if p["camera_info_source"] == "topic" else None
+        if cam is None:
+            pitch = p["pixel_pitch_um"]
+            try:
+                cam = CameraModel(p["camera_model"], int(width), int(height), p["focal_length_mm"], pitch, pitch,
+                                  max_field_angle_deg=p["max_field_angle_deg"])
+            except CameraError as exc:
+                raise PipelineError(f"fallback camera parameters: {exc}") from None
+        if (cam.width_px, cam.height_px) != (int(width), int(height)):
+            raise PipelineError(f"image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}")
+        return cam
+
+    def _on_image(self, msg):
+        t_in = self.diag.input()
+        p = self.params
+        try:
+            mosaic = decode_image(msg)
+        except MessageError as exc:
+            self.diag.reject(getattr(exc, "reason", "bad_image"), str(exc))
+            return
+        t_ns = stamp_ns(msg.header)
+        status = {"stamp_ns": t_ns, "method": self.method}
+        try:
+            camera = self._camera_for(msg.width, msg.height)
+            if p["site_source"] == "navsatfix" and self.site_from_fix is None:
+                raise PipelineError("no NavSatFix received yet (site_source navsatfix)")
+            if p["time_source"] == "stamp":
+                sun_az, sun_alt = self.sun.at_ns(t_ns)
+            else:
+                if not p["time_utc"]:
+                    raise PipelineError("time_source is parameter but time_utc is empty")
+                from ..bag import ns_from_utc
+                from ..scene import parse_time_utc
+                sun_az, sun_alt = self.sun.at_ns(ns_from_utc(parse_time_utc(p["time_utc"])))
+            tol_ns = int(p["imu_tolerance_s"] * 1e9)
+            tilt = self.imu.camera_tilt(t_ns, tol_ns) if len(self.imu) else None
+            pitch = roll = prior = None
+            if self.needs_tilt:
+                if tilt is None:
+                    raise PipelineError(f"no IMU sample within {p['imu_tolerance_s']:g} s of the image stamp "
+                                        f"(newest IMU stamp: {self._newest_imu_text()})")
+                pitch, roll = tilt.pitch_deg, tilt.roll_deg
+            if p["prior_source"] == "imu" and tilt is not None:
+                prior = tilt.bearing_deg
+            elif p["prior_source"] == "last" and self.last_bearing is not None:
+                if abs(t_ns - self.last_bearing[0]) <= p["prior_max_age_s"] * 1e9:
+                    prior = self.last_bearing[1]
+            t0 = time.perf_counter()
+            result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
+            status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+        except (PipelineError, CompassError) as exc:
+            status.update(status="bad_input", reason=str(exc), ok=False)
+            self._publish_status(status)
+            self.diag.done(t_in, t_ns, f"bad_input: {exc}", ok=False)
+            return
+        except Exception as exc:  # noqa: BLE001 - one bad frame must not stop the node
+            self.diag.reject("estimator_exception", f"{type(exc).__name__}: {exc}")
+            status.update(status="estimator_exception", reason=f"{type(exc).__name__}: {exc}", ok=False)
+            self._publish_status(status)
+            return
+        status.update(status=result.status.value, reason=result.reason, ok=result.ok, axial=result.axial,
+                      bearing_deg=result.bearing_deg, yaw_enu_deg=result.yaw_enu_deg, psi_deg=result.psi_deg,
+                      sigma_deg=result.sigma_deg, pixels=result.pixels, quality=result.quality,
+                      sun_azimuth_deg=sun_az, sun_altitude_deg=sun_alt, prior_bearing_deg=prior,
+                      resolved_by=result.extras.get("ambiguity_resolved_by"))
+        published = False
+        if result.ok and (not result.axial or p["publish_ambiguous"]):
+            values = (result.yaw_enu_deg, result.sigma_deg, result.bearing_deg)
+            if all(v is not None and math.isfinite(v) for v in values):
+                sigma = max(float(result.sigma_deg), p["sigma_floor_deg"], 1e-9)
+                self.pub_heading.publish(heading_imu(t_ns, p["frame_id"], math.radians(result.yaw_enu_deg),
+                                                     math.radians(sigma) ** 2, p["roll_pitch_variance_rad2"]))
+                self.pub_bearing.publish(Float64(data=float(result.bearing_deg)))
+                published = True
+                if not result.axial:
+                    self.last_bearing = (t_ns, float(result.bearing_deg))
+            else:
+                self.diag.reject("non_finite_result", "the estimator returned a non-finite heading")
+        status["published"] = published
+        self._publish_status(status)
+        text = (f"{result.status.value}: bearing {result.bearing_deg:.3f} deg, sigma {result.sigma_deg:.3g} deg"
+                if result.ok else f"{result.status.value}: {result.reason}")
+        self.diag.extra = {"last_bearing_deg": result.bearing_deg if result.ok else "",
+                           "last_sigma_deg": result.sigma_deg if result.ok else "",
+                           "sun_altitude_deg": sun_alt}
+        self.diag.done(t_in, t_ns, text, ok=published)
+
+    def _newest_imu_text(self) -> str:
+        n = self.imu.newest_ns
+        return "none" if n is None else f"{n / 1e9:.3f} s"
+
+    def _publish_status(self, status: dict) -> None:
+        self.pub_status.publish(String(data=json.dumps(status, default=_json_default, allow_nan=False)))
+
+
+def _json_default(o):
+    try:
+        return float(o)
+    except (TypeError, ValueError):
+        return str(o)
+
+
+def main(argv=None) -> int:
+    return run_node(HeadingEstimatorNode, "heading_estimator", argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

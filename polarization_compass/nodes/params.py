@@ -1,0 +1,355 @@
+"""Declarative parameter specifications of every node (ROS-free).
+
+One :class:`Param` per ROS parameter: name, default, description, range or choices, and whether it
+may change while the node runs. The nodes declare them from here (:mod:`.rosparams` turns them into
+``ParameterDescriptor`` s with ``FloatingPointRange`` / ``IntegerRange`` and validates every change in
+an on-set-parameters callback); the graph test checks every shipped parameter file against them;
+``docs/ros.md`` lists them.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+__all__ = ["Param", "validate_value", "SIMULATOR", "ESTIMATOR", "CORRECTOR", "EVALUATOR", "SPECS",
+           "spec_by_name", "defaults", "layout_from_text", "knob_params", "KNOB_PREFIX"]
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter.
+
+    ``lo``/``hi`` bound numbers (inclusive); ``choices`` lists allowed strings (for a string array:
+    allowed items); ``read_only`` parameters are fixed once the node runs (topics and graph wiring
+    depend on them); the others are method knobs and change at run time. ``check`` is an extra rule
+    returning an error message or None.
+    """
+
+    name: str
+    default: object
+    description: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple = ()
+    read_only: bool = False
+    check: Callable | None = field(default=None, compare=False)
+    unit: str = ""
+
+    @property
+    def kind(self) -> str:
+        d = self.default
+        if isinstance(d, bool):
+            return "bool"
+        if isinstance(d, int):
+            return "int"
+        if isinstance(d, float):
+            return "float"
+        if isinstance(d, str):
+            return "str"
+        if isinstance(d, (list, tuple)):
+            return "str_list" if all(isinstance(x, str) for x in d) else "float_list"
+        raise TypeError(f"parameter {self.name}: unsupported default {d!r}")
+
+
+def validate_value(p: Param, value) -> str | None:
+    """Why ``value`` is not acceptable for ``p``, or None when it is."""
+    k = p.kind
+    if k == "bool":
+        if not isinstance(value, bool):
+            return f"{p.name} must be true or false, got {value!r}"
+        return p.check(value) if p.check else None
+    if k in ("int", "float"):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f"{p.name} must be a number, got {value!r}"
+        if k == "int" and not float(value).is_integer():
+            return f"{p.name} must be an integer, got {value!r}"
+        if not math.isfinite(float(value)):
+            return f"{p.name} must be finite, got {value!r}"
+        if p.lo is not None and value < p.lo or p.hi is not None and value > p.hi:
+            return f"{p.name} must be in [{p.lo}, {p.hi}]{' ' + p.unit if p.unit else ''}, got {value!r}"
+    elif k == "str":
+        if not isinstance(value, str):
+            return f"{p.name} must be a string, got {value!r}"
+        if p.choices and value not in p.choices:
+            return f"{p.name} must be one of {', '.join(p.choices)}; got {value!r}"
+    elif k == "str_list":
+        if not isinstance(value, (list, tuple)) or not all(isinstance(x, str) for x in value):
+            return f"{p.name} must be a list of strings, got {value!r}"
+        if p.choices:
+            bad = [x for x in value if x not in p.choices]
+            if bad:
+                return f"{p.name}: unknown item(s) {bad}; allowed: {', '.join(p.choices)}"
+    elif k == "float_list":
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value):
+            return f"{p.name} must be a list of finite numbers, got {value!r}"
+    return p.check(value) if p.check else None
+
+
+def _not_optical(frame_id: str):
+    if frame_id.endswith("_optical_frame") or frame_id.endswith("_optical"):
+        return (f"frame_id {frame_id!r} is an optical frame (z forward): robot_localization needs a z-up "
+                "frame with a TF to base_link, e.g. base_link")
+    if not frame_id:
+        return "frame_id must not be empty"
+    return None
+
+
+def _iso_or_empty(text: str):
+    if text == "":
+        return None
+    from ..scene import SceneError, parse_time_utc
+    try:
+        parse_time_utc(text)
+    except SceneError as exc:
+        return str(exc)
+    return None
+
+
+def _layout_problem(text: str):
+    try:
+        vals = [int(x) for x in text.split(",")]
+    except ValueError:
+        return f"polarizer_layout must be four comma-separated angles such as 90,45,135,0, got {text!r}"
+    if sorted(vals) != [0, 45, 90, 135]:
+        return f"polarizer_layout must hold 0, 45, 90 and 135 once each, got {text!r}"
+    return None
+
+
+def layout_from_text(text: str):
+    """``"90,45,135,0"`` -> ((90, 45), (135, 0))."""
+    v = [int(x) for x in text.split(",")]
+    return ((v[0], v[1]), (v[2], v[3]))
+
+
+SITE = (
+    Param("latitude_deg", 32.026778, "site latitude, north positive (WGS84)", -90.0, 90.0, unit="deg"),
+    Param("longitude_deg", 118.853306, "site longitude, east positive (WGS84)", -180.0, 180.0, unit="deg"),
+    Param("altitude_m", 30.0, "site height above sea level", -1000.0, 20000.0, unit="m"),
+)
+
+PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
+ALL_METHODS = PAPER_METHODS + ("tilt_aware",)
+
+SIMULATOR = (
+    Param("scene", "", "scene YAML (camera, sky, sensor, validity); empty: the embedded paper set-up. "
+                       "Site, time and attitude come from this node's parameters, not from the scene",
+          read_only=True),
+    Param("encoding", "mono16", "image encoding: mono16/mono8 = raw 2x2 polarizer mosaic as a camera "
+                                "driver publishes it (needs a scene with sensor effects, else an ideal "
+                                "noise-free mosaic quantised to full scale); 32FC1 = ideal mosaic of "
+                                "polarizer intensities (float, no noise, no quantisation)",
+          choices=("mono16", "mono8", "32FC1"), read_only=True),
+    Param("rate_hz", 10.0, "camera frame rate (simulated time)", 0.1, 100.0, unit="Hz"),
+    Param("imu_rate_hz", 50.0, "simulated IMU rate (simulated time)", 1.0, 1000.0, unit="Hz"),
+    Param("time_scale", 1.0, "simulated seconds per wall-clock second (clock_mode sim)", 0.01, 100.0),
+    Param("clock_mode", "sim", "sim: publish /clock, stamps are simulated UTC starting at start_time_utc "
+                               "(other nodes need use_sim_time); system: stamps are this node's ROS "
+                               "time and the sun is rendered for that time",
+          choices=("sim", "system"), read_only=True),
+    Param("clock_rate_hz", 100.0, "how often /clock is published (clock_mode sim), wall clock", 1.0, 1000.0,
+          unit="Hz", read_only=True),
+    Param("start_time_utc", "2019-11-15T06:00:00Z", "simulated UTC at the first frame (ISO 8601)",
+          check=lambda v: "start_time_utc must not be empty" if v == "" else _iso_or_empty(v), read_only=True),
+    *SITE,
+    Param("sun_model", "spa", "solar position model", choices=("spa", "paper")),
+    Param("attitude_source", "motion", "motion: built-in profile; topic: attitude from a "
+                                       "sensor_msgs/Imu or geometry_msgs/QuaternionStamped; tf: look up "
+                                       "tf_world_frame -> tf_body_frame with tf2",
+          choices=("motion", "topic", "tf"), read_only=True),
+    Param("attitude_topic_type", "imu", "message type on sim/attitude when attitude_source is topic",
+          choices=("imu", "quaternion"), read_only=True),
+    Param("tf_world_frame", "map", "ENU world frame for attitude_source tf"),
+    Param("tf_body_frame", "base_link", "body frame (REP-103, z up) for attitude_source tf"),
+    Param("start_bearing_deg", 0.0, "motion: initial true bearing of the camera +y axis (= body +x)",
+          -360.0, 720.0, unit="deg"),
+    Param("turn_rate_deg_s", 10.0, "motion: rate of change of the bearing (clockwise positive)",
+          -360.0, 360.0, unit="deg/s"),
+    Param("turns", 1.0, "motion: stop after this many full turns (0: run until stopped; with turn rate "
+                        "0: duration_s decides)", 0.0, 1000.0),
+    Param("duration_s", 0.0, "stop after this much simulated time (0: see turns)", 0.0, 1.0e7, unit="s"),
+    Param("pitch_deg", -20.0, "motion: camera pitch (paper's alpha, about camera x)", -60.0, 60.0, unit="deg"),
+    Param("roll_deg", 0.0, "motion: camera roll (paper's beta, about camera y)", -60.0, 60.0, unit="deg"),
+    Param("pitch_amplitude_deg", 0.0, "motion: sinusoidal pitch amplitude", 0.0, 60.0, unit="deg"),
+    Param("roll_amplitude_deg", 0.0, "motion: sinusoidal roll amplitude", 0.0, 60.0, unit="deg"),
+    Param("tilt_period_s", 20.0, "motion: period of the pitch/roll sinusoids (roll lags pitch by 90 deg)",
+          0.1, 1.0e5, unit="s"),
+    Param("exit_when_done", False, "exit (code 0) after the last frame (and linger_s more) instead of idling"),
+    Param("linger_s", 2.0, "after the last frame, keep /clock running this long (wall) before exiting",
+          0.0, 600.0, unit="s"),
+    Param("wait_for_subscribers", 0, "before the first frame, wait until the image topic has this many "
+                                     "subscribers (and the truth topic one), at most wait_timeout_s", 0, 1000,
+          read_only=True),
+    Param("wait_timeout_s", 60.0, "longest wait for subscribers (wall clock)", 0.0, 3600.0, unit="s",
+          read_only=True),
+    Param("imu_attitude_noise_deg", 0.05, "simulated IMU: white noise on roll and pitch (1 sigma)",
+          0.0, 30.0, unit="deg"),
+    Param("imu_roll_bias_deg", 0.0, "simulated IMU: roll bias", -30.0, 30.0, unit="deg"),
+    Param("imu_pitch_bias_deg", 0.0, "simulated IMU: pitch bias", -30.0, 30.0, unit="deg"),
+    Param("imu_yaw_noise_deg", 2.0, "simulated IMU: white noise on yaw (1 sigma; a magnetometer-grade "
+                                    "yaw, usable as a prior to resolve the 180 deg ambiguity)",
+          0.0, 90.0, unit="deg"),
+    Param("imu_yaw_bias_deg", 5.0, "simulated IMU: yaw bias", -90.0, 90.0, unit="deg"),
+    Param("camera_frame_id", "camera_optical_frame", "frame_id of the image and camera_info"),
+    Param("imu_frame_id", "base_link", "frame_id of the simulated IMU (z up)", check=_not_optical),
+    Param("heading_frame_id", "base_link", "frame_id of the ground-truth heading (z up)", check=_not_optical),
+    Param("seed", 0, "noise seed (sensor noise and IMU noise); frame k uses seed + k", 0, 2 ** 31 - 1),
+    Param("lockstep", False, "wait (up to lockstep_timeout_s) for every listed heading topic to answer a "
+                             "frame before rendering the next: deterministic runs on a loaded machine",
+          read_only=True),
+    Param("lockstep_topics", [""], "status topics (std_msgs/String, JSON with a stamp) that must answer "
+                                   "each frame when lockstep is on", read_only=True),
+    Param("lockstep_timeout_s", 5.0, "longest wait for one frame in lockstep mode (wall clock)", 0.01, 600.0,
+          unit="s"),
+)
+
+ESTIMATOR = (
+    Param("method", "least_squares", "heading method (one node per method)", choices=ALL_METHODS,
+          read_only=True),
+    Param("demosaic", "superpixel", "how the 2x2 mosaic becomes AoP/DoP", choices=("superpixel", "bilinear")),
+    Param("polarizer_layout", "90,45,135,0", "polarizer angles (deg, from +x_cam towards +y_cam) of the "
+                                             "2x2 cell, row-major from the top-left pixel (Sony IMX250MZR: "
+                                             "90,45,135,0)", check=lambda v: _layout_problem(v)),
+    Param("pol45_toward", "+x+y", "image direction of the 45 deg polarizer: +x+y (towards +y_cam, down "
+                                  "the rows) or +x-y; check once with a known linear polarizer",
+          choices=("+x+y", "+x-y")),
+    Param("use_intensity", False, "also compute S0 so that a method can resolve the 180 deg ambiguity from "
+                                  "the sky's brightness gradient (costs a second pass over the mosaic)"),
+    Param("frame_id", "base_link", "frame_id of the published heading: z up, with a TF to base_link "
+                                   "(never a camera optical frame)", check=_not_optical),
+    Param("site_source", "parameters", "where the site comes from", choices=("parameters", "navsatfix"),
+          read_only=True),
+    *SITE,
+    Param("time_source", "stamp", "stamp: the sun at the image's header.stamp (UTC); parameter: at time_utc",
+          choices=("stamp", "parameter")),
+    Param("time_utc", "", "fixed UTC time (ISO 8601) when time_source is parameter", check=_iso_or_empty),
+    Param("sun_model", "spa", "solar position model", choices=("spa", "paper")),
+    Param("camera_info_source", "topic", "topic: intrinsics from camera_info (parameters until the first "
+                                         "one arrives); parameters: always the parameters below",
+          choices=("topic", "parameters")),
+    Param("camera_model", "pinhole", "fallback intrinsics: lens model", choices=("pinhole", "fisheye_equidistant")),
+    Param("focal_length_mm", 4.0, "fallback intrinsics: focal length", 0.1, 1000.0, unit="mm"),
+    Param("pixel_pitch_um", 3.45, "pixel pitch (also converts camera_info's K to a focal length)", 0.1, 100.0,
+          unit="um"),
+    Param("max_field_angle_deg", 90.0, "fisheye: largest field angle with sky", 1.0, 180.0, unit="deg"),
+    Param("prior_source", "imu", "resolves the 180 deg ambiguity: imu = yaw of the IMU message (coarse "
+                                 "is enough), last = this node's previous heading, none = publish only "
+                                 "headings the method resolves itself", choices=("imu", "last", "none")),
+    Param("prior_max_age_s", 2.0, "a prior older than this is not used", 0.0, 3600.0, unit="s"),
+    Param("imu_tolerance_s", 0.05, "an IMU sample within this of the image stamp is paired with it "
+                                   "(tilt for tilt_aware, prior yaw)", 0.0, 10.0, unit="s"),
+    Param("publish_ambiguous", False, "also publish headings known only modulo 180 deg on the Imu topics "
+                                      "(never fuse those into robot_localization)"),
+    Param("sigma_floor_deg", 0.01, "smallest yaw sigma published (model error of real skies)", 0.0, 90.0,
+          unit="deg"),
+    Param("roll_pitch_variance_rad2", 1000.0, "orientation_covariance roll and pitch variance (the heading "
+                                              "carries no roll/pitch)", 1.0, 1.0e9, unit="rad^2"),
+    Param("image_qos", "sensor_data", "subscription QoS of the image: sensor_data (REP-2003, best effort) "
+                                      "or reliable", choices=("sensor_data", "reliable"), read_only=True),
+)
+
+CORRECTOR = (
+    Param("method", "least_squares", "method whose raw heading this node corrects", choices=ALL_METHODS,
+          read_only=True),
+    Param("correction", "error_map", "error_map: subtract the simulated tilt error interpolated at the "
+                                     "IMU's pitch/roll; none: pass the heading through (pairing and "
+                                     "diagnostics still run)", choices=("error_map", "none")),
+    Param("error_map", "", "error map .npz (polarization-compass errormap --out FILE); '' = the map shipped "
+                           "with the package (polarization_compass/data/tilt_error_map.npz)"),
+    Param("imu_tolerance_s", 0.05, "pair a heading with IMU samples within this of its stamp", 0.0, 10.0,
+          unit="s"),
+    Param("imu_max_wait_s", 0.5, "how long a heading waits for an IMU sample newer than its stamp "
+                                 "(wall clock)", 0.0, 60.0, unit="s"),
+    Param("imu_buffer_s", 10.0, "IMU history kept for pairing", 0.1, 600.0, unit="s"),
+    Param("correction_sigma_deg", 0.1, "added (in quadrature) to the heading sigma for the map's "
+                                       "interpolation and model error", 0.0, 90.0, unit="deg"),
+    Param("latitude_deg", 32.026778, "site latitude (sun altitude for the map lookup)", -90.0, 90.0,
+          unit="deg"),
+    Param("longitude_deg", 118.853306, "site longitude", -180.0, 180.0, unit="deg"),
+    Param("altitude_m", 30.0, "site height", -1000.0, 20000.0, unit="m"),
+    Param("sun_model", "spa", "solar position model", choices=("spa", "paper")),
+)
+
+EVALUATOR = (
+    Param("methods", list(PAPER_METHODS) + ["tilt_aware"], "methods to evaluate", choices=ALL_METHODS,
+          read_only=True),
+    Param("direct_methods", ["tilt_aware"], "methods without a corrector (only their raw topic is read)",
+          choices=ALL_METHODS, read_only=True),
+    Param("include_raw", True, "evaluate compass/<m>/heading_raw", read_only=True),
+    Param("include_corrected", True, "evaluate compass/<m>/heading", read_only=True),
+    Param("axial_methods", [""], "methods whose errors are folded to (-90, 90] (heading mod 180 deg)",
+          read_only=True),
+    Param("report_dir", "out/sim", "CSV and PNG reports are written here when the node stops",
+          read_only=True),
+    Param("horizon_s", 5.0, "a truth frame with no estimate on a stream after this (stamp time) counts as "
+                            "missed", 0.1, 3600.0, unit="s"),
+    Param("summary_rate_hz", 1.0, "rate of evaluation/summary and /diagnostics", 0.1, 100.0, unit="Hz"),
+    Param("time_scale", 1.0, "simulated seconds per wall second (latency is reported in wall time)",
+          0.01, 100.0),
+)
+
+SPECS = {"sky_simulator": SIMULATOR, "heading_estimator": ESTIMATOR, "tilt_corrector": CORRECTOR,
+         "error_evaluator": EVALUATOR}
+
+
+def spec_by_name(specs) -> dict:
+    return {p.name: p for p in specs}
+
+
+def defaults(specs) -> dict:
+    return {p.name: (list(p.default) if isinstance(p.default, (list, tuple)) else p.default) for p in specs}
+
+
+KNOB_PREFIX = "knob."
+
+
+def knob_params(method: str) -> tuple:
+    """The estimator's own knobs as run-time parameters ``knob.<name>`` (ranges from the estimator).
+
+    ``region`` and optional numbers become strings: ``""`` means None, a region is ``"x0,y0,w,h"``.
+    """
+    from ..estimators import make_estimator
+    est = make_estimator(method)
+    specs = type(est).knob_specs() if hasattr(type(est), "knob_specs") else {}
+    out = []
+    for name, k in sorted(specs.items()):
+        lo = None if not math.isfinite(k.lo) else float(k.lo)
+        hi = None if not math.isfinite(k.hi) else float(k.hi)
+        desc = f"estimator knob: {k.doc}" if k.doc else "estimator knob"
+        if k.kind == "int":
+            out.append(Param(KNOB_PREFIX + name, int(k.default), desc, None if lo is None else int(lo),
+                             None if hi is None else int(hi)))
+        elif k.kind == "float":
+            out.append(Param(KNOB_PREFIX + name, float(k.default), desc, lo, hi))
+        elif k.kind == "bool":
+            out.append(Param(KNOB_PREFIX + name, bool(k.default), desc))
+        elif k.kind == "choice":
+            out.append(Param(KNOB_PREFIX + name, str(k.default), desc, choices=tuple(str(c) for c in k.choices)))
+        else:                                   # region, float_or_none: text, "" = None
+            d = "" if k.default is None else ",".join(str(v) for v in k.default) if k.kind == "region" \
+                else str(k.default)
+            out.append(Param(KNOB_PREFIX + name, d, desc + " ('' = none" +
+                             (", else x0,y0,width,height)" if k.kind == "region" else ", else a number)")))
+    return tuple(out)
+
+
+def knob_values(method: str, values: dict) -> dict:
+    """Estimator knobs from ``knob.<name>`` parameter values (strings back to None / tuples / choices)."""
+    from ..estimators import make_estimator
+    specs = type(make_estimator(method)).knob_specs()
+    out = {}
+    for name, k in specs.items():
+        key = KNOB_PREFIX + name
+        if key not in values:
+            continue
+        v = values[key]
+        if k.kind == "region":
+            v = None if v == "" else tuple(int(float(x)) for x in str(v).split(","))
+        elif k.kind == "float_or_none":
+            v = None if v == "" else float(v)
+        elif k.kind == "choice":
+            match = [c for c in k.choices if str(c) == v]
+            v = match[0] if match else v
+        out[name] = v
+    return out

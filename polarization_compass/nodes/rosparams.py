@@ -1,0 +1,104 @@
+"""rclpy glue for :mod:`.params`: declare every parameter with a descriptor (description, range,
+read-only flag) and validate every change with a reason.
+
+Bad values are rejected twice over: rclpy enforces ``FloatingPointRange``/``IntegerRange`` and
+``read_only`` itself, and the on-set-parameters callback checks choices, types and the extra rules of
+:class:`~.params.Param` (the reason comes back to ``ros2 param set`` as the failure message). A bad
+value in a parameter file stops the node at start with a one-line :class:`ParameterError`.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
+                              ParameterException)
+from rclpy.parameter import Parameter
+
+from ..errors import CompassError
+from .params import Param, spec_by_name, validate_value
+
+__all__ = ["ParameterError", "ParameterSet"]
+
+_TYPES = {"bool": Parameter.Type.BOOL, "int": Parameter.Type.INTEGER, "float": Parameter.Type.DOUBLE,
+          "str": Parameter.Type.STRING, "str_list": Parameter.Type.STRING_ARRAY,
+          "float_list": Parameter.Type.DOUBLE_ARRAY}
+
+
+class ParameterError(CompassError):
+    """A parameter value the node cannot start with."""
+
+
+def _descriptor(p: Param) -> ParameterDescriptor:
+    d = ParameterDescriptor(name=p.name, type=int(_TYPES[p.kind]), description=p.description,
+                            read_only=p.read_only)
+    notes = []
+    if p.kind == "float" and p.lo is not None and p.hi is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(p.lo), to_value=float(p.hi), step=0.0)]
+    if p.kind == "int" and p.lo is not None and p.hi is not None:
+        d.integer_range = [IntegerRange(from_value=int(p.lo), to_value=int(p.hi), step=1)]
+    if p.choices:
+        notes.append("one of: " + ", ".join(p.choices))
+    if p.unit:
+        notes.append("unit: " + p.unit)
+    if not p.read_only:
+        notes.append("changeable at run time")
+    d.additional_constraints = "; ".join(notes)
+    return d
+
+
+class ParameterSet:
+    """Declares ``specs`` on ``node`` and keeps a plain dict of current values in :attr:`values`.
+
+    ``on_change(changed: dict) -> str | None`` is called with accepted run-time changes before they
+    apply; it may veto them by returning a reason (e.g. a knob the estimator rejects).
+    """
+
+    def __init__(self, node, specs, on_change: Callable | None = None):
+        self.node = node
+        self.specs = spec_by_name(specs)
+        self.on_change = on_change
+        self.values: dict = {}
+        self._declared = False
+        node.add_on_set_parameters_callback(self._callback)
+        try:
+            for p in specs:
+                default = list(p.default) if isinstance(p.default, (list, tuple)) else p.default
+                param = node.declare_parameter(p.name, default, _descriptor(p))
+                self.values[p.name] = self._py(param.value)
+        except (InvalidParameterValueException, InvalidParameterTypeException, ParameterException) as exc:
+            raise ParameterError(f"{node.get_name()}: bad parameter: {exc}") from None
+        self._declared = True
+
+    @staticmethod
+    def _py(v):
+        if isinstance(v, (list, tuple)) or type(v).__name__ == "array":
+            return [x for x in list(v)]
+        return v
+
+    def _callback(self, params) -> SetParametersResult:
+        changed = {}
+        for prm in params:
+            p = self.specs.get(prm.name)
+            if p is None:
+                continue                      # use_sim_time and other ROS-defined parameters
+            v = self._py(prm.value)
+            if p.kind == "float" and isinstance(v, int) and not isinstance(v, bool):
+                v = float(v)
+            reason = validate_value(p, v)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+            changed[p.name] = v
+        if self._declared and changed and self.on_change is not None:
+            reason = self.on_change(changed)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        self.values.update(changed)
+        return SetParametersResult(successful=True)
+
+    def __getitem__(self, name):
+        return self.values[name]
+
+    def strings(self, name) -> list[str]:
+        """A string-array parameter without the empty placeholder entries (ROS has no typed empty array)."""
+        return [s for s in self.values[name] if s]

@@ -1,0 +1,391 @@
+"""``sky_simulator``: a simulated polarization camera and IMU under a Rayleigh (or scene) sky.
+
+Publishes (relative names):
+  ``camera/image_raw``      sensor_msgs/Image: the raw 2x2 polarizer mosaic of the full sensor, as a camera
+                            driver sends it: ``mono16`` (12-bit DN) / ``mono8``, or ``32FC1`` = ideal
+                            polarizer intensities in electrons (no noise, no quantisation). Layout from
+                            the scene's ``sensor.mosaic`` (default Sony IMX250MZR: 90 45 / 135 0).
+  ``camera/camera_info``    intrinsics (same stamp)
+  ``imu/data``              sensor_msgs/Imu: body attitude in ENU with noise and bias, angular velocity
+                            of the turn, gravity; ``imu_rate_hz``
+  ``ground_truth/heading``  sensor_msgs/Imu, the true heading in the estimator's form (yaw only)
+  ``gps/fix``               sensor_msgs/NavSatFix of the site, 1 Hz
+  ``/clock``                with clock_mode sim
+  ``/diagnostics``
+
+Attitude: ``motion`` (built-in turn + tilt schedule), ``topic`` (``sim/attitude``: sensor_msgs/Imu or
+geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (tf2 lookup of
+``tf_world_frame`` -> ``tf_body_frame``; needs tf2_ros). The camera is mounted looking up with its +y
+axis along body +x (conventions.R_BODY_CAM_DEFAULT).
+
+Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at ``time_scale``
+times the wall clock; frames are stamped ``start + k / rate_hz`` and never skipped: when rendering
+falls more than one frame behind, simulated time slows down (the real-time factor is in
+/diagnostics). ``lockstep`` waits for every estimator's status before the next frame. With
+clock_mode ``system`` frames are stamped with this node's ROS time and the sun is rendered for it.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+from geometry_msgs.msg import QuaternionStamped
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
+from std_msgs.msg import String
+
+from ..bag import MessageError, decode_orientation, ns_from_utc, stamp_ns
+from ..camera import PixelSelection
+from ..conventions import matrix_to_quat, quat_to_matrix, rot_x, rot_y, rot_z, wrap_360_deg
+from ..errors import CompassError, MissingDependencyError
+from ..pipeline import SunSource, camera_attitude_from_body_quat
+from . import topics
+from .diagnostics import Diagnostics
+from .motion import MotionProfile, body_from_camera, frame_times_ns
+from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
+from .params import SIMULATOR
+from .rosparams import ParameterSet
+from .runner import ExitRequest, run_node
+
+__all__ = ["SkySimulatorNode", "main", "mosaic_config"]
+
+GRAVITY_M_S2 = 9.80665
+TRUTH_YAW_VARIANCE_RAD2 = 1e-12
+
+
+def mosaic_config(sensor_cfg: dict, encoding: str):
+    """The SensorConfig the simulator applies for an image encoding.
+
+    ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
+    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or, if it
+    declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding.
+    """
+    from ..sensor import SensorError, parse_sensor_config
+    cfg = dict(sensor_cfg or {})
+    if encoding == "32FC1":
+        cfg = {k: v for k, v in cfg.items() if k in ("mosaic", "exposure", "extinction_ratio")}
+    else:
+        if "quantization" not in cfg:
+            cfg["quantization"] = {"bits": 12 if encoding == "mono16" else 8}
+    try:
+        parsed = parse_sensor_config(cfg)
+    except SensorError as exc:
+        raise CompassError(f"scene sensor: {exc}") from None
+    if encoding == "mono8" and parsed.bits > 8:
+        raise CompassError(f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16")
+    if encoding == "mono16" and parsed.bits <= 8:
+        raise CompassError(f"the scene quantises to {parsed.bits} bits: use encoding mono8")
+    return parsed
+
+
+class SkySimulatorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("sky_simulator", **kwargs)
+        self.params = ParameterSet(self, SIMULATOR, on_change=self._on_change)
+        p = self.params
+        from ..render import Renderer
+        from ..scene import SceneError, load_scene, parse_time_utc
+        try:
+            scene = load_scene(p["scene"] or None)
+        except SceneError as exc:
+            raise CompassError(str(exc)) from None
+        self.camera = scene.camera
+        self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
+        self.sensor_cfg = mosaic_config(scene.sensor, p["encoding"])
+        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.profile = self._profile()
+        self.sim_mode = p["clock_mode"] == "sim"
+        self.start_ns = ns_from_utc(parse_time_utc(p["start_time_utc"]))
+        self.attitude_source = p["attitude_source"]
+        self.R_enu_body_input = None        # topic / tf attitude (sample and hold)
+        self._tf = None
+        if self.attitude_source == "tf":
+            self._setup_tf()
+        self.diag = Diagnostics(self, "sky simulator", stale_after_s=1e9)
+        self.frames = 0
+        self.imu_samples = 0
+        self.late_frames = 0
+        self.lockstep_timeouts = 0
+        self.render_ms = []
+
+        img_qos = qos_profile_system_default
+        self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
+        self.pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, img_qos)
+        self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
+        self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
+        self.pub_fix = self.create_publisher(NavSatFix, topics.FIX, qos_profile_system_default)
+        self.pub_clock = self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10)) if self.sim_mode else None
+        if self.attitude_source == "topic":
+            t = Imu if p["attitude_topic_type"] == "imu" else QuaternionStamped
+            self.create_subscription(t, topics.ATTITUDE_IN, self._on_attitude, qos_profile_sensor_data)
+
+        self.lock_topics = [t for t in p["lockstep_topics"] if t] if p["lockstep"] else []
+        self.acks = {t: -1 for t in self.lock_topics}
+        for t in self.lock_topics:
+            self.create_subscription(String, t, lambda m, tt=t: self._on_ack(tt, m), QoSProfile(depth=50))
+        self.waiting_for = None             # (stamp, wall start) while waiting in lockstep
+        self.k_frame = 0
+        self.k_imu = 0
+        self.done_wall = None
+        self.started = False
+        self.t_wait0 = time.monotonic()
+        self.rng_imu = np.random.default_rng([p["seed"], 7])
+        from .diagnostics import _wall_clock
+        if self.sim_mode:
+            self.sim_cursor = self.start_ns
+            self.base = None                # (sim ns, wall s)
+            self.create_timer(1.0 / p["clock_rate_hz"], self._tick_sim, clock=_wall_clock())
+        else:
+            self.t_first_ns = None
+            self.create_timer(1.0 / p["rate_hz"], self._frame_system)
+            self.create_timer(1.0 / p["imu_rate_hz"], self._imu_system)
+        total = self.profile.total_s() if self.attitude_source == "motion" else (p["duration_s"] or None)
+        self.total_s = total
+        self.get_logger().info(
+            f"{p['encoding']} {self.camera.width_px}x{self.camera.height_px} at {p['rate_hz']:g} Hz, "
+            f"attitude {self.attitude_source}, clock {p['clock_mode']}"
+            + (f", {total:g} s simulated" if total else ", until stopped"))
+
+    # configuration ------------------------------------------------------------------------------
+    def _profile(self) -> MotionProfile:
+        p = self.params.values
+        return MotionProfile(p["start_bearing_deg"], p["turn_rate_deg_s"], p["pitch_deg"], p["roll_deg"],
+                             p["pitch_amplitude_deg"], p["roll_amplitude_deg"], p["tilt_period_s"], p["turns"],
+                             p["duration_s"])
+
+    def _on_change(self, changed: dict):
+        if not hasattr(self, "profile"):
+            return None
+        merged = {**self.params.values, **changed}
+        if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
+            try:
+                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
+                                     merged["sun_model"])
+            except CompassError as exc:
+                return str(exc)
+        self.params.values.update(changed)
+        self.profile = self._profile()
+        return None
+
+    def _setup_tf(self):
+        try:
+            import tf2_ros  # noqa: F401
+        except ImportError:
+            raise MissingDependencyError("attitude_source tf (tf2_ros)",
+                                         "ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use "
+                                         "attitude_source motion|topic") from None
+        from tf2_ros import Buffer, TransformListener
+        self._tf = Buffer()
+        self._tf_listener = TransformListener(self._tf, self)
+
+    # attitude inputs ----------------------------------------------------------------------------
+    def _on_attitude(self, msg):
+        try:
+            q = decode_orientation(msg)
+        except MessageError as exc:
+            self.diag.reject(f"attitude_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        self.R_enu_body_input = quat_to_matrix(q)
+
+    def _attitude_at(self, t_ns: int, t_rel_s: float):
+        """R_enu_body at a stamp, or None when the attitude source has nothing yet."""
+        if self.attitude_source == "motion":
+            return body_from_camera(self.profile.attitude(t_rel_s))
+        if self.attitude_source == "topic":
+            return self.R_enu_body_input
+        from rclpy.time import Time
+        p = self.params
+        try:
+            tr = self._tf.lookup_transform(p["tf_world_frame"], p["tf_body_frame"], Time())
+        except Exception as exc:  # noqa: BLE001 - tf2 raises several exception types
+            self.diag.reject("tf_lookup", str(exc))
+            return None
+        r = tr.transform.rotation
+        return quat_to_matrix([r.x, r.y, r.z, r.w])
+
+    # outputs ------------------------------------------------------------------------------------
+    def _publish_imu(self, t_ns: int, R_enu_body) -> None:
+        p = self.params
+        n = self.rng_imu.standard_normal(3)
+        d_roll = math.radians(p["imu_roll_bias_deg"] + p["imu_attitude_noise_deg"] * n[0])
+        d_pitch = math.radians(p["imu_pitch_bias_deg"] + p["imu_attitude_noise_deg"] * n[1])
+        d_yaw = math.radians(p["imu_yaw_bias_deg"] + p["imu_yaw_noise_deg"] * n[2])
+        R = rot_z(d_yaw) @ R_enu_body @ rot_y(d_pitch) @ rot_x(d_roll)
+        var_rp = math.radians(math.hypot(p["imu_attitude_noise_deg"], max(abs(p["imu_roll_bias_deg"]),
+                                                                          abs(p["imu_pitch_bias_deg"])))) ** 2
+        var_y = math.radians(math.hypot(p["imu_yaw_noise_deg"], p["imu_yaw_bias_deg"])) ** 2
+        w_body = R_enu_body.T @ np.array([0.0, 0.0, self.profile.yaw_rate_enu_rad_s()]) \
+            if self.attitude_source == "motion" else None
+        g_body = R_enu_body.T @ np.array([0.0, 0.0, GRAVITY_M_S2])
+        self.pub_imu.publish(attitude_imu(t_ns, p["imu_frame_id"], R, (max(var_rp, 1e-12),) * 2 + (max(var_y, 1e-12),),
+                                          w_body, g_body))
+        self.imu_samples += 1
+
+    def _publish_frame(self, t_ns: int, R_enu_body) -> None:
+        from ..render import SunDirection
+        from ..sensor import simulate_mosaic
+        p = self.params
+        t0 = time.perf_counter()
+        att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body))
+        az, alt = self.sun.at_ns(t_ns)
+        frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
+        rng = np.random.default_rng([p["seed"], self.k_frame])
+        mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout,
+                                 rng)
+        if p["encoding"] == "32FC1":
+            mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
+        if self.frames % max(1, int(round(p["rate_hz"]))) == 0:
+            self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t_ns, "gps"))
+        yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
+        self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
+        self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
+        self.pub_image.publish(image_msg(mosaic, t_ns, p["camera_frame_id"]))
+        self.frames += 1
+        ms = (time.perf_counter() - t0) * 1e3
+        self.render_ms.append(ms)
+        self.diag.extra = {"frames": self.frames, "imu_samples": self.imu_samples, "late_frames": self.late_frames,
+                           "lockstep_timeouts": self.lockstep_timeouts, "frame_ms_p95":
+                           float(np.percentile(self.render_ms[-200:], 95)), "true_bearing_deg": att.bearing_deg,
+                           "sun_altitude_deg": alt}
+        self.diag.last_status = f"frame {self.frames} bearing {att.bearing_deg:.2f} deg"
+
+    def _publish_clock(self, t_ns: int) -> None:
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=time_msg(t_ns)))
+
+    # lockstep -----------------------------------------------------------------------------------
+    def _on_ack(self, topic: str, msg):
+        try:
+            st = int(json.loads(msg.data).get("stamp_ns", -1))
+        except (ValueError, TypeError, AttributeError):
+            self.diag.reject("lockstep_bad_status", topic)
+            return
+        self.acks[topic] = max(self.acks[topic], st)
+
+    def _acked(self, t_ns: int) -> bool:
+        return all(v >= t_ns for v in self.acks.values())
+
+    # the sim clock ------------------------------------------------------------------------------
+    def _ready(self, now: float) -> bool:
+        """Wait (once) for the expected subscribers before the first frame."""
+        if self.started:
+            return True
+        p = self.params
+        need = p["wait_for_subscribers"]
+        ok = need == 0 or (self.pub_image.get_subscription_count() >= need
+                           and self.pub_truth.get_subscription_count() >= 1)
+        if ok or now - self.t_wait0 > p["wait_timeout_s"]:
+            if not ok:
+                self.get_logger().warning(f"starting after {p['wait_timeout_s']:g} s with "
+                                          f"{self.pub_image.get_subscription_count()} image subscriber(s)")
+            self.started = True
+            return True
+        return False
+
+    def _tick_sim(self) -> None:
+        now = time.monotonic()
+        if not self._ready(now):
+            self._publish_clock(self.sim_cursor)
+            return
+        p = self.params
+        period_ns = int(round(1e9 / p["rate_hz"]))
+        imu_period_ns = int(round(1e9 / p["imu_rate_hz"]))
+        if self.base is None:
+            self.base = (self.sim_cursor, now)
+        if self.waiting_for is not None:
+            stamp, since = self.waiting_for
+            limit = max(p["lockstep_timeout_s"], 60.0) if self.frames <= 1 else p["lockstep_timeout_s"]
+            if self._acked(stamp) or now - since > limit:
+                if not self._acked(stamp):
+                    self.lockstep_timeouts += 1
+                    self.get_logger().warning(f"lockstep: no answer for frame {stamp / 1e9:.3f} s after "
+                                              f"{limit:g} s", throttle_duration_sec=5.0)
+                self.waiting_for = None
+                self.base = (self.sim_cursor, now)
+            else:
+                self._publish_clock(self.sim_cursor)
+                return
+        desired = self.base[0] + int((now - self.base[1]) * p["time_scale"] * 1e9)
+        next_frame = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+        if next_frame is not None and next_frame < desired - period_ns:
+            self.late_frames += 1
+            self.base = (next_frame, now)
+            desired = next_frame
+        while True:
+            next_frame = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+            next_imu = self.start_ns + self.k_imu * imu_period_ns
+            if next_frame is None and self.total_s is not None and next_imu - self.start_ns >= self.total_s * 1e9:
+                next_imu = None
+            cands = [t for t in (next_imu, next_frame) if t is not None]
+            if not cands or min(cands) > desired:
+                break
+            t = min(cands)
+            self.sim_cursor = max(self.sim_cursor, t)
+            self._publish_clock(self.sim_cursor)
+            t_rel = (t - self.start_ns) / 1e9
+            R = self._attitude_at(t, t_rel)
+            if next_imu is not None and next_imu == t:          # IMU first at equal stamps
+                if R is not None:
+                    self._publish_imu(t, R)
+                self.k_imu += 1
+                continue
+            if R is None:
+                self.diag.reject("no_attitude", "no attitude received yet: frame skipped")
+            else:
+                self._publish_frame(t, R)
+            self.k_frame += 1
+            if self.lock_topics and R is not None:
+                self.waiting_for = (t, time.monotonic())
+                return
+        if desired > self.sim_cursor:
+            self.sim_cursor = desired
+        self._publish_clock(self.sim_cursor)
+        if self.total_s is not None and self.waiting_for is None and \
+                frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame) is None:
+            self._maybe_finish(now)
+
+    def _maybe_finish(self, now: float) -> None:
+        """The last frame is out: log once, and exit after linger_s when exit_when_done."""
+        if self.done_wall is None:
+            self.done_wall = now
+            self.get_logger().info(f"run complete: {self.frames} frames, {self.late_frames} late, "
+                                   f"{self.lockstep_timeouts} lockstep timeouts")
+            self.diag.last_status = f"done: {self.frames} frames"
+        if self.params["exit_when_done"] and now - self.done_wall >= self.params["linger_s"]:
+            self.diag.publish()
+            raise ExitRequest(0)
+
+    # clock_mode system --------------------------------------------------------------------------
+    def _frame_system(self) -> None:
+        t_ns = self.get_clock().now().nanoseconds
+        if self.t_first_ns is None:
+            self.t_first_ns = t_ns
+        t_rel = (t_ns - self.t_first_ns) / 1e9
+        if self.total_s is not None and t_rel >= self.total_s:
+            self._maybe_finish(time.monotonic())
+            return
+        R = self._attitude_at(t_ns, t_rel)
+        if R is None:
+            self.diag.reject("no_attitude", "no attitude received yet: frame skipped")
+            return
+        self._publish_frame(t_ns, R)
+        self.k_frame += 1
+
+    def _imu_system(self) -> None:
+        t_ns = self.get_clock().now().nanoseconds
+        t_rel = 0.0 if self.t_first_ns is None else (t_ns - self.t_first_ns) / 1e9
+        R = self._attitude_at(t_ns, t_rel)
+        if R is not None:
+            self._publish_imu(t_ns, R)
+
+
+def main(argv=None) -> int:
+    return run_node(SkySimulatorNode, "sky_simulator", argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,212 @@
+"""``tilt_corrector``: removes the tilt error of a classical method's heading with an error map.
+
+Subscribes to ``compass/<method>/heading_raw`` (sensor_msgs/Imu from heading_estimator) and
+``imu/data`` (body attitude in ENU). Each heading is paired with the IMU at its stamp: interpolated
+between the samples either side when both are within ``imu_tolerance_s``, else the nearer one within
+it. A heading whose stamp is newer than the newest IMU sample waits up to ``imu_max_wait_s`` (wall)
+for the IMU to catch up; when nothing is within tolerance the heading is reported (status
+``stale_imu`` / ``no_imu``, counted in /diagnostics) and not published: a tilt is never guessed.
+
+The camera's pitch and roll (eq 21) follow from the IMU attitude and the mounting
+(``R_enu_cam = R_enu_body @ R_body_cam``); the sun's altitude and azimuth from the stamp and the
+site. ``correction: error_map`` inverts ``psi_meas = psi + e(psi, h, pitch, roll)`` with
+:class:`polarization_compass.correction.TiltCorrector` (status out_of_domain, no_solution,
+multiple_solutions: reported, not published); ``none`` passes the heading through.
+
+Publishes ``compass/<method>/heading`` (Imu, robot_localization form, yaw variance = raw variance +
+``correction_sigma_deg``^2), ``compass/<method>/bearing_deg`` (Float64), ``.../correction_status``
+(String, JSON per heading) and /diagnostics.
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections import deque
+from pathlib import Path
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64, String
+
+from ..bag import MessageError, decode_orientation, stamp_ns
+from ..conventions import psi_to_bearing_deg, wrap_180_deg, wrap_360_deg
+from ..errors import CompassError
+from ..pipeline import AttitudeBuffer, SunSource
+from . import topics
+from .diagnostics import Diagnostics, _wall_clock
+from .msgs import heading_imu, yaw_enu_from_quat
+from .params import CORRECTOR
+from .rosparams import ParameterSet
+from .runner import run_node
+
+__all__ = ["TiltCorrectorNode", "main", "load_corrector", "MAP_HELP"]
+
+MAP_HELP = ("generate one with: polarization-compass errormap --methods {method} --sun-altitude 0:50:5 "
+            "--yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 --out {path} (polarization-compass sim makes a "
+            "small one for its scenario), or set correction:=none")
+
+
+def load_corrector(path: str, method: str):
+    """The TiltCorrector for ``method`` from ``path`` ("" = the map shipped with the package).
+
+    Raises CompassError naming the file and how to make one when it is missing or unusable."""
+    from ..correction import TiltCorrector, default_map_path
+    from ..errormap import ErrorMapError
+    p = Path(path) if path else default_map_path()
+    if not p.is_file():
+        raise CompassError(f"error map {str(p)!r} does not exist: " + MAP_HELP.format(method=method, path=p))
+    try:
+        return TiltCorrector.from_file(p, method)
+    except ErrorMapError as exc:
+        raise CompassError(f"error map {str(p)!r}: {exc}; " + MAP_HELP.format(method=method, path=p)) from None
+
+
+class TiltCorrectorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("tilt_corrector", **kwargs)
+        self.corrector = None
+        self.params = ParameterSet(self, CORRECTOR, on_change=self._on_change)
+        p = self.params
+        self.method = p["method"]
+        if p["correction"] == "error_map":
+            self.corrector = load_corrector(p["error_map"], self.method)
+        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.imu = AttitudeBuffer(keep_ns=int(p["imu_buffer_s"] * 1e9))
+        self.pending: deque = deque()   # (stamp_ns, bearing, yaw var, frame_id, wall deadline, t_in, roll/pitch var)
+        self.diag = Diagnostics(self, f"tilt corrector ({self.method}, {p['correction']})")
+        self.counts = {"stale_imu": 0, "out_of_domain": 0, "no_solution": 0, "multiple_solutions": 0}
+        t = topics.method_topics(self.method)
+        self.pub_heading = self.create_publisher(Imu, t["heading"], qos_profile_system_default)
+        self.pub_bearing = self.create_publisher(Float64, t["bearing"], qos_profile_system_default)
+        self.pub_status = self.create_publisher(String, t["correction_status"], QoSProfile(depth=50))
+        self.create_subscription(Imu, t["heading_raw"], self._on_heading, QoSProfile(depth=50))
+        self.create_subscription(Imu, topics.IMU, self._on_imu, qos_profile_sensor_data)
+        self.create_timer(0.02, self._expire, clock=_wall_clock())
+        self.get_logger().info(f"{t['heading_raw']} + {topics.IMU} -> {t['heading']} ({p['correction']})")
+
+    def _on_change(self, changed: dict):
+        if not hasattr(self, "sun"):
+            return None
+        merged = {**self.params.values, **changed}
+        try:
+            if {"correction", "error_map"} & set(changed):
+                self.corrector = (load_corrector(merged["error_map"], self.method)
+                                  if merged["correction"] == "error_map" else None)
+            if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
+                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
+                                     merged["sun_model"])
+        except CompassError as exc:
+            return str(exc)
+        return None
+
+    # inputs -------------------------------------------------------------------------------------
+    def _on_imu(self, msg):
+        try:
+            q = decode_orientation(msg)
+        except MessageError as exc:
+            self.diag.reject(f"imu_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        self.imu.add(stamp_ns(msg.header), q)
+        self._drain(final=False)
+
+    def _on_heading(self, msg):
+        t_in = self.diag.input()
+        try:
+            q = decode_orientation(msg)
+            var = float(msg.orientation_covariance[8])
+            if not (math.isfinite(var) and var > 0):
+                raise MessageError("bad_covariance", f"yaw variance {var!r} must be finite and > 0")
+        except MessageError as exc:
+            self.diag.reject(f"heading_{getattr(exc, 'reason', 'bad')}", str(exc))
+            return
+        bearing = float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
+        import time
+        rp_var = float(msg.orientation_covariance[0])
+        rp_var = rp_var if math.isfinite(rp_var) and rp_var > 0 else 1000.0
+        self.pending.append((stamp_ns(msg.header), bearing, var, msg.header.frame_id,
+                             time.monotonic() + self.params["imu_max_wait_s"], t_in, rp_var))
+        self._drain(final=False)
+
+    def _expire(self):
+        self._drain(final=True)
+
+    # pairing and correction ---------------------------------------------------------------------
+    def _drain(self, final: bool) -> None:
+        """Process waiting headings whose IMU is available (or whose wait is over when ``final``)."""
+        import time
+        tol_ns = int(self.params["imu_tolerance_s"] * 1e9)
+        now = time.monotonic()
+        keep = deque()
+        while self.pending:
+            item = self.pending.popleft()
+            t_ns = item[0]
+            newest = self.imu.newest_ns
+            covered = newest is not None and newest >= t_ns
+            if covered or now >= item[4]:
+                self._process(item, tol_ns)
+            else:
+                keep.append(item)
+        self.pending = keep
+
+    def _process(self, item, tol_ns: int) -> None:
+        t_ns, bearing, var, frame_id, _, t_in, rp_var = item
+        p = self.params
+        st = {"stamp_ns": t_ns, "method": self.method, "raw_bearing_deg": bearing, "correction": p["correction"]}
+        tilt = self.imu.camera_tilt(t_ns, tol_ns)
+        if tilt is None:
+            newest = self.imu.newest_ns
+            why = ("no_imu", "no IMU sample received") if newest is None else \
+                ("stale_imu", f"no IMU sample within {p['imu_tolerance_s']:g} s of the heading "
+                              f"(nearest newest {abs(t_ns - newest) / 1e9:.3f} s away)")
+            self.counts["stale_imu"] += 1
+            st.update(status=why[0], reason=why[1], published=False)
+            self._status(st)
+            self.diag.extra = dict(self.counts)
+            self.diag.done(t_in, t_ns, f"{why[0]}: {why[1]}", ok=False)
+            return
+        st.update(pitch_deg=tilt.pitch_deg, roll_deg=tilt.roll_deg, imu_gap_ms=tilt.gap_ns / 1e6)
+        out_bearing = bearing
+        out_var = var
+        if self.corrector is not None:
+            try:
+                az, alt = self.sun.at_ns(t_ns)
+            except CompassError as exc:
+                st.update(status="bad_input", reason=str(exc), published=False)
+                self._status(st)
+                self.diag.done(t_in, t_ns, str(exc), ok=False)
+                return
+            psi_meas = float(wrap_180_deg(bearing - az))
+            c = self.corrector.correct(psi_meas, alt, tilt.pitch_deg, tilt.roll_deg)
+            st.update(sun_azimuth_deg=az, sun_altitude_deg=alt, status=c.status.value, reason=c.reason)
+            if not c.ok:
+                self.counts[c.status.value] = self.counts.get(c.status.value, 0) + 1
+                st["published"] = False
+                self._status(st)
+                self.diag.extra = dict(self.counts)
+                self.diag.done(t_in, t_ns, f"{c.status.value}: {c.reason}", ok=False)
+                return
+            out_bearing = float(psi_to_bearing_deg(c.psi_deg, az))
+            out_var = var + math.radians(p["correction_sigma_deg"]) ** 2
+            st["map_error_deg"] = c.error_deg
+        else:
+            st.update(status="ok", reason="pass-through")
+        yaw = math.radians(90.0 - out_bearing)
+        self.pub_heading.publish(heading_imu(t_ns, frame_id or "base_link", math.atan2(math.sin(yaw), math.cos(yaw)),
+                                             out_var, rp_var))
+        self.pub_bearing.publish(Float64(data=out_bearing))
+        st.update(bearing_deg=out_bearing, sigma_deg=math.degrees(math.sqrt(out_var)), published=True)
+        self._status(st)
+        self.diag.extra = dict(self.counts)
+        self.diag.done(t_in, t_ns, f"ok: bearing {out_bearing:.3f} deg (raw {bearing:.3f})", ok=True)
+
+    def _status(self, st: dict) -> None:
+        self.pub_status.publish(String(data=json.dumps(st, default=str)))
+
+
+def main(argv=None) -> int:
+    return run_node(TiltCorrectorNode, "tilt_corrector", argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

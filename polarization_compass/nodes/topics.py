@@ -1,0 +1,103 @@
+"""Topic names and message types of every node: the single source used by the nodes themselves,
+by :mod:`polarization_compass.graphs` (launch files, ``polarization-compass sim``) and by the tests.
+
+All names are relative, so a namespace moves a whole graph and ``--ros-args -r old:=new`` remaps
+any of them; ``/diagnostics`` and ``/clock`` are absolute by ROS convention. Per-method topics live
+under ``compass/<method>/`` so that, with default parameters, every estimator, corrector and the
+evaluator connect without remapping.
+
+ROS-free: no rclpy import here.
+"""
+from __future__ import annotations
+
+__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY",
+           "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
+           "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
+           "T_QUAT_STAMPED"]
+
+# message types (ROS interface names)
+T_IMAGE = "sensor_msgs/msg/Image"
+T_CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+T_IMU = "sensor_msgs/msg/Imu"
+T_FIX = "sensor_msgs/msg/NavSatFix"
+T_CLOCK = "rosgraph_msgs/msg/Clock"
+T_DIAG = "diagnostic_msgs/msg/DiagnosticArray"
+T_STRING = "std_msgs/msg/String"
+T_FLOAT64 = "std_msgs/msg/Float64"
+T_QUAT_STAMPED = "geometry_msgs/msg/QuaternionStamped"
+
+IMAGE = "camera/image_raw"              # the polarization mosaic, as a camera driver publishes it
+CAMERA_INFO = "camera/camera_info"
+IMU = "imu/data"                        # attitude of base_link in ENU (roll/pitch used)
+TRUTH = "ground_truth/heading"          # simulator only: true heading, same Imu form as the estimate
+FIX = "gps/fix"                         # site (latitude/longitude/altitude)
+ATTITUDE_IN = "sim/attitude"            # simulator input when attitude_source = topic
+CLOCK = "/clock"
+DIAGNOSTICS = "/diagnostics"
+EVAL_SUMMARY = "evaluation/summary"     # JSON running statistics per stream
+
+
+def method_topics(method: str) -> dict:
+    """Per-method topic names."""
+    base = f"compass/{method}"
+    return {
+        "heading_raw": f"{base}/heading_raw",          # Imu, estimator output (not tilt-corrected)
+        "bearing_raw": f"{base}/bearing_raw_deg",      # Float64, same, true bearing in degrees
+        "status": f"{base}/status",                    # String (JSON), one per image, also failures
+        "heading": f"{base}/heading",                  # Imu, corrector output (what to fuse)
+        "bearing": f"{base}/bearing_deg",              # Float64
+        "correction_status": f"{base}/correction_status",
+    }
+
+
+def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu"):
+    """(publishes, subscribes): lists of (topic, type)."""
+    pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
+            (DIAGNOSTICS, T_DIAG)]
+    if publish_clock:
+        pubs.append((CLOCK, T_CLOCK))
+    subs = []
+    if attitude_source == "topic":
+        subs.append((ATTITUDE_IN, T_IMU if attitude_input_type == "imu" else T_QUAT_STAMPED))
+    return pubs, subs
+
+
+def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: bool = False,
+                     prior_source: str = "none"):
+    t = method_topics(method)
+    pubs = [(t["heading_raw"], T_IMU), (t["bearing_raw"], T_FLOAT64), (t["status"], T_STRING),
+            (DIAGNOSTICS, T_DIAG)]
+    subs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
+    if site_source == "navsatfix":
+        subs.append((FIX, T_FIX))
+    if needs_tilt or prior_source == "imu":
+        subs.append((IMU, T_IMU))
+    return pubs, subs
+
+
+def corrector_topics(method: str):
+    t = method_topics(method)
+    pubs = [(t["heading"], T_IMU), (t["bearing"], T_FLOAT64), (t["correction_status"], T_STRING),
+            (DIAGNOSTICS, T_DIAG)]
+    subs = [(t["heading_raw"], T_IMU), (IMU, T_IMU)]
+    return pubs, subs
+
+
+def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool = True,
+                      direct_methods=()) -> list[tuple[str, str]]:
+    """(stream name, topic) pairs: ``<method>/raw`` and ``<method>/corrected`` for each method, and
+    ``<method>/raw`` only for methods in ``direct_methods`` (no corrector, e.g. tilt_aware)."""
+    out = []
+    for m in methods:
+        t = method_topics(m)
+        if include_raw or m in direct_methods:
+            out.append((f"{m}/raw", t["heading_raw"]))
+        if include_corrected and m not in direct_methods:
+            out.append((f"{m}/corrected", t["heading"]))
+    return out
+
+
+def evaluator_topics(streams):
+    pubs = [(EVAL_SUMMARY, T_STRING), (DIAGNOSTICS, T_DIAG)]
+    subs = [(TRUTH, T_IMU)] + [(topic, T_IMU) for _, topic in streams]
+    return pubs, subs

@@ -1,0 +1,311 @@
+"""Per-frame processing behind the nodes, ROS-free: mosaic -> observation -> heading, the IMU
+history the tilt and the ambiguity prior come from, and the sun per stamp.
+
+The node classes in :mod:`polarization_compass.nodes` only move messages in and out of these objects,
+so the same code runs wherever frames come from (a live camera, a bag, a test).
+
+Frames: the IMU orientation is the body's (REP-103 base_link) in ENU; the camera is mounted by
+``R_body_cam`` (default :data:`~polarization_compass.conventions.R_BODY_CAM_DEFAULT`: looking up,
+camera +y = body +x), so the camera attitude of eq 21 is ``attitude_from_R_enu_cam(R_enu_body @
+R_body_cam)`` and, with the default mounting, the REP-103 yaw of the body is ``90 deg - bearing``.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import CameraModel
+from .conventions import R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, quat_to_matrix
+from .errors import CompassError
+
+__all__ = ["AttitudeBuffer", "CameraTilt", "camera_attitude_from_body_quat", "SunSource", "HeadingFrontEnd",
+           "PipelineError", "pixel_grid", "sub_mosaic", "warm_up"]
+
+
+class PipelineError(CompassError):
+    """A frame that cannot be processed (bad mosaic for this camera, unusable configuration)."""
+
+
+# ------------------------------------------------------------------------------------------------
+# Attitude history
+# ------------------------------------------------------------------------------------------------
+def camera_attitude_from_body_quat(q_xyzw, R_body_cam=R_BODY_CAM_DEFAULT):
+    """Eq 21 camera attitude (bearing, pitch, roll; deg) of a body orientation quaternion in ENU."""
+    R_enu_cam = quat_to_matrix(np.asarray(q_xyzw, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
+    return attitude_from_R_enu_cam(R_enu_cam)
+
+
+@dataclass(frozen=True)
+class CameraTilt:
+    """The camera attitude at an image stamp and how it was obtained."""
+
+    bearing_deg: float
+    pitch_deg: float
+    roll_deg: float
+    gap_ns: int                 # distance to the nearest IMU sample used
+    interpolated: bool
+
+
+class AttitudeBuffer:
+    """Body orientation samples (stamp_ns, unit quaternion x, y, z, w) kept for ``keep_ns`` behind the
+    newest one, looked up at any stamp.
+
+    :meth:`at` interpolates (normalised linear interpolation, hemisphere aligned) between the samples
+    either side of ``t`` when both are within ``tol_ns``; with one side only, the nearer sample within
+    ``tol_ns``; otherwise None (stale or missing: the caller reports it, nothing is guessed).
+    """
+
+    def __init__(self, keep_ns: int = 10_000_000_000):
+        self.keep_ns = int(keep_ns)
+        self._t: list[int] = []
+        self._q: list[np.ndarray] = []
+        self.out_of_order = 0
+
+    def __len__(self):
+        return len(self._t)
+
+    @property
+    def newest_ns(self) -> int | None:
+        return self._t[-1] if self._t else None
+
+    def add(self, t_ns: int, q_xyzw) -> None:
+        t_ns = int(t_ns)
+        q = np.asarray(q_xyzw, dtype=float)
+        if self._t and t_ns < self._t[-1]:
+            self.out_of_order += 1
+            k = bisect.bisect_right(self._t, t_ns)
+            self._t.insert(k, t_ns)
+            self._q.insert(k, q)
+        else:
+            self._t.append(t_ns)
+            self._q.append(q)
+        cut = bisect.bisect_left(self._t, self._t[-1] - self.keep_ns)
+        if cut > 0:
+            del self._t[:cut]
+            del self._q[:cut]
+
+    def around(self, t_ns: int, tol_ns: int):
+        """(before, after): (stamp, q) of the last sample at or before t and the first after it, each
+        None when absent or further than ``tol_ns``."""
+        k = bisect.bisect_right(self._t, t_ns)
+        before = (self._t[k - 1], self._q[k - 1]) if k > 0 and t_ns - self._t[k - 1] <= tol_ns else None
+        after = (self._t[k], self._q[k]) if k < len(self._t) and self._t[k] - t_ns <= tol_ns else None
+        return before, after
+
+    def at(self, t_ns: int, tol_ns: int):
+        """(q, gap_ns, interpolated) at ``t_ns``, or None when no sample is within ``tol_ns``."""
+        b, a = self.around(int(t_ns), int(tol_ns))
+        if b is None and a is None:
+            return None
+        if b is not None and (a is None or b[0] == t_ns):
+            return b[1], int(t_ns - b[0]), False
+        if b is None:
+            return a[1], int(a[0] - t_ns), False
+        f = (t_ns - b[0]) / (a[0] - b[0])
+        q0, q1 = b[1], a[1]
+        if float(q0 @ q1) < 0:
+            q1 = -q1
+        q = (1.0 - f) * q0 + f * q1
+        q = q / np.linalg.norm(q)             # |q| >= cos(half the angle between them) > 0
+        return q, int(min(t_ns - b[0], a[0] - t_ns)), True
+
+    def camera_tilt(self, t_ns: int, tol_ns: int, R_body_cam=R_BODY_CAM_DEFAULT) -> CameraTilt | None:
+        hit = self.at(t_ns, tol_ns)
+        if hit is None:
+            return None
+        q, gap, interp = hit
+        att = camera_attitude_from_body_quat(q, R_body_cam)
+        return CameraTilt(att.bearing_deg, att.pitch_deg, att.roll_deg, gap, interp)
+
+
+# ------------------------------------------------------------------------------------------------
+# The sun per stamp
+# ------------------------------------------------------------------------------------------------
+class SunSource:
+    """Sun azimuth/altitude (deg) at a UTC stamp for the current site, through
+    :class:`~polarization_compass.solar.SunCache` (one SPA batch per 10 minutes of stamps)."""
+
+    def __init__(self, latitude_deg: float, longitude_deg: float, altitude_m: float, model: str = "spa"):
+        self.model = model
+        self._site = None
+        self._cache = None
+        self.set_site(latitude_deg, longitude_deg, altitude_m)
+
+    def set_site(self, latitude_deg: float, longitude_deg: float, altitude_m: float) -> None:
+        site = (float(latitude_deg), float(longitude_deg), float(altitude_m))
+        if self._site is not None:
+            # a GNSS fix moves by metres: a new cache only when the sun would move by > ~1e-5 deg
+            if (abs(site[0] - self._site[0]) < 1e-5 and abs(site[1] - self._site[1]) < 1e-5
+                    and abs(site[2] - self._site[2]) < 100.0):
+                return
+        from .solar import SunCache
+        self._cache = SunCache(*site, model=self.model)
+        self._site = site
+
+    @property
+    def site(self):
+        return self._site
+
+    def at_ns(self, t_ns: int) -> tuple[float, float]:
+        from .solar import SolarError
+        t_us = np.datetime64(int(t_ns) // 1000, "us")
+        try:
+            p = self._cache(t_us)
+        except SolarError as exc:
+            raise PipelineError(f"sun position at stamp {t_ns / 1e9:.3f} s: {exc}") from None
+        return float(p.azimuth_deg), float(p.altitude_deg)
+
+
+# ------------------------------------------------------------------------------------------------
+# Mosaic -> observation -> heading
+# ------------------------------------------------------------------------------------------------
+def _centred_indices(n: int, step: int) -> np.ndarray:
+    """Every ``step``-th index of an axis of length n, placed symmetrically about its centre (the same
+    centring the estimators and the renderer's strided selections use)."""
+    count = (n - 1) // step + 1
+    start = (n - 1 - (count - 1) * step) // 2
+    return start + step * np.arange(count)
+
+
+def pixel_grid(camera: CameraModel, demosaic: str, step: int = 1):
+    """Superpixel rows/cols kept, 1-based pixel centres (x_px, y_px) of the demosaiced image and their
+    unit rays (3, N) float32; cached per (camera, demosaic, step).
+
+    ``superpixel``: output (k, l) is the centre of sensor pixels (2k..2k+1, 2l..2l+1), 0-based, i.e.
+    ``x_px = 2 l + 1.5``, ``y_px = 2 k + 1.5``; with ``step`` > 1 only every ``step``-th superpixel row
+    and column (centred). ``bilinear``: every sensor pixel (step must be 1).
+    """
+    key = (camera, demosaic, int(step))
+    hit = _GRID_CACHE.get(key)
+    if hit is not None:
+        return hit
+    H, W = camera.shape
+    if demosaic == "superpixel":
+        rows = _centred_indices(H // 2, step)
+        cols = _centred_indices(W // 2, step)
+        xs, ys = 2.0 * cols + 1.5, 2.0 * rows + 1.5
+    else:
+        rows, cols = np.arange(H), np.arange(W)
+        xs, ys = cols + 1.0, rows + 1.0
+    xg, yg = np.meshgrid(xs, ys)
+    rays, ok = camera.rays_from_pixels(xg, yg)
+    out = (rows, cols, xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(xg.shape))
+    for arr in out:
+        arr.setflags(write=False)
+    if len(_GRID_CACHE) > 8:
+        _GRID_CACHE.clear()
+    _GRID_CACHE[key] = out
+    return out
+
+
+_GRID_CACHE: dict = {}
+
+
+def sub_mosaic(mosaic: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The 2 x 2 blocks (superpixels) at ``rows`` x ``cols`` (evenly spaced index arrays, as from
+    :func:`pixel_grid`) of a mosaic, as a smaller mosaic with the same polarizer phase (every block
+    starts on an even pixel). One copy of the result, through strided views."""
+    H2, W2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
+    m4 = mosaic[: 2 * H2, : 2 * W2].reshape(H2, 2, W2, 2)
+
+    def sl(idx):
+        step = int(idx[1] - idx[0]) if idx.size > 1 else 1
+        return slice(int(idx[0]), int(idx[-1]) + 1, step)
+
+    return np.ascontiguousarray(m4[sl(rows), :, sl(cols), :]).reshape(2 * rows.size, 2 * cols.size)
+
+
+class HeadingFrontEnd:
+    """One method with its knobs: a raw mosaic (uint8/uint16/float32) plus the camera, the sun and
+    optionally the tilt and a prior bearing in, a :class:`~polarization_compass.estimators.HeadingResult` out.
+
+    ``layout``/``pol45_toward``: the sensor's 2 x 2 polarizer pattern (:mod:`~polarization_compass.demosaic`);
+    ``demosaic``: superpixel | bilinear; ``intensity``: also compute S0 and pass it as the observation's
+    intensity (lets a method resolve the 180 deg ambiguity from the sky's brightness gradient).
+    """
+
+    def __init__(self, method: str, knobs: dict | None = None, layout=((90, 45), (135, 0)),
+                 pol45_toward: str = "+x+y", demosaic: str = "superpixel", intensity: bool = False):
+        from .demosaic import parse_layout
+        from .estimators import make_estimator
+        self.method = method
+        self.estimator = make_estimator(method, **(knobs or {}))
+        self.layout = parse_layout(layout, pol45_toward)
+        self.demosaic = demosaic
+        self.intensity = bool(intensity)
+
+    def set_knobs(self, knobs: dict) -> None:
+        """Replace the estimator's knobs (raises EstimatorError with the reason; keeps the old ones then)."""
+        from .estimators import make_estimator
+        self.estimator = make_estimator(self.method, **knobs)
+
+    def set_layout(self, layout, pol45_toward: str) -> None:
+        from .demosaic import parse_layout
+        self.layout = parse_layout(layout, pol45_toward)
+
+    def superpixel_step(self) -> int:
+        """Superpixels skipped per kept one: the estimator's ``stride`` (sensor pixels) over the
+        superpixel pitch (2), so that only the superpixels it reads are demosaiced."""
+        if self.demosaic != "superpixel":
+            return 1
+        stride = int(self.estimator.knobs.get("stride", 1) or 1) if isinstance(self.estimator.knobs, dict) else 1
+        return max(1, int(round(stride / 2)))
+
+    def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
+                    pitch_deg=None, roll_deg=None, prior_bearing_deg=None):
+        from .demosaic import aop_dop_from_stokes, polarization_from_mosaic, stokes_from_mosaic
+        from .estimators import Observation
+        m = np.asarray(mosaic)
+        if m.shape != camera.shape:
+            raise PipelineError(f"mosaic is {m.shape[1]}x{m.shape[0]}, the camera is "
+                                f"{camera.width_px}x{camera.height_px}")
+        step = self.superpixel_step()
+        if step > 1:
+            rows, cols = pixel_grid(camera, self.demosaic, step)[:2]
+            m = sub_mosaic(m, rows, cols)
+        if self.intensity:
+            s0, s1, s2 = stokes_from_mosaic(m, self.layout, self.layout.pol45_toward, self.demosaic)
+            aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+            inten = s0
+        else:
+            aop, dop, valid = polarization_from_mosaic(m, self.layout, self.layout.pol45_toward, self.demosaic)
+            inten = None
+        rows, cols, xg, yg, rays, has_ray = pixel_grid(camera, self.demosaic, step)
+        if not has_ray.all():
+            valid &= has_ray
+        return Observation(aop, dop, valid, rays, xg, yg, camera, float(sun_azimuth_deg), float(sun_altitude_deg),
+                           inten, pitch_deg, roll_deg, prior_bearing_deg)
+
+    def estimate(self, mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg=None, roll_deg=None,
+                 prior_bearing_deg=None):
+        obs = self.observation(mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
+                               prior_bearing_deg)
+        return self.estimator.estimate(obs)
+
+
+def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:
+    """Run ``front`` once on a tiny rendered frame so that every numba kernel on its path is compiled
+    (or loaded from the cache) before the first real image; returns the seconds it took."""
+    import time
+
+    from .conventions import CameraAttitude
+    from .render import Renderer, SunDirection
+    from .scene import default_scene
+    from .sensor import parse_sensor_config, simulate_mosaic
+    t0 = time.perf_counter()
+    cam = CameraModel("pinhole", 96, 80, 4.0, 3.45 * 2448 / 96, 3.45 * 2448 / 96)
+    scene = default_scene().replace(camera=cam)
+    frame = Renderer(scene).render(attitude=CameraAttitude(30.0, 0.0, 0.0), sun=SunDirection(180.0, 30.0))
+    bits = {np.dtype(np.uint8): {"quantization": {"bits": 8}}, np.dtype(np.uint16): {"quantization": {"bits": 12}}}
+    cfg = parse_sensor_config(bits.get(np.dtype(encoding_dtype), {}))
+    mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
+    saved = (_GRID_CACHE.copy(), front.estimator)
+    try:
+        front.estimate(mosaic, cam, 180.0, 30.0, 0.0, 0.0, 30.0)
+    finally:
+        _GRID_CACHE.clear()
+        _GRID_CACHE.update(saved[0])
+    return time.perf_counter() - t0
