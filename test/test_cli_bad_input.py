@@ -364,10 +364,10 @@ def test_subprocess_bad_inputs_never_print_a_traceback(files, tmp_path):
     "bug: output to a closed pipe (`polarization-compass sun ... | head -c0`) ends in 'internal error: "
     "BrokenPipeError', exit 70; a CLI should exit quietly (reported)"))
 def test_subprocess_closed_stdout_pipe_is_not_an_internal_error():
-    p = subprocess.Popen([sys.executable, "-m", "polarization_compass.cli", "sun", "--lat", "1", "--lon", "2",
-                          "--time", GOOD_TIME], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    p.stdout.close()                       # the reader is gone before the command writes
-    err = p.stderr.read().decode()
-    rc = p.wait(timeout=120)
+    with subprocess.Popen([sys.executable, "-m", "polarization_compass.cli", "sun", "--lat", "1", "--lon", "2",
+                           "--time", GOOD_TIME], stdout=subprocess.PIPE, stderr=subprocess.PIPE) as p:
+        p.stdout.close()                   # the reader is gone before the command writes
+        err = p.stderr.read().decode()
+        rc = p.wait(timeout=120)
     assert "Traceback" not in err
     assert "internal error" not in err and rc != 70, (rc, err)
