@@ -247,7 +247,8 @@ def load_error_map(path) -> ErrorMap:
     if not p.is_file():
         raise ErrorMapError(f"error map {str(p)!r} does not exist")
     try:
-        with np.load(p, allow_pickle=False) as z:
+        # np.load leaks its file handle when the zip is corrupt: own the handle here
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
             missing = [k for k in ("error_deg", "status", "methods", *AXES, "meta") if k not in z.files]
             if missing:
                 raise ErrorMapError(f"{p}: not an error map (missing {', '.join(missing)})")
@@ -485,7 +486,7 @@ def _save_chunk(d: Path, ia, ip, err, status):
 def _load_chunk(d: Path, ia, ip, shape):
     p = _chunk_path(d, ia, ip)
     try:
-        with np.load(p, allow_pickle=False) as z:
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
             err, status = z["error_deg"], z["status"]
         if err.shape != shape or status.shape != shape or not np.all(np.isfinite(err)):
             return None

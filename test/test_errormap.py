@@ -1,0 +1,347 @@
+"""Error-map sweeps against independent computations: the closed-form level-assumption heading, the
+physics notes' published curve, the paper's three similarities and eq 32's 90-degree shift, plus the
+engine's bookkeeping (domain, status codes, resume, workers, corrupt files)."""
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from polarization_compass import conventions as cv
+from polarization_compass.errormap import (STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMap, ErrorMapError, SweepSpec,
+                                           load_error_map, parse_range, run_sweep, tilt_domain_mask)
+from polarization_compass.estimators import estimator_names
+
+PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
+YAW = np.arange(-180.0, 180.1, 15.0)
+
+
+def level_assumption_error_deg(psi, h, pitch, roll):
+    """Independent reference: the heading a level-assuming compass reads from the *true* camera-frame sun
+    (the solar meridian of the tilted image), minus the truth. Built from eq 21 directly with numpy
+    (R^T s), not through the renderer or any estimator."""
+    psi, h, pitch, roll = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (psi, h, pitch, roll)))
+    a, b, y, hr = (np.radians(v) for v in (pitch, roll, psi, h))
+    # C_c^a = Rz(-psi) Rx(a) Ry(b); the sun in frame a is (0, cos h, sin h); s_cam = C^T s_a
+    s_a = np.stack([np.zeros_like(hr), np.cos(hr), np.sin(hr)], -1)
+    cz, sz = np.cos(-y), np.sin(-y)
+    Rz = np.stack([np.stack([cz, -sz, 0 * cz], -1), np.stack([sz, cz, 0 * cz], -1),
+                   np.stack([0 * cz, 0 * cz, 1 + 0 * cz], -1)], -2)
+    ca, sa = np.cos(a), np.sin(a)
+    Rx = np.stack([np.stack([1 + 0 * ca, 0 * ca, 0 * ca], -1), np.stack([0 * ca, ca, -sa], -1),
+                   np.stack([0 * ca, sa, ca], -1)], -2)
+    cb, sb = np.cos(b), np.sin(b)
+    Ry = np.stack([np.stack([cb, 0 * cb, sb], -1), np.stack([0 * cb, 1 + 0 * cb, 0 * cb], -1),
+                   np.stack([-sb, 0 * cb, cb], -1)], -2)
+    C = Rz @ Rx @ Ry
+    s_cam = np.einsum("...ji,...j->...i", C, s_a)
+    est = np.degrees(np.arctan2(-s_cam[..., 0], s_cam[..., 1]))
+    return cv.fold_axial_deg(est - psi)
+
+
+def available(methods):
+    have = set(estimator_names())
+    missing = [m for m in methods if m not in have]
+    assert not missing, f"methods not registered: {missing}"
+    return list(methods)
+
+
+@pytest.fixture(scope="module")
+def pitch_map():
+    spec = SweepSpec(available(PAPER_METHODS), [0.0, 20.0, 50.0], YAW, [-30.0, -20.0, 0.0, 20.0, 30.0], [0.0])
+    return run_sweep(spec, workers=1, progress=False)
+
+
+@pytest.fixture(scope="module")
+def roll_map():
+    spec = SweepSpec(available(PAPER_METHODS), [0.0, 20.0, 50.0], YAW, [0.0], [-30.0, -20.0, 0.0, 20.0, 30.0])
+    return run_sweep(spec, workers=1, progress=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Axes and domain
+# --------------------------------------------------------------------------------------------
+def test_parse_range_is_inclusive_and_checked():
+    np.testing.assert_allclose(parse_range("-180:180:5"), np.arange(-180, 181, 5))
+    np.testing.assert_allclose(parse_range("0:1:0.1"), np.round(np.arange(11) * 0.1, 9))
+    np.testing.assert_allclose(parse_range("7"), [7.0])
+    np.testing.assert_allclose(parse_range("0:10:3"), [0, 3, 6, 9])          # B not on the grid: stop before
+    for bad in ("0:10", "a:b:c", "0:10:0", "10:0:1", "0:nan:1", "0:1e9:1e-3", ""):
+        with pytest.raises(ErrorMapError):
+            parse_range(bad, max_count=10000)
+    with pytest.raises(ErrorMapError):
+        parse_range("-100:0:10", "sun-altitude", -90, 90)
+
+
+@pytest.mark.parametrize("support", [1, 2])
+def test_tilt_domain_support_contains_every_interpolation_stencil(support):
+    """Brute force: for random points with |p|+|r| <= 30, every node the interpolation reads (cell corners
+    for multilinear, the 4x4 window for cubic, clipped at the axis ends) is in the support mask."""
+    axis = np.arange(-30.0, 30.1, 5.0)
+    mask = tilt_domain_mask(axis, axis, 30.0, support)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-30, 30, (4000, 2))
+    pts = pts[np.abs(pts).sum(1) <= 30]
+    n = axis.size
+    for p, r in pts:
+        i = min(int((p + 30) // 5), n - 2)
+        k = min(int((r + 30) // 5), n - 2)
+        if support == 1:
+            rows, cols = [i, i + 1], [k, k + 1]
+        else:
+            rows = range(max(0, min(i - 1, n - 4)), max(0, min(i - 1, n - 4)) + 4)
+            cols = range(max(0, min(k - 1, n - 4)), max(0, min(k - 1, n - 4)) + 4)
+        assert all(mask[a, b] for a in rows for b in cols), (p, r)
+    exact = tilt_domain_mask(axis, axis, 30.0, 0)
+    np.testing.assert_array_equal(exact, np.abs(axis)[:, None] + np.abs(axis)[None, :] <= 30)
+    assert not mask.all()                         # something is skipped
+
+
+def test_cells_outside_the_domain_are_not_computed_unless_asked():
+    axes = dict(sun_altitude_deg=[30.0], yaw_deg=[0.0, 90.0], pitch_deg=[-30.0, 0.0, 30.0], roll_deg=[-30.0, 0.0, 30.0])
+    m = run_sweep(SweepSpec(["least_squares"], support=0, **axes), workers=1, progress=False)
+    inside = np.abs(m.pitch_deg)[:, None] + np.abs(m.roll_deg)[None, :] <= 30
+    st = m.status[0, 0]
+    assert np.all(st[:, ~inside] == STATUS_NOT_COMPUTED) and np.all(m.valid[0, 0][:, inside])
+    assert np.all(m.error_deg[0, 0][:, ~inside] == 0.0)
+    full = run_sweep(SweepSpec(["least_squares"], full_domain=True, **axes), workers=1, progress=False)
+    assert full.valid.all()
+    np.testing.assert_array_equal(full.error_deg[0, 0][:, inside], m.error_deg[0, 0][:, inside])
+
+
+# --------------------------------------------------------------------------------------------
+# Against independent references
+# --------------------------------------------------------------------------------------------
+def test_least_squares_map_matches_the_notes_published_curve():
+    """Physics notes section 3 (pitch -20, yaw -180..180 step 30). Our eq 21 gives the same magnitudes with
+    the opposite sign (README: 'A sign to know about'); the comparison is on -error."""
+    m = run_sweep(SweepSpec(["least_squares"], [20.0, 50.0], np.arange(-180.0, 181, 30), [-20.0], [0.0]),
+                  workers=1, progress=False)
+    ref50 = [0, 7.7, 15.4, 22.2, 25.9, 20.9, 0, -20.9, -25.9, -22.2, -15.4, -7.7, 0]
+    ref20 = [0, 2.0, 4.5, 7.1, 8.3, 6.0, 0, -6.0, -8.3, -7.1, -4.5, -2.0, 0]
+    np.testing.assert_allclose(-m.error_deg[0, 1, :, 0, 0], ref50, atol=0.06)
+    np.testing.assert_allclose(-m.error_deg[0, 0, :, 0, 0], ref20, atol=0.06)
+
+
+def test_least_squares_map_equals_the_closed_form_level_heading():
+    rng = np.random.default_rng(11)
+    h = np.round(rng.uniform(0, 60, 3), 3)
+    p = np.round(np.sort(rng.uniform(-25, 25, 3)), 3)
+    r = np.round(np.sort(rng.uniform(-5, 5, 2)), 3)
+    yaw = np.round(np.sort(rng.uniform(-180, 180, 7)), 3)
+    m = run_sweep(SweepSpec(["least_squares"], np.sort(h), yaw, p, r), workers=1, progress=False)
+    H, Y, P, R = np.meshgrid(m.sun_altitude_deg, yaw, p, r, indexing="ij")
+    ref = level_assumption_error_deg(Y, H, P, R)
+    assert m.valid.all()
+    assert np.abs(cv.fold_axial_deg(m.error_deg[0] - ref)).max() < 0.01
+
+
+def test_tilt_aware_map_is_zero_everywhere():
+    m = run_sweep(SweepSpec(["tilt_aware"], [10.0, 50.0], np.arange(-180.0, 180, 45), [-20.0, 10.0], [-10.0, 15.0]),
+                  workers=1, progress=False)
+    assert m.valid.all() and np.abs(m.error_deg).max() < 1e-3
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's similarities (section 3), for each of its four methods
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("method", PAPER_METHODS)
+def test_similarity_1_zero_at_zero_tilt_and_growth_with_tilt(pitch_map, method):
+    m = pitch_map
+    i = m.method_index(method)
+    assert m.valid[i].all()
+    e = m.error_deg[i, :, :, :, 0]                                 # (h, yaw, pitch)
+    ip0 = m.axis_index(m.pitch_deg, 0.0, "pitch")
+    assert np.abs(e[:, :, ip0]).max() < 0.05
+    for ia in range(m.sun_altitude_deg.size):
+        peak = np.abs(e[ia]).max(axis=0)                           # per pitch
+        for sign in (-1, 1):
+            order = [m.axis_index(m.pitch_deg, sign * t, "pitch") for t in (0.0, 20.0, 30.0)]
+            assert np.all(np.diff(peak[order]) > 0), (method, m.sun_altitude_deg[ia], peak[order])
+
+
+@pytest.mark.parametrize("method", PAPER_METHODS)
+def test_similarity_2_small_at_sun_altitude_zero_and_growth_with_altitude(pitch_map, method):
+    """At h = 0 the paper says 'close to 0': what remains is the tilt's projection of a horizontal sun
+    direction, atan2(sin psi, cos psi cos pitch) - psi (closed form, <= 4.1 deg at 30 deg pitch), far below
+    the 44 deg at h = 50."""
+    m = pitch_map
+    i = m.method_index(method)
+    e = m.error_deg[i, :, :, :, 0]
+    psi = m.yaw_deg[:, None]
+    horizon = np.degrees(np.arctan2(np.sin(np.radians(psi)), np.cos(np.radians(psi)) * np.cos(np.radians(m.pitch_deg))))
+    horizon = cv.fold_axial_deg(horizon - psi)
+    assert np.abs(e[0] - horizon).max() < 1.0
+    assert np.abs(e[0]).max() < 0.15 * np.abs(e[-1]).max()
+    peak = np.abs(e).max(axis=1)                                   # (h, pitch)
+    tilted = np.abs(m.pitch_deg) > 0
+    assert np.all(np.diff(peak[:, tilted], axis=0) > 0)
+
+
+@pytest.mark.parametrize("method", PAPER_METHODS)
+def test_similarity_3_symmetry_pitch_only_about_yaw_0_and_180(pitch_map, method):
+    m = pitch_map
+    i = m.method_index(method)
+    e = m.error_deg[i, :, :, :, 0]
+    rev = [m.axis_index(m.yaw_deg, -y, "yaw") for y in m.yaw_deg]  # yaw -> -yaw (axis symmetric)
+    assert np.abs(e + e[:, rev]).max() < 0.3                       # odd in yaw: mirror image about 0 and 180
+    for y in (-180.0, 0.0, 180.0):
+        assert np.abs(e[:, m.axis_index(m.yaw_deg, y, "yaw")]).max() < 0.3
+
+
+@pytest.mark.parametrize("method", PAPER_METHODS)
+def test_similarity_3_symmetry_roll_only_about_yaw_plus_minus_90(roll_map, method):
+    m = roll_map
+    i = m.method_index(method)
+    e = m.error_deg[i, :, :, 0, :]
+    idx = {float(y): k for k, y in enumerate(m.yaw_deg)}
+    pairs = [(idx[90.0 + d], idx[float(cv.wrap_180_deg(90.0 - d))]) for d in np.arange(0, 181, 15.0)
+             if 90.0 + d <= 180]
+    for a, b in pairs:
+        assert np.abs(e[:, a] + e[:, b]).max() < 0.3
+    for y in (-90.0, 90.0):
+        assert np.abs(e[:, idx[y]]).max() < 0.3
+
+
+@pytest.mark.parametrize("method", PAPER_METHODS)
+def test_roll_only_is_pitch_only_shifted_by_90_deg_of_yaw(pitch_map, roll_map, method):
+    """Eq 32: (psi + 90, roll = a) sees the sky of (psi, pitch = a)."""
+    ip, ir = pitch_map.method_index(method), roll_map.method_index(method)
+    for t in (-30.0, -20.0, 20.0, 30.0):
+        ep = pitch_map.error_deg[ip, :, :, pitch_map.axis_index(pitch_map.pitch_deg, t, "pitch"), 0]
+        er = roll_map.error_deg[ir, :, :, 0, roll_map.axis_index(roll_map.roll_deg, t, "roll")]
+        shifted = [roll_map.axis_index(roll_map.yaw_deg, float(cv.wrap_180_deg(y + 90.0)), "yaw")
+                   for y in pitch_map.yaw_deg]
+        assert np.abs(er[:, shifted] - ep).max() < 0.3, (method, t)
+
+
+def test_the_four_methods_agree_within_one_degree(pitch_map, roll_map):
+    """The paper reports < 0.66 deg (pitch only) and < 0.77 deg (pitch and roll)."""
+    worst = 0.0
+    for m in (pitch_map, roll_map):
+        idx = [m.method_index(x) for x in PAPER_METHODS]
+        e = m.error_deg[idx]
+        worst = max(worst, float((e.max(axis=0) - e.min(axis=0)).max()))
+    assert worst < 1.0, worst
+
+
+# --------------------------------------------------------------------------------------------
+# Bookkeeping
+# --------------------------------------------------------------------------------------------
+def test_failed_estimates_are_status_codes_not_nan():
+    # the sun 89.5 deg high: least squares reports sun_near_zenith (knob max_sun_altitude_deg = 89)
+    m = run_sweep(SweepSpec(["least_squares"], [45.0, 89.5], [0.0, 90.0], [0.0], [0.0]), workers=1, progress=False)
+    assert np.all(np.isfinite(m.error_deg))
+    assert np.all(m.status[0, 1] == STATUS_CODES["sun_near_zenith"])
+    assert not m.valid[0, 1].any() and m.valid[0, 0].all()
+    assert np.all(m.error_deg[0, 1] == 0.0)
+
+
+def test_resume_after_interruption_gives_the_same_map(tmp_path):
+    spec = SweepSpec(["least_squares", "tilt_aware"], [10.0, 40.0], np.arange(-180.0, 180, 60), [-10.0, 10.0],
+                     [0.0, 5.0])
+    whole = run_sweep(spec, workers=1, progress=False)
+    out = tmp_path / "m.npz"
+    assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=2) is None    # "interrupted"
+    part = tmp_path / "m.npz.partial"
+    chunks = sorted(part.glob("chunk_*.npz"))
+    assert len(chunks) == 2 and not out.exists()
+    (part / "chunk_0001_0001.npz").write_bytes(b"torn write")    # a chunk killed mid-write is recomputed
+    resumed = run_sweep(spec, out=out, workers=1, progress=False)
+    np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
+    np.testing.assert_array_equal(resumed.status, whole.status)
+    assert not part.exists()
+    loaded = load_error_map(out)
+    np.testing.assert_array_equal(loaded.error_deg, whole.error_deg)
+    # checkpoints of another sweep are refused, not mixed in
+    other = SweepSpec(["least_squares"], [10.0], [0.0], [0.0], [0.0])
+    run_sweep(spec, out=tmp_path / "x.npz", workers=1, progress=False, max_chunks=1)
+    with pytest.raises(ErrorMapError, match="different sweep"):
+        run_sweep(other, out=tmp_path / "x.npz", workers=1, progress=False)
+
+
+def test_worker_pool_gives_the_same_map_as_one_process():
+    spec = SweepSpec(["least_squares"], [20.0, 50.0], np.arange(-180.0, 180, 45), [-20.0, 0.0, 20.0], [0.0])
+    one = run_sweep(spec, workers=1, progress=False)
+    two = run_sweep(spec, workers=2, progress=False)
+    np.testing.assert_array_equal(one.error_deg, two.error_deg)
+    np.testing.assert_array_equal(one.status, two.status)
+    assert two.meta["workers"] == 2
+
+
+def _small_map():
+    return run_sweep(SweepSpec(["least_squares"], [30.0], [-90.0, 0.0, 90.0], [0.0, 10.0], [0.0]),
+                     workers=1, progress=False)
+
+
+def test_map_file_round_trip_and_corrupt_files(tmp_path):
+    m = _small_map()
+    p = m.save(tmp_path / "ok.npz")
+    back = load_error_map(p)
+    np.testing.assert_array_equal(back.error_deg, m.error_deg)
+    assert back.methods == ("least_squares",) and back.meta["scene"]["name"] == m.meta["scene"]["name"]
+    assert json.loads(json.dumps(back.meta))["status_codes"]["0"] == "ok"
+
+    def write(name, **overrides):
+        arrays = dict(error_deg=m.error_deg, status=m.status, methods=np.array(m.methods),
+                      sun_altitude_deg=m.sun_altitude_deg, yaw_deg=m.yaw_deg, pitch_deg=m.pitch_deg,
+                      roll_deg=m.roll_deg, meta=np.array(json.dumps(m.meta)))
+        arrays.update(overrides)
+        arrays = {k: v for k, v in arrays.items() if v is not None}
+        f = tmp_path / name
+        np.savez(f, **arrays)
+        return f
+
+    cases = {
+        "nan.npz": dict(error_deg=np.where(m.valid, np.nan, 0.0)),
+        "shape.npz": dict(error_deg=m.error_deg[:, :, :2]),
+        "axis.npz": dict(yaw_deg=m.yaw_deg[::-1].copy()),
+        "missing.npz": dict(status=None),
+        "meta.npz": dict(meta=np.array("{not json")),
+        "status.npz": dict(status=np.full(m.status.shape, 99, dtype=np.int8)),
+        "unfolded.npz": dict(error_deg=m.error_deg + 200.0),
+        "pickle.npz": dict(methods=np.array([object()], dtype=object)),
+    }
+    for name, over in cases.items():
+        with pytest.raises(ErrorMapError):
+            load_error_map(write(name, **over))
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"PK\x03\x04 definitely not a zip")
+    with pytest.raises(ErrorMapError):
+        load_error_map(junk)
+    trunc = tmp_path / "trunc.npz"
+    trunc.write_bytes(p.read_bytes()[: len(p.read_bytes()) // 2])
+    with pytest.raises(ErrorMapError):
+        load_error_map(trunc)
+    with pytest.raises(ErrorMapError, match="does not exist"):
+        load_error_map(tmp_path / "none.npz")
+
+
+def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path):
+    out = tmp_path / "cli.npz"
+    cmd = [sys.executable, "-m", "polarization_compass.cli", "errormap", "--methods", "least_squares",
+           "--sun-altitude", "20:40:20", "--yaw", "-180:180:90", "--pitch", "-10:10:10", "--roll", "0",
+           "--workers", "1", "--no-progress", "--out", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["shape"] == [1, 2, 5, 3, 1]
+    m = load_error_map(out)
+    assert m.error_deg.shape == (1, 2, 5, 3, 1)
+    np.testing.assert_allclose(m.yaw_deg, [-180, -90, 0, 90, 180])
+    assert m.meta["sampling"]["least_squares"]["pixels"].startswith("stride")
+    assert m.meta["package_version"] and m.meta["scene"]["sky"]["model"] == "rayleigh"
+    for bad in (["--yaw", "0:10"], ["--methods", "nope"], ["--pitch", "10:-10:5"], ["--stride", "0"]):
+        args = list(cmd)
+        k = args.index(bad[0])
+        args[k + 1] = bad[1]
+        r = subprocess.run(args, capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2, (bad, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+    junk = tmp_path / "junk.npz"
+    junk.write_text("nonsense")
+    r = subprocess.run([sys.executable, "-m", "polarization_compass.cli", "allowable-tilt", "--max-error", "1",
+                        "--map", str(junk)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
