@@ -43,7 +43,7 @@ class BenchConfig:
     render_repeats: int = 3         # timed renders per simulator configuration
     solar_batch: int = 10000        # timestamps per batch call
     solar_calls: int = 30           # single-timestamp calls
-    errormap_cells: int = 120       # cells in the error-map throughput sweep (approximate)
+    errormap_cells: int = 60        # cells in the error-map throughput sweep (approximate)
     pipeline_frames: int = 10
     crb_sun_altitudes_deg: tuple = (10.0, 20.0, 30.0, 50.0, 80.0)
     conditions: tuple = ()          # empty: all

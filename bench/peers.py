@@ -95,7 +95,7 @@ def _our_demosaic(cam, repeats):
 
 
 def run(cfg) -> dict:
-    size = (2448, 2048) if cfg.mode == "full" else (1224, 1024)
+    size = (2448, 2048) if cfg.mode == "full" else (612, 512)
     if cfg.tiny:
         size = (192, 160)
     repeats = 3 if cfg.mode == "full" else 1
