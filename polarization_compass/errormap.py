@@ -68,8 +68,13 @@ _STATUS_LEGEND = {**{str(v): k for k, v in STATUS_CODES.items()}, str(STATUS_NOT
 #: Sampling used by sweeps unless the caller gives knobs: per-method estimator knobs. Empty means the
 #: estimator's own defaults. Chosen by ``bench``/tests so that errors change by < 0.05 deg against full
 #: resolution (see docs/error-maps.md).
-DEFAULT_SWEEP_KNOBS: dict[str, dict] = {m: {"stride": 32} for m in
-                                         ("zenith", "sm_asm", "symmetry", "least_squares", "tilt_aware")}
+DEFAULT_SWEEP_KNOBS: dict[str, dict] = {
+    "zenith": {},                                    # reads its 32 x 32 px window at the image centre
+    "sm_asm": {"stride": 32},
+    "symmetry": {"stride": 32, "search_steps": 90},  # 2 deg coarse grid; Newton refines to the same optimum
+    "least_squares": {"stride": 32},
+    "tilt_aware": {"stride": 32},
+}
 
 
 class ErrorMapError(CompassError):
@@ -248,11 +253,15 @@ def load_error_map(path) -> ErrorMap:
         raise ErrorMapError(f"error map {str(p)!r} does not exist")
     try:
         # np.load leaks its file handle when the zip is corrupt: own the handle here
-        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            missing = [k for k in ("error_deg", "status", "methods", *AXES, "meta") if k not in z.files]
-            if missing:
-                raise ErrorMapError(f"{p}: not an error map (missing {', '.join(missing)})")
-            arrays = {k: z[k] for k in ("error_deg", "status", "methods", *AXES, "meta")}
+        with open(p, "rb") as fh:
+            z = np.load(fh, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):       # a bare .npy array under an .npz name
+                raise ErrorMapError(f"{p}: not an error map (a single array, not an .npz archive)")
+            with z:
+                missing = [k for k in ("error_deg", "status", "methods", *AXES, "meta") if k not in z.files]
+                if missing:
+                    raise ErrorMapError(f"{p}: not an error map (missing {', '.join(missing)})")
+                arrays = {k: z[k] for k in ("error_deg", "status", "methods", *AXES, "meta")}
     except ErrorMapError:
         raise
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError) as exc:

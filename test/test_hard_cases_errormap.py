@@ -242,9 +242,6 @@ def test_missing_map_file_and_directory(tmp_path):
         load_error_map(tmp_path)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: errormap.load_error_map on a .npy file named .npz: np.load returns an ndarray and the `with` raises "
-    "TypeError instead of ErrorMapError (reported)"))
 def test_a_npy_file_named_npz_is_an_error_map_error(tmp_path):
     p = tmp_path / "m.npz"
     with open(p, "wb") as fh:
