@@ -249,6 +249,9 @@ def validate_quaternion(q_xyzw, unit_tol=1e-3):
         raise QuaternionError(f"quaternion must have 4 components, got {q.shape[0]}")
     if not np.all(np.isfinite(q)):
         raise QuaternionError("quaternion has NaN or inf components")
+    scale = float(np.max(np.abs(q)))
+    if scale > 1e6:   # far from unit; also keeps the sum of squares below overflow
+        raise QuaternionError(f"quaternion is not unit (largest component {scale:.3g})")
     n = float(np.linalg.norm(q))
     if n < 1e-12:
         raise QuaternionError("quaternion is zero")

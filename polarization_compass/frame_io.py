@@ -13,7 +13,6 @@ optional: ``intensity`` (float32), ``mosaic`` (uint8/uint16 raw DoFP image), ``a
 from __future__ import annotations
 
 import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +20,7 @@ import numpy as np
 
 from .camera import CameraModel
 from .errors import CompassError
+from .safe_load import open_npz
 
 __all__ = ["save_frame_npz", "load_frame_npz", "FrameFile", "FrameFileError"]
 
@@ -80,18 +80,11 @@ def save_frame_npz(path, frame) -> Path:
 def load_frame_npz(path) -> FrameFile:
     """Read and validate a frame file. Raises :class:`FrameFileError` with the reason."""
     p = Path(path)
-    if not p.is_file():
-        raise FrameFileError(f"frame file {str(p)!r} does not exist")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            missing = [k for k in REQUIRED if k not in z.files]
-            if missing:
-                raise FrameFileError(f"{p.name}: missing array(s) {missing}; is it a 'render' output?")
-            data = {k: z[k] for k in z.files if k in REQUIRED + OPTIONAL}
-    except FrameFileError:
-        raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise FrameFileError(f"{p.name}: not a readable .npz frame file ({exc})") from None
+    with open_npz(p, FrameFileError, "frame file") as z:
+        missing = [k for k in REQUIRED if k not in z.files]
+        if missing:
+            raise FrameFileError(f"{p.name}: missing array(s) {missing}; is it a 'render' output?")
+        data = {k: z[k] for k in z.files if k in REQUIRED + OPTIONAL}
     try:
         meta = json.loads(str(data.pop("meta")))
         if not isinstance(meta, dict):
@@ -110,4 +103,10 @@ def load_frame_npz(path) -> FrameFile:
         bad = ~np.isfinite(data[k]) & data["valid"]
         if bad.any():
             raise FrameFileError(f"{p.name}: {int(bad.sum())} valid pixel(s) have non-finite {k}")
+    for k in ("x_px", "y_px"):
+        if not np.issubdtype(data[k].dtype, np.number) or not np.all(np.isfinite(data[k])):
+            raise FrameFileError(f"{p.name}: {k} must hold finite pixel coordinates")
+    d = data["dop"][data["valid"]]
+    if d.size and (d.min() < 0.0 or d.max() > 1.0):
+        raise FrameFileError(f"{p.name}: dop must lie in [0, 1] at valid pixels, found [{d.min():.3g}, {d.max():.3g}]")
     return FrameFile(meta=meta, **data)

@@ -32,11 +32,11 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .camera import CameraError, CameraModel, PixelSelection
 from .conventions import CameraAttitude
 from .errors import CompassError
+from .safe_load import load_yaml, read_text
 
 __all__ = ["Scene", "Site", "Validity", "SceneError", "load_scene", "default_scene", "parse_time_utc"]
 
@@ -261,15 +261,9 @@ def load_scene(path: str | Path | None = None) -> Scene:
         text = resources.files("polarization_compass").joinpath("data/default_scene.yaml").read_text()
         where = "embedded default scene"
     else:
-        p = Path(path)
-        if not p.is_file():
-            raise SceneError(f"scene file {str(p)!r} does not exist")
-        text = p.read_text()
-        where = str(p)
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise SceneError(f"{where}: not valid YAML: {exc}") from None
+        text = read_text(path, SceneError, "scene file")
+        where = str(path)
+    data = load_yaml(text, where, SceneError)
     try:
         return scene_from_dict(data)
     except SceneError as exc:

@@ -52,15 +52,29 @@ def main(argv=None) -> int:
     except CompassError as exc:
         print(f"polarization-compass {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"polarization-compass {args.command}: error: {exc.strerror}: {exc.filename}", file=sys.stderr)
-        return 2
+    except BrokenPipeError:
+        # the reader went away (e.g. `| head`): not an error of ours; silence the flush at exit
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except OSError:
+            pass
+        return 141
+    except OSError as exc:
+        if exc.filename is not None:        # a path the user gave: not found, a directory, not writable ...
+            print(f"polarization-compass {args.command}: error: {exc.strerror or exc}: {exc.filename}",
+                  file=sys.stderr)
+            return 2
+        return _internal_error(args, exc)
     except KeyboardInterrupt:
         print(f"polarization-compass {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - last line of defence: no traceback for users
-        if args.debug or os.environ.get("POLARIZATION_COMPASS_DEBUG"):
-            raise
-        print(f"polarization-compass {args.command}: internal error: {type(exc).__name__}: {exc} "
-              f"(run with --debug for the traceback)", file=sys.stderr)
-        return 70
+        return _internal_error(args, exc)
+
+
+def _internal_error(args, exc) -> int:
+    if args.debug or os.environ.get("POLARIZATION_COMPASS_DEBUG"):
+        raise exc
+    print(f"polarization-compass {args.command}: internal error: {type(exc).__name__}: {exc} "
+          f"(run with --debug for the traceback)", file=sys.stderr)
+    return 70
