@@ -1,0 +1,511 @@
+"""Machinery shared by the heading estimators: knob validation, pixel sampling, input checks, the
+180 deg ambiguity resolvers and the data-driven (cluster-robust sandwich) uncertainty.
+
+Nothing here re-derives a convention: frames and angles come from :mod:`..conventions`.
+
+Sampling
+--------
+``stride`` is in *sensor pixels*: an observation whose pixels are already ``d`` sensor pixels apart
+(a strided render, superpixels: ``d = 2``) is subsampled by ``max(1, round(stride / d))`` more, so an
+observation rendered from :meth:`Estimator.pixels_needed` is used as is. ``region`` is
+``(x0, y0, width, height)`` in 1-based sensor pixels. Pixel lists (1-D observations) are never strided.
+
+Uncertainty
+-----------
+Every method is a smooth function of the measured AoP values, so to first order
+``d psi = sum_i g_i * da_i`` with an analytic sensitivity ``g_i``. The noise ``da_i`` is estimated by the
+residual of pixel i against the Rayleigh pattern of the fitted solution, and the variance by the
+cluster-robust sandwich ``Var = G/(G-1) * (n-1)/(n-p) * sum_blocks (sum_{i in block} g_i r_i)^2`` with
+square blocks of ``block_px`` sensor pixels: noise that is correlated between neighbouring pixels
+(bilinear demosaicing) stays inside a block and is counted; independent noise (superpixels) gives the
+plain sandwich. No noise model or electron count is needed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import CameraModel, PixelSelection
+from ..conventions import psi_to_bearing_deg, wrap_180_deg
+from .base import EstimatorError, HeadingResult, Observation, Status
+
+__all__ = ["brightness_stats", "brightness_t_from_stats", "brightness_t", "view_segments",
+           "Knob", "KnobbedEstimator", "Samples", "PixelView", "select_view", "samples_from_view",
+           "sample_observation", "cluster_sigma_rad", "Candidate",
+           "resolve_ambiguity", "psi_from_sun_rad", "level_sun_candidates", "rayleigh_aop_rad"]
+
+
+# --------------------------------------------------------------------------------------------
+# Knobs
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Knob:
+    default: object
+    kind: str                 # "int" | "float" | "bool" | "choice" | "region" | "float_or_none"
+    lo: float = -math.inf
+    hi: float = math.inf
+    choices: tuple = ()
+    doc: str = ""
+
+    def check(self, name: str, value):
+        if self.kind == "region":
+            if value is None:
+                return None
+            try:
+                vals = tuple(int(v) for v in value)
+            except (TypeError, ValueError):
+                raise EstimatorError(f"knob {name} must be (x0, y0, width, height) integers or None, got {value!r}") \
+                    from None
+            if len(vals) != 4 or vals[0] < 1 or vals[1] < 1 or vals[2] < 1 or vals[3] < 1:
+                raise EstimatorError(f"knob {name} must be (x0 >= 1, y0 >= 1, width >= 1, height >= 1), got {value!r}")
+            return vals
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise EstimatorError(f"knob {name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
+            return value
+        if self.kind == "bool":
+            if not isinstance(value, (bool, np.bool_)):
+                raise EstimatorError(f"knob {name} must be true or false, got {value!r}")
+            return bool(value)
+        if self.kind == "float_or_none" and value is None:
+            return None
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise EstimatorError(f"knob {name} must be a number, got {value!r}")
+        v = float(value)
+        if self.kind == "int":
+            if not math.isfinite(v) or v != int(v):
+                raise EstimatorError(f"knob {name} must be an integer, got {value!r}")
+            v = int(v)
+        if not (math.isfinite(v) and self.lo <= v <= self.hi):
+            raise EstimatorError(f"knob {name} must be in [{self.lo:g}, {self.hi:g}], got {value!r}")
+        return v
+
+
+#: Knobs every method has (a method may override a default).
+COMMON_KNOBS = {
+    "stride": Knob(1, "int", 1, 1024, doc="use every stride-th sensor pixel (rows and columns)"),
+    "region": Knob(None, "region", doc="(x0, y0, width, height) in 1-based sensor pixels, or None"),
+    "min_dop": Knob(0.02, "float", 0.0, 0.99, doc="ignore pixels with a lower degree of polarization"),
+    "min_pixels": Knob(50, "int", 3, 10**9, doc="fewer usable pixels: status too_few_pixels"),
+    "max_sun_altitude_deg": Knob(89.0, "float", 1.0, 90.0,
+                                 doc="sun higher than this (ephemeris or data): status sun_near_zenith"),
+    "min_sun_altitude_deg": Knob(0.0, "float", -10.0, 10.0,
+                                 doc="sun lower than this (ephemeris): status sun_below_horizon"),
+    "block_px": Knob(32, "int", 1, 4096, doc="block size (sensor pixels) of the cluster-robust uncertainty"),
+    "sigma_floor_deg": Knob(0.0, "float", 0.0, 90.0,
+                            doc="added in quadrature to the statistical sigma (sky-model error budget)"),
+    "brightness_min_t": Knob(8.0, "float", 1.0, 1e6,
+                             doc="t statistic the brightness gradient needs to resolve the 180 deg ambiguity"),
+    "prior_max_diff_deg": Knob(60.0, "float", 1.0, 90.0,
+                               doc="a prior bearing resolves the ambiguity only if a candidate is this close"),
+}
+
+
+class KnobbedEstimator:
+    """Mixin: validates ``self.knobs`` against ``KNOBS`` (COMMON_KNOBS plus the method's own)."""
+
+    OWN_KNOBS: dict = {}
+    KNOB_DEFAULTS: dict = {}           # overrides of common defaults
+
+    @classmethod
+    def knob_specs(cls) -> dict:
+        specs = dict(COMMON_KNOBS)
+        specs.update(cls.OWN_KNOBS)
+        for k, v in cls.KNOB_DEFAULTS.items():
+            s = specs[k]
+            specs[k] = Knob(v, s.kind, s.lo, s.hi, s.choices, s.doc)
+        return specs
+
+    def _validate_knobs(self, given: dict) -> dict:
+        specs = self.knob_specs()
+        unknown = sorted(set(given) - set(specs))
+        if unknown:
+            raise EstimatorError(f"{self.name}: unknown knob(s) {', '.join(unknown)}; known: {', '.join(sorted(specs))}")
+        out = {k: s.default for k, s in specs.items()}
+        for k, v in given.items():
+            out[k] = specs[k].check(k, v)
+        if out["min_sun_altitude_deg"] >= out["max_sun_altitude_deg"]:
+            raise EstimatorError(f"{self.name}: min_sun_altitude_deg must be below max_sun_altitude_deg")
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# Sampling
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Samples:
+    """The usable pixels of an observation, flat. ``aop_rad``/``dop`` float64, ``rays`` (3, n) float64,
+    ``x_px``/``y_px`` float64 1-based. ``grid_shape`` is the 2-D shape before masking (None for a list)."""
+
+    aop_rad: np.ndarray
+    dop: np.ndarray
+    rays: np.ndarray
+    x_px: np.ndarray
+    y_px: np.ndarray
+    intensity: np.ndarray | None
+    nonfinite: int
+    considered: int
+
+    @property
+    def n(self) -> int:
+        return int(self.aop_rad.size)
+
+
+def _centred_indices(n: int, step: int) -> np.ndarray:
+    """Indices every ``step`` along an axis of length n, placed symmetrically about its centre."""
+    count = (n - 1) // step + 1
+    start = (n - 1 - (count - 1) * step) // 2
+    return start + step * np.arange(count)
+
+
+def grid_spacing_px(obs: Observation) -> float:
+    """Spacing in sensor pixels between neighbouring columns of a 2-D observation (1 for a list)."""
+    x = np.asarray(obs.x_px)
+    if x.ndim != 2 or x.shape[1] < 2:
+        return 1.0
+    return float(abs(x[0, 1] - x[0, 0])) or 1.0
+
+
+@dataclass
+class PixelView:
+    """The pixels a method reads, flat (views where possible, else compact copies), before masking.
+
+    ``grid`` = ((x0, dx, nx), (y0, dy, ny)) for a regular 2-D grid in row-major order (sensor pixels),
+    else None (a pixel list). ``rays`` is (3, n)."""
+
+    aop: np.ndarray
+    dop: np.ndarray
+    valid: np.ndarray
+    rays: np.ndarray
+    x_px: np.ndarray
+    y_px: np.ndarray
+    intensity: np.ndarray | None
+    grid: tuple | None
+
+
+def _check_shapes(obs: Observation):
+    aop = np.asarray(obs.aop_rad)
+    n_all = int(aop.size)
+    for name in ("dop", "valid", "x_px", "y_px"):
+        a = np.asarray(getattr(obs, name))
+        if a.size != n_all:
+            raise _BadInput(f"{name} has {a.size} values, aop_rad has {n_all}")
+    if obs.intensity is not None and np.asarray(obs.intensity).size != n_all:
+        raise _BadInput(f"intensity has {np.asarray(obs.intensity).size} values, aop_rad has {n_all}")
+    rays = np.asarray(obs.rays_cam)
+    if rays.ndim != 2 or rays.shape != (3, n_all):
+        raise _BadInput(f"rays_cam must be (3, {n_all}), got {rays.shape}")
+    if n_all == 0:
+        raise _BadInput("the observation has no pixels")
+
+
+def select_view(obs: Observation, knobs: dict, window=None) -> PixelView:
+    """Apply ``stride`` and ``region`` (and a ``window`` (x_lo, x_hi, y_lo, y_hi), sensor pixels,
+    inclusive) without looking at the values. Raises _BadInput for inconsistent arrays."""
+    _check_shapes(obs)
+    aop = np.asarray(obs.aop_rad)
+    shape = aop.shape
+    rays = np.asarray(obs.rays_cam)
+    inten = None if obs.intensity is None else np.asarray(obs.intensity)
+    xs = np.asarray(obs.x_px)
+    ys = np.asarray(obs.y_px)
+    lims = []
+    if knobs.get("region") is not None:
+        x0, y0, w, h = knobs["region"]
+        lims.append((x0, x0 + w - 1, y0, y0 + h - 1))
+    if window is not None:
+        lims.append(window)
+    if len(shape) == 2 and shape[0] >= 1 and shape[1] >= 1:
+        H, W = shape
+        step = max(1, int(round(knobs["stride"] / grid_spacing_px(obs))))
+        rows = _centred_indices(H, step) if step > 1 else np.arange(H)
+        cols = _centred_indices(W, step) if step > 1 else np.arange(W)
+        xc = xs[0, cols]
+        yr = ys[rows, 0]
+        for (xl, xh, yl, yh) in lims:
+            kc = (xc >= xl) & (xc <= xh)
+            kr = (yr >= yl) & (yr <= yh)
+            cols, xc = cols[kc], xc[kc]
+            rows, yr = rows[kr], yr[kr]
+        if rows.size == 0 or cols.size == 0:
+            e = np.zeros(0)
+            return PixelView(e, e, np.zeros(0, bool), np.zeros((3, 0)), e, e, None if inten is None else e, None)
+        full = rows.size == H and cols.size == W
+        if full:
+            def take(a):
+                return np.asarray(a).reshape(-1)
+            r = rays
+        else:
+            # rows and columns are arithmetic progressions: slice (views), then one compact copy
+            rs = slice(int(rows[0]), int(rows[-1]) + 1, int(rows[1] - rows[0]) if rows.size > 1 else 1)
+            cs = slice(int(cols[0]), int(cols[-1]) + 1, int(cols[1] - cols[0]) if cols.size > 1 else 1)
+
+            def take(a):
+                return np.ascontiguousarray(np.asarray(a).reshape(shape)[rs, cs]).reshape(-1)
+            r = np.ascontiguousarray(rays.reshape(3, H, W)[:, rs, cs]).reshape(3, -1)
+        dx = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
+        dy = float(yr[1] - yr[0]) if yr.size > 1 else 1.0
+        grid = ((float(xc[0]), dx, int(xc.size)), (float(yr[0]), dy, int(yr.size)))
+        xg = take(xs)
+        yg = take(ys)
+        return PixelView(take(aop), take(obs.dop), take(obs.valid), r, xg, yg,
+                         None if inten is None else take(inten), grid)
+    flat_x = xs.reshape(-1)
+    flat_y = ys.reshape(-1)
+    if lims:
+        m = np.ones(flat_x.size, dtype=bool)
+        for (xl, xh, yl, yh) in lims:
+            m &= (flat_x >= xl) & (flat_x <= xh) & (flat_y >= yl) & (flat_y <= yh)
+        idx = np.nonzero(m)[0]
+        return PixelView(aop.reshape(-1)[idx], np.asarray(obs.dop).reshape(-1)[idx],
+                         np.asarray(obs.valid).reshape(-1)[idx], rays[:, idx], flat_x[idx], flat_y[idx],
+                         None if inten is None else inten.reshape(-1)[idx], None)
+    return PixelView(aop.reshape(-1), np.asarray(obs.dop).reshape(-1), np.asarray(obs.valid).reshape(-1), rays,
+                     flat_x, flat_y, None if inten is None else inten.reshape(-1), None)
+
+
+def samples_from_view(view: PixelView, min_dop: float, radius_limit=None) -> Samples:
+    """Mask a view: valid, finite, DoP >= min_dop (and ray radius in ``radius_limit`` = (lo, hi) of
+    hypot(r_x, r_y)); float64 copies of the usable pixels."""
+    a = view.aop
+    d = view.dop
+    v = np.asarray(view.valid, dtype=bool)
+    r = view.rays
+    considered = int(v.sum())
+    finite = np.isfinite(a) & np.isfinite(d) & np.isfinite(r).all(axis=0)
+    nonfinite = int((v & ~finite).sum())
+    keep = v & finite
+    keep &= np.where(keep, d, 0.0) >= min_dop
+    if radius_limit is not None:
+        rho = np.hypot(np.where(keep, r[0], 0.0).astype(np.float64), np.where(keep, r[1], 0.0).astype(np.float64))
+        keep &= (rho >= radius_limit[0]) & (rho <= radius_limit[1])
+    idx = np.nonzero(keep)[0]
+    inten = None
+    if view.intensity is not None:
+        inten = view.intensity[idx].astype(np.float64)
+        if not np.all(np.isfinite(inten)):
+            inten = None
+    return Samples(a[idx].astype(np.float64), d[idx].astype(np.float64), r[:, idx].astype(np.float64),
+                   view.x_px[idx].astype(np.float64), view.y_px[idx].astype(np.float64), inten, nonfinite,
+                   considered)
+
+
+def sample_observation(obs: Observation, knobs: dict, window=None, radius_limit=None) -> Samples:
+    """:func:`select_view` then :func:`samples_from_view`."""
+    return samples_from_view(select_view(obs, knobs, window), knobs["min_dop"], radius_limit)
+
+
+def view_segments(view: PixelView, block_px: int):
+    """Flat arrays of a view in block order and their segments (runs of one block each), for the
+    compiled passes: ((aop, dop, valid, rays, x_px, y_px, intensity), (start, end, block, n_blocks))."""
+    from ._kernels import grid_segments, list_segments
+    if view.grid is not None:
+        return ((view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
+                grid_segments(view.grid[0], view.grid[1], int(block_px)))
+    order, segs = list_segments(view.x_px, view.y_px, int(block_px))
+    return ((view.aop[order], view.dop[order], view.valid[order], view.rays[:, order], view.x_px[order],
+             view.y_px[order], None if view.intensity is None else view.intensity[order]), segs)
+
+
+class _BadInput(Exception):
+    """Internal: turns into Status.BAD_INPUT."""
+
+
+def check_sun(name: str, obs: Observation, knobs: dict) -> HeadingResult | None:
+    """Ephemeris checks shared by all methods; a failed result or None."""
+    try:
+        alt = float(obs.sun_altitude_deg)
+        az = float(obs.sun_azimuth_deg)
+    except (TypeError, ValueError):
+        return HeadingResult.failed(name, Status.BAD_INPUT, "sun azimuth/altitude are not numbers")
+    if not (math.isfinite(alt) and math.isfinite(az)) or abs(alt) > 90.0:
+        return HeadingResult.failed(name, Status.BAD_INPUT,
+                                    f"sun azimuth/altitude must be finite with |altitude| <= 90, got {az}, {alt}")
+    if alt > knobs["max_sun_altitude_deg"]:
+        return HeadingResult.failed(name, Status.SUN_NEAR_ZENITH,
+                                    f"sun altitude {alt:.3f} deg > {knobs['max_sun_altitude_deg']:g}: "
+                                    "the solar meridian is undefined")
+    if alt < knobs["min_sun_altitude_deg"]:
+        return HeadingResult.failed(name, Status.SUN_BELOW_HORIZON,
+                                    f"sun altitude {alt:.3f} deg < {knobs['min_sun_altitude_deg']:g}")
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry helpers
+# --------------------------------------------------------------------------------------------
+def psi_from_sun_rad(s_lev) -> float:
+    """psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``: s_lev = Rz(psi) s_sun, so
+    psi = -atan2(s_x, s_y)."""
+    return -math.atan2(float(s_lev[0]), float(s_lev[1]))
+
+
+def sun_from_psi_level(psi_rad: float, altitude_rad: float) -> np.ndarray:
+    """Camera-frame sun of a level camera with yaw psi: Rz(psi) (0, cos h, sin h)."""
+    ch = math.cos(altitude_rad)
+    return np.array([-math.sin(psi_rad) * ch, math.cos(psi_rad) * ch, math.sin(altitude_rad)])
+
+
+def rayleigh_aop_rad(sun_cam, rays) -> np.ndarray:
+    """Eq 28 AoP of the Rayleigh E-vector s x r at rays (3, n), float64, axial in (-pi/2, pi/2]."""
+    s = np.asarray(sun_cam, dtype=float)
+    ex = s[1] * rays[2] - s[2] * rays[1]
+    ey = s[2] * rays[0] - s[0] * rays[2]
+    return np.arctan2(ex, ey)
+
+
+def axial_residual_rad(aop_rad, pred_rad) -> np.ndarray:
+    """Axial difference folded to [-pi/2, pi/2) without a division."""
+    d = np.asarray(aop_rad) - np.asarray(pred_rad)
+    return np.mod(d + np.pi / 2, np.pi) - np.pi / 2
+
+
+# --------------------------------------------------------------------------------------------
+# Uncertainty
+# --------------------------------------------------------------------------------------------
+def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) -> float:
+    """Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual)."""
+    phi = np.asarray(influence, dtype=float)
+    n = phi.size
+    if n == 0:
+        return 0.0
+    bx = np.floor((np.asarray(x_px) - 0.5) / block_px).astype(np.int64)
+    by = np.floor((np.asarray(y_px) - 0.5) / block_px).astype(np.int64)
+    bx -= bx.min()
+    by -= by.min()
+    key = by * (int(bx.max()) + 1) + bx
+    sums = np.bincount(key, weights=phi)
+    occupied = np.bincount(key) > 0
+    G = int(occupied.sum())
+    total = float(np.dot(sums, sums))
+    corr = (G / (G - 1.0) if G > 1 else 1.0) * ((n - 1.0) / (n - n_params) if n > n_params + 1 else 1.0)
+    return total * corr
+
+
+def cluster_sigma_rad(influence, samples: Samples, block_px: int, n_params: int = 2) -> float:
+    return math.sqrt(max(cluster_variance(influence, samples.x_px, samples.y_px, block_px, n_params), 0.0))
+
+
+def finish_sigma_deg(sigma_rad: float, knobs: dict) -> float:
+    """Statistical sigma (rad) to degrees, with the floor in quadrature and never exactly zero."""
+    s = math.degrees(sigma_rad)
+    return max(math.hypot(s, knobs["sigma_floor_deg"]), 1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# The 180 deg ambiguity
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Candidate:
+    """One of the two headings. ``sun_cam`` is the camera-frame sun it implies."""
+
+    psi_rad: float
+    sun_cam: np.ndarray
+
+
+def brightness_stats(intensity, rays) -> np.ndarray:
+    """Sufficient statistics of the brightness regression: n, sum I, sum I^2, sum r (3), sum I r (3),
+    sum r r^T (6: 00 01 02 11 12 22), for intensities (n,) and rays (3, n)."""
+    I = np.asarray(intensity, dtype=float)
+    r = np.asarray(rays, dtype=float)
+    rr = r @ r.T
+    return np.concatenate([[I.size, I.sum(), float(I @ I)], r.sum(axis=1), r @ I,
+                           [rr[0, 0], rr[0, 1], rr[0, 2], rr[1, 1], rr[1, 2], rr[2, 2]]])
+
+
+def brightness_t_from_stats(stats, direction_cam) -> float | None:
+    """t statistic of the least-squares slope of intensity against ``r . direction``.
+
+    Positive: the sky is brighter towards ``direction``. The residual standard error includes the
+    sky's non-linear brightness profile, so the test is conservative. None without data."""
+    if stats is None or stats[0] < 10:
+        return None
+    n, sI, sII = float(stats[0]), float(stats[1]), float(stats[2])
+    sr, sIr = np.asarray(stats[3:6]), np.asarray(stats[6:9])
+    Srr = np.array([[stats[9], stats[10], stats[11]], [stats[10], stats[12], stats[13]],
+                    [stats[11], stats[13], stats[14]]], dtype=float)
+    d = np.asarray(direction_cam, dtype=float)
+    su = float(d @ sr)
+    suu = float(d @ Srr @ d) - su * su / n
+    suI = float(d @ sIr) - su * sI / n
+    sII_c = sII - sI * sI / n
+    if not suu > 1e-300:
+        return None
+    slope = suI / suu
+    rss = max(sII_c - slope * suI, 0.0)
+    se2 = rss / max(n - 2.0, 1.0) / suu
+    if not se2 > 0.0:
+        return math.copysign(math.inf, slope) if slope != 0.0 else 0.0
+    return slope / math.sqrt(se2)
+
+
+def brightness_t(samples: Samples, direction_cam) -> float | None:
+    """:func:`brightness_t_from_stats` of a :class:`Samples` (None without intensity)."""
+    if samples.intensity is None or samples.n < 10:
+        return None
+    return brightness_t_from_stats(brightness_stats(samples.intensity, samples.rays), direction_cam)
+
+
+def resolve_ambiguity(name: str, first: Candidate, second: Candidate, brightness: float | None, obs: Observation,
+                      knobs: dict, sun_rule=None):
+    """Pick one of two candidates 180 deg apart; returns (candidate, resolved_by or None, reason).
+
+    Order: ``sun_rule`` (a callable giving (candidate or None, reason) from the sun's elevation), the
+    sky's brightness gradient (``brightness``: the t statistic of intensity against ``r . (s_first -
+    s_second)``, None without intensity), the prior bearing. Unresolved: ``first`` and None."""
+    reasons = []
+    if sun_rule is not None:
+        pick, why = sun_rule()
+        if pick is not None:
+            return pick, "sun_elevation", why
+        reasons.append(why)
+    t = brightness
+    if t is not None:
+        if abs(t) >= knobs["brightness_min_t"]:
+            pick = first if t > 0 else second
+            return pick, "brightness", f"sun side from the brightness gradient (t = {t:.1f})"
+        reasons.append(f"brightness gradient too weak (|t| = {abs(t):.1f} < {knobs['brightness_min_t']:g})")
+    else:
+        reasons.append("no intensity")
+    if obs.prior_bearing_deg is not None and math.isfinite(float(obs.prior_bearing_deg)):
+        diffs = [abs(float(wrap_180_deg(psi_to_bearing_deg(math.degrees(c.psi_rad), obs.sun_azimuth_deg)
+                                        - float(obs.prior_bearing_deg)))) for c in (first, second)]
+        k = int(np.argmin(diffs))
+        if diffs[k] <= knobs["prior_max_diff_deg"]:
+            return (first, second)[k], "prior", f"sun side from the prior bearing ({diffs[k]:.1f} deg away)"
+        reasons.append(f"prior bearing {min(diffs):.1f} deg from the nearer candidate "
+                       f"(> {knobs['prior_max_diff_deg']:g})")
+    else:
+        reasons.append("no prior bearing")
+    return first, None, "180 deg ambiguity not resolved: " + "; ".join(reasons)
+
+
+def level_sun_candidates(psi_rad: float, altitude_deg: float) -> tuple[Candidate, Candidate]:
+    """The two headings psi and psi + 180 deg of an axial method, with the level-camera sun each implies."""
+    h = math.radians(altitude_deg)
+    other = psi_rad + math.pi
+    return (Candidate(psi_rad, sun_from_psi_level(psi_rad, h)), Candidate(other, sun_from_psi_level(other, h)))
+
+
+def result_from(name: str, cand: Candidate, resolved_by, reason: str, obs: Observation, sigma_deg: float,
+                pixels: int, nonfinite: int, quality: float, **kw) -> HeadingResult:
+    """The final result: axial (status ambiguous) unless ``resolved_by`` names what fixed the sun's side."""
+    extras = dict(kw.pop("extras", {}))
+    extras["ambiguity_resolved_by"] = resolved_by
+    if nonfinite:
+        extras["nonfinite_pixels_ignored"] = int(nonfinite)
+        reason = (reason + "; " if reason else "") + f"ignored {nonfinite} valid pixel(s) with non-finite values"
+    return HeadingResult.from_psi(name, math.degrees(cand.psi_rad), float(obs.sun_azimuth_deg), sigma_deg, int(pixels),
+                                  quality, resolved_by is None, reason, extras=extras, **kw)
+
+
+def selection_for(knobs: dict, camera: CameraModel) -> PixelSelection:
+    """The PixelSelection a method with these stride/region knobs reads."""
+    if knobs.get("region") is not None:
+        x0, y0, w, h = knobs["region"]
+        return PixelSelection.rect(x0, y0, w, h, knobs["stride"])
+    if knobs["stride"] > 1:
+        return PixelSelection.strided(knobs["stride"])
+    return PixelSelection.full()

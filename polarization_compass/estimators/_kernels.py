@@ -1,0 +1,281 @@
+"""Compiled single pass of the least-squares estimators (numba, cached), and the pixel-block segments
+it runs over.
+
+The pass reads the observation as it is (float32 AoP/DoP/rays, bool validity), skips unusable pixels
+without copying, lifts each AoP to its unit E-vector (the lift of
+:func:`polarization_compass.conventions.evector_cam_from_aop`, written out inline; tests check both
+agree) and accumulates, per block of pixels, ``M_b = sum w e e^T``, plus frame totals of the
+noise-bias matrices ``B``, ``C`` and the sufficient statistics of the brightness regression. Because
+every per-pixel first-order influence on the solution is a quadratic form ``-w (s.e)(c.e) = -s^T (w e e^T) c``,
+the block sums of the influence are ``-s^T M_b c``: the uncertainty needs no second full pass.
+
+Speed: the full pass is float32 inside a run of pixels (float64 across runs), branch-free, with
+``error_model="numpy"`` (no Python zero-division guard) so LLVM vectorises it; sine and cosine are
+Taylor polynomials on the folded AoP (no SVML here; libm calls would dominate). The second-order
+terms and the brightness statistics come from a sparse, evenly spread subsample.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+__all__ = ["ls_pass", "grid_segments", "list_segments", "N_STATS", "sym3"]
+
+_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
+N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
+
+
+@njit(inline="always", fastmath=_FM, cache=True, error_model="numpy")
+def _sincos32(a):  # pragma: no cover - compiled
+    """sin, cos of a float32 angle folded to [-pi/2, pi/2] (a sign flip is harmless: E-vectors are
+    axial), Taylor to a^9 / a^10: error < 4e-6 at pi/2 in the polynomial, float32 rounding 1e-7."""
+    a = a - np.float32(math.pi) * np.rint(a * np.float32(1.0 / math.pi))
+    z = a * a
+    s = np.float32(1.0 / 39916800.0)
+    s = s * -z + np.float32(1.0 / 362880.0)
+    s = s * -z + np.float32(1.0 / 5040.0)
+    s = s * -z + np.float32(1.0 / 120.0)
+    s = s * -z + np.float32(1.0 / 6.0)
+    s = a * (np.float32(1.0) - z * s)
+    c = np.float32(1.0 / 479001600.0)
+    c = c * -z + np.float32(1.0 / 3628800.0)
+    c = c * -z + np.float32(1.0 / 40320.0)
+    c = c * -z + np.float32(1.0 / 720.0)
+    c = c * -z + np.float32(1.0 / 24.0)
+    c = c * -z + np.float32(0.5)
+    c = np.float32(1.0) - z * c
+    return s, c
+
+
+@njit(fastmath=_FM, cache=True, error_model="numpy")
+def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - compiled
+    """counts: [0] usable pixels (the same test as :func:`_m_pass`), [1] valid pixels, [2] valid pixels
+    with a non-finite value."""
+    big = np.float32(1e6)
+    md = np.float32(min_dop)
+    n_ok = 0
+    n_valid = 0
+    n_bad = 0
+    for i in range(aop.size):                # branch-free int32 counts: vectorises
+        a = np.float32(aop[i])
+        p = np.float32(dop[i])
+        fin = ((abs(a) < big) & (abs(p) < big) & (abs(np.float32(rays[0, i])) < big)
+               & (abs(np.float32(rays[1, i])) < big) & (abs(np.float32(rays[2, i])) < big))
+        v = valid[i]
+        n_valid += np.int32(v)
+        n_bad += np.int32(v & (fin ^ True))
+        n_ok += np.int32(v & fin & (p >= md))
+    counts[0] = n_ok
+    counts[1] = n_valid
+    counts[2] = n_bad
+
+
+@njit(fastmath=_FM, cache=True, error_model="numpy")
+def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight,
+            block_m):  # pragma: no cover - compiled
+    """Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across). Branch-free inner
+    loop without counters (selects; error_model numpy so division is not guarded): it vectorises."""
+    f0 = np.float32(0.0)
+    f1 = np.float32(1.0)
+    big = np.float32(1e6)
+    md = np.float32(min_dop)
+    for k in range(seg_start.size):
+        m0 = m1 = m2 = m3 = m4 = m5 = f0
+        for i in range(seg_start[k], seg_end[k]):
+            a = np.float32(aop[i])
+            p = np.float32(dop[i])
+            rx = np.float32(rays[0, i])
+            ry = np.float32(rays[1, i])
+            rz = np.float32(rays[2, i])
+            v_in = valid[i]
+            fin = (abs(a) < big) & (abs(p) < big) & (abs(rx) < big) & (abs(ry) < big) & (abs(rz) < big)
+            a = a if fin else f0
+            p = p if fin else f0
+            sa, ca = _sincos32(a)
+            q = rx * sa + ry * ca
+            nn = rz * rz + q * q
+            ok = v_in & fin & (p >= md) & (nn > np.float32(1e-20))
+            inv = f1 / (nn if ok else f1)
+            w = ((p * p if dop_weight else f1) * inv) if ok else f0
+            ex = rz * sa
+            ey = rz * ca
+            ez = -q
+            m0 += w * ex * ex
+            m1 += w * ex * ey
+            m2 += w * ex * ez
+            m3 += w * ey * ey
+            m4 += w * ey * ez
+            m5 += w * ez * ez
+        bk = seg_block[k]
+        block_m[bk, 0] += m0
+        block_m[bk, 1] += m1
+        block_m[bk, 2] += m2
+        block_m[bk, 3] += m3
+        block_m[bk, 4] += m4
+        block_m[bk, 5] += m5
+
+
+@njit(fastmath=_FM, cache=True, error_model="numpy")
+def _bc_pass(aop, dop, valid, rays, inten, has_inten, step, min_dop, dop_weight, var_mode, tot):  # pragma: no cover
+    """Runs of 64 pixels, one run in every ``step``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the same
+    pixels, to scale), [18:33] brightness statistics (n, sum I, sum I^2, sum r, sum I r, sum r r^T)."""
+    n = aop.size
+    run = 64
+    for i0 in range(0, n, run * step):
+        for i in range(i0, min(i0 + run, n)):   # contiguous runs keep the cache warm
+            a = np.float64(aop[i])
+            p = np.float64(dop[i])
+            rx = np.float64(rays[0, i])
+            ry = np.float64(rays[1, i])
+            rz = np.float64(rays[2, i])
+            fin = (abs(a) < 1e6) & (abs(p) < 1e6) & (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6)
+            if not (valid[i] and fin and p >= min_dop):
+                continue
+            sa, ca = _sincos32(np.float32(a))
+            sa = np.float64(sa)
+            ca = np.float64(ca)
+            q = rx * sa + ry * ca
+            nn = rz * rz + q * q
+            if not nn > 1e-20:
+                continue
+            inv = 1.0 / math.sqrt(nn)
+            ex = rz * sa * inv
+            ey = rz * ca * inv
+            ez = -q * inv
+            tx = ry * ez - rz * ey               # t = r x e: where e turns when the AoP changes
+            ty = rz * ex - rx * ez
+            tz = rx * ey - ry * ex
+            g = -rz / nn                         # d theta / d AoP
+            gp = 2.0 * rz * q * (rx * ca - ry * sa) / (nn * nn)
+            pp = max(p * p, 1e-6)
+            w = pp if dop_weight else 1.0
+            if var_mode == 0:
+                v = 1.0
+            elif var_mode == 1 or not has_inten:
+                v = 1.0 / pp
+            else:
+                v = 1.0 / (pp * max(np.float64(inten[i]), 1e-9))
+            wv = w * v
+            k2 = wv * g * g
+            h = 0.5 * wv * gp
+            tot[0] += k2 * (tx * tx - ex * ex) + 2.0 * h * ex * tx
+            tot[1] += k2 * (tx * ty - ex * ey) + h * (ex * ty + tx * ey)
+            tot[2] += k2 * (tx * tz - ex * ez) + h * (ex * tz + tx * ez)
+            tot[3] += k2 * (ty * ty - ey * ey) + 2.0 * h * ey * ty
+            tot[4] += k2 * (ty * tz - ey * ez) + h * (ey * tz + ty * ez)
+            tot[5] += k2 * (tz * tz - ez * ez) + 2.0 * h * ez * tz
+            tot[6] += k2 * tx * tx
+            tot[7] += k2 * tx * ty
+            tot[8] += k2 * tx * tz
+            tot[9] += k2 * ty * ty
+            tot[10] += k2 * ty * tz
+            tot[11] += k2 * tz * tz
+            tot[12] += w * ex * ex
+            tot[13] += w * ex * ey
+            tot[14] += w * ex * ez
+            tot[15] += w * ey * ey
+            tot[16] += w * ey * ez
+            tot[17] += w * ez * ez
+            if has_inten:
+                ii = np.float64(inten[i])
+                if abs(ii) < 1e30:
+                    tot[18] += 1.0
+                    tot[19] += ii
+                    tot[20] += ii * ii
+                    tot[21] += rx
+                    tot[22] += ry
+                    tot[23] += rz
+                    tot[24] += ii * rx
+                    tot[25] += ii * ry
+                    tot[26] += ii * rz
+                    tot[27] += rx * rx
+                    tot[28] += rx * ry
+                    tot[29] += rx * rz
+                    tot[30] += ry * ry
+                    tot[31] += ry * rz
+                    tot[32] += rz * rz
+
+
+def sym3(u) -> np.ndarray:
+    """3x3 symmetric matrix from its upper triangle (00 01 02 11 12 22), any leading axes."""
+    u = np.asarray(u)
+    return np.stack([np.stack([u[..., 0], u[..., 1], u[..., 2]], -1),
+                     np.stack([u[..., 1], u[..., 3], u[..., 4]], -1),
+                     np.stack([u[..., 2], u[..., 4], u[..., 5]], -1)], -2)
+
+
+def ls_pass(aop, dop, valid, rays, intensity, segments, min_dop: float, weight_mode: int, var_mode: int,
+            sub_pixels: int = 16384):
+    """The least-squares sums over flat pixel arrays (aop, dop, valid (n,), rays (3, n), intensity or None).
+
+    ``segments`` = (start, end, block, n_blocks): runs of pixels [start, end) of block ``block``.
+    ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance for the bias terms)
+    0 uniform, 1 1/DoP^2, 2 1/(DoP^2 I). ``M_b`` uses every pixel; the second-order bias matrices and
+    the brightness statistics use about ``sub_pixels`` evenly spread pixels (``B``, ``C`` rescaled to
+    the full weight). Returns dict: ``block_m`` (G, 3, 3), ``block_w`` (G,) block weights (trace),
+    ``n`` usable pixels, ``B``, ``C`` (3x3), ``stats`` (N_STATS,) or None, ``nonfinite``, ``considered``.
+    """
+    start, end, block, n_blocks = segments
+    block_m = np.zeros((n_blocks, 6))
+    counts = np.zeros(3, np.int64)
+    _count_pass(aop, dop, valid, rays, float(min_dop), counts)
+    _m_pass(aop, dop, valid, rays, start, end, block, float(min_dop), bool(weight_mode), block_m)
+    has_i = intensity is not None
+    inten = intensity if has_i else np.zeros(1, np.float32)
+    tot = np.zeros(33)
+    step = max(1, int(aop.size) // int(sub_pixels))
+    _bc_pass(aop, dop, valid, rays, inten, has_i, step, float(min_dop), bool(weight_mode), int(var_mode), tot)
+    M_sub_tr = tot[12] + tot[15] + tot[17]
+    M_tr = float(block_m[:, 0].sum() + block_m[:, 3].sum() + block_m[:, 5].sum())
+    scale = M_tr / M_sub_tr if M_sub_tr > 0 else 0.0
+    return {"block_m": sym3(block_m), "block_w": block_m[:, 0] + block_m[:, 3] + block_m[:, 5],
+            "n": int(counts[0]), "B": sym3(tot[0:6]) * scale, "C": sym3(tot[6:12]) * scale,
+            "stats": tot[18:33].copy() if has_i else None, "nonfinite": int(counts[2]), "considered": int(counts[1])}
+
+
+@lru_cache(maxsize=64)
+def grid_segments(x_key: tuple, y_key: tuple, block_px: int):
+    """Segments of a row-major 2-D grid whose column coordinates are ``x0 + dx * arange(nx)`` and row
+    coordinates ``y0 + dy * arange(ny)`` (keys ``(x0, dx, nx)``, sensor pixels): one run per (row, block
+    column). Cached (a camera that does not change costs nothing)."""
+    x0, dx, nx = x_key
+    y0, dy, ny = y_key
+    xs = x0 + dx * np.arange(nx)
+    ys = y0 + dy * np.arange(ny)
+    bc = np.floor((xs - 0.5) / block_px).astype(np.int64)
+    br = np.floor((ys - 0.5) / block_px).astype(np.int64)
+    bc -= bc.min()
+    br -= br.min()
+    change = np.nonzero(np.diff(bc))[0] + 1
+    cs = np.concatenate([[0], change])
+    ce = np.concatenate([change, [nx]])
+    K = cs.size
+    start = (np.arange(ny)[:, None] * nx + cs[None, :]).reshape(-1)
+    end = (np.arange(ny)[:, None] * nx + ce[None, :]).reshape(-1)
+    blk = (br[:, None] * K + np.arange(K)[None, :]).reshape(-1)
+    n_blocks = int((br.max() + 1) * K)
+    out = (start.astype(np.int64), end.astype(np.int64), blk.astype(np.int64), n_blocks)
+    for a in out[:3]:
+        a.setflags(write=False)
+    return out
+
+
+def list_segments(x_px, y_px, block_px: int):
+    """Order and segments for a pixel list: returns (order, segments) with pixels sorted by block."""
+    bx = np.floor((np.asarray(x_px, dtype=float) - 0.5) / block_px).astype(np.int64)
+    by = np.floor((np.asarray(y_px, dtype=float) - 0.5) / block_px).astype(np.int64)
+    bx -= bx.min() if bx.size else 0
+    by -= by.min() if by.size else 0
+    key = by * (int(bx.max()) + 1 if bx.size else 1) + bx
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    if ks.size == 0:
+        return order, (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), 0)
+    change = np.nonzero(np.diff(ks))[0] + 1
+    start = np.concatenate([[0], change]).astype(np.int64)
+    end = np.concatenate([change, [ks.size]]).astype(np.int64)
+    uniq, blk = np.unique(ks[start], return_inverse=True)
+    return order, (start, end, blk.astype(np.int64), int(uniq.size))

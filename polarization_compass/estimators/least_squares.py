@@ -1,0 +1,216 @@
+"""Least-squares sun from E-vectors (the paper's fourth approach) and its exact tilt-aware variant.
+
+Each AoP is lifted to the unit 3-D E-vector ``e_i`` perpendicular to its pixel's ray
+(:func:`~polarization_compass.conventions.evector_cam_from_aop`). Under the Rayleigh model every
+``e_i`` is perpendicular to the sun, so the camera-frame sun is the eigenvector of the smallest
+eigenvalue of ``M = sum_i w_i e_i e_i^T`` (a total least-squares fit), defined up to sign.
+
+``least_squares`` assumes a level camera: ``psi = -atan2(s_x, s_y)``. Under tilt this reproduces the
+paper's tilt error. ``tilt_aware`` levels the solution with the known pitch and roll first:
+``s_lev = Rx(pitch) Ry(roll) s_cam`` (the same eigenvector: levelling is a rotation, so M need not be
+rebuilt) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact at any tilt under the Rayleigh model.
+
+Sign: the sun is above the horizon. ``tilt_aware`` (and ``least_squares`` when the observation carries
+pitch/roll) choose the sign whose *levelled* elevation is positive, if it exceeds ``sign_margin_sigma``
+standard deviations. ``least_squares`` without tilt knows only that the camera is tilted by at most
+``max_tilt_deg``: the sign is certain only when the camera-frame elevation exceeds that plus the margin.
+Otherwise the brightness gradient or a prior bearing decide, or the result is axial (ambiguous).
+
+Uncertainty: first-order eigenvector perturbation. With residuals ``r_i = s . e_i`` (the noise
+projected on the sun), ``d s = -sum_{k=2,3} u_k (u_k^T dM s) / (lambda_k - lambda_1)`` and
+``dM s = sum_i w_i e_i r_i``, so pixel i moves psi by
+``phi_i = -sum_k (g . u_k)(u_k . e_i) w_i r_i / (lambda_k - lambda_1)`` with ``g = d psi / d s``; the
+variance is the cluster-robust sum of ``phi_i`` over blocks (see ``_common``).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..camera import CameraModel, PixelSelection
+from ..conventions import rot_x, rot_y
+from .base import Estimator, HeadingResult, Observation, Status, register_estimator
+from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, finish_sigma_deg,
+                      psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
+                      view_segments)
+from ._kernels import ls_pass
+
+__all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
+
+
+def solve_sun(M, B, C, bias_correction=True, iterations=2):
+    """Smallest eigenvector of ``M = sum w e e^T`` (lifted E-vectors), optionally noise-debiased.
+
+    AoP noise makes ``E[M] = M_true + sigma0^2 B``: a pixel's E-vector turns about its ray, adding
+    ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by O(sigma^2) -- a
+    bias that does not average out with more pixels. The noise scale is estimated from the data,
+    ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation per unit variance),
+    and ``sigma0^2 B`` subtracted; two fixed-point iterations. Returns (lambdas ascending, U, sigma0^2).
+    """
+    lam, U = np.linalg.eigh(M)
+    sigma0_sq = 0.0
+    if bias_correction:
+        for _ in range(iterations):
+            s = U[:, 0]
+            den = float(s @ C @ s)
+            if not den > 0.0:
+                break
+            sigma0_sq = max(float(s @ M @ s) / den, 0.0)
+            lam, U = np.linalg.eigh(M - sigma0_sq * B)
+    return lam, U, sigma0_sq
+
+
+def _block_sigma(block_m, block_w, n: int, s, c) -> float:
+    """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c``: block sums centred by weight share
+    (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor."""
+    sums = -np.einsum("i,gij,j->g", s, block_m, c)
+    used = block_w > 0
+    sums = sums[used]
+    wb = block_w[used]
+    G = sums.size
+    W = float(wb.sum())
+    if G == 0 or W <= 0:
+        return 0.0
+    sums = sums - sums.sum() * wb / W
+    corr = (G / (G - 1.0) if G > 1 else 1.0) * ((n - 1.0) / (n - 2.0) if n > 3 else 1.0)
+    return math.sqrt(max(float(np.dot(sums, sums)) * corr, 0.0))
+
+
+class _LSBase(KnobbedEstimator, Estimator):
+    axial = False
+    OWN_KNOBS = {
+        "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
+                          doc="pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform"),
+        "sign_margin_sigma": Knob(5.0, "float", 0.0, 100.0,
+                                  doc="elevation margin, in sigmas, before the sun's side is trusted"),
+        "min_eigen_gap": Knob(1e-9, "float", 0.0, 1.0,
+                              doc="(lambda2 - lambda1) / lambda3 below this: status degenerate"),
+        "noise_model": Knob("dop", "choice", choices=("dop", "dop_intensity", "uniform"),
+                            doc="relative AoP noise variance per pixel for the bias correction: 1/DoP^2, "
+                                "1/(DoP^2 I) (shot noise, needs intensity) or constant"),
+        "bias_correction": Knob(True, "bool", doc="remove the O(sigma^2) noise bias of the eigenvector"),
+    }
+    level_with_tilt = False
+
+    def __init__(self, **knobs):
+        super().__init__(**knobs)
+        self.knobs = self._validate_knobs(knobs)
+
+    def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        return selection_for(self.knobs, camera)
+
+    # ------------------------------------------------------------------------------------------
+    def estimate(self, obs: Observation) -> HeadingResult:
+        k = self.knobs
+        bad = check_sun(self.name, obs, k)
+        if bad is not None:
+            return bad
+        R_lev = None
+        have_tilt = obs.pitch_deg is not None and obs.roll_deg is not None
+        if have_tilt:
+            p, r = float(obs.pitch_deg), float(obs.roll_deg)
+            if not (math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0):
+                if self.level_with_tilt:
+                    return HeadingResult.failed(self.name, Status.BAD_INPUT,
+                                                f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
+                have_tilt = False
+            else:
+                R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
+        if self.level_with_tilt and R_lev is None:
+            return HeadingResult.failed(self.name, Status.BAD_INPUT,
+                                        "tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)")
+        try:
+            view = select_view(obs, k)
+        except _BadInput as exc:
+            return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
+        flat, segs = view_segments(view, k["block_px"])
+        arrs = flat[:4] + flat[6:]
+        var_mode = {"uniform": 0, "dop": 1, "dop_intensity": 2}[k["noise_model"]]
+        if var_mode == 2 and arrs[4] is None:
+            var_mode = 1
+        acc = ls_pass(*arrs, segs, k["min_dop"], 1 if k["weighting"] == "dop2" else 0, var_mode)
+        n = acc["n"]
+        nonfinite = acc["nonfinite"]
+        if n < k["min_pixels"]:
+            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
+                                        f"{n} usable pixel(s) < min_pixels {k['min_pixels']}"
+                                        + (f" ({nonfinite} valid pixel(s) had non-finite values)"
+                                           if nonfinite else ""), pixels=n)
+        M = acc["block_m"].sum(axis=0)
+        lam, U, sigma0_sq = solve_sun(M, acc["B"], acc["C"], k["bias_correction"])
+        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
+            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
+        gap = (lam[1] - lam[0]) / lam[2]
+        if gap <= k["min_eigen_gap"]:
+            return HeadingResult.failed(self.name, Status.DEGENERATE,
+                                        f"E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
+                                        pixels=n)
+        s = U[:, 0].copy()
+        R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
+        s_h = R @ s                                   # the frame the heading is read in
+        rho = math.hypot(s_h[0], s_h[1])
+        if rho < math.cos(math.radians(k["max_sun_altitude_deg"])):
+            return HeadingResult.failed(self.name, Status.SUN_NEAR_ZENITH,
+                                        f"the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from "
+                                        "the zenith: the solar meridian is ill-conditioned", pixels=n)
+        # first-order sensitivities: d psi / d s and d elevation / d s (elevation of the sign frame)
+        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
+        R_sign = R_lev if R_lev is not None else np.eye(3)
+        s_sign = R_sign @ s
+        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
+        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
+        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
+        # d s = -sum_k u_k (u_k . dM s) / d_k  ->  d psi = -s^T dM c  with c = sum_k (g . u_k) u_k / d_k
+        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
+        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
+        sigma_psi = _block_sigma(acc["block_m"], acc["block_w"], n, s, c_psi)
+        sigma_el = _block_sigma(acc["block_m"], acc["block_w"], n, s, c_el)
+        cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
+        first, second = (cands if s_sign[2] >= 0 else cands[::-1])
+        el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
+        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
+
+        def sun_rule():
+            if R_lev is not None:
+                if el_deg > margin_deg:
+                    return first, (f"sun side from the levelled sun elevation ({el_deg:.2f} deg > "
+                                   f"{margin_deg:.3f} deg margin)")
+                return None, f"levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg margin"
+            lim = k["max_tilt_deg"] + margin_deg
+            if el_deg > lim:
+                return first, (f"sun side from the camera-frame sun elevation ({el_deg:.2f} deg > max_tilt_deg "
+                               f"{k['max_tilt_deg']:g} + {margin_deg:.3f} deg margin)")
+            return None, (f"camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} "
+                          f"+ margin: the sun's side is unknown without the tilt")
+
+        bt = brightness_t_from_stats(acc["stats"], first.sun_cam - second.sun_cam)
+        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k, sun_rule)
+        s_pick = pick.sun_cam
+        alt_frame = R_sign @ s_pick
+        implied_alt = math.degrees(math.asin(float(np.clip(alt_frame[2], -1.0, 1.0))))
+        wsum = float(np.trace(M))
+        quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
+        extras = {"eigenvalues": [float(v / wsum) for v in lam], "sigma_sun_elevation_deg": math.degrees(sigma_el),
+                  "rms_residual_deg": math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0))),
+                  "sun_altitude_ephemeris_deg": float(obs.sun_altitude_deg),
+                  "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)),
+                  "sun_cam": [float(v) for v in s_pick]}
+        return result_from(self.name, pick, by, reason, obs, finish_sigma_deg(sigma_psi, k), n, nonfinite, quality,
+                           sun_altitude_deg=implied_alt, extras=extras)
+
+
+@register_estimator("least_squares")
+class LeastSquaresEstimator(_LSBase):
+    """The paper's least-squares approach (level-camera assumption for the heading)."""
+
+    OWN_KNOBS = dict(_LSBase.OWN_KNOBS, max_tilt_deg=Knob(30.0, "float", 0.0, 89.0,
+                                                          doc="assumed bound on the tilt, for the sign rule"))
+    level_with_tilt = False
+
+
+@register_estimator("tilt_aware")
+class TiltAwareEstimator(_LSBase):
+    """Least squares after levelling with the known pitch and roll: exact under Rayleigh at any tilt."""
+
+    level_with_tilt = True
