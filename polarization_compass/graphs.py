@@ -160,9 +160,9 @@ class Graph:
 # Launch arguments
 # ------------------------------------------------------------------------------------------------
 _COMMON = (
-    LaunchArg("error_map", "out/sim/error_map.npz",
-              "tilt error map (.npz) for the correctors; make one with 'polarization-compass errormap' "
-              "(polarization-compass sim builds it when missing)"),
+    LaunchArg("error_map", "",
+              "tilt error map (.npz) for the correctors; '' = the map shipped with the package; make one "
+              "with 'polarization-compass errormap' (polarization-compass sim builds one when needed)"),
     LaunchArg("report_dir", "out/sim", "where error_evaluator writes its CSV and PNG report"),
 )
 
@@ -225,13 +225,13 @@ def parse_arg(arg: LaunchArg, text) -> object:
             return int(s)
         if arg.kind == "list":
             items = [x.strip() for x in s.split(",") if x.strip()]
-            if arg.choices:
-                bad = [x for x in items if x not in arg.choices]
-                if bad:
-                    raise GraphError(f"{arg.name}: unknown item(s) {bad}; allowed: {', '.join(arg.choices)}")
-            return items
     except ValueError:
         raise GraphError(f"launch argument {arg.name}: cannot read {text!r} as {arg.kind}") from None
+    if arg.kind == "list":
+        bad = [x for x in items if arg.choices and x not in arg.choices]
+        if bad:
+            raise GraphError(f"launch argument {arg.name}: unknown item(s) {bad}; allowed: {', '.join(arg.choices)}")
+        return items
     if arg.choices and s not in arg.choices:
         raise GraphError(f"launch argument {arg.name} must be one of {', '.join(arg.choices)}, got {s!r}")
     return s
@@ -254,19 +254,25 @@ def build(name: str, args: dict | None = None) -> Graph:
 # ------------------------------------------------------------------------------------------------
 # The graphs
 # ------------------------------------------------------------------------------------------------
+def _used(remappings, pubs, subs) -> tuple:
+    """Only the remappings of topics the node uses."""
+    used = {t for t, _ in pubs} | {t for t, _ in subs}
+    return tuple((a, b) for a, b in remappings if a in used)
+
+
 def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=(method == "tilt_aware"), prior_source=prior)
     return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
-                    ("config/heading_estimator.yaml",), {"method": method, **params}, tuple(remappings),
+                    ("config/heading_estimator.yaml",), {"method": method, **params}, _used(remappings, pubs, subs),
                     tuple(pubs), tuple(subs))
 
 
 def _corrector(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
     pubs, subs = T.corrector_topics(method)
     return NodeSpec("tilt_corrector", f"tilt_corrector_{method}", namespace, ("config/tilt_corrector.yaml",),
-                    {"method": method, **params}, tuple(remappings), tuple(pubs), tuple(subs))
+                    {"method": method, **params}, _used(remappings, pubs, subs), tuple(pubs), tuple(subs))
 
 
 def _evaluator(methods, direct, params: dict) -> NodeSpec:
@@ -279,7 +285,7 @@ def _evaluator(methods, direct, params: dict) -> NodeSpec:
 
 def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
               turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
-              exit_when_done=True, error_map="out/sim/error_map.npz", report_dir="out/sim") -> Graph:
+              exit_when_done=True, error_map="", report_dir="out/sim") -> Graph:
     methods = tuple(methods)
     all_methods = methods + (("tilt_aware",) if tilt_aware else ())
     if not all_methods:
@@ -306,8 +312,7 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
 
 def compass_graph(method="least_squares", correction="error_map", image_topic=T.IMAGE,
                   camera_info_topic=T.CAMERA_INFO, imu_topic=T.IMU, fix_topic=T.FIX, site_source="navsatfix",
-                  frame_id="base_link", namespace="", use_sim_time=False,
-                  error_map="out/sim/error_map.npz") -> Graph:
+                  frame_id="base_link", namespace="", use_sim_time=False, error_map="") -> Graph:
     remaps = tuple((a, b) for a, b in ((T.IMAGE, image_topic), (T.CAMERA_INFO, camera_info_topic),
                                         (T.IMU, imu_topic), (T.FIX, fix_topic)) if a != b)
     common = {"use_sim_time": bool(use_sim_time)}
@@ -321,8 +326,8 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
                  external_inputs=external)
 
 
-def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix",
-                 error_map="out/sim/error_map.npz", report_dir="out/replay") -> Graph:
+def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix", error_map="",
+                 report_dir="out/replay") -> Graph:
     methods = tuple(methods)
     all_methods = methods + (("tilt_aware",) if tilt_aware else ())
     common = {"use_sim_time": True}
@@ -357,3 +362,68 @@ def share_dir() -> Path:
         pass
     raise GraphError("cannot find the polarization_compass share directory (config/, launch/): install the "
                      "package with colcon or set POLARIZATION_COMPASS_SHARE")
+
+
+# ------------------------------------------------------------------------------------------------
+# ros2 launch
+# ------------------------------------------------------------------------------------------------
+def launch_description(name: str):
+    """The LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
+
+    Declares the graph's launch arguments; the nodes are built from :func:`build` once the arguments
+    are known (an OpaqueFunction), with the parameter files of the installed share directory. When
+    the graph names a node whose exit ends it (the simulator with exit_when_done), the launch shuts
+    down with it. ``large_image_transport`` (sim and replay: default true) points Fast DDS at
+    config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is set.
+    Needs the ``launch`` and ``launch_ros`` packages (a ROS 2 install).
+    """
+    from .errors import MissingDependencyError
+    try:
+        from launch import LaunchDescription
+        from launch.actions import (DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler,
+                                    SetEnvironmentVariable)
+        from launch.event_handlers import OnProcessExit
+        from launch.events import Shutdown
+        from launch.substitutions import LaunchConfiguration
+        from launch_ros.actions import Node
+    except ImportError:
+        raise MissingDependencyError("ros2 launch (launch, launch_ros)",
+                                     "ros-<distro>-launch-ros (e.g. sudo apt install ros-jazzy-launch-ros); "
+                                     "here, 'polarization-compass sim' runs the sim graph without it") from None
+    if name not in ARGUMENTS:
+        raise GraphError(f"unknown graph {name!r}; known: {', '.join(GRAPH_NAMES)}")
+    actions = [DeclareLaunchArgument(a.name, default_value=a.default,
+                                     description=a.description + (f" ({', '.join(a.choices)})" if a.choices else ""))
+               for a in ARGUMENTS[name]]
+    if name in ("sim", "replay"):
+        actions.append(DeclareLaunchArgument("large_image_transport", default_value="true",
+                                             description="use the shared-memory Fast DDS profile for "
+                                                         "full-resolution images"))
+
+    def make_nodes(context, *_, **__):
+        values = {a.name: LaunchConfiguration(a.name).perform(context) for a in ARGUMENTS[name]}
+        graph = build(name, values)
+        problems = graph.check()
+        if problems:
+            raise GraphError("inconsistent graph: " + "; ".join(problems))
+        share = share_dir()
+        out = []
+        if name in ("sim", "replay") and parse_arg(LaunchArg("large_image_transport", "true", "", "bool"),
+                                                   LaunchConfiguration("large_image_transport").perform(context)) \
+                and not os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE"):
+            out.append(SetEnvironmentVariable("FASTDDS_DEFAULT_PROFILES_FILE", str(share / FASTDDS_PROFILE)))
+        by_name = {}
+        for n in graph.nodes:
+            node = Node(package=n.package, executable=n.executable, name=n.name, namespace=n.namespace or None,
+                        parameters=[str(share / f) for f in n.param_files] + [dict(n.parameters)],
+                        remappings=list(n.remappings), output="screen", emulate_tty=True)
+            by_name[n.name] = node
+            out.append(node)
+        if graph.shutdown_with:
+            out.append(RegisterEventHandler(OnProcessExit(
+                target_action=by_name[graph.shutdown_with],
+                on_exit=[EmitEvent(event=Shutdown(reason=f"{graph.shutdown_with} finished"))])))
+        return out
+
+    actions.append(OpaqueFunction(function=make_nodes))
+    return LaunchDescription(actions)

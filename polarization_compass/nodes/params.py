@@ -77,7 +77,7 @@ def validate_value(p: Param, value) -> str | None:
         if not isinstance(value, (list, tuple)) or not all(isinstance(x, str) for x in value):
             return f"{p.name} must be a list of strings, got {value!r}"
         if p.choices:
-            bad = [x for x in value if x not in p.choices]
+            bad = [x for x in value if x and x not in p.choices]     # "" = ROS's empty-array placeholder
             if bad:
                 return f"{p.name}: unknown item(s) {bad}; allowed: {', '.join(p.choices)}"
     elif k == "float_list":

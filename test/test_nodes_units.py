@@ -1,0 +1,262 @@
+"""The nodes' building blocks without DDS: message forms, the IMU history, the front end, parameters.
+Each is checked against an independent computation (closed form, another module's decoder, a slow
+reference loop), never against its own output."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from polarization_compass.bag import decode_camera_info, decode_mosaic, stamp_ns
+from polarization_compass.camera import CameraModel
+from polarization_compass.conventions import CameraAttitude
+from polarization_compass.nodes import msgs
+from polarization_compass.nodes.motion import MotionProfile, body_from_camera, frame_times_ns
+from polarization_compass.nodes.params import (CORRECTOR, ESTIMATOR, EVALUATOR, SIMULATOR, knob_params, knob_values,
+                                               layout_from_text, validate_value)
+from polarization_compass.pipeline import (AttitudeBuffer, HeadingFrontEnd, SunSource, camera_attitude_from_body_quat,
+                                           pixel_grid, sub_mosaic)
+
+SMALL_CAM = CameraModel("pinhole", 612, 512, 4.0, 13.8, 13.8)     # the paper's field of view, 1/16 the pixels
+
+
+def rep103_quat(yaw, pitch=0.0, roll=0.0):
+    """Quaternion (x, y, z, w) of REP-103 ZYX Euler angles (rad), written out independently."""
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    return np.array([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy,
+                     cr * cp * cy + sr * sp * sy])
+
+
+# ------------------------------------------------------------------------------------------------
+# robot_localization's Imu form
+# ------------------------------------------------------------------------------------------------
+@given(bearing=st.floats(0, 360, exclude_max=True), sigma=st.floats(1e-4, 20))
+def test_heading_imu_follows_robot_localization_conventions(bearing, sigma):
+    yaw = math.radians(90.0 - bearing)
+    m = msgs.heading_imu(1_573_797_600_123_456_789, "base_link", yaw, math.radians(sigma) ** 2, 1000.0)
+    q = np.array([m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w])
+    assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-12)
+    assert q[0] == 0.0 and q[1] == 0.0                            # yaw only
+    got_yaw = 2 * math.atan2(q[2], q[3])                          # pure yaw: q = (0, 0, sin y/2, cos y/2)
+    assert math.remainder(got_yaw - yaw, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    c = np.asarray(m.orientation_covariance).reshape(3, 3)
+    assert c[0, 0] == c[1, 1] == 1000.0 and c[2, 2] == pytest.approx(math.radians(sigma) ** 2)
+    assert np.count_nonzero(c - np.diag(np.diag(c))) == 0
+    assert m.angular_velocity_covariance[0] == -1.0 and m.linear_acceleration_covariance[0] == -1.0
+    assert stamp_ns(m.header) == 1_573_797_600_123_456_789 and m.header.frame_id == "base_link"
+    from polarization_compass.nodes.error_evaluator import bearing_from_imu
+    assert math.remainder(bearing_from_imu(m) - bearing, 360.0) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_heading_imu_refuses_non_finite():
+    with pytest.raises(ValueError):
+        msgs.heading_imu(0, "base_link", float("nan"), 1e-4, 1000.0)
+    with pytest.raises(ValueError):
+        msgs.heading_imu(0, "base_link", 0.0, 0.0, 1000.0)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_image_round_trip_through_the_replay_decoder(dtype):
+    rng = np.random.default_rng(0)
+    a = (rng.uniform(0, 200, (6, 8))).astype(dtype)
+    m = msgs.image_msg(a, 5, "cam")
+    assert m.encoding == {np.uint8: "mono8", np.uint16: "mono16", np.float32: "32FC1"}[dtype]
+    assert m.step == 8 * a.itemsize and not m.is_bigendian
+    assert np.array_equal(decode_mosaic(m), a)
+    # a big-endian producer is decoded right too
+    m.data = a.astype(a.dtype.newbyteorder(">")).tobytes()
+    m.is_bigendian = 1
+    assert np.array_equal(msgs.decode_image(m), a)
+
+
+@pytest.mark.parametrize("model", ["pinhole", "fisheye_equidistant"])
+def test_camera_info_round_trip(model):
+    cam = CameraModel(model, 612, 512, 4.0, 13.8, 13.8, principal_x_px=300.5, principal_y_px=260.0)
+    m = msgs.camera_info_msg(cam, 0, "camera_optical_frame")
+    back = decode_camera_info(m, 13.8)
+    assert back.model == model
+    rays_a, _ = cam.rays_from_pixels(np.array([1.0, 300.5, 612.0]), np.array([1.0, 260.0, 512.0]))
+    rays_b, _ = back.rays_from_pixels(np.array([1.0, 300.5, 612.0]), np.array([1.0, 260.0, 512.0]))
+    assert np.allclose(rays_a, rays_b, atol=1e-12)
+
+
+def test_attitude_imu_carries_the_rotation_and_gravity():
+    R = body_from_camera(CameraAttitude(30.0, -20.0, 5.0))
+    m = msgs.attitude_imu(0, "base_link", R, (1e-6, 1e-6, 1e-2), [0, 0, 0.1], R.T @ [0, 0, 9.8])
+    q = np.array([m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w])
+    # rotate body x by q (v' = q v q*) with the textbook formula and compare with R's first column
+    u, w = q[:3], q[3]
+    v = np.array([1.0, 0.0, 0.0])
+    rotated = 2 * np.dot(u, v) * u + (w * w - np.dot(u, u)) * v + 2 * w * np.cross(u, v)
+    assert np.allclose(rotated, R[:, 0], atol=1e-12)
+    assert m.linear_acceleration.z == pytest.approx((R.T @ [0, 0, 9.8])[2])
+    assert m.orientation_covariance[8] == 1e-2
+
+
+# ------------------------------------------------------------------------------------------------
+# IMU history and camera attitude
+# ------------------------------------------------------------------------------------------------
+@given(yaw=st.floats(-math.pi, math.pi), nose_up=st.floats(-0.6, 0.6))
+def test_camera_attitude_from_body(yaw, nose_up):
+    # REP-103: positive pitch about +y (left) puts the nose DOWN; the paper's pitch of the camera
+    # (looking up, +y forward) is the elevation of body x, so alpha = nose-up angle
+    q = rep103_quat(yaw, -nose_up)
+    att = camera_attitude_from_body_quat(q)
+    assert att.pitch_deg == pytest.approx(math.degrees(nose_up), abs=1e-9)
+    assert att.roll_deg == pytest.approx(0.0, abs=1e-9)
+    assert math.remainder(att.bearing_deg - (90.0 - math.degrees(yaw)), 360.0) == pytest.approx(0.0, abs=1e-8)
+
+
+def test_attitude_buffer_interpolates_within_tolerance_only():
+    b = AttitudeBuffer(keep_ns=10_000)
+    b.add(1000, rep103_quat(0.0))
+    b.add(2000, rep103_quat(0.2))
+    q, gap, interp = b.at(1250, tol_ns=1000)
+    assert interp and gap == 250
+    assert 2 * math.atan2(q[2], q[3]) == pytest.approx(0.05, abs=1e-4)      # nlerp ~ slerp for 0.2 rad
+    q, gap, interp = b.at(2000, tol_ns=10)
+    assert not interp and gap == 0
+    assert b.at(2600, tol_ns=500) is None                                     # stale: never extrapolated
+    q, gap, _ = b.at(2400, tol_ns=500)
+    assert gap == 400
+    b.add(1500, rep103_quat(0.1))                                             # out of order: inserted
+    assert b.out_of_order == 1 and len(b) == 3
+    b.add(20_000, rep103_quat(0.0))                                           # prunes older than keep_ns
+    assert len(b) == 1 and b.newest_ns == 20_000
+
+
+def test_attitude_buffer_takes_the_short_way_between_q_and_minus_q():
+    b = AttitudeBuffer()
+    b.add(0, rep103_quat(0.1))
+    b.add(10, -rep103_quat(0.3))          # the same rotation family, opposite hemisphere
+    q, _, _ = b.at(5, tol_ns=10)
+    assert 2 * math.atan2(q[2], q[3]) * np.sign(q[3]) == pytest.approx(0.2, abs=1e-3)
+
+
+# ------------------------------------------------------------------------------------------------
+# Motion profile
+# ------------------------------------------------------------------------------------------------
+def test_one_turn_at_ten_degrees_per_second_is_360_frames_one_degree_apart():
+    prof = MotionProfile(turn_rate_deg_s=10.0, turns=1.0)
+    total = prof.total_s()
+    stamps = []
+    k = 0
+    while (t := frame_times_ns(0, 10.0, total, k)) is not None:
+        stamps.append(t)
+        k += 1
+    assert len(stamps) == 360
+    bearings = [prof.attitude(t / 1e9).bearing_deg for t in stamps]
+    assert np.allclose(np.diff(bearings), 1.0) and bearings[0] == 0.0
+    assert prof.attitude(1.0).pitch_deg == -20.0
+    assert MotionProfile(turn_rate_deg_s=0.0, turns=1.0).total_s() is None
+
+
+def test_body_from_camera_puts_camera_y_on_body_x():
+    att = CameraAttitude(123.0, -20.0, 7.0)
+    from polarization_compass.conventions import R_enu_cam_from_attitude
+    Rc = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
+    Rb = body_from_camera(att)
+    assert np.allclose(Rb[:, 0], Rc[:, 1]) and np.allclose(Rb[:, 2], Rc[:, 2]) and np.allclose(Rb[:, 1], -Rc[:, 0])
+
+
+# ------------------------------------------------------------------------------------------------
+# Sun and front end
+# ------------------------------------------------------------------------------------------------
+def test_sun_source_matches_a_direct_ephemeris_call():
+    from polarization_compass.solar import sun_position
+    src = SunSource(32.026778, 118.853306, 30.0)
+    t_ns = 1_573_797_600_000_000_000 + 1_234_567_891        # 2019-11-15T06:00:01.23Z
+    az, alt = src.at_ns(t_ns)
+    ref = sun_position(np.datetime64(t_ns // 1000, "us"), 32.026778, 118.853306, 30.0)
+    assert az == pytest.approx(ref.azimuth_deg, abs=1e-4) and alt == pytest.approx(ref.altitude_deg, abs=1e-4)
+
+
+def test_sub_mosaic_matches_a_loop():
+    m = np.arange(20 * 24, dtype=np.uint16).reshape(20, 24)
+    rows, cols = np.array([1, 4, 7]), np.array([0, 3, 6, 9])
+    ref = np.zeros((6, 8), np.uint16)
+    for i, r in enumerate(rows):
+        for j, c in enumerate(cols):
+            ref[2 * i:2 * i + 2, 2 * j:2 * j + 2] = m[2 * r:2 * r + 2, 2 * c:2 * c + 2]
+    assert np.array_equal(sub_mosaic(m, rows, cols), ref)
+
+
+def test_superpixel_grid_matches_the_sensor_model():
+    from polarization_compass.sensor import superpixel_pixels
+    rows, cols, x, y, rays, ok = pixel_grid(SMALL_CAM, "superpixel", 1)
+    ref = superpixel_pixels(SMALL_CAM, 1.0, 1.0, 512, 612)
+    assert np.array_equal(x, ref.x_px) and np.array_equal(y, ref.y_px)
+    assert np.allclose(rays, ref.rays_cam)
+
+
+def _ideal_mosaic(bearing, pitch=0.0, roll=0.0, sun=(200.0, 30.0), encoding="32FC1", cam=SMALL_CAM):
+    from polarization_compass.nodes.sky_simulator import mosaic_config
+    from polarization_compass.render import Renderer, SunDirection
+    from polarization_compass.scene import default_scene
+    from polarization_compass.sensor import simulate_mosaic
+    frame = Renderer(default_scene().replace(camera=cam)).render(
+        attitude=CameraAttitude(bearing, pitch, roll), sun=SunDirection(*sun))
+    cfg = mosaic_config({}, encoding)
+    return simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("bearing", [0.0, 77.0, 181.5, 300.0])
+def test_front_end_level_camera_is_accurate(bearing):
+    fe = HeadingFrontEnd("least_squares", {"stride": 4})
+    res = fe.estimate(_ideal_mosaic(bearing), SMALL_CAM, 200.0, 30.0, prior_bearing_deg=bearing + 20.0)
+    assert res.ok and not res.axial
+    assert abs(math.remainder(res.bearing_deg - bearing, 360.0)) < 0.01
+
+
+def test_front_end_presampling_equals_the_estimators_own_sampling():
+    from polarization_compass.demosaic import polarization_from_mosaic
+    from polarization_compass.estimators import Observation, make_estimator
+    m = _ideal_mosaic(40.0, -15.0, 5.0, encoding="mono16")
+    fe = HeadingFrontEnd("least_squares", {"stride": 6})
+    assert fe.superpixel_step() == 3
+    a = fe.estimate(m, SMALL_CAM, 200.0, 30.0, prior_bearing_deg=40.0)
+    # the estimator on the whole demosaiced frame, subsampling by itself
+    aop, dop, valid = polarization_from_mosaic(m)
+    _, _, x, y, rays, _ = pixel_grid(SMALL_CAM, "superpixel", 1)
+    obs = Observation(aop, dop, valid, rays, x, y, SMALL_CAM, 200.0, 30.0, None, None, None, 40.0)
+    b = make_estimator("least_squares", stride=6).estimate(obs)
+    assert a.pixels == b.pixels
+    assert a.bearing_deg == pytest.approx(b.bearing_deg, abs=1e-9)
+
+
+def test_front_end_rejects_a_mosaic_of_the_wrong_size():
+    from polarization_compass.pipeline import PipelineError
+    with pytest.raises(PipelineError, match="camera is 612x512"):
+        HeadingFrontEnd("least_squares").estimate(np.zeros((10, 10), np.uint16), SMALL_CAM, 0.0, 30.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# Parameters
+# ------------------------------------------------------------------------------------------------
+def test_parameter_rules_give_reasons():
+    p = {x.name: x for x in ESTIMATOR}
+    assert validate_value(p["frame_id"], "base_link") is None
+    assert "optical" in validate_value(p["frame_id"], "camera_optical_frame")
+    assert "one of" in validate_value(p["method"], "magnetometer")
+    assert "0, 45, 90 and 135" in validate_value(p["polarizer_layout"], "0,0,90,135")
+    assert validate_value(p["time_utc"], "") is None and "ISO" in validate_value(p["time_utc"], "noon")
+    s = {x.name: x for x in SIMULATOR}
+    assert "[0.1, 100.0]" in validate_value(s["rate_hz"], 0.0)
+    assert "finite" in validate_value(s["rate_hz"], float("nan"))
+    assert "integer" in validate_value(s["seed"], 1.5)
+    assert validate_value(s["rate_hz"], True) is not None           # a bool is not a number
+    assert layout_from_text("90,45,135,0") == ((90, 45), (135, 0))
+    for spec in (SIMULATOR, ESTIMATOR, CORRECTOR, EVALUATOR):
+        for x in spec:
+            assert x.description and validate_value(x, x.default) is None, x.name
+
+
+def test_knob_parameters_convert_back_to_estimator_knobs():
+    params = {x.name: x for x in knob_params("least_squares")}
+    assert params["knob.stride"].lo == 1 and params["knob.region"].kind == "str"
+    k = knob_values("least_squares", {"knob.stride": 8, "knob.region": "1,1,100,50", "knob.weighting": "uniform"})
+    assert k == {"stride": 8, "region": (1, 1, 100, 50), "weighting": "uniform"}
+    assert knob_values("least_squares", {"knob.region": ""}) == {"region": None}
