@@ -204,7 +204,7 @@ def run(cfg) -> dict:
     # the paper's imager (pinhole, Table 1) at each pixel budget, level, sun at several altitudes
     cam = CameraModel() if not cfg.tiny else CameraModel(width_px=160, height_px=128)
     budgets = []
-    strides = (2, 4, 8, 16, 32, 64) if not cfg.tiny else (2, 4, 8)
+    strides = (2, 4, 8, 16, 32, 64, 128, 256) if not cfg.tiny else (2, 4, 8)
     for s in strides:
         sel = PixelSelection.strided(s)
         row = {"pixel_stride": s, "selection": sel.describe()}

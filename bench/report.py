@@ -10,6 +10,23 @@ from pathlib import Path
 from .common import read_json
 
 PRIMARY_CONDITIONS = ("noise_imx250", "ideal_level")
+#: Errors below this (deg) are drawn at it (log axes; noise-free Rayleigh errors are ~1e-6 deg).
+ERROR_FLOOR_DEG = 1e-7
+
+
+def _log_axes(ax, ys=()):
+    """Log-log axes without minor tick labels, and at least one decade of error range."""
+    from matplotlib.ticker import NullFormatter
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ys = [y for y in ys if y and y > 0]
+    if ys:
+        lo, hi = min(ys), max(ys)
+        if hi / lo < 10.0:
+            mid = math.sqrt(lo * hi)
+            ax.set_ylim(mid / 10 ** 0.6, mid * 10 ** 0.6)
 METHOD_COLOURS = {"zenith": "#1f77b4", "sm_asm": "#ff7f0e", "symmetry": "#2ca02c", "least_squares": "#d62728",
                   "tilt_aware": "#9467bd"}
 
@@ -71,7 +88,7 @@ def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
     cells = [c for c in acc_cells if c["condition"] == condition and c["time"]["median_ms"]]
     if not cells:
         return None
-    floor = 1e-5
+    floor = ERROR_FLOOR_DEG
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), dpi=110)
     methods = sorted({c["method"] for c in cells}, key=lambda m: list(METHOD_COLOURS).index(m)
                      if m in METHOD_COLOURS else 99)
@@ -107,9 +124,9 @@ def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
         ax2.scatter([], [], color=METHOD_COLOURS.get(m, "k"), marker="o", label=m)
     ax2.scatter([], [], color="w", edgecolor="k", marker="o", label="superpixel demosaic")
     ax2.scatter([], [], color="w", edgecolor="k", marker="s", label="full-resolution demosaic")
+    ys = [max(c["error"]["rms_deg"], floor) for c in cells] + [c["crb_rms_deg"] for c in cells if c.get("crb_rms_deg")]
     for ax in (ax1, ax2):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        _log_axes(ax, ys)
         ax.grid(True, which="both", alpha=0.3)
         ax.set_ylabel("RMS heading error (deg)")
     ax1.set_xlabel("time per estimate, median, one core (ms)")
@@ -137,15 +154,16 @@ def plot_conditions(acc_cells, out_path: Path):
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), dpi=100, squeeze=False)
     for ax, cond in zip(axes.flat, conds):
         cc = [c for c in acc_cells if c["condition"] == cond and c["time"]["median_ms"]]
+        ys = []
         for m in dict.fromkeys(c["method"] for c in cc):
             mc = [c for c in cc if c["method"] == m]
             col = METHOD_COLOURS.get(m, "k")
-            pts = [(c["time"]["median_ms"], max(c["error"]["rms_deg"], 1e-5)) for c in mc]
+            pts = [(c["time"]["median_ms"], max(c["error"]["rms_deg"], ERROR_FLOOR_DEG)) for c in mc]
+            ys += [p[1] for p in pts]
             ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=col, s=14, label=m)
             fr = pareto_front(pts)
             ax.plot([p[0] for p in fr], [p[1] for p in fr], color=col, lw=1)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        _log_axes(ax, ys)
         ax.set_title(cond, fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         ax.set_xlabel("ms per estimate", fontsize=8)
