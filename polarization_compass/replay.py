@@ -252,7 +252,8 @@ class ReplayConfig:
     ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method; the nodes ship
     ``stride: 8``). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
     ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
-    corrected headings). ``direct_methods``: methods the corrector does not touch (tilt_aware).
+    corrected headings; see :func:`default_error_map`). ``direct_methods``: methods the corrector
+    does not touch (tilt_aware needs no correction).
     """
 
     methods: tuple = ()
@@ -400,15 +401,47 @@ class FramePipeline:
         return rows
 
 
+def default_error_map() -> str | None:
+    """The error map shipped with the package (the ``tilt_corrector`` node's default), if there is one."""
+    from .correction import default_map_path
+    p = default_map_path()
+    return str(p) if p.is_file() else None
+
+
 def _make_corrector(config: ReplayConfig):
-    """The tilt_corrector's correction as a callable
-    ``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None, status)``."""
-    try:
-        from . import correction
-    except ImportError:
-        raise ReplayError("tilt correction is not available in this build (polarization_compass.correction)") \
-            from None
-    return correction.replay_corrector(config.error_map, config.correction_sigma_deg)
+    """The ``tilt_corrector`` node's correction as a callable
+    ``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None, status)``:
+    the raw heading's psi against the sun, :meth:`TiltCorrector.correct` at the IMU's pitch/roll, back
+    to a bearing; a heading without an IMU tilt near its stamp is not corrected (``no_imu``)."""
+    from .conventions import psi_to_bearing_deg, wrap_180_deg
+    from .correction import TiltCorrector
+    from .errormap import ErrorMapError
+
+    path = Path(config.error_map)
+    if not path.is_file():
+        raise ReplayError(f"error map {str(path)!r} does not exist: make one with `polarization-compass errormap "
+                          "--methods zenith,sm_asm,symmetry,least_squares --sun-altitude 0:50:5 --yaw -180:175:5 "
+                          "--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`")
+    correctors: dict = {}
+
+    def correct(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns):
+        if method not in correctors:
+            try:
+                correctors[method] = TiltCorrector.from_file(path, method)
+            except ErrorMapError as exc:
+                correctors[method] = str(exc)
+        cor = correctors[method]
+        if isinstance(cor, str):
+            return None, "no_map"
+        if tilt is None:
+            return None, "no_imu"
+        psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_az))
+        c = cor.correct(psi_meas, sun_alt, tilt.pitch_deg, tilt.roll_deg)
+        if not c.ok:
+            return None, c.status.value
+        return float(psi_to_bearing_deg(c.psi_deg, sun_az)), c.status.value
+
+    return correct
 
 
 # ------------------------------------------------------------------------------------------------
@@ -425,6 +458,7 @@ class ReplayResult:
     wall_s: float
     matches: list
     timing_ms: dict
+    error_map: str | None = None
 
     @property
     def speed_x_real_time(self) -> float:
@@ -477,7 +511,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     rows.sort(key=lambda r: (r.stamp_ns, pipe.methods.index(r.method)))
     wall = time.perf_counter() - t_wall
     return ReplayResult(rows, matcher.summary(), tally, plan, frames, duration, wall, matcher.matches,
-                        pipe.timing_ms)
+                        pipe.timing_ms, config.error_map)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -517,7 +551,7 @@ def write_outputs(result: ReplayResult, out_dir, bag_path: str = "", plots: bool
     for r in result.rows:
         statuses.setdefault(r.method, {}).setdefault(r.status, 0)
         statuses[r.method][r.status] += 1
-    js = {"bag": str(bag_path), "frames": result.frames, "bag_duration_s": result.bag_duration_s,
+    js = {"bag": str(bag_path), "error_map": result.error_map, "frames": result.frames, "bag_duration_s": result.bag_duration_s,
           "wall_s": result.wall_s, "speed_x_real_time": result.speed_x_real_time,
           "statistics": result.summary, "statuses": statuses, "topics": result.tally.to_dict(),
           "problems": result.plan.problems,

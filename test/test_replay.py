@@ -148,6 +148,48 @@ def test_replay_reproduces_the_notes_tilt_error_curve(alt20):
     assert s["rms"] == pytest.approx(math.sqrt(np.mean(err ** 2)))
 
 
+@pytest.fixture(scope="module")
+def small_map(tmp_path_factory):
+    """An error map of least squares for the test camera around the alt20 run (errormap's own sweep)."""
+    from polarization_compass.errormap import SweepSpec, run_sweep
+    out = tmp_path_factory.mktemp("map") / "map.npz"
+    spec = SweepSpec(methods=("least_squares",), sun_altitude_deg=np.array([18.0, 22.0]),
+                     yaw_deg=np.arange(-180.0, 180.0, 20.0), pitch_deg=np.array([-22.0, -18.0]),
+                     roll_deg=np.array([-2.0, 2.0]), scene=_scene(), full_domain=True,
+                     knobs={"least_squares": {"stride": 2}})        # superpixel spacing, as the replay reads
+    run_sweep(spec, out=out, workers=1, progress=False)
+    return out
+
+
+def test_error_map_correction_removes_the_tilt_error(alt20, small_map, tmp_path):
+    runs, _, _ = alt20
+    res = _replay(runs["sqlite3"]["bag"], methods=("least_squares", "tilt_aware"), error_map=str(small_map))
+    s = res.summary
+    assert set(s) == {"least_squares/raw", "least_squares/corrected", "tilt_aware/raw"}   # tilt_aware is direct
+    assert s["least_squares/raw"]["rms"] > 5.0 and s["least_squares/raw"]["max"] > 8.0
+    assert s["least_squares/corrected"]["count"] == 36 and s["least_squares/corrected"]["rms"] < 0.05
+    ls = [r for r in res.rows if r.method == "least_squares"]
+    assert all(r.correction_status == "ok" for r in ls)
+    for r in ls:   # corrected error = corrected - reference, independently of the evaluator
+        assert r.corrected_error_deg == pytest.approx(
+            math.remainder(r.corrected_bearing_deg - r.reference_bearing_deg, 360.0), abs=1e-9)
+    from polarization_compass.replay import write_outputs
+    paths = write_outputs(res, tmp_path / "o")
+    assert paths["plot_corrected"].stat().st_size > 10_000
+    # outside the map's tilt domain nothing is guessed: out_of_domain, not published, not evaluated
+    t, _, az = _time_at_altitude(20.0)
+    record_sim(_scene(t=t, bearing=az), RecordSpec(duration_s=0.5, pitch_deg=-10.0), tmp_path / "p10")
+    res2 = _replay(tmp_path / "p10", methods=("least_squares",), error_map=str(small_map))
+    assert [r.correction_status for r in res2.rows] == ["out_of_domain"] * 5
+    assert res2.summary["least_squares/corrected"]["count"] == 0 and res2.summary["least_squares/raw"]["count"] == 5
+
+
+def test_missing_error_map_is_one_clear_error(alt20, tmp_path):
+    runs, _, _ = alt20
+    with pytest.raises(Exception, match="does not exist: make one with"):
+        _replay(runs["mcap"]["bag"], error_map=str(tmp_path / "none.npz"))
+
+
 def test_mcap_and_sqlite3_bags_give_identical_results(alt20):
     runs, _, _ = alt20
     a = _replay(runs["mcap"]["bag"], methods=("least_squares",))

@@ -23,7 +23,9 @@ def register(sub):
                    help="estimator knob for every method or one method, e.g. least_squares.weighting=uniform")
     p.add_argument("--prior", choices=("imu", "last", "none"), default="imu",
                    help="what resolves the 180 deg ambiguity (heading_estimator prior_source; default imu)")
-    p.add_argument("--error-map", metavar="MAP.npz", help="error map for the tilt correction (corrected headings)")
+    p.add_argument("--error-map", default="default", metavar="MAP.npz",
+                   help="error map for the tilt correction (default: the map shipped with the package, as the "
+                        "tilt_corrector node; 'none': raw headings only)")
     p.add_argument("--no-plots", action="store_true", help="CSV and summary only")
     p.set_defaults(func=run)
 
@@ -57,13 +59,20 @@ def _value(text: str):
 
 def run(args) -> int:
     from ..bag import load_topic_map
-    from ..replay import ReplayConfig, replay_bag, write_outputs
+    from ..replay import ReplayConfig, default_error_map, replay_bag, write_outputs
 
     if args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
     methods = () if args.methods.strip() == "all" else tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    error_map, note = args.error_map, None
+    if error_map == "none":
+        error_map = None
+    elif error_map == "default":
+        error_map = default_error_map()
+        if error_map is None:
+            note = "no error map shipped with this build: corrected headings are not computed (give --error-map)"
     config = ReplayConfig(methods=methods, knobs=_parse_knobs(args.knob, args.stride), prior_source=args.prior,
-                          error_map=args.error_map)
+                          error_map=error_map)
     tm = load_topic_map(args.topics)
 
     def progress(k):
@@ -76,6 +85,8 @@ def run(args) -> int:
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
     print(f"{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in {result.wall_s:.1f} s "
           f"({result.speed_x_real_time:.1f}x real time)")
+    if note:
+        print(f"note: {note}")
     for line in result.plan.problems:
         print(f"note: {line}")
     for line in result.tally.lines():
