@@ -89,18 +89,9 @@ def test_render_without_out_is_a_usage_error(capsys):
     assert_user_error(*run(["render"], capsys), "--out")
 
 
-_MULTILINE_YAML_BUG = pytest.mark.xfail(strict=True, reason=(
-    "bug: scene.load_scene puts the whole multi-line yaml error (source excerpt and caret) in the SceneError, "
-    "so the CLI message spans 4-8 lines (exit status 2 is right, nothing executes) (reported)"))
-
-
 @pytest.mark.parametrize("kind, words", [
     ("missing", "does not exist"), ("directory", ""), ("not_mapping", "mapping"), ("bad_value", "width_px"),
-    pytest.param("binary", "", marks=pytest.mark.xfail(strict=True, reason=(
-        "bug: scene.load_scene reads with read_text(); a non-UTF-8 scene file raises UnicodeDecodeError, "
-        "which the CLI reports as 'internal error', exit 70 (reported)"))),
-    pytest.param("python_tag", "YAML", marks=_MULTILINE_YAML_BUG),
-    pytest.param("bad_yaml", "YAML", marks=_MULTILINE_YAML_BUG),
+    ("binary", ""), ("python_tag", "YAML"), ("bad_yaml", "YAML"),
 ])
 def test_render_bad_scene_files(files, kind, words, tmp_path, capsys):
     rc, out, err = run(["render", "--scene", str(files[kind]), "--out", str(tmp_path / "f.npz")], capsys)
@@ -118,9 +109,7 @@ def test_render_bad_yaml_is_refused_with_exit_2_and_never_executed(files, kind, 
 
 @pytest.mark.parametrize("where, words", [
     ("plain.txt", ".npz"), ("adir.npz", "directory"),
-    pytest.param("plain.txt/f.npz", "directory", marks=pytest.mark.xfail(strict=True, reason=(
-        "bug: cli.main catches FileNotFoundError/IsADirectoryError/PermissionError but not NotADirectoryError "
-        "(an --out path under a regular file): 'internal error', exit 70 (reported)"))),
+    ("plain.txt/f.npz", "directory"),
 ])
 def test_render_bad_output_paths(files, where, words, tmp_path, capsys):
     out_path = tmp_path / where
@@ -129,9 +118,6 @@ def test_render_bad_output_paths(files, where, words, tmp_path, capsys):
     assert_user_error(*run(["render", "--stride", "64", "--out", str(out_path)], capsys), words)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: --png naming an existing regular file raises FileExistsError (not caught by cli.main): "
-    "'internal error', exit 70 (reported)"))
 def test_render_png_dir_that_is_a_file(files, tmp_path, capsys):
     assert_user_error(*run(["render", "--stride", "64", "--out", str(tmp_path / "f.npz"),
                             "--png", str(files["a_file"])], capsys))
@@ -204,12 +190,9 @@ def test_sun_edge_values_give_finite_json(lat, lon, time, capsys):
     assert 0.0 <= d["azimuth_deg"] < 360.0 and -90.0 <= d["altitude_deg"] <= 90.0
 
 
-_NON_UTF8 = pytest.mark.xfail(strict=True, reason=(
-    "bug: scene.load_scene / bag.load_topic_map raise UnicodeDecodeError on a non-UTF-8 file: "
-    "'internal error', exit 70 (reported)"))
-_NOT_A_DIR = pytest.mark.xfail(strict=True, reason=(
-    "bug: cli.main does not catch NotADirectoryError (an output path under a regular file): "
-    "'internal error', exit 70 (reported)"))
+_NON_UTF8_TOPICS = pytest.mark.xfail(strict=True, reason=(
+    "bug: bag.load_topic_map reads with Path.read_text(); a non-UTF-8 topic mapping raises UnicodeDecodeError: "
+    "'internal error', exit 70 (scene files were fixed in 9f2627f, topic maps not) (reported)"))
 
 
 # --------------------------------------------------------------------------------------------
@@ -233,7 +216,7 @@ def test_record_sim_bad_arguments(argv, words, tmp_path, capsys):
 @pytest.mark.parametrize("kind, option, words", [
     ("missing", "--scene", "does not exist"), ("missing", "--topics", "does not exist"),
     ("not_mapping", "--scene", "mapping"), ("directory", "--topics", ""),
-    pytest.param("binary", "--scene", "", marks=_NON_UTF8), pytest.param("binary", "--topics", "", marks=_NON_UTF8),
+    ("binary", "--scene", ""), pytest.param("binary", "--topics", "", marks=_NON_UTF8_TOPICS),
 ])
 def test_record_sim_bad_files(files, kind, option, words, tmp_path, capsys):
     argv = ["record-sim", "--duration", "1", "--out", str(tmp_path / "bag"), option, str(files[kind])]
@@ -261,10 +244,8 @@ def evil_bag(tmp_path):
     ("evil", [], "not a readable rosbag2"), ("directory", ["--stride", "0"], "stride"),
     ("directory", ["--knob", "foo"], "knob"), ("directory", ["--methods", "bogus"], "bogus"),
     ("directory", ["--prior", "gps"], "invalid choice"), ("directory", ["--topics", "/nonexistent.yaml"], "exist"),
-    pytest.param("directory", ["--topics", "BINARY"], "", marks=_NON_UTF8),
-    pytest.param("directory", ["--error-map", "/nonexistent/map.npz"], "map", marks=pytest.mark.xfail(
-        strict=True, reason="bug: replay.py calls correction.replay_corrector, which correction.py does not "
-                            "define: any --error-map ends in 'internal error: AttributeError', exit 70 (reported)")),
+    pytest.param("directory", ["--topics", "BINARY"], "", marks=_NON_UTF8_TOPICS),
+    ("directory", ["--error-map", "/nonexistent/map.npz"], "map"),
 ])
 def test_replay_bad_input(files, evil_bag, bag, extra, words, tmp_path, capsys):
     path = evil_bag if bag == "evil" else files[bag]
@@ -296,8 +277,7 @@ def test_errormap_bad_arguments(over, words, tmp_path, capsys):
     assert not (tmp_path / "e.npz").exists()
 
 
-@pytest.mark.parametrize("case", [pytest.param("binary_scene", marks=_NON_UTF8),
-                                  pytest.param("out_under_a_file", marks=_NOT_A_DIR)])
+@pytest.mark.parametrize("case", ["binary_scene", "out_under_a_file"])
 def test_errormap_bad_files(files, case, tmp_path, capsys):
     args = dict(ERRORMAP_OK, **{"--out": str(tmp_path / "e.npz"), "--no-progress": None})
     if case == "binary_scene":
@@ -360,9 +340,6 @@ def test_subprocess_bad_inputs_never_print_a_traceback(files, tmp_path):
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1     # the last case: a plain user error
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: output to a closed pipe (`polarization-compass sun ... | head -c0`) ends in 'internal error: "
-    "BrokenPipeError', exit 70; a CLI should exit quietly (reported)"))
 def test_subprocess_closed_stdout_pipe_is_not_an_internal_error():
     with subprocess.Popen([sys.executable, "-m", "polarization_compass.cli", "sun", "--lat", "1", "--lon", "2",
                            "--time", GOOD_TIME], stdout=subprocess.PIPE, stderr=subprocess.PIPE) as p:

@@ -94,10 +94,6 @@ def test_truncated_frame_file(tmp_path):
         gc.collect()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: frame_io.load_frame_npz passes a path to np.load, which leaks its open file when the zip is "
-    "corrupt (numpy 2.4 pops the ExitStack before NpzFile raises): ResourceWarning, an error under "
-    "pytest.ini; open the file in frame_io and pass the handle (reported)"))
 def test_corrupt_frame_file_does_not_leak_a_file_handle(tmp_path):
     p = truncated_npz(tmp_path)
     with warnings.catch_warnings(record=True) as caught:
@@ -110,9 +106,6 @@ def test_corrupt_frame_file_does_not_leak_a_file_handle(tmp_path):
     assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: frame_io.load_frame_npz on a .npy file named .npz: np.load returns an ndarray, the `with` raises "
-    "TypeError (not a FrameFileError), which the CLI would report as an internal error (reported)"))
 def test_a_npy_file_named_npz_is_a_frame_file_error(tmp_path):
     p = tmp_path / "f.npz"
     with open(p, "wb") as fh:
@@ -144,9 +137,6 @@ def test_non_finite_values_at_invalid_pixels_are_tolerated(tmp_path):
     {"x_px": np.full((2, 3), np.nan)}, {"y_px": np.full((2, 3), np.inf)},
     {"dop": np.full((2, 3), 1.5, np.float32)}, {"dop": np.full((2, 3), -0.5, np.float32)},
 ])
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: frame_io.load_frame_npz accepts non-finite pixel coordinates (FrameFile.rays_cam() is then NaN) "
-    "and DoP outside the documented [0, 1] at valid pixels (reported)"))
 def test_frame_files_outside_the_documented_ranges_are_refused(tmp_path, over):
     with pytest.raises(FrameFileError):
         f = load_frame_npz(write_npz(tmp_path / "f.npz", **over))
@@ -203,12 +193,6 @@ def test_bag_metadata_with_a_python_tag_is_refused(tmp_path):
     assert not marker.exists()
 
 
-_NON_UTF8_BUG = pytest.mark.xfail(strict=True, reason=(
-    "bug: scene.load_scene and bag.load_topic_map read with Path.read_text(); a non-UTF-8 file raises "
-    "UnicodeDecodeError instead of SceneError/BagError (CLI: internal error, exit 70) (reported)"))
-
-
-@_NON_UTF8_BUG
 def test_non_utf8_scene_is_a_scene_error(tmp_path):
     p = tmp_path / "s.yaml"
     p.write_bytes(b"name: \xff\xfe\x00\x80\n")
@@ -216,7 +200,9 @@ def test_non_utf8_scene_is_a_scene_error(tmp_path):
         load_scene(p)
 
 
-@_NON_UTF8_BUG
+@pytest.mark.xfail(strict=True, reason=(
+    "bug: bag.load_topic_map reads with Path.read_text(); a non-UTF-8 mapping raises UnicodeDecodeError instead "
+    "of BagError (CLI: internal error, exit 70); scene files were fixed in 9f2627f (reported)"))
 def test_non_utf8_topic_map_is_a_bag_error(tmp_path):
     p = tmp_path / "m.yaml"
     p.write_bytes(b"topics: \xff\xfe\x00\x80\n")
