@@ -111,6 +111,7 @@ class Renderer:
         self._limits = (math.cos(math.radians(v.sun_exclusion_deg)), math.sin(math.radians(v.min_altitude_deg)),
                         v.min_dop)
         self._sun_cache = None
+        self._frames = 0
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
@@ -153,9 +154,12 @@ class Renderer:
         frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
                       sun_cam, zenith_cam, intensity=intensity)
         if self.sensor is not None:
-            rng = np.random.default_rng(self.scene.seed if seed is None else seed)
+            # reproducible and independent per frame: (scene seed, frame index) unless a seed is given
+            ss = np.random.SeedSequence([self.scene.seed, self._frames] if seed is None else [int(seed)])
+            rng = np.random.default_rng(ss)
             with instr.stage("sensor"):
                 self.sensor.apply(frame, rng)
+        self._frames += 1
         frame.meta = {
             "scene": self.scene.name,
             "sun_azimuth_deg": sun.azimuth_deg,
@@ -168,6 +172,7 @@ class Renderer:
             "sky": self.sky.params(),
             "radiance": None if self.radiance is None else self.radiance.params(),
             "effects": list(self.scene.effects),
+            "sensor": None if self.sensor is None else self.sensor.params(),
             "pixels": self.selection.describe(),
             "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
                        "height_px": self.scene.camera.height_px,
