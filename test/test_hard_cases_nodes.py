@@ -360,3 +360,22 @@ def test_evaluator_never_writes_nan_sigma(evaluator):
     with open(evaluator.report_dir / "evaluation_samples.csv") as fh:
         for row in csv.DictReader(fh):
             assert math.isfinite(float(row["sigma_deg"])), row
+
+
+# --------------------------------------------------------------------------------------------
+# parameter files (parsed by rcl's C YAML parser, not Python)
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("node_main", ["heading_estimator", "tilt_corrector", "error_evaluator"])
+def test_a_python_tag_in_a_parameter_file_is_never_executed(ctx, tmp_path, capsys, node_main):
+    """rcl ignores YAML tags: the tagged value arrives as a plain string array, the typed parameter refuses it,
+    and the node exits 2 with one line. (test_nodes_robustness.py checks an out-of-range value over DDS.)"""
+    import importlib
+    marker = tmp_path / "EXECUTED"
+    p = tmp_path / "evil.yaml"
+    p.write_text(f"/**:\n  ros__parameters:\n    method: !!python/object/apply:os.system [\"touch {marker}\"]\n"
+                 f"    methods: !!python/object/apply:os.system [\"touch {marker}\"]\n")
+    main = importlib.import_module(f"polarization_compass.nodes.{node_main}").main
+    rc = main([node_main, "--ros-args", "--params-file", str(p)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "Traceback" not in err and "error" in err
+    assert not marker.exists()
