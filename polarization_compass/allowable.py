@@ -159,23 +159,25 @@ def allowable_envelope(m: ErrorMap, max_error_deg: float, sun_altitude_deg: floa
 
 
 def _verdict(me, r_ok, r_fail, est, coverage, r33, worst33) -> str:
-    """Eq 33 against the map: agree when eq 33's radius falls between the last passing and the first
-    failing node radius (the map's resolution), else say which side it errs on and by how much."""
+    """Eq 33 against the map. The map's limit is ``est`` (linear between the last passing and the first
+    failing node radius). Eq 33 is optimistic when its radius exceeds that, conservative when it is less
+    than half of it (a factor of 2 is what one grid step typically spans), else they agree."""
     lim = (f">= {r_ok:.3g} deg (no node within the map's coverage fails)" if r_fail is None
            else f"~{est:.3g} deg (nodes pass to {r_ok:.3g}, fail from {r_fail:.3g})")
     if not math.isfinite(r33):
         return f"eq 33 sets no limit at sun altitude 0; the map's limit is {lim}"
-    if (worst33 is not None and worst33 > me * (1 + 1e-9)) or (r_fail is not None and r33 >= r_fail):
-        extra = f": the map's worst error inside it is {worst33:.3g} deg > {me:g}" if worst33 is not None else ""
-        return f"DISAGREE, eq 33 is optimistic: it allows {r33:.3g} deg{extra}; the map's limit is {lim}"
     if r_fail is None and r33 > coverage:
         return (f"cannot compare: eq 33 allows {r33:.3g} deg, beyond the map's coverage ({coverage:.3g} deg), "
                 f"inside which every node passes")
-    if r33 < r_ok - 1e-9 or r33 < 0.5 * est:
+    if (worst33 is not None and worst33 > me * (1 + 1e-9)) or (r_fail is not None and r33 > est * (1 + 1e-9)):
+        extra = (f"; the map's worst node error inside it is {worst33:.3g} deg > {me:g}"
+                 if worst33 is not None and worst33 > me else "")
+        return f"DISAGREE, eq 33 is optimistic: it allows {r33:.3g} deg, the map {lim}{extra}"
+    if r33 < 0.5 * (est if r_fail is not None else r_ok):
         factor = (est if r_fail is not None else r_ok) / r33 if r33 > 0 else math.inf
         return (f"DISAGREE, eq 33 is conservative: {r33:.3g} deg against the map's {lim}, "
                 f"{'at least ' if r_fail is None else ''}{factor:.3g} x smaller")
-    return f"agree within the map's resolution: eq 33 gives {r33:.3g} deg, the map {lim}"
+    return f"agree within a factor of 2: eq 33 gives {r33:.3g} deg, the map {lim}"
 
 
 def format_envelopes(envs) -> str:

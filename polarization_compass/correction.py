@@ -46,7 +46,7 @@ DEFAULT_MAP_NAME = "tilt_error_map.npz"
 #: The command that regenerates the shipped map (documented in docs/error-maps.md).
 REGENERATE_DEFAULT_MAP = ("polarization-compass errormap --methods zenith,sm_asm,symmetry,least_squares "
                           "--sun-altitude 0:50:5 --yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 "
-                          "--cubic-support --float32 --out polarization_compass/data/tilt_error_map.npz")
+                          "--float32 --out polarization_compass/data/tilt_error_map.npz")
 
 
 class CorrectionStatus(str, Enum):
