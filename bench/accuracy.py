@@ -242,13 +242,24 @@ def _methods(cfg):
     return est, names
 
 
-def _map_corrector(method: str, mode: str):
-    """``fn(result, obs, scene) -> result`` correcting with the shipped error map, or raises."""
-    from polarization_compass.correction import TiltCorrector, default_map_path
+def error_map_path(cfg):
+    """The error map for ``tilted_corrected``: ``cfg.error_map`` / ``$BENCH_ERROR_MAP``, else the shipped one."""
+    import os
+    from pathlib import Path
+    given = getattr(cfg, "error_map", None) or os.environ.get("BENCH_ERROR_MAP")
+    if given:
+        return Path(given)
+    from polarization_compass.correction import default_map_path
+    return default_map_path()
+
+
+def _map_corrector(method: str, mode: str, path):
+    """``fn(result, obs, scene) -> result`` correcting with the error map at ``path``, or raises."""
+    from polarization_compass.correction import TiltCorrector
     from polarization_compass.estimators.base import HeadingResult, Status
-    if not default_map_path().is_file():
-        raise Unavailable(f"no shipped error map at {default_map_path()}")
-    corrector = TiltCorrector.from_file(None, method=method)
+    if not path.is_file():
+        raise Unavailable(f"no error map at {path}")
+    corrector = TiltCorrector.from_file(path, method=method)
 
     def fn(res, obs, s):
         if not res.ok:
@@ -265,6 +276,7 @@ def _map_corrector(method: str, mode: str):
 
 def run(cfg) -> dict:
     est_mod, methods = _methods(cfg)
+    map_path = None
     from polarization_compass.estimators.base import Observation
     level = "tiny" if cfg.tiny else cfg.knob_sets
     camera = CameraModel(width_px=192, height_px=160) if cfg.tiny else CameraModel()
@@ -278,9 +290,9 @@ def run(cfg) -> dict:
         if cond.correct:
             try:
                 optional_import("polarization_compass.correction")
-                from polarization_compass.correction import default_map_path
-                if not default_map_path().is_file():
-                    raise Unavailable(f"no shipped error map at {default_map_path()}")
+                map_path = error_map_path(cfg)
+                if not map_path.is_file():
+                    raise Unavailable(f"no error map at {map_path}")
             except Unavailable as exc:
                 skipped.append({"condition": cond.name, "reason": str(exc)})
                 continue
@@ -304,7 +316,7 @@ def run(cfg) -> dict:
                     try:
                         c.estimator = est_mod.make_estimator(m, **knobs)
                         if mode:
-                            c.corrector = _map_corrector(m, mode)
+                            c.corrector = _map_corrector(m, mode, map_path)
                     except Exception as exc:  # noqa: BLE001 - a knob this method does not have, no map entry
                         c.status = f"unavailable: {type(exc).__name__}: {exc}"
                         c.estimator = None

@@ -52,6 +52,7 @@ class BenchConfig:
     out_dir: Path = field(default_factory=lambda: RESULTS_DIR)
     peers_python: str | None = None  # an interpreter where the peers are installed (subprocess)
     tiny: bool = False               # smoke-test size: small camera, 1-2 scenes
+    error_map: str | None = None     # map for tilted_corrected (default $BENCH_ERROR_MAP, else the shipped one)
 
     @staticmethod
     def quick(**kw) -> "BenchConfig":

@@ -31,6 +31,8 @@ def parse_args(argv=None):
     p.add_argument("--peers-python", default=None,
                    help="interpreter with pyskylumos/polanalyser installed (default $BENCH_PEERS_PYTHON)")
     p.add_argument("--scenes", type=int, default=None, help="override scenes per condition")
+    p.add_argument("--error-map", default=None,
+                   help="error map for tilted_corrected (default $BENCH_ERROR_MAP, else the shipped map)")
     p.add_argument("--conditions", default="", help="comma-separated accuracy conditions (default all)")
     p.add_argument("--methods", default="", help="comma-separated methods (default all registered)")
     p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)   # smoke test size
@@ -44,6 +46,8 @@ def make_config(args) -> BenchConfig:
         kw["out_dir"] = Path(args.out)
     if args.peers_python:
         kw["peers_python"] = args.peers_python
+    if args.error_map:
+        kw["error_map"] = args.error_map
     if args.conditions:
         kw["conditions"] = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
     if args.methods:

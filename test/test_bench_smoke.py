@@ -216,3 +216,30 @@ def test_crb_selection_follows_the_estimators_stride_convention():
     assert crb_mod.raw_pixel_weight(16, "bilinear") == pytest.approx(9 / 4)
     assert crb_mod.raw_pixel_weight(1, "bilinear") == pytest.approx(1 / 4)
     assert crb_mod.raw_pixel_weight(8, "superpixel") == 1.0
+
+
+def test_tilted_corrected_condition_uses_an_error_map(tmp_path):
+    """With a small error map for the tiny camera, the corrected headings beat the uncorrected ones
+    (the map and the scenes are computed independently: the sweep renders its own grid cells)."""
+    import numpy as np
+
+    from bench.common import BenchConfig
+    from polarization_compass import errormap
+    from polarization_compass.scene import Scene
+    cam = CameraModel(width_px=192, height_px=160)
+    spec = errormap.SweepSpec(methods=("least_squares",), sun_altitude_deg=np.array([10.0, 30.0, 50.0]),
+                              yaw_deg=np.arange(-180.0, 180.0, 30.0), pitch_deg=np.arange(-20.0, 20.1, 10.0),
+                              roll_deg=np.arange(-20.0, 20.1, 10.0), scene=Scene(camera=cam),
+                              knobs={"least_squares": {"stride": 8}}, tilt_limit_deg=20.0)
+    path = tmp_path / "map.npz"
+    errormap.run_sweep(spec, out=path, workers=1, progress=False)
+    cfg = BenchConfig.quick(tiny=True, scenes=4, repeats=1, conditions=("tilted", "tilted_corrected"),
+                            methods=("least_squares",), error_map=str(path))
+    res = accuracy.run(cfg)
+    assert not res["skipped_conditions"]
+    cells = {(c["condition"], c["knobs_label"]): c for c in res["cells"]}
+    raw = cells[("tilted", "stride 4")]
+    inv = cells[("tilted_corrected", "stride 4, correction invert")]
+    assert raw["status"] == "ok" and inv["status"] == "ok", (raw["status"], inv["status"])
+    assert raw["error"]["rms_deg"] > 0.5                      # the uncorrected tilt error is real
+    assert inv["error"]["n"] >= 3 and inv["error"]["rms_deg"] < 0.25 * raw["error"]["rms_deg"]
