@@ -289,8 +289,11 @@ def fig14(m, opts):
     ia = _node(m.sun_altitude_deg, opts.get("sun_altitude"), "sun altitude", _default_alt)
     _need(m.pitch_deg, "pitch", 2)
     _need(m.roll_deg, "roll", 2)
-    yaws = opts.get("yaws") or [-135.0, -45.0, 45.0, 135.0]
-    iy = [_yaw_node(m.yaw_deg, float(y)) for y in yaws]
+    if opts.get("yaws"):
+        iy = [_yaw_node(m.yaw_deg, float(y)) for y in opts["yaws"]]
+    else:                                   # the nodes nearest -135, -45, 45, 135 deg
+        iy = [int(np.argmin(np.abs(wrap_180_deg(m.yaw_deg - y)))) for y in (-135.0, -45.0, 45.0, 135.0)]
+    yaws = [float(m.yaw_deg[k]) for k in iy]
     limit = float(m.meta.get("domain", {}).get("tilt_limit_deg", 30.0)) if isinstance(m.meta, dict) else 30.0
     P, R = np.meshgrid(m.pitch_deg, m.roll_deg, indexing="ij")
     domain = (np.abs(P) + np.abs(R)) <= limit + 1e-9
@@ -300,8 +303,7 @@ def fig14(m, opts):
     dp = np.diff(m.pitch_deg).min() if m.pitch_deg.size > 1 else 1.0
     dr = np.diff(m.roll_deg).min() if m.roll_deg.size > 1 else 1.0
     extent = (m.roll_deg[0] - dr / 2, m.roll_deg[-1] + dr / 2, m.pitch_deg[0] - dp / 2, m.pitch_deg[-1] + dp / 2)
-    cm = plt.get_cmap("coolwarm").copy()
-    cm.set_bad("0.92")
+    cm = plt.get_cmap("coolwarm").with_extremes(bad="0.92")
     for ax, k, data, y in zip(axes.flat, iy, panels, yaws):
         im = ax.imshow(data, origin="lower", extent=extent, cmap=cm, vmin=-lim, vmax=lim, aspect="equal",
                        interpolation="nearest")
