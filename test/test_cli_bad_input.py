@@ -289,6 +289,93 @@ def test_errormap_bad_files(files, case, tmp_path, capsys):
 
 
 # --------------------------------------------------------------------------------------------
+# allowable-tilt and plot (on a small synthetic map)
+# --------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_map(tmp_path_factory):
+    from polarization_compass.errormap import ErrorMap
+    alt, yaw, tilt = np.arange(0.0, 55.0, 10.0), np.arange(-180.0, 180.0, 10.0), np.arange(-30.0, 31.0, 10.0)
+    shape = (1, alt.size, yaw.size, tilt.size, tilt.size)
+    p = tmp_path_factory.mktemp("map") / "m.npz"
+    ErrorMap(np.full(shape, 0.5), np.zeros(shape, np.int8), ("least_squares",), alt, yaw, tilt, tilt,
+             meta={"domain": {"tilt_limit_deg": 30.0}}).save(p)
+    return p
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--max-error", "nan"], "max-error"), (["--max-error", "-1"], "max-error"), (["--max-error", "0"], "max-error"),
+    (["--max-error", "1", "--sun-altitude", "95"], "outside the map"),
+    (["--max-error", "1", "--sun-altitude", "nan"], "altitude"),
+    (["--max-error", "1", "--methods", "bogus"], "bogus"), (["--max-error", "x"], "--max-error"),
+])
+def test_allowable_tilt_bad_arguments(small_map, argv, words, capsys):
+    assert_user_error(*run(["allowable-tilt", "--map", str(small_map)] + argv, capsys), words)
+
+
+@pytest.mark.parametrize("kind, words", [("missing", "does not exist"), ("directory", ""), ("binary", ""),
+                                         ("python_tag", "")])
+def test_allowable_tilt_bad_map_files(files, kind, words, capsys):
+    assert_user_error(*run(["allowable-tilt", "--max-error", "1", "--map", str(files[kind])], capsys), words)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--figure", "fig99"], "invalid choice"), (["--figure", "fig8", "--pitch", "13"], "not a node"),
+    (["--figure", "fig8", "--pitch", "nan"], "pitch"), (["--figure", "fig7", "--sun-altitude", "inf"], "altitude"),
+    (["--figure", "fig14", "--method", "bogus"], "bogus"), (["--figure", "fig7", "--methods", "bogus"], "bogus"),
+])
+def test_plot_bad_arguments(small_map, argv, words, tmp_path, capsys):
+    assert_user_error(*run(["plot", str(small_map), "--out", str(tmp_path / "x.png")] + argv, capsys), words)
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("where, words", [("x.txt", ".png"), ("plain.txt/x.png", "")])
+def test_plot_bad_output_paths(small_map, files, where, words, tmp_path, capsys):
+    out = files["a_file"].parent / where if where.startswith("plain") else tmp_path / where
+    assert_user_error(*run(["plot", str(small_map), "--figure", "fig7", "--out", str(out)], capsys), words)
+
+
+def test_plot_bad_map_file(files, tmp_path, capsys):
+    assert_user_error(*run(["plot", str(files["binary"]), "--figure", "fig7", "--out", str(tmp_path / "x.png")],
+                           capsys))
+
+
+# --------------------------------------------------------------------------------------------
+# sim: bad input must be refused before the expensive part (an error-map sweep, 11 nodes)
+# --------------------------------------------------------------------------------------------
+class _Started(Exception):
+    """Raised by the patched expensive steps: reaching them with bad input is the failure."""
+
+
+@pytest.fixture
+def no_expensive_sim(monkeypatch):
+    from polarization_compass.cli import cmd_sim
+
+    def started(*a, **k):
+        raise _Started("the sim started its expensive part")
+    monkeypatch.setattr(cmd_sim, "ensure_error_map", started)
+    monkeypatch.setattr(cmd_sim, "_run_graph", started)
+
+
+_SIM_LATE_CHECK = pytest.mark.xfail(strict=True, reason=(
+    "bug: sim does not check this before building an error map (~2 min on 2 cores) and starting 11 nodes: "
+    "--timeout -1 fails after the sweep ('run took longer than --timeout -1 s'); a bad --scene is refused by "
+    "sky_simulator 15 s into the run; --turn-rate nan/0 reach the graph (reported)"))
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--rate", "0"], "rate"), (["--turns", "nan"], "turns"), (["--time-scale", "0"], "time-scale"),
+    (["--pitch", "95"], "pitch"), (["--roll", "nan"], "roll"), (["--methods", "bogus"], "bogus"),
+    (["--encoding", "rgb8"], "invalid choice"), (["--error-map", "/nonexistent/m.npz"], "does not exist"),
+    pytest.param(["--timeout", "-1"], "timeout", marks=_SIM_LATE_CHECK),
+    pytest.param(["--timeout", "nan"], "timeout", marks=_SIM_LATE_CHECK),
+    pytest.param(["--turn-rate", "nan"], "turn-rate", marks=_SIM_LATE_CHECK),
+    pytest.param(["--scene", "/nonexistent/scene.yaml"], "scene", marks=_SIM_LATE_CHECK),
+])
+def test_sim_bad_arguments_are_refused_before_any_work(no_expensive_sim, argv, words, tmp_path, capsys):
+    assert_user_error(*run(["sim", "--out", str(tmp_path / "sim")] + argv, capsys), words)
+
+
+# --------------------------------------------------------------------------------------------
 # every registered command
 # --------------------------------------------------------------------------------------------
 def registered_commands():
@@ -298,7 +385,8 @@ def registered_commands():
 
 
 def test_the_commands_this_file_checks_by_name_are_registered():
-    assert {"sun", "render", "record-sim", "replay", "errormap"} <= set(registered_commands())
+    assert {"sun", "render", "record-sim", "replay", "errormap", "allowable-tilt", "plot", "sim"} \
+        <= set(registered_commands())
 
 
 @pytest.mark.parametrize("cmd", registered_commands())
