@@ -126,6 +126,54 @@ class SyncedFrame:
     true_bearing_deg: float | None
 
 
+def prefetched(iterable, depth: int = 8):
+    """Iterate ``iterable`` in a background thread, ``depth`` items ahead.
+
+    Reading a bag is mostly file reads and copies; the file reads release the GIL, so on a 2-core
+    machine they overlap with the processing of the previous frame. Exceptions (a truncated bag) are
+    re-raised here, in order; closing the generator early stops the thread.
+    """
+    import queue
+    import threading
+
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    done = object()
+
+    def run():
+        try:
+            for item in iterable:
+                while not stop.is_set():
+                    try:
+                        q.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            q.put(done)
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer
+            q.put(exc)
+
+    th = threading.Thread(target=run, name="bag-prefetch", daemon=True)
+    th.start()
+    try:
+        while True:
+            item = q.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        while th.is_alive():
+            try:
+                q.get_nowait()
+            except queue.Empty:
+                th.join(timeout=0.05)
+
+
 def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None):
     """Yield :class:`SyncedFrame` for every usable image, in receive-time order (see the module doc).
 
@@ -179,7 +227,7 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
         tally.used[image_topic] += 1
         return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing)
 
-    for topic, mtype, log_ns, raw in reader.messages(list(wanted)):
+    for topic, mtype, log_ns, raw in prefetched(reader.messages(list(wanted))):
         role = wanted[topic]
         tally.read[topic] += 1
         if role in plan.type_mismatch:
@@ -445,6 +493,63 @@ def _make_corrector(config: ReplayConfig):
 
 
 # ------------------------------------------------------------------------------------------------
+# Threads
+# ------------------------------------------------------------------------------------------------
+def _openblas_handles():
+    """(set, get) of every OpenBLAS loaded in this process (numpy's and scipy's), via ctypes."""
+    import ctypes
+    out = []
+    try:
+        with open("/proc/self/maps") as f:
+            paths = {line.split()[-1] for line in f if "openblas" in line and ".so" in line}
+    except OSError:
+        return out
+    for path in sorted(paths):
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for prefix in ("scipy_openblas", "openblas"):
+            for suffix in ("64_", "_64_", ""):
+                try:
+                    setter = getattr(lib, f"{prefix}_set_num_threads{suffix}")
+                    getter = getattr(lib, f"{prefix}_get_num_threads{suffix}")
+                except AttributeError:
+                    continue
+                out.append((setter, getter))
+                break
+            else:
+                continue
+            break
+    return out
+
+
+class single_threaded_kernels:
+    """Run numba kernels and BLAS on the calling thread only while replaying.
+
+    After subsampling, a frame's kernels take 0.1-3 ms; waking a pool of threads for them costs more
+    than it saves on a 2-core machine, and under load a parallel call waits ~20 ms for its threads
+    (measured: a 0.1 ms demosaic took 20 ms with 2 numba threads while other work ran). numba's
+    thread count is per calling thread; OpenBLAS's is process-wide and restored afterwards.
+    """
+
+    def __enter__(self):
+        import numba
+        self._numba = numba.get_num_threads()
+        numba.set_num_threads(1)
+        self._blas = [(s, int(g())) for s, g in _openblas_handles()]
+        for s, _ in self._blas:
+            s(1)
+        return self
+
+    def __exit__(self, *exc):
+        import numba
+        numba.set_num_threads(self._numba)
+        for s, n in self._blas:
+            s(n)
+
+
+# ------------------------------------------------------------------------------------------------
 # The whole bag
 # ------------------------------------------------------------------------------------------------
 @dataclass
@@ -459,10 +564,17 @@ class ReplayResult:
     matches: list
     timing_ms: dict
     error_map: str | None = None
+    cpu_s: float = 0.0          # CPU time of the process (all threads) while replaying
 
     @property
     def speed_x_real_time(self) -> float:
+        """Recorded seconds per wall-clock second."""
         return self.bag_duration_s / self.wall_s if self.wall_s > 0 else 0.0
+
+    @property
+    def speed_x_real_time_cpu(self) -> float:
+        """Recorded seconds per CPU second: the speed on an otherwise idle core (load-independent)."""
+        return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
 def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None) -> ReplayResult:
@@ -473,6 +585,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     topic_map = topic_map or default_topic_map()
     pipe = FramePipeline(config, topic_map)
     t_wall = time.perf_counter()
+    t_cpu = time.process_time()
     tally = Tally()
     rows: list[MethodRow] = []
     matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
@@ -481,7 +594,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
         if m not in config.direct_methods and pipe.corrector is not None:
             matcher.add_stream(f"{m}/corrected", False)
     first_stamp = last_stamp = None
-    with BagReader(path) as reader:
+    with BagReader(path) as reader, single_threaded_kernels():
         plan = plan_bag(reader, topic_map)
         if plan.fatal:
             raise BagError(f"{reader.path}: " + "; ".join(plan.fatal))
@@ -511,7 +624,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     rows.sort(key=lambda r: (r.stamp_ns, pipe.methods.index(r.method)))
     wall = time.perf_counter() - t_wall
     return ReplayResult(rows, matcher.summary(), tally, plan, frames, duration, wall, matcher.matches,
-                        pipe.timing_ms, config.error_map)
+                        pipe.timing_ms, config.error_map, time.process_time() - t_cpu)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -552,7 +665,8 @@ def write_outputs(result: ReplayResult, out_dir, bag_path: str = "", plots: bool
         statuses.setdefault(r.method, {}).setdefault(r.status, 0)
         statuses[r.method][r.status] += 1
     js = {"bag": str(bag_path), "error_map": result.error_map, "frames": result.frames, "bag_duration_s": result.bag_duration_s,
-          "wall_s": result.wall_s, "speed_x_real_time": result.speed_x_real_time,
+          "wall_s": result.wall_s, "cpu_s": result.cpu_s, "speed_x_real_time": result.speed_x_real_time,
+          "speed_x_real_time_cpu": result.speed_x_real_time_cpu,
           "statistics": result.summary, "statuses": statuses, "topics": result.tally.to_dict(),
           "problems": result.plan.problems,
           "timing_ms_median": {k: float(np.median(v)) for k, v in result.timing_ms.items() if v}}

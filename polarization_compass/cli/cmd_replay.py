@@ -84,7 +84,8 @@ def run(args) -> int:
         print(file=sys.stderr)
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
     print(f"{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in {result.wall_s:.1f} s "
-          f"({result.speed_x_real_time:.1f}x real time)")
+          f"({result.speed_x_real_time:.1f}x real time; {result.cpu_s:.1f} s of CPU, "
+          f"{result.speed_x_real_time_cpu:.1f}x on an idle core)")
     if note:
         print(f"note: {note}")
     for line in result.plan.problems:
