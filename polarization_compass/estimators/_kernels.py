@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-__all__ = ["ls_pass", "grid_segments", "list_segments", "N_STATS", "sym3"]
+__all__ = ["sub_pass", "full_pass", "grid_segments", "list_segments", "N_STATS", "sym3"]
 
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
 N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
@@ -207,33 +207,37 @@ def sym3(u) -> np.ndarray:
                      np.stack([u[..., 2], u[..., 4], u[..., 5]], -1)], -2)
 
 
-def ls_pass(aop, dop, valid, rays, intensity, segments, min_dop: float, weight_mode: int, var_mode: int,
-            sub_pixels: int = 16384):
-    """The least-squares sums over flat pixel arrays (aop, dop, valid (n,), rays (3, n), intensity or None).
+def sub_pass(aop, dop, valid, rays, intensity, min_dop: float, weight_mode: int, var_mode: int,
+             sub_pixels: int = 16384):
+    """Second-order and brightness sums over about ``sub_pixels`` evenly spread pixels (runs of 64).
+
+    ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance v of a pixel) 0 uniform,
+    1 1/DoP^2, 2 1/(DoP^2 I). Returns dict of 3x3 ``M`` (= sum w e e^T), ``B`` (noise bias of M per unit
+    variance), ``C`` (expected residual sum per unit variance: s^T C s), and ``stats`` (brightness, or None).
+    """
+    has_i = intensity is not None
+    inten = intensity if has_i else np.zeros(1, np.float32)
+    tot = np.zeros(33)
+    step = max(1, int(aop.size) // int(sub_pixels))
+    _bc_pass(aop, dop, valid, rays, inten, has_i, step, float(min_dop), bool(weight_mode), int(var_mode), tot)
+    return {"M": sym3(tot[12:18]), "B": sym3(tot[0:6]), "C": sym3(tot[6:12]),
+            "stats": tot[18:33].copy() if has_i else None}
+
+
+def full_pass(aop, dop, valid, rays, segments, min_dop: float, weight_mode: int):
+    """Per-block ``M_b = sum w e e^T`` over every usable pixel, and the pixel counts.
 
     ``segments`` = (start, end, block, n_blocks): runs of pixels [start, end) of block ``block``.
-    ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance for the bias terms)
-    0 uniform, 1 1/DoP^2, 2 1/(DoP^2 I). ``M_b`` uses every pixel; the second-order bias matrices and
-    the brightness statistics use about ``sub_pixels`` evenly spread pixels (``B``, ``C`` rescaled to
-    the full weight). Returns dict: ``block_m`` (G, 3, 3), ``block_w`` (G,) block weights (trace),
-    ``n`` usable pixels, ``B``, ``C`` (3x3), ``stats`` (N_STATS,) or None, ``nonfinite``, ``considered``.
+    Returns dict: ``block_m`` (G, 3, 3), ``block_w`` (G,) block weights (traces), ``n`` usable pixels,
+    ``nonfinite`` (valid pixels with a NaN/inf value), ``considered`` (valid pixels).
     """
     start, end, block, n_blocks = segments
     block_m = np.zeros((n_blocks, 6))
     counts = np.zeros(3, np.int64)
     _count_pass(aop, dop, valid, rays, float(min_dop), counts)
     _m_pass(aop, dop, valid, rays, start, end, block, float(min_dop), bool(weight_mode), block_m)
-    has_i = intensity is not None
-    inten = intensity if has_i else np.zeros(1, np.float32)
-    tot = np.zeros(33)
-    step = max(1, int(aop.size) // int(sub_pixels))
-    _bc_pass(aop, dop, valid, rays, inten, has_i, step, float(min_dop), bool(weight_mode), int(var_mode), tot)
-    M_sub_tr = tot[12] + tot[15] + tot[17]
-    M_tr = float(block_m[:, 0].sum() + block_m[:, 3].sum() + block_m[:, 5].sum())
-    scale = M_tr / M_sub_tr if M_sub_tr > 0 else 0.0
     return {"block_m": sym3(block_m), "block_w": block_m[:, 0] + block_m[:, 3] + block_m[:, 5],
-            "n": int(counts[0]), "B": sym3(tot[0:6]) * scale, "C": sym3(tot[6:12]) * scale,
-            "stats": tot[18:33].copy() if has_i else None, "nonfinite": int(counts[2]), "considered": int(counts[1])}
+            "n": int(counts[0]), "nonfinite": int(counts[2]), "considered": int(counts[1])}
 
 
 @lru_cache(maxsize=64)

@@ -34,7 +34,7 @@ from .base import Estimator, HeadingResult, Observation, Status, register_estima
 from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, finish_sigma_deg,
                       psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
                       view_segments)
-from ._kernels import ls_pass
+from ._kernels import full_pass, sub_pass
 
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
 
@@ -59,6 +59,21 @@ def solve_sun(M, B, C, bias_correction=True, iterations=2):
             sigma0_sq = max(float(s @ M @ s) / den, 0.0)
             lam, U = np.linalg.eigh(M - sigma0_sq * B)
     return lam, U, sigma0_sq
+
+
+def _noise_scale_sq(sub, bias_correction: bool) -> float:
+    """sigma0^2 (rad^2, the AoP noise variance at DoP 1 under the 1/DoP^2 model) from subsample sums."""
+    if not np.trace(sub["M"]) > 0.0:
+        return 0.0
+    try:
+        _, U, s0sq = solve_sun(sub["M"], sub["B"], sub["C"], bias_correction)
+    except np.linalg.LinAlgError:
+        return 0.0
+    if not bias_correction:
+        s = U[:, 0]
+        den = float(s @ sub["C"] @ s)
+        s0sq = float(s @ sub["M"] @ s) / den if den > 0 else 0.0
+    return max(s0sq, 0.0)
 
 
 def _block_sigma(block_m, block_w, n: int, s, c) -> float:
@@ -90,6 +105,8 @@ class _LSBase(KnobbedEstimator, Estimator):
                             doc="relative AoP noise variance per pixel for the bias correction: 1/DoP^2, "
                                 "1/(DoP^2 I) (shot noise, needs intensity) or constant"),
         "bias_correction": Knob(True, "bool", doc="remove the O(sigma^2) noise bias of the eigenvector"),
+        "max_aop_noise_deg": Knob(5.0, "float", 0.1, 90.0,
+                                  doc="drop pixels whose estimated AoP noise (sigma0 / DoP) exceeds this"),
     }
     level_with_tilt = False
 
@@ -129,15 +146,33 @@ class _LSBase(KnobbedEstimator, Estimator):
         var_mode = {"uniform": 0, "dop": 1, "dop_intensity": 2}[k["noise_model"]]
         if var_mode == 2 and arrs[4] is None:
             var_mode = 1
-        acc = ls_pass(*arrs, segs, k["min_dop"], 1 if k["weighting"] == "dop2" else 0, var_mode)
+        wmode = 1 if k["weighting"] == "dop2" else 0
+        # Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
+        # max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model
+        # (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
+        min_dop = k["min_dop"]
+        sigma_max = math.radians(k["max_aop_noise_deg"])
+        sub = sub_pass(*arrs, min_dop, wmode, var_mode)
+        for _ in range(2):
+            s0sq = _noise_scale_sq(sub, k["bias_correction"])
+            new_min = max(k["min_dop"], math.sqrt(s0sq) / sigma_max) if var_mode == 1 else min_dop
+            if not new_min > min_dop * 1.02:
+                break
+            min_dop = min(new_min, 0.99)
+            sub = sub_pass(*arrs, min_dop, wmode, var_mode)
+        acc = full_pass(*arrs[:4], segs, min_dop, wmode)
         n = acc["n"]
         nonfinite = acc["nonfinite"]
         if n < k["min_pixels"]:
+            why = f" (min_dop raised to {min_dop:.3f} by the noise)" if min_dop > k["min_dop"] else ""
             return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{n} usable pixel(s) < min_pixels {k['min_pixels']}"
+                                        f"{n} usable pixel(s) < min_pixels {k['min_pixels']}{why}"
                                         + (f" ({nonfinite} valid pixel(s) had non-finite values)"
                                            if nonfinite else ""), pixels=n)
         M = acc["block_m"].sum(axis=0)
+        msub_tr = float(np.trace(sub["M"]))
+        scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
+        acc["B"], acc["C"], acc["stats"] = sub["B"] * scale, sub["C"] * scale, sub["stats"]
         lam, U, sigma0_sq = solve_sun(M, acc["B"], acc["C"], k["bias_correction"])
         if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
             return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
@@ -194,7 +229,7 @@ class _LSBase(KnobbedEstimator, Estimator):
         extras = {"eigenvalues": [float(v / wsum) for v in lam], "sigma_sun_elevation_deg": math.degrees(sigma_el),
                   "rms_residual_deg": math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0))),
                   "sun_altitude_ephemeris_deg": float(obs.sun_altitude_deg),
-                  "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)),
+                  "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)), "min_dop_used": min_dop,
                   "sun_cam": [float(v) for v in s_pick]}
         return result_from(self.name, pick, by, reason, obs, finish_sigma_deg(sigma_psi, k), n, nonfinite, quality,
                            sun_altitude_deg=implied_alt, extras=extras)

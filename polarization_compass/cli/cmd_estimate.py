@@ -1,0 +1,202 @@
+"""`polarization-compass estimate`: heading estimates from a rendered frame file, as JSON.
+
+Reads a ``render`` output (.npz). When it holds the raw mosaic, the mosaic is demosaiced (the scene's
+demosaic method and polarizer layout from the frame's meta, else superpixel and the IMX250MZR layout,
+and the output says which) and each method reads only the pixels it needs; otherwise the stored
+AoP/DoP are used. The sun comes from the frame's meta; without it, from --lat/--lon/--time.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+from ..errors import CompassError
+
+
+def register(sub):
+    p = sub.add_parser("estimate", help="heading from a frame file (JSON, one object per method)",
+                       description="Estimate the heading from a frame written by 'render'. psi is the paper's yaw "
+                                   "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
+                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing).")
+    p.add_argument("frame", metavar="FRAME.npz", help="frame file written by 'polarization-compass render'")
+    p.add_argument("--method", default="all",
+                   help="zenith | sm_asm | symmetry | least_squares | tilt_aware | all (default), or a "
+                        "comma-separated list")
+    p.add_argument("--pitch", type=float, help="known camera pitch, deg (tilt_aware needs it; also used to "
+                                               "resolve the least-squares sign)")
+    p.add_argument("--roll", type=float, help="known camera roll, deg")
+    p.add_argument("--stride", type=int, help="use every N-th sensor pixel (overrides each method's default)")
+    p.add_argument("--prior-bearing", type=float, help="prior true bearing of camera +y, deg: resolves the "
+                                                       "180 deg ambiguity when nothing else does")
+    p.add_argument("--knob", action="append", default=[], metavar="NAME=VALUE",
+                   help="estimator knob, e.g. --knob min_dop=0.1 (repeatable; applied to every method that has it)")
+    p.add_argument("--use-stored", action="store_true",
+                   help="use the stored AoP/DoP even when the frame holds a mosaic")
+    p.add_argument("--lat", type=float, help="site latitude, deg (only when the frame has no sun)")
+    p.add_argument("--lon", type=float, help="site longitude, deg")
+    p.add_argument("--time", help="UTC time, ISO 8601 (only when the frame has no sun)")
+    p.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
+    p.set_defaults(func=run)
+
+
+def _finite(name, v, lo, hi):
+    if v is None:
+        return
+    if not math.isfinite(v) or not (lo <= v <= hi):
+        raise CompassError(f"--{name} must be finite and in [{lo}, {hi}], got {v}")
+
+
+def _parse_knobs(items) -> dict:
+    import yaml
+    out = {}
+    for it in items:
+        if "=" not in it:
+            raise CompassError(f"--knob must be NAME=VALUE, got {it!r}")
+        k, v = it.split("=", 1)
+        try:
+            out[k.strip()] = yaml.safe_load(v)
+        except yaml.YAMLError:
+            raise CompassError(f"--knob {k}: cannot read value {v!r}") from None
+    return out
+
+
+def _sun(meta: dict, args):
+    az, alt = meta.get("sun_azimuth_deg"), meta.get("sun_altitude_deg")
+    ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (az, alt))
+    if ok:
+        return float(az), float(alt), "frame meta"
+    if args.lat is None or args.lon is None or args.time is None:
+        raise CompassError("the frame does not say where the sun was: give --lat, --lon and --time")
+    from ..solar import sun_position
+    pos = sun_position(args.time, args.lat, args.lon, 0.0)
+    return float(pos.azimuth_deg), float(pos.altitude_deg), "ephemeris (SPA) for --lat/--lon/--time"
+
+
+def _methods(text: str) -> list[str]:
+    from ..estimators import estimator_names
+    names = estimator_names()
+    if text == "all":
+        return names
+    wanted = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [w for w in wanted if w not in names]
+    if bad or not wanted:
+        raise CompassError(f"--method: unknown {', '.join(bad) or repr(text)}; known: {', '.join(names)} or all")
+    return wanted
+
+
+def run(args) -> int:
+    from ..conventions import fold_axial_deg, wrap_180_deg
+    from ..estimators import Observation, make_estimator
+    from ..frame_io import load_frame_npz
+
+    _finite("pitch", args.pitch, -89.999, 89.999)
+    _finite("roll", args.roll, -180, 180)
+    _finite("prior-bearing", args.prior_bearing, -360, 720)
+    _finite("lat", args.lat, -90, 90)
+    _finite("lon", args.lon, -180, 180)
+    if (args.pitch is None) != (args.roll is None):
+        raise CompassError("--pitch and --roll go together")
+    if args.stride is not None and not (1 <= args.stride <= 1024):
+        raise CompassError(f"--stride must be in [1, 1024], got {args.stride}")
+    methods = _methods(args.method)
+    knobs = _parse_knobs(args.knob)
+    frame = load_frame_npz(args.frame)
+    camera = frame.camera
+    sun_az, sun_alt, sun_src = _sun(frame.meta, args)
+    from ..estimators.base import _REGISTRY      # filled by _methods -> estimator_names()
+    estimators = []
+    used = set()
+    for name in methods:
+        cls = _REGISTRY[name]
+        specs = cls.knob_specs() if hasattr(cls, "knob_specs") else {}
+        kn = {k: v for k, v in knobs.items() if k in specs}
+        used.update(kn)
+        if args.stride is not None and "stride" in specs:
+            kn["stride"] = args.stride
+        estimators.append((name, make_estimator(name, **kn), kn))
+    unused = sorted(set(knobs) - used)
+    if unused:
+        raise CompassError(f"--knob {', '.join(unused)}: no selected method has that knob")
+
+    source = {"sun": sun_src}
+    use_mosaic = frame.mosaic is not None and not args.use_stored
+    stored_obs = None
+    if use_mosaic:
+        sensor = frame.meta.get("sensor") or {}
+        mos = sensor.get("mosaic") or {}
+        layout = mos.get("layout")
+        pol45 = mos.get("pol45_toward")
+        method = sensor.get("demosaic")
+        assumed = []
+        if layout is None:
+            from ..demosaic import IMX250MZR_LAYOUT
+            layout = [list(r) for r in IMX250MZR_LAYOUT]
+            assumed.append("layout")
+        if pol45 is None:
+            pol45 = "+x+y"
+            assumed.append("pol45_toward")
+        shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
+        if method is None:
+            method = "bilinear" if mshp == shp else "superpixel"
+            assumed.append("demosaic")
+        if method == "bilinear" and mshp == shp:
+            origin = (frame.x_px.flat[0], frame.y_px.flat[0])
+        elif method == "superpixel" and len(shp) == 2 and mshp == (2 * shp[0], 2 * shp[1]):
+            origin = (frame.x_px.flat[0] - 0.5, frame.y_px.flat[0] - 0.5)
+        else:
+            raise CompassError(f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
+                               "demosaic; use --use-stored")
+        bits = sensor.get("quantization_bits")
+        sat = float((1 << int(bits)) - 1) if bits else sensor.get("exposure", {}).get("full_well_e")
+        source["input"] = {"mosaic": list(mshp), "demosaic": method, "layout": layout, "pol45_toward": pol45,
+                           "assumed": assumed, "saturation_level": sat}
+        origin = (int(round(origin[0])), int(round(origin[1])))
+    else:
+        source["input"] = "stored AoP/DoP" + (" (--use-stored)" if frame.mosaic is not None else "")
+
+    out = []
+    for name, est, kn in estimators:
+        t0 = time.perf_counter()
+        if use_mosaic:
+            from ..estimators.mosaic_input import observation_from_mosaic
+            obs = observation_from_mosaic(frame.mosaic, camera, sun_az, sun_alt, origin_px=origin, method=method,
+                                          layout=layout, pol45_toward=pol45, saturation_level=sat,
+                                          selection=est.pixels_needed(camera),
+                                          with_intensity=frame.intensity is not None,
+                                          pitch_deg=args.pitch, roll_deg=args.roll,
+                                          prior_bearing_deg=args.prior_bearing)
+        else:
+            if stored_obs is None:
+                stored_obs = Observation(frame.aop_rad, frame.dop, frame.valid, frame.rays_cam(), frame.x_px,
+                                         frame.y_px, camera, sun_az, sun_alt, frame.intensity, args.pitch,
+                                         args.roll, args.prior_bearing)
+            obs = stored_obs
+        res = est.estimate(obs)
+        dt = (time.perf_counter() - t0) * 1e3
+        d = res.to_json_dict()
+        d["time_ms"] = round(dt, 3)
+        d["knobs"] = kn
+        truth = frame.meta.get("psi_deg")
+        if res.psi_deg is not None and isinstance(truth, (int, float)) and math.isfinite(truth):
+            err = res.psi_deg - float(truth)
+            d["truth_psi_deg"] = float(truth)
+            d["error_deg"] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
+        d["source"] = source
+        out.append(d)
+    json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
+    sys.stdout.write("\n")
+    return 0
+
+
+def _jsonable(v):
+    try:
+        import numpy as np
+        if isinstance(v, np.generic):
+            return v.item()
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+    except ImportError:  # pragma: no cover
+        pass
+    return str(v)

@@ -1,0 +1,146 @@
+"""From a raw division-of-focal-plane mosaic to an :class:`Observation`, demosaicing only what a method reads.
+
+An estimator's :meth:`pixels_needed` says which sensor pixels it uses; here that becomes the part of the
+mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a private demosaic):
+
+- ``superpixel``: one output per 2 x 2 block, at the block centre (``x = x0 + 2 l + 0.5``). A strided
+  selection keeps every ``max(1, stride // 2)``-th block row and column (block-aligned, so the polarizer
+  layout is unchanged; the kept blocks are centred on the image); a region keeps the blocks inside it.
+  The zenith method's 32 px window is 16 x 16 blocks: nothing else is demosaiced.
+- ``bilinear``: the region (plus a 2-pixel margin, so interpolation sees real neighbours) at full
+  resolution, then the stride.
+
+Rays come from the camera model and are cached per (camera, pixel grid). The result has 2-D arrays on
+a regular grid, as the estimators' compiled passes want.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from ..camera import CameraModel, PixelSelection
+from ..demosaic import IMX250MZR_LAYOUT, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
+    aop_dop_from_stokes
+from ..errors import CompassError
+from .base import Observation
+
+__all__ = ["observation_from_mosaic", "MosaicInputError"]
+
+
+class MosaicInputError(CompassError):
+    """A mosaic that does not fit the camera or the requested pixels."""
+
+
+@lru_cache(maxsize=64)
+def _grid_rays(camera: CameraModel, x_key: tuple, y_key: tuple):
+    """(x_px, y_px, rays (3, N) float32, has_ray) of the grid x0 + dx * arange(nx), y0 + dy * arange(ny)."""
+    xs = x_key[0] + x_key[1] * np.arange(x_key[2])
+    ys = y_key[0] + y_key[1] * np.arange(y_key[2])
+    xg, yg = np.meshgrid(xs, ys)
+    rays, ok = camera.rays_from_pixels(xg, yg)
+    out = (xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(xg.shape))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def _centred(n: int, step: int) -> np.ndarray:
+    count = (n - 1) // step + 1
+    start = (n - 1 - (count - 1) * step) // 2
+    return start + step * np.arange(count)
+
+
+def _wanted_rect(selection: PixelSelection | None, x0: int, y0: int, H: int, W: int):
+    """(x_lo, y_lo, x_hi, y_hi) sensor pixels (inclusive) and stride wanted, clipped to the mosaic."""
+    xl, yl, xh, yh, stride = x0, y0, x0 + W - 1, y0 + H - 1, 1
+    if selection is not None:
+        if selection.mode == "region":
+            rx, ry, rw, rh = selection.region
+            xl, yl, xh, yh = max(xl, rx), max(yl, ry), min(xh, rx + rw - 1), min(yh, ry + rh - 1)
+            stride = max(1, selection.stride)
+        elif selection.mode == "stride":
+            stride = max(1, selection.stride)
+    if xl > xh or yl > yh:
+        raise MosaicInputError(f"the pixels wanted ({selection.describe()}) are outside the mosaic "
+                               f"({W} x {H} at ({x0}, {y0}))")
+    return xl, yl, xh, yh, stride
+
+
+def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float, *,
+                            origin_px=(1, 1), method: str = "superpixel", layout=IMX250MZR_LAYOUT,
+                            pol45_toward: str = "+x+y", saturation_level=None,
+                            selection: PixelSelection | None = None, with_intensity: bool = False,
+                            pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> Observation:
+    """Demosaic the part of ``mosaic`` that ``selection`` needs and wrap it as an :class:`Observation`.
+
+    ``origin_px``: 1-based sensor (x, y) of the mosaic's top-left sample; ``layout`` is the full sensor's
+    (pixel (1, 1) first), so the mosaic's top-left polarizer is ``layout[(y-1) % 2][(x-1) % 2]``. ``with_intensity``: also return S0
+    (costs the Stokes path instead of the fused AoP kernel). Grid and list selections read everything.
+    """
+    m = np.asarray(mosaic)
+    if m.ndim != 2 or m.shape[0] < 2 or m.shape[1] < 2:
+        raise MosaicInputError(f"a mosaic must be a 2-D image of at least 2 x 2 pixels, got shape {m.shape}")
+    x0, y0 = int(origin_px[0]), int(origin_px[1])
+    H, W = m.shape
+    if x0 < 1 or y0 < 1 or x0 + W - 1 > camera.width_px or y0 + H - 1 > camera.height_px:
+        raise MosaicInputError(f"a {W} x {H} mosaic at ({x0}, {y0}) does not fit the {camera.width_px} x "
+                               f"{camera.height_px} camera")
+    lay = parse_layout(layout, pol45_toward).shifted((y0 - 1) % 2, (x0 - 1) % 2)   # the mosaic's own phase
+    xl, yl, xh, yh, stride = _wanted_rect(selection, x0, y0, H, W)
+    if method == "superpixel":
+        # whole blocks of the mosaic's own 2 x 2 lattice inside the wanted rectangle
+        bx0 = math.ceil((xl - x0) / 2)
+        by0 = math.ceil((yl - y0) / 2)
+        bx1 = (xh - x0 + 1) // 2          # exclusive
+        by1 = (yh - y0 + 1) // 2
+        if bx1 <= bx0 or by1 <= by0:
+            raise MosaicInputError("the pixels wanted hold no complete 2 x 2 superpixel")
+        k = max(1, stride // 2)
+        cols = bx0 + _centred(bx1 - bx0, k)
+        rows = by0 + _centred(by1 - by0, k)
+        blocks = m[: 2 * (H // 2), : 2 * (W // 2)].reshape(H // 2, 2, W // 2, 2)
+        if k == 1:
+            sub = blocks[rows[0]:rows[-1] + 1, :, cols[0]:cols[-1] + 1, :]
+        else:
+            sub = blocks[rows[0]:rows[-1] + 1:k, :, cols[0]:cols[-1] + 1:k, :]
+        sub = np.ascontiguousarray(sub).reshape(2 * rows.size, 2 * cols.size)
+        lay_sub = lay                                # block-aligned: same phase as the mosaic
+        gx = (x0 + 2.0 * cols[0] + 0.5, 2.0 * k, int(cols.size))
+        gy = (y0 + 2.0 * rows[0] + 0.5, 2.0 * k, int(rows.size))
+    elif method == "bilinear":
+        margin = 2
+        cx0 = max(x0, xl - margin)
+        cy0 = max(y0, yl - margin)
+        cx1 = min(x0 + W - 1, xh + margin)
+        cy1 = min(y0 + H - 1, yh + margin)
+        sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
+        lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
+        gx = gy = None
+    else:
+        raise MosaicInputError(f"demosaic method must be superpixel or bilinear, got {method!r}")
+    if with_intensity:
+        s0, s1, s2 = stokes_from_mosaic(sub, lay_sub, lay_sub.pol45_toward, method, saturation_level)
+        aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+        inten = s0
+    else:
+        aop, dop, valid = polarization_from_mosaic(sub, lay_sub, lay_sub.pol45_toward, method, saturation_level)
+        inten = None
+    if method == "bilinear":
+        ys = np.arange(cy0, cy1 + 1)
+        xs = np.arange(cx0, cx1 + 1)
+        ri = np.nonzero((ys >= yl) & (ys <= yh))[0]
+        ci = np.nonzero((xs >= xl) & (xs <= xh))[0]
+        ri = ri[_centred(ri.size, stride)]
+        ci = ci[_centred(ci.size, stride)]
+        sl = (slice(ri[0], ri[-1] + 1, stride), slice(ci[0], ci[-1] + 1, stride))
+        aop, dop, valid = aop[sl], dop[sl], valid[sl]
+        inten = None if inten is None else inten[sl]
+        gx = (float(xs[ci[0]]), float(stride), int(ci.size))
+        gy = (float(ys[ri[0]]), float(stride), int(ri.size))
+    xg, yg, rays, has_ray = _grid_rays(camera, gx, gy)
+    valid = np.ascontiguousarray(valid) & has_ray
+    return Observation(np.ascontiguousarray(aop), np.ascontiguousarray(dop), valid, rays, xg, yg, camera,
+                       float(sun_azimuth_deg), float(sun_altitude_deg),
+                       None if inten is None else np.ascontiguousarray(inten), pitch_deg, roll_deg, prior_bearing_deg)
