@@ -462,3 +462,41 @@ def test_default_topics_are_the_nodes_topics():
     assert d.spec("image").topic == "/" + T.IMAGE and d.spec("camera_info").topic == "/" + T.CAMERA_INFO
     assert d.spec("imu").topic == "/" + T.IMU and d.spec("navsatfix").topic == "/" + T.FIX
     assert d.spec("reference").topic == "/" + T.TRUTH
+
+
+# ------------------------------------------------------------------------------------------------
+# plumbing
+# ------------------------------------------------------------------------------------------------
+def test_prefetch_keeps_order_reraises_in_place_and_stops_when_closed():
+    import threading
+    from polarization_compass.replay import prefetched
+
+    assert list(prefetched(iter(range(100)), depth=3)) == list(range(100))
+
+    def failing():
+        yield 1
+        yield 2
+        raise B.BagError("truncated")
+
+    got = []
+    with pytest.raises(B.BagError, match="truncated"):
+        for x in prefetched(failing()):
+            got.append(x)
+    assert got == [1, 2]
+    gen = prefetched(iter(range(10**6)), depth=2)
+    assert next(gen) == 0
+    gen.close()
+    assert not any(t.name == "bag-prefetch" and t.is_alive() for t in threading.enumerate())
+
+
+def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
+    import numba
+    from polarization_compass.replay import _openblas_handles, single_threaded_kernels
+    before = numba.get_num_threads()
+    assert _openblas_handles(), "numpy's OpenBLAS not found"
+    blas_before = [g() for _, g in _openblas_handles()]
+    with single_threaded_kernels():
+        assert numba.get_num_threads() == 1
+        assert all(g() == 1 for _, g in _openblas_handles())
+    assert numba.get_num_threads() == before
+    assert [g() for _, g in _openblas_handles()] == blas_before
