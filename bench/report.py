@@ -212,10 +212,11 @@ def _accuracy_section(acc, crb) -> list[str]:
         return lines + [f"Accuracy benchmark: {st}." + (f" {len(bad)} configurations unavailable." if bad else ""), ""]
     r = acc["results"]
     lines += [f"{r['scenes_per_condition']} seeded random scenes per condition (sun azimuth 0-360 deg, altitude "
-              f"10-60 deg, any bearing), {r['repeats_per_scene']} timed estimates per scene, one core. Errors: "
+              f"10-60 deg (10-50 when tilted), any bearing), {r['repeats_per_scene']} timed estimates per scene, one core. Errors: "
               "estimated minus true heading, folded mod 180 deg for methods that only find the solar meridian. "
               "CRB: Cramer-Rao bound of the heading for the pixels the configuration reads (AoP noise "
               "1/(P sqrt(8N)) per superpixel, N = 5000 e-); RMS/CRB = 1 is a perfect estimator.", ""]
+    lines += _headline(cells, r)
     header = ["method", "knobs", "pixels", "RMS (deg)", "p95 (deg)", "max (deg)", "ms median", "ms p95",
               "peak MiB", "CRB (deg)", "RMS/CRB", "fails"]
     for cond in list(dict.fromkeys(c["condition"] for c in cells)):
@@ -236,6 +237,52 @@ def _accuracy_section(acc, crb) -> list[str]:
     for s in r.get("skipped_conditions", []):
         lines.append(f"- condition `{s['condition']}` skipped: {s['reason']}")
     return lines + [""]
+
+
+REFERENCE_KNOBS = {"zenith": ("window 33 px",), "default": ("stride 8", "stride 16")}
+
+
+def _reference_cell(cells, method, condition):
+    """The cell with a method's reference knobs in a condition (superpixel demosaic if there is a sensor)."""
+    labels = REFERENCE_KNOBS.get(method, REFERENCE_KNOBS["default"])
+    for lab in labels:
+        for c in cells:
+            if c["method"] == method and c["condition"] == condition and \
+                    c["knobs_label"] in (lab, lab + ", superpixel demosaic"):
+                return c
+    return None
+
+
+def _headline(cells, r) -> list[str]:
+    """Two compact tables for the README: the Pareto front in the noisy condition, and each method's
+    error by condition at fixed reference knobs."""
+    lines = []
+    noisy = [c for c in cells if c["condition"] == "noise_imx250"]
+    if noisy:
+        rows = []
+        for m in dict.fromkeys(c["method"] for c in noisy):
+            mc = [c for c in noisy if c["method"] == m]
+            front = pareto_front([(c["time"]["median_ms"], c["error"]["rms_deg"], i) for i, c in enumerate(mc)])
+            for _, _, i in front:
+                c = mc[i]
+                rows.append([m, c["knobs_label"], _f(c["time"]["median_ms"]), _f(c["error"]["rms_deg"]),
+                             _f(c["error"]["max_deg"]), _f(c.get("crb_rms_deg")), _f(c.get("rms_over_crb"))])
+        lines += ["**Pareto-optimal settings** (IMX250MZR-like noise, level; time = estimate only, one core; "
+                  "add the demosaic: see Simulator/Node pipeline):", ""]
+        lines += _table(["method", "knobs", "ms", "RMS (deg)", "max (deg)", "CRB (deg)", "RMS/CRB"], rows) + [""]
+    conds = list(dict.fromkeys(c["condition"] for c in cells))
+    methods = list(dict.fromkeys(c["method"] for c in cells))
+    rows = []
+    for m in methods:
+        row = [m]
+        for cond in conds:
+            c = _reference_cell(cells, m, cond)
+            row.append("-" if c is None else f"{_f(c['error']['rms_deg'])} ({_f(c['error']['max_deg'])})")
+        rows.append(row)
+    lines += ["**Error by condition**, RMS (max) in deg, at reference settings (zenith: 33 px window; others: "
+              "stride 8, or 16 in quick mode; superpixel demosaic where there is a sensor):", ""]
+    lines += _table(["method"] + conds, rows) + [""]
+    return lines
 
 
 def _crb_section(crb) -> list[str]:
