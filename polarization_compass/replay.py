@@ -705,7 +705,8 @@ def plot_replay(result: ReplayResult, out_dir) -> dict:
             s["cor"].append(r.corrected_error_deg)
     pitch = [r.pitch_deg for r in rows if r.pitch_deg is not None]
     roll = [r.roll_deg for r in rows if r.roll_deg is not None]
-    tilt_txt = (f"IMU pitch {np.mean(pitch):.1f} deg, roll {np.mean(roll):.1f} deg (mean)" if pitch else "tilt unknown")
+    tilt_txt = (f"IMU pitch {round(float(np.mean(pitch)), 1) + 0.0:.1f} deg, roll {round(float(np.mean(roll)), 1) + 0.0:.1f}"
+                " deg (mean)" if pitch else "tilt unknown")
     if not any(series[m]["raw"] for m in methods):
         return paths
 
