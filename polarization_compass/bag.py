@@ -118,7 +118,8 @@ class TopicMap:
     ``pixel_pitch_um``: converts camera_info focal lengths (pixels) into the model's millimetres.
     ``camera``: optional fallback :class:`CameraModel` fields when the bag has no camera_info.
     ``site``: optional fallback ``{latitude_deg, longitude_deg, altitude_m}`` when it has no NavSatFix.
-    ``max_gap_s``: per role, the largest time between an image stamp and the data used with it.
+    ``max_gap_s``: for ``imu`` and ``reference``, the largest time between an image stamp and a sample
+    used with it (the site is the latest NavSatFix, as on the nodes).
     ``lookahead_s``: how far (bag receive time) the reader looks past an image before processing it.
     """
 
@@ -128,7 +129,7 @@ class TopicMap:
     R_body_cam: tuple = tuple(map(tuple, R_BODY_CAM_DEFAULT))
     camera: dict | None = None
     site: dict | None = None
-    max_gap_s: dict = field(default_factory=lambda: {"imu": 0.05, "reference": 0.25, "navsatfix": 5.0})
+    max_gap_s: dict = field(default_factory=lambda: {"imu": 0.05, "reference": 0.25})
     lookahead_s: float = 0.5
 
     def __hash__(self):
@@ -260,7 +261,7 @@ BUILTIN_TOPIC_MAP = {
     "mounting": {"R_body_cam": [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]},
     "camera": None,
     "site": None,
-    "max_gap_s": {"imu": 0.05, "reference": 0.25, "navsatfix": 5.0},
+    "max_gap_s": {"imu": 0.05, "reference": 0.25},
     "lookahead_s": 0.5,
 }
 

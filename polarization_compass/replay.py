@@ -187,7 +187,7 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
     wanted = {spec.topic: role for role, spec in topic_map.topics.items() if plan.present.get(role, 0) > 0}
     keep_ns = int(max(10.0, 4 * topic_map.lookahead_s) * 1e9)
     imu, ref = AttitudeBuffer(keep_ns), AttitudeBuffer(keep_ns)
-    tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference", "navsatfix")}
+    tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference")}
     look_ns = int(topic_map.lookahead_s * 1e9)
     R_body_cam = topic_map.R_body_cam_array
     pending: deque = deque()
@@ -195,7 +195,6 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
     newest_image = newest_fix = newest_info = None
     camera = CameraModel(**topic_map.camera) if topic_map.camera is not None else None
     site = None
-    fix_ns = None
     if topic_map.site is not None:
         s = topic_map.site
         site = (float(s["latitude_deg"]), float(s["longitude_deg"]), float(s.get("altitude_m", 0.0)))
@@ -268,7 +267,7 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
                 buf.add(t, value)
             elif role == "navsatfix":
                 if newest_fix is None or t >= newest_fix:
-                    fix_ns, newest_fix = t, t
+                    newest_fix = t
                     site = value
             else:
                 if newest_info is None or t >= newest_info:
