@@ -296,7 +296,9 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
                   "turns": float(turns), "turn_rate_deg_s": float(turn_rate_deg_s), "pitch_deg": float(pitch_deg),
                   "roll_deg": float(roll_deg), "scene": scene, "clock_mode": "sim",
                   "exit_when_done": bool(exit_when_done), "lockstep": bool(lockstep),
-                  "lockstep_topics": lock_topics, "wait_for_subscribers": len(all_methods)}
+                  "lockstep_topics": lock_topics, "wait_for_subscribers": len(all_methods),
+                  # every estimator reads the IMU (prior or tilt) and so does every corrector
+                  "wait_for_imu_subscribers": len(all_methods) + len(methods)}
     pubs, subs = T.simulator_topics("motion", publish_clock=True)
     if lockstep:
         subs = list(subs) + [(t, T.T_STRING) for t in lock_topics]

@@ -221,3 +221,12 @@ def test_fastdds_profile_is_shipped_and_installed():
 def test_every_method_in_params_is_a_method_name():
     assert set(PAPER_METHODS) < set(ALL_METHODS)
     assert graphs.share_dir() == ROOT
+
+
+def test_docs_list_every_parameter():
+    from polarization_compass.nodes.params import markdown_tables
+    text = (ROOT / "docs" / "ros.md").read_text()
+    assert markdown_tables() in text, "docs/ros.md parameter tables are stale: paste params.markdown_tables()"
+    for node, specs in SPECS.items():
+        for p in specs:
+            assert f"| `{p.name}` |" in text, f"docs/ros.md does not list {node}.{p.name}"

@@ -214,7 +214,8 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
                 raise CompassError(f"the run took longer than --timeout {args.timeout:g} s")
             if time.monotonic() - last_note > 15:
                 last_note = time.monotonic()
-                print(f"sim: running ({time.monotonic() - t_start:.0f} s)", flush=True)
+                print(f"sim: running ({time.monotonic() - t_start:.0f} s{_progress(logs / f'{sim_name}.log')})",
+                      flush=True)
         if sim.returncode != 0:
             raise CompassError(f"sky_simulator exited with {sim.returncode}: " + _tail(logs, sim_name))
         time.sleep(1.0)
@@ -239,6 +240,16 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
     print(f"\nreport: {out}/evaluation_summary.csv, evaluation_samples.csv, evaluation.png, "
           f"evaluation_summary.json; node logs: {logs}/ ({time.monotonic() - t_start:.0f} s)")
     return 0
+
+
+def _progress(log: Path) -> str:
+    """", frame N/M" from the simulator's last progress line, or ""."""
+    import re
+    try:
+        found = re.findall(r"\] frame (\d+(?:/\d+)?)", log.read_text(errors="replace"))
+    except OSError:
+        return ""
+    return f", frame {found[-1]}" if found else ""
 
 
 def _stop_all(procs: dict) -> dict:
@@ -285,6 +296,10 @@ def format_table(summary: dict, realtime: bool = False) -> str:
             label = kind if m != "tilt_aware" else "tilt-aware"
             lines.append(f"{m:<14} {label:<10} {d['count']:>7d} {d['missed']:>6d} {d['mean']:>8.3f} {d['rms']:>8.3f} "
                          f"{d['p95']:>8.3f} {d['max']:>8.3f} {d.get('latency_ms_p95', 0.0):>10.1f}")
+    for name, d in streams.items():
+        if d.get("not_published"):
+            why = ", ".join(f"{k} x{v}" for k, v in sorted(d["not_published"].items()))
+            lines.append(f"note: {name}: frames not published: {why}")
     if not realtime:
         lines.append("(lockstep run: latency includes waiting for the slowest node; use --realtime to measure it)")
     return "\n".join(lines)

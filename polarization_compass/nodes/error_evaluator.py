@@ -70,6 +70,12 @@ class ErrorEvaluatorNode(Node):
         self.create_subscription(Imu, topics.TRUTH, self._on_truth, qos)
         for name, topic in self.streams:
             self.create_subscription(Imu, topic, lambda m, n=name: self._on_estimate(n, m), qos)
+        # why frames were not published (estimator status, corrector status), per stream
+        self.not_published: dict[str, dict] = {name: {} for name, _ in self.streams}
+        for name, _ in self.streams:
+            method, kind = name.split("/")
+            t = topics.method_topics(method)["status" if kind == "raw" else "correction_status"]
+            self.create_subscription(String, t, lambda m, n=name: self._on_status(n, m), qos)
         if self.get_parameter("use_sim_time").value:
             self.create_subscription(Clock, topics.CLOCK, self._on_clock, QoSProfile(depth=10))
         self.pub_summary = self.create_publisher(String, topics.EVAL_SUMMARY, QoSProfile(depth=10))
@@ -99,6 +105,17 @@ class ErrorEvaluatorNode(Node):
         self.matcher.add_truth(stamp_ns(msg.header), b)
         self.diag.done(t_in, None)
 
+    def _on_status(self, stream: str, msg):
+        try:
+            st = json.loads(msg.data)
+            published, status = bool(st.get("published", True)), str(st.get("status", "?"))
+        except (ValueError, TypeError, AttributeError):
+            self.diag.reject("bad_status_json", stream)
+            return
+        if not published:
+            d = self.not_published[stream]
+            d[status] = d.get(status, 0) + 1
+
     def _on_estimate(self, stream: str, msg):
         t_in = self.diag.input()
         t_ns = stamp_ns(msg.header)
@@ -121,6 +138,7 @@ class ErrorEvaluatorNode(Node):
             d["latency_ms_p50"] = float(np.percentile(lat, 50)) if lat.size else 0.0
             d["latency_ms_p95"] = float(np.percentile(lat, 95)) if lat.size else 0.0
             d["latency_ms_max"] = float(lat.max()) if lat.size else 0.0
+            d["not_published"] = dict(self.not_published.get(name, {}))
         return {"truth_frames": self.matcher.truth_count, "streams": s}
 
     def publish_summary(self) -> None:

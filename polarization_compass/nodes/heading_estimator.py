@@ -136,6 +136,10 @@ class HeadingEstimatorNode(Node):
     def _camera_for(self, width: int, height: int) -> CameraModel:
         p = self.params
         cam = self.camera_from_info if p["camera_info_source"] == "topic" else None
+        if cam is None and p["camera_info_source"] == "topic":
+            self.get_logger().warning(f"no camera_info on {topics.CAMERA_INFO} yet: using the fallback intrinsics "
+                                      "from parameters (camera_model, focal_length_mm, pixel_pitch_um)",
+                                      throttle_duration_sec=10.0)
         if cam is None:
             pitch = p["pixel_pitch_um"]
             try:
@@ -186,13 +190,15 @@ class HeadingEstimatorNode(Node):
             result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
             status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
         except (PipelineError, CompassError) as exc:
-            status.update(status="bad_input", reason=str(exc), ok=False)
+            self.get_logger().warning(f"frame {t_ns / 1e9:.3f} s: {exc}", throttle_duration_sec=5.0)
+            status.update(status="bad_input", reason=str(exc), ok=False, published=False)
             self._publish_status(status)
             self.diag.done(t_in, t_ns, f"bad_input: {exc}", ok=False)
             return
         except Exception as exc:  # noqa: BLE001 - one bad frame must not stop the node
             self.diag.reject("estimator_exception", f"{type(exc).__name__}: {exc}")
-            status.update(status="estimator_exception", reason=f"{type(exc).__name__}: {exc}", ok=False)
+            status.update(status="estimator_exception", reason=f"{type(exc).__name__}: {exc}", ok=False,
+                          published=False)
             self._publish_status(status)
             return
         status.update(status=result.status.value, reason=result.reason, ok=result.ok, axial=result.axial,
@@ -214,6 +220,9 @@ class HeadingEstimatorNode(Node):
             else:
                 self.diag.reject("non_finite_result", "the estimator returned a non-finite heading")
         status["published"] = published
+        if not published:
+            self.get_logger().warning(f"frame {t_ns / 1e9:.3f} s not published: {result.status.value}: "
+                                      f"{result.reason}", throttle_duration_sec=5.0)
         self._publish_status(status)
         text = (f"{result.status.value}: bearing {result.bearing_deg:.3f} deg, sigma {result.sigma_deg:.3g} deg"
                 if result.ok else f"{result.status.value}: {result.reason}")

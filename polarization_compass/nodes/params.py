@@ -178,9 +178,11 @@ SIMULATOR = (
     Param("exit_when_done", False, "exit (code 0) after the last frame (and linger_s more) instead of idling"),
     Param("linger_s", 2.0, "after the last frame, keep /clock running this long (wall) before exiting",
           0.0, 600.0, unit="s"),
-    Param("wait_for_subscribers", 0, "before the first frame, wait until the image topic has this many "
-                                     "subscribers (and the truth topic one), at most wait_timeout_s", 0, 1000,
-          read_only=True),
+    Param("wait_for_subscribers", 0, "before the first frame, wait until the image and camera_info topics have "
+                                     "this many subscribers (and the truth topic one), at most wait_timeout_s",
+          0, 1000, read_only=True),
+    Param("wait_for_imu_subscribers", 0, "before the first frame, wait until imu/data has this many subscribers",
+          0, 1000, read_only=True),
     Param("wait_timeout_s", 60.0, "longest wait for subscribers (wall clock)", 0.0, 3600.0, unit="s",
           read_only=True),
     Param("imu_attitude_noise_deg", 0.05, "simulated IMU: white noise on roll and pitch (1 sigma)",
@@ -353,3 +355,34 @@ def knob_values(method: str, values: dict) -> dict:
             v = match[0] if match else v
         out[name] = v
     return out
+
+
+def markdown_tables() -> str:
+    """The parameter tables of docs/ros.md (a test keeps the document equal to this)."""
+    lines = []
+    for node, specs in SPECS.items():
+        lines += ["", f"#### {node}", "", "| parameter | default | range / choices | run time | meaning |",
+                  "|---|---|---|---|---|"]
+        for p in specs:
+            if p.choices:
+                rng = " \\| ".join(p.choices)
+            elif p.lo is not None:
+                rng = f"[{p.lo:g}, {p.hi:g}]" + (f" {p.unit}" if p.unit else "")
+            else:
+                rng = p.unit
+            d = str(p.default).lower() if isinstance(p.default, bool) else p.default
+            d = "`\"\"`" if d == "" else f"`{d}`"
+            lines.append(f"| `{p.name}` | {d} | {rng} | {'no' if p.read_only else 'yes'} | {p.description} |")
+    lines += ["", "#### heading_estimator knobs (`knob.<name>`, least_squares)", "",
+              "| parameter | default | range / choices | meaning |", "|---|---|---|---|"]
+    for p in knob_params("least_squares"):
+        if p.choices:
+            rng = " \\| ".join(p.choices)
+        elif p.lo is not None and p.hi is not None:
+            rng = f"[{p.lo:g}, {p.hi:g}]"
+        elif p.lo is not None:
+            rng = f">= {p.lo:g}"
+        else:
+            rng = ""
+        lines.append(f"| `{p.name}` | `{p.default}` | {rng} | {p.description.replace('estimator knob: ', '')} |")
+    return "\n".join(lines) + "\n"

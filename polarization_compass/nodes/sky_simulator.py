@@ -132,6 +132,7 @@ class SkySimulatorNode(Node):
         self.k_imu = 0
         self.done_wall = None
         self.started = False
+        self.t_primed = None
         self.t_wait0 = time.monotonic()
         self.rng_imu = np.random.default_rng([p["seed"], 7])
         from .diagnostics import _wall_clock
@@ -252,6 +253,9 @@ class SkySimulatorNode(Node):
                            float(np.percentile(self.render_ms[-200:], 95)), "true_bearing_deg": att.bearing_deg,
                            "sun_altitude_deg": alt}
         self.diag.last_status = f"frame {self.frames} bearing {att.bearing_deg:.2f} deg"
+        if self.frames % 25 == 0:
+            n = "" if self.total_s is None else f"/{int(math.ceil(self.total_s * p['rate_hz'] - 1e-9))}"
+            self.get_logger().info(f"frame {self.frames}{n}")
 
     def _publish_clock(self, t_ns: int) -> None:
         if self.pub_clock is not None:
@@ -271,20 +275,39 @@ class SkySimulatorNode(Node):
 
     # the sim clock ------------------------------------------------------------------------------
     def _ready(self, now: float) -> bool:
-        """Wait (once) for the expected subscribers before the first frame."""
+        """Before the first frame: wait for the expected subscribers (image and camera_info:
+        ``wait_for_subscribers``; IMU: ``wait_for_imu_subscribers``; truth: one when either is set), then
+        send camera_info, the fix and the first IMU sample, and give them ``0.3 s`` to arrive, so that
+        frame 0 is processed with the right intrinsics, site and tilt."""
         if self.started:
             return True
         p = self.params
-        need = p["wait_for_subscribers"]
-        ok = need == 0 or (self.pub_image.get_subscription_count() >= need
-                           and self.pub_truth.get_subscription_count() >= 1)
-        if ok or now - self.t_wait0 > p["wait_timeout_s"]:
+        if self.t_primed is None:
+            need, need_imu = p["wait_for_subscribers"], p["wait_for_imu_subscribers"]
+            ok = (self.pub_image.get_subscription_count() >= need and self.pub_info.get_subscription_count() >= need
+                  and self.pub_imu.get_subscription_count() >= need_imu
+                  and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1))
+            if not ok and now - self.t_wait0 <= p["wait_timeout_s"]:
+                return False
             if not ok:
-                self.get_logger().warning(f"starting after {p['wait_timeout_s']:g} s with "
-                                          f"{self.pub_image.get_subscription_count()} image subscriber(s)")
-            self.started = True
-            return True
-        return False
+                self.get_logger().warning(
+                    f"starting after {p['wait_timeout_s']:g} s with {self.pub_image.get_subscription_count()} image, "
+                    f"{self.pub_imu.get_subscription_count()} IMU and {self.pub_truth.get_subscription_count()} truth "
+                    "subscriber(s)")
+            t0 = self.start_ns if self.sim_mode else self.get_clock().now().nanoseconds
+            self._publish_clock(t0)
+            self.pub_info.publish(camera_info_msg(self.camera, t0, p["camera_frame_id"]))
+            self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t0, "gps"))
+            R = self._attitude_at(t0, 0.0)
+            if R is not None and self.sim_mode:
+                self._publish_imu(t0, R)
+                self.k_imu = 1
+            self.t_primed = now
+            return False
+        if now - self.t_primed < 0.3:
+            return False
+        self.started = True
+        return True
 
     def _tick_sim(self) -> None:
         now = time.monotonic()

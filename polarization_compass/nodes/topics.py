@@ -12,6 +12,7 @@ from __future__ import annotations
 
 __all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY",
            "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
+           "evaluator_streams",
            "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
            "T_QUAT_STAMPED"]
 
@@ -100,4 +101,7 @@ def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool
 def evaluator_topics(streams):
     pubs = [(EVAL_SUMMARY, T_STRING), (DIAGNOSTICS, T_DIAG)]
     subs = [(TRUTH, T_IMU)] + [(topic, T_IMU) for _, topic in streams]
+    for name, _ in streams:                       # statuses: why a frame was not published
+        method, kind = name.split("/")
+        subs.append((method_topics(method)["status" if kind == "raw" else "correction_status"], T_STRING))
     return pubs, subs
