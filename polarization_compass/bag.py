@@ -42,7 +42,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .camera import CameraError, CameraModel
 from .conventions import (QuaternionError, R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, matrix_to_quat,
@@ -273,16 +272,11 @@ def _builtin_defaults() -> dict:
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
     """Load a topic mapping YAML (safe loader); ``None`` gives the defaults (what ``record-sim`` writes).
     Keys not given keep their defaults."""
+    from .safe_load import load_yaml, read_text
     if path is None:
         return _topic_map_from_dict(_builtin_defaults(), "default topic mapping")
-    p = Path(path)
-    if not p.is_file():
-        raise BagError(f"topic mapping {str(p)!r} does not exist")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise BagError(f"{p}: not valid YAML: {str(exc).splitlines()[0]}") from None
-    return _topic_map_from_dict(data or {}, str(p))
+    text = read_text(path, BagError, "topic mapping")          # missing, directory, not UTF-8: one line
+    return _topic_map_from_dict(load_yaml(text, str(path), BagError) or {}, str(path))
 
 
 def default_topic_map() -> TopicMap:

@@ -54,9 +54,18 @@ def test_bad_mapping_is_one_clear_error(tmp_path, text, words):
     assert words in str(ei.value) and "\n" not in str(ei.value)
 
 
-def test_missing_mapping_file():
+def test_missing_directory_binary_or_unsafe_mapping_file_is_one_line(tmp_path):
     with pytest.raises(B.BagError, match="does not exist"):
         B.load_topic_map("/nonexistent/m.yaml")
+    with pytest.raises(B.BagError, match="is a directory"):
+        B.load_topic_map(tmp_path)
+    (tmp_path / "bin.yaml").write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe")
+    with pytest.raises(B.BagError, match="not UTF-8"):
+        B.load_topic_map(tmp_path / "bin.yaml")
+    (tmp_path / "evil.yaml").write_text("topics: !!python/object/apply:os.system ['touch %s']\n" % (tmp_path / "PWNED"))
+    with pytest.raises(B.BagError, match="safe loader"):
+        B.load_topic_map(tmp_path / "evil.yaml")
+    assert not (tmp_path / "PWNED").exists()
 
 
 # ------------------------------------------------------------------------------------------------
