@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import sys
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -323,6 +324,7 @@ def run(cfg) -> dict:
                     cond_cells.append(c)
                     cells.append(c)
         renderers: dict = {}
+        t_cond = time.perf_counter()
         for k in range(int(cfg.scenes)):
             s = sample_scene(cond, k)
             frames: dict = {}
@@ -348,6 +350,9 @@ def run(cfg) -> dict:
                     c.status = f"failed: {type(exc).__name__}: {exc}"
                     c.estimator = None
                     c.traceback = traceback.format_exc(limit=3)
+        if not cfg.tiny:
+            print(f"    accuracy: {cond.name}: {len(cond_cells)} configurations x {cfg.scenes} scenes in "
+                  f"{time.perf_counter() - t_cond:.0f} s", file=sys.stderr, flush=True)
     return {"conditions": {c.name: c.description for c in conds}, "skipped_conditions": skipped,
             "scenes_per_condition": int(cfg.scenes), "repeats_per_scene": int(cfg.repeats),
             "camera": {"model": camera.model, "width_px": camera.width_px, "height_px": camera.height_px},
