@@ -81,20 +81,7 @@ def run_and_map(tmp_path_factory):
 
 
 def test_nodes_give_the_offline_replay_errors(run_and_map, ros_env, tmp_path):
-    import warnings
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import rosidl_generator_py  # noqa: F401
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from rclpy.qos import QoSProfile
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-    from std_msgs.msg import String
-
     from polarization_compass import graphs
-    from polarization_compass.nodes import topics as T
 
     bag_path, map_path = run_and_map
     methods = ("least_squares", "tilt_aware")
@@ -111,9 +98,35 @@ def test_nodes_give_the_offline_replay_errors(run_and_map, ros_env, tmp_path):
                                 "report_dir": str(report)})
     share = graphs.share_dir()
     nodes = []
-    for spec in g.nodes:
-        extra = ["-p", f"knob.stride:={STRIDE}"] if spec.executable == "heading_estimator" else []
-        nodes.append(_Node(spec, share, extra, env, logs))
+    try:
+        for spec in g.nodes:
+            extra = ["-p", f"knob.stride:={STRIDE}"] if spec.executable == "heading_estimator" else []
+            nodes.append(_Node(spec, share, extra, env, logs))
+        codes = _play(nodes, bag_path, env, methods)
+    finally:
+        for n in nodes:                  # never leave a node behind, whatever failed
+            if n.alive():
+                n.stop()
+    assert all(c == 0 for c in codes.values()), {n.name: n.text()[-1500:] for n in nodes}
+    _compare(report, offline)
+
+
+def _play(nodes, bag_path, env, methods) -> dict:
+    """Publish the bag through the running nodes (lockstep per image); stop them; their exit codes."""
+    import json
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import rosidl_generator_py  # noqa: F401
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
+    from std_msgs.msg import String
+
+    from polarization_compass.nodes import topics as T
 
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=int(env["ROS_DOMAIN_ID"]))
@@ -124,11 +137,9 @@ def test_nodes_give_the_offline_replay_errors(run_and_map, ros_env, tmp_path):
     corrections = set()
 
     def on_status(m, msg):
-        import json
         statuses[m].add(int(json.loads(msg.data)["stamp_ns"]))
 
     def on_corr(msg):
-        import json
         corrections.add(int(json.loads(msg.data)["stamp_ns"]))
 
     for m in methods:
@@ -183,8 +194,11 @@ def test_nodes_give_the_offline_replay_errors(run_and_map, ros_env, tmp_path):
         ex.shutdown()
         player.destroy_node()
         rclpy.try_shutdown(context=ctx)
-    assert all(c == 0 for c in codes.values()), {n.name: n.text()[-1500:] for n in nodes}
+    return codes
 
+
+def _compare(report, offline) -> None:
+    import json
     with open(report / "evaluation_samples.csv") as f:
         live = {(row["stream"], _ns(row["stamp_s"])): float(row["error_deg"]) for row in csv.DictReader(f)}
     want = {}
@@ -198,7 +212,6 @@ def test_nodes_give_the_offline_replay_errors(run_and_map, ros_env, tmp_path):
     diffs = np.array([live[k] - want[k] for k in want])
     assert np.abs(diffs).max() < 2e-6, diffs                                   # the CSV keeps 6 decimals
     # the statistics agree too
-    import json
     js = json.loads((report / "evaluation_summary.json").read_text())["streams"]
     for name, s in offline.summary.items():
         assert js[name]["count"] == s["count"] and js[name]["rms"] == pytest.approx(s["rms"], abs=1e-6)
