@@ -119,12 +119,11 @@ def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_w
 
 
 @njit(fastmath=_FM, cache=True, error_model="numpy")
-def _bc_pass(aop, dop, valid, rays, inten, has_inten, step, min_dop, dop_weight, var_mode, tot):  # pragma: no cover
-    """Runs of 64 pixels, one run in every ``step``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the same
+def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_weight, var_mode, tot):  # pragma: no cover
+    """Runs of ``run`` pixels from each of ``starts``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the same
     pixels, to scale), [18:33] brightness statistics (n, sum I, sum I^2, sum r, sum I r, sum r r^T)."""
     n = aop.size
-    run = 64
-    for i0 in range(0, n, run * step):
+    for i0 in starts:
         for i in range(i0, min(i0 + run, n)):   # contiguous runs keep the cache warm
             a = np.float64(aop[i])
             p = np.float64(dop[i])
@@ -207,9 +206,26 @@ def sym3(u) -> np.ndarray:
                      np.stack([u[..., 2], u[..., 4], u[..., 5]], -1)], -2)
 
 
+_RUN = 64
+
+
+@lru_cache(maxsize=64)
+def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
+    """Starts of the subsample's runs: every pixel when n is small, else about sub_pixels / 64 runs at
+    golden-ratio (low-discrepancy) positions, sorted. Evenly spaced runs would lock onto the image rows
+    (a period that is a multiple of the row length samples one vertical strip)."""
+    if n <= 2 * sub_pixels:
+        return np.arange(0, n, _RUN, dtype=np.int64)
+    k = max(1, sub_pixels // _RUN)
+    frac = np.mod(0.5 + np.arange(k) * 0.6180339887498949, 1.0)
+    out = np.unique(np.floor(frac * (n - _RUN)).astype(np.int64))
+    out.setflags(write=False)
+    return out
+
+
 def sub_pass(aop, dop, valid, rays, intensity, min_dop: float, weight_mode: int, var_mode: int,
              sub_pixels: int = 16384):
-    """Second-order and brightness sums over about ``sub_pixels`` evenly spread pixels (runs of 64).
+    """Second-order and brightness sums over about ``sub_pixels`` spread-out pixels (runs of 64).
 
     ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance v of a pixel) 0 uniform,
     1 1/DoP^2, 2 1/(DoP^2 I). Returns dict of 3x3 ``M`` (= sum w e e^T), ``B`` (noise bias of M per unit
@@ -218,8 +234,8 @@ def sub_pass(aop, dop, valid, rays, intensity, min_dop: float, weight_mode: int,
     has_i = intensity is not None
     inten = intensity if has_i else np.zeros(1, np.float32)
     tot = np.zeros(33)
-    step = max(1, int(aop.size) // int(sub_pixels))
-    _bc_pass(aop, dop, valid, rays, inten, has_i, step, float(min_dop), bool(weight_mode), int(var_mode), tot)
+    _bc_pass(aop, dop, valid, rays, inten, has_i, _run_starts(int(aop.size), int(sub_pixels)), _RUN,
+             float(min_dop), bool(weight_mode), int(var_mode), tot)
     return {"M": sym3(tot[12:18]), "B": sym3(tot[0:6]), "C": sym3(tot[6:12]),
             "stats": tot[18:33].copy() if has_i else None}
 

@@ -39,14 +39,15 @@ from ._kernels import full_pass, sub_pass
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
 
 
-def solve_sun(M, B, C, bias_correction=True, iterations=2):
+def solve_sun(M, B, C, bias_correction=True, iterations=3):
     """Smallest eigenvector of ``M = sum w e e^T`` (lifted E-vectors), optionally noise-debiased.
 
     AoP noise makes ``E[M] = M_true + sigma0^2 B``: a pixel's E-vector turns about its ray, adding
     ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by O(sigma^2) -- a
     bias that does not average out with more pixels. The noise scale is estimated from the data,
     ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation per unit variance),
-    and ``sigma0^2 B`` subtracted; two fixed-point iterations. Returns (lambdas ascending, U, sigma0^2).
+    and ``sigma0^2 B`` subtracted; three fixed-point iterations (this is Kanatani-style renormalisation:
+    the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it converges in two). Returns (lambdas ascending, U, sigma0^2).
     """
     lam, U = np.linalg.eigh(M)
     sigma0_sq = 0.0
