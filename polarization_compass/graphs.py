@@ -277,7 +277,7 @@ def _corrector(method: str, params: dict, remappings=(), namespace="") -> NodeSp
 
 def _evaluator(methods, direct, params: dict) -> NodeSpec:
     streams = T.evaluator_streams(methods, direct_methods=direct)
-    pubs, subs = T.evaluator_topics(streams)
+    pubs, subs = T.evaluator_topics(streams, params.get("latency_source", "sim_frames"))
     return NodeSpec("error_evaluator", "error_evaluator", "", ("config/error_evaluator.yaml",),
                     {"methods": list(methods), "direct_methods": list(direct) or [""], **params}, (),
                     tuple(pubs), tuple(subs))
@@ -336,7 +336,7 @@ def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix"
     nodes = [_estimator(m, {**common, "site_source": site_source}) for m in all_methods]
     nodes += [_corrector(m, {**common, "error_map": error_map}) for m in methods]
     nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
-                            {**common, "report_dir": report_dir}))
+                            {**common, "report_dir": report_dir, "latency_source": "clock"}))
     external = tuple("/" + t for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX, T.TRUTH)) + (T.CLOCK,)
     return Graph("replay", "a recorded run played with 'ros2 bag play --clock'", tuple(nodes),
                  external_inputs=external)

@@ -59,7 +59,9 @@ class AttitudeBuffer:
     """
 
     def __init__(self, keep_ns: int = 10_000_000_000):
+        import threading
         self.keep_ns = int(keep_ns)
+        self._lock = threading.Lock()         # nodes add from one thread and look up from another
         self._t: list[int] = []
         self._q: list[np.ndarray] = []
         self.out_of_order = 0
@@ -72,8 +74,10 @@ class AttitudeBuffer:
         return self._t[-1] if self._t else None
 
     def add(self, t_ns: int, q_xyzw) -> None:
-        t_ns = int(t_ns)
-        q = np.asarray(q_xyzw, dtype=float)
+        with self._lock:
+            self._add(int(t_ns), np.asarray(q_xyzw, dtype=float))
+
+    def _add(self, t_ns: int, q: np.ndarray) -> None:
         if self._t and t_ns < self._t[-1]:
             self.out_of_order += 1
             k = bisect.bisect_right(self._t, t_ns)
@@ -97,7 +101,8 @@ class AttitudeBuffer:
 
     def at(self, t_ns: int, tol_ns: int):
         """(q, gap_ns, interpolated) at ``t_ns``, or None when no sample is within ``tol_ns``."""
-        b, a = self.around(int(t_ns), int(tol_ns))
+        with self._lock:
+            b, a = self.around(int(t_ns), int(tol_ns))
         if b is None and a is None:
             return None
         if b is not None and (a is None or b[0] == t_ns):
@@ -246,34 +251,37 @@ class HeadingFrontEnd:
         from .demosaic import parse_layout
         self.layout = parse_layout(layout, pol45_toward)
 
-    def superpixel_step(self) -> int:
+    def superpixel_step(self, demosaic: str | None = None, estimator=None) -> int:
         """Superpixels skipped per kept one: the estimator's ``stride`` (sensor pixels) over the
         superpixel pitch (2), so that only the superpixels it reads are demosaiced."""
-        if self.demosaic != "superpixel":
+        if (demosaic or self.demosaic) != "superpixel":
             return 1
-        stride = int(self.estimator.knobs.get("stride", 1) or 1) if isinstance(self.estimator.knobs, dict) else 1
+        knobs = getattr(estimator or self.estimator, "knobs", None)
+        stride = int(knobs.get("stride", 1) or 1) if isinstance(knobs, dict) else 1
         return max(1, int(round(stride / 2)))
 
     def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
-                    pitch_deg=None, roll_deg=None, prior_bearing_deg=None):
+                    pitch_deg=None, roll_deg=None, prior_bearing_deg=None, estimator=None):
         from .demosaic import aop_dop_from_stokes, polarization_from_mosaic, stokes_from_mosaic
         from .estimators import Observation
+        # one consistent configuration for the whole frame (a node may change knobs from another thread)
+        demosaic, layout, intensity = self.demosaic, self.layout, self.intensity
         m = np.asarray(mosaic)
         if m.shape != camera.shape:
             raise PipelineError(f"mosaic is {m.shape[1]}x{m.shape[0]}, the camera is "
                                 f"{camera.width_px}x{camera.height_px}")
-        step = self.superpixel_step()
+        step = self.superpixel_step(demosaic, estimator)
         if step > 1:
-            rows, cols = pixel_grid(camera, self.demosaic, step)[:2]
+            rows, cols = pixel_grid(camera, demosaic, step)[:2]
             m = sub_mosaic(m, rows, cols)
-        if self.intensity:
-            s0, s1, s2 = stokes_from_mosaic(m, self.layout, self.layout.pol45_toward, self.demosaic)
+        if intensity:
+            s0, s1, s2 = stokes_from_mosaic(m, layout, layout.pol45_toward, demosaic)
             aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
             inten = s0
         else:
-            aop, dop, valid = polarization_from_mosaic(m, self.layout, self.layout.pol45_toward, self.demosaic)
+            aop, dop, valid = polarization_from_mosaic(m, layout, layout.pol45_toward, demosaic)
             inten = None
-        rows, cols, xg, yg, rays, has_ray = pixel_grid(camera, self.demosaic, step)
+        rows, cols, xg, yg, rays, has_ray = pixel_grid(camera, demosaic, step)
         if not has_ray.all():
             valid &= has_ray
         return Observation(aop, dop, valid, rays, xg, yg, camera, float(sun_azimuth_deg), float(sun_altitude_deg),
@@ -281,9 +289,10 @@ class HeadingFrontEnd:
 
     def estimate(self, mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg=None, roll_deg=None,
                  prior_bearing_deg=None):
+        est = self.estimator
         obs = self.observation(mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
-                               prior_bearing_deg)
-        return self.estimator.estimate(obs)
+                               prior_bearing_deg, est)
+        return est.estimate(obs)
 
 
 def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:

@@ -296,6 +296,16 @@ def format_table(summary: dict, realtime: bool = False) -> str:
             label = kind if m != "tilt_aware" else "tilt-aware"
             lines.append(f"{m:<14} {label:<10} {d['count']:>7d} {d['missed']:>6d} {d['mean']:>8.3f} {d['rms']:>8.3f} "
                          f"{d['p95']:>8.3f} {d['max']:>8.3f} {d.get('latency_ms_p95', 0.0):>10.1f}")
+    nodes = summary.get("nodes", {})
+    if nodes:
+        lines.append("per node (wall ms from input to output, p50/p95; rate over the last 100 inputs):")
+        for name, v in nodes.items():
+            if "processing_ms_p50" in v:
+                lines.append(f"  {name:<34} {float(v['processing_ms_p50']):8.1f} {float(v['processing_ms_p95']):8.1f} ms "
+                             f"{float(v.get('rate_hz', 0)):6.1f} Hz  rejected {v.get('rejected', '0')}")
+            elif "frame_ms_p95" in v:
+                lines.append(f"  {name:<34} frame p95 {float(v['frame_ms_p95']):.1f} ms, {v.get('frames')} frames, "
+                             f"{v.get('late_frames')} late")
     for name, d in streams.items():
         if d.get("not_published"):
             why = ", ".join(f"{k} x{v}" for k, v in sorted(d["not_published"].items()))

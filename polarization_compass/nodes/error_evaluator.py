@@ -21,11 +21,13 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
@@ -58,6 +60,7 @@ class ErrorEvaluatorNode(Node):
         direct = p.strings("direct_methods")
         self.axial = set(p.strings("axial_methods"))
         self.streams = topics.evaluator_streams(methods, p["include_raw"], p["include_corrected"], direct)
+        qos = QoSProfile(depth=200)
         self.matcher = StampMatcher(horizon_ns=int(p["horizon_s"] * 1e9))
         self.latency_ms: dict[str, list] = {}
         for name, _ in self.streams:
@@ -66,7 +69,13 @@ class ErrorEvaluatorNode(Node):
         self.diag = Diagnostics(self, "error evaluator", period_s=1.0 / p["summary_rate_hz"])
         self._last_clock = None            # (sim ns, perf_counter) of the last /clock
         self._closed = False
-        qos = QoSProfile(depth=200)
+        # frame times first: the executor serves ready subscriptions in creation order
+        self.frame_wall: OrderedDict = OrderedDict()      # stamp -> wall ns the simulator published it
+        self.waiting_latency: list = []                  # (stream, stamp, arrival wall ns) before sim/frames
+        if p["latency_source"] == "sim_frames":
+            self.create_subscription(String, topics.FRAMES, self._on_frame_time, qos)
+        elif self.get_parameter("use_sim_time").value:
+            self.create_subscription(Clock, topics.CLOCK, self._on_clock, QoSProfile(depth=10))
         self.create_subscription(Imu, topics.TRUTH, self._on_truth, qos)
         for name, topic in self.streams:
             self.create_subscription(Imu, topic, lambda m, n=name: self._on_estimate(n, m), qos)
@@ -76,8 +85,9 @@ class ErrorEvaluatorNode(Node):
             method, kind = name.split("/")
             t = topics.method_topics(method)["status" if kind == "raw" else "correction_status"]
             self.create_subscription(String, t, lambda m, n=name: self._on_status(n, m), qos)
-        if self.get_parameter("use_sim_time").value:
-            self.create_subscription(Clock, topics.CLOCK, self._on_clock, QoSProfile(depth=10))
+        # every node's last /diagnostics values go into the report (processing time, rate, rejections)
+        self.node_diagnostics: dict[str, dict] = {}
+        self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diagnostics, QoSProfile(depth=50))
         self.pub_summary = self.create_publisher(String, topics.EVAL_SUMMARY, QoSProfile(depth=10))
         self.create_timer(1.0 / p["summary_rate_hz"], self.publish_summary)
         self.get_logger().info(f"evaluating {len(self.streams)} stream(s) against {topics.TRUTH}; "
@@ -86,6 +96,24 @@ class ErrorEvaluatorNode(Node):
     # inputs -------------------------------------------------------------------------------------
     def _on_clock(self, msg):
         self._last_clock = (stamp_ns(msg.clock), time.perf_counter())
+
+    def _on_frame_time(self, msg):
+        try:
+            d = json.loads(msg.data)
+            st, wall = int(d["stamp_ns"]), int(d["wall_ns"])
+        except (ValueError, TypeError, KeyError):
+            self.diag.reject("bad_frame_time", str(msg.data)[:80])
+            return
+        self.frame_wall[st] = wall
+        while len(self.frame_wall) > 5000:
+            self.frame_wall.popitem(last=False)
+        still = []
+        for stream, s_ns, arrival in self.waiting_latency:
+            if s_ns == st:
+                self.latency_ms[stream].append((arrival - wall) / 1e6)
+            else:
+                still.append((stream, s_ns, arrival))
+        self.waiting_latency = still[-5000:]
 
     def _arrival_latency_ms(self, t_ns: int) -> float:
         scale = self.params["time_scale"]
@@ -105,6 +133,10 @@ class ErrorEvaluatorNode(Node):
         self.matcher.add_truth(stamp_ns(msg.header), b)
         self.diag.done(t_in, None)
 
+    def _on_diagnostics(self, msg):
+        for st in msg.status:
+            self.node_diagnostics[st.name.split(":")[0]] = {kv.key: kv.value for kv in st.values}
+
     def _on_status(self, stream: str, msg):
         try:
             st = json.loads(msg.data)
@@ -119,15 +151,24 @@ class ErrorEvaluatorNode(Node):
     def _on_estimate(self, stream: str, msg):
         t_in = self.diag.input()
         t_ns = stamp_ns(msg.header)
-        lat = self._arrival_latency_ms(t_ns)
+        arrival = time.time_ns()
+        if self.params["latency_source"] == "sim_frames":
+            wall = self.frame_wall.get(t_ns)
+            lat = None if wall is None else (arrival - wall) / 1e6
+        else:
+            lat = self._arrival_latency_ms(t_ns)
         try:
             b = bearing_from_imu(msg)
         except MessageError as exc:
             self.diag.reject(f"estimate_{getattr(exc, 'reason', 'bad')}", f"{stream}: {exc}")
             return
         sigma = math.degrees(math.sqrt(max(float(msg.orientation_covariance[8]), 0.0)))
-        self.matcher.add_estimate(stream, t_ns, b, extra={"latency_ms": round(lat, 3), "sigma_deg": sigma})
-        self.latency_ms[stream].append(lat)
+        self.matcher.add_estimate(stream, t_ns, b, extra={"latency_ms": "" if lat is None else round(lat, 3),
+                                                          "sigma_deg": sigma})
+        if lat is None:
+            self.waiting_latency.append((stream, t_ns, arrival))
+        else:
+            self.latency_ms[stream].append(lat)
         self.diag.done(t_in, t_ns)
 
     # outputs ------------------------------------------------------------------------------------
@@ -139,7 +180,8 @@ class ErrorEvaluatorNode(Node):
             d["latency_ms_p95"] = float(np.percentile(lat, 95)) if lat.size else 0.0
             d["latency_ms_max"] = float(lat.max()) if lat.size else 0.0
             d["not_published"] = dict(self.not_published.get(name, {}))
-        return {"truth_frames": self.matcher.truth_count, "streams": s}
+        return {"truth_frames": self.matcher.truth_count, "streams": s,
+                "nodes": {k: dict(v) for k, v in sorted(self.node_diagnostics.items())}}
 
     def publish_summary(self) -> None:
         s = self.summary()

@@ -19,7 +19,9 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections import deque
 
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
@@ -65,19 +67,30 @@ class HeadingEstimatorNode(Node):
         self.site_from_fix = None
         self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading
         self.needs_tilt = self.method == "tilt_aware"
+        self.pending: deque = deque()     # decoded images waiting for their IMU sample (tilt_aware)
         self.diag = Diagnostics(self, f"heading estimator ({self.method})")
 
         t = topics.method_topics(self.method)
         self.pub_heading = self.create_publisher(Imu, t["heading_raw"], qos_profile_system_default)
         self.pub_bearing = self.create_publisher(Float64, t["bearing_raw"], qos_profile_system_default)
         self.pub_status = self.create_publisher(String, t["status"], QoSProfile(depth=50))
-        image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
-        self.create_subscription(Image, topics.IMAGE, self._on_image, image_qos)
-        self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data)
+        # Two threads: images (long callbacks) in one group, the small inputs in another, so that the IMU,
+        # camera_info and fix keep flowing while an image is processed (a single-threaded executor
+        # takes one message per subscription per round: 50 IMU samples would wait behind each image).
+        self.executor_threads = 2
+        small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
         if self.needs_tilt or p["prior_source"] == "imu":
-            self.create_subscription(Imu, topics.IMU, self._on_imu, QoSProfile(depth=200))
+            self.create_subscription(Imu, topics.IMU, self._on_imu, QoSProfile(depth=200), callback_group=small)
+        self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
+                                 callback_group=small)
         if p["site_source"] == "navsatfix":
-            self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data)
+            self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data,
+                                     callback_group=small)
+        image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
+        self.create_subscription(Image, topics.IMAGE, self._on_image, image_qos, callback_group=images)
+        if self.needs_tilt:
+            from .diagnostics import _wall_clock
+            self.create_timer(0.01, self._drain, callback_group=images, clock=_wall_clock())
         self.get_logger().info(f"method {self.method}: {t['heading_raw']} from {topics.IMAGE}")
 
     # parameters ---------------------------------------------------------------------------------
@@ -153,16 +166,31 @@ class HeadingEstimatorNode(Node):
 
     def _on_image(self, msg):
         t_in = self.diag.input()
-        p = self.params
         try:
             mosaic = decode_image(msg)
         except MessageError as exc:
             self.diag.reject(getattr(exc, "reason", "bad_image"), str(exc))
             return
-        t_ns = stamp_ns(msg.header)
+        self.pending.append((stamp_ns(msg.header), mosaic, int(msg.width), int(msg.height), t_in,
+                             time.monotonic() + self.params["imu_max_wait_s"]))
+        self._drain()
+
+    def _drain(self) -> None:
+        """Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than the
+        newest IMU sample waits up to imu_max_wait_s for it (or until a third image queues behind it)."""
+        while self.pending:
+            t_ns, _, _, _, _, deadline = self.pending[0]
+            newest = self.imu.newest_ns
+            if (self.needs_tilt and (newest is None or newest < t_ns) and time.monotonic() < deadline
+                    and len(self.pending) <= 2):
+                return
+            self._process(*self.pending.popleft()[:5])
+
+    def _process(self, t_ns: int, mosaic, width: int, height: int, t_in: float) -> None:
+        p = self.params
         status = {"stamp_ns": t_ns, "method": self.method}
         try:
-            camera = self._camera_for(msg.width, msg.height)
+            camera = self._camera_for(width, height)
             if p["site_source"] == "navsatfix" and self.site_from_fix is None:
                 raise PipelineError("no NavSatFix received yet (site_source navsatfix)")
             if p["time_source"] == "stamp":
@@ -173,16 +201,17 @@ class HeadingEstimatorNode(Node):
                 from ..bag import ns_from_utc
                 from ..scene import parse_time_utc
                 sun_az, sun_alt = self.sun.at_ns(ns_from_utc(parse_time_utc(p["time_utc"])))
-            tol_ns = int(p["imu_tolerance_s"] * 1e9)
-            tilt = self.imu.camera_tilt(t_ns, tol_ns) if len(self.imu) else None
             pitch = roll = prior = None
             if self.needs_tilt:
+                tilt = self.imu.camera_tilt(t_ns, int(p["imu_tolerance_s"] * 1e9)) if len(self.imu) else None
                 if tilt is None:
                     raise PipelineError(f"no IMU sample within {p['imu_tolerance_s']:g} s of the image stamp "
                                         f"(newest IMU stamp: {self._newest_imu_text()})")
                 pitch, roll = tilt.pitch_deg, tilt.roll_deg
-            if p["prior_source"] == "imu" and tilt is not None:
-                prior = tilt.bearing_deg
+            if p["prior_source"] == "imu" and len(self.imu):
+                # a coarse yaw is enough to pick the sun's side: the nearest sample within prior_max_age_s
+                near = self.imu.camera_tilt(t_ns, int(p["prior_max_age_s"] * 1e9))
+                prior = None if near is None else near.bearing_deg
             elif p["prior_source"] == "last" and self.last_bearing is not None:
                 if abs(t_ns - self.last_bearing[0]) <= p["prior_max_age_s"] * 1e9:
                     prior = self.last_bearing[1]

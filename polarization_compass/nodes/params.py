@@ -238,9 +238,12 @@ ESTIMATOR = (
     Param("prior_source", "imu", "resolves the 180 deg ambiguity: imu = yaw of the IMU message (coarse "
                                  "is enough), last = this node's previous heading, none = publish only "
                                  "headings the method resolves itself", choices=("imu", "last", "none")),
-    Param("prior_max_age_s", 2.0, "a prior older than this is not used", 0.0, 3600.0, unit="s"),
-    Param("imu_tolerance_s", 0.05, "an IMU sample within this of the image stamp is paired with it "
-                                   "(tilt for tilt_aware, prior yaw)", 0.0, 10.0, unit="s"),
+    Param("prior_max_age_s", 2.0, "the prior is the IMU yaw (or last heading) nearest the image stamp within "
+                                  "this", 0.0, 3600.0, unit="s"),
+    Param("imu_tolerance_s", 0.05, "tilt_aware: the IMU at the image stamp, interpolated between samples "
+                                   "within this of it", 0.0, 10.0, unit="s"),
+    Param("imu_max_wait_s", 0.5, "tilt_aware: how long an image newer than the newest IMU sample waits for it "
+                                 "(wall clock)", 0.0, 60.0, unit="s"),
     Param("publish_ambiguous", False, "also publish headings known only modulo 180 deg on the Imu topics "
                                       "(never fuse those into robot_localization)"),
     Param("sigma_floor_deg", 0.01, "smallest yaw sigma published (model error of real skies)", 0.0, 90.0,
@@ -287,8 +290,11 @@ EVALUATOR = (
     Param("horizon_s", 5.0, "a truth frame with no estimate on a stream after this (stamp time) counts as "
                             "missed", 0.1, 3600.0, unit="s"),
     Param("summary_rate_hz", 1.0, "rate of evaluation/summary and /diagnostics", 0.1, 100.0, unit="Hz"),
-    Param("time_scale", 1.0, "simulated seconds per wall second (latency is reported in wall time)",
-          0.01, 100.0),
+    Param("time_scale", 1.0, "simulated seconds per wall second (latency_source clock)", 0.01, 100.0),
+    Param("latency_source", "sim_frames", "sim_frames: wall time from the simulator publishing an image (sim/frames) "
+                                          "to a heading's arrival here; clock: arrival time on this node's clock "
+                                          "(last /clock + wall time since, under use_sim_time) minus the stamp",
+          choices=("sim_frames", "clock"), read_only=True),
 )
 
 SPECS = {"sky_simulator": SIMULATOR, "heading_estimator": ESTIMATOR, "tilt_corrector": CORRECTOR,

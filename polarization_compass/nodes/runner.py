@@ -4,7 +4,9 @@
   ``<node>: error: ...`` on stderr and exits 2, as the CLI does.
 * SIGINT / SIGTERM (Ctrl-C, ``ros2 launch`` shutting down) end the spin; the node's ``close()`` runs
   (the evaluator writes its report there) and the process exits 0 without a traceback.
-* A node may end itself (the simulator after its last frame) by calling ``request_exit(code)``.
+* A node may end itself (the simulator after its last frame) by raising :class:`ExitRequest`.
+* A node with ``executor_threads = N > 1`` spins on a MultiThreadedExecutor (the estimator: small
+  inputs such as the IMU keep flowing while an image is being processed).
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ class ExitRequest(Exception):
 
 def run_node(factory, name: str, argv=None) -> int:
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 
     try:
         rclpy.init(args=argv if argv is not None else sys.argv)
@@ -36,7 +38,8 @@ def run_node(factory, name: str, argv=None) -> int:
     code = 0
     try:
         node = factory()
-        executor = SingleThreadedExecutor()
+        threads = int(getattr(node, "executor_threads", 1))
+        executor = MultiThreadedExecutor(num_threads=threads) if threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
         while rclpy.ok():
             executor.spin_once(timeout_sec=0.1)

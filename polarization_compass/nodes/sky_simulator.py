@@ -118,6 +118,7 @@ class SkySimulatorNode(Node):
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
         self.pub_fix = self.create_publisher(NavSatFix, topics.FIX, qos_profile_system_default)
+        self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
         self.pub_clock = self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10)) if self.sim_mode else None
         if self.attitude_source == "topic":
             t = Imu if p["attitude_topic_type"] == "imu" else QuaternionStamped
@@ -245,6 +246,7 @@ class SkySimulatorNode(Node):
         self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
         self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
         self.pub_image.publish(image_msg(mosaic, t_ns, p["camera_frame_id"]))
+        self.pub_frames.publish(String(data=json.dumps({"stamp_ns": int(t_ns), "wall_ns": time.time_ns()})))
         self.frames += 1
         ms = (time.perf_counter() - t0) * 1e3
         self.render_ms.append(ms)

@@ -10,7 +10,7 @@ ROS-free: no rclpy import here.
 """
 from __future__ import annotations
 
-__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY",
+__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES",
            "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
            "evaluator_streams",
            "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
@@ -36,6 +36,7 @@ ATTITUDE_IN = "sim/attitude"            # simulator input when attitude_source =
 CLOCK = "/clock"
 DIAGNOSTICS = "/diagnostics"
 EVAL_SUMMARY = "evaluation/summary"     # JSON running statistics per stream
+FRAMES = "sim/frames"                   # simulator: JSON {stamp_ns, wall_ns} per image (wall-clock latency)
 
 
 def method_topics(method: str) -> dict:
@@ -54,7 +55,7 @@ def method_topics(method: str) -> dict:
 def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu"):
     """(publishes, subscribes): lists of (topic, type)."""
     pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
-            (DIAGNOSTICS, T_DIAG)]
+            (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
@@ -98,9 +99,11 @@ def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool
     return out
 
 
-def evaluator_topics(streams):
+def evaluator_topics(streams, latency_source: str = "sim_frames"):
     pubs = [(EVAL_SUMMARY, T_STRING), (DIAGNOSTICS, T_DIAG)]
-    subs = [(TRUTH, T_IMU)] + [(topic, T_IMU) for _, topic in streams]
+    subs = [(TRUTH, T_IMU), (DIAGNOSTICS, T_DIAG)] + [(topic, T_IMU) for _, topic in streams]
+    if latency_source == "sim_frames":
+        subs.append((FRAMES, T_STRING))
     for name, _ in streams:                       # statuses: why a frame was not published
         method, kind = name.split("/")
         subs.append((method_topics(method)["status" if kind == "raw" else "correction_status"], T_STRING))
