@@ -260,7 +260,18 @@ def _used(remappings, pubs, subs) -> tuple:
     return tuple((a, b) for a, b in remappings if a in used)
 
 
+#: Estimator knobs the graphs set where the method has them (accuracy for time, see docs/ros.md): every
+#: 4th superpixel. Set per method (not in the shared parameter file) because the knobs differ by method.
+GRAPH_KNOBS = {"knob.stride": 8}
+
+
+def _knob_names(method: str) -> set:
+    from .nodes.params import knob_params
+    return {p.name for p in knob_params(method)}
+
+
 def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
+    params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=(method == "tilt_aware"), prior_source=prior)

@@ -22,7 +22,7 @@ from .conventions import R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, quat_to_ma
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "camera_attitude_from_body_quat", "SunSource", "HeadingFrontEnd",
-           "PipelineError", "pixel_grid", "sub_mosaic", "warm_up"]
+           "PipelineError", "warm_up"]
 
 
 class PipelineError(CompassError):
@@ -167,62 +167,6 @@ class SunSource:
 # ------------------------------------------------------------------------------------------------
 # Mosaic -> observation -> heading
 # ------------------------------------------------------------------------------------------------
-def _centred_indices(n: int, step: int) -> np.ndarray:
-    """Every ``step``-th index of an axis of length n, placed symmetrically about its centre (the same
-    centring the estimators and the renderer's strided selections use)."""
-    count = (n - 1) // step + 1
-    start = (n - 1 - (count - 1) * step) // 2
-    return start + step * np.arange(count)
-
-
-def pixel_grid(camera: CameraModel, demosaic: str, step: int = 1):
-    """Superpixel rows/cols kept, 1-based pixel centres (x_px, y_px) of the demosaiced image and their
-    unit rays (3, N) float32; cached per (camera, demosaic, step).
-
-    ``superpixel``: output (k, l) is the centre of sensor pixels (2k..2k+1, 2l..2l+1), 0-based, i.e.
-    ``x_px = 2 l + 1.5``, ``y_px = 2 k + 1.5``; with ``step`` > 1 only every ``step``-th superpixel row
-    and column (centred). ``bilinear``: every sensor pixel (step must be 1).
-    """
-    key = (camera, demosaic, int(step))
-    hit = _GRID_CACHE.get(key)
-    if hit is not None:
-        return hit
-    H, W = camera.shape
-    if demosaic == "superpixel":
-        rows = _centred_indices(H // 2, step)
-        cols = _centred_indices(W // 2, step)
-        xs, ys = 2.0 * cols + 1.5, 2.0 * rows + 1.5
-    else:
-        rows, cols = np.arange(H), np.arange(W)
-        xs, ys = cols + 1.0, rows + 1.0
-    xg, yg = np.meshgrid(xs, ys)
-    rays, ok = camera.rays_from_pixels(xg, yg)
-    out = (rows, cols, xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(xg.shape))
-    for arr in out:
-        arr.setflags(write=False)
-    if len(_GRID_CACHE) > 8:
-        _GRID_CACHE.clear()
-    _GRID_CACHE[key] = out
-    return out
-
-
-_GRID_CACHE: dict = {}
-
-
-def sub_mosaic(mosaic: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """The 2 x 2 blocks (superpixels) at ``rows`` x ``cols`` (evenly spaced index arrays, as from
-    :func:`pixel_grid`) of a mosaic, as a smaller mosaic with the same polarizer phase (every block
-    starts on an even pixel). One copy of the result, through strided views."""
-    H2, W2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
-    m4 = mosaic[: 2 * H2, : 2 * W2].reshape(H2, 2, W2, 2)
-
-    def sl(idx):
-        step = int(idx[1] - idx[0]) if idx.size > 1 else 1
-        return slice(int(idx[0]), int(idx[-1]) + 1, step)
-
-    return np.ascontiguousarray(m4[sl(rows), :, sl(cols), :]).reshape(2 * rows.size, 2 * cols.size)
-
-
 class HeadingFrontEnd:
     """One method with its knobs: a raw mosaic (uint8/uint16/float32) plus the camera, the sun and
     optionally the tilt and a prior bearing in, a :class:`~polarization_compass.estimators.HeadingResult` out.
@@ -251,41 +195,26 @@ class HeadingFrontEnd:
         from .demosaic import parse_layout
         self.layout = parse_layout(layout, pol45_toward)
 
-    def superpixel_step(self, demosaic: str | None = None, estimator=None) -> int:
-        """Superpixels skipped per kept one: the estimator's ``stride`` (sensor pixels) over the
-        superpixel pitch (2), so that only the superpixels it reads are demosaiced."""
-        if (demosaic or self.demosaic) != "superpixel":
-            return 1
-        knobs = getattr(estimator or self.estimator, "knobs", None)
-        stride = int(knobs.get("stride", 1) or 1) if isinstance(knobs, dict) else 1
-        return max(1, int(round(stride / 2)))
-
     def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
                     pitch_deg=None, roll_deg=None, prior_bearing_deg=None, estimator=None):
-        from .demosaic import aop_dop_from_stokes, polarization_from_mosaic, stokes_from_mosaic
-        from .estimators import Observation
+        """The estimator's :class:`Observation` of a full-sensor mosaic: only the pixels the method reads
+        (its ``pixels_needed``: the zenith window, strided superpixels, a region) are demosaiced, by
+        :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`."""
+        from .estimators.mosaic_input import MosaicInputError, observation_from_mosaic
         # one consistent configuration for the whole frame (a node may change knobs from another thread)
-        demosaic, layout, intensity = self.demosaic, self.layout, self.intensity
+        est, demosaic, layout, intensity = estimator or self.estimator, self.demosaic, self.layout, self.intensity
         m = np.asarray(mosaic)
         if m.shape != camera.shape:
             raise PipelineError(f"mosaic is {m.shape[1]}x{m.shape[0]}, the camera is "
                                 f"{camera.width_px}x{camera.height_px}")
-        step = self.superpixel_step(demosaic, estimator)
-        if step > 1:
-            rows, cols = pixel_grid(camera, demosaic, step)[:2]
-            m = sub_mosaic(m, rows, cols)
-        if intensity:
-            s0, s1, s2 = stokes_from_mosaic(m, layout, layout.pol45_toward, demosaic)
-            aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
-            inten = s0
-        else:
-            aop, dop, valid = polarization_from_mosaic(m, layout, layout.pol45_toward, demosaic)
-            inten = None
-        rows, cols, xg, yg, rays, has_ray = pixel_grid(camera, demosaic, step)
-        if not has_ray.all():
-            valid &= has_ray
-        return Observation(aop, dop, valid, rays, xg, yg, camera, float(sun_azimuth_deg), float(sun_altitude_deg),
-                           inten, pitch_deg, roll_deg, prior_bearing_deg)
+        try:
+            return observation_from_mosaic(m, camera, sun_azimuth_deg, sun_altitude_deg, method=demosaic,
+                                           layout=layout.angles_deg, pol45_toward=layout.pol45_toward,
+                                           selection=est.pixels_needed(camera), with_intensity=intensity,
+                                           pitch_deg=pitch_deg, roll_deg=roll_deg,
+                                           prior_bearing_deg=prior_bearing_deg)
+        except MosaicInputError as exc:
+            raise PipelineError(str(exc)) from None
 
     def estimate(self, mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg=None, roll_deg=None,
                  prior_bearing_deg=None):
@@ -311,10 +240,5 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:
     bits = {np.dtype(np.uint8): {"quantization": {"bits": 8}}, np.dtype(np.uint16): {"quantization": {"bits": 12}}}
     cfg = parse_sensor_config(bits.get(np.dtype(encoding_dtype), {}))
     mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
-    saved = (_GRID_CACHE.copy(), front.estimator)
-    try:
-        front.estimate(mosaic, cam, 180.0, 30.0, 0.0, 0.0, 30.0)
-    finally:
-        _GRID_CACHE.clear()
-        _GRID_CACHE.update(saved[0])
+    front.estimate(mosaic, cam, 180.0, 30.0, 0.0, 0.0, 30.0)
     return time.perf_counter() - t0

@@ -112,12 +112,15 @@ def _flatten(d, prefix=""):
     return out
 
 
-def test_knob_parameters_exist_for_every_registered_method():
-    from polarization_compass.estimators import estimator_names
+def test_knob_parameters_are_the_estimators_knobs():
+    from polarization_compass.estimators import estimator_names, make_estimator
     for m in estimator_names():
-        names = [p.name for p in knob_params(m)]
-        assert all(n.startswith(KNOB_PREFIX) for n in names)
-        assert KNOB_PREFIX + "stride" in names       # the shipped estimator file sets it
+        names = {p.name for p in knob_params(m)}
+        # independent source: the estimator class's own knob table
+        assert names == {KNOB_PREFIX + k for k in type(make_estimator(m)).knob_specs()}
+    g = graphs.build("sim")
+    assert g.node("heading_estimator_least_squares").parameters["knob.stride"] == 8
+    assert "knob.stride" not in g.node("heading_estimator_zenith").parameters     # zenith reads its window
 
 
 @pytest.mark.parametrize("name,args,graph", list(all_graphs()), ids=lambda x: str(x) if isinstance(x, str) else "")

@@ -15,8 +15,7 @@ from polarization_compass.nodes import msgs
 from polarization_compass.nodes.motion import MotionProfile, body_from_camera, frame_times_ns
 from polarization_compass.nodes.params import (CORRECTOR, ESTIMATOR, EVALUATOR, SIMULATOR, knob_params, knob_values,
                                                layout_from_text, validate_value)
-from polarization_compass.pipeline import (AttitudeBuffer, HeadingFrontEnd, SunSource, camera_attitude_from_body_quat,
-                                           pixel_grid, sub_mosaic)
+from polarization_compass.pipeline import AttitudeBuffer, HeadingFrontEnd, SunSource, camera_attitude_from_body_quat
 
 SMALL_CAM = CameraModel("pinhole", 612, 512, 4.0, 13.8, 13.8)     # the paper's field of view, 1/16 the pixels
 
@@ -174,24 +173,6 @@ def test_sun_source_matches_a_direct_ephemeris_call():
     assert az == pytest.approx(ref.azimuth_deg, abs=1e-4) and alt == pytest.approx(ref.altitude_deg, abs=1e-4)
 
 
-def test_sub_mosaic_matches_a_loop():
-    m = np.arange(20 * 24, dtype=np.uint16).reshape(20, 24)
-    rows, cols = np.array([1, 4, 7]), np.array([0, 3, 6, 9])
-    ref = np.zeros((6, 8), np.uint16)
-    for i, r in enumerate(rows):
-        for j, c in enumerate(cols):
-            ref[2 * i:2 * i + 2, 2 * j:2 * j + 2] = m[2 * r:2 * r + 2, 2 * c:2 * c + 2]
-    assert np.array_equal(sub_mosaic(m, rows, cols), ref)
-
-
-def test_superpixel_grid_matches_the_sensor_model():
-    from polarization_compass.sensor import superpixel_pixels
-    rows, cols, x, y, rays, ok = pixel_grid(SMALL_CAM, "superpixel", 1)
-    ref = superpixel_pixels(SMALL_CAM, 1.0, 1.0, 512, 612)
-    assert np.array_equal(x, ref.x_px) and np.array_equal(y, ref.y_px)
-    assert np.allclose(rays, ref.rays_cam)
-
-
 def _ideal_mosaic(bearing, pitch=0.0, roll=0.0, sun=(200.0, 30.0), encoding="32FC1", cam=SMALL_CAM):
     from polarization_compass.nodes.sky_simulator import mosaic_config
     from polarization_compass.render import Renderer, SunDirection
@@ -203,25 +184,28 @@ def _ideal_mosaic(bearing, pitch=0.0, roll=0.0, sun=(200.0, 30.0), encoding="32F
     return simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
 
 
-@pytest.mark.parametrize("bearing", [0.0, 77.0, 181.5, 300.0])
-def test_front_end_level_camera_is_accurate(bearing):
-    fe = HeadingFrontEnd("least_squares", {"stride": 4})
+@pytest.mark.parametrize("method,bearing", [("least_squares", 0.0), ("least_squares", 181.5), ("zenith", 77.0),
+                                            ("sm_asm", 300.0), ("symmetry", 123.0)])
+def test_front_end_level_camera_is_accurate(method, bearing):
+    fe = HeadingFrontEnd(method, {"stride": 4} if method != "zenith" else {})
     res = fe.estimate(_ideal_mosaic(bearing), SMALL_CAM, 200.0, 30.0, prior_bearing_deg=bearing + 20.0)
     assert res.ok and not res.axial
     assert abs(math.remainder(res.bearing_deg - bearing, 360.0)) < 0.01
 
 
 def test_front_end_presampling_equals_the_estimators_own_sampling():
+    """Demosaicing only the superpixels a method reads gives the estimate the method computes when it
+    subsamples the whole demosaiced frame itself (two independent sampling paths)."""
     from polarization_compass.demosaic import polarization_from_mosaic
     from polarization_compass.estimators import Observation, make_estimator
+    from polarization_compass.sensor import superpixel_pixels
     m = _ideal_mosaic(40.0, -15.0, 5.0, encoding="mono16")
     fe = HeadingFrontEnd("least_squares", {"stride": 6})
-    assert fe.superpixel_step() == 3
     a = fe.estimate(m, SMALL_CAM, 200.0, 30.0, prior_bearing_deg=40.0)
-    # the estimator on the whole demosaiced frame, subsampling by itself
     aop, dop, valid = polarization_from_mosaic(m)
-    _, _, x, y, rays, _ = pixel_grid(SMALL_CAM, "superpixel", 1)
-    obs = Observation(aop, dop, valid, rays, x, y, SMALL_CAM, 200.0, 30.0, None, None, None, 40.0)
+    grid = superpixel_pixels(SMALL_CAM, 1.0, 1.0, 512, 612)
+    obs = Observation(aop, dop, valid & grid.has_ray, grid.rays_cam, grid.x_px, grid.y_px, SMALL_CAM, 200.0, 30.0,
+                      None, None, None, 40.0)
     b = make_estimator("least_squares", stride=6).estimate(obs)
     assert a.pixels == b.pixels
     assert a.bearing_deg == pytest.approx(b.bearing_deg, abs=1e-9)
