@@ -30,7 +30,7 @@ bench-quick: venv
 	$(PY) -m bench.run --quick
 
 figures: venv
-	$(PY) -m polarization_compass.cli figures --out docs/figures
+	$(PY) -m polarization_compass.cli plot polarization_compass/data/tilt_error_map.npz --figure all --out docs/figures
 
 clean:
 	rm -rf build install log out .pytest_cache

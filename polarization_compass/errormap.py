@@ -558,7 +558,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=total, unit="cell", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
+        bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
                    desc=f"errormap ({n_workers} worker{'s' if n_workers > 1 else ''})")
     limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
     done = 0

@@ -97,6 +97,18 @@ def _masked(m: ErrorMap, i, sl):
     return np.ma.masked_array(e, ~v)
 
 
+def _closed_yaw(m: ErrorMap):
+    """Yaw values and node indices to plot: a full-turn axis without its end node gets it back
+    (-180 repeated at +180), so curves and surfaces close."""
+    y = m.yaw_deg
+    idx = np.arange(y.size)
+    if y.size > 2:
+        step = y[1] - y[0]
+        if np.allclose(np.diff(y), step) and abs(y[-1] + step - (y[0] + 360.0)) < 1e-6:
+            return np.append(y, y[0] + 360.0), np.append(idx, 0)
+    return y.copy(), idx
+
+
 def _yaw_node(axis, y):
     """Index of the yaw node equal to y modulo 360."""
     for cand in (y, y - 360.0, y + 360.0):
@@ -128,18 +140,18 @@ def _surfaces(m: ErrorMap, tilt: str, opts, shift=False):
         _need(m.roll_deg, "roll", 2)
         tilt_axis = m.roll_deg
         get = lambda i: _masked(m, i, (ia, slice(None), ip, slice(None)))       # noqa: E731  (yaw, roll)
-    yaw = m.yaw_deg.copy()
-    order = np.arange(yaw.size)
+    yaw, order = _closed_yaw(m)
     if shift:                                      # show yaw over [-90, 270]: nodes <= -90 move up a turn
         up = np.nonzero(yaw <= -90 + 1e-9)[0]
-        order = np.concatenate([np.nonzero(yaw >= -90 - 1e-9)[0], up])
-        yaw = np.concatenate([yaw[yaw >= -90 - 1e-9], yaw[up] + 360.0])
+        keep_lo = np.nonzero(yaw >= -90 - 1e-9)[0]
+        order = np.concatenate([order[keep_lo], order[up]])
+        yaw = np.concatenate([yaw[keep_lo], yaw[up] + 360.0])
         keep = np.concatenate([[True], np.diff(yaw) > 1e-9])
         order, yaw = order[keep], yaw[keep]
     n = len(methods)
     cols = 2 if n > 1 else 1
     rows = int(math.ceil(n / cols))
-    fig = plt.figure(figsize=(max(8.0, 6.2 * cols), 4.8 * rows + 0.6), dpi=110)
+    fig = plt.figure(figsize=(max(8.0, 6.2 * cols), 5.3 * rows + 0.6), dpi=110)
     data = [get(m.method_index(x))[order] for x in methods]
     lim = max(float(np.abs(d).max()) if d.count() else 0.0 for d in data) or 1.0
     Y, T = np.meshgrid(yaw, tilt_axis, indexing="ij")
@@ -159,7 +171,7 @@ def _surfaces(m: ErrorMap, tilt: str, opts, shift=False):
     fig.suptitle(f"Heading error under {tilt} only ({other} = 0), sun altitude {m.sun_altitude_deg[ia]:g} deg"
                  + ("\nyaw shown over [-90, 270] (compare with fig 7)" if shift else "")
                  + f"\n{SIGN_NOTE}", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    fig.tight_layout(rect=(0, 0, 1, 0.93), h_pad=2.5)
     return fig
 
 
@@ -179,10 +191,12 @@ def fig11(m, opts):
 # Curves (figs 8, 9, 12, 13)
 # --------------------------------------------------------------------------------------------
 def _curve(m, name, ia, tilt, it):
+    """The error over the closed yaw axis (see :func:`_closed_yaw`)."""
     i = m.method_index(name)
+    _, order = _closed_yaw(m)
     if tilt == "pitch":
-        return _masked(m, i, (ia, slice(None), it, _zero(m.roll_deg, "roll")))
-    return _masked(m, i, (ia, slice(None), _zero(m.pitch_deg, "pitch"), it))
+        return _masked(m, i, (ia, slice(None), it, _zero(m.roll_deg, "roll")))[order]
+    return _masked(m, i, (ia, slice(None), _zero(m.pitch_deg, "pitch"), it))[order]
 
 
 def _all_altitude_curves(m: ErrorMap, tilt: str, opts):
@@ -191,29 +205,28 @@ def _all_altitude_curves(m: ErrorMap, tilt: str, opts):
     axis = m.pitch_deg if tilt == "pitch" else m.roll_deg
     it = _node(axis, opts.get(tilt), tilt, _default_tilt)
     _need(m.yaw_deg, "yaw", 3)
-    fig, ax = plt.subplots(figsize=(10, 6), dpi=110)
+    fig, ax = plt.subplots(figsize=(10, 6.4), dpi=110, layout="constrained")
     cmap = plt.get_cmap("viridis")
     alts = m.sun_altitude_deg
     for ia, h in enumerate(alts):
         colour = cmap(ia / max(1, alts.size - 1))
         for k, name in enumerate(methods):
             ls = _style(name, k)[1]
-            ax.plot(m.yaw_deg, _curve(m, name, ia, tilt, it), color=colour, ls=ls, lw=1.3)
+            ax.plot(_closed_yaw(m)[0], _curve(m, name, ia, tilt, it), color=colour, ls=ls, lw=1.3)
     from matplotlib.lines import Line2D
     handles = [Line2D([], [], color="k", ls=_style(n, k)[1], label=_label(n)) for k, n in enumerate(methods)]
-    leg1 = ax.legend(handles=handles, loc="upper left", title="method", fontsize=9)
-    ax.add_artist(leg1)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=len(handles), fontsize=9,
+              title="method (line style)", frameon=False)
     sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(alts.min(), alts.max() if alts.size > 1 else alts.min() + 1))
     fig.colorbar(sm, ax=ax, label="sun altitude (deg)")
     ax.axhline(0, color="0.6", lw=0.6)
-    ax.set_xlim(m.yaw_deg[0], m.yaw_deg[-1])
+    ax.set_xlim(_closed_yaw(m)[0][0], _closed_yaw(m)[0][-1])
     _yaw_ticks(ax)
     ax.set_xlabel("yaw psi (deg)")
     ax.set_ylabel("heading error (deg)")
     ax.grid(alpha=0.3)
     ax.set_title(f"{tilt.capitalize()} only, {tilt} = {axis[it]:g} deg: the methods' error curves for every sun "
                  f"altitude\n{SIGN_NOTE}", fontsize=11)
-    fig.tight_layout()
     return fig
 
 
@@ -238,12 +251,12 @@ def _zoom_curves(m: ErrorMap, tilt: str, opts, with_pitch_shift=False):
         c = _curve(m, name, ia, tilt, it)
         curves.append(c)
         colour, ls = _style(name, k)
-        ax.plot(m.yaw_deg, c, color=colour, ls=ls, lw=1.8, label=_label(name))
+        ax.plot(_closed_yaw(m)[0], c, color=colour, ls=ls, lw=1.8, label=_label(name))
     if with_pitch_shift:
         ipitch = ErrorMap.axis_index(m.pitch_deg, float(axis[it]), "pitch")
         name = methods[-1]
         c = _curve(m, name, ia, "pitch", ipitch)
-        shifted = np.asarray(wrap_180_deg(m.yaw_deg + 90.0))
+        shifted = np.asarray(wrap_180_deg(_closed_yaw(m)[0] + 90.0))
         order = np.argsort(shifted, kind="stable")
         ax.plot(shifted[order], c[order], color="k", lw=1.0, marker="o", ms=2.5, ls="none",
                 label=f"Only pitch (pitch = {axis[it]:g}, {_label(name)}), yaw + 90")
@@ -251,19 +264,19 @@ def _zoom_curves(m: ErrorMap, tilt: str, opts, with_pitch_shift=False):
     mean = stack.mean(axis=0)
     for k, (name, c) in enumerate(zip(methods, curves)):
         colour, ls = _style(name, k)
-        ax2.plot(m.yaw_deg, c - mean, color=colour, ls=ls, lw=1.5, label=_label(name))
+        ax2.plot(_closed_yaw(m)[0], c - mean, color=colour, ls=ls, lw=1.5, label=_label(name))
     spread = float((stack.max(axis=0) - stack.min(axis=0)).max()) if stack.count() else 0.0
     ax.axhline(0, color="0.6", lw=0.6)
     ax2.axhline(0, color="0.6", lw=0.6)
     ax.set_ylabel("heading error (deg)")
     ax2.set_ylabel("method - mean (deg)")
     ax2.set_xlabel("yaw psi (deg)")
-    ax2.set_xlim(m.yaw_deg[0], m.yaw_deg[-1])
+    ax2.set_xlim(_closed_yaw(m)[0][0], _closed_yaw(m)[0][-1])
     _yaw_ticks(ax2)
     ax.grid(alpha=0.3)
     ax2.grid(alpha=0.3)
     ax.legend(fontsize=9, loc="best")
-    ax2.set_title(f"largest difference between methods: {spread:.2f} deg", fontsize=10)
+    ax2.set_title(f"largest difference between methods on this curve: {spread:.2g} deg", fontsize=10)
     other = "roll" if tilt == "pitch" else "pitch"
     ax.set_title(f"{tilt.capitalize()} only ({other} = 0), {tilt} = {axis[it]:g} deg, sun altitude "
                  f"{m.sun_altitude_deg[ia]:g} deg\n{SIGN_NOTE}", fontsize=11)

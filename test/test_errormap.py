@@ -335,8 +335,10 @@ def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path):
     assert m.meta["package_version"] and m.meta["scene"]["sky"]["model"] == "rayleigh"
     for bad in (["--yaw", "0:10"], ["--methods", "nope"], ["--pitch", "10:-10:5"], ["--stride", "0"]):
         args = list(cmd)
-        k = args.index(bad[0])
-        args[k + 1] = bad[1]
+        if bad[0] in args:
+            args[args.index(bad[0]) + 1] = bad[1]
+        else:
+            args += bad
         r = subprocess.run(args, capture_output=True, text=True, timeout=120)
         assert r.returncode == 2, (bad, r.stderr)
         assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
