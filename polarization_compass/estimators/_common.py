@@ -108,10 +108,11 @@ class KnobbedEstimator:
 
     OWN_KNOBS: dict = {}
     KNOB_DEFAULTS: dict = {}           # overrides of common defaults
+    NO_KNOBS: tuple = ()               # common knobs a method does not have
 
     @classmethod
     def knob_specs(cls) -> dict:
-        specs = dict(COMMON_KNOBS)
+        specs = {k: v for k, v in COMMON_KNOBS.items() if k not in cls.NO_KNOBS}
         specs.update(cls.OWN_KNOBS)
         for k, v in cls.KNOB_DEFAULTS.items():
             s = specs[k]
@@ -126,6 +127,8 @@ class KnobbedEstimator:
         out = {k: s.default for k, s in specs.items()}
         for k, v in given.items():
             out[k] = specs[k].check(k, v)
+        out.setdefault("stride", 1)
+        out.setdefault("region", None)
         if out["min_sun_altitude_deg"] >= out["max_sun_altitude_deg"]:
             raise EstimatorError(f"{self.name}: min_sun_altitude_deg must be below max_sun_altitude_deg")
         return out

@@ -198,12 +198,13 @@ def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_
                     tot[32] += rz * rz
 
 
+_SYM = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
+
+
 def sym3(u) -> np.ndarray:
     """3x3 symmetric matrix from its upper triangle (00 01 02 11 12 22), any leading axes."""
     u = np.asarray(u)
-    return np.stack([np.stack([u[..., 0], u[..., 1], u[..., 2]], -1),
-                     np.stack([u[..., 1], u[..., 3], u[..., 4]], -1),
-                     np.stack([u[..., 2], u[..., 4], u[..., 5]], -1)], -2)
+    return u[..., _SYM].reshape(u.shape[:-1] + (3, 3))
 
 
 _RUN = 64

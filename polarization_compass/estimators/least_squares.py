@@ -153,14 +153,11 @@ class _LSBase(KnobbedEstimator, Estimator):
         # (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
         min_dop = k["min_dop"]
         sigma_max = math.radians(k["max_aop_noise_deg"])
-        sub = sub_pass(*arrs, min_dop, wmode, var_mode)
-        for _ in range(2):
+        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=4096)   # a first look at the noise
+        if var_mode == 1:
             s0sq = _noise_scale_sq(sub, k["bias_correction"])
-            new_min = max(k["min_dop"], math.sqrt(s0sq) / sigma_max) if var_mode == 1 else min_dop
-            if not new_min > min_dop * 1.02:
-                break
-            min_dop = min(new_min, 0.99)
-            sub = sub_pass(*arrs, min_dop, wmode, var_mode)
+            min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
+        sub = sub_pass(*arrs, min_dop, wmode, var_mode)
         acc = full_pass(*arrs[:4], segs, min_dop, wmode)
         n = acc["n"]
         nonfinite = acc["nonfinite"]

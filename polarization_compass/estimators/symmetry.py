@@ -62,7 +62,7 @@ class SymmetryEstimator(KnobbedEstimator, Estimator):
 
     axial = True
     OWN_KNOBS = dict(DISC_KNOBS,
-                     harmonics=Knob(4, "int", 1, 32, doc="circular harmonics K used in the correlation"),
+                     harmonics=Knob(2, "int", 1, 32, doc="circular harmonics K used in the correlation"),
                      rings=Knob(24, "int", 2, 4096, doc="radial rings of the polar decomposition"),
                      inner_fraction=Knob(0.05, "float", 0.0, 0.9,
                                          doc="ignore the disc's centre (AOPLM is singular at the zenith pixel)"),

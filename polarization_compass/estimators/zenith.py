@@ -63,6 +63,7 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
     OWN_KNOBS = {"window_px": Knob(32, "int", 1, 2048, doc="side of the square window at the image centre, "
                                                            "sensor pixels")}
     KNOB_DEFAULTS = {"min_pixels": 4, "block_px": 4, "min_dop": 0.0}
+    NO_KNOBS = ("stride", "region")    # it reads its window, every pixel
 
     def __init__(self, **knobs):
         super().__init__(**knobs)
@@ -78,7 +79,7 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
             return bad
         win, _ = zenith_window(obs.camera, k["window_px"])
         try:
-            smp = sample_observation(obs, dict(k, stride=1, region=None), window=win)
+            smp = sample_observation(obs, k, window=win)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
         if smp.n < k["min_pixels"]:
