@@ -56,6 +56,13 @@ class AttitudeBuffer:
     :meth:`at` interpolates (normalised linear interpolation, hemisphere aligned) between the samples
     either side of ``t`` when both are within ``tol_ns``; with one side only, the nearer sample within
     ``tol_ns``; otherwise None (stale or missing: the caller reports it, nothing is guessed).
+
+    Time-line jumps: a sample more than ``keep_ns`` ahead of the newest is held aside until a second
+    sample near it confirms the jump (one bad stamp far in the future must not evict every good
+    sample); a sample more than ``keep_ns`` behind the newest is dropped (a late message), unless the
+    newest is a lone sample (then that one was the outlier) or three such samples come in a row (the
+    clock went back, e.g. a bag played again): then the buffer starts over from them.
+    ``jumps_held``/``late_dropped``/``resets`` count these events.
     """
 
     def __init__(self, keep_ns: int = 10_000_000_000):
@@ -64,7 +71,12 @@ class AttitudeBuffer:
         self._lock = threading.Lock()         # nodes add from one thread and look up from another
         self._t: list[int] = []
         self._q: list[np.ndarray] = []
+        self._ahead = None                    # (stamp, q) of an unconfirmed jump ahead
+        self._behind = 0
         self.out_of_order = 0
+        self.jumps_held = 0
+        self.late_dropped = 0
+        self.resets = 0
 
     def __len__(self):
         return len(self._t)
@@ -77,7 +89,32 @@ class AttitudeBuffer:
         with self._lock:
             self._add(int(t_ns), np.asarray(q_xyzw, dtype=float))
 
+    def _restart(self, samples) -> None:
+        self._t = [t for t, _ in samples]
+        self._q = [q for _, q in samples]
+        self._ahead = None
+        self._behind = 0
+        self.resets += 1
+
     def _add(self, t_ns: int, q: np.ndarray) -> None:
+        if self._t:
+            newest = self._t[-1]
+            if t_ns > newest + self.keep_ns:                       # far ahead: confirm before trusting
+                if self._ahead is not None and abs(t_ns - self._ahead[0]) <= self.keep_ns:
+                    self._restart(sorted([self._ahead, (t_ns, q)], key=lambda x: x[0]))
+                else:
+                    self._ahead = (t_ns, q)
+                    self.jumps_held += 1
+                return
+            if t_ns < newest - self.keep_ns:                       # far behind
+                self._behind += 1
+                if len(self._t) == 1 or self._behind >= 3:
+                    self._restart([(t_ns, q)])
+                else:
+                    self.late_dropped += 1
+                return
+        self._behind = 0
+        self._ahead = None
         if self._t and t_ns < self._t[-1]:
             self.out_of_order += 1
             k = bisect.bisect_right(self._t, t_ns)
@@ -194,6 +231,17 @@ class HeadingFrontEnd:
     def set_layout(self, layout, pol45_toward: str) -> None:
         from .demosaic import parse_layout
         self.layout = parse_layout(layout, pol45_toward)
+
+    def superpixel_step(self):
+        """A hashable key of the pixels this method's observation holds (same key, same observation for
+        the same frame): the superpixel step ``stride // 2`` for plain strided methods, and the method
+        with its window/region knobs otherwise (the zenith method reads only its window)."""
+        knobs = getattr(self.estimator, "knobs", {}) or {}
+        stride = int(knobs.get("stride", 1) or 1)
+        k = max(1, stride // 2) if self.demosaic == "superpixel" else stride
+        if "stride" in knobs and knobs.get("region") is None:
+            return k
+        return (self.method, k, knobs.get("region"), knobs.get("window_px"))
 
     def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
                     pitch_deg=None, roll_deg=None, prior_bearing_deg=None, estimator=None):

@@ -123,8 +123,36 @@ def test_attitude_buffer_interpolates_within_tolerance_only():
     assert gap == 400
     b.add(1500, rep103_quat(0.1))                                             # out of order: inserted
     assert b.out_of_order == 1 and len(b) == 3
-    b.add(20_000, rep103_quat(0.0))                                           # prunes older than keep_ns
-    assert len(b) == 1 and b.newest_ns == 20_000
+    b.add(11_600, rep103_quat(0.0))                                           # prunes older than keep_ns
+    assert len(b) == 2 and b.newest_ns == 11_600 and b.at(1500, 10) is None
+
+
+def test_attitude_buffer_survives_time_line_jumps():
+    keep = 1_000
+    b = AttitudeBuffer(keep_ns=keep)
+    for k in range(5):
+        b.add(1000 + 100 * k, rep103_quat(0.0))
+    b.add(10 ** 18, rep103_quat(1.0))                 # one stamp far in the future: held aside, evicts nothing
+    assert b.newest_ns == 1400 and b.jumps_held == 1
+    b.add(1500, rep103_quat(0.0))
+    assert b.at(1500, 10) is not None
+    b.add(200, rep103_quat(0.0))                      # a late message far behind: dropped
+    assert b.late_dropped == 1 and b.newest_ns == 1500
+    b.add(1600, rep103_quat(0.0))
+    for k in range(3):                                # the clock went back for good (a bag played again)
+        b.add(-100_000 + k, rep103_quat(0.3))
+    assert b.late_dropped == 3 and b.resets == 1 and b.newest_ns == -100_000 + 2 and len(b) == 1
+    b.add(-99_990, rep103_quat(0.3))
+    assert b.at(-99_995, 10) is not None
+    lone = AttitudeBuffer(keep_ns=keep)               # a lone first sample far ahead was the outlier
+    lone.add(10 ** 18, rep103_quat(0.0))
+    lone.add(5, rep103_quat(0.0))
+    assert lone.newest_ns == 5
+    confirmed = AttitudeBuffer(keep_ns=keep)          # a jump ahead confirmed by a second sample is taken
+    confirmed.add(0, rep103_quat(0.0))
+    confirmed.add(10 ** 12, rep103_quat(0.0))
+    confirmed.add(10 ** 12 + 20, rep103_quat(0.0))
+    assert confirmed.newest_ns == 10 ** 12 + 20 and len(confirmed) == 2
 
 
 def test_attitude_buffer_takes_the_short_way_between_q_and_minus_q():

@@ -162,7 +162,11 @@ class ErrorEvaluatorNode(Node):
         except MessageError as exc:
             self.diag.reject(f"estimate_{getattr(exc, 'reason', 'bad')}", f"{stream}: {exc}")
             return
-        sigma = math.degrees(math.sqrt(max(float(msg.orientation_covariance[8]), 0.0)))
+        var = float(msg.orientation_covariance[8])
+        if not (math.isfinite(var) and var > 0):
+            self.diag.reject("estimate_bad_covariance", f"{stream}: yaw variance {var!r}")
+            return
+        sigma = math.degrees(math.sqrt(var))
         self.matcher.add_estimate(stream, t_ns, b, extra={"latency_ms": "" if lat is None else round(lat, 3),
                                                           "sigma_deg": sigma})
         if lat is None:

@@ -140,11 +140,14 @@ class HeadingEstimatorNode(Node):
     def _on_fix(self, msg):
         try:
             lat, lon, alt = decode_navsatfix(msg)
+            self.sun.set_site(lat, lon, alt)        # refuses sites the ephemeris cannot use (SolarError)
         except MessageError as exc:
             self.diag.reject(f"fix_{getattr(exc, 'reason', 'bad')}", str(exc))
             return
+        except CompassError as exc:
+            self.diag.reject("fix_bad_value", str(exc))
+            return
         self.site_from_fix = (lat, lon, alt)
-        self.sun.set_site(lat, lon, alt)
 
     def _camera_for(self, width: int, height: int) -> CameraModel:
         p = self.params
@@ -177,12 +180,14 @@ class HeadingEstimatorNode(Node):
 
     def _drain(self) -> None:
         """Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than the
-        newest IMU sample waits up to imu_max_wait_s for it (or until a third image queues behind it)."""
+        newest IMU sample waits up to imu_max_wait_s (wall) for it, if the IMU stream is live (its newest
+        sample within imu_max_wait_s of the image stamp) and fewer than three images queue."""
+        wait_ns = self.params["imu_max_wait_s"] * 1e9
         while self.pending:
             t_ns, _, _, _, _, deadline = self.pending[0]
             newest = self.imu.newest_ns
-            if (self.needs_tilt and (newest is None or newest < t_ns) and time.monotonic() < deadline
-                    and len(self.pending) <= 2):
+            lagging = newest is not None and t_ns - wait_ns <= newest < t_ns
+            if self.needs_tilt and lagging and time.monotonic() < deadline and len(self.pending) <= 2:
                 return
             self._process(*self.pending.popleft()[:5])
 
