@@ -19,7 +19,7 @@ SETTINGS = [
     ("zenith default (32 px window)", "zenith", {}),
     ("sm_asm default (stride 8)", "sm_asm", {}),
     ("sm_asm stride 16", "sm_asm", {"stride": 16}),
-    ("symmetry default (stride 8, K 4)", "symmetry", {}),
+    ("symmetry default (stride 8, K 2)", "symmetry", {}),
     ("symmetry stride 16", "symmetry", {"stride": 16}),
     ("least_squares superpixels (all)", "least_squares", {}),
     ("least_squares stride 4", "least_squares", {"stride": 4}),
