@@ -32,8 +32,8 @@ def register(sub):
     p.add_argument("--yaw", required=True, metavar="A:B:STEP", help="yaw psi (= camera bearing here), deg")
     p.add_argument("--pitch", required=True, metavar="A:B:STEP", help="pitch (about camera x), deg")
     p.add_argument("--roll", required=True, metavar="A:B:STEP", help="roll (about camera y), deg")
-    p.add_argument("--stride", type=int, help="every method reads every N-th sensor pixel (default: the "
-                                              "sweep sampling, see docs/error-maps.md)")
+    p.add_argument("--stride", type=int, help="methods with a stride knob read every N-th sensor pixel "
+                                              "(default: the sweep sampling, see docs/error-maps.md)")
     p.add_argument("--workers", type=int, help="processes (default: all cores)")
     p.add_argument("--full-domain", action="store_true", help="also compute cells with |pitch|+|roll| > 30")
     p.add_argument("--tilt-limit", type=float, default=30.0, help="the |pitch|+|roll| limit, deg (default 30)")
@@ -86,7 +86,17 @@ def run(args) -> int:
     if not str(args.out).endswith(".npz"):
         raise CompassError(f"--out must name an .npz file, got {args.out!r}")
     scene = load_scene(args.scene)
-    knobs = {m: {"stride": args.stride} for m in methods} if args.stride else {}
+    knobs = {}
+    if args.stride:                     # only for methods that have a stride knob (zenith reads its window)
+        from ..errormap import DEFAULT_SWEEP_KNOBS
+        from ..estimators import EstimatorError, make_estimator
+        for m in methods:
+            want = {**DEFAULT_SWEEP_KNOBS.get(m, {}), "stride": args.stride}
+            try:
+                make_estimator(m, **want)
+            except EstimatorError:
+                continue
+            knobs[m] = want
     spec = SweepSpec(methods, scene=scene, knobs=knobs, full_domain=args.full_domain,
                      tilt_limit_deg=args.tilt_limit, support=args.support, **axes)
     if spec.cell_count() == 0:
