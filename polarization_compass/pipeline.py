@@ -12,7 +12,6 @@ R_body_cam)`` and, with the default mounting, the REP-103 yaw of the body is ``9
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -2,7 +2,6 @@
 changes with bad values, a stale IMU, a missing optional package and a bad parameter file. A node
 must log, count and drop what it cannot use, keep processing good messages, and stop on SIGINT
 with exit code 0 and no traceback."""
-import json
 import math
 
 import numpy as np

@@ -34,7 +34,7 @@ from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource
 from . import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
-from .params import ESTIMATOR, KNOB_PREFIX, knob_params, knob_values, layout_from_text
+from .params import ESTIMATOR, knob_params, knob_values, layout_from_text
 from .rosparams import ParameterSet
 from .runner import run_node
 

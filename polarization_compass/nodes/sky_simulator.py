@@ -40,7 +40,7 @@ from std_msgs.msg import String
 
 from ..bag import MessageError, decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
-from ..conventions import matrix_to_quat, quat_to_matrix, rot_x, rot_y, rot_z, wrap_360_deg
+from ..conventions import matrix_to_quat, quat_to_matrix, rot_x, rot_y, rot_z
 from ..errors import CompassError, MissingDependencyError
 from ..pipeline import SunSource, camera_attitude_from_body_quat
 from . import topics
