@@ -2,7 +2,6 @@
 physics notes' published curve, the paper's three similarities and eq 32's 90-degree shift, plus the
 engine's bookkeeping (domain, status codes, resume, workers, corrupt files)."""
 import json
-import math
 import subprocess
 import sys
 
@@ -10,8 +9,8 @@ import numpy as np
 import pytest
 
 from polarization_compass import conventions as cv
-from polarization_compass.errormap import (STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMap, ErrorMapError, SweepSpec,
-                                           load_error_map, parse_range, run_sweep, tilt_domain_mask)
+from polarization_compass.errormap import (STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, SweepSpec, load_error_map,
+                                           parse_range, run_sweep, tilt_domain_mask)
 from polarization_compass.estimators import estimator_names
 
 PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
