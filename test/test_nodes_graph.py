@@ -13,6 +13,7 @@ The correctors get a coarse error map made here (yaw step 30 deg) so that the te
 minutes for a fine one."""
 import json
 import math
+import signal
 import subprocess
 import sys
 
@@ -82,8 +83,8 @@ def test_sim_graph_on_dds(ros_env, tmp_path):
         assert rec.spin_until(lambda: proc.poll() is not None, 240)
     finally:
         if proc.poll() is None:
-            proc.terminate()
-        stdout, stderr = proc.communicate(timeout=60)
+            proc.send_signal(signal.SIGINT)                # the command stops its nodes, then exits
+        stdout, stderr = proc.communicate(timeout=90)
         rec.spin_for(0.2)
         rec.close()
     assert proc.returncode == 0, stdout[-3000:] + stderr[-3000:]

@@ -184,8 +184,21 @@ def run(args) -> int:
     return _run_graph(graph, out, env, args)
 
 
+def _sigterm_as_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def _run_graph(graph, out: Path, env: dict, args) -> int:
     from ..graphs import share_dir
+    # SIGTERM (a test runner, a supervisor) stops the nodes like Ctrl-C does: never orphan them
+    previous = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+    try:
+        return _run_graph_inner(graph, out, env, args, share_dir)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
     share = share_dir()
     logs = out / "logs"
     logs.mkdir(parents=True, exist_ok=True)
@@ -223,6 +236,7 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
         print("sim: interrupted, stopping the nodes", file=sys.stderr)
         code = 130
     finally:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)        # let the shutdown finish
         stopped = _stop_all(procs)
         for f in files:
             f.close()
