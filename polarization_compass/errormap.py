@@ -326,6 +326,28 @@ class SweepSpec:
                 raise ErrorMapError(f"{name} must be finite")
             setattr(self, name, a)
         self.knobs = {m: dict(self.knobs.get(m, DEFAULT_SWEEP_KNOBS.get(m, {}))) for m in self.methods}
+        if self.scene.effects:
+            self._contiguous_pixels()
+
+    def _contiguous_pixels(self) -> None:
+        """A scene with sensor effects renders a mosaic, which needs contiguous pixels (the renderer
+        refuses strided selections): such sweeps read every pixel of each method's block (stride 1),
+        which is slow but what a noisy frame is."""
+        from .estimators.base import make_estimator
+        cam = self.scene.camera
+        for m in self.methods:
+            k = self.knobs[m]
+            try:
+                sel = make_estimator(m, **k).pixels_needed(cam)
+            except CompassError:
+                continue                      # reported when the sweep builds its estimators
+            if sel.mode in ("stride", "region") and sel.stride > 1:
+                cand = {**k, "stride": 1}
+                try:
+                    make_estimator(m, **cand)
+                except CompassError:
+                    continue
+                self.knobs[m] = cand
 
     @property
     def shape(self) -> tuple:
@@ -512,10 +534,13 @@ def _open_partial(d: Path, spec: SweepSpec) -> None:
             old = json.loads(stamp.read_text()).get("digest")
         except (OSError, ValueError):
             old = None
-        if old != digest:
+        if old != digest and not any(d.glob("chunk_*.npz")):
+            shutil.rmtree(d)                   # nothing finished there: start afresh
+        elif old != digest:
             raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene); "
                                 f"delete it or choose another --out")
-        return
+        if d.exists():
+            return
     d.mkdir(parents=True)
     stamp.write_text(json.dumps({"digest": digest, "shape": list(spec.shape)}))
 
