@@ -19,6 +19,16 @@ PAPER_PITCH_ONLY_CELLS = 1.4e5
 BENCH_STRIDE = 16
 
 
+def _fallback_knobs(method: str) -> dict:
+    """Stride ``BENCH_STRIDE`` for a method that has a stride knob, else its defaults (e.g. zenith)."""
+    from polarization_compass.estimators import make_estimator
+    try:
+        make_estimator(method, stride=BENCH_STRIDE)
+        return {"stride": BENCH_STRIDE}
+    except Exception:  # noqa: BLE001 - no stride knob
+        return {}
+
+
 def _spec(errormap, methods, cells_target: int, tiny: bool):
     """A pitch-only sweep (2 sun altitudes, pitch -20..20 step 10, roll 0) of about ``cells_target`` cells."""
     from polarization_compass.camera import CameraModel
@@ -29,7 +39,8 @@ def _spec(errormap, methods, cells_target: int, tiny: bool):
     per_yaw = len(methods) * n_alt * pitches.size
     n_yaw = max(2, int(round(cells_target / per_yaw)))
     yaws = np.linspace(-180.0, 180.0, n_yaw, endpoint=False)
-    knobs = {m: dict(errormap.DEFAULT_SWEEP_KNOBS.get(m) or {"stride": BENCH_STRIDE}) for m in methods}
+    knobs = {m: dict(errormap.DEFAULT_SWEEP_KNOBS[m]) if m in errormap.DEFAULT_SWEEP_KNOBS else _fallback_knobs(m)
+             for m in methods}
     return errormap.SweepSpec(methods=tuple(methods), sun_altitude_deg=np.array([20.0, 40.0][:n_alt]),
                               yaw_deg=yaws, pitch_deg=pitches, roll_deg=np.array([0.0]), scene=scene, knobs=knobs)
 
