@@ -19,6 +19,8 @@ Conditions
                        (:class:`polarization_compass.correction.TiltCorrector`, true pitch and roll), both
                        ``invert`` and ``subtract`` corrections; skipped when no map is shipped.
 ``tilted_tilt_aware``  the same scenes, ``tilt_aware`` given the true pitch and roll.
+                       (``tilt_aware`` runs in every condition except ``tilted``/``tilted_corrected``,
+                       always given the true pitch and roll: 0, 0 in the level conditions.)
 ``bdl_sky``            Berry-Dennis-Lee neutral-point sky (separation 18 deg, DoP_max 0.75), ideal sensor, level.
 ``half_occluded``      ideal Rayleigh, level, half of the image masked by a half-plane through the centre at a
                        random angle (asymmetric about the solar meridian).
@@ -50,6 +52,8 @@ from .common import Unavailable, error_stats, optional_import, peak_memory, sing
 from .simulator import ALL_EFFECTS as ALL_SENSOR_EFFECTS, NOISE_ELECTRONS  # noqa: E402
 NOISE_DOP_MAX = 0.7
 TILT_LIMIT_DEG = 20.0
+#: Methods that need the tilt: always given the true pitch and roll (level conditions: 0, 0).
+TILT_METHODS = ("tilt_aware",)
 #: An estimate slower than this (s) is timed once per scene instead of ``cfg.repeats`` times.
 SLOW_ESTIMATE_S = 0.25
 
@@ -65,6 +69,7 @@ class Condition:
     correct: bool = False                   # correct with an error map
     occlude: bool = False
     only_methods: tuple = ()                # empty: every method
+    exclude_methods: tuple = ()
 
 
 CONDITIONS = {c.name: c for c in (
@@ -72,8 +77,9 @@ CONDITIONS = {c.name: c for c in (
     Condition("noise_imx250", "Rayleigh (DoP_max 0.7), IMX250MZR-like sensor (5000 e-, 2.3 e- read noise, 12 bit, "
                               "ER 100), level", sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, sensor_bits=12),
     Condition("tilted", f"Rayleigh, ideal sensor, tilted |pitch|+|roll| <= {TILT_LIMIT_DEG:g} deg, uncorrected",
-              tilted=True),
-    Condition("tilted_corrected", "as 'tilted', headings corrected with an error map", tilted=True, correct=True),
+              tilted=True, exclude_methods=("tilt_aware",)),
+    Condition("tilted_corrected", "as 'tilted', headings corrected with an error map", tilted=True, correct=True,
+              exclude_methods=("tilt_aware",)),
     Condition("tilted_tilt_aware", "as 'tilted', tilt_aware given the true pitch and roll", tilted=True,
               give_tilt=True, only_methods=("tilt_aware",)),
     Condition("bdl_sky", "Berry-Dennis-Lee sky (separation 18 deg, DoP_max 0.75), ideal sensor, level",
@@ -96,7 +102,7 @@ def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, st
     for dm in demosaics:
         tag = "" if dm is None else (", superpixel demosaic" if dm == "superpixel" else ", full-res demosaic")
         if method == "zenith":
-            windows = {"tiny": (9,), "quick": (9, 33), "full": (3, 9, 17, 33, 65, 129)}[level]
+            windows = {"tiny": (9,), "quick": (9, 33), "full": (5, 9, 17, 33, 65, 129)}[level]
             out += [(f"window {w} px{tag}", {"window_px": w}, dm) for w in windows]
             continue
         if level == "full":             # the method's defaults (often every pixel: slow, so full mode only)
@@ -287,7 +293,8 @@ def run(cfg) -> dict:
     t_start = time.perf_counter()
     for cond in conds:
         sensor = cond.sensor_bits is not None
-        cond_methods = [m for m in methods if not cond.only_methods or m in cond.only_methods]
+        cond_methods = [m for m in methods if (not cond.only_methods or m in cond.only_methods)
+                        and m not in cond.exclude_methods]
         if cond.correct:
             try:
                 optional_import("polarization_compass.correction")
@@ -363,9 +370,9 @@ def run(cfg) -> dict:
             "cells": [c.to_json() for c in cells], "elapsed_s": time.perf_counter() - t_start}
 
 
-def _observation(frame, s, cond, camera, Observation):
+def _observation(frame, s, cond, camera, Observation, method=""):
     obs = Observation.from_frame(frame, camera=camera)
-    if cond.give_tilt:
+    if cond.give_tilt or method in TILT_METHODS:
         obs.pitch_deg = s["attitude"].pitch_deg
         obs.roll_deg = s["attitude"].roll_deg
     if cond.occlude:
@@ -375,7 +382,7 @@ def _observation(frame, s, cond, camera, Observation):
 
 
 def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg):
-    obs = _observation(frame, s, cond, camera, Observation)
+    obs = _observation(frame, s, cond, camera, Observation, c.method)
     est = c.estimator
     corrector = c.corrector
 
