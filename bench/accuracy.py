@@ -416,8 +416,10 @@ def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg):
         if res.sigma_deg is not None:
             c.sigmas.append(float(res.sigma_deg))
     if cond.sensor_bits is not None:
-        sel = crb_selection(c.knobs, c.demosaic, camera)
-        min_dop = float((getattr(c.estimator, "knobs", None) or c.knobs).get("min_dop", 0.0) or 0.0)
+        eff = getattr(est, "knobs", None)
+        eff = eff if isinstance(eff, dict) else c.knobs      # the estimator's knobs incl. its defaults
+        sel = crb_selection(eff, c.demosaic, camera)
+        min_dop = float(eff.get("min_dop", 0.0) or 0.0)
         extra = None
         if min_dop > 0:
             from .crb import aop_and_derivative
