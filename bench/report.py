@@ -248,7 +248,7 @@ def _reference_cell(cells, method, condition):
     for lab in labels:
         for c in cells:
             if c["method"] == method and c["condition"] == condition and \
-                    c["knobs_label"] in (lab, lab + ", superpixel demosaic"):
+                    c["knobs_label"] in (lab, lab + ", superpixel demosaic", lab + ", correction invert"):
                 return c
     return None
 
@@ -283,7 +283,8 @@ def _headline(cells, r) -> list[str]:
             row.append("-" if c is None else f"{_f(c['error']['rms_deg'])} ({_f(c['error']['max_deg'])})")
         rows.append(row)
     lines += ["**Error by condition**, RMS (max) in deg, at reference settings (zenith: 33 px window; others: "
-              "stride 8, or 16 in quick mode; superpixel demosaic where there is a sensor):", ""]
+              "stride 8, or 16 in quick mode; superpixel demosaic where there is a sensor; the `invert` "
+              "correction):", ""]
     lines += _table(["method"] + conds, rows) + [""]
     return lines
 
