@@ -139,7 +139,10 @@ def _finish(s0, s1, s2, ok):  # pragma: no cover - compiled
     c = -s1
     ax = axial_atan2_f32(s2, c)                       # atan2(S2, -S1) folded to [-pi/2, pi/2)
     full = ax + (_PI32 if ax <= np.float32(0.0) else -_PI32)
-    ax = full if c < np.float32(0.0) else ax          # unfold to (-pi, pi]
+    # unfold to (-pi, pi]; on the c = 0 line the fold gives -pi/2 for both signs of S2, so S2 > 0
+    # (true angle +pi/2, AoP +45 deg) unfolds too
+    unfold = (c < np.float32(0.0)) | ((c == np.float32(0.0)) & (s2 > np.float32(0.0)))
+    ax = full if unfold else ax
     a = np.float32(0.5) * ax
     a = -_HALF_PI32 if a >= _HALF_PI32 else a
     lin = math.sqrt(s1 * s1 + s2 * s2)

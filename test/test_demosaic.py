@@ -86,6 +86,26 @@ def test_aop_dop_from_stokes_against_numpy():
     assert np.all((a >= -np.pi / 2) & (a < np.pi / 2))
 
 
+@pytest.mark.parametrize("s1, s2", [(0.0, 1.0), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0), (1.0, 0.0), (-1.0, 0.0),
+                                     (-1.0, -0.0)])
+def test_stokes_on_the_axes_give_the_exact_angle(s1, s2):
+    """Exact zeros (integer mosaics tie often): same answer as the arctan2 reference, AoP +-45 deg kept apart."""
+    a, d, ok = aop_dop_from_stokes(np.float32([2.0]), np.float32([s1]), np.float32([s2]))
+    ref = np.pi / 2 - 0.5 * math.atan2(s2, s1)
+    assert ok.all()
+    assert ang_err_deg(a, ref).max() < 1e-5, (np.degrees(a), math.degrees(ref))
+
+
+@pytest.mark.parametrize("aop_deg", [45.0, -45.0])
+@pytest.mark.parametrize("method", METHODS)
+def test_integer_mosaic_with_a_tie_keeps_the_sign_of_45_deg(aop_deg, method):
+    """Rounded to integer counts, the 0 and 90 deg samples tie exactly (S1 = 0)."""
+    m = np.round(malus_mosaic((4, 4), math.radians(aop_deg), 0.5, 1000.0, IMX250MZR_LAYOUT, "+x+y"))
+    a, d, ok = polarization_from_mosaic(m.astype(np.uint16), IMX250MZR_LAYOUT, "+x+y", method)
+    assert ok.all()
+    assert ang_err_deg(a, math.radians(aop_deg)).max() < 0.1
+
+
 def test_aop_at_the_branch_cut_is_folded_into_range():
     # AoP = +-90 deg: E along x. S1 > 0, S2 = +-0 -> AoP must be -pi/2 exactly, never +pi/2
     a, d, ok = aop_dop_from_stokes(np.float32([2, 2, 2]), np.float32([1, 1, 1]), np.float32([0.0, -0.0, 1e-30]))

@@ -46,13 +46,12 @@ def test_uncertainty_calibrated_gaussian_aop_noise(name, tilt):
 
 @pytest.mark.parametrize("name,tilt", [("least_squares", False), ("tilt_aware", True)])
 def test_uncertainty_calibrated_sensor_noise(name, tilt):
-    """The scene config/scenes/imx250mzr_noisy.yaml (shot and read noise, extinction ratio, superpixel
-    demosaic) on a 640 x 640 pixel block. Its 12-bit quantisation is left out here: it adds negligible
-    noise at 4725 e- but its exact ties S1 = 0 expose a demosaic fold error (AoP -45 instead of +45 deg,
-    reported to the lead), which is not what this test is about."""
+    """The scene config/scenes/imx250mzr_noisy.yaml (shot and read noise, extinction ratio, 12-bit
+    quantisation, superpixel demosaic) on a 640 x 640 pixel block. Quantisation makes exact ties S1 = 0
+    common, which once exposed a demosaic fold error (AoP -45 instead of +45 deg)."""
     from polarization_compass.scene import load_scene
     scene = load_scene("config/scenes/imx250mzr_noisy.yaml")
-    scene = scene.replace(sensor={k: v for k, v in scene.sensor.items() if k != "quantization"})
+    assert "quantization" in scene.sensor
     z2 = _z2(name, 60, None, 3, PixelSelection.rect(905, 705, 640, 640), scene, tilt=tilt)
     assert 0.7 <= z2.mean() <= 1.4, z2.mean()
 
