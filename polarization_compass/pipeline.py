@@ -231,16 +231,12 @@ class HeadingFrontEnd:
         from .demosaic import parse_layout
         self.layout = parse_layout(layout, pol45_toward)
 
-    def superpixel_step(self):
-        """A hashable key of the pixels this method's observation holds (same key, same observation for
-        the same frame): the superpixel step ``stride // 2`` for plain strided methods, and the method
-        with its window/region knobs otherwise (the zenith method reads only its window)."""
-        knobs = getattr(self.estimator, "knobs", {}) or {}
-        stride = int(knobs.get("stride", 1) or 1)
-        k = max(1, stride // 2) if self.demosaic == "superpixel" else stride
-        if "stride" in knobs and knobs.get("region") is None:
-            return k
-        return (self.method, k, knobs.get("region"), knobs.get("window_px"))
+    def observation_key(self, camera: CameraModel) -> tuple:
+        """Hashable key of this method's observation of a frame: equal keys give equal observations, so a
+        replay demosaics once for methods that read the same pixels the same way (the pixels are the
+        estimator's ``pixels_needed``: a disc for sm_asm/symmetry, a strided frame for least squares, a
+        window for zenith)."""
+        return (self.estimator.pixels_needed(camera), self.demosaic, self.intensity, self.layout)
 
     def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
                     pitch_deg=None, roll_deg=None, prior_bearing_deg=None, estimator=None):

@@ -324,9 +324,23 @@ class ReplayConfig:
         return ms
 
     def knobs_for(self, method: str) -> dict:
-        k = dict(self.knobs.get("*", {}))
+        """Knobs of ``method``: the ``"*"`` entries it has (zenith has no stride, for example), then
+        its own entries (an unknown name there is an error of the estimator)."""
+        from .estimators import estimator_knob_names
+        names = estimator_knob_names(method)
+        k = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
         k.update(self.knobs.get(method, {}))
         return k
+
+    def check_knobs(self) -> None:
+        """A ``"*"`` knob no selected method has is a typo, not a no-op."""
+        from .estimators import estimator_knob_names
+        ms = self.method_list()
+        known = set().union(*(estimator_knob_names(m) for m in ms))
+        bad = sorted(set(self.knobs.get("*", {})) - known)
+        if bad:
+            raise ReplayError(f"unknown knob(s) {', '.join(bad)} for methods {', '.join(ms)}; "
+                              f"known: {', '.join(sorted(known))}")
 
 
 @dataclass
@@ -370,6 +384,7 @@ class FramePipeline:
         layout = mos.get("layout", ((90, 45), (135, 0)))
         pol45 = mos.get("pol45_toward", "+x+y")
         self.config = config
+        config.check_knobs()
         self.methods = config.method_list()
         self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, pol45, config.demosaic,
                                           config.use_intensity) for m in self.methods}
@@ -418,7 +433,7 @@ class FramePipeline:
                 rows.append(MethodRow(t_ns, m, "bad_input", status_reason, None, None, "", frame.true_bearing_deg,
                                       None, None, None, 0, None, None, sun_az, sun_alt, prior))
                 continue
-            key = (front.superpixel_step(), front.demosaic, front.intensity, front.layout)
+            key = front.observation_key(frame.camera)
             t0 = time.perf_counter()
             try:
                 obs = obs_cache.get(key)

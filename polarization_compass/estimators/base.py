@@ -163,6 +163,15 @@ def estimator_names() -> list[str]:
     return [n for n in order if n in _REGISTRY] + sorted(set(_REGISTRY) - set(order))
 
 
+def estimator_knob_names(name: str) -> frozenset:
+    """Names of the knobs method ``name`` accepts (empty for an estimator without a knob table)."""
+    from . import methods  # noqa: F401
+    if name not in _REGISTRY:
+        raise EstimatorError(f"unknown method {name!r}; known: {', '.join(estimator_names())}")
+    specs = getattr(_REGISTRY[name], "knob_specs", None)
+    return frozenset(specs()) if specs is not None else frozenset()
+
+
 def make_estimator(name: str, **knobs) -> Estimator:
     from . import methods  # noqa: F401
     if name not in _REGISTRY:
