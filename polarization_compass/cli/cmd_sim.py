@@ -137,6 +137,13 @@ def run(args) -> int:
             raise CompassError(f"--{name} must be a positive number, got {v}")
     if not (math.isfinite(args.pitch) and math.isfinite(args.roll) and abs(args.pitch) + abs(args.roll) <= 60):
         raise CompassError("--pitch and --roll must be finite with |pitch| + |roll| <= 60")
+    if not (math.isfinite(args.turn_rate) and 0.0 < abs(args.turn_rate) <= 360.0):
+        raise CompassError(f"--turn-rate must be a nonzero number of deg/s within +-360, got {args.turn_rate}")
+    if not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise CompassError(f"--timeout must be a positive number of seconds, got {args.timeout}")
+    if args.scene:
+        from ..scene import load_scene
+        load_scene(args.scene)              # a bad scene is refused here, not 15 s into the run
     wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [m for m in wanted if m not in PAPER_METHODS]
     if bad:
@@ -166,7 +173,7 @@ def run(args) -> int:
     if methods:
         from ..nodes.params import SIMULATOR, defaults
         d = defaults(SIMULATOR)
-        duration = args.turns * 360.0 / abs(args.turn_rate) if args.turn_rate else 60.0
+        duration = args.turns * 360.0 / abs(args.turn_rate)
         alts = scenario_sun_altitudes(d["start_time_utc"], duration,
                                       (d["latitude_deg"], d["longitude_deg"], d["altitude_m"]))
         if map_path != default_map_path():
