@@ -173,10 +173,22 @@ def _calendar(us):
 # --------------------------------------------------------------------------------------------
 # The paper's model (eqs 2-10), generalised to UTC + longitude
 # --------------------------------------------------------------------------------------------
+def _gregorian_leap_days_since_1985(y):
+    """Leap days in the years 1985 .. y-1 (negative before 1985), Gregorian rules (1900, 2100 are not leap)."""
+    def before(yy):
+        return np.floor((yy - 1.0) / 4.0) - np.floor((yy - 1.0) / 100.0) + np.floor((yy - 1.0) / 400.0)
+    return before(y) - before(1985.0)
+
+
 def _day_angle_rad(year, day_of_year_frac):
-    """sigma_S = 2 pi (D - D0) / 365.2422 with eq 6's D0 (INT = floor, as the paper says)."""
+    """sigma_S = 2 pi (D - D0) / 365.2422 with eq 6's D0.
+
+    Eq 6's ``INT((y - 1985) / 4)`` counts the leap days since 1985 assuming every fourth year is one; that
+    equals the Gregorian count for 1901-2100 and is off by one day per skipped century year outside it
+    (a 0.13 deg jump of the sun at 1901-01-01 and 2101-01-01), so the Gregorian count is used.
+    """
     y = np.asarray(year, dtype=float)
-    d0 = 79.6764 + 0.2422 * (y - 1985.0) - np.floor((y - 1985.0) / 4.0)
+    d0 = 79.6764 + 0.2422 * (y - 1985.0) - _gregorian_leap_days_since_1985(y)
     return 2.0 * np.pi * (np.asarray(day_of_year_frac, dtype=float) - d0) / 365.2422
 
 

@@ -169,17 +169,11 @@ def test_the_sun_never_jumps(t, lat, lon, model):
 # --------------------------------------------------------------------------------------------
 # Leap days and year boundaries (2024 and 2021-2025 are in test_solar.py); century years
 # --------------------------------------------------------------------------------------------
-_PAPER_LEAP_BUG = pytest.mark.xfail(strict=True, reason=(
-    "bug: solar paper model (eq 6 INT((y-1985)/4)) treats 1900 and 2100 as leap years: the sun jumps "
-    "0.13 deg at 1901-01-01 and 2101-01-01 (reported)"))
-
-
 @pytest.mark.parametrize("model, edge", [
     (m, e) for m in ("spa", "paper") for e in ("2000-02-29T00:00:00", "2000-03-01T00:00:00", "2100-03-01T00:00:00",
                                               "2001-01-01T00:00:00", "1900-03-01T00:00:00")]
-    + [("spa", "2101-01-01T00:00:00"), ("spa", "1901-01-01T00:00:00"),
-       pytest.param("paper", "2101-01-01T00:00:00", marks=_PAPER_LEAP_BUG),
-       pytest.param("paper", "1901-01-01T00:00:00", marks=_PAPER_LEAP_BUG)])
+    + [(m, e) for m in ("spa", "paper") for e in ("2101-01-01T00:00:00", "1901-01-01T00:00:00",
+                                                  "2401-01-01T00:00:00", "1801-01-01T00:00:00")])
 def test_century_leap_rules_do_not_make_the_sun_jump(model, edge):
     """2000 is a leap year, 1900 and 2100 are not: the day count must follow the Gregorian rules (a
     missed or extra day would jump the declination by up to 0.4 deg and the hour angle by 0)."""
@@ -204,3 +198,14 @@ def test_cache_across_a_leap_day_and_new_year_matches_direct_calls():
     assert great_circle_deg(got, ref).max() < 1e-4
     t2 = seconds("2024-02-28T23:55:00", 600)
     assert great_circle_deg(c(t2), sun_position(t2, 60.0, -180.0)).max() < 1e-4
+
+
+def test_paper_leap_day_count_is_eq_6_between_1901_and_2100_and_gregorian_outside():
+    """Eq 6's INT((y - 1985) / 4) where every fourth year is a leap year; a calendar count elsewhere."""
+    import calendar
+    from polarization_compass.solar import _gregorian_leap_days_since_1985 as leaps
+    for y in range(1901, 2101):
+        assert leaps(float(y)) == math.floor((y - 1985) / 4), y
+    for y in (1700, 1800, 1900, 2101, 2200, 2401, 2500):
+        expected = calendar.leapdays(1985, y) if y >= 1985 else -calendar.leapdays(y, 1985)
+        assert leaps(float(y)) == expected, y
