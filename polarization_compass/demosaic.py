@@ -320,8 +320,10 @@ def _prepare(mosaic, saturation_level):
         if math.isnan(sat):
             raise SensorError("saturation_level must be a number, got NaN")
     if m.dtype != np.float32:
-        # float32 holds every uint16 exactly; converting once is cheaper than converting 9x per pixel
-        m = m.astype(np.float32)
+        # float32 holds every uint16 exactly; converting once is cheaper than converting 9x per pixel.
+        # A float64 sample beyond float32's range becomes +-inf, which the kernels treat as invalid.
+        with np.errstate(over="ignore"):
+            m = m.astype(np.float32)
     return np.ascontiguousarray(m), np.float32(sat)
 
 

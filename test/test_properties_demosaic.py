@@ -62,10 +62,6 @@ def test_any_2d_image_gives_finite_in_range_outputs(method, h, w, data, dtype):
     assert all(np.all(s[~ok] == 0) for s in S)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: demosaic._prepare casts float64 mosaics to float32 with astype; a sample above 3.4e38 raises "
-    "numpy's 'overflow encountered in cast' (FloatingPointError under the test settings, a RuntimeWarning "
-    "otherwise) instead of marking the pixel invalid (reported)"))
 @pytest.mark.parametrize("method", METHODS)
 def test_a_huge_float64_sample_is_an_invalid_pixel_not_a_numpy_warning(method):
     m = malus(4, 4, 0.3, 0.5, 100.0)
