@@ -200,9 +200,6 @@ def test_non_utf8_scene_is_a_scene_error(tmp_path):
         load_scene(p)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: bag.load_topic_map reads with Path.read_text(); a non-UTF-8 mapping raises UnicodeDecodeError instead "
-    "of BagError (CLI: internal error, exit 70); scene files were fixed in 9f2627f (reported)"))
 def test_non_utf8_topic_map_is_a_bag_error(tmp_path):
     p = tmp_path / "m.yaml"
     p.write_bytes(b"topics: \xff\xfe\x00\x80\n")

@@ -202,10 +202,6 @@ def test_estimator_counts_bad_fixes(estimator, edit, reason):
     assert rejected(estimator).get(reason, 0) == before + 1
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: heading_estimator._on_fix catches only MessageError; a NavSatFix altitude outside SunCache's "
-    "[-1000, 20000] m (e.g. 1e6) raises SolarError out of the callback, and run_node then ends the node "
-    "(exit 2) (reported)"))
 def test_estimator_survives_a_fix_with_an_absurd_altitude(estimator):
     m = M.navsatfix_msg(SITE[0], SITE[1], 1.0e6, T0, "gps")
     estimator._on_fix(m)           # must not raise: reject or clamp
@@ -230,10 +226,6 @@ def test_estimator_is_still_working_after_all_the_bad_input(estimator):
     assert abs(math.remainder(st["bearing_deg"] - 250.0, 360.0)) < 0.5
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: pipeline.AttitudeBuffer.add trims to keep_ns behind the NEWEST stamp; one IMU message stamped far in "
-    "the future evicts every sample and every later (correct) sample is trimmed on arrival, so tilt is lost "
-    "for good (tilt_aware: bad_input forever; tilt_corrector: stale_imu forever) (reported)"))
 def test_estimator_recovers_from_an_imu_stamp_far_in_the_future(estimator):
     t = T0 + 300_000_000_000
     saved = estimator.imu
@@ -246,7 +238,6 @@ def test_estimator_recovers_from_an_imu_stamp_far_in_the_future(estimator):
     assert st["ok"], st
 
 
-@pytest.mark.xfail(strict=True, reason="bug: AttitudeBuffer far-future eviction, as above (reported)")
 def test_attitude_buffer_far_future_sample_does_not_evict_good_ones():
     """The same bug at the buffer level: after a sample 31 years ahead, a correct sample is gone on arrival."""
     b = AttitudeBuffer(keep_ns=10_000_000_000)
@@ -345,10 +336,6 @@ def test_evaluator_counts_bad_truth_and_estimates(evaluator, q, reason):
     assert after.get("estimate_" + reason, 0) == before.get("estimate_" + reason, 0) + 1
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "bug: error_evaluator._on_estimate takes sigma from orientation_covariance[8] without checking it: a NaN or "
-    "inf yaw variance is written as sigma_deg nan/inf into evaluation_samples.csv (the corrector refuses the "
-    "same message as heading_bad_covariance) (reported)"))
 def test_evaluator_never_writes_nan_sigma(evaluator):
     for k, var in enumerate((float("nan"), float("inf"))):
         t = T0 + 50_000_000_000 + k * 100_000_000
