@@ -144,19 +144,22 @@ def to_epoch_us(time_utc):
     return us.reshape(arr.shape), arr.ndim == 0
 
 
+def _checked_number(name, v, lo, hi) -> float:
+    """``float(v)`` when it is a finite number in [lo, hi]; otherwise a one-line SolarError naming ``name``."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise SolarError(f"{name} must be a number, got {v!r}") from None
+    if not math.isfinite(f) or not (lo <= f <= hi):
+        raise SolarError(f"{name} must be finite and in [{lo:g}, {hi:g}], got {v!r}")
+    return f
+
+
 def _check_site(latitude_deg, longitude_deg, altitude_m):
-    vals = []
-    for name, v, lo, hi in (("latitude_deg", latitude_deg, -90.0, 90.0),
-                            ("longitude_deg", longitude_deg, -180.0, 180.0),
-                            ("altitude_m", altitude_m, *ALTITUDE_RANGE_M)):
-        try:
-            f = float(v)
-        except (TypeError, ValueError):
-            raise SolarError(f"{name} must be a number, got {v!r}") from None
-        if not math.isfinite(f) or not (lo <= f <= hi):
-            raise SolarError(f"{name} must be finite and in [{lo:g}, {hi:g}], got {v!r}")
-        vals.append(f)
-    return vals
+    return [_checked_number(name, v, lo, hi) for name, v, lo, hi in (
+        ("latitude_deg", latitude_deg, -90.0, 90.0),
+        ("longitude_deg", longitude_deg, -180.0, 180.0),
+        ("altitude_m", altitude_m, *ALTITUDE_RANGE_M))]
 
 
 def _calendar(us):
@@ -293,14 +296,8 @@ def _check_model(model):
 
 def _atmosphere(altitude_m, pressure_hpa, temperature_c):
     p = _default_pressure_hpa(altitude_m) if pressure_hpa is None else pressure_hpa
-    for name, v, lo, hi in (("pressure_hpa", p, 1.0, 1200.0), ("temperature_c", temperature_c, -90.0, 70.0)):
-        try:
-            f = float(v)
-        except (TypeError, ValueError):
-            raise SolarError(f"{name} must be a number, got {v!r}") from None
-        if not math.isfinite(f) or not (lo <= f <= hi):
-            raise SolarError(f"{name} must be finite and in [{lo:g}, {hi:g}], got {v!r}")
-    return float(p), float(temperature_c)
+    return (_checked_number("pressure_hpa", p, 1.0, 1200.0),
+            _checked_number("temperature_c", temperature_c, -90.0, 70.0))
 
 
 def _package(az, alt, app, scalar, shape, model):
