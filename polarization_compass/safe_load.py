@@ -19,13 +19,19 @@ from .errors import CompassError
 __all__ = ["open_npz", "read_text", "load_yaml", "yaml_problem"]
 
 
-def read_text(path, error=CompassError, what="file") -> str:
-    """The UTF-8 text of ``path``; missing, directory, unreadable or binary files raise ``error``."""
+def _existing_file(path, error, what) -> Path:
+    """``path`` as a Path; ``error`` when it does not exist or is a directory."""
     p = Path(path)
     if not p.exists():
         raise error(f"{what} {str(p)!r} does not exist")
     if p.is_dir():
         raise error(f"{what} {str(p)!r} is a directory")
+    return p
+
+
+def read_text(path, error=CompassError, what="file") -> str:
+    """The UTF-8 text of ``path``; missing, directory, unreadable or binary files raise ``error``."""
+    p = _existing_file(path, error, what)
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -57,11 +63,7 @@ def open_npz(path, error=CompassError, what="file"):
     A missing file, a directory, a ``.npy`` saved under an ``.npz`` name, a corrupt or truncated zip:
     all raise ``error`` with the reason. Object arrays raise when read (pickle disabled), reported the same.
     """
-    p = Path(path)
-    if not p.exists():
-        raise error(f"{what} {str(p)!r} does not exist")
-    if p.is_dir():
-        raise error(f"{what} {str(p)!r} is a directory")
+    p = _existing_file(path, error, what)
     try:
         fh = open(p, "rb")
     except OSError as exc:
