@@ -13,6 +13,7 @@ import sys
 import time
 
 from ..errors import CompassError
+from ._checks import check_range, check_together
 
 
 def register(sub):
@@ -39,13 +40,6 @@ def register(sub):
     p.add_argument("--time", help="UTC time, ISO 8601 (only when the frame has no sun)")
     p.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
     p.set_defaults(func=run)
-
-
-def _finite(name, v, lo, hi):
-    if v is None:
-        return
-    if not math.isfinite(v) or not (lo <= v <= hi):
-        raise CompassError(f"--{name} must be finite and in [{lo}, {hi}], got {v}")
 
 
 def _parse_knobs(items) -> dict:
@@ -91,13 +85,12 @@ def run(args) -> int:
     from ..estimators import Observation, make_estimator
     from ..frame_io import load_frame_npz
 
-    _finite("pitch", args.pitch, -89.999, 89.999)
-    _finite("roll", args.roll, -180, 180)
-    _finite("prior-bearing", args.prior_bearing, -360, 720)
-    _finite("lat", args.lat, -90, 90)
-    _finite("lon", args.lon, -180, 180)
-    if (args.pitch is None) != (args.roll is None):
-        raise CompassError("--pitch and --roll go together")
+    check_range("pitch", args.pitch, -89.999, 89.999)
+    check_range("roll", args.roll, -180, 180)
+    check_range("prior-bearing", args.prior_bearing, -360, 720)
+    check_range("lat", args.lat, -90, 90)
+    check_range("lon", args.lon, -180, 180)
+    check_together("pitch", args.pitch, "roll", args.roll)
     if args.stride is not None and not (1 <= args.stride <= 1024):
         raise CompassError(f"--stride must be in [1, 1024], got {args.stride}")
     methods = _methods(args.method)

@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 
 from ..camera import PixelSelection
 from ..conventions import CameraAttitude
 from ..errors import CompassError
+from ._checks import check_range, check_together
 
 
 def register(sub):
@@ -29,25 +29,17 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _finite(name, v, lo, hi):
-    if v is None:
-        return
-    if not math.isfinite(v) or not (lo <= v <= hi):
-        raise CompassError(f"--{name} must be finite and in [{lo}, {hi}], got {v}")
-
-
 def run(args) -> int:
     from ..frame_io import save_frame_npz
     from ..render import Renderer, SunDirection
     from ..scene import load_scene, parse_time_utc
 
-    _finite("yaw", args.yaw, -360, 720)
-    _finite("pitch", args.pitch, -90, 90)
-    _finite("roll", args.roll, -180, 180)
-    _finite("sun-altitude", args.sun_altitude, -90, 90)
-    _finite("sun-azimuth", args.sun_azimuth, -360, 720)
-    if (args.sun_altitude is None) != (args.sun_azimuth is None):
-        raise CompassError("--sun-altitude and --sun-azimuth go together")
+    check_range("yaw", args.yaw, -360, 720)
+    check_range("pitch", args.pitch, -90, 90)
+    check_range("roll", args.roll, -180, 180)
+    check_range("sun-altitude", args.sun_altitude, -90, 90)
+    check_range("sun-azimuth", args.sun_azimuth, -360, 720)
+    check_together("sun-altitude", args.sun_altitude, "sun-azimuth", args.sun_azimuth)
     if args.stride is not None and args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
     scene = load_scene(args.scene)
