@@ -226,10 +226,24 @@ def test_every_method_in_params_is_a_method_name():
     assert graphs.share_dir() == ROOT
 
 
-def test_docs_list_every_parameter():
+@pytest.mark.parametrize("doc", ["docs/ros.md", "README.md"])
+def test_docs_list_every_parameter(doc):
     from polarization_compass.nodes.params import markdown_tables
-    text = (ROOT / "docs" / "ros.md").read_text()
-    assert markdown_tables() in text, "docs/ros.md parameter tables are stale: paste params.markdown_tables()"
+    text = (ROOT / doc).read_text()
+    assert markdown_tables() in text, f"{doc} parameter tables are stale: paste params.markdown_tables()"
     for node, specs in SPECS.items():
         for p in specs:
-            assert f"| `{p.name}` |" in text, f"docs/ros.md does not list {node}.{p.name}"
+            assert f"| `{p.name}` |" in text, f"{doc} does not list {node}.{p.name}"
+
+
+def test_readme_lists_every_topic_of_every_graph():
+    import re
+    text = (ROOT / "README.md").read_text()
+    seen = 0
+    for name in ("sim", "compass", "replay"):
+        for node in graphs.build(name).nodes:
+            for topic, _ in tuple(node.publishes) + tuple(node.subscribes):
+                generic = re.sub(r"compass/[a-z_]+/", "compass/<m>/", topic.lstrip("/"))
+                assert f"`{generic}`" in text or f"`/{generic}`" in text, (name, node.name, topic)
+                seen += 1
+    assert seen > 30
