@@ -275,13 +275,13 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:
     from .conventions import CameraAttitude
     from .render import Renderer, SunDirection
     from .scene import default_scene
-    from .sensor import parse_sensor_config, simulate_mosaic
+    from .sensor import sensor_config_for_encoding, simulate_mosaic
     t0 = time.perf_counter()
     cam = CameraModel("pinhole", 96, 80, 4.0, 3.45 * 2448 / 96, 3.45 * 2448 / 96)
     scene = default_scene().replace(camera=cam)
     frame = Renderer(scene).render(attitude=CameraAttitude(30.0, 0.0, 0.0), sun=SunDirection(180.0, 30.0))
-    bits = {np.dtype(np.uint8): {"quantization": {"bits": 8}}, np.dtype(np.uint16): {"quantization": {"bits": 12}}}
-    cfg = parse_sensor_config(bits.get(np.dtype(encoding_dtype), {}))
+    encoding = {np.dtype(np.uint8): "mono8", np.dtype(np.uint16): "mono16"}.get(np.dtype(encoding_dtype), "32FC1")
+    cfg = sensor_config_for_encoding({}, encoding)
     mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
     front.estimate(mosaic, cam, 180.0, 30.0, 0.0, 0.0, 30.0)
     return time.perf_counter() - t0

@@ -92,23 +92,6 @@ class RecordSpec:
             raise CompassError(f"a {self.duration_s:g} s run at {self.rate_hz:g} Hz has no frame")
 
 
-def _sensor_config(scene_sensor: dict, encoding: str):
-    """The scene's sensor effects, quantised to 12 bits (mono16) / 8 bits (mono8) when it declares no
-    quantisation: the same rule as the ``sky_simulator`` node for these encodings."""
-    from .sensor import SensorError, parse_sensor_config
-    cfg = dict(scene_sensor or {})
-    cfg.setdefault("quantization", {"bits": 12 if encoding == "mono16" else 8})
-    try:
-        parsed = parse_sensor_config(cfg)
-    except SensorError as exc:
-        raise CompassError(f"scene sensor: {exc}") from None
-    if encoding == "mono8" and parsed.bits > 8:
-        raise CompassError(f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16")
-    if encoding == "mono16" and parsed.bits <= 8:
-        raise CompassError(f"the scene quantises to {parsed.bits} bits: use encoding mono8")
-    return parsed
-
-
 def _latency_ns(rng, mean_ms: float, jitter_ms: float) -> int:
     return int(round((mean_ms + jitter_ms * float(rng.random())) * 1e6))
 
@@ -123,7 +106,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
     from .pipeline import SunSource
     from .render import Renderer, SunDirection
     from .camera import PixelSelection
-    from .sensor import simulate_mosaic
+    from .sensor import sensor_config_for_encoding, simulate_mosaic
 
     spec.check()
     if scene.sun_fixed is not None:
@@ -138,7 +121,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
     turn_rate = 360.0 * spec.turns / spec.duration_s
     profile = MotionProfile(start_bearing_deg=a.bearing_deg, turn_rate_deg_s=turn_rate, pitch_deg=pitch,
                             roll_deg=roll, turns=0.0, duration_s=spec.duration_s)
-    sensor_cfg = _sensor_config(scene.sensor, spec.encoding)
+    sensor_cfg = sensor_config_for_encoding(scene.sensor, spec.encoding)
     renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
     site = scene.site
     sun = SunSource(site.latitude_deg, site.longitude_deg, site.altitude_m, scene.sun_model)

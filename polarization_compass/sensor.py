@@ -78,11 +78,12 @@ from numba import njit, prange
 
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
+from .errors import CompassError
 from .demosaic import (DEMOSAIC_METHODS, IMX250MZR_LAYOUT, MosaicLayout, SensorError, _finish, parse_layout,
                        polarization_from_mosaic)
 
 __all__ = ["SensorError", "SensorPipeline", "EFFECTS", "standard_normal_f32", "simulate_mosaic",
-           "superpixel_pixels"]
+           "superpixel_pixels", "sensor_config_for_encoding"]
 
 #: Every key a ``sensor:`` mapping may hold, in pipeline order.
 EFFECTS = ("mosaic", "exposure", "extinction_ratio", "shot_noise", "read_noise", "quantization", "demosaic")
@@ -189,6 +190,31 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f"sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}")
     return SensorConfig(layout, full_well, fill, er, shot, read, bits, method)
+
+
+def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
+    """The SensorConfig a simulated camera applies for a raw image encoding (the ``sky_simulator``
+    node and ``record-sim`` both use it).
+
+    ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
+    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or, if it
+    declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding. Raises CompassError
+    (one line, ``scene sensor: ...`` for a bad scene mapping).
+    """
+    cfg = dict(sensor_cfg or {})
+    if encoding == "32FC1":
+        cfg = {k: v for k, v in cfg.items() if k in ("mosaic", "exposure", "extinction_ratio")}
+    else:
+        cfg.setdefault("quantization", {"bits": 12 if encoding == "mono16" else 8})
+    try:
+        parsed = parse_sensor_config(cfg)
+    except SensorError as exc:
+        raise CompassError(f"scene sensor: {exc}") from None
+    if encoding == "mono8" and parsed.bits > 8:
+        raise CompassError(f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16")
+    if encoding == "mono16" and parsed.bits <= 8:
+        raise CompassError(f"the scene quantises to {parsed.bits} bits: use encoding mono8")
+    return parsed
 
 
 # ------------------------------------------------------------------------------------------------

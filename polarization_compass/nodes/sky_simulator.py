@@ -43,6 +43,7 @@ from ..camera import PixelSelection
 from ..conventions import matrix_to_quat, quat_to_matrix, rot_x, rot_y, rot_z
 from ..errors import CompassError, MissingDependencyError
 from ..pipeline import SunSource, camera_attitude_from_body_quat
+from ..sensor import sensor_config_for_encoding
 from . import topics
 from .diagnostics import Diagnostics
 from .motion import MotionProfile, body_from_camera, frame_times_ns
@@ -56,30 +57,8 @@ __all__ = ["SkySimulatorNode", "main", "mosaic_config"]
 GRAVITY_M_S2 = 9.80665
 TRUTH_YAW_VARIANCE_RAD2 = 1e-12
 
-
-def mosaic_config(sensor_cfg: dict, encoding: str):
-    """The SensorConfig the simulator applies for an image encoding.
-
-    ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
-    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or, if it
-    declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding.
-    """
-    from ..sensor import SensorError, parse_sensor_config
-    cfg = dict(sensor_cfg or {})
-    if encoding == "32FC1":
-        cfg = {k: v for k, v in cfg.items() if k in ("mosaic", "exposure", "extinction_ratio")}
-    else:
-        if "quantization" not in cfg:
-            cfg["quantization"] = {"bits": 12 if encoding == "mono16" else 8}
-    try:
-        parsed = parse_sensor_config(cfg)
-    except SensorError as exc:
-        raise CompassError(f"scene sensor: {exc}") from None
-    if encoding == "mono8" and parsed.bits > 8:
-        raise CompassError(f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16")
-    if encoding == "mono16" and parsed.bits <= 8:
-        raise CompassError(f"the scene quantises to {parsed.bits} bits: use encoding mono8")
-    return parsed
+#: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
+mosaic_config = sensor_config_for_encoding
 
 
 class SkySimulatorNode(Node):
@@ -95,7 +74,7 @@ class SkySimulatorNode(Node):
             raise CompassError(str(exc)) from None
         self.camera = scene.camera
         self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
-        self.sensor_cfg = mosaic_config(scene.sensor, p["encoding"])
+        self.sensor_cfg = sensor_config_for_encoding(scene.sensor, p["encoding"])
         self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
         self.profile = self._profile()
         self.sim_mode = p["clock_mode"] == "sim"
