@@ -32,7 +32,7 @@ import numpy as np
 
 from .bag import (BagError, BagWriter, TopicMap, default_topic_map, encode_camera_info, encode_imu,
                   encode_mosaic, encode_navsatfix, ns_from_utc)
-from .conventions import matrix_to_quat, rot_x, rot_y, rot_z, yaw_enu_quaternion
+from .conventions import matrix_to_quat, yaw_enu_quaternion
 from .errors import CompassError
 
 __all__ = ["RecordSpec", "record_sim", "FIG17_PITCH_DEG"]
@@ -102,7 +102,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
     Returns a summary: frames and messages per topic, the start stamp, the tilt used, and the true
     camera bearing per image stamp (``truth``: {stamp_ns: bearing_deg}) for tests.
     """
-    from .nodes.motion import MotionProfile, body_from_camera, frame_times_ns
+    from .nodes.motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
     from .pipeline import SunSource
     from .render import Renderer, SunDirection
     from .camera import PixelSelection
@@ -177,14 +177,9 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
                 if progress is not None:
                     progress(len(truth), len(frame_stamps))
             elif role == "imu":
-                nz = rng.standard_normal(3)
-                d_roll = math.radians(spec.imu_attitude_noise_deg * nz[0])
-                d_pitch = math.radians(spec.imu_attitude_noise_deg * nz[1])
-                d_yaw = math.radians(spec.imu_yaw_bias_deg + spec.imu_yaw_noise_deg * nz[2])
-                R = rot_z(d_yaw) @ R_enu_body @ rot_y(d_pitch) @ rot_x(d_roll)
-                var_rp = max(math.radians(spec.imu_attitude_noise_deg) ** 2, 1e-12)
-                var_y = max(math.radians(math.hypot(spec.imu_yaw_noise_deg, spec.imu_yaw_bias_deg)) ** 2, 1e-12)
-                w.write("imu", encode_imu(matrix_to_quat(R), t, "base_link", (var_rp, var_rp, var_y)), log_ns)
+                R, variances = imu_reading(R_enu_body, rng.standard_normal(3), spec.imu_attitude_noise_deg,
+                                           spec.imu_yaw_noise_deg, spec.imu_yaw_bias_deg)
+                w.write("imu", encode_imu(matrix_to_quat(R), t, "base_link", variances), log_ns)
             elif role == "reference":
                 yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
                 yaw_enu += math.radians(spec.reference_noise_deg * float(rng.standard_normal()))

@@ -1,5 +1,6 @@
 """The simulator's built-in motion profile (ROS-free): a turn at a constant rate with a pitch/roll
-schedule, like the paper's field runs (Fig 17: a full turn at pitch -20 deg).
+schedule, like the paper's field runs (Fig 17: a full turn at pitch -20 deg), and the simulated IMU's
+reading of the body attitude (:func:`imu_reading`). Shared by the ``sky_simulator`` node and ``record-sim``.
 
 Camera attitude in the paper's terms (eq 21): ``bearing(t) = start + turn_rate * t`` (clockwise from
 North, wrapped to [0, 360)), ``pitch(t) = pitch + pitch_amplitude * sin(2 pi t / period)``,
@@ -13,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, wrap_360_deg
+from ..conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, rot_x, rot_y, rot_z, wrap_360_deg
 
-__all__ = ["MotionProfile", "body_from_camera", "frame_times_ns"]
+__all__ = ["MotionProfile", "body_from_camera", "frame_times_ns", "imu_reading"]
 
 
 @dataclass(frozen=True)
@@ -64,3 +65,23 @@ def frame_times_ns(start_ns: int, rate_hz: float, total_s: float | None, k: int)
     if total_s is not None and (t_ns - start_ns) >= total_s * 1e9 - 1:
         return None
     return t_ns
+
+
+def imu_reading(R_enu_body, normals, attitude_noise_deg: float, yaw_noise_deg: float, yaw_bias_deg: float,
+                roll_bias_deg: float = 0.0, pitch_bias_deg: float = 0.0):
+    """The simulated IMU's orientation of a body attitude, and the variances it reports.
+
+    ``normals``: three standard normal draws (roll, pitch, yaw). Roll and pitch errors (bias + noise x
+    draw, deg) rotate about body x and y, the yaw error about ENU z:
+    ``R_meas = Rz(d_yaw) @ R_enu_body @ Ry(d_pitch) @ Rx(d_roll)``. Reported variances (rad^2, floored
+    at 1e-12): roll = pitch = (noise and the larger roll/pitch bias in quadrature)^2, yaw = (yaw noise
+    and yaw bias in quadrature)^2. Returns ``(R_meas, (var_roll, var_pitch, var_yaw))``.
+    """
+    d_roll = math.radians(roll_bias_deg + attitude_noise_deg * normals[0])
+    d_pitch = math.radians(pitch_bias_deg + attitude_noise_deg * normals[1])
+    d_yaw = math.radians(yaw_bias_deg + yaw_noise_deg * normals[2])
+    R = rot_z(d_yaw) @ R_enu_body @ rot_y(d_pitch) @ rot_x(d_roll)
+    var_rp = max(math.radians(math.hypot(attitude_noise_deg, max(abs(roll_bias_deg), abs(pitch_bias_deg)))) ** 2,
+                 1e-12)
+    var_y = max(math.radians(math.hypot(yaw_noise_deg, yaw_bias_deg)) ** 2, 1e-12)
+    return R, (var_rp, var_rp, var_y)

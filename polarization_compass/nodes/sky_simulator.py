@@ -40,13 +40,13 @@ from std_msgs.msg import String
 
 from ..bag import MessageError, decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
-from ..conventions import matrix_to_quat, quat_to_matrix, rot_x, rot_y, rot_z
+from ..conventions import matrix_to_quat, quat_to_matrix
 from ..errors import CompassError, MissingDependencyError
 from ..pipeline import SunSource, camera_attitude_from_body_quat
 from ..sensor import sensor_config_for_encoding
 from . import topics
 from .diagnostics import Diagnostics
-from .motion import MotionProfile, body_from_camera, frame_times_ns
+from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
 from .params import SIMULATOR
 from .rosparams import ParameterSet
@@ -191,19 +191,13 @@ class SkySimulatorNode(Node):
     # outputs ------------------------------------------------------------------------------------
     def _publish_imu(self, t_ns: int, R_enu_body) -> None:
         p = self.params
-        n = self.rng_imu.standard_normal(3)
-        d_roll = math.radians(p["imu_roll_bias_deg"] + p["imu_attitude_noise_deg"] * n[0])
-        d_pitch = math.radians(p["imu_pitch_bias_deg"] + p["imu_attitude_noise_deg"] * n[1])
-        d_yaw = math.radians(p["imu_yaw_bias_deg"] + p["imu_yaw_noise_deg"] * n[2])
-        R = rot_z(d_yaw) @ R_enu_body @ rot_y(d_pitch) @ rot_x(d_roll)
-        var_rp = math.radians(math.hypot(p["imu_attitude_noise_deg"], max(abs(p["imu_roll_bias_deg"]),
-                                                                          abs(p["imu_pitch_bias_deg"])))) ** 2
-        var_y = math.radians(math.hypot(p["imu_yaw_noise_deg"], p["imu_yaw_bias_deg"])) ** 2
+        R, variances = imu_reading(R_enu_body, self.rng_imu.standard_normal(3), p["imu_attitude_noise_deg"],
+                                   p["imu_yaw_noise_deg"], p["imu_yaw_bias_deg"], p["imu_roll_bias_deg"],
+                                   p["imu_pitch_bias_deg"])
         w_body = R_enu_body.T @ np.array([0.0, 0.0, self.profile.yaw_rate_enu_rad_s()]) \
             if self.attitude_source == "motion" else None
         g_body = R_enu_body.T @ np.array([0.0, 0.0, GRAVITY_M_S2])
-        self.pub_imu.publish(attitude_imu(t_ns, p["imu_frame_id"], R, (max(var_rp, 1e-12),) * 2 + (max(var_y, 1e-12),),
-                                          w_body, g_body))
+        self.pub_imu.publish(attitude_imu(t_ns, p["imu_frame_id"], R, variances, w_body, g_body))
         self.imu_samples += 1
 
     def _publish_frame(self, t_ns: int, R_enu_body) -> None:
