@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import wrap_180_deg
+from .conventions import psi_to_bearing_deg, wrap_180_deg
 from .errormap import ErrorMap, ErrorMapError, load_error_map
 
 __all__ = ["TiltCorrector", "Correction", "CorrectionStatus", "STATUS_INT", "default_map_path",
@@ -323,6 +323,15 @@ class TiltCorrector:
         reason = "" if st == CorrectionStatus.OK else \
             f"{len(cands)} yaws predict this measurement; returned the one nearest the subtract estimate"
         return Correction(st, psi0, err, cands, mode, reason)
+
+    def correct_bearing(self, raw_bearing_deg: float, sun_azimuth_deg: float, sun_altitude_deg: float,
+                        pitch_deg: float, roll_deg: float, mode: str = "invert"):
+        """Correct a true bearing of camera +y (deg), as the ``tilt_corrector`` node and the replay do:
+        its psi against the sun (wrapped to (-180, 180]), :meth:`correct`, back to a bearing in [0, 360).
+        Returns ``(corrected_bearing_deg or None when not ok, Correction)``."""
+        psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_azimuth_deg))
+        c = self.correct(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
+        return (float(psi_to_bearing_deg(c.psi_deg, sun_azimuth_deg)) if c.ok else None), c
 
     def _why_out(self, h, p, r) -> str:
         a = self.alt

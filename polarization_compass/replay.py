@@ -473,9 +473,8 @@ def default_error_map() -> str | None:
 def _make_corrector(config: ReplayConfig):
     """The ``tilt_corrector`` node's correction as a callable
     ``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None, status)``:
-    the raw heading's psi against the sun, :meth:`TiltCorrector.correct` at the IMU's pitch/roll, back
-    to a bearing; a heading without an IMU tilt near its stamp is not corrected (``no_imu``)."""
-    from .conventions import psi_to_bearing_deg, wrap_180_deg
+    :meth:`TiltCorrector.correct_bearing` (the node's) at the IMU's pitch/roll; a heading without an IMU
+    tilt near its stamp is not corrected (``no_imu``)."""
     from .correction import TiltCorrector
     from .errormap import ErrorMapError
 
@@ -497,11 +496,8 @@ def _make_corrector(config: ReplayConfig):
             return None, "no_map"
         if tilt is None:
             return None, "no_imu"
-        psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_az))
-        c = cor.correct(psi_meas, sun_alt, tilt.pitch_deg, tilt.roll_deg)
-        if not c.ok:
-            return None, c.status.value
-        return float(psi_to_bearing_deg(c.psi_deg, sun_az)), c.status.value
+        corrected, c = cor.correct_bearing(raw_bearing_deg, sun_az, sun_alt, tilt.pitch_deg, tilt.roll_deg)
+        return corrected, c.status.value
 
     return correct
 

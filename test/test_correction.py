@@ -185,6 +185,21 @@ def _synthetic(err_fn, valid_fn=None, limit=30.0):
     return ErrorMap(e, st, ("m",), A, Y, T, T, {"domain": {"tilt_limit_deg": limit, "full_domain": False}})
 
 
+def test_correct_bearing_goes_through_psi_and_back_across_north():
+    """The nodes' and the replay's correction of a true bearing: truth 20 deg with the sun at azimuth
+    300 (psi = 80, the wrap at North on the way), a gentle synthetic error; the corrected bearing is
+    the truth in [0, 360). Out of the map: no bearing, the status says why."""
+    m = _synthetic(lambda y, h, p, r: 0.1 * h * np.sin(np.radians(2 * y)) * (1 + 0 * p))
+    c = TiltCorrector(m, "m")
+    truth, az, h = 20.0, 300.0, 40.0
+    psi = truth - az + 360.0
+    measured = (az + psi + 0.1 * h * math.sin(math.radians(2 * psi))) % 360.0
+    bearing, corr = c.correct_bearing(measured, az, h, 0.0, 0.0)
+    assert corr.ok and 0.0 <= bearing < 360.0 and abs(bearing - truth) < 0.01
+    bearing, corr = c.correct_bearing(measured, az, h, 0.0, 31.0)
+    assert bearing is None and corr.status == CorrectionStatus.OUT_OF_DOMAIN
+
+
 def test_several_yaws_predicting_the_measurement_are_reported():
     """de/dpsi < -1 folds psi + e(psi): two or three true yaws give the same reading."""
     m = _synthetic(lambda y, h, p, r: 0.8 * h * np.sin(np.radians(2 * y)) * (1 + 0 * p))

@@ -30,7 +30,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, String
 
 from ..bag import MessageError, decode_orientation, stamp_ns
-from ..conventions import psi_to_bearing_deg, wrap_180_deg, wrap_360_deg
+from ..conventions import wrap_360_deg
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer, SunSource
 from . import topics
@@ -176,8 +176,7 @@ class TiltCorrectorNode(Node):
                 self._status(st)
                 self.diag.done(t_in, t_ns, str(exc), ok=False)
                 return
-            psi_meas = float(wrap_180_deg(bearing - az))
-            c = self.corrector.correct(psi_meas, alt, tilt.pitch_deg, tilt.roll_deg)
+            corrected, c = self.corrector.correct_bearing(bearing, az, alt, tilt.pitch_deg, tilt.roll_deg)
             st.update(sun_azimuth_deg=az, sun_altitude_deg=alt, status=c.status.value, reason=c.reason)
             if not c.ok:
                 self.counts[c.status.value] = self.counts.get(c.status.value, 0) + 1
@@ -186,7 +185,7 @@ class TiltCorrectorNode(Node):
                 self.diag.extra = dict(self.counts)
                 self.diag.done(t_in, t_ns, f"{c.status.value}: {c.reason}", ok=False)
                 return
-            out_bearing = float(psi_to_bearing_deg(c.psi_deg, az))
+            out_bearing = corrected
             out_var = var + math.radians(p["correction_sigma_deg"]) ** 2
             st["map_error_deg"] = c.error_deg
         else:
