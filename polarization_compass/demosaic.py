@@ -58,8 +58,8 @@ from numba import njit, prange
 from .errors import CompassError
 from .sky import axial_atan2_f32
 
-__all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "parse_layout", "stokes_from_mosaic",
-           "aop_dop_from_stokes", "polarization_from_mosaic", "DEMOSAIC_METHODS"]
+__all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "parse_layout", "layout_from_mapping",
+           "stokes_from_mosaic", "aop_dop_from_stokes", "polarization_from_mosaic", "DEMOSAIC_METHODS"]
 
 #: Sony IMX250MZR, top-left 2 x 2 block, row by row.
 IMX250MZR_LAYOUT = ((90, 45), (135, 0))
@@ -128,6 +128,13 @@ def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = "+x+y") -> MosaicL
     if sorted(vals) != [0, 45, 90, 135]:
         raise SensorError(f"mosaic layout must hold 0, 45, 90 and 135 once each, got {rows}")
     return MosaicLayout(((vals[0], vals[1]), (vals[2], vals[3])), pol45_toward)
+
+
+def layout_from_mapping(mosaic) -> MosaicLayout:
+    """The layout of a ``mosaic`` mapping in the form of a scene's ``sensor.mosaic`` (also a topic
+    map's ``mosaic:``): ``layout`` and ``pol45_toward``, each defaulting to the IMX250MZR's."""
+    mos = mosaic or {}
+    return parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", "+x+y"))
 
 
 # ------------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ import numpy as np
 
 from .camera import CameraModel
 from .conventions import R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, quat_to_matrix
+from .demosaic import IMX250MZR_LAYOUT
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "camera_attitude_from_body_quat", "SunSource", "HeadingFrontEnd",
@@ -212,7 +213,7 @@ class HeadingFrontEnd:
     intensity (lets a method resolve the 180 deg ambiguity from the sky's brightness gradient).
     """
 
-    def __init__(self, method: str, knobs: dict | None = None, layout=((90, 45), (135, 0)),
+    def __init__(self, method: str, knobs: dict | None = None, layout=IMX250MZR_LAYOUT,
                  pol45_toward: str = "+x+y", demosaic: str = "superpixel", intensity: bool = False):
         from .demosaic import parse_layout
         from .estimators import make_estimator

@@ -379,14 +379,13 @@ class FramePipeline:
     """The nodes' per-frame chain for several methods at once (see the module docstring)."""
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
+        from .demosaic import layout_from_mapping
         from .pipeline import HeadingFrontEnd
-        mos = topic_map.mosaic or {}
-        layout = mos.get("layout", ((90, 45), (135, 0)))
-        pol45 = mos.get("pol45_toward", "+x+y")
+        layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
         config.check_knobs()
         self.methods = config.method_list()
-        self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, pol45, config.demosaic,
+        self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, layout.pol45_toward, config.demosaic,
                                           config.use_intensity) for m in self.methods}
         self.last_bearing = {m: None for m in self.methods}
         self.sun = None

@@ -79,7 +79,7 @@ from numba import njit, prange
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
 from .errors import CompassError
-from .demosaic import (DEMOSAIC_METHODS, IMX250MZR_LAYOUT, MosaicLayout, SensorError, _finish, parse_layout,
+from .demosaic import (DEMOSAIC_METHODS, MosaicLayout, SensorError, _finish, layout_from_mapping,
                        polarization_from_mosaic)
 
 __all__ = ["SensorError", "SensorPipeline", "EFFECTS", "standard_normal_f32", "simulate_mosaic",
@@ -161,7 +161,7 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
     if unknown:
         raise SensorError(f"unknown sensor effect(s) {sorted(map(str, unknown))}; known: {', '.join(EFFECTS)}")
     mos = _params(cfg, "mosaic", ("layout", "pol45_toward"))
-    layout = parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", "+x+y"))
+    layout = layout_from_mapping(mos)
     exp = _params(cfg, "exposure", ("full_well_e", "fill"))
     full_well = _number(exp, "full_well_e", 10500.0, 1.0, 1e8, "exposure")
     fill = _number(exp, "fill", 0.5, 0.0, 1000.0, "exposure", lo_open=True)
