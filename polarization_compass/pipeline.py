@@ -22,7 +22,7 @@ from .demosaic import IMX250MZR_LAYOUT
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "camera_attitude_from_body_quat", "SunSource", "HeadingFrontEnd",
-           "PipelineError", "warm_up"]
+           "PipelineError", "warm_up", "TiltAndPrior", "FrameInputs"]
 
 
 class PipelineError(CompassError):
@@ -161,6 +161,68 @@ class AttitudeBuffer:
         q, gap, interp = hit
         att = camera_attitude_from_body_quat(q, R_body_cam)
         return CameraTilt(att.bearing_deg, att.pitch_deg, att.roll_deg, gap, interp)
+
+
+# ------------------------------------------------------------------------------------------------
+# Tilt and ambiguity prior per image
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FrameInputs:
+    """What one method gets with an image besides the pixels. ``tilt_missing``: the method needs the
+    camera tilt and no IMU sample is near the image stamp (the frame is bad input for it)."""
+
+    pitch_deg: float | None
+    roll_deg: float | None
+    prior_bearing_deg: float | None
+    tilt_missing: bool = False
+
+
+class TiltAndPrior:
+    """The per-image decisions of the ``heading_estimator`` node, shared with the offline replay.
+
+    Tilt (``tilt_aware`` only): pitch and roll of the IMU at the image stamp (``tilt``: the lookup
+    within the IMU tolerance). Prior bearing of camera +y, which resolves the 180 deg ambiguity:
+    ``prior_source`` ``imu``: the bearing of the IMU attitude nearest the stamp within
+    ``prior_max_age_s`` (``imu_near``; its coarse yaw is enough to pick the sun's side); ``last``: this
+    method's last resolved (not axial) heading when its stamp is within ``prior_max_age_s``; ``none``.
+    """
+
+    def __init__(self, method: str, prior_source: str = "imu", prior_max_age_s: float = 2.0):
+        self.needs_tilt = method == "tilt_aware"
+        self.prior_source = prior_source
+        self.prior_max_age_s = float(prior_max_age_s)
+        self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading
+
+    @property
+    def needs_imu(self) -> bool:
+        """Whether the IMU is read at all (tilt or prior)."""
+        return self.needs_tilt or self.prior_source == "imu"
+
+    def lookups(self, imu: AttitudeBuffer, t_ns: int, tolerance_ns: int, R_body_cam=R_BODY_CAM_DEFAULT):
+        """(tilt, imu_near) for :meth:`inputs` from an IMU history: the camera attitude at ``t_ns``
+        within ``tolerance_ns``, and within ``prior_max_age_s``; None where absent or not needed."""
+        if not len(imu):
+            return None, None
+        tilt = imu.camera_tilt(t_ns, tolerance_ns, R_body_cam) if self.needs_tilt else None
+        near = imu.camera_tilt(t_ns, int(self.prior_max_age_s * 1e9), R_body_cam) \
+            if self.prior_source == "imu" else None
+        return tilt, near
+
+    def inputs(self, t_ns: int, tilt: CameraTilt | None, imu_near: CameraTilt | None) -> FrameInputs:
+        pitch = roll = prior = None
+        if self.needs_tilt and tilt is not None:
+            pitch, roll = tilt.pitch_deg, tilt.roll_deg
+        if self.prior_source == "imu":
+            prior = None if imu_near is None else imu_near.bearing_deg
+        elif self.prior_source == "last" and self.last_bearing is not None:
+            if abs(t_ns - self.last_bearing[0]) <= self.prior_max_age_s * 1e9:
+                prior = self.last_bearing[1]
+        return FrameInputs(pitch, roll, prior, self.needs_tilt and tilt is None)
+
+    def remember(self, t_ns: int, result) -> None:
+        """Keep ``result``'s bearing as the ``last`` prior when it is a resolved heading."""
+        if result.ok and not result.axial and result.bearing_deg is not None:
+            self.last_bearing = (int(t_ns), float(result.bearing_deg))
 
 
 # ------------------------------------------------------------------------------------------------

@@ -7,12 +7,15 @@ Per image, in the order the ``heading_estimator`` node does it: the camera from 
 (:func:`~polarization_compass.bag.decode_camera_info`), the sun at the image stamp for the site of the
 latest NavSatFix (:class:`~polarization_compass.pipeline.SunSource`), the IMU attitude interpolated
 to the stamp (:class:`~polarization_compass.pipeline.AttitudeBuffer`, same tolerance), the tilt given
-to ``tilt_aware`` only, the 180 deg prior from the IMU's yaw (or the last heading), and
+to ``tilt_aware`` only and the 180 deg prior from the IMU's yaw (or the last heading), both decided by
+the node's :class:`~polarization_compass.pipeline.TiltAndPrior`, and
 :class:`~polarization_compass.pipeline.HeadingFrontEnd` (demosaic -> observation -> estimator). The
-tilt correction is the ``tilt_corrector``'s, and errors and statistics are the ``error_evaluator``'s
-(:class:`~polarization_compass.evaluation.StampMatcher`, truth = the reference interpolated to the
-image stamp). Headings only known modulo 180 deg are not evaluated, as the nodes do not publish them.
-Methods that demosaic alike share one observation per frame (the front end's own ``observation``).
+tilt correction is the ``tilt_corrector``'s
+(:meth:`~polarization_compass.correction.TiltCorrector.correct_bearing`), and errors and statistics
+are the ``error_evaluator``'s (:class:`~polarization_compass.evaluation.StampMatcher`, truth = the
+reference interpolated to the image stamp). Headings only known modulo 180 deg are not evaluated, as
+the nodes do not publish them. Methods that demosaic alike share one observation per frame (the front
+end's own ``observation``).
 
 Reading
 -------
@@ -112,8 +115,10 @@ def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
 class SyncedFrame:
     """One image with everything needed to process it at the image's stamp.
 
-    ``tilt``: :class:`~polarization_compass.pipeline.CameraTilt` from the IMU (bearing is the IMU's
-    coarse yaw), or None. ``true_bearing_deg``: reference bearing of camera +y, [0, 360), or None.
+    ``tilt``: :class:`~polarization_compass.pipeline.CameraTilt` from the IMU within the mapping's
+    ``max_gap_s.imu`` of the stamp (the nodes' ``imu_tolerance_s``), or None; ``imu_near``: the same
+    within ``prior_max_age_s`` (its bearing, the IMU's coarse yaw, is the ``imu`` prior), or None.
+    ``true_bearing_deg``: reference bearing of camera +y, [0, 360), or None.
     ``site``: (latitude_deg, longitude_deg, altitude_m). ``camera``: CameraModel.
     """
 
@@ -124,6 +129,7 @@ class SyncedFrame:
     site: tuple
     tilt: object
     true_bearing_deg: float | None
+    imu_near: object = None
 
 
 def prefetched(iterable, depth: int = 8):
@@ -174,7 +180,8 @@ def prefetched(iterable, depth: int = 8):
                 th.join(timeout=0.05)
 
 
-def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None):
+def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None,
+                       prior_max_age_s: float = 2.0):
     """Yield :class:`SyncedFrame` for every usable image, in receive-time order (see the module doc).
 
     Images that cannot be processed (no camera intrinsics, size not matching camera_info, duplicate
@@ -185,9 +192,10 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
 
     plan = plan or plan_bag(reader, topic_map)
     wanted = {spec.topic: role for role, spec in topic_map.topics.items() if plan.present.get(role, 0) > 0}
-    keep_ns = int(max(10.0, 4 * topic_map.lookahead_s) * 1e9)
+    keep_ns = int(max(10.0, 4 * topic_map.lookahead_s, 2 * prior_max_age_s) * 1e9)
     imu, ref = AttitudeBuffer(keep_ns), AttitudeBuffer(keep_ns)
     tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference")}
+    prior_tol_ns = int(prior_max_age_s * 1e9)
     look_ns = int(topic_map.lookahead_s * 1e9)
     R_body_cam = topic_map.R_body_cam_array
     pending: deque = deque()
@@ -215,6 +223,7 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
             tally.skip(image_topic, "no_site", "no usable NavSatFix before this image")
             return None
         tilt = imu.camera_tilt(t, tol["imu"], R_body_cam) if len(imu) else None
+        near = imu.camera_tilt(t, prior_tol_ns, R_body_cam) if len(imu) else None
         if tilt is None:
             tally.note(image_topic, "no_imu_near_stamp")
         hit = ref.at(t, tol["reference"]) if len(ref) else None
@@ -224,7 +233,7 @@ def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, pla
         else:
             tally.note(image_topic, "no_reference_near_stamp")
         tally.used[image_topic] += 1
-        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing)
+        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing, near)
 
     for topic, mtype, log_ns, raw in prefetched(reader.messages(list(wanted))):
         role = wanted[topic]
@@ -380,14 +389,14 @@ class FramePipeline:
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
         from .demosaic import layout_from_mapping
-        from .pipeline import HeadingFrontEnd
+        from .pipeline import HeadingFrontEnd, TiltAndPrior
         layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
         config.check_knobs()
         self.methods = config.method_list()
         self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, layout.pol45_toward, config.demosaic,
                                           config.use_intensity) for m in self.methods}
-        self.last_bearing = {m: None for m in self.methods}
+        self.tilt_prior = {m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s) for m in self.methods}
         self.sun = None
         self.corrector = None
         if config.error_map:
@@ -416,21 +425,12 @@ class FramePipeline:
         tilt = frame.tilt
         obs_cache: dict = {}
         for m, front in self.fronts.items():
-            pitch = roll = prior = None
-            status_reason = None
-            if m == "tilt_aware":
-                if tilt is None:
-                    status_reason = "no IMU sample near the image stamp (tilt unknown)"
-                else:
-                    pitch, roll = tilt.pitch_deg, tilt.roll_deg
-            if c.prior_source == "imu" and tilt is not None:
-                prior = tilt.bearing_deg
-            elif c.prior_source == "last" and self.last_bearing[m] is not None:
-                if abs(t_ns - self.last_bearing[m][0]) <= c.prior_max_age_s * 1e9:
-                    prior = self.last_bearing[m][1]
-            if status_reason is not None:
-                rows.append(MethodRow(t_ns, m, "bad_input", status_reason, None, None, "", frame.true_bearing_deg,
-                                      None, None, None, 0, None, None, sun_az, sun_alt, prior))
+            inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
+            pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
+            if inp.tilt_missing:
+                rows.append(MethodRow(t_ns, m, "bad_input", "no IMU sample near the image stamp (tilt unknown)",
+                                      None, None, "", frame.true_bearing_deg, None, None, None, 0, None, None,
+                                      sun_az, sun_alt, prior))
                 continue
             key = front.observation_key(frame.camera)
             t0 = time.perf_counter()
@@ -449,8 +449,7 @@ class FramePipeline:
                 continue
             self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
             raw = result.bearing_deg if result.ok and not result.axial else None
-            if raw is not None:
-                self.last_bearing[m] = (t_ns, float(raw))
+            self.tilt_prior[m].remember(t_ns, result)
             corrected, cstatus = None, ""
             if raw is not None and m not in c.direct_methods and self.corrector is not None:
                 corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
@@ -608,7 +607,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
         if plan.fatal:
             raise BagError(f"{reader.path}: " + "; ".join(plan.fatal))
         frames = 0
-        for frame in iter_synced_frames(reader, topic_map, tally, plan):
+        for frame in iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s):
             frames += 1
             first_stamp = frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
             last_stamp = frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)

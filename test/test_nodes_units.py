@@ -163,6 +163,39 @@ def test_attitude_buffer_takes_the_short_way_between_q_and_minus_q():
     assert 2 * math.atan2(q[2], q[3]) * np.sign(q[3]) == pytest.approx(0.2, abs=1e-3)
 
 
+def test_tilt_and_prior_follow_the_estimator_nodes_rules():
+    """One rule for the heading_estimator node and the replay: the tilt only for tilt_aware and only
+    within the IMU tolerance; the imu prior from the IMU within prior_max_age_s (interpolated: halfway
+    between yaw 10 and 20 deg is yaw 15, bearing 90 - 15 = 75 with camera +y on body +x); the last
+    prior only from a resolved heading younger than prior_max_age_s."""
+    from polarization_compass.estimators.base import HeadingResult
+    from polarization_compass.pipeline import TiltAndPrior
+    imu = AttitudeBuffer()
+    imu.add(0, rep103_quat(math.radians(10.0)))
+    imu.add(1_000_000_000, rep103_quat(math.radians(20.0)))
+    t = 500_000_000
+    tol = 50_000_000
+    ta = TiltAndPrior("tilt_aware", "imu", 2.0)
+    tilt, near = ta.lookups(imu, t, tol)
+    assert tilt is None and near.bearing_deg == pytest.approx(75.0, abs=1e-6)
+    inp = ta.inputs(t, tilt, near)
+    assert inp.tilt_missing and inp.pitch_deg is None and inp.prior_bearing_deg == pytest.approx(75.0, abs=1e-6)
+    tilt, near = ta.lookups(imu, 10_000_000, tol)                  # 10 ms from the first sample: tilt known
+    inp = ta.inputs(10_000_000, tilt, near)
+    assert not inp.tilt_missing and inp.pitch_deg == pytest.approx(0.0, abs=1e-9)
+    ls = TiltAndPrior("least_squares", "imu", 0.4)                # both samples 0.5 s away: no prior
+    assert ls.lookups(imu, t, tol) == (None, None)
+    assert ls.inputs(t, None, None) == type(inp)(None, None, None, False)
+    assert TiltAndPrior("least_squares", "none").lookups(imu, t, tol) == (None, None)
+    last = TiltAndPrior("least_squares", "last", 2.0)
+    assert last.inputs(t, None, None).prior_bearing_deg is None
+    last.remember(0, HeadingResult.from_psi("least_squares", 30.0, 100.0, 1.0, 10, 1.0, axial=True))
+    assert last.inputs(t, None, None).prior_bearing_deg is None                # axial: not a resolved heading
+    last.remember(0, HeadingResult.from_psi("least_squares", 30.0, 100.0, 1.0, 10, 1.0, axial=False))
+    assert last.inputs(t, None, None).prior_bearing_deg == pytest.approx(130.0)
+    assert last.inputs(2_000_000_001, None, None).prior_bearing_deg is None    # older than 2 s
+
+
 # ------------------------------------------------------------------------------------------------
 # Motion profile
 # ------------------------------------------------------------------------------------------------

@@ -354,6 +354,34 @@ def test_missing_imu_and_reference_are_explained_not_fatal(clean, tmp_path):
                                                                "no_reference_near_stamp": 20}
 
 
+def test_a_sparse_imu_gives_the_prior_as_the_estimator_node_does(tmp_path):
+    """IMU at 1 Hz, images at 10 Hz: only the images on a whole second have an IMU sample within the
+    0.05 s tilt tolerance (tilt_aware runs on those only), but every image has an IMU yaw within the
+    node's prior_max_age_s (2 s), so every image gets the IMU prior. The IMU's yaw is biased by +5 deg
+    (counter-clockwise): the prior is the true bearing - 5 deg at the last IMU sample (the next one has
+    not arrived when the image is processed, as on the node) or interpolated towards the image stamp,
+    so at 9 deg/s it trails the truth - 5 by between 0 and 9 deg/s x the time since the last sample."""
+    t, _, az = _time_at_altitude(30.0)
+    t = t.replace(second=0, microsecond=0)
+    spec = RecordSpec(duration_s=2.0, rate_hz=10.0, turns=0.05, imu_rate_hz=1.0, imu_attitude_noise_deg=0.0,
+                      imu_yaw_noise_deg=0.0, imu_yaw_bias_deg=5.0, reference_noise_deg=0.0)
+    run = record_sim(_scene(camera=CameraModel(width_px=48, height_px=40, focal_length_mm=0.06), t=t, bearing=az),
+                     spec, tmp_path / "bag")
+    res = _replay(tmp_path / "bag", methods=("least_squares", "tilt_aware"))
+    truth = run["truth"]
+    assert len(truth) == 20
+    for r in res.rows:
+        assert r.prior_bearing_deg is not None, (r.method, r.stamp_ns)
+        lag = math.remainder(r.prior_bearing_deg - (truth[r.stamp_ns] - 5.0), 360.0)
+        since_sample_s = (r.stamp_ns % 1_000_000_000) / 1e9
+        assert -9.0 * since_sample_s - 0.01 <= lag <= 0.01, (r.stamp_ns, lag)
+    on_second = {st for st in truth if st % 1_000_000_000 == 0}
+    assert len(on_second) == 2
+    for r in res.rows:
+        if r.method == "tilt_aware":
+            assert (r.status == "bad_input") == (r.stamp_ns not in on_second), (r.stamp_ns, r.status, r.reason)
+
+
 def test_missing_fix_uses_the_mappings_site_or_fails_in_one_line(clean, tmp_path):
     _copy_bag(clean, tmp_path / "nofix", lambda role, k, mt, raw, t: [] if role == "navsatfix" else [(raw, t)])
     with pytest.raises(B.BagError) as ei:

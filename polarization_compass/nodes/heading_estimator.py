@@ -30,7 +30,7 @@ from std_msgs.msg import Float64, String
 from ..bag import MessageError, decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
-from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource, warm_up
+from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource, TiltAndPrior, warm_up
 from . import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
@@ -65,8 +65,8 @@ class HeadingEstimatorNode(Node):
         self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
         self.camera_from_info: CameraModel | None = None
         self.site_from_fix = None
-        self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading
-        self.needs_tilt = self.method == "tilt_aware"
+        self.tilt_prior = TiltAndPrior(self.method, p["prior_source"], p["prior_max_age_s"])
+        self.needs_tilt = self.tilt_prior.needs_tilt
         self.pending: deque = deque()     # decoded images waiting for their IMU sample (tilt_aware)
         self.diag = Diagnostics(self, f"heading estimator ({self.method})")
 
@@ -79,7 +79,7 @@ class HeadingEstimatorNode(Node):
         # takes one message per subscription per round: 50 IMU samples would wait behind each image).
         self.executor_threads = 2
         small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
-        if self.needs_tilt or p["prior_source"] == "imu":
+        if self.tilt_prior.needs_imu:
             self.create_subscription(Imu, topics.IMU, self._on_imu, QoSProfile(depth=200), callback_group=small)
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
                                  callback_group=small)
@@ -105,6 +105,9 @@ class HeadingEstimatorNode(Node):
                 self.front.demosaic = merged["demosaic"]
             if "use_intensity" in changed:
                 self.front.intensity = bool(merged["use_intensity"])
+            if {"prior_source", "prior_max_age_s"} & set(changed):
+                self.tilt_prior.prior_source = merged["prior_source"]
+                self.tilt_prior.prior_max_age_s = float(merged["prior_max_age_s"])
             if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
                 self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
                                      merged["sun_model"])
@@ -206,20 +209,12 @@ class HeadingEstimatorNode(Node):
                 from ..bag import ns_from_utc
                 from ..scene import parse_time_utc
                 sun_az, sun_alt = self.sun.at_ns(ns_from_utc(parse_time_utc(p["time_utc"])))
-            pitch = roll = prior = None
-            if self.needs_tilt:
-                tilt = self.imu.camera_tilt(t_ns, int(p["imu_tolerance_s"] * 1e9)) if len(self.imu) else None
-                if tilt is None:
-                    raise PipelineError(f"no IMU sample within {p['imu_tolerance_s']:g} s of the image stamp "
-                                        f"(newest IMU stamp: {self._newest_imu_text()})")
-                pitch, roll = tilt.pitch_deg, tilt.roll_deg
-            if p["prior_source"] == "imu" and len(self.imu):
-                # a coarse yaw is enough to pick the sun's side: the nearest sample within prior_max_age_s
-                near = self.imu.camera_tilt(t_ns, int(p["prior_max_age_s"] * 1e9))
-                prior = None if near is None else near.bearing_deg
-            elif p["prior_source"] == "last" and self.last_bearing is not None:
-                if abs(t_ns - self.last_bearing[0]) <= p["prior_max_age_s"] * 1e9:
-                    prior = self.last_bearing[1]
+            inp = self.tilt_prior.inputs(t_ns, *self.tilt_prior.lookups(self.imu, t_ns,
+                                                                          int(p["imu_tolerance_s"] * 1e9)))
+            if inp.tilt_missing:
+                raise PipelineError(f"no IMU sample within {p['imu_tolerance_s']:g} s of the image stamp "
+                                    f"(newest IMU stamp: {self._newest_imu_text()})")
+            pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
             t0 = time.perf_counter()
             result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
             status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
@@ -249,8 +244,7 @@ class HeadingEstimatorNode(Node):
                                                      math.radians(sigma) ** 2, p["roll_pitch_variance_rad2"]))
                 self.pub_bearing.publish(Float64(data=float(result.bearing_deg)))
                 published = True
-                if not result.axial:
-                    self.last_bearing = (t_ns, float(result.bearing_deg))
+                self.tilt_prior.remember(t_ns, result)
             else:
                 self.diag.reject("non_finite_result", "the estimator returned a non-finite heading")
         status["published"] = published
