@@ -23,6 +23,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.qos import QoSProfile
 
+from ..bag import MessageError
 from . import topics
 from .msgs import kv
 
@@ -75,6 +76,16 @@ class Diagnostics:
         self.rejected[reason] += 1
         self.node.get_logger().warning(f"dropped an input ({reason}): {detail}" if detail else
                                        f"dropped an input ({reason})", throttle_duration_sec=5.0)
+
+    def decoded(self, what: str, decode, msg, context: str = ""):
+        """``decode(msg)``, or None after counting the input as rejected with reason ``<what>_<tag>``
+        (``<tag>`` the MessageError's ``reason``; just ``<tag>`` when ``what`` is empty)."""
+        try:
+            return decode(msg)
+        except MessageError as exc:
+            tag = getattr(exc, "reason", "bad")
+            self.reject(f"{what}_{tag}" if what else tag, f"{context}{exc}")
+            return None
 
     def set_error(self, message: str | None) -> None:
         self.error = message

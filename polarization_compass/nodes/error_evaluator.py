@@ -32,23 +32,16 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
-from ..bag import MessageError, decode_orientation, stamp_ns
-from ..conventions import wrap_360_deg
+from ..bag import stamp_ns
 from ..evaluation import StampMatcher, plot_report, write_samples_csv, write_summary_csv
 from . import topics
 from .diagnostics import Diagnostics
-from .msgs import yaw_enu_from_quat
+from .msgs import bearing_from_imu, heading_from_imu
 from .params import EVALUATOR
 from .rosparams import ParameterSet
 from .runner import run_node
 
 __all__ = ["ErrorEvaluatorNode", "main", "bearing_from_imu"]
-
-
-def bearing_from_imu(msg) -> float:
-    """True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw."""
-    q = decode_orientation(msg)
-    return float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
 
 
 class ErrorEvaluatorNode(Node):
@@ -125,10 +118,8 @@ class ErrorEvaluatorNode(Node):
 
     def _on_truth(self, msg):
         t_in = self.diag.input()
-        try:
-            b = bearing_from_imu(msg)
-        except MessageError as exc:
-            self.diag.reject(f"truth_{getattr(exc, 'reason', 'bad')}", str(exc))
+        b = self.diag.decoded("truth", bearing_from_imu, msg)
+        if b is None:
             return
         self.matcher.add_truth(stamp_ns(msg.header), b)
         self.diag.done(t_in, None)
@@ -157,15 +148,10 @@ class ErrorEvaluatorNode(Node):
             lat = None if wall is None else (arrival - wall) / 1e6
         else:
             lat = self._arrival_latency_ms(t_ns)
-        try:
-            b = bearing_from_imu(msg)
-        except MessageError as exc:
-            self.diag.reject(f"estimate_{getattr(exc, 'reason', 'bad')}", f"{stream}: {exc}")
+        heading = self.diag.decoded("estimate", heading_from_imu, msg, context=f"{stream}: ")
+        if heading is None:
             return
-        var = float(msg.orientation_covariance[8])
-        if not (math.isfinite(var) and var > 0):
-            self.diag.reject("estimate_bad_covariance", f"{stream}: yaw variance {var!r}")
-            return
+        b, var = heading
         sigma = math.degrees(math.sqrt(var))
         self.matcher.add_estimate(stream, t_ns, b, extra={"latency_ms": "" if lat is None else round(lat, 3),
                                                           "sigma_deg": sigma})

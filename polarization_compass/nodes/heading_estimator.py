@@ -27,7 +27,7 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_de
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
-from ..bag import MessageError, decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
+from ..bag import decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource, TiltAndPrior, warm_up
@@ -127,26 +127,22 @@ class HeadingEstimatorNode(Node):
 
     # inputs -------------------------------------------------------------------------------------
     def _on_camera_info(self, msg):
-        try:
-            self.camera_from_info = decode_camera_info(msg, self.params["pixel_pitch_um"])
-        except MessageError as exc:
-            self.diag.reject(f"camera_info_{exc.reason}" if hasattr(exc, "reason") else "camera_info", str(exc))
+        cam = self.diag.decoded("camera_info", lambda m: decode_camera_info(m, self.params["pixel_pitch_um"]), msg)
+        if cam is not None:
+            self.camera_from_info = cam
 
     def _on_imu(self, msg):
-        try:
-            q = decode_orientation(msg)
-        except MessageError as exc:
-            self.diag.reject(f"imu_{getattr(exc, 'reason', 'bad')}", str(exc))
-            return
-        self.imu.add(stamp_ns(msg.header), q)
+        q = self.diag.decoded("imu", decode_orientation, msg)
+        if q is not None:
+            self.imu.add(stamp_ns(msg.header), q)
 
     def _on_fix(self, msg):
-        try:
-            lat, lon, alt = decode_navsatfix(msg)
-            self.sun.set_site(lat, lon, alt)        # refuses sites the ephemeris cannot use (SolarError)
-        except MessageError as exc:
-            self.diag.reject(f"fix_{getattr(exc, 'reason', 'bad')}", str(exc))
+        site = self.diag.decoded("fix", decode_navsatfix, msg)
+        if site is None:
             return
+        lat, lon, alt = site
+        try:
+            self.sun.set_site(lat, lon, alt)        # refuses sites the ephemeris cannot use (SolarError)
         except CompassError as exc:
             self.diag.reject("fix_bad_value", str(exc))
             return
@@ -172,10 +168,8 @@ class HeadingEstimatorNode(Node):
 
     def _on_image(self, msg):
         t_in = self.diag.input()
-        try:
-            mosaic = decode_image(msg)
-        except MessageError as exc:
-            self.diag.reject(getattr(exc, "reason", "bad_image"), str(exc))
+        mosaic = self.diag.decoded("", decode_image, msg)
+        if mosaic is None:
             return
         self.pending.append((stamp_ns(msg.header), mosaic, int(msg.width), int(msg.height), t_in,
                              time.monotonic() + self.params["imu_max_wait_s"]))

@@ -20,12 +20,13 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import KeyValue
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix, NavSatStatus
 
-from ..bag import MessageError, decode_mosaic, stamp_ns
+from ..bag import MessageError, decode_mosaic, decode_orientation, stamp_ns
 from ..camera import CameraModel
-from ..conventions import matrix_to_quat, yaw_enu_quaternion
+from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
 
 __all__ = ["MessageError", "stamp_ns", "time_msg", "heading_imu", "attitude_imu", "image_msg",
-           "decode_image", "camera_info_msg", "navsatfix_msg", "yaw_enu_from_quat", "kv", "IMAGE_ENCODINGS"]
+           "decode_image", "camera_info_msg", "navsatfix_msg", "yaw_enu_from_quat", "bearing_from_imu",
+           "heading_from_imu", "kv", "IMAGE_ENCODINGS"]
 
 IMAGE_ENCODINGS = ("mono8", "mono16", "32FC1")
 NOT_PROVIDED = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
@@ -87,6 +88,23 @@ def yaw_enu_from_quat(q_xyzw) -> float:
     """REP-103 yaw (rad, ZYX convention) of a unit quaternion (x, y, z, w)."""
     x, y, z, w = (float(v) for v in q_xyzw)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def bearing_from_imu(msg) -> float:
+    """True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw."""
+    q = decode_orientation(msg)
+    return float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
+
+
+def heading_from_imu(msg) -> tuple[float, float]:
+    """(bearing_deg, yaw variance rad^2) of a heading in the form :func:`heading_imu` publishes.
+    Raises :class:`MessageError` (``reason`` tag) for a bad orientation or a yaw variance that is not
+    finite and > 0."""
+    bearing = bearing_from_imu(msg)
+    var = float(msg.orientation_covariance[8])
+    if not (math.isfinite(var) and var > 0):
+        raise MessageError("bad_covariance", f"yaw variance {var!r} must be finite and > 0")
+    return bearing, var
 
 
 def image_msg(array: np.ndarray, t_ns: int, frame_id: str) -> Image:

@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import String
 
-from ..bag import MessageError, decode_orientation, ns_from_utc, stamp_ns
+from ..bag import decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
 from ..conventions import matrix_to_quat, quat_to_matrix
 from ..errors import CompassError, MissingDependencyError
@@ -165,12 +165,9 @@ class SkySimulatorNode(Node):
 
     # attitude inputs ----------------------------------------------------------------------------
     def _on_attitude(self, msg):
-        try:
-            q = decode_orientation(msg)
-        except MessageError as exc:
-            self.diag.reject(f"attitude_{getattr(exc, 'reason', 'bad')}", str(exc))
-            return
-        self.R_enu_body_input = quat_to_matrix(q)
+        q = self.diag.decoded("attitude", decode_orientation, msg)
+        if q is not None:
+            self.R_enu_body_input = quat_to_matrix(q)
 
     def _attitude_at(self, t_ns: int, t_rel_s: float):
         """R_enu_body at a stamp, or None when the attitude source has nothing yet."""

@@ -29,13 +29,12 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_de
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, String
 
-from ..bag import MessageError, decode_orientation, stamp_ns
-from ..conventions import wrap_360_deg
+from ..bag import decode_orientation, stamp_ns
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer, SunSource
 from . import topics
 from .diagnostics import Diagnostics, _wall_clock
-from .msgs import heading_imu, yaw_enu_from_quat
+from .msgs import heading_from_imu, heading_imu
 from .params import CORRECTOR
 from .rosparams import ParameterSet
 from .runner import run_node
@@ -102,25 +101,18 @@ class TiltCorrectorNode(Node):
 
     # inputs -------------------------------------------------------------------------------------
     def _on_imu(self, msg):
-        try:
-            q = decode_orientation(msg)
-        except MessageError as exc:
-            self.diag.reject(f"imu_{getattr(exc, 'reason', 'bad')}", str(exc))
+        q = self.diag.decoded("imu", decode_orientation, msg)
+        if q is None:
             return
         self.imu.add(stamp_ns(msg.header), q)
         self._drain(final=False)
 
     def _on_heading(self, msg):
         t_in = self.diag.input()
-        try:
-            q = decode_orientation(msg)
-            var = float(msg.orientation_covariance[8])
-            if not (math.isfinite(var) and var > 0):
-                raise MessageError("bad_covariance", f"yaw variance {var!r} must be finite and > 0")
-        except MessageError as exc:
-            self.diag.reject(f"heading_{getattr(exc, 'reason', 'bad')}", str(exc))
+        heading = self.diag.decoded("heading", heading_from_imu, msg)
+        if heading is None:
             return
-        bearing = float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
+        bearing, var = heading
         import time
         rp_var = float(msg.orientation_covariance[0])
         rp_var = rp_var if math.isfinite(rp_var) and rp_var > 0 else 1000.0
