@@ -234,6 +234,17 @@ def test_sun_source_matches_a_direct_ephemeris_call():
     assert az == pytest.approx(ref.azimuth_deg, abs=1e-4) and alt == pytest.approx(ref.altitude_deg, abs=1e-4)
 
 
+def test_every_node_builds_its_sun_from_its_site_parameters():
+    """The nodes' sun_source reads latitude, longitude, altitude and sun_model by name (not by position):
+    a node whose site is moved and whose model is 'paper' gets exactly that site and model."""
+    from polarization_compass.nodes.params import defaults, sun_source
+    for specs in (SIMULATOR, ESTIMATOR, CORRECTOR):
+        v = defaults(specs)
+        v.update(latitude_deg=-33.9, longitude_deg=18.4, altitude_m=1086.0, sun_model="paper")
+        src = sun_source(v)
+        assert src.site == (-33.9, 18.4, 1086.0) and src.model == "paper"
+
+
 def _ideal_mosaic(bearing, pitch=0.0, roll=0.0, sun=(200.0, 30.0), encoding="32FC1", cam=SMALL_CAM):
     from polarization_compass.nodes.sky_simulator import mosaic_config
     from polarization_compass.render import Renderer, SunDirection

@@ -30,11 +30,11 @@ from std_msgs.msg import Float64, String
 from ..bag import decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
-from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, SunSource, TiltAndPrior, warm_up
+from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
 from . import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
-from .params import ESTIMATOR, knob_params, knob_values, layout_from_text
+from .params import ESTIMATOR, SUN_PARAMS, knob_params, knob_values, layout_from_text, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 
@@ -61,7 +61,7 @@ class HeadingEstimatorNode(Node):
             self.get_logger().info(f"warm-up (kernel compilation or cache load) took {dt:.2f} s")
         except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
             self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow")
-        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.sun = sun_source(p)
         self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
         self.camera_from_info: CameraModel | None = None
         self.site_from_fix = None
@@ -108,9 +108,8 @@ class HeadingEstimatorNode(Node):
             if {"prior_source", "prior_max_age_s"} & set(changed):
                 self.tilt_prior.prior_source = merged["prior_source"]
                 self.tilt_prior.prior_max_age_s = float(merged["prior_max_age_s"])
-            if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
-                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
-                                     merged["sun_model"])
+            if set(SUN_PARAMS) & set(changed):
+                self.sun = sun_source(merged)
         except CompassError as exc:
             return str(exc)
         return None

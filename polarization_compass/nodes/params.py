@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 __all__ = ["Param", "validate_value", "SIMULATOR", "ESTIMATOR", "CORRECTOR", "EVALUATOR", "SPECS",
-           "spec_by_name", "defaults", "layout_from_text", "knob_params", "KNOB_PREFIX"]
+           "spec_by_name", "defaults", "layout_from_text", "knob_params", "KNOB_PREFIX", "SUN_PARAMS",
+           "sun_source"]
 
 
 @dataclass(frozen=True)
@@ -128,6 +129,17 @@ SITE = (
     Param("longitude_deg", 118.853306, "site longitude, east positive (WGS84)", -180.0, 180.0, unit="deg"),
     Param("altitude_m", 30.0, "site height above sea level", -1000.0, 20000.0, unit="m"),
 )
+
+#: The parameters the sun's position depends on: a node makes a new :func:`sun_source` when one changes.
+SUN_PARAMS = ("latitude_deg", "longitude_deg", "altitude_m", "sun_model")
+
+
+def sun_source(values):
+    """The :class:`~polarization_compass.pipeline.SunSource` of a node's site and ``sun_model`` parameters
+    (``values``: a mapping holding :data:`SUN_PARAMS`)."""
+    from ..pipeline import SunSource
+    return SunSource(*(values[k] for k in SUN_PARAMS))
+
 
 PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
 ALL_METHODS = PAPER_METHODS + ("tilt_aware",)

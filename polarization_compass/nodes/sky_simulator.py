@@ -42,13 +42,13 @@ from ..bag import decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
 from ..conventions import matrix_to_quat, quat_to_matrix
 from ..errors import CompassError, MissingDependencyError
-from ..pipeline import SunSource, camera_attitude_from_body_quat
+from ..pipeline import camera_attitude_from_body_quat
 from ..sensor import sensor_config_for_encoding
 from . import topics
 from .diagnostics import Diagnostics
 from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
-from .params import SIMULATOR
+from .params import SIMULATOR, SUN_PARAMS, sun_source
 from .rosparams import ParameterSet
 from .runner import ExitRequest, run_node
 
@@ -75,7 +75,7 @@ class SkySimulatorNode(Node):
         self.camera = scene.camera
         self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
         self.sensor_cfg = sensor_config_for_encoding(scene.sensor, p["encoding"])
-        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.sun = sun_source(p)
         self.profile = self._profile()
         self.sim_mode = p["clock_mode"] == "sim"
         self.start_ns = ns_from_utc(parse_time_utc(p["start_time_utc"]))
@@ -142,10 +142,9 @@ class SkySimulatorNode(Node):
         if not hasattr(self, "profile"):
             return None
         merged = {**self.params.values, **changed}
-        if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
+        if set(SUN_PARAMS) & set(changed):
             try:
-                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
-                                     merged["sun_model"])
+                self.sun = sun_source(merged)
             except CompassError as exc:
                 return str(exc)
         self.params.values.update(changed)

@@ -31,11 +31,11 @@ from std_msgs.msg import Float64, String
 
 from ..bag import decode_orientation, stamp_ns
 from ..errors import CompassError
-from ..pipeline import AttitudeBuffer, SunSource
+from ..pipeline import AttitudeBuffer
 from . import topics
 from .diagnostics import Diagnostics, _wall_clock
 from .msgs import heading_from_imu, heading_imu
-from .params import CORRECTOR
+from .params import CORRECTOR, SUN_PARAMS, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 
@@ -70,7 +70,7 @@ class TiltCorrectorNode(Node):
         self.method = p["method"]
         if p["correction"] == "error_map":
             self.corrector = load_corrector(p["error_map"], self.method)
-        self.sun = SunSource(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], p["sun_model"])
+        self.sun = sun_source(p)
         self.imu = AttitudeBuffer(keep_ns=int(p["imu_buffer_s"] * 1e9))
         self.pending: deque = deque()   # (stamp_ns, bearing, yaw var, frame_id, wall deadline, t_in, roll/pitch var)
         self.diag = Diagnostics(self, f"tilt corrector ({self.method}, {p['correction']})")
@@ -92,9 +92,8 @@ class TiltCorrectorNode(Node):
             if {"correction", "error_map"} & set(changed):
                 self.corrector = (load_corrector(merged["error_map"], self.method)
                                   if merged["correction"] == "error_map" else None)
-            if {"latitude_deg", "longitude_deg", "altitude_m", "sun_model"} & set(changed):
-                self.sun = SunSource(merged["latitude_deg"], merged["longitude_deg"], merged["altitude_m"],
-                                     merged["sun_model"])
+            if set(SUN_PARAMS) & set(changed):
+                self.sun = sun_source(merged)
         except CompassError as exc:
             return str(exc)
         return None
