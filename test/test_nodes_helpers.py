@@ -31,6 +31,20 @@ def node_env(ros_env: dict) -> dict:
     return env
 
 
+def stop_process(p: subprocess.Popen, timeout: float, *logs) -> int:
+    """SIGINT (a node's clean shutdown), then kill after ``timeout`` s; close the log files; the exit code."""
+    if p.poll() is None:
+        p.send_signal(signal.SIGINT)
+    try:
+        p.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+    for f in logs:
+        f.close()
+    return p.returncode
+
+
 class Proc:
     def __init__(self, name: str, exe: str, ros_args: list, env: dict, log_dir: Path):
         self.name = name
@@ -46,16 +60,7 @@ class Proc:
         return self.p.poll() is None
 
     def stop(self, timeout: float = 20.0) -> int:
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGINT)
-        try:
-            self.p.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.p.kill()
-            self.p.wait()
-        self._out.close()
-        self._err.close()
-        return self.p.returncode
+        return stop_process(self.p, timeout, self._out, self._err)
 
     def wait(self, timeout: float) -> int:
         self.p.wait(timeout=timeout)

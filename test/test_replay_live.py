@@ -5,7 +5,6 @@
 replay's, frame by frame and stream by stream."""
 import csv
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -20,6 +19,8 @@ from polarization_compass.conventions import CameraAttitude
 from polarization_compass.recording import RecordSpec, record_sim
 from polarization_compass.replay import ReplayConfig, replay_bag
 from polarization_compass.scene import load_scene
+
+from test_nodes_helpers import stop_process
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -42,15 +43,7 @@ class _Node:
         return self.p.poll() is None
 
     def stop(self, timeout=30.0):
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGINT)
-        try:
-            self.p.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.p.kill()
-            self.p.wait()
-        self.log.close()
-        return self.p.returncode
+        return stop_process(self.p, timeout, self.log)
 
     def text(self):
         return self.path.read_text(errors="replace")
