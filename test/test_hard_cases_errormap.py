@@ -6,11 +6,9 @@ The maps here are synthetic: an analytic error e(psi, h, pitch, roll) written ou
 the grid, so the correction can be checked against the exact inverse (psi_meas = psi + e(psi) is
 generated from a known psi) instead of against the module's own output.
 """
-import gc
 import json
 import math
 import pickle
-import warnings
 
 import numpy as np
 import pytest
@@ -20,6 +18,8 @@ from hypothesis import strategies as st
 from polarization_compass import conventions as cv
 from polarization_compass.correction import CorrectionStatus, TiltCorrector
 from polarization_compass.errormap import ErrorMap, ErrorMapError, load_error_map
+
+from hard_cases_npz import assert_no_leaked_handle, assert_refused, npy_named_npz, truncate_half
 
 ALT = np.arange(0.0, 55.0, 10.0)
 YAW = np.arange(-180.0, 180.0, 5.0)
@@ -243,39 +243,20 @@ def test_missing_map_file_and_directory(tmp_path):
 
 
 def test_a_npy_file_named_npz_is_an_error_map_error(tmp_path):
-    p = tmp_path / "m.npz"
-    with open(p, "wb") as fh:
-        np.save(fh, np.zeros(3))
     with pytest.raises(ErrorMapError):
-        load_error_map(p)
+        load_error_map(npy_named_npz(tmp_path / "m.npz"))
 
 
 def _truncated_map(tmp_path):
-    p = _MAP.save(tmp_path / "m.npz")
-    data = p.read_bytes()
-    p.write_bytes(data[: len(data) // 2])
-    return p
+    return truncate_half(_MAP.save(tmp_path / "m.npz"))
 
 
 def test_truncated_map_is_an_error_map_error(tmp_path):
-    p = _truncated_map(tmp_path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ResourceWarning)      # a leak is the next test's subject
-        with pytest.raises(ErrorMapError, match="corrupt"):
-            load_error_map(p)
-        gc.collect()
+    assert_refused(load_error_map, _truncated_map(tmp_path), ErrorMapError, match="corrupt")
 
 
 def test_corrupt_map_does_not_leak_a_file_handle(tmp_path):
-    p = _truncated_map(tmp_path)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            load_error_map(p)
-        except ErrorMapError:
-            pass
-        gc.collect()
-    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
+    assert_no_leaked_handle(load_error_map, _truncated_map(tmp_path), ErrorMapError)
 
 
 def test_float32_maps_load_as_float64(tmp_path):

@@ -8,10 +8,8 @@ text, bad metadata, bare and truncated MCAP bags), test_bag.py::test_bad_mapping
 
 Every payload below would create a marker file if it ran; each test checks the marker is absent.
 """
-import gc
 import json
 import pickle
-import warnings
 
 import numpy as np
 import pytest
@@ -20,6 +18,8 @@ from polarization_compass import bag as B
 from polarization_compass.errors import CompassError
 from polarization_compass.frame_io import FrameFileError, load_frame_npz
 from polarization_compass.scene import SceneError, load_scene
+
+from hard_cases_npz import assert_no_leaked_handle, assert_refused, npy_named_npz, truncate_half
 
 
 class _Payload:
@@ -79,39 +79,20 @@ def test_garbage_frame_files_are_frame_file_errors(tmp_path, content):
 
 
 def truncated_npz(tmp_path):
-    p = write_npz(tmp_path / "f.npz")
-    data = p.read_bytes()
-    p.write_bytes(data[: len(data) // 2])
-    return p
+    return truncate_half(write_npz(tmp_path / "f.npz"))
 
 
 def test_truncated_frame_file(tmp_path):
-    p = truncated_npz(tmp_path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ResourceWarning)      # the leak is the next test's subject
-        with pytest.raises(FrameFileError, match="not a readable"):
-            load_frame_npz(p)
-        gc.collect()
+    assert_refused(load_frame_npz, truncated_npz(tmp_path), FrameFileError, match="not a readable")
 
 
 def test_corrupt_frame_file_does_not_leak_a_file_handle(tmp_path):
-    p = truncated_npz(tmp_path)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            load_frame_npz(p)
-        except FrameFileError:
-            pass
-        gc.collect()
-    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
+    assert_no_leaked_handle(load_frame_npz, truncated_npz(tmp_path), FrameFileError)
 
 
 def test_a_npy_file_named_npz_is_a_frame_file_error(tmp_path):
-    p = tmp_path / "f.npz"
-    with open(p, "wb") as fh:
-        np.save(fh, np.zeros(3))
     with pytest.raises(FrameFileError):
-        load_frame_npz(p)
+        load_frame_npz(npy_named_npz(tmp_path / "f.npz"))
 
 
 @pytest.mark.parametrize("over, words", [
