@@ -79,6 +79,7 @@ from numba import njit, prange
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
 from .errors import CompassError
+from .fastmath32 import sincos32
 from .demosaic import (DEMOSAIC_METHODS, MosaicLayout, SensorError, _finish, layout_from_mapping,
                        polarization_from_mosaic)
 
@@ -361,29 +362,9 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 # Forward model kernel
 # ------------------------------------------------------------------------------------------------
 @njit(inline="always", fastmath=_FM, cache=True)
-def _sincos32(a):  # pragma: no cover - compiled
-    """float32 sin and cos of |a| <= pi/2 (Taylor to a^11 / a^12: truncation < 6e-8, below float32 rounding)."""
-    z = a * a
-    s = np.float32(1.0 / 39916800.0)
-    s = s * -z + np.float32(1.0 / 362880.0)
-    s = s * -z + np.float32(1.0 / 5040.0)
-    s = s * -z + np.float32(1.0 / 120.0)
-    s = s * -z + np.float32(1.0 / 6.0)
-    s = a * (np.float32(1.0) - z * s)
-    c = np.float32(1.0 / 479001600.0)
-    c = c * -z + np.float32(1.0 / 3628800.0)
-    c = c * -z + np.float32(1.0 / 40320.0)
-    c = c * -z + np.float32(1.0 / 720.0)
-    c = c * -z + np.float32(1.0 / 24.0)
-    c = c * -z + np.float32(0.5)
-    c = np.float32(1.0) - z * c
-    return s, c
-
-
-@njit(inline="always", fastmath=_FM, cache=True)
 def _lambda_unit(a, dp, p, q, n0, d):  # pragma: no cover - compiled
     """Mean electrons at S0 = 1: N0 (1 - d DoP (p cos 2a - q sin 2a)), float32."""
-    sa, ca = _sincos32(a)
+    sa, ca = sincos32(a)
     one = np.float32(1.0)
     dp = min(max(dp, np.float32(0.0)), one)
     return n0 * (one - d * dp * (p * (ca * ca - sa * sa) - q * (np.float32(2.0) * sa * ca)))
@@ -541,7 +522,7 @@ def superpixel_pixels(camera: CameraModel, x0_px: float, y0_px: float, rows: int
 @njit(inline="always", fastmath=_FM, cache=True)
 def _ideal_stokes(a, p, sv):  # pragma: no cover - compiled
     """Camera-frame (S0, S1, S2) of an ideal pixel: S1 = -S0 P cos 2a, S2 = S0 P sin 2a (float32)."""
-    sa, ca = _sincos32(a)
+    sa, ca = sincos32(a)
     sp = sv * p
     return sv, -sp * (ca * ca - sa * sa), sp * (np.float32(2.0) * sa * ca)
 
