@@ -188,18 +188,23 @@ def _superpixel_kernel(m, w, sat, aop, dop, valid):  # pragma: no cover - compil
             aop[k, l], dop[k, l], valid[k, l] = _finish(s0, s1, s2, ok)
 
 
+@njit(inline="always", fastmath=_FM, cache=True)
+def _stokes_or_zero(s0, s1, s2, ok):  # pragma: no cover - compiled
+    """The Stokes output of one pixel: (S0, S1, S2) when its samples are usable (``ok``), S0 > 0 and
+    S1, S2 not both 0; else zeros. Branch-free (selects), so that row loops vectorise."""
+    z = np.float32(0.0)
+    ok = ok & (s0 > z) & ((s1 != z) | (s2 != z))
+    return (s0 if ok else z), (s1 if ok else z), (s2 if ok else z)
+
+
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _superpixel_stokes_kernel(m, w, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
     """One Stokes vector per 2 x 2 block; zeros where invalid."""
     H2, W2 = s0o.shape
-    z = np.float32(0.0)
     for k in prange(H2):
         for l in range(W2):
             s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * l, w, sat)
-            ok = ok & (s0 > z) & ((s1 != z) | (s2 != z))
-            s0o[k, l] = s0 if ok else z
-            s1o[k, l] = s1 if ok else z
-            s2o[k, l] = s2 if ok else z
+            s0o[k, l], s1o[k, l], s2o[k, l] = _stokes_or_zero(s0, s1, s2, ok)
 
 
 @njit(inline="always", fastmath=_FM, cache=True)
@@ -266,17 +271,13 @@ def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compile
 def _bilinear_stokes_kernel(m, rw, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
     """Full-resolution bilinear Stokes images; zeros where invalid."""
     H, W = m.shape
-    z = np.float32(0.0)
     for i in prange(H):
         im = i - 1 if i > 0 else 1
         ip = i + 1 if i < H - 1 else H - 2
         r = i & 1
         for j in range(W):
             s0, s1, s2, ok = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
-            ok = ok & (s0 > z) & ((s1 != z) | (s2 != z))
-            s0o[i, j] = s0 if ok else z
-            s1o[i, j] = s1 if ok else z
-            s2o[i, j] = s2 if ok else z
+            s0o[i, j], s1o[i, j], s2o[i, j] = _stokes_or_zero(s0, s1, s2, ok)
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
