@@ -1,5 +1,6 @@
 """What SM-ASM and Symmetry share: the AoP relative to the local meridian (eqs 29-30) on a disc of
-sky centred on the zenith pixel, with a smooth radial taper.
+sky centred on the zenith pixel, with a smooth radial taper; mirror-pair weights for an incomplete
+sky; and the estimator skeleton both methods run on (:class:`DiscEstimator`).
 
 ``xi`` (eq 30, the angle between +y_cam and the local meridian at a pixel) is computed from the pixel's
 ray, ``xi = atan2(r_x, r_y)``: for the paper's pinhole with square pixels this is eq 30 exactly
@@ -10,26 +11,74 @@ Why a disc with a smooth edge: both methods find an axis of mirror symmetry of t
 image rectangle is not mirror-symmetric about an arbitrary line through its centre, so its corners
 would bias the axis; a disc is symmetric about every such line, and a taper that goes smoothly to zero
 keeps the pixel lattice from aliasing at the edge.
+
+Incomplete sky (occluders, invalid pixels, a region that cuts the disc)
+-----------------------------------------------------------------------
+Both axis fits are unbiased only because the pixels they sum over form a set that is mirror-symmetric
+about the true axis. Half a disc is not (unless the cut is perpendicular to the meridian): the fits
+were off by 10-20 deg RMS with status ok. So when any pixel of the disc is unusable (invalid or
+non-finite) or the view does not cover the disc, each pixel gets the pair weight
+``m_i = S(p_i) S(p_i')``, where ``p_i'`` is the pixel's mirror image about the trial axis ``theta``
+(a reflection of its sensor-plane offset from the principal point, in millimetres: exact for the
+radially symmetric camera models) and ``S`` is a smooth usability map: the indicator of usable pixels
+(outside the view: usable beyond the disc, unusable inside it) blurred by a Gaussian of
+``MIRROR_BLUR_CELLS`` grid cells, then ``sin^2`` of its rise between the levels ``MIRROR_LEVELS`` (0.5,
+0.9), bilinear between grid points. An occluded region gets S = 0 with a smooth edge about 2.5 cells wide;
+isolated unusable pixels (NaN, hot pixels) barely lower S, so they cost no coverage. ``S(p) S(p')`` is exactly mirror-symmetric about ``theta`` and
+smooth (no lattice aliasing at the occluder's edge, the same reason as the disc taper), so the fit on
+the weighted pixels returns ``theta`` when ``theta`` is the true axis: the axis is the fixed point
+``theta = f(theta)`` of "fit the pixels paired about theta", found by the secant method from the
+unweighted fit.
+
+Uncertainty of the fixed point: ``d theta* = d f / (1 - f'(theta*))``: the statistical sigma of the
+weighted fit is divided by ``|1 - f'|`` (``f'`` by a finite difference). When the usable pairs form a
+thin wedge the fit follows the wedge (``f' -> 1``) and sigma grows accordingly. When the share of the
+disc (taper-weighted) whose mirror image is usable is below ``min_mirror_coverage``, or no fixed point
+is found, the status is ``insufficient_coverage`` with the measured share in the reason. A complete
+disc is never re-weighted: the result is bit-identical to the plain fit.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numba import njit
 
 from ..camera import CameraModel, PixelSelection
-from ._common import Knob, axial_residual_rad, level_sun_candidates, rayleigh_aop_rad
+from .base import Estimator, HeadingResult, Observation, Status
+from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t_from_stats,
+                      check_sun, finish_sigma_deg, level_sun_candidates, rayleigh_aop_rad, resolve_ambiguity,
+                      result_from, selection_for, select_view, view_segments)
+from ._kernels import N_STATS, acc_brightness
 
-__all__ = ["DISC_KNOBS", "disc_radius", "disc_selection", "taper", "aoplm_rad", "level_residual", "band_pass1",
-           "band_pass2", "ring_pass1", "ring_pass2", "cr1_sigma"]
+__all__ = ["DISC_KNOBS", "disc_radius", "disc_radius_mm", "disc_selection", "taper", "aoplm_rad", "level_residual",
+           "band_pass1", "band_pass2", "ring_pass1", "ring_pass2", "cr1_sigma", "MirrorMap", "mirror_map",
+           "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit", "DiscEstimator", "MIRROR_BLUR_CELLS",
+           "MIRROR_LEVELS"]
 
 DISC_KNOBS = {
     "disc_fraction": Knob(1.0, "float", 0.05, 1.0,
                           doc="radius of the sky disc used, as a fraction of the largest disc inside the image"),
     "taper_fraction": Knob(0.2, "float", 0.0, 1.0, doc="outer part of the disc over which weights fall to zero"),
+    "min_mirror_coverage": Knob(0.1, "float", 0.0, 1.0,
+                                doc="part of the disc unusable (occluded, invalid, cut by region): the share of the "
+                                    "disc whose mirror image about the axis is also usable must reach this, else "
+                                    "status insufficient_coverage"),
 }
+
+#: The smooth usability map S: the usable-pixel indicator blurred by a Gaussian of this sigma (grid cells),
+#: then S = sin^2 of its rise between these two levels (0 below the first, 1 above the second).
+MIRROR_BLUR_CELLS = 2.0
+MIRROR_LEVELS = (0.5, 0.9)
+#: Secant steps of the refinement of one fixed point before giving up.
+MAX_SOLVE_STEPS = 25
+#: Trial axes of the coarse scan for fixed points (over 180 deg), and its pixel subsampling.
+SCAN_AXES = 18
+SCAN_STEP = 8
+#: |1 - f'| below this: the usable pairs do not determine the axis (insufficient_coverage).
+MIN_CONDITIONING = 1e-3
 
 
 @lru_cache(maxsize=32)
@@ -43,14 +92,17 @@ def disc_radius(camera: CameraModel) -> float:
     return float(rho[ok].min()) if ok.any() else 1.0
 
 
-def disc_selection(camera: CameraModel, fraction: float, stride: int) -> PixelSelection:
-    """The square of sensor pixels holding the disc (and the stride)."""
-    rho_max = disc_radius(camera) * fraction
+def disc_radius_mm(camera: CameraModel, rho_max: float) -> float:
+    """Radius on the sensor (mm from the principal point) of the ray circle hypot(r_x, r_y) = rho_max."""
     f = camera.focal_length_mm
     if camera.model == "pinhole":
-        rr = f * math.tan(math.asin(min(rho_max, 1.0)))
-    else:
-        rr = f * math.asin(min(rho_max, 1.0))
+        return f * math.tan(math.asin(min(rho_max, 1.0)))
+    return f * math.asin(min(rho_max, 1.0))
+
+
+def disc_selection(camera: CameraModel, fraction: float, stride: int) -> PixelSelection:
+    """The square of sensor pixels holding the disc (and the stride)."""
+    rr = disc_radius_mm(camera, disc_radius(camera) * fraction)
     hx = rr / (camera.pixel_pitch_x_um * 1e-3) + 1.0
     hy = rr / (camera.pixel_pitch_y_um * 1e-3) + 1.0
     x0 = max(1, int(math.floor(camera.cx_px - hx)))
@@ -94,6 +146,11 @@ def level_residual(psi_rad: float, altitude_deg: float, aop_rad, rays):
 
 # --------------------------------------------------------------------------------------------
 # Compiled passes (one loop over the view's pixels each; blocks via segments, see _common.view_segments)
+#
+# Pass 1 (the plain fit) also counts: cnt = (usable, valid, valid non-finite, unusable pixels inside the
+# disc). With unusable pixels, a gather pass compacts the invariant per-pixel terms of the usable pixels
+# (times S(p)) once, and each trial axis of the mirror iteration is then a short fit over them with the
+# weight S(p'); pass 2 takes the final pair weights (none: ``mg`` of shape (0, 0), bit-identical sums).
 # --------------------------------------------------------------------------------------------
 @njit(inline="always", cache=True)
 def _sincos64(a):  # pragma: no cover - compiled
@@ -122,17 +179,20 @@ def _sincos64(a):  # pragma: no cover - compiled
 
 @njit(inline="always", cache=True)
 def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
-    """Load pixel i: (usable, finite-but-masked flag, a, p, rx, ry, rz, rho, cos 2a, sin 2a)."""
+    """Load pixel i: (usable, all values finite, ray inside the disc ring [rho_lo, rho_hi], a, p, rx, ry, rz,
+    rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid pixels too)."""
     a = np.float64(aop[i])
     p = np.float64(dop[i])
     rx = np.float64(rays[0, i])
     ry = np.float64(rays[1, i])
     rz = np.float64(rays[2, i])
-    fin = (abs(a) < 1e6) and (abs(p) < 1e6) and (abs(rx) < 1e6) and (abs(ry) < 1e6) and (abs(rz) < 1e6)
-    rho = math.sqrt(rx * rx + ry * ry) if fin else 0.0
-    ok = valid[i] and fin and p >= min_dop and rho >= rho_lo and rho <= rho_hi and rho > 0.0
+    rfin = (abs(rx) < 1e6) and (abs(ry) < 1e6) and (abs(rz) < 1e6)
+    fin = rfin and (abs(a) < 1e6) and (abs(p) < 1e6)
+    rho = math.sqrt(rx * rx + ry * ry) if rfin else 0.0
+    inr = rfin and rho >= rho_lo and rho <= rho_hi and rho > 0.0
+    ok = valid[i] and fin and p >= min_dop and inr
     sa, ca = _sincos64(a if fin else 0.0)
-    return ok, fin, a, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
+    return ok, fin, inr, a, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
 
 
 @njit(inline="always", cache=True)
@@ -149,6 +209,57 @@ def _taper1(rho, rho_max, frac):  # pragma: no cover - compiled
 
 
 @njit(inline="always", cache=True)
+def _bilinear0(g, r, c):  # pragma: no cover - compiled
+    """g (2-D) at fractional (row r, column c), bilinear, 0 outside the grid."""
+    ny, nx = g.shape
+    if not (r > -1.0 and c > -1.0 and r < ny and c < nx):
+        return 0.0
+    i0 = int(math.floor(r))
+    j0 = int(math.floor(c))
+    fr = r - i0
+    fc = c - j0
+    if i0 >= 0 and j0 >= 0 and i0 + 1 < ny and j0 + 1 < nx:            # inside: no per-corner test
+        return ((1.0 - fr) * ((1.0 - fc) * g[i0, j0] + fc * g[i0, j0 + 1])
+                + fr * ((1.0 - fc) * g[i0 + 1, j0] + fc * g[i0 + 1, j0 + 1]))
+    acc = 0.0
+    for di in range(2):
+        i = i0 + di
+        if i < 0 or i >= ny:
+            continue
+        wr = fr if di else 1.0 - fr
+        for dj in range(2):
+            j = j0 + dj
+            if j < 0 or j >= nx:
+                continue
+            acc += wr * (fc if dj else 1.0 - fc) * g[i, j]
+    return acc
+
+
+@njit(inline="always", cache=True)
+def _mirror_consts(mp):  # pragma: no cover - compiled
+    """(sin theta, cos theta, columns per mm, rows per mm, column and row of the principal point) of mp."""
+    return (mp[4], mp[5], 1.0 / (mp[2] * mp[7]), 1.0 / (mp[3] * mp[9]), (mp[0] - mp[6]) / mp[7],
+            (mp[1] - mp[8]) / mp[9])
+
+
+@njit(inline="always", cache=True)
+def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
+    """S at the mirror image of the sensor offset (u, v) mm (constants from :func:`_mirror_consts`)."""
+    d = 2.0 * (u * st + v * ct)
+    return _bilinear0(mg, r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc)
+
+
+@njit(inline="always", cache=True)
+def _mirror_weight(mg, mp, x, y):  # pragma: no cover - compiled
+    """The pair weight S(p) S(p') of the pixel at sensor position (x, y). ``mp``: cx, cy, pitch_x, pitch_y (mm),
+    sin theta, cos theta (the trial axis, from +y_cam towards +x_cam), x0, dx, y0, dy of the S grid; the
+    reflection acts on the offset from the principal point in millimetres."""
+    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
+    own = _bilinear0(mg, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
+    return own * _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
+
+
+@njit(inline="always", cache=True)
 def _level_resid(c2a, s2a, rx, ry, rz, s):  # pragma: no cover - compiled
     """AoP residual (rad, axial) against the Rayleigh E-vector s x r: 0.5 arg(exp(2ia) conj(u)^2), u = ey + i ex."""
     ex = s[1] * rz - s[2] * ry
@@ -160,69 +271,138 @@ def _level_resid(c2a, s2a, rx, ry, rz, s):  # pragma: no cover - compiled
     return 0.5 * math.atan2(qi, qr)
 
 
-@njit(cache=True)
-def _counts_stats(ok, fin, v, I, rx, ry, rz, has_i, cnt, stats):  # pragma: no cover - compiled
-    cnt[1] += 1 if v else 0
-    cnt[2] += 1 if (v and not fin) else 0
-    if ok:
-        cnt[0] += 1
-        if has_i and abs(I) < 1e30:
-            stats[0] += 1.0
-            stats[1] += I
-            stats[2] += I * I
-            stats[3] += rx
-            stats[4] += ry
-            stats[5] += rz
-            stats[6] += I * rx
-            stats[7] += I * ry
-            stats[8] += I * rz
-            stats[9] += rx * rx
-            stats[10] += rx * ry
-            stats[11] += rx * rz
-            stats[12] += ry * ry
-            stats[13] += ry * rz
-            stats[14] += rz * rz
+@njit(inline="always", cache=True)
+def _exp2i_aoplm(c2a, s2a, rx, ry, rho):  # pragma: no cover - compiled
+    """(Re, Im) of exp(2i AOPLM) = exp(2ia) x^2 with x = (r_y - i r_x) / rho = exp(-i xi)."""
+    er = ry / rho
+    ei = -rx / rho
+    x2r = er * er - ei * ei
+    x2i = 2.0 * er * ei
+    return c2a * x2r - s2a * x2i, c2a * x2i + s2a * x2r
+
+
+@njit(inline="always", cache=True)
+def _ring_of(rho, rho_lo, span, n_rings):  # pragma: no cover - compiled
+    """Ring index j and the linear split f towards ring j + 1."""
+    t = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
+    j = min(int(math.floor(t)), n_rings - 1)
+    return j, t - j
+
+
+@njit(inline="always", cache=True)
+def _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop, rho_lo, rho_max, stats):  # pragma: no cover
+    """Pixel i of a pass 1: (usable, valid, valid but non-finite, unusable inside the disc, p, rx, ry, rho, cos 2a,
+    sin 2a); brightness statistics of a usable pixel into ``stats``."""
+    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+    v = valid[i]
+    if ok and has_i:
+        I = np.float64(inten[i])
+        if abs(I) < 1e30:
+            acc_brightness(stats, 0, I, rx, ry, rz)
+    return ok, v, v and not fin, inr and not (v and fin), p, rx, ry, rho, c2a, s2a
 
 
 @njit(cache=True)
-def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt, stats):  # pragma: no cover
+def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
+               stats):  # pragma: no cover - compiled
     """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
-    DoP^2 taper; cnt = (usable, valid, valid non-finite)."""
+    DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc)."""
+    n_ok = n_v = n_bad = n_hole = 0
+    Zr = Zi = nrm = 0.0
     for i in range(aop.size):
-        ok, fin, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
-        _counts_stats(ok, fin, valid[i], np.float64(inten[i]) if has_i else 0.0, rx, ry, rz, has_i, cnt, stats)
+        ok, v, bad, hole, p, rx, ry, rho, c2a, s2a = _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop,
+                                                                  0.0, rho_max, stats)
+        n_v += v
+        n_bad += bad
+        n_hole += hole
         if not ok:
             continue
-        er = ry / rho
-        ei = -rx / rho
-        x2r = er * er - ei * ei
-        x2i = 2.0 * er * ei
-        cr = c2a * x2r - s2a * x2i                 # exp(2i AOPLM)
+        n_ok += 1
+        cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
         W = math.exp((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)   # cos 2 delta = -cr
-        out[0] += W * (ry * ry - rx * rx)
-        out[1] += W * 2.0 * rx * ry
-        out[2] += W * rho * rho
+        Zr += W * (ry * ry - rx * rx)
+        Zi += W * 2.0 * rx * ry
+        nrm += W * rho * rho
+    out[0] += Zr
+    out[1] += Zi
+    out[2] += nrm
+    cnt[0] += n_ok
+    cnt[1] += n_v
+    cnt[2] += n_bad
+    cnt[3] += n_hole
 
 
 @njit(cache=True)
-def band_pass2(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, rho_max, taper_frac, inv4tol2,
-               Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
+def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp,
+                g_uv, g_val, cover):  # pragma: no cover - compiled
+    """SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0, compacted:
+    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im), W S(p) rho^2) (W = 0 below min_dop);
+    cover[1] += taper over every pixel of the disc. Returns the count."""
+    n = 0
+    for i in range(aop.size):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        if not inr:
+            continue
+        tp = _taper1(rho, rho_max, taper_frac)
+        cover[1] += tp
+        if not (valid[i] and fin):
+            continue
+        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])      # S(p)
+        if not s > 0.0:
+            continue
+        W = 0.0
+        if ok:
+            cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
+            W = math.exp((-cr - 1.0) * inv4tol2) * p * p * tp * s
+        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
+        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+        g_val[0, n] = tp * s
+        g_val[1, n] = W * (ry * ry - rx * rx)
+        g_val[2, n] = W * 2.0 * rx * ry
+        g_val[3, n] = W * rho * rho
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
+    """SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2, coverage numerator
+    sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every ``step``-th gathered pixel."""
+    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
+    Zr = Zi = nrm = cov = 0.0
+    n_pair = 0
+    for j in range(0, n, step):
+        m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
+        if not m > 0.0:
+            continue
+        cov += g_val[0, j] * m
+        Zr += g_val[1, j] * m
+        Zi += g_val[2, j] * m
+        nrm += g_val[3, j] * m
+        n_pair += 1 if g_val[3, j] > 0.0 else 0
+    out[0] = Zr
+    out[1] = Zi
+    out[2] = nrm
+    out[3] = cov
+    out[4] = n_pair
+
+
+@njit(cache=True)
+def band_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_max, taper_frac, inv4tol2,
+               mg, mp, Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate suns;
-    rss[j] += residual_j^2."""
+    rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty)."""
     modZ2 = Zr * Zr + Zi * Zi
     for k in range(seg_start.size):
         bk = seg_block[k]
         for i in range(seg_start[k], seg_end[k]):
-            ok, fin, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+            ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
             if not ok:
                 continue
-            er = ry / rho
-            ei = -rx / rho
-            x2r = er * er - ei * ei
-            x2i = 2.0 * er * ei
-            cr = c2a * x2r - s2a * x2i
-            ci = c2a * x2i + s2a * x2r
+            cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
             W = math.exp((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)
+            if mg.shape[0]:
+                W *= _mirror_weight(mg, mp, xs[i], ys[i])
             dW = W * ci * 2.0 * inv4tol2             # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
             z2r = ry * ry - rx * rx
             z2i = 2.0 * rx * ry
@@ -235,57 +415,127 @@ def band_pass2(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, rh
             rss[1] += r2 * r2
 
 
+@njit(inline="always", cache=True)
+def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
+    """a_out[k + K, ring] += hat * c * e^k (k = -K..K), split linearly between rings j and j + 1."""
+    g0 = 1.0 - f
+    a_out[K, j] += g0 * c
+    if j + 1 < n_rings:
+        a_out[K, j + 1] += f * c
+    ep = c
+    em = c
+    ec = e.conjugate()
+    for kk in range(1, K + 1):
+        ep = ep * e
+        em = em * ec
+        a_out[K + kk, j] += g0 * ep
+        a_out[K - kk, j] += g0 * em
+        if j + 1 < n_rings:
+            a_out[K + kk, j + 1] += f * ep
+            a_out[K - kk, j + 1] += f * em
+
+
 @njit(cache=True)
 def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
                a_out, cnt, stats):  # pragma: no cover - compiled
     """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),
-    w = DoP^2 taper, linear split between neighbouring rings."""
+    w = DoP^2 taper, linear split between neighbouring rings; cnt as :func:`band_pass1`."""
     span = max(rho_max - rho_lo, 1e-12)
+    n_ok = n_v = n_bad = n_hole = 0
     for i in range(aop.size):
-        ok, fin, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
-        _counts_stats(ok, fin, valid[i], np.float64(inten[i]) if has_i else 0.0, rx, ry, rz, has_i, cnt, stats)
+        ok, v, bad, hole, p, rx, ry, rho, c2a, s2a = _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop,
+                                                                  rho_lo, rho_max, stats)
+        n_v += v
+        n_bad += bad
+        n_hole += hole
         if not ok:
             continue
+        n_ok += 1
         e = complex(ry / rho, -rx / rho)
         c = complex(c2a, s2a) * e * e * (p * p * _taper1(rho, rho_max, taper_frac))
-        t = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
-        j = min(int(math.floor(t)), n_rings - 1)
-        f = t - j
-        g0 = 1.0 - f
-        a_out[K, j] += g0 * c
-        if j + 1 < n_rings:
-            a_out[K, j + 1] += f * c
-        ep = c
-        em = c
-        ec = e.conjugate()
-        for kk in range(1, K + 1):
-            ep = ep * e
-            em = em * ec
-            a_out[K + kk, j] += g0 * ep
-            a_out[K - kk, j] += g0 * em
-            if j + 1 < n_rings:
-                a_out[K + kk, j + 1] += f * ep
-                a_out[K - kk, j + 1] += f * em
+        j, f = _ring_of(rho, rho_lo, span, n_rings)
+        _ring_add(a_out, K, n_rings, j, f, c, e)
+    cnt[0] += n_ok
+    cnt[1] += n_v
+    cnt[2] += n_bad
+    cnt[3] += n_hole
 
 
 @njit(cache=True)
-def ring_pass2(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, rho_lo, rho_max, taper_frac,
-               n_rings, K, a_in, rot, F2, s1, s2, block_sum, rss):  # pragma: no cover - compiled
+def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, mg, mp,
+                g_uv, g_tp, g_c, g_e, g_ring, cover):  # pragma: no cover - compiled
+    """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_c = w S(p) c (0 below
+    min_dop), g_e = exp(-i phi), g_ring = ring index + split. Returns the count."""
+    span = max(rho_max - rho_lo, 1e-12)
+    n = 0
+    for i in range(aop.size):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        if not inr:
+            continue
+        tp = _taper1(rho, rho_max, taper_frac)
+        cover[1] += tp
+        if not (valid[i] and fin):
+            continue
+        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])      # S(p)
+        if not s > 0.0:
+            continue
+        e = complex(ry / rho, -rx / rho)
+        c = complex(0.0, 0.0)
+        if ok:
+            c = complex(c2a, s2a) * e * e * (p * p * tp * s)
+        j, f = _ring_of(rho, rho_lo, span, n_rings)
+        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
+        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+        g_tp[n] = tp * s
+        g_c[n] = c
+        g_e[n] = e
+        g_ring[n] = j + f
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def ring_fit(g_uv, g_tp, g_c, g_e, g_ring, n, step, n_rings, K, mg, mp, a_out, out):  # pragma: no cover - compiled
+    """Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the gathered pixels
+    weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight > 0); every ``step``-th
+    gathered pixel."""
+    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
+    cov = 0.0
+    n_pair = 0
+    for q in range(0, n, step):
+        m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
+        if not m > 0.0:
+            continue
+        cov += g_tp[q] * m
+        c = g_c[q]
+        if c.real == 0.0 and c.imag == 0.0:
+            continue
+        n_pair += 1
+        j = min(int(g_ring[q]), n_rings - 1)
+        _ring_add(a_out, K, n_rings, j, g_ring[q] - j, c * m, g_e[q])
+    out[0] = cov
+    out[1] = n_pair
+
+
+@njit(cache=True)
+def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_lo, rho_max, taper_frac,
+               n_rings, K, mg, mp, a_in, rot, F2, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with
     d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's
-    ring), times the residual against each candidate sun."""
+    ring), times the residual against each candidate sun (pair weights as :func:`band_pass2`)."""
     span = max(rho_max - rho_lo, 1e-12)
     for k in range(seg_start.size):
         bk = seg_block[k]
         for i in range(seg_start[k], seg_end[k]):
-            ok, fin, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+            ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
             if not ok:
                 continue
             e = complex(ry / rho, -rx / rho)
-            c = complex(c2a, s2a) * e * e * (p * p * _taper1(rho, rho_max, taper_frac))
-            t = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
-            j = min(int(math.floor(t)), n_rings - 1)
-            f = t - j
+            w = p * p * _taper1(rho, rho_max, taper_frac)
+            if mg.shape[0]:
+                w *= _mirror_weight(mg, mp, xs[i], ys[i])
+            c = complex(c2a, s2a) * e * e * w
+            j, f = _ring_of(rho, rho_lo, span, n_rings)
             ep = c
             em = c
             ec = e.conjugate()
@@ -318,3 +568,342 @@ def cr1_sigma(block_sum, n: int) -> float:
         return 0.0
     corr = (G / (G - 1.0) if G > 1 else 1.0) * ((n - 1.0) / (n - 1.0 - 1.0) if n > 2 else 1.0)
     return math.sqrt(float(np.dot(b, b)) * corr)
+
+
+# --------------------------------------------------------------------------------------------
+# Mirror pairs
+# --------------------------------------------------------------------------------------------
+#: No mirror weighting (m = 1): an empty S map and unused parameters.
+NO_MIRROR = (np.zeros((0, 0)), np.zeros(10))
+
+
+@dataclass
+class MirrorMap:
+    """Smooth usability ``S`` on a regular grid of sensor positions, and the reflection parameters.
+
+    ``grid`` (ny, nx) float64 in [0, 1]; grid point (r, c) is at sensor pixel (x0 + c dx, y0 + r dy)."""
+
+    grid: np.ndarray
+    params: np.ndarray          # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
+
+    def at(self, theta_rad: float) -> tuple:
+        """Kernel arguments (mg, mp) for the reflection about the axis ``theta`` (from +y_cam towards +x_cam)."""
+        p = self.params.copy()
+        p[4] = math.sin(theta_rad)
+        p[5] = math.cos(theta_rad)
+        return self.grid, p
+
+
+def _usable_grid(view, camera: CameraModel):
+    """(usable (ny, nx) bool, x0, dx, y0, dy) of the view's pixels on a regular grid: the view's own grid,
+    or a pixel list scattered onto the grid of its smallest coordinate steps (cells without a pixel are
+    unusable)."""
+    fin = np.isfinite(view.aop) & np.isfinite(view.dop) & np.isfinite(view.rays).all(axis=0)
+    usable = np.asarray(view.valid, dtype=bool) & fin
+    if view.grid is not None:
+        (x0, dx, nx), (y0, dy, ny) = view.grid
+        return usable.reshape(ny, nx), x0, dx, y0, dy
+    x = np.asarray(view.x_px, dtype=float)
+    y = np.asarray(view.y_px, dtype=float)
+
+    def axis(c):
+        u = np.unique(c)
+        lo, hi = float(u[0]), float(u[-1])
+        gaps = np.diff(u)
+        step = float(gaps[gaps > 1e-6].min()) if (gaps > 1e-6).any() else 1.0
+        step = max(step, (hi - lo) / 2047.0)          # at most 2048 cells a side
+        return lo, step, int(round((hi - lo) / step)) + 1
+
+    x0, dx, nx = axis(x)
+    y0, dy, ny = axis(y)
+    grid = np.zeros((ny, nx), dtype=bool)
+    col = np.clip(np.rint((x - x0) / dx).astype(np.int64), 0, nx - 1)
+    row = np.clip(np.rint((y - y0) / dy).astype(np.int64), 0, ny - 1)
+    grid[row[usable], col[usable]] = True
+    return grid, x0, dx, y0, dy
+
+
+@lru_cache(maxsize=16)
+def _outside_disc(camera: CameraModel, x0: float, dx: float, nx: int, y0: float, dy: float, ny: int,
+                  rho_max: float) -> np.ndarray:
+    """Grid positions (x0 + c dx, y0 + r dy) beyond the disc's edge on the sensor (read-only bool (ny, nx))."""
+    r_mm = np.hypot(((x0 + dx * np.arange(nx) - camera.cx_px) * camera.pixel_pitch_x_um * 1e-3)[None, :],
+                    ((y0 + dy * np.arange(ny) - camera.cy_px) * camera.pixel_pitch_y_um * 1e-3)[:, None])
+    out = r_mm > disc_radius_mm(camera, rho_max)
+    out.setflags(write=False)
+    return out
+
+
+def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
+    """The smooth usability map S of a view (see the module doc). Outside the view, positions beyond the disc
+    count as usable (nothing is missing there) and positions inside it as unusable."""
+    usable, x0, dx, y0, dy = _usable_grid(view, camera)
+    px, py = camera.pixel_pitch_x_um * 1e-3, camera.pixel_pitch_y_um * 1e-3
+    pad = int(math.ceil(3.0 * MIRROR_BLUR_CELLS)) + 1
+    ny, nx = usable.shape
+    full = _outside_disc(camera, x0 - pad * dx, dx, nx + 2 * pad, y0 - pad * dy, dy, ny + 2 * pad,
+                         float(rho_max)).copy()
+    full[pad:pad + ny, pad:pad + nx] = usable
+    import cv2
+    cell = math.sqrt(dx * px * dy * py)
+    blur = cv2.GaussianBlur(full.astype(np.float32), (0, 0), sigmaX=MIRROR_BLUR_CELLS * cell / (dx * px),
+                            sigmaY=MIRROR_BLUR_CELLS * cell / (dy * py), borderType=cv2.BORDER_REPLICATE)
+    t = np.clip((blur.astype(np.float64) - MIRROR_LEVELS[0]) / (MIRROR_LEVELS[1] - MIRROR_LEVELS[0]), 0.0, 1.0)
+    S = np.sin(0.5 * math.pi * t) ** 2
+    params = np.array([camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy])
+    return MirrorMap(S, params)
+
+
+@lru_cache(maxsize=64)
+def _grid_covers_disc(camera: CameraModel, grid: tuple, rho_max: float) -> bool:
+    (x0, dx, nx), (y0, dy, ny) = grid
+    rr = disc_radius_mm(camera, rho_max)
+    hx = rr / (camera.pixel_pitch_x_um * 1e-3)
+    hy = rr / (camera.pixel_pitch_y_um * 1e-3)
+    # the outermost grid lines lie within one grid step of the disc's edge or beyond it
+    return (x0 <= camera.cx_px - hx + dx and x0 + dx * (nx - 1) >= camera.cx_px + hx - dx
+            and y0 <= camera.cy_px - hy + dy and y0 + dy * (ny - 1) >= camera.cy_px + hy - dy)
+
+
+def view_covers_disc(view, camera: CameraModel, rho_max: float) -> bool:
+    """Whether a grid view reaches the disc's edge on every side (pixel lists: only their holes are seen)."""
+    if view.grid is None:
+        return True
+    return _grid_covers_disc(camera, view.grid, float(rho_max))
+
+
+@dataclass
+class AxisFit:
+    """One axis fit on (possibly mirror-weighted) pixels. ``theta`` rad from +y_cam towards +x_cam (axial)."""
+
+    theta: float
+    n: int                      # usable pixels
+    n_paired: int               # usable pixels with a non-zero pair weight
+    nonfinite: int
+    holes: int                  # unusable pixels inside the disc
+    coverage: float             # sum taper * m over valid pixels / sum taper over the disc
+    stats: np.ndarray
+    quality: float
+    state: dict                 # method specific (for the influence pass)
+
+
+def _fold(a: float) -> float:
+    """Axial angle (rad) to [-pi/2, pi/2)."""
+    return (a + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+
+
+def _refine(fit_at, t0: float, slope0: float, tol_rad: float, max_steps: int, coarse=None):
+    """Secant iteration on h(t) = fold(fit_at(t).theta - t) from t0 with a first slope estimate slope0 < 0
+    (with ``coarse``, a cheaper fit, first to 1e-4 rad). Returns (fit at the fixed point, h' there, fits
+    used) or (None, reason, fits used)."""
+    steps = 0
+
+    def run(fit, t, slope, tol):
+        nonlocal steps
+
+        def h(x):
+            nonlocal steps
+            steps += 1
+            f = fit(x)
+            return (None, None) if f is None else (_fold(f.theta - x), f)
+
+        ta, (ha, fa) = t, h(t)
+        tb, hb, fb = ta, ha, fa
+        while fb is not None and abs(hb) > tol and steps < max_steps:
+            step = max(-0.2, min(0.2, -hb / slope))
+            ta, ha = tb, hb
+            tb = tb + step
+            hb, fb = h(tb)
+            if fb is not None and tb != ta and (hb - ha) / (tb - ta) < -MIN_CONDITIONING:
+                slope = (hb - ha) / (tb - ta)
+        return ta, tb, hb, fb, slope, h
+
+    slope = slope0
+    if coarse is not None:
+        _, t0, hc, fc, slope, _ = run(coarse, t0, slope, 1e-4)
+        if fc is None:
+            return None, "no axis fit on the usable mirror pairs", steps
+    ta, tb, hb, fb, slope, h = run(fit_at, t0, slope, tol_rad)
+    if fb is None:
+        return None, "no axis fit on the usable mirror pairs", steps
+    if abs(hb) > 1e-6:
+        return None, f"no self-consistent axis after {steps} fits (residual {math.degrees(abs(hb)):.2g} deg)", steps
+    if not abs(tb - ta) >= 1e-6:                 # the last secant step is too short for a derivative
+        hd, fd = h(tb + 2e-3)
+        if fd is None:
+            return None, "no axis fit on the usable mirror pairs", steps
+        slope = (hd - hb) / 2e-3
+    fb.theta = tb + hb
+    return fb, slope, steps
+
+
+def solve_axes(fit_at, scan_at, min_coverage: float, n_scan: int = SCAN_AXES, tol_rad: float = 1e-9,
+               max_steps: int = MAX_SOLVE_STEPS):
+    """Every stable self-consistent axis ``theta = fit_at(theta).theta`` (axial, rad).
+
+    ``h(theta) = fold(f(theta) - theta)`` is scanned on ``n_scan`` axes with ``scan_at`` (a cheaper fit on a
+    subsample); each interval where h falls through zero (a fixed point the iteration is drawn to, h' < 0)
+    is refined by the secant method (with ``scan_at``, then ``fit_at``), unless the mirror coverage at both ends is below
+    ``min_coverage / 2`` (the degenerate fixed points on the edge of an occluder, where the usable pairs
+    shrink to a sliver). Returns (list of (fit, h'), list of reasons for failed refinements, fits used)."""
+    dt = math.pi / n_scan
+    fs = [scan_at(i * dt) for i in range(n_scan)]
+    hs = [None if f is None else _fold(f.theta - i * dt) for i, f in enumerate(fs)]
+    used = n_scan
+    roots, failed = [], []
+    for i in range(n_scan):
+        j = (i + 1) % n_scan
+        h0, h1 = hs[i], hs[j]
+        if h0 is None or h1 is None or not (h0 >= 0.0 > h1) or h0 - h1 > 0.5 * math.pi:
+            continue
+        if max(fs[i].coverage, fs[j].coverage) < 0.5 * min_coverage:
+            continue
+        t0 = i * dt + dt * h0 / (h0 - h1)
+        fit, slope, n = _refine(fit_at, t0, (h1 - h0) / dt, tol_rad, max_steps, scan_at)
+        used += n
+        if fit is None:
+            failed.append(slope)
+        elif all(abs(_fold(fit.theta - r.theta)) > 1e-6 for r, _ in roots):
+            roots.append((fit, slope))
+    return roots, failed, used
+
+
+# --------------------------------------------------------------------------------------------
+# The estimator skeleton shared by SM-ASM and Symmetry
+# --------------------------------------------------------------------------------------------
+class DiscEstimator(KnobbedEstimator, Estimator):
+    """An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (level camera).
+
+    Subclasses implement :meth:`_fit` (pass 1 and the plain axis), :meth:`_gather` and :meth:`_mirror_fit`
+    (the axis on mirror-pair weights about a trial axis ``near``; None when there is no fit) and
+    :meth:`_influence` (pass 2: block sums of the sensitivity times the residual against each candidate
+    sun, and the residual sums of squares)."""
+
+    axial = True
+    KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
+
+    def __init__(self, **knobs):
+        super().__init__(**knobs)
+        self.knobs = self._validate_knobs(knobs)
+
+    def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        k = self.knobs
+        if k["region"] is not None:
+            return selection_for(k, camera)
+        return disc_selection(camera, k["disc_fraction"], k["stride"])
+
+    def _rho_lo(self, rho_max: float) -> float:
+        return 0.0
+
+    def _fit(self, data, rho_lo, rho_max) -> AxisFit | HeadingResult:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def _gather(self, data, rho_lo, rho_max, mm: MirrorMap) -> dict:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def _mirror_fit(self, g: dict, mirror, near: float, plain: AxisFit) -> AxisFit | None:  # pragma: no cover
+        raise NotImplementedError
+
+    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2):  # pragma: no cover
+        raise NotImplementedError
+
+    def _plain_fit(self, cnt, stats, theta: float, quality: float, state: dict) -> AxisFit:
+        n = int(cnt[0])
+        return AxisFit(theta, n, n, int(cnt[2]), int(cnt[3]), 1.0, stats, quality, state)
+
+    def _too_few(self, n: int) -> HeadingResult | None:
+        if n < self.knobs["min_pixels"]:
+            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
+                                        f"{n} usable pixel(s) in the sky disc < min_pixels {self.knobs['min_pixels']}",
+                                        pixels=n)
+        return None
+
+    def _root_score(self, fit: AxisFit) -> float:
+        """Which of several self-consistent axes to keep: the larger score (default: the mirror coverage)."""
+        return fit.coverage
+
+    def _root_ok(self, fit: AxisFit) -> bool:
+        """Whether a self-consistent axis is acceptable beyond coverage and conditioning (default: yes)."""
+        return True
+
+    def _root_why(self, fit: AxisFit) -> str:  # pragma: no cover - only with a _root_ok that can say no
+        return ""
+
+    def _solve_mirror(self, obs, view, data, rho_lo, rho_max, plain: AxisFit, extras: dict):
+        """The axis on mirror-pair weights: (fit, mirror arguments, sigma inflation) or a failed result."""
+        k = self.knobs
+        mm = mirror_map(view, obs.camera, rho_max)
+        g = self._gather(data, rho_lo, rho_max, mm)
+        gate = k["min_mirror_coverage"]
+
+        def fit_at(theta, step=1):
+            f = self._mirror_fit(g, mm.at(theta), theta, plain, step)
+            return f if f is not None and f.n_paired * step >= k["min_pixels"] else None
+
+        roots, failed, used = solve_axes(fit_at, lambda t: fit_at(t, SCAN_STEP), gate)
+        extras["mirror_fits"] = used
+        why = f"part of the sky disc is unusable ({plain.holes} pixel(s)"
+        why += ")" if view_covers_disc(view, obs.camera, rho_max) else " and the view does not cover the disc)"
+        good = [(f, sl) for f, sl in roots if f.coverage >= gate and abs(sl) >= MIN_CONDITIONING]
+        sound = [(f, sl) for f, sl in good if self._root_ok(f)]
+        if good and not sound:
+            f, sl = max(good, key=lambda r: self._root_score(r[0]))
+            extras["mirror_coverage"] = f.coverage
+            return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE,
+                                        f"{why}: no axis about which the usable mirror pairs are symmetric "
+                                        f"({self._root_why(f)})", pixels=plain.n, **extras)
+        good = sound
+        if not good:
+            if roots:
+                f, sl = max(roots, key=lambda r: r[0].coverage)
+                detail = (f"only {f.coverage:.3f} of the disc has a usable mirror image about the best axis "
+                          f"(min_mirror_coverage {gate:g}; |1 - f'| = {abs(sl):.2g})")
+                extras["mirror_coverage"] = f.coverage
+            else:
+                detail = "no self-consistent axis" + (f" ({failed[0]})" if failed else "")
+            return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE, f"{why}: {detail}",
+                                        pixels=plain.n, **extras)
+        fit, slope = max(good, key=lambda r: self._root_score(r[0]))
+        extras["mirror_coverage"] = fit.coverage
+        extras["mirror_axes"] = len(roots)
+        extras["mirror_sigma_inflation"] = 1.0 / abs(slope)
+        return fit, mm.at(fit.theta), 1.0 / abs(slope)
+
+    def estimate(self, obs: Observation) -> HeadingResult:
+        k = self.knobs
+        bad = check_sun(self.name, obs, k)
+        if bad is not None:
+            return bad
+        rho_max = disc_radius(obs.camera) * k["disc_fraction"]
+        rho_lo = self._rho_lo(rho_max)
+        try:
+            view = select_view(obs, k)
+        except _BadInput as exc:
+            return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
+        data, segs = view_segments(view, k["block_px"])
+        fit = self._fit(data, rho_lo, rho_max)
+        if isinstance(fit, HeadingResult):
+            return fit
+        extras: dict = {}
+        mirror = NO_MIRROR
+        inflation = 1.0
+        if fit.holes > 0 or not view_covers_disc(view, obs.camera, rho_max):
+            solved = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
+            if isinstance(solved, HeadingResult):
+                return solved
+            fit, mirror, inflation = solved
+        n = fit.n_paired
+        psi = -fit.theta
+        first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
+        block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
+        j = int(np.argmin(rss))                     # the end of the meridian the Rayleigh residuals prefer
+        sigma = cr1_sigma(block_sum[j], n) * inflation
+        if j == 1:
+            first, second = second, first
+        has_i = data[6] is not None
+        bt = brightness_t_from_stats(fit.stats if has_i else None, first.sun_cam - second.sun_cam)
+        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
+        extras.update(fit.state.get("extras", {}))
+        extras["rms_residual_deg"] = math.degrees(math.sqrt(rss[j] / fit.n))
+        return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
+                           finish_sigma_deg(sigma, k), n, fit.nonfinite, fit.quality, extras=extras)

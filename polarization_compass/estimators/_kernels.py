@@ -22,7 +22,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-__all__ = ["sub_pass", "full_pass", "grid_segments", "list_segments", "N_STATS", "sym3"]
+__all__ = ["sub_pass", "full_pass", "grid_segments", "list_segments", "N_STATS", "sym3", "acc_sym",
+           "acc_brightness"]
 
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
 N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
@@ -48,6 +49,33 @@ def _sincos32(a):  # pragma: no cover - compiled
     c = c * -z + np.float32(0.5)
     c = np.float32(1.0) - z * c
     return s, c
+
+
+@njit(inline="always", cache=True)
+def acc_sym(tot, off, w, x, y, z):  # pragma: no cover - compiled
+    """tot[off:off + 6] += w * (x, y, z)(x, y, z)^T, upper triangle (00 01 02 11 12 22)."""
+    tot[off] += w * x * x
+    tot[off + 1] += w * x * y
+    tot[off + 2] += w * x * z
+    tot[off + 3] += w * y * y
+    tot[off + 4] += w * y * z
+    tot[off + 5] += w * z * z
+
+
+@njit(inline="always", cache=True)
+def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
+    """Brightness sufficient statistics of one pixel into tot[off:off + N_STATS]: n, sum I, sum I^2,
+    sum r (3), sum I r (3), sum r r^T (6)."""
+    tot[off] += 1.0
+    tot[off + 1] += I
+    tot[off + 2] += I * I
+    tot[off + 3] += rx
+    tot[off + 4] += ry
+    tot[off + 5] += rz
+    tot[off + 6] += I * rx
+    tot[off + 7] += I * ry
+    tot[off + 8] += I * rz
+    acc_sym(tot, off + 9, 1.0, rx, ry, rz)
 
 
 @njit(fastmath=_FM, cache=True, error_model="numpy")
@@ -166,36 +194,12 @@ def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_
             tot[3] += k2 * (ty * ty - ey * ey) + 2.0 * h * ey * ty
             tot[4] += k2 * (ty * tz - ey * ez) + h * (ey * tz + ty * ez)
             tot[5] += k2 * (tz * tz - ez * ez) + 2.0 * h * ez * tz
-            tot[6] += k2 * tx * tx
-            tot[7] += k2 * tx * ty
-            tot[8] += k2 * tx * tz
-            tot[9] += k2 * ty * ty
-            tot[10] += k2 * ty * tz
-            tot[11] += k2 * tz * tz
-            tot[12] += w * ex * ex
-            tot[13] += w * ex * ey
-            tot[14] += w * ex * ez
-            tot[15] += w * ey * ey
-            tot[16] += w * ey * ez
-            tot[17] += w * ez * ez
+            acc_sym(tot, 6, k2, tx, ty, tz)
+            acc_sym(tot, 12, w, ex, ey, ez)
             if has_inten:
                 ii = np.float64(inten[i])
                 if abs(ii) < 1e30:
-                    tot[18] += 1.0
-                    tot[19] += ii
-                    tot[20] += ii * ii
-                    tot[21] += rx
-                    tot[22] += ry
-                    tot[23] += rz
-                    tot[24] += ii * rx
-                    tot[25] += ii * ry
-                    tot[26] += ii * rz
-                    tot[27] += rx * rx
-                    tot[28] += rx * ry
-                    tot[29] += rx * rz
-                    tot[30] += ry * ry
-                    tot[31] += ry * rz
-                    tot[32] += rz * rz
+                    acc_brightness(tot, 18, ii, rx, ry, rz)
 
 
 _SYM = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])

@@ -34,6 +34,7 @@ class Status(str, Enum):
     OUT_OF_DOMAIN = "out_of_domain"          # e.g. tilt outside an error map
     BAD_INPUT = "bad_input"
     DEGENERATE = "degenerate"                # numerically degenerate data (e.g. all E-vectors parallel)
+    INSUFFICIENT_COVERAGE = "insufficient_coverage"  # too little of the sky usable for the method's geometry
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,10 @@ The heading: the meridian's image direction ``theta`` (from +y_cam towards +x_ca
 azimuth for a level camera, ``(-sin psi, cos psi)``, so ``psi = -theta`` (mod 180 deg: axial).
 Uncertainty: ``d theta = Im(dZ / Z) / 2`` with ``dZ = sum W_i' z_i^2 da_i``; ``da_i`` is the residual
 against the level Rayleigh pattern of the fitted heading; cluster-robust sum over blocks.
+
+An incomplete disc (occluders, invalid pixels) breaks the symmetry the fit relies on; the fit is then
+run on mirror-pair weights about its own axis (a fixed point), or reports ``insufficient_coverage``:
+see :mod:`._aoplm`.
 """
 from __future__ import annotations
 
@@ -26,80 +30,78 @@ import math
 
 import numpy as np
 
-from ..camera import CameraModel, PixelSelection
-from .base import Estimator, HeadingResult, Observation, Status, register_estimator
-from ._aoplm import DISC_KNOBS, band_pass1, band_pass2, cr1_sigma, disc_radius, disc_selection
-from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun,
-                      finish_sigma_deg, level_sun_candidates, resolve_ambiguity, result_from, select_view,
-                      view_segments)
+from .base import HeadingResult, Status, register_estimator
+from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, band_fit, band_gather, band_pass1, band_pass2
+from ._common import Knob
+from ._kernels import N_STATS
 
 __all__ = ["SmAsmEstimator"]
 
 
 @register_estimator("sm_asm")
-class SmAsmEstimator(KnobbedEstimator, Estimator):
+class SmAsmEstimator(DiscEstimator):
     """Solar/anti-solar meridian from |AOPLM| ~ 90 deg pixels (level-camera assumption)."""
 
-    axial = True
     OWN_KNOBS = dict(DISC_KNOBS, aoplm_tol_deg=Knob(10.0, "float", 0.5, 45.0,
                                                    doc="width (1 sigma) of the Gaussian band around |AOPLM| = 90 deg"))
-    KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
 
-    def __init__(self, **knobs):
-        super().__init__(**knobs)
-        self.knobs = self._validate_knobs(knobs)
+    def _inv4tol2(self) -> float:
+        tol = math.radians(self.knobs["aoplm_tol_deg"])
+        return 1.0 / (4.0 * tol * tol)
 
-    def pixels_needed(self, camera: CameraModel) -> PixelSelection:
-        k = self.knobs
-        if k["region"] is not None:
-            x0, y0, w, h = k["region"]
-            return PixelSelection.rect(x0, y0, w, h, k["stride"])
-        return disc_selection(camera, k["disc_fraction"], k["stride"])
-
-    def estimate(self, obs: Observation) -> HeadingResult:
-        k = self.knobs
-        bad = check_sun(self.name, obs, k)
-        if bad is not None:
-            return bad
-        rho_max = disc_radius(obs.camera) * k["disc_fraction"]
-        try:
-            view = select_view(obs, k)
-        except _BadInput as exc:
-            return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        (aop, dop, valid, rays, _, _, inten), segs = view_segments(view, k["block_px"])
-        has_i = inten is not None
-        ib = inten if has_i else np.zeros(1, np.float32)
-        tol = math.radians(k["aoplm_tol_deg"])
-        inv4tol2 = 1.0 / (4.0 * tol * tol)
-        out = np.zeros(3)
-        cnt = np.zeros(3, np.int64)
-        stats = np.zeros(15)
-        band_pass1(aop, dop, valid, rays, ib, has_i, k["min_dop"], rho_max, k["taper_fraction"], inv4tol2, out,
-                   cnt, stats)
-        n, nonfinite = int(cnt[0]), int(cnt[2])
-        if n < k["min_pixels"]:
-            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{n} usable pixel(s) in the sky disc < min_pixels {k['min_pixels']}",
-                                        pixels=n)
-        Zr, Zi, norm = out
+    def _axis(self, Zr, Zi, norm, n):
+        """theta = arg(Z) / 2, quality |Z| / sum W rho^2; a failed result without a band."""
         modZ2 = Zr * Zr + Zi * Zi
         if not (norm > 0.0) or modZ2 <= (1e-12 * norm) ** 2:
             return HeadingResult.failed(self.name, Status.DEGENERATE,
                                         "no meridian band: no pixel with |AOPLM| near 90 deg and enough DoP", pixels=n)
-        theta = 0.5 * math.atan2(Zi, Zr)
-        psi = -theta
-        first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
+        return 0.5 * math.atan2(Zi, Zr), math.sqrt(modZ2) / norm
+
+    def _fit(self, data, rho_lo, rho_max):
+        k = self.knobs
+        aop, dop, valid, rays, _, _, inten = data
+        has_i = inten is not None
+        out = np.zeros(3)
+        cnt = np.zeros(4, np.int64)
+        stats = np.zeros(N_STATS)
+        band_pass1(aop, dop, valid, rays, inten if has_i else np.zeros(1, np.float32), has_i, k["min_dop"], rho_max,
+                   k["taper_fraction"], self._inv4tol2(), out, cnt, stats)
+        n = int(cnt[0])
+        few = self._too_few(n)
+        if few is not None:
+            return few
+        Zr, Zi, norm = out
+        ax = self._axis(Zr, Zi, norm, n)
+        if isinstance(ax, HeadingResult):
+            return ax
+        return self._plain_fit(cnt, stats, ax[0], ax[1], {"Z": (Zr, Zi)})
+
+    def _gather(self, data, rho_lo, rho_max, mm):
+        k = self.knobs
+        aop, dop, valid, rays, xs, ys, _ = data
+        g_uv = np.empty((2, aop.size))
+        g_val = np.empty((4, aop.size))
+        cover = np.zeros(2)
+        n = band_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_max, k["taper_fraction"], self._inv4tol2(),
+                        mm.grid, mm.params, g_uv, g_val, cover)
+        return {"uv": g_uv, "val": g_val, "n": n, "disc": cover[1]}
+
+    def _mirror_fit(self, g, mirror, near, plain, step=1):
+        out = np.zeros(5)
+        band_fit(g["uv"], g["val"], g["n"], step, mirror[0], mirror[1], out)
+        Zr, Zi, norm, cov, n_pair = out
+        ax = self._axis(Zr, Zi, norm, plain.n)
+        if isinstance(ax, HeadingResult):
+            return None
+        return AxisFit(ax[0], plain.n, int(n_pair), plain.nonfinite, plain.holes,
+                       cov * step / g["disc"] if g["disc"] > 0.0 else 0.0, plain.stats, ax[1], {"Z": (Zr, Zi)})
+
+    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit, s1, s2):
+        k = self.knobs
+        aop, dop, valid, rays, xs, ys, _ = data
         block_sum = np.zeros((2, segs[3]))
         rss = np.zeros(2)
-        band_pass2(aop, dop, valid, rays, segs[0], segs[1], segs[2], k["min_dop"], rho_max, k["taper_fraction"],
-                   inv4tol2, Zr, Zi, first.sun_cam, second.sun_cam, block_sum, rss)
-        j = int(np.argmin(rss))                     # the end of the meridian the Rayleigh residuals prefer
-        sigma = cr1_sigma(block_sum[j], n)
-        if j == 1:
-            first, second = second, first
-        bt = brightness_t_from_stats(stats if has_i else None, first.sun_cam - second.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
-        quality = math.sqrt(modZ2) / norm
-        extras = {"rms_residual_deg": math.degrees(math.sqrt(rss[j] / n))}
-        return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
-                           finish_sigma_deg(sigma, k), n, nonfinite, quality, extras=extras)
+        Zr, Zi = fit.state["Z"]
+        band_pass2(aop, dop, valid, rays, xs, ys, segs[0], segs[1], segs[2], k["min_dop"], rho_max, k["taper_fraction"],
+                   self._inv4tol2(), mirror[0], mirror[1], Zr, Zi, s1, s2, block_sum, rss)
+        return block_sum, rss

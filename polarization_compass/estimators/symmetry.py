@@ -27,132 +27,195 @@ peaks of F the best one with ``S(theta) = -Re sum_even a_k e^{ik theta} > 0`` is
 ``extras['second_axis_score']`` reports how close the best other axis comes (1 = tie).
 Uncertainty: implicit-function sensitivity ``d theta / d a_i = -(d F'/d a_i) / F''``, times the residual
 against the level Rayleigh pattern, cluster-robust over blocks.
+
+An incomplete disc (occluders, invalid pixels) breaks the symmetry; the correlation is then computed
+on mirror-pair weights about its own axis (a fixed point; in that iteration the peak of F is followed
+locally from the trial axis, so the map stays continuous), or the status is ``insufficient_coverage``:
+see :mod:`._aoplm`.
 """
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
-from ..camera import CameraModel, PixelSelection
-from .base import Estimator, HeadingResult, Observation, Status, register_estimator
-from ._aoplm import DISC_KNOBS, cr1_sigma, disc_radius, disc_selection, ring_pass1, ring_pass2
-from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun,
-                      finish_sigma_deg, level_sun_candidates, resolve_ambiguity, result_from, select_view,
-                      view_segments)
+from .base import HeadingResult, Status, register_estimator
+from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, ring_fit, ring_gather, ring_pass1, ring_pass2
+from ._common import Knob
+from ._kernels import N_STATS
 
-__all__ = ["SymmetryEstimator"]
+__all__ = ["SymmetryEstimator", "MIN_MIRROR_SYMMETRY"]
+
+#: With part of the disc unusable: F / sum |a_k|^2 an axis found on mirror pairs needs (1 = exactly symmetric).
+MIN_MIRROR_SYMMETRY = 0.95
 
 
-def _F_derivs(b, K, theta):
+@njit(cache=True)
+def _F_derivs(b, K, theta):  # pragma: no cover - compiled
     """F, F', F'' at theta for b[k + K] = sum_rings a_k^2 (k = -K..K, k = 0 excluded)."""
-    ks = np.arange(-K, K + 1)
-    ks_nz = ks != 0
-    ph = np.exp(2j * ks * theta)
-    t = b * ph
-    F = float(np.sum(t[ks_nz]).real)
-    F1 = float(np.sum((2j * ks * t)[ks_nz]).real)
-    F2 = float(np.sum((-4.0 * ks * ks * t)[ks_nz]).real)
+    F = F1 = F2 = 0.0
+    for k in range(-K, K + 1):
+        if k == 0:
+            continue
+        t = b[k + K] * complex(math.cos(2.0 * k * theta), math.sin(2.0 * k * theta))
+        F += t.real
+        F1 -= 2.0 * k * t.imag                      # Re(2ik t)
+        F2 -= 4.0 * k * k * t.real
     return F, F1, F2
 
 
+@njit(cache=True)
+def _newton(b, K, theta, step):  # pragma: no cover - compiled
+    """Newton on F'(theta) = 0 from a grid peak, steps limited to the grid spacing."""
+    for _ in range(30):
+        F, F1, F2 = _F_derivs(b, K, theta)
+        if not F2 < 0.0:
+            break
+        dt = max(-step, min(step, -F1 / F2))
+        theta += dt
+        if abs(dt) < 1e-14:
+            break
+    return theta
+
+
+@lru_cache(maxsize=16)
+def _tables(K: int, steps: int):
+    """exp(2ik theta) (odd and even k != 0) and exp(ik theta) (even k) on the coarse grid of axes."""
+    ks = np.arange(-K, K + 1)
+    grid = np.arange(steps) * (math.pi / steps)
+    out = (grid, np.exp(2j * np.outer(grid, ks[ks != 0])), np.exp(1j * np.outer(grid, ks[ks % 2 == 0])))
+    for x in out:
+        x.setflags(write=False)
+    return out
+
+
+def _axis_search(a, K, steps, near=None):
+    """The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, b).
+
+    Coarse search of F on ``steps`` points over [0, pi), then Newton on F' = 0. ``near`` None: the best
+    near-best peak on the meridian side (see the module doc); else the peak reached by climbing F on the
+    grid from ``near``."""
+    ks = np.arange(-K, K + 1)
+    nz = ks != 0
+    b = np.sum(a * a, axis=1)
+    grid, e2, e1 = _tables(K, steps)
+    Fg = (e2 @ b[nz]).real
+    if near is None:
+        # Which axis: the meridian carries |AOPLM| = 90 deg along itself (E perpendicular to it), the
+        # perpendicular axis AOPLM = 0 -- and when the sun lies on the camera's horizon the pattern is
+        # antisymmetric about both. S(theta) = -Re c averaged along the axis (even harmonics: both ends)
+        # is > 0 on the meridian: among the near-best peaks of F, keep the best one with S > 0.
+        Sg = -(e1 @ a.sum(axis=1)[ks % 2 == 0]).real
+        peak = (Fg >= np.roll(Fg, 1)) & (Fg >= np.roll(Fg, -1)) & (Fg >= 0.5 * Fg.max())
+        good = peak & (Sg > 0.0)
+        pool = np.nonzero(good)[0] if good.any() else np.nonzero(peak)[0]
+        i = int(pool[int(np.argmax(Fg[pool]))])
+    else:
+        i = int(round((near % math.pi) / (math.pi / steps))) % steps
+        for _ in range(steps):
+            up, down = Fg[(i + 1) % steps], Fg[i - 1]
+            if up > Fg[i] and up >= down:
+                i = (i + 1) % steps
+            elif down > Fg[i]:
+                i = (i - 1) % steps
+            else:
+                break
+    theta = _newton(b, K, float(grid[i]), math.pi / steps)
+    F, F1, F2 = _F_derivs(b, K, theta)
+    far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)
+    second = float(Fg[far].max()) / F if far.any() and F > 0 else 0.0
+    return theta, F, F2, second, b
+
+
 @register_estimator("symmetry")
-class SymmetryEstimator(KnobbedEstimator, Estimator):
+class SymmetryEstimator(DiscEstimator):
     """Axis of antisymmetry of the AOPLM map (level-camera assumption)."""
 
-    axial = True
     OWN_KNOBS = dict(DISC_KNOBS,
                      harmonics=Knob(2, "int", 1, 32, doc="circular harmonics K used in the correlation"),
                      rings=Knob(24, "int", 2, 4096, doc="radial rings of the polar decomposition"),
                      inner_fraction=Knob(0.05, "float", 0.0, 0.9,
                                          doc="ignore the disc's centre (AOPLM is singular at the zenith pixel)"),
                      search_steps=Knob(720, "int", 8, 100000, doc="grid points of the coarse axis search over 180 deg"))
-    KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
 
-    def __init__(self, **knobs):
-        super().__init__(**knobs)
-        self.knobs = self._validate_knobs(knobs)
+    def _root_score(self, fit: AxisFit) -> float:
+        """Of several self-consistent axes keep the most symmetric one (F / sum |a_k|^2, 1 = exact)."""
+        return fit.quality
 
-    def pixels_needed(self, camera: CameraModel) -> PixelSelection:
-        k = self.knobs
-        if k["region"] is not None:
-            x0, y0, w, h = k["region"]
-            return PixelSelection.rect(x0, y0, w, h, k["stride"])
-        return disc_selection(camera, k["disc_fraction"], k["stride"])
+    def _root_ok(self, fit: AxisFit) -> bool:
+        """On the pairs about the true axis the map is exactly antisymmetric (F / sum |a_k|^2 = 1 up to noise);
+        a self-consistent axis of a thin wedge of pairs elsewhere is not (0.1-0.8 in our scenes)."""
+        return fit.quality >= MIN_MIRROR_SYMMETRY
 
-    def estimate(self, obs: Observation) -> HeadingResult:
-        k = self.knobs
-        bad = check_sun(self.name, obs, k)
-        if bad is not None:
-            return bad
-        rho_max = disc_radius(obs.camera) * k["disc_fraction"]
-        rho_lo = max(rho_max * k["inner_fraction"], 1e-9)
-        try:
-            view = select_view(obs, k)
-        except _BadInput as exc:
-            return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        (aop, dop, valid, rays, _, _, inten), segs = view_segments(view, k["block_px"])
-        has_i = inten is not None
-        ib = inten if has_i else np.zeros(1, np.float32)
-        K, NR = k["harmonics"], k["rings"]
-        a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
-        cnt = np.zeros(3, np.int64)
-        stats = np.zeros(15)
-        ring_pass1(aop, dop, valid, rays, ib, has_i, k["min_dop"], rho_lo, rho_max, k["taper_fraction"], NR, K,
-                   a, cnt, stats)
-        n, nonfinite = int(cnt[0]), int(cnt[2])
-        if n < k["min_pixels"]:
-            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{n} usable pixel(s) in the sky disc < min_pixels {k['min_pixels']}",
-                                        pixels=n)
-        ks = np.arange(-K, K + 1)
-        nz = ks != 0
-        b = np.sum(a * a, axis=1)
+    def _root_why(self, fit: AxisFit) -> str:
+        return f"best F / sum |a_k|^2 = {fit.quality:.3f} < {MIN_MIRROR_SYMMETRY:g}"
+
+    def _rho_lo(self, rho_max: float) -> float:
+        return max(rho_max * self.knobs["inner_fraction"], 1e-9)
+
+    def _axis(self, a, n, near, base: AxisFit | None, cnt=None, stats=None, n_pair=0, coverage=1.0):
+        K = self.knobs["harmonics"]
+        nz = np.arange(-K, K + 1) != 0
         energy = float(np.sum(np.abs(a[nz]) ** 2))
         if not energy > 0.0:
             return HeadingResult.failed(self.name, Status.DEGENERATE, "no circular structure in the AOPLM map",
                                         pixels=n)
-        # coarse search over theta in [0, pi), then Newton on F'(theta) = 0
-        grid = np.arange(k["search_steps"]) * (math.pi / k["search_steps"])
-        Fg = (np.exp(2j * np.outer(grid, ks[nz])) @ b[nz]).real
-        # Which axis: the meridian carries |AOPLM| = 90 deg along itself (E perpendicular to it), the
-        # perpendicular axis AOPLM = 0 -- and when the sun lies on the camera's horizon the pattern is
-        # antisymmetric about both. S(theta) = -Re c averaged along the axis (even harmonics: both ends)
-        # is > 0 on the meridian: among the near-best peaks of F, keep the best one with S > 0.
-        even = (ks % 2 == 0)
-        a_sum = a.sum(axis=1)
-        Sg = -(np.exp(1j * np.outer(grid, ks[even])) @ a_sum[even]).real
-        peak = (Fg >= np.roll(Fg, 1)) & (Fg >= np.roll(Fg, -1)) & (Fg >= 0.5 * Fg.max())
-        good = peak & (Sg > 0.0)
-        pool = np.nonzero(good)[0] if good.any() else np.nonzero(peak)[0]
-        theta = float(grid[pool[int(np.argmax(Fg[pool]))]])
-        step = math.pi / k["search_steps"]
-        for _ in range(30):
-            F, F1, F2 = _F_derivs(b, K, theta)
-            if not F2 < 0.0:
-                break
-            dt = max(-step, min(step, -F1 / F2))
-            theta += dt
-            if abs(dt) < 1e-14:
-                break
-        F, F1, F2 = _F_derivs(b, K, theta)
-        far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)
-        second = float(Fg[far].max()) / F if far.any() and F > 0 else 0.0
-        psi = -theta
-        first, other = level_sun_candidates(psi, float(obs.sun_altitude_deg))
+        theta, F, F2, second, _ = _axis_search(a, K, self.knobs["search_steps"], near)
+        state = {"a": a, "F2": F2, "extras": {"second_axis_score": second}}
+        quality = max(0.0, F / energy)
+        if base is None:
+            return self._plain_fit(cnt, stats, theta, quality, state)
+        return AxisFit(theta, base.n, n_pair, base.nonfinite, base.holes, coverage, base.stats, quality, state)
+
+    def _fit(self, data, rho_lo, rho_max):
+        k = self.knobs
+        aop, dop, valid, rays, _, _, inten = data
+        has_i = inten is not None
+        K, NR = k["harmonics"], k["rings"]
+        a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
+        cnt = np.zeros(4, np.int64)
+        stats = np.zeros(N_STATS)
+        ring_pass1(aop, dop, valid, rays, inten if has_i else np.zeros(1, np.float32), has_i, k["min_dop"], rho_lo,
+                   rho_max, k["taper_fraction"], NR, K, a, cnt, stats)
+        few = self._too_few(int(cnt[0]))
+        if few is not None:
+            return few
+        return self._axis(a, int(cnt[0]), None, None, cnt, stats)
+
+    def _gather(self, data, rho_lo, rho_max, mm):
+        k = self.knobs
+        aop, dop, valid, rays, xs, ys, _ = data
+        N = aop.size
+        g = {"uv": np.empty((2, N)), "tp": np.empty(N), "c": np.empty(N, np.complex128),
+             "e": np.empty(N, np.complex128), "ring": np.empty(N)}
+        cover = np.zeros(2)
+        g["n"] = ring_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_lo, rho_max, k["taper_fraction"],
+                             k["rings"], mm.grid, mm.params, g["uv"], g["tp"], g["c"], g["e"], g["ring"], cover)
+        g["disc"] = cover[1]
+        return g
+
+    def _mirror_fit(self, g, mirror, near, plain, step=1):
+        k = self.knobs
+        K, NR = k["harmonics"], k["rings"]
+        a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
+        out = np.zeros(2)
+        ring_fit(g["uv"], g["tp"], g["c"], g["e"], g["ring"], g["n"], step, NR, K, mirror[0], mirror[1], a, out)
+        f = self._axis(a, plain.n, near, plain, n_pair=int(out[1]),
+                       coverage=out[0] * step / g["disc"] if g["disc"] > 0.0 else 0.0)
+        return None if isinstance(f, HeadingResult) else f
+
+    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit, s1, s2):
+        k = self.knobs
+        aop, dop, valid, rays, xs, ys, _ = data
+        K, NR = k["harmonics"], k["rings"]
         block_sum = np.zeros((2, segs[3]))
         rss = np.zeros(2)
+        F2 = fit.state["F2"]
         if F2 < 0.0:
-            rot = np.exp(2j * ks * theta)
-            ring_pass2(aop, dop, valid, rays, segs[0], segs[1], segs[2], k["min_dop"], rho_lo, rho_max,
-                       k["taper_fraction"], NR, K, a, rot, F2, first.sun_cam, other.sun_cam, block_sum, rss)
-        j = int(np.argmin(rss))
-        sigma = cr1_sigma(block_sum[j], n)
-        if j == 1:
-            first, other = other, first
-        bt = brightness_t_from_stats(stats if has_i else None, first.sun_cam - other.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, other, bt, obs, k)
-        quality = max(0.0, F / energy)
-        extras = {"second_axis_score": second, "rms_residual_deg": math.degrees(math.sqrt(rss[j] / n))}
-        return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
-                           finish_sigma_deg(sigma, k), n, nonfinite, quality, extras=extras)
+            rot = np.exp(2j * np.arange(-K, K + 1) * fit.theta)
+            ring_pass2(aop, dop, valid, rays, xs, ys, segs[0], segs[1], segs[2], k["min_dop"], rho_lo, rho_max,
+                       k["taper_fraction"], NR, K, mirror[0], mirror[1], fit.state["a"], rot, F2, s1, s2,
+                       block_sum, rss)
+        return block_sum, rss
