@@ -23,8 +23,11 @@ non-finite) or the view does not cover the disc, each pixel gets the pair weight
 radially symmetric camera models) and ``S`` is a smooth usability map: the indicator of usable pixels
 (outside the view: usable beyond the disc, unusable inside it) blurred by a Gaussian of
 ``MIRROR_BLUR_CELLS`` grid cells, then ``sin^2`` of its rise between the levels ``MIRROR_LEVELS`` (0.5,
-0.9), bilinear between grid points. An occluded region gets S = 0 with a smooth edge about 2.5 cells wide;
-isolated unusable pixels (NaN, hot pixels) barely lower S, so they cost no coverage. ``S(p) S(p')`` is exactly mirror-symmetric about ``theta`` and
+0.9), times the indicator itself, bilinear between grid points. An occluded region gets S = 0 with a
+smooth edge about 2.5 cells wide; an isolated unusable pixel (NaN, hot pixel) only zeroes S at its own
+grid point, so it costs almost no coverage, and the bilinear S(p') takes weight from the pixels paired
+with it (without that, 10 % of pixels invalid at random move a noise-free sm_asm heading by 0.1 deg;
+with it, < 0.02 deg at stride 16). ``S(p) S(p')`` is exactly mirror-symmetric about ``theta`` and
 smooth (no lattice aliasing at the occluder's edge, the same reason as the disc taper), so the fit on
 the weighted pixels returns ``theta`` when ``theta`` is the true axis: the axis is the fixed point
 ``theta = f(theta)`` of "fit the pixels paired about theta", found by the secant method from the
@@ -55,7 +58,7 @@ from ._kernels import N_STATS, acc_brightness
 
 __all__ = ["DISC_KNOBS", "disc_radius", "disc_radius_mm", "disc_selection", "taper", "aoplm_rad", "level_residual",
            "band_pass1", "band_pass2", "ring_pass1", "ring_pass2", "cr1_sigma", "MirrorMap", "mirror_map",
-           "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit", "DiscEstimator", "MIRROR_BLUR_CELLS",
+           "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit", "level_rss", "DiscEstimator", "MIRROR_BLUR_CELLS",
            "MIRROR_LEVELS"]
 
 DISC_KNOBS = {
@@ -77,6 +80,15 @@ MAX_SOLVE_STEPS = 25
 #: Trial axes of the coarse scan for fixed points (over 180 deg), and its pixel subsampling.
 SCAN_AXES = 18
 SCAN_STEP = 8
+#: A sign change of h between neighbouring scan axes larger than this (rad) is a jump, not a root.
+MAX_BRACKET_JUMP = 0.75
+#: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this factor times
+#: the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian (the false ones we met
+#: were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
+MAX_MIRROR_RESIDUAL_RATIO = 1.5
+#: The plain fit is kept when the fit on the mirror pairs about its own axis (with at least half the disc
+#: paired) moves it by less than this (deg): the unusable pixels do not bias it.
+MIRROR_AGREEMENT_DEG = 0.02
 #: |1 - f'| below this: the usable pairs do not determine the axis (insufficient_coverage).
 MIN_CONDITIONING = 1e-3
 
@@ -336,8 +348,8 @@ def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac
 def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp,
                 g_uv, g_val, cover):  # pragma: no cover - compiled
     """SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0, compacted:
-    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im), W S(p) rho^2) (W = 0 below min_dop);
-    cover[1] += taper over every pixel of the disc. Returns the count."""
+    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im), W S(p) rho^2)
+    (W = 0 below min_dop); cover[1] += taper over every pixel of the disc in the view. Returns the count."""
     n = 0
     for i in range(aop.size):
         ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
@@ -559,6 +571,19 @@ def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min
             rss[1] += r2 * r2
 
 
+@njit(cache=True)
+def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, rss):  # pragma: no cover - compiled
+    """rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over the usable pixels."""
+    for i in range(aop.size):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        if not ok:
+            continue
+        r1 = _level_resid(c2a, s2a, rx, ry, rz, s1)
+        r2 = _level_resid(c2a, s2a, rx, ry, rz, s2)
+        rss[0] += r1 * r1
+        rss[1] += r2 * r2
+
+
 def cr1_sigma(block_sum, n: int) -> float:
     """Cluster-robust sigma from block sums of the influence (CR1 small-sample factor, one parameter)."""
     b = np.asarray(block_sum, dtype=float)
@@ -585,6 +610,8 @@ class MirrorMap:
 
     grid: np.ndarray
     params: np.ndarray          # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
+    lattice: tuple              # x0, dx, y0, dy of the view's own pixels
+    camera: CameraModel
 
     def at(self, theta_rad: float) -> tuple:
         """Kernel arguments (mg, mp) for the reflection about the axis ``theta`` (from +y_cam towards +x_cam)."""
@@ -649,9 +676,24 @@ def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
     blur = cv2.GaussianBlur(full.astype(np.float32), (0, 0), sigmaX=MIRROR_BLUR_CELLS * cell / (dx * px),
                             sigmaY=MIRROR_BLUR_CELLS * cell / (dy * py), borderType=cv2.BORDER_REPLICATE)
     t = np.clip((blur.astype(np.float64) - MIRROR_LEVELS[0]) / (MIRROR_LEVELS[1] - MIRROR_LEVELS[0]), 0.0, 1.0)
-    S = np.sin(0.5 * math.pi * t) ** 2
+    S = np.sin(0.5 * math.pi * t) ** 2 * full         # exactly 0 on every unusable grid point
     params = np.array([camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy])
-    return MirrorMap(S, params)
+    return MirrorMap(np.ascontiguousarray(S), params, (float(x0), float(dx), float(y0), float(dy)), camera)
+
+
+@lru_cache(maxsize=32)
+def disc_cells(camera: CameraModel, x0: float, dx: float, y0: float, dy: float, rho_lo: float, rho_max: float,
+               taper_frac: float) -> float:
+    """Sum of the taper over the points of the lattice (x0 + k dx, y0 + l dy), extended over the whole image,
+    whose ray lies in the disc ring [rho_lo, rho_max]: the denominator of the mirror coverage (a view that
+    does not cover the disc counts what it misses)."""
+    xs = x0 + dx * np.arange(math.ceil((1 - x0) / dx), math.floor((camera.width_px - x0) / dx) + 1)
+    ys = y0 + dy * np.arange(math.ceil((1 - y0) / dy), math.floor((camera.height_px - y0) / dy) + 1)
+    X, Y = np.meshgrid(xs, ys)
+    r, ok = camera.rays_from_pixels(X.reshape(-1), Y.reshape(-1))
+    rho = np.hypot(r[0], r[1])
+    inr = ok & (rho >= rho_lo) & (rho <= rho_max) & (rho > 0.0)
+    return float(taper(rho[inr], rho_max, taper_frac).sum())
 
 
 @lru_cache(maxsize=64)
@@ -692,79 +734,85 @@ def _fold(a: float) -> float:
     return (a + 0.5 * math.pi) % math.pi - 0.5 * math.pi
 
 
-def _refine(fit_at, t0: float, slope0: float, tol_rad: float, max_steps: int, coarse=None):
-    """Secant iteration on h(t) = fold(fit_at(t).theta - t) from t0 with a first slope estimate slope0 < 0
-    (with ``coarse``, a cheaper fit, first to 1e-4 rad). Returns (fit at the fixed point, h' there, fits
-    used) or (None, reason, fits used)."""
+def _refine(fit_at, t0: float, slope: float, tol_rad: float, max_steps: int):
+    """Secant iteration on h(t) = fold(fit_at(t).theta - t) from t0 with a first slope estimate. Returns
+    (fit at the fixed point or None, the last secant slope, its step length, fits used)."""
     steps = 0
 
-    def run(fit, t, slope, tol):
+    def h(x):
         nonlocal steps
+        steps += 1
+        f = fit_at(x)
+        return (None, None) if f is None else (_fold(f.theta - x), f)
 
-        def h(x):
-            nonlocal steps
-            steps += 1
-            f = fit(x)
-            return (None, None) if f is None else (_fold(f.theta - x), f)
-
-        ta, (ha, fa) = t, h(t)
-        tb, hb, fb = ta, ha, fa
-        while fb is not None and abs(hb) > tol and steps < max_steps:
-            step = max(-0.2, min(0.2, -hb / slope))
-            ta, ha = tb, hb
-            tb = tb + step
-            hb, fb = h(tb)
-            if fb is not None and tb != ta and (hb - ha) / (tb - ta) < -MIN_CONDITIONING:
-                slope = (hb - ha) / (tb - ta)
-        return ta, tb, hb, fb, slope, h
-
-    slope = slope0
-    if coarse is not None:
-        _, t0, hc, fc, slope, _ = run(coarse, t0, slope, 1e-4)
-        if fc is None:
-            return None, "no axis fit on the usable mirror pairs", steps
-    ta, tb, hb, fb, slope, h = run(fit_at, t0, slope, tol_rad)
-    if fb is None:
-        return None, "no axis fit on the usable mirror pairs", steps
-    if abs(hb) > 1e-6:
-        return None, f"no self-consistent axis after {steps} fits (residual {math.degrees(abs(hb)):.2g} deg)", steps
-    if not abs(tb - ta) >= 1e-6:                 # the last secant step is too short for a derivative
-        hd, fd = h(tb + 2e-3)
-        if fd is None:
-            return None, "no axis fit on the usable mirror pairs", steps
-        slope = (hd - hb) / 2e-3
+    hb, fb = h(t0)
+    tb, ta = t0, t0
+    while fb is not None and abs(hb) > tol_rad and steps < max_steps:
+        step = max(-0.2, min(0.2, -hb / slope))
+        ta, ha = tb, hb
+        tb = tb + step
+        hb, fb = h(tb)
+        if fb is not None and tb != ta and abs((hb - ha) / (tb - ta)) > MIN_CONDITIONING:
+            slope = (hb - ha) / (tb - ta)
+    if fb is None or abs(hb) > tol_rad:
+        return None, slope, 0.0, steps
     fb.theta = tb + hb
-    return fb, slope, steps
+    return fb, slope, abs(tb - ta), steps
 
 
-def solve_axes(fit_at, scan_at, min_coverage: float, n_scan: int = SCAN_AXES, tol_rad: float = 1e-9,
+def solve_axes(fit_at, scan_at, keep, min_coverage: float, n_scan: int = SCAN_AXES, tol_rad: float = 1e-8,
                max_steps: int = MAX_SOLVE_STEPS):
-    """Every stable self-consistent axis ``theta = fit_at(theta).theta`` (axial, rad).
+    """Every self-consistent axis ``theta = fit_at(theta).theta`` (axial, rad) worth keeping.
 
     ``h(theta) = fold(f(theta) - theta)`` is scanned on ``n_scan`` axes with ``scan_at`` (a cheaper fit on a
-    subsample); each interval where h falls through zero (a fixed point the iteration is drawn to, h' < 0)
-    is refined by the secant method (with ``scan_at``, then ``fit_at``), unless the mirror coverage at both ends is below
-    ``min_coverage / 2`` (the degenerate fixed points on the edge of an occluder, where the usable pairs
-    shrink to a sliver). Returns (list of (fit, h'), list of reasons for failed refinements, fits used)."""
+    subsample); each interval where h changes sign (either way: the true axis may repel a plain iteration,
+    f' > 1; a jump of h across the fold is not a root) and whose mirror coverage reaches ``min_coverage / 2``
+    at an end (not the degenerate fixed point on an occluder's edge, where the pairs shrink to a sliver) is
+    refined by the secant method, first with ``scan_at`` to 1e-4 rad; roots that ``keep(fit)`` accepts are
+    then refined with ``fit_at`` to ``tol_rad``. ``h'`` (= f' - 1) is the last secant slope, or a finite
+    difference over 2e-3 rad when the last step was too short. Returns (list of (fit, h'), reasons why no
+    root was found, fits used)."""
     dt = math.pi / n_scan
     fs = [scan_at(i * dt) for i in range(n_scan)]
     hs = [None if f is None else _fold(f.theta - i * dt) for i, f in enumerate(fs)]
     used = n_scan
-    roots, failed = [], []
+    coarse, failed = [], []
+    dropped = -1.0
+    best = max([f.coverage for f in fs if f is not None], default=0.0)
+    if best < 0.5 * min_coverage:
+        failed.append(f"at most {best:.3f} of the disc has a usable mirror image about any axis "
+                      f"(min_mirror_coverage {min_coverage:g})")
     for i in range(n_scan):
         j = (i + 1) % n_scan
         h0, h1 = hs[i], hs[j]
-        if h0 is None or h1 is None or not (h0 >= 0.0 > h1) or h0 - h1 > 0.5 * math.pi:
+        if h0 is None or h1 is None or (h0 < 0.0) == (h1 < 0.0) or abs(h0 - h1) > MAX_BRACKET_JUMP:
             continue
         if max(fs[i].coverage, fs[j].coverage) < 0.5 * min_coverage:
+            dropped = max(dropped, fs[i].coverage, fs[j].coverage)
             continue
-        t0 = i * dt + dt * h0 / (h0 - h1)
-        fit, slope, n = _refine(fit_at, t0, (h1 - h0) / dt, tol_rad, max_steps, scan_at)
+        fit, slope, _, n = _refine(scan_at, i * dt + dt * h0 / (h0 - h1), (h1 - h0) / dt, 1e-4, max_steps)
+        used += n
+        if fit is not None and not keep(fit):
+            dropped = max(dropped, fit.coverage)
+        elif fit is not None and all(abs(_fold(fit.theta - c[0].theta)) > 1e-3 for c in coarse):
+            coarse.append((fit, slope))
+    roots = []
+    for fc, slope in coarse:
+        fit, slope, last, n = _refine(fit_at, fc.theta, slope, tol_rad, max_steps)
         used += n
         if fit is None:
-            failed.append(slope)
-        elif all(abs(_fold(fit.theta - r.theta)) > 1e-6 for r, _ in roots):
-            roots.append((fit, slope))
+            failed.append(f"no self-consistent axis near {math.degrees(fc.theta) % 180:.1f} deg at full resolution")
+            continue
+        if not last >= 1e-6:                 # the last secant step is too short for a derivative
+            fd = fit_at(fit.theta + 2e-3)
+            used += 1
+            if fd is None:
+                continue
+            slope = _fold(fd.theta - fit.theta - 2e-3) / 2e-3
+        roots.append((fit, slope))
+    if not roots and not failed and dropped >= 0.0:
+        failed.append(f"the self-consistent axes have at most {dropped:.3f} of the disc with a usable mirror image "
+                      f"or are not symmetric (min_mirror_coverage {min_coverage:g})")
     return roots, failed, used
 
 
@@ -818,12 +866,9 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                                         pixels=n)
         return None
 
-    def _root_score(self, fit: AxisFit) -> float:
-        """Which of several self-consistent axes to keep: the larger score (default: the mirror coverage)."""
-        return fit.coverage
-
-    def _root_ok(self, fit: AxisFit) -> bool:
-        """Whether a self-consistent axis is acceptable beyond coverage and conditioning (default: yes)."""
+    def _root_ok(self, fit: AxisFit, lenient: bool = False) -> bool:
+        """Whether a self-consistent axis is acceptable beyond coverage and conditioning (default: yes);
+        ``lenient`` for a fit on the scan's subsample."""
         return True
 
     def _root_why(self, fit: AxisFit) -> str:  # pragma: no cover - only with a _root_ok that can say no
@@ -840,34 +885,36 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             f = self._mirror_fit(g, mm.at(theta), theta, plain, step)
             return f if f is not None and f.n_paired * step >= k["min_pixels"] else None
 
-        roots, failed, used = solve_axes(fit_at, lambda t: fit_at(t, SCAN_STEP), gate)
-        extras["mirror_fits"] = used
+        f0 = fit_at(plain.theta)
+        if f0 is not None and f0.coverage >= 0.5 and self._root_ok(f0) \
+                and abs(_fold(f0.theta - plain.theta)) <= math.radians(MIRROR_AGREEMENT_DEG):
+            extras["mirror_coverage"] = f0.coverage      # the unusable pixels do not bias the plain fit
+            return [(plain, NO_MIRROR, 1.0)]
+        roots, failed, used = solve_axes(fit_at, lambda t: fit_at(t, SCAN_STEP),
+                                         lambda f: f.coverage >= 0.8 * gate and self._root_ok(f, lenient=True), gate)
+        extras["mirror_fits"] = used + 1
         why = f"part of the sky disc is unusable ({plain.holes} pixel(s)"
         why += ")" if view_covers_disc(view, obs.camera, rho_max) else " and the view does not cover the disc)"
         good = [(f, sl) for f, sl in roots if f.coverage >= gate and abs(sl) >= MIN_CONDITIONING]
         sound = [(f, sl) for f, sl in good if self._root_ok(f)]
         if good and not sound:
-            f, sl = max(good, key=lambda r: self._root_score(r[0]))
+            f, sl = max(good, key=lambda r: r[0].quality)
             extras["mirror_coverage"] = f.coverage
             return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE,
                                         f"{why}: no axis about which the usable mirror pairs are symmetric "
                                         f"({self._root_why(f)})", pixels=plain.n, **extras)
-        good = sound
-        if not good:
+        if not sound:
             if roots:
                 f, sl = max(roots, key=lambda r: r[0].coverage)
                 detail = (f"only {f.coverage:.3f} of the disc has a usable mirror image about the best axis "
                           f"(min_mirror_coverage {gate:g}; |1 - f'| = {abs(sl):.2g})")
                 extras["mirror_coverage"] = f.coverage
             else:
-                detail = "no self-consistent axis" + (f" ({failed[0]})" if failed else "")
+                detail = failed[0] if failed else "no self-consistent axis"
             return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE, f"{why}: {detail}",
                                         pixels=plain.n, **extras)
-        fit, slope = max(good, key=lambda r: self._root_score(r[0]))
-        extras["mirror_coverage"] = fit.coverage
-        extras["mirror_axes"] = len(roots)
-        extras["mirror_sigma_inflation"] = 1.0 / abs(slope)
-        return fit, mm.at(fit.theta), 1.0 / abs(slope)
+        extras["mirror_axes"] = len(sound)
+        return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound]
 
     def estimate(self, obs: Observation) -> HeadingResult:
         k = self.knobs
@@ -881,22 +928,39 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
         data, segs = view_segments(view, k["block_px"])
-        fit = self._fit(data, rho_lo, rho_max)
+        fit = plain = self._fit(data, rho_lo, rho_max)
         if isinstance(fit, HeadingResult):
             return fit
         extras: dict = {}
-        mirror = NO_MIRROR
-        inflation = 1.0
+        candidates = [(fit, NO_MIRROR, 1.0)]
         if fit.holes > 0 or not view_covers_disc(view, obs.camera, rho_max):
-            solved = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
-            if isinstance(solved, HeadingResult):
-                return solved
-            fit, mirror, inflation = solved
+            candidates = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
+            if isinstance(candidates, HeadingResult):
+                return candidates
+        best = None
+        for fit, mirror, inflation in candidates:   # several self-consistent axes: the best Rayleigh fit
+            first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
+            block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
+            j = int(np.argmin(rss))                 # the end of the meridian the Rayleigh residuals prefer
+            if best is None or rss[j] < best[0]:
+                best = (rss[j], fit, inflation, first, second, block_sum, rss, j)
+        _, fit, inflation, first, second, block_sum, rss, j = best
+        rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
+        if "mirror_axes" in extras:
+            extras["mirror_coverage"] = fit.coverage
+            extras["mirror_sigma_inflation"] = inflation
+            p1, p2 = level_sun_candidates(-plain.theta, float(obs.sun_altitude_deg))
+            rss0 = np.zeros(2)
+            level_rss(data[0], data[1], data[2], data[3], k["min_dop"], rho_lo, rho_max, p1.sun_cam, p2.sun_cam, rss0)
+            limit = MAX_MIRROR_RESIDUAL_RATIO * math.degrees(math.sqrt(rss0.min() / plain.n)) + 0.01
+            if rms_deg > limit:
+                return HeadingResult.failed(
+                    self.name, Status.INSUFFICIENT_COVERAGE,
+                    f"part of the sky disc is unusable ({fit.holes} pixel(s)): the self-consistent axes on the "
+                    f"usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg rms or more "
+                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + 0.01): none is the solar "
+                    "meridian", pixels=fit.n, **extras)
         n = fit.n_paired
-        psi = -fit.theta
-        first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
-        block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
-        j = int(np.argmin(rss))                     # the end of the meridian the Rayleigh residuals prefer
         sigma = cr1_sigma(block_sum[j], n) * inflation
         if j == 1:
             first, second = second, first
@@ -904,6 +968,6 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         bt = brightness_t_from_stats(fit.stats if has_i else None, first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
         extras.update(fit.state.get("extras", {}))
-        extras["rms_residual_deg"] = math.degrees(math.sqrt(rss[j] / fit.n))
+        extras["rms_residual_deg"] = rms_deg
         return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
                            finish_sigma_deg(sigma, k), n, fit.nonfinite, fit.quality, extras=extras)

@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from .base import HeadingResult, Status, register_estimator
-from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, band_fit, band_gather, band_pass1, band_pass2
+from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, band_fit, band_gather, band_pass1, band_pass2
 from ._common import Knob
 from ._kernels import N_STATS
 
@@ -84,7 +84,7 @@ class SmAsmEstimator(DiscEstimator):
         cover = np.zeros(2)
         n = band_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_max, k["taper_fraction"], self._inv4tol2(),
                         mm.grid, mm.params, g_uv, g_val, cover)
-        return {"uv": g_uv, "val": g_val, "n": n, "disc": cover[1]}
+        return {"uv": g_uv, "val": g_val, "n": n, "disc": disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])}
 
     def _mirror_fit(self, g, mirror, near, plain, step=1):
         out = np.zeros(5)

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from .base import HeadingResult, Status, register_estimator
-from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, ring_fit, ring_gather, ring_pass1, ring_pass2
+from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, ring_fit, ring_gather, ring_pass1, ring_pass2
 from ._common import Knob
 from ._kernels import N_STATS
 
@@ -112,16 +112,15 @@ def _axis_search(a, K, steps, near=None):
         good = peak & (Sg > 0.0)
         pool = np.nonzero(good)[0] if good.any() else np.nonzero(peak)[0]
         i = int(pool[int(np.argmax(Fg[pool]))])
-    else:
-        i = int(round((near % math.pi) / (math.pi / steps))) % steps
-        for _ in range(steps):
-            up, down = Fg[(i + 1) % steps], Fg[i - 1]
-            if up > Fg[i] and up >= down:
-                i = (i + 1) % steps
-            elif down > Fg[i]:
-                i = (i - 1) % steps
-            else:
-                break
+    else:                                       # climb F from the grid point nearest to ``near``
+        i0 = int(round((near % math.pi) / (math.pi / steps))) % steps
+        peaks = np.nonzero((Fg >= np.roll(Fg, 1)) & (Fg >= np.roll(Fg, -1)))[0]
+        if Fg[(i0 + 1) % steps] > Fg[i0]:
+            i = int(peaks[np.argmin((peaks - i0) % steps)])       # the first peak uphill to the right
+        elif Fg[i0 - 1] > Fg[i0]:
+            i = int(peaks[np.argmin((i0 - peaks) % steps)])       # ... to the left
+        else:
+            i = i0
     theta = _newton(b, K, float(grid[i]), math.pi / steps)
     F, F1, F2 = _F_derivs(b, K, theta)
     far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)
@@ -140,14 +139,10 @@ class SymmetryEstimator(DiscEstimator):
                                          doc="ignore the disc's centre (AOPLM is singular at the zenith pixel)"),
                      search_steps=Knob(720, "int", 8, 100000, doc="grid points of the coarse axis search over 180 deg"))
 
-    def _root_score(self, fit: AxisFit) -> float:
-        """Of several self-consistent axes keep the most symmetric one (F / sum |a_k|^2, 1 = exact)."""
-        return fit.quality
-
-    def _root_ok(self, fit: AxisFit) -> bool:
+    def _root_ok(self, fit: AxisFit, lenient: bool = False) -> bool:
         """On the pairs about the true axis the map is exactly antisymmetric (F / sum |a_k|^2 = 1 up to noise);
         a self-consistent axis of a thin wedge of pairs elsewhere is not (0.1-0.8 in our scenes)."""
-        return fit.quality >= MIN_MIRROR_SYMMETRY
+        return fit.quality >= (0.8 if lenient else MIN_MIRROR_SYMMETRY) and fit.state["F2"] < 0.0
 
     def _root_why(self, fit: AxisFit) -> str:
         return f"best F / sum |a_k|^2 = {fit.quality:.3f} < {MIN_MIRROR_SYMMETRY:g}"
@@ -193,7 +188,7 @@ class SymmetryEstimator(DiscEstimator):
         cover = np.zeros(2)
         g["n"] = ring_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_lo, rho_max, k["taper_fraction"],
                              k["rings"], mm.grid, mm.params, g["uv"], g["tp"], g["c"], g["e"], g["ring"], cover)
-        g["disc"] = cover[1]
+        g["disc"] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])
         return g
 
     def _mirror_fit(self, g, mirror, near, plain, step=1):
