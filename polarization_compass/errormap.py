@@ -58,7 +58,7 @@ DEFAULT_TILT_LIMIT_DEG = 30.0
 
 #: int8 status codes stored in a map (by the estimator's Status *value*, so the table is stable).
 STATUS_CODES = {"ok": 0, "ambiguous": 1, "sun_near_zenith": 2, "sun_below_horizon": 3, "too_few_pixels": 4,
-                "out_of_domain": 5, "bad_input": 6, "degenerate": 7}
+                "out_of_domain": 5, "bad_input": 6, "degenerate": 7, "insufficient_coverage": 9}
 STATUS_NOT_COMPUTED = -1
 STATUS_ESTIMATOR_ERROR = -2
 STATUS_OTHER = 8          # a status value this table does not know (a newer estimator)

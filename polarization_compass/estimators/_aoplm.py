@@ -86,6 +86,8 @@ MAX_BRACKET_JUMP = 0.75
 #: the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian (the false ones we met
 #: were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
 MAX_MIRROR_RESIDUAL_RATIO = 1.5
+#: Pixel subsampling of the residual passes that compare self-consistent axes.
+RESIDUAL_STEP = 3
 #: The plain fit is kept when the fit on the mirror pairs about its own axis (with at least half the disc
 #: paired) moves it by less than this (deg): the unusable pixels do not bias it.
 MIRROR_AGREEMENT_DEG = 0.02
@@ -572,9 +574,10 @@ def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min
 
 
 @njit(cache=True)
-def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, rss):  # pragma: no cover - compiled
-    """rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over the usable pixels."""
-    for i in range(aop.size):
+def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss):  # pragma: no cover - compiled
+    """rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over every ``step``-th pixel
+    (rss[2] += 1 for each usable one)."""
+    for i in range(0, aop.size, step):
         ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
         if not ok:
             continue
@@ -582,6 +585,7 @@ def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, rss):  # 
         r2 = _level_resid(c2a, s2a, rx, ry, rz, s2)
         rss[0] += r1 * r1
         rss[1] += r2 * r2
+        rss[2] += 1.0
 
 
 def cr1_sigma(block_sum, n: int) -> float:
@@ -874,6 +878,15 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     def _root_why(self, fit: AxisFit) -> str:  # pragma: no cover - only with a _root_ok that can say no
         return ""
 
+    def _level_ms(self, data, rho_lo, rho_max, theta, obs, step=RESIDUAL_STEP) -> float:
+        """Mean square AoP residual (rad^2) against the level Rayleigh pattern of axis theta (its better end),
+        over every ``step``-th usable pixel."""
+        s1, s2 = level_sun_candidates(-theta, float(obs.sun_altitude_deg))
+        rss = np.zeros(3)
+        level_rss(data[0], data[1], data[2], data[3], self.knobs["min_dop"], rho_lo, rho_max, s1.sun_cam, s2.sun_cam,
+                  step, rss)
+        return float(min(rss[0], rss[1]) / max(rss[2], 1.0))
+
     def _solve_mirror(self, obs, view, data, rho_lo, rho_max, plain: AxisFit, extras: dict):
         """The axis on mirror-pair weights: (fit, mirror arguments, sigma inflation) or a failed result."""
         k = self.knobs
@@ -937,22 +950,18 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             candidates = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
             if isinstance(candidates, HeadingResult):
                 return candidates
-        best = None
-        for fit, mirror, inflation in candidates:   # several self-consistent axes: the best Rayleigh fit
-            first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
-            block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
-            j = int(np.argmin(rss))                 # the end of the meridian the Rayleigh residuals prefer
-            if best is None or rss[j] < best[0]:
-                best = (rss[j], fit, inflation, first, second, block_sum, rss, j)
-        _, fit, inflation, first, second, block_sum, rss, j = best
+        if len(candidates) > 1:                     # several self-consistent axes: the best Rayleigh fit
+            candidates = [min(candidates, key=lambda c: self._level_ms(data, rho_lo, rho_max, c[0].theta, obs))]
+        fit, mirror, inflation = candidates[0]
+        first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
+        block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
+        j = int(np.argmin(rss))                     # the end of the meridian the Rayleigh residuals prefer
         rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
         if "mirror_axes" in extras:
             extras["mirror_coverage"] = fit.coverage
             extras["mirror_sigma_inflation"] = inflation
-            p1, p2 = level_sun_candidates(-plain.theta, float(obs.sun_altitude_deg))
-            rss0 = np.zeros(2)
-            level_rss(data[0], data[1], data[2], data[3], k["min_dop"], rho_lo, rho_max, p1.sun_cam, p2.sun_cam, rss0)
-            limit = MAX_MIRROR_RESIDUAL_RATIO * math.degrees(math.sqrt(rss0.min() / plain.n)) + 0.01
+            limit = MAX_MIRROR_RESIDUAL_RATIO * math.degrees(math.sqrt(
+                self._level_ms(data, rho_lo, rho_max, plain.theta, obs))) + 0.01
             if rms_deg > limit:
                 return HeadingResult.failed(
                     self.name, Status.INSUFFICIENT_COVERAGE,
