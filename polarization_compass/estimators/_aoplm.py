@@ -29,16 +29,22 @@ grid point, so it costs almost no coverage, and the bilinear S(p') takes weight 
 with it (without that, 10 % of pixels invalid at random move a noise-free sm_asm heading by 0.1 deg;
 with it, < 0.02 deg at stride 16). ``S(p) S(p')`` is exactly mirror-symmetric about ``theta`` and
 smooth (no lattice aliasing at the occluder's edge, the same reason as the disc taper), so the fit on
-the weighted pixels returns ``theta`` when ``theta`` is the true axis: the axis is the fixed point
-``theta = f(theta)`` of "fit the pixels paired about theta", found by the secant method from the
-unweighted fit.
+the weighted pixels returns ``theta`` when ``theta`` is the true axis: the axis is a fixed point
+``theta = f(theta)`` of "fit the pixels paired about theta". There can be several (the edge of the
+occluder is a degenerate one; a thin wedge of pairs elsewhere can balance a fit): :func:`solve_axes`
+scans ``h = f(theta) - theta`` on 18 axes with a subsample and refines every sign change by the secant
+method (the true axis may attract or repel a plain iteration). Kept are axes with mirror coverage
+``>= min_mirror_coverage``, ``|1 - f'| >= MIN_CONDITIONING``, the method's own test (symmetry: the
+paired map is symmetric, ``F / sum |a_k|^2 >= 0.95``) and a level-Rayleigh residual at most
+``MAX_MIRROR_RESIDUAL_RATIO`` times the plain fit's; of these the one with the smallest residual wins.
+When the pair fit about the plain axis agrees with the plain fit within ``MIRROR_AGREEMENT_DEG`` and
+pairs at least half the disc (a few or scattered unusable pixels), the plain result stands.
 
 Uncertainty of the fixed point: ``d theta* = d f / (1 - f'(theta*))``: the statistical sigma of the
-weighted fit is divided by ``|1 - f'|`` (``f'`` by a finite difference). When the usable pairs form a
-thin wedge the fit follows the wedge (``f' -> 1``) and sigma grows accordingly. When the share of the
-disc (taper-weighted) whose mirror image is usable is below ``min_mirror_coverage``, or no fixed point
-is found, the status is ``insufficient_coverage`` with the measured share in the reason. A complete
-disc is never re-weighted: the result is bit-identical to the plain fit.
+weighted fit is divided by ``|1 - f'|`` (``f'`` from the last secant step or a finite difference). When
+the usable pairs form a thin wedge the fit follows the wedge (``f' -> 1``) and sigma grows accordingly.
+Without an acceptable axis the status is ``insufficient_coverage`` with the measured share or the failed
+test in the reason. A complete disc is never re-weighted: the plain fit, as before.
 """
 from __future__ import annotations
 
@@ -54,12 +60,12 @@ from .base import Estimator, HeadingResult, Observation, Status
 from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t_from_stats,
                       check_sun, finish_sigma_deg, level_sun_candidates, rayleigh_aop_rad, resolve_ambiguity,
                       result_from, selection_for, select_view, view_segments)
-from ._kernels import N_STATS, acc_brightness
+from ._kernels import acc_brightness
 
 __all__ = ["DISC_KNOBS", "disc_radius", "disc_radius_mm", "disc_selection", "taper", "aoplm_rad", "level_residual",
            "band_pass1", "band_pass2", "ring_pass1", "ring_pass2", "cr1_sigma", "MirrorMap", "mirror_map",
-           "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit", "level_rss", "DiscEstimator", "MIRROR_BLUR_CELLS",
-           "MIRROR_LEVELS"]
+           "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit", "level_rss", "DiscEstimator",
+           "MIRROR_BLUR_CELLS", "MIRROR_LEVELS", "disc_cells"]
 
 DISC_KNOBS = {
     "disc_fraction": Knob(1.0, "float", 0.05, 1.0,
@@ -346,30 +352,40 @@ def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac
     cnt[3] += n_hole
 
 
+@njit(inline="always", cache=True)
+def _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp,
+                  g_uv, n):  # pragma: no cover - compiled
+    """Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p); p, rx, ry,
+    rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes to g_uv[:, n]."""
+    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+    tp = 0.0
+    s = 0.0
+    if inr and valid[i] and fin:
+        tp = _taper1(rho, rho_max, taper_frac)
+        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+    keep = s > 0.0
+    if keep:
+        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
+        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+    return keep, ok, tp, s, p, rx, ry, rho, c2a, s2a
+
+
 @njit(cache=True)
 def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp,
-                g_uv, g_val, cover):  # pragma: no cover - compiled
+                g_uv, g_val):  # pragma: no cover - compiled
     """SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0, compacted:
-    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im), W S(p) rho^2)
-    (W = 0 below min_dop); cover[1] += taper over every pixel of the disc in the view. Returns the count."""
+    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im),
+    W S(p) rho^2) (W = 0 below min_dop). Returns the count."""
     n = 0
     for i in range(aop.size):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
-        if not inr:
-            continue
-        tp = _taper1(rho, rho_max, taper_frac)
-        cover[1] += tp
-        if not (valid[i] and fin):
-            continue
-        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])      # S(p)
-        if not s > 0.0:
+        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, 0.0,
+                                                                  rho_max, taper_frac, mg, mp, g_uv, n)
+        if not keep:
             continue
         W = 0.0
         if ok:
             cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
             W = math.exp((-cr - 1.0) * inv4tol2) * p * p * tp * s
-        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
         g_val[0, n] = tp * s
         g_val[1, n] = W * (ry * ry - rx * rx)
         g_val[2, n] = W * 2.0 * rx * ry
@@ -477,29 +493,21 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
 
 @njit(cache=True)
 def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, mg, mp,
-                g_uv, g_tp, g_c, g_e, g_ring, cover):  # pragma: no cover - compiled
+                g_uv, g_tp, g_c, g_e, g_ring):  # pragma: no cover - compiled
     """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_c = w S(p) c (0 below
     min_dop), g_e = exp(-i phi), g_ring = ring index + split. Returns the count."""
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
-        if not inr:
-            continue
-        tp = _taper1(rho, rho_max, taper_frac)
-        cover[1] += tp
-        if not (valid[i] and fin):
-            continue
-        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])      # S(p)
-        if not s > 0.0:
+        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo,
+                                                                  rho_max, taper_frac, mg, mp, g_uv, n)
+        if not keep:
             continue
         e = complex(ry / rho, -rx / rho)
         c = complex(0.0, 0.0)
         if ok:
             c = complex(c2a, s2a) * e * e * (p * p * tp * s)
         j, f = _ring_of(rho, rho_lo, span, n_rings)
-        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
         g_tp[n] = tp * s
         g_c[n] = c
         g_e[n] = e

@@ -22,6 +22,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from ..fastmath32 import sincos32
+
 __all__ = ["sub_pass", "full_pass", "grid_segments", "list_segments", "N_STATS", "sym3", "acc_sym",
            "acc_brightness"]
 
@@ -32,23 +34,9 @@ N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3
 @njit(inline="always", fastmath=_FM, cache=True, error_model="numpy")
 def _sincos32(a):  # pragma: no cover - compiled
     """sin, cos of a float32 angle folded to [-pi/2, pi/2] (a sign flip is harmless: E-vectors are
-    axial), Taylor to a^9 / a^10: error < 4e-6 at pi/2 in the polynomial, float32 rounding 1e-7."""
-    a = a - np.float32(math.pi) * np.rint(a * np.float32(1.0 / math.pi))
-    z = a * a
-    s = np.float32(1.0 / 39916800.0)
-    s = s * -z + np.float32(1.0 / 362880.0)
-    s = s * -z + np.float32(1.0 / 5040.0)
-    s = s * -z + np.float32(1.0 / 120.0)
-    s = s * -z + np.float32(1.0 / 6.0)
-    s = a * (np.float32(1.0) - z * s)
-    c = np.float32(1.0 / 479001600.0)
-    c = c * -z + np.float32(1.0 / 3628800.0)
-    c = c * -z + np.float32(1.0 / 40320.0)
-    c = c * -z + np.float32(1.0 / 720.0)
-    c = c * -z + np.float32(1.0 / 24.0)
-    c = c * -z + np.float32(0.5)
-    c = np.float32(1.0) - z * c
-    return s, c
+    axial), by :func:`polarization_compass.fastmath32.sincos32`: error < 4e-6 at pi/2 in the polynomial,
+    float32 rounding 1e-7."""
+    return sincos32(a - np.float32(math.pi) * np.rint(a * np.float32(1.0 / math.pi)))
 
 
 @njit(inline="always", cache=True)

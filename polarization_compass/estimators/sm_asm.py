@@ -81,10 +81,10 @@ class SmAsmEstimator(DiscEstimator):
         aop, dop, valid, rays, xs, ys, _ = data
         g_uv = np.empty((2, aop.size))
         g_val = np.empty((4, aop.size))
-        cover = np.zeros(2)
         n = band_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_max, k["taper_fraction"], self._inv4tol2(),
-                        mm.grid, mm.params, g_uv, g_val, cover)
-        return {"uv": g_uv, "val": g_val, "n": n, "disc": disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])}
+                        mm.grid, mm.params, g_uv, g_val)
+        disc = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])
+        return {"uv": g_uv, "val": g_val, "n": n, "disc": disc}
 
     def _mirror_fit(self, g, mirror, near, plain, step=1):
         out = np.zeros(5)

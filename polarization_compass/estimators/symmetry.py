@@ -185,9 +185,8 @@ class SymmetryEstimator(DiscEstimator):
         N = aop.size
         g = {"uv": np.empty((2, N)), "tp": np.empty(N), "c": np.empty(N, np.complex128),
              "e": np.empty(N, np.complex128), "ring": np.empty(N)}
-        cover = np.zeros(2)
         g["n"] = ring_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_lo, rho_max, k["taper_fraction"],
-                             k["rings"], mm.grid, mm.params, g["uv"], g["tp"], g["c"], g["e"], g["ring"], cover)
+                             k["rings"], mm.grid, mm.params, g["uv"], g["tp"], g["c"], g["e"], g["ring"])
         g["disc"] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])
         return g
 
