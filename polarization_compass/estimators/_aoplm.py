@@ -492,10 +492,10 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
 
 
 @njit(cache=True)
-def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, mg, mp,
-                g_uv, g_tp, g_c, g_e, g_ring):  # pragma: no cover - compiled
-    """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_c = w S(p) c (0 below
-    min_dop), g_e = exp(-i phi), g_ring = ring index + split. Returns the count."""
+def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, K, mg, mp,
+                g_uv, g_tp, g_v, g_ring):  # pragma: no cover - compiled
+    """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w S(p) c
+    exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring index + split. Returns the count."""
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
@@ -507,17 +507,24 @@ def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_f
         c = complex(0.0, 0.0)
         if ok:
             c = complex(c2a, s2a) * e * e * (p * p * tp * s)
+        g_v[K, n] = c
+        ep = c
+        em = c
+        ec = e.conjugate()
+        for kk in range(1, K + 1):
+            ep = ep * e
+            em = em * ec
+            g_v[K + kk, n] = ep
+            g_v[K - kk, n] = em
         j, f = _ring_of(rho, rho_lo, span, n_rings)
         g_tp[n] = tp * s
-        g_c[n] = c
-        g_e[n] = e
         g_ring[n] = j + f
         n += 1
     return n
 
 
 @njit(cache=True)
-def ring_fit(g_uv, g_tp, g_c, g_e, g_ring, n, step, n_rings, K, mg, mp, a_out, out):  # pragma: no cover - compiled
+def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out):  # pragma: no cover - compiled
     """Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the gathered pixels
     weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight > 0); every ``step``-th
     gathered pixel."""
@@ -529,12 +536,18 @@ def ring_fit(g_uv, g_tp, g_c, g_e, g_ring, n, step, n_rings, K, mg, mp, a_out, o
         if not m > 0.0:
             continue
         cov += g_tp[q] * m
-        c = g_c[q]
-        if c.real == 0.0 and c.imag == 0.0:
+        if g_v[K, q].real == 0.0 and g_v[K, q].imag == 0.0:
             continue
         n_pair += 1
         j = min(int(g_ring[q]), n_rings - 1)
-        _ring_add(a_out, K, n_rings, j, g_ring[q] - j, c * m, g_e[q])
+        f = g_ring[q] - j
+        w0 = (1.0 - f) * m
+        w1 = f * m
+        for k in range(2 * K + 1):
+            v = g_v[k, q]
+            a_out[k, j] += w0 * v
+            if j + 1 < n_rings:
+                a_out[k, j + 1] += w1 * v
     out[0] = cov
     out[1] = n_pair
 

@@ -80,6 +80,21 @@ def _newton(b, K, theta, step):  # pragma: no cover - compiled
     return theta
 
 
+@njit(cache=True)
+def _climb(Fg, i):  # pragma: no cover - compiled
+    """The local maximum of the periodic grid function Fg reached by walking uphill from index i."""
+    n = Fg.size
+    for _ in range(n):
+        up, down = Fg[(i + 1) % n], Fg[(i - 1) % n]
+        if up > Fg[i] and up >= down:
+            i = (i + 1) % n
+        elif down > Fg[i]:
+            i = (i - 1) % n
+        else:
+            break
+    return i
+
+
 @lru_cache(maxsize=16)
 def _tables(K: int, steps: int):
     """exp(2ik theta) (odd and even k != 0) and exp(ik theta) (even k) on the coarse grid of axes."""
@@ -113,14 +128,7 @@ def _axis_search(a, K, steps, near=None):
         pool = np.nonzero(good)[0] if good.any() else np.nonzero(peak)[0]
         i = int(pool[int(np.argmax(Fg[pool]))])
     else:                                       # climb F from the grid point nearest to ``near``
-        i0 = int(round((near % math.pi) / (math.pi / steps))) % steps
-        peaks = np.nonzero((Fg >= np.roll(Fg, 1)) & (Fg >= np.roll(Fg, -1)))[0]
-        if Fg[(i0 + 1) % steps] > Fg[i0]:
-            i = int(peaks[np.argmin((peaks - i0) % steps)])       # the first peak uphill to the right
-        elif Fg[i0 - 1] > Fg[i0]:
-            i = int(peaks[np.argmin((i0 - peaks) % steps)])       # ... to the left
-        else:
-            i = i0
+        i = _climb(Fg, int(round((near % math.pi) / (math.pi / steps))) % steps)
     theta = _newton(b, K, float(grid[i]), math.pi / steps)
     F, F1, F2 = _F_derivs(b, K, theta)
     far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)
@@ -183,10 +191,11 @@ class SymmetryEstimator(DiscEstimator):
         k = self.knobs
         aop, dop, valid, rays, xs, ys, _ = data
         N = aop.size
-        g = {"uv": np.empty((2, N)), "tp": np.empty(N), "c": np.empty(N, np.complex128),
-             "e": np.empty(N, np.complex128), "ring": np.empty(N)}
+        K = k["harmonics"]
+        g = {"uv": np.empty((2, N)), "tp": np.empty(N), "v": np.empty((2 * K + 1, N), np.complex128),
+             "ring": np.empty(N)}
         g["n"] = ring_gather(aop, dop, valid, rays, xs, ys, k["min_dop"], rho_lo, rho_max, k["taper_fraction"],
-                             k["rings"], mm.grid, mm.params, g["uv"], g["tp"], g["c"], g["e"], g["ring"])
+                             k["rings"], K, mm.grid, mm.params, g["uv"], g["tp"], g["v"], g["ring"])
         g["disc"] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k["taper_fraction"])
         return g
 
@@ -195,7 +204,7 @@ class SymmetryEstimator(DiscEstimator):
         K, NR = k["harmonics"], k["rings"]
         a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
         out = np.zeros(2)
-        ring_fit(g["uv"], g["tp"], g["c"], g["e"], g["ring"], g["n"], step, NR, K, mirror[0], mirror[1], a, out)
+        ring_fit(g["uv"], g["tp"], g["v"], g["ring"], g["n"], step, NR, K, mirror[0], mirror[1], a, out)
         f = self._axis(a, plain.n, near, plain, n_pair=int(out[1]),
                        coverage=out[0] * step / g["disc"] if g["disc"] > 0.0 else 0.0)
         return None if isinstance(f, HeadingResult) else f
