@@ -22,6 +22,7 @@ types of :data:`ARGUMENTS`.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -270,6 +271,21 @@ def _knob_names(method: str) -> set:
     return {p.name for p in knob_params(method)}
 
 
+def _downstream(nodes) -> list[str]:
+    """``topic=reader,reader`` for every topic these nodes publish that other nodes of the list read: the
+    simulator waits for those subscriptions before its first frame, so that no early message is lost to
+    discovery (named nodes: a recorder outside the graph must not stand in for the evaluator)."""
+    out = []
+    for n in nodes:
+        for topic, _ in n.publishes:
+            if topic.startswith("/"):
+                continue                       # /diagnostics, /clock: not part of the data path
+            readers = sorted(m.name for m in nodes if m is not n and any(t == topic for t, _ in m.subscribes))
+            if readers:
+                out.append(f"{topic}={','.join(readers)}")
+    return out or [""]
+
+
 def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
     params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
     site_source = params.get("site_source", "parameters")
@@ -319,6 +335,9 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
     nodes += [_corrector(m, {**sim_time, "error_map": error_map}) for m in methods]
     nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
                             {**sim_time, "report_dir": report_dir, "time_scale": float(time_scale)}))
+    nodes[0] = dataclasses.replace(nodes[0], parameters={**sim_params,
+                                                         "wait_for_downstream": _downstream(nodes),
+                                                         "wait_settle_s": 1.0})
     return Graph("sim", "simulated camera and IMU, every method, raw and corrected errors", tuple(nodes),
                  shutdown_with="sky_simulator" if exit_when_done else None)
 

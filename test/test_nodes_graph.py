@@ -158,7 +158,7 @@ def test_sim_graph_on_dds(ros_env, tmp_path):
     for name, e in (("least_squares/raw", err["raw"]), ("least_squares/corrected", err["corrected"]),
                     ("tilt_aware/raw", err["tilt_aware"])):
         d = s["streams"][name]
-        assert d["count"] == N_FRAMES and d["missed"] == 0 and d["not_published"] == {}
+        assert d["count"] == N_FRAMES and d["missed"] == 0 and d["not_published"] == {}, (name, d, s["nodes"])
         assert d["rms"] == pytest.approx(math.sqrt(np.mean(e ** 2)), abs=1e-6)
         assert d["max"] == pytest.approx(np.max(np.abs(e)), abs=1e-6)
     for f in ("evaluation_samples.csv", "evaluation_summary.csv", "evaluation.png"):

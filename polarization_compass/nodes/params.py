@@ -88,6 +88,29 @@ def validate_value(p: Param, value) -> str | None:
     return p.check(value) if p.check else None
 
 
+def parse_downstream(items) -> list[tuple[str, frozenset]]:
+    """``["topic=node_a,node_b", ...]`` (empty strings ignored) -> [(topic, {node names})]; ValueError
+    with the reason."""
+    out = []
+    for item in items:
+        if not item:
+            continue
+        topic, sep, names = item.rpartition("=")
+        nodes = frozenset(x.strip() for x in names.split(",") if x.strip())
+        if not sep or not topic or not nodes:
+            raise ValueError(f"wait_for_downstream entries are 'topic=node[,node...]', got {item!r}")
+        out.append((topic, nodes))
+    return out
+
+
+def _downstream_problem(v):
+    try:
+        parse_downstream(v)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
 def _not_optical(frame_id: str):
     if frame_id.endswith("_optical_frame") or frame_id.endswith("_optical"):
         return (f"frame_id {frame_id!r} is an optical frame (z forward): robot_localization needs a z-up "
@@ -195,6 +218,14 @@ SIMULATOR = (
           0, 1000, read_only=True),
     Param("wait_for_imu_subscribers", 0, "before the first frame, wait until imu/data has this many subscribers",
           0, 1000, read_only=True),
+    Param("wait_for_downstream", [""], "before the first frame, also wait until each 'topic=node[,node...]' "
+                                        "has a subscription of each named node in the ROS graph (the whole data "
+                                        "path, e.g. the headings the correctors and the evaluator read), then "
+                                        "wait_settle_s, so that no early message is lost to discovery",
+          read_only=True, check=lambda v: _downstream_problem(v)),
+    Param("wait_settle_s", 0.3, "after the subscribers are there and camera_info, fix and the first IMU sample "
+                                "are sent: wait this long (wall clock) before the first frame",
+          0.0, 60.0, unit="s", read_only=True),
     Param("wait_timeout_s", 60.0, "longest wait for subscribers (wall clock)", 0.0, 3600.0, unit="s",
           read_only=True),
     Param("imu_attitude_noise_deg", 0.05, "simulated IMU: white noise on roll and pitch (1 sigma)",

@@ -48,7 +48,7 @@ from . import topics
 from .diagnostics import Diagnostics
 from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
-from .params import SIMULATOR, SUN_PARAMS, sun_source
+from .params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
 from .rosparams import ParameterSet
 from .runner import ExitRequest, run_node
 
@@ -245,11 +245,21 @@ class SkySimulatorNode(Node):
         return all(v >= t_ns for v in self.acks.values())
 
     # the sim clock ------------------------------------------------------------------------------
+    def _missing_downstream(self) -> list[tuple[str, list]]:
+        """(topic, node names) of ``wait_for_downstream`` whose subscription this node has not seen yet."""
+        out = []
+        for topic, names in parse_downstream(self.params["wait_for_downstream"]):
+            seen = {i.node_name for i in self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))}
+            if not names <= seen:
+                out.append((topic, sorted(names - seen)))
+        return out
+
     def _ready(self, now: float) -> bool:
         """Before the first frame: wait for the expected subscribers (image and camera_info:
         ``wait_for_subscribers``; IMU: ``wait_for_imu_subscribers``; truth: one when either is set), then
-        send camera_info, the fix and the first IMU sample, and give them ``0.3 s`` to arrive, so that
-        frame 0 is processed with the right intrinsics, site and tilt."""
+        send camera_info, the fix and the first IMU sample, and give them ``wait_settle_s`` to arrive (and
+        discovery to settle between the other nodes), so that frame 0 is processed with the right
+        intrinsics, site and tilt and its results reach every reader."""
         if self.started:
             return True
         p = self.params
@@ -257,14 +267,16 @@ class SkySimulatorNode(Node):
             need, need_imu = p["wait_for_subscribers"], p["wait_for_imu_subscribers"]
             ok = (self.pub_image.get_subscription_count() >= need and self.pub_info.get_subscription_count() >= need
                   and self.pub_imu.get_subscription_count() >= need_imu
-                  and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1))
+                  and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1)
+                  and not self._missing_downstream())
             if not ok and now - self.t_wait0 <= p["wait_timeout_s"]:
                 return False
             if not ok:
                 self.get_logger().warning(
                     f"starting after {p['wait_timeout_s']:g} s with {self.pub_image.get_subscription_count()} image, "
                     f"{self.pub_imu.get_subscription_count()} IMU and {self.pub_truth.get_subscription_count()} truth "
-                    "subscriber(s)")
+                    "subscriber(s)" + "".join(f"; {t} not read by {', '.join(sorted(n))} yet"
+                                              for t, n in self._missing_downstream()))
             t0 = self.start_ns if self.sim_mode else self.get_clock().now().nanoseconds
             self._publish_clock(t0)
             self.pub_info.publish(camera_info_msg(self.camera, t0, p["camera_frame_id"]))
@@ -275,7 +287,7 @@ class SkySimulatorNode(Node):
                 self.k_imu = 1
             self.t_primed = now
             return False
-        if now - self.t_primed < 0.3:
+        if now - self.t_primed < p["wait_settle_s"]:
             return False
         self.started = True
         return True
