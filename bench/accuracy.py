@@ -23,7 +23,9 @@ Conditions
                        always given the true pitch and roll: 0, 0 in the level conditions.)
 ``bdl_sky``            Berry-Dennis-Lee neutral-point sky (separation 18 deg, DoP_max 0.75), ideal sensor, level.
 ``half_occluded``      ideal Rayleigh, level, half of the image masked by a half-plane through the centre at a
-                       random angle (asymmetric about the solar meridian).
+                       random angle (asymmetric about the solar meridian). ``sm_asm`` and ``symmetry``
+                       refuse about a fifth of these scenes (status ``insufficient_coverage``, counted in
+                       ``fails``: the meridian lies near the occluder's edge); errors are over the rest.
 ``eight_bit``          as ``noise_imx250`` but quantised to 8 bit.
 
 Scenes: sun azimuth uniform in [0, 360), sun altitude uniform in [10, 60] deg ([10, 50] deg for the
