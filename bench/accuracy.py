@@ -17,7 +17,8 @@ Conditions
 ``tilted``             Rayleigh, ideal sensor, camera tilted (|pitch| + |roll| <= 20 deg), no correction.
 ``tilted_corrected``   the same scenes, headings corrected with the shipped error map
                        (:class:`polarization_compass.correction.TiltCorrector`, true pitch and roll), both
-                       ``invert`` and ``subtract`` corrections; skipped when no map is shipped.
+                       ``invert`` and ``subtract`` corrections; skipped when no map is shipped. A prior
+                       bearing 5 deg off (an IMU yaw) resolves the 180 deg ambiguity first, as in the nodes.
 ``tilted_tilt_aware``  the same scenes, ``tilt_aware`` given the true pitch and roll.
                        (``tilt_aware`` runs in every condition except ``tilted``/``tilted_corrected``,
                        always given the true pitch and roll: 0, 0 in the level conditions.)
@@ -372,8 +373,18 @@ def run(cfg) -> dict:
             "cells": [c.to_json() for c in cells], "elapsed_s": time.perf_counter() - t_start}
 
 
+#: Prior bearing error in ``tilted_corrected`` (deg): a magnetometer-grade IMU yaw, as the simulated IMU's
+#: default bias. The correction depends on which of the two solar-meridian branches the heading is on
+#: (the error map is not 180 deg periodic under tilt), so, as in the nodes (``prior_source: imu``), a prior
+#: resolves the branch before correcting; an unresolved heading corrected on the wrong branch is off by
+#: up to a degree even with a perfect map.
+PRIOR_ERROR_DEG = 5.0
+
+
 def _observation(frame, s, cond, camera, Observation, method=""):
     obs = Observation.from_frame(frame, camera=camera)
+    if cond.correct:
+        obs.prior_bearing_deg = (s["attitude"].bearing_deg + PRIOR_ERROR_DEG) % 360.0
     if cond.give_tilt or method in TILT_METHODS:
         obs.pitch_deg = s["attitude"].pitch_deg
         obs.roll_deg = s["attitude"].roll_deg
