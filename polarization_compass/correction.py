@@ -333,6 +333,19 @@ class TiltCorrector:
         c = self.correct(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         return (float(psi_to_bearing_deg(c.psi_deg, sun_azimuth_deg)) if c.ok else None), c
 
+    def correct_bearings(self, raw_bearing_deg, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
+                         mode: str = "invert"):
+        """:meth:`correct_bearing` over arrays (one vectorised inversion instead of one per heading, for
+        offline replay). Returns ``(bearings_deg (N,), statuses)``: bearing in [0, 360) where the status is
+        ``ok``, NaN elsewhere; ``statuses`` the :class:`CorrectionStatus` values (str) per heading."""
+        raw, az = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(raw_bearing_deg,
+                                                                                            sun_azimuth_deg))
+        psi_meas = wrap_180_deg(raw - az)
+        psi, status, _ = self.correct_many(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
+        ok = status == STATUS_INT[CorrectionStatus.OK]
+        bearings = np.where(ok, psi_to_bearing_deg(psi, az), np.nan)
+        return bearings, [_FROM_INT[int(v)].value for v in status]
+
     def _why_out(self, h, p, r) -> str:
         a = self.alt
         if not (a[0] - 1e-9 <= h <= a[-1] + 1e-9):
