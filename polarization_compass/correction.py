@@ -35,6 +35,7 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from .conventions import psi_to_bearing_deg, wrap_180_deg
 from .errormap import ErrorMap, ErrorMapError, load_error_map
@@ -57,6 +58,9 @@ class CorrectionStatus(str, Enum):
 
 
 #: int8 codes of :meth:`TiltCorrector.correct_many`.
+#: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
+_MAX_ROOTS = 16
+
 STATUS_INT = {CorrectionStatus.OK: 0, CorrectionStatus.OUT_OF_DOMAIN: 1,
               CorrectionStatus.MULTIPLE_SOLUTIONS: 2, CorrectionStatus.NO_SOLUTION: 3}
 _FROM_INT = {v: k for k, v in STATUS_INT.items()}
@@ -103,6 +107,16 @@ def _keys(t):
                      -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2], -1)
 
 
+#: How the four Keys weights of stencil nodes i-1..i+2 land on the 4-node window ``start..start+3``:
+#: inside the axis the window is the stencil (identity); at the low end (window shifted up by one) the
+#: ghost node f(-1) = 3 f(0) - 3 f(1) + f(2) (Keys' cubic boundary rule); mirrored at the high end.
+_KEYS_BOUNDARY = np.array([
+    [[3.0, -3.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],   # off = -1
+    np.eye(4),                                                                                    # off = 0
+    [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 1.0, -3.0, 3.0]],   # off = +1
+])
+
+
 def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
     """Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,) bool.
 
@@ -122,17 +136,7 @@ def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
     w = _keys(t)
     start = np.clip(i - 1, 0, n - 4)
     off = (i - 1) - start                       # -1 at the low end, +1 at the high end, else 0
-    W = np.zeros_like(w)
-    rows = np.arange(x.size).reshape(x.shape)
-    for k in range(4):
-        j = off + k                              # stencil node k's slot in the 4-node window
-        lo, hi = j < 0, j > 3
-        mid = ~(lo | hi)
-        np.add.at(W, (rows[mid], j[mid]), w[..., k][mid])
-        # Keys' boundary rule: ghost f(-1) = 3 f(0) - 3 f(1) + f(2) (and mirrored at the top end)
-        for src, c in ((0, 3.0), (1, -3.0), (2, 1.0)):
-            np.add.at(W, (rows[lo], np.full(int(lo.sum()), src)), c * w[..., k][lo])
-            np.add.at(W, (rows[hi], np.full(int(hi.sum()), 3 - src)), c * w[..., k][hi])
+    W = np.einsum("...k,...kj->...j", w, _KEYS_BOUNDARY[off + 1])
     return start[..., None] + np.arange(4), W, inside
 
 
@@ -145,6 +149,104 @@ def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int):
     if order == 1 or n < 4:
         return np.stack([i, (i + 1) % n], -1), np.stack([1.0 - t, t], -1)
     return np.mod(np.stack([i - 1, i, i + 1, i + 2], -1), n), _keys(t)
+
+
+# --------------------------------------------------------------------------------------------
+# Compiled kernels: per query, the error curve over the yaw nodes and the 1-D inversion. One heading
+# in numpy cost ~8 ms of call overhead (60 bisection steps, 64 stencil terms); the same algorithm
+# compiled costs microseconds, which matters for a node correcting every frame.
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - compiled
+    """Tensor-product interpolation of the error curves: out[q, y] = sum w_a w_p w_r E[a, y, p, r].
+    A node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in place)."""
+    N = ia.shape[0]
+    Y = E.shape[1]
+    out = np.zeros((N, Y))
+    for q in range(N):
+        for a in range(ia.shape[1]):
+            for b in range(ip.shape[1]):
+                for c in range(ir.shape[1]):
+                    w = wa[q, a] * wp[q, b] * wr[q, c]
+                    A, P, R = ia[q, a], ip[q, b], ir[q, c]
+                    good = True
+                    for y in range(Y):
+                        if not V[A, y, P, R]:
+                            good = False
+                        v = E[A, y, P, R]
+                        if np.isfinite(v):
+                            out[q, y] += w * v
+                    if not good and w != 0.0:
+                        ok[q] = False
+    return out
+
+
+@njit(inline="always", cache=True)
+def _wrap180(a):  # pragma: no cover - compiled
+    w = np.mod(a + 180.0, 360.0) - 180.0
+    return 180.0 if w == -180.0 else w
+
+
+@njit(inline="always", cache=True)
+def _curve_at(curve, q, psi, yaw0, step, n, cubic):  # pragma: no cover - compiled
+    """The error curve of query q at yaw psi (periodic; Keys cubic or linear), as :func:`_yaw_weights`."""
+    u = np.mod(psi - yaw0, 360.0) / step
+    i = int(np.floor(u))
+    t = min(max(u - i, 0.0), 1.0)
+    i = i % n
+    if not cubic:
+        return curve[q, i] * (1.0 - t) + curve[q, (i + 1) % n] * t
+    t2 = t * t
+    t3 = t2 * t
+    return (curve[q, (i - 1) % n] * (-0.5 * t3 + t2 - 0.5 * t) + curve[q, i] * (1.5 * t3 - 2.5 * t2 + 1.0)
+            + curve[q, (i + 1) % n] * (-1.5 * t3 + 2.0 * t2 + 0.5 * t) + curve[q, (i + 2) % n] * (0.5 * t3 - 0.5 * t2))
+
+
+@njit(cache=True, nogil=True)
+def _invert_kernel(curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert):  # pragma: no cover - compiled
+    """Per query: ``sub`` (the subtract estimate), the roots of f(u) = u + e(meas + u) on the sample grid
+    ``u`` (sign changes, exact zeros), each refined by 60 bisection steps, as yaws wrapped to (-180, 180]
+    (``cand``, NaN-padded, first ``max_roots``), their count, and the root nearest ``sub`` (``psi``).
+    With ``invert`` False only ``sub`` is computed."""
+    N = meas.shape[0]
+    S = u.shape[0]
+    sub = np.zeros(N)
+    psi = np.zeros(N)
+    n_roots = np.zeros(N, dtype=np.int64)
+    cand = np.full((N, max_roots), np.nan)
+    f = np.empty(S)
+    for q in range(N):
+        sub[q] = _wrap180(meas[q] - _curve_at(curve, q, meas[q], yaw0, step, n, cubic))
+        if not (ok[q] and invert):
+            continue
+        for k in range(S):
+            f[k] = u[k] + _curve_at(curve, q, meas[q] + u[k], yaw0, step, n, cubic)
+        best = np.inf
+        for k in range(S - 1):
+            zero = f[k] == 0.0
+            if not (zero or np.sign(f[k]) * np.sign(f[k + 1]) < 0):
+                continue
+            if zero:
+                root = u[k]
+            else:
+                lo, hi, flo = u[k], u[k + 1], f[k]
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    fm = mid + _curve_at(curve, q, meas[q] + mid, yaw0, step, n, cubic)
+                    if np.sign(fm) == np.sign(flo):
+                        lo, flo = mid, fm
+                    else:
+                        hi = mid
+                root = 0.5 * (lo + hi)
+            c = _wrap180(meas[q] + root)
+            if n_roots[q] < max_roots:
+                cand[q, n_roots[q]] = c
+            n_roots[q] += 1
+            d = abs(_wrap180(c - sub[q]))
+            if d < best:
+                best = d
+                psi[q] = c
+    return sub, psi, n_roots, cand
 
 
 # --------------------------------------------------------------------------------------------
@@ -205,17 +307,8 @@ class TiltCorrector:
     def _curves_order(self, h, p, r, order):
         """Error curves over the yaw nodes (N, Y), their validity (N,), and inside (N,)."""
         (ia, wa), (ip, wp), (ir, wr), inside = self._tilt_weights(h, p, r, order)
-        N = h.size
-        out = np.zeros((N, self.n_yaw))
         ok = inside.copy()
-        for a in range(ia.shape[1]):
-            for b in range(ip.shape[1]):
-                for c in range(ir.shape[1]):
-                    w = wa[:, a] * wp[:, b] * wr[:, c]
-                    vals = self.E[ia[:, a], :, ip[:, b], ir[:, c]]          # (N, Y)
-                    good = self.V[ia[:, a], :, ip[:, b], ir[:, c]].all(axis=1)
-                    ok &= good | (w == 0.0)
-                    out += w[:, None] * np.where(np.isfinite(vals), vals, 0.0)
+        out = _accumulate_curves(self.E, self.V, *(np.ascontiguousarray(v) for v in (ia, wa, ip, wp, ir, wr)), ok)
         return out, ok, inside
 
     def curves(self, h, p, r):
@@ -257,53 +350,25 @@ class TiltCorrector:
             raise ErrorMapError(f"correction mode must be 'invert' or 'subtract', got {mode!r}")
         meas, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
                          for v in np.broadcast_arrays(psi_meas_deg, h_deg, pitch_deg, roll_deg))
-        N = meas.size
         finite = np.isfinite(meas) & np.isfinite(h) & np.isfinite(p) & np.isfinite(r)
         meas = np.where(finite, meas, 0.0)
         h, p, r = (np.where(finite, v, 0.0) for v in (h, p, r))
         curve, ok = self.curves(h, p, r)
         ok &= finite
-        rows = np.arange(N)
         status = np.where(ok, STATUS_INT[CorrectionStatus.OK], STATUS_INT[CorrectionStatus.OUT_OF_DOMAIN])
         status = status.astype(np.int8)
-        sub = wrap_180_deg(meas - self._eval_on_curve(curve, rows, meas))
-        if mode == "subtract":
-            return np.where(ok, sub, 0.0), status, ok.astype(np.int64), (np.nonzero(ok)[0], sub[ok])
-        # f(u) = u + e(meas + u) for offsets u in [-90, 90]: sample, bracket sign changes, bisect
         du = self.yaw_step / max(1, int(oversample))
         n_s = int(math.ceil(180.0 / du)) + 1
-        u = np.linspace(-90.0, 90.0, n_s)
-        f = u[None, :] + self._eval_on_curve(curve, np.repeat(rows[:, None], n_s, 1), meas[:, None] + u[None, :])
-        zero = f[:, :-1] == 0.0
-        change = zero | (np.sign(f[:, :-1]) * np.sign(f[:, 1:]) < 0)
-        change &= ok[:, None]
-        n_roots = change.sum(axis=1)
-        qi, si = np.nonzero(change)
-        lo, hi = u[si].copy(), u[si + 1].copy()
-        flo = f[qi, si]
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            fm = mid + self._eval_on_curve(curve, qi, meas[qi] + mid)
-            left = np.sign(fm) == np.sign(flo)
-            lo = np.where(left, mid, lo)
-            flo = np.where(left, fm, flo)
-            hi = np.where(left, hi, mid)
-        root_u = np.where(zero[qi, si], u[si], 0.5 * (lo + hi))
-        # pick, per query, the root nearest the subtract estimate
-        best = np.full(N, np.inf)
-        psi = np.zeros(N)
-        cand = wrap_180_deg(meas[qi] + root_u)
-        dist = np.abs(wrap_180_deg(cand - sub[qi]))
-        order = np.lexsort((dist, qi))
-        for k in order:                       # roots are few (one per query in practice)
-            q = qi[k]
-            if dist[k] < best[q]:
-                best[q] = dist[k]
-                psi[q] = cand[k]
+        u = np.linspace(-90.0, 90.0, n_s)                 # offsets of the yaw search window, deg
+        sub, psi, n_roots, cand = _invert_kernel(curve, ok, meas, self.yaw0, self.yaw_step, self.n_yaw,
+                                                 self.order == 3 and self.n_yaw >= 4, u, _MAX_ROOTS,
+                                                 mode == "invert")
+        if mode == "subtract":
+            return np.where(ok, sub, 0.0), status, ok.astype(np.int64), cand
         status = np.where(ok & (n_roots == 0), STATUS_INT[CorrectionStatus.NO_SOLUTION], status)
         status = np.where(ok & (n_roots > 1), STATUS_INT[CorrectionStatus.MULTIPLE_SOLUTIONS], status)
         psi = np.where(ok & (n_roots > 0), psi, 0.0)
-        return psi, status.astype(np.int8), n_roots, (qi, cand)
+        return psi, status.astype(np.int8), n_roots, cand
 
     def correct(self, psi_meas_deg: float, sun_altitude_deg: float, pitch_deg: float, roll_deg: float,
                 mode: str = "invert") -> Correction:
@@ -311,13 +376,13 @@ class TiltCorrector:
         vals = (psi_meas_deg, sun_altitude_deg, pitch_deg, roll_deg)
         if not all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(float(v)) for v in vals):
             return Correction(CorrectionStatus.OUT_OF_DOMAIN, mode=mode, reason=f"non-finite input {vals}")
-        psi, status, n_roots, (qi, cand) = self._correct(*[float(v) for v in vals], mode=mode)
+        psi, status, n_roots, cand = self._correct(*[float(v) for v in vals], mode=mode)
         st = _FROM_INT[int(status[0])]
         if st == CorrectionStatus.OUT_OF_DOMAIN:
             return Correction(st, mode=mode, reason=self._why_out(*[float(v) for v in vals[1:]]))
         if st == CorrectionStatus.NO_SOLUTION:
             return Correction(st, mode=mode, reason="no yaw in +-90 deg of the measurement predicts it")
-        cands = tuple(float(c) for c in np.sort(cand[qi == 0]))
+        cands = tuple(float(c) for c in np.sort(cand[0][np.isfinite(cand[0])]))
         psi0 = float(psi[0])
         err = float(wrap_180_deg(float(psi_meas_deg) - psi0))
         reason = "" if st == CorrectionStatus.OK else \

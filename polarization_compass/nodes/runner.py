@@ -7,6 +7,10 @@
 * A node may end itself (the simulator after its last frame) by raising :class:`ExitRequest`.
 * A node with ``executor_threads = N > 1`` spins on a MultiThreadedExecutor (the estimator: small
   inputs such as the IMU keep flowing while an image is being processed).
+* Before ROS starts, glibc's allocator is told to keep large blocks in the heap
+  (:func:`keep_large_buffers_in_heap`): a 10 MB image otherwise costs every subscriber three fresh
+  ``mmap`` regions per message, zero-filled by the kernel page by page (measured: 21 ms of system
+  time and 7300 page faults per 2448x2048 mono16 image per subscriber; 0.2 ms and none with it).
 """
 from __future__ import annotations
 
@@ -14,7 +18,15 @@ import sys
 
 from ..errors import CompassError
 
-__all__ = ["run_node", "ExitRequest"]
+__all__ = ["run_node", "ExitRequest", "keep_large_buffers_in_heap"]
+
+#: glibc ``mallopt`` parameters (malloc.h) and the values the nodes use.
+_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
+#: Largest block glibc accepts as mmap threshold on 64-bit (``DEFAULT_MMAP_THRESHOLD_MAX``, 32 MiB):
+#: covers a 10 MB mono16 and a 20 MB 32FC1 full-resolution mosaic.
+MMAP_THRESHOLD_BYTES = 32 << 20
+TRIM_THRESHOLD_BYTES = 1 << 30
+TOP_PAD_BYTES = 64 << 20
 
 
 class ExitRequest(Exception):
@@ -25,10 +37,33 @@ class ExitRequest(Exception):
         self.code = int(code)
 
 
+def keep_large_buffers_in_heap() -> bool:
+    """Make glibc serve and keep large blocks (images) in the heap instead of a fresh ``mmap`` each.
+
+    Each image message passes through three buffers of its size (the middleware's, the C message's and
+    Python's). Above glibc's mmap threshold each is a new mapping that the kernel zero-fills page by
+    page and unmaps on free; with the threshold raised and trimming deferred, freed image buffers are
+    reused. Returns True when applied; False (no change) where the C library is not glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    mallopt.restype = ctypes.c_int
+    return all(mallopt(opt, val) == 1 for opt, val in ((_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES),
+                                                        (_M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES),
+                                                        (_M_TOP_PAD, TOP_PAD_BYTES)))
+
+
 def run_node(factory, name: str, argv=None) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 
+    keep_large_buffers_in_heap()
     try:
         rclpy.init(args=argv if argv is not None else sys.argv)
     except Exception as exc:  # noqa: BLE001 - e.g. malformed --ros-args
