@@ -16,11 +16,23 @@ Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX25
       extinction_ratio: {value: 100}          # finite polarizer extinction ratio (> 1)
       demosaic: bilinear                      # or superpixel
 
-``{}`` or null parameters mean the defaults shown. ``mosaic`` and ``exposure`` are parameter blocks:
-once any effect is declared the mosaic and the demosaic always run (IMX250MZR defaults if absent).
-Stages counted in :mod:`instrumentation`: ``sensor.mosaic``, ``sensor.extinction_ratio``,
-``sensor.shot_noise``, ``sensor.read_noise``, ``sensor.quantization``, ``sensor.demosaic.<method>``;
-an effect that is not declared is neither counted nor computed (its kernel branch is switched off).
+``{}`` or null parameters mean the defaults shown. Once any key is declared the mosaic and the
+demosaic always run (IMX250MZR layout if ``mosaic`` is absent). Each other effect is a stage of its own
+that runs only if declared; its arithmetic exists only in the kernels of that stage (``_IMPLEMENTS``):
+
+- ``mosaic``: Malus's law per pixel behind ideal polarizers (``_mean_electrons_kernel``);
+- ``extinction_ratio``: the same with leaky polarizers (``_mean_electrons_er_kernel`` replaces it);
+- ``shot_noise`` / ``read_noise``: ``_shot_noise_kernel``, ``_read_noise_kernel``, or both fused in
+  ``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
+- ``exposure``: the finite well, saturation at ``full_well_e`` (``_saturate_kernel``, fused into the DN
+  pass as ``_saturate_quantize_kernel`` when quantised). Without it the well is unlimited: nothing
+  saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every electron-domain
+  stage, not a computation; without ``exposure`` it is the default's 5250 e-;
+- ``quantization``: electrons to DN (``_quantize_kernel``); the ADC range clips at 2^bits - 1.
+
+Each kernel run counts, in :mod:`instrumentation`, ``sensor.<effect>`` for every effect the kernel
+implements and ``sensor.kernel.<kernel>``; the demosaic counts ``sensor.demosaic.<method>``. A stage
+that is not declared is neither run nor counted (tests replace its kernels by ones that raise).
 
 Physics
 -------
@@ -35,8 +47,8 @@ electrons of an unpolarized S0 = 1 pixel. Shot noise: exact Poisson (Knuth's pro
 ``lambda < gaussian_above_e``, else Gaussian with the same mean and variance (at 20 e- the Poisson
 skewness 1/sqrt(20) = 0.22 is the only difference; it falls as 1/sqrt(lambda)). Read noise: Gaussian
 ``sigma_e``; with shot noise in the Gaussian regime both are one draw of variance
-``lambda + sigma_e^2`` (independent Gaussians add). The signal is then clipped at ``full_well_e``
-(saturation; clipped pixels read exactly full scale and the demosaic marks them invalid). Without
+``lambda + sigma_e^2`` (independent Gaussians add). With ``exposure`` the signal is then clipped at
+``full_well_e`` (saturation; clipped pixels read exactly full scale and the demosaic marks them invalid). Without
 ``quantization`` the mosaic is float32 electrons (read noise can make it slightly negative); with it,
 ``DN = round(e * (2^bits - 1) / full_well_e)`` clipped to [0, 2^bits - 1], uint8 for 8 bits else uint16.
 The demosaic does not correct for ``d`` (like an uncalibrated camera): measured DoP = d * DoP.
@@ -68,7 +80,6 @@ Sensor effects need a contiguous block of pixels (``pixels.mode`` full or region
 """
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -130,6 +141,7 @@ class SensorConfig:
     read_sigma_e: float | None
     bits: int | None
     demosaic: str
+    saturates: bool = False          # ``exposure`` declared: the well is finite (clip at full_well_e)
 
     @property
     def d(self) -> float:
@@ -146,8 +158,21 @@ class SensorConfig:
     def max_dn(self) -> int | None:
         return None if self.bits is None else (1 << self.bits) - 1
 
+    @property
+    def saturation_level(self) -> float | None:
+        """The raw value at which a sample is saturated: the ADC's full scale when quantised, the full well
+        when ``exposure`` is declared, else None (an unlimited well never saturates)."""
+        if self.bits is not None:
+            return float(self.max_dn)
+        return self.full_well_e if self.saturates else None
+
     def describe(self) -> dict:
-        return {"mosaic": self.layout.describe(), "exposure": {"full_well_e": self.full_well_e, "fill": self.fill},
+        # exposure.full_well_e is the saturation level of an unquantised mosaic (None: unlimited well);
+        # n0_e the electrons of an unpolarized S0 = 1 pixel, the scale of every electron-domain stage
+        return {"mosaic": self.layout.describe(),
+                "exposure": {"full_well_e": self.full_well_e if self.saturates else None, "fill": self.fill,
+                             "n0_e": self.n0_e, "saturation": self.saturates,
+                             "adc_full_scale_e": None if self.bits is None else self.full_well_e},
                 "extinction_ratio": self.extinction_ratio, "shot_noise_gaussian_above_e": self.shot_gaussian_above_e,
                 "read_noise_sigma_e": self.read_sigma_e, "quantization_bits": self.bits, "demosaic": self.demosaic}
 
@@ -190,7 +215,7 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         method = "bilinear"
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f"sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}")
-    return SensorConfig(layout, full_well, fill, er, shot, read, bits, method)
+    return SensorConfig(layout, full_well, fill, er, shot, read, bits, method, saturates="exposure" in cfg)
 
 
 def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
@@ -359,11 +384,45 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------
-# Forward model kernel
+# Forward model: one kernel per stage (and per combination of fused effects)
 # ------------------------------------------------------------------------------------------------
+# Every effect's arithmetic lives only in the kernels that implement it; the kernels of the other stages
+# do not contain it (no "multiply by 1", no "add 0 * noise", no "min with +inf"). ``_IMPLEMENTS`` names
+# the effects each kernel computes and ``_run`` counts exactly those (plus the kernel itself) when that
+# kernel runs, so a counter reports the code that ran, not the configuration that asked for it.
+_IMPLEMENTS = {
+    "_mean_electrons_kernel": ("mosaic",),                          # ideal polarizers (Malus)
+    "_mean_electrons_er_kernel": ("mosaic", "extinction_ratio"),    # leaky polarizers: DoP scaled by d
+    "_shot_noise_kernel": ("shot_noise",),
+    "_read_noise_kernel": ("read_noise",),
+    "_shot_read_noise_kernel": ("shot_noise", "read_noise"),        # one draw of variance lambda + sigma^2
+    "_saturate_kernel": ("exposure",),                              # full-well clip, float32 electrons
+    "_quantize_kernel": ("quantization",),                          # DN; the ADC range clips at 2^bits - 1
+    "_saturate_quantize_kernel": ("exposure", "quantization"),      # full-well clip fused into the DN pass
+}
+
+
+def _run(name: str, *args) -> None:
+    """Run the kernel ``name`` (looked up at call time) and count ``sensor.<effect>`` for each effect it
+    implements and ``sensor.kernel.<name>``: one dict increment per stage per frame."""
+    for effect in _IMPLEMENTS[name]:
+        instr.count("sensor." + effect)
+    instr.count("sensor.kernel." + name)
+    globals()[name](*args)
+
+
 @njit(inline="always", fastmath=_FM, cache=True)
-def _lambda_unit(a, dp, p, q, n0, d):  # pragma: no cover - compiled
-    """Mean electrons at S0 = 1: N0 (1 - d DoP (p cos 2a - q sin 2a)), float32."""
+def _malus_unit(a, dp, p, q, n0):  # pragma: no cover - compiled
+    """Mean electrons at S0 = 1 behind an ideal polarizer: N0 (1 - DoP (p cos 2a - q sin 2a)), float32."""
+    sa, ca = sincos32(a)
+    one = np.float32(1.0)
+    dp = min(max(dp, np.float32(0.0)), one)
+    return n0 * (one - dp * (p * (ca * ca - sa * sa) - q * (np.float32(2.0) * sa * ca)))
+
+
+@njit(inline="always", fastmath=_FM, cache=True)
+def _malus_unit_er(a, dp, p, q, n0, d):  # pragma: no cover - compiled
+    """The same behind a polarizer of efficiency d = (ER - 1) / (ER + 1): DoP is seen as d DoP."""
     sa, ca = sincos32(a)
     one = np.float32(1.0)
     dp = min(max(dp, np.float32(0.0)), one)
@@ -371,11 +430,34 @@ def _lambda_unit(a, dp, p, q, n0, d):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
-def _mean_electrons_kernel(aop, dop, s0, has_s0, pq, n0, d, out):  # pragma: no cover - compiled
-    """lambda = N0 S0 (1 - d DoP (p cos 2a - q sin 2a)) per pixel, (p, q) = (cos, sin) 2phi of the
-    pixel's polarizer (row/column parity). float32 and branch-free inner loops so that they vectorise
-    (8 lanes; keep them that way: a select on a loaded S0 inside one loop made it 5x slower). The
-    float32 sine/cosine polynomials are good to ~1e-7. Non-finite or negative S0 count as 0."""
+def _mean_electrons_kernel(aop, dop, s0, has_s0, pq, n0, out):  # pragma: no cover - compiled
+    """lambda = N0 S0 (1 - DoP (p cos 2a - q sin 2a)) per pixel (ideal polarizers), (p, q) = (cos, sin)
+    2phi of the pixel's polarizer (row/column parity). float32 and branch-free inner loops so that they
+    vectorise (8 lanes; keep them that way: a select on a loaded S0 inside one loop made it 5x slower).
+    The float32 sine/cosine polynomials are good to ~1e-7. Non-finite or negative S0 count as 0."""
+    H, W = aop.shape
+    n0f = np.float32(n0)
+    zero = np.float32(0.0)
+    for i in prange(H):
+        r = i & 1
+        pe, qe = np.float32(pq[r, 0, 0]), np.float32(pq[r, 0, 1])
+        po, qo = np.float32(pq[r, 1, 0]), np.float32(pq[r, 1, 1])
+        if has_s0:
+            for j in range(W):
+                odd = (j & 1) == 1
+                lam = _malus_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f)
+                sv = s0[i, j]
+                ok = (sv >= zero) & (sv < np.float32(1e30))           # NaN and inf fail both
+                out[i, j] = lam * sv if ok else zero
+        else:
+            for j in range(W):
+                odd = (j & 1) == 1
+                out[i, j] = _malus_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f)
+
+
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _mean_electrons_er_kernel(aop, dop, s0, has_s0, pq, n0, d, out):  # pragma: no cover - compiled
+    """:func:`_mean_electrons_kernel` with a finite extinction ratio: DoP becomes d DoP."""
     H, W = aop.shape
     n0f = np.float32(n0)
     df = np.float32(d)
@@ -387,65 +469,107 @@ def _mean_electrons_kernel(aop, dop, s0, has_s0, pq, n0, d, out):  # pragma: no 
         if has_s0:
             for j in range(W):
                 odd = (j & 1) == 1
-                lam = _lambda_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+                lam = _malus_unit_er(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
                 sv = s0[i, j]
-                ok = (sv >= zero) & (sv < np.float32(1e30))           # NaN and inf fail both
+                ok = (sv >= zero) & (sv < np.float32(1e30))
                 out[i, j] = lam * sv if ok else zero
         else:
             for j in range(W):
                 odd = (j & 1) == 1
-                out[i, j] = _lambda_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+                out[i, j] = _malus_unit_er(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+
+
+@njit(inline="always", fastmath=_FM, cache=True)
+def _row_normals(key, b0, W):  # pragma: no cover - compiled
+    """Standard normals (float32) of pixels b0 ... b0 + W - 1: pixel n's normal starts at counter n * 1024.
+    (1) the ziggurat's fast path for every pixel, branch-free so that it vectorises, flagging the ~1.5 %
+    that need the slow path; (2) those, scalar. Equal to :func:`standard_normal_f32` element by element."""
+    stride = np.uint64(_DRAWS_PER_ELEMENT)
+    z_row = np.empty(W, np.float32)
+    slow = np.empty(W, np.bool_)
+    for j in range(W):                                   # (1) ziggurat fast path
+        z = _splitmix(key, (b0 + np.uint64(j)) * stride)
+        k = np.int64(z & np.uint64(0xFF))
+        neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
+        x = np.float64(np.int64(z >> np.uint64(11))) * (1.0 / 9007199254740992.0) * _ZW[k]
+        slow[j] = x >= _ZX[k]
+        z_row[j] = np.float32(-x if neg else x)
+    for j in range(W):                                   # (2) its slow path
+        if slow[j]:
+            z_row[j] = np.float32(_normal(key, (b0 + np.uint64(j)) * stride))
+    return z_row
+
+
+# Noise kernels. Pixel (i, j) of a W-wide image owns the counters ``(i W + j) * 1024 + [0, 1024)``: its
+# normal starts at 0, the read noise of a Poisson pixel at 512. Results do not depend on the thread count.
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _shot_noise_kernel(e, key, gauss_above):  # pragma: no cover - compiled
+    """Photon shot noise on the mean electrons ``e`` (in place): Gaussian of variance lambda where
+    lambda >= gauss_above, exact Poisson below."""
+    H, W = e.shape
+    stride = np.uint64(_DRAWS_PER_ELEMENT)
+    for i in prange(H):
+        row = e[i]
+        b0 = np.uint64(i * W)
+        z_row = _row_normals(key, b0, W)
+        for j in range(W):
+            lam = np.float64(row[j])
+            v = lam + math.sqrt(lam) * np.float64(z_row[j])
+            row[j] = row[j] if lam < gauss_above else np.float32(v)
+        if gauss_above > 0.0:
+            for j in range(W):
+                lam = np.float64(row[j])
+                if lam < gauss_above:
+                    row[j] = np.float32(_poisson_small(key, (b0 + np.uint64(j)) * stride, lam))
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
-def _noise_kernel(e, key, shot, gauss_above, read_sigma, full_well):  # pragma: no cover - compiled
-    """Shot and/or read noise on the mean electrons ``e`` (in place), then the full-well clip.
+def _read_noise_kernel(e, key, read_sigma):  # pragma: no cover - compiled
+    """Gaussian read noise of ``read_sigma`` electrons on ``e`` (in place)."""
+    H, W = e.shape
+    for i in prange(H):
+        row = e[i]
+        z_row = _row_normals(key, np.uint64(i * W), W)
+        for j in range(W):
+            row[j] = np.float32(np.float64(row[j]) + read_sigma * np.float64(z_row[j]))
 
-    Per row: (1) the ziggurat's fast path for every pixel, branch-free so that it vectorises, flagging
-    the ~1.5 % that need the slow path; (2) those, scalar; (3) the Gaussian noise, vectorised; (4) exact
-    Poisson where shot noise is on and lambda < gauss_above. Pixel (i, j) of a W-wide image owns the
-    counters ``(i W + j) * 1024 + [0, 1024)``: its normal starts at 0, the read noise of a Poisson pixel
-    at 512. The result does not depend on the number of threads.
-    """
+
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _shot_read_noise_kernel(e, key, gauss_above, read_sigma):  # pragma: no cover - compiled
+    """Shot and read noise on ``e`` (in place): one Gaussian draw of variance lambda + sigma^2 where
+    lambda >= gauss_above (independent Gaussians add), else exact Poisson plus a Gaussian read draw."""
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
     var_read = read_sigma * read_sigma
-    shot_scale = 1.0 if shot else 0.0
-    fw = np.float32(full_well)
     for i in prange(H):
-        z_row = np.empty(W, np.float32)
-        slow = np.empty(W, np.bool_)
         row = e[i]
         b0 = np.uint64(i * W)
-        for j in range(W):                                   # (1) ziggurat fast path
-            z = _splitmix(key, (b0 + np.uint64(j)) * stride)
-            k = np.int64(z & np.uint64(0xFF))
-            neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
-            x = np.float64(np.int64(z >> np.uint64(11))) * (1.0 / 9007199254740992.0) * _ZW[k]
-            slow[j] = x >= _ZX[k]
-            z_row[j] = np.float32(-x if neg else x)
-        for j in range(W):                                   # (2) its slow path
-            if slow[j]:
-                z_row[j] = np.float32(_normal(key, (b0 + np.uint64(j)) * stride))
-        for j in range(W):                                   # (3) Gaussian shot + read noise
+        z_row = _row_normals(key, b0, W)
+        for j in range(W):
             lam = np.float64(row[j])
-            v = lam + math.sqrt(shot_scale * lam + var_read) * np.float64(z_row[j])
-            low = shot and lam < gauss_above
-            row[j] = row[j] if low else min(np.float32(v), fw)
-        if shot and gauss_above > 0.0:                       # (4) exact Poisson at low counts
+            v = lam + math.sqrt(lam + var_read) * np.float64(z_row[j])
+            row[j] = row[j] if lam < gauss_above else np.float32(v)
+        if gauss_above > 0.0:
             for j in range(W):
                 lam = np.float64(row[j])
                 if lam < gauss_above:
                     base = (b0 + np.uint64(j)) * stride
-                    v = np.float64(_poisson_small(key, base, lam))
-                    if var_read > 0.0:
-                        v += read_sigma * _normal(key, base + np.uint64(512))
-                    row[j] = min(np.float32(v), fw)
+                    v = np.float64(_poisson_small(key, base, lam)) + read_sigma * _normal(key, base + np.uint64(512))
+                    row[j] = np.float32(v)
+
+
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _saturate_kernel(e, full_well):  # pragma: no cover - compiled
+    """The full well: e = min(e, full_well) in place (float32)."""
+    ef = e.reshape(-1)
+    fw = np.float32(full_well)
+    for n in prange(ef.size):
+        ef[n] = min(ef[n], fw)
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _quantize_kernel(e, gain, max_dn, out):  # pragma: no cover - compiled
-    """DN = round(e * gain) clipped to [0, max_dn] (round half up; e >= 0 after the clip)."""
+    """DN = round(e * gain) clipped to the ADC range [0, max_dn] (round half up)."""
     ef = e.reshape(-1)
     of = out.reshape(-1)
     top = np.float32(max_dn)
@@ -455,18 +579,25 @@ def _quantize_kernel(e, gain, max_dn, out):  # pragma: no cover - compiled
         of[n] = np.uint16(x)                            # <= max_dn, so exact for a uint8 output too
 
 
-def _stage_names(cfg: SensorConfig) -> list[str]:
-    names = ["sensor.mosaic"]
-    if cfg.extinction_ratio is not None:
-        names.append("sensor.extinction_ratio")
-    return names
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _saturate_quantize_kernel(e, full_well, gain, max_dn, out):  # pragma: no cover - compiled
+    """:func:`_saturate_kernel` then :func:`_quantize_kernel` in one pass (``e`` is left unclipped)."""
+    ef = e.reshape(-1)
+    of = out.reshape(-1)
+    top = np.float32(max_dn)
+    fw = np.float32(full_well)
+    for n in prange(ef.size):
+        x = min(np.float32(ef[n]), fw) * gain + np.float32(0.5)
+        x = min(max(x, np.float32(0.0)), top)
+        of[n] = np.uint16(x)
 
 
 def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, rng: np.random.Generator):
     """The raw image of a pixel block: float32 electrons, or uint8/uint16 DN if quantised.
 
     ``aop_rad``/``dop``/``s0`` (or ``s0=None`` for S0 = 1): 2-D float arrays of the block; ``layout``
-    already shifted to the block's top-left pixel. Stages are counted in ``instrumentation``.
+    already shifted to the block's top-left pixel. Only the kernels of declared effects run; each run is
+    counted in ``instrumentation`` (see ``_IMPLEMENTS``).
     """
     aop = np.ascontiguousarray(aop_rad, dtype=np.float32)
     dp = np.ascontiguousarray(dop, dtype=np.float32)
@@ -478,27 +609,29 @@ def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, r
     phi = np.radians(layout.camera_angles_deg)
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
-    with contextlib.ExitStack() as stack:
-        for name in _stage_names(cfg):
-            stack.enter_context(instr.stage(name))
-        _mean_electrons_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
-    shot = cfg.shot_gaussian_above_e is not None
-    read = cfg.read_sigma_e is not None
-    if shot or read:
-        key = int(rng.integers(0, 2 ** 63, dtype=np.int64))
-        with contextlib.ExitStack() as stack:
-            for name, on in (("sensor.shot_noise", shot), ("sensor.read_noise", read)):
-                if on:
-                    stack.enter_context(instr.stage(name))
-            _noise_kernel(e, np.uint64(key), shot, cfg.shot_gaussian_above_e if shot else 0.0,
-                          cfg.read_sigma_e if read else 0.0, cfg.full_well_e)
+    if cfg.extinction_ratio is None:
+        _run("_mean_electrons_kernel", aop, dp, s0a, has_s0, pq, cfg.n0_e, e)
     else:
-        np.minimum(e, np.float32(cfg.full_well_e), out=e)
+        _run("_mean_electrons_er_kernel", aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
+    shot, read = cfg.shot_gaussian_above_e, cfg.read_sigma_e
+    if shot is not None or read is not None:
+        key = np.uint64(int(rng.integers(0, 2 ** 63, dtype=np.int64)))
+        if read is None:
+            _run("_shot_noise_kernel", e, key, shot)
+        elif shot is None:
+            _run("_read_noise_kernel", e, key, read)
+        else:
+            _run("_shot_read_noise_kernel", e, key, shot, read)
     if cfg.bits is None:
+        if cfg.saturates:
+            _run("_saturate_kernel", e, cfg.full_well_e)
         return e
-    with instr.stage("sensor.quantization"):
-        out = np.empty(e.shape, np.uint8 if cfg.bits <= 8 else np.uint16)
-        _quantize_kernel(e, np.float32(cfg.max_dn / cfg.full_well_e), cfg.max_dn, out)
+    out = np.empty(e.shape, np.uint8 if cfg.bits <= 8 else np.uint16)
+    gain = np.float32(cfg.max_dn / cfg.full_well_e)
+    if cfg.saturates:
+        _run("_saturate_quantize_kernel", e, cfg.full_well_e, gain, cfg.max_dn, out)
+    else:
+        _run("_quantize_kernel", e, gain, cfg.max_dn, out)
     return out
 
 
@@ -602,10 +735,7 @@ class SensorPipeline:
         frame.aop_ideal_rad = frame.aop_rad
         frame.dop_ideal = frame.dop
         frame.mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, layout, rng)
-        if cfg.bits is not None:
-            sat = cfg.max_dn
-        else:
-            sat = cfg.full_well_e
+        sat = cfg.saturation_level
         with instr.stage("sensor.demosaic." + cfg.demosaic):
             aop, dop, valid = polarization_from_mosaic(frame.mosaic, layout, layout.pol45_toward, cfg.demosaic,
                                                        saturation_level=sat)

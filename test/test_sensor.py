@@ -303,20 +303,163 @@ def test_superpixel_frame_carries_block_mean_intensity():
 # ------------------------------------------------------------------------------------------------
 # Instrumentation, configuration, shipped scene
 # ------------------------------------------------------------------------------------------------
-def test_undeclared_effects_never_run():
+# Which kernels compute each effect, written down here (not read from the code): a declared effect must
+# run one of them, an undeclared one none of them. test_kernel_table_matches_the_code keeps the two in step.
+EFFECT_KERNELS = {
+    "mosaic": {"_mean_electrons_kernel", "_mean_electrons_er_kernel"},
+    "extinction_ratio": {"_mean_electrons_er_kernel"},
+    "shot_noise": {"_shot_noise_kernel", "_shot_read_noise_kernel"},
+    "read_noise": {"_read_noise_kernel", "_shot_read_noise_kernel"},
+    "exposure": {"_saturate_kernel", "_saturate_quantize_kernel"},
+    "quantization": {"_quantize_kernel", "_saturate_quantize_kernel"},
+}
+ALL_KERNELS = set().union(*EFFECT_KERNELS.values())
+
+
+def test_kernel_table_matches_the_code():
+    from polarization_compass import sensor
+    assert set(sensor._IMPLEMENTS) == ALL_KERNELS
+    for effect, kernels in EFFECT_KERNELS.items():
+        assert {k for k, effects in sensor._IMPLEMENTS.items() if effect in effects} == kernels, effect
+    # the effect-free variants do not even take the effect's parameter
+    import inspect
+    params = {k: set(inspect.signature(getattr(sensor, k).py_func).parameters) for k in ALL_KERNELS}
+    assert "d" not in params["_mean_electrons_kernel"] and "d" in params["_mean_electrons_er_kernel"]
+    assert "read_sigma" not in params["_shot_noise_kernel"] and "gauss_above" not in params["_read_noise_kernel"]
+    assert "full_well" not in params["_quantize_kernel"] and "full_well" in params["_saturate_quantize_kernel"]
+
+
+@pytest.fixture
+def kernels(monkeypatch):
+    """Records every sensor kernel that runs; kernels named in ``kernels.forbid(...)`` raise instead."""
+    from polarization_compass import sensor
+
+    class Spy:
+        calls: list = []
+        forbidden: set = set()
+
+        def forbid(self, names):
+            self.forbidden = set(names)
+
+    spy = Spy()
+    spy.calls = []
+    for name in ALL_KERNELS:
+        real = getattr(sensor, name)
+
+        def wrapper(*args, _name=name, _real=real):
+            if _name in spy.forbidden:
+                raise AssertionError(f"kernel {_name} of an undeclared effect ran")
+            spy.calls.append(_name)
+            return _real(*args)
+        monkeypatch.setattr(sensor, name, wrapper)
+    return spy
+
+
+def _patch():
+    """Ideal AoP/DoP of a rendered sky block (no sensor) and an S0 that reaches 1.6 (above full well)."""
+    f = render({})
+    s0 = np.linspace(0.3, 1.6, f.aop_rad.size).reshape(f.aop_rad.shape).astype(np.float32)
+    return f.aop_rad, f.dop, s0
+
+
+# declared config -> the kernels that must run, in order; the effect-free config of the same effect
+EFFECT_CASES = {
+    "extinction_ratio": ({"extinction_ratio": {"value": 50}}, ["_mean_electrons_er_kernel"], {"mosaic": {}}),
+    "exposure": ({"exposure": {}}, ["_mean_electrons_kernel", "_saturate_kernel"], {"mosaic": {}}),
+    "quantization": ({"quantization": {"bits": 12}}, ["_mean_electrons_kernel", "_quantize_kernel"], {"mosaic": {}}),
+    "shot_noise": ({"shot_noise": {}}, ["_mean_electrons_kernel", "_shot_noise_kernel"],
+                   {"read_noise": {"sigma_e": 30.0}}),
+    "read_noise": ({"read_noise": {"sigma_e": 30.0}}, ["_mean_electrons_kernel", "_read_noise_kernel"],
+                   {"shot_noise": {}}),
+}
+
+
+def _expected(sensor, aop, dop, s0, key):
+    """Independent float64 computation of the mosaic for the configurations of EFFECT_CASES: Malus's law
+    (vectors, malus_electrons), then N(0, 1) draws of the reference stream scaled by the declared noise's
+    sigma, then the full-well clip, then 12-bit DN. Returns (expected, mask of pixels it is exact for)."""
+    layout = [[90, 45], [135, 0]]
+    er = (sensor.get("extinction_ratio") or {}).get("value")
+    d = 1.0 if er is None else (er - 1) / (er + 1)
+    lam = malus_electrons(aop, dop, 5250.0, layout, "+x+y", d=d, s0=s0)
+    var = np.zeros_like(lam)
+    if "shot_noise" in sensor:
+        var = var + lam
+    if "read_noise" in sensor:
+        var = var + sensor["read_noise"]["sigma_e"] ** 2
+    z = standard_normal_f32(key, lam.shape).astype(float)
+    e = lam + np.sqrt(var) * z
+    exact = lam >= 20.0 if "shot_noise" in sensor else np.ones(lam.shape, bool)     # Gaussian regime
+    if "exposure" in sensor:
+        e = np.minimum(e, 10500.0)
+    if "quantization" in sensor:
+        e = np.clip(np.floor(e * 4095 / 10500 + 0.5), 0, 4095)
+    return e, exact
+
+
+@pytest.mark.parametrize("effect", sorted(EFFECT_CASES))
+def test_each_effect_runs_its_kernel_only_when_declared(effect, kernels):
+    """Declared: its stage is counted, its kernel runs, the mosaic is the independent computation with
+    the effect. Not declared: none of its kernels runs (they raise), nothing is counted, and the mosaic
+    is the independent computation without it (ideal Malus intensities, or the other noise alone)."""
+    aop, dop, s0 = _patch()
+    declared, expect_kernels, undeclared = EFFECT_CASES[effect]
+    for sensor_cfg, has_effect in ((declared, True), (undeclared, False)):
+        cfg = parse_sensor_config(sensor_cfg)
+        kernels.calls.clear()
+        kernels.forbid(() if has_effect else EFFECT_KERNELS[effect])
+        instr.reset()
+        m = simulate_mosaic(aop, dop, s0, cfg, cfg.layout, np.random.default_rng(9))
+        c = instr.counts()
+        assert (c.get("sensor." + effect) == 1) is has_effect, (effect, sensor_cfg, c)
+        assert not EFFECT_KERNELS[effect] & set(kernels.calls) if not has_effect else kernels.calls == expect_kernels
+        assert {k[len("sensor.kernel."):] for k in c if k.startswith("sensor.kernel.")} == set(kernels.calls)
+        key = int(np.random.default_rng(9).integers(0, 2 ** 63, dtype=np.int64))
+        ref, exact = _expected(sensor_cfg, aop, dop, s0, key)
+        if "quantization" in sensor_cfg:
+            assert m.dtype == np.uint16
+            diff = m.astype(float) - ref
+            assert np.abs(diff).max() <= 1 and np.mean(diff != 0) < 1e-3     # .5 ties in float32: rarely 1 DN
+        else:
+            assert m.dtype == np.float32
+            # float32 electrons against float64: 1e-6 relative; the effect at stake is >= 3 e- (noise terms
+            # with sigma 30 vs sqrt(lambda) differ by ~6 z e-; the full-well clip by up to 6300 e-)
+            np.testing.assert_allclose(m[exact], ref[exact], rtol=2e-6, atol=2e-2)
+    # the effect makes a difference here (otherwise the comparison above proves nothing)
+    a_ref, _ = _expected(declared, aop, dop, s0, key)
+    b_ref, _ = _expected(undeclared, aop, dop, s0, key)
+    assert np.abs(a_ref - b_ref).max() > 3
+
+
+def test_without_exposure_the_well_is_unlimited():
+    """S0 = 2.5, unpolarized: 2.5 x 5250 = 13 125 e- mean, above the 10 500 e- well."""
+    s0 = np.full((256, 256), 2.5, np.float32)
+    m, cfg = uniform_mosaic({"shot_noise": {}}, s0=s0, dop=0.0, shape=s0.shape)
+    assert abs(m.mean() - 13125) < 1 and m.min() > 10500          # nothing clips (sd 115 e-)
+    assert cfg.saturation_level is None and not cfg.saturates
+    m, cfg = uniform_mosaic({"shot_noise": {}, "exposure": {}}, s0=s0, dop=0.0, shape=s0.shape)
+    assert np.all(m == 10500) and cfg.saturation_level == 10500
+    assert parse_sensor_config({"quantization": {"bits": 8}}).saturation_level == 255
+
+
+def test_renderer_counts_exactly_the_declared_stages(kernels):
     instr.reset()
     f = render({"mosaic": {}})
     c = instr.counts()
-    assert c.get("sensor.mosaic") == 1 and c.get("sensor.demosaic.bilinear") == 1
-    for name in ("shot_noise", "read_noise", "quantization", "extinction_ratio"):
-        assert "sensor." + name not in c
-    # and behaviourally: without noise the mosaic is the closed form, bit-stable across seeds
+    assert c == {"geometry": 1, "sky.rayleigh": 1, "sensor": 1, "sensor.mosaic": 1,
+                 "sensor.kernel._mean_electrons_kernel": 1, "sensor.demosaic.bilinear": 1}, c
+    assert kernels.calls == ["_mean_electrons_kernel"]
+    # without noise the mosaic does not depend on the seed
     np.testing.assert_array_equal(f.mosaic, render({"mosaic": {}}, seed=99).mosaic)
     instr.reset()
-    render({"shot_noise": {}, "read_noise": {}, "quantization": {}, "extinction_ratio": {}, "demosaic": "superpixel"})
+    kernels.calls.clear()
+    render({"exposure": {}, "shot_noise": {}, "read_noise": {}, "quantization": {}, "extinction_ratio": {},
+            "demosaic": "superpixel"})
     c = instr.counts()
-    for name in ("mosaic", "shot_noise", "read_noise", "quantization", "extinction_ratio", "demosaic.superpixel"):
+    for name in ("mosaic", "exposure", "shot_noise", "read_noise", "quantization", "extinction_ratio",
+                 "demosaic.superpixel"):
         assert c.get("sensor." + name) == 1, name
+    assert kernels.calls == ["_mean_electrons_er_kernel", "_shot_read_noise_kernel", "_saturate_quantize_kernel"]
 
 
 @pytest.mark.parametrize("bad,match", [
