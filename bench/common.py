@@ -27,7 +27,7 @@ import numpy as np
 
 __all__ = ["BenchConfig", "machine_info", "load_average", "single_core", "time_calls", "timing_stats",
            "peak_memory", "error_stats", "write_json", "read_json", "finite_or_none", "RESULTS_DIR",
-           "Unavailable", "optional_import"]
+           "Unavailable", "Skipped", "optional_import"]
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 REPO_DIR = Path(__file__).resolve().parent.parent
@@ -53,6 +53,11 @@ class BenchConfig:
     peers_python: str | None = None  # an interpreter where the peers are installed (subprocess)
     tiny: bool = False               # smoke-test size: small camera, 1-2 scenes
     error_map: str | None = None     # map for tilted_corrected (default $BENCH_ERROR_MAP, else the shipped one)
+    speed_repeats: int = 10          # estimator_speed: timed front-end calls per method and attitude
+    graph_turns: float = 0.25        # graph: `sim --realtime --turns` (full: 0.5 = 180 frames at 10 deg/s, 10 Hz)
+    graph_turn_rate: float = 60.0    # graph: `sim --turn-rate` deg/s (quick: 0.25 turn at 60 deg/s = 15 frames)
+    replay_duration_s: float = 3.0   # replay: `record-sim --duration` (full: 20 s)
+    explicit_groups: tuple = ()      # groups named with --only (graph runs in quick mode only when named)
 
     @staticmethod
     def quick(**kw) -> "BenchConfig":
@@ -61,7 +66,8 @@ class BenchConfig:
     @staticmethod
     def full(**kw) -> "BenchConfig":
         base = dict(mode="full", scenes=24, repeats=3, render_repeats=20, solar_batch=100000, solar_calls=200,
-                    errormap_cells=2000, pipeline_frames=50,
+                    errormap_cells=2000, pipeline_frames=50, speed_repeats=30, graph_turns=0.5,
+                    graph_turn_rate=10.0, replay_duration_s=20.0,
                     crb_sun_altitudes_deg=(5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0), knob_sets="full")
         base.update(kw)
         return BenchConfig(**base)
@@ -276,6 +282,11 @@ def read_json(path: Path) -> dict:
 # ------------------------------------------------------------------------------------------------
 class Unavailable(Exception):
     """A piece this benchmark needs is not there (module not written yet or peer not installed)."""
+
+
+class Skipped(Exception):
+    """The group does not run in this mode (e.g. a minute-long ROS graph in the smoke test); the reason
+    says how to run it."""
 
 
 def optional_import(name: str):
