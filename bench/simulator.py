@@ -5,6 +5,13 @@ with a fixed sun, on one numba thread and on all threads. ``stages`` lists the p
 ran (from :mod:`polarization_compass.instrumentation`), so the table shows that a scene that does not
 declare an effect neither runs it nor pays for it. The acceptance figure of issue 2, a stride-8
 render at least 30x faster than a full one, is recorded as ``stride8_speedup`` with a pass flag.
+
+Stages alone (``stage_rows``): ``sensor.simulate_mosaic`` on its own (shot noise, read noise,
+12-bit quantisation, extinction ratio, from the ideal full frame's AoP/DoP) and
+``demosaic.polarization_from_mosaic`` on its own (superpixel and full-resolution bilinear, on that
+12-bit mosaic), so that issue 2's per-stage targets are measured and not only render + sensor +
+demosaic together. ``summary["targets"]`` lists every issue-2 target beside the measured value
+(one thread and all threads) with pass flags; the flags are ``None`` on the tiny smoke-test camera.
 """
 from __future__ import annotations
 
@@ -35,6 +42,15 @@ EFFECTS = {
     "extinction_ratio": {"value": 100.0},
 }
 ALL_EFFECTS = list(EFFECTS)
+
+#: Issue 2's targets (ms, full 2448 x 2048 frame) for the rows named here.
+STAGE_TARGETS_MS = {
+    "full": ("full-resolution ideal tilted frame (render)", 20.0),
+    "mosaic alone: shot + read noise, 12-bit": ("mosaic with shot noise, read noise and 12-bit quantisation", 60.0),
+    "demosaic alone: superpixel": ("demosaic to AoP/DoP, superpixel", 10.0),
+    "demosaic alone: full-resolution": ("demosaic to AoP/DoP, full resolution (bilinear)", 50.0),
+}
+FULL_SIZE = (2448, 2048)
 
 
 def sensor_config(effects, demosaic="superpixel", bits=None) -> dict:
@@ -106,6 +122,7 @@ def run(cfg) -> dict:
         row["memory"] = peak_memory(lambda: renderer.render(attitude=ATTITUDE, sun=SUN, seed=3))
         row["status"] = "ok"
         results.append(row)
+    results += stage_rows(cam, base, reps)
     by = {r["name"]: r for r in results if r.get("status") == "ok"}
     summary = {}
     if "full" in by:
@@ -119,8 +136,62 @@ def run(cfg) -> dict:
                 summary[f"stride8_speedup_{label}"] = sp
                 summary[f"stride8_at_least_30x_{label}"] = bool(sp >= 30.0)
         summary["full_frame_ideal_ms"] = {k: by["full"][k]["median_ms"] for k in ("single_thread", "all_threads")}
+    summary["targets"] = targets(by, (cam.width_px, cam.height_px) == FULL_SIZE)
     return {"camera": {"width_px": cam.width_px, "height_px": cam.height_px},
             "attitude": vars(ATTITUDE) if hasattr(ATTITUDE, "__dict__") else str(ATTITUDE),
             "sun": {"azimuth_deg": SUN.azimuth_deg, "altitude_deg": SUN.altitude_deg},
             "effects_definition": EFFECTS, "rows": results, "summary": summary,
             "timestamp": time.time()}
+
+
+def stage_rows(cam, base: Scene, reps: int) -> list[dict]:
+    """``simulate_mosaic`` alone and the two demosaics alone on a full frame (one thread and all)."""
+    import numpy as np
+
+    from polarization_compass.demosaic import polarization_from_mosaic
+    from polarization_compass.sensor import parse_sensor_config, simulate_mosaic
+    frame = Renderer(base, pixels=PixelSelection.full()).render(attitude=ATTITUDE, sun=SUN, seed=1)
+    scfg = parse_sensor_config(sensor_config(ALL_EFFECTS, "superpixel"))
+    layout = scfg.layout
+    rng = np.random.default_rng(7)
+    mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, scfg, layout, rng)   # also compiles
+    calls = [
+        ("mosaic alone: shot + read noise, 12-bit",
+         lambda: simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, scfg, layout, rng),
+         "sensor.simulate_mosaic: " + ", ".join(k for k in ALL_EFFECTS if k != "mosaic")),
+        ("demosaic alone: superpixel",
+         lambda: polarization_from_mosaic(mosaic, layout, layout.pol45_toward, "superpixel", saturation_level=scfg.max_dn),
+         "demosaic.polarization_from_mosaic(superpixel) of the 12-bit mosaic"),
+        ("demosaic alone: full-resolution",
+         lambda: polarization_from_mosaic(mosaic, layout, layout.pol45_toward, "bilinear", saturation_level=scfg.max_dn),
+         "demosaic.polarization_from_mosaic(bilinear) of the 12-bit mosaic"),
+    ]
+    rows = []
+    for name, fn, what in calls:
+        row = {"name": name, "group": "stage alone", "selection": "full", "what": what,
+               "pixels": int(frame.aop_rad.size), "stages": []}
+        try:
+            fn()
+            for label, threads in (("single_thread", 1), ("all_threads", None)):
+                with numba_threads(threads):
+                    row[label] = timing_stats(time_calls(fn, reps))
+            row["memory"] = peak_memory(fn)
+            row["status"] = "ok"
+        except Exception as exc:  # noqa: BLE001 - recorded, not fatal
+            row["status"] = f"unavailable: {type(exc).__name__}: {exc}"
+        rows.append(row)
+    return rows
+
+
+def targets(by: dict, full_size: bool) -> list[dict]:
+    """Issue 2's targets beside the measured medians; pass flags only on the full-size sensor."""
+    out = []
+    for name, (what, target) in STAGE_TARGETS_MS.items():
+        r = by.get(name)
+        t = {"name": name, "target": what, "target_ms": target}
+        for label in ("single_thread", "all_threads"):
+            ms = r[label]["median_ms"] if r else None
+            t[f"{label}_median_ms"] = ms
+            t[f"pass_{label}"] = bool(ms <= target) if (full_size and ms is not None) else None
+        out.append(t)
+    return out
