@@ -24,5 +24,8 @@ GROUPS = {
     "solar": "solar_bench",
     "errormap": "errormap_bench",
     "pipeline": "pipeline",
+    "estimator_speed": "estimator_speed",
+    "replay": "replay_bench",
+    "graph": "graph_bench",
     "peers": "peers",
 }
