@@ -288,6 +288,8 @@ class TiltCorrector:
         dom = error_map.meta.get("domain", {}) if isinstance(error_map.meta, dict) else {}
         self.full_domain = bool(dom.get("full_domain", False))
         self.tilt_limit_deg = float(dom.get("tilt_limit_deg", math.inf))
+        # compile (or load from numba's cache) the kernels now, not on the first heading a node corrects
+        self._correct(0.0, float(self.alt[0]), float(self.pitch[0]), float(self.roll[0]), "invert")
 
     @staticmethod
     def from_file(path=None, method: str = "least_squares", order: int = 3) -> "TiltCorrector":

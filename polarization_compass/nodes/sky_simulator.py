@@ -50,7 +50,7 @@ from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
 from .params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
 from .rosparams import ParameterSet
-from .runner import ExitRequest, run_node
+from .runner import run_node
 
 __all__ = ["SkySimulatorNode", "main", "mosaic_config"]
 
@@ -363,7 +363,7 @@ class SkySimulatorNode(Node):
             self.diag.last_status = f"done: {self.frames} frames"
         if self.params["exit_when_done"] and now - self.done_wall >= self.params["linger_s"]:
             self.diag.publish()
-            raise ExitRequest(0)
+            self.exit_code = 0              # run_node ends the spin (nodes.runner)
 
     # clock_mode system --------------------------------------------------------------------------
     def _frame_system(self) -> None:
