@@ -1,7 +1,7 @@
 """Nodes on real DDS under bad input: a burst of malformed messages between good ones, parameter
 changes with bad values, a stale IMU, a missing optional package and a bad parameter file. A node
 must log, count and drop what it cannot use, keep processing good messages, and stop on SIGINT
-with exit code 0 and no traceback.
+with exit code 0 and no traceback. Also: a best-effort IMU driver reaches every IMU reader.
 
 The missing-tf2_ros check runs only where tf2_ros is not installed (here); on a ROS install it does
 not run and is not coverage there (the rest of its test runs everywhere)."""
@@ -258,3 +258,86 @@ def test_corrector_reports_a_stale_imu_and_never_guesses(ros_env, tmp_path):
         assert no_traceback(tf_sim.stderr)
     # an out-of-range value in a parameter file stops the node at start, with the parameter's name
     assert "rate_hz" in bad_sim.stderr and no_traceback(bad_sim.stderr)
+
+
+def test_a_best_effort_imu_reaches_the_estimator_and_the_corrector(ros_env, tmp_path):
+    """A REP-2003 IMU driver or a bag player may publish best effort; a reliable reader never matches such
+    a writer (tilt_aware would report bad_input forever). Matching is checked over DDS (the writer's
+    subscription count and each reader's QoS in the ROS graph), then data: tilt_aware's heading needs the
+    IMU's tilt, the corrector pairs the IMU's pitch."""
+    from rclpy.event_handler import PublisherEventCallbacks
+    from rclpy.qos import ReliabilityPolicy, qos_profile_sensor_data
+    from sensor_msgs.msg import CameraInfo, Image, Imu
+    from std_msgs.msg import String
+
+    from polarization_compass.conventions import R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude
+    from polarization_compass.nodes import msgs
+    from polarization_compass.nodes import topics as T
+
+    env = node_env(ros_env)
+    logs = tmp_path / "logs"
+    est = Proc("heading_estimator_tilt_aware", "heading_estimator",
+               ["--params-file", str(CONFIG / "heading_estimator.yaml"), "-p", "method:=tilt_aware",
+                "-p", "knob.stride:=4", "-p", "image_qos:=reliable", "-p", "imu_max_wait_s:=2.0"], env, logs)
+    cor = Proc("tilt_corrector_least_squares", "tilt_corrector",
+               ["--params-file", str(CONFIG / "tilt_corrector.yaml"), "-p", "method:=least_squares",
+                "-p", "correction:=none"], env, logs)
+    rec = Recorder(int(env["ROS_DOMAIN_ID"]))
+    ta, ls = T.method_topics("tilt_aware"), T.method_topics("least_squares")
+    try:
+        rec.sub(String, ta["status"])
+        rec.sub(String, ls["correction_status"])
+        incompatible = []                       # a reader whose QoS cannot match this writer (DDS tells us)
+        pub_imu = rec.node.create_publisher(Imu, T.IMU, qos_profile_sensor_data,         # best effort, depth 5
+                                            event_callbacks=PublisherEventCallbacks(
+                                                incompatible_qos=lambda e: incompatible.append(e.last_policy_kind)))
+        assert pub_imu.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+        pub_img, pub_info, pub_h = rec.pub(Image, T.IMAGE), rec.pub(CameraInfo, T.CAMERA_INFO), rec.pub(
+            Imu, ls["heading_raw"])
+        assert rec.spin_until(lambda: incompatible or (pub_imu.get_subscription_count() >= 2 and pub_img.
+                                                       get_subscription_count() >= 1 and pub_h.get_subscription_count()
+                                                       >= 1), 60, [est, cor]), est.stderr + cor.stderr
+        assert not incompatible, f"an IMU reader refuses a best-effort writer: incompatible {incompatible}"
+        readers = {i.node_name: i.qos_profile.reliability
+                   for i in rec.node.get_subscriptions_info_by_topic("/" + T.IMU)}
+        assert readers == {"heading_estimator_tilt_aware": ReliabilityPolicy.BEST_EFFORT,
+                           "tilt_corrector_least_squares": ReliabilityPolicy.BEST_EFFORT}, readers
+        cam = _small_camera()
+
+        def imu(t_ns, bearing, pitch):
+            R = R_enu_cam_from_attitude(bearing, pitch, 0.0) @ R_BODY_CAM_DEFAULT.T
+            return msgs.attitude_imu(t_ns, "base_link", R, (1e-6, 1e-6, 1e-3))
+
+        # Best-effort samples sent before a reader has matched our writer are lost (discovery is not
+        # symmetric): probe with fresh stamps until each node has used one.
+        bearing = 75.0
+        for attempt in range(5):
+            t = T0 + attempt * 1_000_000_000
+            for k in range(-3, 4):                                         # +-30 ms around the image
+                pub_imu.publish(imu(t + k * 10_000_000, bearing, 0.0))
+            rec.spin_for(0.1)
+            pub_info.publish(msgs.camera_info_msg(cam, t, "camera_optical_frame"))
+            pub_img.publish(msgs.image_msg(_good_frame(bearing, t), t, "camera_optical_frame"))
+            assert rec.spin_until(lambda: any(s["stamp_ns"] == t for s in rec.statuses(ta["status"])), 60, [est])
+            if [s for s in rec.statuses(ta["status"]) if s["stamp_ns"] == t][0]["status"] == "ok":
+                break
+        last = rec.statuses(ta["status"])[-1]
+        assert last["status"] == "ok" and last["published"], rec.statuses(ta["status"])
+        assert abs(math.remainder(last["bearing_deg"] - bearing, 360.0)) < 0.05
+
+        for attempt in range(5):
+            t = T0 + 10_000_000_000 + attempt * 1_000_000_000
+            for k in range(-3, 4):
+                pub_imu.publish(imu(t + k * 10_000_000, 40.0, -10.0))
+            rec.spin_for(0.1)
+            pub_h.publish(msgs.heading_imu(t, "base_link", math.radians(90 - 40.0), 1e-6, 1000.0))
+            assert rec.spin_until(lambda: any(s["stamp_ns"] == t for s in rec.statuses(ls["correction_status"])),
+                                  20, [cor])
+            if rec.statuses(ls["correction_status"])[-1]["status"] == "ok":
+                break
+        last = rec.statuses(ls["correction_status"])[-1]
+        assert last["status"] == "ok" and last["pitch_deg"] == pytest.approx(-10.0, abs=1e-6), last
+    finally:
+        codes = (est.stop(), cor.stop())
+        rec.close()
+    assert codes == (0, 0) and no_traceback(est.stderr) and no_traceback(cor.stderr), est.stderr + cor.stderr

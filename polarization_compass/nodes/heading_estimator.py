@@ -23,7 +23,7 @@ from collections import deque
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qos_profile_system_default
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
@@ -80,7 +80,10 @@ class HeadingEstimatorNode(Node):
         self.executor_threads = 2
         small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
         if self.tilt_prior.needs_imu:
-            self.create_subscription(Imu, topics.IMU, self._on_imu, QoSProfile(depth=200), callback_group=small)
+            # best effort (REP-2003 sensor data): matches reliable and best-effort IMU drivers and bag players
+            # alike (a reliable reader never connects to a best-effort writer); deep for fast IMUs
+            imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+            self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos, callback_group=small)
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
                                  callback_group=small)
         if p["site_source"] == "navsatfix":

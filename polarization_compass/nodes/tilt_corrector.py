@@ -25,7 +25,7 @@ from collections import deque
 from pathlib import Path
 
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qos_profile_system_default
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, String
 
@@ -80,7 +80,8 @@ class TiltCorrectorNode(Node):
         self.pub_bearing = self.create_publisher(Float64, t["bearing"], qos_profile_system_default)
         self.pub_status = self.create_publisher(String, t["correction_status"], QoSProfile(depth=50))
         self.create_subscription(Imu, t["heading_raw"], self._on_heading, QoSProfile(depth=50))
-        self.create_subscription(Imu, topics.IMU, self._on_imu, qos_profile_sensor_data)
+        imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos)
         self.create_timer(0.02, self._expire, clock=_wall_clock())
         self.get_logger().info(f"{t['heading_raw']} + {topics.IMU} -> {t['heading']} ({p['correction']})")
 

@@ -10,7 +10,7 @@ ROS-free: no rclpy import here.
 """
 from __future__ import annotations
 
-__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES",
+__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
            "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
            "evaluator_streams",
            "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
@@ -37,6 +37,11 @@ CLOCK = "/clock"
 DIAGNOSTICS = "/diagnostics"
 EVAL_SUMMARY = "evaluation/summary"     # JSON running statistics per stream
 FRAMES = "sim/frames"                   # simulator: JSON {stamp_ns, wall_ns} per image (wall-clock latency)
+
+#: History depth of the IMU subscriptions. They are best effort (REP-2003 sensor-data QoS: a best-effort
+#: reader matches both reliable and best-effort writers, a reliable reader only reliable ones) and deep
+#: enough for 2 s of a 100 Hz IMU, so that samples arriving while a long callback runs are kept.
+IMU_DEPTH = 200
 
 
 def method_topics(method: str) -> dict:
