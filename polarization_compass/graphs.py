@@ -31,7 +31,7 @@ import yaml
 
 from .errors import CompassError
 from .nodes import topics as T
-from .nodes.params import ALL_METHODS, PAPER_METHODS
+from .nodes.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
 
 __all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
            "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE"]
@@ -137,7 +137,8 @@ class Graph:
 
     def check(self) -> list[str]:
         """Wiring problems: a subscription nobody in the graph (or outside it) publishes, a topic with
-        two types, duplicate node names. Empty when the graph is consistent."""
+        two types, duplicate node names, a corrector whose site (gps/fix or parameters) is not its
+        estimator's. Empty when the graph is consistent."""
         problems = []
         names = [(n.namespace, n.name) for n in self.nodes]
         if len(set(names)) != len(names):
@@ -154,6 +155,21 @@ class Graph:
                     problems.append(f"{n.name} subscribes to {t}, which nothing in graph {self.name!r} publishes")
                 elif ty not in pubs[t]:
                     problems.append(f"{n.name} subscribes to {t} as {ty}, published as {sorted(pubs[t])}")
+        # the corrector computes the sun (error-map lookup) for the site its estimator used
+        def fix(n):
+            return n.resolved(T.FIX) if any(t == T.FIX for t, _ in n.subscribes) else None
+
+        estimators = {(n.namespace, n.parameters.get("method")): n for n in self.nodes
+                      if n.executable == "heading_estimator"}
+        for n in self.nodes:
+            est = estimators.get((n.namespace, n.parameters.get("method")))
+            if n.executable == "tilt_corrector" and est is not None and fix(n) != fix(est):
+                problems.append(f"{n.name} takes the site from {fix(n) or 'its parameters'} but {est.name} from "
+                                f"{fix(est) or 'its parameters'}: set the same site_source and fix topic")
+            if n.executable == "tilt_corrector" and est is not None:
+                differ = [k for k in SUN_PARAMS + ("site_source",) if n.parameters.get(k) != est.parameters.get(k)]
+                if differ:
+                    problems.append(f"{n.name} and {est.name} set different {', '.join(differ)}")
         return problems
 
 
@@ -297,7 +313,7 @@ def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSp
 
 
 def _corrector(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
-    pubs, subs = T.corrector_topics(method)
+    pubs, subs = T.corrector_topics(method, params.get("site_source", "parameters"))
     return NodeSpec("tilt_corrector", f"tilt_corrector_{method}", namespace, ("config/tilt_corrector.yaml",),
                     {"method": method, **params}, _used(remappings, pubs, subs), tuple(pubs), tuple(subs))
 
@@ -350,8 +366,8 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
     common = {"use_sim_time": bool(use_sim_time)}
     nodes = [_estimator(method, {**common, "site_source": site_source, "frame_id": frame_id}, remaps, namespace)]
     if method != "tilt_aware":
-        nodes.append(_corrector(method, {**common, "correction": correction, "error_map": error_map}, remaps,
-                                namespace))
+        nodes.append(_corrector(method, {**common, "site_source": site_source, "correction": correction,
+                                         "error_map": error_map}, remaps, namespace))
     probe = NodeSpec("x", "x", namespace, remappings=remaps)
     external = tuple(probe.resolved(t) for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX))
     return Graph("compass", "a real polarization camera and IMU: heading for robot_localization", tuple(nodes),
@@ -364,7 +380,7 @@ def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix"
     all_methods = methods + (("tilt_aware",) if tilt_aware else ())
     common = {"use_sim_time": True}
     nodes = [_estimator(m, {**common, "site_source": site_source}) for m in all_methods]
-    nodes += [_corrector(m, {**common, "error_map": error_map}) for m in methods]
+    nodes += [_corrector(m, {**common, "site_source": site_source, "error_map": error_map}) for m in methods]
     nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
                             {**common, "report_dir": report_dir, "latency_source": "clock"}))
     external = tuple("/" + t for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX, T.TRUTH)) + (T.CLOCK,)

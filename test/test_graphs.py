@@ -166,6 +166,53 @@ def test_compass_graph_remaps_inputs_and_namespaces():
     assert [n.name for n in graphs.build("compass", {"method": "tilt_aware"}).nodes] == ["heading_estimator_tilt_aware"]
 
 
+@pytest.mark.parametrize("name, args, fix", [
+    ("compass", {}, "/gps/fix"),
+    ("compass", {"fix_topic": "/ublox/fix", "namespace": "front"}, "/ublox/fix"),
+    ("compass", {"site_source": "parameters"}, None),
+    ("replay", {}, "/gps/fix"),
+    ("replay", {"site_source": "parameters"}, None),
+    ("sim", {}, None),
+])
+def test_correctors_take_the_site_where_their_estimator_does(name, args, fix):
+    """The corrector looks the sun up in the error map: same site_source and fix topic as its estimator."""
+    g = graphs.build(name, args)
+    cors = [n for n in g.nodes if n.executable == "tilt_corrector"]
+    assert cors
+    for cor in cors:
+        est = g.node(cor.name.replace("tilt_corrector", "heading_estimator"))
+        for n in (cor, est):
+            subs = dict(n.resolved_subscribes())
+            if fix is None:
+                assert not any(t.endswith("fix") for t in subs), n.name
+                assert n.parameters.get("site_source", "parameters") == "parameters"
+            else:
+                assert subs.get(fix) == topics.T_FIX, (n.name, subs)
+                assert n.parameters["site_source"] == "navsatfix"
+
+
+def test_a_corrector_with_another_site_than_its_estimator_is_reported():
+    import dataclasses
+    g = graphs.build("compass", {"method": "zenith"})
+    cor = g.node("tilt_corrector_zenith")
+    pubs, subs = topics.corrector_topics("zenith", "parameters")
+    wrong = dataclasses.replace(cor, subscribes=tuple(subs), parameters={**cor.parameters, "site_source": "parameters"})
+    bad = graphs.Graph("x", "", tuple(wrong if n is cor else n for n in g.nodes), external_inputs=g.external_inputs)
+    problems = bad.check()
+    assert any("tilt_corrector_zenith takes the site from its parameters" in p for p in problems), problems
+    assert any("site_source" in p for p in problems), problems
+    moved = dataclasses.replace(cor, parameters={**cor.parameters, "latitude_deg": 0.0})
+    bad = graphs.Graph("x", "", tuple(moved if n is cor else n for n in g.nodes), external_inputs=g.external_inputs)
+    assert any("latitude_deg" in p for p in bad.check())
+
+
+def test_estimator_and_corrector_files_give_the_same_site():
+    est = yaml.safe_load((ROOT / "config/heading_estimator.yaml").read_text())["/**"]["ros__parameters"]
+    cor = yaml.safe_load((ROOT / "config/tilt_corrector.yaml").read_text())["/**"]["ros__parameters"]
+    for key in ("site_source", "latitude_deg", "longitude_deg", "altitude_m", "sun_model"):
+        assert est[key] == cor[key], key
+
+
 def test_a_broken_graph_is_reported():
     g = graphs.build("sim", {"methods": "least_squares"})
     bad = graphs.Graph("x", "", tuple(n for n in g.nodes if not n.name.startswith("heading_estimator")))

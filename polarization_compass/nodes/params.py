@@ -14,7 +14,7 @@ from typing import Callable
 
 __all__ = ["Param", "validate_value", "SIMULATOR", "ESTIMATOR", "CORRECTOR", "EVALUATOR", "SPECS",
            "spec_by_name", "defaults", "layout_from_text", "knob_params", "KNOB_PREFIX", "SUN_PARAMS",
-           "sun_source"]
+           "sun_source", "SITE_SOURCE", "apply_fix"]
 
 
 @dataclass(frozen=True)
@@ -164,6 +164,32 @@ def sun_source(values):
     return SunSource(*(values[k] for k in SUN_PARAMS))
 
 
+#: Where a node takes the site from (heading_estimator and tilt_corrector: the same choice in a graph).
+SITE_SOURCE = Param("site_source", "parameters",
+                    "where the site comes from: parameters (latitude_deg, longitude_deg, altitude_m) or navsatfix "
+                    "(gps/fix, the latest fix; until the first fix nothing that needs the sun is published, a status "
+                    "says why)",
+                    choices=("parameters", "navsatfix"), read_only=True)
+
+
+def apply_fix(sun, diag, msg):
+    """Move ``sun`` (a SunSource) to the site of a sensor_msgs/NavSatFix; the site (lat, lon, alt), or None
+    after counting the message on ``diag`` (a nodes.diagnostics.Diagnostics) as rejected: ``fix_<reason>``
+    for a fix :func:`~polarization_compass.bag.decode_navsatfix` refuses, ``fix_bad_value`` for a site the
+    ephemeris refuses (``sun`` keeps its site then)."""
+    from ..bag import decode_navsatfix
+    from ..errors import CompassError
+    site = diag.decoded("fix", decode_navsatfix, msg)
+    if site is None:
+        return None
+    try:
+        sun.set_site(*site)
+    except CompassError as exc:
+        diag.reject("fix_bad_value", str(exc))
+        return None
+    return site
+
+
 PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
 ALL_METHODS = PAPER_METHODS + ("tilt_aware",)
 
@@ -263,8 +289,7 @@ ESTIMATOR = (
                                   "the sky's brightness gradient (costs a second pass over the mosaic)"),
     Param("frame_id", "base_link", "frame_id of the published heading: z up, with a TF to base_link "
                                    "(never a camera optical frame)", check=_not_optical),
-    Param("site_source", "parameters", "where the site comes from", choices=("parameters", "navsatfix"),
-          read_only=True),
+    SITE_SOURCE,
     *SITE,
     Param("time_source", "stamp", "stamp: the sun at the image's header.stamp (UTC); parameter: at time_utc",
           choices=("stamp", "parameter")),
@@ -312,11 +337,10 @@ CORRECTOR = (
     Param("imu_buffer_s", 10.0, "IMU history kept for pairing", 0.1, 600.0, unit="s"),
     Param("correction_sigma_deg", 0.1, "added (in quadrature) to the heading sigma for the map's "
                                        "interpolation and model error", 0.0, 90.0, unit="deg"),
-    Param("latitude_deg", 32.026778, "site latitude (sun altitude for the map lookup)", -90.0, 90.0,
-          unit="deg"),
-    Param("longitude_deg", 118.853306, "site longitude", -180.0, 180.0, unit="deg"),
-    Param("altitude_m", 30.0, "site height", -1000.0, 20000.0, unit="m"),
-    Param("sun_model", "spa", "solar position model", choices=("spa", "paper")),
+    SITE_SOURCE,
+    *SITE,
+    Param("sun_model", "spa", "solar position model (the sun's altitude and azimuth for the map lookup)",
+          choices=("spa", "paper")),
 )
 
 EVALUATOR = (

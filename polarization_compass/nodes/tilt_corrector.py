@@ -1,17 +1,21 @@
 """``tilt_corrector``: removes the tilt error of a classical method's heading with an error map.
 
-Subscribes to ``compass/<method>/heading_raw`` (sensor_msgs/Imu from heading_estimator) and
-``imu/data`` (body attitude in ENU). Each heading is paired with the IMU at its stamp: interpolated
-between the samples either side when both are within ``imu_tolerance_s``, else the nearer one within
-it. A heading whose stamp is newer than the newest IMU sample waits up to ``imu_max_wait_s`` (wall)
-for the IMU to catch up; when nothing is within tolerance the heading is reported (status
-``stale_imu`` / ``no_imu``, counted in /diagnostics) and not published: a tilt is never guessed.
+Subscribes to ``compass/<method>/heading_raw`` (sensor_msgs/Imu from heading_estimator), ``imu/data``
+(body attitude in ENU; best effort, so that reliable and best-effort IMU drivers both connect) and, with
+``site_source: navsatfix``, ``gps/fix`` (sensor_msgs/NavSatFix: the site, as heading_estimator takes it).
+Each heading is paired with the IMU at its stamp: interpolated between the samples either side when
+both are within ``imu_tolerance_s``, else the nearer one within it. A heading whose stamp is newer
+than the newest IMU sample waits up to ``imu_max_wait_s`` (wall) for the IMU to catch up; when
+nothing is within tolerance the heading is reported (status ``stale_imu`` / ``no_imu``, counted in
+/diagnostics) and not published: a tilt is never guessed.
 
 The camera's pitch and roll (eq 21) follow from the IMU attitude and the mounting
 (``R_enu_cam = R_enu_body @ R_body_cam``); the sun's altitude and azimuth from the stamp and the
-site. ``correction: error_map`` inverts ``psi_meas = psi + e(psi, h, pitch, roll)`` with
-:class:`polarization_compass.correction.TiltCorrector` (status out_of_domain, no_solution,
-multiple_solutions: reported, not published); ``none`` passes the heading through.
+site (the parameters, or the latest NavSatFix: until the first fix a heading that needs the sun gets
+status ``no_fix`` and is not published). ``correction: error_map`` inverts
+``psi_meas = psi + e(psi, h, pitch, roll)`` with :class:`polarization_compass.correction.TiltCorrector`
+(status out_of_domain, no_solution, multiple_solutions: reported, not published); ``none`` passes the
+heading through.
 
 Publishes ``compass/<method>/heading`` (Imu, robot_localization form, yaw variance = raw variance +
 ``correction_sigma_deg``^2), ``compass/<method>/bearing_deg`` (Float64), ``.../correction_status``
@@ -26,7 +30,7 @@ from pathlib import Path
 
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qos_profile_system_default
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
 from ..bag import decode_orientation, stamp_ns
@@ -35,7 +39,7 @@ from ..pipeline import AttitudeBuffer
 from . import topics
 from .diagnostics import Diagnostics, _wall_clock
 from .msgs import heading_from_imu, heading_imu
-from .params import CORRECTOR, SUN_PARAMS, sun_source
+from .params import CORRECTOR, SUN_PARAMS, apply_fix, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 
@@ -71,10 +75,11 @@ class TiltCorrectorNode(Node):
         if p["correction"] == "error_map":
             self.corrector = load_corrector(p["error_map"], self.method)
         self.sun = sun_source(p)
+        self.site_from_fix = None       # (lat, lon, alt) of the latest usable NavSatFix (site_source navsatfix)
         self.imu = AttitudeBuffer(keep_ns=int(p["imu_buffer_s"] * 1e9))
         self.pending: deque = deque()   # (stamp_ns, bearing, yaw var, frame_id, wall deadline, t_in, roll/pitch var)
         self.diag = Diagnostics(self, f"tilt corrector ({self.method}, {p['correction']})")
-        self.counts = {"stale_imu": 0, "out_of_domain": 0, "no_solution": 0, "multiple_solutions": 0}
+        self.counts = {"stale_imu": 0, "no_fix": 0, "out_of_domain": 0, "no_solution": 0, "multiple_solutions": 0}
         t = topics.method_topics(self.method)
         self.pub_heading = self.create_publisher(Imu, t["heading"], qos_profile_system_default)
         self.pub_bearing = self.create_publisher(Float64, t["bearing"], qos_profile_system_default)
@@ -82,8 +87,11 @@ class TiltCorrectorNode(Node):
         self.create_subscription(Imu, t["heading_raw"], self._on_heading, QoSProfile(depth=50))
         imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
         self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos)
+        if p["site_source"] == "navsatfix":
+            self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data)
         self.create_timer(0.02, self._expire, clock=_wall_clock())
-        self.get_logger().info(f"{t['heading_raw']} + {topics.IMU} -> {t['heading']} ({p['correction']})")
+        self.get_logger().info(f"{t['heading_raw']} + {topics.IMU} -> {t['heading']} ({p['correction']}, "
+                               f"site from {p['site_source']})")
 
     def _on_change(self, changed: dict):
         if not hasattr(self, "sun"):
@@ -94,7 +102,10 @@ class TiltCorrectorNode(Node):
                 self.corrector = (load_corrector(merged["error_map"], self.method)
                                   if merged["correction"] == "error_map" else None)
             if set(SUN_PARAMS) & set(changed):
-                self.sun = sun_source(merged)
+                sun = sun_source(merged)
+                if self.site_from_fix is not None:          # site_source navsatfix: the fix's site stays
+                    sun.set_site(*self.site_from_fix)
+                self.sun = sun
         except CompassError as exc:
             return str(exc)
         return None
@@ -106,6 +117,11 @@ class TiltCorrectorNode(Node):
             return
         self.imu.add(stamp_ns(msg.header), q)
         self._drain(final=False)
+
+    def _on_fix(self, msg):
+        site = apply_fix(self.sun, self.diag, msg)
+        if site is not None:
+            self.site_from_fix = site
 
     def _on_heading(self, msg):
         t_in = self.diag.input()
@@ -161,6 +177,14 @@ class TiltCorrectorNode(Node):
         out_bearing = bearing
         out_var = var
         if self.corrector is not None:
+            if p["site_source"] == "navsatfix" and self.site_from_fix is None:
+                self.counts["no_fix"] += 1
+                st.update(status="no_fix", reason="no NavSatFix received yet (site_source navsatfix): the sun's "
+                                                  "position is unknown", published=False)
+                self._status(st)
+                self.diag.extra = dict(self.counts)
+                self.diag.done(t_in, t_ns, "no_fix: no NavSatFix received yet", ok=False)
+                return
             try:
                 az, alt = self.sun.at_ns(t_ns)
             except CompassError as exc:

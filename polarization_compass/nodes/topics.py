@@ -82,11 +82,13 @@ def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: b
     return pubs, subs
 
 
-def corrector_topics(method: str):
+def corrector_topics(method: str, site_source: str = "parameters"):
     t = method_topics(method)
     pubs = [(t["heading"], T_IMU), (t["bearing"], T_FLOAT64), (t["correction_status"], T_STRING),
             (DIAGNOSTICS, T_DIAG)]
     subs = [(t["heading_raw"], T_IMU), (IMU, T_IMU)]
+    if site_source == "navsatfix":
+        subs.append((FIX, T_FIX))
     return pubs, subs
 
 

@@ -1,0 +1,161 @@
+"""Nodes built in-process (a private rclpy context, callbacks called directly as in
+test_hard_cases_nodes.py): the corrector's site from NavSatFix.
+
+Independent facts: the sun from a direct ephemeris call (solar.sun_position) for the fix's site, the
+error map's own formula.
+"""
+import math
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+
+from polarization_compass.conventions import CameraAttitude
+from polarization_compass.nodes import msgs as M
+
+T0 = 1_573_797_600_000_000_000            # 2019-11-15T06:00:00Z
+NANJING = (32.026778, 118.853306, 30.0)   # the parameter defaults
+TOKYO = (35.68, 139.69, 40.0)             # sun ~16 deg high at T0 (Nanjing: ~31 deg)
+K_ALT = 0.1                               # the test map: e(psi, h) = K_ALT * h + sin(psi) deg, any tilt
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    import warnings
+    with warnings.catch_warnings():
+        # rclpy's type support imports lark, which imports the deprecated sre_parse (third party)
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import rosidl_generator_py  # noqa: F401
+    c = Context()
+    rclpy.init(context=c)
+    yield c
+    rclpy.shutdown(context=c)
+
+
+def sun(site, t_ns):
+    """(azimuth, altitude) deg from the ephemeris directly (not the nodes' SunSource/SunCache)."""
+    from polarization_compass.solar import sun_position
+    p = sun_position(np.datetime64(t_ns // 1000, "us"), *site)
+    return float(p.azimuth_deg), float(p.altitude_deg)
+
+
+def body_quat(bearing, pitch, roll):
+    from polarization_compass.bag import quat_from_camera_attitude
+    return quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
+
+
+def imu_msg(t_ns, q):
+    from sensor_msgs.msg import Imu
+    m = Imu()
+    m.header.stamp = M.time_msg(t_ns)
+    m.header.frame_id = "base_link"
+    m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w = (float(v) for v in q)
+    m.orientation_covariance = [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1.0]
+    return m
+
+
+def heading_msg(t_ns, bearing):
+    return M.heading_imu(t_ns, "base_link", math.radians(90.0 - bearing), 1e-4, 1000.0)
+
+
+class _Sink:
+    def __init__(self):
+        self.msgs = []
+
+    def publish(self, m):
+        self.msgs.append(m)
+
+
+def _capture(node):
+    """Statuses and published headings of a corrector, without DDS."""
+    node.statuses = []
+    node._status = node.statuses.append
+    node.pub_heading = _Sink()
+    node.pub_bearing = _Sink()
+    return node
+
+
+@pytest.fixture(scope="module")
+def sloped_map(tmp_path_factory):
+    """An error map depending on the sun's altitude and psi (linear in altitude: interpolated exactly)."""
+    from polarization_compass.errormap import ErrorMap
+    alt, yaw, tilt = np.arange(0.0, 55.0, 10.0), np.arange(-180.0, 180.0, 10.0), np.arange(-30.0, 31.0, 10.0)
+    e = K_ALT * alt[:, None] + np.sin(np.radians(yaw))[None, :]
+    err = np.broadcast_to(e[None, :, :, None, None], (1, alt.size, yaw.size, tilt.size, tilt.size)).copy()
+    path = tmp_path_factory.mktemp("map") / "sloped_map.npz"
+    ErrorMap(err, np.zeros(err.shape, np.int8), ("least_squares",), alt, yaw, tilt, tilt,
+             meta={"domain": {"tilt_limit_deg": 30.0}}).save(path)
+    return path
+
+
+def _corrector(ctx, **params):
+    from polarization_compass.nodes.tilt_corrector import TiltCorrectorNode
+    over = [Parameter("imu_max_wait_s", value=0.0)] + [Parameter(k, value=v) for k, v in params.items()]
+    return _capture(TiltCorrectorNode(context=ctx, parameter_overrides=over))
+
+
+def _feed(node, t_ns, raw_bearing, pitch=-10.0, roll=5.0):
+    node._on_imu(imu_msg(t_ns, body_quat(raw_bearing, pitch, roll)))
+    node._on_heading(heading_msg(t_ns, raw_bearing))
+    return node.statuses[-1]
+
+
+# --------------------------------------------------------------------------------------------
+# tilt_corrector: the site from NavSatFix (site_source navsatfix), as heading_estimator and replay
+# --------------------------------------------------------------------------------------------
+def test_corrector_takes_the_site_from_navsatfix(ctx, sloped_map):
+    from polarization_compass.correction import TiltCorrector
+    node = _corrector(ctx, error_map=str(sloped_map), site_source="navsatfix")
+    try:
+        # before any fix: an explicit status, nothing published, counted
+        st = _feed(node, T0, 100.0)
+        assert st["status"] == "no_fix" and st["published"] is False and "NavSatFix" in st["reason"]
+        assert node.pub_heading.msgs == [] and node.pub_bearing.msgs == []
+        assert node.counts["no_fix"] == 1 and node.diag.extra["no_fix"] == 1
+
+        node._on_fix(M.navsatfix_msg(*TOKYO, T0, "gps"))
+        t = T0 + 1_000_000_000
+        st = _feed(node, t, 100.0)
+        assert st["status"] == "ok" and st["published"], st
+        az, alt = sun(TOKYO, t)
+        assert st["sun_altitude_deg"] == pytest.approx(alt, abs=1e-4)
+        assert st["sun_azimuth_deg"] == pytest.approx(az, abs=1e-4)
+        ref = TiltCorrector.from_file(sloped_map, "least_squares")
+        want, c = ref.correct_bearing(100.0, az, alt, -10.0, 5.0)
+        assert c.ok and abs(math.remainder(st["bearing_deg"] - want, 360.0)) < 1e-3
+        assert abs(math.remainder(node.pub_bearing.msgs[-1].data - want, 360.0)) < 1e-3
+        # the map's own formula: psi + K h + sin(psi) = psi_meas (cubic yaw interpolation of sin: < 1e-3 deg)
+        psi, psi_meas = st["bearing_deg"] - az, 100.0 - az
+        assert abs(math.remainder(psi + K_ALT * alt + math.sin(math.radians(psi)) - psi_meas, 360.0)) < 1e-2
+        # and it is not the parameters' (Nanjing) correction: the sun is 15 deg higher there
+        nj, _ = ref.correct_bearing(100.0, *sun(NANJING, t), -10.0, 5.0)
+        assert abs(math.remainder(nj - want, 360.0)) > 1.0
+
+        # a site parameter changed at run time does not replace the fix's site
+        assert node.set_parameters([Parameter("latitude_deg", value=0.0)])[0].successful
+        t2 = T0 + 2_000_000_000
+        st = _feed(node, t2, 250.0)
+        assert st["sun_altitude_deg"] == pytest.approx(sun(TOKYO, t2)[1], abs=1e-4)
+        # a fix nobody can use is counted and the last good site stays
+        bad = M.navsatfix_msg(*NANJING, t2, "gps")
+        bad.status.status = -1
+        node._on_fix(bad)
+        assert node.diag.rejected["fix_no_fix"] == 1
+        st = _feed(node, t2 + 100_000_000, 250.0)
+        assert st["sun_altitude_deg"] == pytest.approx(sun(TOKYO, t2 + 100_000_000)[1], abs=1e-4)
+        # site_source is fixed at start (the fix subscription depends on it)
+        assert not node.set_parameters([Parameter("site_source", value="parameters")])[0].successful
+    finally:
+        node.destroy_node()
+
+
+def test_corrector_with_site_parameters_ignores_fixes_and_needs_none(ctx, sloped_map):
+    node = _corrector(ctx, error_map=str(sloped_map))
+    try:
+        st = _feed(node, T0, 100.0)                         # no fix ever: the parameters' site
+        assert st["status"] == "ok" and st["sun_altitude_deg"] == pytest.approx(sun(NANJING, T0)[1], abs=1e-4)
+        assert "/gps/fix" not in {s.topic_name for s in node.subscriptions}
+    finally:
+        node.destroy_node()
