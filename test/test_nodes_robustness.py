@@ -238,6 +238,11 @@ def test_corrector_reports_a_stale_imu_and_never_guesses(ros_env, tmp_path):
         rec.spin_for(0.05)
         pub_h.publish(msgs.heading_imu(T0 + 2_010_000_000, "base_link", 0.5, 1e-6, 1000.0))
         assert rec.spin_until(lambda: len(rec.msgs[t["heading"]]) == 3, 20, [cor])
+        # run-time parameters: the IMU history length applies; the site source is fixed at start, with a reason
+        res = _set_params(rec, "tilt_corrector_least_squares", imu_buffer_s=0.5)
+        assert res == [(True, "")], res
+        res = _set_params(rec, "tilt_corrector_least_squares", site_source="navsatfix")
+        assert res[0][0] is False and "read-only" in res[0][1] and "site_source" in res[0][1]
         assert missing.wait(timeout=60) == 2
         if tf_sim is not None:
             assert tf_sim.wait(timeout=60) == 2

@@ -1,10 +1,12 @@
 """Nodes built in-process (a private rclpy context, callbacks called directly as in
-test_hard_cases_nodes.py): the corrector's site from NavSatFix.
+test_hard_cases_nodes.py): the corrector's site from NavSatFix, and parameters changed at run time
+either take effect or are refused as read-only.
 
 Independent facts: the sun from a direct ephemeris call (solar.sun_position) for the fix's site, the
-error map's own formula.
+error map's own formula, the parameter's meaning (history kept, horizon, period = 1 / rate).
 """
 import math
+import time
 
 import numpy as np
 import pytest
@@ -19,6 +21,11 @@ T0 = 1_573_797_600_000_000_000            # 2019-11-15T06:00:00Z
 NANJING = (32.026778, 118.853306, 30.0)   # the parameter defaults
 TOKYO = (35.68, 139.69, 40.0)             # sun ~16 deg high at T0 (Nanjing: ~31 deg)
 K_ALT = 0.1                               # the test map: e(psi, h) = K_ALT * h + sin(psi) deg, any tilt
+SMALL_SCENE = """\
+name: tiny
+camera: {model: pinhole, width_px: 48, height_px: 40, focal_length_mm: 4.0,
+         pixel_pitch_x_um: 176.0, pixel_pitch_y_um: 176.0}
+"""
 
 
 @pytest.fixture(scope="module")
@@ -159,3 +166,137 @@ def test_corrector_with_site_parameters_ignores_fixes_and_needs_none(ctx, sloped
         assert "/gps/fix" not in {s.topic_name for s in node.subscriptions}
     finally:
         node.destroy_node()
+
+
+# --------------------------------------------------------------------------------------------
+# run-time parameters that take effect
+# --------------------------------------------------------------------------------------------
+def test_corrector_imu_buffer_s_applies_at_run_time(ctx):
+    node = _corrector(ctx, correction="none")
+    try:
+        q = body_quat(30.0, -10.0, 0.0)
+        for k in range(21):                                  # 0 .. 2 s at 10 Hz
+            node._on_imu(imu_msg(T0 + k * 100_000_000, q))
+        node._on_heading(heading_msg(T0 + 500_000_000, 30.0))
+        assert node.statuses[-1]["status"] == "ok"           # 10 s of history: 1.5 s back is there
+        res = node.set_parameters([Parameter("imu_buffer_s", value=0.5)])
+        assert res[0].successful, res[0].reason
+        node._on_imu(imu_msg(T0 + 2_100_000_000, q))         # the next sample trims to 0.5 s behind it
+        assert len(node.imu) == 6                            # 1.6 .. 2.1 s
+        node._on_heading(heading_msg(T0 + 1_000_000_000, 30.0))
+        node._drain(final=True)
+        assert node.statuses[-1]["status"] == "stale_imu" and node.statuses[-1]["published"] is False
+        node._on_heading(heading_msg(T0 + 1_700_000_000, 30.0))
+        assert node.statuses[-1]["status"] == "ok"
+    finally:
+        node.destroy_node()
+
+
+@pytest.fixture
+def evaluator(ctx, tmp_path):
+    from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
+    node = ErrorEvaluatorNode(context=ctx, parameter_overrides=[
+        Parameter("report_dir", value=str(tmp_path)), Parameter("methods", value=["least_squares"]),
+        Parameter("direct_methods", value=[""])])
+    yield node
+    node.destroy_node()
+
+
+def _truth(t_ns, bearing=30.0):
+    return heading_msg(t_ns, bearing)
+
+
+def test_evaluator_horizon_s_applies_at_run_time(evaluator):
+    streams = evaluator.matcher.streams
+    evaluator._on_truth(_truth(T0))
+    evaluator._on_truth(_truth(T0 + 1_000_000_000))
+    assert all(s.missed == 0 for s in streams.values())    # 5 s horizon: frame T0 still waits
+    res = evaluator.set_parameters([Parameter("horizon_s", value=0.5)])
+    assert res[0].successful, res[0].reason
+    evaluator._on_truth(_truth(T0 + 1_100_000_000))
+    # frames T0 (1.1 s old) and T0 + 1 s (0.1 s old): only the first is past a 0.5 s horizon
+    assert {n: s.missed for n, s in streams.items()} == {"least_squares/raw": 1, "least_squares/corrected": 1}
+    evaluator._on_estimate("least_squares/raw", heading_msg(T0 + 1_000_000_000, 30.5))
+    assert streams["least_squares/raw"].matched == 1       # still inside: matched
+
+
+def test_evaluator_summary_rate_hz_applies_at_run_time(ctx, evaluator):
+    from rclpy.executors import SingleThreadedExecutor
+    calls = []
+    evaluator.pub_summary = _Sink()
+    evaluator.pub_summary.publish = lambda m: calls.append(time.monotonic())
+    res = evaluator.set_parameters([Parameter("summary_rate_hz", value=10.0)])
+    assert res[0].successful, res[0].reason
+    assert evaluator.summary_timer.timer_period_ns == 100_000_000
+    assert evaluator.diag._timer.timer_period_ns == 100_000_000     # /diagnostics at the same rate
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(evaluator)
+    try:
+        end = time.monotonic() + 1.5
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        ex.remove_node(evaluator)
+        ex.shutdown()
+    assert len(calls) >= 8, calls                          # 1 Hz would give at most 2 in 1.5 s
+
+
+# --------------------------------------------------------------------------------------------
+# sky_simulator: run-time changes that would break a running camera are refused; time_scale applies
+# --------------------------------------------------------------------------------------------
+@pytest.fixture
+def simulator(ctx, tmp_path):
+    from polarization_compass.nodes.sky_simulator import SkySimulatorNode
+    scene = tmp_path / "tiny.yaml"
+    scene.write_text(SMALL_SCENE)
+    node = SkySimulatorNode(context=ctx, parameter_overrides=[
+        Parameter("scene", value=str(scene)), Parameter("encoding", value="32FC1"),
+        Parameter("wait_settle_s", value=0.0), Parameter("turns", value=0.0)])
+    yield node
+    node.destroy_node()
+
+
+@pytest.mark.parametrize("name, value", [("rate_hz", 5.0), ("imu_rate_hz", 100.0), ("turns", 2.0),
+                                         ("duration_s", 30.0)])
+def test_simulator_rate_and_length_are_read_only(simulator, name, value):
+    before = simulator.params[name]
+    res = simulator.set_parameters([Parameter(name, value=value)])
+    assert res[0].successful is False and "read-only" in res[0].reason and name in res[0].reason
+    assert simulator.describe_parameter(name).read_only
+    assert simulator.params[name] == before and simulator.get_parameter(name).value == before
+
+
+def test_simulator_time_scale_change_continues_simulated_time(simulator, monkeypatch):
+    """A new time_scale applies from the moment of the change: simulated time neither jumps nor stalls."""
+    from polarization_compass.nodes import sky_simulator as S
+    wall = [1000.0]
+
+    class FakeTime:
+        @staticmethod
+        def monotonic():
+            return wall[0]
+        perf_counter = staticmethod(time.perf_counter)
+        time_ns = staticmethod(time.time_ns)
+
+    monkeypatch.setattr(S, "time", FakeTime)
+    clock = []
+    simulator._publish_clock = clock.append
+    simulator.t_wait0 = wall[0]
+
+    def tick(dt):
+        wall[0] += dt
+        simulator._tick_sim()
+        return clock[-1]
+
+    tick(0.0)                                              # primes (camera_info, fix, first IMU)
+    tick(0.0)                                              # starts: base = (start, now)
+    step = 1 / 64                                          # ~ the /clock timer's period, binary exact
+    for _ in range(128):                                   # 2 s of wall at time_scale 1
+        c = tick(step)
+    assert c == simulator.start_ns + 2_000_000_000 and simulator.frames == 21
+    res = simulator.set_parameters([Parameter("time_scale", value=3.0)])
+    assert res[0].successful, res[0].reason
+    assert tick(0.0) == c                                  # no jump at the change
+    for k in range(1, 17):                                 # then 3 simulated s per wall s
+        assert tick(step) == c + k * 46_875_000
+    assert simulator.frames == 28 and simulator.late_frames == 0    # frames at 2.1 .. 2.7 s, none late

@@ -47,7 +47,7 @@ __all__ = ["ErrorEvaluatorNode", "main", "bearing_from_imu"]
 class ErrorEvaluatorNode(Node):
     def __init__(self, **kwargs):
         super().__init__("error_evaluator", **kwargs)
-        self.params = ParameterSet(self, EVALUATOR)
+        self.params = ParameterSet(self, EVALUATOR, on_change=self._on_change)
         p = self.params
         methods = p.strings("methods")
         direct = p.strings("direct_methods")
@@ -82,9 +82,23 @@ class ErrorEvaluatorNode(Node):
         self.node_diagnostics: dict[str, dict] = {}
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diagnostics, QoSProfile(depth=50))
         self.pub_summary = self.create_publisher(String, topics.EVAL_SUMMARY, QoSProfile(depth=10))
-        self.create_timer(1.0 / p["summary_rate_hz"], self.publish_summary)
+        self.summary_timer = self.create_timer(1.0 / p["summary_rate_hz"], self.publish_summary)
         self.get_logger().info(f"evaluating {len(self.streams)} stream(s) against {topics.TRUTH}; "
                                f"report in {p['report_dir']} at shutdown")
+
+    def _on_change(self, changed: dict):
+        """Run-time changes: the matcher's horizon (applies from the next message: frames already older
+        than a shorter horizon are then counted as missed), the summary and /diagnostics rate."""
+        if not hasattr(self, "summary_timer"):
+            return None                                 # declaring the parameters
+        if "horizon_s" in changed:
+            self.matcher.horizon_ns = int(changed["horizon_s"] * 1e9)
+        if "summary_rate_hz" in changed:
+            period_ns = int(round(1e9 / changed["summary_rate_hz"]))
+            for timer in (self.summary_timer, self.diag._timer):   # (Diagnostics' own wall-clock timer)
+                timer.timer_period_ns = period_ns
+                timer.reset()                                      # next call one new period from now
+        return None
 
     # inputs -------------------------------------------------------------------------------------
     def _on_clock(self, msg):

@@ -202,8 +202,11 @@ SIMULATOR = (
                                 "noise-free mosaic quantised to full scale); 32FC1 = ideal mosaic of "
                                 "polarizer intensities (float, no noise, no quantisation)",
           choices=("mono16", "mono8", "32FC1"), read_only=True),
-    Param("rate_hz", 10.0, "camera frame rate (simulated time)", 0.1, 100.0, unit="Hz"),
-    Param("imu_rate_hz", 50.0, "simulated IMU rate (simulated time)", 1.0, 1000.0, unit="Hz"),
+    Param("rate_hz", 10.0, "camera frame rate (simulated time); fixed at start: frame k is stamped start + "
+                           "k / rate_hz, so a new rate would move the stamps of a running camera",
+          0.1, 100.0, unit="Hz", read_only=True),
+    Param("imu_rate_hz", 50.0, "simulated IMU rate (simulated time); fixed at start: sample k is stamped start "
+                               "+ k / imu_rate_hz", 1.0, 1000.0, unit="Hz", read_only=True),
     Param("time_scale", 1.0, "simulated seconds per wall-clock second (clock_mode sim)", 0.01, 100.0),
     Param("clock_mode", "sim", "sim: publish /clock, stamps are simulated UTC starting at start_time_utc "
                                "(other nodes need use_sim_time); system: stamps are this node's ROS "
@@ -228,8 +231,9 @@ SIMULATOR = (
     Param("turn_rate_deg_s", 10.0, "motion: rate of change of the bearing (clockwise positive)",
           -360.0, 360.0, unit="deg/s"),
     Param("turns", 1.0, "motion: stop after this many full turns (0: run until stopped; with turn rate "
-                        "0: duration_s decides)", 0.0, 1000.0),
-    Param("duration_s", 0.0, "stop after this much simulated time (0: see turns)", 0.0, 1.0e7, unit="s"),
+                        "0: duration_s decides); fixed at start (the run's length)", 0.0, 1000.0, read_only=True),
+    Param("duration_s", 0.0, "stop after this much simulated time (0: see turns); fixed at start (the run's "
+                             "length)", 0.0, 1.0e7, unit="s", read_only=True),
     Param("pitch_deg", -20.0, "motion: camera pitch (paper's alpha, about camera x)", -60.0, 60.0, unit="deg"),
     Param("roll_deg", 0.0, "motion: camera roll (paper's beta, about camera y)", -60.0, 60.0, unit="deg"),
     Param("pitch_amplitude_deg", 0.0, "motion: sinusoidal pitch amplitude", 0.0, 60.0, unit="deg"),
@@ -334,7 +338,8 @@ CORRECTOR = (
           unit="s"),
     Param("imu_max_wait_s", 0.5, "how long a heading waits for an IMU sample newer than its stamp "
                                  "(wall clock)", 0.0, 60.0, unit="s"),
-    Param("imu_buffer_s", 10.0, "IMU history kept for pairing", 0.1, 600.0, unit="s"),
+    Param("imu_buffer_s", 10.0, "IMU history kept for pairing (a change applies from the next IMU sample)",
+          0.1, 600.0, unit="s"),
     Param("correction_sigma_deg", 0.1, "added (in quadrature) to the heading sigma for the map's "
                                        "interpolation and model error", 0.0, 90.0, unit="deg"),
     SITE_SOURCE,

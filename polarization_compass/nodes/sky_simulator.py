@@ -147,6 +147,9 @@ class SkySimulatorNode(Node):
                 self.sun = sun_source(merged)
             except CompassError as exc:
                 return str(exc)
+        if "time_scale" in changed and getattr(self, "base", None) is not None:
+            # simulated time runs on from where it is at the new rate (no jump): restart the wall base now
+            self.base = (self.sim_cursor, time.monotonic())
         self.params.values.update(changed)
         self.profile = self._profile()
         return None

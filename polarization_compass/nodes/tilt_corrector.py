@@ -108,6 +108,8 @@ class TiltCorrectorNode(Node):
                 self.sun = sun
         except CompassError as exc:
             return str(exc)
+        if "imu_buffer_s" in changed:                       # the buffer trims to it from the next sample on
+            self.imu.keep_ns = int(merged["imu_buffer_s"] * 1e9)
         return None
 
     # inputs -------------------------------------------------------------------------------------
