@@ -23,6 +23,8 @@ run leaves, not from its printout (:func:`parse_run`):
 Sustained frame rate = the slowest estimator or corrector node's ``rate_hz``. Pass = the run
 published every frame with none late, no stream missed a frame, the sustained rate >= 9.5 Hz
 (10 Hz less 5 % for timer jitter), and the ``least_squares`` corrected latency p95 <= 100 ms.
+When ``sim`` exits non-zero but the evaluator's report exists (a node slow to stop after the run),
+the figures are kept and ``sim_exit_code``/``sim_error`` say what happened; the report shows it.
 """
 from __future__ import annotations
 
@@ -151,13 +153,20 @@ def run_variant(extra_args, turns: float, turn_rate: float, timeout_s: float = 1
     try:
         p = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout_s)
         res["wall_s"] = time.perf_counter() - t0
-        if p.returncode != 0 or not (out / "evaluation_summary.json").is_file():
+        res["sim_exit_code"] = p.returncode
+        if p.returncode != 0:
+            # e.g. a node that did not stop within cmd_sim's 20 s after the run: the evaluator's report
+            # may still be complete; the figures are kept and the error is reported beside them
+            res["sim_error"] = (p.stderr or p.stdout).strip()[-400:]
+        if not (out / "evaluation_summary.json").is_file():
             res["status"] = f"failed: exit {p.returncode}: {(p.stderr or p.stdout).strip()[-400:]}"
             return res
         res.update(parse_run(out, expected))
         res["status"] = "ok"
     except subprocess.TimeoutExpired:
         res["status"] = f"failed: timed out after {timeout_s:g} s"
+    except (ValueError, KeyError, TypeError, OSError) as exc:        # a partial or unexpected report
+        res["status"] = f"failed: reading the report: {type(exc).__name__}: {exc}"
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return res

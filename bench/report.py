@@ -485,6 +485,10 @@ def _graph_section(gr) -> list[str]:
     lines += _table(["graph", "frames published", "late frames", "frames missed (all streams)",
                      "sustained rate (slowest node)", "simulator publish rate (Hz)",
                      "least_squares corrected latency p50 / p95 (ms)", "pass"], rows)
+    for run in r["runs"]:
+        if run.get("status") == "ok" and run.get("sim_exit_code"):
+            lines += ["", f"Note: {run['graph']}: `sim` exited {run['sim_exit_code']} after the run "
+                          f"({run.get('sim_error', '')[:200]}); the evaluator's report was complete and is used."]
     if detail:
         lines += ["", "Per stream:", ""]
         lines += _table(["graph", "stream", "frames", "missed", "latency p50 (ms)", "p95 (ms)", "max (ms)"], detail)
