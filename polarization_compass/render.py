@@ -103,10 +103,11 @@ class Renderer:
         if scene.effects:
             from .sensor import SensorPipeline
             self.sensor = SensorPipeline.from_config(scene.sensor, scene.camera)
-            if self.selection.mode not in ("full", "region"):
+            if self.selection.mode not in ("full", "region") or self.selection.stride > 1:
                 from .sensor import SensorError
-                raise SensorError("sensor effects need a contiguous pixel block (pixels.mode full or region): "
-                                  "a mosaic has no meaning on a strided or scattered subset")
+                raise SensorError(f"sensor effects ({', '.join(scene.effects)}) need a contiguous pixel block "
+                                  f"(pixels full, or a region with stride 1), got {self.selection.describe()}: "
+                                  "a polarization mosaic has no meaning on a strided or scattered subset")
         v = scene.validity
         self._limits = (math.cos(math.radians(v.sun_exclusion_deg)), math.sin(math.radians(v.min_altitude_deg)),
                         v.min_dop)
@@ -133,6 +134,7 @@ class Renderer:
                time_utc=None, seed: int | None = None) -> Frame:
         """Render one frame. Defaults: the scene's attitude, and its sun at its time (or ``time_utc``)."""
         att = attitude if attitude is not None else self.scene.attitude
+        sun_meta = self._sun_meta(sun, time_utc)
         sun = sun if sun is not None else self.sun_at(time_utc)
         with instr.stage("geometry"):
             R = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
@@ -162,8 +164,8 @@ class Renderer:
         self._frames += 1
         frame.meta = {
             "scene": self.scene.name,
-            "sun_azimuth_deg": sun.azimuth_deg,
-            "sun_altitude_deg": sun.altitude_deg,
+            "sun_azimuth_deg": float(sun.azimuth_deg),
+            "sun_altitude_deg": float(sun.altitude_deg),
             "sun_apparent_altitude_deg": sun.apparent_altitude_deg,
             "bearing_deg": att.bearing_deg,
             "pitch_deg": att.pitch_deg,
@@ -179,10 +181,28 @@ class Renderer:
                        "focal_length_mm": self.scene.camera.focal_length_mm,
                        "pixel_pitch_x_um": self.scene.camera.pixel_pitch_x_um,
                        "pixel_pitch_y_um": self.scene.camera.pixel_pitch_y_um},
-            "time_utc": None if self.scene.sun_fixed else
-            (self.scene.time_utc if time_utc is None else time_utc).__str__(),
+            **sun_meta,
         }
         return frame
+
+    def _sun_meta(self, sun: SunDirection | None, time_utc) -> dict:
+        """How this frame's sun was obtained, and the time only when the sun is that time's.
+
+        ``sun_source``: ``ephemeris`` (computed for ``time_utc`` with ``sun_model``), ``scene`` (the scene
+        fixes the sun) or ``given`` (the caller passed it, e.g. ``render --sun-altitude/--sun-azimuth``).
+        ``sun_fixed`` is true unless the ephemeris was used. A fixed sun has ``time_utc`` None: no time was
+        used (a caller that passes both a sun and a time gets its time recorded as given)."""
+        from .scene import parse_time_utc
+        t = None if time_utc is None else parse_time_utc(time_utc)
+        if sun is not None:
+            src, model = "given", None
+        elif self.scene.sun_fixed is not None:
+            src, model, t = "scene", None, None
+        else:
+            src, model = "ephemeris", self.scene.sun_model
+            t = self.scene.time_utc if t is None else t
+        iso = None if t is None else t.isoformat().replace("+00:00", "Z")
+        return {"sun_source": src, "sun_fixed": src != "ephemeris", "sun_model": model, "time_utc": iso}
 
 
 def render(scene: Scene | None = None, **kwargs) -> Frame:

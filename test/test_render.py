@@ -171,3 +171,19 @@ def test_sensor_noise_differs_between_frames_but_is_reproducible():
     np.testing.assert_array_equal(f1.mosaic, g1.mosaic)        # same scene seed, same frame index
     np.testing.assert_array_equal(a.render(sun=sun, seed=5).mosaic, b.render(sun=sun, seed=5).mosaic)
     assert f1.meta["sensor"] and f1.meta["effects"]
+
+
+def test_meta_records_how_the_sun_was_obtained():
+    """A fixed sun claims no time; an ephemeris sun records the time it was computed for."""
+    r = Renderer(Scene(pixels=GRID))
+    m = r.render(time_utc="2019-11-15T11:30:00+08:00").meta
+    assert m["sun_source"] == "ephemeris" and m["sun_fixed"] is False and m["sun_model"] == "spa"
+    assert m["time_utc"] == "2019-11-15T03:30:00Z"
+    m = r.render().meta                                              # the scene's time
+    assert m["time_utc"] == "2019-11-15T06:00:00Z"
+    m = r.render(sun=SunDirection(12.0, 34.0)).meta
+    assert (m["sun_source"], m["sun_fixed"], m["sun_model"], m["time_utc"]) == ("given", True, None, None)
+    assert (m["sun_azimuth_deg"], m["sun_altitude_deg"]) == (12.0, 34.0)
+    m = Renderer(Scene(pixels=GRID, sun_fixed=(5.0, 60.0))).render(time_utc="2020-01-01T00:00:00Z").meta
+    assert (m["sun_source"], m["sun_fixed"], m["time_utc"]) == ("scene", True, None)
+    assert (m["sun_azimuth_deg"], m["sun_altitude_deg"]) == (5.0, 60.0)
