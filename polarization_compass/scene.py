@@ -246,6 +246,9 @@ def scene_from_dict(d: dict) -> Scene:
             SensorPipeline.from_config(scene.sensor, scene.camera)
         except SensorError as exc:
             raise SceneError(f"sensor: {exc}") from None
+    if scene.effects and (pixels.mode not in ("full", "region") or pixels.stride > 1):
+        raise SceneError(f"sensor effects ({', '.join(scene.effects)}) need contiguous pixels (pixels.mode full, "
+                         f"or region with stride 1), got pixels {pixels.describe()}")
     if scene.radiance:
         from .radiance import RadianceError, make_radiance_model
         try:

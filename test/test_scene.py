@@ -43,6 +43,10 @@ def test_every_shipped_scene_loads(path):
     ({"sky": {"model": "rayleigh", "dop_max": 1.5}}, "dop_max"),
     ({"attitude": {"pitch_deg": float("nan")}}, "pitch_deg"),
     ({"validity": {"min_dop": 2}}, "min_dop"),
+    ({"sensor": {"shot_noise": {}}, "pixels": {"mode": "stride", "stride": 4}}, "contiguous"),
+    ({"sensor": {"mosaic": {}}, "pixels": {"mode": "region", "x0": 1, "y0": 1, "width": 8, "height": 8,
+                                           "stride": 2}}, "contiguous"),
+    ({"sensor": {"read_noise": {}}, "pixels": {"mode": "grid", "nx": 4, "ny": 4}}, "contiguous"),
 ])
 def test_bad_scenes_name_the_problem(bad, match):
     with pytest.raises(SceneError, match=match):
@@ -69,3 +73,10 @@ def test_missing_and_garbage_files(tmp_path):
 def test_time_parsing_is_utc():
     assert parse_time_utc("2019-11-15T14:00:00+08:00") == parse_time_utc("2019-11-15T06:00:00Z")
     assert parse_time_utc("2019-11-15T06:00:00").tzinfo is not None
+
+
+def test_sensor_effects_on_contiguous_pixels_are_accepted():
+    for pixels in ({"mode": "full"}, {"mode": "region", "x0": 3, "y0": 5, "width": 8, "height": 6}):
+        assert scene_from_dict({"sensor": {"shot_noise": {}}, "pixels": pixels}).effects == ["shot_noise"]
+    # an ideal sensor (no effects; a demosaic choice alone is not an effect) may use any pixels
+    assert scene_from_dict({"sensor": {"demosaic": "superpixel"}, "pixels": {"mode": "stride", "stride": 4}})

@@ -20,9 +20,14 @@ def register(sub):
     p.add_argument("--yaw", type=float, help="true bearing of the camera +y axis, deg clockwise from North")
     p.add_argument("--pitch", type=float, help="pitch (rotation about camera x), deg")
     p.add_argument("--roll", type=float, help="roll (rotation about camera y), deg")
-    p.add_argument("--sun-altitude", type=float, help="fix the sun: altitude, deg (needs --sun-azimuth)")
+    p.add_argument("--sun-altitude", type=float,
+                   help="fix the sun instead of computing it from time and place: altitude, deg (needs "
+                        "--sun-azimuth; --time is then not used and meta records no time)")
     p.add_argument("--sun-azimuth", type=float, help="fix the sun: azimuth clockwise from North, deg")
-    p.add_argument("--stride", type=int, help="render every N-th row and column only")
+    p.add_argument("--stride", type=int, metavar="N",
+                   help="render every N-th row and column only (centred on the image); scenes without sensor "
+                        "effects only: a polarization mosaic needs contiguous pixels, so a scene that declares "
+                        "sensor effects refuses N > 1 (exit status 2)")
     p.add_argument("--seed", type=int, help="noise seed (scenes with sensor effects)")
     p.add_argument("--out", required=True, help="output .npz")
     p.add_argument("--png", metavar="DIR", help="also write viewable AoP/DoP PNGs into DIR")
@@ -43,6 +48,10 @@ def run(args) -> int:
     if args.stride is not None and args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
     scene = load_scene(args.scene)
+    if args.stride is not None and args.stride > 1 and scene.effects:
+        raise CompassError(f"--stride {args.stride} needs a scene without sensor effects: scene {scene.name!r} "
+                           f"declares {', '.join(scene.effects)}, and a polarization mosaic and its demosaic need "
+                           "contiguous pixels; render the full frame (drop --stride) or use an ideal-sensor scene")
     if args.time:
         scene = scene.replace(time_utc=parse_time_utc(args.time))
     a = scene.attitude
@@ -60,6 +69,7 @@ def run(args) -> int:
         written += [str(p) for p in save_frame_pngs(frame, args.png)]
     summary = {"out": written, "shape": list(frame.aop_rad.shape), "valid_fraction": float(frame.valid.mean()),
                "sun_azimuth_deg": frame.sun.azimuth_deg, "sun_altitude_deg": frame.sun.altitude_deg,
+               "sun_source": frame.meta["sun_source"], "time_utc": frame.meta["time_utc"],
                "psi_deg": frame.psi_deg, "effects": frame.meta["effects"], "sky": frame.meta["sky"]["model"]}
     json.dump(summary, sys.stdout)
     sys.stdout.write("\n")
