@@ -45,7 +45,8 @@ from .conventions import wrap_360_deg
 from .errors import CompassError
 
 __all__ = ["SyncedFrame", "BagPlan", "plan_bag", "iter_synced_frames", "ReplayConfig", "FramePipeline",
-           "MethodRow", "ReplayResult", "replay_bag", "write_outputs", "ReplayError"]
+           "MethodRow", "ReplayResult", "replay_bag", "write_outputs", "ReplayError", "method_groups",
+           "default_workers"]
 
 
 class ReplayError(CompassError):
@@ -507,13 +508,13 @@ class _Corrector:
         return self.correctors[method]
 
     def __call__(self, method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns):
-        cor = self._get(method)
-        if isinstance(cor, str):
-            return None, "no_map"
         if tilt is None:
             return None, "no_imu"
         if self.defer:
-            return None, self.PENDING
+            return None, self.PENDING          # the map is read when the queue is resolved
+        cor = self._get(method)
+        if isinstance(cor, str):
+            return None, "no_map"
         corrected, c = cor.correct_bearing(raw_bearing_deg, sun_az, sun_alt, tilt.pitch_deg, tilt.roll_deg)
         return corrected, c.status.value
 
@@ -527,9 +528,14 @@ class _Corrector:
         for row in self.queue:
             by_method.setdefault(row.method, []).append(row)
         for method, rows in by_method.items():
+            cor = self._get(method)
+            if isinstance(cor, str):                 # the map has no layer for this method
+                for r in rows:
+                    r.corrected_bearing_deg, r.correction_status = None, "no_map"
+                continue
             cols = np.array([(r.raw_bearing_deg, r.sun_azimuth_deg, r.sun_altitude_deg, r.pitch_deg, r.roll_deg)
                              for r in rows], dtype=float)
-            bearings, statuses = self._get(method).correct_bearings(*cols.T)
+            bearings, statuses = cor.correct_bearings(*cols.T)
             for r, b, st in zip(rows, bearings, statuses):
                 r.corrected_bearing_deg = float(b) if st == "ok" else None
                 r.correction_status = st
@@ -608,7 +614,8 @@ class ReplayResult:
     matches: list
     timing_ms: dict
     error_map: str | None = None
-    cpu_s: float = 0.0          # CPU time of the process (all threads) while replaying
+    cpu_s: float = 0.0          # CPU time of every replaying process (all threads), summed
+    workers: int = 1            # processes that shared the methods
 
     @property
     def speed_x_real_time(self) -> float:
@@ -621,61 +628,139 @@ class ReplayResult:
         return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
-def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None) -> ReplayResult:
-    """Process a bag offline. Raises :class:`BagError` (one line) for a path that is not a usable bag."""
-    from .evaluation import StampMatcher
+#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame measured on one
+#: core, docs/replay.md), used only to balance the methods across worker processes.
+_METHOD_COST = {"symmetry": 9.2, "sm_asm": 7.6, "least_squares": 3.1, "tilt_aware": 3.0, "zenith": 0.8}
 
-    config = config or ReplayConfig()
-    topic_map = topic_map or default_topic_map()
-    pipe = FramePipeline(config, topic_map)
-    if pipe.corrector is not None:
-        pipe.corrector.defer = True                 # one vectorised inversion per method at the end
-    t_wall = time.perf_counter()
+
+def method_groups(methods: list[str], workers: int) -> list[list[str]]:
+    """Split ``methods`` into at most ``workers`` groups of similar cost (largest first onto the lightest
+    group), each group keeping the given method order."""
+    workers = max(1, min(int(workers), len(methods)))
+    groups: list[list[str]] = [[] for _ in range(workers)]
+    load = [0.0] * workers
+    for m in sorted(methods, key=lambda m: -_METHOD_COST.get(m, 5.0)):
+        g = load.index(min(load))
+        groups[g].append(m)
+        load[g] += _METHOD_COST.get(m, 5.0)
+    return [[m for m in methods if m in g] for g in groups if g]
+
+
+@dataclass
+class _Part:
+    """What one process made of the bag for its methods (corrections still pending)."""
+
+    rows: list
+    truths: list                 # (stamp_ns, true bearing) per frame with a reference
+    tally: Tally
+    plan: BagPlan
+    frames: int
+    first_stamp: int | None
+    last_stamp: int | None
+    timing_ms: dict
+    cpu_s: float
+
+
+def _replay_part(path, config: ReplayConfig, topic_map: TopicMap, methods: list[str], progress=None) -> _Part:
+    """Every frame of the bag through the nodes' chain (:class:`FramePipeline`) for ``methods``; a heading
+    to correct is left ``pending``."""
     t_cpu = time.process_time()
+    pipe = FramePipeline(dataclasses.replace(config, methods=tuple(methods)), topic_map)
+    if pipe.corrector is not None:
+        pipe.corrector.defer = True
     tally = Tally()
     rows: list[MethodRow] = []
-    matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
-    for m in pipe.methods:
-        matcher.add_stream(f"{m}/raw", False)
-        if m not in config.direct_methods and pipe.corrector is not None:
-            matcher.add_stream(f"{m}/corrected", False)
+    truths: list = []
     first_stamp = last_stamp = None
+    frames = 0
     with BagReader(path) as reader, single_threaded_kernels():
         plan = plan_bag(reader, topic_map)
         if plan.fatal:
             raise BagError(f"{reader.path}: " + "; ".join(plan.fatal))
-        frames = 0
         for frame in iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s):
             frames += 1
             first_stamp = frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
             last_stamp = frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
             if frame.true_bearing_deg is not None:
-                matcher.add_truth(frame.stamp_ns, frame.true_bearing_deg)
-            for r in pipe.process(frame):
-                if r.status in ("ok",) and r.raw_bearing_deg is not None:
-                    mt = matcher.add_estimate(f"{r.method}/raw", r.stamp_ns, r.raw_bearing_deg)
-                    if mt is not None:
-                        r.raw_error_deg = mt.error_deg
-                if r.correction_status == _Corrector.PENDING:
-                    pipe.corrector.enqueue(r)
-                rows.append(r)
+                truths.append((frame.stamp_ns, frame.true_bearing_deg))
+            rows.extend(pipe.process(frame))
             if progress is not None:
                 progress(frames)
-        duration = (last_stamp - first_stamp) / 1e9 if frames > 1 else 0.0
-        if frames > 1:
-            duration *= frames / (frames - 1)           # n frames cover n periods of recording
-        if pipe.corrector is not None:
-            pipe.corrector.resolve()
-        for r in rows:
-            if r.corrected_bearing_deg is not None and f"{r.method}/corrected" in matcher.streams:
-                mt = matcher.add_estimate(f"{r.method}/corrected", r.stamp_ns, r.corrected_bearing_deg)
-                if mt is not None:
-                    r.corrected_error_deg = mt.error_deg
+    return _Part(rows, truths, tally, plan, frames, first_stamp, last_stamp, pipe.timing_ms,
+                 time.process_time() - t_cpu)
+
+
+def default_workers() -> int:
+    """Cores this process may run on."""
+    import os
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None,
+               workers: int | None = None) -> ReplayResult:
+    """Process a bag offline. Raises :class:`BagError` (one line) for a path that is not a usable bag.
+
+    ``workers`` (default: every core) processes run the methods in groups of similar cost, each reading
+    the bag itself (a method's frames stay in order in one process, so its state, e.g. the ``last``
+    prior, is the node's); this process then corrects every pending heading with one vectorised
+    inversion per method and evaluates. The result does not depend on ``workers``."""
+    from .evaluation import StampMatcher
+
+    config = config or ReplayConfig()
+    topic_map = topic_map or default_topic_map()
+    config.check_knobs()
+    methods = config.method_list()
+    corrector = _make_corrector(config) if config.error_map else None
+    groups = method_groups(methods, default_workers() if workers is None else workers)
+    t_wall = time.perf_counter()
+    if len(groups) == 1:
+        parts = [_replay_part(path, config, topic_map, groups[0], progress)]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        # spawn: a fresh interpreter per worker (numba's threading layer is not fork-safe)
+        with ProcessPoolExecutor(len(groups) - 1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = [pool.submit(_replay_part, path, config, topic_map, g) for g in groups[1:]]
+            parts = [_replay_part(path, config, topic_map, groups[0], progress)] + [f.result() for f in futures]
+    main = parts[0]
+    order = {m: k for k, m in enumerate(methods)}
+    rows = sorted((r for part in parts for r in part.rows), key=lambda r: (r.stamp_ns, order[r.method]))
+    matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
+    for m in methods:
+        matcher.add_stream(f"{m}/raw", False)
+        if m not in config.direct_methods and corrector is not None:
+            matcher.add_stream(f"{m}/corrected", False)
+    for stamp, bearing in main.truths:
+        matcher.add_truth(stamp, bearing)
+    for r in rows:
+        if r.status == "ok" and r.raw_bearing_deg is not None:
+            mt = matcher.add_estimate(f"{r.method}/raw", r.stamp_ns, r.raw_bearing_deg)
+            if mt is not None:
+                r.raw_error_deg = mt.error_deg
+        if corrector is not None and r.correction_status == _Corrector.PENDING:
+            corrector.enqueue(r)
+    if corrector is not None:
+        corrector.resolve()
+    for r in rows:
+        if r.corrected_bearing_deg is not None and f"{r.method}/corrected" in matcher.streams:
+            mt = matcher.add_estimate(f"{r.method}/corrected", r.stamp_ns, r.corrected_bearing_deg)
+            if mt is not None:
+                r.corrected_error_deg = mt.error_deg
     matcher.finish()
-    rows.sort(key=lambda r: (r.stamp_ns, pipe.methods.index(r.method)))
+    frames = main.frames
+    duration = (main.last_stamp - main.first_stamp) / 1e9 if frames > 1 else 0.0
+    if frames > 1:
+        duration *= frames / (frames - 1)           # n frames cover n periods of recording
+    timing = {"observation": []}
+    for part in parts:
+        for k, v in part.timing_ms.items():
+            timing.setdefault(k, []).extend(v)
     wall = time.perf_counter() - t_wall
-    return ReplayResult(rows, matcher.summary(), tally, plan, frames, duration, wall, matcher.matches,
-                        pipe.timing_ms, config.error_map, time.process_time() - t_cpu)
+    return ReplayResult(rows, matcher.summary(), main.tally, main.plan, frames, duration, wall, matcher.matches,
+                        timing, config.error_map, sum(p.cpu_s for p in parts), len(parts))
 
 
 # ------------------------------------------------------------------------------------------------

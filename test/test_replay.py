@@ -6,6 +6,7 @@ form; tilt_aware is exact under Rayleigh (notes section 3); corrupt messages are
 exactly as planted; both storage formats give identical numbers.
 """
 import datetime as dt
+import dataclasses
 import json
 import math
 import subprocess
@@ -60,10 +61,10 @@ def alt20(tmp_path_factory):
     return runs, alt, az
 
 
-def _replay(path, **kw):
+def _replay(path, workers=1, **kw):
     cfg = dict(knobs={"*": {"stride": 1}})
     cfg.update(kw)
-    return replay_bag(path, ReplayConfig(**cfg))
+    return replay_bag(path, ReplayConfig(**cfg), workers=workers)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -182,6 +183,37 @@ def test_error_map_correction_removes_the_tilt_error(alt20, small_map, tmp_path)
     res2 = _replay(tmp_path / "p10", methods=("least_squares",), error_map=str(small_map))
     assert [r.correction_status for r in res2.rows] == ["out_of_domain"] * 5
     assert res2.summary["least_squares/corrected"]["count"] == 0 and res2.summary["least_squares/raw"]["count"] == 5
+
+
+def test_worker_processes_give_the_single_process_result(alt20, small_map):
+    """Methods split over two processes (each reading the bag) and corrected afterwards in this one: every
+    row field, every statistic and the match order equal the one-process replay's."""
+    runs, _, _ = alt20
+    kw = dict(methods=("zenith", "least_squares", "tilt_aware", "symmetry"), error_map=str(small_map))
+    one = _replay(runs["mcap"]["bag"], workers=1, **kw)
+    two = _replay(runs["mcap"]["bag"], workers=2, **kw)
+    assert (one.workers, two.workers) == (1, 2)
+    fields = [f.name for f in dataclasses.fields(one.rows[0])]
+    assert [[getattr(r, f) for f in fields] for r in two.rows] == [[getattr(r, f) for f in fields] for r in one.rows]
+    assert two.summary == one.summary and two.matches == one.matches
+    assert two.frames == one.frames == 36 and two.bag_duration_s == one.bag_duration_s
+    assert two.tally.lines() == one.tally.lines()
+    ls = [r for r in two.rows if r.method == "least_squares"]
+    assert len(ls) == 36 and all(r.correction_status == "ok" for r in ls)       # corrected, not left pending
+
+
+def test_method_groups_partition_the_methods_by_cost():
+    from polarization_compass.replay import method_groups
+    ms = ["zenith", "sm_asm", "symmetry", "least_squares", "tilt_aware"]
+    for workers in (1, 2, 3, 5, 8):
+        groups = method_groups(ms, workers)
+        assert len(groups) == min(workers, len(ms))
+        assert sorted(m for g in groups for m in g) == sorted(ms)            # each method exactly once
+        for g in groups:                                                       # the given order within a group
+            assert g == [m for m in ms if m in g]
+    two = method_groups(ms, 2)
+    assert {"sm_asm", "symmetry"} not in [set(g) for g in two]                # the two costly ones apart
+    assert method_groups(["least_squares"], 4) == [["least_squares"]]
 
 
 def test_missing_error_map_is_one_clear_error(alt20, tmp_path):

@@ -27,6 +27,8 @@ def register(sub):
                    help="error map for the tilt correction (default: the map shipped with the package, as the "
                         "tilt_corrector node; 'none': raw headings only)")
     p.add_argument("--no-plots", action="store_true", help="CSV and summary only")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes sharing the methods (default: one per core; results do not depend on it)")
     p.set_defaults(func=run)
 
 
@@ -63,6 +65,8 @@ def run(args) -> int:
 
     if args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
+    if args.workers is not None and not 1 <= args.workers <= 64:
+        raise CompassError(f"--workers must be in [1, 64], got {args.workers}")
     methods = () if args.methods.strip() == "all" else tuple(m.strip() for m in args.methods.split(",") if m.strip())
     error_map, note = args.error_map, None
     if error_map == "none":
@@ -79,13 +83,13 @@ def run(args) -> int:
         if sys.stderr.isatty() and k % 10 == 0:
             print(f"\rreplay: {k} frames", end="", file=sys.stderr)
 
-    result = replay_bag(args.bag, config, tm, progress)
+    result = replay_bag(args.bag, config, tm, progress, workers=args.workers)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
     print(f"{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in {result.wall_s:.1f} s "
-          f"({result.speed_x_real_time:.1f}x real time; {result.cpu_s:.1f} s of CPU, "
-          f"{result.speed_x_real_time_cpu:.1f}x on an idle core)")
+          f"({result.speed_x_real_time:.1f}x real time; {result.cpu_s:.1f} s of CPU in {result.workers} "
+          f"process(es), {result.speed_x_real_time_cpu:.1f}x on one idle core)")
     if note:
         print(f"note: {note}")
     for line in result.plan.problems:
