@@ -280,7 +280,7 @@ def test_simulator_time_scale_change_continues_simulated_time(simulator, monkeyp
 
     monkeypatch.setattr(S, "time", FakeTime)
     clock = []
-    simulator._publish_clock = clock.append
+    simulator._publish_clock = lambda t_ns, force=False: clock.append(t_ns)   # every value, unthrottled
     simulator.t_wait0 = wall[0]
 
     def tick(dt):
@@ -300,3 +300,37 @@ def test_simulator_time_scale_change_continues_simulated_time(simulator, monkeyp
     for k in range(1, 17):                                 # then 3 simulated s per wall s
         assert tick(step) == c + k * 46_875_000
     assert simulator.frames == 28 and simulator.late_frames == 0    # frames at 2.1 .. 2.7 s, none late
+
+
+def test_simulator_sends_clock_at_clock_rate_not_per_message(simulator, monkeypatch):
+    """/clock reaches every node of the graph, so the simulator sends it at clock_rate_hz (wall) however
+    many frames and IMU samples it publishes per tick, plus once before anything else; the data keep
+    their own rates (10 Hz frames, 50 Hz IMU in simulated time)."""
+    from polarization_compass.nodes import sky_simulator as S
+    wall = [1000.0]
+
+    class FakeTime:
+        @staticmethod
+        def monotonic():
+            return wall[0]
+        perf_counter = staticmethod(time.perf_counter)
+        time_ns = staticmethod(time.time_ns)
+
+    monkeypatch.setattr(S, "time", FakeTime)
+    sent = []                                              # (wall s, clock ns) of every /clock message
+    simulator.pub_clock.publish = lambda msg: sent.append((wall[0], msg.clock.sec * 10**9 + msg.clock.nanosec))
+    simulator.t_wait0 = wall[0]
+    rate = simulator.params["clock_rate_hz"]
+    assert rate == 20.0                                    # the shipped default
+    simulator._tick_sim()                                  # primes: the first stamp goes out at once
+    assert sent == [(1000.0, simulator.start_ns)]
+    step = 1 / 128                                         # scheduler ticks, faster than the clock rate
+    for _ in range(256):                                   # 2 s of wall at time_scale 1
+        wall[0] += step
+        simulator._tick_sim()
+    gaps = np.diff([w for w, _ in sent])
+    assert gaps.min() >= 1.0 / rate - 1e-9                 # never faster than clock_rate_hz
+    assert gaps.max() <= 1.0 / rate + step + 1e-9           # ... and at the first tick once due
+    assert int(2.0 / (1.0 / rate + step)) <= len(sent) - 1 <= 2.0 * rate
+    assert all(b >= a for (_, a), (_, b) in zip(sent, sent[1:]))   # simulated time never goes back
+    assert simulator.frames == 20 and simulator.imu_samples >= 100  # data at their own rates meanwhile

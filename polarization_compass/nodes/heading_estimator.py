@@ -93,7 +93,7 @@ class HeadingEstimatorNode(Node):
         self.create_subscription(Image, topics.IMAGE, self._on_image, image_qos, callback_group=images)
         if self.needs_tilt:
             from .diagnostics import _wall_clock
-            self.create_timer(0.01, self._drain, callback_group=images, clock=_wall_clock())
+            self.create_timer(0.02, self._drain, callback_group=images, clock=_wall_clock())  # the IMU is 50+ Hz
         self.get_logger().info(f"method {self.method}: {t['heading_raw']} from {topics.IMAGE}")
 
     # parameters ---------------------------------------------------------------------------------

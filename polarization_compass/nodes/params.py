@@ -212,7 +212,9 @@ SIMULATOR = (
                                "(other nodes need use_sim_time); system: stamps are this node's ROS "
                                "time and the sun is rendered for that time",
           choices=("sim", "system"), read_only=True),
-    Param("clock_rate_hz", 100.0, "how often /clock is published (clock_mode sim), wall clock", 1.0, 1000.0,
+    Param("clock_rate_hz", 20.0, "how often /clock is published (clock_mode sim), wall clock; every node with "
+                                 "use_sim_time receives each one, and nothing here needs it finer than the "
+                                 "stamps of the data (ros2 bag play --clock: 40 Hz)", 1.0, 1000.0,
           unit="Hz", read_only=True),
     Param("start_time_utc", "2019-11-15T06:00:00Z", "simulated UTC at the first frame (ISO 8601)",
           check=lambda v: "start_time_utc must not be empty" if v == "" else _iso_or_empty(v), read_only=True),

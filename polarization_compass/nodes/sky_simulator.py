@@ -55,6 +55,9 @@ from .runner import run_node
 __all__ = ["SkySimulatorNode", "main", "mosaic_config"]
 
 GRAVITY_M_S2 = 9.80665
+#: Wall-clock rate of the sim-mode scheduler (publishes every frame and IMU sample that is due);
+#: /clock goes out at clock_rate_hz, independently.
+SCHEDULER_HZ = 100.0
 TRUTH_YAW_VARIANCE_RAD2 = 1e-12
 
 #: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
@@ -119,7 +122,8 @@ class SkySimulatorNode(Node):
         if self.sim_mode:
             self.sim_cursor = self.start_ns
             self.base = None                # (sim ns, wall s)
-            self.create_timer(1.0 / p["clock_rate_hz"], self._tick_sim, clock=_wall_clock())
+            self.last_clock_wall = -math.inf
+            self.create_timer(1.0 / SCHEDULER_HZ, self._tick_sim, clock=_wall_clock())
         else:
             self.t_first_ns = None
             self.create_timer(1.0 / p["rate_hz"], self._frame_system)
@@ -231,9 +235,15 @@ class SkySimulatorNode(Node):
             n = "" if self.total_s is None else f"/{int(math.ceil(self.total_s * p['rate_hz'] - 1e-9))}"
             self.get_logger().info(f"frame {self.frames}{n}")
 
-    def _publish_clock(self, t_ns: int) -> None:
-        if self.pub_clock is not None:
+    def _publish_clock(self, t_ns: int, force: bool = False) -> None:
+        """/clock at most every 1 / clock_rate_hz wall seconds (every node of the graph receives each
+        one), always when ``force``d (the first stamp, before anything else is sent)."""
+        if self.pub_clock is None:
+            return
+        now = time.monotonic()
+        if force or now - self.last_clock_wall >= 1.0 / self.params["clock_rate_hz"]:
             self.pub_clock.publish(Clock(clock=time_msg(t_ns)))
+            self.last_clock_wall = now
 
     # lockstep -----------------------------------------------------------------------------------
     def _on_ack(self, topic: str, msg):
@@ -281,7 +291,7 @@ class SkySimulatorNode(Node):
                     "subscriber(s)" + "".join(f"; {t} not read by {', '.join(sorted(n))} yet"
                                               for t, n in self._missing_downstream()))
             t0 = self.start_ns if self.sim_mode else self.get_clock().now().nanoseconds
-            self._publish_clock(t0)
+            self._publish_clock(t0, force=True)
             self.pub_info.publish(camera_info_msg(self.camera, t0, p["camera_frame_id"]))
             self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t0, "gps"))
             R = self._attitude_at(t0, 0.0)
@@ -334,7 +344,6 @@ class SkySimulatorNode(Node):
                 break
             t = min(cands)
             self.sim_cursor = max(self.sim_cursor, t)
-            self._publish_clock(self.sim_cursor)
             t_rel = (t - self.start_ns) / 1e9
             R = self._attitude_at(t, t_rel)
             if next_imu is not None and next_imu == t:          # IMU first at equal stamps

@@ -89,7 +89,7 @@ class TiltCorrectorNode(Node):
         self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos)
         if p["site_source"] == "navsatfix":
             self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data)
-        self.create_timer(0.02, self._expire, clock=_wall_clock())
+        self.create_timer(0.1, self._expire, clock=_wall_clock())   # waits are imu_max_wait_s (0.5 s); IMU arrivals drain too
         self.get_logger().info(f"{t['heading_raw']} + {topics.IMU} -> {t['heading']} ({p['correction']}, "
                                f"site from {p['site_source']})")
 
