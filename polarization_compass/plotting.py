@@ -34,8 +34,7 @@ def save_frame_pngs(frame, out_dir) -> list[Path]:
             ("dop", dop, "viridis", 0, 1, "DoP")):
         fig, ax = plt.subplots(figsize=(7.2, 5.6), dpi=110)
         shown = np.ma.masked_where(~frame.valid, img)
-        cm = plt.get_cmap(cmap).copy()
-        cm.set_bad("0.6")
+        cm = plt.get_cmap(cmap).with_extremes(bad="0.6")     # set_bad on a copy is deprecated
         x0, x1 = float(frame.x_px.min()), float(frame.x_px.max())
         y0, y1 = float(frame.y_px.min()), float(frame.y_px.max())
         im = ax.imshow(shown, cmap=cm, vmin=lo, vmax=hi, extent=(x0 - 0.5, x1 + 0.5, y1 + 0.5, y0 - 0.5),
