@@ -366,3 +366,52 @@ def test_a_python_tag_in_a_parameter_file_is_never_executed(ctx, tmp_path, capsy
     err = capsys.readouterr().err
     assert rc == 2 and "Traceback" not in err and "error" in err
     assert not marker.exists()
+
+
+# --------------------------------------------------------------------------------------------
+# sky_simulator: its own inputs (attitude topic, lockstep acks)
+# --------------------------------------------------------------------------------------------
+TINY_SCENE = """camera: {model: pinhole, width_px: 48, height_px: 40, focal_length_mm: 0.12, pixel_pitch_x_um: 3.45,
+         pixel_pitch_y_um: 3.45}
+"""
+
+
+@pytest.fixture(scope="module")
+def topic_simulator(ctx, tmp_path_factory):
+    from polarization_compass.nodes.sky_simulator import SkySimulatorNode
+    scene = tmp_path_factory.mktemp("sim") / "tiny.yaml"
+    scene.write_text(TINY_SCENE)
+    node = SkySimulatorNode(context=ctx, parameter_overrides=[
+        Parameter("scene", value=str(scene)), Parameter("encoding", value="32FC1"),
+        Parameter("attitude_source", value="topic"), Parameter("lockstep", value=True),
+        Parameter("lockstep_topics", value=["compass/least_squares/status"]), Parameter("turns", value=0.0)])
+    yield node
+    node.destroy_node()
+
+
+@pytest.mark.parametrize("q", [[0, 0, 0, 0], [np.nan, 0, 0, 1], [0, 0, 0, 3]])
+def test_simulator_counts_bad_attitudes_and_keeps_the_last_good_one(topic_simulator, q):
+    good = body_quat(75.0, -10.0, 4.0)
+    topic_simulator._on_attitude(imu_msg(T0, good))
+    kept = topic_simulator.R_enu_body_input.copy()
+    before = rejected(topic_simulator)
+    topic_simulator._on_attitude(imu_msg(T0 + 1, q))                  # must not raise
+    after = rejected(topic_simulator)
+    grew = {k: after[k] - before.get(k, 0) for k in after if after[k] != before.get(k, 0)}
+    assert list(grew.values()) == [1] and next(iter(grew)).startswith("attitude"), grew
+    assert np.array_equal(topic_simulator.R_enu_body_input, kept)      # the bad sample replaced nothing
+    from polarization_compass.conventions import quat_to_matrix
+    assert np.allclose(kept, quat_to_matrix(good), atol=1e-12)
+
+
+@pytest.mark.parametrize("text", ["not json", "[1, 2]", '{"stamp_ns": "soon"}', "null"])
+def test_simulator_counts_unreadable_lockstep_acks(topic_simulator, text):
+    from std_msgs.msg import String
+    topic = "compass/least_squares/status"
+    topic_simulator.acks[topic] = 5
+    before = rejected(topic_simulator).get("lockstep_bad_status", 0)
+    topic_simulator._on_ack(topic, String(data=text))                 # must not raise
+    assert rejected(topic_simulator).get("lockstep_bad_status", 0) == before + 1
+    assert topic_simulator.acks[topic] == 5                            # no ack was invented
+    topic_simulator._on_ack(topic, String(data='{"stamp_ns": 9}'))
+    assert topic_simulator.acks[topic] == 9                            # and good acks still count
