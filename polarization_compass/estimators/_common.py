@@ -9,6 +9,8 @@ Sampling
 (a strided render, superpixels: ``d = 2``) is subsampled by ``max(1, round(stride / d))`` more, so an
 observation rendered from :meth:`Estimator.pixels_needed` is used as is. ``region`` is
 ``(x0, y0, width, height)`` in 1-based sensor pixels. Pixel lists (1-D observations) are never strided.
+The least-squares methods thin a full-resolution grid by an even step *phase-balanced* (see
+:func:`select_view`): the same number of pixels, a quarter on each phase of the 2 x 2 polarizer mosaic.
 
 Uncertainty
 -----------
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -163,6 +166,21 @@ def _centred_indices(n: int, step: int) -> np.ndarray:
     return start + step * np.arange(count)
 
 
+def _phase_balanced_indices(n: int, step: int, first_px: float = 1.0) -> np.ndarray:
+    """Indices along an axis of length n, on average ``step`` apart, that alternate in parity: those
+    whose sensor coordinate ``c`` (``first_px`` for index 0, 1-based) has ``(c - 1) mod 2 step`` in
+    ``{0, step - 1}`` (stride 2: c - 1 = 0, 1, 4, 5, 8, ...; stride 4: 0, 3, 8, 11, ...). For an even step
+    half are even and half odd. Anchored to sensor coordinates, so the close pairs (1 px apart at stride
+    2, whose bilinear neighbourhoods overlap) never straddle a block of ``block_px`` (a multiple of 2 step)."""
+    m = (np.arange(n) + int(round(first_px)) - 1) % (2 * step)
+    return np.nonzero((m == 0) | (m == step - 1))[0]
+
+
+def _slice_of(idx: np.ndarray) -> slice:
+    """An arithmetic progression of indices (at least one) as a slice."""
+    return slice(int(idx[0]), int(idx[-1]) + 1, int(idx[1] - idx[0]) if idx.size > 1 else 1)
+
+
 def grid_spacing_px(obs: Observation) -> float:
     """Spacing in sensor pixels between neighbouring columns of a 2-D observation (1 for a list)."""
     x = np.asarray(obs.x_px)
@@ -176,7 +194,9 @@ class PixelView:
     """The pixels a method reads, flat (views where possible, else compact copies), before masking.
 
     ``grid`` = ((x0, dx, nx), (y0, dy, ny)) for a regular 2-D grid in row-major order (sensor pixels),
-    else None (a pixel list). ``rays`` is (3, n)."""
+    else None. ``subgrids``: a tuple of such keys when the pixels are several regular grids one after
+    the other, each row-major (the phase-balanced stride of :func:`select_view`), else None. Neither: a
+    pixel list. ``rays`` is (3, n)."""
 
     aop: np.ndarray
     dop: np.ndarray
@@ -186,6 +206,7 @@ class PixelView:
     y_px: np.ndarray
     intensity: np.ndarray | None
     grid: tuple | None
+    subgrids: tuple | None = None
 
 
 def _check_shapes(obs: Observation):
@@ -204,9 +225,16 @@ def _check_shapes(obs: Observation):
         raise _BadInput("the observation has no pixels")
 
 
-def select_view(obs: Observation, knobs: dict, window=None) -> PixelView:
+def select_view(obs: Observation, knobs: dict, window=None, balance_phases: bool = False) -> PixelView:
     """Apply ``stride`` and ``region`` (and a ``window`` (x_lo, x_hi, y_lo, y_hi), sensor pixels,
-    inclusive) without looking at the values. Raises _BadInput for inconsistent arrays."""
+    inclusive) without looking at the values. Raises _BadInput for inconsistent arrays.
+
+    ``balance_phases``: when a full-resolution grid (neighbours 1 sensor pixel apart) is thinned by an
+    even step, every second kept row and column is moved on by one pixel, so that the four phases of a
+    2 x 2 polarizer mosaic are read equally often. A plain even stride reads one phase only; after a
+    bilinear demosaic each phase has its own anisotropic Stokes noise and so its own O(sigma^2) AoP
+    bias, which cancels over the four phases but not within one (the view then has ``subgrids``, not
+    ``grid``)."""
     _check_shapes(obs)
     aop = np.asarray(obs.aop_rad)
     shape = aop.shape
@@ -222,9 +250,15 @@ def select_view(obs: Observation, knobs: dict, window=None) -> PixelView:
         lims.append(window)
     if len(shape) == 2 and shape[0] >= 1 and shape[1] >= 1:
         H, W = shape
-        step = max(1, int(round(knobs["stride"] / grid_spacing_px(obs))))
-        rows = _centred_indices(H, step) if step > 1 else np.arange(H)
-        cols = _centred_indices(W, step) if step > 1 else np.arange(W)
+        spacing = grid_spacing_px(obs)
+        step = max(1, int(round(knobs["stride"] / spacing)))
+        balanced = balance_phases and step % 2 == 0 and spacing == 1.0
+        if balanced:
+            rows = _phase_balanced_indices(H, step, float(ys[0, 0]))
+            cols = _phase_balanced_indices(W, step, float(xs[0, 0]))
+        else:
+            rows = _centred_indices(H, step) if step > 1 else np.arange(H)
+            cols = _centred_indices(W, step) if step > 1 else np.arange(W)
         xc = xs[0, cols]
         yr = ys[rows, 0]
         for (xl, xh, yl, yh) in lims:
@@ -236,6 +270,31 @@ def select_view(obs: Observation, knobs: dict, window=None) -> PixelView:
             e = np.zeros(0)
             return PixelView(e, e, np.zeros(0, bool), np.zeros((3, 0)), e, e, None if inten is None else e, None)
         full = rows.size == H and cols.size == W
+        if balanced:
+            # rows (and columns) alternate between two arithmetic progressions: four regular subgrids,
+            # copied one after the other (plain strided copies; the sums do not care about the order)
+            parts = [(rr, cc) for rr in (rows[0::2], rows[1::2]) for cc in (cols[0::2], cols[1::2])
+                     if rr.size and cc.size]
+            n_all = int(rows.size * cols.size)
+
+            def take(a, lead=()):
+                src = np.asarray(a).reshape(lead + shape)
+                out = np.empty(lead + (n_all,), dtype=src.dtype)
+                off = 0
+                for rr, cc in parts:
+                    n = rr.size * cc.size
+                    out[..., off:off + n].reshape(lead + (rr.size, cc.size))[...] = src[..., _slice_of(rr), _slice_of(cc)]
+                    off += n
+                return out
+            keys, xg, yg = [], [], []
+            for rr, cc in parts:
+                xc_p, yr_p = xs[0, cc], ys[rr, 0]
+                xg.append(np.tile(xc_p, yr_p.size))        # coordinates from the axes: no pass over x_px
+                yg.append(np.repeat(yr_p, xc_p.size))
+                keys.append(((float(xc_p[0]), float(xc_p[1] - xc_p[0]) if xc_p.size > 1 else 1.0, int(xc_p.size)),
+                             (float(yr_p[0]), float(yr_p[1] - yr_p[0]) if yr_p.size > 1 else 1.0, int(yr_p.size))))
+            return PixelView(take(aop), take(obs.dop), take(obs.valid), take(rays, (3,)), np.concatenate(xg),
+                             np.concatenate(yg), None if inten is None else take(inten), None, tuple(keys))
         if full:
             def take(a):
                 return np.asarray(a).reshape(-1)
@@ -307,9 +366,44 @@ def view_segments(view: PixelView, block_px: int):
     if view.grid is not None:
         return ((view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
                 grid_segments(view.grid[0], view.grid[1], int(block_px)))
+    if view.subgrids is not None:
+        return ((view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
+                subgrid_segments(view.subgrids, int(block_px)))
     order, segs = list_segments(view.x_px, view.y_px, int(block_px))
     return ((view.aop[order], view.dop[order], view.valid[order], view.rays[:, order], view.x_px[order],
              view.y_px[order], None if view.intensity is None else view.intensity[order]), segs)
+
+
+@lru_cache(maxsize=64)
+def subgrid_segments(keys: tuple, block_px: int):
+    """Segments (start, end, block, n_blocks) of regular grids stored one after the other, each
+    row-major with key ((x0, dx, nx), (y0, dy, ny)) (sensor pixels): one run per (grid, row, block
+    column), blocks of ``block_px`` sensor pixels numbered alike in every grid. Cached."""
+    axes = [(k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2])) for k in keys]
+    bcs = [np.floor((xg - 0.5) / block_px).astype(np.int64) for xg, _ in axes]
+    brs = [np.floor((yg - 0.5) / block_px).astype(np.int64) for _, yg in axes]
+    c0 = min(int(b.min()) for b in bcs)
+    r0 = min(int(b.min()) for b in brs)
+    K = max(int(b.max()) for b in bcs) - c0 + 1
+    R = max(int(b.max()) for b in brs) - r0 + 1
+    starts, ends, blks = [], [], []
+    off = 0
+    for bc, br in zip(bcs, brs):
+        bc, br = bc - c0, br - r0
+        nx, ny = bc.size, br.size
+        change = np.nonzero(np.diff(bc))[0] + 1
+        cs = np.concatenate([[0], change])
+        ce = np.concatenate([change, [nx]])
+        rows = np.arange(ny)[:, None] * nx + off
+        starts.append((rows + cs[None, :]).reshape(-1))
+        ends.append((rows + ce[None, :]).reshape(-1))
+        blks.append((br[:, None] * K + bc[cs][None, :]).reshape(-1))
+        off += nx * ny
+    out = (np.concatenate(starts).astype(np.int64), np.concatenate(ends).astype(np.int64),
+           np.concatenate(blks).astype(np.int64), int(R * K))
+    for a in out[:3]:
+        a.setflags(write=False)
+    return out
 
 
 class _BadInput(Exception):

@@ -16,6 +16,12 @@ standard deviations. ``least_squares`` without tilt knows only that the camera i
 ``max_tilt_deg``: the sign is certain only when the camera-frame elevation exceeds that plus the margin.
 Otherwise the brightness gradient or a prior bearing decide, or the result is axial (ambiguous).
 
+Sampling: an even ``stride`` on a full-resolution observation reads the four phases of the 2 x 2
+polarizer mosaic equally (``select_view(..., balance_phases=True)``). A bilinear demosaic gives each phase
+anisotropic Stokes noise and so an AoP bias of O(sigma^2) with a phase-dependent sign; a plain stride reads
+one phase, and on a full frame that bias (~0.001-0.002 deg) exceeded the statistical sigma (mean(err^2 /
+sigma^2) 2-3.5 at stride 2-4, 1.0 with the balanced stride).
+
 Uncertainty: first-order eigenvector perturbation. With residuals ``r_i = s . e_i`` (the noise
 projected on the sun), ``d s = -sum_{k=2,3} u_k (u_k^T dM s) / (lambda_k - lambda_1)`` and
 ``dM s = sum_i w_i e_i r_i``, so pixel i moves psi by
@@ -139,7 +145,7 @@ class _LSBase(KnobbedEstimator, Estimator):
             return HeadingResult.failed(self.name, Status.BAD_INPUT,
                                         "tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)")
         try:
-            view = select_view(obs, k)
+            view = select_view(obs, k, balance_phases=True)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
         flat, segs = view_segments(view, k["block_px"])
