@@ -342,6 +342,15 @@ class ReplayConfig:
         k.update(self.knobs.get(method, {}))
         return k
 
+    def for_methods(self, methods) -> "ReplayConfig":
+        """This configuration for a subset of its methods (a worker's group): ``"*"`` keeps the knobs
+        one of them has, so that :meth:`check_knobs`, already passed by the whole set, passes again."""
+        from .estimators import estimator_knob_names
+        names = set().union(*(estimator_knob_names(m) for m in methods))
+        knobs = {k: v for k, v in self.knobs.items() if k != "*"}
+        knobs["*"] = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
+        return dataclasses.replace(self, methods=tuple(methods), knobs=knobs)
+
     def check_knobs(self) -> None:
         """A ``"*"`` knob no selected method has is a typo, not a no-op."""
         from .estimators import estimator_knob_names
@@ -493,16 +502,19 @@ class _Corrector:
 
     def __init__(self, path: Path):
         self.path = path
+        self._map = None
         self.correctors: dict = {}
         self.defer = False
         self.queue: list = []              # (row, method, raw, sun_az, sun_alt, pitch, roll)
 
     def _get(self, method):
         from .correction import TiltCorrector
-        from .errormap import ErrorMapError
+        from .errormap import ErrorMapError, load_error_map
         if method not in self.correctors:
             try:
-                self.correctors[method] = TiltCorrector.from_file(self.path, method)
+                if self._map is None:
+                    self._map = load_error_map(self.path)          # once for every method's corrector
+                self.correctors[method] = TiltCorrector(self._map, method)
             except ErrorMapError as exc:
                 self.correctors[method] = str(exc)
         return self.correctors[method]
@@ -665,7 +677,7 @@ def _replay_part(path, config: ReplayConfig, topic_map: TopicMap, methods: list[
     """Every frame of the bag through the nodes' chain (:class:`FramePipeline`) for ``methods``; a heading
     to correct is left ``pending``."""
     t_cpu = time.process_time()
-    pipe = FramePipeline(dataclasses.replace(config, methods=tuple(methods)), topic_map)
+    pipe = FramePipeline(config.for_methods(methods), topic_map)
     if pipe.corrector is not None:
         pipe.corrector.defer = True
     tally = Tally()

@@ -216,6 +216,17 @@ def test_method_groups_partition_the_methods_by_cost():
     assert method_groups(["least_squares"], 4) == [["least_squares"]]
 
 
+def test_a_worker_group_without_the_shared_knob_still_runs(alt20):
+    """zenith has no stride knob: alone in a worker's group, the "*" stride must not make it an unknown knob
+    (the whole method set was checked once); with five workers every method has a group of its own."""
+    runs, _, _ = alt20
+    five = _replay(runs["mcap"]["bag"], workers=5, methods=("zenith", "least_squares"), knobs={"*": {"stride": 2}})
+    one = _replay(runs["mcap"]["bag"], workers=1, methods=("zenith", "least_squares"), knobs={"*": {"stride": 2}})
+    assert five.workers == 2 and [r.raw_bearing_deg for r in five.rows] == [r.raw_bearing_deg for r in one.rows]
+    with pytest.raises(Exception, match="unknown knob"):                 # a typo is still refused up front
+        _replay(runs["mcap"]["bag"], workers=5, methods=("zenith", "least_squares"), knobs={"*": {"strid": 2}})
+
+
 def test_missing_error_map_is_one_clear_error(alt20, tmp_path):
     runs, _, _ = alt20
     with pytest.raises(Exception, match="does not exist: make one with"):
