@@ -853,6 +853,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     sun, and the residual sums of squares)."""
 
     axial = True
+    sigma_optional = True
     KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
 
     def __init__(self, **knobs):
@@ -950,7 +951,11 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         extras["mirror_axes"] = len(sound)
         return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound]
 
-    def estimate(self, obs: Observation) -> HeadingResult:
+    def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
+        """``sigma=False`` skips pass 2 (the influence kernel: the uncertainty and the residuals against the
+        two ends of the meridian), except on the mirror-pair path, whose acceptance test needs the residuals:
+        ``sigma_deg`` is None, ``extras`` has no ``rms_residual_deg``, and an unresolved (axial) result
+        names the end ``psi = -theta`` rather than the one the Rayleigh residuals prefer."""
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
@@ -975,9 +980,12 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             candidates = [min(candidates, key=lambda c: self._level_ms(data, rho_lo, rho_max, c[0].theta, obs))]
         fit, mirror, inflation = candidates[0]
         first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
-        block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam)
-        j = int(np.argmin(rss))                     # the end of the meridian the Rayleigh residuals prefer
-        rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
+        j, rms_deg = 0, None
+        if sigma or "mirror_axes" in extras:
+            block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam,
+                                             second.sun_cam)
+            j = int(np.argmin(rss))                 # the end of the meridian the Rayleigh residuals prefer
+            rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
         if "mirror_axes" in extras:
             extras["mirror_coverage"] = fit.coverage
             extras["mirror_sigma_inflation"] = inflation
@@ -991,13 +999,14 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                     f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + 0.01): none is the solar "
                     "meridian", pixels=fit.n, **extras)
         n = fit.n_paired
-        sigma = cr1_sigma(block_sum[j], n) * inflation
+        sigma_deg = finish_sigma_deg(cr1_sigma(block_sum[j], n) * inflation, k) if sigma else None
         if j == 1:
             first, second = second, first
         has_i = data[6] is not None
         bt = brightness_t_from_stats(fit.stats if has_i else None, first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
         extras.update(fit.state.get("extras", {}))
-        extras["rms_residual_deg"] = rms_deg
+        if rms_deg is not None:
+            extras["rms_residual_deg"] = rms_deg
         return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
-                           finish_sigma_deg(sigma, k), n, fit.nonfinite, fit.quality, extras=extras)
+                           sigma_deg, n, fit.nonfinite, fit.quality, extras=extras)

@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 
 from ..camera import CameraModel, PixelSelection
-from ..conventions import bearing_to_yaw_enu_deg, psi_to_bearing_deg, wrap_180_deg
+from ..conventions import psi_to_bearing_deg
 from ..errors import CompassError
 
 __all__ = ["Status", "HeadingResult", "Observation", "Estimator", "make_estimator", "register_estimator",
@@ -37,6 +37,19 @@ class Status(str, Enum):
     INSUFFICIENT_COVERAGE = "insufficient_coverage"  # too little of the sky usable for the method's geometry
 
 
+def _wrap_180(x: float) -> float:
+    """:func:`~polarization_compass.conventions.wrap_180_deg` of one finite float, without numpy (the same
+    floor modulo, so the same bits; ``from_psi`` runs once per estimate and sweeps make 1e5 of them)."""
+    w = (x + 180.0) % 360.0 - 180.0
+    return 180.0 if w == -180.0 else w
+
+
+def _wrap_360(x: float) -> float:
+    """:func:`~polarization_compass.conventions.wrap_360_deg` of one finite float, without numpy."""
+    w = x % 360.0
+    return 0.0 if w >= 360.0 else w
+
+
 @dataclass(frozen=True)
 class HeadingResult:
     """One heading estimate.
@@ -44,7 +57,8 @@ class HeadingResult:
     ``psi_deg``: the paper's yaw (bearing of camera +y minus sun azimuth), (-180, 180].
     ``bearing_deg``: true-North bearing of the camera +y axis, [0, 360).
     ``yaw_enu_deg``: REP-103 yaw (90 - bearing), (-180, 180].
-    ``sigma_deg``: calibrated 1-sigma uncertainty of the yaw.
+    ``sigma_deg``: calibrated 1-sigma uncertainty of the yaw (None when the caller asked for no
+    uncertainty: ``estimate(obs, sigma=False)``).
     ``axial``: True when the value is only known modulo 180 deg (status AMBIGUOUS).
     ``quality``: [0, 1], method specific (1 = perfect fit).
     Fields that do not exist for a failed estimate are ``None``.
@@ -75,14 +89,20 @@ class HeadingResult:
     @staticmethod
     def from_psi(method: str, psi_deg: float, sun_azimuth_deg: float, sigma_deg: float, pixels: int,
                  quality: float, axial: bool, reason: str = "", **kw) -> "HeadingResult":
-        """Fill bearing and REP-103 yaw from psi; refuses non-finite numbers (raises, a bug)."""
+        """Fill bearing and REP-103 yaw from psi; refuses non-finite numbers (raises, a bug). ``sigma_deg``
+        None: not computed (``estimate(obs, sigma=False)``)."""
+        psi_deg, sun_azimuth_deg, quality = float(psi_deg), float(sun_azimuth_deg), float(quality)
         for name, v in (("psi_deg", psi_deg), ("sigma_deg", sigma_deg), ("quality", quality)):
-            if not math.isfinite(v):
+            if v is not None and not math.isfinite(v):
                 raise FloatingPointError(f"{method}: non-finite {name} reached a result")
-        bearing = float(psi_to_bearing_deg(psi_deg, sun_azimuth_deg))
+        if not math.isfinite(sun_azimuth_deg):
+            bearing = float(psi_to_bearing_deg(psi_deg, sun_azimuth_deg))      # nan, as before
+        else:
+            bearing = _wrap_360(psi_deg + sun_azimuth_deg)
         return HeadingResult(method, Status.AMBIGUOUS if axial else Status.OK, reason,
-                             float(wrap_180_deg(psi_deg)), bearing, float(bearing_to_yaw_enu_deg(bearing)),
-                             float(sigma_deg), int(pixels), float(np.clip(quality, 0.0, 1.0)), bool(axial), **kw)
+                             _wrap_180(psi_deg), bearing, _wrap_180(90.0 - bearing),
+                             None if sigma_deg is None else float(sigma_deg), int(pixels),
+                             min(max(quality, 0.0), 1.0), bool(axial), **kw)
 
     def to_json_dict(self) -> dict:
         d = asdict(self)
@@ -131,10 +151,16 @@ class Estimator:
 
     ``knobs`` trade accuracy for time (stride, region, min_dop, window ...); ``pixels_needed`` tells a
     renderer which pixels this method reads, so sweeps render only those.
+
+    ``sigma_optional``: the method accepts ``estimate(obs, sigma=False)``, which skips the uncertainty
+    (``sigma_deg`` None, no residual statistics in ``extras``) for callers that use only psi and status
+    (error-map sweeps). psi is the same as with ``sigma=True`` except that an unresolved (axial) result
+    may name the other end of the meridian, which it does not know anyway; status and quality are the same.
     """
 
     name = "base"
     axial = True
+    sigma_optional = False
 
     def __init__(self, **knobs):
         self.knobs = dict(knobs)
@@ -143,6 +169,7 @@ class Estimator:
         return PixelSelection.full()
 
     def estimate(self, obs: Observation) -> HeadingResult:  # pragma: no cover - interface
+        """One heading. Methods with ``sigma_optional`` also take ``sigma: bool = True``."""
         raise NotImplementedError
 
 

@@ -106,29 +106,73 @@ def _tables(K: int, steps: int):
     return out
 
 
+@njit(cache=True)
+def _grid_search(a, K, grid, e2, e1, near_i):  # pragma: no cover - compiled
+    """The coarse search of :func:`_axis_search` on the grid: (b, grid index of the start of Newton, Fg).
+
+    ``Fg[t] = Re sum_{k != 0} e2[t, k] b_k``; with ``near_i < 0`` the best near-best peak of Fg (at least
+    half the maximum) with ``S > 0`` (else the best peak), ``S[t] = -Re sum_{even k} e1[t, k] sum_rings a_k``;
+    else the peak reached by climbing from grid index ``near_i``."""
+    n_k = 2 * K + 1
+    n_r = a.shape[1]
+    b = np.zeros(n_k, np.complex128)
+    for k in range(n_k):
+        acc = 0j
+        for r in range(n_r):
+            acc += a[k, r] * a[k, r]
+        b[k] = acc
+    steps = grid.size
+    Fg = np.empty(steps)
+    for t in range(steps):
+        acc = 0.0
+        q = 0
+        for k in range(n_k):
+            if k == K:
+                continue
+            acc += (e2[t, q] * b[k]).real
+            q += 1
+        Fg[t] = acc
+    if near_i >= 0:
+        return b, _climb(Fg, near_i), Fg
+    asum = np.zeros(n_k, np.complex128)
+    for k in range(n_k):
+        if (k - K) % 2 == 0:
+            acc = 0j
+            for r in range(n_r):
+                acc += a[k, r]
+            asum[k] = acc
+    fmax = Fg.max()
+    best_good = -1
+    best_peak = -1
+    for t in range(steps):
+        f = Fg[t]
+        if not (f >= Fg[(t - 1) % steps] and f >= Fg[(t + 1) % steps] and f >= 0.5 * fmax):
+            continue
+        if best_peak < 0 or f > Fg[best_peak]:
+            best_peak = t
+        S = 0.0
+        q = 0
+        for k in range(n_k):
+            if (k - K) % 2 == 0:
+                S -= (e1[t, q] * asum[k]).real
+                q += 1
+        if S > 0.0 and (best_good < 0 or f > Fg[best_good]):
+            best_good = t
+    return b, (best_good if best_good >= 0 else best_peak), Fg
+
+
 def _axis_search(a, K, steps, near=None):
     """The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, b).
 
     Coarse search of F on ``steps`` points over [0, pi), then Newton on F' = 0. ``near`` None: the best
-    near-best peak on the meridian side (see the module doc); else the peak reached by climbing F on the
-    grid from ``near``."""
-    ks = np.arange(-K, K + 1)
-    nz = ks != 0
-    b = np.sum(a * a, axis=1)
+    near-best peak on the meridian side: the meridian carries |AOPLM| = 90 deg along itself (E
+    perpendicular to it), the perpendicular axis AOPLM = 0 -- and when the sun lies on the camera's horizon
+    the pattern is antisymmetric about both. S(theta) = -Re c averaged along the axis (even harmonics: both
+    ends) is > 0 on the meridian: among the near-best peaks of F, keep the best one with S > 0. Else the
+    peak reached by climbing F on the grid from ``near``. (One compiled pass, :func:`_grid_search`.)"""
     grid, e2, e1 = _tables(K, steps)
-    Fg = (e2 @ b[nz]).real
-    if near is None:
-        # Which axis: the meridian carries |AOPLM| = 90 deg along itself (E perpendicular to it), the
-        # perpendicular axis AOPLM = 0 -- and when the sun lies on the camera's horizon the pattern is
-        # antisymmetric about both. S(theta) = -Re c averaged along the axis (even harmonics: both ends)
-        # is > 0 on the meridian: among the near-best peaks of F, keep the best one with S > 0.
-        Sg = -(e1 @ a.sum(axis=1)[ks % 2 == 0]).real
-        peak = (Fg >= np.roll(Fg, 1)) & (Fg >= np.roll(Fg, -1)) & (Fg >= 0.5 * Fg.max())
-        good = peak & (Sg > 0.0)
-        pool = np.nonzero(good)[0] if good.any() else np.nonzero(peak)[0]
-        i = int(pool[int(np.argmax(Fg[pool]))])
-    else:                                       # climb F from the grid point nearest to ``near``
-        i = _climb(Fg, int(round((near % math.pi) / (math.pi / steps))) % steps)
+    near_i = -1 if near is None else int(round((near % math.pi) / (math.pi / steps))) % steps
+    b, i, Fg = _grid_search(np.ascontiguousarray(a), K, grid, e2, e1, near_i)
     theta = _newton(b, K, float(grid[i]), math.pi / steps)
     F, F1, F2 = _F_derivs(b, K, theta)
     far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)

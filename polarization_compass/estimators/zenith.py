@@ -24,23 +24,31 @@ The result is axial (the zenith E-vector does not say which end of the meridian 
 the brightness gradient of the window or a prior bearing resolves it. Uncertainty: to first order
 ``d psi = -sum_i w_i da_i / sum w``; ``da_i`` is the residual against the Rayleigh AoP of the fitted
 sun; cluster-robust over blocks of ``block_px`` (default 4 sensor pixels: the window is small).
+
+Speed: one compiled pass over the window (:func:`_window_sums`) masks the pixels and accumulates
+``M``, the counts, the axial resultant and the brightness statistics without copying; the per-pixel
+residuals of the uncertainty are computed only when it is asked for (``estimate(obs, sigma=False)``
+skips them: error-map sweeps).
 """
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from ..camera import CameraModel, PixelSelection
-from ..conventions import axial_mean_rad, evector_cam_from_aop
 from .base import Estimator, HeadingResult, Observation, Status, register_estimator
-from ._common import (Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t, check_sun, cluster_sigma_rad,
-                      finish_sigma_deg, level_sun_candidates, psi_from_sun_rad, rayleigh_aop_rad, resolve_ambiguity,
-                      result_from, sample_observation)
+from ._common import (Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t_from_stats, check_sun,
+                      cluster_sigma_rad, finish_sigma_deg, level_sun_candidates, psi_from_sun_rad, rayleigh_aop_rad,
+                      resolve_ambiguity, result_from, samples_from_view, select_view)
+from ._kernels import N_STATS, acc_brightness, acc_sym
 
 __all__ = ["ZenithEstimator", "zenith_window"]
 
 
+@lru_cache(maxsize=32)
 def zenith_window(camera: CameraModel, window_px: int):
     """(x_lo, x_hi, y_lo, y_hi) of the ``window_px`` square centred on the principal point (inclusive,
     pixel centres), and the matching PixelSelection."""
@@ -55,11 +63,61 @@ def zenith_window(camera: CameraModel, window_px: int):
     return (x_lo, x_hi, y_lo, y_hi), sel
 
 
+@njit(cache=True)
+def _window_sums(aop, dop, valid, rays, inten, has_i, min_dop, m, cnt, trig, stats):  # pragma: no cover - compiled
+    """The window's usable pixels (valid, every value finite, DoP >= min_dop; the mask of
+    :func:`._common.samples_from_view`): m += upper triangle of sum e e^T of the unit lifted E-vectors
+    (:func:`polarization_compass.conventions.evector_cam_from_aop`, float64), cnt = (usable, valid with a
+    non-finite value, valid), trig += (sum cos 2a, sum sin 2a), brightness statistics into ``stats``
+    (``cnt[3]`` = 1 when a usable pixel's intensity is not finite: then there are none)."""
+    n = n_bad = n_valid = 0
+    i_bad = 0
+    for i in range(aop.size):
+        if not valid[i]:
+            continue
+        n_valid += 1
+        a = np.float64(aop[i])
+        p = np.float64(dop[i])
+        rx = np.float64(rays[0, i])
+        ry = np.float64(rays[1, i])
+        rz = np.float64(rays[2, i])
+        if not (math.isfinite(a) and math.isfinite(p) and math.isfinite(rx) and math.isfinite(ry)
+                and math.isfinite(rz)):
+            n_bad += 1
+            continue
+        if not p >= min_dop:
+            continue
+        n += 1
+        sa = math.sin(a)
+        ca = math.cos(a)
+        ex = rz * sa
+        ey = rz * ca
+        ez = -(rx * sa + ry * ca)
+        nn = max(math.sqrt(ex * ex + ey * ey + ez * ez), 2.2250738585072014e-308)
+        ex /= nn
+        ey /= nn
+        ez /= nn
+        acc_sym(m, 0, 1.0, ex, ey, ez)
+        trig[0] += math.cos(2.0 * a)
+        trig[1] += math.sin(2.0 * a)
+        if has_i:
+            I = np.float64(inten[i])
+            if math.isfinite(I):
+                acc_brightness(stats, 0, I, rx, ry, rz)
+            else:
+                i_bad = 1
+    cnt[0] = n
+    cnt[1] = n_bad
+    cnt[2] = n_valid
+    cnt[3] = i_bad
+
+
 @register_estimator("zenith")
 class ZenithEstimator(KnobbedEstimator, Estimator):
     """The paper's zenith approach (level-camera assumption: the zenith is the principal point)."""
 
     axial = True
+    sigma_optional = True
     OWN_KNOBS = {"window_px": Knob(32, "int", 1, 2048, doc="side of the square window at the image centre, "
                                                            "sensor pixels")}
     KNOB_DEFAULTS = {"min_pixels": 4, "block_px": 4, "min_dop": 0.0}
@@ -72,29 +130,36 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
         return zenith_window(camera, self.knobs["window_px"])[1]
 
-    def estimate(self, obs: Observation) -> HeadingResult:
+    def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
             return bad
         win, _ = zenith_window(obs.camera, k["window_px"])
         try:
-            smp = sample_observation(obs, k, window=win)
+            view = select_view(obs, k, window=win)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        if smp.n < k["min_pixels"]:
+        has_i = view.intensity is not None
+        m = np.zeros(6)
+        cnt = np.zeros(4, np.int64)
+        trig = np.zeros(2)
+        stats = np.zeros(N_STATS)
+        _window_sums(view.aop, view.dop, view.valid, view.rays, view.intensity if has_i else np.zeros(1, np.float32),
+                     has_i, float(k["min_dop"]), m, cnt, trig, stats)
+        n, nonfinite = int(cnt[0]), int(cnt[1])
+        if n < k["min_pixels"]:
             return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{smp.n} usable pixel(s) in the {k['window_px']} px zenith window < "
-                                        f"min_pixels {k['min_pixels']}", pixels=smp.n)
-        e = evector_cam_from_aop(smp.aop_rad, smp.rays.T)             # (n, 3)
-        M = e.T @ e
+                                        f"{n} usable pixel(s) in the {k['window_px']} px zenith window < "
+                                        f"min_pixels {k['min_pixels']}", pixels=n)
+        M = np.array([[m[0], m[1], m[2]], [m[1], m[3], m[4]], [m[2], m[4], m[5]]])
         lam, U = np.linalg.eigh(M)
         u = U[:, 2]
         h = math.radians(float(obs.sun_altitude_deg))
         rho_u = math.hypot(u[0], u[1])
         if rho_u <= 1e-12:
             return HeadingResult.failed(self.name, Status.DEGENERATE,
-                                        "the window's E-vector points along the optical axis", pixels=smp.n)
+                                        "the window's E-vector points along the optical axis", pixels=n)
         phi = math.atan2(u[0], u[1])                 # azimuth of u (from +y towards +x)
         num = -u[2] * math.sin(h)
         den = rho_u * math.cos(h)
@@ -110,13 +175,17 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
         psi = psi_from_sun_rad(s)
         first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
         first.sun_cam = s                            # the exact fit (the other end is the level mirror)
-        bt = brightness_t(smp, first.sun_cam - second.sun_cam)
+        bt = brightness_t_from_stats(stats if has_i and not cnt[3] and n >= 10 else None,
+                                     first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
-        resid = axial_residual_rad(smp.aop_rad, rayleigh_aop_rad(s, smp.rays))
-        w = np.ones(smp.n)
-        infl = w * resid / w.sum()
-        sigma = cluster_sigma_rad(infl, smp, k["block_px"], n_params=1)
-        _, R = axial_mean_rad(smp.aop_rad)
-        extras = {"window_px": k["window_px"], "rms_residual_deg": math.degrees(math.sqrt(float(np.mean(resid ** 2))))}
-        return result_from(self.name, pick, by, reason, obs, finish_sigma_deg(sigma, k), smp.n, smp.nonfinite, R,
-                           extras=extras)
+        extras = {"window_px": k["window_px"]}
+        sigma_deg = None
+        if sigma:
+            smp = samples_from_view(view, k["min_dop"])
+            resid = axial_residual_rad(smp.aop_rad, rayleigh_aop_rad(s, smp.rays))
+            w = np.ones(smp.n)
+            infl = w * resid / w.sum()
+            sigma_deg = finish_sigma_deg(cluster_sigma_rad(infl, smp, k["block_px"], n_params=1), k)
+            extras["rms_residual_deg"] = math.degrees(math.sqrt(float(np.mean(resid ** 2))))
+        R = math.hypot(trig[0], trig[1]) / n             # axial resultant length of the window's AoP
+        return result_from(self.name, pick, by, reason, obs, sigma_deg, n, nonfinite, R, extras=extras)
