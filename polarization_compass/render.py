@@ -142,17 +142,9 @@ class Renderer:
             sun_cam = R.T @ s_enu
             zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
         shape = self.pixels.shape
-        with instr.stage("sky." + self.sky.name):
-            aop, dop, valid = self.sky.polarization(sun_cam, zenith_cam, self.pixels.rays_cam, self._limits)
-        if not self._all_have_rays:          # fisheye pixels beyond the lens' field: no sky, 0/0
-            no_ray = ~self.pixels.has_ray.reshape(-1)
-            valid[no_ray] = False
-            aop[no_ray] = 0.0
-            dop[no_ray] = 0.0
-        intensity = None
-        if self.radiance is not None:
-            with instr.stage("radiance." + self.radiance.name):
-                intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam).reshape(shape)
+        aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
+        if intensity is not None:
+            intensity = intensity.reshape(shape)
         frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
                       sun_cam, zenith_cam, intensity=intensity)
         if self.sensor is not None:
@@ -184,6 +176,36 @@ class Renderer:
             **sun_meta,
         }
         return frame
+
+    def _sky(self, sun_cam, zenith_cam):
+        """The sky and radiance stages: flat (aop, dop, valid, intensity or None) at the selected pixels."""
+        with instr.stage("sky." + self.sky.name):
+            aop, dop, valid = self.sky.polarization(sun_cam, zenith_cam, self.pixels.rays_cam, self._limits)
+        if not self._all_have_rays:          # fisheye pixels beyond the lens' field: no sky, 0/0
+            no_ray = ~self.pixels.has_ray.reshape(-1)
+            valid[no_ray] = False
+            aop[no_ray] = 0.0
+            dop[no_ray] = 0.0
+        intensity = None
+        if self.radiance is not None:
+            with instr.stage("radiance." + self.radiance.name):
+                intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
+        return aop, dop, valid, intensity
+
+    def render_sky(self, R_enu_cam, sun_enu):
+        """What :meth:`render` computes for a scene without sensor effects, and nothing else: flat (N,) aop,
+        dop, valid and intensity (None without a radiance model) in the selection's pixel order, for a
+        camera-to-ENU rotation (``conventions.R_enu_cam_from_attitude``) and the sun's ENU unit vector
+        (``conventions.enu_direction``). No Frame, no metadata: for error-map sweeps, which render 1e5
+        frames. A scene with sensor effects is refused (its frames need :meth:`render`)."""
+        if self.sensor is not None:
+            from .sensor import SensorError
+            raise SensorError("render_sky: the scene declares sensor effects; use render()")
+        R = np.asarray(R_enu_cam, dtype=float)
+        with instr.stage("geometry"):
+            sun_cam = R.T @ np.asarray(sun_enu, dtype=float)
+            zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
+        return self._sky(sun_cam, zenith_cam)
 
     def _sun_meta(self, sun: SunDirection | None, time_utc) -> dict:
         """How this frame's sun was obtained, and the time only when the sun is that time's.
