@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import CameraAttitude, fold_axial_deg
+from .conventions import CameraAttitude
 from .errors import CompassError
 
 __all__ = ["ErrorMap", "ErrorMapError", "SweepSpec", "parse_range", "run_sweep", "load_error_map",
@@ -399,14 +399,30 @@ class SweepSpec:
 # --------------------------------------------------------------------------------------------
 # Workers
 # --------------------------------------------------------------------------------------------
+def _fold_axial(x: float) -> float:
+    """:func:`~polarization_compass.conventions.fold_axial_deg` of one finite float without numpy (the same
+    floor modulo, so the same bits)."""
+    w = (x + 90.0) % 180.0 - 90.0
+    return 90.0 if w <= -90.0 else w
+
+
 class _Evaluator:
-    """Per-process state: one estimator per method and one renderer per distinct pixel selection."""
+    """Per-process state: one estimator per method and one renderer per distinct pixel selection.
+
+    A noise-free scene is rendered once per cell on the union of the selections (a pixel list: the sky
+    of a pixel depends only on its ray, so each method's pixels come out bit for bit as from its own
+    renderer, which :meth:`_union_renderer` checks once); each method then reads its own block of it.
+    A scene with sensor effects renders each selection itself (the mosaic needs contiguous pixels and
+    the noise of a block is drawn from the cell's seed). Methods that can skip their uncertainty
+    (``sigma_optional``) are asked to: a map stores the error and the status only.
+    """
 
     def __init__(self, spec: SweepSpec):
         from .estimators.base import make_estimator
         from .render import Renderer
         self.spec = spec
         self.estimators = [make_estimator(m, **spec.knobs[m]) for m in spec.methods]
+        self.no_sigma = [bool(getattr(est, "sigma_optional", False)) for est in self.estimators]
         camera = spec.scene.camera
         self.groups: list[tuple[object, list[int]]] = []      # (renderer, method indices)
         by_sel: dict = {}
@@ -417,7 +433,25 @@ class _Evaluator:
                 self.groups.append((Renderer(spec.scene, pixels=sel), []))
             self.groups[by_sel[sel]][1].append(i)
         self.noisy = bool(spec.scene.effects)
+        self.union = None if self.noisy or len(self.groups) < 2 else self._union_renderer()
         self.errors: list[str] = []
+        self.renders = 0
+
+    def _union_renderer(self):
+        """A renderer of every group's pixels one after the other, or None when its rays are not exactly
+        the groups' (then each group renders itself)."""
+        from .camera import PixelSelection
+        from .render import Renderer
+        px = [r.pixels for r, _ in self.groups]
+        try:
+            sel = PixelSelection.explicit(np.concatenate([p.x_px.reshape(-1) for p in px]),
+                                          np.concatenate([p.y_px.reshape(-1) for p in px]))
+            union = Renderer(self.spec.scene, pixels=sel)
+        except (CompassError, ValueError):
+            return None
+        same = (np.array_equal(union.pixels.rays_cam, np.concatenate([p.rays_cam.reshape(3, -1) for p in px], axis=1))
+                and np.array_equal(union.pixels.has_ray, np.concatenate([p.has_ray.reshape(-1) for p in px])))
+        return union if same else None
 
     def sampling(self) -> dict:
         out = {}
@@ -432,11 +466,41 @@ class _Evaluator:
         h = hashlib.blake2b(f"{self.spec.scene.seed}:{ia}:{iy}:{ip}:{ir}".encode(), digest_size=8).digest()
         return int.from_bytes(h, "little") & 0x7FFFFFFF
 
+    def _frames(self, att, sun, seed, R_enu_cam, sun_enu):
+        """(pixels, method indices, aop, dop, valid, intensity) per group for one cell (the pixels of a frame
+        with sensor effects are its demosaiced ones)."""
+        if self.noisy:
+            out = []
+            for renderer, idx in self.groups:
+                f = renderer.render(attitude=att, sun=sun, seed=seed)
+                out.append((f.pixels, idx, f.aop_rad, f.dop, f.valid, f.intensity))
+            return out
+        if self.union is None:
+            out = []
+            for renderer, idx in self.groups:
+                aop, dop, valid, inten = renderer.render_sky(R_enu_cam, sun_enu)
+                shape = renderer.pixels.shape
+                out.append((renderer.pixels, idx, aop.reshape(shape), dop.reshape(shape), valid.reshape(shape),
+                            None if inten is None else inten.reshape(shape)))
+            return out
+        aop, dop, valid, inten = self.union.render_sky(R_enu_cam, sun_enu)
+        out = []
+        off = 0
+        for renderer, idx in self.groups:
+            shape = renderer.pixels.shape
+            sl = slice(off, off + renderer.pixels.count)
+            off = sl.stop
+            out.append((renderer.pixels, idx, aop[sl].reshape(shape), dop[sl].reshape(shape), valid[sl].reshape(shape),
+                        None if inten is None else inten[sl].reshape(shape)))
+        return out
+
     def chunk(self, ia: int, ip: int):
         """Errors and status (methods, yaws, rolls) for sun altitude ``ia`` and pitch ``ip``."""
+        from .conventions import R_enu_cam_from_attitude, enu_direction
         from .estimators.base import Observation
         from .render import SunDirection
         spec = self.spec
+        camera = spec.scene.camera
         M, Y, R = len(spec.methods), spec.yaw_deg.size, spec.roll_deg.size
         err = np.zeros((M, Y, R), dtype=float)
         status = np.full((M, Y, R), STATUS_NOT_COMPUTED, dtype=np.int8)
@@ -444,22 +508,26 @@ class _Evaluator:
         h = float(spec.sun_altitude_deg[ia])
         pitch = float(spec.pitch_deg[ip])
         sun = SunDirection(0.0, h)
-        for iy, psi in enumerate(spec.yaw_deg):
-            for ir in rolls:
-                att = CameraAttitude(float(psi), pitch, float(spec.roll_deg[ir]))
+        sun_enu = enu_direction(0.0, h)
+        # bearing == psi (sun at azimuth 0): the camera rotations of every yaw at once, per roll
+        R_all = {ir: R_enu_cam_from_attitude(spec.yaw_deg, pitch, float(spec.roll_deg[ir])) for ir in rolls.tolist()}
+        for iy, psi in enumerate(spec.yaw_deg.tolist()):
+            for ir in rolls.tolist():
+                roll = float(spec.roll_deg[ir])
+                att = CameraAttitude(psi, pitch, roll)
                 seed = self._seed(ia, iy, ip, ir) if self.noisy else None
-                for renderer, idx in self.groups:
-                    frame = renderer.render(attitude=att, sun=sun, seed=seed)
-                    obs = Observation(frame.aop_rad, frame.dop, frame.valid, frame.rays_cam, frame.x_px,
-                                      frame.y_px, spec.scene.camera, 0.0, h, frame.intensity,
-                                      pitch, float(spec.roll_deg[ir]), None)
+                self.renders += 1
+                for px, idx, aop, dop, valid, inten in self._frames(att, sun, seed, R_all[ir][iy], sun_enu):
+                    obs = Observation(aop, dop, valid, px.rays_cam, px.x_px, px.y_px, camera, 0.0, h, inten,
+                                      pitch, roll, None)
                     for i in idx:
-                        err[i, iy, ir], status[i, iy, ir] = self._one(i, obs, float(psi))
+                        err[i, iy, ir], status[i, iy, ir] = self._one(i, obs, psi)
         return err, status
 
     def _one(self, i: int, obs, psi_true: float):
         try:
-            res = self.estimators[i].estimate(obs)
+            est = self.estimators[i]
+            res = est.estimate(obs, sigma=False) if self.no_sigma[i] else est.estimate(obs)
         except Exception as exc:  # noqa: BLE001 - one bad cell must not kill an hour-long sweep; reported
             if len(self.errors) < 5:
                 self.errors.append(f"{self.spec.methods[i]}: {type(exc).__name__}: {exc}")
@@ -468,7 +536,7 @@ class _Evaluator:
         if code in (0, 1):
             if res.psi_deg is None or not math.isfinite(res.psi_deg):
                 return 0.0, STATUS_ESTIMATOR_ERROR
-            return float(fold_axial_deg(res.psi_deg - psi_true)), code
+            return _fold_axial(float(res.psi_deg) - psi_true), code
         return 0.0, code
 
 
