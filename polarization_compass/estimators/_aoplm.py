@@ -81,6 +81,9 @@ DISC_KNOBS = {
 #: then S = sin^2 of its rise between these two levels (0 below the first, 1 above the second).
 MIRROR_BLUR_CELLS = 2.0
 MIRROR_LEVELS = (0.5, 0.9)
+#: LLVM fast-math flags of the plain passes (pass 1), the per-cell cost of a sweep: reassociation and
+#: contraction only change the last bits of the sums; no nnan/ninf, so the finiteness tests stay.
+_FM = {"nsz", "arcp", "contract", "reassoc"}
 #: Secant steps of the refinement of one fixed point before giving up.
 MAX_SOLVE_STEPS = 25
 #: Trial axes of the coarse scan for fixed points (over 180 deg), and its pixel subsampling.
@@ -322,7 +325,7 @@ def _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop, rho_lo, rho_ma
     return ok, v, v and not fin, inr and not (v and fin), p, rx, ry, rho, c2a, s2a
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
                stats):  # pragma: no cover - compiled
     """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
@@ -465,7 +468,7 @@ def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
             a_out[K - kk, j + 1] += f * em
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
                a_out, cnt, stats):  # pragma: no cover - compiled
     """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),

@@ -98,8 +98,8 @@ def _window_sums(aop, dop, valid, rays, inten, has_i, min_dop, m, cnt, trig, sta
         ey /= nn
         ez /= nn
         acc_sym(m, 0, 1.0, ex, ey, ez)
-        trig[0] += math.cos(2.0 * a)
-        trig[1] += math.sin(2.0 * a)
+        trig[0] += ca * ca - sa * sa               # cos 2a
+        trig[1] += 2.0 * sa * ca                   # sin 2a
         if has_i:
             I = np.float64(inten[i])
             if math.isfinite(I):
@@ -166,12 +166,14 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
         kappa = max(-1.0, min(1.0, num / den)) if den > abs(num) else math.copysign(1.0, num)
         off = math.acos(kappa)
         best = None
+        ch, sh = math.cos(h), math.sin(h)
         for mu in (phi + off, phi - off):
-            s = np.array([math.cos(h) * math.sin(mu), math.cos(h) * math.cos(mu), math.sin(h)])
-            cost = float(s @ M @ s)
+            x, y, z = ch * math.sin(mu), ch * math.cos(mu), sh
+            cost = (m[0] * x * x + m[3] * y * y + m[5] * z * z
+                    + 2.0 * (m[1] * x * y + m[2] * x * z + m[4] * y * z))          # s^T M s
             if best is None or cost < best[0]:
-                best = (cost, s)
-        s = best[1]
+                best = (cost, (x, y, z))
+        s = np.array(best[1])
         psi = psi_from_sun_rad(s)
         first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
         first.sun_cam = s                            # the exact fit (the other end is the level mirror)
