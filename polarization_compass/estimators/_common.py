@@ -283,7 +283,8 @@ def select_view(obs: Observation, knobs: dict, window=None, balance_phases: bool
                 off = 0
                 for rr, cc in parts:
                     n = rr.size * cc.size
-                    out[..., off:off + n].reshape(lead + (rr.size, cc.size))[...] = src[..., _slice_of(rr), _slice_of(cc)]
+                    dst = np.reshape(out[..., off:off + n], lead + (rr.size, cc.size), copy=False)
+                    dst[...] = src[..., _slice_of(rr), _slice_of(cc)]
                     off += n
                 return out
             keys, xg, yg = [], [], []
