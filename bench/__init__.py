@@ -23,6 +23,7 @@ GROUPS = {
     "simulator": "simulator",
     "solar": "solar_bench",
     "errormap": "errormap_bench",
+    "errormap_sampling": "errormap_sampling",
     "pipeline": "pipeline",
     "estimator_speed": "estimator_speed",
     "replay": "replay_bench",
