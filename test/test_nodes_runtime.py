@@ -334,3 +334,51 @@ def test_simulator_sends_clock_at_clock_rate_not_per_message(simulator, monkeypa
     assert int(2.0 / (1.0 / rate + step)) <= len(sent) - 1 <= 2.0 * rate
     assert all(b >= a for (_, a), (_, b) in zip(sent, sent[1:]))   # simulated time never goes back
     assert simulator.frames == 20 and simulator.imu_samples >= 100  # data at their own rates meanwhile
+
+
+def _run_sim_ticks(node, monkeypatch, seconds, step=1 / 64):
+    """Drive the simulator's scheduler on a fake wall clock; returns the images it published."""
+    from polarization_compass.nodes import sky_simulator as S
+    wall = [2000.0]
+
+    class FakeTime:
+        @staticmethod
+        def monotonic():
+            return wall[0]
+        perf_counter = staticmethod(time.perf_counter)
+        time_ns = staticmethod(time.time_ns)
+
+    monkeypatch.setattr(S, "time", FakeTime)
+    images = []
+    node.pub_image.publish = images.append
+    node.t_wait0 = wall[0]
+    node._tick_sim()
+    for _ in range(int(round(seconds / step))):
+        wall[0] += step
+        node._tick_sim()
+    return images
+
+
+def test_frames_rendered_ahead_equal_frames_rendered_on_time(ctx, tmp_path, monkeypatch):
+    """The built-in motion's next frame is rendered half a period early; what goes out (stamp, pixels,
+    noise) is what rendering at the frame's time gives."""
+    from polarization_compass.nodes.sky_simulator import SkySimulatorNode
+    scene = tmp_path / "noisy.yaml"
+    scene.write_text(SMALL_SCENE)
+    nodes = []
+    for ahead in (True, False):
+        node = SkySimulatorNode(context=ctx, parameter_overrides=[
+            Parameter("scene", value=str(scene)), Parameter("encoding", value="mono16"),
+            Parameter("wait_settle_s", value=0.0), Parameter("turns", value=0.0), Parameter("pitch_deg", value=-12.0)])
+        if not ahead:
+            monkeypatch.setattr(node, "_prepare_next_frame", lambda now: None)
+        nodes.append((node, _run_sim_ticks(node, monkeypatch, 1.0)))
+    (a, imgs_a), (b, imgs_b) = nodes
+    assert a.frames_ahead >= 8 and b.frames_ahead == 0                     # the first frame is never ahead
+    assert len(imgs_a) == len(imgs_b) == 10
+    for x, y in zip(imgs_a, imgs_b):
+        assert (x.header.stamp.sec, x.header.stamp.nanosec) == (y.header.stamp.sec, y.header.stamp.nanosec)
+        assert x.encoding == y.encoding == "mono16" and bytes(x.data) == bytes(y.data)
+    assert len({bytes(x.data) for x in imgs_a}) == 10                       # frames do differ (motion, noise)
+    for node, _ in nodes:
+        node.destroy_node()

@@ -93,6 +93,9 @@ class SkySimulatorNode(Node):
         self.late_frames = 0
         self.lockstep_timeouts = 0
         self.render_ms = []
+        self.prepared = None                # (stamp, k, image msg, attitude, sun altitude, ms) rendered ahead
+        self.last_frame_wall = None
+        self.frames_ahead = 0
 
         img_qos = qos_profile_system_default
         self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
@@ -203,7 +206,9 @@ class SkySimulatorNode(Node):
         self.pub_imu.publish(attitude_imu(t_ns, p["imu_frame_id"], R, variances, w_body, g_body))
         self.imu_samples += 1
 
-    def _publish_frame(self, t_ns: int, R_enu_body) -> None:
+    def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
+        """The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude and
+        the sun's altitude, and the CPU-side wall time it took (ms)."""
         from ..render import SunDirection
         from ..sensor import simulate_mosaic
         p = self.params
@@ -211,22 +216,52 @@ class SkySimulatorNode(Node):
         att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body))
         az, alt = self.sun.at_ns(t_ns)
         frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
-        rng = np.random.default_rng([p["seed"], self.k_frame])
+        rng = np.random.default_rng([p["seed"], k_frame])
         mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout,
                                  rng)
         if p["encoding"] == "32FC1":
             mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
+        msg = image_msg(mosaic, t_ns, p["camera_frame_id"])
+        return msg, att, alt, (time.perf_counter() - t0) * 1e3
+
+    def _prepare_next_frame(self, now: float) -> None:
+        """With the built-in motion the next frame's attitude is known: render it once half a period has
+        passed since the last frame went out, so that at its time only the publishing is left (a camera's
+        frame rate does not depend on what the computer receiving its images is doing)."""
+        if self.attitude_source != "motion" or self.prepared is not None or self.last_frame_wall is None:
+            return
+        p = self.params
+        if now - self.last_frame_wall < 0.5 / (p["rate_hz"] * p["time_scale"]):
+            return
+        t = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+        if t is None:
+            return
+        R = self._attitude_at(t, (t - self.start_ns) / 1e9)
+        self.prepared = (t, self.k_frame) + self._render_frame(t, self.k_frame, R)
+
+    def _publish_frame(self, t_ns: int, R_enu_body) -> None:
+        p = self.params
+        t0 = time.perf_counter()
+        ahead = self.prepared is not None and self.prepared[:2] == (t_ns, self.k_frame)
+        if ahead:
+            _, _, img, att, alt, render_ms = self.prepared
+        else:
+            img, att, alt, render_ms = self._render_frame(t_ns, self.k_frame, R_enu_body)
+        self.prepared = None
         if self.frames % max(1, int(round(p["rate_hz"]))) == 0:
             self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t_ns, "gps"))
         yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
         self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
         self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
-        self.pub_image.publish(image_msg(mosaic, t_ns, p["camera_frame_id"]))
+        self.pub_image.publish(img)
         self.pub_frames.publish(String(data=json.dumps({"stamp_ns": int(t_ns), "wall_ns": time.time_ns()})))
         self.frames += 1
-        ms = (time.perf_counter() - t0) * 1e3
-        self.render_ms.append(ms)
-        self.diag.extra = {"frames": self.frames, "imu_samples": self.imu_samples, "late_frames": self.late_frames,
+        self.last_frame_wall = time.monotonic()
+        self.frames_ahead += ahead
+        # wall time to make and send the frame (its rendering too, when that was done ahead)
+        self.render_ms.append((time.perf_counter() - t0) * 1e3 + (render_ms if ahead else 0.0))
+        self.diag.extra = {"frames": self.frames, "frames_rendered_ahead": self.frames_ahead,
+                           "imu_samples": self.imu_samples, "late_frames": self.late_frames,
                            "lockstep_timeouts": self.lockstep_timeouts, "frame_ms_p95":
                            float(np.percentile(self.render_ms[-200:], 95)), "true_bearing_deg": att.bearing_deg,
                            "sun_altitude_deg": alt}
@@ -362,6 +397,7 @@ class SkySimulatorNode(Node):
         if desired > self.sim_cursor:
             self.sim_cursor = desired
         self._publish_clock(self.sim_cursor)
+        self._prepare_next_frame(now)
         if self.total_s is not None and self.waiting_for is None and \
                 frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame) is None:
             self._maybe_finish(now)
