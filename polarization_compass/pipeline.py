@@ -330,9 +330,13 @@ class HeadingFrontEnd:
         return est.estimate(obs)
 
 
-def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:
-    """Run ``front`` once on a tiny rendered frame so that every numba kernel on its path is compiled
-    (or loaded from the cache) before the first real image; returns the seconds it took."""
+def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraModel | None = None) -> float:
+    """Run ``front`` once on a rendered frame, slightly tilted, so that every numba kernel on its path is
+    compiled (or loaded from the cache) before the first real image; returns the seconds it took.
+
+    With ``camera`` (the node's expected intrinsics) the frame has that camera's size, so the per-camera
+    caches (rays, pixel selections, mirror maps) are built now too rather than on the first image;
+    without, a tiny camera (kernels only)."""
     import time
 
     from .conventions import CameraAttitude
@@ -340,11 +344,11 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16) -> float:
     from .scene import default_scene
     from .sensor import sensor_config_for_encoding, simulate_mosaic
     t0 = time.perf_counter()
-    cam = CameraModel("pinhole", 96, 80, 4.0, 3.45 * 2448 / 96, 3.45 * 2448 / 96)
+    cam = camera or CameraModel("pinhole", 96, 80, 4.0, 3.45 * 2448 / 96, 3.45 * 2448 / 96)
     scene = default_scene().replace(camera=cam)
-    frame = Renderer(scene).render(attitude=CameraAttitude(30.0, 0.0, 0.0), sun=SunDirection(180.0, 30.0))
+    frame = Renderer(scene).render(attitude=CameraAttitude(30.0, -3.0, 2.0), sun=SunDirection(180.0, 30.0))
     encoding = {np.dtype(np.uint8): "mono8", np.dtype(np.uint16): "mono16"}.get(np.dtype(encoding_dtype), "32FC1")
     cfg = sensor_config_for_encoding({}, encoding)
     mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
-    front.estimate(mosaic, cam, 180.0, 30.0, 0.0, 0.0, 30.0)
+    front.estimate(mosaic, cam, 180.0, 30.0, -3.0, 2.0, 30.0)
     return time.perf_counter() - t0

@@ -57,7 +57,7 @@ class HeadingEstimatorNode(Node):
                                      layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
                                      p["use_intensity"])
         try:
-            dt = warm_up(self.front)
+            dt = warm_up(self.front, camera=self._fallback_camera_or_none())
             self.get_logger().info(f"warm-up (kernel compilation or cache load) took {dt:.2f} s")
         except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
             self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow")
@@ -149,6 +149,18 @@ class HeadingEstimatorNode(Node):
             self.diag.reject("fix_bad_value", str(exc))
             return
         self.site_from_fix = (lat, lon, alt)
+
+    def _fallback_camera_or_none(self) -> CameraModel | None:
+        """For the warm-up: the fallback intrinsics at the paper's sensor size (2448 x 2048, the IMX250MZR's
+        and the simulator's), so that the first image of such a camera finds its caches built."""
+        from ..scene import default_scene
+        p = self.params
+        size = default_scene().camera
+        try:
+            return CameraModel(p["camera_model"], int(size.width_px), int(size.height_px), p["focal_length_mm"],
+                               p["pixel_pitch_um"], p["pixel_pitch_um"], max_field_angle_deg=p["max_field_angle_deg"])
+        except CameraError:
+            return None
 
     def _camera_for(self, width: int, height: int) -> CameraModel:
         p = self.params

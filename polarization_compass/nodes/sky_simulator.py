@@ -87,6 +87,8 @@ class SkySimulatorNode(Node):
         self._tf = None
         if self.attitude_source == "tf":
             self._setup_tf()
+        # compile (or load) the render and sensor kernels and build the ray cache now, not at frame 0
+        self._render_frame(self.start_ns, 0, np.eye(3))
         self.diag = Diagnostics(self, "sky simulator", stale_after_s=1e9)
         self.frames = 0
         self.imu_samples = 0
