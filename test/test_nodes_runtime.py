@@ -244,6 +244,23 @@ def test_evaluator_summary_rate_hz_applies_at_run_time(ctx, evaluator):
 # --------------------------------------------------------------------------------------------
 # sky_simulator: run-time changes that would break a running camera are refused; time_scale applies
 # --------------------------------------------------------------------------------------------
+def fake_wall_clock(monkeypatch, start: float):
+    """Replace the simulator module's ``time`` with one whose monotonic() is ``wall[0]`` (returned: the
+    caller advances it); perf_counter and time_ns stay real."""
+    from polarization_compass.nodes import sky_simulator as S
+    wall = [start]
+
+    class FakeTime:
+        @staticmethod
+        def monotonic():
+            return wall[0]
+        perf_counter = staticmethod(time.perf_counter)
+        time_ns = staticmethod(time.time_ns)
+
+    monkeypatch.setattr(S, "time", FakeTime)
+    return wall
+
+
 @pytest.fixture
 def simulator(ctx, tmp_path):
     from polarization_compass.nodes.sky_simulator import SkySimulatorNode
@@ -268,17 +285,7 @@ def test_simulator_rate_and_length_are_read_only(simulator, name, value):
 
 def test_simulator_time_scale_change_continues_simulated_time(simulator, monkeypatch):
     """A new time_scale applies from the moment of the change: simulated time neither jumps nor stalls."""
-    from polarization_compass.nodes import sky_simulator as S
-    wall = [1000.0]
-
-    class FakeTime:
-        @staticmethod
-        def monotonic():
-            return wall[0]
-        perf_counter = staticmethod(time.perf_counter)
-        time_ns = staticmethod(time.time_ns)
-
-    monkeypatch.setattr(S, "time", FakeTime)
+    wall = fake_wall_clock(monkeypatch, 1000.0)
     clock = []
     simulator._publish_clock = lambda t_ns, force=False: clock.append(t_ns)   # every value, unthrottled
     simulator.t_wait0 = wall[0]
@@ -306,17 +313,7 @@ def test_simulator_sends_clock_at_clock_rate_not_per_message(simulator, monkeypa
     """/clock reaches every node of the graph, so the simulator sends it at clock_rate_hz (wall) however
     many frames and IMU samples it publishes per tick, plus once before anything else; the data keep
     their own rates (10 Hz frames, 50 Hz IMU in simulated time)."""
-    from polarization_compass.nodes import sky_simulator as S
-    wall = [1000.0]
-
-    class FakeTime:
-        @staticmethod
-        def monotonic():
-            return wall[0]
-        perf_counter = staticmethod(time.perf_counter)
-        time_ns = staticmethod(time.time_ns)
-
-    monkeypatch.setattr(S, "time", FakeTime)
+    wall = fake_wall_clock(monkeypatch, 1000.0)
     sent = []                                              # (wall s, clock ns) of every /clock message
     simulator.pub_clock.publish = lambda msg: sent.append((wall[0], msg.clock.sec * 10**9 + msg.clock.nanosec))
     simulator.t_wait0 = wall[0]
@@ -338,17 +335,7 @@ def test_simulator_sends_clock_at_clock_rate_not_per_message(simulator, monkeypa
 
 def _run_sim_ticks(node, monkeypatch, seconds, step=1 / 64):
     """Drive the simulator's scheduler on a fake wall clock; returns the images it published."""
-    from polarization_compass.nodes import sky_simulator as S
-    wall = [2000.0]
-
-    class FakeTime:
-        @staticmethod
-        def monotonic():
-            return wall[0]
-        perf_counter = staticmethod(time.perf_counter)
-        time_ns = staticmethod(time.time_ns)
-
-    monkeypatch.setattr(S, "time", FakeTime)
+    wall = fake_wall_clock(monkeypatch, 2000.0)
     images = []
     node.pub_image.publish = images.append
     node.t_wait0 = wall[0]
