@@ -28,3 +28,20 @@ def ros_env(tmp_path):
     env["ROS_LOG_DIR"] = str(tmp_path / "ros_log")
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    """A private rclpy context per test module, for nodes built in-process (no DDS traffic needed)."""
+    import warnings
+
+    import rclpy
+    from rclpy.context import Context
+    with warnings.catch_warnings():
+        # rclpy's type support imports lark, which imports the deprecated sre_parse (third party)
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import rosidl_generator_py  # noqa: F401
+    c = Context()
+    rclpy.init(context=c)
+    yield c
+    rclpy.shutdown(context=c)

@@ -17,8 +17,6 @@ import math
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 
@@ -66,19 +64,6 @@ def raw_image(h, w, enc, step, data, t_ns=T0, big=0):
     m.height, m.width, m.encoding, m.step, m.is_bigendian = h, w, enc, step, big
     m.data = bytes(data)
     return m
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    import warnings
-    with warnings.catch_warnings():
-        # rclpy's type support imports lark, which imports the deprecated sre_parse (third party)
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import rosidl_generator_py  # noqa: F401
-    c = Context()
-    rclpy.init(context=c)
-    yield c
-    rclpy.shutdown(context=c)
 
 
 def _sun_at(t_ns):

@@ -10,8 +10,6 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 
 from polarization_compass.conventions import CameraAttitude
@@ -26,19 +24,6 @@ name: tiny
 camera: {model: pinhole, width_px: 48, height_px: 40, focal_length_mm: 4.0,
          pixel_pitch_x_um: 176.0, pixel_pitch_y_um: 176.0}
 """
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    import warnings
-    with warnings.catch_warnings():
-        # rclpy's type support imports lark, which imports the deprecated sre_parse (third party)
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import rosidl_generator_py  # noqa: F401
-    c = Context()
-    rclpy.init(context=c)
-    yield c
-    rclpy.shutdown(context=c)
 
 
 def sun(site, t_ns):
