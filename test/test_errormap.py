@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from polarization_compass import conventions as cv
+from polarization_compass import errormap
 from polarization_compass.errormap import (STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, SweepSpec, load_error_map,
                                            parse_range, run_sweep, tilt_domain_mask)
 from polarization_compass.estimators import estimator_names
@@ -238,17 +239,38 @@ def test_failed_estimates_are_status_codes_not_nan():
     assert np.all(m.error_deg[0, 1] == 0.0)
 
 
-def test_resume_after_interruption_gives_the_same_map(tmp_path):
+def _chunk_file(ia, ip):
+    return f"chunk_{ia:04d}_{ip:04d}.npz"
+
+
+def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch):
+    """A resumed sweep computes exactly the chunks that are not finished (each once; a checkpoint torn by a
+    kill counts as unfinished) and gives the same map as an uninterrupted one."""
     spec = SweepSpec(["least_squares", "tilt_aware"], [10.0, 40.0], np.arange(-180.0, 180, 60), [-10.0, 10.0],
                      [0.0, 5.0])
     whole = run_sweep(spec, workers=1, progress=False)
+    computed = []                                   # every chunk evaluation, in this process (workers=1)
+    real_chunk = errormap._Evaluator.chunk
+
+    def counting_chunk(self, ia, ip):
+        computed.append((ia, ip))
+        return real_chunk(self, ia, ip)
+
+    monkeypatch.setattr(errormap._Evaluator, "chunk", counting_chunk)
     out = tmp_path / "m.npz"
     assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=2) is None    # "interrupted"
     part = tmp_path / "m.npz.partial"
-    chunks = sorted(part.glob("chunk_*.npz"))
-    assert len(chunks) == 2 and not out.exists()
-    (part / "chunk_0001_0001.npz").write_bytes(b"torn write")    # a chunk killed mid-write is recomputed
+    finished = list(computed)
+    assert len(finished) == 2 and len(set(finished)) == 2
+    assert sorted(p.name for p in part.glob("chunk_*.npz")) == sorted(_chunk_file(*c) for c in finished)
+    assert not out.exists()
+    torn = finished[1]
+    (part / _chunk_file(*torn)).write_bytes(b"torn write")    # a chunk killed mid-write is recomputed
+    computed.clear()
     resumed = run_sweep(spec, out=out, workers=1, progress=False)
+    everything = set(spec.chunks())
+    assert len(everything) == 4
+    assert sorted(computed) == sorted((everything - set(finished)) | {torn})    # not the intact finished chunk
     np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
     np.testing.assert_array_equal(resumed.status, whole.status)
     assert not part.exists()
@@ -259,6 +281,32 @@ def test_resume_after_interruption_gives_the_same_map(tmp_path):
     run_sweep(spec, out=tmp_path / "x.npz", workers=1, progress=False, max_chunks=1)
     with pytest.raises(ErrorMapError, match="different sweep"):
         run_sweep(other, out=tmp_path / "x.npz", workers=1, progress=False)
+
+
+def test_resume_with_the_worker_pool_leaves_finished_checkpoints_alone(tmp_path):
+    """With worker processes (no hook reaches them) the checkpoints themselves show it: a resumed run adds the
+    missing chunk files and never rewrites a finished one (a rewrite is a new file: new inode, new mtime)."""
+    spec = SweepSpec(["least_squares"], [10.0, 40.0], np.arange(-180.0, 180, 90), [-10.0, 0.0, 10.0], [0.0])
+    whole = run_sweep(spec, workers=1, progress=False)
+    out = tmp_path / "p.npz"
+    part = tmp_path / "p.npz.partial"
+
+    def checkpoints():
+        return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns, p.read_bytes()) for p in part.glob("chunk_*.npz")}
+
+    assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=2) is None
+    first = checkpoints()
+    assert len(first) == 2
+    assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=2) is None
+    second = checkpoints()
+    assert len(second) == 4 and set(first) < set(second)
+    assert all(second[k] == first[k] for k in first)
+    assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=0) is None    # nothing new: untouched
+    assert checkpoints() == second
+    resumed = run_sweep(spec, out=out, workers=2, progress=False)
+    assert resumed.meta["workers"] == 2
+    np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
+    np.testing.assert_array_equal(resumed.status, whole.status)
 
 
 def test_worker_pool_gives_the_same_map_as_one_process():
