@@ -107,19 +107,24 @@ def _tables(K: int, steps: int):
 
 
 @njit(cache=True)
-def _grid_search(a, K, grid, e2, e1, near_i):  # pragma: no cover - compiled
-    """The coarse search of :func:`_axis_search` on the grid: (b, grid index of the start of Newton, Fg).
+def _axis_solve(a, K, grid, e2, e1, near_i):  # pragma: no cover - compiled
+    """:func:`_axis_search` after the tables: (theta, F, F2, second-axis score, energy sum |a_k|^2 (k != 0)).
 
-    ``Fg[t] = Re sum_{k != 0} e2[t, k] b_k``; with ``near_i < 0`` the best near-best peak of Fg (at least
-    half the maximum) with ``S > 0`` (else the best peak), ``S[t] = -Re sum_{even k} e1[t, k] sum_rings a_k``;
-    else the peak reached by climbing from grid index ``near_i``."""
+    ``b_k = sum_rings a_k^2``; ``Fg[t] = Re sum_{k != 0} e2[t, k] b_k`` on the grid; with ``near_i < 0`` the
+    start is the best near-best peak of Fg (at least half the maximum) with ``S > 0`` (else the best peak),
+    ``S[t] = -Re sum_{even k} e1[t, k] sum_rings a_k``; else the peak reached by climbing from ``near_i``.
+    Then Newton on F' = 0 and the best grid value more than 10 deg from the axis over F."""
     n_k = 2 * K + 1
     n_r = a.shape[1]
     b = np.zeros(n_k, np.complex128)
+    energy = 0.0
     for k in range(n_k):
         acc = 0j
         for r in range(n_r):
-            acc += a[k, r] * a[k, r]
+            v = a[k, r]
+            acc += v * v
+            if k != K:
+                energy += v.real * v.real + v.imag * v.imag
         b[k] = acc
     steps = grid.size
     Fg = np.empty(steps)
@@ -133,51 +138,59 @@ def _grid_search(a, K, grid, e2, e1, near_i):  # pragma: no cover - compiled
             q += 1
         Fg[t] = acc
     if near_i >= 0:
-        return b, _climb(Fg, near_i), Fg
-    asum = np.zeros(n_k, np.complex128)
-    for k in range(n_k):
-        if (k - K) % 2 == 0:
-            acc = 0j
-            for r in range(n_r):
-                acc += a[k, r]
-            asum[k] = acc
-    fmax = Fg.max()
-    best_good = -1
-    best_peak = -1
-    for t in range(steps):
-        f = Fg[t]
-        if not (f >= Fg[(t - 1) % steps] and f >= Fg[(t + 1) % steps] and f >= 0.5 * fmax):
-            continue
-        if best_peak < 0 or f > Fg[best_peak]:
-            best_peak = t
-        S = 0.0
-        q = 0
+        i = _climb(Fg, near_i)
+    else:
+        asum = np.zeros(n_k, np.complex128)
         for k in range(n_k):
             if (k - K) % 2 == 0:
-                S -= (e1[t, q] * asum[k]).real
-                q += 1
-        if S > 0.0 and (best_good < 0 or f > Fg[best_good]):
-            best_good = t
-    return b, (best_good if best_good >= 0 else best_peak), Fg
+                acc = 0j
+                for r in range(n_r):
+                    acc += a[k, r]
+                asum[k] = acc
+        fmax = Fg.max()
+        best_good = -1
+        best_peak = -1
+        for t in range(steps):
+            f = Fg[t]
+            if not (f >= Fg[(t - 1) % steps] and f >= Fg[(t + 1) % steps] and f >= 0.5 * fmax):
+                continue
+            if best_peak < 0 or f > Fg[best_peak]:
+                best_peak = t
+            S = 0.0
+            q = 0
+            for k in range(n_k):
+                if (k - K) % 2 == 0:
+                    S -= (e1[t, q] * asum[k]).real
+                    q += 1
+            if S > 0.0 and (best_good < 0 or f > Fg[best_good]):
+                best_good = t
+        i = best_good if best_good >= 0 else best_peak
+    theta = _newton(b, K, grid[i], math.pi / steps)
+    F, F1, F2 = _F_derivs(b, K, theta)
+    far_max = -np.inf
+    far = False
+    lim = math.radians(10.0)
+    for t in range(steps):
+        x = grid[t] - theta + 0.5 * math.pi
+        if abs((x - math.pi * math.floor(x / math.pi)) - 0.5 * math.pi) > lim:   # axial distance (Python %)
+            far = True
+            far_max = max(far_max, Fg[t])
+    second = far_max / F if far and F > 0 else 0.0
+    return theta, F, F2, second, energy
 
 
 def _axis_search(a, K, steps, near=None):
-    """The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, b).
+    """The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, energy).
 
     Coarse search of F on ``steps`` points over [0, pi), then Newton on F' = 0. ``near`` None: the best
     near-best peak on the meridian side: the meridian carries |AOPLM| = 90 deg along itself (E
     perpendicular to it), the perpendicular axis AOPLM = 0 -- and when the sun lies on the camera's horizon
     the pattern is antisymmetric about both. S(theta) = -Re c averaged along the axis (even harmonics: both
     ends) is > 0 on the meridian: among the near-best peaks of F, keep the best one with S > 0. Else the
-    peak reached by climbing F on the grid from ``near``. (One compiled pass, :func:`_grid_search`.)"""
+    peak reached by climbing F on the grid from ``near``. One compiled call (:func:`_axis_solve`)."""
     grid, e2, e1 = _tables(K, steps)
     near_i = -1 if near is None else int(round((near % math.pi) / (math.pi / steps))) % steps
-    b, i, Fg = _grid_search(np.ascontiguousarray(a), K, grid, e2, e1, near_i)
-    theta = _newton(b, K, float(grid[i]), math.pi / steps)
-    F, F1, F2 = _F_derivs(b, K, theta)
-    far = np.abs(((grid - theta + math.pi / 2) % math.pi) - math.pi / 2) > math.radians(10.0)
-    second = float(Fg[far].max()) / F if far.any() and F > 0 else 0.0
-    return theta, F, F2, second, b
+    return _axis_solve(np.ascontiguousarray(a), K, grid, e2, e1, near_i)
 
 
 @register_estimator("symmetry")
@@ -204,12 +217,10 @@ class SymmetryEstimator(DiscEstimator):
 
     def _axis(self, a, n, near, base: AxisFit | None, cnt=None, stats=None, n_pair=0, coverage=1.0):
         K = self.knobs["harmonics"]
-        nz = np.arange(-K, K + 1) != 0
-        energy = float(np.sum(np.abs(a[nz]) ** 2))
+        theta, F, F2, second, energy = _axis_search(a, K, self.knobs["search_steps"], near)
         if not energy > 0.0:
             return HeadingResult.failed(self.name, Status.DEGENERATE, "no circular structure in the AOPLM map",
                                         pixels=n)
-        theta, F, F2, second, _ = _axis_search(a, K, self.knobs["search_steps"], near)
         state = {"a": a, "F2": F2, "extras": {"second_axis_score": second}}
         quality = max(0.0, F / energy)
         if base is None:
