@@ -284,6 +284,62 @@ def test_sweep_equals_each_method_on_its_own_render_with_its_uncertainty(scene_n
         assert m.status[methods.index("zenith")].min() == STATUS_CODES["ok"]     # resolved by the brightness
 
 
+def _noisy_scene():
+    from pathlib import Path
+
+    from polarization_compass.camera import CameraModel
+    from polarization_compass.scene import load_scene
+    scene = load_scene(Path(__file__).resolve().parents[1] / "config" / "scenes" / "imx250mzr_noisy.yaml")
+    return scene.replace(camera=CameraModel(width_px=256, height_px=200, focal_length_mm=0.5))
+
+
+@pytest.mark.parametrize("method", ["zenith", "sm_asm", "symmetry"])
+def test_estimate_without_uncertainty_changes_nothing_but_the_uncertainty(method):
+    """sigma=False (what sweeps ask for): sigma_deg None and no residual statistics (except on the mirror-pair
+    path, whose acceptance test computes them anyway); status, quality, pixels
+    and the axis of psi are those of estimate() with its uncertainty, on noisy frames, occluded ones (the
+    mirror-pair path) and with a prior bearing (psi itself the same once the sun's side is resolved)."""
+    from polarization_compass.estimators import make_estimator
+    from polarization_compass.estimators.base import Observation
+    from polarization_compass.render import Renderer, SunDirection
+    scene = _noisy_scene()
+    est = make_estimator(method)
+    assert est.sigma_optional and not make_estimator("least_squares").sigma_optional
+    renderer = Renderer(scene)
+    rng = np.random.default_rng(7)
+    kinds = set()
+    for k in range(24):
+        f = renderer.render(attitude=cv.CameraAttitude(rng.uniform(-180, 180), rng.uniform(-25, 25),
+                                                       rng.uniform(-10, 10)),
+                            sun=SunDirection(0.0, rng.uniform(5, 60)), seed=k)
+        valid = f.valid.copy()
+        if k % 3 == 1:
+            valid[:, : valid.shape[1] // 2 - 7] = False               # a wall on one side: mirror pairs
+        prior = float(rng.uniform(0, 360)) if k % 3 == 2 else None
+        obs = Observation(f.aop_rad, f.dop, valid, f.rays_cam, f.x_px, f.y_px, scene.camera, 0.0,
+                          f.sun.altitude_deg, f.intensity, None, None, prior)
+        a, b = est.estimate(obs), est.estimate(obs, sigma=False)
+        assert (a.status, a.pixels, a.axial) == (b.status, b.pixels, b.axial), (k, a.reason, b.reason)
+        assert b.sigma_deg is None
+        assert ("rms_residual_deg" in b.extras) == ("mirror_axes" in b.extras)    # kept where a test needs it
+        if a.ok:
+            kinds.add("resolved" if not a.axial else "axial")
+            assert a.sigma_deg > 0 and b.quality == pytest.approx(a.quality, abs=1e-12)
+            assert abs(cv.fold_axial_deg(a.psi_deg - b.psi_deg)) < 1e-9
+            if not a.axial:
+                assert abs(cv.wrap_180_deg(a.psi_deg - b.psi_deg)) < 1e-9
+        else:
+            kinds.add(a.status.value)
+    assert {"resolved", "axial"} <= kinds
+
+
+def test_render_sky_refuses_a_scene_with_sensor_effects():
+    from polarization_compass.render import Renderer
+    from polarization_compass.sensor import SensorError
+    with pytest.raises(SensorError, match="sensor effects"):
+        Renderer(_noisy_scene()).render_sky(cv.R_enu_cam_from_attitude(0.0, 0.0, 0.0), cv.enu_direction(0.0, 30.0))
+
+
 # --------------------------------------------------------------------------------------------
 # Bookkeeping
 # --------------------------------------------------------------------------------------------

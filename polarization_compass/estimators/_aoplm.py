@@ -956,9 +956,10 @@ class DiscEstimator(KnobbedEstimator, Estimator):
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
         """``sigma=False`` skips pass 2 (the influence kernel: the uncertainty and the residuals against the
-        two ends of the meridian), except on the mirror-pair path, whose acceptance test needs the residuals:
-        ``sigma_deg`` is None, ``extras`` has no ``rms_residual_deg``, and an unresolved (axial) result
-        names the end ``psi = -theta`` rather than the one the Rayleigh residuals prefer."""
+        two ends of the meridian): ``sigma_deg`` is None, ``extras`` has no ``rms_residual_deg``, and an
+        unresolved (axial) result names the end ``psi = -theta`` rather than the one the Rayleigh residuals
+        prefer. On the mirror-pair path with re-fitted axes, whose acceptance test needs the residuals, pass 2
+        runs anyway (and ``rms_residual_deg`` is reported)."""
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
