@@ -449,19 +449,23 @@ class _Evaluator:
         h = hashlib.blake2b(f"{self.spec.scene.seed}:{ia}:{iy}:{ip}:{ir}".encode(), digest_size=8).digest()
         return int.from_bytes(h, "little") & 0x7FFFFFFF
 
-    def _frames(self, att, sun, seed, R_enu_cam, sun_enu):
-        """(pixels, method indices, aop, dop, valid, intensity) per pixel selection for one cell (the pixels of
-        a frame with sensor effects are its demosaiced ones)."""
+    def _frames(self, sun_cam, zenith_cam):
+        """(pixels, method indices, aop, dop, valid, intensity) per pixel selection for one noise-free cell."""
         out = []
         for renderer, idx in self.groups:
-            if self.noisy:
-                f = renderer.render(attitude=att, sun=sun, seed=seed)
-                out.append((f.pixels, idx, f.aop_rad, f.dop, f.valid, f.intensity))
-                continue
-            aop, dop, valid, inten = renderer.render_sky(R_enu_cam, sun_enu)
+            aop, dop, valid, inten = renderer.render_sky(sun_cam, zenith_cam)
             shape = renderer.pixels.shape
             out.append((renderer.pixels, idx, aop.reshape(shape), dop.reshape(shape), valid.reshape(shape),
                         None if inten is None else inten.reshape(shape)))
+        return out
+
+    def _noisy_frames(self, att, sun, seed):
+        """The same for a scene with sensor effects: full frames, noise from the cell's seed (the pixels are the
+        frame's demosaiced ones)."""
+        out = []
+        for renderer, idx in self.groups:
+            f = renderer.render(attitude=att, sun=sun, seed=seed)
+            out.append((f.pixels, idx, f.aop_rad, f.dop, f.valid, f.intensity))
         return out
 
     def chunk(self, ia: int, ip: int):
@@ -474,19 +478,25 @@ class _Evaluator:
         M, Y, R = len(spec.methods), spec.yaw_deg.size, spec.roll_deg.size
         err = np.zeros((M, Y, R), dtype=float)
         status = np.full((M, Y, R), STATUS_NOT_COMPUTED, dtype=np.int8)
-        rolls = np.nonzero(spec.tilt_mask()[ip])[0]
+        rolls = np.nonzero(spec.tilt_mask()[ip])[0].tolist()
         h = float(spec.sun_altitude_deg[ia])
         pitch = float(spec.pitch_deg[ip])
         sun = SunDirection(0.0, h)
         sun_enu = enu_direction(0.0, h)
-        # bearing == psi (sun at azimuth 0): the camera rotations of every yaw at once, per roll
-        R_all = {ir: R_enu_cam_from_attitude(spec.yaw_deg, pitch, float(spec.roll_deg[ir])) for ir in rolls.tolist()}
+        geometry = {}
+        for ir in rolls:
+            # bearing == psi (sun at azimuth 0): the rotations R of every yaw at once, and the camera-frame sun
+            # R^T s and zenith R^T (0, 0, 1) that Renderer.render computes
+            Rs = R_enu_cam_from_attitude(spec.yaw_deg, pitch, float(spec.roll_deg[ir]))
+            geometry[ir] = (np.matmul(np.swapaxes(Rs, 1, 2), sun_enu), Rs[:, 2, :].copy())
         for iy, psi in enumerate(spec.yaw_deg.tolist()):
-            for ir in rolls.tolist():
+            for ir in rolls:
                 roll = float(spec.roll_deg[ir])
-                att = CameraAttitude(psi, pitch, roll)
-                seed = self._seed(ia, iy, ip, ir) if self.noisy else None
-                for px, idx, aop, dop, valid, inten in self._frames(att, sun, seed, R_all[ir][iy], sun_enu):
+                if self.noisy:
+                    frames = self._noisy_frames(CameraAttitude(psi, pitch, roll), sun, self._seed(ia, iy, ip, ir))
+                else:
+                    frames = self._frames(geometry[ir][0][iy], geometry[ir][1][iy])
+                for px, idx, aop, dop, valid, inten in frames:
                     obs = Observation(aop, dop, valid, px.rays_cam, px.x_px, px.y_px, camera, 0.0, h, inten,
                                       pitch, roll, None)
                     for i in idx:

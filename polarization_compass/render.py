@@ -192,19 +192,16 @@ class Renderer:
                 intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
         return aop, dop, valid, intensity
 
-    def render_sky(self, R_enu_cam, sun_enu):
+    def render_sky(self, sun_cam, zenith_cam):
         """What :meth:`render` computes for a scene without sensor effects, and nothing else: flat (N,) aop,
-        dop, valid and intensity (None without a radiance model) in the selection's pixel order, for a
-        camera-to-ENU rotation (``conventions.R_enu_cam_from_attitude``) and the sun's ENU unit vector
-        (``conventions.enu_direction``). No Frame, no metadata: for error-map sweeps, which render 1e5
-        frames. A scene with sensor effects is refused (its frames need :meth:`render`)."""
+        dop, valid and intensity (None without a radiance model) in the selection's pixel order, for the sun and
+        the zenith already in the camera frame (``R.T @ s_enu`` and ``R[2]`` for the camera-to-ENU rotation
+        ``R = conventions.R_enu_cam_from_attitude(...)``, as :meth:`render` computes them). No Frame, no
+        metadata, no geometry stage: for error-map sweeps, which render 1e5 frames and compute the rotations of
+        a whole chunk at once. A scene with sensor effects is refused (its frames need :meth:`render`)."""
         if self.sensor is not None:
             from .sensor import SensorError
             raise SensorError("render_sky: the scene declares sensor effects; use render()")
-        R = np.asarray(R_enu_cam, dtype=float)
-        with instr.stage("geometry"):
-            sun_cam = R.T @ np.asarray(sun_enu, dtype=float)
-            zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
         return self._sky(sun_cam, zenith_cam)
 
     def _sun_meta(self, sun: SunDirection | None, time_utc) -> dict:

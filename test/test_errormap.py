@@ -337,7 +337,7 @@ def test_render_sky_refuses_a_scene_with_sensor_effects():
     from polarization_compass.render import Renderer
     from polarization_compass.sensor import SensorError
     with pytest.raises(SensorError, match="sensor effects"):
-        Renderer(_noisy_scene()).render_sky(cv.R_enu_cam_from_attitude(0.0, 0.0, 0.0), cv.enu_direction(0.0, 30.0))
+        Renderer(_noisy_scene()).render_sky(cv.enu_direction(0.0, 30.0), np.array([0.0, 0.0, 1.0]))
 
 
 # --------------------------------------------------------------------------------------------
