@@ -693,9 +693,20 @@ def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
     """The smooth usability map S of a view (see the module doc). Outside the view, positions beyond the disc
     count as usable (nothing is missing there) and positions inside it as unusable."""
     usable, x0, dx, y0, dy = _usable_grid(view, camera)
+    ny, nx = usable.shape
+    S, params = _smooth_usability(camera, float(x0), float(dx), float(y0), float(dy), int(ny), int(nx),
+                                  float(rho_max), np.packbits(usable).tobytes())
+    return MirrorMap(S, params, (float(x0), float(dx), float(y0), float(dy)), camera)
+
+
+@lru_cache(maxsize=2)          # the last frame's, for both disc methods (a full-resolution S is tens of MB)
+def _smooth_usability(camera: CameraModel, x0: float, dx: float, y0: float, dy: float, ny: int, nx: int,
+                      rho_max: float, usable_bits: bytes):
+    """(S, reflection parameters) of :func:`mirror_map` for a usable grid (packed bits): read-only, cached, so
+    the two disc methods run on one frame (an error-map cell) blur it once."""
+    usable = np.unpackbits(np.frombuffer(usable_bits, np.uint8), count=ny * nx).reshape(ny, nx).astype(bool)
     px, py = camera.pixel_pitch_x_um * 1e-3, camera.pixel_pitch_y_um * 1e-3
     pad = int(math.ceil(3.0 * MIRROR_BLUR_CELLS)) + 1
-    ny, nx = usable.shape
     full = _outside_disc(camera, x0 - pad * dx, dx, nx + 2 * pad, y0 - pad * dy, dy, ny + 2 * pad,
                          float(rho_max)).copy()
     full[pad:pad + ny, pad:pad + nx] = usable
@@ -704,9 +715,14 @@ def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
     blur = cv2.GaussianBlur(full.astype(np.float32), (0, 0), sigmaX=MIRROR_BLUR_CELLS * cell / (dx * px),
                             sigmaY=MIRROR_BLUR_CELLS * cell / (dy * py), borderType=cv2.BORDER_REPLICATE)
     t = np.clip((blur.astype(np.float64) - MIRROR_LEVELS[0]) / (MIRROR_LEVELS[1] - MIRROR_LEVELS[0]), 0.0, 1.0)
-    S = np.sin(0.5 * math.pi * t) ** 2 * full         # exactly 0 on every unusable grid point
+    S = (t >= 1.0).astype(np.float64)                 # sin^2 of the rise: 0 below it, 1 above, sin only on it
+    rise = (t > 0.0) & (t < 1.0)
+    S[rise] = np.sin(0.5 * math.pi * t[rise]) ** 2
+    S *= full                                         # exactly 0 on every unusable grid point
     params = np.array([camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy])
-    return MirrorMap(np.ascontiguousarray(S), params, (float(x0), float(dx), float(y0), float(dy)), camera)
+    for a in (S, params):
+        a.setflags(write=False)
+    return S, params
 
 
 @lru_cache(maxsize=32)
