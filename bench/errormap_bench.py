@@ -8,7 +8,8 @@ the same domain runs through the real engine (``errormap.run_sweep``, all cores,
 every 5th sun altitude x every 3rd pitch x every yaw (11 x 11 x 90 = 10 890 cells, 43 560 estimates, in full
 mode; the cost of a cell grows with the sun's altitude and the tilt, so the sub-grid keeps both ends).
 
-    start-up    wall time of a sweep of one cell per worker (spawn, imports, numba cache, estimators)
+    start-up    wall time of a sweep of one cell per worker (spawn, imports, numba cache, estimators), after
+                one such sweep to warm up (a first run after a code change compiles numba's cache)
     rate        sub-grid cells / (sub-grid wall time - start-up)
     projected   start-up + 142 290 / rate, against 120 s
 
@@ -72,6 +73,7 @@ def run(cfg) -> dict:
     # start-up: one cell per worker (each worker gets a chunk, so every worker starts)
     probe = errormap.SweepSpec(list(methods), [30.0], [0.0], pitch[:workers], [0.0], scene=scene)
     probe_cells = probe.cell_count() // len(methods)
+    _timed(errormap, probe, workers)              # warm-up: numba's cache (compiled on a first run), file cache
     startup_s, probe_cpu_s, _ = _timed(errormap, probe, workers)
     load_before = os.getloadavg()
     wall_s, cpu_s, m = _timed(errormap, sample, workers)
