@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from polarization_compass.cli import main
+from test_cli_bad_input import run as run_in_process   # (exit status, stdout, stderr) in-process
 
 W, H = 2448, 2048                     # Table 1 imager
 F_MM, PITCH_MM = 4.0, 3.45e-3
@@ -27,13 +27,6 @@ def cli_command():
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "polarization_compass.cli"]
 
 
-def run_in_process(argv, capsys):
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = exc.code
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
 
 
 def load(path):
