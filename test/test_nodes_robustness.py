@@ -303,8 +303,15 @@ def test_a_best_effort_imu_reaches_the_estimator_and_the_corrector(ros_env, tmp_
                                                        get_subscription_count() >= 1 and pub_h.get_subscription_count()
                                                        >= 1), 60, [est, cor]), est.stderr + cor.stderr
         assert not incompatible, f"an IMU reader refuses a best-effort writer: incompatible {incompatible}"
-        readers = {i.node_name: i.qos_profile.reliability
-                   for i in rec.node.get_subscriptions_info_by_topic("/" + T.IMU)}
+
+        def imu_readers():
+            return {i.node_name: i.qos_profile.reliability
+                    for i in rec.node.get_subscriptions_info_by_topic("/" + T.IMU)}
+
+        # A reader's endpoint can be discovered before its node's name (the graph shows
+        # _NODE_NAME_UNKNOWN_ for a moment): wait for the names, then check the QoS.
+        rec.spin_until(lambda: "_NODE_NAME_UNKNOWN_" not in imu_readers(), 30, [est, cor])
+        readers = imu_readers()
         assert readers == {"heading_estimator_tilt_aware": ReliabilityPolicy.BEST_EFFORT,
                            "tilt_corrector_least_squares": ReliabilityPolicy.BEST_EFFORT}, readers
         cam = _small_camera()
