@@ -314,8 +314,12 @@ def _bilinear_weights(layout: MosaicLayout) -> np.ndarray:
     return out
 
 
-def _prepare(mosaic, saturation_level):
-    """Validate the raw image; float32 copy for the kernels and the float32 saturation threshold."""
+def _prepare(mosaic, saturation_level, read_once: bool = False):
+    """Validate the raw image; float32 copy for the kernels and the float32 saturation threshold.
+
+    ``read_once``: the kernel reads each sample once (superpixels), so an 8- or 16-bit unsigned image is
+    passed as it is (the kernel converts each sample to float32 exactly as ``astype`` would; the copy of a
+    full 2448 x 2048 frame cost 2 ms, a third of the demosaic)."""
     m = np.asarray(mosaic)
     if m.ndim != 2:
         raise SensorError(f"a mosaic must be a 2-D image, got shape {m.shape}")
@@ -327,6 +331,8 @@ def _prepare(mosaic, saturation_level):
         sat = float(saturation_level)
         if math.isnan(sat):
             raise SensorError("saturation_level must be a number, got NaN")
+    if read_once and m.dtype in (np.uint8, np.uint16):
+        return np.ascontiguousarray(m), np.float32(sat)
     if m.dtype != np.float32:
         # float32 holds every uint16 exactly; converting once is cheaper than converting 9x per pixel.
         # A float64 sample beyond float32's range becomes +-inf, which the kernels treat as invalid.
@@ -339,7 +345,7 @@ def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
     lay = parse_layout(layout, pol45_toward)
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f"demosaic method must be one of {DEMOSAIC_METHODS}, got {method!r}")
-    m, sat = _prepare(mosaic, saturation_level)
+    m, sat = _prepare(mosaic, saturation_level, read_once=method == "superpixel")
     H, W = m.shape
     if H < 2 or W < 2:
         raise SensorError(f"a mosaic needs at least 2 x 2 pixels, got {H} x {W}")

@@ -132,6 +132,61 @@ def test_compiled_lift_matches_conventions():
     assert acc["n"] == valid.sum()
 
 
+@pytest.mark.parametrize("keys", [
+    (((1.0, 1.0, 40), (1.0, 1.0, 30)),),                                   # one full-resolution grid
+    (((1.5, 2.0, 37), (3.5, 2.0, 29)),),                                   # superpixel centres, odd sizes
+    (((1.0, 4.0, 10), (1.0, 4.0, 8)), ((4.0, 4.0, 10), (4.0, 4.0, 7))),    # phase-balanced subgrids
+])
+def test_row_wise_pass_matches_numpy_per_block(keys):
+    """The row-wise grid kernel against a plain numpy computation: each block's M_b (block of 8 sensor
+    pixels from the pixel coordinates), the usable, valid and non-finite counts, with NaN/inf planted in
+    valid and invalid pixels and a min_dop cut."""
+    from polarization_compass.estimators._kernels import full_pass, grid_layout
+    rng = np.random.default_rng(5)
+    xs, ys = [], []
+    for (x0, dx, nx), (y0, dy, ny) in keys:
+        yy, xx = np.meshgrid(y0 + dy * np.arange(ny), x0 + dx * np.arange(nx), indexing="ij")
+        xs.append(xx.ravel())
+        ys.append(yy.ravel())
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    n = x.size
+    aop = rng.uniform(-math.pi / 2, math.pi / 2, n).astype(np.float32)
+    dop = rng.uniform(0.0, 1.0, n).astype(np.float32)
+    rays = rng.normal(size=(3, n))
+    rays[2] = np.abs(rays[2]) + 0.2
+    rays = (rays / np.linalg.norm(rays, axis=0)).astype(np.float32)
+    valid = rng.uniform(size=n) > 0.1
+    bad = rng.choice(n, 12, replace=False)
+    aop[bad[:4]] = np.nan
+    dop[bad[4:8]] = np.inf
+    rays[1, bad[8:]] = -np.inf
+    min_dop = 0.2
+    finite = np.isfinite(aop) & np.isfinite(dop) & np.all(np.isfinite(rays), axis=0)
+    use = valid & finite & (dop >= min_dop)
+    e = cv.evector_cam_from_aop(aop.astype(float)[use], rays.T.astype(float)[use])
+    w = dop.astype(float)[use] ** 2
+    blk = np.floor((x[use] - 0.5) / 8) * 1000 + np.floor((y[use] - 0.5) / 8)
+    ref = {b: (e[blk == b] * w[blk == b, None]).T @ e[blk == b] for b in np.unique(blk)}
+    grids = grid_layout(keys, 8)
+    acc = full_pass(aop, dop, valid, rays, (None, None, None, 0), min_dop, 1, grids)
+    got = acc["block_m"][acc["block_w"] > 0]
+    assert len(got) == len(ref)
+    want = np.array([ref[b] for b in sorted(ref, key=lambda b: np.trace(ref[b]))])
+    got = got[np.argsort(np.trace(got, axis1=1, axis2=2))]
+    np.testing.assert_allclose(got, want, rtol=2e-5, atol=1e-6)
+    assert acc["n"] == int(use.sum())
+    assert acc["considered"] == int(valid.sum())
+    assert acc["nonfinite"] == int((valid & ~finite).sum()) > 0
+    # the per-segment kernel (pixel lists) on the same pixels: the same blocks and counts
+    from polarization_compass.estimators._kernels import list_segments
+    order, segs = list_segments(x, y, 8)
+    acc2 = full_pass(aop[order], dop[order], valid[order], np.ascontiguousarray(rays[:, order]), segs, min_dop, 1)
+    got2 = acc2["block_m"][acc2["block_w"] > 0]
+    got2 = got2[np.argsort(np.trace(got2, axis1=1, axis2=2))]
+    np.testing.assert_allclose(got2, want, rtol=2e-5, atol=1e-6)
+    assert (acc2["n"], acc2["considered"], acc2["nonfinite"]) == (acc["n"], acc["considered"], acc["nonfinite"])
+
+
 # --------------------------------------------------------------------------------------------
 # Noise-free Rayleigh, level camera: every method exact
 # --------------------------------------------------------------------------------------------

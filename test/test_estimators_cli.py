@@ -157,6 +157,23 @@ def test_mosaic_front_end_reads_the_same_pixels(noisy_full, demo):
         assert sub.aop_rad.size < f.aop_rad.size
 
 
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32, np.float64, np.int32])
+@pytest.mark.parametrize("shape", [(12, 16), (13, 17)])
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_superpixel_block_gather_matches_indexing(dtype, shape, k):
+    """The wide-element gather of strided 2 x 2 blocks equals picking each block's four samples by index."""
+    from polarization_compass.estimators.mosaic_input import _superpixel_blocks
+    m = (np.arange(shape[0] * shape[1]) * 7 % 251).reshape(shape).astype(dtype)
+    rows, cols = np.arange(1, shape[0] // 2, k), np.arange(0, shape[1] // 2, k)
+    got = _superpixel_blocks(m, rows, cols, k)
+    want = np.empty((2 * rows.size, 2 * cols.size), dtype)
+    for a, r in enumerate(rows):
+        for b, c in enumerate(cols):
+            want[2 * a:2 * a + 2, 2 * b:2 * b + 2] = m[2 * r:2 * r + 2, 2 * c:2 * c + 2]
+    assert got.dtype == m.dtype and got.flags.c_contiguous
+    assert np.array_equal(got, want)
+
+
 def test_mosaic_front_end_rejects_bad_input():
     sc = load_scene("config/scenes/imx250mzr_noisy.yaml")
     with pytest.raises(MosaicInputError, match="does not fit"):

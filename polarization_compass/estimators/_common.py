@@ -34,7 +34,7 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg
 from .base import EstimatorError, HeadingResult, Observation, Status
 
-__all__ = ["brightness_stats", "brightness_t_from_stats", "brightness_t", "view_segments",
+__all__ = ["brightness_stats", "brightness_t_from_stats", "brightness_t", "view_segments", "view_grid_layout",
            "Knob", "KnobbedEstimator", "Samples", "PixelView", "select_view", "samples_from_view",
            "sample_observation", "cluster_sigma_rad", "Candidate",
            "resolve_ambiguity", "psi_from_sun_rad", "level_sun_candidates", "rayleigh_aop_rad"]
@@ -373,6 +373,14 @@ def view_segments(view: PixelView, block_px: int):
     order, segs = list_segments(view.x_px, view.y_px, int(block_px))
     return ((view.aop[order], view.dop[order], view.valid[order], view.rays[:, order], view.x_px[order],
              view.y_px[order], None if view.intensity is None else view.intensity[order]), segs)
+
+
+def view_grid_layout(view: PixelView, block_px: int):
+    """The view's pixels as regular grids for the row-wise compiled pass
+    (:func:`polarization_compass.estimators._kernels.grid_layout`), or None for a pixel list."""
+    from ._kernels import grid_layout
+    keys = (view.grid,) if view.grid is not None else view.subgrids
+    return None if keys is None else grid_layout(tuple(keys), int(block_px))
 
 
 @lru_cache(maxsize=64)

@@ -39,7 +39,7 @@ from ..conventions import rot_x, rot_y
 from .base import Estimator, HeadingResult, Observation, Status, register_estimator
 from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, finish_sigma_deg,
                       psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
-                      view_segments)
+                      view_grid_layout, view_segments)
 from ._kernels import full_pass, sub_pass
 
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
@@ -164,7 +164,7 @@ class _LSBase(KnobbedEstimator, Estimator):
             s0sq = _noise_scale_sq(sub, k["bias_correction"])
             min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
         sub = sub_pass(*arrs, min_dop, wmode, var_mode)
-        acc = full_pass(*arrs[:4], segs, min_dop, wmode)
+        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
         n = acc["n"]
         nonfinite = acc["nonfinite"]
         if n < k["min_pixels"]:

@@ -68,6 +68,25 @@ def _wanted_rect(selection: PixelSelection | None, x0: int, y0: int, H: int, W: 
     return xl, yl, xh, yh, stride
 
 
+_PAIR = {1: np.uint16, 2: np.uint32, 4: np.uint64, 8: np.complex128}    # a dtype as wide as two samples
+
+
+def _superpixel_blocks(m: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int) -> np.ndarray:
+    """The 2 x 2 blocks ``rows[0]::k`` x ``cols[0]::k`` (block indices) of mosaic ``m`` as one contiguous
+    mosaic. Each horizontal sample pair is copied as one wide element: numpy's strided copy with an inner
+    axis of 2 samples cost 4.8 ms for a stride-4 selection of a 2448 x 2048 frame, 0.27 ms this way."""
+    H, W = m.shape
+    r = slice(int(rows[0]), int(rows[-1]) + 1, k)
+    c = slice(int(cols[0]), int(cols[-1]) + 1, k)
+    even = m[: 2 * (H // 2), : 2 * (W // 2)]
+    pair = _PAIR.get(m.dtype.itemsize)
+    if k > 1 and pair is not None and even.flags.c_contiguous:
+        pairs = even.view(pair).reshape(H // 2, 2, W // 2)
+        return np.ascontiguousarray(pairs[r, :, c]).view(m.dtype).reshape(2 * rows.size, 2 * cols.size)
+    blocks = even.reshape(H // 2, 2, W // 2, 2)
+    return np.ascontiguousarray(blocks[r, :, c, :]).reshape(2 * rows.size, 2 * cols.size)
+
+
 def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float, *,
                             origin_px=(1, 1), method: str = "superpixel", layout=IMX250MZR_LAYOUT,
                             pol45_toward: str = "+x+y", saturation_level=None,
@@ -100,12 +119,7 @@ def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float,
         k = max(1, stride // 2)
         cols = bx0 + _centred(bx1 - bx0, k)
         rows = by0 + _centred(by1 - by0, k)
-        blocks = m[: 2 * (H // 2), : 2 * (W // 2)].reshape(H // 2, 2, W // 2, 2)
-        if k == 1:
-            sub = blocks[rows[0]:rows[-1] + 1, :, cols[0]:cols[-1] + 1, :]
-        else:
-            sub = blocks[rows[0]:rows[-1] + 1:k, :, cols[0]:cols[-1] + 1:k, :]
-        sub = np.ascontiguousarray(sub).reshape(2 * rows.size, 2 * cols.size)
+        sub = _superpixel_blocks(m, rows, cols, k)
         lay_sub = lay                                # block-aligned: same phase as the mosaic
         gx = (x0 + 2.0 * cols[0] + 0.5, 2.0 * k, int(cols.size))
         gy = (y0 + 2.0 * rows[0] + 0.5, 2.0 * k, int(rows.size))
