@@ -178,3 +178,17 @@ def test_axial_mean_wraps_and_measures_concentration():
     m, R = cv.axial_mean_rad(np.radians([0.0, 90.0]))  # orthogonal axes cancel
     assert R < 1e-12
     assert cv.axial_difference_deg(179.0, 1.0) == pytest.approx(-2.0)
+
+
+def test_scalar_rotations_equal_the_vectorised_ones():
+    """rot_x/y/z of a Python or numpy scalar (a fast path) equal the same rotation from a 0-d array, and an
+    elementary rotation by theta then -theta is the identity."""
+    rng = np.random.default_rng(11)
+    for theta in rng.uniform(-7.0, 7.0, 50):
+        for rot in (cv.rot_x, cv.rot_y, cv.rot_z):
+            a, b, c = rot(float(theta)), rot(np.float64(theta)), rot(np.array(theta))
+            assert a.shape == b.shape == c.shape == (3, 3)
+            np.testing.assert_allclose(a, c, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(b, c, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(rot(float(theta)) @ rot(-float(theta)), np.eye(3), atol=1e-15)
+    assert cv.rot_z(1).shape == (3, 3) and np.allclose(cv.rot_z(1), cv.rot_z(np.array(1.0)))

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y
@@ -45,6 +46,21 @@ from ._kernels import full_pass, sub_pass
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
 
 
+@njit(cache=True)
+def _solve_sun_kernel(M, B, C, bias_correction, iterations):  # pragma: no cover - compiled
+    lam, U = np.linalg.eigh(M)
+    sigma0_sq = 0.0
+    if bias_correction:
+        for _ in range(iterations):
+            s = U[:, 0].copy()
+            den = s @ (C @ s)
+            if not den > 0.0:
+                break
+            sigma0_sq = max((s @ (M @ s)) / den, 0.0)
+            lam, U = np.linalg.eigh(M - sigma0_sq * B)
+    return lam, U, sigma0_sq
+
+
 def solve_sun(M, B, C, bias_correction=True, iterations=3):
     """Smallest eigenvector of ``M = sum w e e^T`` (lifted E-vectors), optionally noise-debiased.
 
@@ -53,19 +69,19 @@ def solve_sun(M, B, C, bias_correction=True, iterations=3):
     bias that does not average out with more pixels. The noise scale is estimated from the data,
     ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation per unit variance),
     and ``sigma0^2 B`` subtracted; three fixed-point iterations (this is Kanatani-style renormalisation:
-    the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it converges in two). Returns (lambdas ascending, U, sigma0^2).
+    the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it converges in two). Returns
+    (lambdas ascending, U, sigma0^2). Compiled (LAPACK's symmetric eigensolver through numba): numpy's
+    per-call overhead made the four 3 x 3 solves cost more than the whole pass over 5 000 pixels.
+    Raises ``numpy.linalg.LinAlgError`` for non-finite input.
     """
-    lam, U = np.linalg.eigh(M)
-    sigma0_sq = 0.0
-    if bias_correction:
-        for _ in range(iterations):
-            s = U[:, 0]
-            den = float(s @ C @ s)
-            if not den > 0.0:
-                break
-            sigma0_sq = max(float(s @ M @ s) / den, 0.0)
-            lam, U = np.linalg.eigh(M - sigma0_sq * B)
-    return lam, U, sigma0_sq
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    if not np.all(np.isfinite(M)):
+        raise np.linalg.LinAlgError("the E-vector matrix has non-finite entries")
+    return _solve_sun_kernel(M, np.ascontiguousarray(B, dtype=np.float64), np.ascontiguousarray(C, dtype=np.float64),
+                             bool(bias_correction), int(iterations))
+
+
+_FIRST_LOOK = 4096     # pixels of the first, noise-scale subsample
 
 
 def _noise_scale_sq(sub, bias_correction: bool) -> float:
@@ -83,24 +99,45 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
     return max(s0sq, 0.0)
 
 
-def _block_sigma(block_m, block_w, n: int, s, c) -> float:
-    """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c``: block sums centred by weight share
-    (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor."""
-    sums = -np.einsum("i,gij,j->g", s, block_m, c)
-    used = block_w > 0
-    sums = sums[used]
-    wb = block_w[used]
-    G = sums.size
-    W = float(wb.sum())
-    if G == 0 or W <= 0:
-        return 0.0
-    sums = sums - sums.sum() * wb / W
-    corr = (G / (G - 1.0) if G > 1 else 1.0) * ((n - 1.0) / (n - 2.0) if n > 3 else 1.0)
-    return math.sqrt(max(float(np.dot(sums, sums)) * corr, 0.0))
+@njit(cache=True)
+def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
+    """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums centred
+    by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor."""
+    K = cs.shape[0]
+    G = block_m.shape[0]
+    out = np.zeros(K)
+    W = 0.0
+    used = 0
+    for g in range(G):
+        if block_w[g] > 0:
+            W += block_w[g]
+            used += 1
+    if used == 0 or not W > 0:
+        return out
+    corr = (used / (used - 1.0) if used > 1 else 1.0) * ((n - 1.0) / (n - 2.0) if n > 3 else 1.0)
+    sums = np.zeros(G)
+    for k in range(K):
+        total = 0.0
+        for g in range(G):
+            if block_w[g] > 0:
+                v = 0.0
+                for a in range(3):
+                    for b in range(3):
+                        v -= s[a] * block_m[g, a, b] * cs[k, b]
+                sums[g] = v
+                total += v
+        ss = 0.0
+        for g in range(G):
+            if block_w[g] > 0:
+                d = sums[g] - total * block_w[g] / W
+                ss += d * d
+        out[k] = math.sqrt(max(ss * corr, 0.0))
+    return out
 
 
 class _LSBase(KnobbedEstimator, Estimator):
     axial = False
+    sigma_optional = True
     OWN_KNOBS = {
         "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
                           doc="pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform"),
@@ -125,7 +162,9 @@ class _LSBase(KnobbedEstimator, Estimator):
         return selection_for(self.knobs, camera)
 
     # ------------------------------------------------------------------------------------------
-    def estimate(self, obs: Observation) -> HeadingResult:
+    def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
+        """One heading. ``sigma=False`` (error-map sweeps): ``sigma_deg`` None and no ``rms_residual_deg``;
+        the sun-elevation sigma of the sign rule is computed either way, so psi and status are the same."""
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
@@ -159,11 +198,13 @@ class _LSBase(KnobbedEstimator, Estimator):
         # (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
         min_dop = k["min_dop"]
         sigma_max = math.radians(k["max_aop_noise_deg"])
-        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=4096)   # a first look at the noise
+        n_view = int(arrs[0].size)
+        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK)   # a first look at the noise
         if var_mode == 1:
             s0sq = _noise_scale_sq(sub, k["bias_correction"])
             min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
-        sub = sub_pass(*arrs, min_dop, wmode, var_mode)
+        if not (min_dop == k["min_dop"] and n_view <= 2 * _FIRST_LOOK):
+            sub = sub_pass(*arrs, min_dop, wmode, var_mode)   # (a small view: the first look read every pixel)
         acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
         n = acc["n"]
         nonfinite = acc["nonfinite"]
@@ -203,8 +244,9 @@ class _LSBase(KnobbedEstimator, Estimator):
         # d s = -sum_k u_k (u_k . dM s) / d_k  ->  d psi = -s^T dM c  with c = sum_k (g . u_k) u_k / d_k
         c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
         c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
-        sigma_psi = _block_sigma(acc["block_m"], acc["block_w"], n, s, c_psi)
-        sigma_el = _block_sigma(acc["block_m"], acc["block_w"], n, s, c_el)
+        cs = np.stack([c_el, c_psi]) if sigma else c_el[None, :]
+        sigmas = _block_sigmas(acc["block_m"], acc["block_w"], n, s, np.ascontiguousarray(cs))
+        sigma_el = float(sigmas[0])
         cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
         first, second = (cands if s_sign[2] >= 0 else cands[::-1])
         el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
@@ -231,11 +273,14 @@ class _LSBase(KnobbedEstimator, Estimator):
         wsum = float(np.trace(M))
         quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
         extras = {"eigenvalues": [float(v / wsum) for v in lam], "sigma_sun_elevation_deg": math.degrees(sigma_el),
-                  "rms_residual_deg": math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0))),
                   "sun_altitude_ephemeris_deg": float(obs.sun_altitude_deg),
                   "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)), "min_dop_used": min_dop,
                   "sun_cam": [float(v) for v in s_pick]}
-        return result_from(self.name, pick, by, reason, obs, finish_sigma_deg(sigma_psi, k), n, nonfinite, quality,
+        sigma_deg = None
+        if sigma:
+            extras["rms_residual_deg"] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
+            sigma_deg = finish_sigma_deg(float(sigmas[1]), k)
+        return result_from(self.name, pick, by, reason, obs, sigma_deg, n, nonfinite, quality,
                            sun_altitude_deg=implied_alt, extras=extras)
 
 
