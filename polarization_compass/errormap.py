@@ -70,10 +70,10 @@ _STATUS_LEGEND = {**{str(v): k for k, v in STATUS_CODES.items()}, str(STATUS_NOT
 #: resolution (see docs/error-maps.md).
 DEFAULT_SWEEP_KNOBS: dict[str, dict] = {
     "zenith": {},                                    # reads its 32 x 32 px window at the image centre
-    "sm_asm": {"stride": 32},
-    "symmetry": {"stride": 32, "search_steps": 90},  # 2 deg coarse grid; Newton refines to the same optimum
-    "least_squares": {"stride": 32},
-    "tilt_aware": {"stride": 32},
+    "sm_asm": {"stride": 64},
+    "symmetry": {"stride": 48, "search_steps": 90},  # 2 deg coarse grid; Newton refines to the same optimum
+    "least_squares": {"stride": 64},
+    "tilt_aware": {"stride": 64},
 }
 
 

@@ -258,7 +258,8 @@ def test_sweep_equals_each_method_on_its_own_render_with_its_uncertainty(scene_n
                      scene=scene)
     cells = spec.sun_altitude_deg.size * spec.yaw_deg.size * int(spec.tilt_mask().sum())
     selections = {make_estimator(x, **spec.knobs[x]).pixels_needed(scene.camera) for x in methods}
-    assert len(selections) == 3                 # zenith's window, the disc (sm_asm, symmetry), the whole image
+    # zenith's window, the disc at sm_asm's and at symmetry's stride, the whole image (LS and tilt_aware)
+    assert len(selections) == 4
     instr.reset()
     m = run_sweep(spec, workers=1, progress=False)
     assert instr.counts().get("sky." + scene.sky["model"], 0) == cells * len(selections)
