@@ -178,7 +178,7 @@ def _superpixel_pixel(m, i, j, w, sat):  # pragma: no cover - compiled
     return s0, s1, s2, ok
 
 
-@njit(parallel=True, fastmath=_FM, cache=True)
+@njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _superpixel_kernel(m, w, sat, aop, dop, valid):  # pragma: no cover - compiled
     """One (aop, dop, valid) per 2 x 2 block."""
     H2, W2 = aop.shape
@@ -197,7 +197,7 @@ def _stokes_or_zero(s0, s1, s2, ok):  # pragma: no cover - compiled
     return (s0 if ok else z), (s1 if ok else z), (s2 if ok else z)
 
 
-@njit(parallel=True, fastmath=_FM, cache=True)
+@njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _superpixel_stokes_kernel(m, w, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
     """One Stokes vector per 2 x 2 block; zeros where invalid."""
     H2, W2 = s0o.shape
@@ -241,7 +241,7 @@ def _bilinear_at(m, i, im, ip, j, W, r, rw, sat):  # pragma: no cover - compiled
                            rw[r, q, 4], rw[r, q, 5], rw[r, q, 6], rw[r, q, 7], sat)
 
 
-@njit(parallel=True, fastmath=_FM, cache=True)
+@njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compiled
     """Full-resolution bilinear demosaic to (aop, dop, valid). ``rw`` (2 row parities, 2 column
     parities, 8): S1 and S2 weights of the (centre, horizontal, vertical, diagonal) channels.
@@ -267,7 +267,7 @@ def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compile
             aop[i, j], dop[i, j], valid[i, j] = _finish(s0, s1, s2, ok)
 
 
-@njit(parallel=True, fastmath=_FM, cache=True)
+@njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _bilinear_stokes_kernel(m, rw, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
     """Full-resolution bilinear Stokes images; zeros where invalid."""
     H, W = m.shape
@@ -280,7 +280,7 @@ def _bilinear_stokes_kernel(m, rw, sat, s0o, s1o, s2o):  # pragma: no cover - co
             s0o[i, j], s1o[i, j], s2o[i, j] = _stokes_or_zero(s0, s1, s2, ok)
 
 
-@njit(parallel=True, fastmath=_FM, cache=True)
+@njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _stokes_to_aop_kernel(s0, s1, s2, aop, dop, valid):  # pragma: no cover - compiled
     a0 = s0.reshape(-1)
     a1 = s1.reshape(-1)

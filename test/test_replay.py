@@ -185,9 +185,9 @@ def test_error_map_correction_removes_the_tilt_error(alt20, small_map, tmp_path)
     assert res2.summary["least_squares/corrected"]["count"] == 0 and res2.summary["least_squares/raw"]["count"] == 5
 
 
-def test_worker_processes_give_the_single_process_result(alt20, small_map):
-    """Methods split over two processes (each reading the bag) and corrected afterwards in this one: every
-    row field, every statistic and the match order equal the one-process replay's."""
+def test_worker_threads_give_the_single_thread_result(alt20, small_map):
+    """Methods split over two threads (one read of the bag feeding both) and corrected afterwards: every
+    row field, every statistic and the match order equal the one-thread replay's."""
     runs, _, _ = alt20
     kw = dict(methods=("zenith", "least_squares", "tilt_aware", "symmetry"), error_map=str(small_map))
     one = _replay(runs["mcap"]["bag"], workers=1, **kw)
@@ -200,6 +200,33 @@ def test_worker_processes_give_the_single_process_result(alt20, small_map):
     assert two.tally.lines() == one.tally.lines()
     ls = [r for r in two.rows if r.method == "least_squares"]
     assert len(ls) == 36 and all(r.correction_status == "ok" for r in ls)       # corrected, not left pending
+
+
+def test_a_failing_worker_thread_raises_instead_of_hanging(alt20, monkeypatch):
+    """An exception in a method group's thread reaches the caller (the reader is not left blocked on a full
+    queue, the threads are joined), and a failure in the calling thread's group does too."""
+    import threading
+
+    from polarization_compass import replay as rp
+    runs, _, _ = alt20
+    real = rp.FramePipeline.process
+
+    def boom_on(method):
+        def process(self, frame):
+            if method in self.methods and frame.stamp_ns > 0:
+                raise RuntimeError(f"kernel failure in {method}")
+            return real(self, frame)
+        return process
+
+    before = threading.active_count()
+    for method in ("symmetry", "zenith"):        # the other thread's group, then the calling thread's
+        groups = rp.method_groups(["zenith", "symmetry"], 2)
+        assert [method] in groups
+        monkeypatch.setattr(rp.FramePipeline, "process", boom_on(method))
+        with pytest.raises(RuntimeError, match=f"kernel failure in {method}"):
+            _replay(runs["mcap"]["bag"], workers=2, methods=("zenith", "symmetry"))
+        assert threading.active_count() == before
+    monkeypatch.setattr(rp.FramePipeline, "process", real)
 
 
 def test_method_groups_partition_the_methods_by_cost():

@@ -89,7 +89,7 @@ def run(args) -> int:
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
     print(f"{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in {result.wall_s:.1f} s "
           f"({result.speed_x_real_time:.1f}x real time; {result.cpu_s:.1f} s of CPU in {result.workers} "
-          f"process(es), {result.speed_x_real_time_cpu:.1f}x on one idle core)")
+          f"thread(s), {result.speed_x_real_time_cpu:.1f}x on one idle core)")
     if note:
         print(f"note: {note}")
     for line in result.plan.problems:

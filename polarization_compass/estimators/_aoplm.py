@@ -325,7 +325,7 @@ def _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop, rho_lo, rho_ma
     return ok, v, v and not fin, inr and not (v and fin), p, rx, ry, rho, c2a, s2a
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, nogil=True, fastmath=_FM)
 def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
                stats):  # pragma: no cover - compiled
     """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
@@ -373,7 +373,7 @@ def _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, ta
     return keep, ok, tp, s, p, rx, ry, rho, c2a, s2a
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp,
                 g_uv, g_val):  # pragma: no cover - compiled
     """SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0, compacted:
@@ -397,7 +397,7 @@ def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
     """SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2, coverage numerator
     sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every ``step``-th gathered pixel."""
@@ -420,7 +420,7 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
     out[4] = n_pair
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def band_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_max, taper_frac, inv4tol2,
                mg, mp, Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate suns;
@@ -468,7 +468,7 @@ def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
             a_out[K - kk, j + 1] += f * em
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, nogil=True, fastmath=_FM)
 def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
                a_out, cnt, stats):  # pragma: no cover - compiled
     """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),
@@ -494,7 +494,7 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
     cnt[3] += n_hole
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, K, mg, mp,
                 g_uv, g_tp, g_v, g_ring):  # pragma: no cover - compiled
     """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w S(p) c
@@ -526,7 +526,7 @@ def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_f
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out):  # pragma: no cover - compiled
     """Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the gathered pixels
     weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight > 0); every ``step``-th
@@ -555,7 +555,7 @@ def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out): 
     out[1] = n_pair
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_lo, rho_max, taper_frac,
                n_rings, K, mg, mp, a_in, rot, F2, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with
@@ -597,7 +597,7 @@ def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min
             rss[1] += r2 * r2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss):  # pragma: no cover - compiled
     """rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over every ``step``-th pixel
     (rss[2] += 1 for each usable one)."""

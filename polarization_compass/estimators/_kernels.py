@@ -66,7 +66,7 @@ def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
     acc_sym(tot, off + 9, 1.0, rx, ry, rz)
 
 
-@njit(fastmath=_FM, cache=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
 def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - compiled
     """counts: [0] usable pixels (the same test as :func:`_m_pass`), [1] valid pixels, [2] valid pixels
     with a non-finite value."""
@@ -89,7 +89,7 @@ def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - c
     counts[2] = n_bad
 
 
-@njit(fastmath=_FM, cache=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
 def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight,
             block_m):  # pragma: no cover - compiled
     """Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across). Branch-free inner
@@ -137,7 +137,7 @@ def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_w
         block_m[bk, 5] += m5
 
 
-@njit(fastmath=_FM, cache=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
 def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_block_cols, min_dop, dop_weight,
                  block_m, counts):  # pragma: no cover - compiled
     """:func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major ``ny`` x ``nx`` grid stored from
@@ -222,7 +222,7 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
     counts[1] += np.int64(n_fin)
 
 
-@njit(fastmath=_FM, cache=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
 def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_weight, var_mode, tot):  # pragma: no cover
     """Runs of ``run`` pixels from each of ``starts``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the same
     pixels, to scale), [18:33] brightness statistics (n, sum I, sum I^2, sum r, sum I r, sum r r^T)."""

@@ -46,7 +46,7 @@ from ._kernels import full_pass, sub_pass
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _solve_sun_kernel(M, B, C, bias_correction, iterations):  # pragma: no cover - compiled
     lam, U = np.linalg.eigh(M)
     sigma0_sq = 0.0
@@ -99,7 +99,7 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
     return max(s0sq, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums centred
     by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor."""

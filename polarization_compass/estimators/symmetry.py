@@ -52,7 +52,7 @@ __all__ = ["SymmetryEstimator", "MIN_MIRROR_SYMMETRY"]
 MIN_MIRROR_SYMMETRY = 0.95
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _F_derivs(b, K, theta):  # pragma: no cover - compiled
     """F, F', F'' at theta for b[k + K] = sum_rings a_k^2 (k = -K..K, k = 0 excluded)."""
     F = F1 = F2 = 0.0
@@ -66,7 +66,7 @@ def _F_derivs(b, K, theta):  # pragma: no cover - compiled
     return F, F1, F2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _newton(b, K, theta, step):  # pragma: no cover - compiled
     """Newton on F'(theta) = 0 from a grid peak, steps limited to the grid spacing."""
     for _ in range(30):
@@ -80,7 +80,7 @@ def _newton(b, K, theta, step):  # pragma: no cover - compiled
     return theta
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _climb(Fg, i):  # pragma: no cover - compiled
     """The local maximum of the periodic grid function Fg reached by walking uphill from index i."""
     n = Fg.size
@@ -106,7 +106,7 @@ def _tables(K: int, steps: int):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _axis_solve(a, K, grid, e2, e1, near_i):  # pragma: no cover - compiled
     """:func:`_axis_search` after the tables: (theta, F, F2, second-axis score, energy sum |a_k|^2 (k != 0)).
 

@@ -63,7 +63,7 @@ def zenith_window(camera: CameraModel, window_px: int):
     return (x_lo, x_hi, y_lo, y_hi), sel
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _window_sums(aop, dop, valid, rays, inten, has_i, min_dop, m, cnt, trig, stats):  # pragma: no cover - compiled
     """The window's usable pixels (valid, every value finite, DoP >= min_dop; the mask of
     :func:`._common.samples_from_view`): m += upper triangle of sum e e^T of the unit lifted E-vectors
@@ -112,7 +112,7 @@ def _window_sums(aop, dop, valid, rays, inten, has_i, min_dop, m, cnt, trig, sta
     cnt[3] = i_bad
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _eigh3(m):  # pragma: no cover - compiled
     """np.linalg.eigh of the symmetric 3x3 matrix with upper triangle m (00 01 02 11 12 22): (lam, U). The
     same LAPACK routine as numpy's (the same bits here), without numpy's ~10 us of Python per call."""
