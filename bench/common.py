@@ -4,19 +4,21 @@ statistics, JSON output and the quick/full configuration.
 Timings are wall-clock (``time.perf_counter``) of one call each, reported as median and 95th
 percentile in milliseconds. "Single core" means numba's thread pool set to 1 thread and BLAS/OpenMP
 pinned to 1 thread (see ``bench/__init__``). Peak memory is measured in a separate call from the
-timed ones (tracemalloc slows allocation): ``tracemalloc`` peak (numpy buffers report to it) and
-the growth of the process' resident high-water mark (``ru_maxrss``), which also sees numba/OpenCV
-allocations but only grows when a new process-wide peak is reached.
+timed ones: the growth of the process' resident set over one call (the kernel's high-water mark,
+reset just before the call, so it sees numba kernels', numpy's, OpenCV's and Python's allocations alike)
+and, in another call, the ``tracemalloc`` peak (numpy, Python and numba-runtime allocations; not other C
+code's ``malloc``). See :func:`peak_memory`.
 """
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import datetime as _dt
+import gc
 import json
 import math
 import os
 import platform
-import resource
 import subprocess
 import time
 import tracemalloc
@@ -199,28 +201,137 @@ def timing_stats(seconds) -> dict:
             "min_ms": float(s.min())}
 
 
-def _maxrss_bytes() -> int:
-    # Linux reports ru_maxrss in KiB
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+_STATUS = Path("/proc/self/status")
+_CLEAR_REFS = Path("/proc/self/clear_refs")
+
+
+def _status_kib(*fields: str) -> dict[str, int]:
+    """``VmRSS``/``VmHWM``... of this process from /proc/self/status, in KiB."""
+    out = {}
+    for line in _STATUS.read_text().splitlines():
+        key, _, rest = line.partition(":")
+        if key in fields:
+            out[key] = int(rest.split()[0])
+    return out
+
+
+def _reset_rss_peak() -> bool:
+    """Reset the kernel's resident high-water mark (VmHWM) to the current resident size (Linux >= 4.0:
+    ``echo 5 > /proc/self/clear_refs``). False where that is not possible."""
+    try:
+        _CLEAR_REFS.write_text("5")
+    except OSError:
+        return False
+    return True
+
+
+_libc_trim = None
+
+
+def _release_free_heap() -> None:
+    """Give the C heap's free pages back to the kernel (glibc ``malloc_trim(0)``), so that a call
+    that reuses them has to fault them in again and shows in the resident set. glibc keeps freed blocks
+    resident: those below its (dynamic) mmap threshold, up to 32 MiB, and everything when
+    :func:`polarization_compass.heap.keep_large_buffers_in_heap` applies (the replay does)."""
+    global _libc_trim
+    if _libc_trim is None:
+        try:
+            _libc_trim = ctypes.CDLL("libc.so.6").malloc_trim
+            _libc_trim.argtypes = (ctypes.c_size_t,)
+            _libc_trim.restype = ctypes.c_int
+        except (OSError, AttributeError):
+            _libc_trim = False
+    if _libc_trim:
+        _libc_trim(0)
+
+
+def _numba_alloc_count():
+    """numba runtime (NRT) allocations so far, or None when its statistics are off."""
+    from numba.core.runtime import _nrt_python as nrt
+    return int(nrt.memsys_get_stats_alloc()) if nrt.memsys_stats_enabled() else None
 
 
 def peak_memory(fn) -> dict:
-    """Peak memory of one call of ``fn()``: tracemalloc peak (numpy/Python allocations) and the
-    growth of the process' resident high-water mark (includes native allocations; 0 when the call
-    stayed below an earlier peak)."""
+    """Peak memory of one call of ``fn()`` (call it once beforehand to compile and warm caches).
+
+    Two extra calls, neither timed, give two figures (MiB):
+
+    1. ``resident_peak_mib`` (the headline figure): the process' peak resident set during the call
+       minus its resident set just before it. Before the call: ``gc.collect()``, glibc
+       ``malloc_trim(0)`` (freed heap pages go back to the kernel, so a call reusing them counts: glibc
+       keeps freed blocks up to 32 MiB resident, and everything once
+       :func:`polarization_compass.heap.keep_large_buffers_in_heap` applied) and a reset of the
+       kernel's high-water mark (``/proc/self/clear_refs`` = 5); after it: ``VmHWM`` from
+       ``/proc/self/status``. Counted: every page the call touches that was not resident, whoever
+       allocated it: arrays that numba kernels allocate internally, numpy and Python objects, OpenCV's
+       and other C libraries' own ``malloc`` buffers, the first touch of lazily loaded code or data.
+       Not counted: memory allocated but never written (numpy's ``np.zeros`` is ``calloc``: its
+       untouched pages are not resident), memory already resident before the call (caches the warm-up
+       filled), swapped-out pages. Allocations by other threads of the process during the call are
+       counted with it (the benchmarks make one call at a time). Resolution: a page (4 KiB) plus
+       allocator granularity (pymalloc arenas of 1 MiB are touched page by page). None, with
+       ``resident_method`` saying why, where the high-water mark cannot be reset (not Linux, or /proc
+       not writable).
+    2. ``tracemalloc_peak_mib``: the ``tracemalloc`` peak above the traced size at the start of the
+       call: numpy buffers (touched or not), Python objects, and numba kernels' arrays (numba's runtime
+       allocates through ``PyMem_RawMalloc``, which tracemalloc traces: ``numba/core/runtime/nrt.py``
+       installs it at import in numba 0.68); not OpenCV's, BLAS's or other C code's own ``malloc``.
+       Measured in a call of its own because tracing adds memory and time.
+
+    ``numba_allocations``: numba runtime (NRT) allocations during the first call. numba's NRT
+    statistics count allocations and frees, not bytes; they are switched on for that call only (unless
+    ``NUMBA_NRT_STATS`` had them on already).
+
+    The previous figure, the growth of ``ru_maxrss``, is gone: it only grows on a new process-wide
+    peak, so after the warm-up call it read 0 for almost every call.
+    """
+    from numba.core.runtime import _nrt_python as nrt
+
+    # 1. resident set: everything the call touches
+    stats_were_on = bool(nrt.memsys_stats_enabled())
+    if not stats_were_on:
+        nrt.memsys_enable_stats()
+    try:
+        gc.collect()
+        _release_free_heap()
+        method = "VmHWM growth (clear_refs reset, after malloc_trim)"
+        try:
+            reset = _reset_rss_peak()
+            rss0 = _status_kib("VmRSS")["VmRSS"] if reset else None
+        except (OSError, KeyError, ValueError):
+            reset, rss0 = False, None
+        n0 = _numba_alloc_count()
+        fn()
+        n1 = _numba_alloc_count()
+        resident_kib = None
+        if reset:
+            try:
+                resident_kib = max(0, _status_kib("VmHWM")["VmHWM"] - rss0)
+            except (OSError, KeyError, ValueError):
+                resident_kib = None
+        if resident_kib is None:
+            method = "unavailable (needs Linux /proc/self/clear_refs and /proc/self/status)"
+    finally:
+        if not stats_were_on:
+            nrt.memsys_disable_stats()
+
+    # 2. tracemalloc: numpy, Python and numba-runtime allocations
     was_tracing = tracemalloc.is_tracing()
     if not was_tracing:
         tracemalloc.start()
     tracemalloc.reset_peak()
     base_cur, _ = tracemalloc.get_traced_memory()
-    rss0 = _maxrss_bytes()
     fn()
-    cur, peak = tracemalloc.get_traced_memory()
-    rss1 = _maxrss_bytes()
+    _, peak = tracemalloc.get_traced_memory()
     if not was_tracing:
         tracemalloc.stop()
-    return {"tracemalloc_peak_mib": round(max(0, peak - base_cur) / 2 ** 20, 3),
-            "maxrss_growth_mib": round((rss1 - rss0) / 2 ** 20, 3)}
+
+    traced_mib = round(max(0, peak - base_cur) / 2 ** 20, 3)
+    resident_mib = None if resident_kib is None else round(resident_kib / 2 ** 10, 3)
+    return {"resident_peak_mib": resident_mib,
+            "tracemalloc_peak_mib": traced_mib,
+            "numba_allocations": None if n0 is None or n1 is None else n1 - n0,
+            "resident_method": method}
 
 
 # ------------------------------------------------------------------------------------------------

@@ -215,10 +215,12 @@ def _accuracy_section(acc, crb) -> list[str]:
               f"10-60 deg (10-50 when tilted), any bearing), {r['repeats_per_scene']} timed estimates per scene, one core. Errors: "
               "estimated minus true heading, folded mod 180 deg for methods that only find the solar meridian. "
               "CRB: Cramer-Rao bound of the heading for the pixels the configuration reads (AoP noise "
-              "1/(P sqrt(8N)) per superpixel, N = 5000 e-); RMS/CRB = 1 is a perfect estimator.", ""]
+              "1/(P sqrt(8N)) per superpixel, N = 5000 e-); RMS/CRB = 1 is a perfect estimator. "
+              "Peak RSS: growth of the process' resident set during one estimate (numba kernels' arrays, numpy, "
+              "OpenCV and Python together; the tracemalloc peak is in the JSON; docs/benchmarks.md).", ""]
     lines += _headline(cells, r)
     header = ["method", "knobs", "pixels", "RMS (deg)", "p95 (deg)", "max (deg)", "ms median", "ms p95",
-              "peak MiB", "CRB (deg)", "RMS/CRB", "fails"]
+              "peak RSS MiB", "CRB (deg)", "RMS/CRB", "fails"]
     for cond in list(dict.fromkeys(c["condition"] for c in cells)):
         cc = [c for c in cells if c["condition"] == cond]
         lines += [f"### {cond}: {r['conditions'].get(cond, '')}", ""]
@@ -227,7 +229,7 @@ def _accuracy_section(acc, crb) -> list[str]:
             mem = c.get("memory") or {}
             rows.append([c["method"], c["knobs_label"], _f(c.get("pixels_used_median")), _f(c["error"]["rms_deg"]),
                          _f(c["error"]["p95_deg"]), _f(c["error"]["max_deg"]), _f(c["time"]["median_ms"]),
-                         _f(c["time"]["p95_ms"]), _f(mem.get("tracemalloc_peak_mib")), _f(c.get("crb_rms_deg")),
+                         _f(c["time"]["p95_ms"]), _f(mem.get("resident_peak_mib")), _f(c.get("crb_rms_deg")),
                          _f(c.get("rms_over_crb")), c["error"]["failures"]])
         lines += _table(header, rows) + [""]
     bad = [c for c in r["cells"] if c["status"] != "ok"]
