@@ -641,27 +641,20 @@ class ReplayResult:
 
 
 #: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame measured on one
-#: core by ``make bench``, group replay, 2026-11-23), used only to balance the methods across threads.
-_METHOD_COST = {"symmetry": 11.2, "sm_asm": 9.9, "least_squares": 2.4, "tilt_aware": 2.3, "zenith": 0.6}
-#: The calling thread's own share per frame: reading and decoding the bag (6.8 ms of CPU per full-resolution
-#: frame, most of it Python and copies that hold the GIL).
-_READ_COST = 5.0
+#: core, docs/replay.md), used only to balance the methods across worker processes.
+_METHOD_COST = {"symmetry": 9.2, "sm_asm": 7.6, "least_squares": 3.1, "tilt_aware": 3.0, "zenith": 0.8}
 
 
-def method_groups(methods: list[str], workers: int, first_load: float = 0.0) -> list[list[str]]:
+def method_groups(methods: list[str], workers: int) -> list[list[str]]:
     """Split ``methods`` into at most ``workers`` groups of similar cost (largest first onto the lightest
-    group), each group keeping the given method order. ``first_load``: cost the first group carries
-    already (the replay's calling thread reads the bag)."""
+    group), each group keeping the given method order."""
     workers = max(1, min(int(workers), len(methods)))
     groups: list[list[str]] = [[] for _ in range(workers)]
     load = [0.0] * workers
-    load[0] = float(first_load) if workers > 1 else 0.0
     for m in sorted(methods, key=lambda m: -_METHOD_COST.get(m, 5.0)):
         g = load.index(min(load))
         groups[g].append(m)
         load[g] += _METHOD_COST.get(m, 5.0)
-    if not groups[0]:
-        groups.append(groups.pop(0))
     return [[m for m in methods if m in g] for g in groups if g]
 
 
@@ -782,8 +775,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     config.check_knobs()
     methods = config.method_list()
     corrector = _make_corrector(config) if config.error_map else None
-    # group 0 runs on the calling thread, which also reads and decodes the bag
-    groups = method_groups(methods, default_workers() if workers is None else workers, first_load=_READ_COST)
+    groups = method_groups(methods, default_workers() if workers is None else workers)
     t_wall = time.perf_counter()
     parts = _replay_threads(path, config, topic_map, groups, progress)
     main = parts[0]
