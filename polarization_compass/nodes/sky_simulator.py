@@ -369,6 +369,9 @@ class SkySimulatorNode(Node):
         next_frame = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
         if next_frame is not None and next_frame < desired - period_ns:
             self.late_frames += 1
+            self.get_logger().warning(
+                f"frame {self.k_frame} is late: simulated time is {(desired - next_frame) / 1e6:.0f} ms past it "
+                f"(more than one frame period); time resumes from it", throttle_duration_sec=1.0)
             self.base = (next_frame, now)
             desired = next_frame
         while True:
