@@ -640,9 +640,9 @@ class ReplayResult:
         return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
-#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame measured on one
-#: core, docs/replay.md), used only to balance the methods across worker processes.
-_METHOD_COST = {"symmetry": 9.2, "sm_asm": 7.6, "least_squares": 3.1, "tilt_aware": 3.0, "zenith": 0.8}
+#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame on one core, ``make
+#: bench`` group replay, 2026-11-23), used only to balance the methods across threads.
+_METHOD_COST = {"symmetry": 11.2, "sm_asm": 9.9, "least_squares": 2.4, "tilt_aware": 2.3, "zenith": 0.6}
 
 
 def method_groups(methods: list[str], workers: int) -> list[list[str]]:

@@ -28,7 +28,8 @@ def register(sub):
                         "tilt_corrector node; 'none': raw headings only)")
     p.add_argument("--no-plots", action="store_true", help="CSV and summary only")
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="processes sharing the methods (default: one per core; results do not depend on it)")
+                   help="threads sharing the methods over one read of the bag (default: one per core; results do "
+                        "not depend on it)")
     p.set_defaults(func=run)
 
 

@@ -388,17 +388,11 @@ def subgrid_segments(keys: tuple, block_px: int):
     """Segments (start, end, block, n_blocks) of regular grids stored one after the other, each
     row-major with key ((x0, dx, nx), (y0, dy, ny)) (sensor pixels): one run per (grid, row, block
     column), blocks of ``block_px`` sensor pixels numbered alike in every grid. Cached."""
-    axes = [(k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2])) for k in keys]
-    bcs = [np.floor((xg - 0.5) / block_px).astype(np.int64) for xg, _ in axes]
-    brs = [np.floor((yg - 0.5) / block_px).astype(np.int64) for _, yg in axes]
-    c0 = min(int(b.min()) for b in bcs)
-    r0 = min(int(b.min()) for b in brs)
-    K = max(int(b.max()) for b in bcs) - c0 + 1
-    R = max(int(b.max()) for b in brs) - r0 + 1
+    from ._kernels import block_indices
+    bcs, brs, K, R = block_indices(keys, block_px)
     starts, ends, blks = [], [], []
     off = 0
     for bc, br in zip(bcs, brs):
-        bc, br = bc - c0, br - r0
         nx, ny = bc.size, br.size
         change = np.nonzero(np.diff(bc))[0] + 1
         cs = np.concatenate([[0], change])

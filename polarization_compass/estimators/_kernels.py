@@ -24,7 +24,7 @@ from numba import njit
 
 from ..fastmath32 import sincos32
 
-__all__ = ["sub_pass", "full_pass", "grid_segments", "grid_layout", "list_segments", "N_STATS", "sym3", "acc_sym",
+__all__ = ["sub_pass", "full_pass", "grid_segments", "grid_layout", "block_indices", "list_segments", "N_STATS", "sym3", "acc_sym",
            "acc_brightness"]
 
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
@@ -89,39 +89,43 @@ def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - c
     counts[2] = n_bad
 
 
+@njit(inline="always", fastmath=_FM, cache=True, error_model="numpy")
+def _lift_pixel(a, p, rx, ry, rz, v_in, md, dop_weight):  # pragma: no cover - compiled
+    """One pixel of the full pass, branch-free: (w, ex, ey, ez, usable, finite) with ``w e e^T`` its share of
+    M (``e`` unnormalised, ``w`` = DoP^2 or 1 over |e|^2; 0 for an unusable pixel). A non-finite value zeroes
+    the pixel's numbers (0 * inf would poison the block sum with NaN)."""
+    f0 = np.float32(0.0)
+    f1 = np.float32(1.0)
+    big = np.float32(1e6)
+    fin = (abs(a) < big) & (abs(p) < big) & (abs(rx) < big) & (abs(ry) < big) & (abs(rz) < big)
+    a = a if fin else f0
+    p = p if fin else f0
+    rx = rx if fin else f0
+    ry = ry if fin else f0
+    rz = rz if fin else f0
+    sa, ca = _sincos32(a)
+    q = rx * sa + ry * ca
+    nn = rz * rz + q * q
+    use = v_in & fin & (p >= md)
+    ok = use & (nn > np.float32(1e-20))
+    inv = f1 / (nn if ok else f1)
+    w = ((p * p if dop_weight else f1) * inv) if ok else f0
+    return w, rz * sa, rz * ca, -q, use, fin
+
+
 @njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
 def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight,
             block_m):  # pragma: no cover - compiled
     """Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across). Branch-free inner
     loop without counters (selects; error_model numpy so division is not guarded): it vectorises."""
     f0 = np.float32(0.0)
-    f1 = np.float32(1.0)
-    big = np.float32(1e6)
     md = np.float32(min_dop)
     for k in range(seg_start.size):
         m0 = m1 = m2 = m3 = m4 = m5 = f0
         for i in range(seg_start[k], seg_end[k]):
-            a = np.float32(aop[i])
-            p = np.float32(dop[i])
-            rx = np.float32(rays[0, i])
-            ry = np.float32(rays[1, i])
-            rz = np.float32(rays[2, i])
-            v_in = valid[i]
-            fin = (abs(a) < big) & (abs(p) < big) & (abs(rx) < big) & (abs(ry) < big) & (abs(rz) < big)
-            a = a if fin else f0
-            p = p if fin else f0
-            rx = rx if fin else f0                # 0 * inf would poison the block sum with NaN
-            ry = ry if fin else f0
-            rz = rz if fin else f0
-            sa, ca = _sincos32(a)
-            q = rx * sa + ry * ca
-            nn = rz * rz + q * q
-            ok = v_in & fin & (p >= md) & (nn > np.float32(1e-20))
-            inv = f1 / (nn if ok else f1)
-            w = ((p * p if dop_weight else f1) * inv) if ok else f0
-            ex = rz * sa
-            ey = rz * ca
-            ez = -q
+            w, ex, ey, ez, _, _ = _lift_pixel(np.float32(aop[i]), np.float32(dop[i]), np.float32(rays[0, i]),
+                                              np.float32(rays[1, i]), np.float32(rays[2, i]), valid[i], md,
+                                              dop_weight)
             m0 += w * ex * ex
             m1 += w * ex * ey
             m2 += w * ex * ez
@@ -152,7 +156,6 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
     loop stops LLVM vectorising it (measured: 2x slower)."""
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
-    big = np.float32(1e6)
     md = np.float32(min_dop)
     acc = np.zeros((8, nx), np.float32)
     n_ok = 0.0
@@ -180,28 +183,9 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
             yr = rays[1, base:base + nx]
             zr = rays[2, base:base + nx]
             for j in range(nx):
-                a = np.float32(ar[j])
-                p = np.float32(pr[j])
-                rx = np.float32(xr[j])
-                ry = np.float32(yr[j])
-                rz = np.float32(zr[j])
                 v_in = vr[j]
-                fin = (abs(a) < big) & (abs(p) < big) & (abs(rx) < big) & (abs(ry) < big) & (abs(rz) < big)
-                a = a if fin else f0
-                p = p if fin else f0
-                rx = rx if fin else f0            # 0 * inf would poison the block sum with NaN
-                ry = ry if fin else f0
-                rz = rz if fin else f0
-                sa, ca = _sincos32(a)
-                q = rx * sa + ry * ca
-                nn = rz * rz + q * q
-                use = v_in & fin & (p >= md)
-                ok = use & (nn > np.float32(1e-20))
-                inv = f1 / (nn if ok else f1)
-                w = ((p * p if dop_weight else f1) * inv) if ok else f0
-                ex = rz * sa
-                ey = rz * ca
-                ez = -q
+                w, ex, ey, ez, use, fin = _lift_pixel(np.float32(ar[j]), np.float32(pr[j]), np.float32(xr[j]),
+                                                      np.float32(yr[j]), np.float32(zr[j]), v_in, md, dop_weight)
                 a0[j] += w * ex * ex
                 a1[j] += w * ex * ey
                 a2[j] += w * ex * ez
@@ -376,13 +360,10 @@ def grid_segments(x_key: tuple, y_key: tuple, block_px: int):
     return out
 
 
-@lru_cache(maxsize=64)
-def grid_layout(keys: tuple, block_px: int) -> tuple:
-    """Regular grids stored one after the other (row-major, keys ``((x0, dx, nx), (y0, dy, ny))`` in sensor
-    pixels) for :func:`_m_pass_grid`: ``(pieces, n_blocks)`` with ``(offset, col_block, row_block,
-    n_block_cols)`` per grid, blocks of ``block_px`` sensor pixels numbered ``row * n_block_cols + col`` alike
-    in every grid (the same partition as :func:`grid_segments` and ``subgrid_segments``; numbers may skip
-    blocks no pixel falls in). None when a grid's rows are not in block-row order. Cached."""
+def block_indices(keys: tuple, block_px: int):
+    """Block column of every column and block row of every row of regular grids with keys
+    ``((x0, dx, nx), (y0, dy, ny))`` (sensor pixels; blocks of ``block_px`` sensor pixels), numbered from 0
+    alike in every grid: (column indices per grid, row indices per grid, block columns K, block rows R)."""
     axes = [(k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2])) for k in keys]
     bcs = [np.floor((xg - 0.5) / block_px).astype(np.int64) for xg, _ in axes]
     brs = [np.floor((yg - 0.5) / block_px).astype(np.int64) for _, yg in axes]
@@ -390,9 +371,19 @@ def grid_layout(keys: tuple, block_px: int) -> tuple:
     r0 = min(int(b.min()) for b in brs)
     K = max(int(b.max()) for b in bcs) - c0 + 1
     R = max(int(b.max()) for b in brs) - r0 + 1
+    return [b - c0 for b in bcs], [b - r0 for b in brs], K, R
+
+
+@lru_cache(maxsize=64)
+def grid_layout(keys: tuple, block_px: int) -> tuple:
+    """Regular grids stored one after the other (row-major, keys ``((x0, dx, nx), (y0, dy, ny))`` in sensor
+    pixels) for :func:`_m_pass_grid`: ``(pieces, n_blocks)`` with ``(offset, col_block, row_block,
+    n_block_cols)`` per grid, blocks of ``block_px`` sensor pixels numbered ``row * n_block_cols + col`` alike
+    in every grid (the same partition as :func:`grid_segments` and ``subgrid_segments``; numbers may skip
+    blocks no pixel falls in). None when a grid's rows are not in block-row order. Cached."""
+    bcs, brs, K, R = block_indices(keys, block_px)
     out, off = [], 0
     for bc, br in zip(bcs, brs):
-        bc, br = bc - c0, br - r0
         if np.any(np.diff(br) < 0):
             return None                    # rows not in block-row order: the per-segment kernel handles it
         bc.setflags(write=False)
