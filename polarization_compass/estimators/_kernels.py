@@ -274,12 +274,17 @@ def sym3(u) -> np.ndarray:
 _RUN = 64
 
 
+def _reads_every_pixel(n: int, sub_pixels: int) -> bool:
+    """Whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them (:func:`_run_starts`)."""
+    return n <= 2 * sub_pixels
+
+
 @lru_cache(maxsize=64)
 def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
     """Starts of the subsample's runs: every pixel when n is small, else about sub_pixels / 64 runs at
     golden-ratio (low-discrepancy) positions, sorted. Evenly spaced runs would lock onto the image rows
     (a period that is a multiple of the row length samples one vertical strip)."""
-    if n <= 2 * sub_pixels:
+    if _reads_every_pixel(n, sub_pixels):
         return np.arange(0, n, _RUN, dtype=np.int64)
     k = max(1, sub_pixels // _RUN)
     frac = np.mod(0.5 + np.arange(k) * 0.6180339887498949, 1.0)
@@ -294,15 +299,17 @@ def sub_pass(aop, dop, valid, rays, intensity, min_dop: float, weight_mode: int,
 
     ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance v of a pixel) 0 uniform,
     1 1/DoP^2, 2 1/(DoP^2 I). Returns dict of 3x3 ``M`` (= sum w e e^T), ``B`` (noise bias of M per unit
-    variance), ``C`` (expected residual sum per unit variance: s^T C s), and ``stats`` (brightness, or None).
+    variance), ``C`` (expected residual sum per unit variance: s^T C s), ``stats`` (brightness, or None) and
+    ``every_pixel`` (the view was small enough to read whole: a larger ``sub_pixels`` reads the same).
     """
     has_i = intensity is not None
     inten = intensity if has_i else np.zeros(1, np.float32)
     tot = np.zeros(33)
-    _bc_pass(aop, dop, valid, rays, inten, has_i, _run_starts(int(aop.size), int(sub_pixels)), _RUN,
+    n = int(aop.size)
+    _bc_pass(aop, dop, valid, rays, inten, has_i, _run_starts(n, int(sub_pixels)), _RUN,
              float(min_dop), bool(weight_mode), int(var_mode), tot)
     return {"M": sym3(tot[12:18]), "B": sym3(tot[0:6]), "C": sym3(tot[6:12]),
-            "stats": tot[18:33].copy() if has_i else None}
+            "stats": tot[18:33].copy() if has_i else None, "every_pixel": _reads_every_pixel(n, int(sub_pixels))}
 
 
 def full_pass(aop, dop, valid, rays, segments, min_dop: float, weight_mode: int, grids=None):

@@ -198,13 +198,12 @@ class _LSBase(KnobbedEstimator, Estimator):
         # (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
         min_dop = k["min_dop"]
         sigma_max = math.radians(k["max_aop_noise_deg"])
-        n_view = int(arrs[0].size)
         sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK)   # a first look at the noise
         if var_mode == 1:
             s0sq = _noise_scale_sq(sub, k["bias_correction"])
             min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
-        if not (min_dop == k["min_dop"] and n_view <= 2 * _FIRST_LOOK):
-            sub = sub_pass(*arrs, min_dop, wmode, var_mode)   # (a small view: the first look read every pixel)
+        if not (min_dop == k["min_dop"] and sub["every_pixel"]):   # else the first look read what this would
+            sub = sub_pass(*arrs, min_dop, wmode, var_mode)
         acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
         n = acc["n"]
         nonfinite = acc["nonfinite"]
