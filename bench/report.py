@@ -291,11 +291,19 @@ def _headline(cells, r) -> list[str]:
     return lines
 
 
+def _section(title: str, group) -> tuple[list[str], dict | None]:
+    """A section's heading and its group's results; results None (and the lines say why) when the group did
+    not run or did not end ok."""
+    lines = [f"## {title}", ""]
+    if not group or group.get("status") != "ok":
+        return lines + [f"{group['status'] if group else 'not run'}", ""], None
+    return lines, group["results"]
+
+
 def _crb_section(crb) -> list[str]:
-    lines = ["## Cramer-Rao bound", ""]
-    if not crb or crb.get("status") != "ok":
-        return lines + [f"{crb['status'] if crb else 'not run'}", ""]
-    r = crb["results"]
+    lines, r = _section("Cramer-Rao bound", crb)
+    if r is None:
+        return lines
     lines += ["Reference check (physics notes 4): the paper's sensor behind a 180 deg equidistant fisheye, "
               "N = 5000 e-, DoP_max 0.7, level camera, superpixels.", ""]
     lines += _table(["sun altitude (deg)", "CRB, AoP only (deg)", "CRB, AoP + DoP (deg)", "superpixels"],
@@ -315,10 +323,9 @@ def _crb_section(crb) -> list[str]:
 
 
 def _simulator_section(sim) -> list[str]:
-    lines = ["## Simulator", ""]
-    if not sim or sim.get("status") != "ok":
-        return lines + [f"{sim['status'] if sim else 'not run'}", ""]
-    r = sim["results"]
+    lines, r = _section("Simulator", sim)
+    if r is None:
+        return lines
     lines += [f"Camera {r['camera']['width_px']} x {r['camera']['height_px']}, tilted attitude, fixed sun. "
               "`stages` = pipeline stages that ran (instrumentation counts): undeclared effects never run.", ""]
     rows = []
@@ -350,10 +357,9 @@ def _simulator_section(sim) -> list[str]:
 
 
 def _solar_section(sol) -> list[str]:
-    lines = ["## Solar position", ""]
-    if not sol or sol.get("status") != "ok":
-        return lines + [f"{sol['status'] if sol else 'not run'}", ""]
-    r = sol["results"]
+    lines, r = _section("Solar position", sol)
+    if r is None:
+        return lines
     rows = []
     for model, x in r["models"].items():
         rows.append([model, _f(x["batch"]["positions_per_s"]), _f(x["per_call"]["median_ms"]),
@@ -368,10 +374,9 @@ def _solar_section(sol) -> list[str]:
 
 
 def _errormap_section(em) -> list[str]:
-    lines = ["## Error map throughput against issue 4's target", ""]
-    if not em or em.get("status") != "ok":
-        return lines + [f"{em['status'] if em else 'not run'}", ""]
-    r = em["results"]
+    lines, r = _section("Error map throughput against issue 4's target", em)
+    if r is None:
+        return lines
     if "rows" in r:                               # written before the target sweep was measured
         return lines + ["Results in an older format (no projection of the target sweep): rerun "
                         "`python -m bench.run --only errormap`.", ""]
@@ -392,10 +397,9 @@ def _errormap_section(em) -> list[str]:
 
 
 def _errormap_sampling_section(es) -> list[str]:
-    lines = ["## Error map sampling against full resolution (issue 4)", ""]
-    if not es or es.get("status") != "ok":
-        return lines + [f"{es['status'] if es else 'not run'}", ""]
-    r = es["results"]
+    lines, r = _section("Error map sampling against full resolution (issue 4)", es)
+    if r is None:
+        return lines
     lines += [f"{r['cells']} random cells ({r['domain']}; seed {r['seed']}, camera {r['camera']}): the error a map "
               f"stores at the default sweep sampling against full resolution; target < {_f(r['target_deg'])} deg.", ""]
     rows = [[m, f"{v['knobs_default']} ({v['pixels_default']} px)", f"{v['knobs_full']} ({v['pixels_full']} px)",
@@ -407,10 +411,9 @@ def _errormap_sampling_section(es) -> list[str]:
 
 
 def _pipeline_section(pl) -> list[str]:
-    lines = ["## Node pipeline latency", ""]
-    if not pl or pl.get("status") != "ok":
-        return lines + [f"{pl['status'] if pl else 'not run'}", ""]
-    r = pl["results"]
+    lines, r = _section("Node pipeline latency", pl)
+    if r is None:
+        return lines
     rows = [[k, _f(v.get("median_ms")), _f(v.get("p95_ms"))] for k, v in r.get("stages", {}).items()]
     lines += _table(["stage", "ms median", "ms p95"], rows)
     if r.get("end_to_end"):
@@ -434,10 +437,9 @@ def _knobs_label(method: str, knobs: dict) -> str:
 
 
 def _estimator_speed_section(es) -> list[str]:
-    lines = ["## Estimator speed against issue 3's targets", ""]
-    if not es or es.get("status") != "ok":
-        return lines + [f"{es['status'] if es else 'not run'}", ""]
-    r = es["results"]
+    lines, r = _section("Estimator speed against issue 3's targets", es)
+    if r is None:
+        return lines
     cam = r["camera"]
     lines += [f"From a {cam['width_px']} x {cam['height_px']} {r['bit_depth']}-bit mosaic ({r['scene']}), one core, "
               f"{r['repeats']} timed calls per row after a warm-up: the node's front end (`HeadingFrontEnd`), "
@@ -460,10 +462,9 @@ def _estimator_speed_section(es) -> list[str]:
 
 
 def _replay_section(rp) -> list[str]:
-    lines = ["## Offline replay speed (issue 6)", ""]
-    if not rp or rp.get("status") != "ok":
-        return lines + [f"{rp['status'] if rp else 'not run'}", ""]
-    r = rp["results"]
+    lines, r = _section("Offline replay speed (issue 6)", rp)
+    if r is None:
+        return lines
     tgt = f">= {r['target_x_real_time']:g}x"
     lines += [f"`{r['record_command']}` ({r['frames']} frames, {_f(r.get('bag_mib'))} MiB, recorded in "
               f"{_f(r.get('record_s'))} s), then `{r['replay_command']}` at its defaults (all methods, the shipped "
@@ -485,10 +486,9 @@ def _replay_section(rp) -> list[str]:
 
 
 def _graph_section(gr) -> list[str]:
-    lines = ["## ROS graph at 10 Hz (issue 5)", ""]
-    if not gr or gr.get("status") != "ok":
-        return lines + [f"{gr['status'] if gr else 'not run'}", ""]
-    r = gr["results"]
+    lines, r = _section("ROS graph at 10 Hz (issue 5)", gr)
+    if r is None:
+        return lines
     lines += [f"`polarization-compass sim --realtime` at {_f(r['rate_hz'])} Hz, {r['resolution']}, "
               f"{r['expected_frames']} frames ({r['turns']:g} turn at {r['turn_rate_deg_s']:g} deg/s). Sustained rate: "
               "the slowest estimator/corrector node's processed inputs per second (its last 100); latency: image "
@@ -526,10 +526,9 @@ def _graph_section(gr) -> list[str]:
 
 
 def _peers_section(pe) -> list[str]:
-    lines = ["## Peers", ""]
-    if not pe or pe.get("status") != "ok":
-        return lines + [f"{pe['status'] if pe else 'not run'}", ""]
-    r = pe["results"]
+    lines, r = _section("Peers", pe)
+    if r is None:
+        return lines
     for peer in ("pyskylumos", "polanalyser"):
         p = r["peers"].get(peer, {})
         where = f" (Python {p.get('python')} at `{p.get('interpreter')}`)" if p.get("interpreter") else ""
