@@ -113,16 +113,20 @@ def test_xi_from_rays_is_eq30():
     assert np.abs(cv.fold_axial_rad(xi - eq30)).max() < 1e-12
 
 
-def test_compiled_lift_matches_conventions():
-    from polarization_compass.estimators._kernels import full_pass, grid_segments
-    rng = np.random.default_rng(2)
-    n = 40 * 30
+def _random_pixels(rng, n: int, dop_lo: float):
+    """float32 AoP (rad), DoP in [dop_lo, 1), unit rays above the sensor plane (3, n) and a validity mask
+    (about 10 % invalid) for n pixels."""
     aop = rng.uniform(-math.pi / 2, math.pi / 2, n).astype(np.float32)
-    dop = rng.uniform(0.05, 1.0, n).astype(np.float32)
+    dop = rng.uniform(dop_lo, 1.0, n).astype(np.float32)
     rays = rng.normal(size=(3, n))
     rays[2] = np.abs(rays[2]) + 0.2
     rays = (rays / np.linalg.norm(rays, axis=0)).astype(np.float32)
-    valid = rng.uniform(size=n) > 0.1
+    return aop, dop, rays, rng.uniform(size=n) > 0.1
+
+
+def test_compiled_lift_matches_conventions():
+    from polarization_compass.estimators._kernels import full_pass, grid_segments
+    aop, dop, rays, valid = _random_pixels(np.random.default_rng(2), 40 * 30, dop_lo=0.05)
     segs = grid_segments((1.0, 1.0, 40), (1.0, 1.0, 30), 8)
     acc = full_pass(aop, dop, valid, rays, segs, 0.0, 1)
     e = cv.evector_cam_from_aop(aop.astype(float)[valid], rays.T.astype(float)[valid])
@@ -150,12 +154,7 @@ def test_row_wise_pass_matches_numpy_per_block(keys):
         ys.append(yy.ravel())
     x, y = np.concatenate(xs), np.concatenate(ys)
     n = x.size
-    aop = rng.uniform(-math.pi / 2, math.pi / 2, n).astype(np.float32)
-    dop = rng.uniform(0.0, 1.0, n).astype(np.float32)
-    rays = rng.normal(size=(3, n))
-    rays[2] = np.abs(rays[2]) + 0.2
-    rays = (rays / np.linalg.norm(rays, axis=0)).astype(np.float32)
-    valid = rng.uniform(size=n) > 0.1
+    aop, dop, rays, valid = _random_pixels(rng, n, dop_lo=0.0)
     bad = rng.choice(n, 12, replace=False)
     aop[bad[:4]] = np.nan
     dop[bad[4:8]] = np.inf
