@@ -627,7 +627,7 @@ class ReplayResult:
     matches: list
     timing_ms: dict
     error_map: str | None = None
-    cpu_s: float = 0.0          # CPU time of every replaying process (all threads), summed
+    cpu_s: float = 0.0          # CPU time of the process (all threads) while replaying
     workers: int = 1            # threads that shared the methods
 
     @property
@@ -660,22 +660,22 @@ def method_groups(methods: list[str], workers: int) -> list[list[str]]:
 
 
 @dataclass
-class _Part:
-    """What one process made of the bag for its methods (corrections still pending)."""
+class _Read:
+    """What the method groups made of one read of the bag (corrections still pending)."""
 
-    rows: list
+    rows: list                   # every group's, in no particular order
     truths: list                 # (stamp_ns, true bearing) per frame with a reference
     tally: Tally
     plan: BagPlan
     frames: int
     first_stamp: int | None
     last_stamp: int | None
-    timing_ms: dict
-    cpu_s: float
+    timing_ms: dict              # per method (and "observation"), every group's
+    cpu_s: float                 # the process, every thread
 
 
 def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: list[list[str]],
-                    progress=None) -> list[_Part]:
+                    progress=None) -> _Read:
     """Every method group in this process: the bag is read once, group 0 runs on this thread and each other
     group on a thread of its own, fed the same frames through a bounded queue (a group never lags more than
     ``_LAG`` frames). The compiled kernels release the GIL (``nogil``), so the groups' pixel work runs in
@@ -748,9 +748,12 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
             th.join()
     if failures:
         raise failures[0]
-    cpu = time.process_time() - t_cpu           # the whole process: every thread
-    return [_Part(rows[k], truths if k == 0 else [], tally, plan, frames, first_stamp, last_stamp,
-                  pipes[k].timing_ms, cpu if k == 0 else 0.0) for k in range(len(groups))]
+    timing: dict = {"observation": []}
+    for pipe in pipes:
+        for key, v in pipe.timing_ms.items():
+            timing.setdefault(key, []).extend(v)
+    return _Read([r for group_rows in rows for r in group_rows], truths, tally, plan, frames, first_stamp,
+                 last_stamp, timing, time.process_time() - t_cpu)
 
 
 _LAG = 8            # frames a method group may fall behind the reader (each holds a 10 MB mosaic)
@@ -782,16 +785,15 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     corrector = _make_corrector(config) if config.error_map else None
     groups = method_groups(methods, default_workers() if workers is None else workers)
     t_wall = time.perf_counter()
-    parts = _replay_threads(path, config, topic_map, groups, progress)
-    main = parts[0]
+    read = _replay_threads(path, config, topic_map, groups, progress)
     order = {m: k for k, m in enumerate(methods)}
-    rows = sorted((r for part in parts for r in part.rows), key=lambda r: (r.stamp_ns, order[r.method]))
+    rows = sorted(read.rows, key=lambda r: (r.stamp_ns, order[r.method]))
     matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
     for m in methods:
         matcher.add_stream(f"{m}/raw", False)
         if m not in config.direct_methods and corrector is not None:
             matcher.add_stream(f"{m}/corrected", False)
-    for stamp, bearing in main.truths:
+    for stamp, bearing in read.truths:
         matcher.add_truth(stamp, bearing)
     for r in rows:
         if r.status == "ok" and r.raw_bearing_deg is not None:
@@ -808,17 +810,13 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
             if mt is not None:
                 r.corrected_error_deg = mt.error_deg
     matcher.finish()
-    frames = main.frames
-    duration = (main.last_stamp - main.first_stamp) / 1e9 if frames > 1 else 0.0
+    frames = read.frames
+    duration = (read.last_stamp - read.first_stamp) / 1e9 if frames > 1 else 0.0
     if frames > 1:
         duration *= frames / (frames - 1)           # n frames cover n periods of recording
-    timing = {"observation": []}
-    for part in parts:
-        for k, v in part.timing_ms.items():
-            timing.setdefault(k, []).extend(v)
     wall = time.perf_counter() - t_wall
-    return ReplayResult(rows, matcher.summary(), main.tally, main.plan, frames, duration, wall, matcher.matches,
-                        timing, config.error_map, sum(p.cpu_s for p in parts), len(parts))
+    return ReplayResult(rows, matcher.summary(), read.tally, read.plan, frames, duration, wall, matcher.matches,
+                        read.timing_ms, config.error_map, read.cpu_s, len(groups))
 
 
 # ------------------------------------------------------------------------------------------------
