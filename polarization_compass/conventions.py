@@ -78,6 +78,9 @@ def wrap_pi_rad(angle_rad):
 
 def fold_axial_deg(angle_deg):
     """Fold an axial angle (defined mod 180 deg) to (-90, 90]. Used for heading errors of axial methods."""
+    if isinstance(angle_deg, float) and math.isfinite(angle_deg):
+        w = (angle_deg + 90.0) % 180.0 - 90.0     # a scalar: the same floor modulo without numpy (sweeps)
+        return 90.0 if w <= -90.0 else w
     a = np.asarray(angle_deg, dtype=float)
     w = np.mod(a + 90.0, 180.0) - 90.0             # [-90, 90)
     w = np.where(w <= -90.0, 90.0, w)

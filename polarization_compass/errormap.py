@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import CameraAttitude
+from .conventions import CameraAttitude, fold_axial_deg
 from .errors import CompassError
 
 __all__ = ["ErrorMap", "ErrorMapError", "SweepSpec", "parse_range", "run_sweep", "load_error_map",
@@ -399,13 +399,6 @@ class SweepSpec:
 # --------------------------------------------------------------------------------------------
 # Workers
 # --------------------------------------------------------------------------------------------
-def _fold_axial(x: float) -> float:
-    """:func:`~polarization_compass.conventions.fold_axial_deg` of one finite float without numpy (the same
-    floor modulo, so the same bits)."""
-    w = (x + 90.0) % 180.0 - 90.0
-    return 90.0 if w <= -90.0 else w
-
-
 class _Evaluator:
     """Per-process state: one estimator per method and one renderer per distinct pixel selection.
 
@@ -515,7 +508,7 @@ class _Evaluator:
         if code in (0, 1):
             if res.psi_deg is None or not math.isfinite(res.psi_deg):
                 return 0.0, STATUS_ESTIMATOR_ERROR
-            return _fold_axial(float(res.psi_deg) - psi_true), code
+            return fold_axial_deg(float(res.psi_deg) - psi_true), code
         return 0.0, code
 
 

@@ -192,3 +192,14 @@ def test_scalar_rotations_equal_the_vectorised_ones():
             np.testing.assert_allclose(b, c, rtol=0, atol=1e-15)
             np.testing.assert_allclose(rot(float(theta)) @ rot(-float(theta)), np.eye(3), atol=1e-15)
     assert cv.rot_z(1).shape == (3, 3) and np.allclose(cv.rot_z(1), cv.rot_z(np.array(1.0)))
+
+
+def test_scalar_axial_fold_equals_the_vectorised_one():
+    """fold_axial_deg of a Python float (a fast path) gives the same bits as for an array, in (-90, 90]."""
+    rng = np.random.default_rng(12)
+    xs = list(rng.uniform(-1e4, 1e4, 2000)) + [-270.0, -90.0, -0.0, 0.0, 90.0, 180.0, 270.0, 1e12, -1e12]
+    got = np.array([cv.fold_axial_deg(float(x)) for x in xs])
+    want = cv.fold_axial_deg(np.array(xs))
+    assert np.array_equal(got, want)
+    assert np.all((got > -90.0) & (got <= 90.0))
+    assert isinstance(cv.fold_axial_deg(-90.0), float) and cv.fold_axial_deg(-90.0) == 90.0
