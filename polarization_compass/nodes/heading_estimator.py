@@ -27,14 +27,14 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qo
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
-from ..bag import decode_camera_info, decode_navsatfix, decode_orientation, stamp_ns
+from ..bag import decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
 from . import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
-from .params import ESTIMATOR, SUN_PARAMS, knob_params, knob_values, layout_from_text, sun_source
+from .params import ESTIMATOR, SUN_PARAMS, apply_fix, knob_params, knob_values, layout_from_text, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 
@@ -139,16 +139,9 @@ class HeadingEstimatorNode(Node):
             self.imu.add(stamp_ns(msg.header), q)
 
     def _on_fix(self, msg):
-        site = self.diag.decoded("fix", decode_navsatfix, msg)
-        if site is None:
-            return
-        lat, lon, alt = site
-        try:
-            self.sun.set_site(lat, lon, alt)        # refuses sites the ephemeris cannot use (SolarError)
-        except CompassError as exc:
-            self.diag.reject("fix_bad_value", str(exc))
-            return
-        self.site_from_fix = (lat, lon, alt)
+        site = apply_fix(self.sun, self.diag, msg)
+        if site is not None:
+            self.site_from_fix = site
 
     def _fallback_camera_or_none(self) -> CameraModel | None:
         """For the warm-up: the fallback intrinsics at the paper's sensor size (2448 x 2048, the IMX250MZR's
