@@ -61,6 +61,7 @@ from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, axial_residu
                       check_sun, finish_sigma_deg, level_sun_candidates, rayleigh_aop_rad, resolve_ambiguity,
                       result_from, selection_for, select_view, view_segments)
 from ._kernels import acc_brightness
+from ._vecmath import FM as _FMV, atan2, exp_nonpos, sincos, sincos_folded
 
 __all__ = ["DISC_KNOBS", "disc_radius", "disc_radius_mm", "disc_selection", "taper", "aoplm_rad", "level_residual",
            "band_pass1", "band_pass2", "ring_pass1", "ring_pass2", "cr1_sigma", "MirrorMap", "mirror_map",
@@ -176,31 +177,6 @@ def level_residual(psi_rad: float, altitude_deg: float, aop_rad, rays):
 # weight S(p'); pass 2 takes the final pair weights (none: ``mg`` of shape (0, 0), bit-identical sums).
 # --------------------------------------------------------------------------------------------
 @njit(inline="always", cache=True)
-def _sincos64(a):  # pragma: no cover - compiled
-    """sin, cos of a folded to [-pi/2, pi/2] (sign flip harmless for axial angles): Taylor, err < 1e-11."""
-    a = a - math.pi * np.rint(a * (1.0 / math.pi))
-    z = a * a
-    s = 1.0 / 1307674368000.0
-    s = s * -z + 1.0 / 6227020800.0
-    s = s * -z + 1.0 / 39916800.0
-    s = s * -z + 1.0 / 362880.0
-    s = s * -z + 1.0 / 5040.0
-    s = s * -z + 1.0 / 120.0
-    s = s * -z + 1.0 / 6.0
-    s = a * (1.0 - z * s)
-    c = 1.0 / 20922789888000.0
-    c = c * -z + 1.0 / 87178291200.0
-    c = c * -z + 1.0 / 479001600.0
-    c = c * -z + 1.0 / 3628800.0
-    c = c * -z + 1.0 / 40320.0
-    c = c * -z + 1.0 / 720.0
-    c = c * -z + 1.0 / 24.0
-    c = c * -z + 0.5
-    c = 1.0 - z * c
-    return s, c
-
-
-@njit(inline="always", cache=True)
 def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
     """Load pixel i: (usable, all values finite, ray inside the disc ring [rho_lo, rho_hi], a, p, rx, ry, rz,
     rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid pixels too)."""
@@ -214,21 +190,17 @@ def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cov
     rho = math.sqrt(rx * rx + ry * ry) if rfin else 0.0
     inr = rfin and rho >= rho_lo and rho <= rho_hi and rho > 0.0
     ok = valid[i] and fin and p >= min_dop and inr
-    sa, ca = _sincos64(a if fin else 0.0)
+    sa, ca = sincos_folded(a if fin else 0.0)
     return ok, fin, inr, a, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, error_model="numpy")
 def _taper1(rho, rho_max, frac):  # pragma: no cover - compiled
-    if frac <= 0.0:
-        return 1.0 if rho <= rho_max else 0.0
-    t = (rho / rho_max - (1.0 - frac)) / frac
-    if t <= 0.0:
-        return 1.0
-    if t >= 1.0:
-        return 0.0
-    c = math.cos(0.5 * math.pi * t)
-    return c * c
+    """The taper (:func:`taper`) at rho, branch-free (vectorises)."""
+    t = min(max((rho / rho_max - (1.0 - frac)) / frac, 0.0), 1.0)
+    c = sincos_folded(0.5 * math.pi * t)[1]
+    hard = 1.0 if rho <= rho_max else 0.0
+    return c * c if frac > 0.0 else hard
 
 
 @njit(inline="always", cache=True)
@@ -282,16 +254,17 @@ def _mirror_weight(mg, mp, x, y):  # pragma: no cover - compiled
     return own * _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
 
 
-@njit(inline="always", cache=True)
-def _level_resid(c2a, s2a, rx, ry, rz, s):  # pragma: no cover - compiled
-    """AoP residual (rad, axial) against the Rayleigh E-vector s x r: 0.5 arg(exp(2ia) conj(u)^2), u = ey + i ex."""
-    ex = s[1] * rz - s[2] * ry
-    ey = s[2] * rx - s[0] * rz
+@njit(inline="always", cache=True, error_model="numpy")
+def _level_resid(c2a, s2a, rx, ry, rz, s0, s1, s2):  # pragma: no cover - compiled
+    """AoP residual (rad, axial) against the Rayleigh E-vector s x r of the sun s = (s0, s1, s2):
+    0.5 arg(exp(2ia) conj(u)^2), u = ey + i ex (branch-free atan2)."""
+    ex = s1 * rz - s2 * ry
+    ey = s2 * rx - s0 * rz
     ur = ey * ey - ex * ex               # u^2 = (ey + i ex)^2
     ui = 2.0 * ex * ey
     qr = c2a * ur + s2a * ui             # exp(2ia) * conj(u^2)
     qi = s2a * ur - c2a * ui
-    return 0.5 * math.atan2(qi, qr)
+    return 0.5 * atan2(qi, qr)
 
 
 @njit(inline="always", cache=True)
@@ -420,32 +393,90 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
     out[4] = n_pair
 
 
+@njit(inline="always", cache=True, error_model="numpy")
+def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
+    """Pixel i for a vectorised pass: (usable, p, rx, ry, rz, rho, cos 2a, sin 2a) with the test of
+    :func:`_pixel`; an unusable pixel reads as a = p = 0 on the ray (1, 0, 0), so that every value stays
+    finite and its weight is 0 without a branch."""
+    a = np.float64(aop[i])
+    p = np.float64(dop[i])
+    rx = np.float64(rays[0, i])
+    ry = np.float64(rays[1, i])
+    rz = np.float64(rays[2, i])
+    fin = (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6) & (abs(a) < 1e6) & (abs(p) < 1e6)
+    rho = math.sqrt(rx * rx + ry * ry)
+    ok = valid[i] & fin & (p >= min_dop) & (rho >= rho_lo) & (rho <= rho_hi) & (rho > 0.0)
+    a = a if ok else 0.0
+    p = p if ok else 0.0
+    rx = rx if ok else 1.0
+    ry = ry if ok else 0.0
+    rz = rz if ok else 0.0
+    rho = rho if ok else 1.0
+    sa, ca = sincos_folded(a)
+    return ok, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
+
+
+@njit(cache=True, nogil=True)
+def _pair_weights(mg, mp, xs, ys):  # pragma: no cover - compiled
+    """S(p) S(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg`` empty)."""
+    out = np.ones(xs.size)
+    if mg.shape[0]:
+        for i in range(xs.size):
+            out[i] = _mirror_weight(mg, mp, xs[i], ys[i])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum):  # pragma: no cover - compiled
+    """block_sum[0|1, block] += the sums of t0|t1 over each segment."""
+    for k in range(seg_start.size):
+        u = v = 0.0
+        for i in range(seg_start[k], seg_end[k]):
+            u += t0[i]
+            v += t1[i]
+        block_sum[0, seg_block[k]] += u
+        block_sum[1, seg_block[k]] += v
+
+
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
+def _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2, wm, t0, t1,
+                rss):  # pragma: no cover - compiled
+    """Per pixel (vectorised): t_j = (d theta / d a) * residual_j (0 if unusable); rss[j] += residual_j^2."""
+    modZ2 = Zr * Zr + Zi * Zi
+    a0, a1, a2 = s1[0], s1[1], s1[2]
+    b0, b1, b2 = s2[0], s2[1], s2[2]
+    q0 = q1 = 0.0
+    for i in range(aop.size):
+        ok, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
+        W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
+        dW = W * ci * 2.0 * inv4tol2             # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
+        z2r = ry * ry - rx * rx
+        z2i = 2.0 * rx * ry
+        sens = 0.5 * dW * (z2i * Zr - z2r * Zi) / modZ2
+        r1 = _level_resid(c2a, s2a, rx, ry, rz, a0, a1, a2)
+        r2 = _level_resid(c2a, s2a, rx, ry, rz, b0, b1, b2)
+        r1 = r1 if ok else 0.0
+        r2 = r2 if ok else 0.0
+        t0[i] = sens * r1
+        t1[i] = sens * r2
+        q0 += r1 * r1
+        q1 += r2 * r2
+    rss[0] += q0
+    rss[1] += q1
+
+
 @njit(cache=True, nogil=True)
 def band_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_max, taper_frac, inv4tol2,
                mg, mp, Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate suns;
-    rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty)."""
-    modZ2 = Zr * Zr + Zi * Zi
-    for k in range(seg_start.size):
-        bk = seg_block[k]
-        for i in range(seg_start[k], seg_end[k]):
-            ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
-            if not ok:
-                continue
-            cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-            W = math.exp((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)
-            if mg.shape[0]:
-                W *= _mirror_weight(mg, mp, xs[i], ys[i])
-            dW = W * ci * 2.0 * inv4tol2             # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
-            z2r = ry * ry - rx * rx
-            z2i = 2.0 * rx * ry
-            sens = 0.5 * dW * (z2i * Zr - z2r * Zi) / modZ2
-            r1 = _level_resid(c2a, s2a, rx, ry, rz, s1)
-            r2 = _level_resid(c2a, s2a, rx, ry, rz, s2)
-            block_sum[0, bk] += sens * r1
-            block_sum[1, bk] += sens * r2
-            rss[0] += r1 * r1
-            rss[1] += r2 * r2
+    rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty). The per-pixel terms are
+    one vectorised loop (:mod:`._vecmath`), the block sums a second."""
+    t0 = np.empty(aop.size)
+    t1 = np.empty(aop.size)
+    _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2,
+                _pair_weights(mg, mp, xs, ys), t0, t1, rss)
+    _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum)
 
 
 @njit(inline="always", cache=True)
@@ -555,46 +586,102 @@ def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out): 
     out[1] = n_pair
 
 
-@njit(cache=True, nogil=True)
+#: Pixels per chunk of the vectorised Symmetry pass 2 (its scratch arrays stay in L1/L2).
+_RING_CHUNK = 512
+
+
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
+def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, s1, s2, wm,
+                cr, ci, xi, tr, r1, r2, rss):  # pragma: no cover - compiled
+    """Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper S S'; 0 if unusable) into cr, ci;
+    xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if unusable);
+    rss[j] += r_j^2."""
+    span = max(rho_max - rho_lo, 1e-12)
+    a0, a1, a2 = s1[0], s1[1], s1[2]
+    b0, b1, b2 = s2[0], s2[1], s2[2]
+    q0 = q1 = 0.0
+    for q in range(n):
+        i = o + q
+        ok, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        c_r, c_i = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
+        w = p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
+        cr[q] = c_r * w
+        ci[q] = c_i * w
+        xi[q] = atan2(rx, ry)
+        tr[q] = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
+        u1 = _level_resid(c2a, s2a, rx, ry, rz, a0, a1, a2)
+        u2 = _level_resid(c2a, s2a, rx, ry, rz, b0, b1, b2)
+        u1 = u1 if ok else 0.0
+        u2 = u2 if ok else 0.0
+        r1[q] = u1
+        r2[q] = u2
+        q0 += u1 * u1
+        q1 += u2 * u2
+    rss[0] += q0
+    rss[1] += q1
+
+
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
+def _ring_harmonic(n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc):  # pragma: no cover - compiled
+    """Harmonic kk of d F' / d a: acc += Re(c E B+(ring)) + Re(c conj(E) B-(ring)), E = e^kk = exp(-i kk xi),
+    B+- linear between the rings (tables padded by a zero ring)."""
+    for q in range(n):
+        s, c = sincos(kk * xi[q])
+        pr = cr[q] * c + ci[q] * s           # c E
+        pi_ = ci[q] * c - cr[q] * s
+        mr = cr[q] * c - ci[q] * s           # c conj(E)
+        mi = ci[q] * c + cr[q] * s
+        t = tr[q]
+        j = min(np.int64(t), n_rings - 1)
+        f = t - j
+        g = 1.0 - f
+        acc[q] += (pr * (g * Bpr[kk, j] + f * Bpr[kk, j + 1]) - pi_ * (g * Bpi[kk, j] + f * Bpi[kk, j + 1])
+                   + mr * (g * Bmr[kk, j] + f * Bmr[kk, j + 1]) - mi * (g * Bmi[kk, j] + f * Bmi[kk, j + 1]))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_lo, rho_max, taper_frac,
                n_rings, K, mg, mp, a_in, rot, F2, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with
     d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's
-    ring), times the residual against each candidate sun (pair weights as :func:`band_pass2`)."""
-    span = max(rho_max - rho_lo, 1e-12)
-    for k in range(seg_start.size):
-        bk = seg_block[k]
-        for i in range(seg_start[k], seg_end[k]):
-            ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
-            if not ok:
-                continue
-            e = complex(ry / rho, -rx / rho)
-            w = p * p * _taper1(rho, rho_max, taper_frac)
-            if mg.shape[0]:
-                w *= _mirror_weight(mg, mp, xs[i], ys[i])
-            c = complex(c2a, s2a) * e * e * w
-            j, f = _ring_of(rho, rho_lo, span, n_rings)
-            ep = c
-            em = c
-            ec = e.conjugate()
-            acc = 0.0
-            for kk in range(1, K + 1):
-                ep = ep * e
-                em = em * ec
-                Ap = (1.0 - f) * a_in[K + kk, j]
-                Am = (1.0 - f) * a_in[K - kk, j]
-                if j + 1 < n_rings:
-                    Ap += f * a_in[K + kk, j + 1]
-                    Am += f * a_in[K - kk, j + 1]
-                acc += (-8.0 * kk) * (rot[K + kk] * ep * Ap).real
-                acc += (8.0 * kk) * (rot[K - kk] * em * Am).real
-            sens = -acc / F2
-            r1 = _level_resid(c2a, s2a, rx, ry, rz, s1)
-            r2 = _level_resid(c2a, s2a, rx, ry, rz, s2)
-            block_sum[0, bk] += sens * r1
-            block_sum[1, bk] += sens * r2
-            rss[0] += r1 * r1
-            rss[1] += r2 * r2
+    ring), times the residual against each candidate sun (pair weights as :func:`band_pass2`). In chunks:
+    the per-pixel terms (vectorised), one loop per harmonic, then the block sums."""
+    N = aop.size
+    wm = _pair_weights(mg, mp, xs, ys)
+    Bpr = np.zeros((K + 1, n_rings + 1))
+    Bpi = np.zeros((K + 1, n_rings + 1))
+    Bmr = np.zeros((K + 1, n_rings + 1))
+    Bmi = np.zeros((K + 1, n_rings + 1))
+    for kk in range(1, K + 1):
+        for j in range(n_rings):
+            bp = (-8.0 * kk) * rot[K + kk] * a_in[K + kk, j]
+            bm = (8.0 * kk) * rot[K - kk] * a_in[K - kk, j]
+            Bpr[kk, j] = bp.real
+            Bpi[kk, j] = bp.imag
+            Bmr[kk, j] = bm.real
+            Bmi[kk, j] = bm.imag
+    t0 = np.empty(N)
+    t1 = np.empty(N)
+    CH = _RING_CHUNK
+    cr = np.empty(CH)
+    ci = np.empty(CH)
+    xi = np.empty(CH)
+    tr = np.empty(CH)
+    r1 = np.empty(CH)
+    r2 = np.empty(CH)
+    acc = np.empty(CH)
+    for o in range(0, N, CH):
+        n = min(CH, N - o)
+        _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, s1, s2, wm,
+                    cr, ci, xi, tr, r1, r2, rss)
+        acc[:n] = 0.0
+        for kk in range(1, K + 1):
+            _ring_harmonic(n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc)
+        for q in range(n):
+            sens = -acc[q] / F2
+            t0[o + q] = sens * r1[q]
+            t1[o + q] = sens * r2[q]
+    _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum)
 
 
 @njit(cache=True, nogil=True)
@@ -605,8 +692,8 @@ def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss
         ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
         if not ok:
             continue
-        r1 = _level_resid(c2a, s2a, rx, ry, rz, s1)
-        r2 = _level_resid(c2a, s2a, rx, ry, rz, s2)
+        r1 = _level_resid(c2a, s2a, rx, ry, rz, s1[0], s1[1], s1[2])
+        r2 = _level_resid(c2a, s2a, rx, ry, rz, s2[0], s2[1], s2[2])
         rss[0] += r1 * r1
         rss[1] += r2 * r2
         rss[2] += 1.0
