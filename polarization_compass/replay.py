@@ -641,9 +641,9 @@ class ReplayResult:
         return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
-#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame on one core, ``make
-#: bench`` group replay, 2026-11-23), used only to balance the methods across threads.
-_METHOD_COST = {"symmetry": 11.2, "sm_asm": 9.9, "least_squares": 2.4, "tilt_aware": 2.3, "zenith": 0.6}
+#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame, ``make bench`` group
+#: replay, 2026-11-24, after the vectorised pass 2), used only to balance the methods across threads.
+_METHOD_COST = {"symmetry": 11.5, "sm_asm": 7.0, "least_squares": 3.0, "tilt_aware": 2.6, "zenith": 0.7}
 
 
 def method_groups(methods: list[str], workers: int) -> list[list[str]]:

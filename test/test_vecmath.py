@@ -1,5 +1,5 @@
 """The branch-free math of the vectorised kernels (estimators._vecmath) against numpy's libm, and the
-pass-2 loops that use it stay vectorised (LLVM emits vector instructions for them)."""
+SM-ASM and Symmetry pass loops that use it stay vectorised (LLVM emits vector instructions for them)."""
 import math
 import re
 
@@ -74,10 +74,10 @@ def test_exp_nonpos_relative_error_and_clip():
     np.testing.assert_allclose(edge, [math.exp(-700.0), math.exp(-700.0), 1.0], rtol=2e-15)
 
 
-@pytest.mark.parametrize("name", ["_band_terms", "_ring_terms"])
-def test_pass2_loops_are_vectorised(name):
-    """The per-pixel loops of the pass-2 kernels compile to vector code: a libm call, a select inside a
-    reduction or a Python-model division check would each make LLVM keep them scalar (2-3x slower).
+@pytest.mark.parametrize("name", ["_band_terms", "_ring_terms", "_band_sums", "_ring1_terms"])
+def test_disc_pass_loops_are_vectorised(name):
+    """The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code: a libm call, a select
+    inside a reduction or a Python-model division check would each make LLVM keep them scalar (2-3x slower).
     Compiled afresh from the Python source with the kernel's own options (cached code has no IR)."""
     from polarization_compass.estimators import _aoplm
     disp = getattr(_aoplm, name)
@@ -88,10 +88,16 @@ def test_pass2_loops_are_vectorised(name):
     if name == "_band_terms":
         fresh(f32, f32, b, rays, 0.0, 1.0, 0.2, 8.0, 1.0, 0.5, s, s, np.ones(64), np.empty(64), np.empty(64),
               np.zeros(2))
-    else:
+    elif name == "_ring_terms":
         z = np.empty(64)
         fresh(f32, f32, b, rays, 0, 64, 0.0, 0.05, 1.0, 0.2, 8, s, s, np.ones(64), z, z.copy(), z.copy(), z.copy(),
               z.copy(), z.copy(), np.zeros(2))
+    elif name == "_band_sums":
+        fresh(f32, f32, b, rays, 0.0, 1.0, 0.2, 8.0, np.zeros(3), np.zeros(4, np.int64))
+    else:
+        z = np.empty(64)
+        fresh(f32, f32, b, rays, 0, 64, 0.0, 0.05, 1.0, 0.2, 8, z, z.copy(), z.copy(), z.copy(), z.copy(),
+              np.zeros(4, np.int64))
     ir = "".join(fresh.inspect_llvm().values())
     assert '"llvm.loop.isvectorized"' in ir and re.search(r"<\d+ x double>", ir), f"{name}: not vectorised"
     libm = set(re.findall(r"call [^\n(]*@((?:llvm\.)?(?:exp|atan2|atan|cos|sin|pow|log)\b[.\w]*)\(", ir))

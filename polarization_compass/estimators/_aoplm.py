@@ -82,9 +82,8 @@ DISC_KNOBS = {
 #: then S = sin^2 of its rise between these two levels (0 below the first, 1 above the second).
 MIRROR_BLUR_CELLS = 2.0
 MIRROR_LEVELS = (0.5, 0.9)
-#: LLVM fast-math flags of the plain passes (pass 1), the per-cell cost of a sweep: reassociation and
-#: contraction only change the last bits of the sums; no nnan/ninf, so the finiteness tests stay.
-_FM = {"nsz", "arcp", "contract", "reassoc"}
+#: Pixels per chunk of the vectorised Symmetry passes (their scratch arrays stay in L1/L2).
+_RING_CHUNK = 512
 #: Secant steps of the refinement of one fixed point before giving up.
 MAX_SOLVE_STEPS = 25
 #: Trial axes of the coarse scan for fixed points (over 180 deg), and its pixel subsampling.
@@ -285,37 +284,29 @@ def _ring_of(rho, rho_lo, span, n_rings):  # pragma: no cover - compiled
     return j, t - j
 
 
-@njit(inline="always", cache=True)
-def _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop, rho_lo, rho_max, stats):  # pragma: no cover
-    """Pixel i of a pass 1: (usable, valid, valid but non-finite, unusable inside the disc, p, rx, ry, rho, cos 2a,
-    sin 2a); brightness statistics of a usable pixel into ``stats``."""
-    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
-    v = valid[i]
-    if ok and has_i:
+@njit(cache=True, nogil=True)
+def _brightness_pass(aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats):  # pragma: no cover - compiled
+    """Brightness statistics (:func:`acc_brightness`) of every usable pixel with a finite intensity."""
+    for i in range(aop.size):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
         I = np.float64(inten[i])
-        if abs(I) < 1e30:
+        if ok and abs(I) < 1e30:
             acc_brightness(stats, 0, I, rx, ry, rz)
-    return ok, v, v and not fin, inr and not (v and fin), p, rx, ry, rho, c2a, s2a
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
-def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
-               stats):  # pragma: no cover - compiled
-    """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
-    DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc)."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
+def _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt):  # pragma: no cover
+    """The sums of :func:`band_pass1` (vectorised)."""
     n_ok = n_v = n_bad = n_hole = 0
     Zr = Zi = nrm = 0.0
     for i in range(aop.size):
-        ok, v, bad, hole, p, rx, ry, rho, c2a, s2a = _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop,
-                                                                  0.0, rho_max, stats)
-        n_v += v
-        n_bad += bad
-        n_hole += hole
-        if not ok:
-            continue
-        n_ok += 1
+        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        n_ok += np.int64(ok)
+        n_v += np.int64(v)
+        n_bad += np.int64(bad)
+        n_hole += np.int64(hole)
         cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-        W = math.exp((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)   # cos 2 delta = -cr
+        W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)   # cos 2 delta = -cr
         Zr += W * (ry * ry - rx * rx)
         Zi += W * 2.0 * rx * ry
         nrm += W * rho * rho
@@ -326,6 +317,17 @@ def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac
     cnt[1] += n_v
     cnt[2] += n_bad
     cnt[3] += n_hole
+
+
+@njit(cache=True, nogil=True)
+def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
+               stats):  # pragma: no cover - compiled
+    """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
+    DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc); with ``has_i`` the
+    brightness statistics of the usable pixels into ``stats`` (a second, scalar loop)."""
+    _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt)
+    if has_i:
+        _brightness_pass(aop, dop, valid, rays, inten, min_dop, 0.0, rho_max, stats)
 
 
 @njit(inline="always", cache=True)
@@ -395,17 +397,20 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
 
 @njit(inline="always", cache=True, error_model="numpy")
 def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
-    """Pixel i for a vectorised pass: (usable, p, rx, ry, rz, rho, cos 2a, sin 2a) with the test of
-    :func:`_pixel`; an unusable pixel reads as a = p = 0 on the ray (1, 0, 0), so that every value stays
-    finite and its weight is 0 without a branch."""
+    """Pixel i for a vectorised pass: (usable, valid, valid but non-finite, unusable inside the disc ring, p, rx,
+    ry, rz, rho, cos 2a, sin 2a) with the tests of :func:`_pixel`; an unusable pixel reads as a = p = 0 on the
+    ray (1, 0, 0), so that every value stays finite and its weight is 0 without a branch."""
     a = np.float64(aop[i])
     p = np.float64(dop[i])
     rx = np.float64(rays[0, i])
     ry = np.float64(rays[1, i])
     rz = np.float64(rays[2, i])
-    fin = (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6) & (abs(a) < 1e6) & (abs(p) < 1e6)
+    rfin = (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6)
+    fin = rfin & (abs(a) < 1e6) & (abs(p) < 1e6)
     rho = math.sqrt(rx * rx + ry * ry)
-    ok = valid[i] & fin & (p >= min_dop) & (rho >= rho_lo) & (rho <= rho_hi) & (rho > 0.0)
+    inr = rfin & (rho >= rho_lo) & (rho <= rho_hi) & (rho > 0.0)
+    v = valid[i]
+    ok = v & fin & (p >= min_dop) & inr
     a = a if ok else 0.0
     p = p if ok else 0.0
     rx = rx if ok else 1.0
@@ -413,7 +418,7 @@ def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: n
     rz = rz if ok else 0.0
     rho = rho if ok else 1.0
     sa, ca = sincos_folded(a)
-    return ok, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
+    return ok, v, v & ~fin, inr & ~(v & fin), p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
 
 
 @njit(cache=True, nogil=True)
@@ -447,7 +452,7 @@ def _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Z
     b0, b1, b2 = s2[0], s2[1], s2[2]
     q0 = q1 = 0.0
     for i in range(aop.size):
-        ok, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
         cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
         W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
         dW = W * ci * 2.0 * inv4tol2             # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
@@ -499,30 +504,57 @@ def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
             a_out[K - kk, j + 1] += f * em
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
-def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
-               a_out, cnt, stats):  # pragma: no cover - compiled
-    """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),
-    w = DoP^2 taper, linear split between neighbouring rings; cnt as :func:`band_pass1`."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
+def _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, cr, ci, er, ei, tr,
+                 cnt):  # pragma: no cover - compiled
+    """Pixels o..o+n of :func:`ring_pass1` (vectorised): c = w exp(2i AOPLM) (0 if unusable), e = exp(-i xi),
+    ring position tr; counts into cnt."""
     span = max(rho_max - rho_lo, 1e-12)
     n_ok = n_v = n_bad = n_hole = 0
-    for i in range(aop.size):
-        ok, v, bad, hole, p, rx, ry, rho, c2a, s2a = _pass1_pixel(aop, dop, valid, rays, inten, has_i, i, min_dop,
-                                                                  rho_lo, rho_max, stats)
-        n_v += v
-        n_bad += bad
-        n_hole += hole
-        if not ok:
-            continue
-        n_ok += 1
-        e = complex(ry / rho, -rx / rho)
-        c = complex(c2a, s2a) * e * e * (p * p * _taper1(rho, rho_max, taper_frac))
-        j, f = _ring_of(rho, rho_lo, span, n_rings)
-        _ring_add(a_out, K, n_rings, j, f, c, e)
+    for q in range(n):
+        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, o + q, min_dop, rho_lo,
+                                                                     rho_max)
+        n_ok += np.int64(ok)
+        n_v += np.int64(v)
+        n_bad += np.int64(bad)
+        n_hole += np.int64(hole)
+        c_r, c_i = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
+        w = p * p * _taper1(rho, rho_max, taper_frac)
+        cr[q] = c_r * w
+        ci[q] = c_i * w
+        er[q] = ry / rho
+        ei[q] = -rx / rho
+        tr[q] = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
     cnt[0] += n_ok
     cnt[1] += n_v
     cnt[2] += n_bad
     cnt[3] += n_hole
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
+               a_out, cnt, stats):  # pragma: no cover - compiled
+    """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),
+    w = DoP^2 taper, linear split between neighbouring rings; cnt and stats as :func:`band_pass1`. In chunks:
+    the per-pixel terms (vectorised), then the scatter into the rings (scalar)."""
+    CH = _RING_CHUNK
+    cr = np.empty(CH)
+    ci = np.empty(CH)
+    er = np.empty(CH)
+    ei = np.empty(CH)
+    tr = np.empty(CH)
+    for o in range(0, aop.size, CH):
+        n = min(CH, aop.size - o)
+        _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, cr, ci, er, ei, tr,
+                     cnt)
+        for q in range(n):
+            if cr[q] == 0.0 and ci[q] == 0.0:
+                continue                            # unusable (or zero weight: adds nothing)
+            t = tr[q]
+            j = min(np.int64(t), n_rings - 1)
+            _ring_add(a_out, K, n_rings, j, t - j, complex(cr[q], ci[q]), complex(er[q], ei[q]))
+    if has_i:
+        _brightness_pass(aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats)
 
 
 @njit(cache=True, nogil=True)
@@ -586,10 +618,6 @@ def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out): 
     out[1] = n_pair
 
 
-#: Pixels per chunk of the vectorised Symmetry pass 2 (its scratch arrays stay in L1/L2).
-_RING_CHUNK = 512
-
-
 @njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
 def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, s1, s2, wm,
                 cr, ci, xi, tr, r1, r2, rss):  # pragma: no cover - compiled
@@ -602,7 +630,7 @@ def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_fra
     q0 = q1 = 0.0
     for q in range(n):
         i = o + q
-        ok, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
         c_r, c_i = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
         w = p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
         cr[q] = c_r * w
