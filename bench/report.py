@@ -478,6 +478,11 @@ def _replay_section(rp) -> list[str]:
             ["10-minute run (extrapolated: overhead + per-frame)", f"overhead {_f(r.get('overhead_s'))} s",
              f"{_f(r.get('long_run_x_real_time'))}x", tgt, _pass(r.get("pass_long_run"))]]
     lines += _table(["measure", "time", "x real time", "target", "pass"], rows)
+    runs = r.get("runs") or []
+    if len(runs) > 1:
+        lines += ["", f"The run with the median per-frame time of {len(runs)} replays of the same bag; per frame in "
+                      "each: " + ", ".join(f"{_f(x.get('per_frame_ms'))} ms ({_f(x.get('per_frame_x_real_time'))}x)"
+                                           for x in runs) + "."]
     st = r.get("stage_ms_median") or {}
     lines += ["", f"Replay loop alone {_f(r.get('replay_loop_s'))} s ({_f(r.get('replay_loop_x_real_time'))}x); "
                   f"CPU {_f(r.get('cpu_s'))} s ({_f(r.get('cpu_x_real_time'))}x on an idle core). Median per frame: "

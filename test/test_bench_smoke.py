@@ -390,6 +390,15 @@ def test_replay_summary_gives_whole_command_and_per_frame_real_time_factors():
     assert replay_bench.per_frame_figures([], 1.0, 10, 2.0)["per_frame_x_real_time"] is None
 
 
+def test_replay_reports_the_median_run_and_lists_every_run():
+    runs = [{"per_frame_ms": ms, "per_frame_x_real_time": ms and 100.0 / ms, "tag": k} for k, ms in
+            enumerate([25.0, 17.0, None, 19.0])]                    # None: a run without per-frame figures
+    mid = replay_bench.median_run(runs)
+    assert mid["tag"] == 3 and mid["per_frame_ms"] == 19.0           # sorted 17, 19, 25, None: the 2nd of 4
+    assert [r["per_frame_ms"] for r in mid["runs"]] == [25.0, 17.0, None, 19.0]
+    assert replay_bench.median_run(runs[:1])["tag"] == 0
+
+
 def test_report_shows_targets_and_pass_fail_for_graph_and_replay(tmp_path):
     from bench.common import write_json
     machine = {"cpu_model": "x", "usable_cores": 2, "ram_gib": 1, "platform": "p", "python": "3", "numpy": "2",
@@ -400,7 +409,8 @@ def test_report_shows_targets_and_pass_fail_for_graph_and_replay(tmp_path):
              "resolution": "2448x2048 mono16", "runs": [run_ok, {"graph": "default", "status": "failed: x"}]}
     rep = replay_bench.summarize({"frames": 30, "bag_duration_s": 3.0, "wall_s": 2.0}, {"frame_done_s": [
         0.1 * k for k in range(1, 31)]}, 5.0)
-    rep.update(record_command="record-sim ...", replay_command="replay BAG", record_s=9.0, bag_mib=280.0)
+    rep.update(record_command="record-sim ...", replay_command="replay BAG", record_s=9.0, bag_mib=280.0,
+               runs=[{"per_frame_ms": 21.5, "per_frame_x_real_time": 4.65}, {"per_frame_ms": 100.0}])
     for name, res in (("graph", graph), ("replay", rep)):
         write_json(tmp_path / f"{name}.json", {"benchmark": name, "mode": "full", "machine": machine,
                                                "status": "ok", "results": res, "elapsed_s": 1.0,
@@ -408,3 +418,4 @@ def test_report_shows_targets_and_pass_fail_for_graph_and_replay(tmp_path):
     md = (report.build(tmp_path)[0]).read_text()
     assert "ROS graph at 10 Hz" in md and "target p95 <= 100" in md and "failed: x" in md
     assert "Offline replay speed" in md and ">= 5x" in md and "**FAIL**" in md
+    assert "median per-frame time of 2 replays" in md and "21.5 ms (4.65x)" in md
