@@ -467,7 +467,7 @@ def _replay_section(rp) -> list[str]:
         return lines
     tgt = f">= {r['target_x_real_time']:g}x"
     lines += [f"`{r['record_command']}` ({r['frames']} frames, {_f(r.get('bag_mib'))} MiB, recorded in "
-              f"{_f(r.get('record_s'))} s), then `{r['replay_command']}` at its defaults (all methods, the shipped "
+              f"{_f(r.get('record_s'))} s), then `{r['replay_command']}` at its default knobs (the shipped "
               "error map, figures written).", ""]
     rows = [[f"whole command ({_f(r['bag_duration_s'])} s recording)", f"{_f(r['whole_command_s'])} s",
              f"{_f(r['whole_command_x_real_time'])}x", tgt, _pass(r["pass_whole_command"])],
@@ -483,6 +483,14 @@ def _replay_section(rp) -> list[str]:
         lines += ["", f"The run with the median per-frame time of {len(runs)} replays of the same bag; per frame in "
                       "each: " + ", ".join(f"{_f(x.get('per_frame_ms'))} ms ({_f(x.get('per_frame_x_real_time'))}x)"
                                            for x in runs) + "."]
+    al = r.get("all_methods")
+    if al:
+        lines += ["", f"The command's default method set (the four plus tilt_aware, `{al['replay_command']}`), "
+                      f"replayed interleaved with the runs above: per frame {_f(al.get('per_frame_ms'))} ms "
+                      f"({_f(al.get('per_frame_x_real_time'))}x; runs: "
+                      + ", ".join(f"{_f(x.get('per_frame_x_real_time'))}x" for x in al.get("runs") or [])
+                      + f"), whole command {_f(al.get('whole_command_x_real_time'))}x, 10-minute run "
+                      f"{_f(al.get('long_run_x_real_time'))}x."]
     st = r.get("stage_ms_median") or {}
     lines += ["", f"Replay loop alone {_f(r.get('replay_loop_s'))} s ({_f(r.get('replay_loop_x_real_time'))}x); "
                   f"CPU {_f(r.get('cpu_s'))} s ({_f(r.get('cpu_x_real_time'))}x on an idle core). Median per frame: "

@@ -410,7 +410,10 @@ def test_report_shows_targets_and_pass_fail_for_graph_and_replay(tmp_path):
     rep = replay_bench.summarize({"frames": 30, "bag_duration_s": 3.0, "wall_s": 2.0}, {"frame_done_s": [
         0.1 * k for k in range(1, 31)]}, 5.0)
     rep.update(record_command="record-sim ...", replay_command="replay BAG", record_s=9.0, bag_mib=280.0,
-               runs=[{"per_frame_ms": 21.5, "per_frame_x_real_time": 4.65}, {"per_frame_ms": 100.0}])
+               runs=[{"per_frame_ms": 21.5, "per_frame_x_real_time": 4.65}, {"per_frame_ms": 100.0}],
+               all_methods={"replay_command": "replay BAG", "per_frame_ms": 23.0, "per_frame_x_real_time": 4.35,
+                            "runs": [{"per_frame_x_real_time": 4.35}], "whole_command_x_real_time": 2.0,
+                            "long_run_x_real_time": 4.1})
     for name, res in (("graph", graph), ("replay", rep)):
         write_json(tmp_path / f"{name}.json", {"benchmark": name, "mode": "full", "machine": machine,
                                                "status": "ok", "results": res, "elapsed_s": 1.0,
@@ -419,3 +422,4 @@ def test_report_shows_targets_and_pass_fail_for_graph_and_replay(tmp_path):
     assert "ROS graph at 10 Hz" in md and "target p95 <= 100" in md and "failed: x" in md
     assert "Offline replay speed" in md and ">= 5x" in md and "**FAIL**" in md
     assert "median per-frame time of 2 replays" in md and "21.5 ms (4.65x)" in md
+    assert "default method set" in md and "per frame 23.0 ms (4.35x" in md
