@@ -93,8 +93,8 @@ PAPER_METHODS = "zenith,sm_asm,symmetry,least_squares"
 def median_run(runs: list[dict]) -> dict:
     """The run with the median per-frame time (this host's speed drifts by up to 2x over an hour, so one run
     can land in a slow spell), plus every run's speed figures under ``runs``."""
-    key = [r.get("per_frame_ms") if r.get("per_frame_ms") is not None else math.inf for r in runs]
-    mid = dict(runs[sorted(range(len(runs)), key=key.__getitem__)[(len(runs) - 1) // 2]])
+    by_time = sorted(runs, key=lambda r: math.inf if r.get("per_frame_ms") is None else r["per_frame_ms"])
+    mid = dict(by_time[(len(runs) - 1) // 2])
     mid["runs"] = [{k: r.get(k) for k in ("per_frame_ms", "per_frame_ms_median", "per_frame_x_real_time",
                                          "long_run_x_real_time", "whole_command_x_real_time")} for r in runs]
     return mid

@@ -175,20 +175,22 @@ def level_residual(psi_rad: float, altitude_deg: float, aop_rad, rays):
 # (times S(p)) once, and each trial axis of the mirror iteration is then a short fit over them with the
 # weight S(p'); pass 2 takes the final pair weights (none: ``mg`` of shape (0, 0), bit-identical sums).
 # --------------------------------------------------------------------------------------------
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, error_model="numpy")
 def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
     """Load pixel i: (usable, all values finite, ray inside the disc ring [rho_lo, rho_hi], a, p, rx, ry, rz,
-    rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid pixels too)."""
+    rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid pixels too). Branch-free
+    (``&`` and selects, not ``and``), so that loops over it can vectorise (:func:`_lane_pixel`)."""
     a = np.float64(aop[i])
     p = np.float64(dop[i])
     rx = np.float64(rays[0, i])
     ry = np.float64(rays[1, i])
     rz = np.float64(rays[2, i])
-    rfin = (abs(rx) < 1e6) and (abs(ry) < 1e6) and (abs(rz) < 1e6)
-    fin = rfin and (abs(a) < 1e6) and (abs(p) < 1e6)
-    rho = math.sqrt(rx * rx + ry * ry) if rfin else 0.0
-    inr = rfin and rho >= rho_lo and rho <= rho_hi and rho > 0.0
-    ok = valid[i] and fin and p >= min_dop and inr
+    rfin = (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6)
+    fin = rfin & (abs(a) < 1e6) & (abs(p) < 1e6)
+    rho = math.sqrt(rx * rx + ry * ry)
+    rho = rho if rfin else 0.0
+    inr = rfin & (rho >= rho_lo) & (rho <= rho_hi) & (rho > 0.0)
+    ok = valid[i] & fin & (p >= min_dop) & inr
     sa, ca = sincos_folded(a if fin else 0.0)
     return ok, fin, inr, a, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
 
@@ -276,11 +278,16 @@ def _exp2i_aoplm(c2a, s2a, rx, ry, rho):  # pragma: no cover - compiled
     return c2a * x2r - s2a * x2i, c2a * x2i + s2a * x2r
 
 
+@njit(inline="always", cache=True, error_model="numpy")
+def _ring_t(rho, rho_lo, span, n_rings):  # pragma: no cover - compiled
+    """Ring position of radius rho: t in [0, n_rings - 1], rings at the integers (branch-free)."""
+    return min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
+
+
 @njit(inline="always", cache=True)
-def _ring_of(rho, rho_lo, span, n_rings):  # pragma: no cover - compiled
-    """Ring index j and the linear split f towards ring j + 1."""
-    t = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
-    j = min(int(math.floor(t)), n_rings - 1)
+def _ring_split(t, n_rings):  # pragma: no cover - compiled
+    """Ring index j and the linear split f towards ring j + 1 of a ring position t >= 0 (j + f = t)."""
+    j = min(np.int64(t), n_rings - 1)
     return j, t - j
 
 
@@ -398,27 +405,16 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
 @njit(inline="always", cache=True, error_model="numpy")
 def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
     """Pixel i for a vectorised pass: (usable, valid, valid but non-finite, unusable inside the disc ring, p, rx,
-    ry, rz, rho, cos 2a, sin 2a) with the tests of :func:`_pixel`; an unusable pixel reads as a = p = 0 on the
-    ray (1, 0, 0), so that every value stays finite and its weight is 0 without a branch."""
-    a = np.float64(aop[i])
-    p = np.float64(dop[i])
-    rx = np.float64(rays[0, i])
-    ry = np.float64(rays[1, i])
-    rz = np.float64(rays[2, i])
-    rfin = (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6)
-    fin = rfin & (abs(a) < 1e6) & (abs(p) < 1e6)
-    rho = math.sqrt(rx * rx + ry * ry)
-    inr = rfin & (rho >= rho_lo) & (rho <= rho_hi) & (rho > 0.0)
+    ry, rz, rho, cos 2a, sin 2a) from :func:`_pixel`; an unusable pixel reads as p = 0 on the ray (1, 0, 0), so
+    that every value stays finite and its weight is 0 without a branch."""
+    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi)
     v = valid[i]
-    ok = v & fin & (p >= min_dop) & inr
-    a = a if ok else 0.0
     p = p if ok else 0.0
     rx = rx if ok else 1.0
     ry = ry if ok else 0.0
     rz = rz if ok else 0.0
     rho = rho if ok else 1.0
-    sa, ca = sincos_folded(a)
-    return ok, v, v & ~fin, inr & ~(v & fin), p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
+    return ok, v, v & ~fin, inr & ~(v & fin), p, rx, ry, rz, rho, c2a, s2a
 
 
 @njit(cache=True, nogil=True)
@@ -524,7 +520,7 @@ def _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_fr
         ci[q] = c_i * w
         er[q] = ry / rho
         ei[q] = -rx / rho
-        tr[q] = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
+        tr[q] = _ring_t(rho, rho_lo, span, n_rings)
     cnt[0] += n_ok
     cnt[1] += n_v
     cnt[2] += n_bad
@@ -550,9 +546,8 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
         for q in range(n):
             if cr[q] == 0.0 and ci[q] == 0.0:
                 continue                            # unusable (or zero weight: adds nothing)
-            t = tr[q]
-            j = min(np.int64(t), n_rings - 1)
-            _ring_add(a_out, K, n_rings, j, t - j, complex(cr[q], ci[q]), complex(er[q], ei[q]))
+            j, f = _ring_split(tr[q], n_rings)
+            _ring_add(a_out, K, n_rings, j, f, complex(cr[q], ci[q]), complex(er[q], ei[q]))
     if has_i:
         _brightness_pass(aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats)
 
@@ -561,7 +556,7 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
 def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, K, mg, mp,
                 g_uv, g_tp, g_v, g_ring):  # pragma: no cover - compiled
     """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w S(p) c
-    exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring index + split. Returns the count."""
+    exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring position (:func:`_ring_t`). Returns the count."""
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
@@ -582,9 +577,8 @@ def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_f
             em = em * ec
             g_v[K + kk, n] = ep
             g_v[K - kk, n] = em
-        j, f = _ring_of(rho, rho_lo, span, n_rings)
         g_tp[n] = tp * s
-        g_ring[n] = j + f
+        g_ring[n] = _ring_t(rho, rho_lo, span, n_rings)
         n += 1
     return n
 
@@ -605,8 +599,7 @@ def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out): 
         if g_v[K, q].real == 0.0 and g_v[K, q].imag == 0.0:
             continue
         n_pair += 1
-        j = min(int(g_ring[q]), n_rings - 1)
-        f = g_ring[q] - j
+        j, f = _ring_split(g_ring[q], n_rings)
         w0 = (1.0 - f) * m
         w1 = f * m
         for k in range(2 * K + 1):
@@ -636,7 +629,7 @@ def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_fra
         cr[q] = c_r * w
         ci[q] = c_i * w
         xi[q] = atan2(rx, ry)
-        tr[q] = min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
+        tr[q] = _ring_t(rho, rho_lo, span, n_rings)
         u1 = _level_resid(c2a, s2a, rx, ry, rz, a0, a1, a2)
         u2 = _level_resid(c2a, s2a, rx, ry, rz, b0, b1, b2)
         u1 = u1 if ok else 0.0
@@ -659,9 +652,7 @@ def _ring_harmonic(n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc):  # 
         pi_ = ci[q] * c - cr[q] * s
         mr = cr[q] * c - ci[q] * s           # c conj(E)
         mi = ci[q] * c + cr[q] * s
-        t = tr[q]
-        j = min(np.int64(t), n_rings - 1)
-        f = t - j
+        j, f = _ring_split(tr[q], n_rings)
         g = 1.0 - f
         acc[q] += (pr * (g * Bpr[kk, j] + f * Bpr[kk, j + 1]) - pi_ * (g * Bpi[kk, j] + f * Bpi[kk, j + 1])
                    + mr * (g * Bmr[kk, j] + f * Bmr[kk, j + 1]) - mi * (g * Bmi[kk, j] + f * Bmi[kk, j + 1]))
