@@ -31,7 +31,7 @@ def main(argv) -> int:
 
     from polarization_compass.camera import CameraModel
     from polarization_compass.conventions import CameraAttitude
-    from polarization_compass.nodes import topics
+    from polarization_compass.specs import topics
     from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
     from polarization_compass.nodes.msgs import image_msg
     from polarization_compass.render import Renderer

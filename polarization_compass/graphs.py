@@ -5,7 +5,7 @@ LaunchDescription from here, and ``polarization-compass sim`` (``make sim``) sta
 graph as subprocesses without ``ros2 launch`` (:meth:`NodeSpec.command`). A graph lists its nodes:
 executable (a console script of ``setup.py``), node name, namespace, parameter files (paths in the
 package's share directory), inline parameters (applied after the files) and remappings, plus the
-topics each node publishes and subscribes to (from :mod:`polarization_compass.nodes.topics`, the
+topics each node publishes and subscribes to (from :mod:`polarization_compass.specs.topics`, the
 names the node code itself uses) so that the wiring can be checked without running anything.
 
 Graphs
@@ -30,8 +30,8 @@ from pathlib import Path
 import yaml
 
 from .errors import CompassError
-from .nodes import topics as T
-from .nodes.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
+from .specs import topics as T
+from .specs.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
 
 __all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
            "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE"]
@@ -283,7 +283,7 @@ GRAPH_KNOBS = {"knob.stride": 8}
 
 
 def _knob_names(method: str) -> set:
-    from .nodes.params import knob_params
+    from .specs.params import knob_params
     return {p.name for p in knob_params(method)}
 
 

@@ -19,7 +19,7 @@ What is in the bag (topics of the default mapping, :data:`~polarization_compass.
 
 Receive (log) times are the stamps plus a transport latency with jitter, so they differ from the
 header stamps as in a real recording. The motion is the simulator's profile
-(:class:`~polarization_compass.nodes.motion.MotionProfile`): one full turn over the run at a fixed
+(:class:`~polarization_compass.motion.MotionProfile`): one full turn over the run at a fixed
 tilt, like the paper's Fig 17 (pitch -20 deg), starting at the scene's bearing and time.
 """
 from __future__ import annotations
@@ -102,7 +102,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
     Returns a summary: frames and messages per topic, the start stamp, the tilt used, and the true
     camera bearing per image stamp (``truth``: {stamp_ns: bearing_deg}) for tests.
     """
-    from .nodes.motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
+    from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
     from .pipeline import SunSource
     from .render import Renderer, SunDirection
     from .camera import PixelSelection

@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from polarization_compass import graphs
-from polarization_compass.nodes import topics
-from polarization_compass.nodes.params import (ALL_METHODS, KNOB_PREFIX, PAPER_METHODS, SPECS, knob_params,
+from polarization_compass.specs import topics
+from polarization_compass.specs.params import (ALL_METHODS, KNOB_PREFIX, PAPER_METHODS, SPECS, knob_params,
                                                spec_by_name, validate_value)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -275,7 +275,7 @@ def test_every_method_in_params_is_a_method_name():
 
 @pytest.mark.parametrize("doc", ["docs/ros.md", "README.md"])
 def test_docs_list_every_parameter(doc):
-    from polarization_compass.nodes.params import markdown_tables
+    from polarization_compass.specs.params import markdown_tables
     text = (ROOT / doc).read_text()
     assert markdown_tables() in text, f"{doc} parameter tables are stale: paste params.markdown_tables()"
     for node, specs in SPECS.items():

@@ -44,7 +44,7 @@ def test_sim_graph_on_dds(ros_env, tmp_path):
     from std_msgs.msg import Float64, String
 
     from polarization_compass import graphs
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
 
     scene_file = tmp_path / "small.yaml"
     scene_file.write_text(SMALL_SCENE)

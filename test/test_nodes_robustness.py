@@ -70,7 +70,7 @@ def test_estimator_survives_a_burst_of_malformed_messages(ros_env, tmp_path):
 
     from polarization_compass.conventions import R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude
     from polarization_compass.nodes import msgs
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
 
     env = node_env(ros_env)
     est = Proc("heading_estimator_least_squares", "heading_estimator",
@@ -179,7 +179,7 @@ def test_corrector_reports_a_stale_imu_and_never_guesses(ros_env, tmp_path):
 
     from polarization_compass.conventions import R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude
     from polarization_compass.nodes import msgs
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
 
     env = node_env(ros_env)
     cor = Proc("tilt_corrector_least_squares", "tilt_corrector",
@@ -277,7 +277,7 @@ def test_a_best_effort_imu_reaches_the_estimator_and_the_corrector(ros_env, tmp_
 
     from polarization_compass.conventions import R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude
     from polarization_compass.nodes import msgs
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
 
     env = node_env(ros_env)
     logs = tmp_path / "logs"

@@ -12,8 +12,8 @@ from polarization_compass.bag import decode_camera_info, decode_mosaic, stamp_ns
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.nodes import msgs
-from polarization_compass.nodes.motion import MotionProfile, body_from_camera, frame_times_ns
-from polarization_compass.nodes.params import (CORRECTOR, ESTIMATOR, EVALUATOR, SIMULATOR, knob_params, knob_values,
+from polarization_compass.motion import MotionProfile, body_from_camera, frame_times_ns
+from polarization_compass.specs.params import (CORRECTOR, ESTIMATOR, EVALUATOR, SIMULATOR, knob_params, knob_values,
                                                layout_from_text, validate_value)
 from polarization_compass.pipeline import AttitudeBuffer, HeadingFrontEnd, SunSource, camera_attitude_from_body_quat
 
@@ -237,7 +237,7 @@ def test_sun_source_matches_a_direct_ephemeris_call():
 def test_every_node_builds_its_sun_from_its_site_parameters():
     """The nodes' sun_source reads latitude, longitude, altitude and sun_model by name (not by position):
     a node whose site is moved and whose model is 'paper' gets exactly that site and model."""
-    from polarization_compass.nodes.params import defaults, sun_source
+    from polarization_compass.specs.params import defaults, sun_source
     for specs in (SIMULATOR, ESTIMATOR, CORRECTOR):
         v = defaults(specs)
         v.update(latitude_deg=-33.9, longitude_deg=18.4, altitude_m=1086.0, sun_model="paper")

@@ -555,7 +555,7 @@ def test_cli_custom_topic_names_round_trip(tmp_path, capsys):
 
 
 def test_default_topics_are_the_nodes_topics():
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
     d = B.default_topic_map()
     assert d.spec("image").topic == "/" + T.IMAGE and d.spec("camera_info").topic == "/" + T.CAMERA_INFO
     assert d.spec("imu").topic == "/" + T.IMU and d.spec("navsatfix").topic == "/" + T.FIX

@@ -119,7 +119,7 @@ def _play(nodes, bag_path, env, methods) -> dict:
     from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
     from std_msgs.msg import String
 
-    from polarization_compass.nodes import topics as T
+    from polarization_compass.specs import topics as T
 
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=int(env["ROS_DOMAIN_ID"]))

@@ -1,11 +1,11 @@
-"""Paste the generated parameter tables (nodes/params.markdown_tables) into README.md and docs/ros.md.
+"""Paste the generated parameter tables (specs/params.markdown_tables) into README.md and docs/ros.md.
 
 Run after changing a node parameter: ``.venv/bin/python tools/update_param_docs.py``; test_graphs.py
 fails until the documents match params.py.
 """
 from pathlib import Path
 
-from polarization_compass.nodes.params import markdown_tables
+from polarization_compass.specs.params import markdown_tables
 
 ROOT = Path(__file__).resolve().parent.parent
 START = "\n#### sky_simulator\n"

@@ -131,7 +131,7 @@ def ensure_error_map(path: Path, methods: list[str], pitch: float, roll: float, 
 # ------------------------------------------------------------------------------------------------
 def run(args) -> int:
     from .. import graphs
-    from ..nodes.params import PAPER_METHODS
+    from ..specs.params import PAPER_METHODS
     for name, v in (("rate", args.rate), ("turns", args.turns), ("time-scale", args.time_scale)):
         if not (math.isfinite(v) and v > 0):
             raise CompassError(f"--{name} must be a positive number, got {v}")
@@ -171,7 +171,7 @@ def run(args) -> int:
     else:
         map_path = out / "error_map.npz"
     if methods:
-        from ..nodes.params import SIMULATOR, defaults
+        from ..specs.params import SIMULATOR, defaults
         d = defaults(SIMULATOR)
         duration = args.turns * 360.0 / abs(args.turn_rate)
         alts = scenario_sun_altitudes(d["start_time_utc"], duration,

@@ -1,7 +1,7 @@
-"""ROS 2 nodes (thin adapters over the core library).
+"""ROS 2 nodes: thin rclpy adapters over the ROS-free layers below.
 
-Importing this package does not import rclpy: :mod:`.topics` and :mod:`.params` are ROS-free and
-are shared with :mod:`polarization_compass.graphs`, the launch files and ``polarization-compass sim``.
-The node modules (``sky_simulator``, ``heading_estimator``, ``tilt_corrector``, ``error_evaluator``)
-and :mod:`.msgs` / :mod:`.diagnostics` / :mod:`.rosparams` need rclpy and the message packages.
+Every module here may import rclpy and the message packages; nothing outside ``nodes`` imports
+this package (``test/test_layers.py`` checks it). The node specifications they read (parameters,
+topics, graphs) live in :mod:`polarization_compass.specs`, shared with the launch files,
+``polarization-compass sim`` and the replay.
 """

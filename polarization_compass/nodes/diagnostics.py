@@ -24,7 +24,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.qos import QoSProfile
 
 from ..bag import MessageError
-from . import topics
+from ..specs import topics
 from .msgs import kv
 
 __all__ = ["Diagnostics"]

@@ -34,10 +34,10 @@ from std_msgs.msg import String
 
 from ..bag import stamp_ns
 from ..evaluation import StampMatcher, plot_report, write_samples_csv, write_summary_csv
-from . import topics
+from ..specs import topics
 from .diagnostics import Diagnostics
 from .msgs import bearing_from_imu, heading_from_imu
-from .params import EVALUATOR
+from ..specs.params import EVALUATOR
 from .rosparams import ParameterSet
 from .runner import run_node
 

@@ -31,10 +31,10 @@ from ..bag import decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
-from . import topics
+from ..specs import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
-from .params import ESTIMATOR, SUN_PARAMS, apply_fix, knob_params, knob_values, layout_from_text, sun_source
+from ..specs.params import ESTIMATOR, SUN_PARAMS, apply_fix, knob_params, knob_values, layout_from_text, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 

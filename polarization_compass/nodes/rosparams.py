@@ -16,7 +16,7 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
 from rclpy.parameter import Parameter
 
 from ..errors import CompassError
-from .params import Param, spec_by_name, validate_value
+from ..specs.params import Param, spec_by_name, validate_value
 
 __all__ = ["ParameterError", "ParameterSet"]
 

@@ -44,11 +44,11 @@ from ..conventions import matrix_to_quat, quat_to_matrix
 from ..errors import CompassError, MissingDependencyError
 from ..pipeline import camera_attitude_from_body_quat
 from ..sensor import sensor_config_for_encoding
-from . import topics
+from ..specs import topics
 from .diagnostics import Diagnostics
-from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
+from ..motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
-from .params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
+from ..specs.params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 

@@ -36,10 +36,10 @@ from std_msgs.msg import Float64, String
 from ..bag import decode_orientation, stamp_ns
 from ..errors import CompassError
 from ..pipeline import AttitudeBuffer
-from . import topics
+from ..specs import topics
 from .diagnostics import Diagnostics, _wall_clock
 from .msgs import heading_from_imu, heading_imu
-from .params import CORRECTOR, SUN_PARAMS, apply_fix, sun_source
+from ..specs.params import CORRECTOR, SUN_PARAMS, apply_fix, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
 

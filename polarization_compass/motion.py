@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, rot_x, rot_y, rot_z, wrap_360_deg
+from .conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, rot_x, rot_y, rot_z, wrap_360_deg
 
 __all__ = ["MotionProfile", "body_from_camera", "frame_times_ns", "imu_reading"]
 
