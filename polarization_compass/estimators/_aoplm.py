@@ -978,7 +978,6 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     sun, and the residual sums of squares)."""
 
     axial = True
-    sigma_optional = True
     KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
 
     def __init__(self, **knobs):

@@ -1,5 +1,6 @@
 """The shared estimator interface: what goes in (:class:`Observation`), what comes out
-(:class:`HeadingResult`), and the registry (:func:`make_estimator`).
+(:class:`HeadingResult`), and the facts every method declares (:class:`Estimator`). The methods are
+listed by :mod:`.registry`.
 
 Angles follow :mod:`polarization_compass.conventions`. A result never carries NaN or inf: a value
 that does not exist is ``None`` and ``status``/``reason`` say why.
@@ -9,7 +10,6 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 from enum import Enum
-from typing import Callable
 
 import numpy as np
 
@@ -17,8 +17,7 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg
 from ..errors import CompassError
 
-__all__ = ["Status", "HeadingResult", "Observation", "Estimator", "make_estimator", "register_estimator",
-           "estimator_names", "EstimatorError"]
+__all__ = ["Status", "HeadingResult", "Observation", "Estimator", "EstimatorError"]
 
 
 class EstimatorError(CompassError):
@@ -147,61 +146,51 @@ class Observation:
 
 
 class Estimator:
-    """Base class. Subclasses set ``name`` and ``axial`` and implement :meth:`estimate`.
+    """Base class of a heading method. A subclass implements :meth:`estimate` and declares the facts
+    about its method as class attributes, which everything else reads through :mod:`.registry`:
 
-    ``knobs`` trade accuracy for time (stride, region, min_dop, window ...); ``pixels_needed`` tells a
-    renderer which pixels this method reads, so sweeps render only those.
+    ``name``: the method's identifier (``--method``, node parameter ``method``, topic names, map files).
+    ``label``: human-readable name for figures and tables ("" = ``name``).
+    ``style``: ``(matplotlib colour, line style)`` in figures (None = the next colour of the cycle).
+    ``axial``: the method alone knows the heading only modulo 180 deg.
+    ``needs_tilt``: reads the known camera pitch and roll (``Observation.pitch_deg``/``roll_deg``): the
+    pipeline waits for the IMU tilt at the image stamp, and the method runs without a tilt corrector
+    (its raw heading is final, a "direct" method in graphs, the replay and the evaluator).
+    ``paper_method``: one of the paper's four approaches (default sets of ``sim``/``replay``/error maps,
+    the paper's figures).
+    ``sweep_knobs``: knobs an error-map sweep uses by default (its sampling: a sweep renders 1e4-1e5
+    frames, so it reads fewer pixels than a live estimate); {} = the method's defaults.
+    ``relative_cost``: CPU time per frame relative to the others (median ms per frame at the nodes' knobs,
+    ``make bench`` group replay, 2026-11-24), used only to balance the replay's worker threads.
 
-    ``sigma_optional``: the method accepts ``estimate(obs, sigma=False)``, which skips the uncertainty
-    (``sigma_deg`` None, no residual statistics in ``extras``) for callers that use only psi and status
-    (error-map sweeps). psi is the same as with ``sigma=True`` except that an unresolved (axial) result
-    may name the other end of the meridian, which it does not know anyway; status and quality are the same.
+    ``knobs`` trade accuracy for time (stride, region, min_dop, window ...), described by
+    :meth:`knob_specs`; ``pixels_needed`` tells a renderer which pixels this method reads, so sweeps
+    render only those.
     """
 
     name = "base"
+    label = ""
+    style: tuple | None = None
     axial = True
-    sigma_optional = False
+    needs_tilt = False
+    paper_method = False
+    sweep_knobs: dict = {}
+    relative_cost = 5.0
 
     def __init__(self, **knobs):
         self.knobs = dict(knobs)
 
+    @classmethod
+    def knob_specs(cls) -> dict:
+        """``{knob name: Knob}`` the method accepts (none here)."""
+        return {}
+
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
         return PixelSelection.full()
 
-    def estimate(self, obs: Observation) -> HeadingResult:  # pragma: no cover - interface
-        """One heading. Methods with ``sigma_optional`` also take ``sigma: bool = True``."""
+    def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:  # pragma: no cover - interface
+        """One heading from ``obs``. ``sigma=False`` skips the uncertainty (``sigma_deg`` None, no residual
+        statistics in ``extras``) for callers that use only psi and status (error-map sweeps): psi is the
+        same as with ``sigma=True`` except that an unresolved (axial) result may name the other end of the
+        meridian, which it does not know anyway; status and quality are the same."""
         raise NotImplementedError
-
-
-_REGISTRY: dict[str, Callable[..., Estimator]] = {}
-
-
-def register_estimator(name: str):
-    def deco(cls):
-        cls.name = name
-        _REGISTRY[name] = cls
-        return cls
-    return deco
-
-
-def estimator_names() -> list[str]:
-    """The registered methods, in the paper's order, then the others."""
-    from . import methods  # noqa: F401  (registers on import)
-    order = ["zenith", "sm_asm", "symmetry", "least_squares", "tilt_aware"]
-    return [n for n in order if n in _REGISTRY] + sorted(set(_REGISTRY) - set(order))
-
-
-def estimator_knob_names(name: str) -> frozenset:
-    """Names of the knobs method ``name`` accepts (empty for an estimator without a knob table)."""
-    from . import methods  # noqa: F401
-    if name not in _REGISTRY:
-        raise EstimatorError(f"unknown method {name!r}; known: {', '.join(estimator_names())}")
-    specs = getattr(_REGISTRY[name], "knob_specs", None)
-    return frozenset(specs()) if specs is not None else frozenset()
-
-
-def make_estimator(name: str, **knobs) -> Estimator:
-    from . import methods  # noqa: F401
-    if name not in _REGISTRY:
-        raise EstimatorError(f"unknown method {name!r}; known: {', '.join(estimator_names())}")
-    return _REGISTRY[name](**knobs)

@@ -37,7 +37,7 @@ from numba import njit
 
 from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y
-from .base import Estimator, HeadingResult, Observation, Status, register_estimator
+from .base import Estimator, HeadingResult, Observation, Status
 from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, finish_sigma_deg,
                       psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
                       view_grid_layout, view_segments)
@@ -137,7 +137,6 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
 
 class _LSBase(KnobbedEstimator, Estimator):
     axial = False
-    sigma_optional = True
     OWN_KNOBS = {
         "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
                           doc="pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform"),
@@ -283,17 +282,29 @@ class _LSBase(KnobbedEstimator, Estimator):
                            sun_altitude_deg=implied_alt, extras=extras)
 
 
-@register_estimator("least_squares")
 class LeastSquaresEstimator(_LSBase):
     """The paper's least-squares approach (level-camera assumption for the heading)."""
+
+    name = "least_squares"
+    label = "Least-squares"
+    style = ("tab:red", ":")
+    paper_method = True
+    sweep_knobs = {"stride": 64}
+    relative_cost = 3.0
 
     OWN_KNOBS = dict(_LSBase.OWN_KNOBS, max_tilt_deg=Knob(30.0, "float", 0.0, 89.0,
                                                           doc="assumed bound on the tilt, for the sign rule"))
     level_with_tilt = False
 
 
-@register_estimator("tilt_aware")
 class TiltAwareEstimator(_LSBase):
     """Least squares after levelling with the known pitch and roll: exact under Rayleigh at any tilt."""
+
+    name = "tilt_aware"
+    label = "Tilt-aware LS"
+    style = ("tab:purple", "-")
+    needs_tilt = True
+    sweep_knobs = {"stride": 64}
+    relative_cost = 2.6
 
     level_with_tilt = True

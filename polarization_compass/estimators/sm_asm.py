@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .base import HeadingResult, Status, register_estimator
+from .base import HeadingResult, Status
 from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, band_fit, band_gather, band_pass1, band_pass2
 from ._common import Knob
 from ._kernels import N_STATS
@@ -38,9 +38,15 @@ from ._kernels import N_STATS
 __all__ = ["SmAsmEstimator"]
 
 
-@register_estimator("sm_asm")
 class SmAsmEstimator(DiscEstimator):
     """Solar/anti-solar meridian from |AOPLM| ~ 90 deg pixels (level-camera assumption)."""
+
+    name = "sm_asm"
+    label = "SM-ASM"
+    style = ("tab:orange", "--")
+    paper_method = True
+    sweep_knobs = {"stride": 64}
+    relative_cost = 7.0
 
     OWN_KNOBS = dict(DISC_KNOBS, aoplm_tol_deg=Knob(10.0, "float", 0.5, 45.0,
                                                    doc="width (1 sigma) of the Gaussian band around |AOPLM| = 90 deg"))

@@ -41,7 +41,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from .base import HeadingResult, Status, register_estimator
+from .base import HeadingResult, Status
 from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, ring_fit, ring_gather, ring_pass1, ring_pass2
 from ._common import Knob
 from ._kernels import N_STATS
@@ -193,9 +193,15 @@ def _axis_search(a, K, steps, near=None):
     return _axis_solve(np.ascontiguousarray(a), K, grid, e2, e1, near_i)
 
 
-@register_estimator("symmetry")
 class SymmetryEstimator(DiscEstimator):
     """Axis of antisymmetry of the AOPLM map (level-camera assumption)."""
+
+    name = "symmetry"
+    label = "Symmetry"
+    style = ("tab:green", "-.")
+    paper_method = True
+    sweep_knobs = {"stride": 48, "search_steps": 90}  # 2 deg coarse grid; Newton refines to the same optimum
+    relative_cost = 11.5
 
     OWN_KNOBS = dict(DISC_KNOBS,
                      harmonics=Knob(2, "int", 1, 32, doc="circular harmonics K used in the correlation"),

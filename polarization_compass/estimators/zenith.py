@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from ..camera import CameraModel, PixelSelection
-from .base import Estimator, HeadingResult, Observation, Status, register_estimator
+from .base import Estimator, HeadingResult, Observation, Status
 from ._common import (Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t_from_stats, check_sun,
                       cluster_sigma_rad, finish_sigma_deg, level_sun_candidates, psi_from_sun_rad, rayleigh_aop_rad,
                       resolve_ambiguity, result_from, samples_from_view, select_view)
@@ -123,12 +123,16 @@ def _eigh3(m):  # pragma: no cover - compiled
     return np.linalg.eigh(M)
 
 
-@register_estimator("zenith")
 class ZenithEstimator(KnobbedEstimator, Estimator):
     """The paper's zenith approach (level-camera assumption: the zenith is the principal point)."""
 
+    name = "zenith"
+    label = "Zenith"
+    style = ("tab:blue", "-")
     axial = True
-    sigma_optional = True
+    paper_method = True
+    sweep_knobs = {}                    # reads its 32 x 32 px window at the image centre
+    relative_cost = 0.7
     OWN_KNOBS = {"window_px": Knob(32, "int", 1, 2048, doc="side of the square window at the image centre, "
                                                            "sensor pixels")}
     KNOB_DEFAULTS = {"min_pixels": 4, "block_px": 4, "min_dop": 0.0}

@@ -1,0 +1,171 @@
+"""The public registry of heading methods: which estimator classes exist, in a stable order.
+
+Every fact about a method lives on its class (see :class:`~polarization_compass.estimators.base.Estimator`:
+``name``, ``label``, ``style``, ``needs_tilt``, ``paper_method``, ``sweep_knobs``, ``relative_cost``,
+``knob_specs()``); applications (node parameters, graphs, the CLI, error-map sweeps, figures, the replay)
+read them from here and never key behaviour on a method's name string.
+
+Adding a method: write one module with an :class:`~.base.Estimator` subclass that sets its facts, and add
+one line to :data:`_BUILTIN` below (or call :func:`register` from a plug-in). This module imports the
+method modules; the method modules import :mod:`.base` only, so there is no import cycle.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from importlib import import_module
+
+from .base import Estimator, EstimatorError
+
+__all__ = ["register", "unregister", "names", "get", "make", "paper_methods", "tilt_methods", "knob_names",
+           "label", "style", "relative_cost", "sweep_knobs", "MethodNames"]
+
+# (module, class) of the built-in methods, in the paper's order, then the others: one line per method.
+_BUILTIN = (
+    (".zenith", "ZenithEstimator"),
+    (".sm_asm", "SmAsmEstimator"),
+    (".symmetry", "SymmetryEstimator"),
+    (".least_squares", "LeastSquaresEstimator"),
+    (".least_squares", "TiltAwareEstimator"),
+)
+
+_CLASSES: dict[str, type[Estimator]] = {}       # insertion order = the stable order of names()
+_loaded = False
+
+
+def _load() -> dict[str, type[Estimator]]:
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        for mod, cls in _BUILTIN:
+            register(getattr(import_module(mod, __package__), cls))
+    return _CLASSES
+
+
+def register(cls: type[Estimator]) -> type[Estimator]:
+    """Add the estimator class ``cls`` under ``cls.name`` (usable as a class decorator).
+
+    Raises :class:`EstimatorError` when ``cls`` is not an :class:`Estimator`, has no name of its own, or
+    the name is taken by another class. Returns ``cls``."""
+    _load()                                     # the built-ins first: they keep their places and names
+    if not (isinstance(cls, type) and issubclass(cls, Estimator)):
+        raise EstimatorError(f"register: {cls!r} is not an Estimator subclass")
+    name = cls.__dict__.get("name")
+    if not isinstance(name, str) or not name or not name.isidentifier():
+        raise EstimatorError(f"register: {cls.__name__} must set a class attribute name (an identifier)")
+    if _CLASSES.get(name, cls) is not cls:
+        raise EstimatorError(f"register: method {name!r} is already registered ({_CLASSES[name].__name__})")
+    _CLASSES[name] = cls
+    return cls
+
+
+def unregister(name: str) -> None:
+    """Remove method ``name`` (plug-ins and tests); unknown names raise :class:`EstimatorError`."""
+    get(name)
+    del _CLASSES[name]
+
+
+def names(paper: bool | None = None, needs_tilt: bool | None = None) -> tuple[str, ...]:
+    """The registered method names in their stable order (built-ins in the paper's order, then the others
+    in registration order), optionally only those whose ``paper_method``/``needs_tilt`` equal the given
+    values."""
+    return tuple(n for n, c in _load().items()
+                 if (paper is None or bool(c.paper_method) == paper)
+                 and (needs_tilt is None or bool(c.needs_tilt) == needs_tilt))
+
+
+def paper_methods() -> tuple[str, ...]:
+    """The paper's four approaches (``paper_method`` True), in order."""
+    return names(paper=True)
+
+
+def tilt_methods() -> tuple[str, ...]:
+    """Methods that read the known pitch and roll (``needs_tilt``): they run without a tilt corrector."""
+    return names(needs_tilt=True)
+
+
+def get(name: str) -> type[Estimator]:
+    """The estimator class of method ``name``; :class:`EstimatorError` names the known ones."""
+    classes = _load()
+    try:
+        return classes[name]
+    except (KeyError, TypeError):
+        raise EstimatorError(f"unknown method {name!r}; known: {', '.join(classes)}") from None
+
+
+def find(name: str) -> type[Estimator] | None:
+    """The estimator class of ``name``, or None when no such method is registered (e.g. a method named
+    in an old file)."""
+    return _load().get(name)
+
+
+def make(name: str, **knobs) -> Estimator:
+    """A new estimator of method ``name`` with ``knobs`` (validated by the class)."""
+    return get(name)(**knobs)
+
+
+def knob_names(name: str) -> frozenset:
+    """Names of the knobs method ``name`` accepts (empty for a method without knobs)."""
+    return frozenset(get(name).knob_specs())
+
+
+def label(name: str) -> str:
+    """Human-readable label of ``name`` (figures, tables); the name itself when unknown or unset."""
+    c = find(name)
+    return (c.label or name) if c is not None else name
+
+
+def style(name: str) -> tuple | None:
+    """(matplotlib colour, line style) of ``name``; None when unknown or unset."""
+    c = find(name)
+    return c.style if c is not None else None
+
+
+def relative_cost(name: str) -> float:
+    """Relative time per frame of ``name`` (the replay balances its threads on it); the base class's
+    default for unknown methods."""
+    c = find(name)
+    return float((c or Estimator).relative_cost)
+
+
+def sweep_knobs(name: str) -> dict:
+    """A copy of the error-map sweep's default sampling knobs of ``name`` ({} when unknown)."""
+    c = find(name)
+    return dict(c.sweep_knobs) if c is not None else {}
+
+
+class MethodNames(Sequence):
+    """A live, read-only sequence of the registered method names (optionally filtered like :func:`names`):
+    parameter and launch-argument choices built at import time still see methods registered later."""
+
+    def __init__(self, paper: bool | None = None, needs_tilt: bool | None = None):
+        self._filter = {"paper": paper, "needs_tilt": needs_tilt}
+
+    def _names(self) -> tuple[str, ...]:
+        return names(**self._filter)
+
+    def __getitem__(self, i):
+        return self._names()[i]
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __contains__(self, x) -> bool:
+        return x in self._names()
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __add__(self, other):
+        return self._names() + tuple(other)
+
+    def __radd__(self, other):
+        return tuple(other) + self._names()
+
+    def __eq__(self, other):
+        return tuple(self) == tuple(other) if isinstance(other, (tuple, list, MethodNames)) else NotImplemented
+
+    def __hash__(self):
+        return hash(tuple(self))
+
+    def __repr__(self) -> str:
+        return f"MethodNames{self._names()!r}"
