@@ -51,7 +51,7 @@ from .errors import CompassError
 
 __all__ = ["ErrorMap", "ErrorMapError", "SweepSpec", "parse_range", "run_sweep", "load_error_map",
            "tilt_domain_mask", "STATUS_CODES", "STATUS_NOT_COMPUTED", "STATUS_ESTIMATOR_ERROR",
-           "DEFAULT_TILT_LIMIT_DEG", "DEFAULT_SWEEP_KNOBS", "FORMAT_VERSION"]
+           "DEFAULT_TILT_LIMIT_DEG", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 DEFAULT_TILT_LIMIT_DEG = 30.0
@@ -65,16 +65,6 @@ STATUS_OTHER = 8          # a status value this table does not know (a newer est
 _STATUS_LEGEND = {**{str(v): k for k, v in STATUS_CODES.items()}, str(STATUS_NOT_COMPUTED): "not_computed",
                   str(STATUS_ESTIMATOR_ERROR): "estimator_error", str(STATUS_OTHER): "other"}
 
-#: Sampling used by sweeps unless the caller gives knobs: per-method estimator knobs. Empty means the
-#: estimator's own defaults. Chosen by ``bench``/tests so that errors change by < 0.05 deg against full
-#: resolution (see docs/error-maps.md).
-DEFAULT_SWEEP_KNOBS: dict[str, dict] = {
-    "zenith": {},                                    # reads its 32 x 32 px window at the image centre
-    "sm_asm": {"stride": 64},
-    "symmetry": {"stride": 48, "search_steps": 90},  # 2 deg coarse grid; Newton refines to the same optimum
-    "least_squares": {"stride": 64},
-    "tilt_aware": {"stride": 64},
-}
 
 
 class ErrorMapError(CompassError):
@@ -298,7 +288,8 @@ def load_error_map(path) -> ErrorMap:
 class SweepSpec:
     """What to compute. ``scene`` is a :class:`~polarization_compass.scene.Scene` (its attitude, sun and
     pixel selection are overridden per cell); ``knobs`` maps a method to its estimator knobs (absent: the
-    :data:`DEFAULT_SWEEP_KNOBS` entry, else the estimator's defaults)."""
+    estimator class's ``sweep_knobs``, chosen so that errors change by < 0.05 deg against full resolution,
+    see docs/error-maps.md)."""
 
     methods: tuple
     sun_altitude_deg: np.ndarray
@@ -325,7 +316,8 @@ class SweepSpec:
             if not np.all(np.isfinite(a)):
                 raise ErrorMapError(f"{name} must be finite")
             setattr(self, name, a)
-        self.knobs = {m: dict(self.knobs.get(m, DEFAULT_SWEEP_KNOBS.get(m, {}))) for m in self.methods}
+        from .estimators import registry
+        self.knobs = {m: dict(self.knobs[m]) if m in self.knobs else registry.sweep_knobs(m) for m in self.methods}
         if self.scene.effects:
             self._contiguous_pixels()
 
@@ -333,7 +325,7 @@ class SweepSpec:
         """A scene with sensor effects renders a mosaic, which needs contiguous pixels (the renderer
         refuses strided selections): such sweeps read every pixel of each method's block (stride 1),
         which is slow but what a noisy frame is."""
-        from .estimators.base import make_estimator
+        from .estimators import make_estimator
         cam = self.scene.camera
         for m in self.methods:
             k = self.knobs[m]
@@ -407,16 +399,15 @@ class _Evaluator:
     pixels share the render. (One render of the union of the selections was tried: it saves ~40 us per cell
     but is not bit for bit the same as each selection's own render when numba splits the loop over threads
     differently.) A scene with sensor effects renders full frames (the noise of a cell comes from its seed).
-    Methods that can skip their uncertainty (``sigma_optional``) are asked to: a map stores psi's error and
-    the status only.
+    Every method skips its uncertainty (``estimate(obs, sigma=False)``): a map stores psi's error and the
+    status only.
     """
 
     def __init__(self, spec: SweepSpec):
-        from .estimators.base import make_estimator
+        from .estimators import make_estimator
         from .render import Renderer
         self.spec = spec
         self.estimators = [make_estimator(m, **spec.knobs[m]) for m in spec.methods]
-        self.no_sigma = [bool(getattr(est, "sigma_optional", False)) for est in self.estimators]
         camera = spec.scene.camera
         self.groups: list[tuple[object, list[int]]] = []      # (renderer, method indices)
         by_sel: dict = {}
@@ -499,7 +490,7 @@ class _Evaluator:
     def _one(self, i: int, obs, psi_true: float):
         try:
             est = self.estimators[i]
-            res = est.estimate(obs, sigma=False) if self.no_sigma[i] else est.estimate(obs)
+            res = est.estimate(obs, sigma=False)
         except Exception as exc:  # noqa: BLE001 - one bad cell must not kill an hour-long sweep; reported
             if len(self.errors) < 5:
                 self.errors.append(f"{self.spec.methods[i]}: {type(exc).__name__}: {exc}")

@@ -25,14 +25,10 @@ import numpy as np
 
 from .conventions import wrap_180_deg
 from .errormap import ErrorMap, ErrorMapError
+from .estimators import registry
 
 __all__ = ["FIGURES", "draw_figure", "save_figure", "save_all"]
 
-LABELS = {"zenith": "Zenith", "sm_asm": "SM-ASM", "symmetry": "Symmetry", "least_squares": "Least-squares",
-          "tilt_aware": "Tilt-aware LS"}
-STYLES = {"zenith": ("tab:blue", "-"), "sm_asm": ("tab:orange", "--"), "symmetry": ("tab:green", "-."),
-          "least_squares": ("tab:red", ":"), "tilt_aware": ("tab:purple", "-")}
-PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
 SIGN_NOTE = "error = estimated psi - true psi, folded to (-90, 90]"
 
 
@@ -44,11 +40,13 @@ def _plt():
 
 
 def _label(m):
-    return LABELS.get(m, m)
+    """The estimator class's ``label`` (the name for a method this build does not have)."""
+    return registry.label(m)
 
 
 def _style(m, k):
-    return STYLES.get(m, (f"C{k % 10}", "-"))
+    """The estimator class's ``style``, else the ``k``-th colour of matplotlib's cycle."""
+    return registry.style(m) or (f"C{k % 10}", "-")
 
 
 def _methods(m: ErrorMap, wanted=None) -> list[str]:
@@ -56,7 +54,7 @@ def _methods(m: ErrorMap, wanted=None) -> list[str]:
         for w in wanted:
             m.method_index(w)
         return list(wanted)
-    paper = [x for x in PAPER_METHODS if x in m.methods]
+    paper = [x for x in registry.paper_methods() if x in m.methods]
     return paper if paper else list(m.methods)
 
 
@@ -297,7 +295,8 @@ def fig13(m, opts):
 # --------------------------------------------------------------------------------------------
 def fig14(m, opts):
     plt = _plt()
-    method = opts.get("method") or ("zenith" if "zenith" in m.methods else m.methods[0])
+    # the paper's fig 14 shows its first approach (zenith)
+    method = opts.get("method") or next((x for x in registry.paper_methods() if x in m.methods), m.methods[0])
     i = m.method_index(method)
     ia = _node(m.sun_altitude_deg, opts.get("sun_altitude"), "sun altitude", _default_alt)
     _need(m.pitch_deg, "pitch", 2)

@@ -31,6 +31,7 @@ import yaml
 
 from .errors import CompassError
 from .specs import topics as T
+from .estimators import registry
 from .specs.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
 
 __all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
@@ -306,7 +307,8 @@ def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSp
     params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
-    pubs, subs = T.estimator_topics(method, site_source, needs_tilt=(method == "tilt_aware"), prior_source=prior)
+    pubs, subs = T.estimator_topics(method, site_source, needs_tilt=registry.get(method).needs_tilt,
+                                    prior_source=prior)
     return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
                     ("config/heading_estimator.yaml",), {"method": method, **params}, _used(remappings, pubs, subs),
                     tuple(pubs), tuple(subs))
@@ -326,11 +328,21 @@ def _evaluator(methods, direct, params: dict) -> NodeSpec:
                     tuple(pubs), tuple(subs))
 
 
+def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
+    """``methods`` split into those with a corrector and the direct ones (their class ``needs_tilt``: exact
+    at any tilt, no corrector); ``tilt_aware`` adds every registered method that needs the tilt."""
+    listed = tuple(dict.fromkeys(methods))
+    direct = tuple(m for m in listed if registry.get(m).needs_tilt)
+    if tilt_aware:
+        direct += tuple(m for m in registry.tilt_methods() if m not in direct)
+    return tuple(m for m in listed if m not in direct), direct
+
+
 def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
               turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
               exit_when_done=True, error_map="", report_dir="out/sim") -> Graph:
-    methods = tuple(methods)
-    all_methods = methods + (("tilt_aware",) if tilt_aware else ())
+    methods, direct = _split_direct(methods, tilt_aware)
+    all_methods = methods + direct
     if not all_methods:
         raise GraphError("the sim graph needs at least one method")
     sim_time = {"use_sim_time": True}
@@ -349,7 +361,7 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
                       tuple(pubs), tuple(subs))]
     nodes += [_estimator(m, dict(sim_time)) for m in all_methods]
     nodes += [_corrector(m, {**sim_time, "error_map": error_map}) for m in methods]
-    nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
+    nodes.append(_evaluator(all_methods, direct,
                             {**sim_time, "report_dir": report_dir, "time_scale": float(time_scale)}))
     nodes[0] = dataclasses.replace(nodes[0], parameters={**sim_params,
                                                          "wait_for_downstream": _downstream(nodes),
@@ -365,7 +377,7 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
                                         (T.IMU, imu_topic), (T.FIX, fix_topic)) if a != b)
     common = {"use_sim_time": bool(use_sim_time)}
     nodes = [_estimator(method, {**common, "site_source": site_source, "frame_id": frame_id}, remaps, namespace)]
-    if method != "tilt_aware":
+    if not registry.get(method).needs_tilt:          # a method that reads the tilt needs no corrector
         nodes.append(_corrector(method, {**common, "site_source": site_source, "correction": correction,
                                          "error_map": error_map}, remaps, namespace))
     probe = NodeSpec("x", "x", namespace, remappings=remaps)
@@ -376,12 +388,12 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
 
 def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix", error_map="",
                  report_dir="out/replay") -> Graph:
-    methods = tuple(methods)
-    all_methods = methods + (("tilt_aware",) if tilt_aware else ())
+    methods, direct = _split_direct(methods, tilt_aware)
+    all_methods = methods + direct
     common = {"use_sim_time": True}
     nodes = [_estimator(m, {**common, "site_source": site_source}) for m in all_methods]
     nodes += [_corrector(m, {**common, "site_source": site_source, "error_map": error_map}) for m in methods]
-    nodes.append(_evaluator(all_methods, ("tilt_aware",) if tilt_aware else (),
+    nodes.append(_evaluator(all_methods, direct,
                             {**common, "report_dir": report_dir, "latency_source": "clock"}))
     external = tuple("/" + t for t in (T.IMAGE, T.CAMERA_INFO, T.IMU, T.FIX, T.TRUTH)) + (T.CLOCK,)
     return Graph("replay", "a recorded run played with 'ros2 bag play --clock'", tuple(nodes),

@@ -180,7 +180,7 @@ class FrameInputs:
 class TiltAndPrior:
     """The per-image decisions of the ``heading_estimator`` node, shared with the offline replay.
 
-    Tilt (``tilt_aware`` only): pitch and roll of the IMU at the image stamp (``tilt``: the lookup
+    Tilt (methods whose class ``needs_tilt``, e.g. ``tilt_aware``): pitch and roll of the IMU at the image stamp (``tilt``: the lookup
     within the IMU tolerance). Prior bearing of camera +y, which resolves the 180 deg ambiguity:
     ``prior_source`` ``imu``: the bearing of the IMU attitude nearest the stamp within
     ``prior_max_age_s`` (``imu_near``; its coarse yaw is enough to pick the sun's side); ``last``: this
@@ -188,7 +188,9 @@ class TiltAndPrior:
     """
 
     def __init__(self, method: str, prior_source: str = "imu", prior_max_age_s: float = 2.0):
-        self.needs_tilt = method == "tilt_aware"
+        from .estimators import registry
+        cls = registry.find(method)
+        self.needs_tilt = bool(cls is not None and cls.needs_tilt)
         self.prior_source = prior_source
         self.prior_max_age_s = float(prior_max_age_s)
         self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading

@@ -44,6 +44,7 @@ from .bag import (BagError, BagReader, MessageError, Tally, TopicMap, decode_cam
                   decode_navsatfix, decode_orientation, default_topic_map, deserialize, stamp_ns)
 from .conventions import wrap_360_deg
 from .errors import CompassError
+from .estimators import registry
 
 __all__ = ["SyncedFrame", "BagPlan", "plan_bag", "iter_synced_frames", "ReplayConfig", "FramePipeline",
            "MethodRow", "ReplayResult", "replay_bag", "write_outputs", "ReplayError", "method_groups",
@@ -311,7 +312,7 @@ class ReplayConfig:
     ``stride: 8``). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
     ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
     corrected headings; see :func:`default_error_map`). ``direct_methods``: methods the corrector
-    does not touch (tilt_aware needs no correction).
+    does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
     """
 
     methods: tuple = ()
@@ -323,7 +324,7 @@ class ReplayConfig:
     sun_model: str = "spa"
     error_map: str | None = None
     correction_sigma_deg: float = 0.1
-    direct_methods: tuple = ("tilt_aware",)
+    direct_methods: tuple = field(default_factory=lambda: registry.tilt_methods())
 
     def method_list(self) -> list[str]:
         from .estimators import estimator_names
@@ -641,9 +642,6 @@ class ReplayResult:
         return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
-#: Relative CPU cost per frame of each method at the nodes' knobs (median ms per frame, ``make bench`` group
-#: replay, 2026-11-24, after the vectorised pass 2), used only to balance the methods across threads.
-_METHOD_COST = {"symmetry": 11.5, "sm_asm": 7.0, "least_squares": 3.0, "tilt_aware": 2.6, "zenith": 0.7}
 
 
 def method_groups(methods: list[str], workers: int) -> list[list[str]]:
@@ -652,10 +650,10 @@ def method_groups(methods: list[str], workers: int) -> list[list[str]]:
     workers = max(1, min(int(workers), len(methods)))
     groups: list[list[str]] = [[] for _ in range(workers)]
     load = [0.0] * workers
-    for m in sorted(methods, key=lambda m: -_METHOD_COST.get(m, 5.0)):
+    for m in sorted(methods, key=lambda m: -registry.relative_cost(m)):     # the estimator's relative_cost
         g = load.index(min(load))
         groups[g].append(m)
-        load[g] += _METHOD_COST.get(m, 5.0)
+        load[g] += registry.relative_cost(m)
     return [[m for m in methods if m in g] for g in groups if g]
 
 

@@ -305,7 +305,6 @@ def test_estimate_without_uncertainty_changes_nothing_but_the_uncertainty(method
     from polarization_compass.render import Renderer, SunDirection
     scene = _noisy_scene()
     est = make_estimator(method)
-    assert est.sigma_optional
     renderer = Renderer(scene)
     rng = np.random.default_rng(7)
     kinds = set()

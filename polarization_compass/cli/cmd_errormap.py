@@ -88,10 +88,9 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     knobs = {}
     if args.stride:                     # only for methods that have a stride knob (zenith reads its window)
-        from ..errormap import DEFAULT_SWEEP_KNOBS
-        from ..estimators import EstimatorError, make_estimator
+        from ..estimators import EstimatorError, make_estimator, registry
         for m in methods:
-            want = {**DEFAULT_SWEEP_KNOBS.get(m, {}), "stride": args.stride}
+            want = {**registry.sweep_knobs(m), "stride": args.stride}
             try:
                 make_estimator(m, **want)
             except EstimatorError:

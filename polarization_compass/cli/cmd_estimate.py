@@ -17,16 +17,16 @@ from ._checks import check_range, check_together
 
 
 def register(sub):
+    from ..estimators import registry
     p = sub.add_parser("estimate", help="heading from a frame file (JSON, one object per method)",
                        description="Estimate the heading from a frame written by 'render'. psi is the paper's yaw "
                                    "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
                                    "camera +y, yaw_enu the REP-103 yaw (90 - bearing).")
     p.add_argument("frame", metavar="FRAME.npz", help="frame file written by 'polarization-compass render'")
     p.add_argument("--method", default="all",
-                   help="zenith | sm_asm | symmetry | least_squares | tilt_aware | all (default), or a "
-                        "comma-separated list")
-    p.add_argument("--pitch", type=float, help="known camera pitch, deg (tilt_aware needs it; also used to "
-                                               "resolve the least-squares sign)")
+                   help=" | ".join(registry.names()) + " | all (default), or a comma-separated list")
+    p.add_argument("--pitch", type=float, help=f"known camera pitch, deg ({', '.join(registry.tilt_methods())} "
+                                               "needs it; also used to resolve the least-squares sign)")
     p.add_argument("--roll", type=float, help="known camera roll, deg")
     p.add_argument("--stride", type=int, help="use every N-th sensor pixel (overrides each method's default)")
     p.add_argument("--prior-bearing", type=float, help="prior true bearing of camera +y, deg: resolves the "
@@ -98,12 +98,11 @@ def run(args) -> int:
     frame = load_frame_npz(args.frame)
     camera = frame.camera
     sun_az, sun_alt, sun_src = _sun(frame.meta, args)
-    from ..estimators.base import _REGISTRY      # filled by _methods -> estimator_names()
+    from ..estimators import registry
     estimators = []
     used = set()
     for name in methods:
-        cls = _REGISTRY[name]
-        specs = cls.knob_specs() if hasattr(cls, "knob_specs") else {}
+        specs = registry.get(name).knob_specs()
         kn = {k: v for k, v in knobs.items() if k in specs}
         used.update(kn)
         if args.stride is not None and "stride" in specs:

@@ -31,10 +31,12 @@ def register(sub):
     p = sub.add_parser("sim", help="run the ROS 2 sim graph (simulator, estimators, correctors, evaluator)",
                        description="Start the sim node graph as processes (no ros2 launch needed), simulate a "
                                    "full turn at pitch -20 deg, print raw and corrected errors per method.")
-    p.add_argument("--methods", default="zenith,sm_asm,symmetry,least_squares",
+    from ..estimators import registry
+    p.add_argument("--methods", default=",".join(registry.paper_methods()),
                    help="paper methods, comma separated (each gets an estimator and a corrector); "
                         "unavailable ones are skipped with a note")
-    p.add_argument("--no-tilt-aware", action="store_true", help="do not run the tilt_aware estimator")
+    p.add_argument("--no-tilt-aware", action="store_true",
+                   help=f"do not run the {', '.join(registry.tilt_methods())} estimator")
     p.add_argument("--encoding", default="mono16", choices=("mono16", "mono8", "32FC1"))
     p.add_argument("--rate", type=float, default=10.0, help="camera frame rate, Hz (default 10)")
     p.add_argument("--turns", type=float, default=1.0, help="full turns (default 1)")
@@ -131,7 +133,7 @@ def ensure_error_map(path: Path, methods: list[str], pitch: float, roll: float, 
 # ------------------------------------------------------------------------------------------------
 def run(args) -> int:
     from .. import graphs
-    from ..specs.params import PAPER_METHODS
+    from ..specs.params import PAPER_METHODS, TILT_METHODS
     for name, v in (("rate", args.rate), ("turns", args.turns), ("time-scale", args.time_scale)):
         if not (math.isfinite(v) and v > 0):
             raise CompassError(f"--{name} must be a positive number, got {v}")
@@ -148,9 +150,9 @@ def run(args) -> int:
     bad = [m for m in wanted if m not in PAPER_METHODS]
     if bad:
         raise CompassError(f"--methods: {bad} are not paper methods ({', '.join(PAPER_METHODS)}); "
-                           "tilt_aware runs unless --no-tilt-aware")
+                           f"{', '.join(TILT_METHODS)} runs unless --no-tilt-aware")
     methods, missing = _available_methods(wanted)
-    tilt_aware = not args.no_tilt_aware and "tilt_aware" in _available_methods(["tilt_aware"])[0]
+    tilt_aware = not args.no_tilt_aware and bool(TILT_METHODS)
     if missing:
         print(f"sim: note: method(s) {', '.join(missing)} are not available in this build: skipped", flush=True)
     if not methods and not tilt_aware:
@@ -303,8 +305,9 @@ def _tail(logs: Path, name: str, n: int = 6) -> str:
 def format_table(summary: dict, realtime: bool = False) -> str:
     """The per-method table: raw and corrected error statistics (deg), frames and latency."""
     streams = summary.get("streams", {})
-    methods = sorted({k.split("/")[0] for k in streams},
-                     key=lambda m: (["zenith", "sm_asm", "symmetry", "least_squares", "tilt_aware"] + [m]).index(m))
+    from ..estimators import registry
+    order = list(registry.names())
+    methods = sorted({k.split("/")[0] for k in streams}, key=lambda m: (order + [m]).index(m))
     n = summary.get("truth_frames", 0)
     head = (f"{'method':<14} {'kind':<10} {'frames':>7} {'missed':>6} {'mean':>8} {'rms':>8} {'p95':>8} "
             f"{'max':>8} {'lat p95 ms':>10}")
@@ -314,7 +317,7 @@ def format_table(summary: dict, realtime: bool = False) -> str:
             d = streams.get(f"{m}/{kind}")
             if d is None:
                 continue
-            label = kind if m != "tilt_aware" else "tilt-aware"
+            label = "tilt-aware" if m in registry.tilt_methods() else kind     # its raw heading is final
             lines.append(f"{m:<14} {label:<10} {d['count']:>7d} {d['missed']:>6d} {d['mean']:>8.3f} {d['rms']:>8.3f} "
                          f"{d['p95']:>8.3f} {d['max']:>8.3f} {d.get('latency_ms_p95', 0.0):>10.1f}")
     nodes = summary.get("nodes", {})

@@ -12,6 +12,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
+from ..estimators.registry import MethodNames
+
 __all__ = ["Param", "validate_value", "SIMULATOR", "ESTIMATOR", "CORRECTOR", "EVALUATOR", "SPECS",
            "spec_by_name", "defaults", "layout_from_text", "knob_params", "KNOB_PREFIX", "SUN_PARAMS",
            "sun_source", "SITE_SOURCE", "apply_fix"]
@@ -190,8 +192,10 @@ def apply_fix(sun, diag, msg):
     return site
 
 
-PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
-ALL_METHODS = PAPER_METHODS + ("tilt_aware",)
+# Live views of the estimator registry: choices see a method registered after this module was imported.
+PAPER_METHODS = MethodNames(paper=True)
+ALL_METHODS = MethodNames()
+TILT_METHODS = MethodNames(needs_tilt=True)
 
 SIMULATOR = (
     Param("scene", "", "scene YAML (camera, sky, sensor, validity); empty: the embedded paper set-up. "
@@ -351,9 +355,9 @@ CORRECTOR = (
 )
 
 EVALUATOR = (
-    Param("methods", list(PAPER_METHODS) + ["tilt_aware"], "methods to evaluate", choices=ALL_METHODS,
+    Param("methods", list(PAPER_METHODS) + list(TILT_METHODS), "methods to evaluate", choices=ALL_METHODS,
           read_only=True),
-    Param("direct_methods", ["tilt_aware"], "methods without a corrector (only their raw topic is read)",
+    Param("direct_methods", list(TILT_METHODS), "methods without a corrector (only their raw topic is read)",
           choices=ALL_METHODS, read_only=True),
     Param("include_raw", True, "evaluate compass/<m>/heading_raw", read_only=True),
     Param("include_corrected", True, "evaluate compass/<m>/heading", read_only=True),
@@ -391,9 +395,8 @@ def knob_params(method: str) -> tuple:
 
     ``region`` and optional numbers become strings: ``""`` means None, a region is ``"x0,y0,w,h"``.
     """
-    from ..estimators import make_estimator
-    est = make_estimator(method)
-    specs = type(est).knob_specs() if hasattr(type(est), "knob_specs") else {}
+    from ..estimators import registry
+    specs = registry.get(method).knob_specs()
     out = []
     for name, k in sorted(specs.items()):
         lo = None if not math.isfinite(k.lo) else float(k.lo)
@@ -418,8 +421,8 @@ def knob_params(method: str) -> tuple:
 
 def knob_values(method: str, values: dict) -> dict:
     """Estimator knobs from ``knob.<name>`` parameter values (strings back to None / tuples / choices)."""
-    from ..estimators import make_estimator
-    specs = type(make_estimator(method)).knob_specs()
+    from ..estimators import registry
+    specs = registry.get(method).knob_specs()
     out = {}
     for name, k in specs.items():
         key = KNOB_PREFIX + name
