@@ -46,6 +46,7 @@ import numpy as np
 
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
+from polarization_compass.estimators import registry
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 
@@ -55,8 +56,6 @@ from .common import Unavailable, error_stats, optional_import, peak_memory, sing
 from .simulator import ALL_EFFECTS as ALL_SENSOR_EFFECTS, NOISE_ELECTRONS  # noqa: E402
 NOISE_DOP_MAX = 0.7
 TILT_LIMIT_DEG = 20.0
-#: Methods that need the tilt: always given the true pitch and roll (level conditions: 0, 0).
-TILT_METHODS = ("tilt_aware",)
 #: An estimate slower than this (s) is timed once per scene instead of ``cfg.repeats`` times.
 SLOW_ESTIMATE_S = 0.25
 
@@ -385,7 +384,7 @@ def _observation(frame, s, cond, camera, Observation, method=""):
     obs = Observation.from_frame(frame, camera=camera)
     if cond.correct:
         obs.prior_bearing_deg = (s["attitude"].bearing_deg + PRIOR_ERROR_DEG) % 360.0
-    if cond.give_tilt or method in TILT_METHODS:
+    if cond.give_tilt or method in registry.tilt_methods():   # always given the true pitch and roll
         obs.pitch_deg = s["attitude"].pitch_deg
         obs.roll_deg = s["attitude"].roll_deg
     if cond.occlude:

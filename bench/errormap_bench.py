@@ -28,7 +28,6 @@ import numpy as np
 
 from .common import Unavailable, optional_import
 
-METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
 TARGET_LIMIT_S = 120.0
 #: The target sweep's axes (deg): sun altitude, yaw, pitch (roll 0).
 TARGET_AXES = (np.arange(0.0, 50.1, 1.0), np.arange(-180.0, 176.1, 4.0), np.arange(-30.0, 30.1, 2.0))
@@ -53,7 +52,7 @@ def _timed(errormap, spec, workers: int):
 def run(cfg) -> dict:
     errormap = optional_import("polarization_compass.errormap")
     est = optional_import("polarization_compass.estimators")
-    methods = [m for m in est.estimator_names() if m in METHODS]
+    methods = list(est.registry.paper_methods())
     if not methods:
         raise Unavailable("the paper's four estimators are not registered yet")
     workers = max(1, os.cpu_count() or 1)

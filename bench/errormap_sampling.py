@@ -4,7 +4,7 @@ errors by < 0.05 deg compared with full resolution").
 For random cells of the tilt domain (sun altitude 0-50 deg, any yaw, |pitch| + |roll| <= 30 deg; every other
 cell pitch only, the target sweep's case), each of the paper's four methods is run through the sweep engine
 (:func:`polarization_compass.errormap.run_sweep`, so exactly what a map stores) twice: at the default sweep
-sampling (``errormap.DEFAULT_SWEEP_KNOBS``) and at full resolution (the estimator's defaults at stride 1; zenith
+sampling (each estimator's ``sweep_knobs``) and at full resolution (the estimator's defaults at stride 1; zenith
 reads its window at full resolution either way). Reported per method: the largest and mean |difference| of the
 error (folded mod 180 deg), cells whose status differs, pixels read, the full-resolution time per cell (render and
 estimate), and pass/fail against 0.05 deg.
@@ -25,7 +25,6 @@ import numpy as np
 
 from .common import Unavailable, optional_import
 
-METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
 TARGET_DEG = 0.05
 TILT_LIMIT_DEG = 30.0
 SUN_MAX_DEG = 50.0
@@ -62,7 +61,7 @@ def compare(methods, cells, scene=None) -> dict:
     errormap = optional_import("polarization_compass.errormap")
     per = {}
     for method in methods:
-        default = dict(errormap.DEFAULT_SWEEP_KNOBS.get(method, {}))
+        default = optional_import("polarization_compass.estimators.registry").sweep_knobs(method)
         runs = {}
         for label, knobs in (("default", default), ("full", full_resolution_knobs(method))):
             err, status, pixels = [], [], None
@@ -94,7 +93,7 @@ def compare(methods, cells, scene=None) -> dict:
 
 def run(cfg) -> dict:
     est = optional_import("polarization_compass.estimators")
-    methods = [m for m in est.estimator_names() if m in METHODS]
+    methods = list(est.registry.paper_methods())
     if not methods:
         raise Unavailable("the paper's four estimators are not registered yet")
     scene = None
@@ -123,7 +122,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args(argv)
     cells = random_cells(a.cells, a.seed)
-    per = compare(list(METHODS), cells)
+    from polarization_compass.estimators import registry
+    per = compare(list(registry.paper_methods()), cells)
     json.dump({"cells": a.cells, "seed": a.seed, "target_deg": TARGET_DEG, "per_method": per,
                "pass": all(v["pass"] for v in per.values())}, sys.stdout, indent=1)
     sys.stdout.write("\n")

@@ -53,7 +53,7 @@ def measure_method(front, mosaics, camera, pitch, roll, repeats: int) -> dict:
     """Time ``repeats`` front-end calls (demosaic + estimate) cycling through ``mosaics`` after one
     warm-up; returns timing statistics (total, demosaic, estimate) and the heading errors seen."""
     from .accuracy import heading_error_deg
-    tilt = front.method == "tilt_aware"
+    tilt = front.estimator.needs_tilt
     p, r = (pitch, roll) if tilt else (None, None)
 
     def once(k):
@@ -112,7 +112,7 @@ def run(cfg) -> dict:
             front = HeadingFrontEnd(m, demosaic="superpixel")
             row = {"method": m, "attitude": label, "pitch_deg": pitch, "roll_deg": roll,
                    "knobs": {k: (list(v) if isinstance(v, tuple) else v) for k, v in front.estimator.knobs.items()},
-                   "tilt_given": m == "tilt_aware"}
+                   "tilt_given": front.estimator.needs_tilt}
             row.update(measure_method(front, mosaics, cam, pitch, roll, repeats))
             row.update(judge(m, row["total"], full_size))
             rows.append(row)
