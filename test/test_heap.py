@@ -1,4 +1,4 @@
-"""polarization_compass.heap: large image buffers stay in the heap (fewer page faults per image)."""
+"""runtime.keep_large_buffers_in_heap: large image buffers stay in the heap (fewer page faults)."""
 import subprocess
 import sys
 
@@ -8,7 +8,7 @@ import pytest
 # alive while the next one is read (sizes vary by a few pages, as image messages with headers do).
 PROBE = r"""
 import io, resource, sys
-from polarization_compass.heap import keep_large_buffers_in_heap
+from polarization_compass.runtime import keep_large_buffers_in_heap
 if sys.argv[1] == "on":
     assert keep_large_buffers_in_heap()
 def faults():

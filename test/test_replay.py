@@ -589,7 +589,7 @@ def test_prefetch_keeps_order_reraises_in_place_and_stops_when_closed():
 
 def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
     import numba
-    from polarization_compass.replay import _openblas_handles, single_threaded_kernels
+    from polarization_compass.runtime import openblas_handles as _openblas_handles, single_threaded_kernels
     before = numba.get_num_threads()
     assert _openblas_handles(), "numpy's OpenBLAS not found"
     blas_before = [g() for _, g in _openblas_handles()]

@@ -26,7 +26,7 @@ import os
 import sys
 
 from ..errors import CompassError
-from ..heap import keep_large_buffers_in_heap
+from ..runtime import keep_large_buffers_in_heap
 
 __all__ = ["run_node", "ExitRequest", "keep_large_buffers_in_heap", "make_executor"]
 

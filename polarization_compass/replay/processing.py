@@ -1,0 +1,280 @@
+"""Per-frame processing: the nodes' chain for several methods at once (:class:`FramePipeline`), one
+:class:`MethodRow` per method and frame, and the ``tilt_corrector``'s correction (:class:`_Corrector`)."""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..bag import TopicMap
+from ..errors import CompassError
+from ..estimators import registry
+from .sync import SyncedFrame
+
+__all__ = ["ReplayError", "ReplayConfig", "MethodRow", "FramePipeline", "default_error_map"]
+
+
+class ReplayError(CompassError):
+    """Bad replay configuration."""
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    """How frames are processed; defaults are the nodes' shipped parameters (config/*.yaml).
+
+    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method; the nodes ship
+    ``stride: 8``). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
+    ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
+    corrected headings; see :func:`default_error_map`). ``direct_methods``: methods the corrector
+    does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
+    """
+
+    methods: tuple = ()
+    knobs: dict = field(default_factory=lambda: {"*": {"stride": 8}})
+    demosaic: str = "superpixel"
+    use_intensity: bool = False
+    prior_source: str = "imu"
+    prior_max_age_s: float = 2.0
+    sun_model: str = "spa"
+    error_map: str | None = None
+    correction_sigma_deg: float = 0.1
+    direct_methods: tuple = field(default_factory=lambda: registry.tilt_methods())
+
+    def method_list(self) -> list[str]:
+        from ..estimators import estimator_names
+        known = estimator_names()
+        ms = list(self.methods) or known
+        bad = [m for m in ms if m not in known]
+        if bad:
+            raise ReplayError(f"unknown method(s) {', '.join(bad)}; known: {', '.join(known)}")
+        return ms
+
+    def knobs_for(self, method: str) -> dict:
+        """Knobs of ``method``: the ``"*"`` entries it has (zenith has no stride, for example), then
+        its own entries (an unknown name there is an error of the estimator)."""
+        from ..estimators import estimator_knob_names
+        names = estimator_knob_names(method)
+        k = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
+        k.update(self.knobs.get(method, {}))
+        return k
+
+    def for_methods(self, methods) -> "ReplayConfig":
+        """This configuration for a subset of its methods (a worker's group): ``"*"`` keeps the knobs
+        one of them has, so that :meth:`check_knobs`, already passed by the whole set, passes again."""
+        from ..estimators import estimator_knob_names
+        names = set().union(*(estimator_knob_names(m) for m in methods))
+        knobs = {k: v for k, v in self.knobs.items() if k != "*"}
+        knobs["*"] = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
+        return dataclasses.replace(self, methods=tuple(methods), knobs=knobs)
+
+    def check_knobs(self) -> None:
+        """A ``"*"`` knob no selected method has is a typo, not a no-op."""
+        from ..estimators import estimator_knob_names
+        ms = self.method_list()
+        known = set().union(*(estimator_knob_names(m) for m in ms))
+        bad = sorted(set(self.knobs.get("*", {})) - known)
+        if bad:
+            raise ReplayError(f"unknown knob(s) {', '.join(bad)} for methods {', '.join(ms)}; "
+                              f"known: {', '.join(sorted(known))}")
+
+
+@dataclass(kw_only=True)
+class MethodRow:
+    """One method on one frame: the raw estimate, its tilt correction and the errors (deg).
+
+    Built by keyword only; a row of a frame that was not estimated (``bad_input``) leaves the estimate,
+    correction and error fields at their defaults (None, ``""``, 0 pixels).
+
+    ``raw_error_deg``/``corrected_error_deg``: estimated minus reference bearing, wrapped to (-180, 180]
+    (None when not evaluated: no reference, an ambiguous or failed estimate, no correction).
+    """
+
+    stamp_ns: int
+    method: str
+    status: str
+    reason: str
+    raw_bearing_deg: float | None = None
+    corrected_bearing_deg: float | None = None
+    correction_status: str = ""
+    reference_bearing_deg: float | None = None
+    raw_error_deg: float | None = None
+    corrected_error_deg: float | None = None
+    sigma_deg: float | None = None
+    pixels: int = 0
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+    sun_azimuth_deg: float = 0.0
+    sun_altitude_deg: float = 0.0
+    prior_bearing_deg: float | None = None
+
+    CSV_FIELDS = ("stamp_s", "time_s", "method", "status", "raw_bearing_deg", "corrected_bearing_deg",
+                  "reference_bearing_deg", "raw_error_deg", "corrected_error_deg", "correction_status",
+                  "sigma_deg", "pixels", "pitch_deg", "roll_deg", "sun_azimuth_deg", "sun_altitude_deg",
+                  "prior_bearing_deg", "reason")
+
+
+class FramePipeline:
+    """The nodes' per-frame chain for several methods at once (see the module docstring)."""
+
+    def __init__(self, config: ReplayConfig, topic_map: TopicMap):
+        from ..demosaic import layout_from_mapping
+        from ..pipeline import HeadingFrontEnd, TiltAndPrior
+        layout = layout_from_mapping(topic_map.mosaic)
+        self.config = config
+        config.check_knobs()
+        self.methods = config.method_list()
+        self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, layout.pol45_toward, config.demosaic,
+                                          config.use_intensity) for m in self.methods}
+        self.tilt_prior = {m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s) for m in self.methods}
+        self.sun = None
+        self.corrector = None
+        if config.error_map:
+            self.corrector = _make_corrector(config)
+        self.timing_ms: dict = {m: [] for m in self.methods}
+        self.timing_ms["observation"] = []
+
+    def _sun(self, frame: SyncedFrame):
+        from ..pipeline import SunSource
+        if self.sun is None:
+            self.sun = SunSource(*frame.site, model=self.config.sun_model)
+        else:
+            self.sun.set_site(*frame.site)
+        return self.sun.at_ns(frame.stamp_ns)
+
+    def process(self, frame: SyncedFrame) -> list[MethodRow]:
+        from ..pipeline import PipelineError
+        c = self.config
+        t_ns = frame.stamp_ns
+        rows = []
+        try:
+            sun_az, sun_alt = self._sun(frame)
+        except PipelineError as exc:
+            return [MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
+                              reference_bearing_deg=frame.true_bearing_deg) for m in self.methods]
+        tilt = frame.tilt
+        obs_cache: dict = {}
+        for m, front in self.fronts.items():
+            inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
+            pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
+            if inp.tilt_missing:
+                rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input",
+                                      reason="no IMU sample near the image stamp (tilt unknown)",
+                                      reference_bearing_deg=frame.true_bearing_deg, sun_azimuth_deg=sun_az,
+                                      sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+                continue
+            key = front.observation_key(frame.camera)
+            t0 = time.perf_counter()
+            try:
+                obs = obs_cache.get(key)
+                if obs is None:
+                    obs = front.observation(frame.mosaic, frame.camera, sun_az, sun_alt)
+                    obs_cache[key] = obs
+                    self.timing_ms["observation"].append((time.perf_counter() - t0) * 1e3)
+                    t0 = time.perf_counter()
+                result = front.estimator.estimate(dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll,
+                                                                      prior_bearing_deg=prior))
+            except CompassError as exc:
+                rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
+                                      reference_bearing_deg=frame.true_bearing_deg, pitch_deg=pitch, roll_deg=roll,
+                                      sun_azimuth_deg=sun_az, sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+                continue
+            self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
+            raw = result.bearing_deg if result.ok and not result.axial else None
+            self.tilt_prior[m].remember(t_ns, result)
+            corrected, cstatus = None, ""
+            if raw is not None and m not in c.direct_methods and self.corrector is not None:
+                corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
+            rows.append(MethodRow(stamp_ns=t_ns, method=m, status=result.status.value, reason=result.reason,
+                                  raw_bearing_deg=float(result.bearing_deg) if result.ok else None,
+                                  corrected_bearing_deg=corrected, correction_status=cstatus,
+                                  reference_bearing_deg=frame.true_bearing_deg, sigma_deg=result.sigma_deg,
+                                  pixels=result.pixels, pitch_deg=tilt.pitch_deg if tilt is not None else None,
+                                  roll_deg=tilt.roll_deg if tilt is not None else None, sun_azimuth_deg=sun_az,
+                                  sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+        return rows
+
+
+def default_error_map() -> str | None:
+    """The error map shipped with the package (the ``tilt_corrector`` node's default), if there is one."""
+    from ..correction import default_map_path
+    p = default_map_path()
+    return str(p) if p.is_file() else None
+
+
+def _make_corrector(config: ReplayConfig):
+    """The ``tilt_corrector`` node's correction as a :class:`_Corrector`."""
+    path = Path(config.error_map)
+    if not path.is_file():
+        raise ReplayError(f"error map {str(path)!r} does not exist: make one with `polarization-compass errormap "
+                          "--methods zenith,sm_asm,symmetry,least_squares --sun-altitude 0:50:5 --yaw -180:175:5 "
+                          "--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`")
+    return _Corrector(path)
+
+
+class _Corrector:
+    """``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None,
+    status)``: :meth:`TiltCorrector.correct_bearing` (the node's) at the IMU's pitch/roll; a heading without
+    an IMU tilt near its stamp is not corrected (``no_imu``).
+
+    With ``defer`` on, headings are queued (status ``pending``) and :meth:`resolve` corrects them all with
+    one vectorised inversion per method (:meth:`TiltCorrector.correct_bearings`, same numbers): an inversion
+    costs about 8 ms whether it holds one heading or a thousand, which made correction the largest cost of
+    an offline replay."""
+
+    PENDING = "pending"
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._map = None
+        self.correctors: dict = {}
+        self.defer = False
+        self.queue: list = []              # (row, method, raw, sun_az, sun_alt, pitch, roll)
+
+    def _get(self, method):
+        from ..correction import TiltCorrector
+        from ..errormap import ErrorMapError, load_error_map
+        if method not in self.correctors:
+            try:
+                if self._map is None:
+                    self._map = load_error_map(self.path)          # once for every method's corrector
+                self.correctors[method] = TiltCorrector(self._map, method)
+            except ErrorMapError as exc:
+                self.correctors[method] = str(exc)
+        return self.correctors[method]
+
+    def __call__(self, method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns):
+        if tilt is None:
+            return None, "no_imu"
+        if self.defer:
+            return None, self.PENDING          # the map is read when the queue is resolved
+        cor = self._get(method)
+        if isinstance(cor, str):
+            return None, "no_map"
+        corrected, c = cor.correct_bearing(raw_bearing_deg, sun_az, sun_alt, tilt.pitch_deg, tilt.roll_deg)
+        return corrected, c.status.value
+
+    def enqueue(self, row) -> None:
+        """Queue a row whose ``correction_status`` is ``pending``."""
+        self.queue.append(row)
+
+    def resolve(self) -> None:
+        """Correct every queued row in place (``corrected_bearing_deg``, ``correction_status``)."""
+        by_method: dict = {}
+        for row in self.queue:
+            by_method.setdefault(row.method, []).append(row)
+        for method, rows in by_method.items():
+            cor = self._get(method)
+            if isinstance(cor, str):                 # the map has no layer for this method
+                for r in rows:
+                    r.corrected_bearing_deg, r.correction_status = None, "no_map"
+                continue
+            cols = np.array([(r.raw_bearing_deg, r.sun_azimuth_deg, r.sun_altitude_deg, r.pitch_deg, r.roll_deg)
+                             for r in rows], dtype=float)
+            bearings, statuses = cor.correct_bearings(*cols.T)
+            for r, b, st in zip(rows, bearings, statuses):
+                r.corrected_bearing_deg = float(b) if st == "ok" else None
+                r.correction_status = st
+        self.queue = []

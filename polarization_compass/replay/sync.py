@@ -1,0 +1,294 @@
+"""Reading a bag: what it holds (:func:`plan_bag`) and its images paired with the auxiliary streams at
+their stamps (:func:`iter_synced_frames`; see :mod:`polarization_compass.replay`, "Reading")."""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..bag import (BagReader, MessageError, Tally, TopicMap, decode_camera_info, decode_mosaic, decode_navsatfix,
+                   decode_orientation, deserialize, stamp_ns)
+from ..conventions import wrap_360_deg
+
+__all__ = ["BagPlan", "plan_bag", "SyncedFrame", "prefetched", "iter_synced_frames"]
+
+
+@dataclass
+class BagPlan:
+    """What a bag holds for each role, checked before any processing.
+
+    ``present``: role -> message count on its topic; ``type_mismatch``: role -> type found;
+    ``problems``: one-line statements of what is missing and what that means; ``fatal``: problems
+    that leave nothing to compute (raised as one :class:`BagError`).
+    """
+
+    topics: dict
+    present: dict
+    type_mismatch: dict
+    problems: list
+    fatal: list
+
+
+def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
+    """Compare the bag's topics with the mapping."""
+    topics = reader.topics()
+    present, mismatch, problems, fatal = {}, {}, [], []
+    for role, spec in topic_map.topics.items():
+        found = topics.get(spec.topic)
+        present[role] = found[1] if found else 0
+        if found and found[0] != spec.type:
+            mismatch[role] = found[0]
+            problems.append(f"{role}: {spec.topic} has type {found[0]}, the mapping says {spec.type}: "
+                            "its messages are skipped (fix the type in the topic mapping)")
+    listing = ", ".join(f"{t} ({v[0].split('/')[-1]}, {v[1]})" for t, v in sorted(topics.items())) or "none"
+    usable = {r: present[r] > 0 and r not in mismatch for r in present}
+    if not usable["image"]:
+        fatal.append(f"no {topic_map.spec('image').type} messages on the image topic {topic_map.spec('image').topic}"
+                     f" (topics in the bag: {listing}); map yours with --topics")
+    if not usable["camera_info"]:
+        if topic_map.camera is None:
+            fatal.append(f"no camera_info on {topic_map.spec('camera_info').topic} and no 'camera:' fallback in "
+                         "the topic mapping: the pixels' viewing rays are unknown")
+        else:
+            problems.append("camera_info: none in the bag; using the mapping's 'camera:' intrinsics")
+    if not usable["navsatfix"]:
+        if topic_map.site is None:
+            fatal.append(f"no NavSatFix on {topic_map.spec('navsatfix').topic} and no 'site:' fallback in the "
+                         "topic mapping: the sun's position is unknown")
+        else:
+            problems.append("navsatfix: none in the bag; using the mapping's 'site:'")
+    if not usable["imu"]:
+        problems.append(f"imu: none on {topic_map.spec('imu').topic}: the tilt is unknown, so tilt_aware "
+                        "estimates, tilt corrections and the IMU prior are not available")
+    if not usable["reference"]:
+        problems.append(f"reference: none on {topic_map.spec('reference').topic}: headings are computed but "
+                        "their errors are not")
+    return BagPlan(topics, present, mismatch, problems, fatal)
+
+@dataclass
+class SyncedFrame:
+    """One image with everything needed to process it at the image's stamp.
+
+    ``tilt``: :class:`~polarization_compass.pipeline.CameraTilt` from the IMU within the mapping's
+    ``max_gap_s.imu`` of the stamp (the nodes' ``imu_tolerance_s``), or None; ``imu_near``: the same
+    within ``prior_max_age_s`` (its bearing, the IMU's coarse yaw, is the ``imu`` prior), or None.
+    ``true_bearing_deg``: reference bearing of camera +y, [0, 360), or None.
+    ``site``: (latitude_deg, longitude_deg, altitude_m). ``camera``: CameraModel.
+    """
+
+    stamp_ns: int
+    log_ns: int
+    mosaic: np.ndarray
+    camera: object
+    site: tuple
+    tilt: object
+    true_bearing_deg: float | None
+    imu_near: object = None
+
+
+def prefetched(iterable, depth: int = 8):
+    """Iterate ``iterable`` in a background thread, ``depth`` items ahead.
+
+    Reading a bag is mostly file reads and copies; the file reads release the GIL, so on a 2-core
+    machine they overlap with the processing of the previous frame. Exceptions (a truncated bag) are
+    re-raised here, in order; closing the generator early stops the thread.
+    """
+    import queue
+    import threading
+
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    done = object()
+
+    def run():
+        try:
+            for item in iterable:
+                while not stop.is_set():
+                    try:
+                        q.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            q.put(done)
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer
+            q.put(exc)
+
+    th = threading.Thread(target=run, name="bag-prefetch", daemon=True)
+    th.start()
+    try:
+        while True:
+            item = q.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        while th.is_alive():
+            try:
+                q.get_nowait()
+            except queue.Empty:
+                th.join(timeout=0.05)
+
+
+
+class _FrameSync:
+    """The state of :func:`iter_synced_frames`: the auxiliary streams buffered by header stamp, the latest
+    camera and site, and the images waiting inside the look-ahead. One step per message read:
+    :meth:`decode`, then :meth:`add_image` or :meth:`add_aux`, then :meth:`due` releases the images the
+    reader is ``lookahead_s`` past (:meth:`rest` at the end of the bag); :meth:`release` pairs one."""
+
+    def __init__(self, topic_map: TopicMap, tally: Tally, plan: BagPlan, prior_max_age_s: float):
+        from ..camera import CameraModel
+        from ..pipeline import AttitudeBuffer
+
+        self.topic_map, self.tally, self.plan = topic_map, tally, plan
+        self.wanted = {spec.topic: role for role, spec in topic_map.topics.items() if plan.present.get(role, 0) > 0}
+        keep_ns = int(max(10.0, 4 * topic_map.lookahead_s, 2 * prior_max_age_s) * 1e9)
+        self.imu, self.ref = AttitudeBuffer(keep_ns), AttitudeBuffer(keep_ns)
+        self.tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference")}
+        self.prior_tol_ns = int(prior_max_age_s * 1e9)
+        self.look_ns = int(topic_map.lookahead_s * 1e9)
+        self.R_body_cam = topic_map.R_body_cam_array
+        self.pending: deque = deque()          # [stamp_ns, log_ns, mosaic, camera | None, site | None]
+        self.seen_images: set = set()
+        self.newest_image = self.newest_fix = self.newest_info = None
+        self.camera = CameraModel(**topic_map.camera) if topic_map.camera is not None else None
+        self.site = None
+        if topic_map.site is not None:
+            s = topic_map.site
+            self.site = (float(s["latitude_deg"]), float(s["longitude_deg"]), float(s.get("altitude_m", 0.0)))
+        self.image_topic = topic_map.spec("image").topic
+
+    def decode(self, topic: str, role: str, mtype: str, raw):
+        """(stamp_ns, decoded value) of one message, or None when it is skipped (counted with a reason)."""
+        self.tally.read[topic] += 1
+        if role in self.plan.type_mismatch:
+            self.tally.skip(topic, "type_mismatch", f"{mtype} is not {self.topic_map.spec(role).type}")
+            return None
+        try:
+            msg = deserialize(raw, mtype)
+            t = stamp_ns(msg.header)
+            if role == "image":
+                value = decode_mosaic(msg)
+            elif role in ("imu", "reference"):
+                value = decode_orientation(msg)
+            elif role == "navsatfix":
+                value = decode_navsatfix(msg)
+            else:
+                value = decode_camera_info(msg, self.topic_map.pixel_pitch_um)
+        except MessageError as exc:
+            self.tally.skip(topic, exc.reason, exc.detail)
+            return None
+        return t, value
+
+    def add_image(self, topic: str, t: int, log_ns: int, mosaic: np.ndarray) -> bool:
+        """Queue an image; False (skipped, counted) for a second image with the same stamp."""
+        if t in self.seen_images:
+            self.tally.skip(topic, "duplicate_stamp", f"a second image stamped {t} ns")
+            return False
+        self.seen_images.add(t)
+        if self.newest_image is not None and t < self.newest_image:
+            self.tally.note(topic, "out_of_order")
+        self.newest_image = t if self.newest_image is None else max(self.newest_image, t)
+        # the camera and site as the node has them when this image arrives; refined by later
+        # messages inside the look-ahead only if none had arrived yet
+        self.pending.append([t, log_ns, mosaic, None, None])
+        return True
+
+    def add_aux(self, topic: str, role: str, t: int, value) -> None:
+        """Buffer an IMU or reference attitude; the newest NavSatFix and camera_info are kept."""
+        buf = self.imu if role == "imu" else self.ref if role == "reference" else None
+        newest = {"navsatfix": self.newest_fix, "camera_info": self.newest_info}.get(role) if buf is None \
+            else buf.newest_ns
+        if newest is not None and t < newest:
+            self.tally.note(topic, "out_of_order")
+        if buf is not None:
+            buf.add(t, value)
+        elif role == "navsatfix":
+            if self.newest_fix is None or t >= self.newest_fix:
+                self.newest_fix = t
+                self.site = value
+        else:
+            if self.newest_info is None or t >= self.newest_info:
+                self.newest_info = t
+                self.camera = value
+        self.tally.used[topic] += 1
+
+    def due(self, log_ns: int):
+        """Fill in the camera and site of queued images that had none, then yield the frames of the images
+        the reader (at receive time ``log_ns``) is more than the look-ahead past."""
+        for item in self.pending:
+            if item[3] is None and self.camera is not None:
+                item[3] = self.camera
+            if item[4] is None and self.site is not None:
+                item[4] = self.site
+        while self.pending and log_ns - self.pending[0][1] > self.look_ns:
+            f = self.release(self.pending.popleft())
+            if f is not None:
+                yield f
+
+    def rest(self):
+        """Yield the frames of every image still queued (end of the bag)."""
+        while self.pending:
+            f = self.release(self.pending.popleft())
+            if f is not None:
+                yield f
+
+    def release(self, item) -> SyncedFrame | None:
+        """The :class:`SyncedFrame` of a queued image, or None when it cannot be processed (counted)."""
+        from ..pipeline import camera_attitude_from_body_quat
+
+        tally, imu, ref, R_body_cam = self.tally, self.imu, self.ref, self.R_body_cam
+        t, log_ns, mosaic, cam, fix = item
+        cam = cam if cam is not None else self.camera
+        if cam is None:
+            tally.skip(self.image_topic, "no_camera_info", "no usable camera_info before this image")
+            return None
+        if (cam.height_px, cam.width_px) != mosaic.shape:
+            tally.skip(self.image_topic, "size_mismatch", f"image {mosaic.shape[1]}x{mosaic.shape[0]}, "
+                                                          f"camera_info {cam.width_px}x{cam.height_px}")
+            return None
+        where = fix if fix is not None else self.site
+        if where is None:
+            tally.skip(self.image_topic, "no_site", "no usable NavSatFix before this image")
+            return None
+        tilt = imu.camera_tilt(t, self.tol["imu"], R_body_cam) if len(imu) else None
+        near = imu.camera_tilt(t, self.prior_tol_ns, R_body_cam) if len(imu) else None
+        if tilt is None:
+            tally.note(self.image_topic, "no_imu_near_stamp")
+        hit = ref.at(t, self.tol["reference"]) if len(ref) else None
+        true_bearing = None
+        if hit is not None:
+            true_bearing = float(wrap_360_deg(camera_attitude_from_body_quat(hit[0], R_body_cam).bearing_deg))
+        else:
+            tally.note(self.image_topic, "no_reference_near_stamp")
+        tally.used[self.image_topic] += 1
+        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing, near)
+
+
+def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None,
+                       prior_max_age_s: float = 2.0):
+    """Yield :class:`SyncedFrame` for every usable image, in receive-time order (see the package doc).
+
+    Images that cannot be processed (no camera intrinsics, size not matching camera_info, duplicate
+    stamp, no site) are counted as skipped with a reason.
+    """
+    sync = _FrameSync(topic_map, tally, plan or plan_bag(reader, topic_map), prior_max_age_s)
+    for topic, mtype, log_ns, raw in prefetched(reader.messages(list(sync.wanted))):
+        role = sync.wanted[topic]
+        decoded = sync.decode(topic, role, mtype, raw)
+        if decoded is None:
+            continue                    # skipped: nothing new, nothing released
+        t, value = decoded
+        if role == "image":
+            if not sync.add_image(topic, t, log_ns, value):
+                continue
+        else:
+            sync.add_aux(topic, role, t, value)
+        yield from sync.due(log_ns)
+    yield from sync.rest()
