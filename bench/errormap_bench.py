@@ -4,7 +4,7 @@
 The paper's "1.4e5 sets of simulation experiments" are scenes each evaluated by the four approaches, so the
 target counts cells, not estimates. The target sweep here is sun altitude 0:50:1 deg x yaw -180:176:4 x pitch
 -30:30:2 x roll 0 = 51 x 90 x 31 = 142 290 cells. Running it takes several minutes, so a sub-grid spread over
-the same domain runs through the real engine (``errormap.run_sweep``, all cores, pool start-up included):
+the same domain runs through the real engine (``sweep.run_sweep``, all cores, pool start-up included):
 every 5th sun altitude x every 3rd pitch x every yaw (11 x 11 x 90 = 10 890 cells, 43 560 estimates, in full
 mode; the cost of a cell grows with the sun's altitude and the tilt, so the sub-grid keeps both ends).
 
@@ -40,17 +40,17 @@ def _children_cpu_s() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def _timed(errormap, spec, workers: int):
+def _timed(sweep, spec, workers: int):
     """(wall s, CPU s of this process and of the pool's workers, map) of one sweep; the workers are reaped
     when it returns."""
     c0 = _children_cpu_s() + time.process_time()
     t0 = time.perf_counter()
-    m = errormap.run_sweep(spec, out=None, workers=workers, progress=False)
+    m = sweep.run_sweep(spec, out=None, workers=workers, progress=False)
     return time.perf_counter() - t0, _children_cpu_s() + time.process_time() - c0, m
 
 
 def run(cfg) -> dict:
-    errormap = optional_import("polarization_compass.errormap")
+    sweep = optional_import("polarization_compass.sweep")
     est = optional_import("polarization_compass.estimators")
     methods = list(est.registry.paper_methods())
     if not methods:
@@ -67,15 +67,15 @@ def run(cfg) -> dict:
     else:
         ka, kp, ky = SAMPLE_STEPS["full" if cfg.mode == "full" else "quick"]
         s_alt, s_yaw, s_pitch = alt[::ka], yaw[::ky], pitch[::kp]
-    sample = errormap.SweepSpec(list(methods), s_alt, s_yaw, s_pitch, [0.0], scene=scene)
+    sample = sweep.SweepSpec(list(methods), s_alt, s_yaw, s_pitch, [0.0], scene=scene)
     cells = sample.cell_count() // len(methods)
     # start-up: one cell per worker (each worker gets a chunk, so every worker starts)
-    probe = errormap.SweepSpec(list(methods), [30.0], [0.0], pitch[:workers], [0.0], scene=scene)
+    probe = sweep.SweepSpec(list(methods), [30.0], [0.0], pitch[:workers], [0.0], scene=scene)
     probe_cells = probe.cell_count() // len(methods)
-    _timed(errormap, probe, workers)              # warm-up: numba's cache (compiled on a first run), file cache
-    startup_s, probe_cpu_s, _ = _timed(errormap, probe, workers)
+    _timed(sweep, probe, workers)              # warm-up: numba's cache (compiled on a first run), file cache
+    startup_s, probe_cpu_s, _ = _timed(sweep, probe, workers)
     load_before = os.getloadavg()
-    wall_s, cpu_s, m = _timed(errormap, sample, workers)
+    wall_s, cpu_s, m = _timed(sweep, sample, workers)
     load_after = os.getloadavg()
     rate = cells / max(wall_s - startup_s, 1e-9)
     projected_s = startup_s + target_cells / rate

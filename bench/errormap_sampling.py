@@ -3,7 +3,7 @@ errors by < 0.05 deg compared with full resolution").
 
 For random cells of the tilt domain (sun altitude 0-50 deg, any yaw, |pitch| + |roll| <= 30 deg; every other
 cell pitch only, the target sweep's case), each of the paper's four methods is run through the sweep engine
-(:func:`polarization_compass.errormap.run_sweep`, so exactly what a map stores) twice: at the default sweep
+(:func:`polarization_compass.sweep.run_sweep`, so exactly what a map stores) twice: at the default sweep
 sampling (each estimator's ``sweep_knobs``) and at full resolution (the estimator's defaults at stride 1; zenith
 reads its window at full resolution either way). Reported per method: the largest and mean |difference| of the
 error (folded mod 180 deg), cells whose status differs, pixels read, the full-resolution time per cell (render and
@@ -58,7 +58,7 @@ def full_resolution_knobs(method: str) -> dict:
 
 def compare(methods, cells, scene=None) -> dict:
     """Per method: the errors at the default sampling and at full resolution over ``cells``."""
-    errormap = optional_import("polarization_compass.errormap")
+    sweep = optional_import("polarization_compass.sweep")
     per = {}
     for method in methods:
         default = optional_import("polarization_compass.estimators.registry").sweep_knobs(method)
@@ -67,9 +67,9 @@ def compare(methods, cells, scene=None) -> dict:
             err, status, pixels = [], [], None
             t0 = time.perf_counter()
             for h, y, p, r in cells:
-                spec = errormap.SweepSpec([method], [h], [y], [p], [r], scene=scene, knobs={method: knobs},
-                                          full_domain=True)
-                m = errormap.run_sweep(spec, workers=1, progress=False)
+                spec = sweep.SweepSpec([method], [h], [y], [p], [r], scene=scene, knobs={method: knobs},
+                                       full_domain=True)
+                m = sweep.run_sweep(spec, workers=1, progress=False)
                 err.append(float(m.error_deg.reshape(-1)[0]))
                 status.append(int(m.status.reshape(-1)[0]))
                 pixels = m.meta["sampling"][method]["pixel_count"]

@@ -306,15 +306,15 @@ def test_tilted_corrected_condition_uses_an_error_map(tmp_path):
     import numpy as np
 
     from bench.common import BenchConfig
-    from polarization_compass import errormap
+    from polarization_compass import sweep
     from polarization_compass.scene import Scene
     cam = CameraModel(width_px=192, height_px=160)
-    spec = errormap.SweepSpec(methods=("least_squares",), sun_altitude_deg=np.array([10.0, 30.0, 50.0]),
-                              yaw_deg=np.arange(-180.0, 180.0, 30.0), pitch_deg=np.arange(-20.0, 20.1, 10.0),
-                              roll_deg=np.arange(-20.0, 20.1, 10.0), scene=Scene(camera=cam),
-                              knobs={"least_squares": {"stride": 8}}, tilt_limit_deg=20.0)
+    spec = sweep.SweepSpec(methods=("least_squares",), sun_altitude_deg=np.array([10.0, 30.0, 50.0]),
+                           yaw_deg=np.arange(-180.0, 180.0, 30.0), pitch_deg=np.arange(-20.0, 20.1, 10.0),
+                           roll_deg=np.arange(-20.0, 20.1, 10.0), scene=Scene(camera=cam),
+                           knobs={"least_squares": {"stride": 8}}, tilt_limit_deg=20.0)
     path = tmp_path / "map.npz"
-    errormap.run_sweep(spec, out=path, workers=1, progress=False)
+    sweep.run_sweep(spec, out=path, workers=1, progress=False)
     cfg = BenchConfig.quick(tiny=True, scenes=4, repeats=1, conditions=("tilted", "tilted_corrected"),
                             methods=("least_squares",), error_map=str(path))
     res = accuracy.run(cfg)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from polarization_compass import conventions as cv
-from polarization_compass import errormap
-from polarization_compass.errormap import (STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, SweepSpec, load_error_map,
-                                           parse_range, run_sweep, tilt_domain_mask)
+from polarization_compass import sweep
+from polarization_compass.errormap import STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, load_error_map, tilt_domain_mask
+from polarization_compass.sweep import SweepSpec, parse_range, run_sweep
 from polarization_compass.estimators import estimator_names
 
 PAPER_METHODS = ("zenith", "sm_asm", "symmetry", "least_squares")
@@ -365,13 +365,13 @@ def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch):
                      [0.0, 5.0])
     whole = run_sweep(spec, workers=1, progress=False)
     computed = []                                   # every chunk evaluation, in this process (workers=1)
-    real_chunk = errormap._Evaluator.chunk
+    real_chunk = sweep._Evaluator.chunk
 
     def counting_chunk(self, ia, ip):
         computed.append((ia, ip))
         return real_chunk(self, ia, ip)
 
-    monkeypatch.setattr(errormap._Evaluator, "chunk", counting_chunk)
+    monkeypatch.setattr(sweep._Evaluator, "chunk", counting_chunk)
     out = tmp_path / "m.npz"
     assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=2) is None    # "interrupted"
     part = tmp_path / "m.npz.partial"

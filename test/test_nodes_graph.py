@@ -28,7 +28,7 @@ RATE_DEG_S, N_FRAMES = 36.0, 10               # --turns 0.1 at 36 deg/s and 10 H
 
 
 def _tiny_map(path, scene_file):
-    from polarization_compass.errormap import SweepSpec, run_sweep
+    from polarization_compass.sweep import SweepSpec, run_sweep
     from polarization_compass.scene import load_scene
     # the run: sun 30.6 deg, pitch -20, roll 0 (+ IMU noise): three nodes per tilt axis, 30 deg of yaw
     spec = SweepSpec(("least_squares",), np.array([25.0, 30.0, 35.0]), np.arange(-180.0, 180.0, 30.0),

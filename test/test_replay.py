@@ -152,7 +152,7 @@ def test_replay_reproduces_the_notes_tilt_error_curve(alt20):
 @pytest.fixture(scope="module")
 def small_map(tmp_path_factory):
     """An error map of least squares for the test camera around the alt20 run (errormap's own sweep)."""
-    from polarization_compass.errormap import SweepSpec, run_sweep
+    from polarization_compass.sweep import SweepSpec, run_sweep
     out = tmp_path_factory.mktemp("map") / "map.npz"
     spec = SweepSpec(methods=("least_squares",), sun_altitude_deg=np.array([18.0, 22.0]),
                      yaw_deg=np.arange(-180.0, 180.0, 20.0), pitch_deg=np.array([-22.0, -18.0]),

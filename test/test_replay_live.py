@@ -61,7 +61,7 @@ def _ns(text: str) -> int:
 @pytest.fixture(scope="module")
 def run_and_map(tmp_path_factory):
     """A 2 s turn at pitch -20 (sun ~30 deg high) and a least-squares error map around it."""
-    from polarization_compass.errormap import SweepSpec, run_sweep
+    from polarization_compass.sweep import SweepSpec, run_sweep
     d = tmp_path_factory.mktemp("live")
     scene = load_scene(None).replace(camera=CAMERA, attitude=CameraAttitude(200.0, 0.0, 0.0))
     record_sim(scene, RecordSpec(duration_s=2.0, rate_hz=10.0, turns=0.5), d / "bag")

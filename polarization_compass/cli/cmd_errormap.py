@@ -69,7 +69,7 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..errormap import SweepSpec, parse_range, run_sweep
+    from ..sweep import SweepSpec, parse_range, run_sweep
     from ..scene import load_scene
 
     methods = parse_methods(args.methods)

@@ -41,4 +41,4 @@ from .threads import ReplayResult, default_workers, method_groups, replay_bag
 
 __all__ = ["SyncedFrame", "BagPlan", "plan_bag", "iter_synced_frames", "ReplayConfig", "FramePipeline",
            "MethodRow", "ReplayResult", "replay_bag", "write_outputs", "ReplayError", "method_groups",
-           "default_workers", "plot_replay", "prefetched"]
+           "default_workers", "plot_replay", "prefetched", "default_error_map"]

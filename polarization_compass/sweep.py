@@ -1,0 +1,480 @@
+"""The sweep engine that computes tilt error maps (:class:`~polarization_compass.errormap.ErrorMap`; paper,
+section 3): what to compute (:class:`SweepSpec`, :func:`parse_range` for its axes), per-process
+evaluators, checkpoints and the driver (:func:`run_sweep`).
+
+Sweeps run in chunks of one (sun altitude, pitch) pair each, on all cores (``multiprocessing``, spawn,
+numba limited to one thread per worker), with a tqdm progress bar on stderr. Each finished chunk is
+checkpointed to ``<out>.partial/``; an interrupted sweep rerun with the same arguments continues where it
+stopped and gives the same map (noise seeds are a function of the cell, not of the order of work).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .conventions import CameraAttitude, fold_axial_deg
+from .errormap import (AXES, DEFAULT_TILT_LIMIT_DEG, FORMAT_VERSION, STATUS_CODES, STATUS_ESTIMATOR_ERROR,
+                       STATUS_LEGEND, STATUS_NOT_COMPUTED, STATUS_OTHER, ErrorMap, ErrorMapError, tilt_domain_mask)
+from .errors import CompassError
+
+__all__ = ["SweepSpec", "parse_range", "run_sweep"]
+
+# --------------------------------------------------------------------------------------------
+# Axes
+# --------------------------------------------------------------------------------------------
+def parse_range(text: str, name: str = "range", lo: float = -math.inf, hi: float = math.inf,
+                max_count: int = 100000) -> np.ndarray:
+    """``"A:B:STEP"`` (inclusive of B when B - A is a multiple of STEP) or a single value ``"A"``.
+
+    Returns a float64 strictly increasing array. Raises :class:`ErrorMapError` with the reason.
+    """
+    parts = str(text).split(":")
+    try:
+        nums = [float(p) for p in parts]
+    except ValueError:
+        raise ErrorMapError(f"--{name} must be A:B:STEP or a single number, got {text!r}") from None
+    if not all(math.isfinite(v) for v in nums):
+        raise ErrorMapError(f"--{name} must be finite, got {text!r}")
+    if len(nums) == 1:
+        values = np.array(nums)
+    elif len(nums) == 3:
+        a, b, step = nums
+        if step <= 0:
+            raise ErrorMapError(f"--{name}: STEP must be > 0, got {step}")
+        if b < a:
+            raise ErrorMapError(f"--{name}: B must be >= A, got {text!r}")
+        n = int(math.floor((b - a) / step + 1e-9)) + 1
+        if n > max_count:
+            raise ErrorMapError(f"--{name}: {n} values is more than {max_count}")
+        values = a + step * np.arange(n)
+        values = np.round(values, 9)          # 0.1 * 3 -> 0.3, not 0.30000000000000004
+    else:
+        raise ErrorMapError(f"--{name} must be A:B:STEP or a single number, got {text!r}")
+    if values.min() < lo or values.max() > hi:
+        raise ErrorMapError(f"--{name} values must lie in [{lo}, {hi}], got {text!r}")
+    return values.astype(float)
+
+
+
+# --------------------------------------------------------------------------------------------
+# Sweep specification
+# --------------------------------------------------------------------------------------------
+@dataclass
+class SweepSpec:
+    """What to compute. ``scene`` is a :class:`~polarization_compass.scene.Scene` (its attitude, sun and
+    pixel selection are overridden per cell); ``knobs`` maps a method to its estimator knobs (absent: the
+    estimator class's ``sweep_knobs``, chosen so that errors change by < 0.05 deg against full resolution,
+    see docs/error-maps.md)."""
+
+    methods: tuple
+    sun_altitude_deg: np.ndarray
+    yaw_deg: np.ndarray
+    pitch_deg: np.ndarray
+    roll_deg: np.ndarray
+    scene: object = None
+    knobs: dict = field(default_factory=dict)
+    full_domain: bool = False
+    tilt_limit_deg: float = DEFAULT_TILT_LIMIT_DEG
+    support: int = 2
+
+    def __post_init__(self):
+        from .scene import default_scene
+        if self.scene is None:
+            self.scene = default_scene()
+        self.methods = tuple(self.methods)
+        if not self.methods:
+            raise ErrorMapError("no methods to sweep")
+        for name in AXES:
+            a = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
+            if a.size > 1 and not np.all(np.diff(a) > 0):
+                raise ErrorMapError(f"{name} must be strictly increasing")
+            if not np.all(np.isfinite(a)):
+                raise ErrorMapError(f"{name} must be finite")
+            setattr(self, name, a)
+        from .estimators import registry
+        self.knobs = {m: dict(self.knobs[m]) if m in self.knobs else registry.sweep_knobs(m) for m in self.methods}
+        if self.scene.effects:
+            self._contiguous_pixels()
+
+    def _contiguous_pixels(self) -> None:
+        """A scene with sensor effects renders a mosaic, which needs contiguous pixels (the renderer
+        refuses strided selections): such sweeps read every pixel of each method's block (stride 1),
+        which is slow but what a noisy frame is."""
+        from .estimators import make_estimator
+        cam = self.scene.camera
+        for m in self.methods:
+            k = self.knobs[m]
+            try:
+                sel = make_estimator(m, **k).pixels_needed(cam)
+            except CompassError:
+                continue                      # reported when the sweep builds its estimators
+            if sel.mode in ("stride", "region") and sel.stride > 1:
+                cand = {**k, "stride": 1}
+                try:
+                    make_estimator(m, **cand)
+                except CompassError:
+                    continue
+                self.knobs[m] = cand
+
+    @property
+    def shape(self) -> tuple:
+        return (len(self.methods), self.sun_altitude_deg.size, self.yaw_deg.size, self.pitch_deg.size,
+                self.roll_deg.size)
+
+    def tilt_mask(self) -> np.ndarray:
+        """(pitches, rolls) bool: nodes to compute."""
+        if self.full_domain:
+            return np.ones((self.pitch_deg.size, self.roll_deg.size), dtype=bool)
+        return tilt_domain_mask(self.pitch_deg, self.roll_deg, self.tilt_limit_deg, support=self.support)
+
+    def chunks(self) -> list[tuple[int, int]]:
+        """(sun altitude index, pitch index) pairs that have at least one node to compute."""
+        mask = self.tilt_mask()
+        return [(ia, ip) for ia in range(self.sun_altitude_deg.size) for ip in range(self.pitch_deg.size)
+                if mask[ip].any()]
+
+    def cell_count(self) -> int:
+        """Number of (method, cell) estimates the sweep runs."""
+        return int(len(self.methods) * self.sun_altitude_deg.size * self.yaw_deg.size * self.tilt_mask().sum())
+
+    def to_meta(self) -> dict:
+        from . import __version__
+        return {
+            "format_version": FORMAT_VERSION,
+            "package_version": __version__,
+            "scene": self.scene.to_dict(),
+            "sampling": {m: {"knobs": self.knobs[m]} for m in self.methods},
+            "domain": {"rule": "full" if self.full_domain else
+                       "|pitch|+|roll| <= limit, plus the grid nodes within `support` steps of it "
+                       "(what interpolation inside it reads)",
+                       "tilt_limit_deg": self.tilt_limit_deg, "full_domain": self.full_domain,
+                       "support": self.support},
+            "sun_azimuth_deg": 0.0,
+            "error_definition": "fold_axial(estimated psi - true psi), deg, in (-90, 90]; bearing == psi",
+            "status_codes": STATUS_LEGEND,
+        }
+
+    def digest(self) -> str:
+        """Identifies a sweep for resuming: same digest, same cells and values."""
+        meta = self.to_meta()
+        meta.pop("package_version", None)
+        key = {"meta": meta, "methods": list(self.methods),
+               **{k: [float(x) for x in getattr(self, k)] for k in AXES}}
+        return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
+
+
+# --------------------------------------------------------------------------------------------
+# Workers
+# --------------------------------------------------------------------------------------------
+class _Evaluator:
+    """Per-process state: one estimator per method and one renderer per distinct pixel selection.
+
+    A noise-free cell is rendered with :meth:`Renderer.render_sky` (the sky arrays only: no Frame, no
+    metadata) from attitude matrices computed for all yaws of a chunk at once; methods that read the same
+    pixels share the render. (One render of the union of the selections was tried: it saves ~40 us per cell
+    but is not bit for bit the same as each selection's own render when numba splits the loop over threads
+    differently.) A scene with sensor effects renders full frames (the noise of a cell comes from its seed).
+    Every method skips its uncertainty (``estimate(obs, sigma=False)``): a map stores psi's error and the
+    status only.
+    """
+
+    def __init__(self, spec: SweepSpec):
+        from .estimators import make_estimator
+        from .render import Renderer
+        self.spec = spec
+        self.estimators = [make_estimator(m, **spec.knobs[m]) for m in spec.methods]
+        camera = spec.scene.camera
+        self.groups: list[tuple[object, list[int]]] = []      # (renderer, method indices)
+        by_sel: dict = {}
+        for i, est in enumerate(self.estimators):
+            sel = est.pixels_needed(camera)
+            if sel not in by_sel:
+                by_sel[sel] = len(self.groups)
+                self.groups.append((Renderer(spec.scene, pixels=sel), []))
+            self.groups[by_sel[sel]][1].append(i)
+        self.noisy = bool(spec.scene.effects)
+        self.errors: list[str] = []
+
+    def sampling(self) -> dict:
+        out = {}
+        for renderer, idx in self.groups:
+            for i in idx:
+                out[self.spec.methods[i]] = {"knobs": self.spec.knobs[self.spec.methods[i]],
+                                             "pixels": renderer.selection.describe(),
+                                             "pixel_count": int(renderer.pixels.count)}
+        return out
+
+    def _seed(self, ia, iy, ip, ir) -> int:
+        h = hashlib.blake2b(f"{self.spec.scene.seed}:{ia}:{iy}:{ip}:{ir}".encode(), digest_size=8).digest()
+        return int.from_bytes(h, "little") & 0x7FFFFFFF
+
+    def _frames(self, sun_cam, zenith_cam):
+        """(pixels, method indices, aop, dop, valid, intensity) per pixel selection for one noise-free cell."""
+        out = []
+        for renderer, idx in self.groups:
+            aop, dop, valid, inten = renderer.render_sky(sun_cam, zenith_cam)
+            shape = renderer.pixels.shape
+            out.append((renderer.pixels, idx, aop.reshape(shape), dop.reshape(shape), valid.reshape(shape),
+                        None if inten is None else inten.reshape(shape)))
+        return out
+
+    def _noisy_frames(self, att, sun, seed):
+        """The same for a scene with sensor effects: full frames, noise from the cell's seed (the pixels are the
+        frame's demosaiced ones)."""
+        out = []
+        for renderer, idx in self.groups:
+            f = renderer.render(attitude=att, sun=sun, seed=seed)
+            out.append((f.pixels, idx, f.aop_rad, f.dop, f.valid, f.intensity))
+        return out
+
+    def chunk(self, ia: int, ip: int):
+        """Errors and status (methods, yaws, rolls) for sun altitude ``ia`` and pitch ``ip``."""
+        from .conventions import R_enu_cam_from_attitude, enu_direction
+        from .estimators.base import Observation
+        from .render import SunDirection
+        spec = self.spec
+        camera = spec.scene.camera
+        M, Y, R = len(spec.methods), spec.yaw_deg.size, spec.roll_deg.size
+        err = np.zeros((M, Y, R), dtype=float)
+        status = np.full((M, Y, R), STATUS_NOT_COMPUTED, dtype=np.int8)
+        rolls = np.nonzero(spec.tilt_mask()[ip])[0].tolist()
+        h = float(spec.sun_altitude_deg[ia])
+        pitch = float(spec.pitch_deg[ip])
+        sun = SunDirection(0.0, h)
+        sun_enu = enu_direction(0.0, h)
+        geometry = {}
+        for ir in rolls:
+            # bearing == psi (sun at azimuth 0): the rotations R of every yaw at once, and the camera-frame sun
+            # R^T s and zenith R^T (0, 0, 1) that Renderer.render computes
+            Rs = R_enu_cam_from_attitude(spec.yaw_deg, pitch, float(spec.roll_deg[ir]))
+            geometry[ir] = (np.matmul(np.swapaxes(Rs, 1, 2), sun_enu), Rs[:, 2, :].copy())
+        for iy, psi in enumerate(spec.yaw_deg.tolist()):
+            for ir in rolls:
+                roll = float(spec.roll_deg[ir])
+                if self.noisy:
+                    frames = self._noisy_frames(CameraAttitude(psi, pitch, roll), sun, self._seed(ia, iy, ip, ir))
+                else:
+                    frames = self._frames(geometry[ir][0][iy], geometry[ir][1][iy])
+                for px, idx, aop, dop, valid, inten in frames:
+                    obs = Observation(aop, dop, valid, px.rays_cam, px.x_px, px.y_px, camera, 0.0, h, inten,
+                                      pitch, roll, None)
+                    for i in idx:
+                        err[i, iy, ir], status[i, iy, ir] = self._one(i, obs, psi)
+        return err, status
+
+    def _one(self, i: int, obs, psi_true: float):
+        try:
+            est = self.estimators[i]
+            res = est.estimate(obs, sigma=False)
+        except Exception as exc:  # noqa: BLE001 - one bad cell must not kill an hour-long sweep; reported
+            if len(self.errors) < 5:
+                self.errors.append(f"{self.spec.methods[i]}: {type(exc).__name__}: {exc}")
+            return 0.0, STATUS_ESTIMATOR_ERROR
+        code = STATUS_CODES.get(getattr(res.status, "value", str(res.status)), STATUS_OTHER)
+        if code in (0, 1):
+            if res.psi_deg is None or not math.isfinite(res.psi_deg):
+                return 0.0, STATUS_ESTIMATOR_ERROR
+            return fold_axial_deg(float(res.psi_deg) - psi_true), code
+        return 0.0, code
+
+
+_WORKER: _Evaluator | None = None
+_WORKER_INIT_ERROR: BaseException | None = None
+
+
+def _worker_init(spec: SweepSpec):
+    # A Pool whose initializer raises respawns workers forever: keep the exception, raise it per task.
+    global _WORKER, _WORKER_INIT_ERROR
+    try:
+        import numba
+        numba.set_num_threads(1)
+        _WORKER = _Evaluator(spec)
+    except BaseException as exc:  # noqa: BLE001 - re-raised in _worker_chunk, i.e. in the parent
+        _WORKER_INIT_ERROR = exc
+
+
+def _worker_chunk(key):
+    if _WORKER_INIT_ERROR is not None:
+        raise _WORKER_INIT_ERROR
+    ia, ip = key
+    err, status = _WORKER.chunk(ia, ip)
+    errors, _WORKER.errors = _WORKER.errors, []
+    return ia, ip, err, status, errors
+
+
+# --------------------------------------------------------------------------------------------
+# Checkpoints
+# --------------------------------------------------------------------------------------------
+def _partial_dir(out: Path) -> Path:
+    return out.with_name(out.name + ".partial")
+
+
+def _chunk_path(d: Path, ia: int, ip: int) -> Path:
+    return d / f"chunk_{ia:04d}_{ip:04d}.npz"
+
+
+def _save_chunk(d: Path, ia, ip, err, status):
+    p = _chunk_path(d, ia, ip)
+    tmp = p.with_name(p.name + ".tmp.npz")
+    np.savez(tmp, error_deg=err, status=status)
+    os.replace(tmp, p)
+
+
+def _load_chunk(d: Path, ia, ip, shape):
+    p = _chunk_path(d, ia, ip)
+    try:
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+            err, status = z["error_deg"], z["status"]
+        if err.shape != shape or status.shape != shape or not np.all(np.isfinite(err)):
+            return None
+        return err, status
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
+        return None                  # a chunk torn by a kill: recompute it
+
+
+def _open_partial(d: Path, spec: SweepSpec) -> None:
+    digest = spec.digest()
+    stamp = d / "sweep.json"
+    if d.exists():
+        try:
+            old = json.loads(stamp.read_text()).get("digest")
+        except (OSError, ValueError):
+            old = None
+        if old != digest and not any(d.glob("chunk_*.npz")):
+            shutil.rmtree(d)                   # nothing finished there: start afresh
+        elif old != digest:
+            raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene); "
+                                f"delete it or choose another --out")
+        if d.exists():
+            return
+    d.mkdir(parents=True)
+    stamp.write_text(json.dumps({"digest": digest, "shape": list(spec.shape)}))
+
+
+# --------------------------------------------------------------------------------------------
+# Driver
+# --------------------------------------------------------------------------------------------
+def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
+              resume: bool = True, max_chunks: int | None = None, float32: bool = False) -> ErrorMap | None:
+    """Compute the map. With ``out``, checkpoints chunks in ``<out>.partial/`` and writes ``out`` at the end.
+
+    ``workers``: processes (default: all cores; 1 runs in this process). ``max_chunks`` stops after that
+    many new chunks (tests of resuming) and returns None. A KeyboardInterrupt keeps finished chunks.
+    """
+    out_path = Path(out) if out is not None else None
+    part = None
+    if out_path is not None:
+        part = _partial_dir(out_path)
+        if part.exists() and not resume:
+            shutil.rmtree(part)
+        _open_partial(part, spec)
+    M, A, Y, P, R = spec.shape
+    err = np.zeros(spec.shape, dtype=float)
+    status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
+    todo = []
+    mask = spec.tilt_mask()
+    for ia, ip in spec.chunks():
+        got = _load_chunk(part, ia, ip, (M, Y, R)) if part is not None and _chunk_path(part, ia, ip).exists() \
+            else None
+        if got is None:
+            todo.append((ia, ip))
+        else:
+            err[:, ia, :, ip, :], status[:, ia, :, ip, :] = got
+    per_chunk = np.array([M * Y * int(mask[ip].sum()) for _, ip in todo])
+    total = int(per_chunk.sum())
+    n_workers = max(1, int(workers if workers else (os.cpu_count() or 1)))
+    n_workers = min(n_workers, max(1, len(todo)))
+    errors: list[str] = []
+    t0 = time.perf_counter()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
+                   desc=f"errormap ({n_workers} worker{'s' if n_workers > 1 else ''})")
+    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
+    done = 0
+    sampling = None
+
+    def accept(ia, ip, e, s, errs):
+        nonlocal done
+        err[:, ia, :, ip, :] = e
+        status[:, ia, :, ip, :] = s
+        if part is not None:
+            _save_chunk(part, ia, ip, e, s)
+        errors.extend(errs)
+        done += 1
+        if bar is not None:
+            bar.update(M * Y * int(mask[ip].sum()))
+
+    try:
+        if n_workers == 1 or limit == 0:
+            ev = _Evaluator(spec)
+            sampling = ev.sampling()
+            for ia, ip in todo[:limit]:
+                e, s = ev.chunk(ia, ip)
+                accept(ia, ip, e, s, ev.errors)
+                ev.errors = []
+        else:
+            sampling = _Evaluator(spec).sampling()
+            _run_pool(spec, todo[:limit], n_workers, accept)
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        if part is not None:
+            print(f"errormap: interrupted after {done} new chunk(s); finished chunks are kept in {part}; "
+                  f"rerun the same command to resume", file=sys.stderr)
+        raise
+    if bar is not None:
+        bar.close()
+    if errors:
+        print(f"errormap: warning: estimator exceptions (status {STATUS_ESTIMATOR_ERROR}), first: "
+              + "; ".join(errors[:3]), file=sys.stderr)
+    if limit < len(todo):
+        return None
+    meta = spec.to_meta()
+    meta["sampling"] = sampling
+    meta["cells_estimated"] = spec.cell_count()
+    meta["elapsed_s_last_run"] = round(time.perf_counter() - t0, 3)
+    meta["workers"] = n_workers
+    m = ErrorMap(err, status, spec.methods, spec.sun_altitude_deg, spec.yaw_deg, spec.pitch_deg,
+                 spec.roll_deg, meta)
+    if out_path is not None:
+        m.save(out_path, float32=float32)
+        shutil.rmtree(part, ignore_errors=True)
+    return m
+
+
+def _run_pool(spec, todo, n_workers, accept):
+    import multiprocessing as mp
+    ctx = mp.get_context("spawn")      # numba's thread pool and BLAS are not fork-safe once started
+    saved = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                            "NUMBA_NUM_THREADS")}
+    for k in saved:
+        os.environ[k] = "1"            # inherited by the spawned workers only
+    try:
+        pool = ctx.Pool(n_workers, initializer=_worker_init, initargs=(spec,))
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    try:
+        for ia, ip, e, s, errs in pool.imap_unordered(_worker_chunk, todo, chunksize=1):
+            accept(ia, ip, e, s, errs)
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
