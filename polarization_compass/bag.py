@@ -44,16 +44,15 @@ from pathlib import Path
 import numpy as np
 
 from .camera import CameraError, CameraModel
-from .conventions import (QuaternionError, R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, matrix_to_quat,
-                          quat_to_matrix, validate_quaternion)
+from .conventions import QuaternionError, R_BODY_CAM_DEFAULT, validate_quaternion
 from .errors import CompassError
 
 __all__ = [
     "BagError", "MessageError", "TopicSpec", "TopicMap", "load_topic_map", "default_topic_map", "ROLES",
     "ROLE_TYPES", "Tally", "BagReader", "BagWriter", "typestore", "stamp_ns", "stamp_from_ns",
     "decode_mosaic", "decode_camera_info", "decode_orientation", "decode_navsatfix", "encode_mosaic",
-    "encode_camera_info", "encode_imu", "encode_quaternion_stamped", "encode_navsatfix", "encode_clock",
-    "camera_attitude_from_quat", "quat_from_camera_attitude", "utc_from_ns",
+    "encode_camera_info", "encode_imu", "encode_quaternion_stamped", "encode_navsatfix",
+    "utc_from_ns",
 ]
 
 ROLES = ("image", "camera_info", "imu", "reference", "navsatfix")
@@ -425,19 +424,6 @@ def decode_navsatfix(msg) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
-def camera_attitude_from_quat(q_enu_body, R_body_cam=R_BODY_CAM_DEFAULT):
-    """Camera attitude (eq 21 bearing/pitch/roll) of a body orientation quaternion (x, y, z, w) in ENU."""
-    R_enu_cam = quat_to_matrix(np.asarray(q_enu_body, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
-    return attitude_from_R_enu_cam(R_enu_cam)
-
-
-def quat_from_camera_attitude(att, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
-    """Body orientation quaternion (x, y, z, w) in ENU for a camera attitude (inverse of the above)."""
-    from .conventions import R_enu_cam_from_attitude
-    R_enu_cam = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
-    return matrix_to_quat(R_enu_cam @ np.asarray(R_body_cam, dtype=float).T)
-
-
 # --------------------------------------------------------------------------------------------
 # Encoding (numpy -> rosbags message), what a driver / GNSS / IMU would publish
 # --------------------------------------------------------------------------------------------
@@ -506,10 +492,6 @@ def encode_navsatfix(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, fr
     return ts["sensor_msgs/msg/NavSatFix"](header=_header(t_ns, frame_id), status=status, latitude=float(lat_deg),
                                            longitude=float(lon_deg), altitude=float(alt_m),
                                            position_covariance=cov, position_covariance_type=2)
-
-
-def encode_clock(t_ns: int):
-    return typestore().types["rosgraph_msgs/msg/Clock"](clock=stamp_from_ns(t_ns))
 
 
 # --------------------------------------------------------------------------------------------
@@ -706,7 +688,3 @@ class BagWriter:
     def write_raw(self, role: str, raw: bytes, log_time_ns: int) -> None:
         self._writer.write(self._conns[role], int(log_time_ns), raw)
         self.counts[role] += 1
-
-
-def scene_camera_fields(camera: CameraModel) -> dict:
-    return {k: v for k, v in dataclasses.asdict(camera).items() if v is not None}

@@ -46,6 +46,7 @@ __all__ = [
     "quat_to_matrix", "matrix_to_quat", "validate_quaternion", "QuaternionError",
     "R_BODY_CAM_DEFAULT", "aop_from_evector_cam_rad", "evector_cam_from_aop", "axial_mean_rad",
     "axial_difference_deg", "CameraAttitude",
+    "camera_attitude_from_body_quat", "R_enu_body_from_camera_attitude", "body_quat_from_camera_attitude",
 ]
 
 
@@ -312,6 +313,38 @@ def yaw_enu_quaternion(yaw_enu_rad):
 R_BODY_CAM_DEFAULT = np.array([[0.0, 1.0, 0.0],
                                [-1.0, 0.0, 0.0],
                                [0.0, 0.0, 1.0]])
+
+
+# --------------------------------------------------------------------------------------------
+# Body <-> camera attitude (R_enu_cam = R_enu_body @ R_body_cam)
+# --------------------------------------------------------------------------------------------
+def camera_attitude_from_body_quat(q_enu_body_xyzw, R_body_cam=R_BODY_CAM_DEFAULT) -> CameraAttitude:
+    """Eq 21 camera attitude of a body orientation.
+
+    ``q_enu_body_xyzw``: quaternion (x, y, z, w) of the body in ENU (REP-103, what an IMU publishes);
+    ``R_body_cam``: 3x3 mounting, camera axes in the body frame (default :data:`R_BODY_CAM_DEFAULT`).
+    Returns :class:`CameraAttitude` (bearing, pitch, roll; deg) of ``R_enu_body @ R_body_cam``
+    (paper eq 21).
+    """
+    R_enu_cam = quat_to_matrix(np.asarray(q_enu_body_xyzw, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
+    return attitude_from_R_enu_cam(R_enu_cam)
+
+
+def R_enu_body_from_camera_attitude(att: CameraAttitude, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
+    """``R_enu_body = R_enu_cam @ R_body_cam^T`` of a camera attitude (the inverse of
+    :func:`camera_attitude_from_body_quat`).
+
+    ``att``: :class:`CameraAttitude` (eq 21 bearing, pitch, roll; deg); ``R_body_cam``: 3x3 mounting.
+    Returns the 3x3 rotation from body to ENU.
+    """
+    R_enu_cam = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
+    return R_enu_cam @ np.asarray(R_body_cam, dtype=float).T
+
+
+def body_quat_from_camera_attitude(att: CameraAttitude, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
+    """Body orientation quaternion (x, y, z, w) in ENU of a camera attitude (w >= 0): the quaternion of
+    :func:`R_enu_body_from_camera_attitude`."""
+    return matrix_to_quat(R_enu_body_from_camera_attitude(att, R_body_cam))
 
 
 # --------------------------------------------------------------------------------------------

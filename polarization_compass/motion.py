@@ -12,11 +12,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
+from .conventions import CameraAttitude, rot_x, rot_y, rot_z, wrap_360_deg
 
-from .conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, rot_x, rot_y, rot_z, wrap_360_deg
-
-__all__ = ["MotionProfile", "body_from_camera", "frame_times_ns", "imu_reading"]
+__all__ = ["MotionProfile", "frame_times_ns", "imu_reading"]
 
 
 @dataclass(frozen=True)
@@ -48,11 +46,6 @@ class MotionProfile:
     def yaw_rate_enu_rad_s(self) -> float:
         """REP-103 yaw rate (counter-clockwise positive) of the turn."""
         return -math.radians(self.turn_rate_deg_s)
-
-
-def body_from_camera(att: CameraAttitude, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
-    """``R_enu_body`` of a camera attitude: ``R_enu_cam @ R_body_cam^T``."""
-    return R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg) @ np.asarray(R_body_cam).T
 
 
 def frame_times_ns(start_ns: int, rate_hz: float, total_s: float | None, k: int) -> int | None:

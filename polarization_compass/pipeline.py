@@ -17,11 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import CameraModel
-from .conventions import R_BODY_CAM_DEFAULT, attitude_from_R_enu_cam, quat_to_matrix
+from .conventions import R_BODY_CAM_DEFAULT, camera_attitude_from_body_quat
 from .demosaic import IMX250MZR_LAYOUT
 from .errors import CompassError
 
-__all__ = ["AttitudeBuffer", "CameraTilt", "camera_attitude_from_body_quat", "SunSource", "HeadingFrontEnd",
+__all__ = ["AttitudeBuffer", "CameraTilt", "SunSource", "HeadingFrontEnd",
            "PipelineError", "warm_up", "TiltAndPrior", "FrameInputs"]
 
 
@@ -32,12 +32,6 @@ class PipelineError(CompassError):
 # ------------------------------------------------------------------------------------------------
 # Attitude history
 # ------------------------------------------------------------------------------------------------
-def camera_attitude_from_body_quat(q_xyzw, R_body_cam=R_BODY_CAM_DEFAULT):
-    """Eq 21 camera attitude (bearing, pitch, roll; deg) of a body orientation quaternion in ENU."""
-    R_enu_cam = quat_to_matrix(np.asarray(q_xyzw, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
-    return attitude_from_R_enu_cam(R_enu_cam)
-
-
 @dataclass(frozen=True)
 class CameraTilt:
     """The camera attitude at an image stamp and how it was obtained."""

@@ -32,7 +32,7 @@ import numpy as np
 
 from .bag import (BagError, BagWriter, TopicMap, default_topic_map, encode_camera_info, encode_imu,
                   encode_mosaic, encode_navsatfix, ns_from_utc)
-from .conventions import matrix_to_quat, yaw_enu_quaternion
+from .conventions import R_enu_body_from_camera_attitude, matrix_to_quat, yaw_enu_quaternion
 from .errors import CompassError
 
 __all__ = ["RecordSpec", "record_sim", "FIG17_PITCH_DEG"]
@@ -102,7 +102,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
     Returns a summary: frames and messages per topic, the start stamp, the tilt used, and the true
     camera bearing per image stamp (``truth``: {stamp_ns: bearing_deg}) for tests.
     """
-    from .motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
+    from .motion import MotionProfile, frame_times_ns, imu_reading
     from .pipeline import SunSource
     from .render import Renderer, SunDirection
     from .camera import PixelSelection
@@ -164,7 +164,7 @@ def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, 
         for n, (log_ns, _, role, t, k) in enumerate(events):
             t_rel_s = (t - start_ns) / 1e9
             att = profile.attitude(t_rel_s)
-            R_enu_body = body_from_camera(att)
+            R_enu_body = R_enu_body_from_camera_attitude(att)
             if role == "camera_info":
                 w.write("camera_info", encode_camera_info(scene.camera, t, "camera_optical_frame"), log_ns)
             elif role == "image":

@@ -23,7 +23,7 @@ from . import instrumentation as instr
 from .camera import PixelSelection, SelectedPixels, select_pixels
 from .conventions import CameraAttitude, R_enu_cam_from_attitude, bearing_to_psi_deg, enu_direction
 from .scene import Scene
-from .sky import make_sky_model
+from .sky_models import make_sky_model
 
 __all__ = ["Frame", "Renderer", "SunDirection", "render"]
 

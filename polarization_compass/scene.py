@@ -235,7 +235,8 @@ def scene_from_dict(d: dict) -> Scene:
     scene = Scene(str(d.get("name", base.name)), site, t, sun_model, sun_fixed, att, cam, pixels,
                   dict(sky), dict(radiance) if radiance else None, validity, dict(sensor), seed)
     # fail early on bad model parameters, not at the first frame
-    from .sky import SkyModelError, make_sky_model
+    from .sky import SkyModelError
+    from .sky_models import make_sky_model
     try:
         make_sky_model(scene.sky)
     except SkyModelError as exc:

@@ -12,52 +12,25 @@ the millions of rays.
 Models
 ------
 ``rayleigh``          eqs 11-19 via the cross product ``E = S x P`` (physics notes 1), ``dop_max``.
-``berry_dennis_lee``  neutral-point model (see ``sky_bdl``), registered there.
+``berry_dennis_lee``  neutral-point model (see ``sky_bdl``).
 
-Register a model with :func:`register_sky_model`; build one from a scene's ``sky`` mapping with
-:func:`make_sky_model`.
+The models by name, and building one from a scene's ``sky`` mapping, are
+:mod:`~polarization_compass.sky_models` (:func:`~polarization_compass.sky_models.make_sky_model`).
 """
 from __future__ import annotations
 
 import math
-from typing import Callable
-
 import numpy as np
 from numba import njit, prange
 
 from .errors import CompassError
 
-__all__ = ["RayleighSky", "make_sky_model", "register_sky_model", "SkyModelError", "rayleigh_reference",
+__all__ = ["RayleighSky", "SkyModelError", "rayleigh_reference",
            "axial_atan2_f32", "axial_atan2_array", "validity_kernel"]
 
 
 class SkyModelError(CompassError):
     """Unknown sky model or out-of-range parameter."""
-
-
-_REGISTRY: dict[str, Callable[..., object]] = {}
-
-
-def register_sky_model(name: str):
-    def deco(factory):
-        _REGISTRY[name] = factory
-        return factory
-    return deco
-
-
-def make_sky_model(config: dict | None):
-    """Build a sky model from a mapping like ``{"model": "rayleigh", "dop_max": 0.75}``."""
-    cfg = dict(config or {"model": "rayleigh"})
-    name = cfg.pop("model", "rayleigh")
-    if name not in _REGISTRY:
-        # models living in their own modules register on import
-        from . import sky_bdl  # noqa: F401
-    if name not in _REGISTRY:
-        raise SkyModelError(f"unknown sky model {name!r}; known: {', '.join(sorted(_REGISTRY))}")
-    try:
-        return _REGISTRY[name](**cfg)
-    except TypeError as exc:
-        raise SkyModelError(f"bad parameters for sky model {name!r}: {exc}") from None
 
 
 def _check_dop_max(dop_max) -> float:
@@ -152,7 +125,6 @@ def axial_atan2_array(x, y, out):  # pragma: no cover - compiled
         of[i] = axial_atan2_f32(xf[i], yf[i])
 
 
-@register_sky_model("rayleigh")
 class RayleighSky:
     """Single-scattering Rayleigh sky (eqs 11-19). ``dop_max`` in (0, 1]."""
 

@@ -64,7 +64,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .sky import SkyModelError, _check_dop_max, axial_atan2_f32, register_sky_model
+from .sky import SkyModelError, _check_dop_max, axial_atan2_f32
 
 __all__ = ["BerryDennisLeeSky", "neutral_points", "SEPARATION_RANGE_DEG"]
 
@@ -142,7 +142,6 @@ def _bdl_kernel(rays, bx, by, bz, rx_, ry_, rz_, sx, sy, sz, zx, zy, zz, dop_max
         dop[i] = dv if ok else zero
 
 
-@register_sky_model("berry_dennis_lee")
 class BerryDennisLeeSky:
     """Berry-Dennis-Lee neutral-point sky. ``separation_deg`` in [0, 40], ``dop_max`` in (0, 1]."""
 

@@ -10,7 +10,7 @@ import yaml
 
 from polarization_compass import bag as B
 from polarization_compass.camera import CameraModel
-from polarization_compass.conventions import CameraAttitude
+from polarization_compass.conventions import CameraAttitude, body_quat_from_camera_attitude, camera_attitude_from_body_quat
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -187,10 +187,10 @@ def _zyx_yaw_deg(q):
 
 @pytest.mark.parametrize("bearing, pitch, roll", [(0, 0, 0), (30, -20, 0), (200, -16.3, -9.9), (359, 10, 29.1)])
 def test_body_quaternion_yaw_is_90_minus_camera_bearing_even_when_tilted(bearing, pitch, roll):
-    q = B.quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
+    q = body_quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
     yaw = _zyx_yaw_deg(q)                                           # REP-103 yaw (ZYX Euler)
     assert math.remainder(yaw - (90 - bearing), 360) == pytest.approx(0, abs=1e-9)
-    att = B.camera_attitude_from_quat(q)
+    att = camera_attitude_from_body_quat(q)
     assert (att.pitch_deg, att.roll_deg) == pytest.approx((pitch, roll), abs=1e-9)
     assert math.remainder(att.bearing_deg - bearing, 360) == pytest.approx(0, abs=1e-9)
 
@@ -198,12 +198,12 @@ def test_body_quaternion_yaw_is_90_minus_camera_bearing_even_when_tilted(bearing
 def test_level_body_pointing_north_has_camera_bearing_zero():
     # REP-103 yaw 90 deg (x forward to North): q = (0, 0, sin 45, cos 45); camera +y is forward
     q = [0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)]
-    att = B.camera_attitude_from_quat(q)
+    att = camera_attitude_from_body_quat(q)
     assert math.remainder(att.bearing_deg, 360) == pytest.approx(0, abs=1e-12)
 
 
 def test_orientation_decoding_reasons():
-    q = B.quat_from_camera_attitude(CameraAttitude(10, 5, 0))
+    q = body_quat_from_camera_attitude(CameraAttitude(10, 5, 0))
     imu = B.encode_imu(q, 0, "imu", (1e-4, 1e-4, 1.0))
     np.testing.assert_allclose(B.decode_orientation(imu), q, atol=1e-12)
     np.testing.assert_allclose(B.decode_orientation(B.encode_quaternion_stamped(q, 0, "b")), q, atol=1e-12)

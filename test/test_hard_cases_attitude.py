@@ -13,7 +13,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from polarization_compass import conventions as cv
-from polarization_compass.bag import MessageError, camera_attitude_from_quat, decode_orientation
+from polarization_compass.bag import MessageError, decode_orientation
+from polarization_compass.conventions import camera_attitude_from_body_quat
 
 
 class _Q:
@@ -53,7 +54,7 @@ def test_quaternions_within_the_unit_tolerance_are_normalised():
 def test_q_and_minus_q_are_the_same_attitude():
     q = np.array([0.1, -0.2, 0.3, -0.9])
     q /= np.linalg.norm(q)
-    a, b = camera_attitude_from_quat(q), camera_attitude_from_quat(-q)
+    a, b = camera_attitude_from_body_quat(q), camera_attitude_from_body_quat(-q)
     assert (a.bearing_deg, a.pitch_deg, a.roll_deg) == pytest.approx((b.bearing_deg, b.pitch_deg, b.roll_deg), abs=1e-9)
 
 

@@ -45,8 +45,8 @@ def ideal_mosaic(bearing, pitch, roll, sun_az, sun_alt, cam=CAM):
 
 
 def body_quat(bearing, pitch, roll):
-    from polarization_compass.bag import quat_from_camera_attitude
-    return quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
+    from polarization_compass.conventions import body_quat_from_camera_attitude
+    return body_quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
 
 
 def imu_msg(t_ns, q, cov0=1e-4):

@@ -34,8 +34,8 @@ def sun(site, t_ns):
 
 
 def body_quat(bearing, pitch, roll):
-    from polarization_compass.bag import quat_from_camera_attitude
-    return quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
+    from polarization_compass.conventions import body_quat_from_camera_attitude
+    return body_quat_from_camera_attitude(CameraAttitude(bearing, pitch, roll))
 
 
 def imu_msg(t_ns, q):

@@ -10,12 +10,12 @@ from hypothesis import strategies as st
 
 from polarization_compass.bag import decode_camera_info, decode_mosaic, stamp_ns
 from polarization_compass.camera import CameraModel
-from polarization_compass.conventions import CameraAttitude
+from polarization_compass.conventions import CameraAttitude, R_enu_body_from_camera_attitude, camera_attitude_from_body_quat
 from polarization_compass.nodes import msgs
-from polarization_compass.motion import MotionProfile, body_from_camera, frame_times_ns
+from polarization_compass.motion import MotionProfile, frame_times_ns
 from polarization_compass.specs.params import (CORRECTOR, ESTIMATOR, EVALUATOR, SIMULATOR, knob_params, knob_values,
                                                layout_from_text, validate_value)
-from polarization_compass.pipeline import AttitudeBuffer, HeadingFrontEnd, SunSource, camera_attitude_from_body_quat
+from polarization_compass.pipeline import AttitudeBuffer, HeadingFrontEnd, SunSource
 
 SMALL_CAM = CameraModel("pinhole", 612, 512, 4.0, 13.8, 13.8)     # the paper's field of view, 1/16 the pixels
 
@@ -83,7 +83,7 @@ def test_camera_info_round_trip(model):
 
 
 def test_attitude_imu_carries_the_rotation_and_gravity():
-    R = body_from_camera(CameraAttitude(30.0, -20.0, 5.0))
+    R = R_enu_body_from_camera_attitude(CameraAttitude(30.0, -20.0, 5.0))
     m = msgs.attitude_imu(0, "base_link", R, (1e-6, 1e-6, 1e-2), [0, 0, 0.1], R.T @ [0, 0, 9.8])
     q = np.array([m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w])
     # rotate body x by q (v' = q v q*) with the textbook formula and compare with R's first column
@@ -214,11 +214,11 @@ def test_one_turn_at_ten_degrees_per_second_is_360_frames_one_degree_apart():
     assert MotionProfile(turn_rate_deg_s=0.0, turns=1.0).total_s() is None
 
 
-def test_body_from_camera_puts_camera_y_on_body_x():
+def test_R_enu_body_from_camera_attitude_puts_camera_y_on_body_x():
     att = CameraAttitude(123.0, -20.0, 7.0)
     from polarization_compass.conventions import R_enu_cam_from_attitude
     Rc = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
-    Rb = body_from_camera(att)
+    Rb = R_enu_body_from_camera_attitude(att)
     assert np.allclose(Rb[:, 0], Rc[:, 1]) and np.allclose(Rb[:, 2], Rc[:, 2]) and np.allclose(Rb[:, 1], -Rc[:, 0])
 
 

@@ -18,7 +18,7 @@ import pytest
 
 from polarization_compass import bag as B
 from polarization_compass.camera import CameraModel
-from polarization_compass.conventions import CameraAttitude
+from polarization_compass.conventions import CameraAttitude, camera_attitude_from_body_quat
 from polarization_compass.recording import RecordSpec, record_sim
 from polarization_compass.replay import FramePipeline, ReplayConfig, iter_synced_frames, plan_bag, replay_bag
 from polarization_compass.scene import load_scene
@@ -99,11 +99,11 @@ def test_record_sim_writes_what_a_rig_records(alt20, storage):
             elif topic == "/ground_truth/heading":
                 # reference = the motion's closed form: bearing = start + 360 deg * t / duration
                 want = (az + 360.0 * (t - start) / 3.6e9) % 360.0
-                b = B.camera_attitude_from_quat(B.decode_orientation(msg)).bearing_deg
+                b = camera_attitude_from_body_quat(B.decode_orientation(msg)).bearing_deg
                 assert math.remainder(b - want, 360.0) == pytest.approx(0.0, abs=1e-6)
                 assert msg.header.frame_id == "base_link" and msg.angular_velocity_covariance[0] == -1
             elif topic == "/imu/data":
-                att = B.camera_attitude_from_quat(B.decode_orientation(msg))
+                att = camera_attitude_from_body_quat(B.decode_orientation(msg))
                 assert att.pitch_deg == pytest.approx(-20.0, abs=1e-6) and att.roll_deg == pytest.approx(0, abs=1e-6)
             elif topic == "/gps/fix":
                 assert B.decode_navsatfix(msg) == pytest.approx(NANJING)

@@ -21,7 +21,8 @@ from polarization_compass.radiance import (CIE_STANDARD_SKIES, CIEStandardSky, R
                                            make_radiance_model)
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import SceneError, load_scene, scene_from_dict
-from polarization_compass.sky import RayleighSky, SkyModelError, make_sky_model
+from polarization_compass.sky import RayleighSky, SkyModelError
+from polarization_compass.sky_models import make_sky_model
 from polarization_compass.sky_bdl import BerryDennisLeeSky
 
 SCENES = Path(__file__).resolve().parents[1] / "config" / "scenes"

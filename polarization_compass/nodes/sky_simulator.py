@@ -40,13 +40,13 @@ from std_msgs.msg import String
 
 from ..bag import decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
-from ..conventions import matrix_to_quat, quat_to_matrix
+from ..conventions import (R_enu_body_from_camera_attitude, camera_attitude_from_body_quat, matrix_to_quat,
+                           quat_to_matrix)
 from ..errors import CompassError, MissingDependencyError
-from ..pipeline import camera_attitude_from_body_quat
 from ..sensor import sensor_config_for_encoding
 from ..specs import topics
 from .diagnostics import Diagnostics
-from ..motion import MotionProfile, body_from_camera, frame_times_ns, imu_reading
+from ..motion import MotionProfile, frame_times_ns, imu_reading
 from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
 from ..specs.params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
 from .rosparams import ParameterSet
@@ -183,7 +183,7 @@ class SkySimulatorNode(Node):
     def _attitude_at(self, t_ns: int, t_rel_s: float):
         """R_enu_body at a stamp, or None when the attitude source has nothing yet."""
         if self.attitude_source == "motion":
-            return body_from_camera(self.profile.attitude(t_rel_s))
+            return R_enu_body_from_camera_attitude(self.profile.attitude(t_rel_s))
         if self.attitude_source == "topic":
             return self.R_enu_body_input
         from rclpy.time import Time

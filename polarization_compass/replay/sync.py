@@ -9,7 +9,7 @@ import numpy as np
 
 from ..bag import (BagReader, MessageError, Tally, TopicMap, decode_camera_info, decode_mosaic, decode_navsatfix,
                    decode_orientation, deserialize, stamp_ns)
-from ..conventions import wrap_360_deg
+from ..conventions import camera_attitude_from_body_quat, wrap_360_deg
 
 __all__ = ["BagPlan", "plan_bag", "SyncedFrame", "prefetched", "iter_synced_frames"]
 
@@ -241,8 +241,6 @@ class _FrameSync:
 
     def release(self, item) -> SyncedFrame | None:
         """The :class:`SyncedFrame` of a queued image, or None when it cannot be processed (counted)."""
-        from ..pipeline import camera_attitude_from_body_quat
-
         tally, imu, ref, R_body_cam = self.tally, self.imu, self.ref, self.R_body_cam
         t, log_ns, mosaic, cam, fix = item
         cam = cam if cam is not None else self.camera

@@ -1,0 +1,50 @@
+"""The sky models by name: what a scene's ``sky`` mapping (``{"model": "rayleigh", ...}``) builds.
+
+Imports each model's module (:mod:`~polarization_compass.sky` for ``rayleigh``,
+:mod:`~polarization_compass.sky_bdl` for ``berry_dennis_lee``), so that neither of those imports the
+other upwards: a model module only defines its class; this module names it.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from .sky import RayleighSky, SkyModelError
+from .sky_bdl import BerryDennisLeeSky
+
+__all__ = ["make_sky_model", "register_sky_model", "sky_model_names"]
+
+_REGISTRY: dict[str, Callable[..., object]] = {
+    "rayleigh": RayleighSky,
+    "berry_dennis_lee": BerryDennisLeeSky,
+}
+
+
+def register_sky_model(name: str):
+    """Class decorator: make ``factory(**params)`` the sky model called ``name`` (e.g. a model defined in a
+    test or a plugin). Returns the factory unchanged."""
+    def deco(factory):
+        _REGISTRY[name] = factory
+        return factory
+    return deco
+
+
+def sky_model_names() -> list[str]:
+    """Names of the registered sky models, sorted."""
+    return sorted(_REGISTRY)
+
+
+def make_sky_model(config: dict | None):
+    """Build a sky model from a mapping like ``{"model": "rayleigh", "dop_max": 0.75}``.
+
+    ``config``: ``model`` (default ``rayleigh``) and the model's parameters; None means Rayleigh with its
+    defaults. Returns the model object; raises :class:`~polarization_compass.sky.SkyModelError` (one line)
+    for an unknown name or bad parameters.
+    """
+    cfg = dict(config or {"model": "rayleigh"})
+    name = cfg.pop("model", "rayleigh")
+    if name not in _REGISTRY:
+        raise SkyModelError(f"unknown sky model {name!r}; known: {', '.join(sky_model_names())}")
+    try:
+        return _REGISTRY[name](**cfg)
+    except TypeError as exc:
+        raise SkyModelError(f"bad parameters for sky model {name!r}: {exc}") from None
