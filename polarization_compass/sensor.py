@@ -388,8 +388,8 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # Every effect's arithmetic lives only in the kernels that implement it; the kernels of the other stages
 # do not contain it (no "multiply by 1", no "add 0 * noise", no "min with +inf"). ``_IMPLEMENTS`` names
-# the effects each kernel computes and ``_run`` counts exactly those (plus the kernel itself) when that
-# kernel runs, so a counter reports the code that ran, not the configuration that asked for it.
+# the effects each kernel computes and ``_count`` counts exactly those (plus the kernel itself) just before
+# that kernel runs, so a counter reports the code that ran, not the configuration that asked for it.
 _IMPLEMENTS = {
     "_mean_electrons_kernel": ("mosaic",),                          # ideal polarizers (Malus)
     "_mean_electrons_er_kernel": ("mosaic", "extinction_ratio"),    # leaky polarizers: DoP scaled by d
@@ -402,13 +402,12 @@ _IMPLEMENTS = {
 }
 
 
-def _run(name: str, *args) -> None:
-    """Run the kernel ``name`` (looked up at call time) and count ``sensor.<effect>`` for each effect it
-    implements and ``sensor.kernel.<name>``: one dict increment per stage per frame."""
+def _count(name: str) -> None:
+    """Count ``sensor.<effect>`` for each effect the kernel ``name`` implements and ``sensor.kernel.<name>``
+    (called just before that kernel runs): one dict increment per stage per frame."""
     for effect in _IMPLEMENTS[name]:
         instr.count("sensor." + effect)
     instr.count("sensor.kernel." + name)
-    globals()[name](*args)
 
 
 @njit(inline="always", fastmath=_FM, cache=True)
@@ -610,28 +609,36 @@ def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, r
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
     if cfg.extinction_ratio is None:
-        _run("_mean_electrons_kernel", aop, dp, s0a, has_s0, pq, cfg.n0_e, e)
+        _count("_mean_electrons_kernel")
+        _mean_electrons_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, e)
     else:
-        _run("_mean_electrons_er_kernel", aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
+        _count("_mean_electrons_er_kernel")
+        _mean_electrons_er_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
     shot, read = cfg.shot_gaussian_above_e, cfg.read_sigma_e
     if shot is not None or read is not None:
         key = np.uint64(int(rng.integers(0, 2 ** 63, dtype=np.int64)))
         if read is None:
-            _run("_shot_noise_kernel", e, key, shot)
+            _count("_shot_noise_kernel")
+            _shot_noise_kernel(e, key, shot)
         elif shot is None:
-            _run("_read_noise_kernel", e, key, read)
+            _count("_read_noise_kernel")
+            _read_noise_kernel(e, key, read)
         else:
-            _run("_shot_read_noise_kernel", e, key, shot, read)
+            _count("_shot_read_noise_kernel")
+            _shot_read_noise_kernel(e, key, shot, read)
     if cfg.bits is None:
         if cfg.saturates:
-            _run("_saturate_kernel", e, cfg.full_well_e)
+            _count("_saturate_kernel")
+            _saturate_kernel(e, cfg.full_well_e)
         return e
     out = np.empty(e.shape, np.uint8 if cfg.bits <= 8 else np.uint16)
     gain = np.float32(cfg.max_dn / cfg.full_well_e)
     if cfg.saturates:
-        _run("_saturate_quantize_kernel", e, cfg.full_well_e, gain, cfg.max_dn, out)
+        _count("_saturate_quantize_kernel")
+        _saturate_quantize_kernel(e, cfg.full_well_e, gain, cfg.max_dn, out)
     else:
-        _run("_quantize_kernel", e, gain, cfg.max_dn, out)
+        _count("_quantize_kernel")
+        _quantize_kernel(e, gain, cfg.max_dn, out)
     return out
 
 
