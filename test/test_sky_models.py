@@ -411,3 +411,45 @@ def test_scene_with_bad_models_is_a_scene_error():
         scene_from_dict({"sky": {"model": "berry_dennis_lee", "separation_deg": 90}})
     with pytest.raises(SceneError, match="radiance"):
         scene_from_dict({"radiance": {"model": "cie_clear", "type": 99}})
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Every module a source file imports, at module level or inside a function (relative names resolved
+    against the package), read with ast: the import graph, not what happens to be loaded."""
+    import ast
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = ".".join(p for p in ("polarization_compass" if node.level else "", node.module or "") if p)
+            out.add(base)
+            out.update(f"{base}.{a.name}" for a in node.names)
+    return out
+
+
+def test_sky_model_modules_import_downwards_only():
+    """sky <- sky_bdl <- sky_models: no model module imports the registry or another model upwards (sky
+    used to import sky_bdl inside make_sky_model to register it, a cycle)."""
+    pkg = Path(__file__).resolve().parents[1] / "polarization_compass"
+    sky, bdl = _imported_modules(pkg / "sky.py"), _imported_modules(pkg / "sky_bdl.py")
+    assert not {m for m in sky if m.startswith(("polarization_compass.sky_bdl", "polarization_compass.sky_models"))}
+    assert not {m for m in bdl if m.startswith("polarization_compass.sky_models")}
+    assert "polarization_compass.sky" in bdl
+
+
+def test_a_registered_sky_model_is_built_by_name():
+    from polarization_compass.sky_models import _REGISTRY, register_sky_model, sky_model_names
+    try:
+        @register_sky_model("toy_sky")
+        class Toy:
+            def __init__(self, k=1):
+                self.k = k
+        assert "toy_sky" in sky_model_names() and {"rayleigh", "berry_dennis_lee"} <= set(sky_model_names())
+        assert make_sky_model({"model": "toy_sky", "k": 3}).k == 3
+        with pytest.raises(SkyModelError, match="bad parameters"):
+            make_sky_model({"model": "toy_sky", "q": 3})
+    finally:
+        _REGISTRY.pop("toy_sky", None)
+    with pytest.raises(SkyModelError, match="unknown sky model 'toy_sky'"):
+        make_sky_model({"model": "toy_sky"})
