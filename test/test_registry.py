@@ -198,7 +198,7 @@ def test_toy_in_the_graphs(toys):
 
 @pytest.fixture
 def toy_map(toys):
-    from polarization_compass.errormap import SweepSpec, run_sweep
+    from polarization_compass.sweep import SweepSpec, run_sweep
     spec = SweepSpec([TOY, "zenith"], [30.0], [-20.0, 0.0, 20.0], [0.0], [0.0])
     assert spec.knobs[TOY] == {"stride": 7}                          # the class's declared sampling
     return run_sweep(spec, workers=1, progress=False)
