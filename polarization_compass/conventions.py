@@ -47,6 +47,8 @@ __all__ = [
     "R_BODY_CAM_DEFAULT", "aop_from_evector_cam_rad", "evector_cam_from_aop", "axial_mean_rad",
     "axial_difference_deg", "CameraAttitude",
     "camera_attitude_from_body_quat", "R_enu_body_from_camera_attitude", "body_quat_from_camera_attitude",
+    "unit_axis_body", "unit_polarizer_frame_body", "unit_evector_body", "unit_angle_from_evector_body_rad",
+    "ANGLE_ZEROS", "ANGLE_SENSES",
 ]
 
 
@@ -370,3 +372,77 @@ def evector_cam_from_aop(aop_rad, rays_cam):
     e = np.stack([rz * sa, rz * ca, -(rx * sa + ry * ca)], axis=-1)
     n = np.linalg.norm(e, axis=-1, keepdims=True)
     return e / np.maximum(n, np.finfo(e.dtype).tiny)
+
+
+# --------------------------------------------------------------------------------------------
+# Photodiode-array units (POL-OP): viewing direction and polarizer angles -> body frame
+# --------------------------------------------------------------------------------------------
+#: What a unit's 0 deg polarizer is parallel to: its local meridian (the great circle through the
+#: zenith and the unit's axis) or the horizon (the horizontal direction perpendicular to the axis).
+ANGLE_ZEROS = ("meridian", "horizontal")
+#: Sense of increasing polarizer angle as seen looking out along the unit's axis (from the sensor
+#: towards the sky): ``cw`` is a right-handed (positive) rotation about the axis.
+ANGLE_SENSES = ("cw", "ccw")
+
+
+def unit_axis_body(azimuth_deg, elevation_deg):
+    """Viewing axis of a photodiode unit in the REP-103 body frame (x forward, y left, z up), shape (..., 3).
+
+    ``azimuth_deg`` clockwise from the body's front seen from above (90 = the body's right, -y),
+    ``elevation_deg`` above the body's x-y plane. A level body with its front at true bearing B sees
+    along compass azimuth ``B + azimuth_deg`` at altitude ``elevation_deg``.
+    """
+    a, e = np.broadcast_arrays(np.radians(np.asarray(azimuth_deg, dtype=float)),
+                               np.radians(np.asarray(elevation_deg, dtype=float)))
+    return np.stack([np.cos(e) * np.cos(a), -np.cos(e) * np.sin(a), np.sin(e)], axis=-1)
+
+
+def unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero="meridian", angle_sense="cw"):
+    """Orthonormal (zero, quarter) directions, body frame, spanning the plane a unit's polarizers lie in.
+
+    A polarizer at angle theta transmits along ``cos(theta) zero + sin(theta) quarter``. ``zero`` is the
+    local meridian's tangent pointing up (towards the zenith) for ``angle_zero="meridian"``, or the
+    horizontal direction on the unit's right (seen looking out along the axis) for ``"horizontal"``;
+    ``quarter`` is ``zero`` turned by +90 deg in ``angle_sense`` (``cw``: a right-handed rotation about the
+    axis, ``quarter = axis x zero``). The meridian tangent is ``(-sin e * h, cos e)`` with h the unit's
+    horizontal azimuth direction: continuous up to a unit looking at the zenith, whose meridian is then
+    its azimuth's vertical plane (so ``azimuth_deg`` orients a zenith unit). Shapes (..., 3) each.
+    """
+    if angle_zero not in ANGLE_ZEROS:
+        raise ValueError(f"angle_zero must be one of {ANGLE_ZEROS}, got {angle_zero!r}")
+    if angle_sense not in ANGLE_SENSES:
+        raise ValueError(f"angle_sense must be one of {ANGLE_SENSES}, got {angle_sense!r}")
+    a, e = np.broadcast_arrays(np.radians(np.asarray(azimuth_deg, dtype=float)),
+                               np.radians(np.asarray(elevation_deg, dtype=float)))
+    axis = unit_axis_body(azimuth_deg, elevation_deg)
+    h = np.stack([np.cos(a), -np.sin(a), np.zeros_like(a)], axis=-1)          # horizontal, along the azimuth
+    up = np.concatenate([-np.sin(e)[..., None] * h[..., :2], np.cos(e)[..., None]], axis=-1)
+    right = np.cross(axis, up)          # looking out along the axis with the zenith up: the right-hand side
+    zero = up if angle_zero == "meridian" else right
+    quarter = np.cross(axis, zero)       # +90 deg, right-handed about the axis (clockwise looking out)
+    if angle_sense == "ccw":
+        quarter = -quarter
+    return zero, quarter
+
+
+def unit_evector_body(angle_rad, azimuth_deg, elevation_deg, angle_zero="meridian", angle_sense="cw"):
+    """Unit E-vector (body frame, (..., 3)) of light polarized at ``angle_rad`` in a unit's polarizer angles.
+
+    The inverse of :func:`unit_angle_from_evector_body_rad` (axial: E and -E are the same polarization).
+    A unit at elevation 90 deg, azimuth 0, ``angle_zero="meridian"``, ``angle_sense="ccw"`` measures the
+    camera's eq 28 AoP of the default mounting (:data:`R_BODY_CAM_DEFAULT`).
+    """
+    zero, quarter = unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero, angle_sense)
+    t = np.asarray(angle_rad, dtype=float)[..., None]
+    return np.cos(t) * zero + np.sin(t) * quarter
+
+
+def unit_angle_from_evector_body_rad(e_body, azimuth_deg, elevation_deg, angle_zero="meridian",
+                                     angle_sense="cw"):
+    """Polarization angle (rad, folded to [-pi/2, pi/2)) a unit measures for E-vector(s) ``e_body`` (..., 3).
+
+    The angle of E projected on the unit's polarizer plane, ``atan2(E . quarter, E . zero)``.
+    """
+    zero, quarter = unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero, angle_sense)
+    e = np.asarray(e_body, dtype=float)
+    return fold_aop_rad(np.arctan2(np.sum(e * quarter, axis=-1), np.sum(e * zero, axis=-1)))

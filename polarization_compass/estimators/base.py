@@ -34,6 +34,8 @@ class Status(str, Enum):
     BAD_INPUT = "bad_input"
     DEGENERATE = "degenerate"                # numerically degenerate data (e.g. all E-vectors parallel)
     INSUFFICIENT_COVERAGE = "insufficient_coverage"  # too little of the sky usable for the method's geometry
+    TOO_FEW_UNITS = "too_few_units"          # photodiode array: fewer usable units than the method needs
+    POOR_FIT = "poor_fit"                    # the data do not fit the sky model well enough to trust a heading
 
 
 def _wrap_180(x: float) -> float:

@@ -1,0 +1,270 @@
+"""Heading from a photodiode array: the least-squares sun of the units' E-vectors (paper eqs 18, 25-27).
+
+Each usable unit gives one 3-D E-vector (its measured angle of polarization lifted into the body frame by
+:func:`~..conventions.unit_evector_body`); under single scattering every E-vector is perpendicular to the
+sun, so the sun is the smallest eigenvector of ``M = sum_u w_u e_u e_u^T`` -- the same solve as the
+camera's :class:`~..estimators.least_squares.LeastSquaresEstimator` (:func:`~..estimators.least_squares.solve_sun`),
+on a handful of units instead of thousands of pixels. The body frame is read as the default-mounted
+camera's (camera +y = body front, :data:`~..conventions.R_BODY_CAM_DEFAULT`), so psi, bearing and REP-103 yaw
+are those of the body's front, and pitch/roll are the paper's (about camera +x = body right, camera +y =
+body front). ``least_squares`` reads the heading in the body frame (level assumption); ``tilt_aware``
+levels the E-vectors with the known pitch and roll first (exact under Rayleigh at any tilt).
+
+Uncertainty: first-order eigenvector perturbation, as in the camera method: unit u moves psi by
+``-w_u r_u (e_u . c)`` where ``r_u = e_u . s`` is its residual (the misfit of a real sky to the model
+included) and c the sensitivity vector. With few units the residual variance is poorly known, so it is
+pooled with a prior AoP noise (``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedom):
+``sigma_r^2 = (sum w r^2 + nu0 * r0^2) / (n - 2 + nu0)``, and ``Var psi = sigma_r^2 * sum w (e . c)^2``.
+
+Statuses besides the camera's: ``too_few_units`` (fewer usable units than ``min_units``) and ``poor_fit``
+(the rms angle residual exceeds ``max_misfit_deg``, or the fitted sun's elevation is more than
+``max_sun_elevation_diff_deg`` from the ephemeris). The image-only methods (zenith, sm_asm, symmetry)
+need an image: :func:`make_array_estimator` refuses them with that reason.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..conventions import R_BODY_CAM_DEFAULT, fold_axial_rad, rot_x, rot_y, unit_angle_from_evector_body_rad
+from ..errors import CompassError
+from ..estimators.base import HeadingResult, Status
+from ..estimators._common import Candidate, Knob, check_sun, psi_from_sun_rad, resolve_ambiguity, result_from
+from ..estimators.least_squares import solve_sun
+from .stokes import fit_stokes
+
+__all__ = ["ARRAY_METHODS", "IMAGE_ONLY_METHODS", "ArrayMethodError", "ArrayHeadingEstimator", "make_array_estimator",
+           "ARRAY_KNOBS", "estimate_recording"]
+
+ARRAY_METHODS = ("least_squares", "tilt_aware")
+IMAGE_ONLY_METHODS = ("zenith", "sm_asm", "symmetry")
+
+ARRAY_KNOBS = {
+    "min_units": Knob(3, "int", 2, 64, doc="usable units needed (2 fix the sun exactly, with no misfit check)"),
+    "min_dop": Knob(0.02, "float", 0.0, 1.0, doc="units seeing a lower DoP are not used"),
+    "weighting": Knob("uniform", "choice", choices=("uniform", "dop2"), doc="unit weights: equal or DoP^2"),
+    "max_misfit_deg": Knob(25.0, "float", 0.1, 90.0, doc="rms angle residual above this: status poor_fit"),
+    "max_sun_elevation_diff_deg": Knob(35.0, "float", 0.1, 180.0,
+                                       doc="fitted vs ephemeris sun elevation above this: status poor_fit"),
+    "aop_noise_prior_deg": Knob(5.0, "float", 0.0, 90.0, doc="prior AoP noise per unit, pooled into sigma"),
+    "prior_dof": Knob(2.0, "float", 0.0, 1e6, doc="degrees of freedom the prior AoP noise is worth"),
+    "sigma_floor_deg": Knob(0.0, "float", 0.0, 90.0, doc="added in quadrature to sigma"),
+    "max_sun_altitude_deg": Knob(85.0, "float", 1.0, 90.0, doc="ephemeris sun above this: sun_near_zenith"),
+    "min_sun_altitude_deg": Knob(0.0, "float", -10.0, 10.0, doc="ephemeris sun below this: sun_below_horizon"),
+    "min_eigen_gap": Knob(1e-9, "float", 0.0, 1.0, doc="(lambda2 - lambda1) / lambda3 below this: degenerate"),
+    "sign_margin_sigma": Knob(3.0, "float", 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"),
+    "max_tilt_deg": Knob(30.0, "float", 0.0, 89.0, doc="least_squares: assumed tilt bound for the sign rule"),
+    "brightness_min_t": Knob(4.0, "float", 1.0, 1e6, doc="|t| of the unit brightness gradient that fixes the side"),
+    "prior_max_diff_deg": Knob(60.0, "float", 1.0, 90.0, doc="a prior bearing within this picks the side"),
+}
+
+
+class ArrayMethodError(CompassError):
+    """A method or knob a photodiode array cannot use."""
+
+
+@dataclass
+class _Sky:
+    """What :func:`resolve_ambiguity` and :func:`check_sun` read of an observation."""
+
+    sun_azimuth_deg: float
+    sun_altitude_deg: float
+    prior_bearing_deg: float | None = None
+
+
+def _brightness_t(s0, p_cam, direction) -> float | None:
+    """t statistic of the slope of unit brightness S0 against ``p . direction`` (None: too few units / flat)."""
+    x = p_cam @ direction
+    n = x.size
+    if n < 3:
+        return None
+    xc, yc = x - x.mean(), s0 - s0.mean()
+    sxx = float(xc @ xc)
+    if not sxx > 1e-12:
+        return None
+    slope = float(xc @ yc) / sxx
+    res = yc - slope * xc
+    var = float(res @ res) / (n - 2)
+    se = math.sqrt(var / sxx) if var > 0 else 0.0
+    if se <= abs(slope) * 1e-9:
+        return math.copysign(1e6, slope) if slope != 0 else None
+    return slope / se
+
+
+class ArrayHeadingEstimator:
+    """Heading of a photodiode array from one sample of per-unit angles of polarization.
+
+    ``name`` one of :data:`ARRAY_METHODS`; ``geometry`` an :class:`~.geometry.ArrayGeometry`; knobs from
+    :data:`ARRAY_KNOBS`.
+    """
+
+    def __init__(self, name: str, geometry, **knobs):
+        if name not in ARRAY_METHODS:
+            raise ArrayMethodError(_method_message(name))
+        self.name = name
+        self.level_with_tilt = name == "tilt_aware"
+        self.geometry = geometry
+        unknown = sorted(set(knobs) - set(ARRAY_KNOBS))
+        if unknown:
+            raise ArrayMethodError(f"unknown array knob(s) {', '.join(unknown)}; known: {', '.join(ARRAY_KNOBS)}")
+        self.knobs = {k: spec.check(k, knobs.get(k, spec.default)) for k, spec in ARRAY_KNOBS.items()}
+        if self.knobs["min_sun_altitude_deg"] >= self.knobs["max_sun_altitude_deg"]:
+            raise ArrayMethodError("min_sun_altitude_deg must be below max_sun_altitude_deg")
+        g = geometry
+        self._az = np.array([u.azimuth_deg for u in g.units])
+        self._el = np.array([u.elevation_deg for u in g.units])
+        self._enabled = np.array([u.enabled for u in g.units])
+        self._axes_cam = g.axes_body() @ R_BODY_CAM_DEFAULT          # rows: R_BODY_CAM^T p_body
+
+    # ------------------------------------------------------------------------------------------
+    def estimate(self, aop_rad, dop, s0, valid, sun_azimuth_deg: float, sun_altitude_deg: float,
+                 pitch_deg: float | None = None, roll_deg: float | None = None,
+                 prior_bearing_deg: float | None = None) -> HeadingResult:
+        """One heading from per-unit angles (U,) rad in the units' convention, DoP (U,), brightness S0 (U,)
+        and validity (U,); the sun from the ephemeris (deg); pitch/roll (deg) for tilt_aware (and the sign
+        rule); a prior bearing (deg) for the 180 deg ambiguity. Returns a :class:`HeadingResult` whose
+        bearing is the body front's, ``pixels`` the number of units used."""
+        k = self.knobs
+        sky = _Sky(sun_azimuth_deg, sun_altitude_deg, prior_bearing_deg)
+        bad = check_sun(self.name, sky, k)
+        if bad is not None:
+            return bad
+        R_lev = None
+        if pitch_deg is not None and roll_deg is not None:
+            p, r = float(pitch_deg), float(roll_deg)
+            if not (math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0):
+                return HeadingResult.failed(self.name, Status.BAD_INPUT,
+                                            f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
+            R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
+        if self.level_with_tilt and R_lev is None:
+            return HeadingResult.failed(self.name, Status.BAD_INPUT, "tilt_aware needs the pitch and roll")
+        aop = np.asarray(aop_rad, dtype=float)
+        dop = np.asarray(dop, dtype=float)
+        s0 = np.asarray(s0, dtype=float)
+        use = (np.asarray(valid, dtype=bool) & self._enabled & np.isfinite(aop) & np.isfinite(dop)
+               & np.isfinite(s0) & (dop >= k["min_dop"]))
+        n = int(use.sum())
+        if n < k["min_units"]:
+            low = int(np.sum(np.asarray(valid, dtype=bool) & self._enabled & (dop < k["min_dop"])))
+            why = f" ({low} with DoP < min_dop {k['min_dop']:g})" if low else ""
+            return HeadingResult.failed(self.name, Status.TOO_FEW_UNITS,
+                                        f"{n} usable unit(s) < min_units {k['min_units']}{why}", pixels=n)
+        e_body = self.geometry.evectors_body(aop)[use]
+        e = e_body @ R_BODY_CAM_DEFAULT                                 # camera-equivalent frame, rows
+        pc = self._axes_cam[use]
+        w = dop[use] ** 2 if k["weighting"] == "dop2" else np.ones(n)
+        w = w / w.mean()
+        M = np.einsum("u,ui,uj->ij", w, e, e)
+        zero = np.zeros((3, 3))
+        lam, U, _ = solve_sun(M, zero, zero, bias_correction=False)
+        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
+            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
+        gap = (lam[1] - lam[0]) / lam[2]
+        if gap <= k["min_eigen_gap"]:
+            return HeadingResult.failed(self.name, Status.DEGENERATE,
+                                        f"the units' E-vectors do not single out a sun direction (eigen gap "
+                                        f"{gap:.2e})", pixels=n)
+        s = U[:, 0].copy()
+        R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
+        s_h = R @ s
+        rho = math.hypot(s_h[0], s_h[1])
+        if rho < math.cos(math.radians(k["max_sun_altitude_deg"])):
+            return HeadingResult.failed(self.name, Status.SUN_NEAR_ZENITH,
+                                        f"the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from "
+                                        "the zenith: the solar meridian is ill-conditioned", pixels=n)
+        # angle residuals of each unit against the fitted sun (E = s x p, eq 18), in its own convention
+        s_body = R_BODY_CAM_DEFAULT @ s
+        pred = unit_angle_from_evector_body_rad(np.cross(s_body, self.geometry.axes_body()[use]), self._az[use],
+                                                self._el[use], self.geometry.angle_zero, self.geometry.angle_sense)
+        resid_rad = fold_axial_rad(aop[use] - pred)
+        misfit_deg = math.degrees(math.sqrt(float(np.sum(w * resid_rad ** 2)) / float(np.sum(w))))
+        # sensitivities (as in the camera method): d psi / d s, d elevation / d s
+        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
+        R_sign = R_lev if R_lev is not None else np.eye(3)
+        s_sign = R_sign @ s
+        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
+        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
+        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
+        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
+        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
+        r = e @ s
+        # prior residual scale: AoP noise r0 turns e about p, moving e . s by r0 * |(p x e) . s|
+        lever = np.abs(np.einsum("ui,i->u", np.cross(pc, e), s))
+        r0_sq = math.sin(math.radians(k["aop_noise_prior_deg"])) ** 2 * float(np.mean(lever ** 2))
+        nu0 = k["prior_dof"]
+        dof = (n - 2) + nu0
+        sigma_r_sq = (float(np.sum(w * r * r)) + nu0 * r0_sq) / dof if dof > 0 else 0.0
+        sigma_psi = math.sqrt(max(sigma_r_sq * float(np.sum(w * (e @ c_psi) ** 2)), 0.0))
+        sigma_el = math.sqrt(max(sigma_r_sq * float(np.sum(w * (e @ c_el) ** 2)), 0.0))
+        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k["sigma_floor_deg"]), 1e-9)
+        el_fit = math.degrees(math.asin(min(1.0, abs(float(s_sign[2])))))
+        extras = {"units_used": n, "misfit_rms_deg": misfit_deg,
+                  "unit_residuals_deg": [float(v) for v in np.degrees(resid_rad)],
+                  "eigenvalues": [float(v) for v in lam / float(np.trace(M))],
+                  "sigma_sun_elevation_deg": math.degrees(sigma_el),
+                  "sun_altitude_ephemeris_deg": float(sun_altitude_deg)}
+        if misfit_deg > k["max_misfit_deg"]:
+            return HeadingResult.failed(self.name, Status.POOR_FIT,
+                                        f"rms angle residual {misfit_deg:.1f} deg > max_misfit_deg "
+                                        f"{k['max_misfit_deg']:g} over {n} unit(s)", pixels=n, **extras)
+        el_ref = float(sun_altitude_deg)
+        if abs(el_fit - el_ref) > k["max_sun_elevation_diff_deg"]:
+            return HeadingResult.failed(self.name, Status.POOR_FIT,
+                                        f"fitted sun elevation {el_fit:.1f} deg vs ephemeris {el_ref:.1f} deg "
+                                        f"(> {k['max_sun_elevation_diff_deg']:g} apart)", pixels=n, **extras)
+        cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
+        first, second = cands if s_sign[2] >= 0 else cands[::-1]
+        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
+
+        def sun_rule():
+            if R_lev is not None:
+                if el_fit > margin_deg:
+                    return first, f"sun side from the levelled sun elevation ({el_fit:.2f} > {margin_deg:.2f} deg)"
+                return None, f"levelled sun elevation {el_fit:.2f} deg within the {margin_deg:.2f} deg margin"
+            lim = k["max_tilt_deg"] + margin_deg
+            if el_fit > lim:
+                return first, (f"sun side from the body-frame sun elevation ({el_fit:.2f} deg > max_tilt_deg "
+                               f"{k['max_tilt_deg']:g} + {margin_deg:.2f} deg margin)")
+            return None, (f"body-frame sun elevation {el_fit:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} + margin: "
+                          "the sun's side is unknown without the tilt")
+
+        bt = _brightness_t(s0[use], pc, first.sun_cam - second.sun_cam)
+        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, sky, k, sun_rule)
+        alt = R_sign @ pick.sun_cam
+        implied_alt = math.degrees(math.asin(float(np.clip(alt[2], -1.0, 1.0))))
+        quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
+        extras["sun_body"] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
+        return result_from(self.name, pick, by, reason, sky, sigma_deg, n, 0, quality,
+                           sun_altitude_deg=implied_alt, extras=extras)
+
+
+def _method_message(name: str) -> str:
+    if name in IMAGE_ONLY_METHODS:
+        return (f"method {name} needs an image (a camera's sky pattern); a photodiode array supports "
+                f"{', '.join(ARRAY_METHODS)}")
+    return f"unknown method {name!r} for a photodiode array; supported: {', '.join(ARRAY_METHODS)}"
+
+
+def make_array_estimator(name: str, geometry, **knobs) -> ArrayHeadingEstimator:
+    """An array estimator; :class:`ArrayMethodError` (one line) for image-only or unknown methods."""
+    return ArrayHeadingEstimator(name, geometry, **knobs)
+
+
+def estimate_recording(estimator: ArrayHeadingEstimator, intensities, sun_azimuth_deg, sun_altitude_deg,
+                       pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> list:
+    """Headings for every sample of readings (S, U, C); sun (deg) scalars or per-sample arrays (S,);
+    pitch/roll/prior likewise (None: not known). Returns a list of :class:`HeadingResult`."""
+    st = fit_stokes(intensities, estimator.geometry)
+    S = st.aop_rad.shape[0]
+
+    def per(v):
+        if v is None:
+            return [None] * S
+        a = np.broadcast_to(np.asarray(v, dtype=float), (S,))
+        return [float(x) for x in a]
+
+    az, alt, p, r, pr = per(sun_azimuth_deg), per(sun_altitude_deg), per(pitch_deg), per(roll_deg), per(prior_bearing_deg)
+    return [estimator.estimate(st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i])
+            for i in range(S)]

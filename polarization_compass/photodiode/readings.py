@@ -1,0 +1,164 @@
+"""Photodiode-array recordings: ``intensities`` (samples x units x channels) and optional per-sample times.
+
+``.npz``: ``intensities`` float array (S, U, C) and optional ``t_offset_s`` (S,) seconds after a
+reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>`` (0-based,
+channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Units with fewer
+channels than the widest one leave the extra columns out (they read as 0 and are never used).
+Readings are intensities (>= 0); negative values and NaN are kept for the estimator to reject per
+sample (a sample is never dropped silently), but inf is refused.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import CompassError
+from ..safe_load import open_npz, read_text
+
+__all__ = ["ArrayRecording", "ArrayRecordingError", "load_array_recording", "save_array_recording_npz",
+           "save_array_recording_csv", "MAX_SAMPLES"]
+
+MAX_SAMPLES = 1_000_000
+_MAX_CSV_CHARS = 200_000_000
+_COL = re.compile(r"^u(\d+)_c(\d+)$")
+
+
+class ArrayRecordingError(CompassError):
+    """A recording that cannot be read."""
+
+
+@dataclass
+class ArrayRecording:
+    """``intensities`` (S, U, C) float64; ``t_offset_s`` (S,) float64 or None."""
+
+    intensities: np.ndarray
+    t_offset_s: np.ndarray | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.intensities.shape[0])
+
+    def check_against(self, geometry) -> None:
+        """Raise :class:`ArrayRecordingError` when the shape does not fit ``geometry``."""
+        _, U, C = self.intensities.shape
+        if U != geometry.n_units:
+            raise ArrayRecordingError(f"the recording has {U} unit(s), the geometry {geometry.n_units}")
+        if C < geometry.n_channels:
+            raise ArrayRecordingError(f"the recording has {C} channel(s) per unit, the geometry needs "
+                                      f"{geometry.n_channels}")
+
+
+def _validated(inten, t, where: str) -> ArrayRecording:
+    inten = np.asarray(inten)
+    if inten.dtype.kind not in "fiu" or inten.ndim != 3:
+        raise ArrayRecordingError(f"{where}: intensities must be a numeric array (samples, units, channels), "
+                                  f"got {inten.dtype} with shape {inten.shape}")
+    S, U, C = inten.shape
+    if not (1 <= S <= MAX_SAMPLES) or not (1 <= U <= 64) or not (2 <= C <= 4):
+        raise ArrayRecordingError(f"{where}: intensities shape {inten.shape} outside 1-{MAX_SAMPLES} samples, "
+                                  f"1-64 units, 2-4 channels")
+    inten = inten.astype(np.float64)
+    if np.any(np.isinf(inten)):
+        raise ArrayRecordingError(f"{where}: intensities contain inf")
+    if t is not None:
+        t = np.asarray(t)
+        if t.dtype.kind not in "fiu" or t.shape != (S,):
+            raise ArrayRecordingError(f"{where}: t_offset_s must be numbers, one per sample ({S}), got shape {t.shape}")
+        t = t.astype(np.float64)
+        if not np.all(np.isfinite(t)) or np.any(np.abs(t) > 1e9):
+            raise ArrayRecordingError(f"{where}: t_offset_s must be finite seconds within +-1e9")
+    return ArrayRecording(inten, t)
+
+
+def _load_csv(path) -> ArrayRecording:
+    text = read_text(path, ArrayRecordingError, "array recording")
+    if len(text) > _MAX_CSV_CHARS:
+        raise ArrayRecordingError(f"{path}: more than {_MAX_CSV_CHARS} characters")
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise ArrayRecordingError(f"{path}: empty CSV (expected a header with u<unit>_c<channel> columns)") from None
+    cols = {}
+    t_col = None
+    for j, h in enumerate(header):
+        if h == "t_offset_s":
+            t_col = j
+            continue
+        m = _COL.match(h)
+        if not m:
+            raise ArrayRecordingError(f"{path}: unknown column {h!r} (expected u<unit>_c<channel> or t_offset_s)")
+        key = (int(m.group(1)), int(m.group(2)))
+        if key in cols:
+            raise ArrayRecordingError(f"{path}: column {h!r} appears twice")
+        cols[key] = j
+    if not cols:
+        raise ArrayRecordingError(f"{path}: no u<unit>_c<channel> columns")
+    U = max(k[0] for k in cols) + 1
+    C = max(k[1] for k in cols) + 1
+    if U > 64 or C > 4:
+        raise ArrayRecordingError(f"{path}: columns name {U} units x {C} channels (at most 64 x 4)")
+    missing = [u for u in range(U) if not any(k[0] == u for k in cols)]
+    if missing:
+        raise ArrayRecordingError(f"{path}: no columns for unit(s) {missing}")
+    rows = []
+    for line_no, row in enumerate(reader, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise ArrayRecordingError(f"{path}: line {line_no} has {len(row)} fields, the header {len(header)}")
+        try:
+            rows.append([float(c) if c.strip() else math.nan for c in row])
+        except ValueError:
+            raise ArrayRecordingError(f"{path}: line {line_no}: not a number") from None
+        if len(rows) > MAX_SAMPLES:
+            raise ArrayRecordingError(f"{path}: more than {MAX_SAMPLES} samples")
+    if not rows:
+        raise ArrayRecordingError(f"{path}: no samples")
+    a = np.asarray(rows, dtype=np.float64)
+    inten = np.zeros((a.shape[0], U, C))
+    for (u, c), j in cols.items():
+        inten[:, u, c] = a[:, j]
+    t = a[:, t_col] if t_col is not None else None
+    if t is not None and not np.all(np.isfinite(t)):
+        raise ArrayRecordingError(f"{path}: t_offset_s has empty or non-finite values")
+    return _validated(inten, t, str(path))
+
+
+def load_array_recording(path) -> ArrayRecording:
+    """Read a recording (``.npz`` or ``.csv`` by extension); :class:`ArrayRecordingError` on any problem."""
+    p = str(path)
+    if p.lower().endswith(".csv"):
+        return _load_csv(path)
+    with open_npz(path, ArrayRecordingError, "array recording") as z:
+        if "intensities" not in z.files:
+            raise ArrayRecordingError(f"{p}: no 'intensities' array (has: {', '.join(sorted(z.files)) or 'nothing'})")
+        inten = z["intensities"]
+        t = z["t_offset_s"] if "t_offset_s" in z.files else None
+    return _validated(inten, t, p)
+
+
+def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
+    """Write the ``.npz`` layout :func:`load_array_recording` reads."""
+    arrays = {"intensities": np.asarray(intensities, dtype=np.float64)}
+    if t_offset_s is not None:
+        arrays["t_offset_s"] = np.asarray(t_offset_s, dtype=np.float64)
+    np.savez(path, **arrays)
+
+
+def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
+    """Write the CSV layout :func:`load_array_recording` reads."""
+    a = np.asarray(intensities, dtype=np.float64)
+    S, U, C = a.shape
+    header = (["t_offset_s"] if t_offset_s is not None else []) + [f"u{u}_c{c}" for u in range(U) for c in range(C)]
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for i in range(S):
+            row = ([repr(float(t_offset_s[i]))] if t_offset_s is not None else []) + [repr(float(v)) for v in a[i].ravel()]
+            w.writerow(row)

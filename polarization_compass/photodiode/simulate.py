@@ -1,0 +1,95 @@
+"""Simulated photodiode-array readings under a single-scattering Rayleigh sky (paper eqs 11-19).
+
+Each unit integrates the sky over a cone of full angle ``acceptance_deg`` about its axis (a fixed
+polar quadrature, cos-weighted like a flat photodiode): averaging Stokes vectors of differently
+polarized directions lowers the DoP the unit sees, and for wide cones shifts its angle slightly. Then
+each channel reads ``gain * (S0 + S1 cos 2 theta + S2 sin 2 theta) / 2`` with the E-vector of each
+direction projected on the unit's polarizer plane (:func:`~..conventions.unit_angle_from_evector_body_rad`),
+plus optional Gaussian noise.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..conventions import (R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude, enu_direction, unit_angle_from_evector_body_rad,
+                           unit_axis_body, unit_polarizer_frame_body)
+from .stokes import design_matrix
+
+__all__ = ["sun_body", "simulate_unit_stokes", "simulate_readings"]
+
+
+def sun_body(sun_azimuth_deg, sun_altitude_deg, bearing_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
+    """Sun direction (3,) in the body frame of a body whose front has true ``bearing_deg``, tilted by the
+    paper's pitch/roll (about the default-mounted camera's x/y axes; :mod:`..conventions`)."""
+    R_enu_body = R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg) @ R_BODY_CAM_DEFAULT.T
+    return R_enu_body.T @ enu_direction(sun_azimuth_deg, sun_altitude_deg)
+
+
+def _cone_quadrature(acceptance_deg: float, rings: int = 6, per_ring: int = 24):
+    """Offsets (theta, phi) and weights of a cos-weighted cone quadrature (midpoint in theta)."""
+    half = math.radians(acceptance_deg) / 2.0
+    th = (np.arange(rings) + 0.5) * half / rings
+    ph = np.arange(per_ring) * 2 * math.pi / per_ring
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    w = np.sin(T) * np.cos(T)                      # solid angle x Lambert cosine
+    return T.ravel(), P.ravel(), (w / w.sum()).ravel()
+
+
+def simulate_unit_stokes(geometry, s_body, dop_max: float = 1.0, integrate: bool = True) -> np.ndarray:
+    """(U, 3) Stokes (S0, S1, S2) each unit sees, S0 relative (Rayleigh radiance ~ 1 + cos^2 gamma).
+
+    ``s_body`` the sun in the body frame; angles in each unit's polarizer convention. ``integrate``
+    False: the axis direction only (no acceptance cone).
+    """
+    s = np.asarray(s_body, dtype=float)
+    out = np.zeros((geometry.n_units, 3))
+    for u, unit in enumerate(geometry.units):
+        axis = unit_axis_body(unit.azimuth_deg, unit.elevation_deg)
+        zero, quarter = unit_polarizer_frame_body(unit.azimuth_deg, unit.elevation_deg, geometry.angle_zero,
+                                                  geometry.angle_sense)
+        if integrate:
+            T, P, W = _cone_quadrature(unit.acceptance_deg)
+            dirs = (np.cos(T)[:, None] * axis + np.sin(T)[:, None] * (np.cos(P)[:, None] * zero
+                                                                     + np.sin(P)[:, None] * quarter))
+        else:
+            dirs, W = axis[None, :], np.ones(1)
+        cos_g = np.clip(dirs @ s, -1.0, 1.0)
+        e = np.cross(s, dirs)                                        # eq 18 up to scale
+        norm = np.linalg.norm(e, axis=1)
+        dop = dop_max * (1.0 - cos_g ** 2) / (1.0 + cos_g ** 2)
+        phi = unit_angle_from_evector_body_rad(e / np.maximum(norm, 1e-300)[:, None], unit.azimuth_deg,
+                                               unit.elevation_deg, geometry.angle_zero, geometry.angle_sense)
+        # an E-vector along the axis (off-axis rays only) projects to nothing: weight it by its projected share
+        proj = np.hypot(e @ zero, e @ quarter) / np.maximum(norm, 1e-300)
+        s0 = 1.0 + cos_g ** 2
+        out[u, 0] = np.sum(W * s0 * (1.0 - dop * (1.0 - proj ** 2)))   # the E component along the axis is lost
+        out[u, 1] = np.sum(W * s0 * dop * proj ** 2 * np.cos(2 * phi))
+        out[u, 2] = np.sum(W * s0 * dop * proj ** 2 * np.sin(2 * phi))
+    return out
+
+
+def simulate_readings(geometry, sun_azimuth_deg: float, sun_altitude_deg: float, bearings_deg, pitch_deg=0.0,
+                      roll_deg=0.0, dop_max: float = 0.7, brightness: float = 1000.0, noise_rel: float = 0.0,
+                      integrate: bool = True, rng=None) -> np.ndarray:
+    """Readings (S, U, C) for a body turning through ``bearings_deg`` (true bearing of the front, deg).
+
+    ``brightness`` scales S0 (counts); ``noise_rel`` the Gaussian noise sigma per channel relative to
+    ``brightness``; gains from the geometry. Pitch/roll scalars or per-sample arrays (deg).
+    """
+    b = np.atleast_1d(np.asarray(bearings_deg, dtype=float))
+    p = np.broadcast_to(np.asarray(pitch_deg, dtype=float), b.shape)
+    r = np.broadcast_to(np.asarray(roll_deg, dtype=float), b.shape)
+    C = geometry.n_channels
+    out = np.zeros((b.size, geometry.n_units, C))
+    for i in range(b.size):
+        st = simulate_unit_stokes(geometry, sun_body(sun_azimuth_deg, sun_altitude_deg, b[i], p[i], r[i]), dop_max,
+                                  integrate)
+        for u, unit in enumerate(geometry.units):
+            n = unit.n_channels
+            out[i, u, :n] = brightness * np.asarray(unit.gains) * (design_matrix(unit.channels_deg) @ st[u])
+    if noise_rel > 0:
+        rng = np.random.default_rng(0) if rng is None else rng
+        out += rng.normal(0.0, noise_rel * brightness, out.shape)
+    return out
