@@ -21,6 +21,7 @@ setup(
         ("share/" + PACKAGE + "/launch", glob("launch/*.launch.py")),
         ("share/" + PACKAGE + "/config", glob("config/*.yaml") + glob("config/*.xml")),
         ("share/" + PACKAGE + "/config/scenes", glob("config/scenes/*.yaml")),
+        ("share/" + PACKAGE + "/config/arrays", glob("config/arrays/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=False,

@@ -17,7 +17,8 @@ import sys
 
 from ..errors import CompassError
 
-COMMANDS = ["sun", "render", "estimate", "errormap", "allowable_tilt", "plot", "sim", "record_sim", "replay"]
+COMMANDS = ["sun", "render", "estimate", "errormap", "allowable_tilt", "plot", "sim", "record_sim", "replay",
+            "estimate_array", "calibrate_array", "check_array"]
 
 
 class _Parser(argparse.ArgumentParser):
