@@ -54,7 +54,10 @@ def _unit_gains(samples: np.ndarray, channels_deg) -> tuple[np.ndarray, float]:
     h = Vt[-1] / scale
     if np.sum(h) < 0:
         h = -h
-    cond = float(s[-2] / s[-1]) if s[-1] > 0 else float("inf")
+    if not s[-2] > 1e-9 * s[0]:
+        cond = 0.0                       # a null space of two or more dimensions: not identifiable at all
+    else:
+        cond = float(s[-2] / max(s[-1], 1e-12 * s[0]))
     if not np.all(h > 0):
         return np.full(samples.shape[1], np.nan), cond
     g = 1.0 / h

@@ -10,11 +10,13 @@ are those of the body's front, and pitch/roll are the paper's (about camera +x =
 body front). ``least_squares`` reads the heading in the body frame (level assumption); ``tilt_aware``
 levels the E-vectors with the known pitch and roll first (exact under Rayleigh at any tilt).
 
-Uncertainty: first-order eigenvector perturbation, as in the camera method: unit u moves psi by
-``-w_u r_u (e_u . c)`` where ``r_u = e_u . s`` is its residual (the misfit of a real sky to the model
-included) and c the sensitivity vector. With few units the residual variance is poorly known, so it is
-pooled with a prior AoP noise (``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedom):
-``sigma_r^2 = (sum w r^2 + nu0 * r0^2) / (n - 2 + nu0)``, and ``Var psi = sigma_r^2 * sum w (e . c)^2``.
+Uncertainty: first-order eigenvector perturbation, as in the camera method. An angle error eps_u of unit u
+turns its E-vector about the unit's axis p_u, moving ``e_u . s`` by ``eps_u * l_u`` with ``l_u = (p_u x e_u) . s``,
+and psi by ``-w_u l_u (e_u . c) eps_u`` (c the sensitivity vector). The angle errors are taken as independent
+with variance ``sigma_eps^2 / w_u``; ``sigma_eps^2`` comes from the units' angle residuals against the fitted
+sun (so the misfit of a real sky to the model counts), pooled, because a few units pin it down poorly, with a
+prior angle noise (``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedom):
+``sigma_eps^2 = (sum w eps^2 + nu0 eps0^2) / (n - 2 + nu0)``, ``Var psi = sigma_eps^2 sum (w l (e . c))^2 / w``.
 
 Statuses besides the camera's: ``too_few_units`` (fewer usable units than ``min_units``) and ``poor_fit``
 (the rms angle residual exceeds ``max_misfit_deg``, or the fitted sun's elevation is more than
@@ -191,15 +193,17 @@ class ArrayHeadingEstimator:
         d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
         c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
         c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
-        r = e @ s
-        # prior residual scale: AoP noise r0 turns e about p, moving e . s by r0 * |(p x e) . s|
-        lever = np.abs(np.einsum("ui,i->u", np.cross(pc, e), s))
-        r0_sq = math.sin(math.radians(k["aop_noise_prior_deg"])) ** 2 * float(np.mean(lever ** 2))
+        # a unit's angle error eps turns e about its axis p: d e = eps (p x e), so d(e . s) = eps * lever
+        lever = np.einsum("ui,i->u", np.cross(pc, e), s)
         nu0 = k["prior_dof"]
         dof = (n - 2) + nu0
-        sigma_r_sq = (float(np.sum(w * r * r)) + nu0 * r0_sq) / dof if dof > 0 else 0.0
-        sigma_psi = math.sqrt(max(sigma_r_sq * float(np.sum(w * (e @ c_psi) ** 2)), 0.0))
-        sigma_el = math.sqrt(max(sigma_r_sq * float(np.sum(w * (e @ c_el) ** 2)), 0.0))
+        eps0_sq = math.radians(k["aop_noise_prior_deg"]) ** 2
+        # Var(eps_u) = sigma_eps^2 / w_u, sigma_eps^2 pooled from the angle residuals and the prior
+        sigma_eps_sq = (float(np.sum(w * resid_rad ** 2)) + nu0 * eps0_sq) / dof if dof > 0 else 0.0
+        infl_psi = w * lever * (e @ c_psi)              # d psi / d eps_u (up to sign)
+        infl_el = w * lever * (e @ c_el)
+        sigma_psi = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_psi ** 2 / w)), 0.0))
+        sigma_el = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_el ** 2 / w)), 0.0))
         sigma_deg = max(math.hypot(math.degrees(sigma_psi), k["sigma_floor_deg"]), 1e-9)
         el_fit = math.degrees(math.asin(min(1.0, abs(float(s_sign[2])))))
         extras = {"units_used": n, "misfit_rms_deg": misfit_deg,
