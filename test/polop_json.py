@@ -17,10 +17,22 @@ from pathlib import Path
 
 import numpy as np
 
-DATA_DIR = Path(os.environ.get("POLOP_DATA_DIR",
-                               Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real-polop")).resolve()
-if not DATA_DIR.is_dir():       # worktrees live one level deeper than /work/main
-    DATA_DIR = Path("/work/shared/data/real-polop")
+
+
+def _data_dir() -> Path:
+    """``$POLOP_DATA_DIR`` when set, else ``../shared/data/real-polop`` beside the checkout (or one level up,
+    for worktrees kept in a subfolder)."""
+    if os.environ.get("POLOP_DATA_DIR"):
+        return Path(os.environ["POLOP_DATA_DIR"]).resolve()
+    repo = Path(__file__).resolve().parents[1]
+    for base in (repo.parent, repo.parent.parent):
+        cand = base / "shared" / "data" / "real-polop"
+        if cand.is_dir():
+            return cand
+    return repo.parent / "shared" / "data" / "real-polop"
+
+
+DATA_DIR = _data_dir()
 CHANNELS_DEG = (135.0, 45.0, 90.0, 0.0)
 ELEVATION_DEG = 45.0
 #: seconds between consecutive turns of a session: the README's 15-20 minutes for 12 turns, taken as 90 s
