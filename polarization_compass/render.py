@@ -21,7 +21,7 @@ import numpy as np
 
 from . import instrumentation as instr
 from .camera import PixelSelection, SelectedPixels, select_pixels
-from .conventions import CameraAttitude, R_enu_cam_from_attitude, bearing_to_psi_deg, enu_direction
+from .conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, bearing_to_psi_deg, enu_direction
 from .scene import Scene
 from .sky_models import make_sky_model
 
@@ -60,6 +60,7 @@ class Frame:
     aop_ideal_rad: np.ndarray | None = None
     dop_ideal: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    array_intensities: np.ndarray | None = None    # (units, channels) when the scene declares a photodiode array
 
     @property
     def x_px(self) -> np.ndarray:
@@ -113,6 +114,10 @@ class Renderer:
                         v.min_dop)
         self._sun_cache = None
         self._frames = 0
+        self.array = None
+        if scene.photodiode_array is not None:
+            from .photodiode.simulate import ArraySensor
+            self.array = ArraySensor.from_config(scene.photodiode_array)
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
@@ -153,6 +158,13 @@ class Renderer:
             rng = np.random.default_rng(ss)
             with instr.stage("sensor"):
                 self.sensor.apply(frame, rng)
+        if self.array is not None:
+            # the array is mounted like the default camera: body = R_BODY_CAM_DEFAULT @ camera
+            ss = np.random.SeedSequence([self.scene.seed, self._frames, 1] if seed is None else [int(seed), 1])
+            with instr.stage("photodiode_array"):
+                frame.array_intensities = self.array.read(R_BODY_CAM_DEFAULT @ sun_cam,
+                                                          float(self.sky.params().get("dop_max", 1.0)),
+                                                          np.random.default_rng(ss))
         self._frames += 1
         frame.meta = {
             "scene": self.scene.name,
@@ -168,6 +180,7 @@ class Renderer:
             "effects": list(self.scene.effects),
             "sensor": None if self.sensor is None else self.sensor.params(),
             "pixels": self.selection.describe(),
+            "photodiode_array": None if self.array is None else self.array.params(),
             "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
                        "height_px": self.scene.camera.height_px,
                        "focal_length_mm": self.scene.camera.focal_length_mm,

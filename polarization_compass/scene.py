@@ -20,6 +20,8 @@ Schema (every key optional; defaults are the paper's set-up, see ``data/default_
     validity: {sun_exclusion_deg, min_altitude_deg, min_dop}
     sensor: {} | {mosaic: {...}, shot_noise: {...}, read_noise: {...}, quantization: {...},
                   extinction_ratio: {...}, demosaic: superpixel|bilinear}
+    photodiode_array: null | {geometry: <mapping or YAML path>, brightness, noise_rel, integrate}
+                                     # a photodiode-array compass beside the camera (docs/photodiode-arrays.md)
     seed: int
 """
 from __future__ import annotations
@@ -77,6 +79,7 @@ class Scene:
     validity: Validity = Validity()
     sensor: dict = field(default_factory=dict)
     seed: int = 0
+    photodiode_array: dict | None = None          # rendered only when declared
 
     def __hash__(self):  # dict fields: hash by identity is enough for caching per scene object
         return id(self)
@@ -106,6 +109,8 @@ class Scene:
             "sensor": dict(self.sensor),
             "seed": self.seed,
         }
+        if self.photodiode_array is not None:
+            d["photodiode_array"] = dict(self.photodiode_array)
         return d
 
 
@@ -185,7 +190,7 @@ def scene_from_dict(d: dict) -> Scene:
     if d is None:
         d = {}
     _check_keys(d, {"name", "site", "time_utc", "sun", "attitude", "camera", "pixels", "sky", "radiance",
-                    "validity", "sensor", "seed"}, "")
+                    "validity", "sensor", "seed", "photodiode_array"}, "")
     base = Scene()
     site_d = d.get("site", {}) or {}
     _check_keys(site_d, {"latitude_deg", "longitude_deg", "altitude_m"}, "site.")
@@ -234,6 +239,14 @@ def scene_from_dict(d: dict) -> Scene:
     seed = int(_num(d, "seed", 0, 0, 2 ** 32 - 1))
     scene = Scene(str(d.get("name", base.name)), site, t, sun_model, sun_fixed, att, cam, pixels,
                   dict(sky), dict(radiance) if radiance else None, validity, dict(sensor), seed)
+    if d.get("photodiode_array") is not None:
+        from .photodiode.simulate import ArraySensor
+        from .photodiode.geometry import ArrayGeometryError
+        try:
+            ArraySensor.from_config(d["photodiode_array"])
+        except ArrayGeometryError as exc:
+            raise SceneError(str(exc)) from None
+        scene = scene.replace(photodiode_array=dict(d["photodiode_array"]))
     # fail early on bad model parameters, not at the first frame
     from .sky import SkyModelError
     from .sky_models import make_sky_model
