@@ -162,6 +162,8 @@ class Estimator:
     the paper's figures).
     ``sweep_knobs``: knobs an error-map sweep uses by default (its sampling: a sweep renders 1e4-1e5
     frames, so it reads fewer pixels than a live estimate); {} = the method's defaults.
+    ``accepts_units``: the method also runs on a photodiode array's few unit E-vectors
+    (:mod:`polarization_compass.photodiode.heading`); False: it needs an image.
     ``relative_cost``: CPU time per frame relative to the others (median ms per frame at the nodes' knobs,
     ``make bench`` group replay, 2026-11-24), used only to balance the replay's worker threads.
 
@@ -177,6 +179,7 @@ class Estimator:
     needs_tilt = False
     paper_method = False
     sweep_knobs: dict = {}
+    accepts_units = False
     relative_cost = 5.0
 
     def __init__(self, **knobs):

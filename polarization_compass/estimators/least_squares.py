@@ -137,6 +137,7 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
 
 class _LSBase(KnobbedEstimator, Estimator):
     axial = False
+    accepts_units = True          # the same eigen-solve runs on a photodiode array's unit E-vectors
     OWN_KNOBS = {
         "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
                           doc="pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform"),

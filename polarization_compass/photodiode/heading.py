@@ -20,8 +20,9 @@ prior angle noise (``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedo
 
 Statuses besides the camera's: ``too_few_units`` (fewer usable units than ``min_units``) and ``poor_fit``
 (the rms angle residual exceeds ``max_misfit_deg``, or the fitted sun's elevation is more than
-``max_sun_elevation_diff_deg`` from the ephemeris). The image-only methods (zenith, sm_asm, symmetry)
-need an image: :func:`make_array_estimator` refuses them with that reason.
+``max_sun_elevation_diff_deg`` from the ephemeris). Which methods run on units is each estimator class's
+fact ``accepts_units`` (the registry); the others (zenith, sm_asm, symmetry) need an image, and
+:func:`make_array_estimator` refuses them with that reason.
 """
 from __future__ import annotations
 
@@ -34,14 +35,18 @@ from ..conventions import R_BODY_CAM_DEFAULT, fold_axial_rad, rot_x, rot_y, unit
 from ..errors import CompassError
 from ..estimators.base import HeadingResult, Status
 from ..estimators._common import Candidate, Knob, check_sun, psi_from_sun_rad, resolve_ambiguity, result_from
+from ..estimators import registry
 from ..estimators.least_squares import solve_sun
 from .stokes import fit_stokes
 
-__all__ = ["ARRAY_METHODS", "IMAGE_ONLY_METHODS", "ArrayMethodError", "ArrayHeadingEstimator", "make_array_estimator",
-           "ARRAY_KNOBS", "estimate_recording"]
+__all__ = ["array_methods", "ArrayMethodError", "ArrayHeadingEstimator", "make_array_estimator", "ARRAY_KNOBS",
+           "estimate_recording"]
 
-ARRAY_METHODS = ("least_squares", "tilt_aware")
-IMAGE_ONLY_METHODS = ("zenith", "sm_asm", "symmetry")
+
+def array_methods() -> tuple[str, ...]:
+    """Registered methods that run on a photodiode array's units (class fact ``accepts_units``)."""
+    return tuple(n for n in registry.names() if registry.get(n).accepts_units)
+
 
 ARRAY_KNOBS = {
     "min_units": Knob(3, "int", 2, 64, doc="usable units needed (2 fix the sun exactly, with no misfit check)"),
@@ -100,15 +105,16 @@ def _brightness_t(s0, p_cam, direction) -> float | None:
 class ArrayHeadingEstimator:
     """Heading of a photodiode array from one sample of per-unit angles of polarization.
 
-    ``name`` one of :data:`ARRAY_METHODS`; ``geometry`` an :class:`~.geometry.ArrayGeometry`; knobs from
+    ``name`` one of :func:`array_methods` (``needs_tilt`` classes level with the known pitch and roll); ``geometry`` an :class:`~.geometry.ArrayGeometry`; knobs from
     :data:`ARRAY_KNOBS`.
     """
 
     def __init__(self, name: str, geometry, **knobs):
-        if name not in ARRAY_METHODS:
+        cls = registry.find(name)
+        if cls is None or not cls.accepts_units:
             raise ArrayMethodError(_method_message(name))
         self.name = name
-        self.level_with_tilt = name == "tilt_aware"
+        self.level_with_tilt = bool(cls.needs_tilt)
         self.geometry = geometry
         unknown = sorted(set(knobs) - set(ARRAY_KNOBS))
         if unknown:
@@ -247,10 +253,10 @@ class ArrayHeadingEstimator:
 
 
 def _method_message(name: str) -> str:
-    if name in IMAGE_ONLY_METHODS:
-        return (f"method {name} needs an image (a camera's sky pattern); a photodiode array supports "
-                f"{', '.join(ARRAY_METHODS)}")
-    return f"unknown method {name!r} for a photodiode array; supported: {', '.join(ARRAY_METHODS)}"
+    ok = ", ".join(array_methods())
+    if registry.find(name) is not None:
+        return f"method {name} needs an image (a camera's sky pattern); a photodiode array supports {ok}"
+    return f"unknown method {name!r} for a photodiode array; supported: {ok}"
 
 
 def make_array_estimator(name: str, geometry, **knobs) -> ArrayHeadingEstimator:
