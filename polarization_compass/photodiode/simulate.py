@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from ..conventions import (R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude, enu_direction, unit_angle_from_evector_body_rad,
-                           unit_axis_body, unit_polarizer_frame_body)
+from ..conventions import (CameraAttitude, R_enu_body_from_camera_attitude, enu_direction,
+                           unit_angle_from_evector_body_rad, unit_axis_body, unit_polarizer_frame_body)
 from .stokes import design_matrix
 
 __all__ = ["sun_body", "simulate_unit_stokes", "simulate_readings", "ArraySensor"]
@@ -23,7 +23,7 @@ __all__ = ["sun_body", "simulate_unit_stokes", "simulate_readings", "ArraySensor
 def sun_body(sun_azimuth_deg, sun_altitude_deg, bearing_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
     """Sun direction (3,) in the body frame of a body whose front has true ``bearing_deg``, tilted by the
     paper's pitch/roll (about the default-mounted camera's x/y axes; :mod:`..conventions`)."""
-    R_enu_body = R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg) @ R_BODY_CAM_DEFAULT.T
+    R_enu_body = R_enu_body_from_camera_attitude(CameraAttitude(float(bearing_deg), float(pitch_deg), float(roll_deg)))
     return R_enu_body.T @ enu_direction(sun_azimuth_deg, sun_altitude_deg)
 
 
