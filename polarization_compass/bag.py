@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import CameraError, CameraModel
+from .camera import CameraError, CameraModel, check_intrinsics
 from .conventions import QuaternionError, R_BODY_CAM_DEFAULT, validate_quaternion
 from .errors import CompassError
 
@@ -356,6 +356,8 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     is scaled by ``fx / fy`` so non-square pixels keep their shape. ``plumb_bob``/``rational_polynomial``
     with zero distortion -> pinhole; ``equidistant`` with zero coefficients -> fisheye_equidistant
     (r = f theta). Non-zero distortion, binning or a ROI are not supported (``unsupported_camera``).
+    Implausible intrinsics (:func:`~polarization_compass.camera.check_intrinsics`: principal point outside
+    the image or far from its centre, fx and fy differing by more than 5 %) are ``bad_camera_info``.
     """
     K = np.asarray(msg.k, dtype=float).reshape(-1)
     D = np.asarray(msg.d, dtype=float).reshape(-1)
@@ -377,10 +379,11 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     if int(roi.width) not in (0, int(msg.width)) or int(roi.height) not in (0, int(msg.height)):
         raise MessageError("unsupported_camera", "a region of interest is not supported")
     try:
-        return CameraModel(model=model, width_px=int(msg.width), height_px=int(msg.height),
-                           focal_length_mm=float(fx * pixel_pitch_um * 1e-3),
-                           pixel_pitch_x_um=float(pixel_pitch_um), pixel_pitch_y_um=float(pixel_pitch_um * fx / fy),
-                           principal_x_px=float(cx + 1.0), principal_y_px=float(cy + 1.0))
+        cam = CameraModel(model=model, width_px=int(msg.width), height_px=int(msg.height),
+                          focal_length_mm=float(fx * pixel_pitch_um * 1e-3),
+                          pixel_pitch_x_um=float(pixel_pitch_um), pixel_pitch_y_um=float(pixel_pitch_um * fx / fy),
+                          principal_x_px=float(cx + 1.0), principal_y_px=float(cy + 1.0))
+        return check_intrinsics(cam)         # plausible calibration: pp near the centre, fx ~ fy
     except CameraError as exc:
         raise MessageError("bad_camera_info", str(exc)) from None
 

@@ -23,7 +23,8 @@ from .errors import CompassError
 
 import numpy as np
 
-__all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError"]
+__all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError", "check_intrinsics",
+           "MAX_PIXEL_ASPECT_DEVIATION", "MAX_PRINCIPAL_OFFSET_FRACTION"]
 
 
 class CameraError(CompassError):
@@ -49,12 +50,16 @@ class CameraModel:
             raise CameraError(f"camera model must be 'pinhole' or 'fisheye_equidistant', got {self.model!r}")
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or not (1 <= int(v) <= 20000):
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not (1 <= int(v) <= 20000):
                 raise CameraError(f"{name} must be an integer in [1, 20000], got {v!r}")
         for name in ("focal_length_mm", "pixel_pitch_x_um", "pixel_pitch_y_um"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise CameraError(f"{name} must be a positive finite number, got {v!r}")
+        for name in ("principal_x_px", "principal_y_px"):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
+                raise CameraError(f"{name} must be a finite number or None, got {v!r}")
         if not (0 < self.max_field_angle_deg <= 180):
             raise CameraError("max_field_angle_deg must be in (0, 180]")
 
@@ -115,6 +120,48 @@ class CameraModel:
             u, v = f * theta * np.cos(phi), f * theta * np.sin(phi)
         return (u / (self.pixel_pitch_x_um * 1e-3) + self.cx_px,
                 v / (self.pixel_pitch_y_um * 1e-3) + self.cy_px)
+
+
+#: Largest relative difference of the focal lengths in x and y pixels (|fx / fy - 1|) accepted from a
+#: calibration: square-pixel sensors calibrate to within a few 1e-3.
+MAX_PIXEL_ASPECT_DEVIATION = 0.05
+#: Largest distance of the principal point from the image centre, as a fraction of the width (x) or the
+#: height (y): calibrated lenses sit within a few percent; a K from another resolution or binning puts it
+#: near a corner (2x: exactly at the far edge).
+MAX_PRINCIPAL_OFFSET_FRACTION = 0.25
+
+
+def check_intrinsics(camera: "CameraModel", image_size: tuple[int, int] | None = None,
+                     max_aspect_deviation: float = MAX_PIXEL_ASPECT_DEVIATION,
+                     max_principal_offset: float = MAX_PRINCIPAL_OFFSET_FRACTION) -> "CameraModel":
+    """Plausibility of calibrated intrinsics (e.g. from a ROS camera_info); returns ``camera`` or raises
+    :class:`CameraError` naming the first problem.
+
+    Checks: focal length > 0 (also enforced by :class:`CameraModel`); square pixels within
+    ``max_aspect_deviation`` (``|fx/fy - 1|``, fx = f / D_x and fy = f / D_y in pixels); the principal point
+    inside the image and within ``max_principal_offset`` of the width/height from the centre
+    ((eta + 1) / 2, eq 20, 1-based); with ``image_size`` = (width, height) in pixels, the camera's size equal
+    to it. A wrong calibration otherwise gives a confident, wrong heading (issue 18: the principal point
+    at the corner of a 612 x 512 image moved a level camera's heading by 24 deg with status ok).
+    """
+    W, H = int(camera.width_px), int(camera.height_px)
+    if image_size is not None and (int(image_size[0]), int(image_size[1])) != (W, H):
+        raise CameraError(f"image is {int(image_size[0])}x{int(image_size[1])} but the intrinsics are for {W}x{H}")
+    if not camera.focal_length_mm > 0:
+        raise CameraError(f"focal length must be positive, got {camera.focal_length_mm!r} mm")
+    aspect = camera.pixel_pitch_y_um / camera.pixel_pitch_x_um          # = fx / fy in pixels
+    if abs(aspect - 1.0) > max_aspect_deviation:
+        raise CameraError(f"fx/fy = {aspect:.4g}: pixels this far from square (more than "
+                          f"{max_aspect_deviation:g}) mean a calibration of another camera or mode")
+    cx, cy = camera.cx_px, camera.cy_px
+    if not (0.5 <= cx <= W + 0.5 and 0.5 <= cy <= H + 0.5):
+        raise CameraError(f"principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is outside the {W}x{H} image")
+    dx, dy = abs(cx - (W + 1) / 2.0) / W, abs(cy - (H + 1) / 2.0) / H
+    if dx > max_principal_offset or dy > max_principal_offset:
+        raise CameraError(f"principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is {max(dx, dy):.0%} of the "
+                          f"image size from the centre of the {W}x{H} image (at most {max_principal_offset:.0%}): "
+                          "a calibration from another resolution or binning?")
+    return camera
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ optional: ``intensity`` (float32), ``mosaic`` (uint8/uint16 raw DoFP image), ``a
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,12 +23,16 @@ import numpy as np
 
 from .camera import CameraModel
 from .errors import CompassError
-from .safe_load import open_npz
+from .safe_load import load_json, open_npz
 
-__all__ = ["save_frame_npz", "load_frame_npz", "FrameFile", "FrameFileError"]
+__all__ = ["save_frame_npz", "load_frame_npz", "FrameFile", "FrameFileError", "MAX_FRAME_PIXELS"]
 
 REQUIRED = ("aop_rad", "dop", "valid", "x_px", "y_px", "meta")
 OPTIONAL = ("intensity", "mosaic", "aop_ideal_rad", "dop_ideal")
+#: Largest frame read: 2^25 pixels (e.g. 8192 x 4096; the paper's sensor has 5.0e6), its mosaic 4x that.
+MAX_FRAME_PIXELS = 1 << 25
+#: Largest meta JSON text: 1 MiB (a real one is about 2 kB).
+MAX_META_CHARS = 1 << 20
 
 
 class FrameFileError(CompassError):
@@ -79,20 +84,42 @@ def save_frame_npz(path, frame) -> Path:
     return p
 
 
+def _check_declared_shapes(name: str, headers: dict) -> None:
+    """The shapes a frame file declares, before anything is decompressed: the required arrays present,
+    the per-pixel arrays of one 2-D (or 1-D pixel list) shape of at most :data:`MAX_FRAME_PIXELS`, the
+    mosaic at most 4x that, meta a 0-d string of at most :data:`MAX_META_CHARS`."""
+    missing = [k for k in REQUIRED if k not in headers]
+    if missing:
+        raise FrameFileError(f"{name}: missing array(s) {missing}; is it a 'render' output?")
+    shape = headers["aop_rad"].shape
+    n = math.prod(shape)
+    if len(shape) not in (1, 2) or n > MAX_FRAME_PIXELS:
+        raise FrameFileError(f"{name}: aop_rad declares shape {shape}; a frame is a 1-D or 2-D array of at most "
+                             f"{MAX_FRAME_PIXELS} pixels (refused before decompressing)")
+    for k in ("dop", "valid", "x_px", "y_px", "intensity", "aop_ideal_rad", "dop_ideal"):
+        if k in headers and headers[k].shape != shape:
+            raise FrameFileError(f"{name}: {k} has shape {headers[k].shape}, aop_rad has {shape}")
+    if "mosaic" in headers:
+        ms = headers["mosaic"].shape
+        if len(ms) != 2 or math.prod(ms) > 4 * MAX_FRAME_PIXELS:
+            raise FrameFileError(f"{name}: mosaic declares shape {ms}; at most {4 * MAX_FRAME_PIXELS} pixels "
+                                 "in 2-D (refused before decompressing)")
+    m = headers["meta"]
+    if m.shape != () or m.dtype.kind != "U" or m.dtype.itemsize // 4 > MAX_META_CHARS:
+        raise FrameFileError(f"{name}: meta must be one JSON string of at most {MAX_META_CHARS} characters, "
+                             f"got {m.dtype} of shape {m.shape}")
+
+
 def load_frame_npz(path) -> FrameFile:
-    """Read and validate a frame file. Raises :class:`FrameFileError` with the reason."""
+    """Read and validate a frame file. Raises :class:`FrameFileError` with the reason.
+
+    The declared shapes are checked before any array is decompressed (:func:`_check_declared_shapes`)."""
     p = Path(path)
-    with open_npz(p, FrameFileError, "frame file") as z:
-        missing = [k for k in REQUIRED if k not in z.files]
-        if missing:
-            raise FrameFileError(f"{p.name}: missing array(s) {missing}; is it a 'render' output?")
+    with open_npz(p, FrameFileError, "frame file", check=lambda h: _check_declared_shapes(p.name, h)) as z:
         data = {k: z[k] for k in z.files if k in REQUIRED + OPTIONAL}
-    try:
-        meta = json.loads(str(data.pop("meta")))
-        if not isinstance(meta, dict):
-            raise ValueError("not an object")
-    except (ValueError, TypeError) as exc:
-        raise FrameFileError(f"{p.name}: meta is not a JSON object ({exc})") from None
+    meta = load_json(str(data.pop("meta")), f"{p.name}: meta", FrameFileError)
+    if not isinstance(meta, dict):
+        raise FrameFileError(f"{p.name}: meta is not a JSON object")
     shape = data["aop_rad"].shape
     for k in ("dop", "valid", "x_px", "y_px"):
         if data[k].shape != shape:

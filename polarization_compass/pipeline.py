@@ -22,7 +22,8 @@ from .demosaic import IMX250MZR_LAYOUT
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "SunSource", "HeadingFrontEnd",
-           "PipelineError", "warm_up", "TiltAndPrior", "FrameInputs"]
+           "PipelineError", "warm_up", "TiltAndPrior", "FrameInputs", "CameraInfoState", "check_prior_agreement",
+           "PRIOR_DISAGREES_N_SIGMA"]
 
 
 class PipelineError(CompassError):
@@ -179,14 +180,18 @@ class TiltAndPrior:
     ``prior_source`` ``imu``: the bearing of the IMU attitude nearest the stamp within
     ``prior_max_age_s`` (``imu_near``; its coarse yaw is enough to pick the sun's side); ``last``: this
     method's last resolved (not axial) heading when its stamp is within ``prior_max_age_s``; ``none``.
+    An IMU prior is also a check (:meth:`checked`): a heading further from it than 3 combined sigmas
+    (``prior_sigma_deg`` the IMU yaw's 1-sigma) is not ``ok``.
     """
 
-    def __init__(self, method: str, prior_source: str = "imu", prior_max_age_s: float = 2.0):
+    def __init__(self, method: str, prior_source: str = "imu", prior_max_age_s: float = 2.0,
+                 prior_sigma_deg: float = 15.0):
         from .estimators import registry
         cls = registry.find(method)
         self.needs_tilt = bool(cls is not None and cls.needs_tilt)
         self.prior_source = prior_source
         self.prior_max_age_s = float(prior_max_age_s)
+        self.prior_sigma_deg = float(prior_sigma_deg)
         self.last_bearing = None          # (stamp_ns, bearing_deg) of the last resolved heading
 
     @property
@@ -215,10 +220,94 @@ class TiltAndPrior:
                 prior = self.last_bearing[1]
         return FrameInputs(pitch, roll, prior, self.needs_tilt and tilt is None)
 
+    def checked(self, result, inputs: FrameInputs):
+        """``result`` after :func:`check_prior_agreement` against the IMU prior of ``inputs`` (``prior_source``
+        imu only: the ``last`` heading is no independent prior, the robot may have turned)."""
+        if self.prior_source != "imu":
+            return result
+        return check_prior_agreement(result, inputs.prior_bearing_deg, self.prior_sigma_deg)
+
     def remember(self, t_ns: int, result) -> None:
         """Keep ``result``'s bearing as the ``last`` prior when it is a resolved heading."""
         if result.ok and not result.axial and result.bearing_deg is not None:
             self.last_bearing = (int(t_ns), float(result.bearing_deg))
+
+
+#: A heading further from a given IMU prior than this many combined sigmas is not ``ok``.
+PRIOR_DISAGREES_N_SIGMA = 3.0
+
+
+def check_prior_agreement(result, prior_bearing_deg: float | None, prior_sigma_deg: float,
+                          n_sigma: float = PRIOR_DISAGREES_N_SIGMA):
+    """The named consistency step "heading vs. IMU prior": ``result`` unchanged, or a failed result with
+    status ``prior_disagrees`` and the reason when its bearing is further from ``prior_bearing_deg`` (deg,
+    an independent yaw such as the IMU's) than ``n_sigma`` times ``sqrt(sigma^2 + prior_sigma_deg^2)``.
+
+    An axial result is compared modulo 180 deg (:func:`~polarization_compass.conventions.fold_axial_deg`),
+    a resolved one modulo 360 (:func:`~polarization_compass.conventions.wrap_180_deg`). No prior, a failed
+    result or ``prior_sigma_deg`` <= 0 (check off): ``result`` unchanged. Separate from any check of the
+    sky fit itself (those belong to the estimators).
+    """
+    if prior_bearing_deg is None or not result.ok or result.bearing_deg is None or not prior_sigma_deg > 0:
+        return result
+    import math
+    from dataclasses import replace
+
+    from .conventions import fold_axial_deg, wrap_180_deg
+    from .estimators.base import HeadingResult, Status
+    if not math.isfinite(float(prior_bearing_deg)):
+        return result
+    d = float(result.bearing_deg) - float(prior_bearing_deg)
+    off = abs(float(fold_axial_deg(d) if result.axial else wrap_180_deg(d)))
+    sigma = float(result.sigma_deg or 0.0)
+    limit = n_sigma * math.hypot(sigma, float(prior_sigma_deg))
+    if off <= limit:
+        return result
+    extras = dict(result.extras, rejected_bearing_deg=float(result.bearing_deg), rejected_sigma_deg=sigma,
+                  prior_difference_deg=off)
+    failed = HeadingResult.failed(result.method, Status.PRIOR_DISAGREES,
+                                  f"heading {result.bearing_deg:.1f} deg is {off:.1f} deg from the IMU prior "
+                                  f"{float(prior_bearing_deg) % 360.0:.1f} deg, more than {n_sigma:g} x "
+                                  f"sqrt(sigma {sigma:.2g}^2 + prior sigma {float(prior_sigma_deg):g}^2) = "
+                                  f"{limit:.1f} deg", pixels=result.pixels, **extras)
+    return replace(failed, quality=result.quality)
+
+
+class CameraInfoState:
+    """The intrinsics in use from a camera_info stream, and why none are (ROS-free; the node and the replay).
+
+    :meth:`accept` a decoded, validated camera; :meth:`reject` a message that failed decoding or
+    :func:`~polarization_compass.camera.check_intrinsics`. A rejection also withdraws the camera accepted
+    before it: the stream now says something else about the camera (a recalibration, another resolution
+    or binning), and using the old intrinsics could be worse than none -- frames get a ``bad_input``
+    status naming the rejection until a valid camera_info arrives. :meth:`camera` is the camera to use,
+    None when no camera_info arrived yet (the caller's fallback applies), or raises :class:`PipelineError`.
+    """
+
+    def __init__(self):
+        self._camera = None
+        self.rejected_reason: str | None = None
+        self.accepted = 0
+        self.rejected = 0
+
+    def accept(self, camera) -> None:
+        self._camera = camera
+        self.rejected_reason = None
+        self.accepted += 1
+
+    def reject(self, reason: str) -> None:
+        self.rejected_reason = str(reason)
+        self.rejected += 1
+
+    @property
+    def received_any(self) -> bool:
+        return self.accepted + self.rejected > 0
+
+    def camera(self):
+        if self.rejected_reason is not None:
+            raise PipelineError(f"the latest camera_info was rejected ({self.rejected_reason}); no intrinsics "
+                                "in use until a valid one arrives")
+        return self._camera
 
 
 # ------------------------------------------------------------------------------------------------

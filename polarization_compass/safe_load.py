@@ -1,12 +1,24 @@
-"""Loading files without executing them, and with one-line errors.
+"""Loading files without executing them, with bounded memory, and with one-line errors.
 
 Everything the package reads from disk goes through here: ``.npz`` archives (numpy, never pickle),
-YAML (``yaml.safe_load`` only) and text (UTF-8). Each function takes the error class of its caller
-(a :class:`~polarization_compass.errors.CompassError`), so a bad file is a user error with a short
-message, never a traceback, a leaked file handle or an ``internal error``.
+YAML (``yaml.safe_load`` only), JSON and text (UTF-8). Each function takes the error class of its
+caller (a :class:`~polarization_compass.errors.CompassError`), so a bad file is a user error with a
+short message, never a traceback, a leaked file handle or an ``internal error``.
+
+Bounds (hostile or broken files must not take the machine's memory): only regular files are read
+(a FIFO, a device such as a symlink to ``/dev/zero``, a socket or a directory is refused before it
+is opened); text files are read up to ``max_bytes`` (:data:`MAX_TEXT_BYTES` by default); an ``.npz``
+archive is refused when its file is larger than ``max_file_bytes`` or when the shapes its ``.npy``
+headers *declare* exceed ``max_total_bytes`` or the caller's context check -- all before any array
+is decompressed (a zip of a few MB can declare tens of GB of zeros). Nesting deep enough to exhaust
+Python's recursion (YAML or JSON) and a ``MemoryError`` while parsing are user errors too.
 """
 from __future__ import annotations
 
+import json
+import math
+import os
+import stat
 import zipfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -16,28 +28,65 @@ import yaml
 
 from .errors import CompassError
 
-__all__ = ["open_npz", "read_text", "load_yaml", "yaml_problem"]
+__all__ = ["open_npz", "read_text", "load_yaml", "load_json", "yaml_problem", "npz_headers", "NpyHeader",
+           "MAX_TEXT_BYTES", "MAX_NPZ_FILE_BYTES", "MAX_NPZ_TOTAL_BYTES", "regular_file"]
+
+#: Largest text file read (scenes, topic maps): 1 MiB, about a thousand times a real scene.
+MAX_TEXT_BYTES = 1 << 20
+#: Largest ``.npz`` file opened (on disk): 1 GiB.
+MAX_NPZ_FILE_BYTES = 1 << 30
+#: Largest total size the arrays of one ``.npz`` may declare (decompressed): 2 GiB.
+MAX_NPZ_TOTAL_BYTES = 2 << 30
 
 
-def _existing_file(path, error, what) -> Path:
-    """``path`` as a Path; ``error`` when it does not exist or is a directory."""
+def _size_text(n: int) -> str:
+    for unit, k in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= k:
+            return f"{n / k:.3g} {unit}"
+    return f"{n} bytes"
+
+
+def regular_file(path, error=CompassError, what="file", max_bytes: int | None = None) -> Path:
+    """``path`` as a Path when it is a regular file (symlinks followed) of at most ``max_bytes``.
+
+    Raises ``error`` when it does not exist, is a directory, is a special file (FIFO, character or
+    block device such as ``/dev/zero``, socket: reading one could block or never end) or is too large.
+    """
     p = Path(path)
-    if not p.exists():
-        raise error(f"{what} {str(p)!r} does not exist")
-    if p.is_dir():
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise error(f"{what} {str(p)!r} does not exist") from None
+    except (OSError, ValueError) as exc:      # a loop of symlinks, a name too long, a NUL byte ...
+        raise error(f"{what} {str(p)!r} cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
         raise error(f"{what} {str(p)!r} is a directory")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a device" if stat.S_ISCHR(st.st_mode)
+                or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "a special file")
+        raise error(f"{what} {str(p)!r} is {kind}, not a regular file; refused")
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise error(f"{what} {str(p)!r} is {_size_text(st.st_size)}, more than the {_size_text(max_bytes)} "
+                    f"a {what} may have; is it the right file?")
     return p
 
 
-def read_text(path, error=CompassError, what="file") -> str:
-    """The UTF-8 text of ``path``; missing, directory, unreadable or binary files raise ``error``."""
-    p = _existing_file(path, error, what)
+
+def read_text(path, error=CompassError, what="file", max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of ``path`` (at most ``max_bytes``); missing, special, too large, unreadable or
+    binary files raise ``error``."""
+    p = regular_file(path, error, what, max_bytes)
     try:
-        return p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise error(f"{what} {str(p)!r} is not UTF-8 text (byte {exc.start}); is it the right file?") from None
+        with open(p, "rb") as fh:
+            data = fh.read(max_bytes + 1)           # the file may have grown since the stat
     except OSError as exc:
         raise error(f"{what} {str(p)!r} cannot be read: {exc.strerror}") from None
+    if len(data) > max_bytes:
+        raise error(f"{what} {str(p)!r} is more than {_size_text(max_bytes)}; is it the right file?")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{what} {str(p)!r} is not UTF-8 text (byte {exc.start}); is it the right file?") from None
 
 
 def yaml_problem(exc: yaml.YAMLError) -> str:
@@ -49,21 +98,91 @@ def yaml_problem(exc: yaml.YAMLError) -> str:
 
 
 def load_yaml(text: str, where: str, error=CompassError):
-    """``yaml.safe_load`` (tags such as ``!!python/object`` are refused, never executed)."""
+    """``yaml.safe_load`` (tags such as ``!!python/object`` are refused, never executed).
+
+    Also user errors (``error``): a value the safe constructors refuse (``2023-02-30`` read as a date),
+    nesting too deep for Python's recursion limit, and running out of memory while parsing."""
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise error(f"{where}: not valid YAML (safe loader): {yaml_problem(exc)}") from None
+    except RecursionError:
+        raise error(f"{where}: YAML nested too deeply to read") from None
+    except MemoryError:
+        raise error(f"{where}: YAML too large to read") from None
+    except (ValueError, TypeError, OverflowError) as exc:     # e.g. datetime.date(2023, 2, 30)
+        raise error(f"{where}: not valid YAML (safe loader): {_short(exc)}") from None
+
+
+def load_json(text: str, where: str, error=CompassError):
+    """``json.loads`` with every failure (syntax, nesting too deep for the recursion limit, memory) as
+    ``error`` naming ``where``. NaN/Infinity literals are refused too (no NaN reaches an output)."""
+    def _no_constant(name):
+        raise ValueError(f"{name} is not a JSON number")
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except RecursionError:
+        raise error(f"{where}: JSON nested too deeply to read") from None
+    except MemoryError:
+        raise error(f"{where}: JSON too large to read") from None
+    except (ValueError, TypeError) as exc:
+        raise error(f"{where}: not valid JSON ({_short(exc)})") from None
+
+
+class NpyHeader:
+    """What an ``.npy`` member of an archive declares (read from its header, before its data):
+    ``shape``, ``dtype`` and ``nbytes`` (Python int, no overflow)."""
+
+    __slots__ = ("shape", "dtype", "nbytes")
+
+    def __init__(self, shape, dtype):
+        self.shape = tuple(int(n) for n in shape)
+        self.dtype = dtype
+        self.nbytes = math.prod(self.shape) * int(dtype.itemsize)
+
+    def __repr__(self):
+        return f"NpyHeader({self.shape}, {self.dtype})"
+
+
+def npz_headers(z, error=CompassError, name: str = "archive") -> dict:
+    """``{array name: NpyHeader}`` of an open ``NpzFile``, from each member's ``.npy`` header only (a few
+    hundred bytes decompressed per member; numpy's ``max_header_size`` applies). Object dtypes are
+    refused here (they would need pickle). Raises ``error`` for a member that is not a readable ``.npy``."""
+    fmt = np.lib.format
+    out = {}
+    for info in z.zip.infolist():
+        if not info.filename.endswith(".npy"):
+            continue
+        key = info.filename[:-4]
+        try:
+            with z.zip.open(info) as f:
+                version = fmt.read_magic(f)
+                if version == (1, 0):
+                    shape, _, dtype = fmt.read_array_header_1_0(f)
+                elif version == (2, 0):
+                    shape, _, dtype = fmt.read_array_header_2_0(f)
+                else:
+                    raise ValueError(f".npy format version {version} is not supported")
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile, RecursionError, MemoryError) as exc:
+            raise error(f"{name}: member {key!r} is not a readable .npy array ({_short(exc)})") from None
+        if dtype.hasobject:
+            raise error(f"{name}: contains object arrays ({key!r}); refused (loading never unpickles)")
+        out[key] = NpyHeader(shape, dtype)
+    return out
 
 
 @contextmanager
-def open_npz(path, error=CompassError, what="file"):
+def open_npz(path, error=CompassError, what="file", check=None, max_file_bytes: int = MAX_NPZ_FILE_BYTES,
+             max_total_bytes: int = MAX_NPZ_TOTAL_BYTES):
     """Yield a numpy ``NpzFile`` opened with ``allow_pickle=False``; close it (and the file) on every path.
 
-    A missing file, a directory, a ``.npy`` saved under an ``.npz`` name, a corrupt or truncated zip:
-    all raise ``error`` with the reason. Object arrays raise when read (pickle disabled), reported the same.
+    A missing file, a directory, a special file, a file over ``max_file_bytes``, a ``.npy`` saved under
+    an ``.npz`` name, a corrupt or truncated zip: all raise ``error`` with the reason. Before the archive
+    is yielded, the ``.npy`` headers of its members are read (:func:`npz_headers`): arrays declaring more
+    than ``max_total_bytes`` in all, or object arrays, are refused, and ``check(headers)`` (the caller's
+    context: which shapes the file may hold) may raise ``error`` too -- nothing is decompressed before.
     """
-    p = _existing_file(path, error, what)
+    p = regular_file(path, error, what, max_file_bytes)
     try:
         fh = open(p, "rb")
     except OSError as exc:
@@ -76,6 +195,15 @@ def open_npz(path, error=CompassError, what="file"):
         if not isinstance(z, np.lib.npyio.NpzFile):
             raise error(f"{p.name}: not an .npz archive (a single .npy array?); expected a {what}")
         with z:
+            headers = npz_headers(z, error, p.name)
+            total = sum(h.nbytes for h in headers.values())
+            if total > max_total_bytes:
+                big = max(headers, key=lambda k: headers[k].nbytes)
+                raise error(f"{p.name}: its arrays declare {_size_text(total)} (the largest, {big!r}, shape "
+                            f"{headers[big].shape}), more than the {_size_text(max_total_bytes)} a {what} may "
+                            "hold; refused before decompressing")
+            if check is not None:
+                check(headers)
             try:
                 yield z
             except (zipfile.BadZipFile, EOFError, OSError) as exc:

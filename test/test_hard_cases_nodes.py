@@ -400,3 +400,111 @@ def test_simulator_counts_unreadable_lockstep_acks(topic_simulator, text):
     assert topic_simulator.acks[topic] == 5                            # no ack was invented
     topic_simulator._on_ack(topic, String(data='{"stamp_ns": 9}'))
     assert topic_simulator.acks[topic] == 9                            # and good acks still count
+
+
+# --------------------------------------------------------------------------------------------
+# issue 18: implausible camera_info, a heading against the IMU prior, parameter sets that raise
+# --------------------------------------------------------------------------------------------
+def _info_with_k(t_ns, fx, fy, cx, cy):
+    m = M.camera_info_msg(CAM, t_ns, "camera_optical_frame")
+    m.k[:] = np.array([fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0])
+    return m
+
+
+FX_CAM = CAM.focal_length_mm / (CAM.pixel_pitch_x_um * 1e-3)
+
+
+@pytest.mark.parametrize("k", [
+    (FX_CAM, FX_CAM, CAM.width_px - 1.0, CAM.height_px - 1.0),            # principal point at the last pixel
+    (2 * FX_CAM, 2 * FX_CAM, CAM.width_px - 1.0, CAM.height_px - 1.0),    # K scaled 2x
+    (FX_CAM, FX_CAM, 10000.0, -5000.0),                                   # far outside
+])
+def test_estimator_implausible_camera_info_gives_no_ok_heading_and_withdraws_the_good_one(estimator, k):
+    """Issue 18: such a camera_info gave a confident wrong heading (status ok). Now it is counted, and the
+    frames after it get a bad_input status naming it -- also when a good camera_info came before it (a
+    rejected one never leaves another in use) -- until a good one comes again."""
+    t = T0 + 400_000_000_000
+    assert feed_good_frame(estimator, t)["ok"]                            # a good camera_info in use
+    before = rejected(estimator).get("camera_info_bad_camera_info", 0)
+    estimator._on_camera_info(_info_with_k(t + 10**8, *k))
+    assert rejected(estimator).get("camera_info_bad_camera_info", 0) == before + 1
+    q = body_quat(40.0, -10.0, 5.0)
+    estimator._on_imu(imu_msg(t + 10**8 + 10**7, q))
+    az, alt = _sun_at(t + 10**8)
+    estimator._on_image(M.image_msg(ideal_mosaic(40.0, -10.0, 5.0, az, alt), t + 10**8, "camera_optical_frame"))
+    st = estimator.statuses[-1]
+    assert st["stamp_ns"] == t + 10**8 and st["ok"] is False and st["status"] == "bad_input"
+    assert "camera_info was rejected" in st["reason"] and st["published"] is False
+    assert feed_good_frame(estimator, t + 2 * 10**8)["ok"]                 # a good camera_info again
+
+
+def test_estimator_heading_57_deg_from_the_imu_prior_is_not_ok(estimator):
+    """Issue 18: an IMU prior 57 deg from the sky's heading raised nothing. The camera tilt is the same in
+    both IMU samples (only the yaw differs), so tilt_aware's sky fit is as good as ever: only the prior check
+    can say no. 30 deg away (within 3 x sqrt(sigma^2 + 15^2)) stays ok."""
+    t = T0 + 500_000_000_000
+    feed_good_frame(estimator, t)                                          # camera_info and fix
+    for k, (offset, ok) in enumerate([(57.0, False), (30.0, True)]):
+        tk = t + (k + 1) * 10**9
+        q = body_quat(40.0 + offset, -10.0, 5.0)
+        estimator._on_imu(imu_msg(tk - 10_000_000, q))
+        estimator._on_imu(imu_msg(tk + 10_000_000, q))
+        az, alt = _sun_at(tk)
+        estimator._on_image(M.image_msg(ideal_mosaic(40.0, -10.0, 5.0, az, alt), tk, "camera_optical_frame"))
+        st = estimator.statuses[-1]
+        assert st["stamp_ns"] == tk and st["ok"] is ok, st
+        if not ok:
+            assert st["status"] == "prior_disagrees" and st["published"] is False and "IMU prior" in st["reason"]
+        else:
+            assert abs(math.remainder(st["bearing_deg"] - 40.0, 360.0)) < 0.5
+
+
+def _map_with_deep_meta(path):
+    """An error-map file whose meta is JSON nested 100000 deep (valid arrays otherwise)."""
+    alt, yaw, tilt = np.arange(0.0, 55.0, 10.0), np.arange(-180.0, 180.0, 10.0), np.arange(-30.0, 31.0, 10.0)
+    shape = (1, alt.size, yaw.size, tilt.size, tilt.size)
+    np.savez(path, error_deg=np.zeros(shape), status=np.zeros(shape, np.int8), methods=np.array(["least_squares"]),
+             sun_altitude_deg=alt, yaw_deg=yaw, pitch_deg=tilt, roll_deg=tilt,
+             meta=np.array('{"a":' * 100000 + "1" + "}" * 100000))
+    return path
+
+
+def test_corrector_survives_an_error_map_parameter_with_deeply_nested_meta(corrector, tmp_path):
+    """Issue 18: the RecursionError of such a map ended tilt_corrector. Refused with a reason, map kept."""
+    old = corrector.corrector
+    res = corrector.set_parameters([Parameter("error_map", value=str(_map_with_deep_meta(tmp_path / "deep.npz")))])
+    assert res[0].successful is False and "error_map" in res[0].reason or "error map" in res[0].reason
+    assert corrector.corrector is old
+    test_corrector_passes_a_good_heading_through_a_zero_map(corrector)     # still working
+
+
+def test_any_exception_of_a_parameter_change_is_a_refusal_not_a_dead_node(corrector, tmp_path, monkeypatch):
+    """Whatever the loader raises (here a MemoryError), the parameter set is refused and the node lives."""
+    from polarization_compass.nodes import tilt_corrector as tc
+
+    def boom(path, method):
+        raise MemoryError("simulated")
+    monkeypatch.setattr(tc, "load_corrector", boom)
+    old = corrector.corrector
+    res = corrector.set_parameters([Parameter("error_map", value=str(tmp_path / "any.npz"))])
+    assert res[0].successful is False and "MemoryError" in res[0].reason
+    assert corrector.corrector is old and corrector.params["error_map"] != str(tmp_path / "any.npz")
+
+
+def test_estimator_counts_images_dropped_from_a_full_queue(estimator):
+    """A flood never costs a frame without a count: with MAX_PENDING_IMAGES waiting, the oldest is dropped
+    and counted (image_queue_full); every queued frame gets a status."""
+    from polarization_compass.nodes.heading_estimator import MAX_PENDING_IMAGES
+    t = T0 + 600_000_000_000
+    feed_good_frame(estimator, t)
+    n_status, before = len(estimator.statuses), rejected(estimator).get("image_queue_full", 0)
+    az, alt = _sun_at(t)
+    img = ideal_mosaic(40.0, -10.0, 5.0, az, alt)
+    n = MAX_PENDING_IMAGES + 3
+    for k in range(n):                                  # received while nothing is processed
+        estimator._receive_image(M.image_msg(img, t + (k + 1) * 5 * 10**5, "camera_optical_frame"))
+        estimator._receive_image(raw_image(3, 4, "mono8", 4, bytes(12)))          # and a bad one each time
+    assert rejected(estimator).get("image_queue_full", 0) == before + 3
+    estimator._drain()
+    done = [s["stamp_ns"] for s in estimator.statuses[n_status:]]
+    assert done == [t + (k + 1) * 5 * 10**5 for k in range(3, n)]                   # the newest, in order

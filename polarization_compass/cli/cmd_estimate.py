@@ -68,6 +68,33 @@ def _sun(meta: dict, args):
     return float(pos.azimuth_deg), float(pos.altitude_deg), "ephemeris (SPA) for --lat/--lon/--time"
 
 
+def _sensor_meta(meta: dict):
+    """(sensor, mosaic, demosaic, quantization_bits, full_well_e) from a frame's meta, types checked: a frame
+    file is user input, so a wrong type is a :class:`FrameFileError` (one line, exit 2), not a crash."""
+    from ..frame_io import FrameFileError
+
+    def section(d, key):
+        v = d.get(key)
+        if v is None:
+            return {}
+        if not isinstance(v, dict):
+            raise FrameFileError(f"frame meta: {key} must be a mapping, got {type(v).__name__}")
+        return v
+    sensor = section(meta, "sensor")
+    mos = section(sensor, "mosaic")
+    method = sensor.get("demosaic")
+    if method is not None and method not in ("superpixel", "bilinear"):
+        raise FrameFileError(f"frame meta: sensor.demosaic must be superpixel or bilinear, got {method!r}")
+    bits = sensor.get("quantization_bits")
+    if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 32):
+        raise FrameFileError(f"frame meta: sensor.quantization_bits must be an integer in [1, 32], got {bits!r}")
+    full_well = section(sensor, "exposure").get("full_well_e")
+    if full_well is not None and (isinstance(full_well, bool) or not isinstance(full_well, (int, float))
+                                  or not math.isfinite(full_well) or full_well <= 0):
+        raise FrameFileError(f"frame meta: sensor.exposure.full_well_e must be a positive number, got {full_well!r}")
+    return sensor, mos, method, bits, None if full_well is None else float(full_well)
+
+
 def _methods(text: str) -> list[str]:
     from ..estimators import estimator_names
     names = estimator_names()
@@ -116,11 +143,9 @@ def run(args) -> int:
     use_mosaic = frame.mosaic is not None and not args.use_stored
     stored_obs = None
     if use_mosaic:
-        sensor = frame.meta.get("sensor") or {}
-        mos = sensor.get("mosaic") or {}
+        sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
         layout = mos.get("layout")
         pol45 = mos.get("pol45_toward")
-        method = sensor.get("demosaic")
         assumed = []
         if layout is None:
             from ..demosaic import IMX250MZR_LAYOUT
@@ -140,8 +165,7 @@ def run(args) -> int:
         else:
             raise CompassError(f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
                                "demosaic; use --use-stored")
-        bits = sensor.get("quantization_bits")
-        sat = float((1 << int(bits)) - 1) if bits else sensor.get("exposure", {}).get("full_well_e")
+        sat = float((1 << bits) - 1) if bits else full_well
         source["input"] = {"mosaic": list(mshp), "demosaic": method, "layout": layout, "pol45_toward": pol45,
                            "assumed": assumed, "saturation_level": sat}
         origin = (int(round(origin[0])), int(round(origin[1])))

@@ -47,6 +47,8 @@ def run(args) -> int:
     check_together("sun-altitude", args.sun_altitude, "sun-azimuth", args.sun_azimuth)
     if args.stride is not None and args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
+    if args.seed is not None and not (0 <= args.seed < 2 ** 63):
+        raise CompassError(f"--seed must be in [0, 2^63), got {args.seed}")
     scene = load_scene(args.scene)
     if args.stride is not None and args.stride > 1 and scene.effects:
         raise CompassError(f"--stride {args.stride} needs a scene without sensor effects: scene {scene.name!r} "

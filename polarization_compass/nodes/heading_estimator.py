@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 import time
 from collections import deque
 
@@ -27,10 +28,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qo
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
-from ..bag import decode_camera_info, decode_orientation, stamp_ns
+from ..bag import MessageError, decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
-from ..pipeline import AttitudeBuffer, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
+from ..pipeline import AttitudeBuffer, CameraInfoState, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
 from ..specs import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
@@ -38,7 +39,10 @@ from ..specs.params import ESTIMATOR, SUN_PARAMS, apply_fix, knob_params, knob_v
 from .rosparams import ParameterSet
 from .runner import run_node
 
-__all__ = ["HeadingEstimatorNode", "main"]
+__all__ = ["HeadingEstimatorNode", "main", "MAX_PENDING_IMAGES"]
+
+#: Decoded images waiting to be processed; beyond, the oldest is dropped and counted (image_queue_full).
+MAX_PENDING_IMAGES = 8
 
 
 class HeadingEstimatorNode(Node):
@@ -63,22 +67,27 @@ class HeadingEstimatorNode(Node):
             self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow")
         self.sun = sun_source(p)
         self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
-        self.camera_from_info: CameraModel | None = None
+        self.camera_info = CameraInfoState()     # validated intrinsics from camera_info, or why there are none
         self.site_from_fix = None
-        self.tilt_prior = TiltAndPrior(self.method, p["prior_source"], p["prior_max_age_s"])
+        self.tilt_prior = TiltAndPrior(self.method, p["prior_source"], p["prior_max_age_s"], p["prior_sigma_deg"])
         self.needs_tilt = self.tilt_prior.needs_tilt
-        self.pending: deque = deque()     # decoded images waiting for their IMU sample (tilt_aware)
+        self.pending: deque = deque()     # decoded images waiting to be processed (tilt_aware: for their IMU)
+        self._pending_lock = threading.Lock()
         self.diag = Diagnostics(self, f"heading estimator ({self.method})")
 
         t = topics.method_topics(self.method)
         self.pub_heading = self.create_publisher(Imu, t["heading_raw"], qos_profile_system_default)
         self.pub_bearing = self.create_publisher(Float64, t["bearing_raw"], qos_profile_system_default)
         self.pub_status = self.create_publisher(String, t["status"], QoSProfile(depth=50))
-        # Two threads: images (long callbacks) in one group, the small inputs in another, so that the IMU,
-        # camera_info and fix keep flowing while an image is processed (a single-threaded executor
-        # takes one message per subscription per round: 50 IMU samples would wait behind each image).
-        self.executor_threads = 2
+        # Three threads: processing (long callbacks) in one group, the small inputs in another, so that the
+        # IMU, camera_info and fix keep flowing while an image is processed (a single-threaded executor
+        # takes one message per subscription per round: 50 IMU samples would wait behind each image), and
+        # image reception in a third: it only decodes and queues, so the middleware's 5-deep image queue
+        # never overflows silently behind a long estimate; our own queue (MAX_PENDING_IMAGES) drops the
+        # oldest image when full and counts it (rejected.image_queue_full in /diagnostics).
+        self.executor_threads = 3
         small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
+        receive = MutuallyExclusiveCallbackGroup()
         if self.tilt_prior.needs_imu:
             # best effort (REP-2003 sensor data): matches reliable and best-effort IMU drivers and bag players
             # alike (a reliable reader never connects to a best-effort writer); deep for fast IMUs
@@ -90,7 +99,8 @@ class HeadingEstimatorNode(Node):
             self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data,
                                      callback_group=small)
         image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
-        self.create_subscription(Image, topics.IMAGE, self._on_image, image_qos, callback_group=images)
+        self.create_subscription(Image, topics.IMAGE, self._receive_image, image_qos, callback_group=receive)
+        self._wake = self.create_guard_condition(self._drain, callback_group=images)
         if self.needs_tilt:
             from .diagnostics import _wall_clock
             self.create_timer(0.02, self._drain, callback_group=images, clock=_wall_clock())  # the IMU is 50+ Hz
@@ -108,9 +118,10 @@ class HeadingEstimatorNode(Node):
                 self.front.demosaic = merged["demosaic"]
             if "use_intensity" in changed:
                 self.front.intensity = bool(merged["use_intensity"])
-            if {"prior_source", "prior_max_age_s"} & set(changed):
+            if {"prior_source", "prior_max_age_s", "prior_sigma_deg"} & set(changed):
                 self.tilt_prior.prior_source = merged["prior_source"]
                 self.tilt_prior.prior_max_age_s = float(merged["prior_max_age_s"])
+                self.tilt_prior.prior_sigma_deg = float(merged["prior_sigma_deg"])
             if set(SUN_PARAMS) & set(changed):
                 self.sun = sun_source(merged)
         except CompassError as exc:
@@ -129,9 +140,23 @@ class HeadingEstimatorNode(Node):
 
     # inputs -------------------------------------------------------------------------------------
     def _on_camera_info(self, msg):
-        cam = self.diag.decoded("camera_info", lambda m: decode_camera_info(m, self.params["pixel_pitch_um"]), msg)
-        if cam is not None:
-            self.camera_from_info = cam
+        """Validated intrinsics (:func:`~polarization_compass.bag.decode_camera_info`); a rejected message is
+        counted and withdraws the camera in use (:class:`~polarization_compass.pipeline.CameraInfoState`)."""
+        try:
+            cam = decode_camera_info(msg, self.params["pixel_pitch_um"])
+        except MessageError as exc:
+            self.diag.reject(f"camera_info_{exc.reason}", str(exc))
+            self.camera_info.reject(str(exc))
+            return
+        self.camera_info.accept(cam)
+
+    @property
+    def camera_from_info(self) -> CameraModel | None:
+        """The accepted camera_info camera (None before the first, or after a rejected one)."""
+        try:
+            return self.camera_info.camera()
+        except PipelineError:
+            return None
 
     def _on_imu(self, msg):
         q = self.diag.decoded("imu", decode_orientation, msg)
@@ -157,7 +182,7 @@ class HeadingEstimatorNode(Node):
 
     def _camera_for(self, width: int, height: int) -> CameraModel:
         p = self.params
-        cam = self.camera_from_info if p["camera_info_source"] == "topic" else None
+        cam = self.camera_info.camera() if p["camera_info_source"] == "topic" else None   # raises after a rejection
         if cam is None and p["camera_info_source"] == "topic":
             self.get_logger().warning(f"no camera_info on {topics.CAMERA_INFO} yet: using the fallback intrinsics "
                                       "from parameters (camera_model, focal_length_mm, pixel_pitch_um)",
@@ -173,27 +198,47 @@ class HeadingEstimatorNode(Node):
             raise PipelineError(f"image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}")
         return cam
 
-    def _on_image(self, msg):
+    def _receive_image(self, msg) -> bool:
+        """Decode and queue one image (the reception thread); a bad one is counted by reason. When
+        :data:`MAX_PENDING_IMAGES` wait already, the oldest is dropped and counted (``image_queue_full``):
+        a flood never costs a frame without a count. True when queued."""
         t_in = self.diag.input()
         mosaic = self.diag.decoded("", decode_image, msg)
         if mosaic is None:
-            return
-        self.pending.append((stamp_ns(msg.header), mosaic, int(msg.width), int(msg.height), t_in,
-                             time.monotonic() + self.params["imu_max_wait_s"]))
-        self._drain()
+            return False
+        item = (stamp_ns(msg.header), mosaic, int(msg.width), int(msg.height), t_in,
+                time.monotonic() + self.params["imu_max_wait_s"])
+        with self._pending_lock:
+            dropped = self.pending.popleft() if len(self.pending) >= MAX_PENDING_IMAGES else None
+            self.pending.append(item)
+        if dropped is not None:
+            self.diag.reject("image_queue_full", f"frame {dropped[0] / 1e9:.3f} s dropped: {MAX_PENDING_IMAGES} "
+                                                 "images were waiting (processing slower than the image rate)")
+        if getattr(self, "_wake", None) is not None:
+            self._wake.trigger()
+        return True
+
+    def _on_image(self, msg):
+        """Receive and process at once (the synchronous path: tests, direct calls)."""
+        if self._receive_image(msg):
+            self._drain()
 
     def _drain(self) -> None:
         """Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than the
         newest IMU sample waits up to imu_max_wait_s (wall) for it, if the IMU stream is live (its newest
         sample within imu_max_wait_s of the image stamp) and fewer than three images queue."""
         wait_ns = self.params["imu_max_wait_s"] * 1e9
-        while self.pending:
-            t_ns, _, _, _, _, deadline = self.pending[0]
-            newest = self.imu.newest_ns
-            lagging = newest is not None and t_ns - wait_ns <= newest < t_ns
-            if self.needs_tilt and lagging and time.monotonic() < deadline and len(self.pending) <= 2:
-                return
-            self._process(*self.pending.popleft()[:5])
+        while True:
+            with self._pending_lock:
+                if not self.pending:
+                    return
+                t_ns, _, _, _, _, deadline = self.pending[0]
+                newest = self.imu.newest_ns
+                lagging = newest is not None and t_ns - wait_ns <= newest < t_ns
+                if self.needs_tilt and lagging and time.monotonic() < deadline and len(self.pending) <= 2:
+                    return
+                item = self.pending.popleft()
+            self._process(*item[:5])
 
     def _process(self, t_ns: int, mosaic, width: int, height: int, t_in: float) -> None:
         p = self.params
@@ -217,7 +262,8 @@ class HeadingEstimatorNode(Node):
                                     f"(newest IMU stamp: {self._newest_imu_text()})")
             pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
             t0 = time.perf_counter()
-            result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
+            result = self.tilt_prior.checked(self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior),
+                                             inp)
             status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
         except (PipelineError, CompassError) as exc:
             self.get_logger().warning(f"frame {t_ns / 1e9:.3f} s: {exc}", throttle_duration_sec=5.0)

@@ -3,7 +3,9 @@ read-only flag) and validate every change with a reason.
 
 Bad values are rejected twice over: rclpy enforces ``FloatingPointRange``/``IntegerRange`` and
 ``read_only`` itself, and the on-set-parameters callback checks choices, types and the extra rules of
-:class:`~.params.Param` (the reason comes back to ``ros2 param set`` as the failure message). A bad
+:class:`~.params.Param` (the reason comes back to ``ros2 param set`` as the failure message). Any
+exception of the node's ``on_change`` (a file the new value names that cannot be read, ...) refuses the
+change with its reason and keeps the old value: a parameter set never ends a node. A bad
 value in a parameter file stops the node at start with a one-line :class:`ParameterError`.
 """
 from __future__ import annotations
@@ -90,7 +92,12 @@ class ParameterSet:
                 return SetParametersResult(successful=False, reason=reason)
             changed[p.name] = v
         if self._declared and changed and self.on_change is not None:
-            reason = self.on_change(changed)
+            try:
+                reason = self.on_change(changed)
+            except Exception as exc:  # noqa: BLE001 - a parameter set must never end the node
+                # (e.g. a RecursionError or MemoryError from a file the new value names): refuse, keep the old
+                reason = f"{', '.join(sorted(changed))}: refused ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+                self.node.get_logger().error(f"parameter change refused: {reason}")
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         self.values.update(changed)

@@ -63,6 +63,9 @@ def load_corrector(path: str, method: str):
         return TiltCorrector.from_file(p, method)
     except ErrorMapError as exc:
         raise CompassError(f"error map {str(p)!r}: {exc}; " + MAP_HELP.format(method=method, path=p)) from None
+    except (RecursionError, MemoryError) as exc:      # belt and braces: the loader bounds what it reads
+        raise CompassError(f"error map {str(p)!r}: cannot be read ({type(exc).__name__}); "
+                           + MAP_HELP.format(method=method, path=p)) from None
 
 
 class TiltCorrectorNode(Node):

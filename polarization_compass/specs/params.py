@@ -318,6 +318,9 @@ ESTIMATOR = (
                                  "headings the method resolves itself", choices=("imu", "last", "none")),
     Param("prior_max_age_s", 2.0, "the prior is the IMU yaw (or last heading) nearest the image stamp within "
                                   "this", 0.0, 3600.0, unit="s"),
+    Param("prior_sigma_deg", 15.0, "1-sigma of the IMU yaw (prior_source imu): a heading further from it than "
+                                   "3 x sqrt(sigma^2 + this^2) gets status prior_disagrees and is not published "
+                                   "(0 = no check)", 0.0, 180.0, unit="deg"),
     Param("imu_tolerance_s", 0.05, "tilt_aware: the IMU at the image stamp, interpolated between samples "
                                    "within this of it", 0.0, 10.0, unit="s"),
     Param("imu_max_wait_s", 0.5, "tilt_aware: how long an image newer than the newest IMU sample waits for it "
