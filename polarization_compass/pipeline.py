@@ -23,7 +23,7 @@ from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "SunSource", "HeadingFrontEnd",
            "PipelineError", "warm_up", "TiltAndPrior", "FrameInputs", "CameraInfoState", "check_prior_agreement",
-           "PRIOR_DISAGREES_N_SIGMA"]
+           "PRIOR_DISAGREES_N_SIGMA", "ImageLossWatch"]
 
 
 class PipelineError(CompassError):
@@ -308,6 +308,49 @@ class CameraInfoState:
             raise PipelineError(f"the latest camera_info was rejected ({self.rejected_reason}); no intrinsics "
                                 "in use until a valid one arrives")
         return self._camera
+
+
+class ImageLossWatch:
+    """Images lost before they reached the node (the middleware's keep-last queue overflowing, transport
+    loss), counted from the camera_info stream: a camera driver publishes one camera_info per image with
+    the image's stamp, so a camera_info stamp without any image of that stamp ``after_ns`` (stamp time)
+    behind the newest camera_info is one image lost. Never counts a frame twice; undercounts when
+    camera_info messages are lost too (or when no camera_info is published: then nothing is counted).
+    Thread-safe (images and camera_info arrive on different executor threads).
+    """
+
+    def __init__(self, after_ns: int = 1_000_000_000, keep: int = 512):
+        import threading
+        from collections import OrderedDict
+        self.after_ns = int(after_ns)
+        self.keep = int(keep)
+        self._lock = threading.Lock()
+        self._info: OrderedDict = OrderedDict()      # camera_info stamps waiting for their image
+        self._images: OrderedDict = OrderedDict()    # image stamps seen (good or bad)
+        self.lost = 0
+
+    def image(self, t_ns: int) -> None:
+        with self._lock:
+            t = int(t_ns)
+            self._info.pop(t, None)
+            self._images[t] = None
+            while len(self._images) > self.keep:
+                self._images.popitem(last=False)
+
+    def camera_info(self, t_ns: int) -> int:
+        """Record a camera_info stamp; returns how many images were found lost now."""
+        with self._lock:
+            t = int(t_ns)
+            if t not in self._images:
+                self._info[t] = None
+            newest = max(self._info, default=t)
+            lost = [s for s in self._info if s < newest - self.after_ns]
+            for s in lost:
+                del self._info[s]
+            while len(self._info) > self.keep:       # a stream of camera_info without images at all
+                self._info.popitem(last=False)
+            self.lost += len(lost)
+            return len(lost)
 
 
 # ------------------------------------------------------------------------------------------------

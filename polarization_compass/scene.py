@@ -218,7 +218,9 @@ def scene_from_dict(d: dict) -> Scene:
     allowed = {f.name for f in dataclasses.fields(CameraModel)}
     _check_keys(cam_d, allowed, "camera.")
     try:
-        cam = CameraModel(**{k: (int(v) if k in ("width_px", "height_px") else v) for k, v in cam_d.items()})
+        # 2448.0 is a whole number of pixels; true, "2448" or 2448.5 are not (CameraModel says which field)
+        cam = CameraModel(**{k: (int(v) if k in ("width_px", "height_px") and isinstance(v, float) and v.is_integer()
+                                 else v) for k, v in cam_d.items()})
     except (CameraError, TypeError, ValueError) as exc:
         raise SceneError(f"camera: {exc}") from None
     pixels = _pixels_from_dict(d.get("pixels", {}) or {})

@@ -425,3 +425,115 @@ def test_subprocess_closed_stdout_pipe_is_not_an_internal_error():
         rc = p.wait(timeout=120)
     assert "Traceback" not in err
     assert "internal error" not in err and rc != 70, (rc, err)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 18: every command walked with hostile files (recursion, bombs, special files, bad types)
+# --------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def hostile(tmp_path_factory):
+    """Hostile inputs by name. Bombs are small compressed files declaring huge arrays in their headers
+    (never allocated here); /dev/zero and a FIFO stand for files that never end or block."""
+    import io
+    import zipfile
+    d = tmp_path_factory.mktemp("hostile")
+    f = {}
+    f["deep_yaml"] = d / "deep.yaml"
+    f["deep_yaml"].write_text("name: " + "[" * 20000 + "]" * 20000 + "\n")
+    f["bad_date_yaml"] = d / "date.yaml"
+    f["bad_date_yaml"].write_text("time_utc: 2023-02-30\n")
+    f["width_true_yaml"] = d / "wtrue.yaml"
+    f["width_true_yaml"].write_text("camera: {width_px: true}\n")
+    f["dev_zero"] = d / "zero.yaml"
+    os.symlink("/dev/zero", f["dev_zero"])
+    f["fifo"] = d / "fifo.yaml"
+    os.mkfifo(f["fifo"])
+
+    def npy(shape, dtype="<f8", payload=1 << 16):
+        b = io.BytesIO()
+        np.lib.format.write_array_header_1_0(b, {"descr": dtype, "fortran_order": False, "shape": shape})
+        return b.getvalue() + bytes(payload)
+
+    def arr(a):
+        b = io.BytesIO()
+        np.save(b, a, allow_pickle=False)
+        return b.getvalue()
+
+    def npz(path, members):
+        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for k, v in members.items():
+                zf.writestr(k + ".npy", v if isinstance(v, bytes) else arr(v))
+        return path
+
+    shape = (4, 6)
+    frame = {"aop_rad": np.zeros(shape, np.float32), "dop": np.zeros(shape, np.float32),
+             "valid": np.ones(shape, bool), "x_px": np.ones(shape), "y_px": np.ones(shape),
+             "meta": np.array(json.dumps({"camera": {"width_px": 6, "height_px": 4}}))}
+    f["frame_bomb"] = npz(d / "frame_bomb.npz", dict(frame, aop_rad=npy((10000, 20000))))
+    f["frame_deep_meta"] = npz(d / "frame_deep.npz", dict(frame, meta=np.array('{"a":' * 100000 + "1" + "}" * 100000)))
+    mosaic_frame = dict(frame, mosaic=np.zeros((8, 12), np.uint16), x_px=np.tile(np.arange(1.5, 12, 2.0), (4, 1)),
+                        y_px=np.tile(np.arange(1.5, 8, 2.0)[:, None], (1, 6)))
+    for name, sensor in [("frame_bad_bits", {"quantization_bits": "twelve"}), ("frame_bad_sensor", ["mosaic"]),
+                         ("frame_huge_bits", {"quantization_bits": 10 ** 9}),
+                         ("frame_bad_exposure", {"exposure": 3})]:
+        meta = {"camera": {"width_px": 12, "height_px": 8}, "sun_azimuth_deg": 180.0, "sun_altitude_deg": 30.0,
+                "sensor": sensor}
+        f[name] = npz(d / f"{name}.npz", dict(mosaic_frame, meta=np.array(json.dumps(meta))))
+    alt, yaw, tilt = np.arange(0.0, 55.0, 10.0), np.arange(-180.0, 180.0, 10.0), np.arange(-30.0, 31.0, 10.0)
+    mshape = (1, alt.size, yaw.size, tilt.size, tilt.size)
+    good_map = {"error_deg": np.zeros(mshape), "status": np.zeros(mshape, np.int8),
+                "methods": np.array(["least_squares"]), "sun_altitude_deg": alt, "yaw_deg": yaw, "pitch_deg": tilt,
+                "roll_deg": tilt, "meta": np.array(json.dumps({"domain": {"tilt_limit_deg": 30.0}}))}
+    f["map_deep_meta"] = npz(d / "map_deep.npz", dict(good_map, meta=np.array('{"a":' * 100000 + "1" + "}" * 100000)))
+    big = (1, 2000, 2000, 61, 61)                               # 1.5e10 cells declared
+    f["map_bomb"] = npz(d / "map_bomb.npz", dict(good_map, error_deg=npy(big), status=npy(big, "|i1"),
+                                                  sun_altitude_deg=np.arange(2000.0), yaw_deg=np.arange(2000.0) / 10,
+                                                  pitch_deg=np.arange(61.0) - 30, roll_deg=np.arange(61.0) - 30))
+    f["map_fifo"] = d / "map_fifo.npz"
+    os.mkfifo(f["map_fifo"])
+    return f
+
+
+def _hostile_cases():
+    """(command line with {name} placeholders for hostile files, words expected in the one line)."""
+    cases = []
+    for scene in ("deep_yaml", "bad_date_yaml", "width_true_yaml", "dev_zero", "fifo"):
+        words = {"deep_yaml": "nested", "bad_date_yaml": "day is out of range", "width_true_yaml": "width_px",
+                 "dev_zero": "device", "fifo": "FIFO"}[scene]
+        cases += [(["render", "--scene", "{%s}" % scene, "--out", "{out}/f.npz"], words),
+                  (["errormap", "--scene", "{%s}" % scene, "--sun-altitude", "20", "--yaw", "0", "--pitch", "0",
+                    "--roll", "0", "--no-progress", "--out", "{out}/e.npz"], words),
+                  (["record-sim", "--duration", "1", "--scene", "{%s}" % scene, "--out", "{out}/bag"], words),
+                  (["sim", "--scene", "{%s}" % scene, "--out", "{out}/sim"], words)]
+        if scene != "width_true_yaml":
+            tw = "" if scene == "bad_date_yaml" else words          # (a topic map has no time: any one line)
+            cases += [(["record-sim", "--duration", "1", "--topics", "{%s}" % scene, "--out", "{out}/bag"], tw),
+                      (["replay", "{out}", "--topics", "{%s}" % scene, "--out", "{out}/r"], tw)]
+    for frame, words in [("frame_bomb", "declares shape"), ("frame_deep_meta", "nested"),
+                         ("frame_bad_bits", "quantization_bits"), ("frame_bad_sensor", "sensor"),
+                         ("frame_huge_bits", "quantization_bits"), ("frame_bad_exposure", "exposure"),
+                         ("dev_zero", "device"), ("fifo", "FIFO")]:
+        cases.append((["estimate", "{%s}" % frame], words))
+    for m, words in [("map_deep_meta", "nested"), ("map_bomb", "declare"), ("dev_zero", "device"),
+                     ("map_fifo", "FIFO")]:
+        cases += [(["allowable-tilt", "--max-error", "1", "--map", "{%s}" % m], words),
+                  (["plot", "{%s}" % m, "--figure", "fig7", "--out", "{out}/x.png"], words),
+                  (["sim", "--error-map", "{%s}" % m, "--out", "{out}/sim"], words)]
+    cases += [(["render", "--stride", "64", "--seed", "-5", "--out", "{out}/f.npz"], "--seed"),
+              (["render", "--stride", "64", "--seed", str(2 ** 64), "--out", "{out}/f.npz"], "--seed")]
+    return cases
+
+
+def test_the_hostile_walk_covers_every_command_that_reads_a_file():
+    walked = {argv[0] for argv, _ in _hostile_cases()}
+    readers = set(registered_commands()) - {"sun"}             # sun reads no file
+    assert readers <= walked, readers - walked
+
+
+@pytest.mark.parametrize("argv, words", _hostile_cases(), ids=lambda x: " ".join(x) if isinstance(x, list) else x)
+def test_every_command_fed_hostile_files_exits_2_with_one_line(hostile, no_expensive_sim, argv, words, tmp_path,
+                                                               capsys):
+    """Issue 18: RecursionError, memory bombs, special files, bad dates/types/seeds ended in exit 70, 20 GB of
+    RSS or a hang. Now one line and exit 2 each, before any expensive work (sim's is patched to raise)."""
+    full = [a.format(out=tmp_path, **{k: str(v) for k, v in hostile.items()}) for a in argv]
+    assert_user_error(*run(full, capsys), words)

@@ -275,3 +275,24 @@ def test_the_prior_check_is_off_without_a_prior_or_with_sigma_0_and_only_for_the
     inp = FrameInputs(None, None, 97.0)
     assert not TiltAndPrior("least_squares", "imu").checked(r, inp).ok
     assert TiltAndPrior("least_squares", "last").checked(r, inp) is r
+
+
+def test_image_loss_watch_counts_camera_info_without_its_image():
+    """One camera_info per image (same stamp): a camera_info whose image never came, 1 s (stamp time) behind
+    the newest camera_info, is one lost image; an image arriving before or after its camera_info is not."""
+    from polarization_compass.pipeline import ImageLossWatch
+    w = ImageLossWatch(after_ns=1_000_000_000)
+    ms = 1_000_000
+    lost = 0
+    for k in range(40):                       # 10 Hz for 4 s; images 5, 6 and 17 never arrive
+        t = k * 100 * ms
+        if k % 2:                             # image first on odd frames, camera_info first on even
+            if k not in (5, 17):
+                w.image(t)
+            lost += w.camera_info(t)
+        else:
+            lost += w.camera_info(t)
+            if k != 6:
+                w.image(t)
+    assert lost == 3 == w.lost
+    assert w.camera_info(39 * 100 * ms) == 0        # a repeated camera_info of a seen image: nothing

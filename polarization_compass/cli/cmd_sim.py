@@ -166,8 +166,10 @@ def run(args) -> int:
     from ..correction import default_map_path
     if args.error_map:
         map_path = Path(args.error_map)
-        if not map_path.is_file():
-            raise CompassError(f"--error-map {map_path} does not exist")
+        from ..errormap import load_error_map
+        from ..safe_load import regular_file
+        regular_file(map_path, CompassError, "--error-map")      # missing, a directory, a FIFO, a device
+        load_error_map(map_path)             # a bad map is refused here, before the nodes start
     elif default_map_path().is_file():
         map_path = default_map_path()
     else:

@@ -31,7 +31,8 @@ from std_msgs.msg import Float64, String
 from ..bag import MessageError, decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
-from ..pipeline import AttitudeBuffer, CameraInfoState, HeadingFrontEnd, PipelineError, TiltAndPrior, warm_up
+from ..pipeline import (AttitudeBuffer, CameraInfoState, HeadingFrontEnd, ImageLossWatch, PipelineError,
+                        TiltAndPrior, warm_up)
 from ..specs import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
@@ -68,6 +69,7 @@ class HeadingEstimatorNode(Node):
         self.sun = sun_source(p)
         self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
         self.camera_info = CameraInfoState()     # validated intrinsics from camera_info, or why there are none
+        self.loss = ImageLossWatch()             # images that never arrived (camera_info without its image)
         self.site_from_fix = None
         self.tilt_prior = TiltAndPrior(self.method, p["prior_source"], p["prior_max_age_s"], p["prior_sigma_deg"])
         self.needs_tilt = self.tilt_prior.needs_tilt
@@ -79,15 +81,17 @@ class HeadingEstimatorNode(Node):
         self.pub_heading = self.create_publisher(Imu, t["heading_raw"], qos_profile_system_default)
         self.pub_bearing = self.create_publisher(Float64, t["bearing_raw"], qos_profile_system_default)
         self.pub_status = self.create_publisher(String, t["status"], QoSProfile(depth=50))
-        # Three threads: processing (long callbacks) in one group, the small inputs in another, so that the
-        # IMU, camera_info and fix keep flowing while an image is processed (a single-threaded executor
-        # takes one message per subscription per round: 50 IMU samples would wait behind each image), and
-        # image reception in a third: it only decodes and queues, so the middleware's 5-deep image queue
-        # never overflows silently behind a long estimate; our own queue (MAX_PENDING_IMAGES) drops the
-        # oldest image when full and counts it (rejected.image_queue_full in /diagnostics).
-        self.executor_threads = 3
+        # Images are received (decoded and queued) in the executor and processed in this node's own worker
+        # thread (:meth:`_work`), whatever the executor (the default EventsExecutor is single-threaded): a
+        # long estimate never blocks reception, so the middleware's 5-deep image queue does not overflow
+        # silently under a flood; our queue (MAX_PENDING_IMAGES) drops the oldest image when full and counts
+        # it (rejected.image_queue_full in /diagnostics). With the Python executors, two threads: images in
+        # one group, the small inputs (IMU, camera_info, fix) in another.
+        self.executor_threads = 2
         small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
-        receive = MutuallyExclusiveCallbackGroup()
+        self._work_cv = threading.Condition()
+        self._worker = None
+        self._stop = False
         if self.tilt_prior.needs_imu:
             # best effort (REP-2003 sensor data): matches reliable and best-effort IMU drivers and bag players
             # alike (a reliable reader never connects to a best-effort writer); deep for fast IMUs
@@ -99,11 +103,7 @@ class HeadingEstimatorNode(Node):
             self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data,
                                      callback_group=small)
         image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
-        self.create_subscription(Image, topics.IMAGE, self._receive_image, image_qos, callback_group=receive)
-        self._wake = self.create_guard_condition(self._drain, callback_group=images)
-        if self.needs_tilt:
-            from .diagnostics import _wall_clock
-            self.create_timer(0.02, self._drain, callback_group=images, clock=_wall_clock())  # the IMU is 50+ Hz
+        self.create_subscription(Image, topics.IMAGE, self._on_image_msg, image_qos, callback_group=images)
         self.get_logger().info(f"method {self.method}: {t['heading_raw']} from {topics.IMAGE}")
 
     # parameters ---------------------------------------------------------------------------------
@@ -141,7 +141,15 @@ class HeadingEstimatorNode(Node):
     # inputs -------------------------------------------------------------------------------------
     def _on_camera_info(self, msg):
         """Validated intrinsics (:func:`~polarization_compass.bag.decode_camera_info`); a rejected message is
-        counted and withdraws the camera in use (:class:`~polarization_compass.pipeline.CameraInfoState`)."""
+        counted and withdraws the camera in use (:class:`~polarization_compass.pipeline.CameraInfoState`).
+        Its stamp also tells of images lost on the way (``image_lost``, :class:`ImageLossWatch`)."""
+        try:
+            lost = self.loss.camera_info(stamp_ns(msg.header))
+        except Exception:  # noqa: BLE001 - a header that cannot be read is counted by the decoder below
+            lost = 0
+        for _ in range(lost):
+            self.diag.reject("image_lost", "a camera_info had no image of its stamp (lost before this node: "
+                                           "middleware queue or transport)")
         try:
             cam = decode_camera_info(msg, self.params["pixel_pitch_um"])
         except MessageError as exc:
@@ -203,6 +211,10 @@ class HeadingEstimatorNode(Node):
         :data:`MAX_PENDING_IMAGES` wait already, the oldest is dropped and counted (``image_queue_full``):
         a flood never costs a frame without a count. True when queued."""
         t_in = self.diag.input()
+        try:
+            self.loss.image(stamp_ns(msg.header))
+        except Exception:  # noqa: BLE001 - the decoder counts a broken header
+            pass
         mosaic = self.diag.decoded("", decode_image, msg)
         if mosaic is None:
             return False
@@ -214,9 +226,38 @@ class HeadingEstimatorNode(Node):
         if dropped is not None:
             self.diag.reject("image_queue_full", f"frame {dropped[0] / 1e9:.3f} s dropped: {MAX_PENDING_IMAGES} "
                                                  "images were waiting (processing slower than the image rate)")
-        if getattr(self, "_wake", None) is not None:
-            self._wake.trigger()
+        with self._work_cv:
+            self._work_cv.notify()
         return True
+
+    def _on_image_msg(self, msg) -> None:
+        """The image subscription: queue for the worker thread (started with the first image)."""
+        if self._worker is None:
+            self._worker = threading.Thread(target=self._work, name="heading_estimator_worker", daemon=True)
+            self._worker.start()
+        self._receive_image(msg)
+
+    def _work(self) -> None:
+        """The worker thread: process queued images; tilt_aware re-checks waiting ones every 20 ms (the IMU
+        is 50+ Hz). Any exception is counted, never ends the thread (``_process`` already catches them)."""
+        while not self._stop:
+            with self._work_cv:
+                if not self.pending:
+                    self._work_cv.wait(timeout=0.02 if self.needs_tilt else 0.5)
+            try:
+                self._drain()
+            except Exception as exc:  # noqa: BLE001 - the worker must outlive any one frame
+                self.diag.reject("estimator_exception", f"{type(exc).__name__}: {exc}")
+            if self.needs_tilt and self.pending:
+                time.sleep(0.005)         # an image waiting for its IMU sample: do not spin on it
+
+    def destroy_node(self):
+        self._stop = True
+        with self._work_cv:
+            self._work_cv.notify()
+        if self._worker is not None and self._worker is not threading.current_thread():
+            self._worker.join(timeout=2.0)
+        return super().destroy_node()
 
     def _on_image(self, msg):
         """Receive and process at once (the synchronous path: tests, direct calls)."""
