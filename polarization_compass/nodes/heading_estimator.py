@@ -253,10 +253,12 @@ class HeadingEstimatorNode(Node):
 
     def destroy_node(self):
         self._stop = True
-        with self._work_cv:
-            self._work_cv.notify()
-        if self._worker is not None and self._worker is not threading.current_thread():
-            self._worker.join(timeout=2.0)
+        cv, worker = getattr(self, "_work_cv", None), getattr(self, "_worker", None)   # (a failed __init__)
+        if cv is not None:
+            with cv:
+                cv.notify()
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=2.0)
         return super().destroy_node()
 
     def _on_image(self, msg):
