@@ -164,7 +164,7 @@ def npz_headers(z, error=CompassError, name: str = "archive") -> dict:
                 else:
                     raise ValueError(f".npy format version {version} is not supported")
         except (ValueError, OSError, EOFError, zipfile.BadZipFile, RecursionError, MemoryError) as exc:
-            raise error(f"{name}: member {key!r} is not a readable .npy array ({_short(exc)})") from None
+            raise error(f"{name}: corrupt .npz: member {key!r} is not a readable .npy array ({_short(exc)})") from None
         if dtype.hasobject:
             raise error(f"{name}: contains object arrays ({key!r}); refused (loading never unpickles)")
         out[key] = NpyHeader(shape, dtype)
@@ -191,7 +191,7 @@ def open_npz(path, error=CompassError, what="file", check=None, max_file_bytes: 
         try:
             z = np.load(fh, allow_pickle=False)
         except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-            raise error(f"{p.name}: not a readable .npz {what} ({_short(exc)})") from None
+            raise error(f"{p.name}: corrupt or not a readable .npz {what} ({_short(exc)})") from None
         if not isinstance(z, np.lib.npyio.NpzFile):
             raise error(f"{p.name}: not an .npz archive (a single .npy array?); expected a {what}")
         with z:
