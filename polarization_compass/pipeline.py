@@ -131,13 +131,21 @@ class AttitudeBuffer:
         after = (self._t[k], self._q[k]) if k < len(self._t) and self._t[k] - t_ns <= tol_ns else None
         return before, after
 
-    def at(self, t_ns: int, tol_ns: int):
-        """(q, gap_ns, interpolated) at ``t_ns``, or None when no sample is within ``tol_ns``."""
+    def at(self, t_ns: int, tol_ns: int, hold: bool = True):
+        """(q, gap_ns, interpolated) at ``t_ns``, or None when no sample is within ``tol_ns``.
+
+        ``hold=False`` (a reference heading, whose errors are the product): only a sample exactly at ``t_ns``
+        or an interpolation between samples on both sides within ``tol_ns``; never the one nearer sample of
+        one side (after the stream stopped, a held value is a silently wrong truth)."""
         with self._lock:
             b, a = self.around(int(t_ns), int(tol_ns))
         if b is None and a is None:
             return None
-        if b is not None and (a is None or b[0] == t_ns):
+        if b is not None and b[0] == t_ns:
+            return b[1], 0, False
+        if not hold and (a is None or b is None):
+            return None
+        if b is not None and a is None:
             return b[1], int(t_ns - b[0]), False
         if b is None:
             return a[1], int(a[0] - t_ns), False

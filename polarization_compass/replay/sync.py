@@ -259,7 +259,9 @@ class _FrameSync:
         near = imu.camera_tilt(t, self.prior_tol_ns, R_body_cam) if len(imu) else None
         if tilt is None:
             tally.note(self.image_topic, "no_imu_near_stamp")
-        hit = ref.at(t, self.tol["reference"]) if len(ref) else None
+        # the reference is interpolated between samples either side within max_gap_s.reference, or exact at the
+        # stamp; never held from one side (a stream that stopped early would give silently wrong errors)
+        hit = ref.at(t, self.tol["reference"], hold=False) if len(ref) else None
         true_bearing = None
         if hit is not None:
             true_bearing = float(wrap_360_deg(camera_attitude_from_body_quat(hit[0], R_body_cam).bearing_deg))
