@@ -17,8 +17,9 @@ def register(sub):
     p.add_argument("--topics", metavar="MAPPING.yaml", help="topic names/types of your rig "
                                                              "(default: config/replay_topics.yaml, as record-sim)")
     p.add_argument("--out", default="replay_out", metavar="DIR", help="output directory (default replay_out)")
-    p.add_argument("--stride", type=int, default=8,
-                   help="every N-th sensor pixel per row/column (estimator knob; default 8 as the nodes)")
+    p.add_argument("--stride", type=int, default=None,
+                   help="every N-th sensor pixel per row/column (estimator knob; default 8 as the nodes, for the "
+                        "methods that have a stride)")
     p.add_argument("--knob", action="append", default=[], metavar="[METHOD.]NAME=VALUE",
                    help="estimator knob for every method or one method, e.g. least_squares.weighting=uniform")
     p.add_argument("--prior", choices=("imu", "last", "none"), default="imu",
@@ -34,7 +35,7 @@ def register(sub):
 
 
 def _parse_knobs(items, stride):
-    knobs = {"*": {"stride": stride}}
+    knobs = {"*": {} if stride is None else {"stride": stride}}     # (no --stride: the nodes' 8 where it exists)
     for item in items:
         if "=" not in item:
             raise CompassError(f"--knob needs NAME=VALUE or METHOD.NAME=VALUE, got {item!r}")
@@ -64,7 +65,7 @@ def run(args) -> int:
     from ..bag import load_topic_map
     from ..replay import ReplayConfig, default_error_map, replay_bag, write_outputs
 
-    if args.stride < 1:
+    if args.stride is not None and args.stride < 1:
         raise CompassError(f"--stride must be >= 1, got {args.stride}")
     if args.workers is not None and not 1 <= args.workers <= 64:
         raise CompassError(f"--workers must be in [1, 64], got {args.workers}")

@@ -25,15 +25,18 @@ class ReplayError(CompassError):
 class ReplayConfig:
     """How frames are processed; defaults are the nodes' shipped parameters (config/*.yaml).
 
-    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method; the nodes ship
-    ``stride: 8``). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
+    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method that has the knob; a
+    ``"*"`` knob none of the selected methods has is an error). ``default_knobs``: applied first to every
+    method that has them, never an error (the nodes ship ``stride: 8``; zenith has no stride, so
+    ``--methods zenith`` runs alone). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
     ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
     corrected headings; see :func:`default_error_map`). ``direct_methods``: methods the corrector
     does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
     """
 
     methods: tuple = ()
-    knobs: dict = field(default_factory=lambda: {"*": {"stride": 8}})
+    knobs: dict = field(default_factory=lambda: {"*": {}})
+    default_knobs: dict = field(default_factory=lambda: {"stride": 8})
     demosaic: str = "superpixel"
     use_intensity: bool = False
     prior_source: str = "imu"
@@ -57,7 +60,8 @@ class ReplayConfig:
         its own entries (an unknown name there is an error of the estimator)."""
         from ..estimators import estimator_knob_names
         names = estimator_knob_names(method)
-        k = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
+        k = {n: v for n, v in self.default_knobs.items() if n in names}
+        k.update({n: v for n, v in self.knobs.get("*", {}).items() if n in names})
         k.update(self.knobs.get(method, {}))
         return k
 
