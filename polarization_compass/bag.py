@@ -598,8 +598,17 @@ class BagReader:
     def message_count(self) -> int:
         return int(self._reader.message_count)
 
+    def topic_types(self) -> dict:
+        """{topic: {msgtype: message count}} over all connections (a topic recorded from publishers of
+        different types has one connection per type)."""
+        out: dict = {}
+        for c in self._reader.connections:
+            types = out.setdefault(c.topic, {})
+            types[c.msgtype] = types.get(c.msgtype, 0) + int(c.msgcount)
+        return out
+
     def topics(self) -> dict:
-        """{topic: (msgtype, message count)} over all connections."""
+        """{topic: (msgtype, message count)} over all connections (types joined by ``|`` when mixed)."""
         out: dict = {}
         for c in self._reader.connections:
             t, n = out.get(c.topic, (c.msgtype, 0))

@@ -654,3 +654,35 @@ def test_every_method_can_be_replayed_alone(clean, tmp_path, capsys):
         assert len(rows) == 20 and {row["method"] for row in rows} == {m}
     r = _cli_inproc(capsys, "replay", clean, "--methods", "zenith", "--stride", "4", "--out", tmp_path / "z4")
     assert r.returncode == 2 and "stride" in r.stderr
+
+
+def test_a_topic_with_an_extra_connection_of_another_type_uses_the_right_one(clean, tmp_path):
+    """Issue 18: one extra publisher of another type on the image topic made replay refuse all its good
+    images with a misleading listing. Now its Image connection is used, the CompressedImage messages are
+    reported and counted as type_mismatch, and the result equals the clean bag's."""
+    from rosbags.rosbag2 import Writer
+    ts = B.typestore()
+    out = tmp_path / "mixed"
+    with B.BagReader(clean) as r, Writer(out, version=9) as w:
+        conns = {}
+        for c in r._reader.connections:
+            conns[c.id] = w.add_connection(c.topic, c.msgtype, typestore=ts)
+        extra = w.add_connection("/camera/image_raw", "sensor_msgs/msg/CompressedImage", typestore=ts)
+        CI = ts.types["sensor_msgs/msg/CompressedImage"]
+        Header, Time = ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
+        k = 0
+        for c, t, raw in r._reader.messages():
+            w.write(conns[c.id], t, raw)
+            if c.topic == "/camera/image_raw" and k < 3:
+                m = CI(header=Header(stamp=Time(sec=k, nanosec=0), frame_id="c"), format="jpeg",
+                       data=np.zeros(4, np.uint8))
+                w.write(extra, t + 1, ts.serialize_cdr(m, "sensor_msgs/msg/CompressedImage"))
+                k += 1
+    good = _replay(clean, methods=("least_squares",))
+    res = _replay(out, methods=("least_squares",))
+    assert res.frames == good.frames == 20
+    assert [(r.stamp_ns, r.raw_bearing_deg) for r in res.rows] == [(r.stamp_ns, r.raw_bearing_deg) for r in good.rows]
+    d = res.tally.to_dict()["/camera/image_raw"]
+    assert d["skipped"] == {"type_mismatch": 3} and d["read"] == 23 and res.tally.balanced()
+    assert any("also has 3 of type sensor_msgs/msg/CompressedImage" in p and "20 sensor_msgs/msg/Image" in p
+               for p in res.plan.problems), res.plan.problems

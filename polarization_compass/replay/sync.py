@@ -18,7 +18,8 @@ __all__ = ["BagPlan", "plan_bag", "SyncedFrame", "prefetched", "iter_synced_fram
 class BagPlan:
     """What a bag holds for each role, checked before any processing.
 
-    ``present``: role -> message count on its topic; ``type_mismatch``: role -> type found;
+    ``present``: role -> message count of the mapped type on its topic; ``type_mismatch``: role -> the
+    other type(s) found there (``|``-joined), whose messages are skipped;
     ``problems``: one-line statements of what is missing and what that means; ``fatal``: problems
     that leave nothing to compute (raised as one :class:`BagError`).
     """
@@ -31,18 +32,27 @@ class BagPlan:
 
 
 def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
-    """Compare the bag's topics with the mapping."""
-    topics = reader.topics()
+    """Compare the bag's topics with the mapping. A mapped topic whose connections have several types
+    (e.g. one extra publisher of another type) is used through its connections of the mapped type; the
+    messages of the other types are reported here and skipped one by one as ``type_mismatch``."""
+    types_of = reader.topic_types()
     present, mismatch, problems, fatal = {}, {}, [], []
     for role, spec in topic_map.topics.items():
-        found = topics.get(spec.topic)
-        present[role] = found[1] if found else 0
-        if found and found[0] != spec.type:
-            mismatch[role] = found[0]
-            problems.append(f"{role}: {spec.topic} has type {found[0]}, the mapping says {spec.type}: "
-                            "its messages are skipped (fix the type in the topic mapping)")
-    listing = ", ".join(f"{t} ({v[0].split('/')[-1]}, {v[1]})" for t, v in sorted(topics.items())) or "none"
-    usable = {r: present[r] > 0 and r not in mismatch for r in present}
+        types = types_of.get(spec.topic, {})
+        present[role] = types.get(spec.type, 0)
+        others = {t: n for t, n in types.items() if t != spec.type}
+        if others:
+            mismatch[role] = "|".join(sorted(others))
+            text = ", ".join(f"{n} of type {t}" for t, n in sorted(others.items()))
+            if present[role]:
+                problems.append(f"{role}: {spec.topic} also has {text} (another connection): those are skipped; "
+                                f"its {present[role]} {spec.type} messages are used")
+            else:
+                problems.append(f"{role}: {spec.topic} has type {mismatch[role]}, the mapping says {spec.type}: its "
+                                "messages are skipped (fix the type in the topic mapping)")
+    listing = ", ".join(f"{t} ({'|'.join(x.split('/')[-1] for x in sorted(ty))}, {sum(ty.values())})"
+                        for t, ty in sorted(types_of.items())) or "none"
+    usable = {r: present[r] > 0 for r in present}
     if not usable["image"]:
         fatal.append(f"no {topic_map.spec('image').type} messages on the image topic {topic_map.spec('image').topic}"
                      f" (topics in the bag: {listing}); map yours with --topics")
@@ -64,7 +74,7 @@ def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
     if not usable["reference"]:
         problems.append(f"reference: none on {topic_map.spec('reference').topic}: headings are computed but "
                         "their errors are not")
-    return BagPlan(topics, present, mismatch, problems, fatal)
+    return BagPlan(reader.topics(), present, mismatch, problems, fatal)
 
 @dataclass
 class SyncedFrame:
@@ -147,7 +157,8 @@ class _FrameSync:
         from ..pipeline import AttitudeBuffer
 
         self.topic_map, self.tally, self.plan = topic_map, tally, plan
-        self.wanted = {spec.topic: role for role, spec in topic_map.topics.items() if plan.present.get(role, 0) > 0}
+        self.wanted = {spec.topic: role for role, spec in topic_map.topics.items()
+                       if plan.present.get(role, 0) > 0 or role in plan.type_mismatch}
         keep_ns = int(max(10.0, 4 * topic_map.lookahead_s, 2 * prior_max_age_s) * 1e9)
         self.imu, self.ref = AttitudeBuffer(keep_ns), AttitudeBuffer(keep_ns)
         self.tol = {r: int(topic_map.max_gap_s[r] * 1e9) for r in ("imu", "reference")}
@@ -167,7 +178,7 @@ class _FrameSync:
     def decode(self, topic: str, role: str, mtype: str, raw):
         """(stamp_ns, decoded value) of one message, or None when it is skipped (counted with a reason)."""
         self.tally.read[topic] += 1
-        if role in self.plan.type_mismatch:
+        if mtype != self.topic_map.spec(role).type:        # a connection of another type on this topic
             self.tally.skip(topic, "type_mismatch", f"{mtype} is not {self.topic_map.spec(role).type}")
             return None
         try:
