@@ -569,14 +569,30 @@ class BagReader:
             p = p.parent
         if not p.is_dir():
             raise BagError(f"{str(p)!r} is not a rosbag2 directory (a directory with metadata.yaml)")
-        if not (p / "metadata.yaml").is_file():
-            raise BagError(f"{str(p)!r} is not a rosbag2 directory: it has no metadata.yaml")
         self.path = p
+        self.damage: str | None = None          # what went wrong reading, once the bag is read (one line)
+        self.recovered: str | None = None       # how a damaged bag was opened (one line), or None
+        self._read_counts: Counter = Counter()  # messages yielded per topic
+        storage = sorted(x for x in p.iterdir() if x.suffix in (".mcap", ".db3") and x.is_file())
+        if not (p / "metadata.yaml").is_file():
+            if len(storage) != 1:
+                raise BagError(f"{str(p)!r} is not a rosbag2 directory: it has no metadata.yaml")
+            # a recorder killed before it wrote metadata.yaml: read its one storage file up to the damage
+            self._reader = _recovered_storage(storage[0], "no metadata.yaml (a recorder killed before the end)")
+            self.recovered = self._reader.note
+            return
         try:
             self._reader = Reader(p)
             self._reader.open()
         except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
-            raise BagError(f"{str(p)!r} is not a readable rosbag2: {_one_line(exc)}") from None
+            first = f"{str(p)!r} is not a readable rosbag2: {_one_line(exc)}"
+            if len(storage) != 1:
+                raise BagError(first) from None
+            try:
+                self._reader = _recovered_storage(storage[0], _one_line(exc))
+            except Exception:  # noqa: BLE001 - not recoverable either: the first error says why
+                raise BagError(first) from None
+            self.recovered = self._reader.note
 
     def __enter__(self):
         return self
@@ -625,13 +641,204 @@ class BagReader:
         conns = [c for c in self._reader.connections if c.topic in set(topics)]
         if not conns:
             return
+        self._requested = getattr(self, "_requested", set()) | {c.topic for c in conns}
         try:
             for c, t, raw in self._reader.messages(connections=conns):
+                self._read_counts[c.topic] += 1
                 yield c.topic, c.msgtype, int(t), raw
         except BagError:
             raise
-        except Exception as exc:  # noqa: BLE001
-            raise BagError(f"{self.path}: reading failed part-way: {_one_line(exc)}") from None
+        except Exception as exc:  # noqa: BLE001 - damage part-way: what was read stands, the rest is counted lost
+            self.damage = f"reading stopped part-way ({_one_line(exc)})"
+
+    def lost(self) -> dict:
+        """{topic: messages the bag's index announces but that were not read} after :meth:`messages` (a
+        damaged or truncated bag); empty when everything announced was read or nothing is announced."""
+        expected = {c.topic: 0 for c in self._reader.connections}
+        for c in self._reader.connections:
+            expected[c.topic] += int(getattr(c, "msgcount", 0) or 0)
+        announced = getattr(self._reader, "announced", None) or expected
+        asked = getattr(self, "_requested", set())
+        return {t: n - self._read_counts.get(t, 0) for t, n in announced.items()
+                if n > self._read_counts.get(t, 0) and t in asked}
+
+    def damage_notes(self) -> list[str]:
+        """One-line statements of damage found while opening or reading (empty for a sound bag)."""
+        notes = []
+        if self.recovered:
+            notes.append(f"damaged bag: {self.recovered}")
+        if self.damage:
+            notes.append(f"damaged bag: {self.damage}")
+        lost = self.lost() if (self.recovered or self.damage) else {}
+        if lost:
+            notes.append("messages lost to the damage: " + ", ".join(f"{t} {n}" for t, n in sorted(lost.items())))
+        elif self.recovered or self.damage:
+            notes.append("messages lost to the damage: unknown (the bag has no index of what it held)")
+        return notes
+
+
+class _RecoveredConnection:
+    def __init__(self, cid, topic, msgtype, msgcount):
+        self.id, self.topic, self.msgtype, self.msgcount = cid, topic, msgtype, msgcount
+
+
+class _RecoveredMcap:
+    """An MCAP file cut short (a killed recorder, a copy that stopped) read with rosbags' own MCAP reader up
+    to the last complete record: the reader gets the intact prefix followed by a footer that announces no
+    summary, so it scans the records (``McapReader.meta_scan``/``messages_scan``, as for an unindexed
+    file) instead of refusing the missing footer (``File end magic is invalid``)."""
+
+    _MAGIC = b"\x89MCAP0\r\n"
+
+    def __init__(self, path: Path, why: str):
+        import io
+        import struct
+
+        from rosbags.rosbag2.storage_mcap import McapReader
+        self.path = path
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+            if head != self._MAGIC:
+                raise BagError(f"{path.name}: not an MCAP file")
+            pos = 8
+            good = None
+            while pos + 9 <= size:                  # records: opcode (1), length (8), body
+                fh.seek(pos)
+                op, n = struct.unpack("<BQ", fh.read(9))
+                end = pos + 9 + n
+                if end > size or op == 0x0F and n == 0:
+                    break
+                if op in (0x02, 0x0E, 0x0F):        # footer, summary offset, data end: the data ends here
+                    break
+                good = end
+                pos = end
+        if good is None:
+            raise BagError(f"{path.name}: no complete MCAP record")
+        self.discarded_bytes = size - good
+        footer = bytes([0x02]) + struct.pack("<QQQI", 20, 0, 0, 0) + self._MAGIC
+        self._bio = _PrefixWithTail(path, good, footer)
+        self._mcap = McapReader(path)
+        self._mcap.bio = self._bio
+        self._mcap._open()                           # rosbags' own reader; scans (no index)
+        self.connections = [_RecoveredConnection(c.id, c.topic, c.msgtype, c.msgcount) for c in self._mcap.connections]
+        self._by_id = {c.id: c for c in self._mcap.connections}
+        self.message_count = int(self._mcap.metadata.message_count)
+        self.duration = int(self._mcap.metadata.duration)
+        self.announced = _announced_counts(path.parent)
+        self.note = (f"{why}; read with rosbags' MCAP reader up to the last complete record "
+                     f"({self.message_count} messages; {self.discarded_bytes} bytes at the end discarded)")
+
+    def messages(self, connections):
+        conns = [self._by_id[c.id] for c in connections]
+        for c, t, raw in self._mcap.messages(conns):
+            yield c, t, raw
+
+    def close(self):
+        self._bio.close()
+
+
+class _PrefixWithTail:
+    """A read-only file object: the first ``n`` bytes of ``path`` followed by ``tail`` (a synthetic footer)."""
+
+    def __init__(self, path: Path, n: int, tail: bytes):
+        self._fh = open(path, "rb")
+        self._n, self._tail, self._pos = int(n), bytes(tail), 0
+
+    def seek(self, off: int, whence: int = 0) -> int:
+        size = self._n + len(self._tail)
+        self._pos = max(0, {0: off, 1: self._pos + off, 2: size + off}[whence])
+        return self._pos
+
+    def tell(self) -> int:
+        return self._pos
+
+    def read(self, k: int = -1) -> bytes:
+        size = self._n + len(self._tail)
+        k = size - self._pos if k is None or k < 0 else min(k, size - self._pos)
+        out = b""
+        if self._pos < self._n and k > 0:
+            self._fh.seek(self._pos)
+            out = self._fh.read(min(k, self._n - self._pos))
+        rest = k - len(out)
+        if rest > 0:
+            start = self._pos + len(out) - self._n
+            out += self._tail[start:start + rest]
+        self._pos += len(out)
+        return out
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class _RecoveredSqlite:
+    """A truncated rosbag2 sqlite3 file read with Python's sqlite3 (rosbags' reader counts every topic's
+    messages when it opens, which fails on the first missing page): a temporary copy whose header page count
+    is set to the pages present, read in insertion order (rowid) until the first missing page."""
+
+    def __init__(self, path: Path, why: str):
+        import shutil
+        import sqlite3
+        import struct
+        import tempfile
+        self.path = path
+        self._tmp = tempfile.TemporaryDirectory(prefix="pc_bag_recover_")
+        copy = Path(self._tmp.name) / path.name
+        shutil.copyfile(path, copy)
+        with open(copy, "r+b") as fh:
+            hdr = fh.read(100)
+            if not hdr.startswith(b"SQLite format 3\x00"):
+                raise BagError(f"{path.name}: not an SQLite file")
+            page = struct.unpack(">H", hdr[16:18])[0]
+            page = 65536 if page == 1 else page
+            pages = copy.stat().st_size // page
+            fh.truncate(pages * page)
+            fh.seek(28)
+            fh.write(struct.pack(">I", pages))
+        self._db = sqlite3.connect(f"file:{copy}?mode=ro", uri=True, check_same_thread=False)
+        rows = self._db.execute("SELECT id, name, type FROM topics ORDER BY id").fetchall()
+        counts: Counter = Counter()
+        try:                                   # what is readable (topic ids only: no message data is read)
+            for (cid,) in self._db.execute("SELECT topic_id FROM messages ORDER BY id"):
+                counts[cid] += 1
+        except sqlite3.DatabaseError:
+            pass
+        self.connections = [_RecoveredConnection(i, name, mtype, counts[i]) for i, name, mtype in rows]
+        self.message_count = sum(counts.values())
+        self.duration = 0
+        self.announced = _announced_counts(path.parent)
+        self.note = (f"{why}; read with Python's sqlite3 from a copy whose header counts the pages present, "
+                     "in recording order up to the first missing page")
+
+    def messages(self, connections):
+        by_id = {c.id: c for c in connections}
+        for cid, t, data in self._db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
+            c = by_id.get(cid)
+            if c is not None:
+                yield c, int(t), data
+
+    def close(self):
+        try:
+            self._db.close()
+        finally:
+            self._tmp.cleanup()
+
+
+def _announced_counts(directory: Path) -> dict | None:
+    """{topic: message count} from a rosbag2 metadata.yaml, or None when absent or unreadable."""
+    from .safe_load import load_yaml, read_text
+    try:
+        d = load_yaml(read_text(directory / "metadata.yaml", BagError, "bag metadata"), "metadata", BagError)
+        info = d["rosbag2_bagfile_information"]
+        return {t["topic_metadata"]["name"]: int(t["message_count"]) for t in info["topics_with_message_count"]}
+    except (BagError, KeyError, TypeError, ValueError):
+        return None
+
+
+def _recovered_storage(path: Path, why: str):
+    """A damaged bag's single storage file opened up to the damage (:class:`_RecoveredMcap` or
+    :class:`_RecoveredSqlite`); raises when that is not possible either."""
+    return (_RecoveredMcap if path.suffix == ".mcap" else _RecoveredSqlite)(path, why)
 
 
 def _one_line(exc) -> str:

@@ -519,6 +519,13 @@ def _hostile_cases():
         cases += [(["allowable-tilt", "--max-error", "1", "--map", "{%s}" % m], words),
                   (["plot", "{%s}" % m, "--figure", "fig7", "--out", "{out}/x.png"], words),
                   (["sim", "--error-map", "{%s}" % m, "--out", "{out}/sim"], words)]
+    site = ["--lat", "32", "--lon", "118", "--time", GOOD_TIME]
+    for bad in ("deep_yaml", "dev_zero", "fifo", "map_bomb"):      # photodiode-array commands: any one line
+        geometry = "{%s}" % bad if bad != "map_bomb" else "{deep_yaml}"
+        recording = "{%s}" % bad if bad != "deep_yaml" else "{map_bomb}"
+        cases += [(["calibrate-array", recording, "--geometry", geometry, "--out", "{out}/g.yaml"], ""),
+                  (["check-array", recording, "--geometry", geometry] + site, ""),
+                  (["estimate-array", recording, "--geometry", geometry, "--out", "{out}/h.csv"] + site, "")]
     cases += [(["render", "--stride", "64", "--seed", "-5", "--out", "{out}/f.npz"], "--seed"),
               (["render", "--stride", "64", "--seed", str(2 ** 64), "--out", "{out}/f.npz"], "--seed")]
     return cases

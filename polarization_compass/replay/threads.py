@@ -135,6 +135,7 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
                     raise failures[0]
                 if progress is not None:
                     progress(frames)
+            plan.problems.extend(reader.damage_notes())      # a truncated bag: read up to the damage, counted
     finally:
         for q in queues:
             q.put(None)
