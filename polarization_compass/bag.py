@@ -720,7 +720,14 @@ class _RecoveredMcap:
         self._bio = _PrefixWithTail(path, good, footer)
         self._mcap = McapReader(path)
         self._mcap.bio = self._bio
-        self._mcap._open()                           # rosbags' own reader; scans (no index)
+        try:
+            self._mcap._open()                       # rosbags' own reader; scans (no index)
+        except BaseException:
+            self._bio.close()
+            raise
+        if not self._mcap.connections or not self._mcap.metadata.message_count:
+            self._bio.close()
+            raise BagError(f"{path.name}: nothing readable before the damage")
         self.connections = [_RecoveredConnection(c.id, c.topic, c.msgtype, c.msgcount) for c in self._mcap.connections]
         self._by_id = {c.id: c for c in self._mcap.connections}
         self.message_count = int(self._mcap.metadata.message_count)
@@ -805,6 +812,9 @@ class _RecoveredSqlite:
             pass
         self.connections = [_RecoveredConnection(i, name, mtype, counts[i]) for i, name, mtype in rows]
         self.message_count = sum(counts.values())
+        if not self.message_count:
+            self.close()
+            raise BagError(f"{path.name}: nothing readable before the damage")
         self.duration = 0
         self.announced = _announced_counts(path.parent)
         self.note = (f"{why}; read with Python's sqlite3 from a copy whose header counts the pages present, "
