@@ -308,7 +308,7 @@ def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSp
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=registry.get(method).needs_tilt,
-                                    prior_source=prior)
+                                    prior_source=prior, input_kind=params.get("input", "image"))
     return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
                     ("config/heading_estimator.yaml",), {"method": method, **params}, _used(remappings, pubs, subs),
                     tuple(pubs), tuple(subs))

@@ -288,6 +288,12 @@ SIMULATOR = (
 ESTIMATOR = (
     Param("method", "least_squares", "heading method (one node per method)", choices=ALL_METHODS,
           read_only=True),
+    Param("input", "image", "image: a polarization camera on camera/image_raw; array: a photodiode-array "
+                            "compass on compass_array/intensities (std_msgs/Float32MultiArray, units x channels, "
+                            "stamped on arrival; docs/photodiode-arrays.md)", choices=("image", "array"),
+          read_only=True),
+    Param("array_geometry", "", "input array: the sensor description YAML (units, channels_deg, angle_zero, "
+                                "angle_sense, gains)", read_only=True),
     Param("demosaic", "superpixel", "how the 2x2 mosaic becomes AoP/DoP", choices=("superpixel", "bilinear")),
     Param("polarizer_layout", "90,45,135,0", "polarizer angles (deg, from +x_cam towards +y_cam) of the "
                                              "2x2 cell, row-major from the top-left pixel (Sony IMX250MZR: "
