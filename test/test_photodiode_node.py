@@ -123,3 +123,41 @@ def test_array_input_needs_a_geometry(ctx):
         HeadingEstimatorNode(context=ctx, parameter_overrides=[
             Parameter("method", value="zenith"), Parameter("input", value="array"),
             Parameter("array_geometry", value=GEOMETRY)])
+
+
+def test_sim_graph_with_an_array():
+    from polarization_compass import graphs
+    from polarization_compass.specs import topics
+    g = graphs.build("sim", {"methods": "least_squares", "array_geometry": GEOMETRY})
+    assert not g.check()
+    sim = g.node("sky_simulator")
+    assert sim.parameters["array_geometry"] == GEOMETRY
+    assert ("/" + topics.ARRAY, topics.T_FLOAT32_MULTIARRAY) in sim.resolved_publishes()
+    arr = [n for n in g.nodes if n.namespace == "array"]
+    assert sorted(n.parameters["method"] for n in arr) == ["least_squares", "tilt_aware"]
+    for n in arr:
+        assert n.parameters["input"] == "array"
+        subs = dict(n.resolved_subscribes())
+        assert "/" + topics.ARRAY in subs and "/imu/data" in subs and "/camera/image_raw" not in subs
+        assert dict(n.resolved_publishes())["/array/compass/%s/heading_raw" % n.parameters["method"]]
+    assert any(e.startswith("compass_array/intensities=heading_estimator_array_least_squares")
+               for e in sim.parameters["wait_for_downstream"])
+    plain = graphs.build("sim", {"methods": "least_squares"})
+    assert not any(n.namespace == "array" for n in plain.nodes)
+    assert ("/" + topics.ARRAY, topics.T_FLOAT32_MULTIARRAY) not in plain.node("sky_simulator").resolved_publishes()
+
+
+def test_simulator_publishes_the_array(ctx):
+    """sky_simulator with array_geometry: one Float32MultiArray per frame that the estimator decodes back."""
+    from polarization_compass.nodes.sky_simulator import SkySimulatorNode
+    from polarization_compass.photodiode.readings import array_sample_from_flat
+    sim = SkySimulatorNode(context=ctx, parameter_overrides=[Parameter("array_geometry", value=GEOMETRY),
+                                                             Parameter("clock_mode", value="system")])
+    try:
+        img, _, _, _ = sim._render_frame(sim.start_ns, 1, np.eye(3))
+        msg = img[1]
+        assert isinstance(msg, Float32MultiArray) and [d.size for d in msg.layout.dim] == [8, 4]
+        x = array_sample_from_flat(msg.data, [8, 4], 0, load_array_geometry(GEOMETRY))
+        assert np.all(x > 0)
+    finally:
+        sim.destroy_node()

@@ -201,6 +201,9 @@ SIMULATOR = (
     Param("scene", "", "scene YAML (camera, sky, sensor, validity); empty: the embedded paper set-up. "
                        "Site, time and attitude come from this node's parameters, not from the scene",
           read_only=True),
+    Param("array_geometry", "", "also simulate a photodiode-array compass (sensor description YAML) on "
+                                "compass_array/intensities with every frame; '' = only if the scene declares one",
+          read_only=True),
     Param("encoding", "mono16", "image encoding: mono16/mono8 = raw 2x2 polarizer mosaic as a camera "
                                 "driver publishes it (needs a scene with sensor effects, else an ideal "
                                 "noise-free mosaic quantised to full scale); 32FC1 = ideal mosaic of "

@@ -59,10 +59,13 @@ def method_topics(method: str) -> dict:
     }
 
 
-def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu"):
-    """(publishes, subscribes): lists of (topic, type)."""
+def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu",
+                     array: bool = False):
+    """(publishes, subscribes): lists of (topic, type). ``array``: also a photodiode-array compass."""
     pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
             (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
+    if array:
+        pubs.append((ARRAY, T_FLOAT32_MULTIARRAY))
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
