@@ -7,6 +7,8 @@ The pipeline is built once per scene from what it declares:
 3. radiance (only if ``scene.radiance``): relative sky brightness at those rays;
 3b. atmosphere (only if ``scene.atmosphere`` declares it): haze, clouds and a skyline over the clear sky
    (:mod:`polarization_compass.atmosphere`; a declared atmosphere always gives ``intensity``);
+3c. optics (only if ``scene.optics`` declares it): vignetting, the sun and its glare, lens-flare ghosts
+   (:mod:`polarization_compass.optics`);
 4. sensor (only if ``scene.sensor`` declares effects): mosaic, noise, quantisation and demosaic,
    giving the *measured* AoP/DoP and the raw mosaic.
 
@@ -124,6 +126,10 @@ class Renderer:
         if scene.atmosphere:
             from .atmosphere import Atmosphere
             self.atmosphere = Atmosphere(scene.atmosphere, scene.seed)
+        self.optics = None
+        if scene.optics:
+            from .optics import Optics
+            self.optics = Optics(scene.optics, scene.camera)
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
@@ -157,6 +163,11 @@ class Renderer:
         if self.atmosphere is not None:
             aop, dop, valid, intensity = self._atmosphere(R, sun_cam, zenith_cam, aop, dop, valid, intensity,
                                                           time_utc)
+        if self.optics is not None:
+            if intensity is None:
+                intensity = np.ones(aop.shape, np.float32)
+            self.optics.apply(sun_cam, self.pixels.rays_cam, self.pixels.x_px.reshape(-1),
+                              self.pixels.y_px.reshape(-1), aop, dop, intensity, instr)
         if intensity is not None:
             intensity = intensity.reshape(shape)
         frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
@@ -191,6 +202,7 @@ class Renderer:
             "pixels": self.selection.describe(),
             "photodiode_array": None if self.array is None else self.array.params(),
             "atmosphere": None if self.atmosphere is None else self.atmosphere.params(),
+            "optics": None if self.optics is None else self.optics.params(),
             "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
                        "height_px": self.scene.camera.height_px,
                        "focal_length_mm": self.scene.camera.focal_length_mm,
@@ -242,6 +254,9 @@ class Renderer:
         if self.sensor is not None:
             from .sensor import SensorError
             raise SensorError("render_sky: the scene declares sensor effects; use render()")
+        if self.optics is not None:
+            from .optics import OpticsError
+            raise OpticsError("render_sky: the scene declares lens optics (sun glare, flare, vignetting); use render()")
         if self.atmosphere is not None:
             from .atmosphere import AtmosphereError
             raise AtmosphereError("render_sky: the scene declares an atmosphere (clouds/haze/skyline need the "

@@ -194,3 +194,100 @@ def test_render_sky_refuses_an_atmosphere():
     r = Renderer(Scene(pixels=GRID, atmosphere={"haze": {"turbidity": 3}}))
     with pytest.raises(AtmosphereError):
         r.render_sky(np.array([0.0, 0.5, 0.8]), np.array([0.0, 0.0, 1.0]))
+
+
+# ------------------------------------------------------------------------------------------ optics
+SUN_IN_VIEW = SunDirection(200.0, 55.0)      # 35 deg from the zenith: inside a level fisheye's field
+
+
+def render_optics(optics, camera=FISHEYE, pixels=None, sun=SUN_IN_VIEW, sensor=None, **kw):
+    scene = Scene(pixels=pixels or PixelSelection.full(), camera=camera, optics=optics,
+                  sky={"model": "rayleigh", "dop_max": 0.8}, sensor=sensor or {}, **kw)
+    return Renderer(scene).render(attitude=cv.CameraAttitude(0, 0, 0), sun=sun)
+
+
+def sun_image_point(frame, cam):
+    """Equidistant projection r = f theta of the sun, from its camera-frame direction (float64)."""
+    s = frame.sun_cam / np.linalg.norm(frame.sun_cam)
+    theta = math.acos(s[2])
+    phi = math.atan2(s[1], s[0])
+    r_px = cam.focal_length_mm * theta / (cam.pixel_pitch_x_um * 1e-3)
+    return cam.cx_px + r_px * math.cos(phi), cam.cy_px + r_px * math.sin(phi)
+
+
+def test_undeclared_optics_cost_nothing():
+    instrumentation.reset()
+    f = render()
+    assert not [k for k in instrumentation.counts() if k.startswith("optics")]
+    assert f.meta["optics"] is None
+
+
+def test_flare_ghosts_lie_on_the_line_through_the_sun_and_the_optical_centre():
+    import cv2
+    t = [-0.4, -0.7, -1.05]
+    f = render_optics({"flare": {"positions": t, "radius_px": 6, "radiance": 0.5}})
+    ghost = (f.intensity > 1.2).astype(np.uint8)            # clear sky has intensity 1, ghosts 1.5
+    n, _, _, cent = cv2.connectedComponentsWithStats(ghost)
+    assert n - 1 == 3
+    cent = cent[1:] + 1.0                                   # 0-based pixel index -> 1-based coordinates
+    sx, sy = sun_image_point(f, FISHEYE)
+    cx, cy = FISHEYE.cx_px, FISHEYE.cy_px
+    d = np.array([sx - cx, sy - cy])
+    for gx, gy in cent:
+        dist = abs(d[0] * (gy - cy) - d[1] * (gx - cx)) / np.linalg.norm(d)
+        assert dist < 0.5, dist                              # on the line (px)
+    got_t = sorted(((cent - [cx, cy]) @ d) / (d @ d))
+    np.testing.assert_allclose(got_t, sorted(t), atol=0.5 / np.linalg.norm(d))
+
+
+def test_no_ghosts_when_the_sun_is_behind_a_pinhole():
+    f = render_optics({"flare": {}}, camera=CameraModel(), pixels=GRID, sun=SunDirection(0.0, -20.0))
+    assert np.all(f.intensity == 1.0)
+
+
+def test_cos4_vignetting_of_a_pinhole_from_pixel_coordinates():
+    cam = CameraModel()
+    f = render_optics({"vignetting": {"law": "cos4"}}, camera=cam, pixels=GRID)
+    u = (f.x_px - cam.cx_px) * cam.pixel_pitch_x_um * 1e-3
+    v = (f.y_px - cam.cy_px) * cam.pixel_pitch_y_um * 1e-3
+    cos_t = cam.focal_length_mm / np.sqrt(cam.focal_length_mm ** 2 + u ** 2 + v ** 2)
+    np.testing.assert_allclose(f.intensity, cos_t ** 4, rtol=2e-5)
+    clear = render_optics(None, camera=cam, pixels=GRID)
+    np.testing.assert_array_equal(f.dop, clear.dop)
+
+
+def test_polynomial_vignetting_at_the_corner():
+    cam = CameraModel(width_px=300, height_px=400)
+    sel = PixelSelection.explicit(np.array([1, 150]), np.array([1, 200]))
+    f = render_optics({"vignetting": {"k": [-0.3, 0.05, -0.01]}}, camera=cam, pixels=sel)
+    r2 = ((1 - cam.cx_px) ** 2 + (1 - cam.cy_px) ** 2) / (0.25 * (300 ** 2 + 400 ** 2))
+    np.testing.assert_allclose(f.intensity[0], 1 - 0.3 * r2 + 0.05 * r2 ** 2 - 0.01 * r2 ** 3, rtol=1e-6)
+    r2c = ((150 - cam.cx_px) ** 2 + (200 - cam.cy_px) ** 2) / (0.25 * (300 ** 2 + 400 ** 2))
+    np.testing.assert_allclose(f.intensity[1], 1 - 0.3 * r2c + 0.05 * r2c ** 2 - 0.01 * r2c ** 3, rtol=1e-6)
+    assert f.intensity[0] < f.intensity[1] < 1.0
+
+
+def test_sun_glare_is_unpolarized_light_falling_as_the_declared_power():
+    g1, n = 40.0, 2.0
+    f = render_optics({"sun": {"glare_at_1deg": g1, "glare_exponent": n}})
+    clear = render_optics(None)
+    s = f.sun_cam / np.linalg.norm(f.sun_cam)
+    gam = np.degrees(np.arccos(np.clip(s @ f.rays_cam.astype(float), -1, 1)))
+    ok = clear.valid.reshape(-1) & (gam > 1.0)
+    glare = g1 * gam[ok] ** -n
+    np.testing.assert_allclose(f.intensity.reshape(-1)[ok], 1.0 + glare, rtol=2e-4)
+    np.testing.assert_allclose(f.dop.reshape(-1)[ok], clear.dop.reshape(-1)[ok] / (1.0 + glare), rtol=2e-4, atol=1e-7)
+    np.testing.assert_array_equal(f.aop_rad, clear.aop_rad)
+
+
+def test_the_sun_in_the_field_saturates_the_sensor_and_those_pixels_are_invalid():
+    sensor = {"mosaic": {}, "exposure": {"full_well_e": 10500, "fill": 0.45}, "quantization": {"bits": 12},
+              "demosaic": "superpixel"}
+    f = render_optics({"sun": {}}, sensor=sensor)
+    sat = f.mosaic >= 4095
+    assert 4 <= sat.sum() < 0.05 * sat.size
+    ys, xs = np.nonzero(sat)
+    sx, sy = sun_image_point(f, FISHEYE)
+    assert np.hypot(xs + 1 - sx, ys + 1 - sy).max() < 40        # around the sun only
+    blocks = sat.reshape(sat.shape[0] // 2, 2, sat.shape[1] // 2, 2).any(axis=(1, 3))
+    assert not f.valid[blocks].any()
