@@ -104,7 +104,7 @@ from numba import njit, prange
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
 from .errors import CompassError
-from .fastmath32 import sincos32
+from .fastmath import sincos32
 from .demosaic import (DEMOSAIC_METHODS, MosaicLayout, SensorError, _finish, layout_from_mapping,
                        polarization_from_mosaic)
 

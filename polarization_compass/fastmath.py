@@ -1,25 +1,34 @@
-"""Branch-free scalar math for compiled loops that LLVM should vectorise.
+"""Fast elementary functions for compiled (numba) loops: the one home of the project's fast float math.
 
-numba lowers ``math.exp``, ``math.atan2`` and ``math.cos`` to calls into libm, and a call (with no SVML,
-as on these machines: ``numba -s`` reports ``SVML State: False``) keeps a loop scalar. The functions here
-are polynomials, square roots, divisions and selects only, so a loop built from them runs 4 float64 lanes
-wide on AVX2. They are exact to a few units in the last place on the stated domains (tested against numpy
-over wide random samples in ``test/test_vecmath.py``); the pass-2 (uncertainty) kernels of SM-ASM and
-Symmetry use them, where a relative error of 1e-12 in a sigma does not matter and a factor 2-3 in time does.
+float64, branch-free (:func:`sincos_folded`, :func:`sincos`, :func:`atan2`, :func:`exp_nonpos`; the
+fast-math flags :data:`FM` for loops built from them). numba lowers ``math.exp``, ``math.atan2`` and
+``math.cos`` to calls into libm, and a call (with no SVML, as on these machines: ``numba -s`` reports
+``SVML State: False``) keeps a loop scalar. These are polynomials, square roots, divisions and selects
+only, so a loop built from them runs 4 float64 lanes wide on AVX2. They are exact to a few units in the
+last place on the stated domains (tested against numpy over wide random samples in
+``test/test_vecmath.py``); the pass-2 (uncertainty) kernels of SM-ASM and Symmetry use them, where a
+relative error of 1e-12 in a sigma does not matter and a factor 2-3 in time does.
 
 Loops that use them must be compiled with ``error_model="numpy"`` (the default "python" model tests every
 float division for zero and raises: an early exit that stops vectorisation) and should write
 ``x = x if ok else 0.0`` before a reduction, not ``acc += x if ok else 0.0`` (LLVM does not recognise a
 select inside the reduction chain).
+
+float32 (:func:`sincos32`, :func:`axial_atan2_f32`, its array form :func:`axial_atan2_array`): for the
+float32 render, sensor and demosaic kernels and the least-squares pass. They are inlined into the
+caller's loop, which keeps its own fastmath flags and vectorises.
+
+ROS-free, no state.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-__all__ = ["sincos_folded", "sincos", "atan2", "exp_nonpos", "FM"]
+__all__ = ["sincos_folded", "sincos", "atan2", "exp_nonpos", "FM", "sincos32", "axial_atan2_f32",
+           "axial_atan2_array"]
 
 #: LLVM fast-math flags for vectorised loops: reassociation (vector reductions), contraction (FMA), reciprocal.
 #: No nnan/ninf: finiteness tests in the loops must stay.
@@ -127,3 +136,76 @@ def exp_nonpos(x):  # pragma: no cover - compiled
     s *= (2.0 ** -64 if n & 64 else 1.0) * (2.0 ** -128 if n & 128 else 1.0) * (2.0 ** -256 if n & 256 else 1.0)
     s *= 2.0 ** -512 if n & 512 else 1.0
     return p * s
+
+
+# --------------------------------------------------------------------------------------------
+# float32
+# --------------------------------------------------------------------------------------------
+@njit(inline="always", cache=True)
+def sincos32(a):  # pragma: no cover - compiled
+    """float32 (sin a, cos a) for |a| <= pi/2: Taylor polynomials to a^11 / a^12 in Horner form
+    (truncation < 6e-8 at pi/2, below float32 rounding). Callers with wider angles fold them first."""
+    z = a * a
+    s = np.float32(1.0 / 39916800.0)
+    s = s * -z + np.float32(1.0 / 362880.0)
+    s = s * -z + np.float32(1.0 / 5040.0)
+    s = s * -z + np.float32(1.0 / 120.0)
+    s = s * -z + np.float32(1.0 / 6.0)
+    s = a * (np.float32(1.0) - z * s)
+    c = np.float32(1.0 / 479001600.0)
+    c = c * -z + np.float32(1.0 / 3628800.0)
+    c = c * -z + np.float32(1.0 / 40320.0)
+    c = c * -z + np.float32(1.0 / 720.0)
+    c = c * -z + np.float32(1.0 / 24.0)
+    c = c * -z + np.float32(0.5)
+    c = np.float32(1.0) - z * c
+    return s, c
+
+
+# Odd minimax polynomial for atan(t), |t| <= tan(pi/8): atan(t) ~ t + t^3 (C3 + C5 t^2 + C7 t^4 + C9 t^6).
+# Fitted for this project (Lawson-weighted least squares); max error 5e-9 rad in float64, 2.3e-8 rad
+# evaluated in float32 (tests compare against numpy.arctan2). Unlike libm's scalar atan2f it vectorises.
+_ATAN_C3 = -0.3333275666758043
+_ATAN_C5 = 0.19971879261954273
+_ATAN_C7 = -0.1382445336732415
+_ATAN_C9 = 0.07902597096846205
+
+
+@njit(inline="always", fastmath=True, cache=True)
+def axial_atan2_f32(x, y):  # pragma: no cover - compiled
+    """atan2(x, y) folded to [-pi/2, pi/2), i.e. the axial angle of (x, y) measured from +y towards +x.
+
+    Folding mod pi makes this atan(x / y) without the division hazards: 0/0 (a ray at the sun) gives 0.
+    """
+    ax = abs(x)
+    ay = abs(y)
+    mx = max(ax, ay)
+    mn = min(ax, ay)
+    q = mn / (mx if mx > np.float32(0.0) else np.float32(1.0))       # [0, 1]
+    big = q > np.float32(0.41421356237309503)                          # tan(pi/8)
+    t = (q - np.float32(1.0)) / (q + np.float32(1.0)) if big else q
+    z = t * t
+    p = np.float32(_ATAN_C9)
+    p = p * z + np.float32(_ATAN_C7)
+    p = p * z + np.float32(_ATAN_C5)
+    p = p * z + np.float32(_ATAN_C3)
+    a = t + t * z * p
+    if big:
+        a += np.float32(math.pi / 4)
+    if ax > ay:
+        a = np.float32(math.pi / 2) - a
+    if (x < np.float32(0.0)) != (y < np.float32(0.0)):
+        a = -a
+    if a >= np.float32(math.pi / 2):
+        a = np.float32(-math.pi / 2)
+    return a
+
+
+@njit(parallel=True, cache=True, fastmath=True)
+def axial_atan2_array(x, y, out):  # pragma: no cover - compiled
+    """Vectorised :func:`axial_atan2_f32` over float32 arrays (any shape, flattened)."""
+    xf = x.reshape(-1)
+    yf = y.reshape(-1)
+    of = out.reshape(-1)
+    for i in prange(xf.size):
+        of[i] = axial_atan2_f32(xf[i], yf[i])
