@@ -29,6 +29,7 @@ DISC_KNOBS = {
                                     "status insufficient_coverage"),
 }
 
+#: Pixel subsampling of the coarse scan for self-consistent axes (``scan_at`` of :func:`._mirror.solve_axes`).
 SCAN_STEP = 8
 #: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this factor times
 #: the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian (the false ones we met

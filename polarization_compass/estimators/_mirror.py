@@ -57,7 +57,7 @@ MIRROR_BLUR_CELLS = 2.0
 MIRROR_LEVELS = (0.5, 0.9)
 #: Secant steps of the refinement of one fixed point before giving up.
 MAX_SOLVE_STEPS = 25
-#: Trial axes of the coarse scan for fixed points (over 180 deg), and its pixel subsampling.
+#: Trial axes of the coarse scan for fixed points (over 180 deg).
 SCAN_AXES = 18
 #: A sign change of h between neighbouring scan axes larger than this (rad) is a jump, not a root.
 MAX_BRACKET_JUMP = 0.75
