@@ -132,7 +132,7 @@ def band_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min
                mg, mp, Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
     """SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate suns;
     rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty). The per-pixel terms are
-    one vectorised loop (:mod:`._vecmath`), the block sums a second."""
+    one vectorised loop (:mod:`polarization_compass.fastmath`), the block sums a second."""
     t0 = np.empty(aop.size)
     t1 = np.empty(aop.size)
     _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2,
