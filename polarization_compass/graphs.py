@@ -271,6 +271,17 @@ def build(name: str, args: dict | None = None) -> Graph:
     return {"sim": sim_graph, "compass": compass_graph, "replay": replay_graph}[name](**values)
 
 
+def node_lines(name: str, args: dict | None = None) -> list[str]:
+    """One line per node that graph ``name`` starts with launch arguments ``args``: executable and name.
+
+    The launch files quote this list (with the default arguments) in their docstrings, so that a
+    reader sees what a launch starts without running it; ``test/test_launch_docs.py`` keeps the
+    quoted lists equal to the generated graphs.
+    """
+    return [f"{n.executable:<18} {('/' + n.namespace.strip('/') + '/') if n.namespace else ''}{n.name}"
+            for n in build(name, args).nodes]
+
+
 # ------------------------------------------------------------------------------------------------
 # The graphs
 # ------------------------------------------------------------------------------------------------
