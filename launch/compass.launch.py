@@ -5,6 +5,12 @@ robot_localization, see config/ekf_heading_example.yaml and docs/ros.md).
     ros2 launch polarization_compass compass.launch.py method:=least_squares \
         image_topic:=/pol_camera/image_raw camera_info_topic:=/pol_camera/camera_info imu_topic:=/imu/data
 
+Nodes started with the default arguments (generated from polarization_compass.graphs;
+test/test_launch_docs.py keeps this list current; `--show-args` lists the arguments):
+
+    heading_estimator  heading_estimator_least_squares
+    tilt_corrector     tilt_corrector_least_squares
+
 The nodes, parameter files and remappings come from polarization_compass.graphs (the single
 description of each graph); launch and launch_ros are imported only when the launch runs.
 """

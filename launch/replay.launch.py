@@ -5,6 +5,20 @@
 
 The offline equivalent (no ROS install needed): `polarization-compass replay RUN_BAG`.
 
+Nodes started with the default arguments (generated from polarization_compass.graphs;
+test/test_launch_docs.py keeps this list current; `--show-args` lists the arguments):
+
+    heading_estimator  heading_estimator_zenith
+    heading_estimator  heading_estimator_sm_asm
+    heading_estimator  heading_estimator_symmetry
+    heading_estimator  heading_estimator_least_squares
+    heading_estimator  heading_estimator_tilt_aware
+    tilt_corrector     tilt_corrector_zenith
+    tilt_corrector     tilt_corrector_sm_asm
+    tilt_corrector     tilt_corrector_symmetry
+    tilt_corrector     tilt_corrector_least_squares
+    error_evaluator    error_evaluator
+
 The nodes, parameter files and remappings come from polarization_compass.graphs (the single
 description of each graph); launch and launch_ros are imported only when the launch runs.
 """

@@ -27,7 +27,8 @@ Camera attitude (eq 21): ``R_sun_cam = Rz(-psi) @ Rx(pitch) @ Ry(roll)`` with th
 right-handed elementary rotations, and ``R_enu_cam = Rz(-bearing) @ Rx(pitch) @ Ry(roll)``.
 
 Wrapping: ``wrap_180`` -> (-180, 180], ``wrap_360`` -> [0, 360), ``fold_axial`` -> (-90, 90] for
-axial errors, and AoP images are folded to [-pi/2, pi/2) (``fold_aop_rad``).
+axial errors, and AoP images are folded to [-pi/2, pi/2) (``fold_aop_rad``). The ``*_float`` forms take
+one finite float without numpy (per-estimate code, numba kernels) and give the same bits.
 """
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ import numpy as np
 from .errors import CompassError
 
 __all__ = [
-    "wrap_180_deg", "wrap_360_deg", "wrap_pi_rad", "fold_axial_deg", "fold_axial_rad", "fold_aop_rad",
+    "wrap_180_deg", "wrap_360_deg", "fold_axial_deg", "fold_axial_rad", "fold_aop_rad",
+    "wrap_180_deg_float", "wrap_360_deg_float", "fold_axial_rad_float",
     "rot_x", "rot_y", "rot_z", "R_sun_cam_from_attitude", "R_enu_cam_from_attitude",
     "attitude_from_R_enu_cam", "enu_direction", "azimuth_altitude_from_enu",
     "bearing_to_yaw_enu_deg", "yaw_enu_to_bearing_deg", "psi_to_bearing_deg", "bearing_to_psi_deg",
@@ -71,12 +73,27 @@ def wrap_360_deg(angle_deg):
     return w if w.ndim else float(w)
 
 
-def wrap_pi_rad(angle_rad):
-    """Wrap radians to (-pi, pi]."""
-    a = np.asarray(angle_rad, dtype=float)
-    w = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
-    w = np.where(w <= -np.pi, np.pi, w)
-    return w if w.ndim else float(w)
+def wrap_180_deg_float(angle_deg: float) -> float:
+    """:func:`wrap_180_deg` of one finite float: degrees to (-180, 180].
+
+    Plain arithmetic, no numpy call: the same floor modulo as ``np.mod`` and so the same bits, cheap enough
+    to run once per estimate in sweeps of 1e5, and compilable by numba (``njit(inline="always")(...)``) for
+    kernels."""
+    w = (angle_deg + 180.0) % 360.0 - 180.0
+    return 180.0 if w == -180.0 else w
+
+
+def wrap_360_deg_float(angle_deg: float) -> float:
+    """:func:`wrap_360_deg` of one finite float: degrees to [0, 360) (as :func:`wrap_180_deg_float`)."""
+    w = angle_deg % 360.0
+    return 0.0 if w >= 360.0 else w
+
+
+def fold_axial_rad_float(angle_rad: float) -> float:
+    """:func:`fold_axial_rad` of one finite float: an axial angle (mod pi, rad) to (-pi/2, pi/2] (as
+    :func:`wrap_180_deg_float`)."""
+    w = (angle_rad + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+    return 0.5 * math.pi if w <= -0.5 * math.pi else w
 
 
 def fold_axial_deg(angle_deg):

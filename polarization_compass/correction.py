@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from .conventions import psi_to_bearing_deg, wrap_180_deg
+from .conventions import psi_to_bearing_deg, wrap_180_deg, wrap_180_deg_float
 from .errormap import ErrorMap, ErrorMapError, load_error_map
 
 __all__ = ["TiltCorrector", "Correction", "CorrectionStatus", "STATUS_INT", "default_map_path",
@@ -181,10 +181,8 @@ def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - 
     return out
 
 
-@njit(inline="always", cache=True)
-def _wrap180(a):  # pragma: no cover - compiled
-    w = np.mod(a + 180.0, 360.0) - 180.0
-    return 180.0 if w == -180.0 else w
+#: :func:`~polarization_compass.conventions.wrap_180_deg_float` compiled for the kernels below.
+_wrap180 = njit(inline="always", cache=True)(wrap_180_deg_float)
 
 
 @njit(inline="always", cache=True)

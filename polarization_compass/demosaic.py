@@ -39,7 +39,7 @@ Methods
 
 Implementation: fused numba kernels (parallel over rows) from the raw samples straight to AoP, DoP and
 validity: one pass, no full-frame temporaries; the interior loop is branch-free and LLVM vectorises it
-(8-wide AVX2, checked in the assembly), using the float32 polynomial ``axial_atan2_f32`` of ``sky``
+(8-wide AVX2, checked in the assembly), using the float32 polynomial ``axial_atan2_f32`` of ``fastmath``
 (numpy's float32 ``arctan2`` alone costs ~75 ms single-core on a 5 Mpixel frame here).
 Measured single-core (``tools/bench_sensor.py``, 2448 x 2048 uint16): bilinear ~21-23 ms, superpixel
 ~6-10 ms. The OpenCV route for the bilinear case (three ``filter2D`` passes on sign-modulated copies,
@@ -56,7 +56,7 @@ import numpy as np
 from numba import njit, prange
 
 from .errors import CompassError
-from .sky import axial_atan2_f32
+from .fastmath import axial_atan2_f32
 
 __all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "parse_layout", "layout_from_mapping",
            "stokes_from_mosaic", "aop_dop_from_stokes", "polarization_from_mosaic", "DEMOSAIC_METHODS"]

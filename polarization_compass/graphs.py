@@ -198,6 +198,8 @@ ARGUMENTS = {
         LaunchArg("roll_deg", "0.0", "camera roll during the turn", "float"),
         LaunchArg("scene", "", "scene YAML for camera, sky and sensor ('' = the paper's set-up)"),
         LaunchArg("lockstep", "false", "simulator waits for every estimator before the next frame", "bool"),
+        LaunchArg("array_geometry", "", "photodiode-array sensor YAML: also simulate the array and run "
+                  "least_squares/tilt_aware on it in namespace 'array' (not evaluated); '' = no array"),
         LaunchArg("exit_when_done", "true", "stop the whole graph after the last frame", "bool"),
         *_COMMON,
     ),
@@ -269,6 +271,17 @@ def build(name: str, args: dict | None = None) -> Graph:
     return {"sim": sim_graph, "compass": compass_graph, "replay": replay_graph}[name](**values)
 
 
+def node_lines(name: str, args: dict | None = None) -> list[str]:
+    """One line per node that graph ``name`` starts with launch arguments ``args``: executable and name.
+
+    The launch files quote this list (with the default arguments) in their docstrings, so that a
+    reader sees what a launch starts without running it; ``test/test_launch_docs.py`` keeps the
+    quoted lists equal to the generated graphs.
+    """
+    return [f"{n.executable:<18} {('/' + n.namespace.strip('/') + '/') if n.namespace else ''}{n.name}"
+            for n in build(name, args).nodes]
+
+
 # ------------------------------------------------------------------------------------------------
 # The graphs
 # ------------------------------------------------------------------------------------------------
@@ -291,15 +304,17 @@ def _knob_names(method: str) -> set:
 def _downstream(nodes) -> list[str]:
     """``topic=reader,reader`` for every topic these nodes publish that other nodes of the list read: the
     simulator waits for those subscriptions before its first frame, so that no early message is lost to
-    discovery (named nodes: a recorder outside the graph must not stand in for the evaluator)."""
+    discovery (named nodes: a recorder outside the graph must not stand in for the evaluator). Topics are
+    compared after namespacing and remapping; a topic in the root namespace is written relative, as before."""
     out = []
     for n in nodes:
-        for topic, _ in n.publishes:
-            if topic.startswith("/"):
-                continue                       # /diagnostics, /clock: not part of the data path
-            readers = sorted(m.name for m in nodes if m is not n and any(t == topic for t, _ in m.subscribes))
-            if readers:
-                out.append(f"{topic}={','.join(readers)}")
+        for topic, _ in n.resolved_publishes():
+            if topic in ("/diagnostics", "/clock"):
+                continue                       # not part of the data path
+            readers = sorted({m.name for m in nodes if m is not n and any(t == topic for t, _ in m.resolved_subscribes())})
+            entry = f"{topic if n.namespace else topic[1:]}={','.join(readers)}"
+            if readers and entry not in out:
+                out.append(entry)
     return out or [""]
 
 
@@ -308,7 +323,7 @@ def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSp
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=registry.get(method).needs_tilt,
-                                    prior_source=prior)
+                                    prior_source=prior, input_kind=params.get("input", "image"))
     return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
                     ("config/heading_estimator.yaml",), {"method": method, **params}, _used(remappings, pubs, subs),
                     tuple(pubs), tuple(subs))
@@ -340,7 +355,7 @@ def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
 
 def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
               turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
-              exit_when_done=True, error_map="", report_dir="out/sim") -> Graph:
+              exit_when_done=True, error_map="", report_dir="out/sim", array_geometry="") -> Graph:
     methods, direct = _split_direct(methods, tilt_aware)
     all_methods = methods + direct
     if not all_methods:
@@ -349,18 +364,23 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
     lock_topics = [T.method_topics(m)["status"] for m in all_methods]
     sim_params = {"encoding": encoding, "rate_hz": float(rate_hz), "time_scale": float(time_scale),
                   "turns": float(turns), "turn_rate_deg_s": float(turn_rate_deg_s), "pitch_deg": float(pitch_deg),
-                  "roll_deg": float(roll_deg), "scene": scene, "clock_mode": "sim",
+                  "roll_deg": float(roll_deg), "scene": scene, "clock_mode": "sim", "array_geometry": array_geometry,
                   "exit_when_done": bool(exit_when_done), "lockstep": bool(lockstep),
                   "lockstep_topics": lock_topics, "wait_for_subscribers": len(all_methods),
                   # every estimator reads the IMU (prior or tilt) and so does every corrector
                   "wait_for_imu_subscribers": len(all_methods) + len(methods)}
-    pubs, subs = T.simulator_topics("motion", publish_clock=True)
+    pubs, subs = T.simulator_topics("motion", publish_clock=True, array=bool(array_geometry))
     if lockstep:
         subs = list(subs) + [(t, T.T_STRING) for t in lock_topics]
     nodes = [NodeSpec("sky_simulator", "sky_simulator", "", ("config/sky_simulator.yaml",), sim_params, (),
                       tuple(pubs), tuple(subs))]
     nodes += [_estimator(m, dict(sim_time)) for m in all_methods]
     nodes += [_corrector(m, {**sim_time, "error_map": error_map}) for m in methods]
+    if array_geometry:       # the array's estimators in namespace array, reading the simulator's topics
+        to_root = tuple((t, "/" + t) for t in (T.ARRAY, T.IMU, T.FIX))
+        nodes += [dataclasses.replace(_estimator(m, {**sim_time, "input": "array", "array_geometry": array_geometry},
+                                                 to_root, "array"), name=f"heading_estimator_array_{m}")
+                  for m in registry.names() if registry.get(m).accepts_units]
     nodes.append(_evaluator(all_methods, direct,
                             {**sim_time, "report_dir": report_dir, "time_scale": float(time_scale)}))
     nodes[0] = dataclasses.replace(nodes[0], parameters={**sim_params,

@@ -31,7 +31,8 @@ from numba import njit, prange
 
 from .errors import CompassError
 
-__all__ = ["RadianceError", "CIEStandardSky", "CIE_STANDARD_SKIES", "make_radiance_model", "MODEL_NAMES"]
+__all__ = ["RadianceError", "CIEStandardSky", "CIE_STANDARD_SKIES", "PreethamSky", "make_radiance_model",
+           "MODEL_NAMES"]
 
 
 class RadianceError(CompassError):
@@ -60,8 +61,9 @@ CIE_STANDARD_SKIES: dict[int, tuple[float, float, float, float, float, str]] = {
     15: (-1.0, -0.15, 24.0, -2.8, 0.15, "white-blue turbid sky with broad solar corona"),
 }
 
-#: Names accepted in a scene's ``radiance.model`` (aliases of the same CIE model).
-MODEL_NAMES = ("cie_clear", "cie_standard")
+#: Names accepted in a scene's ``radiance.model`` (``cie_clear``/``cie_standard``: the CIE model;
+#: ``preetham``: :class:`PreethamSky`).
+MODEL_NAMES = ("cie_clear", "cie_standard", "preetham")
 
 _MIN_COS_Z = 1e-4      # b / cos Z with cos Z >= 1e-4: exp underflows to 0 cleanly for b < 0, never inf
 
@@ -169,6 +171,60 @@ class CIEStandardSky:
         return out
 
 
+class PreethamSky:
+    """Preetham, Shirley & Smits (1999), "A practical analytic model for daylight", SIGGRAPH, appendix A.2:
+    the Perez luminance distribution with coefficients linear in the turbidity T (2 <= T <= 10),
+
+        Y / Y_z = F(theta, gamma) / F(0, theta_s),  F = (1 + A exp(B / cos theta)) (1 + C exp(D gamma) + E cos^2 gamma)
+        A = 0.1787 T - 1.4630, B = -0.3554 T + 0.4275, C = -0.0227 T + 5.3251,
+        D = 0.1206 T - 2.5771, E = -0.0670 T + 0.3703
+
+    (theta: zenith angle of the element, gamma: its angle from the sun). Written from the paper; no
+    maintained PyPI package provides it. The Perez indicatrix is the CIE one without the
+    ``exp(d pi / 2)`` offset, so the CIE kernel evaluates it with that offset set to 0.
+    Scene YAML: ``radiance: {model: preetham, turbidity: 3}``."""
+
+    def __init__(self, turbidity=3.0, name="preetham"):
+        try:
+            t = float(turbidity)
+        except (TypeError, ValueError):
+            raise RadianceError(f"Preetham turbidity must be a number in [2, 10], got {turbidity!r}") from None
+        if isinstance(turbidity, bool) or not (math.isfinite(t) and 2.0 <= t <= 10.0):
+            raise RadianceError(f"Preetham turbidity must be a number in [2, 10], got {turbidity!r}")
+        self.name = name
+        self.turbidity = t
+        self.a = 0.1787 * t - 1.4630
+        self.b = -0.3554 * t + 0.4275
+        self.c = -0.0227 * t + 5.3251
+        self.d = 0.1206 * t - 2.5771
+        self.e = -0.0670 * t + 0.3703
+
+    def params(self) -> dict:
+        return {"model": self.name, "turbidity": self.turbidity, "A": self.a, "B": self.b, "C": self.c,
+                "D": self.d, "E": self.e}
+
+    def zenith_normaliser(self, sun_zenith_rad: float) -> float:
+        """F(0, theta_s) in float64."""
+        g = float(sun_zenith_rad)
+        return float((1.0 + self.c * math.exp(self.d * g) + self.e * math.cos(g) ** 2)
+                     * _gradation(1.0, self.a, self.b))
+
+    def radiance(self, sun_cam, zenith_cam, rays_cam):
+        """Relative luminance Y/Y_z (float32, (N,)) of unit rays (3, N) in the frame of sun_cam/zenith_cam."""
+        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
+        z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
+        s = s / np.linalg.norm(s)
+        z = z / np.linalg.norm(z)
+        zs = math.acos(min(1.0, max(-1.0, float(np.dot(s, z)))))
+        out = np.empty(rays.shape[1], np.float32)
+        f32 = np.float32
+        _cie_kernel(rays, f32(s[0]), f32(s[1]), f32(s[2]), f32(z[0]), f32(z[1]), f32(z[2]),
+                    f32(self.a), f32(self.b), f32(self.c), f32(self.d), f32(self.e), f32(0.0),
+                    f32(1.0 / self.zenith_normaliser(zs)), out)
+        return out
+
+
 def make_radiance_model(cfg: dict | None):
     """Build a radiance model from a mapping like ``{"model": "cie_clear", "type": 12}``."""
     if cfg is None:
@@ -179,6 +235,11 @@ def make_radiance_model(cfg: dict | None):
     name = d.pop("model", "cie_clear")
     if name not in MODEL_NAMES:
         raise RadianceError(f"unknown radiance model {name!r}; known: {', '.join(MODEL_NAMES)}")
+    if name == "preetham":
+        if set(d) - {"turbidity"}:
+            raise RadianceError(f"unknown key(s) {sorted(set(d) - {'turbidity'})} for radiance model 'preetham'; "
+                                "allowed: ['turbidity']")
+        return PreethamSky(d.get("turbidity", 3.0))
     allowed = {"type", "a", "b", "c", "d", "e"}
     unknown = set(d) - allowed
     if unknown:

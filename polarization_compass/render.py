@@ -5,6 +5,10 @@ The pipeline is built once per scene from what it declares:
 1. geometry (always): the sun and zenith directions rotated into the camera frame;
 2. sky polarization (always): the scene's sky model at the selected pixels' rays;
 3. radiance (only if ``scene.radiance``): relative sky brightness at those rays;
+3b. atmosphere (only if ``scene.atmosphere`` declares it): haze, clouds and a skyline over the clear sky
+   (:mod:`polarization_compass.atmosphere`; a declared atmosphere always gives ``intensity``);
+3c. optics (only if ``scene.optics`` declares it): vignetting, the sun and its glare, lens-flare ghosts
+   (:mod:`polarization_compass.optics`);
 4. sensor (only if ``scene.sensor`` declares effects): mosaic, noise, quantisation and demosaic,
    giving the *measured* AoP/DoP and the raw mosaic.
 
@@ -118,6 +122,14 @@ class Renderer:
         if scene.photodiode_array is not None:
             from .photodiode.simulate import ArraySensor
             self.array = ArraySensor.from_config(scene.photodiode_array)
+        self.atmosphere = None
+        if scene.atmosphere:
+            from .atmosphere import Atmosphere
+            self.atmosphere = Atmosphere(scene.atmosphere, scene.seed)
+        self.optics = None
+        if scene.optics:
+            from .optics import Optics
+            self.optics = Optics(scene.optics, scene.camera)
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
@@ -148,6 +160,14 @@ class Renderer:
             zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
         shape = self.pixels.shape
         aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
+        if self.atmosphere is not None:
+            aop, dop, valid, intensity = self._atmosphere(R, sun_cam, zenith_cam, aop, dop, valid, intensity,
+                                                          time_utc)
+        if self.optics is not None:
+            if intensity is None:
+                intensity = np.ones(aop.shape, np.float32)
+            self.optics.apply(sun_cam, self.pixels.rays_cam, self.pixels.x_px.reshape(-1),
+                              self.pixels.y_px.reshape(-1), aop, dop, intensity, instr)
         if intensity is not None:
             intensity = intensity.reshape(shape)
         frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
@@ -181,6 +201,8 @@ class Renderer:
             "sensor": None if self.sensor is None else self.sensor.params(),
             "pixels": self.selection.describe(),
             "photodiode_array": None if self.array is None else self.array.params(),
+            "atmosphere": None if self.atmosphere is None else self.atmosphere.params(),
+            "optics": None if self.optics is None else self.optics.params(),
             "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
                        "height_px": self.scene.camera.height_px,
                        "focal_length_mm": self.scene.camera.focal_length_mm,
@@ -205,6 +227,23 @@ class Renderer:
                 intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
         return aop, dop, valid, intensity
 
+    def _atmosphere(self, R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc):
+        """The declared atmosphere over the clear sky (flat arrays). The clouds move with the time since the
+        scene's ``time_utc``. Without a radiance model the base radiance is the haze's Preetham sky if haze is
+        declared, else uniform 1."""
+        if intensity is None:
+            if self.atmosphere.haze is not None:
+                with instr.stage("radiance.preetham"):
+                    intensity = self.atmosphere.haze.radiance_model.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
+            else:
+                intensity = np.ones(aop.shape, np.float32)
+        dt_s = 0.0
+        if time_utc is not None:
+            from .scene import parse_time_utc
+            dt_s = (parse_time_utc(time_utc) - self.scene.time_utc).total_seconds()
+        return self.atmosphere.apply(R, self.pixels.rays_cam, aop, dop, valid, intensity, self._limits[2], dt_s,
+                                     instr)
+
     def render_sky(self, sun_cam, zenith_cam):
         """What :meth:`render` computes for a scene without sensor effects, and nothing else: flat (N,) aop,
         dop, valid and intensity (None without a radiance model) in the selection's pixel order, for the sun and
@@ -215,6 +254,13 @@ class Renderer:
         if self.sensor is not None:
             from .sensor import SensorError
             raise SensorError("render_sky: the scene declares sensor effects; use render()")
+        if self.optics is not None:
+            from .optics import OpticsError
+            raise OpticsError("render_sky: the scene declares lens optics (sun glare, flare, vignetting); use render()")
+        if self.atmosphere is not None:
+            from .atmosphere import AtmosphereError
+            raise AtmosphereError("render_sky: the scene declares an atmosphere (clouds/haze/skyline need the "
+                                  "full camera attitude); use render()")
         return self._sky(sun_cam, zenith_cam)
 
     def _sun_meta(self, sun: SunDirection | None, time_utc) -> dict:

@@ -22,6 +22,8 @@ Schema (every key optional; defaults are the paper's set-up, see ``data/default_
                   extinction_ratio: {...}, demosaic: superpixel|bilinear}
     photodiode_array: null | {geometry: <mapping or YAML path>, brightness, noise_rel, integrate}
                                      # a photodiode-array compass beside the camera (docs/photodiode-arrays.md)
+    atmosphere: null | {clouds: {...}, haze: {turbidity}, skyline: {...}}   # see atmosphere.py
+    optics: null | {sun: {...}, flare: {...}, vignetting: {...}}            # see optics.py
     seed: int
 """
 from __future__ import annotations
@@ -80,6 +82,8 @@ class Scene:
     sensor: dict = field(default_factory=dict)
     seed: int = 0
     photodiode_array: dict | None = None          # rendered only when declared
+    atmosphere: dict | None = None                # clouds / haze / skyline, applied only when declared
+    optics: dict | None = None                    # sun glare / flare ghosts / vignetting, only when declared
 
     def __hash__(self):  # dict fields: hash by identity is enough for caching per scene object
         return id(self)
@@ -111,6 +115,10 @@ class Scene:
         }
         if self.photodiode_array is not None:
             d["photodiode_array"] = dict(self.photodiode_array)
+        if self.atmosphere is not None:
+            d["atmosphere"] = dict(self.atmosphere)
+        if self.optics is not None:
+            d["optics"] = dict(self.optics)
         return d
 
 
@@ -190,7 +198,7 @@ def scene_from_dict(d: dict) -> Scene:
     if d is None:
         d = {}
     _check_keys(d, {"name", "site", "time_utc", "sun", "attitude", "camera", "pixels", "sky", "radiance",
-                    "validity", "sensor", "seed", "photodiode_array"}, "")
+                    "validity", "sensor", "seed", "photodiode_array", "atmosphere", "optics"}, "")
     base = Scene()
     site_d = d.get("site", {}) or {}
     _check_keys(site_d, {"latitude_deg", "longitude_deg", "altitude_m"}, "site.")
@@ -249,6 +257,20 @@ def scene_from_dict(d: dict) -> Scene:
         except ArrayGeometryError as exc:
             raise SceneError(str(exc)) from None
         scene = scene.replace(photodiode_array=dict(d["photodiode_array"]))
+    if d.get("atmosphere") is not None:
+        from .atmosphere import Atmosphere, AtmosphereError
+        try:
+            Atmosphere(d["atmosphere"], seed)
+        except (AtmosphereError, TypeError) as exc:
+            raise SceneError(str(exc)) from None
+        scene = scene.replace(atmosphere=dict(d["atmosphere"]))
+    if d.get("optics") is not None:
+        from .optics import Optics, OpticsError
+        try:
+            Optics(d["optics"], cam)
+        except (OpticsError, TypeError) as exc:
+            raise SceneError(str(exc)) from None
+        scene = scene.replace(optics=dict(d["optics"]))
     # fail early on bad model parameters, not at the first frame
     from .sky import SkyModelError
     from .sky_models import make_sky_model

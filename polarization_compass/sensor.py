@@ -14,6 +14,8 @@ Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX25
       read_noise: {sigma_e: 2.3}              # Gaussian read noise, electrons rms
       quantization: {bits: 12}                # 8, 10, 12, 14 or 16
       extinction_ratio: {value: 100}          # finite polarizer extinction ratio (> 1)
+      calibration: {angle_error_deg: 0.5, extinction_ratio_spread: 0.2, gain_rms: 0.01, crosstalk: 0.02,
+                    seed: 0}                  # per-pixel DoFP calibration errors (fixed pattern)
       demosaic: bilinear                      # or superpixel
 
 ``{}`` or null parameters mean the defaults shown. Once any key is declared the mosaic and the
@@ -29,6 +31,18 @@ that runs only if declared; its arithmetic exists only in the kernels of that st
   saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every electron-domain
   stage, not a computation; without ``exposure`` it is the default's 5250 e-;
 - ``quantization``: electrons to DN (``_quantize_kernel``); the ADC range clips at 2^bits - 1.
+- ``calibration``: the calibration errors of a real division-of-focal-plane sensor, a fixed pattern
+  per pixel drawn once from ``calibration.seed`` over the whole sensor (so a region render sees the
+  same pixels' errors as a full one): polarizer angle error delta ~ N(0, ``angle_error_deg``) added
+  to the pixel's nominal angle; extinction ratio ER exp(``extinction_ratio_spread`` z), z ~ N(0, 1)
+  (needs ``extinction_ratio``); gain 1 + ``gain_rms`` z (photo-response non-uniformity); then
+  crosstalk: each pixel passes a fraction ``crosstalk`` of its electrons to each of its 4 neighbours
+  (edge pixels keep what would leave the block). ``_mean_electrons_cal_kernel`` replaces the Malus
+  kernels and ``_crosstalk_kernel`` follows it. The per-pixel model of angle, extinction and gain is
+  that of Powell & Gruev (2013), "Calibration methods for division-of-focal-plane polarimeters",
+  Opt. Express 21:21039; crosstalk between neighbouring micro-polarizers as discussed there and by
+  York & Gruev (2012), "Characterization of a visible spectrum division-of-focal-plane polarimeter",
+  Appl. Opt. 51:5392.
 
 Each kernel run counts, in :mod:`instrumentation`, ``sensor.<effect>`` for every effect the kernel
 implements and ``sensor.kernel.<kernel>``; the demosaic counts ``sensor.demosaic.<method>``. A stage
@@ -90,7 +104,7 @@ from numba import njit, prange
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
 from .errors import CompassError
-from .fastmath32 import sincos32
+from .fastmath import sincos32
 from .demosaic import (DEMOSAIC_METHODS, MosaicLayout, SensorError, _finish, layout_from_mapping,
                        polarization_from_mosaic)
 
@@ -98,7 +112,8 @@ __all__ = ["SensorError", "SensorPipeline", "EFFECTS", "standard_normal_f32", "s
            "superpixel_pixels", "sensor_config_for_encoding"]
 
 #: Every key a ``sensor:`` mapping may hold, in pipeline order.
-EFFECTS = ("mosaic", "exposure", "extinction_ratio", "shot_noise", "read_noise", "quantization", "demosaic")
+EFFECTS = ("mosaic", "exposure", "extinction_ratio", "calibration", "shot_noise", "read_noise", "quantization",
+           "demosaic")
 _BITS = (8, 10, 12, 14, 16)
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
@@ -142,6 +157,7 @@ class SensorConfig:
     bits: int | None
     demosaic: str
     saturates: bool = False          # ``exposure`` declared: the well is finite (clip at full_well_e)
+    calibration: dict | None = None  # per-pixel DoFP calibration errors (module docstring), None if undeclared
 
     @property
     def d(self) -> float:
@@ -174,7 +190,8 @@ class SensorConfig:
                              "n0_e": self.n0_e, "saturation": self.saturates,
                              "adc_full_scale_e": None if self.bits is None else self.full_well_e},
                 "extinction_ratio": self.extinction_ratio, "shot_noise_gaussian_above_e": self.shot_gaussian_above_e,
-                "read_noise_sigma_e": self.read_sigma_e, "quantization_bits": self.bits, "demosaic": self.demosaic}
+                "read_noise_sigma_e": self.read_sigma_e, "quantization_bits": self.bits, "demosaic": self.demosaic,
+                "calibration": None if self.calibration is None else dict(self.calibration)}
 
 
 def parse_sensor_config(cfg: dict) -> SensorConfig:
@@ -210,12 +227,25 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in _BITS:
             raise SensorError(f"sensor.quantization.bits must be one of {_BITS}, got {b!r}")
         bits = int(b)
+    cal = None
+    if "calibration" in cfg:
+        c = _params(cfg, "calibration", ("angle_error_deg", "extinction_ratio_spread", "gain_rms", "crosstalk",
+                                         "seed"))
+        cal = {"angle_error_deg": _number(c, "angle_error_deg", 0.0, 0.0, 45.0, "calibration"),
+               "extinction_ratio_spread": _number(c, "extinction_ratio_spread", 0.0, 0.0, 3.0, "calibration"),
+               "gain_rms": _number(c, "gain_rms", 0.0, 0.0, 0.3, "calibration"),
+               "crosstalk": _number(c, "crosstalk", 0.0, 0.0, 0.2, "calibration"),
+               "seed": int(_number(c, "seed", 0, 0, 2 ** 32 - 1, "calibration"))}
+        if cal["extinction_ratio_spread"] > 0 and er is None:
+            raise SensorError("sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the "
+                              "mean ratio the spread is around)")
     method = cfg.get("demosaic", "bilinear")
     if method is None:
         method = "bilinear"
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f"sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}")
-    return SensorConfig(layout, full_well, fill, er, shot, read, bits, method, saturates="exposure" in cfg)
+    return SensorConfig(layout, full_well, fill, er, shot, read, bits, method, saturates="exposure" in cfg,
+                        calibration=cal)
 
 
 def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
@@ -393,6 +423,8 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 _IMPLEMENTS = {
     "_mean_electrons_kernel": ("mosaic",),                          # ideal polarizers (Malus)
     "_mean_electrons_er_kernel": ("mosaic", "extinction_ratio"),    # leaky polarizers: DoP scaled by d
+    "_mean_electrons_cal_kernel": ("mosaic", "calibration"),        # per-pixel angle, efficiency d and gain
+    "_crosstalk_kernel": ("calibration",),                          # electrons shared with the 4 neighbours
     "_shot_noise_kernel": ("shot_noise",),
     "_read_noise_kernel": ("read_noise",),
     "_shot_read_noise_kernel": ("shot_noise", "read_noise"),        # one draw of variance lambda + sigma^2
@@ -476,6 +508,94 @@ def _mean_electrons_er_kernel(aop, dop, s0, has_s0, pq, n0, d, out):  # pragma: 
             for j in range(W):
                 odd = (j & 1) == 1
                 out[i, j] = _malus_unit_er(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+
+
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _mean_electrons_cal_kernel(aop, dop, s0, has_s0, pmap, qmap, dmap, gain, n0, out):  # pragma: no cover
+    """lambda = g N0 S0 (1 - d DoP (p cos 2a - q sin 2a)) with (p, q) = (cos, sin) 2phi of the pixel's own
+    polarizer angle phi (camera frame, nominal + error), efficiency d and gain g (maps of the block)."""
+    H, W = aop.shape
+    n0f = np.float32(n0)
+    zero = np.float32(0.0)
+    for i in prange(H):
+        for j in range(W):
+            lam = gain[i, j] * _malus_unit_er(aop[i, j], dop[i, j], pmap[i, j], qmap[i, j], n0f, dmap[i, j])
+            if has_s0:
+                sv = s0[i, j]
+                ok = (sv >= zero) & (sv < np.float32(1e30))
+                lam = lam * sv if ok else zero
+            out[i, j] = lam
+
+
+@njit(parallel=True, fastmath=_FM, cache=True)
+def _crosstalk_kernel(e, c, out):  # pragma: no cover - compiled
+    """out = (1 - 4c) e + c (sum of the 4 neighbours); a neighbour outside the block is the pixel itself."""
+    H, W = e.shape
+    cf = np.float32(c)
+    keep = np.float32(1.0) - np.float32(4.0) * cf
+    for i in prange(H):
+        up = max(i - 1, 0)
+        dn = min(i + 1, H - 1)
+        for j in range(W):
+            lf = max(j - 1, 0)
+            rt = min(j + 1, W - 1)
+            out[i, j] = keep * e[i, j] + cf * (e[up, j] + e[dn, j] + e[i, lf] + e[i, rt])
+
+
+_CAL_TILE = 64
+
+
+@lru_cache(maxsize=4)
+def _calibration_pattern(seed: int, row0: int, col0: int, height: int, width: int, angle_sd_deg: float,
+                         er_spread: float, gain_rms: float):
+    """The fixed pattern of the block (row0, col0, height, width) of the sensor: angle error (rad), ER factor
+    and gain maps (float32/float64), or None for a component of zero spread. Drawn per 64 x 64 tile of the
+    sensor keyed by (seed, tile row, tile column), so a pixel's errors do not depend on the block that
+    contains it. Cached per block."""
+    shape = (height, width)
+    ang = np.zeros(shape, np.float32) if angle_sd_deg > 0 else None
+    erf = np.ones(shape) if er_spread > 0 else None
+    g = np.ones(shape, np.float32) if gain_rms > 0 else None
+    T = _CAL_TILE
+    for tr in range(row0 // T, (row0 + height - 1) // T + 1):
+        for tc in range(col0 // T, (col0 + width - 1) // T + 1):
+            z = np.random.default_rng([int(seed), 0xCA1, tr, tc]).standard_normal((3, T, T))
+            r0, r1 = max(row0, tr * T), min(row0 + height, (tr + 1) * T)
+            c0, c1 = max(col0, tc * T), min(col0 + width, (tc + 1) * T)
+            src = (slice(None), slice(r0 - tr * T, r1 - tr * T), slice(c0 - tc * T, c1 - tc * T))
+            dst = (slice(r0 - row0, r1 - row0), slice(c0 - col0, c1 - col0))
+            zz = z[src]
+            if ang is not None:
+                ang[dst] = np.radians(angle_sd_deg) * zz[0]
+            if erf is not None:
+                erf[dst] = np.exp(er_spread * zz[1])
+            if g is not None:
+                g[dst] = np.maximum(1.0 + gain_rms * zz[2], 0.0)
+    for a in (ang, erf, g):
+        if a is not None:
+            a.setflags(write=False)
+    return ang, erf, g
+
+
+def calibration_maps(cfg: "SensorConfig", layout: MosaicLayout, shape, row0: int = 0, col0: int = 0):
+    """Per-pixel (polarizer angle phi (rad), efficiency d, gain) float32 maps of the block of ``shape`` whose
+    top-left pixel is (row0, col0) (0-based) of the full sensor, for ``cfg.calibration``; ``layout`` is the
+    block's (already shifted) layout."""
+    c = cfg.calibration
+    H, W = shape
+    ang, erf, g = _calibration_pattern(c["seed"], int(row0), int(col0), H, W, c["angle_error_deg"],
+                                       c["extinction_ratio_spread"], c["gain_rms"])
+    nominal = np.radians(np.asarray(layout.camera_angles_deg, dtype=float)).reshape(2, 2)
+    phi = np.tile(nominal, (H // 2 + 1, W // 2 + 1))[:H, :W].astype(np.float32)
+    if ang is not None:
+        phi = phi + ang
+    if erf is not None:
+        er = cfg.extinction_ratio * erf
+        dmap = ((er - 1.0) / (er + 1.0)).astype(np.float32)
+    else:
+        dmap = np.full(shape, cfg.d, np.float32)
+    gain = g if g is not None else np.ones(shape, np.float32)
+    return np.ascontiguousarray(phi), np.ascontiguousarray(dmap), np.ascontiguousarray(gain)
 
 
 @njit(inline="always", fastmath=_FM, cache=True)
@@ -591,12 +711,14 @@ def _saturate_quantize_kernel(e, full_well, gain, max_dn, out):  # pragma: no co
         of[n] = np.uint16(x)
 
 
-def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, rng: np.random.Generator):
+def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, rng: np.random.Generator,
+                    block_origin: tuple[int, int] = (0, 0)):
     """The raw image of a pixel block: float32 electrons, or uint8/uint16 DN if quantised.
 
     ``aop_rad``/``dop``/``s0`` (or ``s0=None`` for S0 = 1): 2-D float arrays of the block; ``layout``
-    already shifted to the block's top-left pixel. Only the kernels of declared effects run; each run is
-    counted in ``instrumentation`` (see ``_IMPLEMENTS``).
+    already shifted to the block's top-left pixel, ``block_origin`` that pixel's 0-based (row, col) on the
+    full sensor (where the calibration pattern is read). Only the kernels of declared effects run; each
+    run is counted in ``instrumentation`` (see ``_IMPLEMENTS``).
     """
     aop = np.ascontiguousarray(aop_rad, dtype=np.float32)
     dp = np.ascontiguousarray(dop, dtype=np.float32)
@@ -608,7 +730,20 @@ def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, r
     phi = np.radians(layout.camera_angles_deg)
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
-    if cfg.extinction_ratio is None:
+    if cfg.calibration is not None:
+        phi_map, dmap, gain = calibration_maps(cfg, layout, aop.shape, *block_origin)
+        two_phi = 2.0 * phi_map.astype(np.float64)
+        pmap, qmap = np.cos(two_phi).astype(np.float32), np.sin(two_phi).astype(np.float32)
+        if cfg.extinction_ratio is not None:
+            instr.count("sensor.extinction_ratio")        # the calibration kernel applies it per pixel
+        _count("_mean_electrons_cal_kernel")
+        _mean_electrons_cal_kernel(aop, dp, s0a, has_s0, pmap, qmap, dmap, gain, cfg.n0_e, e)
+        if cfg.calibration["crosstalk"] > 0:
+            e2 = np.empty_like(e)
+            _count("_crosstalk_kernel")
+            _crosstalk_kernel(e, cfg.calibration["crosstalk"], e2)
+            e = e2
+    elif cfg.extinction_ratio is None:
         _count("_mean_electrons_kernel")
         _mean_electrons_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, e)
     else:
@@ -741,7 +876,8 @@ class SensorPipeline:
         layout = cfg.layout.shifted(dy, dx)
         frame.aop_ideal_rad = frame.aop_rad
         frame.dop_ideal = frame.dop
-        frame.mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, layout, rng)
+        frame.mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, layout, rng,
+                                       (int(round(y0 - 1)), int(round(x0 - 1))))
         sat = cfg.saturation_level
         with instr.stage("sensor.demosaic." + cfg.demosaic):
             aop, dop, valid = polarization_from_mosaic(frame.mosaic, layout, layout.pol45_toward, cfg.demosaic,

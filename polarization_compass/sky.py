@@ -24,9 +24,9 @@ import numpy as np
 from numba import njit, prange
 
 from .errors import CompassError
+from .fastmath import axial_atan2_f32
 
-__all__ = ["RayleighSky", "SkyModelError", "rayleigh_reference",
-           "axial_atan2_f32", "axial_atan2_array", "validity_kernel"]
+__all__ = ["RayleighSky", "SkyModelError", "rayleigh_reference", "validity_kernel"]
 
 
 class SkyModelError(CompassError):
@@ -38,45 +38,6 @@ def _check_dop_max(dop_max) -> float:
     if not (math.isfinite(d) and 0.0 < d <= 1.0):
         raise SkyModelError(f"dop_max must be in (0, 1], got {dop_max!r}")
     return d
-
-
-# Odd minimax polynomial for atan(t), |t| <= tan(pi/8): atan(t) ~ t + t^3 (C3 + C5 t^2 + C7 t^4 + C9 t^6).
-# Fitted for this project (Lawson-weighted least squares); max error 5e-9 rad in float64, 2.3e-8 rad
-# evaluated in float32 (tests compare against numpy.arctan2). Unlike libm's scalar atan2f it vectorises.
-_ATAN_C3 = -0.3333275666758043
-_ATAN_C5 = 0.19971879261954273
-_ATAN_C7 = -0.1382445336732415
-_ATAN_C9 = 0.07902597096846205
-
-
-@njit(inline="always", fastmath=True, cache=True)
-def axial_atan2_f32(x, y):  # pragma: no cover - compiled
-    """atan2(x, y) folded to [-pi/2, pi/2), i.e. the axial angle of (x, y) measured from +y towards +x.
-
-    Folding mod pi makes this atan(x / y) without the division hazards: 0/0 (a ray at the sun) gives 0.
-    """
-    ax = abs(x)
-    ay = abs(y)
-    mx = max(ax, ay)
-    mn = min(ax, ay)
-    q = mn / (mx if mx > np.float32(0.0) else np.float32(1.0))       # [0, 1]
-    big = q > np.float32(0.41421356237309503)                          # tan(pi/8)
-    t = (q - np.float32(1.0)) / (q + np.float32(1.0)) if big else q
-    z = t * t
-    p = np.float32(_ATAN_C9)
-    p = p * z + np.float32(_ATAN_C7)
-    p = p * z + np.float32(_ATAN_C5)
-    p = p * z + np.float32(_ATAN_C3)
-    a = t + t * z * p
-    if big:
-        a += np.float32(math.pi / 4)
-    if ax > ay:
-        a = np.float32(math.pi / 2) - a
-    if (x < np.float32(0.0)) != (y < np.float32(0.0)):
-        a = -a
-    if a >= np.float32(math.pi / 2):
-        a = np.float32(-math.pi / 2)
-    return a
 
 
 @njit(parallel=True, cache=True, fastmath=True)
@@ -113,16 +74,6 @@ def validity_kernel(rays, sx, sy, sz, zx, zy, zz, cos_sun_excl, sin_min_alt, min
         rz = rays[2, i]
         valid[i] = ((sx * rx + sy * ry + sz * rz <= cos_sun_excl)
                     & (zx * rx + zy * ry + zz * rz >= sin_min_alt) & (dop[i] >= min_dop))
-
-
-@njit(parallel=True, cache=True, fastmath=True)
-def axial_atan2_array(x, y, out):  # pragma: no cover - compiled
-    """Vectorised :func:`axial_atan2_f32` over float32 arrays (any shape, flattened)."""
-    xf = x.reshape(-1)
-    yf = y.reshape(-1)
-    of = out.reshape(-1)
-    for i in prange(xf.size):
-        of[i] = axial_atan2_f32(xf[i], yf[i])
 
 
 class RayleighSky:

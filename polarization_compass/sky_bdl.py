@@ -64,7 +64,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .sky import SkyModelError, _check_dop_max, axial_atan2_f32
+from .fastmath import axial_atan2_f32
+from .sky import SkyModelError, _check_dop_max
 
 __all__ = ["BerryDennisLeeSky", "neutral_points", "SEPARATION_RANGE_DEG"]
 

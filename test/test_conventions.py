@@ -42,6 +42,28 @@ def test_wrap_edges():
     assert np.all(a >= -np.pi / 2) and np.all(a < np.pi / 2)
 
 
+@given(angles)
+def test_float_wraps_have_the_range_and_the_bits_of_the_numpy_wraps(a):
+    """The per-estimate / numba forms: the range and the angle (cos, sin) checked independently, and the
+    same bits as the numpy forms (an independent implementation: np.mod)."""
+    w = cv.wrap_180_deg_float(a)
+    assert -180 < w <= 180 and math.isclose(math.cos(math.radians(w)), math.cos(math.radians(a)), abs_tol=1e-9)
+    assert w == cv.wrap_180_deg(a) and math.copysign(1.0, w) == math.copysign(1.0, cv.wrap_180_deg(a))
+    w = cv.wrap_360_deg_float(a)
+    assert 0 <= w < 360 and math.isclose(math.sin(math.radians(w)), math.sin(math.radians(a)), abs_tol=1e-9)
+    assert w == cv.wrap_360_deg(a)
+    r = math.radians(a)
+    f = cv.fold_axial_rad_float(r)
+    assert -math.pi / 2 < f <= math.pi / 2 and math.isclose(math.cos(2 * f), math.cos(2 * r), abs_tol=1e-9)
+    assert f == cv.fold_axial_rad(r)
+
+
+def test_float_wrap_edges():
+    assert cv.wrap_180_deg_float(-180.0) == 180.0 and cv.wrap_180_deg_float(540.0) == 180.0
+    assert cv.wrap_360_deg_float(-1e-20) == 0.0 and cv.wrap_360_deg_float(360.0) == 0.0
+    assert cv.fold_axial_rad_float(-math.pi / 2) == math.pi / 2 and cv.fold_axial_rad_float(math.pi / 2) == math.pi / 2
+
+
 @given(angles, tilt, tilt)
 def test_eq21_matches_printed_matrix_and_is_a_rotation(psi, alpha, beta):
     R = cv.R_sun_cam_from_attitude(psi, alpha, beta)

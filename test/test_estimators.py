@@ -102,7 +102,7 @@ def test_zenith_evector_is_perpendicular_to_the_meridian(psi, alt):
 
 
 def test_xi_from_rays_is_eq30():
-    from polarization_compass.estimators._aoplm import aoplm_rad
+    from polarization_compass.estimators._disc import aoplm_rad
     cam = CameraModel()
     rng = np.random.default_rng(1)
     x = rng.uniform(1, cam.width_px, 500)

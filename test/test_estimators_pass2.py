@@ -9,7 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from polarization_compass.estimators._aoplm import band_pass2, ring_pass1, ring_pass2, taper
+from polarization_compass.estimators._disc import taper
+from polarization_compass.estimators._sm_asm_kernels import band_pass2
+from polarization_compass.estimators._symmetry_kernels import ring_pass1, ring_pass2
 from polarization_compass.estimators._common import axial_residual_rad, rayleigh_aop_rad
 
 N = 160
@@ -128,9 +130,9 @@ def test_ring_pass2_is_the_derivative_of_the_symmetry_axis(K):
 def test_pass2_chunks_and_blocks_add_up():
     """More pixels than one chunk of the Symmetry pass (512), in blocks of several pixels: the block sums
     equal the per-pixel terms summed by block (each pixel its own block)."""
-    from polarization_compass.estimators import _aoplm
+    from polarization_compass.estimators import _symmetry_kernels
     rng = np.random.default_rng(4)
-    n = 3 * _aoplm._RING_CHUNK + 77
+    n = 3 * _symmetry_kernels._RING_CHUNK + 77
     aop = rng.uniform(-1.5, 1.5, n).astype(np.float32)
     dop = rng.uniform(0.0, 1.0, n).astype(np.float32)
     rho = 0.6 * np.sqrt(rng.uniform(0.0, 1.0, n))

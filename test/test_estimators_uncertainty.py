@@ -203,3 +203,28 @@ def test_uncertainty_calibrated_full_frames_through_the_sensor():
     strict = ("least_squares", "tilt_aware", "superpixel, 12 bit", "bilinear even strides, 12 bit", "all, 8 bit")
     bad = {k: m for k, m in means.items() if not ((0.7 <= m[0] <= 1.4) if k in strict else (0.5 <= m[0] <= 2.0))}
     assert not bad, (bad, means)
+
+
+def test_cr1_factor_is_the_published_small_sample_factor():
+    """Cameron & Miller (2015): c = G / (G - 1) * (N - 1) / (N - K); each part 1 where undefined."""
+    from polarization_compass.estimators._common import cr1_factor
+    assert math.isclose(cr1_factor(10, 100, 2), (10 / 9) * (99 / 98), rel_tol=1e-15)
+    assert math.isclose(cr1_factor(50, 51, 1), 50 / 49, rel_tol=1e-15)
+    assert cr1_factor(1, 100, 2) == 99 / 98 and cr1_factor(5, 2, 2) == 5 / 4 and cr1_factor(0, 0, 2) == 1.0
+
+
+def test_disc_and_least_squares_sigmas_use_the_same_cr1_factor():
+    """The compiled least-squares block sigma and the disc methods' block sigma agree with a plain sandwich
+    times the factor, for the same block sums (n = 40 pixels, 3 blocks)."""
+    from polarization_compass.estimators._disc_estimator import cr1_sigma
+    from polarization_compass.estimators.least_squares import _block_sigmas
+    b = np.array([0.3, -0.1, 0.25])
+    want = math.sqrt(float(b @ b) * (3 / 2) * (39 / 38))
+    assert math.isclose(cr1_sigma(np.concatenate([b, [0.0, 0.0]]), 40), want, rel_tol=1e-14)
+    # least squares: block influence -s^T M_b c with s = e_x, c = e_x, M_b = -b_g e_x e_x^T; equal block
+    # weights, so the centring removes the mean
+    block_m = np.zeros((3, 3, 3))
+    block_m[:, 0, 0] = -b
+    got = _block_sigmas(block_m, np.ones(3), 40, np.array([1.0, 0.0, 0.0]), np.array([[1.0, 0.0, 0.0]]))[0]
+    d = b - b.mean()
+    assert math.isclose(got, math.sqrt(float(d @ d) * (3 / 2) * (39 / 38)), rel_tol=1e-12)

@@ -14,7 +14,7 @@ from polarization_compass import conventions as cv
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, SceneError, Validity, scene_from_dict
-from polarization_compass.sky import axial_atan2_array
+from polarization_compass.fastmath import axial_atan2_array
 
 FISHEYE = CameraModel("fisheye_equidistant", 41, 31, 0.1, 3.45, 3.45, max_field_angle_deg=85.0)
 PINHOLE = CameraModel("pinhole", 31, 21, 0.05)          # ~94 x 72 deg field

@@ -11,7 +11,8 @@ from polarization_compass import instrumentation
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
-from polarization_compass.sky import axial_atan2_array, rayleigh_reference
+from polarization_compass.fastmath import axial_atan2_array
+from polarization_compass.sky import rayleigh_reference
 
 GRID = PixelSelection.grid(48, 40)
 

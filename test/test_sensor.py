@@ -306,8 +306,9 @@ def test_superpixel_frame_carries_block_mean_intensity():
 # Which kernels compute each effect, written down here (not read from the code): a declared effect must
 # run one of them, an undeclared one none of them. test_kernel_table_matches_the_code keeps the two in step.
 EFFECT_KERNELS = {
-    "mosaic": {"_mean_electrons_kernel", "_mean_electrons_er_kernel"},
+    "mosaic": {"_mean_electrons_kernel", "_mean_electrons_er_kernel", "_mean_electrons_cal_kernel"},
     "extinction_ratio": {"_mean_electrons_er_kernel"},
+    "calibration": {"_mean_electrons_cal_kernel", "_crosstalk_kernel"},
     "shot_noise": {"_shot_noise_kernel", "_shot_read_noise_kernel"},
     "read_noise": {"_read_noise_kernel", "_shot_read_noise_kernel"},
     "exposure": {"_saturate_kernel", "_saturate_quantize_kernel"},

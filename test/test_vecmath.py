@@ -1,5 +1,5 @@
-"""The branch-free math of the vectorised kernels (estimators._vecmath) against numpy's libm, and the
-SM-ASM and Symmetry pass loops that use it stay vectorised (LLVM emits vector instructions for them)."""
+"""The branch-free float64 math of the vectorised kernels (polarization_compass.fastmath) against numpy's libm,
+and the SM-ASM and Symmetry pass loops that use it stay vectorised (LLVM emits vector instructions for them)."""
 import math
 import re
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from polarization_compass.estimators import _vecmath as vm
+from polarization_compass import fastmath as vm
 
 
 @njit(cache=False)
@@ -79,8 +79,8 @@ def test_disc_pass_loops_are_vectorised(name):
     """The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code: a libm call, a select
     inside a reduction or a Python-model division check would each make LLVM keep them scalar (2-3x slower).
     Compiled afresh from the Python source with the kernel's own options (cached code has no IR)."""
-    from polarization_compass.estimators import _aoplm
-    disp = getattr(_aoplm, name)
+    from polarization_compass.estimators import _sm_asm_kernels, _symmetry_kernels
+    disp = getattr(_sm_asm_kernels if name.startswith("_band") else _symmetry_kernels, name)
     fresh = njit(**{k: v for k, v in disp.targetoptions.items() if k not in ("cache", "nopython")})(disp.py_func)
     f32, b = np.zeros(64, np.float32), np.ones(64, bool)
     rays = np.zeros((3, 64), np.float32)

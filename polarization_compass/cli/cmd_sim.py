@@ -45,6 +45,9 @@ def register(sub):
     p.add_argument("--roll", type=float, default=0.0, help="camera roll, deg (default 0)")
     p.add_argument("--time-scale", type=float, default=1.0, help="simulated seconds per wall second")
     p.add_argument("--scene", default="", help="scene YAML for camera, sky and sensor")
+    p.add_argument("--array-geometry", default="",
+                   help="photodiode-array sensor YAML: also simulate the array and run its estimators in namespace "
+                        "array (their headings are not in the evaluator's table)")
     p.add_argument("--realtime", action="store_true",
                    help="no lockstep: frames at the camera rate; measures drops and latency")
     p.add_argument("--error-map", default="",
@@ -188,7 +191,7 @@ def run(args) -> int:
         "turns": repr(float(args.turns)), "turn_rate_deg_s": repr(float(args.turn_rate)),
         "pitch_deg": repr(float(args.pitch)), "roll_deg": repr(float(args.roll)), "scene": args.scene,
         "lockstep": str(not args.realtime).lower(), "exit_when_done": "true",
-        "error_map": str(map_path), "report_dir": str(out)})
+        "error_map": str(map_path), "report_dir": str(out), "array_geometry": args.array_geometry})
     problems = graph.check()
     if problems:
         raise CompassError("inconsistent graph: " + "; ".join(problems))

@@ -34,9 +34,9 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg
 from .base import EstimatorError, HeadingResult, Observation, Status
 
-__all__ = ["brightness_stats", "brightness_t_from_stats", "brightness_t", "view_segments", "view_grid_layout",
+__all__ = ["brightness_stats", "brightness_t_from_stats", "view_segments", "view_grid_layout",
            "Knob", "KnobbedEstimator", "Samples", "PixelView", "select_view", "samples_from_view",
-           "sample_observation", "cluster_sigma_rad", "Candidate",
+           "cluster_sigma_rad", "cr1_factor", "Candidate",
            "resolve_ambiguity", "psi_from_sun_rad", "level_sun_candidates", "rayleigh_aop_rad"]
 
 
@@ -236,87 +236,125 @@ def select_view(obs: Observation, knobs: dict, window=None, balance_phases: bool
     bias, which cancels over the four phases but not within one (the view then has ``subgrids``, not
     ``grid``)."""
     _check_shapes(obs)
-    aop = np.asarray(obs.aop_rad)
-    shape = aop.shape
-    rays = np.asarray(obs.rays_cam)
-    inten = None if obs.intensity is None else np.asarray(obs.intensity)
-    xs = np.asarray(obs.x_px)
-    ys = np.asarray(obs.y_px)
+    shape = np.shape(obs.aop_rad)
+    lims = _view_limits(knobs, window)
+    if not (len(shape) == 2 and shape[0] >= 1 and shape[1] >= 1):
+        return _list_view(obs, lims)
+    rows, cols, balanced = _grid_axes(obs, knobs["stride"], lims, balance_phases)
+    if rows.size == 0 or cols.size == 0:
+        e = np.zeros(0)
+        return PixelView(e, e, np.zeros(0, bool), np.zeros((3, 0)), e, e, None if obs.intensity is None else e, None)
+    if balanced:
+        return _balanced_view(obs, rows, cols)
+    return _strided_view(obs, rows, cols)
+
+
+def _view_limits(knobs: dict, window) -> list:
+    """The rectangles (x_lo, x_hi, y_lo, y_hi) (sensor pixels, inclusive) a pixel of the view must lie in:
+    the ``region`` knob's and the ``window``."""
     lims = []
     if knobs.get("region") is not None:
         x0, y0, w, h = knobs["region"]
         lims.append((x0, x0 + w - 1, y0, y0 + h - 1))
     if window is not None:
         lims.append(window)
-    if len(shape) == 2 and shape[0] >= 1 and shape[1] >= 1:
-        H, W = shape
-        spacing = grid_spacing_px(obs)
-        step = max(1, int(round(knobs["stride"] / spacing)))
-        balanced = balance_phases and step % 2 == 0 and spacing == 1.0
-        if balanced:
-            rows = _phase_balanced_indices(H, step, float(ys[0, 0]))
-            cols = _phase_balanced_indices(W, step, float(xs[0, 0]))
-        else:
-            rows = _centred_indices(H, step) if step > 1 else np.arange(H)
-            cols = _centred_indices(W, step) if step > 1 else np.arange(W)
-        xc = xs[0, cols]
-        yr = ys[rows, 0]
-        for (xl, xh, yl, yh) in lims:
-            kc = (xc >= xl) & (xc <= xh)
-            kr = (yr >= yl) & (yr <= yh)
-            cols, xc = cols[kc], xc[kc]
-            rows, yr = rows[kr], yr[kr]
-        if rows.size == 0 or cols.size == 0:
-            e = np.zeros(0)
-            return PixelView(e, e, np.zeros(0, bool), np.zeros((3, 0)), e, e, None if inten is None else e, None)
-        full = rows.size == H and cols.size == W
-        if balanced:
-            # rows (and columns) alternate between two arithmetic progressions: four regular subgrids,
-            # copied one after the other (plain strided copies; the sums do not care about the order)
-            parts = [(rr, cc) for rr in (rows[0::2], rows[1::2]) for cc in (cols[0::2], cols[1::2])
-                     if rr.size and cc.size]
-            n_all = int(rows.size * cols.size)
+    return lims
 
-            def take(a, lead=()):
-                src = np.asarray(a).reshape(lead + shape)
-                out = np.empty(lead + (n_all,), dtype=src.dtype)
-                off = 0
-                for rr, cc in parts:
-                    n = rr.size * cc.size
-                    dst = np.reshape(out[..., off:off + n], lead + (rr.size, cc.size), copy=False)
-                    dst[...] = src[..., _slice_of(rr), _slice_of(cc)]
-                    off += n
-                return out
-            keys, xg, yg = [], [], []
-            for rr, cc in parts:
-                xc_p, yr_p = xs[0, cc], ys[rr, 0]
-                xg.append(np.tile(xc_p, yr_p.size))        # coordinates from the axes: no pass over x_px
-                yg.append(np.repeat(yr_p, xc_p.size))
-                keys.append(((float(xc_p[0]), float(xc_p[1] - xc_p[0]) if xc_p.size > 1 else 1.0, int(xc_p.size)),
-                             (float(yr_p[0]), float(yr_p[1] - yr_p[0]) if yr_p.size > 1 else 1.0, int(yr_p.size))))
-            return PixelView(take(aop), take(obs.dop), take(obs.valid), take(rays, (3,)), np.concatenate(xg),
-                             np.concatenate(yg), None if inten is None else take(inten), None, tuple(keys))
-        if full:
-            def take(a):
-                return np.asarray(a).reshape(-1)
-            r = rays
-        else:
-            # rows and columns are arithmetic progressions: slice (views), then one compact copy
-            rs = slice(int(rows[0]), int(rows[-1]) + 1, int(rows[1] - rows[0]) if rows.size > 1 else 1)
-            cs = slice(int(cols[0]), int(cols[-1]) + 1, int(cols[1] - cols[0]) if cols.size > 1 else 1)
 
-            def take(a):
-                return np.ascontiguousarray(np.asarray(a).reshape(shape)[rs, cs]).reshape(-1)
-            r = np.ascontiguousarray(rays.reshape(3, H, W)[:, rs, cs]).reshape(3, -1)
-        dx = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
-        dy = float(yr[1] - yr[0]) if yr.size > 1 else 1.0
-        grid = ((float(xc[0]), dx, int(xc.size)), (float(yr[0]), dy, int(yr.size)))
-        xg = take(xs)
-        yg = take(ys)
-        return PixelView(take(aop), take(obs.dop), take(obs.valid), r, xg, yg,
-                         None if inten is None else take(inten), grid)
-    flat_x = xs.reshape(-1)
-    flat_y = ys.reshape(-1)
+def _grid_axes(obs: Observation, stride: int, lims: list, balance_phases: bool):
+    """(rows, columns, balanced): the indices a 2-D observation keeps along each axis at ``stride`` sensor
+    pixels (centred, or phase-balanced: see :func:`select_view`) inside the rectangles ``lims``."""
+    xs = np.asarray(obs.x_px)
+    ys = np.asarray(obs.y_px)
+    H, W = np.shape(obs.aop_rad)
+    spacing = grid_spacing_px(obs)
+    step = max(1, int(round(stride / spacing)))
+    balanced = balance_phases and step % 2 == 0 and spacing == 1.0
+    if balanced:
+        rows = _phase_balanced_indices(H, step, float(ys[0, 0]))
+        cols = _phase_balanced_indices(W, step, float(xs[0, 0]))
+    else:
+        rows = _centred_indices(H, step) if step > 1 else np.arange(H)
+        cols = _centred_indices(W, step) if step > 1 else np.arange(W)
+    xc = xs[0, cols]
+    yr = ys[rows, 0]
+    for (xl, xh, yl, yh) in lims:
+        kc = (xc >= xl) & (xc <= xh)
+        kr = (yr >= yl) & (yr <= yh)
+        cols, xc = cols[kc], xc[kc]
+        rows, yr = rows[kr], yr[kr]
+    return rows, cols, balanced
+
+
+def _balanced_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> PixelView:
+    """The phase-balanced view: rows (and columns) alternate between two arithmetic progressions, so the
+    pixels are four regular subgrids, copied one after the other (plain strided copies; the sums do not care
+    about the order)."""
+    xs = np.asarray(obs.x_px)
+    ys = np.asarray(obs.y_px)
+    shape = np.shape(obs.aop_rad)
+    parts = [(rr, cc) for rr in (rows[0::2], rows[1::2]) for cc in (cols[0::2], cols[1::2])
+             if rr.size and cc.size]
+    n_all = int(rows.size * cols.size)
+
+    def take(a, lead=()):
+        src = np.asarray(a).reshape(lead + shape)
+        out = np.empty(lead + (n_all,), dtype=src.dtype)
+        off = 0
+        for rr, cc in parts:
+            n = rr.size * cc.size
+            dst = np.reshape(out[..., off:off + n], lead + (rr.size, cc.size), copy=False)
+            dst[...] = src[..., _slice_of(rr), _slice_of(cc)]
+            off += n
+        return out
+    keys, xg, yg = [], [], []
+    for rr, cc in parts:
+        xc_p, yr_p = xs[0, cc], ys[rr, 0]
+        xg.append(np.tile(xc_p, yr_p.size))        # coordinates from the axes: no pass over x_px
+        yg.append(np.repeat(yr_p, xc_p.size))
+        keys.append(((float(xc_p[0]), float(xc_p[1] - xc_p[0]) if xc_p.size > 1 else 1.0, int(xc_p.size)),
+                     (float(yr_p[0]), float(yr_p[1] - yr_p[0]) if yr_p.size > 1 else 1.0, int(yr_p.size))))
+    return PixelView(take(obs.aop_rad), take(obs.dop), take(obs.valid), take(obs.rays_cam, (3,)),
+                     np.concatenate(xg), np.concatenate(yg), None if obs.intensity is None else take(obs.intensity),
+                     None, tuple(keys))
+
+
+def _strided_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> PixelView:
+    """The view of one regular grid (rows and columns arithmetic progressions): the arrays themselves when
+    every pixel is kept, else strided slices copied compactly once."""
+    xs = np.asarray(obs.x_px)
+    ys = np.asarray(obs.y_px)
+    rays = np.asarray(obs.rays_cam)
+    shape = np.shape(obs.aop_rad)
+    H, W = shape
+    if rows.size == H and cols.size == W:
+        def take(a):
+            return np.asarray(a).reshape(-1)
+        r = rays
+    else:
+        rs = slice(int(rows[0]), int(rows[-1]) + 1, int(rows[1] - rows[0]) if rows.size > 1 else 1)
+        cs = slice(int(cols[0]), int(cols[-1]) + 1, int(cols[1] - cols[0]) if cols.size > 1 else 1)
+
+        def take(a):
+            return np.ascontiguousarray(np.asarray(a).reshape(shape)[rs, cs]).reshape(-1)
+        r = np.ascontiguousarray(rays.reshape(3, H, W)[:, rs, cs]).reshape(3, -1)
+    xc = xs[0, cols]
+    yr = ys[rows, 0]
+    dx = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
+    dy = float(yr[1] - yr[0]) if yr.size > 1 else 1.0
+    grid = ((float(xc[0]), dx, int(xc.size)), (float(yr[0]), dy, int(yr.size)))
+    return PixelView(take(obs.aop_rad), take(obs.dop), take(obs.valid), r, take(xs), take(ys),
+                     None if obs.intensity is None else take(obs.intensity), grid)
+
+
+def _list_view(obs: Observation, lims: list) -> PixelView:
+    """The view of a pixel list (or of a 2-D observation that is not a grid): flat, the pixels inside the
+    rectangles ``lims``."""
+    aop = np.asarray(obs.aop_rad)
+    rays = np.asarray(obs.rays_cam)
+    inten = None if obs.intensity is None else np.asarray(obs.intensity)
+    flat_x = np.asarray(obs.x_px).reshape(-1)
+    flat_y = np.asarray(obs.y_px).reshape(-1)
     if lims:
         m = np.ones(flat_x.size, dtype=bool)
         for (xl, xh, yl, yh) in lims:
@@ -353,11 +391,6 @@ def samples_from_view(view: PixelView, min_dop: float, radius_limit=None) -> Sam
     return Samples(a[idx].astype(np.float64), d[idx].astype(np.float64), r[:, idx].astype(np.float64),
                    view.x_px[idx].astype(np.float64), view.y_px[idx].astype(np.float64), inten, nonfinite,
                    considered)
-
-
-def sample_observation(obs: Observation, knobs: dict, window=None, radius_limit=None) -> Samples:
-    """:func:`select_view` then :func:`samples_from_view`."""
-    return samples_from_view(select_view(obs, knobs, window), knobs["min_dop"], radius_limit)
 
 
 def view_segments(view: PixelView, block_px: int):
@@ -465,8 +498,19 @@ def axial_residual_rad(aop_rad, pred_rad) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # Uncertainty
 # --------------------------------------------------------------------------------------------
+def cr1_factor(n_clusters: int, n: int, n_params: int) -> float:
+    """The CR1 small-sample factor of a cluster-robust variance: ``G / (G - 1) * (n - 1) / (n - k)`` for
+    ``G = n_clusters`` clusters (blocks), ``n`` observations (pixels) and ``k = n_params`` parameters; each
+    part is 1 where it is undefined (``G <= 1``, ``n <= k``). Reference: A. C. Cameron and D. L. Miller, "A
+    Practitioner's Guide to Cluster-Robust Inference", J. Human Resources 50(2), 317-372 (2015) (the factor
+    Stata uses). Plain arithmetic: the compiled least-squares kernel runs it through numba."""
+    return ((n_clusters / (n_clusters - 1.0) if n_clusters > 1 else 1.0)
+            * ((n - 1.0) / (n - n_params) if n > n_params else 1.0))
+
+
 def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) -> float:
-    """Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual)."""
+    """Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual) over
+    blocks of ``block_px`` sensor pixels, with the :func:`cr1_factor`."""
     phi = np.asarray(influence, dtype=float)
     n = phi.size
     if n == 0:
@@ -480,8 +524,7 @@ def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) ->
     occupied = np.bincount(key) > 0
     G = int(occupied.sum())
     total = float(np.dot(sums, sums))
-    corr = (G / (G - 1.0) if G > 1 else 1.0) * ((n - 1.0) / (n - n_params) if n > n_params + 1 else 1.0)
-    return total * corr
+    return total * cr1_factor(G, n, n_params)
 
 
 def cluster_sigma_rad(influence, samples: Samples, block_px: int, n_params: int = 2) -> float:
@@ -539,13 +582,6 @@ def brightness_t_from_stats(stats, direction_cam) -> float | None:
     if not se2 > 0.0:
         return math.copysign(math.inf, slope) if slope != 0.0 else 0.0
     return slope / math.sqrt(se2)
-
-
-def brightness_t(samples: Samples, direction_cam) -> float | None:
-    """:func:`brightness_t_from_stats` of a :class:`Samples` (None without intensity)."""
-    if samples.intensity is None or samples.n < 10:
-        return None
-    return brightness_t_from_stats(brightness_stats(samples.intensity, samples.rays), direction_cam)
 
 
 def resolve_ambiguity(name: str, first: Candidate, second: Candidate, brightness: float | None, obs: Observation,

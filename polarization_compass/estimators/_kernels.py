@@ -22,21 +22,13 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from ..fastmath32 import sincos32
+from ..fastmath import sincos32_folded as _sincos32
 
 __all__ = ["sub_pass", "full_pass", "grid_segments", "grid_layout", "block_indices", "list_segments", "N_STATS", "sym3", "acc_sym",
            "acc_brightness"]
 
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
 N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
-
-
-@njit(inline="always", fastmath=_FM, cache=True, error_model="numpy")
-def _sincos32(a):  # pragma: no cover - compiled
-    """sin, cos of a float32 angle folded to [-pi/2, pi/2] (a sign flip is harmless: E-vectors are
-    axial), by :func:`polarization_compass.fastmath32.sincos32`: error < 4e-6 at pi/2 in the polynomial,
-    float32 rounding 1e-7."""
-    return sincos32(a - np.float32(math.pi) * np.rint(a * np.float32(1.0 / math.pi)))
 
 
 @njit(inline="always", cache=True)

@@ -14,7 +14,7 @@ from enum import Enum
 import numpy as np
 
 from ..camera import CameraModel, PixelSelection
-from ..conventions import psi_to_bearing_deg
+from ..conventions import psi_to_bearing_deg, wrap_180_deg_float, wrap_360_deg_float
 from ..errors import CompassError
 
 __all__ = ["Status", "HeadingResult", "Observation", "Estimator", "EstimatorError"]
@@ -37,19 +37,6 @@ class Status(str, Enum):
     TOO_FEW_UNITS = "too_few_units"          # photodiode array: fewer usable units than the method needs
     POOR_FIT = "poor_fit"                    # the data do not fit the sky model well enough to trust a heading
     PRIOR_DISAGREES = "prior_disagrees"      # the heading contradicts an independent prior (IMU yaw) beyond sigma
-
-
-def _wrap_180(x: float) -> float:
-    """:func:`~polarization_compass.conventions.wrap_180_deg` of one finite float, without numpy (the same
-    floor modulo, so the same bits; ``from_psi`` runs once per estimate and sweeps make 1e5 of them)."""
-    w = (x + 180.0) % 360.0 - 180.0
-    return 180.0 if w == -180.0 else w
-
-
-def _wrap_360(x: float) -> float:
-    """:func:`~polarization_compass.conventions.wrap_360_deg` of one finite float, without numpy."""
-    w = x % 360.0
-    return 0.0 if w >= 360.0 else w
 
 
 @dataclass(frozen=True)
@@ -100,9 +87,9 @@ class HeadingResult:
         if not math.isfinite(sun_azimuth_deg):
             bearing = float(psi_to_bearing_deg(psi_deg, sun_azimuth_deg))      # nan, as before
         else:
-            bearing = _wrap_360(psi_deg + sun_azimuth_deg)
+            bearing = wrap_360_deg_float(psi_deg + sun_azimuth_deg)
         return HeadingResult(method, Status.AMBIGUOUS if axial else Status.OK, reason,
-                             _wrap_180(psi_deg), bearing, _wrap_180(90.0 - bearing),
+                             wrap_180_deg_float(psi_deg), bearing, wrap_180_deg_float(90.0 - bearing),
                              None if sigma_deg is None else float(sigma_deg), int(pixels),
                              min(max(quality, 0.0), 1.0), bool(axial), **kw)
 

@@ -38,8 +38,8 @@ from numba import njit
 from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y
 from .base import Estimator, HeadingResult, Observation, Status
-from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, finish_sigma_deg,
-                      psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
+from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, cr1_factor,
+                      finish_sigma_deg, psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
                       view_grid_layout, view_segments)
 from ._kernels import full_pass, sub_pass
 
@@ -81,6 +81,9 @@ def solve_sun(M, B, C, bias_correction=True, iterations=3):
                              bool(bias_correction), int(iterations))
 
 
+#: :func:`._common.cr1_factor` compiled for :func:`_block_sigmas`.
+_cr1_factor = njit(inline="always", cache=True)(cr1_factor)
+
 _FIRST_LOOK = 4096     # pixels of the first, noise-scale subsample
 
 
@@ -102,7 +105,8 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
 @njit(cache=True, nogil=True)
 def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums centred
-    by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor."""
+    by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor
+    (:func:`._common.cr1_factor`)."""
     K = cs.shape[0]
     G = block_m.shape[0]
     out = np.zeros(K)
@@ -114,7 +118,7 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
             used += 1
     if used == 0 or not W > 0:
         return out
-    corr = (used / (used - 1.0) if used > 1 else 1.0) * ((n - 1.0) / (n - 2.0) if n > 3 else 1.0)
+    corr = _cr1_factor(used, n, 2)
     sums = np.zeros(G)
     for k in range(K):
         total = 0.0
@@ -169,62 +173,21 @@ class _LSBase(KnobbedEstimator, Estimator):
         bad = check_sun(self.name, obs, k)
         if bad is not None:
             return bad
-        R_lev = None
-        have_tilt = obs.pitch_deg is not None and obs.roll_deg is not None
-        if have_tilt:
-            p, r = float(obs.pitch_deg), float(obs.roll_deg)
-            if not (math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0):
-                if self.level_with_tilt:
-                    return HeadingResult.failed(self.name, Status.BAD_INPUT,
-                                                f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
-                have_tilt = False
-            else:
-                R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
-        if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(self.name, Status.BAD_INPUT,
-                                        "tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)")
+        R_lev = self._levelling(obs)
+        if isinstance(R_lev, HeadingResult):
+            return R_lev
         try:
             view = select_view(obs, k, balance_phases=True)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        flat, segs = view_segments(view, k["block_px"])
-        arrs = flat[:4] + flat[6:]
-        var_mode = {"uniform": 0, "dop": 1, "dop_intensity": 2}[k["noise_model"]]
-        if var_mode == 2 and arrs[4] is None:
-            var_mode = 1
-        wmode = 1 if k["weighting"] == "dop2" else 0
-        # Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
-        # max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model
-        # (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
-        min_dop = k["min_dop"]
-        sigma_max = math.radians(k["max_aop_noise_deg"])
-        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK)   # a first look at the noise
-        if var_mode == 1:
-            s0sq = _noise_scale_sq(sub, k["bias_correction"])
-            min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
-        if not (min_dop == k["min_dop"] and sub["every_pixel"]):   # else the first look read what this would
-            sub = sub_pass(*arrs, min_dop, wmode, var_mode)
-        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
+        acc, sub, min_dop = self._accumulate(view)
         n = acc["n"]
-        nonfinite = acc["nonfinite"]
         if n < k["min_pixels"]:
-            why = f" (min_dop raised to {min_dop:.3f} by the noise)" if min_dop > k["min_dop"] else ""
-            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{n} usable pixel(s) < min_pixels {k['min_pixels']}{why}"
-                                        + (f" ({nonfinite} valid pixel(s) had non-finite values)"
-                                           if nonfinite else ""), pixels=n)
-        M = acc["block_m"].sum(axis=0)
-        msub_tr = float(np.trace(sub["M"]))
-        scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
-        acc["B"], acc["C"], acc["stats"] = sub["B"] * scale, sub["C"] * scale, sub["stats"]
-        lam, U, sigma0_sq = solve_sun(M, acc["B"], acc["C"], k["bias_correction"])
-        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
-        gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k["min_eigen_gap"]:
-            return HeadingResult.failed(self.name, Status.DEGENERATE,
-                                        f"E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
-                                        pixels=n)
+            return self._too_few(n, acc["nonfinite"], min_dop)
+        sol = self._solve(acc, sub, n)
+        if isinstance(sol, HeadingResult):
+            return sol
+        M, lam, U, sigma0_sq = sol
         s = U[:, 0].copy()
         R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
         s_h = R @ s                                   # the frame the heading is read in
@@ -233,37 +196,13 @@ class _LSBase(KnobbedEstimator, Estimator):
             return HeadingResult.failed(self.name, Status.SUN_NEAR_ZENITH,
                                         f"the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from "
                                         "the zenith: the solar meridian is ill-conditioned", pixels=n)
-        # first-order sensitivities: d psi / d s and d elevation / d s (elevation of the sign frame)
-        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
         R_sign = R_lev if R_lev is not None else np.eye(3)
-        s_sign = R_sign @ s
-        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
-        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
-        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
-        # d s = -sum_k u_k (u_k . dM s) / d_k  ->  d psi = -s^T dM c  with c = sum_k (g . u_k) u_k / d_k
-        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
-        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
-        cs = np.stack([c_el, c_psi]) if sigma else c_el[None, :]
-        sigmas = _block_sigmas(acc["block_m"], acc["block_w"], n, s, np.ascontiguousarray(cs))
+        s_sign = R_sign @ s                           # the frame the sun's side is decided in
+        sigmas = self._sigmas(acc, n, s, lam, U, R, s_h, rho, R_sign, s_sign, sigma)
         sigma_el = float(sigmas[0])
         cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
         first, second = (cands if s_sign[2] >= 0 else cands[::-1])
-        el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
-        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
-
-        def sun_rule():
-            if R_lev is not None:
-                if el_deg > margin_deg:
-                    return first, (f"sun side from the levelled sun elevation ({el_deg:.2f} deg > "
-                                   f"{margin_deg:.3f} deg margin)")
-                return None, f"levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg margin"
-            lim = k["max_tilt_deg"] + margin_deg
-            if el_deg > lim:
-                return first, (f"sun side from the camera-frame sun elevation ({el_deg:.2f} deg > max_tilt_deg "
-                               f"{k['max_tilt_deg']:g} + {margin_deg:.3f} deg margin)")
-            return None, (f"camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} "
-                          f"+ margin: the sun's side is unknown without the tilt")
-
+        sun_rule = self._sign_rule(first, s_sign, sigma_el, R_lev is not None)
         bt = brightness_t_from_stats(acc["stats"], first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k, sun_rule)
         s_pick = pick.sun_cam
@@ -279,8 +218,115 @@ class _LSBase(KnobbedEstimator, Estimator):
         if sigma:
             extras["rms_residual_deg"] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
             sigma_deg = finish_sigma_deg(float(sigmas[1]), k)
-        return result_from(self.name, pick, by, reason, obs, sigma_deg, n, nonfinite, quality,
+        return result_from(self.name, pick, by, reason, obs, sigma_deg, n, acc["nonfinite"], quality,
                            sun_altitude_deg=implied_alt, extras=extras)
+
+    def _levelling(self, obs: Observation):
+        """The levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt, None without a usable tilt
+        (``least_squares``), or a failed result (``tilt_aware`` needs it)."""
+        if obs.pitch_deg is None or obs.roll_deg is None:
+            R_lev = None
+        else:
+            p, r = float(obs.pitch_deg), float(obs.roll_deg)
+            if math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0:
+                R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
+            elif self.level_with_tilt:
+                return HeadingResult.failed(self.name, Status.BAD_INPUT,
+                                            f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
+            else:
+                R_lev = None
+        if self.level_with_tilt and R_lev is None:
+            return HeadingResult.failed(self.name, Status.BAD_INPUT,
+                                        "tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)")
+        return R_lev
+
+    def _accumulate(self, view):
+        """The compiled passes over a view: (block sums of the full pass, subsample sums, min_dop used).
+
+        Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
+        max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model (and the
+        Gaussian picture of AoP noise) breaks down and they add bias, not information."""
+        k = self.knobs
+        flat, segs = view_segments(view, k["block_px"])
+        arrs = flat[:4] + flat[6:]
+        var_mode = {"uniform": 0, "dop": 1, "dop_intensity": 2}[k["noise_model"]]
+        if var_mode == 2 and arrs[4] is None:
+            var_mode = 1
+        wmode = 1 if k["weighting"] == "dop2" else 0
+        min_dop = k["min_dop"]
+        sigma_max = math.radians(k["max_aop_noise_deg"])
+        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK)   # a first look at the noise
+        if var_mode == 1:
+            s0sq = _noise_scale_sq(sub, k["bias_correction"])
+            min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
+        if not (min_dop == k["min_dop"] and sub["every_pixel"]):   # else the first look read what this would
+            sub = sub_pass(*arrs, min_dop, wmode, var_mode)
+        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
+        return acc, sub, min_dop
+
+    def _too_few(self, n: int, nonfinite: int, min_dop: float) -> HeadingResult:
+        k = self.knobs
+        why = f" (min_dop raised to {min_dop:.3f} by the noise)" if min_dop > k["min_dop"] else ""
+        return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
+                                    f"{n} usable pixel(s) < min_pixels {k['min_pixels']}{why}"
+                                    + (f" ({nonfinite} valid pixel(s) had non-finite values)"
+                                       if nonfinite else ""), pixels=n)
+
+    def _solve(self, acc: dict, sub: dict, n: int):
+        """The (noise-debiased) eigen-solution: (M, lambdas ascending, U, sigma0^2), or a failed result when the
+        E-vectors do not single out a sun direction. Scales the subsample's bias matrices to the full pass
+        (into ``acc``: B, C, stats)."""
+        k = self.knobs
+        M = acc["block_m"].sum(axis=0)
+        msub_tr = float(np.trace(sub["M"]))
+        scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
+        acc["B"], acc["C"], acc["stats"] = sub["B"] * scale, sub["C"] * scale, sub["stats"]
+        lam, U, sigma0_sq = solve_sun(M, acc["B"], acc["C"], k["bias_correction"])
+        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
+            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
+        gap = (lam[1] - lam[0]) / lam[2]
+        if gap <= k["min_eigen_gap"]:
+            return HeadingResult.failed(self.name, Status.DEGENERATE,
+                                        f"E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
+                                        pixels=n)
+        return M, lam, U, sigma0_sq
+
+    @staticmethod
+    def _sigmas(acc: dict, n: int, s, lam, U, R, s_h, rho: float, R_sign, s_sign, with_psi: bool) -> np.ndarray:
+        """Cluster-robust sigmas (rad) of the sun's elevation in the sign frame and (``with_psi``) of psi, from
+        first-order sensitivities: d psi / d s and d elevation / d s through the eigenvector perturbation
+        ``d s = -sum_k u_k (u_k . dM s) / d_k``, so ``d psi = -s^T dM c`` with ``c = sum_k (g . u_k) u_k / d_k``
+        (module doc)."""
+        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
+        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
+        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
+        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
+        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
+        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
+        cs = np.stack([c_el, c_psi]) if with_psi else c_el[None, :]
+        return _block_sigmas(acc["block_m"], acc["block_w"], n, s, np.ascontiguousarray(cs))
+
+    def _sign_rule(self, first: Candidate, s_sign, sigma_el: float, levelled: bool):
+        """The sun-elevation rule of :func:`._common.resolve_ambiguity`: ``first`` (the candidate with the sun
+        above the horizon of the sign frame) when its elevation exceeds the margin of ``sign_margin_sigma``
+        sigmas (plus ``max_tilt_deg`` when the frame is the camera's, not ``levelled``)."""
+        k = self.knobs
+        el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
+        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
+
+        def sun_rule():
+            if levelled:
+                if el_deg > margin_deg:
+                    return first, (f"sun side from the levelled sun elevation ({el_deg:.2f} deg > "
+                                   f"{margin_deg:.3f} deg margin)")
+                return None, f"levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg margin"
+            lim = k["max_tilt_deg"] + margin_deg
+            if el_deg > lim:
+                return first, (f"sun side from the camera-frame sun elevation ({el_deg:.2f} deg > max_tilt_deg "
+                               f"{k['max_tilt_deg']:g} + {margin_deg:.3f} deg margin)")
+            return None, (f"camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} "
+                          f"+ margin: the sun's side is unknown without the tilt")
+        return sun_rule
 
 
 class LeastSquaresEstimator(_LSBase):

@@ -1,6 +1,6 @@
 """The SM-ASM approach: the E-vector along the solar and anti-solar meridian is perpendicular to it.
 
-With AOPLM = AoP - xi (eqs 29-30, :mod:`._aoplm`), pixels on the solar/anti-solar meridian have
+With AOPLM = AoP - xi (eqs 29-30, :mod:`._disc`), pixels on the solar/anti-solar meridian have
 |AOPLM| = 90 deg. The meridian is the line through the zenith point along which those pixels lie.
 
 Line fit: a **weighted axial fit through the zenith point**, not a Hough transform. Each pixel's
@@ -22,7 +22,7 @@ against the level Rayleigh pattern of the fitted heading; cluster-robust sum ove
 
 An incomplete disc (occluders, invalid pixels) breaks the symmetry the fit relies on; the fit is then
 run on mirror-pair weights about its own axis (a fixed point), or reports ``insufficient_coverage``:
-see :mod:`._aoplm`.
+see :mod:`._mirror`.
 """
 from __future__ import annotations
 
@@ -31,7 +31,10 @@ import math
 import numpy as np
 
 from .base import HeadingResult, Status
-from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, band_fit, band_gather, band_pass1, band_pass2
+from ._disc import disc_cells
+from ._disc_estimator import DISC_KNOBS, DiscEstimator
+from ._mirror import AxisFit
+from ._sm_asm_kernels import band_fit, band_gather, band_pass1, band_pass2
 from ._common import Knob
 from ._kernels import N_STATS
 

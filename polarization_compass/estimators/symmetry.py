@@ -31,7 +31,7 @@ against the level Rayleigh pattern, cluster-robust over blocks.
 An incomplete disc (occluders, invalid pixels) breaks the symmetry; the correlation is then computed
 on mirror-pair weights about its own axis (a fixed point; in that iteration the peak of F is followed
 locally from the trial axis, so the map stays continuous), or the status is ``insufficient_coverage``:
-see :mod:`._aoplm`.
+see :mod:`._mirror`.
 """
 from __future__ import annotations
 
@@ -42,7 +42,10 @@ import numpy as np
 from numba import njit
 
 from .base import HeadingResult, Status
-from ._aoplm import DISC_KNOBS, AxisFit, DiscEstimator, disc_cells, ring_fit, ring_gather, ring_pass1, ring_pass2
+from ._disc import disc_cells
+from ._disc_estimator import DISC_KNOBS, DiscEstimator
+from ._mirror import AxisFit
+from ._symmetry_kernels import ring_fit, ring_gather, ring_pass1, ring_pass2
 from ._common import Knob
 from ._kernels import N_STATS
 

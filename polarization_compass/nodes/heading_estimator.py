@@ -4,6 +4,10 @@ Subscribes (relative names, remappable):
   ``camera/image_raw``   sensor_msgs/Image, raw 2x2 mosaic (mono8/mono16, or 32FC1 ideal intensities),
                          sensor-data QoS (REP-2003)
   ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always: camera_info_source)
+  ``compass_array/intensities`` instead of the two above when ``input`` is ``array``: a photodiode-array
+                         compass, std_msgs/Float32MultiArray, units x channels row-major (layout.dim empty or
+                         [units, channels]); it has no header, so a sample is stamped with this node's clock
+                         on arrival (sim time under /clock). Geometry from ``array_geometry``.
   ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior (prior_source imu)
   ``gps/fix``            sensor_msgs/NavSatFix when site_source is navsatfix
 Publishes, stamped with the image's header.stamp:
@@ -26,7 +30,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qos_profile_system_default
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float32MultiArray, Float64, String
 
 from ..bag import MessageError, decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
@@ -61,11 +65,20 @@ class HeadingEstimatorNode(Node):
         self.front = HeadingFrontEnd(self.method, knob_values(self.method, self.knob_set.values),
                                      layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
                                      p["use_intensity"])
-        try:
-            dt = warm_up(self.front, camera=self._fallback_camera_or_none())
-            self.get_logger().info(f"warm-up (kernel compilation or cache load) took {dt:.2f} s")
-        except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
-            self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow")
+        self.array = None
+        if p["input"] == "array":
+            from ..photodiode.geometry import load_array_geometry
+            from ..photodiode.heading import make_array_estimator
+            if not p["array_geometry"]:
+                raise CompassError("input array needs array_geometry (a sensor description YAML)")
+            self.array = make_array_estimator(self.method, load_array_geometry(p["array_geometry"]))
+        else:
+            try:
+                dt = warm_up(self.front, camera=self._fallback_camera_or_none())
+                self.get_logger().info(f"warm-up (kernel compilation or cache load) took {dt:.2f} s")
+            except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
+                self.get_logger().warning(f"warm-up failed ({type(exc).__name__}: {exc}); the first image will be "
+                                          "slow")
         self.sun = sun_source(p)
         self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p["prior_max_age_s"]) * 1e9))
         self.camera_info = CameraInfoState()     # validated intrinsics from camera_info, or why there are none
@@ -97,14 +110,21 @@ class HeadingEstimatorNode(Node):
             # alike (a reliable reader never connects to a best-effort writer); deep for fast IMUs
             imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
             self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos, callback_group=small)
-        self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
-                                 callback_group=small)
         if p["site_source"] == "navsatfix":
             self.create_subscription(NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data,
                                      callback_group=small)
         image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
-        self.create_subscription(Image, topics.IMAGE, self._on_image_msg, image_qos, callback_group=images)
-        self.get_logger().info(f"method {self.method}: {t['heading_raw']} from {topics.IMAGE}")
+        if self.array is not None:
+            self.create_subscription(Float32MultiArray, topics.ARRAY, self._on_array, image_qos, callback_group=images)
+            if self.needs_tilt:
+                from .diagnostics import _wall_clock
+                self.create_timer(0.02, self._drain, callback_group=images, clock=_wall_clock())  # IMU 50+ Hz
+        else:
+            self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
+                                     callback_group=small)
+            self.create_subscription(Image, topics.IMAGE, self._on_image_msg, image_qos, callback_group=images)
+        self.get_logger().info(f"method {self.method}: {t['heading_raw']} from "
+                               f"{topics.ARRAY if self.array is not None else topics.IMAGE}")
 
     # parameters ---------------------------------------------------------------------------------
     def _on_change(self, changed: dict):
@@ -266,6 +286,25 @@ class HeadingEstimatorNode(Node):
         if self._receive_image(msg):
             self._drain()
 
+    def _on_array(self, msg):
+        """A photodiode-array sample: decoded against the geometry, stamped on arrival, then queued like an image."""
+        from ..photodiode.readings import ArrayRecordingError, array_sample_from_flat
+        t_in = self.diag.input()
+        geometry = self.array.geometry
+
+        def decode(m):
+            try:
+                return array_sample_from_flat(m.data, [d.size for d in m.layout.dim], m.layout.data_offset, geometry)
+            except ArrayRecordingError as exc:
+                raise MessageError("array_layout", str(exc)) from None
+
+        sample = self.diag.decoded("", decode, msg)
+        if sample is None:
+            return
+        t_ns = self.get_clock().now().nanoseconds
+        self.pending.append((t_ns, sample, None, None, t_in, time.monotonic() + self.params["imu_max_wait_s"]))
+        self._drain()
+
     def _drain(self) -> None:
         """Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than the
         newest IMU sample waits up to imu_max_wait_s (wall) for it, if the IMU stream is live (its newest
@@ -287,7 +326,7 @@ class HeadingEstimatorNode(Node):
         p = self.params
         status = {"stamp_ns": t_ns, "method": self.method}
         try:
-            camera = self._camera_for(width, height)
+            camera = self._camera_for(width, height) if self.array is None else None
             if p["site_source"] == "navsatfix" and self.site_from_fix is None:
                 raise PipelineError("no NavSatFix received yet (site_source navsatfix)")
             if p["time_source"] == "stamp":
@@ -305,8 +344,11 @@ class HeadingEstimatorNode(Node):
                                     f"(newest IMU stamp: {self._newest_imu_text()})")
             pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
             t0 = time.perf_counter()
-            result = self.tilt_prior.checked(self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior),
-                                             inp)
+            if self.array is not None:
+                result = self._estimate_array(mosaic, sun_az, sun_alt, pitch, roll, prior)
+            else:
+                result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
+            result = self.tilt_prior.checked(result, inp)      # heading vs. the IMU prior (a named step)
             status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
         except (PipelineError, CompassError) as exc:
             self.get_logger().warning(f"frame {t_ns / 1e9:.3f} s: {exc}", throttle_duration_sec=5.0)
@@ -348,6 +390,10 @@ class HeadingEstimatorNode(Node):
                            "last_sigma_deg": result.sigma_deg if result.ok else "",
                            "sun_altitude_deg": sun_alt}
         self.diag.done(t_in, t_ns, text, ok=published)
+
+    def _estimate_array(self, sample, sun_az, sun_alt, pitch, roll, prior):
+        from ..photodiode.heading import estimate_recording
+        return estimate_recording(self.array, sample[None], sun_az, sun_alt, pitch, roll, prior)[0]
 
     def _newest_imu_text(self) -> str:
         n = self.imu.newest_ns

@@ -125,6 +125,20 @@ def image_msg(array: np.ndarray, t_ns: int, frame_id: str) -> Image:
     return m
 
 
+def array_msg(intensities: np.ndarray):
+    """std_msgs/Float32MultiArray of one photodiode-array sample (units x channels, row-major; layout.dim
+    [units, channels]): the layout heading_estimator reads with ``input: array``."""
+    from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+    a = np.asarray(intensities, dtype=np.float32)
+    if a.ndim != 2:
+        raise ValueError(f"array_msg: need (units, channels), got shape {a.shape}")
+    m = Float32MultiArray()
+    m.layout.dim = [MultiArrayDimension(label="units", size=int(a.shape[0]), stride=int(a.size)),
+                    MultiArrayDimension(label="channels", size=int(a.shape[1]), stride=int(a.shape[1]))]
+    m.data = a.ravel().tolist()
+    return m
+
+
 def decode_image(msg) -> np.ndarray:
     """The mosaic of an Image: uint8 (mono8), uint16 (mono16) or float32 (32FC1: ideal polarizer
     intensities, finite and >= 0), via :func:`polarization_compass.bag.decode_mosaic` (the replay uses

@@ -36,7 +36,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-from std_msgs.msg import String
+from std_msgs.msg import Float32MultiArray, String
 
 from ..bag import decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
@@ -47,7 +47,7 @@ from ..sensor import sensor_config_for_encoding
 from ..specs import topics
 from .diagnostics import Diagnostics
 from ..motion import MotionProfile, frame_times_ns, imu_reading
-from .msgs import attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
+from .msgs import array_msg, attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
 from ..specs.params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
 from .rosparams import ParameterSet
 from .runner import run_node
@@ -73,6 +73,10 @@ class SkySimulatorNode(Node):
         from ..scene import SceneError, load_scene, parse_time_utc
         try:
             scene = load_scene(p["scene"] or None)
+            if p["array_geometry"]:           # also simulate a photodiode-array compass with this geometry
+                from ..scene import scene_from_dict
+                scene = scene_from_dict({**scene.to_dict(), "photodiode_array": {
+                    **(scene.photodiode_array or {}), "geometry": p["array_geometry"]}})
         except SceneError as exc:
             raise CompassError(str(exc)) from None
         self.camera = scene.camera
@@ -101,6 +105,8 @@ class SkySimulatorNode(Node):
 
         img_qos = qos_profile_system_default
         self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
+        self.pub_array = (self.create_publisher(Float32MultiArray, topics.ARRAY, img_qos)
+                          if self.renderer.array is not None else None)
         self.pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, img_qos)
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
@@ -223,7 +229,8 @@ class SkySimulatorNode(Node):
                                  rng)
         if p["encoding"] == "32FC1":
             mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
-        msg = image_msg(mosaic, t_ns, p["camera_frame_id"])
+        msg = (image_msg(mosaic, t_ns, p["camera_frame_id"]),
+               None if frame.array_intensities is None else array_msg(frame.array_intensities))
         return msg, att, alt, (time.perf_counter() - t0) * 1e3
 
     def _prepare_next_frame(self, now: float) -> None:
@@ -255,7 +262,9 @@ class SkySimulatorNode(Node):
         yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
         self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
         self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
-        self.pub_image.publish(img)
+        self.pub_image.publish(img[0])
+        if img[1] is not None:
+            self.pub_array.publish(img[1])
         self.pub_frames.publish(String(data=json.dumps({"stamp_ns": int(t_ns), "wall_ns": time.time_ns()})))
         self.frames += 1
         self.last_frame_wall = time.monotonic()

@@ -21,7 +21,7 @@ from ..errors import CompassError
 from ..safe_load import open_npz, read_text
 
 __all__ = ["ArrayRecording", "ArrayRecordingError", "load_array_recording", "save_array_recording_npz",
-           "save_array_recording_csv", "MAX_SAMPLES"]
+           "save_array_recording_csv", "array_sample_from_flat", "MAX_SAMPLES"]
 
 MAX_SAMPLES = 1_000_000
 _MAX_CSV_CHARS = 200_000_000
@@ -162,3 +162,27 @@ def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
         for i in range(S):
             row = ([repr(float(t_offset_s[i]))] if t_offset_s is not None else []) + [repr(float(v)) for v in a[i].ravel()]
             w.writerow(row)
+
+
+def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.ndarray:
+    """One sample (U, C) from a flat message (``std_msgs/Float32MultiArray``: ``data``, the sizes of
+    ``layout.dim`` and ``layout.data_offset``).
+
+    Layout: row-major units x channels, channels in each unit's ``channels_deg`` order; ``layout.dim`` either
+    empty (then ``data`` holds exactly units x channels values after the offset) or two dimensions of sizes
+    (units, channels) (labels are not read; strides must be the row-major ones, which the sizes imply).
+    Raises :class:`ArrayRecordingError` (one line) for a layout that does not fit ``geometry`` or values
+    that are not finite.
+    """
+    U, C = geometry.n_units, geometry.n_channels
+    sizes = [int(s) for s in dim_sizes]
+    if sizes and sizes != [U, C]:
+        raise ArrayRecordingError(f"layout {sizes} does not match the geometry's units x channels [{U}, {C}]")
+    off = int(data_offset)
+    a = np.asarray(data, dtype=np.float64).reshape(-1)
+    if off < 0 or a.size - off != U * C:
+        raise ArrayRecordingError(f"{a.size} value(s) after data_offset {off}: expected {U} units x {C} channels")
+    out = a[off:].reshape(U, C)
+    if not np.all(np.isfinite(out)):
+        raise ArrayRecordingError("readings contain NaN or inf")
+    return out

@@ -201,6 +201,9 @@ SIMULATOR = (
     Param("scene", "", "scene YAML (camera, sky, sensor, validity); empty: the embedded paper set-up. "
                        "Site, time and attitude come from this node's parameters, not from the scene",
           read_only=True),
+    Param("array_geometry", "", "also simulate a photodiode-array compass (sensor description YAML) on "
+                                "compass_array/intensities with every frame; '' = only if the scene declares one",
+          read_only=True),
     Param("encoding", "mono16", "image encoding: mono16/mono8 = raw 2x2 polarizer mosaic as a camera "
                                 "driver publishes it (needs a scene with sensor effects, else an ideal "
                                 "noise-free mosaic quantised to full scale); 32FC1 = ideal mosaic of "
@@ -288,6 +291,12 @@ SIMULATOR = (
 ESTIMATOR = (
     Param("method", "least_squares", "heading method (one node per method)", choices=ALL_METHODS,
           read_only=True),
+    Param("input", "image", "image: a polarization camera on camera/image_raw; array: a photodiode-array "
+                            "compass on compass_array/intensities (std_msgs/Float32MultiArray, units x channels, "
+                            "stamped on arrival; docs/photodiode-arrays.md)", choices=("image", "array"),
+          read_only=True),
+    Param("array_geometry", "", "input array: the sensor description YAML (units, channels_deg, angle_zero, "
+                                "angle_sense, gains)", read_only=True),
     Param("demosaic", "superpixel", "how the 2x2 mosaic becomes AoP/DoP", choices=("superpixel", "bilinear")),
     Param("polarizer_layout", "90,45,135,0", "polarizer angles (deg, from +x_cam towards +y_cam) of the "
                                              "2x2 cell, row-major from the top-left pixel (Sony IMX250MZR: "

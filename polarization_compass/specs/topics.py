@@ -10,7 +10,7 @@ ROS-free: no rclpy import here.
 """
 from __future__ import annotations
 
-__all__ = ["IMAGE", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
+__all__ = ["IMAGE", "ARRAY", "T_FLOAT32_MULTIARRAY", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
            "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
            "evaluator_streams",
            "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
@@ -26,9 +26,11 @@ T_DIAG = "diagnostic_msgs/msg/DiagnosticArray"
 T_STRING = "std_msgs/msg/String"
 T_FLOAT64 = "std_msgs/msg/Float64"
 T_QUAT_STAMPED = "geometry_msgs/msg/QuaternionStamped"
+T_FLOAT32_MULTIARRAY = "std_msgs/msg/Float32MultiArray"
 
 IMAGE = "camera/image_raw"              # the polarization mosaic, as a camera driver publishes it
 CAMERA_INFO = "camera/camera_info"
+ARRAY = "compass_array/intensities"     # photodiode-array readings, units x channels (docs/photodiode-arrays.md)
 IMU = "imu/data"                        # attitude of base_link in ENU (roll/pitch used)
 TRUTH = "ground_truth/heading"          # simulator only: true heading, same Imu form as the estimate
 FIX = "gps/fix"                         # site (latitude/longitude/altitude)
@@ -57,10 +59,13 @@ def method_topics(method: str) -> dict:
     }
 
 
-def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu"):
-    """(publishes, subscribes): lists of (topic, type)."""
+def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu",
+                     array: bool = False):
+    """(publishes, subscribes): lists of (topic, type). ``array``: also a photodiode-array compass."""
     pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
             (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
+    if array:
+        pubs.append((ARRAY, T_FLOAT32_MULTIARRAY))
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
@@ -70,11 +75,11 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
 
 
 def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: bool = False,
-                     prior_source: str = "none"):
+                     prior_source: str = "none", input_kind: str = "image"):
     t = method_topics(method)
     pubs = [(t["heading_raw"], T_IMU), (t["bearing_raw"], T_FLOAT64), (t["status"], T_STRING),
             (DIAGNOSTICS, T_DIAG)]
-    subs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
+    subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] if input_kind == "array" else [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
     if site_source == "navsatfix":
         subs.append((FIX, T_FIX))
     if needs_tilt or prior_source == "imu":

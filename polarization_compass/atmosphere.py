@@ -1,0 +1,414 @@
+"""What lies between the clear sky and the camera: clouds, haze and a skyline (trees, buildings).
+
+A scene declares these under ``atmosphere`` (each key optional; anything not declared is never
+constructed and costs nothing -- each stage that runs is counted in
+:mod:`polarization_compass.instrumentation`)::
+
+    atmosphere:
+      clouds:  {coverage: 0.5, scale_m: 800, height_m: 2000, optical_thickness: 3.0,
+                brightness: 1.5, softness: 0.08, wind_mps: [5.0, 0.0]}
+      haze:    {turbidity: 4.0}
+      skyline: {elevation_deg: [8, 12, 3, 0, ...]}          # equally spaced azimuths from North, clockwise
+               | {max_elevation_deg: 15, features: 24}       # a seeded random skyline
+               (+ ground_radiance: 0.2)
+
+All stages act on the clear-sky arrays (AoP, DoP, valid, relative radiance) the sky and radiance
+models produced, per pixel, in the selection's pixel order. Randomness (the cloud field, a random
+skyline) comes from the scene's ``seed`` only, so a scene renders the same frames every time.
+
+Clouds
+------
+A single cloud layer at ``height_m`` above the camera. A viewing ray with ENU direction (e, n, u),
+u > 0, meets it at the horizontal point ``height_m * (e, n) / u`` (metres); the layer moves with the
+wind, so the point sampled at scene time t (s since the scene's ``time_utc``) is that minus
+``wind_mps * t``. The density there is a seeded value-noise fBm (4 octaves, feature size
+``scale_m``) thresholded so that a fraction ``coverage`` of the layer is cloudy, with a linear ramp of
+width ``softness`` (in noise units) at the cloud edges: density d in [0, 1], optical thickness
+tau = ``optical_thickness`` * d; ``coverage: 1`` is an overcast layer of uniform thickness.
+
+Light through the cloud (single-layer two-stream picture): the clear-sky light of that direction is
+transmitted with T = exp(-tau), polarization unchanged, and the cloud adds its own unpolarized
+radiance ``brightness`` (1 - T) (relative to the clear zenith)::
+
+    I = I_clear T + B (1 - T),    DoP = DoP_clear I_clear T / I,    AoP = AoP_clear.
+
+So thin clouds raise the radiance and lower the DoP but keep the clear-sky AoP, as measured by
+Pomozi, Horvath & Wehner (2001), "How the clear-sky angle of polarization pattern continues
+underneath clouds", J. Exp. Biol. 204:2933-2942; thick clouds (tau >> 1) depolarize (DoP -> 0; the
+residual AoP of overcast skies still follows the clear-sky pattern at DoP of a few per cent, Hegedus,
+Akesson & Horvath (2007), J. Opt. Soc. Am. A 24:2347-2356). Pixels whose DoP falls below the scene's
+``validity.min_dop`` become invalid.
+
+Haze
+----
+Turbidity T (Preetham, Shirley & Smits 1999, "A practical analytic model for daylight", SIGGRAPH:
+T = (t_m + t_h) / t_m, the optical thickness of molecules plus haze over that of molecules alone; T = 2
+very clear, 3 clear, 6+ hazy). Haze aerosols scatter nearly unpolarized light, so in single
+scattering the polarized share of the sky light is the molecular share 1/T; relative to the clearest
+sky of the model (T = 2) the DoP is scaled by ``2 / T`` (this project's derivation from that
+definition: with the sky model's ``dop_max`` = 0.75 of clean air, T = 3-5 gives DoP_max 0.5-0.3, the
+measured range in haze, physics notes 4). The radiance, when the scene declares no ``radiance`` model,
+is Preetham's luminance distribution (:class:`polarization_compass.radiance.PreethamSky`, written
+from the paper: no maintained PyPI package provides it). Valid for 2 <= T <= 10 (the range of the
+paper's fit).
+
+Skyline
+-------
+Obstacles at the horizon: the elevation of the skyline as a function of azimuth (linear,
+periodic interpolation between equally spaced azimuths from North, clockwise), either declared or a
+seeded random one (``features`` random heights in [0, ``max_elevation_deg``]). Pixels looking below
+it see the obstacle or the ground: invalid, DoP 0, radiance ``ground_radiance`` (a diffuse,
+unpolarized reflector, relative to the clear zenith).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .errors import CompassError
+
+__all__ = ["AtmosphereError", "Atmosphere", "CloudLayer", "Haze", "Skyline", "cloud_density_at",
+           "haze_dop_factor"]
+
+
+class AtmosphereError(CompassError):
+    """A scene's ``atmosphere`` mapping that cannot be used; the message names the key."""
+
+
+def _num(d: dict, key: str, default, lo, hi, where: str) -> float:
+    v = d.get(key, default)
+    if isinstance(v, bool):
+        raise AtmosphereError(f"atmosphere.{where}.{key} must be a number, got {v!r}")
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise AtmosphereError(f"atmosphere.{where}.{key} must be a number, got {v!r}") from None
+    if not math.isfinite(f) or not (lo <= f <= hi):
+        raise AtmosphereError(f"atmosphere.{where}.{key} must be finite and in [{lo}, {hi}], got {v!r}")
+    return f
+
+
+def _keys(d, allowed, where):
+    if not isinstance(d, dict):
+        raise AtmosphereError(f"atmosphere.{where} must be a mapping, got {type(d).__name__}")
+    unknown = set(d) - set(allowed)
+    if unknown:
+        raise AtmosphereError(f"unknown key(s) {sorted(unknown)} in atmosphere.{where}; allowed: {sorted(allowed)}")
+
+
+# ---------------------------------------------------------------------------------------------- noise
+_OCTAVES = 4
+
+
+@njit(inline="always", cache=True)
+def _hash01(ix, iy, seed):  # pragma: no cover - compiled
+    """A lattice hash of (ix, iy, seed) to [0, 1) (integer mixing, wraps mod 2^32)."""
+    h = (ix * 374761393 + iy * 668265263 + seed * 1442695041) & 0xFFFFFFFF
+    h = ((h ^ (h >> 13)) * 1274126177) & 0xFFFFFFFF
+    h = h ^ (h >> 16)
+    return (h & 0xFFFFFF) / 16777216.0
+
+
+@njit(inline="always", cache=True)
+def _value_noise(x, y, seed):  # pragma: no cover - compiled
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    ix = np.int64(x0)
+    iy = np.int64(y0)
+    sx = fx * fx * (3.0 - 2.0 * fx)
+    sy = fy * fy * (3.0 - 2.0 * fy)
+    a = _hash01(ix, iy, seed)
+    b = _hash01(ix + 1, iy, seed)
+    c = _hash01(ix, iy + 1, seed)
+    d = _hash01(ix + 1, iy + 1, seed)
+    return (a + (b - a) * sx) + ((c + (d - c) * sx) - (a + (b - a) * sx)) * sy
+
+
+@njit(inline="always", cache=True)
+def _fbm(x, y, seed):  # pragma: no cover - compiled
+    s = 0.0
+    amp = 0.5
+    norm = 0.0
+    for o in range(_OCTAVES):
+        s += amp * _value_noise(x, y, seed + 7919 * o)
+        norm += amp
+        x = 2.0 * x + 17.3
+        y = 2.0 * y - 5.1
+        amp *= 0.5
+    return s / norm
+
+
+@njit(parallel=True, cache=True)
+def _noise_at(x, y, seed, out):  # pragma: no cover - compiled
+    for i in prange(x.size):
+        out[i] = _fbm(x[i], y[i], seed)
+
+
+@njit(parallel=True, cache=True)
+def _cloud_kernel(rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max,
+                  bright, aop, dop, inten, min_dop, valid):  # pragma: no cover - compiled
+    n = rays.shape[1]
+    for i in prange(n):
+        px = rays[0, i]
+        py = rays[1, i]
+        pz = rays[2, i]
+        e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
+        nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
+        u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
+        if u <= 0.0:
+            continue                      # below the horizon: no cloud layer there
+        k = height_over_scale / max(u, 0.02)
+        if overcast:
+            d = 1.0
+        else:
+            v = _fbm(e * k - off_x, nn * k - off_y, seed)
+            d = min(max((v - thr) * inv_soft, 0.0), 1.0)
+        if d <= 0.0:
+            continue
+        t = math.exp(-tau_max * d)
+        i_clear = inten[i]
+        i_tot = i_clear * t + bright * (1.0 - t)
+        dop[i] = np.float32(dop[i] * i_clear * t / i_tot)
+        inten[i] = np.float32(i_tot)
+        if dop[i] < min_dop and valid[i]:
+            valid[i] = False
+            aop[i] = np.float32(0.0)
+            dop[i] = np.float32(0.0)
+
+
+class CloudLayer:
+    """A procedural cloud layer (see the module docstring for the model and its references).
+
+    ``coverage`` [0, 1] fraction of the layer that is cloudy; ``scale_m`` feature size (m);
+    ``height_m`` cloud base above the camera (m); ``optical_thickness`` tau of a full-density cloud;
+    ``brightness`` radiance of an optically thick cloud relative to the clear zenith; ``softness``
+    width of the cloud edge ramp (noise units, > 0); ``wind_mps`` (east, north) layer velocity (m/s);
+    ``seed`` the cloud field's seed (from the scene's)."""
+
+    def __init__(self, coverage=0.5, scale_m=800.0, height_m=2000.0, optical_thickness=3.0, brightness=1.5,
+                 softness=0.08, wind_mps=(0.0, 0.0), seed=0):
+        d = dict(coverage=coverage, scale_m=scale_m, height_m=height_m, optical_thickness=optical_thickness,
+                 brightness=brightness, softness=softness)
+        self.coverage = _num(d, "coverage", 0.5, 0.0, 1.0, "clouds")
+        self.scale_m = _num(d, "scale_m", 800.0, 1.0, 1e6, "clouds")
+        self.height_m = _num(d, "height_m", 2000.0, 1.0, 2e4, "clouds")
+        self.optical_thickness = _num(d, "optical_thickness", 3.0, 0.0, 200.0, "clouds")
+        self.brightness = _num(d, "brightness", 1.5, 1e-3, 1e3, "clouds")
+        self.softness = _num(d, "softness", 0.08, 1e-4, 1.0, "clouds")
+        try:
+            w = [float(v) for v in wind_mps]
+        except (TypeError, ValueError):
+            raise AtmosphereError(f"atmosphere.clouds.wind_mps must be [east, north] in m/s, got {wind_mps!r}") from None
+        if len(w) != 2 or not all(math.isfinite(v) and abs(v) <= 200 for v in w):
+            raise AtmosphereError(f"atmosphere.clouds.wind_mps must be [east, north], |v| <= 200 m/s, got {wind_mps!r}")
+        self.wind_mps = (w[0], w[1])
+        self.seed = int(seed) & 0x7FFFFFFF
+        self.overcast = self.coverage >= 1.0
+        self.threshold = self._threshold()
+
+    def _threshold(self) -> float:
+        """The noise level above which a fraction ``coverage`` of the layer is cloudy: the (1 - coverage)
+        quantile of the field sampled at 40 000 seeded points over 200 x 200 features."""
+        if self.overcast:
+            return -1.0
+        if self.coverage <= 0.0:
+            return 2.0
+        rng = np.random.default_rng([self.seed, 0xC10D])
+        x = rng.uniform(-100.0, 100.0, 40000)
+        y = rng.uniform(-100.0, 100.0, 40000)
+        v = np.empty_like(x)
+        _noise_at(x, y, self.seed, v)
+        return float(np.quantile(v, 1.0 - self.coverage))
+
+    def params(self) -> dict:
+        return {"coverage": self.coverage, "scale_m": self.scale_m, "height_m": self.height_m,
+                "optical_thickness": self.optical_thickness, "brightness": self.brightness,
+                "softness": self.softness, "wind_mps": list(self.wind_mps)}
+
+    def density_at(self, east_m, north_m, dt_s: float = 0.0) -> np.ndarray:
+        """Cloud density d in [0, 1] at horizontal points of the layer (metres east/north of the camera)
+        at ``dt_s`` seconds after the scene's time."""
+        e = np.asarray(east_m, dtype=float).ravel()
+        n = np.asarray(north_m, dtype=float).ravel()
+        if self.overcast:
+            return np.ones_like(e)
+        x = (e - self.wind_mps[0] * dt_s) / self.scale_m
+        y = (n - self.wind_mps[1] * dt_s) / self.scale_m
+        v = np.empty_like(x)
+        _noise_at(x, y, self.seed, v)
+        return np.clip((v - self.threshold) / self.softness, 0.0, 1.0)
+
+    def apply(self, R_enu_cam, rays_cam, aop, dop, intensity, valid, min_dop: float, dt_s: float) -> None:
+        """Clouds over the flat clear-sky arrays, in place (float32 aop, dop, intensity; bool valid)."""
+        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        off_x = self.wind_mps[0] * dt_s / self.scale_m
+        off_y = self.wind_mps[1] * dt_s / self.scale_m
+        _cloud_kernel(rays_cam, R, self.height_m / self.scale_m, off_x, off_y, self.seed, self.threshold,
+                      1.0 / self.softness, self.overcast, self.optical_thickness, self.brightness,
+                      aop, dop, intensity, float(min_dop), valid)
+
+
+def cloud_density_at(layer: CloudLayer, east_m, north_m, dt_s=0.0):
+    """Module-level alias of :meth:`CloudLayer.density_at` (for tests and figures)."""
+    return layer.density_at(east_m, north_m, dt_s)
+
+
+# ---------------------------------------------------------------------------------------------- haze
+def haze_dop_factor(turbidity: float) -> float:
+    """The factor on the DoP for Preetham turbidity T relative to the clearest sky (T = 2): ``2 / T``, the
+    molecular share of the scattering optical thickness (Preetham et al. 1999's definition of T; aerosol
+    scattering taken as unpolarized). Returns a float in (0, 1]."""
+    return 2.0 / float(turbidity)
+
+
+class Haze:
+    """Haze by turbidity (module docstring): DoP scaled by :func:`haze_dop_factor`; the Preetham radiance
+    when the scene declares no radiance model."""
+
+    def __init__(self, turbidity=3.0):
+        self.turbidity = _num({"turbidity": turbidity}, "turbidity", 3.0, 2.0, 10.0, "haze")
+        self.factor = haze_dop_factor(self.turbidity)
+        self._radiance = None
+
+    @property
+    def radiance_model(self):
+        if self._radiance is None:
+            from .radiance import PreethamSky
+            self._radiance = PreethamSky(self.turbidity)
+        return self._radiance
+
+    def params(self) -> dict:
+        return {"turbidity": self.turbidity, "dop_factor": self.factor}
+
+    def apply(self, dop, valid, aop, min_dop: float) -> None:
+        dop *= np.float32(self.factor)
+        if min_dop > 0.0:
+            low = valid & (dop < min_dop)
+            valid[low] = False
+            aop[low] = 0.0
+            dop[low] = 0.0
+
+
+# ---------------------------------------------------------------------------------------------- skyline
+@njit(parallel=True, cache=True)
+def _skyline_kernel(rays, R, tan_elev, ground, aop, dop, inten, valid):  # pragma: no cover - compiled
+    n = rays.shape[1]
+    m = tan_elev.size
+    for i in prange(n):
+        px = rays[0, i]
+        py = rays[1, i]
+        pz = rays[2, i]
+        e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
+        nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
+        u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
+        az = math.atan2(e, nn)                   # clockwise from North
+        if az < 0.0:
+            az += 2.0 * math.pi
+        pos = az / (2.0 * math.pi) * m
+        j = min(int(math.floor(pos)), m - 1)
+        f = pos - j
+        t = tan_elev[j] * (1.0 - f) + tan_elev[(j + 1) % m] * f
+        h = math.sqrt(e * e + nn * nn)
+        if u < t * h:                            # below the skyline (or the horizon)
+            valid[i] = False
+            aop[i] = np.float32(0.0)
+            dop[i] = np.float32(0.0)
+            inten[i] = np.float32(ground)
+
+
+class Skyline:
+    """Obstacles at the horizon: skyline elevation (deg) at ``len(elevation_deg)`` equally spaced azimuths
+    from North clockwise, linearly interpolated in tan(elevation) (periodic); or a seeded random one."""
+
+    def __init__(self, elevation_deg=None, max_elevation_deg=None, features=24, ground_radiance=0.2, seed=0):
+        if elevation_deg is not None and max_elevation_deg is not None:
+            raise AtmosphereError("atmosphere.skyline: give elevation_deg or max_elevation_deg, not both")
+        if elevation_deg is None and max_elevation_deg is None:
+            raise AtmosphereError("atmosphere.skyline needs elevation_deg (a number or a list) or max_elevation_deg")
+        if elevation_deg is not None:
+            vals = elevation_deg if isinstance(elevation_deg, (list, tuple)) else [elevation_deg]
+            if not 1 <= len(vals) <= 3600:
+                raise AtmosphereError("atmosphere.skyline.elevation_deg needs 1-3600 values")
+            elev = np.array([_num({"e": v}, "e", 0, 0.0, 80.0, "skyline.elevation_deg") for v in vals])
+            self.random = None
+        else:
+            mx = _num({"m": max_elevation_deg}, "m", 0, 0.0, 80.0, "skyline.max_elevation_deg")
+            k = int(_num({"f": features}, "f", 24, 2, 3600, "skyline.features"))
+            elev = np.random.default_rng([int(seed), 0x5C7]).uniform(0.0, mx, k)
+            self.random = {"max_elevation_deg": mx, "features": k}
+        self.elevation_deg = elev
+        self.tan_elev = np.tan(np.radians(elev))
+        self.ground_radiance = _num({"g": ground_radiance}, "g", 0.2, 0.0, 1e3, "skyline.ground_radiance")
+
+    def elevation_at(self, azimuth_deg) -> np.ndarray:
+        """Skyline elevation (deg) at azimuths (deg, clockwise from North), as the kernel interpolates it."""
+        a = np.mod(np.asarray(azimuth_deg, dtype=float), 360.0)
+        m = self.tan_elev.size
+        pos = a / 360.0 * m
+        j = np.minimum(np.floor(pos).astype(int), m - 1)
+        f = pos - j
+        t = self.tan_elev[j] * (1 - f) + self.tan_elev[(j + 1) % m] * f
+        return np.degrees(np.arctan(t))
+
+    def params(self) -> dict:
+        p = {"ground_radiance": self.ground_radiance}
+        if self.random:
+            p.update(self.random)
+        else:
+            p["elevation_deg"] = [float(v) for v in self.elevation_deg]
+        return p
+
+    def apply(self, R_enu_cam, rays_cam, aop, dop, intensity, valid) -> None:
+        _skyline_kernel(rays_cam, np.ascontiguousarray(R_enu_cam, dtype=np.float64), self.tan_elev,
+                        self.ground_radiance, aop, dop, intensity, valid)
+
+
+# ---------------------------------------------------------------------------------------------- all
+class Atmosphere:
+    """The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline."""
+
+    def __init__(self, cfg: dict, seed: int = 0):
+        _keys(cfg, {"clouds", "haze", "skyline"}, "")
+        self.clouds = self.haze = self.skyline = None
+        if cfg.get("haze") is not None:
+            h = cfg["haze"]
+            _keys(h, {"turbidity"}, "haze")
+            self.haze = Haze(**h)
+        if cfg.get("clouds") is not None:
+            c = cfg["clouds"]
+            _keys(c, {"coverage", "scale_m", "height_m", "optical_thickness", "brightness", "softness", "wind_mps"},
+                  "clouds")
+            self.clouds = CloudLayer(**c, seed=(int(seed) * 2654435761 + 1) & 0x7FFFFFFF)
+        if cfg.get("skyline") is not None:
+            s = cfg["skyline"]
+            _keys(s, {"elevation_deg", "max_elevation_deg", "features", "ground_radiance"}, "skyline")
+            self.skyline = Skyline(**s, seed=seed)
+
+    @property
+    def stages(self) -> list[str]:
+        return [n for n in ("haze", "clouds", "skyline") if getattr(self, n) is not None]
+
+    def params(self) -> dict:
+        return {n: getattr(self, n).params() for n in self.stages}
+
+    def needs_radiance(self) -> bool:
+        return bool(self.stages)
+
+    def apply(self, R_enu_cam, rays_cam, aop, dop, valid, intensity, min_dop: float, dt_s: float, instr):
+        """Apply the declared stages to flat clear-sky arrays. ``intensity`` (float32, writable) must be given
+        (the radiance model's or uniform 1). Returns (aop, dop, valid, intensity)."""
+        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        if self.haze is not None:
+            with instr.stage("atmosphere.haze"):
+                self.haze.apply(dop, valid, aop, min_dop)
+        if self.clouds is not None:
+            with instr.stage("atmosphere.clouds"):
+                self.clouds.apply(R_enu_cam, rays, aop, dop, intensity, valid, min_dop, dt_s)
+        if self.skyline is not None:
+            with instr.stage("atmosphere.skyline"):
+                self.skyline.apply(R_enu_cam, rays, aop, dop, intensity, valid)
+        return aop, dop, valid, intensity

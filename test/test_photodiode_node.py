@@ -1,0 +1,163 @@
+"""heading_estimator with input array: a photodiode-array compass on compass_array/intensities
+(std_msgs/Float32MultiArray), callbacks called in-process on a private rclpy context (see
+test_hard_cases_nodes.py for why that is the right test of 'never crashes')."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+
+from polarization_compass.errors import CompassError
+from polarization_compass.nodes import msgs as M
+from polarization_compass.photodiode.geometry import load_array_geometry
+from polarization_compass.photodiode.simulate import simulate_readings
+
+GEOMETRY = str(Path(__file__).resolve().parents[1] / "config" / "arrays" / "pol_op_8unit.yaml")
+TIME = "2019-11-15T04:00:00Z"         # Nanjing (the default site), sun about 40 deg up
+
+
+def _sun():
+    from polarization_compass.solar import sun_position
+    p = sun_position(TIME, 32.026778, 118.853306, 30.0)
+    return p.azimuth_deg, p.altitude_deg
+
+
+def array_msg(sample, dims=True, offset=0):
+    m = Float32MultiArray()
+    a = np.asarray(sample, dtype=np.float32)
+    if dims:
+        m.layout.dim = [MultiArrayDimension(label="units", size=a.shape[0], stride=a.size),
+                        MultiArrayDimension(label="channels", size=a.shape[1], stride=a.shape[1])]
+    m.layout.data_offset = offset
+    m.data = [0.0] * offset + [float(v) for v in a.ravel()]
+    return m
+
+
+@pytest.fixture(scope="module", params=["least_squares", "tilt_aware"])
+def node(ctx, request):
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    n = HeadingEstimatorNode(context=ctx, parameter_overrides=[
+        Parameter("method", value=request.param), Parameter("input", value="array"),
+        Parameter("array_geometry", value=GEOMETRY), Parameter("time_source", value="parameter"),
+        Parameter("time_utc", value=TIME), Parameter("prior_source", value="none"),
+        Parameter("imu_tolerance_s", value=5.0)])
+    n.statuses, n.headings = [], []
+    n._publish_status = n.statuses.append
+    n.pub_heading = type("P", (), {"publish": lambda self, m: n.headings.append(m)})()
+    yield n
+    n.destroy_node()
+
+
+def _feed_imu(n):
+    from polarization_compass.conventions import CameraAttitude, body_quat_from_camera_attitude
+    from test_hard_cases_nodes import imu_msg
+    now = n.get_clock().now().nanoseconds
+    q = body_quat_from_camera_attitude(CameraAttitude(0.0, 0.0, 0.0))
+    n._on_imu(imu_msg(now - 1_000_000_000, q))      # level, around the arrival stamp of the next sample
+    n._on_imu(imu_msg(now + 2_000_000_000, q))
+
+
+@pytest.mark.parametrize("bearing", [30.0, 200.0])
+def test_array_sample_gives_the_heading_imu(node, bearing):
+    g = load_array_geometry(GEOMETRY)
+    az, alt = _sun()
+    x = simulate_readings(g, az, alt, [bearing])[0]
+    if node.needs_tilt:
+        _feed_imu(node)
+    n_before = len(node.headings)
+    node._on_array(array_msg(x))
+    st = node.statuses[-1]
+    assert st["status"] == "ok" and st["published"], st
+    assert abs(math.remainder(st["bearing_deg"] - bearing, 360.0)) < 0.5     # the acceptance cone: < 0.5 deg
+    assert len(node.headings) == n_before + 1
+    yaw = M.yaw_enu_from_quat([getattr(node.headings[-1].orientation, k) for k in "xyzw"])
+    assert abs(math.remainder(math.degrees(yaw) - (90.0 - bearing), 360.0)) < 0.5
+    assert st["pixels"] in (5, 6)        # units 5 and 7 are disabled; one may look (nearly) at the sun
+
+
+def test_layout_without_dims_and_with_offset(node):
+    g = load_array_geometry(GEOMETRY)
+    az, alt = _sun()
+    x = simulate_readings(g, az, alt, [75.0])[0]
+    if node.needs_tilt:
+        _feed_imu(node)
+    node._on_array(array_msg(x, dims=False, offset=3))
+    assert node.statuses[-1]["status"] == "ok"
+
+
+@pytest.mark.parametrize("make", [
+    lambda: array_msg(np.ones((8, 3))),                  # wrong channel count
+    lambda: array_msg(np.ones((7, 4))),                  # wrong unit count
+    lambda: array_msg(np.full((8, 4), np.nan)),          # not finite
+    lambda: _short(),                                    # no layout, 31 values for 8 x 4
+])
+def test_bad_array_messages_are_counted_not_raised(node, make):
+    before = dict(node.diag.rejected).get("array_layout", 0)
+    n_status = len(node.statuses)
+    node._on_array(make())
+    assert dict(node.diag.rejected).get("array_layout", 0) == before + 1
+    assert len(node.statuses) == n_status
+
+
+def _short():
+    m = Float32MultiArray()
+    m.data = [1.0] * 31
+    return m
+
+
+def test_dark_sample_is_a_status(node):
+    if node.needs_tilt:
+        _feed_imu(node)
+    node._on_array(array_msg(np.zeros((8, 4))))
+    st = node.statuses[-1]
+    assert st["ok"] is False and st["status"] == "too_few_units" and not st["published"]
+
+
+def test_array_input_needs_a_geometry(ctx):
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    with pytest.raises(CompassError, match="array_geometry"):
+        HeadingEstimatorNode(context=ctx, parameter_overrides=[Parameter("input", value="array")])
+    with pytest.raises(CompassError, match="needs an image"):
+        HeadingEstimatorNode(context=ctx, parameter_overrides=[
+            Parameter("method", value="zenith"), Parameter("input", value="array"),
+            Parameter("array_geometry", value=GEOMETRY)])
+
+
+def test_sim_graph_with_an_array():
+    from polarization_compass import graphs
+    from polarization_compass.specs import topics
+    g = graphs.build("sim", {"methods": "least_squares", "array_geometry": GEOMETRY})
+    assert not g.check()
+    sim = g.node("sky_simulator")
+    assert sim.parameters["array_geometry"] == GEOMETRY
+    assert ("/" + topics.ARRAY, topics.T_FLOAT32_MULTIARRAY) in sim.resolved_publishes()
+    arr = [n for n in g.nodes if n.namespace == "array"]
+    assert sorted(n.parameters["method"] for n in arr) == ["least_squares", "tilt_aware"]
+    for n in arr:
+        assert n.parameters["input"] == "array"
+        subs = dict(n.resolved_subscribes())
+        assert "/" + topics.ARRAY in subs and "/imu/data" in subs and "/camera/image_raw" not in subs
+        assert dict(n.resolved_publishes())["/array/compass/%s/heading_raw" % n.parameters["method"]]
+    assert any(e.startswith("compass_array/intensities=heading_estimator_array_least_squares")
+               for e in sim.parameters["wait_for_downstream"])
+    plain = graphs.build("sim", {"methods": "least_squares"})
+    assert not any(n.namespace == "array" for n in plain.nodes)
+    assert ("/" + topics.ARRAY, topics.T_FLOAT32_MULTIARRAY) not in plain.node("sky_simulator").resolved_publishes()
+
+
+def test_simulator_publishes_the_array(ctx):
+    """sky_simulator with array_geometry: one Float32MultiArray per frame that the estimator decodes back."""
+    from polarization_compass.nodes.sky_simulator import SkySimulatorNode
+    from polarization_compass.photodiode.readings import array_sample_from_flat
+    sim = SkySimulatorNode(context=ctx, parameter_overrides=[Parameter("array_geometry", value=GEOMETRY),
+                                                             Parameter("clock_mode", value="system")])
+    try:
+        img, _, _, _ = sim._render_frame(sim.start_ns, 1, np.eye(3))
+        msg = img[1]
+        assert isinstance(msg, Float32MultiArray) and [d.size for d in msg.layout.dim] == [8, 4]
+        x = array_sample_from_flat(msg.data, [8, 4], 0, load_array_geometry(GEOMETRY))
+        assert np.all(x > 0)
+    finally:
+        sim.destroy_node()
