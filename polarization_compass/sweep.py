@@ -16,7 +16,6 @@ import os
 import shutil
 import sys
 import time
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -295,7 +294,9 @@ _WORKER_INIT_ERROR: BaseException | None = None
 def _worker_init(spec: SweepSpec):
     # A Pool whose initializer raises respawns workers forever: keep the exception, raise it per task.
     global _WORKER, _WORKER_INIT_ERROR
-    try:
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's: it terminates the pool (no
+    try:                                             # traceback per worker, twice on a second Ctrl-C)
         import numba
         numba.set_num_threads(1)
         _WORKER = _Evaluator(spec)
@@ -323,23 +324,52 @@ def _chunk_path(d: Path, ia: int, ip: int) -> Path:
     return d / f"chunk_{ia:04d}_{ip:04d}.npz"
 
 
-def _save_chunk(d: Path, ia, ip, err, status):
+def _chunk_checksum(digest: str, ia: int, ip: int, err: np.ndarray, status: np.ndarray) -> str:
+    """SHA-256 of a checkpoint's content and the sweep it belongs to (the spec digest and its place)."""
+    h = hashlib.sha256(f"{digest}:{int(ia)}:{int(ip)}:".encode())
+    for a, dt in ((err, "<f8"), (status, "|i1")):
+        a = np.ascontiguousarray(a, dtype=dt)
+        h.update(f"{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _save_chunk(d: Path, ia, ip, err, status, digest: str = ""):
     p = _chunk_path(d, ia, ip)
     tmp = p.with_name(p.name + ".tmp.npz")
-    np.savez(tmp, error_deg=err, status=status)
+    np.savez(tmp, error_deg=err, status=status, checksum=np.array(_chunk_checksum(digest, ia, ip, err, status)))
     os.replace(tmp, p)
 
 
-def _load_chunk(d: Path, ia, ip, shape):
+_CHUNK_STATUS_CODES = frozenset(STATUS_CODES.values()) | {STATUS_NOT_COMPUTED, STATUS_ESTIMATOR_ERROR, STATUS_OTHER}
+
+
+def _load_chunk(d: Path, ia, ip, shape, digest: str = ""):
+    """(error_deg, status) of a checkpoint, or (None, reason) when it cannot be trusted: torn by a kill,
+    another shape, non-finite errors, unknown status codes, or a checksum (of the content and the sweep
+    spec) that does not match -- then it is recomputed, never used."""
+    from .safe_load import open_npz
     p = _chunk_path(d, ia, ip)
+
+    def check(h):
+        for k in ("error_deg", "status", "checksum"):
+            if k not in h:
+                raise ErrorMapError(f"no {k}" + (" (a checkpoint of an older version)" if k == "checksum" else ""))
+        if h["error_deg"].shape != shape or h["status"].shape != shape:
+            raise ErrorMapError(f"shape {h['error_deg'].shape}, the sweep needs {shape}")
     try:
-        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            err, status = z["error_deg"], z["status"]
-        if err.shape != shape or status.shape != shape or not np.all(np.isfinite(err)):
-            return None
-        return err, status
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
-        return None                  # a chunk torn by a kill: recompute it
+        with open_npz(p, ErrorMapError, "checkpoint", check=check) as z:
+            err, status, stored = z["error_deg"], z["status"], str(z["checksum"][()])
+    except ErrorMapError as exc:
+        return None, str(exc)
+    if err.dtype.kind != "f" or status.dtype.kind not in "iu" or not np.all(np.isfinite(err)):
+        return None, "non-finite or non-numeric values"
+    bad = set(np.unique(status).tolist()) - _CHUNK_STATUS_CODES
+    if bad:
+        return None, f"unknown status codes {sorted(bad)[:5]}"
+    if stored != _chunk_checksum(digest, ia, ip, err, status):
+        return None, "checksum mismatch (content changed after it was written, or another sweep's)"
+    return (err, status), ""
 
 
 def _open_partial(d: Path, spec: SweepSpec) -> None:
@@ -353,8 +383,8 @@ def _open_partial(d: Path, spec: SweepSpec) -> None:
         if old != digest and not any(d.glob("chunk_*.npz")):
             shutil.rmtree(d)                   # nothing finished there: start afresh
         elif old != digest:
-            raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene); "
-                                f"delete it or choose another --out")
+            raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene) or a "
+                                f"damaged sweep.json; rerun with --restart, delete it, or choose another --out")
         if d.exists():
             return
     d.mkdir(parents=True)
@@ -383,13 +413,21 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
     todo = []
     mask = spec.tilt_mask()
+    digest = spec.digest()
+    damaged = []
     for ia, ip in spec.chunks():
-        got = _load_chunk(part, ia, ip, (M, Y, R)) if part is not None and _chunk_path(part, ia, ip).exists() \
-            else None
+        got = None
+        if part is not None and _chunk_path(part, ia, ip).exists():
+            got, why = _load_chunk(part, ia, ip, (M, Y, R), digest)
+            if got is None:
+                damaged.append(f"{_chunk_path(part, ia, ip).name} ({why})")
         if got is None:
             todo.append((ia, ip))
         else:
             err[:, ia, :, ip, :], status[:, ia, :, ip, :] = got
+    if damaged:
+        print(f"errormap: {len(damaged)} damaged checkpoint(s) recomputed, not used: " + "; ".join(damaged[:5])
+              + (" ..." if len(damaged) > 5 else ""), file=sys.stderr)
     per_chunk = np.array([M * Y * int(mask[ip].sum()) for _, ip in todo])
     total = int(per_chunk.sum())
     n_workers = max(1, int(workers if workers else (os.cpu_count() or 1)))
@@ -410,7 +448,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
         err[:, ia, :, ip, :] = e
         status[:, ia, :, ip, :] = s
         if part is not None:
-            _save_chunk(part, ia, ip, e, s)
+            _save_chunk(part, ia, ip, e, s, digest)
         errors.extend(errs)
         done += 1
         if bar is not None:
@@ -469,12 +507,24 @@ def _run_pool(spec, todo, n_workers, accept):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+    import signal
     try:
         for ia, ip, e, s, errs in pool.imap_unordered(_worker_chunk, todo, chunksize=1):
             accept(ia, ip, e, s, errs)
         pool.close()
     except BaseException:
-        pool.terminate()
+        # a second Ctrl-C while the workers are stopped must not interrupt the stopping (tracebacks)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
+        try:
+            pool.terminate()
+            pool.join()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         raise
-    finally:
-        pool.join()
+    pool.join()
+
+
+def _main_thread() -> bool:
+    import threading
+    return threading.current_thread() is threading.main_thread()

@@ -532,3 +532,74 @@ def test_noisy_scene_sweeps_are_reproducible_and_resumable(tmp_path):
     H, Y, P, R = np.meshgrid(whole.sun_altitude_deg, whole.yaw_deg, whole.pitch_deg, whole.roll_deg, indexing="ij")
     d = np.abs(cv.fold_axial_deg(whole.error_deg[0] - level_assumption_error_deg(Y, H, P, R)))
     assert 0 < d.max() < 5.0
+
+
+def test_damaged_checkpoints_are_named_and_recomputed_never_used(tmp_path, capsys):
+    """Issue 18: a checkpoint with an unknown status code made every rerun fail (no hint to --restart), one
+    with plausible wrong values was used silently. Checkpoints now carry a SHA-256 of their content and the
+    sweep spec: a damaged one is named on stderr and recomputed; the map equals an uninterrupted run."""
+    spec = SweepSpec(["least_squares"], [10.0, 40.0], np.arange(-180.0, 180, 90), [-10.0, 0.0, 10.0], [0.0])
+    whole = run_sweep(spec, workers=1, progress=False)
+    out = tmp_path / "m.npz"
+    assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=4) is None
+    part = tmp_path / "m.npz.partial"
+    files = sorted(part.glob("chunk_*.npz"))
+    assert len(files) == 4
+    with np.load(files[0]) as z:                         # plausible wrong values, the old checksum kept
+        np.savez(files[0], error_deg=z["error_deg"] + 12.7, status=z["status"], checksum=z["checksum"])
+    with np.load(files[1]) as z:                         # an unknown status code
+        st = z["status"].copy()
+        st.flat[0] = 99
+        np.savez(files[1], error_deg=z["error_deg"], status=st, checksum=z["checksum"])
+    with np.load(files[2]) as z:                         # no checksum (an older version's checkpoint)
+        np.savez(files[2], error_deg=z["error_deg"], status=z["status"])
+    capsys.readouterr()
+    resumed = run_sweep(spec, out=out, workers=1, progress=False)
+    err = capsys.readouterr().err
+    assert "3 damaged checkpoint(s) recomputed" in err
+    for f, why in zip(files[:3], ("checksum mismatch", "unknown status codes [99]", "no checksum")):
+        assert f"{f.name} ({why}" in err, (f.name, err)
+    np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
+    np.testing.assert_array_equal(resumed.status, whole.status)
+
+
+def test_a_checkpoint_of_another_sweep_fails_its_checksum():
+    """The checksum covers the sweep spec digest and the chunk's place, not only the bytes."""
+    e, s = np.zeros((1, 4, 1)), np.zeros((1, 4, 1), np.int8)
+    a = sweep._chunk_checksum("spec-a", 0, 1, e, s)
+    assert a == sweep._chunk_checksum("spec-a", 0, 1, e.copy(), s.copy())
+    assert a != sweep._chunk_checksum("spec-b", 0, 1, e, s) != sweep._chunk_checksum("spec-a", 1, 0, e, s)
+    e2 = e.copy()
+    e2[0, 0, 0] = 1e-12
+    assert a != sweep._chunk_checksum("spec-a", 0, 1, e2, s)
+
+
+def test_a_second_sigint_ends_a_sweep_quietly(tmp_path):
+    """Issue 18: two Ctrl-C printed four worker tracebacks. Workers ignore SIGINT (the parent stops them), and
+    the parent ignores a second one while stopping: exit 130 (or killed by that SIGINT once the cleanup is
+    done), the "interrupted" lines, no traceback."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    env = dict(os.environ)
+    env.pop("POLARIZATION_COMPASS_DEBUG", None)
+    p = subprocess.Popen([sys.executable, "-m", "polarization_compass.cli", "errormap", "--methods", "least_squares",
+                          "--sun-altitude", "0:60:10", "--yaw", "-180:170:10", "--pitch", "-30:30:5", "--roll", "-30:30:5",
+                          "--workers", "2", "--no-progress", "--out", str(tmp_path / "m.npz")],
+                         stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not any((tmp_path / "m.npz.partial").glob("chunk_*.npz")):
+            time.sleep(0.2)
+        p.send_signal(signal.SIGINT)
+        time.sleep(0.05)
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert "Traceback" not in err, err
+    assert p.returncode in (130, -signal.SIGINT), (p.returncode, err)   # (the 2nd may end Python's exit)
+    assert err.strip().splitlines()[-1].endswith("interrupted"), err
