@@ -574,6 +574,9 @@ class BagReader:
         self.recovered: str | None = None       # how a damaged bag was opened (one line), or None
         self._read_counts: Counter = Counter()  # messages yielded per topic
         storage = sorted(x for x in p.iterdir() if x.suffix in (".mcap", ".db3") and x.is_file())
+        if (p / "metadata.yaml").exists() or (p / "metadata.yaml").is_symlink():
+            from .safe_load import regular_file        # not a FIFO or /dev/zero (rosbags would read it forever)
+            regular_file(p / "metadata.yaml", BagError, "bag metadata", max_bytes=16 << 20)
         if not (p / "metadata.yaml").is_file():
             if len(storage) != 1:
                 raise BagError(f"{str(p)!r} is not a rosbag2 directory: it has no metadata.yaml")

@@ -296,3 +296,14 @@ def test_image_loss_watch_counts_camera_info_without_its_image():
                 w.image(t)
     assert lost == 3 == w.lost
     assert w.camera_info(39 * 100 * ms) == 0        # a repeated camera_info of a seen image: nothing
+
+
+def test_bag_metadata_that_is_a_device_or_fifo_is_refused(tmp_path):
+    """rosbags would read a metadata.yaml that is /dev/zero without end: refused from a stat."""
+    from polarization_compass.bag import BagError, BagReader
+    for name, make in (("zero", lambda p: os.symlink("/dev/zero", p)), ("fifo", os.mkfifo)):
+        d = tmp_path / name
+        d.mkdir()
+        make(d / "metadata.yaml")
+        with pytest.raises(BagError, match="device|FIFO"):
+            BagReader(d)
