@@ -1,0 +1,272 @@
+"""Docstrings of public functions say parameters, returns and what they raise (issue 13).
+
+The style is numpydoc as pvlib writes it: a one-line summary ending with a period, a blank line,
+then ``Parameters``, ``Returns``, ``Raises`` and ``References`` sections. For every module in
+:data:`COMPLETED` (only modules that pass are listed), each public function and each public method
+of a public class must have
+
+- a docstring whose first line is a summary ending with a period and is followed by a blank line
+  (or is the whole docstring);
+- a ``Parameters`` section naming each of its parameters (``self``/``cls`` excepted) when it has
+  any;
+- a ``Returns`` (or ``Yields``) section when its body returns (or yields) a value;
+- a ``Raises`` section naming each exception class its own body raises by name.
+
+Properties are attributes in numpydoc and need only the summary. The source is read with
+:mod:`ast`, not imported, so nothing runs and nested helpers are not counted.
+"""
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1] / 'polarization_compass'
+
+#: Modules whose public functions and methods are documented in full (paths under the package).
+COMPLETED = (
+    'conventions.py',
+)
+
+_SECTIONS = ('Parameters', 'Returns', 'Yields', 'Raises', 'Warns', 'See Also', 'Notes',
+             'References', 'Examples', 'Attributes', 'Other Parameters', 'Methods')
+
+
+def _sections(doc: str) -> dict[str, list[str]]:
+    """Split a numpydoc docstring into its underlined sections (title -> body lines)."""
+    lines = doc.expandtabs().splitlines()
+    out: dict[str, list[str]] = {}
+    current = None
+    i = 0
+    while i < len(lines):
+        title = lines[i].strip()
+        under = lines[i + 1].strip() if i + 1 < len(lines) else ''
+        if title in _SECTIONS and under and set(under) == {'-'} and len(under) >= len(title):
+            current = title
+            out[current] = []
+            i += 2
+            continue
+        if current is not None:
+            out[current].append(lines[i])
+        i += 1
+    return out
+
+
+def _entry_names(body: list[str]) -> set[str]:
+    """Names that a Parameters/Raises section documents (``a, b : float`` names a and b)."""
+    if not body:
+        return set()
+    indents = [len(x) - len(x.lstrip()) for x in body if x.strip()]
+    base = min(indents) if indents else 0
+    names: set[str] = set()
+    for line in body:
+        if not line.strip() or len(line) - len(line.lstrip()) != base:
+            continue
+        head = line.strip().split(' : ')[0].rstrip(':').strip()
+        for part in head.split(','):
+            part = part.strip().lstrip('*')
+            if re.fullmatch(r'[A-Za-z_][\w.]*', part):
+                names.add(part)
+    return names
+
+
+def _own_nodes(func: ast.AST):
+    """Nodes of a function's body, not descending into nested functions, lambdas or classes."""
+    stack = list(ast.iter_child_nodes(func))
+    while stack:
+        node = stack.pop()
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef)):
+            continue
+        yield node
+        stack.extend(ast.iter_child_nodes(node))
+
+
+def _is_property(func) -> bool:
+    for d in func.decorator_list:
+        name = d.attr if isinstance(d, ast.Attribute) else getattr(d, 'id', '')
+        if name in ('property', 'cached_property', 'setter'):
+            return True
+    return False
+
+
+def check_function(func, qualname: str) -> list[str]:
+    """Return what is missing from the docstring of one function or method."""
+    problems = []
+    doc = ast.get_docstring(func, clean=True)
+    if not doc:
+        return [f'{qualname}: no docstring']
+    lines = doc.splitlines()
+    summary = lines[0].strip()
+    if not summary or not summary.endswith('.'):
+        problems.append(f'{qualname}: summary line does not end with a period: {summary!r}')
+    if len(lines) > 1 and lines[1].strip():
+        problems.append(f'{qualname}: summary is not one line followed by a blank line')
+    if _is_property(func):
+        return problems
+    sections = _sections(doc)
+    a = func.args
+    params = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+    params += [x.arg for x in (a.vararg, a.kwarg) if x is not None]
+    params = [p for p in params if p not in ('self', 'cls')]
+    if params:
+        if 'Parameters' not in sections:
+            problems.append(f'{qualname}: parameters {params} but no Parameters section')
+        else:
+            missing = [p for p in params if p not in _entry_names(sections['Parameters'])]
+            if missing:
+                problems.append(f'{qualname}: Parameters section does not name {missing}')
+    nodes = list(_own_nodes(func))
+    returns = any(isinstance(n, ast.Return) and n.value is not None
+                  and not (isinstance(n.value, ast.Constant) and n.value.value is None)
+                  for n in nodes)
+    yields = any(isinstance(n, (ast.Yield, ast.YieldFrom)) for n in nodes)
+    if yields and not ({'Yields', 'Returns'} & set(sections)):
+        problems.append(f'{qualname}: yields values but has no Yields section')
+    elif returns and 'Returns' not in sections:
+        problems.append(f'{qualname}: returns a value but has no Returns section')
+    raised = set()
+    for n in nodes:
+        if isinstance(n, ast.Raise) and n.exc is not None:
+            exc = n.exc.func if isinstance(n.exc, ast.Call) else n.exc
+            if isinstance(exc, ast.Name):
+                raised.add(exc.id)
+            elif isinstance(exc, ast.Attribute):
+                raised.add(exc.attr)
+    raised.discard('NotImplementedError')   # an abstract method's body, not a documented failure
+    if raised:
+        documented = {x.rsplit('.', 1)[-1]
+                      for x in _entry_names(sections.get('Raises', []))}
+        missing = sorted(raised - documented)
+        if missing:
+            problems.append(f'{qualname}: raises {missing} but its Raises section does not '
+                            'name them')
+    return problems
+
+
+def check_source(source: str, name: str = '<source>') -> list[str]:
+    """Return the docstring problems of the public functions and methods in a module's source."""
+    tree = ast.parse(source, name)
+    problems = []
+    funcs = (ast.FunctionDef, ast.AsyncFunctionDef)
+    for node in tree.body:
+        if isinstance(node, funcs) and not node.name.startswith('_'):
+            problems += check_function(node, f'{name}:{node.name}')
+        elif isinstance(node, ast.ClassDef) and not node.name.startswith('_'):
+            for item in node.body:
+                if isinstance(item, funcs) and not item.name.startswith('_'):
+                    problems += check_function(item, f'{name}:{node.name}.{item.name}')
+    return problems
+
+
+@pytest.mark.parametrize('module', COMPLETED)
+def test_public_docstrings_complete(module):
+    path = ROOT / module
+    problems = check_source(path.read_text(), module)
+    assert not problems, '\n'.join(problems)
+
+
+PLANTED = '''
+def heading_deg(aop_rad, sun_azimuth_deg):
+    """Heading of the camera from one AoP."""
+    return aop_rad + sun_azimuth_deg
+
+
+def documented_deg(aop_rad, sun_azimuth_deg=0.0):
+    """Return the heading of the camera from one AoP.
+
+    Parameters
+    ----------
+    aop_rad : float
+        Angle of polarization [rad].
+    sun_azimuth_deg : float, default 0
+        Sun azimuth [deg].
+
+    Returns
+    -------
+    float
+        Heading [deg].
+    """
+    return aop_rad + sun_azimuth_deg
+
+
+def half_documented(a, b):
+    """Return a sum.
+
+    Parameters
+    ----------
+    a : float
+        First.
+    """
+    return a + b
+
+
+def two_line_summary(a):
+    """Return a sum of a
+    and nothing else.
+
+    Parameters
+    ----------
+    a : float
+        First.
+
+    Returns
+    -------
+    float
+    """
+    return a
+
+
+def raising(a):
+    """Check a.
+
+    Parameters
+    ----------
+    a : float
+        First.
+    """
+    if a < 0:
+        raise ValueError('negative')
+
+
+class Public:
+    def method(self, x):
+        return x
+
+    @property
+    def attr(self):
+        """The attribute."""
+        return 1
+
+    def _private(self, x):
+        return x
+
+
+def _private(a):
+    return a
+'''
+
+
+def test_checker_flags_planted_functions():
+    """The checker fails undocumented functions and passes a documented one (it can fail)."""
+    problems = check_source(PLANTED, 'planted')
+    text = '\n'.join(problems)
+    assert 'planted:heading_deg: parameters' in text
+    assert 'planted:heading_deg: returns a value but has no Returns section' in text
+    assert "planted:half_documented: Parameters section does not name ['b']" in text
+    assert 'planted:half_documented: returns a value' in text
+    assert 'planted:two_line_summary: summary line does not end with a period' in text
+    assert 'planted:two_line_summary: summary is not one line' in text
+    assert "planted:raising: raises ['ValueError']" in text
+    assert 'planted:Public.method: no docstring' in text
+    assert 'documented_deg' not in text
+    assert 'Public.attr' not in text and '_private' not in text
+    assert len(problems) == 8, text
+
+
+def test_checker_fails_a_completed_module_with_a_planted_function():
+    """Appending an undocumented public function to a completed module makes it fail."""
+    source = (ROOT / COMPLETED[0]).read_text()
+    planted = source + '\n\ndef planted_deg(x_deg):\n    """Planted."""\n    return x_deg\n'
+    problems = check_source(planted, COMPLETED[0])
+    assert any('planted_deg: parameters' in p for p in problems), problems
+    assert any('planted_deg: returns a value' in p for p in problems), problems
