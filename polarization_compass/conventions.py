@@ -392,8 +392,12 @@ def R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg):
 
 @dataclass(frozen=True)
 class CameraAttitude:
-    """Camera attitude in the paper's terms, degrees. ``gimbal_lock`` is True when |pitch| ~ 90 deg,
-    where bearing and roll are not separable (the bearing returned is then 0 and roll absorbs it)."""
+    """Hold a camera attitude in the paper's terms (eq 21), degrees.
+
+    ``bearing_deg`` of camera +y clockwise from North, ``pitch_deg`` (alpha, about camera +x),
+    ``roll_deg`` (beta, about camera +y). ``gimbal_lock`` is True when |pitch| ~ 90 deg, where
+    bearing and roll are not separable (the bearing is then 0 and roll absorbs it).
+    """
 
     bearing_deg: float
     pitch_deg: float

@@ -26,6 +26,19 @@ ROOT = Path(__file__).resolve().parents[1] / 'polarization_compass'
 #: Modules whose public functions and methods are documented in full (paths under the package).
 COMPLETED = (
     'conventions.py',
+    'estimators/base.py',
+    'estimators/registry.py',
+    'estimators/zenith.py',
+    'estimators/sm_asm.py',
+    'estimators/symmetry.py',
+    'estimators/least_squares.py',
+)
+
+#: Private classes whose public methods are the documented ``estimate`` of public estimators
+#: (module, class): their methods are checked like those of a public class.
+INHERITED_FROM = (
+    ('estimators/least_squares.py', '_LSBase'),
+    ('estimators/_disc_estimator.py', 'DiscEstimator'),
 )
 
 _SECTIONS = ('Parameters', 'Returns', 'Yields', 'Raises', 'Warns', 'See Also', 'Notes',
@@ -143,15 +156,35 @@ def check_function(func, qualname: str) -> list[str]:
     return problems
 
 
-def check_source(source: str, name: str = '<source>') -> list[str]:
-    """Return the docstring problems of the public functions and methods in a module's source."""
+def check_summary(node, qualname: str) -> list[str]:
+    """Return the problems of a class docstring's summary line."""
+    doc = ast.get_docstring(node, clean=True)
+    if not doc:
+        return [f'{qualname}: no docstring']
+    lines = doc.splitlines()
+    problems = []
+    if not lines[0].strip().endswith('.'):
+        problems.append(f'{qualname}: summary line does not end with a period: {lines[0]!r}')
+    if len(lines) > 1 and lines[1].strip():
+        problems.append(f'{qualname}: summary is not one line followed by a blank line')
+    return problems
+
+
+def check_source(source: str, name: str = '<source>', classes=()) -> list[str]:
+    """Return the docstring problems of the public functions, classes and methods of a module.
+
+    ``classes`` names private classes whose public methods are checked too.
+    """
     tree = ast.parse(source, name)
     problems = []
     funcs = (ast.FunctionDef, ast.AsyncFunctionDef)
     for node in tree.body:
         if isinstance(node, funcs) and not node.name.startswith('_'):
             problems += check_function(node, f'{name}:{node.name}')
-        elif isinstance(node, ast.ClassDef) and not node.name.startswith('_'):
+        elif isinstance(node, ast.ClassDef) and (not node.name.startswith('_')
+                                                 or node.name in classes):
+            if not node.name.startswith('_'):
+                problems += check_summary(node, f'{name}:{node.name}')
             for item in node.body:
                 if isinstance(item, funcs) and not item.name.startswith('_'):
                     problems += check_function(item, f'{name}:{node.name}.{item.name}')
@@ -162,6 +195,18 @@ def check_source(source: str, name: str = '<source>') -> list[str]:
 def test_public_docstrings_complete(module):
     path = ROOT / module
     problems = check_source(path.read_text(), module)
+    assert not problems, '\n'.join(problems)
+
+
+@pytest.mark.parametrize('module, cls', INHERITED_FROM)
+def test_inherited_estimate_docstrings_complete(module, cls):
+    path = ROOT / module
+    tree = ast.parse(path.read_text(), module)
+    node = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == cls)
+    problems = []
+    for item in node.body:
+        if isinstance(item, ast.FunctionDef) and not item.name.startswith('_'):
+            problems += check_function(item, f'{module}:{cls}.{item.name}')
     assert not problems, '\n'.join(problems)
 
 
@@ -258,9 +303,10 @@ def test_checker_flags_planted_functions():
     assert 'planted:two_line_summary: summary is not one line' in text
     assert "planted:raising: raises ['ValueError']" in text
     assert 'planted:Public.method: no docstring' in text
+    assert 'planted:Public: no docstring' in text
     assert 'documented_deg' not in text
     assert 'Public.attr' not in text and '_private' not in text
-    assert len(problems) == 8, text
+    assert len(problems) == 9, text
 
 
 def test_checker_fails_a_completed_module_with_a_planted_function():
