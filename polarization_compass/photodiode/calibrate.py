@@ -99,7 +99,14 @@ def calibrate_gains(recordings, geometry, min_condition: float = 3.0) -> GainCal
             notes.append(f"only {allx.shape[0]} usable sample(s) (kept the old gains)")
             continue
         g, cond = _unit_gains(allx, unit.channels_deg)
-        if not np.all(np.isfinite(g)) or cond < min_condition:
+        if not np.all(np.isfinite(g)):
+            gains.append(list(unit.gains))
+            sigmas.append(None)
+            conds.append(cond)
+            notes.append("the fitted gains are not all positive: the unit does not follow the ideal-polarizer model "
+                         "(faulty channel?) (kept)")
+            continue
+        if cond < min_condition:
             gains.append(list(unit.gains))
             sigmas.append(None)
             conds.append(cond)
