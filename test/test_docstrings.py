@@ -35,6 +35,7 @@ COMPLETED = (
     'errormap.py',
     'frame_io.py',
     'pipeline.py',
+    'solar.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
