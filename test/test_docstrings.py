@@ -36,6 +36,7 @@ COMPLETED = (
     'frame_io.py',
     'pipeline.py',
     'solar.py',
+    'camera.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
