@@ -37,6 +37,7 @@ COMPLETED = (
     'pipeline.py',
     'solar.py',
     'camera.py',
+    'allowable.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
