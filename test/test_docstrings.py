@@ -38,6 +38,13 @@ COMPLETED = (
     'solar.py',
     'camera.py',
     'allowable.py',
+    'photodiode/geometry.py',
+    'photodiode/readings.py',
+    'photodiode/stokes.py',
+    'photodiode/heading.py',
+    'photodiode/calibrate.py',
+    'photodiode/selfcheck.py',
+    'photodiode/simulate.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
