@@ -38,6 +38,7 @@ COMPLETED = (
     'solar.py',
     'camera.py',
     'allowable.py',
+    'correction.py',
     'photodiode/geometry.py',
     'photodiode/readings.py',
     'photodiode/stokes.py',
