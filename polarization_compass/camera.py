@@ -343,7 +343,7 @@ class SelectedPixels:
 
     @property
     def count(self) -> int:
-        """Number of selected pixels."""
+        """Return the number of selected pixels."""
         return int(self.x_px.size)
 
 

@@ -67,7 +67,7 @@ class FrameFile:
 
     @property
     def camera(self) -> CameraModel:
-        """The stored :class:`CameraModel` (:class:`FrameFileError` when unusable)."""
+        """Return the stored :class:`CameraModel` (:class:`FrameFileError` when unusable)."""
         cam = self.meta.get("camera") or {}
         try:
             return CameraModel(**cam)

@@ -422,7 +422,7 @@ class SunSource:
 
     @property
     def site(self):
-        """The current site ``(latitude_deg, longitude_deg, altitude_m)``."""
+        """Return the current site ``(latitude_deg, longitude_deg, altitude_m)``."""
         return self._site
 
     def at_ns(self, t_ns: int) -> tuple[float, float]:
