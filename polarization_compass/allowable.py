@@ -26,7 +26,27 @@ __all__ = ["Envelope", "allowable_envelope", "eq33_radius_deg", "format_envelope
 
 
 def eq33_radius_deg(max_error_deg: float, sun_altitude_deg: float) -> float:
-    """Eq 33's allowed tilt radius sqrt(pitch^2 + roll^2) = ME^2 / h (deg); inf at h <= 0."""
+    """Compute eq 33's allowed tilt radius ``sqrt(pitch^2 + roll^2) = ME^2 / h_s``.
+
+    Eq 33 is homogeneous of degree 2 in angle on both sides, so degrees in give degrees out.
+
+    Parameters
+    ----------
+    max_error_deg : float
+        Allowed heading error ME [deg].
+    sun_altitude_deg : float
+        Sun altitude h_s [deg].
+
+    Returns
+    -------
+    float
+        Tilt radius [deg]; inf at h_s <= 0.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 33 (Sec. 3.4).
+    """
     if sun_altitude_deg <= 0:
         return math.inf
     return max_error_deg ** 2 / sun_altitude_deg
@@ -34,7 +54,42 @@ def eq33_radius_deg(max_error_deg: float, sun_altitude_deg: float) -> float:
 
 @dataclass(frozen=True)
 class Envelope:
-    """All angles in degrees. ``None`` means "not reached inside the map's coverage"."""
+    """Hold the allowable tilt envelope at one sun altitude; angles in degrees.
+
+    ``None`` means "not reached inside the map's coverage".
+
+    Parameters
+    ----------
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    max_error_deg : float
+        Heading error bound ME [deg].
+    methods : tuple of str
+        Methods whose worst error counts.
+    radius_ok_deg : float
+        Every node with tilt radius at most this [deg] meets the bound.
+    radius_fail_deg : float or None
+        Smallest radius [deg] of a node that does not (None: none within coverage).
+    radius_estimate_deg : float
+        Linear estimate [deg] of the crossing between the two.
+    coverage_deg : float
+        Radius [deg] up to which the map has every node valid.
+    pitch_only_deg, roll_only_deg : tuple or None
+        ``(limit_deg, reached)`` along roll 0 (pitch 0); reached False reads ">= limit".
+    eq33_radius_deg : float
+        Eq 33's radius [deg] (:func:`eq33_radius_deg`).
+    worst_at_eq33_deg : float or None
+        The map's worst error [deg] inside eq 33's disc (None: beyond coverage).
+    worst_method : str or None
+        The method failing first.
+    verdict : str
+        Eq 33 against the map, one line.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 33 (Sec. 3.4).
+    """
 
     sun_altitude_deg: float
     max_error_deg: float
@@ -51,6 +106,13 @@ class Envelope:
     verdict: str
 
     def to_json_dict(self) -> dict:
+        """Convert the envelope to a JSON-ready dict (inf becomes None).
+
+        Returns
+        -------
+        dict
+            The fields by name; the pitch/roll-only tuples as ``{"limit_deg", "reached"}``.
+        """
         d = asdict(self)
         for k in ("pitch_only_deg", "roll_only_deg"):
             if d[k] is not None:
@@ -85,8 +147,39 @@ def _line_limit(values_abs, worst, me):
 
 def allowable_envelope(m: ErrorMap, max_error_deg: float, sun_altitude_deg: float,
                        methods=None) -> Envelope:
-    """The envelope at one sun altitude. Off the altitude nodes, the two bracketing nodes are combined
-    (worst of both: the error grows with altitude, so this is the conservative side)."""
+    """Read the allowable tilt envelope at one sun altitude from an error map.
+
+    Off the altitude nodes, the two bracketing nodes are combined (worst of both: the error grows
+    with altitude, so this is the conservative side). See the module docstring for the disc and its
+    radii.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The tilt error map.
+    max_error_deg : float
+        Heading error bound ME [deg], > 0.
+    sun_altitude_deg : float
+        Sun altitude [deg], within the map's altitude axis.
+    methods : sequence of str, optional
+        Methods whose worst error counts; all of the map's by default.
+
+    Returns
+    -------
+    Envelope
+        The radii [deg], the pitch- and roll-only limits, eq 33's radius and the verdict.
+
+    Raises
+    ------
+    ErrorMapError
+        A non-positive bound, an altitude outside the map, an unknown method, or no valid node at
+        this altitude.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 and eq 33.
+    """
     if not (math.isfinite(max_error_deg) and max_error_deg > 0):
         raise ErrorMapError(f"the error bound must be > 0 deg, got {max_error_deg}")
     alt = m.sun_altitude_deg
@@ -181,7 +274,18 @@ def _verdict(me, r_ok, r_fail, est, coverage, r33, worst33) -> str:
 
 
 def format_envelopes(envs) -> str:
-    """A fixed-width table of envelopes (one line per sun altitude) plus the verdicts."""
+    """Format envelopes as a fixed-width table (one line per sun altitude) plus the verdicts.
+
+    Parameters
+    ----------
+    envs : sequence of Envelope
+        Envelopes with the same bound and methods (the header reads the first).
+
+    Returns
+    -------
+    str
+        The table, angles in degrees.
+    """
     def f(v):
         if isinstance(v, tuple):
             return f"~{v[0]:.2f}" if v[1] else f">={v[0]:.2f}"

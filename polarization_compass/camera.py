@@ -33,7 +33,33 @@ class CameraError(CompassError):
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Intrinsics. Defaults: the paper's imager (Table 1, Sony IMX250MZR: 2448 x 2048, 3.45 um, f = 4 mm)."""
+    """Hold camera intrinsics; the defaults are the paper's imager (Table 1).
+
+    Sony IMX250MZR: 2448 x 2048 pixels of 3.45 um, f = 4 mm. Invalid values raise
+    :class:`CameraError` on construction.
+
+    Parameters
+    ----------
+    model : {"pinhole", "fisheye_equidistant"}, default "pinhole"
+        Projection: eq 20, or r = f * theta (theta the angle from the optical axis).
+    width_px : int, default 2448
+        Number of columns eta_x, in [1, 20000].
+    height_px : int, default 2048
+        Number of rows eta_y, in [1, 20000].
+    focal_length_mm : float, default 4
+        Focal length f [mm].
+    pixel_pitch_x_um, pixel_pitch_y_um : float, default 3.45
+        Pixel sizes D_x (columns) and D_y (rows) [um].
+    principal_x_px, principal_y_px : float, optional
+        Principal point, 1-based pixel coordinates; default the image centre ``(eta + 1) / 2``.
+    max_field_angle_deg : float, default 90
+        Fisheye only: pixels further from the optical axis [deg] have no ray.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20 and Table 1.
+    """
 
     model: str = "pinhole"
     width_px: int = 2448            # eta_x, number of columns
@@ -65,10 +91,12 @@ class CameraModel:
 
     @property
     def cx_px(self) -> float:
+        """Principal point column [px, 1-based]; the image centre by default."""
         return (self.width_px + 1) / 2.0 if self.principal_x_px is None else float(self.principal_x_px)
 
     @property
     def cy_px(self) -> float:
+        """Principal point row [px, 1-based]; the image centre by default."""
         return (self.height_px + 1) / 2.0 if self.principal_y_px is None else float(self.principal_y_px)
 
     @property
@@ -77,7 +105,13 @@ class CameraModel:
         return (int(self.height_px), int(self.width_px))
 
     def field_of_view_deg(self) -> tuple[float, float, float]:
-        """Horizontal, vertical and diagonal full field of view, degrees."""
+        """Compute the horizontal, vertical and diagonal full field of view.
+
+        Returns
+        -------
+        tuple of float
+            ``(horizontal, vertical, diagonal)`` [deg].
+        """
         f = self.focal_length_mm * 1e3
         hw = self.width_px * self.pixel_pitch_x_um / 2
         hh = self.height_px * self.pixel_pitch_y_um / 2
@@ -88,7 +122,28 @@ class CameraModel:
         return fov(hw), fov(hh), fov(math.hypot(hw, hh))
 
     def rays_from_pixels(self, x_px, y_px):
-        """Unit rays (3, N) float64 for 1-based pixel coordinates, and a bool mask of pixels with a ray."""
+        """Compute unit viewing rays in the camera frame for 1-based pixel coordinates.
+
+        Pinhole: eq 20, ``(D_x (x - c_x), D_y (y - c_y), f)`` normalised; fisheye: r = f * theta.
+
+        Parameters
+        ----------
+        x_px, y_px : array_like
+            1-based column and row [px] (eq 20), any shape (flattened).
+
+        Returns
+        -------
+        rays : numpy.ndarray
+            float64, shape (3, N), camera frame (x along columns, y along rows, z the optical
+            axis).
+        has_ray : numpy.ndarray
+            bool, shape (N,): False for fisheye pixels beyond ``max_field_angle_deg``.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eq 20 and Fig 4.
+        """
         x = np.asarray(x_px, dtype=float).reshape(-1)
         y = np.asarray(y_px, dtype=float).reshape(-1)
         u = (x - self.cx_px) * (self.pixel_pitch_x_um * 1e-3)   # mm on the sensor
@@ -108,7 +163,27 @@ class CameraModel:
         return r, ok
 
     def pixels_from_rays(self, rays_cam):
-        """Inverse projection: 1-based (x_px, y_px) of unit rays (3, N). Used by tests and sparse renders."""
+        """Project camera-frame rays back to 1-based pixel coordinates (the inverse of eq 20).
+
+        Used by tests and sparse renders.
+
+        Parameters
+        ----------
+        rays_cam : array_like
+            Rays in the camera frame, shape (3, N) (unit length for the fisheye model).
+
+        Returns
+        -------
+        x_px : numpy.ndarray
+            1-based column [px], shape (N,).
+        y_px : numpy.ndarray
+            1-based row [px], shape (N,).
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+        """
         r = np.asarray(rays_cam, dtype=float)
         f = self.focal_length_mm
         if self.model == "pinhole":
@@ -184,22 +259,86 @@ class PixelSelection:
 
     @staticmethod
     def full() -> "PixelSelection":
+        """Select every pixel.
+
+        Returns
+        -------
+        PixelSelection
+            Mode ``full``.
+        """
         return PixelSelection("full")
 
     @staticmethod
     def strided(stride: int) -> "PixelSelection":
+        """Select every ``stride``-th row and column, centred on the image.
+
+        Parameters
+        ----------
+        stride : int
+            Step [px].
+
+        Returns
+        -------
+        PixelSelection
+            Mode ``stride``.
+        """
         return PixelSelection("stride", stride=int(stride))
 
     @staticmethod
     def grid(nx: int, ny: int) -> "PixelSelection":
+        """Select ``nx`` x ``ny`` evenly spread pixels (centres of equal blocks).
+
+        Parameters
+        ----------
+        nx, ny : int
+            Number of columns and rows.
+
+        Returns
+        -------
+        PixelSelection
+            Mode ``grid``.
+        """
         return PixelSelection("grid", nx=int(nx), ny=int(ny))
 
     @staticmethod
     def rect(x0: int, y0: int, width: int, height: int, stride: int = 1) -> "PixelSelection":
+        """Select a rectangle of pixels, optionally strided.
+
+        Parameters
+        ----------
+        x0, y0 : int
+            1-based column and row of its first pixel.
+        width, height : int
+            Size [px].
+        stride : int, default 1
+            Step [px] within it, centred.
+
+        Returns
+        -------
+        PixelSelection
+            Mode ``region``.
+        """
         return PixelSelection("region", stride=int(stride), region=(int(x0), int(y0), int(width), int(height)))
 
     @staticmethod
     def explicit(x_px, y_px) -> "PixelSelection":
+        """Select an explicit list of pixels.
+
+        Parameters
+        ----------
+        x_px, y_px : array_like of int
+            1-based columns and rows, the same length.
+
+        Returns
+        -------
+        PixelSelection
+            Mode ``list`` (hashable: the coordinates are stored as bytes with their digest).
+
+        Raises
+        ------
+        CameraError
+            ``x_px`` and ``y_px`` differ in length.
+        """
         x = np.asarray(x_px, dtype=np.int32).reshape(-1)
         y = np.asarray(y_px, dtype=np.int32).reshape(-1)
         if x.shape != y.shape:
@@ -208,6 +347,13 @@ class PixelSelection:
                               _digest=hashlib.sha1(x.tobytes() + y.tobytes()).hexdigest())
 
     def describe(self) -> str:
+        """Describe the selection in a few words (logs, tables).
+
+        Returns
+        -------
+        str
+            E.g. ``"stride 8"`` or ``"grid 96x80"``.
+        """
         if self.mode == "full":
             return "full"
         if self.mode == "stride":
@@ -244,12 +390,39 @@ class SelectedPixels:
 
     @property
     def count(self) -> int:
+        """Return the number of selected pixels."""
         return int(self.x_px.size)
 
 
 @lru_cache(maxsize=32)
 def select_pixels(camera: CameraModel, selection: PixelSelection = PixelSelection()) -> SelectedPixels:
-    """Coordinates and rays of the selected pixels; computed once per (camera, selection)."""
+    """Compute the coordinates and rays of the selected pixels, once per (camera, selection).
+
+    The result is cached and its arrays are read-only.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera.
+    selection : PixelSelection, default all pixels
+        Which pixels.
+
+    Returns
+    -------
+    SelectedPixels
+        Output shape (2-D, or 1-D for a list), 1-based ``x_px``/``y_px`` [px] (eq 20), unit rays
+        (3, N) float32 in the camera frame, and ``has_ray``.
+
+    Raises
+    ------
+    CameraError
+        A stride, grid, region or list outside the image, an empty list, or an unknown mode.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+    """
     W, H = int(camera.width_px), int(camera.height_px)
     m = selection.mode
     if m == "full":

@@ -58,7 +58,18 @@ __all__ = [
 # Wrapping
 # --------------------------------------------------------------------------------------------
 def wrap_180_deg(angle_deg):
-    """Wrap degrees to (-180, 180]."""
+    """Wrap angles in degrees to (-180, 180].
+
+    Parameters
+    ----------
+    angle_deg : float or array_like
+        Angle(s) [deg], any value.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The angle(s) [deg] in (-180, 180]; a float for scalar input.
+    """
     a = np.asarray(angle_deg, dtype=float)
     w = np.mod(a + 180.0, 360.0) - 180.0          # [-180, 180)
     w = np.where(w == -180.0, 180.0, w)
@@ -66,7 +77,18 @@ def wrap_180_deg(angle_deg):
 
 
 def wrap_360_deg(angle_deg):
-    """Wrap degrees to [0, 360)."""
+    """Wrap angles in degrees to [0, 360).
+
+    Parameters
+    ----------
+    angle_deg : float or array_like
+        Angle(s) [deg], any value.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The angle(s) [deg] in [0, 360); a float for scalar input.
+    """
     a = np.asarray(angle_deg, dtype=float)
     w = np.mod(a, 360.0)
     w = np.where(w >= 360.0, 0.0, w)               # np.mod(-1e-20, 360) == 360.0 in floating point
@@ -74,30 +96,80 @@ def wrap_360_deg(angle_deg):
 
 
 def wrap_180_deg_float(angle_deg: float) -> float:
-    """:func:`wrap_180_deg` of one finite float: degrees to (-180, 180].
+    """Wrap one finite float in degrees to (-180, 180], as :func:`wrap_180_deg` does.
 
-    Plain arithmetic, no numpy call: the same floor modulo as ``np.mod`` and so the same bits, cheap enough
-    to run once per estimate in sweeps of 1e5, and compilable by numba (``njit(inline="always")(...)``) for
-    kernels."""
+    Plain arithmetic, no numpy call: the same floor modulo as ``np.mod`` and so the same bits,
+    cheap enough to run once per estimate in sweeps of 1e5, and compilable by numba
+    (``njit(inline="always")(...)``) for kernels.
+
+    Parameters
+    ----------
+    angle_deg : float
+        Angle [deg], finite.
+
+    Returns
+    -------
+    float
+        The angle [deg] in (-180, 180].
+    """
     w = (angle_deg + 180.0) % 360.0 - 180.0
     return 180.0 if w == -180.0 else w
 
 
 def wrap_360_deg_float(angle_deg: float) -> float:
-    """:func:`wrap_360_deg` of one finite float: degrees to [0, 360) (as :func:`wrap_180_deg_float`)."""
+    """Wrap one finite float in degrees to [0, 360), as :func:`wrap_360_deg` does.
+
+    Plain arithmetic like :func:`wrap_180_deg_float`.
+
+    Parameters
+    ----------
+    angle_deg : float
+        Angle [deg], finite.
+
+    Returns
+    -------
+    float
+        The angle [deg] in [0, 360).
+    """
     w = angle_deg % 360.0
     return 0.0 if w >= 360.0 else w
 
 
 def fold_axial_rad_float(angle_rad: float) -> float:
-    """:func:`fold_axial_rad` of one finite float: an axial angle (mod pi, rad) to (-pi/2, pi/2] (as
-    :func:`wrap_180_deg_float`)."""
+    """Fold one finite axial angle (mod pi) in radians to (-pi/2, pi/2], as :func:`fold_axial_rad`.
+
+    Plain arithmetic like :func:`wrap_180_deg_float`.
+
+    Parameters
+    ----------
+    angle_rad : float
+        Axial angle [rad], finite, defined modulo pi.
+
+    Returns
+    -------
+    float
+        The angle [rad] in (-pi/2, pi/2].
+    """
     w = (angle_rad + 0.5 * math.pi) % math.pi - 0.5 * math.pi
     return 0.5 * math.pi if w <= -0.5 * math.pi else w
 
 
 def fold_axial_deg(angle_deg):
-    """Fold an axial angle (defined mod 180 deg) to (-90, 90]. Used for heading errors of axial methods."""
+    """Fold axial angles (defined mod 180 deg) to (-90, 90].
+
+    Used for heading errors of axial methods, which measure the solar meridian modulo 180 deg. A
+    finite float is folded without numpy (hot in sweeps) and gives the same bits.
+
+    Parameters
+    ----------
+    angle_deg : float or array_like
+        Axial angle(s) [deg].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The angle(s) [deg] in (-90, 90]; a float for scalar input.
+    """
     if isinstance(angle_deg, float) and math.isfinite(angle_deg):
         w = (angle_deg + 90.0) % 180.0 - 90.0     # a scalar: the same floor modulo without numpy (sweeps)
         return 90.0 if w <= -90.0 else w
@@ -108,7 +180,18 @@ def fold_axial_deg(angle_deg):
 
 
 def fold_axial_rad(angle_rad):
-    """Fold an axial angle (mod pi) to (-pi/2, pi/2]."""
+    """Fold axial angles (defined mod pi) to (-pi/2, pi/2].
+
+    Parameters
+    ----------
+    angle_rad : float or array_like
+        Axial angle(s) [rad].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The angle(s) [rad] in (-pi/2, pi/2]; a float for scalar input.
+    """
     a = np.asarray(angle_rad, dtype=float)
     w = np.mod(a + np.pi / 2, np.pi) - np.pi / 2
     w = np.where(w <= -np.pi / 2, np.pi / 2, w)
@@ -116,7 +199,18 @@ def fold_axial_rad(angle_rad):
 
 
 def fold_aop_rad(aop_rad):
-    """Fold an AoP image to [-pi/2, pi/2) (the ``render`` contract). Keeps float32 input float32."""
+    """Fold an AoP image to [-pi/2, pi/2), the ``render`` contract.
+
+    Parameters
+    ----------
+    aop_rad : array_like
+        Angle of polarization [rad] in the eq 28 convention, any value; float32 stays float32.
+
+    Returns
+    -------
+    numpy.ndarray
+        The AoP [rad] in [-pi/2, pi/2), same dtype and shape as the input.
+    """
     a = np.asarray(aop_rad)
     half = a.dtype.type(np.pi / 2) if a.dtype.kind == "f" else np.pi / 2
     w = np.mod(a + half, 2 * half) - half
@@ -124,9 +218,24 @@ def fold_aop_rad(aop_rad):
 
 
 def axial_mean_rad(angles_rad, weights=None):
-    """Axial (mod pi) circular mean: 0.5 * arg(sum w exp(2i a)). Returns (mean_rad, resultant_length).
+    """Compute the weighted axial (mod pi) circular mean ``0.5 * arg(sum w exp(2i a))``.
 
-    The resultant length R in [0, 1] measures concentration (1 = all equal, 0 = no preferred axis).
+    The doubled-angle mean of axial data, with the resultant length R in [0, 1] as the measure of
+    concentration (1 = all equal, 0 = no preferred axis).
+
+    Parameters
+    ----------
+    angles_rad : array_like
+        Axial angles [rad], defined modulo pi.
+    weights : array_like, optional
+        Non-negative weights, the shape of ``angles_rad``; equal weights by default.
+
+    Returns
+    -------
+    mean_rad : float
+        The mean axis [rad] in [-pi/2, pi/2]; 0 when the weights sum to 0 or less.
+    resultant_length : float
+        R = |sum w exp(2i a)| / sum w in [0, 1]; 0 when the weights sum to 0 or less.
     """
     a = np.asarray(angles_rad, dtype=float)
     w = np.ones_like(a) if weights is None else np.asarray(weights, dtype=float)
@@ -139,7 +248,18 @@ def axial_mean_rad(angles_rad, weights=None):
 
 
 def axial_difference_deg(a_deg, b_deg):
-    """Difference a - b of two axial angles (mod 180), folded to (-90, 90]."""
+    """Compute the difference a - b of two axial angles (mod 180 deg), folded to (-90, 90].
+
+    Parameters
+    ----------
+    a_deg, b_deg : float or array_like
+        Axial angles [deg], broadcast against each other.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        a - b [deg] in (-90, 90].
+    """
     return fold_axial_deg(np.asarray(a_deg, dtype=float) - np.asarray(b_deg, dtype=float))
 
 
@@ -168,34 +288,116 @@ def _rot(theta_rad, axis):
 
 
 def rot_x(theta_rad):
-    """Right-handed rotation about +x (active: rotates vectors by theta)."""
+    """Build the right-handed rotation about +x (active: rotates vectors by theta).
+
+    Parameters
+    ----------
+    theta_rad : float or array_like
+        Rotation angle(s) [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrix, shape (3, 3) for a scalar angle or (..., 3, 3) for an array.
+    """
     return _rot(theta_rad, 0)
 
 
 def rot_y(theta_rad):
-    """Right-handed rotation about +y."""
+    """Build the right-handed rotation about +y (active: rotates vectors by theta).
+
+    Parameters
+    ----------
+    theta_rad : float or array_like
+        Rotation angle(s) [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrix, shape (3, 3) for a scalar angle or (..., 3, 3) for an array.
+    """
     return _rot(theta_rad, 1)
 
 
 def rot_z(theta_rad):
-    """Right-handed rotation about +z."""
+    """Build the right-handed rotation about +z (active: rotates vectors by theta).
+
+    Parameters
+    ----------
+    theta_rad : float or array_like
+        Rotation angle(s) [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrix, shape (3, 3) for a scalar angle or (..., 3, 3) for an array.
+    """
     return _rot(theta_rad, 2)
 
 
 def R_sun_cam_from_attitude(psi_deg, pitch_deg, roll_deg):
-    """Eq 21, ``C_c^a``: maps camera-frame vectors into the Sun-azimuth frame. Shape (..., 3, 3)."""
+    """Build the camera-to-Sun-azimuth-frame rotation ``C_c^a`` of eq 21.
+
+    ``C_c^a = Rz(-psi) @ Rx(pitch) @ Ry(roll)``: maps camera-frame vectors into the Sun-azimuth
+    frame.
+
+    Parameters
+    ----------
+    psi_deg : float or array_like
+        The paper's yaw psi [deg]: bearing of camera +y relative to the sun's azimuth, clockwise.
+    pitch_deg : float or array_like
+        The paper's pitch alpha [deg], a rotation about camera +x.
+    roll_deg : float or array_like
+        The paper's roll beta [deg], a rotation about camera +y.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``R_sun_cam``, shape (..., 3, 3) (broadcast over the angles).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
+    """
     return (rot_z(-np.radians(psi_deg)) @ rot_x(np.radians(pitch_deg))) @ rot_y(np.radians(roll_deg))
 
 
 def R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg):
-    """Camera-to-ENU rotation, ``Rz(-bearing) Rx(pitch) Ry(roll)``; bearing of camera +y clockwise from N."""
+    """Build the camera-to-ENU rotation ``Rz(-bearing) @ Rx(pitch) @ Ry(roll)``.
+
+    Eq 21 with the sun's azimuth added back to the yaw (``bearing = psi + A_sun``).
+
+    Parameters
+    ----------
+    bearing_deg : float or array_like
+        True bearing of camera +y [deg], clockwise from North.
+    pitch_deg : float or array_like
+        The paper's pitch alpha [deg], a rotation about camera +x.
+    roll_deg : float or array_like
+        The paper's roll beta [deg], a rotation about camera +y.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``R_enu_cam``, shape (..., 3, 3) (broadcast over the angles).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
+    """
     return (rot_z(-np.radians(bearing_deg)) @ rot_x(np.radians(pitch_deg))) @ rot_y(np.radians(roll_deg))
 
 
 @dataclass(frozen=True)
 class CameraAttitude:
-    """Camera attitude in the paper's terms, degrees. ``gimbal_lock`` is True when |pitch| ~ 90 deg,
-    where bearing and roll are not separable (the bearing returned is then 0 and roll absorbs it)."""
+    """Hold a camera attitude in the paper's terms (eq 21), degrees.
+
+    ``bearing_deg`` of camera +y clockwise from North, ``pitch_deg`` (alpha, about camera +x),
+    ``roll_deg`` (beta, about camera +y). ``gimbal_lock`` is True when |pitch| ~ 90 deg, where
+    bearing and roll are not separable (the bearing is then 0 and roll absorbs it).
+    """
 
     bearing_deg: float
     pitch_deg: float
@@ -204,10 +406,29 @@ class CameraAttitude:
 
 
 def attitude_from_R_enu_cam(R_enu_cam, lock_tol=1e-9) -> CameraAttitude:
-    """Inverse of :func:`R_enu_cam_from_attitude` for a single 3x3 rotation.
+    """Recover bearing, pitch and roll from one camera-to-ENU rotation.
 
-    From ``R = Rz(-B) Rx(a) Ry(b)``: R[2,1] = sin a, R[2,0] = -sin b cos a, R[2,2] = cos b cos a,
-    R[0,1] = sin B cos a, R[1,1] = cos B cos a.
+    The inverse of :func:`R_enu_cam_from_attitude`. From ``R = Rz(-B) Rx(a) Ry(b)``:
+    R[2,1] = sin a, R[2,0] = -sin b cos a, R[2,2] = cos b cos a, R[0,1] = sin B cos a,
+    R[1,1] = cos B cos a.
+
+    Parameters
+    ----------
+    R_enu_cam : array_like
+        Rotation matrix (3, 3) mapping camera-frame vectors into ENU.
+    lock_tol : float, default 1e-9
+        Gimbal lock when cos(pitch) is below this: bearing is then set to 0 and roll absorbs it.
+
+    Returns
+    -------
+    CameraAttitude
+        Bearing [deg, 0..360), pitch [deg, -90..90], roll [deg, -180..180] and the gimbal-lock
+        flag.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
     """
     R = np.asarray(R_enu_cam, dtype=float)
     sin_a = float(np.clip(R[2, 1], -1.0, 1.0))
@@ -227,14 +448,55 @@ def attitude_from_R_enu_cam(R_enu_cam, lock_tol=1e-9) -> CameraAttitude:
 # Directions and headings
 # --------------------------------------------------------------------------------------------
 def enu_direction(azimuth_deg, altitude_deg):
-    """Unit vector(s) in ENU for azimuth (clockwise from North) and altitude, shape (..., 3)."""
+    """Compute ENU unit vector(s) of an azimuth and altitude.
+
+    ``(cos h sin A, cos h cos A, sin h)`` for azimuth A clockwise from North and altitude h.
+
+    Parameters
+    ----------
+    azimuth_deg : float or array_like
+        Azimuth [deg], clockwise from true North.
+    altitude_deg : float or array_like
+        Altitude above the horizon [deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit vector(s) in ENU, shape (..., 3).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 16 (the same angles; Fig
+       2).
+    """
     A = np.radians(np.asarray(azimuth_deg, dtype=float))
     h = np.radians(np.asarray(altitude_deg, dtype=float))
     return np.stack([np.cos(h) * np.sin(A), np.cos(h) * np.cos(A), np.sin(h)], axis=-1)
 
 
 def azimuth_altitude_from_enu(v):
-    """Azimuth [0, 360) clockwise from North and altitude [-90, 90] (deg) of ENU vector(s) (..., 3)."""
+    """Compute azimuth and altitude of ENU vector(s), the inverse of :func:`enu_direction`.
+
+    Uses ``atan2`` for both angles (the paper's eqs 23-24 in the ENU frame, without the quotient).
+
+    Parameters
+    ----------
+    v : array_like
+        Vector(s) in ENU, shape (..., 3), any non-zero length.
+
+    Returns
+    -------
+    azimuth_deg : float or numpy.ndarray
+        Azimuth [deg] in [0, 360), clockwise from North.
+    altitude_deg : numpy.ndarray
+        Altitude [deg] in [-90, 90].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 23-24.
+    """
     v = np.asarray(v, dtype=float)
     az = wrap_360_deg(np.degrees(np.arctan2(v[..., 0], v[..., 1])))
     alt = np.degrees(np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1])))
@@ -242,22 +504,94 @@ def azimuth_altitude_from_enu(v):
 
 
 def bearing_to_yaw_enu_deg(bearing_deg):
-    """True bearing (clockwise from N) to REP-103 yaw (counter-clockwise from East), (-180, 180]."""
+    """Convert a true bearing to REP-103 yaw, ``yaw_enu = 90 - bearing``.
+
+    Parameters
+    ----------
+    bearing_deg : float or array_like
+        True bearing [deg], clockwise from North.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        REP-103 yaw [deg], counter-clockwise from East, in (-180, 180].
+
+    References
+    ----------
+    .. [1] T. Foote and M. Purvis, "REP 103: Standard Units of Measure and Coordinate Conventions",
+       ROS Enhancement Proposals, 2010.
+    """
     return wrap_180_deg(90.0 - np.asarray(bearing_deg, dtype=float))
 
 
 def yaw_enu_to_bearing_deg(yaw_enu_deg):
-    """REP-103 yaw to true bearing [0, 360)."""
+    """Convert REP-103 yaw to a true bearing, ``bearing = 90 - yaw_enu``.
+
+    Parameters
+    ----------
+    yaw_enu_deg : float or array_like
+        REP-103 yaw [deg], counter-clockwise from East.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        True bearing [deg], clockwise from North, in [0, 360).
+
+    References
+    ----------
+    .. [1] T. Foote and M. Purvis, "REP 103: Standard Units of Measure and Coordinate Conventions",
+       ROS Enhancement Proposals, 2010.
+    """
     return wrap_360_deg(90.0 - np.asarray(yaw_enu_deg, dtype=float))
 
 
 def psi_to_bearing_deg(psi_deg, sun_azimuth_deg):
-    """The paper's psi (yaw in the Sun-azimuth frame) to the true bearing: ``bearing = psi + A_sun``."""
+    """Convert the paper's psi (yaw in the Sun-azimuth frame) to the true bearing.
+
+    ``bearing = psi + A_sun``, the relation of eq 26 with its sign erratum fixed.
+
+    Parameters
+    ----------
+    psi_deg : float or array_like
+        Yaw psi [deg] of camera +y relative to the sun's azimuth.
+    sun_azimuth_deg : float or array_like
+        Sun azimuth [deg], clockwise from North.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        True bearing of camera +y [deg] in [0, 360).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 21 and 26 (with the sign
+       erratum of eq 26 fixed).
+    """
     return wrap_360_deg(np.asarray(psi_deg, dtype=float) + np.asarray(sun_azimuth_deg, dtype=float))
 
 
 def bearing_to_psi_deg(bearing_deg, sun_azimuth_deg):
-    """True bearing to the paper's psi, wrapped to (-180, 180]."""
+    """Convert a true bearing to the paper's psi, ``psi = bearing - A_sun``.
+
+    Parameters
+    ----------
+    bearing_deg : float or array_like
+        True bearing of camera +y [deg], clockwise from North.
+    sun_azimuth_deg : float or array_like
+        Sun azimuth [deg], clockwise from North.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Yaw psi [deg] in the Sun-azimuth frame, in (-180, 180].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 21 and 26 (with the sign
+       erratum of eq 26 fixed).
+    """
     return wrap_180_deg(np.asarray(bearing_deg, dtype=float) - np.asarray(sun_azimuth_deg, dtype=float))
 
 
@@ -269,10 +603,27 @@ class QuaternionError(CompassError):
 
 
 def validate_quaternion(q_xyzw, unit_tol=1e-3):
-    """Return the normalised quaternion or raise :class:`QuaternionError` with the reason.
+    """Check a quaternion and return it normalised.
 
     ``unit_tol`` bounds |norm - 1|: a producer that sends a non-unit quaternion has a bug, and
     silently normalising it would hide it (ROS messages are expected to be normalised).
+
+    Parameters
+    ----------
+    q_xyzw : array_like
+        Quaternion, ROS order (x, y, z, w), 4 components.
+    unit_tol : float, default 1e-3
+        Largest accepted |norm - 1|.
+
+    Returns
+    -------
+    numpy.ndarray
+        The unit quaternion (x, y, z, w), shape (4,).
+
+    Raises
+    ------
+    QuaternionError
+        With the reason: not 4 components, NaN/inf, zero, or not unit within ``unit_tol``.
     """
     q = np.asarray(q_xyzw, dtype=float).reshape(-1)
     if q.shape != (4,):
@@ -291,7 +642,20 @@ def validate_quaternion(q_xyzw, unit_tol=1e-3):
 
 
 def quat_to_matrix(q_xyzw):
-    """Rotation matrix of a unit quaternion (x, y, z, w). Vectorised over leading axes."""
+    """Convert unit quaternion(s) (x, y, z, w) to rotation matrices.
+
+    The standard active rotation (child -> parent); vectorised over leading axes.
+
+    Parameters
+    ----------
+    q_xyzw : array_like
+        Unit quaternion(s), ROS order (x, y, z, w), shape (..., 4).
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrices, shape (..., 3, 3).
+    """
     q = np.asarray(q_xyzw, dtype=float)
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
@@ -302,7 +666,26 @@ def quat_to_matrix(q_xyzw):
 
 
 def matrix_to_quat(R):
-    """Unit quaternion (x, y, z, w) with w >= 0 of a single rotation matrix (Shepperd's method)."""
+    """Convert one rotation matrix to a unit quaternion (x, y, z, w) with w >= 0.
+
+    Shepperd's method: the pivot is the largest of the trace and the diagonal, so no division by a
+    small number.
+
+    Parameters
+    ----------
+    R : array_like
+        Rotation matrix, shape (3, 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit quaternion (x, y, z, w), shape (4,), with w >= 0.
+
+    References
+    ----------
+    .. [1] S. W. Shepperd, "Quaternion from rotation matrix", Journal of Guidance and Control 1(3),
+       pp. 223-224, 1978.
+    """
     m = np.asarray(R, dtype=float)
     tr = m[0, 0] + m[1, 1] + m[2, 2]
     if tr > 0:
@@ -323,7 +706,18 @@ def matrix_to_quat(R):
 
 
 def yaw_enu_quaternion(yaw_enu_rad):
-    """Quaternion (x, y, z, w) of a pure REP-103 yaw (roll = pitch = 0)."""
+    """Build the quaternion (x, y, z, w) of a pure REP-103 yaw (roll = pitch = 0).
+
+    Parameters
+    ----------
+    yaw_enu_rad : float
+        REP-103 yaw [rad], counter-clockwise from East.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit quaternion (x, y, z, w), shape (4,).
+    """
     return np.array([0.0, 0.0, math.sin(yaw_enu_rad / 2), math.cos(yaw_enu_rad / 2)])
 
 
@@ -338,31 +732,79 @@ R_BODY_CAM_DEFAULT = np.array([[0.0, 1.0, 0.0],
 # Body <-> camera attitude (R_enu_cam = R_enu_body @ R_body_cam)
 # --------------------------------------------------------------------------------------------
 def camera_attitude_from_body_quat(q_enu_body_xyzw, R_body_cam=R_BODY_CAM_DEFAULT) -> CameraAttitude:
-    """Eq 21 camera attitude of a body orientation.
+    """Compute the eq 21 camera attitude of a body orientation.
 
-    ``q_enu_body_xyzw``: quaternion (x, y, z, w) of the body in ENU (REP-103, what an IMU publishes);
-    ``R_body_cam``: 3x3 mounting, camera axes in the body frame (default :data:`R_BODY_CAM_DEFAULT`).
-    Returns :class:`CameraAttitude` (bearing, pitch, roll; deg) of ``R_enu_body @ R_body_cam``
-    (paper eq 21).
+    The attitude of ``R_enu_cam = R_enu_body @ R_body_cam``.
+
+    Parameters
+    ----------
+    q_enu_body_xyzw : array_like
+        Quaternion (x, y, z, w) of the body in ENU (REP-103, what an IMU publishes).
+    R_body_cam : array_like, default R_BODY_CAM_DEFAULT
+        Mounting, shape (3, 3): the camera axes expressed in the body frame.
+
+    Returns
+    -------
+    CameraAttitude
+        Bearing of camera +y [deg, clockwise from North], pitch and roll [deg] (eq 21).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
     """
     R_enu_cam = quat_to_matrix(np.asarray(q_enu_body_xyzw, dtype=float)) @ np.asarray(R_body_cam, dtype=float)
     return attitude_from_R_enu_cam(R_enu_cam)
 
 
 def R_enu_body_from_camera_attitude(att: CameraAttitude, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
-    """``R_enu_body = R_enu_cam @ R_body_cam^T`` of a camera attitude (the inverse of
-    :func:`camera_attitude_from_body_quat`).
+    """Compute ``R_enu_body = R_enu_cam @ R_body_cam^T`` of a camera attitude.
 
-    ``att``: :class:`CameraAttitude` (eq 21 bearing, pitch, roll; deg); ``R_body_cam``: 3x3 mounting.
-    Returns the 3x3 rotation from body to ENU.
+    The inverse of :func:`camera_attitude_from_body_quat`.
+
+    Parameters
+    ----------
+    att : CameraAttitude
+        Eq 21 bearing, pitch and roll [deg].
+    R_body_cam : array_like, default R_BODY_CAM_DEFAULT
+        Mounting, shape (3, 3): the camera axes expressed in the body frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation (3, 3) mapping body-frame vectors into ENU.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
     """
     R_enu_cam = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
     return R_enu_cam @ np.asarray(R_body_cam, dtype=float).T
 
 
 def body_quat_from_camera_attitude(att: CameraAttitude, R_body_cam=R_BODY_CAM_DEFAULT) -> np.ndarray:
-    """Body orientation quaternion (x, y, z, w) in ENU of a camera attitude (w >= 0): the quaternion of
-    :func:`R_enu_body_from_camera_attitude`."""
+    """Compute the body quaternion (x, y, z, w) in ENU of a camera attitude (w >= 0).
+
+    The quaternion of :func:`R_enu_body_from_camera_attitude`.
+
+    Parameters
+    ----------
+    att : CameraAttitude
+        Eq 21 bearing, pitch and roll [deg].
+    R_body_cam : array_like, default R_BODY_CAM_DEFAULT
+        Mounting, shape (3, 3): the camera axes expressed in the body frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit quaternion (x, y, z, w) of the body in ENU, shape (4,), w >= 0.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
+    """
     return matrix_to_quat(R_enu_body_from_camera_attitude(att, R_body_cam))
 
 
@@ -370,17 +812,53 @@ def body_quat_from_camera_attitude(att: CameraAttitude, R_body_cam=R_BODY_CAM_DE
 # Angle of polarization <-> E-vector (camera frame)
 # --------------------------------------------------------------------------------------------
 def aop_from_evector_cam_rad(e_cam):
-    """Eq 28: AoP = atan2(E_x, E_y) of the E-vector in the camera frame, folded to [-pi/2, pi/2)."""
+    """Compute the AoP ``atan2(E_x, E_y)`` of camera-frame E-vector(s), eq 28.
+
+    The angle of the E-vector projected on the sensor x-y plane, from +y_cam towards +x_cam.
+
+    Parameters
+    ----------
+    e_cam : array_like
+        E-vector(s) in the camera frame, shape (..., 3), any length and sign (axial).
+
+    Returns
+    -------
+    numpy.ndarray
+        AoP [rad] in [-pi/2, pi/2), shape (...).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28.
+    """
     e = np.asarray(e_cam)
     return fold_aop_rad(np.arctan2(e[..., 0], e[..., 1]))
 
 
 def evector_cam_from_aop(aop_rad, rays_cam):
-    """Lift AoP to a unit 3-D E-vector perpendicular to each pixel's ray (camera frame), shape (..., 3).
+    """Lift AoP to unit 3-D E-vectors perpendicular to each pixel's ray (camera frame).
 
-    The sensor measures the orthographic projection of E on its x-y plane, so E = (sin a, cos a, e_z)
-    up to scale with E . r = 0. Multiplying through by r_z avoids dividing by it (fisheye rays near
-    90 deg off-axis): E ~ (r_z sin a, r_z cos a, -(r_x sin a + r_y cos a)).
+    The inverse of eq 28. The sensor measures the orthographic projection of E on its x-y plane, so
+    E = (sin a, cos a, e_z) up to scale with E . r = 0. Multiplying through by r_z avoids dividing
+    by it (fisheye rays near 90 deg off-axis): E ~ (r_z sin a, r_z cos a, -(r_x sin a + r_y cos
+    a)).
+
+    Parameters
+    ----------
+    aop_rad : array_like
+        AoP [rad] in the eq 28 convention, shape (...).
+    rays_cam : array_like
+        Viewing rays of the pixels in the camera frame, shape (..., 3), any length.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit E-vectors in the camera frame, shape (..., 3).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28.
     """
     a = np.asarray(aop_rad)
     r = np.asarray(rays_cam)
@@ -403,11 +881,23 @@ ANGLE_SENSES = ("cw", "ccw")
 
 
 def unit_axis_body(azimuth_deg, elevation_deg):
-    """Viewing axis of a photodiode unit in the REP-103 body frame (x forward, y left, z up), shape (..., 3).
+    """Compute the viewing axis of a photodiode unit in the REP-103 body frame.
 
-    ``azimuth_deg`` clockwise from the body's front seen from above (90 = the body's right, -y),
-    ``elevation_deg`` above the body's x-y plane. A level body with its front at true bearing B sees
-    along compass azimuth ``B + azimuth_deg`` at altitude ``elevation_deg``.
+    A level body with its front at true bearing B sees along compass azimuth ``B + azimuth_deg`` at
+    altitude ``elevation_deg``.
+
+    Parameters
+    ----------
+    azimuth_deg : float or array_like
+        Azimuth of the axis [deg], clockwise from the body's front seen from above (90 = the body's
+        right, -y).
+    elevation_deg : float or array_like
+        Elevation of the axis [deg] above the body's x-y plane.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit vector(s) in the body frame (x forward, y left, z up), shape (..., 3).
     """
     a, e = np.broadcast_arrays(np.radians(np.asarray(azimuth_deg, dtype=float)),
                                np.radians(np.asarray(elevation_deg, dtype=float)))
@@ -415,15 +905,45 @@ def unit_axis_body(azimuth_deg, elevation_deg):
 
 
 def unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero="meridian", angle_sense="cw"):
-    """Orthonormal (zero, quarter) directions, body frame, spanning the plane a unit's polarizers lie in.
+    """Compute the (zero, quarter) directions spanning a unit's polarizer plane, body frame.
 
-    A polarizer at angle theta transmits along ``cos(theta) zero + sin(theta) quarter``. ``zero`` is the
-    local meridian's tangent pointing up (towards the zenith) for ``angle_zero="meridian"``, or the
-    horizontal direction on the unit's right (seen looking out along the axis) for ``"horizontal"``;
-    ``quarter`` is ``zero`` turned by +90 deg in ``angle_sense`` (``cw``: a right-handed rotation about the
-    axis, ``quarter = axis x zero``). The meridian tangent is ``(-sin e * h, cos e)`` with h the unit's
-    horizontal azimuth direction: continuous up to a unit looking at the zenith, whose meridian is then
-    its azimuth's vertical plane (so ``azimuth_deg`` orients a zenith unit). Shapes (..., 3) each.
+    A polarizer at angle theta transmits along ``cos(theta) zero + sin(theta) quarter``. ``zero``
+    is the local meridian's tangent pointing up (towards the zenith) for ``angle_zero="meridian"``,
+    or the horizontal direction on the unit's right (seen looking out along the axis) for
+    ``"horizontal"``; ``quarter`` is ``zero`` turned by +90 deg in ``angle_sense`` (``cw``: a
+    right-handed rotation about the axis, ``quarter = axis x zero``). The meridian tangent is
+    ``(-sin e * h, cos e)`` with h the unit's horizontal azimuth direction (the paper's eq 16
+    meridian tangent): continuous up to a unit looking at the zenith, whose meridian is then its
+    azimuth's vertical plane (so ``azimuth_deg`` orients a zenith unit).
+
+    Parameters
+    ----------
+    azimuth_deg : float or array_like
+        Azimuth of the unit's axis [deg], clockwise from the body's front seen from above.
+    elevation_deg : float or array_like
+        Elevation of the unit's axis [deg] above the body's x-y plane.
+    angle_zero : {"meridian", "horizontal"}, default "meridian"
+        What the 0 deg polarizer is parallel to (:data:`ANGLE_ZEROS`).
+    angle_sense : {"cw", "ccw"}, default "cw"
+        Sense of increasing polarizer angle looking out along the axis (:data:`ANGLE_SENSES`).
+
+    Returns
+    -------
+    zero : numpy.ndarray
+        Unit direction of the 0 deg polarizer, body frame, shape (..., 3).
+    quarter : numpy.ndarray
+        Unit direction of the 90 deg polarizer, body frame, shape (..., 3).
+
+    Raises
+    ------
+    ValueError
+        ``angle_zero`` or ``angle_sense`` is not one of the allowed values.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 16 (meridian tangent)
+       and 17 (horizontal direction).
     """
     if angle_zero not in ANGLE_ZEROS:
         raise ValueError(f"angle_zero must be one of {ANGLE_ZEROS}, got {angle_zero!r}")
@@ -443,11 +963,35 @@ def unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero="meridian",
 
 
 def unit_evector_body(angle_rad, azimuth_deg, elevation_deg, angle_zero="meridian", angle_sense="cw"):
-    """Unit E-vector (body frame, (..., 3)) of light polarized at ``angle_rad`` in a unit's polarizer angles.
+    """Compute the unit E-vector, body frame, of light at a polarizer angle of a unit.
 
-    The inverse of :func:`unit_angle_from_evector_body_rad` (axial: E and -E are the same polarization).
-    A unit at elevation 90 deg, azimuth 0, ``angle_zero="meridian"``, ``angle_sense="ccw"`` measures the
-    camera's eq 28 AoP of the default mounting (:data:`R_BODY_CAM_DEFAULT`).
+    The inverse of :func:`unit_angle_from_evector_body_rad` (axial: E and -E are the same
+    polarization). A unit at elevation 90 deg, azimuth 0, ``angle_zero="meridian"``,
+    ``angle_sense="ccw"`` measures the camera's eq 28 AoP of the default mounting
+    (:data:`R_BODY_CAM_DEFAULT`).
+
+    Parameters
+    ----------
+    angle_rad : float or array_like
+        Polarization angle [rad] in the unit's polarizer angles.
+    azimuth_deg : float or array_like
+        Azimuth of the unit's axis [deg], clockwise from the body's front seen from above.
+    elevation_deg : float or array_like
+        Elevation of the unit's axis [deg] above the body's x-y plane.
+    angle_zero : {"meridian", "horizontal"}, default "meridian"
+        What the 0 deg polarizer is parallel to.
+    angle_sense : {"cw", "ccw"}, default "cw"
+        Sense of increasing polarizer angle looking out along the axis.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit E-vector(s) in the body frame, shape (..., 3).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 15.
     """
     zero, quarter = unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero, angle_sense)
     t = np.asarray(angle_rad, dtype=float)[..., None]
@@ -456,9 +1000,33 @@ def unit_evector_body(angle_rad, azimuth_deg, elevation_deg, angle_zero="meridia
 
 def unit_angle_from_evector_body_rad(e_body, azimuth_deg, elevation_deg, angle_zero="meridian",
                                      angle_sense="cw"):
-    """Polarization angle (rad, folded to [-pi/2, pi/2)) a unit measures for E-vector(s) ``e_body`` (..., 3).
+    """Compute the polarization angle a photodiode unit measures for body-frame E-vector(s).
 
     The angle of E projected on the unit's polarizer plane, ``atan2(E . quarter, E . zero)``.
+
+    Parameters
+    ----------
+    e_body : array_like
+        E-vector(s) in the body frame, shape (..., 3), any length and sign (axial).
+    azimuth_deg : float or array_like
+        Azimuth of the unit's axis [deg], clockwise from the body's front seen from above.
+    elevation_deg : float or array_like
+        Elevation of the unit's axis [deg] above the body's x-y plane.
+    angle_zero : {"meridian", "horizontal"}, default "meridian"
+        What the 0 deg polarizer is parallel to.
+    angle_sense : {"cw", "ccw"}, default "cw"
+        Sense of increasing polarizer angle looking out along the axis.
+
+    Returns
+    -------
+    numpy.ndarray
+        Polarization angle [rad] in [-pi/2, pi/2), shape (...).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 15 (the inverse of the
+       decomposition).
     """
     zero, quarter = unit_polarizer_frame_body(azimuth_deg, elevation_deg, angle_zero, angle_sense)
     e = np.asarray(e_body, dtype=float)

@@ -51,6 +51,12 @@ REGENERATE_DEFAULT_MAP = ("polarization-compass errormap --methods zenith,sm_asm
 
 
 class CorrectionStatus(str, Enum):
+    """Outcome of one tilt correction (values are strings).
+
+    ``ok``; ``out_of_domain`` (outside the map's axes or tilt limit, or an invalid node is needed);
+    ``multiple_solutions`` (several yaws predict the measurement); ``no_solution`` (none does).
+    """
+
     OK = "ok"
     OUT_OF_DOMAIN = "out_of_domain"
     MULTIPLE_SOLUTIONS = "multiple_solutions"
@@ -68,9 +74,23 @@ _FROM_INT = {v: k for k, v in STATUS_INT.items()}
 
 @dataclass(frozen=True)
 class Correction:
-    """One corrected heading. ``psi_deg`` is None when there is none (status says why);
-    ``error_deg`` is the map's error at the corrected yaw (psi_meas - psi); ``candidates_deg`` lists
-    every root of the inversion."""
+    """Hold one corrected heading; ``psi_deg`` is None when there is none (status says why).
+
+    Parameters
+    ----------
+    status : CorrectionStatus
+        Outcome.
+    psi_deg : float or None
+        Corrected yaw psi [deg] (eq 21), (-180, 180].
+    error_deg : float or None
+        The map's error at the corrected yaw, ``psi_meas - psi`` [deg].
+    candidates_deg : tuple of float
+        Every root of the inversion [deg].
+    mode : str
+        ``invert`` or ``subtract``.
+    reason : str
+        Why the status is not ``ok`` (or how a root was chosen).
+    """
 
     status: CorrectionStatus
     psi_deg: float | None = None
@@ -81,11 +101,18 @@ class Correction:
 
     @property
     def ok(self) -> bool:
+        """Whether a corrected heading exists (status ``ok``)."""
         return self.status == CorrectionStatus.OK
 
 
 def default_map_path() -> Path:
-    """The shipped map (``polarization_compass/data/tilt_error_map.npz``)."""
+    """Locate the shipped error map.
+
+    Returns
+    -------
+    pathlib.Path
+        ``polarization_compass/data/tilt_error_map.npz`` inside the installed package.
+    """
     return Path(str(resources.files("polarization_compass").joinpath("data/" + DEFAULT_MAP_NAME)))
 
 
@@ -251,7 +278,30 @@ def _invert_kernel(curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert):
 # The corrector
 # --------------------------------------------------------------------------------------------
 class TiltCorrector:
-    """Corrects one method's headings with an error map. ``order``: 3 (cubic, default) or 1 (linear)."""
+    """Correct one method's headings with a tilt error map.
+
+    Parameters
+    ----------
+    error_map : ErrorMap
+        The map; its yaw axis must have a uniform step and cover a full turn.
+    method : str
+        The method whose errors to use (a name in the map).
+    order : {3, 1}, default 3
+        Interpolation: cubic convolution (Keys, a = -1/2) or multilinear.
+
+    Raises
+    ------
+    ErrorMapError
+        Bad order, a method not in the map, or a yaw axis that is not a uniform full turn.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 (correcting the
+       tilt error with the simulated errors).
+    .. [2] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
+       Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
+    """
 
     def __init__(self, error_map: ErrorMap, method: str, order: int = 3):
         if order not in (1, 3):
@@ -291,7 +341,27 @@ class TiltCorrector:
 
     @staticmethod
     def from_file(path=None, method: str = "least_squares", order: int = 3) -> "TiltCorrector":
-        """From a map file (default: the shipped map)."""
+        """Build a corrector from a map file (default: the shipped map).
+
+        Parameters
+        ----------
+        path : str or os.PathLike, optional
+            The ``.npz`` error map; :func:`default_map_path` when None.
+        method : str, default "least_squares"
+            The method whose errors to use.
+        order : {3, 1}, default 3
+            Interpolation order.
+
+        Returns
+        -------
+        TiltCorrector
+            The corrector.
+
+        Raises
+        ------
+        ErrorMapError
+            The file is missing, corrupt or unusable for correction.
+        """
         return TiltCorrector(load_error_map(default_map_path() if path is None else path), method, order)
 
     # ------------------------------------------------------------------------------------------
@@ -312,9 +382,28 @@ class TiltCorrector:
         return out, ok, inside
 
     def curves(self, h, p, r):
-        """Error at every yaw node for each (h, pitch, roll) query: (N, Y) and validity (N,).
+        """Interpolate the error at every yaw node for each (sun altitude, pitch, roll) query.
 
         Cubic where every node of the stencil is valid, else multilinear in the cell, else invalid.
+
+        Parameters
+        ----------
+        h : float or array_like
+            Sun altitude [deg].
+        p, r : float or array_like
+            Camera pitch and roll [deg] (eq 21), broadcast with ``h``.
+
+        Returns
+        -------
+        curves : numpy.ndarray
+            Error [deg] at the map's yaw nodes, shape (N, Y).
+        ok : numpy.ndarray
+            bool (N,): the query is inside the domain and every node it reads is valid.
+
+        References
+        ----------
+        .. [1] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
+           Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
         """
         h, p, r = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(h, p, r))
         c, ok, inside = self._curves_order(h, p, r, self.order)
@@ -331,7 +420,24 @@ class TiltCorrector:
         return np.sum(curve[rows[..., None], idx] * w, axis=-1)
 
     def predicted_error(self, psi_true_deg, h_deg, pitch_deg, roll_deg):
-        """The map's error at the given true yaw(s): (error_deg (N,), ok (N,)); 0 where not ok."""
+        """Interpolate the map's heading error at given true yaws.
+
+        Parameters
+        ----------
+        psi_true_deg : float or array_like
+            True yaw psi [deg] (eq 21).
+        h_deg : float or array_like
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float or array_like
+            Camera pitch alpha and roll beta [deg] (eq 21), broadcast together.
+
+        Returns
+        -------
+        error_deg : numpy.ndarray
+            ``psi_meas - psi`` [deg], shape (N,); 0 where not ok.
+        ok : numpy.ndarray
+            bool (N,).
+        """
         psi, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
                         for v in np.broadcast_arrays(psi_true_deg, h_deg, pitch_deg, roll_deg))
         curve, ok = self.curves(h, p, r)
@@ -341,8 +447,41 @@ class TiltCorrector:
     # ------------------------------------------------------------------------------------------
     def correct_many(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode: str = "invert",
                      oversample: int = 4):
-        """Vectorised correction. Returns (psi_deg (N,), status int8 (N,) per :data:`STATUS_INT`,
-        n_roots (N,)). ``psi_deg`` is 0 where there is no heading (status tells)."""
+        """Correct many measured yaws at once.
+
+        Parameters
+        ----------
+        psi_meas_deg : float or array_like
+            Measured yaw psi [deg] (eq 21).
+        h_deg : float or array_like
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float or array_like
+            Camera pitch alpha and roll beta [deg] (eq 21), broadcast together.
+        mode : {"invert", "subtract"}, default "invert"
+            Solve ``psi + e(psi) = psi_meas`` for psi, or the paper's ``psi_meas - e(psi_meas)``.
+        oversample : int, default 4
+            Sub-steps per yaw step of the root bracketing grid.
+
+        Returns
+        -------
+        psi_deg : numpy.ndarray
+            Corrected yaw [deg], shape (N,); 0 where there is no heading (status tells).
+        status : numpy.ndarray
+            int8 (N,) codes of :data:`STATUS_INT`.
+        n_roots : numpy.ndarray
+            Number of roots found per query (N,).
+
+        Raises
+        ------
+        ErrorMapError
+            Unknown ``mode``.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 (correcting the
+           tilt error with the simulated errors).
+        """
         return self._correct(psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample)[:3]
 
     def _correct(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample=4):
@@ -372,7 +511,35 @@ class TiltCorrector:
 
     def correct(self, psi_meas_deg: float, sun_altitude_deg: float, pitch_deg: float, roll_deg: float,
                 mode: str = "invert") -> Correction:
-        """Correct one heading. Never raises for out-of-domain input: the status says so."""
+        """Correct one measured yaw; out-of-domain input is a status, never an exception.
+
+        Parameters
+        ----------
+        psi_meas_deg : float
+            Measured yaw psi [deg] (eq 21).
+        sun_altitude_deg : float
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float
+            Camera pitch alpha and roll beta [deg] (eq 21).
+        mode : {"invert", "subtract"}, default "invert"
+            Solve ``psi + e(psi) = psi_meas`` for psi, or the paper's ``psi_meas - e(psi_meas)``.
+
+        Returns
+        -------
+        Correction
+            Corrected psi [deg], the map's error there, all roots, and the status with its reason.
+
+        Raises
+        ------
+        ErrorMapError
+            Unknown ``mode``.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 (correcting the
+           tilt error with the simulated errors).
+        """
         vals = (psi_meas_deg, sun_altitude_deg, pitch_deg, roll_deg)
         if not all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(float(v)) for v in vals):
             return Correction(CorrectionStatus.OUT_OF_DOMAIN, mode=mode, reason=f"non-finite input {vals}")
@@ -391,18 +558,72 @@ class TiltCorrector:
 
     def correct_bearing(self, raw_bearing_deg: float, sun_azimuth_deg: float, sun_altitude_deg: float,
                         pitch_deg: float, roll_deg: float, mode: str = "invert"):
-        """Correct a true bearing of camera +y (deg), as the ``tilt_corrector`` node and the replay do:
-        its psi against the sun (wrapped to (-180, 180]), :meth:`correct`, back to a bearing in [0, 360).
-        Returns ``(corrected_bearing_deg or None when not ok, Correction)``."""
+        """Correct a true bearing of camera +y, as the ``tilt_corrector`` node and the replay do.
+
+        Its psi against the sun (wrapped to (-180, 180]), :meth:`correct`, back to a bearing in [0,
+        360).
+
+        Parameters
+        ----------
+        raw_bearing_deg : float
+            Measured bearing of camera +y [deg], clockwise from North.
+        sun_azimuth_deg : float
+            Sun azimuth [deg], clockwise from North.
+        sun_altitude_deg : float
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float
+            Camera pitch alpha and roll beta [deg] (eq 21).
+        mode : {"invert", "subtract"}, default "invert"
+            Solve ``psi + e(psi) = psi_meas`` for psi, or the paper's ``psi_meas - e(psi_meas)``.
+
+        Returns
+        -------
+        bearing_deg : float or None
+            Corrected bearing [deg] in [0, 360); None when the correction is not ok.
+        correction : Correction
+            The correction in psi, with status and reason.
+
+        Raises
+        ------
+        ErrorMapError
+            Unknown ``mode``.
+        """
         psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_azimuth_deg))
         c = self.correct(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         return (float(psi_to_bearing_deg(c.psi_deg, sun_azimuth_deg)) if c.ok else None), c
 
     def correct_bearings(self, raw_bearing_deg, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
                          mode: str = "invert"):
-        """:meth:`correct_bearing` over arrays (one vectorised inversion instead of one per heading, for
-        offline replay). Returns ``(bearings_deg (N,), statuses)``: bearing in [0, 360) where the status is
-        ``ok``, NaN elsewhere; ``statuses`` the :class:`CorrectionStatus` values (str) per heading."""
+        """Correct arrays of bearings as :meth:`correct_bearing` does, in one vectorised inversion.
+
+        For the offline replay (one inversion instead of one per heading).
+
+        Parameters
+        ----------
+        raw_bearing_deg : array_like
+            Measured bearings of camera +y [deg], clockwise from North.
+        sun_azimuth_deg : float or array_like
+            Sun azimuth [deg], clockwise from North.
+        sun_altitude_deg : float or array_like
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float or array_like
+            Camera pitch alpha and roll beta [deg] (eq 21), all broadcast together.
+        mode : {"invert", "subtract"}, default "invert"
+            Solve ``psi + e(psi) = psi_meas`` for psi, or the paper's ``psi_meas - e(psi_meas)``.
+
+        Returns
+        -------
+        bearings_deg : numpy.ndarray
+            Corrected bearings [deg] in [0, 360) where the status is ``ok``, NaN elsewhere, shape
+            (N,).
+        statuses : list of str
+            :class:`CorrectionStatus` value per heading.
+
+        Raises
+        ------
+        ErrorMapError
+            Unknown ``mode``.
+        """
         raw, az = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(raw_bearing_deg,
                                                                                             sun_azimuth_deg))
         psi_meas = wrap_180_deg(raw - az)

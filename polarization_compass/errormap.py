@@ -70,11 +70,38 @@ def _min_abs_on(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 def tilt_domain_mask(pitch_deg, roll_deg, limit_deg: float = DEFAULT_TILT_LIMIT_DEG,
                      support: int = 0) -> np.ndarray:
-    """(pitches, rolls) bool: which (pitch, roll) nodes lie in, or support, the tilt domain.
+    """Mark the (pitch, roll) nodes in, or supporting, the domain |pitch| + |roll| <= limit.
 
     ``support=0``: exactly the nodes with |pitch| + |roll| <= limit. ``support=1``: also every node
     that is a corner of a grid cell touching that region (what multilinear interpolation inside it
     reads). ``support=2``: also the nodes one step further (what cubic interpolation reads).
+
+    Parameters
+    ----------
+    pitch_deg : array_like
+        Pitch axis [deg], 1-D, increasing.
+    roll_deg : array_like
+        Roll axis [deg], 1-D, increasing.
+    limit_deg : float, default 30
+        Bound on |pitch| + |roll| [deg] (the paper's imager stays above the horizon within it).
+    support : int, default 0
+        Extra grid steps around the domain that interpolation reads (0, 1 or 2).
+
+    Returns
+    -------
+    numpy.ndarray
+        bool, shape (pitches, rolls).
+
+    Raises
+    ------
+    ErrorMapError
+        ``support`` is negative.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (``|alpha| + |beta|
+       <= 30 deg`` for a 108 deg field of view).
     """
     p = np.asarray(pitch_deg, dtype=float)
     r = np.asarray(roll_deg, dtype=float)
@@ -100,7 +127,29 @@ AXES = ("sun_altitude_deg", "yaw_deg", "pitch_deg", "roll_deg")
 
 @dataclass
 class ErrorMap:
-    """A computed error map (see the module docstring for the arrays' meaning)."""
+    """Hold a computed tilt error map (see the module docstring for the arrays' meaning).
+
+    Parameters
+    ----------
+    error_deg : numpy.ndarray
+        Heading error [deg] folded to (-90, 90], shape (methods, sun altitudes, yaws, pitches,
+        rolls); 0 where ``status`` says there is no estimate.
+    status : numpy.ndarray
+        int8 codes (:data:`STATUS_CODES`, :data:`STATUS_NOT_COMPUTED`, ...), the same shape.
+    methods : tuple of str
+        Method names along the first axis.
+    sun_altitude_deg, yaw_deg, pitch_deg, roll_deg : numpy.ndarray
+        The grid axes [deg], strictly increasing; yaw is the paper's psi (eq 21), pitch alpha, roll
+        beta.
+    meta : dict
+        JSON-able description: scene, sampling, domain rule, status legend, versions.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (the error over sun
+       altitude, yaw, pitch and roll).
+    """
 
     error_deg: np.ndarray
     status: np.ndarray
@@ -113,16 +162,42 @@ class ErrorMap:
 
     @property
     def valid(self) -> np.ndarray:
+        """Bool mask, shape of ``status``: the cell holds an estimate (ok or axial)."""
         return (self.status == STATUS_CODES["ok"]) | (self.status == STATUS_CODES["ambiguous"])
 
     @property
     def shape(self) -> tuple:
+        """Shape of ``error_deg``: (methods, sun altitudes, yaws, pitches, rolls)."""
         return self.error_deg.shape
 
     def axes(self) -> tuple:
+        """Give the four grid axes in array order.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(sun_altitude_deg, yaw_deg, pitch_deg, roll_deg)`` [deg].
+        """
         return (self.sun_altitude_deg, self.yaw_deg, self.pitch_deg, self.roll_deg)
 
     def method_index(self, method: str) -> int:
+        """Give the index of a method along the map's first axis.
+
+        Parameters
+        ----------
+        method : str
+            Method name.
+
+        Returns
+        -------
+        int
+            Its index in ``methods``.
+
+        Raises
+        ------
+        ErrorMapError
+            The method is not in this map (the message lists those that are).
+        """
         try:
             return list(self.methods).index(method)
         except ValueError:
@@ -131,7 +206,29 @@ class ErrorMap:
 
     @staticmethod
     def axis_index(axis: np.ndarray, value: float, name: str, tol: float = 1e-6) -> int:
-        """Index of the node equal to ``value`` (within ``tol``); :class:`ErrorMapError` if none."""
+        """Give the index of the node of an axis equal to a value.
+
+        Parameters
+        ----------
+        axis : numpy.ndarray
+            One of the map's axes [deg].
+        value : float
+            The wanted node [deg].
+        name : str
+            Name of the axis, for the message.
+        tol : float, default 1e-6
+            Largest accepted |node - value| [deg].
+
+        Returns
+        -------
+        int
+            Index of the nearest node.
+
+        Raises
+        ------
+        ErrorMapError
+            No node lies within ``tol`` of ``value``.
+        """
         i = int(np.argmin(np.abs(axis - value)))
         if abs(axis[i] - value) > tol:
             raise ErrorMapError(f"{name} {value:g} is not a node of the map's {name} axis "
@@ -139,7 +236,18 @@ class ErrorMap:
         return i
 
     def validate(self) -> "ErrorMap":
-        """Check shapes, axes, finiteness and status codes; raises :class:`ErrorMapError`."""
+        """Check shapes, axes, finiteness, folding and status codes.
+
+        Returns
+        -------
+        ErrorMap
+            ``self``, for chaining.
+
+        Raises
+        ------
+        ErrorMapError
+            With the first inconsistency found.
+        """
         axes = self.axes()
         for name, a in zip(AXES, axes):
             if a.ndim != 1 or a.size < 1:
@@ -167,9 +275,25 @@ class ErrorMap:
         return self
 
     def save(self, path, float32: bool = False) -> Path:
-        """Write the map as a compressed ``.npz`` (atomically: a temporary file, then rename).
+        """Write the map as a compressed ``.npz``, atomically (a temporary file, then rename).
 
-        ``float32`` halves the file (errors keep ~1e-5 deg); loading always gives float64.
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination; parent directories are created.
+        float32 : bool, default False
+            Store ``error_deg`` as float32: half the file, errors keep ~1e-5 deg; loading always
+            gives float64.
+
+        Returns
+        -------
+        pathlib.Path
+            The written path.
+
+        Raises
+        ------
+        ErrorMapError
+            The map is inconsistent (:meth:`validate`).
         """
         self.validate()
         p = Path(path)
@@ -231,9 +355,28 @@ def _check_map_headers(name: str, h: dict) -> None:
 
 
 def load_error_map(path) -> ErrorMap:
-    """Load and validate a map written by :meth:`ErrorMap.save`. Raises :class:`ErrorMapError` (never
-    unpickles). Bounded: only a regular file is opened, and the shapes its arrays declare are checked
-    (:func:`_check_map_headers`) before anything is decompressed; deeply nested meta JSON is an error too."""
+    """Load and validate a map written by :meth:`ErrorMap.save` (never unpickles).
+
+    Bounded: only a regular file is opened, and the shapes its arrays declare are checked
+    (:func:`_check_map_headers`) before anything is decompressed; deeply nested meta JSON is an
+    error too.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.npz`` file.
+
+    Returns
+    -------
+    ErrorMap
+        The validated map, float64 errors and axes [deg].
+
+    Raises
+    ------
+    ErrorMapError
+        The file is missing, not an ``.npz`` error map, corrupt, or inconsistent (the message names
+        the file and the reason).
+    """
     from .safe_load import load_json, open_npz
     p = Path(path)
     if p.is_dir():

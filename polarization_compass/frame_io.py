@@ -41,6 +41,24 @@ class FrameFileError(CompassError):
 
 @dataclass
 class FrameFile:
+    """Hold the arrays of a frame file (see the module docstring for their meaning).
+
+    Parameters
+    ----------
+    aop_rad : numpy.ndarray
+        AoP [rad], eq 28 convention, folded to [-pi/2, pi/2).
+    dop : numpy.ndarray
+        Degree of polarization in [0, 1], same shape.
+    valid : numpy.ndarray
+        bool, same shape.
+    x_px, y_px : numpy.ndarray
+        1-based column and row of each pixel (eq 20), same shape.
+    meta : dict
+        Sun, attitude, camera, effects and sensor parameters.
+    intensity, mosaic, aop_ideal_rad, dop_ideal : numpy.ndarray, optional
+        Intensity, the raw DoFP mosaic, and the noise-free AoP [rad] and DoP.
+    """
+
     aop_rad: np.ndarray
     dop: np.ndarray
     valid: np.ndarray
@@ -54,6 +72,7 @@ class FrameFile:
 
     @property
     def camera(self) -> CameraModel:
+        """Return the stored :class:`CameraModel` (:class:`FrameFileError` when unusable)."""
         cam = self.meta.get("camera") or {}
         try:
             return CameraModel(**cam)
@@ -61,13 +80,48 @@ class FrameFile:
             raise FrameFileError(f"frame meta has an unusable camera description: {exc}") from None
 
     def rays_cam(self) -> np.ndarray:
-        """(3, N) float32 unit rays of the stored pixels, from the stored camera model."""
+        """Compute the unit viewing rays of the stored pixels from the stored camera model.
+
+        Returns
+        -------
+        numpy.ndarray
+            float32, shape (3, N), camera frame (x right, y down, z the optical axis; eq 20), in
+            the order of ``aop_rad.reshape(-1)``.
+
+        Raises
+        ------
+        FrameFileError
+            The stored camera description is unusable.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+        """
         rays, _ = self.camera.rays_from_pixels(self.x_px, self.y_px)
         return rays.astype(np.float32)
 
 
 def save_frame_npz(path, frame) -> Path:
-    """Write a :class:`~polarization_compass.render.Frame` (compressed)."""
+    """Write a rendered frame as a compressed ``.npz`` frame file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination, ending in ``.npz``; parent directories are created.
+    frame : polarization_compass.render.Frame
+        The frame (AoP [rad], DoP, valid mask, pixel coordinates, meta and optional arrays).
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+
+    Raises
+    ------
+    FrameFileError
+        ``path`` does not end in ``.npz``.
+    """
     p = Path(path)
     if p.suffix != ".npz":
         raise FrameFileError(f"frame files end in .npz, got {p.name!r}")
@@ -111,9 +165,27 @@ def _check_declared_shapes(name: str, headers: dict) -> None:
 
 
 def load_frame_npz(path) -> FrameFile:
-    """Read and validate a frame file. Raises :class:`FrameFileError` with the reason.
+    """Read and validate a frame file (never unpickles).
 
-    The declared shapes are checked before any array is decompressed (:func:`_check_declared_shapes`)."""
+    The declared shapes are checked before any array is decompressed
+    (:func:`_check_declared_shapes`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.npz`` written by :func:`save_frame_npz`.
+
+    Returns
+    -------
+    FrameFile
+        The arrays and the meta dict.
+
+    Raises
+    ------
+    FrameFileError
+        The file is missing or corrupt, lacks an array, has inconsistent shapes or dtypes,
+        non-finite AoP/DoP at valid pixels, DoP outside [0, 1], or meta that is not a JSON object.
+    """
     p = Path(path)
     with open_npz(p, FrameFileError, "frame file", check=lambda h: _check_declared_shapes(p.name, h)) as z:
         data = {k: z[k] for k in z.files if k in REQUIRED + OPTIONAL}

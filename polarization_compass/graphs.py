@@ -319,7 +319,9 @@ def _downstream(nodes) -> list[str]:
 
 
 def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSpec:
-    params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
+    image_knobs = {} if params.get("input") == "array" else \
+        {k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}     # an array has its own knobs
+    params = {**image_knobs, **params}
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=registry.get(method).needs_tilt,

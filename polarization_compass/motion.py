@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .conventions import CameraAttitude, rot_x, rot_y, rot_z, wrap_360_deg
+from .conventions import (CameraAttitude, R_enu_cam_from_attitude, attitude_from_R_enu_cam, rot_x, rot_y, rot_z,
+                          wrap_360_deg)
 
-__all__ = ["MotionProfile", "frame_times_ns", "imu_reading"]
+__all__ = ["MotionProfile", "frame_times_ns", "imu_reading", "MountingErrors"]
 
 
 @dataclass(frozen=True)
@@ -78,3 +79,78 @@ def imu_reading(R_enu_body, normals, attitude_noise_deg: float, yaw_noise_deg: f
                  1e-12)
     var_y = max(math.radians(math.hypot(yaw_noise_deg, yaw_bias_deg)) ** 2, 1e-12)
     return R, (var_rp, var_rp, var_y)
+
+
+@dataclass(frozen=True)
+class MountingErrors:
+    """What the tilt correction is told about the camera's pitch and roll, against the truth: the errors of
+    the camera-to-IMU mounting and of the IMU (all deg unless named otherwise; all zero = a perfect IMU).
+
+    ``boresight_roll_deg``/``boresight_pitch_deg``/``boresight_yaw_deg``: the camera is mounted rotated by
+    ``B`` (camera axes, below) from where the IMU-to-camera calibration says, so
+    the attitude derived from the IMU is ``R_enu_cam_true @ B^T`` (boresight misalignment);
+    ``noise_deg``: IMU pitch/roll white noise per reading (1 sigma); ``pitch_bias_deg``/``roll_bias_deg``:
+    IMU tilt biases; ``time_offset_s``: the IMU sample belongs to ``time_offset_s`` later than the image,
+    during which the platform tilts at ``tilt_rate_deg_s`` in a random direction. Pitch and roll are the
+    paper's (eq 21, ``R = Rz(-bearing) Rx(pitch) Ry(roll)``): rotations about camera x and y, so
+    ``B = Rz(yaw) Rx(pitch) Ry(roll)`` and the noise and bias rotate by ``Rx(d_pitch) Ry(d_roll)`` on the
+    right; for a level camera a pitch bias b reads pitch b, a boresight pitch p reads pitch -p.
+    """
+
+    noise_deg: float = 0.0
+    pitch_bias_deg: float = 0.0
+    roll_bias_deg: float = 0.0
+    boresight_roll_deg: float = 0.0
+    boresight_pitch_deg: float = 0.0
+    boresight_yaw_deg: float = 0.0
+    time_offset_s: float = 0.0
+    tilt_rate_deg_s: float = 0.0
+
+    FIELDS = ("noise_deg", "pitch_bias_deg", "roll_bias_deg", "boresight_roll_deg", "boresight_pitch_deg",
+              "boresight_yaw_deg", "time_offset_s", "tilt_rate_deg_s")
+
+    def __post_init__(self):
+        for k in self.FIELDS:
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= 90.0):
+                raise ValueError(f"{k} must be a finite number with |{k}| <= 90, got {v!r}")
+
+    @property
+    def has_boresight(self) -> bool:
+        return any(getattr(self, k) != 0.0 for k in ("boresight_roll_deg", "boresight_pitch_deg",
+                                                      "boresight_yaw_deg"))
+
+    @property
+    def has_imu(self) -> bool:
+        return any(getattr(self, k) != 0.0 for k in ("noise_deg", "pitch_bias_deg", "roll_bias_deg")) or \
+            (self.time_offset_s != 0.0 and self.tilt_rate_deg_s != 0.0)
+
+    def without(self, *groups: str) -> "MountingErrors":
+        """A copy with the ``boresight`` and/or ``imu`` (noise, bias, time offset) errors set to zero."""
+        import dataclasses
+        ch = {}
+        if "boresight" in groups:
+            ch.update(boresight_roll_deg=0.0, boresight_pitch_deg=0.0, boresight_yaw_deg=0.0)
+        if "imu" in groups:
+            ch.update(noise_deg=0.0, pitch_bias_deg=0.0, roll_bias_deg=0.0, time_offset_s=0.0)
+        return dataclasses.replace(self, **ch)
+
+    def measured_attitude(self, true: CameraAttitude, normals) -> CameraAttitude:
+        """The camera attitude the pipeline derives from the IMU for the true attitude ``true``.
+
+        ``normals``: three standard normal draws (roll noise, pitch noise, direction of the tilt during the
+        time offset as an angle 2 pi Phi(z)); pass the same draws to compare error sources paired."""
+        R = R_enu_cam_from_attitude(true.bearing_deg, true.pitch_deg, true.roll_deg)
+        if self.time_offset_s != 0.0 and self.tilt_rate_deg_s != 0.0:
+            ang = math.radians(self.tilt_rate_deg_s * self.time_offset_s)
+            direction = math.pi * (1.0 + math.erf(normals[2] / math.sqrt(2.0)))      # uniform in [0, 2 pi)
+            R = R @ rot_x(ang * math.cos(direction)) @ rot_y(ang * math.sin(direction))
+        if self.has_boresight:
+            B = rot_z(math.radians(self.boresight_yaw_deg)) @ rot_x(math.radians(self.boresight_pitch_deg)) @ \
+                rot_y(math.radians(self.boresight_roll_deg))
+            R = R @ B.T
+        d_roll = math.radians(self.roll_bias_deg + self.noise_deg * normals[0])
+        d_pitch = math.radians(self.pitch_bias_deg + self.noise_deg * normals[1])
+        if d_roll or d_pitch:
+            R = R @ rot_x(d_pitch) @ rot_y(d_roll)
+        return attitude_from_R_enu_cam(R)

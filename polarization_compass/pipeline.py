@@ -35,7 +35,19 @@ class PipelineError(CompassError):
 # ------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CameraTilt:
-    """The camera attitude at an image stamp and how it was obtained."""
+    """Hold the camera attitude (eq 21) at an image stamp and how it was obtained.
+
+    Parameters
+    ----------
+    bearing_deg : float
+        True bearing of camera +y [deg], clockwise from North.
+    pitch_deg, roll_deg : float
+        The paper's pitch alpha and roll beta [deg].
+    gap_ns : int
+        Distance [ns] from the image stamp to the nearest IMU sample used.
+    interpolated : bool
+        Interpolated between two samples (else the nearer sample).
+    """
 
     bearing_deg: float
     pitch_deg: float
@@ -45,19 +57,25 @@ class CameraTilt:
 
 
 class AttitudeBuffer:
-    """Body orientation samples (stamp_ns, unit quaternion x, y, z, w) kept for ``keep_ns`` behind the
-    newest one, looked up at any stamp.
+    """Keep recent body orientation samples and look them up at any stamp.
 
-    :meth:`at` interpolates (normalised linear interpolation, hemisphere aligned) between the samples
-    either side of ``t`` when both are within ``tol_ns``; with one side only, the nearer sample within
-    ``tol_ns``; otherwise None (stale or missing: the caller reports it, nothing is guessed).
+    Samples (stamp_ns, unit quaternion x, y, z, w of the body in ENU) are kept for ``keep_ns``
+    behind the newest one. :meth:`at` interpolates (normalised linear interpolation, hemisphere
+    aligned) between the samples either side of ``t`` when both are within ``tol_ns``; with one
+    side only, the nearer sample within ``tol_ns``; otherwise None (stale or missing: the caller
+    reports it, nothing is guessed).
 
-    Time-line jumps: a sample more than ``keep_ns`` ahead of the newest is held aside until a second
-    sample near it confirms the jump (one bad stamp far in the future must not evict every good
-    sample); a sample more than ``keep_ns`` behind the newest is dropped (a late message), unless the
-    newest is a lone sample (then that one was the outlier) or three such samples come in a row (the
-    clock went back, e.g. a bag played again): then the buffer starts over from them.
+    Time-line jumps: a sample more than ``keep_ns`` ahead of the newest is held aside until a
+    second sample near it confirms the jump (one bad stamp far in the future must not evict every
+    good sample); a sample more than ``keep_ns`` behind the newest is dropped (a late message),
+    unless the newest is a lone sample (then that one was the outlier) or three such samples come
+    in a row (the clock went back, e.g. a bag played again): then the buffer starts over from them.
     ``jumps_held``/``late_dropped``/``resets`` count these events.
+
+    Parameters
+    ----------
+    keep_ns : int, default 10 s
+        History kept behind the newest sample [ns].
     """
 
     def __init__(self, keep_ns: int = 10_000_000_000):
@@ -78,9 +96,19 @@ class AttitudeBuffer:
 
     @property
     def newest_ns(self) -> int | None:
+        """Stamp [ns] of the newest sample, or None when empty."""
         return self._t[-1] if self._t else None
 
     def add(self, t_ns: int, q_xyzw) -> None:
+        """Add one orientation sample (thread-safe; see the class docstring for time-line jumps).
+
+        Parameters
+        ----------
+        t_ns : int
+            Stamp [ns].
+        q_xyzw : array_like
+            Unit quaternion (x, y, z, w) of the body in ENU (REP-103).
+        """
         with self._lock:
             self._add(int(t_ns), np.asarray(q_xyzw, dtype=float))
 
@@ -124,19 +152,51 @@ class AttitudeBuffer:
             del self._q[:cut]
 
     def around(self, t_ns: int, tol_ns: int):
-        """(before, after): (stamp, q) of the last sample at or before t and the first after it, each
-        None when absent or further than ``tol_ns``."""
+        """Find the samples either side of a stamp within a tolerance.
+
+        Parameters
+        ----------
+        t_ns : int
+            Stamp [ns].
+        tol_ns : int
+            Largest accepted distance [ns].
+
+        Returns
+        -------
+        before : tuple or None
+            ``(stamp_ns, q_xyzw)`` of the last sample at or before ``t_ns``; None when absent or
+            further than ``tol_ns``.
+        after : tuple or None
+            ``(stamp_ns, q_xyzw)`` of the first sample after ``t_ns``, likewise.
+        """
         k = bisect.bisect_right(self._t, t_ns)
         before = (self._t[k - 1], self._q[k - 1]) if k > 0 and t_ns - self._t[k - 1] <= tol_ns else None
         after = (self._t[k], self._q[k]) if k < len(self._t) and self._t[k] - t_ns <= tol_ns else None
         return before, after
 
     def at(self, t_ns: int, tol_ns: int, hold: bool = True):
-        """(q, gap_ns, interpolated) at ``t_ns``, or None when no sample is within ``tol_ns``.
+        """Look up the body orientation at a stamp, interpolating between samples.
 
-        ``hold=False`` (a reference heading, whose errors are the product): only a sample exactly at ``t_ns``
-        or an interpolation between samples on both sides within ``tol_ns``; never the one nearer sample of
-        one side (after the stream stopped, a held value is a silently wrong truth)."""
+        Normalised linear interpolation of the quaternions, hemisphere aligned.
+
+        Parameters
+        ----------
+        t_ns : int
+            Stamp [ns].
+        tol_ns : int
+            Largest accepted distance [ns] to a sample.
+        hold : bool, default True
+            False (a reference heading, whose errors are the product): only a sample exactly at
+            ``t_ns`` or an interpolation between samples on both sides within ``tol_ns``; never the
+            nearer sample of one side (after a stream stopped, a held value is a wrong truth).
+
+        Returns
+        -------
+        tuple or None
+            ``(q_xyzw, gap_ns, interpolated)``: the unit quaternion of the body in ENU, the
+            distance [ns] to the nearest sample used, and whether it was interpolated; None when no
+            sample is within ``tol_ns``.
+        """
         with self._lock:
             b, a = self.around(int(t_ns), int(tol_ns))
         if b is None and a is None:
@@ -158,6 +218,28 @@ class AttitudeBuffer:
         return q, int(min(t_ns - b[0], a[0] - t_ns)), True
 
     def camera_tilt(self, t_ns: int, tol_ns: int, R_body_cam=R_BODY_CAM_DEFAULT) -> CameraTilt | None:
+        """Look up the eq 21 camera attitude at a stamp.
+
+        Parameters
+        ----------
+        t_ns : int
+            Stamp [ns].
+        tol_ns : int
+            Largest accepted distance [ns] to a sample.
+        R_body_cam : array_like, default R_BODY_CAM_DEFAULT
+            Mounting, (3, 3): the camera axes expressed in the body frame.
+
+        Returns
+        -------
+        CameraTilt or None
+            Bearing, pitch and roll [deg] of ``R_enu_body @ R_body_cam``; None when no sample is
+            within ``tol_ns``.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eq 21.
+        """
         hit = self.at(t_ns, tol_ns)
         if hit is None:
             return None
@@ -171,8 +253,18 @@ class AttitudeBuffer:
 # ------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FrameInputs:
-    """What one method gets with an image besides the pixels. ``tilt_missing``: the method needs the
-    camera tilt and no IMU sample is near the image stamp (the frame is bad input for it)."""
+    """Hold what one method gets with an image besides the pixels.
+
+    Parameters
+    ----------
+    pitch_deg, roll_deg : float or None
+        Camera pitch and roll [deg] (eq 21) for methods that need the tilt; else None.
+    prior_bearing_deg : float or None
+        Prior bearing of camera +y [deg, clockwise from North] that resolves the 180 deg ambiguity.
+    tilt_missing : bool, default False
+        The method needs the camera tilt and no IMU sample is near the image stamp (the frame is
+        bad input for it).
+    """
 
     pitch_deg: float | None
     roll_deg: float | None
@@ -181,15 +273,26 @@ class FrameInputs:
 
 
 class TiltAndPrior:
-    """The per-image decisions of the ``heading_estimator`` node, shared with the offline replay.
+    """Make the per-image tilt and prior decisions of the ``heading_estimator`` node.
 
-    Tilt (methods whose class ``needs_tilt``, e.g. ``tilt_aware``): pitch and roll of the IMU at the image stamp (``tilt``: the lookup
-    within the IMU tolerance). Prior bearing of camera +y, which resolves the 180 deg ambiguity:
-    ``prior_source`` ``imu``: the bearing of the IMU attitude nearest the stamp within
-    ``prior_max_age_s`` (``imu_near``; its coarse yaw is enough to pick the sun's side); ``last``: this
-    method's last resolved (not axial) heading when its stamp is within ``prior_max_age_s``; ``none``.
-    An IMU prior is also a check (:meth:`checked`): a heading further from it than 3 combined sigmas
-    (``prior_sigma_deg`` the IMU yaw's 1-sigma) is not ``ok``.
+    Tilt (methods whose class ``needs_tilt``, e.g. ``tilt_aware``): pitch and roll of the IMU at
+    the image stamp (``tilt``: the lookup within the IMU tolerance). Prior bearing of camera +y,
+    which resolves the 180 deg ambiguity: ``prior_source`` ``imu``: the bearing of the IMU attitude
+    nearest the stamp within ``prior_max_age_s`` (``imu_near``; its coarse yaw is enough to pick
+    the sun's side); ``last``: this method's last resolved (not axial) heading when its stamp is
+    within ``prior_max_age_s``; ``none``. An IMU prior is also a check (:meth:`checked`): a heading
+    further from it than 3 combined sigmas (``prior_sigma_deg`` the IMU yaw's 1-sigma) is not ``ok``.
+
+    Parameters
+    ----------
+    method : str
+        Name of the method (:mod:`~polarization_compass.estimators.registry`).
+    prior_source : {"imu", "last", "none"}, default "imu"
+        Where the prior bearing comes from.
+    prior_max_age_s : float, default 2
+        Largest age [s] of the prior's source.
+    prior_sigma_deg : float, default 15
+        1-sigma [deg] of the IMU yaw, for :meth:`checked` (0: no check).
     """
 
     def __init__(self, method: str, prior_source: str = "imu", prior_max_age_s: float = 2.0,
@@ -208,8 +311,27 @@ class TiltAndPrior:
         return self.needs_tilt or self.prior_source == "imu"
 
     def lookups(self, imu: AttitudeBuffer, t_ns: int, tolerance_ns: int, R_body_cam=R_BODY_CAM_DEFAULT):
-        """(tilt, imu_near) for :meth:`inputs` from an IMU history: the camera attitude at ``t_ns``
-        within ``tolerance_ns``, and within ``prior_max_age_s``; None where absent or not needed."""
+        """Look up the tilt and the prior's attitude for :meth:`inputs` in an IMU history.
+
+        Parameters
+        ----------
+        imu : AttitudeBuffer
+            The body orientation history.
+        t_ns : int
+            Image stamp [ns].
+        tolerance_ns : int
+            Largest accepted distance [ns] of the tilt's IMU sample.
+        R_body_cam : array_like, default R_BODY_CAM_DEFAULT
+            Mounting, (3, 3): the camera axes expressed in the body frame.
+
+        Returns
+        -------
+        tilt : CameraTilt or None
+            The camera attitude at ``t_ns`` within ``tolerance_ns``; None when absent or not
+            needed.
+        imu_near : CameraTilt or None
+            The camera attitude within ``prior_max_age_s``; None when absent or not needed.
+        """
         if not len(imu):
             return None, None
         tilt = imu.camera_tilt(t_ns, tolerance_ns, R_body_cam) if self.needs_tilt else None
@@ -218,6 +340,23 @@ class TiltAndPrior:
         return tilt, near
 
     def inputs(self, t_ns: int, tilt: CameraTilt | None, imu_near: CameraTilt | None) -> FrameInputs:
+        """Decide the tilt and prior bearing the method gets with one image.
+
+        Parameters
+        ----------
+        t_ns : int
+            Image stamp [ns].
+        tilt : CameraTilt or None
+            The camera attitude at the stamp (:meth:`lookups`).
+        imu_near : CameraTilt or None
+            The camera attitude within ``prior_max_age_s`` (:meth:`lookups`).
+
+        Returns
+        -------
+        FrameInputs
+            Pitch and roll [deg] (when the method needs them), the prior bearing [deg] and whether
+            a needed tilt is missing.
+        """
         pitch = roll = prior = None
         if self.needs_tilt and tilt is not None:
             pitch, roll = tilt.pitch_deg, tilt.roll_deg
@@ -236,7 +375,15 @@ class TiltAndPrior:
         return check_prior_agreement(result, inputs.prior_bearing_deg, self.prior_sigma_deg)
 
     def remember(self, t_ns: int, result) -> None:
-        """Keep ``result``'s bearing as the ``last`` prior when it is a resolved heading."""
+        """Keep a result's bearing as the ``last`` prior when it is a resolved heading.
+
+        Parameters
+        ----------
+        t_ns : int
+            Image stamp [ns].
+        result : HeadingResult
+            The method's result; ignored unless ok and not axial.
+        """
         if result.ok and not result.axial and result.bearing_deg is not None:
             self.last_bearing = (int(t_ns), float(result.bearing_deg))
 
@@ -365,8 +512,26 @@ class ImageLossWatch:
 # The sun per stamp
 # ------------------------------------------------------------------------------------------------
 class SunSource:
-    """Sun azimuth/altitude (deg) at a UTC stamp for the current site, through
-    :class:`~polarization_compass.solar.SunCache` (one SPA batch per 10 minutes of stamps)."""
+    """Give the sun's azimuth and altitude at a UTC stamp for the current site.
+
+    Through :class:`~polarization_compass.solar.SunCache` (one SPA batch per 10 minutes of stamps).
+
+    Parameters
+    ----------
+    latitude_deg : float
+        Site latitude [deg], north positive.
+    longitude_deg : float
+        Site longitude [deg], east positive.
+    altitude_m : float
+        Site height above sea level [m].
+    model : {"spa", "paper"}, default "spa"
+        Sun position model (:mod:`~polarization_compass.solar`).
+
+    References
+    ----------
+    .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
+       Solar Energy 76(5): 577-589, 2004.
+    """
 
     def __init__(self, latitude_deg: float, longitude_deg: float, altitude_m: float, model: str = "spa"):
         self.model = model
@@ -375,6 +540,17 @@ class SunSource:
         self.set_site(latitude_deg, longitude_deg, altitude_m)
 
     def set_site(self, latitude_deg: float, longitude_deg: float, altitude_m: float) -> None:
+        """Move the site; a new sun cache only when the sun would move by more than ~1e-5 deg.
+
+        Parameters
+        ----------
+        latitude_deg : float
+            Site latitude [deg], north positive.
+        longitude_deg : float
+            Site longitude [deg], east positive.
+        altitude_m : float
+            Site height above sea level [m].
+        """
         site = (float(latitude_deg), float(longitude_deg), float(altitude_m))
         if self._site is not None:
             # a GNSS fix moves by metres: a new cache only when the sun would move by > ~1e-5 deg
@@ -387,9 +563,29 @@ class SunSource:
 
     @property
     def site(self):
+        """Return the current site ``(latitude_deg, longitude_deg, altitude_m)``."""
         return self._site
 
     def at_ns(self, t_ns: int) -> tuple[float, float]:
+        """Compute the sun at a UTC stamp.
+
+        Parameters
+        ----------
+        t_ns : int
+            UTC stamp [ns since the Unix epoch].
+
+        Returns
+        -------
+        azimuth_deg : float
+            Sun azimuth [deg], clockwise from North.
+        altitude_deg : float
+            Sun altitude [deg] as the model gives it.
+
+        Raises
+        ------
+        PipelineError
+            The sun model refuses the stamp (the message says why).
+        """
         from .solar import SolarError
         t_us = np.datetime64(int(t_ns) // 1000, "us")
         try:
@@ -403,12 +599,31 @@ class SunSource:
 # Mosaic -> observation -> heading
 # ------------------------------------------------------------------------------------------------
 class HeadingFrontEnd:
-    """One method with its knobs: a raw mosaic (uint8/uint16/float32) plus the camera, the sun and
-    optionally the tilt and a prior bearing in, a :class:`~polarization_compass.estimators.HeadingResult` out.
+    """Turn a raw mosaic into a heading with one method and its knobs.
 
-    ``layout``/``pol45_toward``: the sensor's 2 x 2 polarizer pattern (:mod:`~polarization_compass.demosaic`);
-    ``demosaic``: superpixel | bilinear; ``intensity``: also compute S0 and pass it as the observation's
-    intensity (lets a method resolve the 180 deg ambiguity from the sky's brightness gradient).
+    A raw mosaic (uint8/uint16/float32) plus the camera, the sun and optionally the tilt and a
+    prior bearing in, a :class:`~polarization_compass.estimators.HeadingResult` out.
+
+    Parameters
+    ----------
+    method : str
+        Name of the method (:mod:`~polarization_compass.estimators.registry`).
+    knobs : dict, optional
+        The method's knobs.
+    layout : str or sequence, default IMX250MZR_LAYOUT
+        The sensor's 2 x 2 polarizer pattern [deg] (:mod:`~polarization_compass.demosaic`).
+    pol45_toward : str, default "+x+y"
+        Image direction of the 45 deg polarizer.
+    demosaic : {"superpixel", "bilinear"}, default "superpixel"
+        Demosaicing.
+    intensity : bool, default False
+        Also compute S0 and pass it as the observation's intensity (lets a method resolve the 180
+        deg ambiguity from the sky's brightness gradient).
+
+    Raises
+    ------
+    EstimatorError
+        Unknown method or knob.
     """
 
     def __init__(self, method: str, knobs: dict | None = None, layout=IMX250MZR_LAYOUT,
@@ -422,26 +637,89 @@ class HeadingFrontEnd:
         self.intensity = bool(intensity)
 
     def set_knobs(self, knobs: dict) -> None:
-        """Replace the estimator's knobs (raises EstimatorError with the reason; keeps the old ones then)."""
+        """Replace the estimator's knobs; the old ones stay when the new ones are refused.
+
+        Parameters
+        ----------
+        knobs : dict
+            The method's knobs.
+
+        Raises
+        ------
+        EstimatorError
+            A knob is unknown or out of range (the message says which).
+        """
         from .estimators import make_estimator
         self.estimator = make_estimator(self.method, **knobs)
 
     def set_layout(self, layout, pol45_toward: str) -> None:
+        """Replace the sensor's polarizer layout.
+
+        Parameters
+        ----------
+        layout : str or sequence
+            The 2 x 2 polarizer pattern [deg]
+            (:func:`~polarization_compass.demosaic.parse_layout`).
+        pol45_toward : str
+            Image direction of the 45 deg polarizer.
+        """
         from .demosaic import parse_layout
         self.layout = parse_layout(layout, pol45_toward)
 
     def observation_key(self, camera: CameraModel) -> tuple:
-        """Hashable key of this method's observation of a frame: equal keys give equal observations, so a
-        replay demosaics once for methods that read the same pixels the same way (the pixels are the
-        estimator's ``pixels_needed``: a disc for sm_asm/symmetry, a strided frame for least squares, a
-        window for zenith)."""
+        """Key this method's observation of a frame, so a replay demosaics once per distinct key.
+
+        Equal keys give equal observations: the pixels are the estimator's ``pixels_needed`` (a
+        disc for sm_asm/symmetry, a strided frame for least squares, a window for zenith), plus the
+        demosaic, intensity and layout.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            The camera the frames come from.
+
+        Returns
+        -------
+        tuple
+            A hashable key.
+        """
         return (self.estimator.pixels_needed(camera), self.demosaic, self.intensity, self.layout)
 
     def observation(self, mosaic: np.ndarray, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float,
                     pitch_deg=None, roll_deg=None, prior_bearing_deg=None, estimator=None):
-        """The estimator's :class:`Observation` of a full-sensor mosaic: only the pixels the method reads
-        (its ``pixels_needed``: the zenith window, strided superpixels, a region) are demosaiced, by
-        :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`."""
+        """Build the estimator's observation of a full-sensor mosaic.
+
+        Only the pixels the method reads (its ``pixels_needed``: the zenith window, strided
+        superpixels, a region) are demosaiced, by
+        :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`.
+
+        Parameters
+        ----------
+        mosaic : numpy.ndarray
+            Raw DoFP image, the camera's (height, width).
+        camera : CameraModel
+            The camera.
+        sun_azimuth_deg : float
+            Sun azimuth [deg], clockwise from North.
+        sun_altitude_deg : float
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float, optional
+            Known camera pitch and roll [deg] (eq 21).
+        prior_bearing_deg : float, optional
+            Prior bearing of camera +y [deg, clockwise from North].
+        estimator : Estimator, optional
+            The estimator whose pixels to read; this front end's by default.
+
+        Returns
+        -------
+        Observation
+            AoP [rad, eq 28], DoP, rays and the sun, tilt and prior.
+
+        Raises
+        ------
+        PipelineError
+            The mosaic does not match the camera or cannot be demosaiced.
+        """
         from .estimators.mosaic_input import MosaicInputError, observation_from_mosaic
         # one consistent configuration for the whole frame (a node may change knobs from another thread)
         est, demosaic, layout, intensity = estimator or self.estimator, self.demosaic, self.layout, self.intensity
@@ -460,6 +738,33 @@ class HeadingFrontEnd:
 
     def estimate(self, mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg=None, roll_deg=None,
                  prior_bearing_deg=None):
+        """Estimate the heading of one full-sensor mosaic.
+
+        Parameters
+        ----------
+        mosaic : numpy.ndarray
+            Raw DoFP image, the camera's (height, width).
+        camera : CameraModel
+            The camera.
+        sun_azimuth_deg : float
+            Sun azimuth [deg], clockwise from North.
+        sun_altitude_deg : float
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float, optional
+            Known camera pitch and roll [deg] (eq 21).
+        prior_bearing_deg : float, optional
+            Prior bearing of camera +y [deg, clockwise from North].
+
+        Returns
+        -------
+        HeadingResult
+            psi, bearing and REP-103 yaw [deg], or a failure status with a reason.
+
+        Raises
+        ------
+        PipelineError
+            The mosaic does not match the camera or cannot be demosaiced.
+        """
         est = self.estimator
         obs = self.observation(mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
                                prior_bearing_deg, est)
@@ -467,12 +772,27 @@ class HeadingFrontEnd:
 
 
 def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraModel | None = None) -> float:
-    """Run ``front`` once on a rendered frame, slightly tilted, so that every numba kernel on its path is
-    compiled (or loaded from the cache) before the first real image; returns the seconds it took.
+    """Run a front end once on a rendered, slightly tilted frame so its numba kernels are compiled.
 
-    With ``camera`` (the node's expected intrinsics) the frame has that camera's size, so the per-camera
-    caches (rays, pixel selections, mirror maps) are built now too rather than on the first image;
-    without, a tiny camera (kernels only)."""
+    Compiled (or loaded from the cache) before the first real image. With ``camera`` (the node's
+    expected intrinsics) the frame has that camera's size, so the per-camera caches (rays, pixel
+    selections, mirror maps) are built now too rather than on the first image; without, a tiny
+    camera (kernels only).
+
+    Parameters
+    ----------
+    front : HeadingFrontEnd
+        The front end to warm up.
+    encoding_dtype : numpy dtype, default numpy.uint16
+        Dtype of the mosaics it will get (uint8, uint16, else float32).
+    camera : CameraModel, optional
+        The expected camera.
+
+    Returns
+    -------
+    float
+        Seconds it took.
+    """
     import time
 
     from .conventions import CameraAttitude

@@ -70,11 +70,19 @@ class SolarError(CompassError):
 
 @dataclass(frozen=True)
 class SunPosition:
-    """Sun position, degrees. Floats for a scalar time, arrays (the input's shape) otherwise.
+    """Hold a sun position in degrees (floats for a scalar time, else arrays of its shape).
 
-    ``azimuth_deg``: clockwise from true North, [0, 360). ``altitude_deg``: geometric (true,
-    unrefracted) altitude in [-90, 90]. ``apparent_altitude_deg``: with atmospheric refraction, or
-    None for a model without refraction (``"paper"``).
+    Parameters
+    ----------
+    azimuth_deg : float or numpy.ndarray
+        Azimuth [deg], clockwise from true North, [0, 360).
+    altitude_deg : float or numpy.ndarray
+        Geometric (true, unrefracted) altitude [deg] in [-90, 90].
+    apparent_altitude_deg : float or numpy.ndarray or None
+        Altitude with atmospheric refraction [deg], or None for a model without refraction
+        (``"paper"``).
+    model : str
+        The model that computed it (:data:`MODELS`).
     """
 
     azimuth_deg: object
@@ -88,7 +96,13 @@ class SunPosition:
         return 90.0 - self.altitude_deg
 
     def direction_enu(self):
-        """Unit vector(s) to the sun in ENU (geometric altitude), shape (..., 3)."""
+        """Compute the unit vector(s) to the sun in ENU (geometric altitude).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (..., 3): ``(cos h sin A, cos h cos A, sin h)``.
+        """
         return enu_direction(self.azimuth_deg, self.altitude_deg)
 
 
@@ -120,7 +134,26 @@ def _one_to_us(value) -> int:
 
 
 def to_epoch_us(time_utc):
-    """Times to int64 microseconds since the Unix epoch (UTC). Returns (array, is_scalar)."""
+    """Convert times to int64 microseconds since the Unix epoch (UTC; leap seconds ignored).
+
+    Parameters
+    ----------
+    time_utc : datetime, str, numpy.datetime64, pandas.Timestamp or array_like of these
+        UTC time(s): an aware ``datetime`` (any zone), a naive one (taken as UTC), an ISO 8601
+        string, ``datetime64``, a pandas ``Timestamp``/``DatetimeIndex``, or a sequence/array.
+
+    Returns
+    -------
+    us : numpy.ndarray
+        int64 microseconds since 1970-01-01T00:00Z, the input's shape (1 element for a scalar).
+    is_scalar : bool
+        The input was a single time.
+
+    Raises
+    ------
+    SolarError
+        No times, NaT, an unreadable string or type.
+    """
     # pandas DatetimeIndex / Series with a time zone: convert to naive UTC datetime64 first.
     if hasattr(time_utc, "tz_convert") and hasattr(time_utc, "__len__") and getattr(time_utc, "tz", None) is not None:
         time_utc = time_utc.tz_convert("UTC").tz_localize(None)
@@ -196,32 +229,116 @@ def _day_angle_rad(year, day_of_year_frac):
 
 
 def paper_declination_deg(year, day_of_year_frac):
-    """Eq 5 (Bourges 1985): solar declination, deg. ``day_of_year_frac`` = day of year (1 Jan = 1) + UTC h/24."""
+    """Compute the solar declination of eq 5 (Bourges 1985).
+
+    With eq 6's spring-equinox day D0, its leap-day count made Gregorian (see ``_day_angle_rad``).
+
+    Parameters
+    ----------
+    year : int or array_like
+        Calendar year (UTC).
+    day_of_year_frac : float or array_like
+        Day of year with 1 Jan = 1, plus the UTC fraction of the day (UTC hours / 24).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Declination [deg].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 5-6.
+    .. [2] B. Bourges, "Improvement in solar declination computation", Solar Energy 35(4):
+       367-369, 1985.
+    """
     s = _day_angle_rad(year, day_of_year_frac)
     return (0.3723 + 23.2567 * np.sin(s) + 0.1149 * np.sin(2 * s) - 0.1712 * np.sin(3 * s)
             - 0.758 * np.cos(s) + 0.3656 * np.cos(2 * s) + 0.0201 * np.cos(3 * s))
 
 
 def paper_equation_of_time_min(year, day_of_year_frac):
-    """Eq 8: equation of time E_t, minutes (apparent minus mean solar time)."""
+    """Compute the equation of time E_t of eq 8 (apparent minus mean solar time).
+
+    Parameters
+    ----------
+    year : int or array_like
+        Calendar year (UTC).
+    day_of_year_frac : float or array_like
+        Day of year with 1 Jan = 1, plus the UTC fraction of the day (UTC hours / 24).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        E_t [min].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 8.
+    """
     s = _day_angle_rad(year, day_of_year_frac)
     return (0.0028 - 1.9857 * np.sin(s) + 9.9059 * np.sin(2 * s)
             - 7.0924 * np.cos(s) - 0.6882 * np.cos(2 * s))
 
 
 def paper_hour_angle_deg(utc_hours, longitude_deg, equation_of_time_min):
-    """Eqs 7, 9, 10 with UTC: S_d = UTC_h + lon/15, S_t = S_d + E_t/60, T = 15 (S_t - 12), wrapped to (-180, 180]."""
+    """Compute the solar hour angle of eqs 7, 9 and 10 from UTC and longitude.
+
+    ``S_d = UTC_h + lon/15`` (eq 7 without Beijing time), ``S_t = S_d + E_t/60`` (eq 9),
+    ``T = 15 (S_t - 12)`` (eq 10), wrapped to (-180, 180].
+
+    Parameters
+    ----------
+    utc_hours : float or array_like
+        UTC time of day [h].
+    longitude_deg : float or array_like
+        Site longitude [deg], east positive.
+    equation_of_time_min : float or array_like
+        E_t [min] (:func:`paper_equation_of_time_min`).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Hour angle T [deg] in (-180, 180], positive in the afternoon (sun west of the meridian).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 7, 9 and 10.
+    """
     solar_time_h = (np.asarray(utc_hours, dtype=float) + np.asarray(longitude_deg, dtype=float) / 15.0
                     + np.asarray(equation_of_time_min, dtype=float) / 60.0)
     return wrap_180_deg(15.0 * (solar_time_h - 12.0))
 
 
 def azimuth_altitude_from_equatorial(declination_deg, hour_angle_deg, latitude_deg):
-    """Eq 3 and the robust replacement of eq 4: (azimuth [0, 360) clockwise from N, altitude [-90, 90]), deg.
+    """Compute the sun's azimuth and altitude from declination, hour angle and latitude.
 
-    Azimuth ``atan2(sin T, cos T sin L - tan(delta) cos L) + 180 deg``: finite at the poles, at the
-    horizon, at noon and for the sun at the zenith (where any azimuth is right). Hour angle T is
-    positive in the afternoon (sun west of the meridian).
+    Eq 3 for the altitude (arcsin of a clipped argument) and a robust replacement of eq 4 for the
+    azimuth, ``atan2(sin T, cos T sin L - tan(delta) cos L) + 180 deg``: finite at the poles, at
+    the horizon, at noon and for the sun at the zenith (where any azimuth is right).
+
+    Parameters
+    ----------
+    declination_deg : float or array_like
+        Solar declination delta [deg].
+    hour_angle_deg : float or array_like
+        Hour angle T [deg], positive in the afternoon (sun west of the meridian).
+    latitude_deg : float or array_like
+        Site latitude L [deg], north positive.
+
+    Returns
+    -------
+    azimuth_deg : float or numpy.ndarray
+        Azimuth [deg] in [0, 360), clockwise from North.
+    altitude_deg : float or numpy.ndarray
+        Altitude [deg] in [-90, 90].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 2-4.
     """
     d = np.radians(np.asarray(declination_deg, dtype=float))
     T = np.radians(wrap_180_deg(hour_angle_deg))
@@ -273,9 +390,29 @@ def _spa_model(us, lat, lon, alt_m, pressure_hpa, temperature_c, delta_t_s):
 
 
 def spa_refraction_deg(geometric_altitude_deg, pressure_hpa, temperature_c):
-    """SPA's refraction correction (pvlib's formula), deg, 0 when the sun is well below the horizon.
+    """Compute SPA's atmospheric refraction correction (pvlib's formula).
 
-    The formula is only evaluated where SPA's switch is on, so no division by (e0 + 5.11) = 0.
+    The formula is only evaluated where SPA's switch is on (geometric altitude at least
+    -(0.26667 + 0.5667) deg), so no division by (e0 + 5.11) = 0; 0 below.
+
+    Parameters
+    ----------
+    geometric_altitude_deg : float or array_like
+        Geometric (unrefracted) altitude e0 [deg].
+    pressure_hpa : float
+        Air pressure [hPa].
+    temperature_c : float
+        Air temperature [degC].
+
+    Returns
+    -------
+    numpy.ndarray
+        Refraction [deg] to add to the geometric altitude; 0 where the switch is off.
+
+    References
+    ----------
+    .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
+       Solar Energy 76(5): 577-589, 2004 (corrigendum 2007).
     """
     e0 = np.asarray(geometric_altitude_deg, dtype=float)
     on = e0 >= -(0.26667 + ATMOS_REFRACT_DEG)
@@ -309,15 +446,52 @@ def _package(az, alt, app, scalar, shape, model):
 
 def sun_position(time_utc, latitude_deg, longitude_deg, altitude_m=0.0, model="spa", *,
                  pressure_hpa=None, temperature_c=12.0, delta_t_s=None) -> SunPosition:
-    """Sun azimuth/altitude (deg) at ``time_utc`` for a site (latitude north +, longitude east +, WGS84).
+    """Compute the sun's azimuth and altitude at a UTC time for a site (WGS84).
 
-    Vectorised over times; floats for a scalar time, arrays of the input's shape otherwise.
-    ``altitude_m`` (site height above sea level, m) sets SPA's parallax and, unless
-    ``pressure_hpa`` is given, the pressure for refraction (standard atmosphere).
-    ``temperature_c`` is the air temperature for refraction. ``delta_t_s`` = TT - UT1 (s), default
-    pvlib's ``calculate_deltat`` polynomial (it barely matters: only the slow ephemeris uses it).
-    The ``paper`` model ignores altitude, pressure, temperature and delta T.
-    Raises :class:`SolarError` for bad input. Never returns NaN.
+    Vectorised over times. ``altitude_m`` sets SPA's parallax and, unless ``pressure_hpa`` is
+    given, the pressure for refraction (standard atmosphere). The ``paper`` model ignores altitude,
+    pressure, temperature and delta T. Never returns NaN.
+
+    Parameters
+    ----------
+    time_utc : datetime, str, numpy.datetime64, pandas.Timestamp or array_like of these
+        UTC time(s): an aware ``datetime`` (any zone), a naive one (taken as UTC), an ISO 8601
+        string, ``datetime64``, a pandas ``Timestamp``/``DatetimeIndex``, or a sequence/array.
+    latitude_deg : float
+        Site latitude [deg], north positive, [-90, 90].
+    longitude_deg : float
+        Site longitude [deg], east positive, [-180, 180].
+    altitude_m : float, default 0
+        Site height above sea level [m].
+    model : {"spa", "paper"}, default "spa"
+        NREL SPA through pvlib, or the paper's eqs 2-10 generalised to UTC (module docstring).
+    pressure_hpa : float, optional
+        Air pressure for refraction [hPa]; default from ``altitude_m`` (standard atmosphere).
+    temperature_c : float, default 12
+        Air temperature for refraction [degC].
+    delta_t_s : float, optional
+        TT - UT1 [s]; default pvlib's ``calculate_deltat`` polynomial (it barely matters: only the
+        slow ephemeris uses it).
+
+    Returns
+    -------
+    SunPosition
+        Azimuth [deg, clockwise from North], geometric altitude [deg] and, for SPA, apparent
+        altitude [deg]; floats for a scalar time, arrays of the input's shape otherwise.
+
+    Raises
+    ------
+    SolarError
+        Bad time, site, model or atmosphere, or a year outside SPA's -2000..6000.
+
+    References
+    ----------
+    .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
+       Solar Energy 76(5): 577-589, 2004 (corrigendum 2007).
+    .. [2] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 2-10.
+    .. [3] B. Bourges, "Improvement in solar declination computation", Solar Energy 35(4):
+       367-369, 1985.
     """
     _check_model(model)
     lat, lon, alt_m = _check_site(latitude_deg, longitude_deg, altitude_m)
@@ -333,16 +507,48 @@ def sun_position(time_utc, latitude_deg, longitude_deg, altitude_m=0.0, model="s
 
 
 class SunCache:
-    """Sun positions for a fixed site, fast per frame: SPA on a time grid, interpolated.
+    """Compute sun positions for a fixed site fast per frame: SPA on a time grid, interpolated.
 
-    ``cache(time_utc)`` returns the same :class:`SunPosition` as :func:`sun_position` (scalar or
-    array times) to within ~1.4e-6 deg great-circle at the default 10 s grid. The grid covers
-    ``window_s`` seconds from the first query that falls outside it (a query before the grid, e.g. a
-    bag played backwards, refills too). Grid points are multiples of ``step_s`` since the epoch,
-    so refills are reproducible. Interpolation is linear in the sun's ENU unit vector,
-    renormalised (no azimuth wrap, no trouble near the zenith); the apparent altitude applies
-    SPA's own refraction formula to the interpolated geometric altitude. The ``paper`` model is
-    cheap and is computed directly. Not thread-safe; use one per thread.
+    ``cache(time_utc)`` (or ``cache.position(time_utc)``) returns the same :class:`SunPosition` as
+    :func:`sun_position` (scalar or array times) to within ~1.4e-6 deg great-circle at the default
+    10 s grid. The grid covers ``window_s`` seconds from the first query that falls outside it (a
+    query before the grid, e.g. a bag played backwards, refills too). Grid points are multiples of
+    ``step_s`` since the epoch, so refills are reproducible. Interpolation is linear in the sun's
+    ENU unit vector, renormalised (no azimuth wrap, no trouble near the zenith); the apparent
+    altitude applies SPA's own refraction formula to the interpolated geometric altitude. The
+    ``paper`` model is cheap and is computed directly. Not thread-safe; use one per thread. A call
+    raises :class:`SolarError` for bad times or times spanning more than 7 days.
+
+    Parameters
+    ----------
+    latitude_deg : float
+        Site latitude [deg], north positive.
+    longitude_deg : float
+        Site longitude [deg], east positive.
+    altitude_m : float, default 0
+        Site height above sea level [m].
+    model : {"spa", "paper"}, default "spa"
+        Sun position model.
+    step_s : float, default 10
+        Grid step [s], in [0.001, 600].
+    window_s : float, default 600
+        Grid length [s], in [2 step_s, 7 days].
+    pressure_hpa : float, optional
+        Air pressure for refraction [hPa]; default from ``altitude_m``.
+    temperature_c : float, default 12
+        Air temperature for refraction [degC].
+    delta_t_s : float, optional
+        TT - UT1 [s]; default pvlib's polynomial.
+
+    Raises
+    ------
+    SolarError
+        Bad site, model, atmosphere, ``step_s`` or ``window_s``.
+
+    References
+    ----------
+    .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
+       Solar Energy 76(5): 577-589, 2004 (corrigendum 2007).
     """
 
     def __init__(self, latitude_deg, longitude_deg, altitude_m=0.0, model="spa", *, step_s=10.0,

@@ -85,6 +85,7 @@ class SweepSpec:
     full_domain: bool = False
     tilt_limit_deg: float = DEFAULT_TILT_LIMIT_DEG
     support: int = 2
+    array: bool = False           # sweep the scene's photodiode_array instead of its camera
 
     def __post_init__(self):
         from .scene import default_scene
@@ -101,6 +102,16 @@ class SweepSpec:
                 raise ErrorMapError(f"{name} must be finite")
             setattr(self, name, a)
         from .estimators import registry
+        if self.array:
+            if self.scene.photodiode_array is None:
+                raise ErrorMapError("an array sweep needs a scene that declares a photodiode_array")
+            from .photodiode.heading import array_methods
+            bad = [m for m in self.methods if m not in array_methods()]
+            if bad:
+                raise ErrorMapError(f"method(s) {', '.join(bad)} need an image; a photodiode array supports "
+                                    f"{', '.join(array_methods())}")
+            self.knobs = {m: dict(self.knobs.get(m, {})) for m in self.methods}     # array knobs, default values
+            return
         self.knobs = {m: dict(self.knobs[m]) if m in self.knobs else registry.sweep_knobs(m) for m in self.methods}
         if self.scene.effects:
             self._contiguous_pixels()
@@ -161,7 +172,7 @@ class SweepSpec:
             "sun_azimuth_deg": 0.0,
             "error_definition": "fold_axial(estimated psi - true psi), deg, in (-90, 90]; bearing == psi",
             "status_codes": STATUS_LEGEND,
-        }
+        } | ({"sensor": "photodiode_array"} if self.array else {})
 
     def digest(self) -> str:
         """Identifies a sweep for resuming: same digest, same cells and values."""
@@ -191,6 +202,16 @@ class _Evaluator:
         from .estimators import make_estimator
         from .render import Renderer
         self.spec = spec
+        self.errors: list[str] = []
+        if spec.array:                     # a photodiode array: readings from the sun in the body frame, no pixels
+            from .photodiode.heading import make_array_estimator
+            from .photodiode.simulate import ArraySensor
+            from .sky_models import make_sky_model
+            self.array = ArraySensor.from_config(spec.scene.photodiode_array)
+            self.array_dop_max = float(make_sky_model(spec.scene.sky).params().get("dop_max", 1.0))
+            self.estimators = [make_array_estimator(m, self.array.geometry, **spec.knobs[m]) for m in spec.methods]
+            self.groups, self.noisy = [], self.array.noise_rel > 0
+            return
         self.estimators = [make_estimator(m, **spec.knobs[m]) for m in spec.methods]
         camera = spec.scene.camera
         self.groups: list[tuple[object, list[int]]] = []      # (renderer, method indices)
@@ -202,9 +223,10 @@ class _Evaluator:
                 self.groups.append((Renderer(spec.scene, pixels=sel), []))
             self.groups[by_sel[sel]][1].append(i)
         self.noisy = bool(spec.scene.effects)
-        self.errors: list[str] = []
 
     def sampling(self) -> dict:
+        if self.spec.array:
+            return {m: {"knobs": self.spec.knobs[m], "units": self.array.geometry.n_units} for m in self.spec.methods}
         out = {}
         for renderer, idx in self.groups:
             for i in idx:
@@ -257,6 +279,9 @@ class _Evaluator:
             # R^T s and zenith R^T (0, 0, 1) that Renderer.render computes
             Rs = R_enu_cam_from_attitude(spec.yaw_deg, pitch, float(spec.roll_deg[ir]))
             geometry[ir] = (np.matmul(np.swapaxes(Rs, 1, 2), sun_enu), Rs[:, 2, :].copy())
+        if spec.array:
+            self._array_chunk(ia, ip, rolls, geometry, err, status)
+            return err, status
         for iy, psi in enumerate(spec.yaw_deg.tolist()):
             for ir in rolls:
                 roll = float(spec.roll_deg[ir])
@@ -271,10 +296,26 @@ class _Evaluator:
                         err[i, iy, ir], status[i, iy, ir] = self._one(i, obs, psi)
         return err, status
 
+    def _array_chunk(self, ia, ip, rolls, geometry, err, status) -> None:
+        """The array's cells of one chunk: readings for the camera-frame sun of each cell (the array is mounted
+        like the default camera), the per-unit fit, then each method (sun at azimuth 0: bearing == psi)."""
+        from .conventions import R_BODY_CAM_DEFAULT
+        from .photodiode.stokes import fit_stokes
+        spec = self.spec
+        h, pitch = float(spec.sun_altitude_deg[ia]), float(spec.pitch_deg[ip])
+        for iy, psi in enumerate(spec.yaw_deg.tolist()):
+            for ir in rolls:
+                rng = np.random.default_rng(self._seed(ia, iy, ip, ir)) if self.noisy else None
+                x = self.array.read(R_BODY_CAM_DEFAULT @ geometry[ir][0][iy], self.array_dop_max, rng)
+                st = fit_stokes(x[None], self.array.geometry)
+                args = (st.aop_rad[0], st.dop[0], st.s0[0], st.valid[0], 0.0, h, pitch, float(spec.roll_deg[ir]))
+                for i in range(len(spec.methods)):
+                    err[i, iy, ir], status[i, iy, ir] = self._one(i, args, psi)
+
     def _one(self, i: int, obs, psi_true: float):
         try:
             est = self.estimators[i]
-            res = est.estimate(obs, sigma=False)
+            res = est.estimate(*obs) if self.spec.array else est.estimate(obs, sigma=False)
         except Exception as exc:  # noqa: BLE001 - one bad cell must not kill an hour-long sweep; reported
             if len(self.errors) < 5:
                 self.errors.append(f"{self.spec.methods[i]}: {type(exc).__name__}: {exc}")

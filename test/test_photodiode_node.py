@@ -161,3 +161,31 @@ def test_simulator_publishes_the_array(ctx):
         assert np.all(x > 0)
     finally:
         sim.destroy_node()
+
+
+def test_array_knobs_are_node_parameters(ctx):
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    n = HeadingEstimatorNode(context=ctx, parameter_overrides=[
+        Parameter("input", value="array"), Parameter("array_geometry", value=GEOMETRY),
+        Parameter("time_source", value="parameter"), Parameter("time_utc", value=TIME),
+        Parameter("prior_source", value="none"), Parameter("knob.min_units", value=4)])
+    try:
+        n.statuses = []
+        n._publish_status = n.statuses.append
+        assert n.array.knobs["min_units"] == 4 and n.has_parameter("knob.max_misfit_deg")
+        assert not n.has_parameter("knob.stride")                  # an image knob: not for an array
+        g = load_array_geometry(GEOMETRY)
+        az, alt = _sun()
+        x = simulate_readings(g, az, alt, [30.0])[0]
+        n._on_array(array_msg(x))
+        assert n.statuses[-1]["status"] == "ok"
+        res = n.set_parameters([Parameter("knob.min_units", value=7)])           # more than the 6 enabled units
+        assert res[0].successful and n.array.knobs["min_units"] == 7
+        n._on_array(array_msg(x))
+        assert n.statuses[-1]["status"] == "too_few_units"
+        res = n.set_parameters_atomically([Parameter("knob.min_sun_altitude_deg", value=9.0),
+                                           Parameter("knob.max_sun_altitude_deg", value=5.0)])
+        assert not res.successful and "min_sun_altitude_deg" in res.reason    # refused, the old estimator stays
+        assert n.array.knobs["min_units"] == 7
+    finally:
+        n.destroy_node()

@@ -27,6 +27,10 @@ def register(sub):
                     "(--support); --full-domain computes them all. Interrupt at any time: finished chunks are "
                     "kept in OUT.partial/ and the same command resumes.")
     p.add_argument("--scene", help="scene YAML: sky model, noise, lens (default: the paper's set-up)")
+    p.add_argument("--array-geometry", metavar="G.yaml",
+                   help="map a photodiode-array compass with this geometry instead of the camera (mounted like "
+                        "the camera; the scene's photodiode_array noise/brightness apply); methods: those that "
+                        "run on units")
     p.add_argument("--methods", default="all", help="all, or a comma-separated list of methods")
     p.add_argument("--sun-altitude", required=True, metavar="A:B:STEP", help="sun altitudes, deg")
     p.add_argument("--yaw", required=True, metavar="A:B:STEP", help="yaw psi (= camera bearing here), deg")
@@ -72,7 +76,11 @@ def run(args) -> int:
     from ..sweep import SweepSpec, parse_range, run_sweep
     from ..scene import load_scene
 
-    methods = parse_methods(args.methods)
+    if args.array_geometry:
+        from ..photodiode.heading import array_methods
+        methods = list(array_methods()) if args.methods.strip() == "all" else parse_methods(args.methods)
+    else:
+        methods = parse_methods(args.methods)
     axes = dict(sun_altitude_deg=parse_range(args.sun_altitude, "sun-altitude", -90, 90),
                 yaw_deg=parse_range(args.yaw, "yaw", -360, 720),
                 pitch_deg=parse_range(args.pitch, "pitch", -89, 89),
@@ -86,6 +94,12 @@ def run(args) -> int:
     if not str(args.out).endswith(".npz"):
         raise CompassError(f"--out must name an .npz file, got {args.out!r}")
     scene = load_scene(args.scene)
+    if args.array_geometry:
+        from ..scene import scene_from_dict
+        if args.stride:
+            raise CompassError("--stride has no meaning for a photodiode array")
+        scene = scene_from_dict({**scene.to_dict(), "photodiode_array": {**(scene.photodiode_array or {}),
+                                                                          "geometry": args.array_geometry}})
     knobs = {}
     if args.stride:                     # only for methods that have a stride knob (zenith reads its window)
         from ..estimators import EstimatorError, make_estimator, registry
@@ -97,7 +111,7 @@ def run(args) -> int:
                 continue
             knobs[m] = want
     spec = SweepSpec(methods, scene=scene, knobs=knobs, full_domain=args.full_domain,
-                     tilt_limit_deg=args.tilt_limit, support=args.support, **axes)
+                     tilt_limit_deg=args.tilt_limit, support=args.support, array=bool(args.array_geometry), **axes)
     if spec.cell_count() == 0:
         raise CompassError("no cell to compute: every (pitch, roll) is outside the tilt limit (use --full-domain)")
     m = run_sweep(spec, out=args.out, workers=args.workers, progress=not args.no_progress,

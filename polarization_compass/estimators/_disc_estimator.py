@@ -70,6 +70,18 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         self.knobs = self._validate_knobs(knobs)
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        """Tell a renderer which pixels the method reads, so sweeps render only those.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            The camera the frames come from.
+
+        Returns
+        -------
+        PixelSelection
+            The pixels that ``stride`` and ``region`` select.
+        """
         k = self.knobs
         if k["region"] is not None:
             return selection_for(k, camera)
@@ -161,11 +173,41 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound]
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
-        """``sigma=False`` skips pass 2 (the influence kernel: the uncertainty and the residuals against the
-        two ends of the meridian): ``sigma_deg`` is None, ``extras`` has no ``rms_residual_deg``, and an
-        unresolved (axial) result names the end ``psi = -theta`` rather than the one the Rayleigh residuals
-        prefer. On the mirror-pair path with re-fitted axes, whose acceptance test needs the residuals, pass 2
-        runs anyway (and ``rms_residual_deg`` is reported)."""
+        """Estimate one heading from the axis of mirror symmetry through the zenith pixel.
+
+        Pass 1 fits the axis theta (``psi = -theta``, axial); an incomplete disc is re-fitted on
+        mirror-pair weights or reported as ``insufficient_coverage``; pass 2 (the influence kernel)
+        gives the uncertainty and the Rayleigh residuals of the two ends of the meridian, which may
+        resolve the 180 deg ambiguity together with the brightness gradient or a prior.
+        ``sigma=False`` skips pass 2: ``sigma_deg`` is None, ``extras`` has no
+        ``rms_residual_deg``, and an unresolved (axial) result names the end ``psi = -theta``
+        rather than the one the Rayleigh residuals prefer. On the mirror-pair path with re-fitted
+        axes, whose acceptance test needs the residuals, pass 2 runs anyway (and
+        ``rms_residual_deg`` is reported).
+
+        Parameters
+        ----------
+        obs : Observation
+            AoP [rad, eq 28], DoP, valid mask, camera-frame rays, the sun (azimuth clockwise from
+            North and geometric altitude, deg); optional ``prior_bearing_deg`` [deg].
+        sigma : bool, default True
+            Compute the 1-sigma uncertainty ``sigma_deg`` (cluster-robust over blocks of
+            ``block_px``).
+
+        Returns
+        -------
+        HeadingResult
+            psi [deg, (-180, 180]] (eq 21), true bearing of camera +y and REP-103 yaw,
+            ``sigma_deg``, pixels used and quality (status ``ambiguous`` when the 180 deg ambiguity
+            is unresolved); or a failure status with a reason (sun below the horizon or near the
+            zenith, bad input, too few pixels, degenerate data, insufficient coverage), never NaN.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 29-30 (AOPLM) and
+           Sec. 3 (SM-ASM and symmetry approaches).
+        """
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:

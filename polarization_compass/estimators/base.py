@@ -25,6 +25,14 @@ class EstimatorError(CompassError):
 
 
 class Status(str, Enum):
+    """Outcome of one heading estimate; every value but ``OK`` and ``AMBIGUOUS`` means no heading.
+
+    The values are strings (JSON, topics, tables). ``AMBIGUOUS``: the solar meridian was found but
+    its 180 deg ambiguity was not resolved; the others name why no heading exists (sun near the
+    zenith or below the horizon, too few pixels or units, outside an error map's domain, bad input,
+    degenerate data, insufficient sky coverage, a poor fit to the sky model).
+    """
+
     OK = "ok"
     AMBIGUOUS = "ambiguous"                  # solar meridian found, 180 deg ambiguity not resolved
     SUN_NEAR_ZENITH = "sun_near_zenith"      # the meridian is undefined / ill-conditioned
@@ -73,13 +81,75 @@ class HeadingResult:
 
     @staticmethod
     def failed(method: str, status: Status, reason: str, pixels: int = 0, **extras) -> "HeadingResult":
+        """Build the result of an estimate that has no heading.
+
+        Parameters
+        ----------
+        method : str
+            Name of the method (:mod:`.registry`).
+        status : Status
+            Why there is no heading (not ``OK`` or ``AMBIGUOUS``).
+        reason : str
+            One human-readable line with the numbers that decided it.
+        pixels : int, default 0
+            Number of pixels (or units) the method used before it stopped.
+        **extras
+            Method-specific diagnostics, stored in ``extras``.
+
+        Returns
+        -------
+        HeadingResult
+            A result whose heading fields are None.
+        """
         return HeadingResult(method, status, reason, pixels=int(pixels), extras=dict(extras))
 
     @staticmethod
     def from_psi(method: str, psi_deg: float, sun_azimuth_deg: float, sigma_deg: float, pixels: int,
                  quality: float, axial: bool, reason: str = "", **kw) -> "HeadingResult":
-        """Fill bearing and REP-103 yaw from psi; refuses non-finite numbers (raises, a bug). ``sigma_deg``
-        None: not computed (``estimate(obs, sigma=False)``)."""
+        """Build a result from the paper's yaw psi, filling the true bearing and REP-103 yaw.
+
+        ``bearing = psi + A_sun`` (eq 26 with its sign erratum fixed) and ``yaw_enu = 90 -
+        bearing``.
+
+        Parameters
+        ----------
+        method : str
+            Name of the method (:mod:`.registry`).
+        psi_deg : float
+            Yaw psi [deg]: bearing of camera +y minus the sun's azimuth (eq 21); wrapped to (-180,
+            180].
+        sun_azimuth_deg : float
+            Sun azimuth [deg], clockwise from North.
+        sigma_deg : float or None
+            1-sigma uncertainty of the yaw [deg]; None when not computed (``estimate(obs,
+            sigma=False)``).
+        pixels : int
+            Number of pixels (or units) used.
+        quality : float
+            Method-specific fit quality, clipped to [0, 1] (1 = perfect fit).
+        axial : bool
+            The heading is known only modulo 180 deg (status ``AMBIGUOUS`` instead of ``OK``).
+        reason : str, default ""
+            Optional note (e.g. how the 180 deg ambiguity was resolved).
+        **kw
+            Further :class:`HeadingResult` fields (``sun_altitude_deg``, ``extras``).
+
+        Returns
+        -------
+        HeadingResult
+            Status ``OK`` or ``AMBIGUOUS``, bearing [deg, 0..360), yaw_enu [deg, (-180, 180]].
+
+        Raises
+        ------
+        FloatingPointError
+            ``psi_deg``, ``sigma_deg`` or ``quality`` is NaN or inf: a bug in the method, never an
+            input.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 21 and 26.
+        """
         psi_deg, sun_azimuth_deg, quality = float(psi_deg), float(sun_azimuth_deg), float(quality)
         for name, v in (("psi_deg", psi_deg), ("sigma_deg", sigma_deg), ("quality", quality)):
             if v is not None and not math.isfinite(v):
@@ -94,6 +164,13 @@ class HeadingResult:
                              min(max(quality, 0.0), 1.0), bool(axial), **kw)
 
     def to_json_dict(self) -> dict:
+        """Convert the result to a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            The dataclass fields by name, ``status`` as its string value.
+        """
         d = asdict(self)
         d["status"] = self.status.value
         return d
@@ -126,7 +203,26 @@ class Observation:
 
     @staticmethod
     def from_frame(frame, pitch_deg=None, roll_deg=None, prior_bearing_deg=None, camera=None) -> "Observation":
-        """From a :class:`~polarization_compass.render.Frame` (measured AoP/DoP when sensor effects ran)."""
+        """Build an observation from a rendered frame (measured AoP/DoP when sensor effects ran).
+
+        Parameters
+        ----------
+        frame : polarization_compass.render.Frame
+            The frame: AoP [rad, eq 28], DoP, valid mask, camera-frame rays, eq 20 pixel
+            coordinates, the sun (azimuth and geometric altitude [deg]) and metadata.
+        pitch_deg, roll_deg : float, optional
+            Known camera pitch and roll [deg] (eq 21), for tilt-aware methods.
+        prior_bearing_deg : float, optional
+            Prior bearing of camera +y [deg, clockwise from North] that resolves the 180 deg
+            ambiguity.
+        camera : CameraModel, optional
+            The camera; by default the one in ``frame.meta["camera"]``, else the paper's imager.
+
+        Returns
+        -------
+        Observation
+            The frame's arrays (not copied) with the sun, tilt and prior.
+        """
         from ..scene import Scene  # noqa: F401  (documentation of origin)
         cam = camera if camera is not None else CameraModel(**frame.meta["camera"]) if "camera" in frame.meta \
             else CameraModel()
@@ -136,28 +232,45 @@ class Observation:
 
 
 class Estimator:
-    """Base class of a heading method. A subclass implements :meth:`estimate` and declares the facts
-    about its method as class attributes, which everything else reads through :mod:`.registry`:
+    """Declare a heading method: the base class every estimator derives from.
 
-    ``name``: the method's identifier (``--method``, node parameter ``method``, topic names, map files).
-    ``label``: human-readable name for figures and tables ("" = ``name``).
-    ``style``: ``(matplotlib colour, line style)`` in figures (None = the next colour of the cycle).
-    ``axial``: the method alone knows the heading only modulo 180 deg.
-    ``needs_tilt``: reads the known camera pitch and roll (``Observation.pitch_deg``/``roll_deg``): the
-    pipeline waits for the IMU tilt at the image stamp, and the method runs without a tilt corrector
-    (its raw heading is final, a "direct" method in graphs, the replay and the evaluator).
-    ``paper_method``: one of the paper's four approaches (default sets of ``sim``/``replay``/error maps,
-    the paper's figures).
-    ``sweep_knobs``: knobs an error-map sweep uses by default (its sampling: a sweep renders 1e4-1e5
-    frames, so it reads fewer pixels than a live estimate); {} = the method's defaults.
-    ``accepts_units``: the method also runs on a photodiode array's few unit E-vectors
-    (:mod:`polarization_compass.photodiode.heading`); False: it needs an image.
-    ``relative_cost``: CPU time per frame relative to the others (median ms per frame at the nodes' knobs,
-    ``make bench`` group replay, 2026-11-24), used only to balance the replay's worker threads.
+    A subclass implements :meth:`estimate` and declares the facts about its method as class
+    attributes, which everything else reads through :mod:`.registry`. ``knobs`` trade accuracy for
+    time (stride, region, min_dop, window ...), described by :meth:`knob_specs`; ``pixels_needed``
+    tells a renderer which pixels this method reads, so sweeps render only those.
 
-    ``knobs`` trade accuracy for time (stride, region, min_dop, window ...), described by
-    :meth:`knob_specs`; ``pixels_needed`` tells a renderer which pixels this method reads, so sweeps
-    render only those.
+    Parameters
+    ----------
+    **knobs
+        The method's knobs (none here; subclasses validate them).
+
+    Attributes
+    ----------
+    name : str
+        The method's identifier (``--method``, node parameter ``method``, topic names, map files).
+    label : str
+        Human-readable name for figures and tables ("" = ``name``).
+    style : tuple or None
+        ``(matplotlib colour, line style)`` in figures (None = the next colour of the cycle).
+    axial : bool
+        The method alone knows the heading only modulo 180 deg.
+    needs_tilt : bool
+        Reads the known camera pitch and roll (``Observation.pitch_deg``/``roll_deg``): the
+        pipeline waits for the IMU tilt at the image stamp, and the method runs without a tilt
+        corrector (its raw heading is final, a "direct" method in graphs, the replay and the
+        evaluator).
+    paper_method : bool
+        One of the paper's four approaches (default sets of ``sim``/``replay``/error maps, the
+        paper's figures).
+    sweep_knobs : dict
+        Knobs an error-map sweep uses by default (its sampling: a sweep renders 1e4-1e5 frames, so
+        it reads fewer pixels than a live estimate); {} = the method's defaults.
+    accepts_units : bool
+        The method also runs on a photodiode array's few unit E-vectors
+        (:mod:`polarization_compass.photodiode.heading`); False: it needs an image.
+    relative_cost : float
+        CPU time per frame relative to the others (median ms per frame at the nodes' knobs, ``make
+        bench`` group replay, 2026-11-24), used only to balance the replay's worker threads.
     """
 
     name = "base"
@@ -175,15 +288,49 @@ class Estimator:
 
     @classmethod
     def knob_specs(cls) -> dict:
-        """``{knob name: Knob}`` the method accepts (none here)."""
+        """Describe the knobs the method accepts (none here).
+
+        Returns
+        -------
+        dict
+            ``{knob name: Knob}``; empty for a method without knobs.
+        """
         return {}
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        """Tell a renderer which pixels the method reads (all here), so sweeps render only those.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            The camera the frames come from.
+
+        Returns
+        -------
+        PixelSelection
+            The pixels to render.
+        """
         return PixelSelection.full()
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:  # pragma: no cover - interface
-        """One heading from ``obs``. ``sigma=False`` skips the uncertainty (``sigma_deg`` None, no residual
-        statistics in ``extras``) for callers that use only psi and status (error-map sweeps): psi is the
-        same as with ``sigma=True`` except that an unresolved (axial) result may name the other end of the
-        meridian, which it does not know anyway; status and quality are the same."""
+        """Estimate one heading from an observation.
+
+        ``sigma=False`` skips the uncertainty (``sigma_deg`` None, no residual statistics in
+        ``extras``) for callers that use only psi and status (error-map sweeps): psi is the same as
+        with ``sigma=True`` except that an unresolved (axial) result may name the other end of the
+        meridian, which it does not know anyway; status and quality are the same.
+
+        Parameters
+        ----------
+        obs : Observation
+            AoP [rad, eq 28], DoP, rays (camera frame), the sun [deg] and optional tilt and prior.
+        sigma : bool, default True
+            Compute the 1-sigma uncertainty ``sigma_deg``.
+
+        Returns
+        -------
+        HeadingResult
+            psi [deg] (eq 21), bearing and REP-103 yaw, or a failure status with a reason; never
+            NaN.
+        """
         raise NotImplementedError

@@ -62,17 +62,51 @@ def _solve_sun_kernel(M, B, C, bias_correction, iterations):  # pragma: no cover
 
 
 def solve_sun(M, B, C, bias_correction=True, iterations=3):
-    """Smallest eigenvector of ``M = sum w e e^T`` (lifted E-vectors), optionally noise-debiased.
+    """Find the smallest eigenvector of ``sum w e e^T`` of lifted E-vectors, optionally debiased.
 
     AoP noise makes ``E[M] = M_true + sigma0^2 B``: a pixel's E-vector turns about its ray, adding
-    ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by O(sigma^2) -- a
-    bias that does not average out with more pixels. The noise scale is estimated from the data,
-    ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation per unit variance),
-    and ``sigma0^2 B`` subtracted; three fixed-point iterations (this is Kanatani-style renormalisation:
-    the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it converges in two). Returns
-    (lambdas ascending, U, sigma0^2). Compiled (LAPACK's symmetric eigensolver through numba): numpy's
-    per-call overhead made the four 3 x 3 solves cost more than the whole pass over 5 000 pixels.
-    Raises ``numpy.linalg.LinAlgError`` for non-finite input.
+    ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by
+    O(sigma^2) -- a bias that does not average out with more pixels. The noise scale is estimated
+    from the data, ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation
+    per unit variance), and ``sigma0^2 B`` subtracted; fixed-point iterations (Kanatani-style
+    renormalisation: the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it
+    converges in two). Compiled (LAPACK's symmetric eigensolver through numba): numpy's per-call
+    overhead made the four 3 x 3 solves cost more than the whole pass over 5 000 pixels.
+
+    Parameters
+    ----------
+    M : numpy.ndarray
+        ``sum_i w_i e_i e_i^T`` of the unit camera-frame E-vectors, (3, 3) float64, symmetric.
+    B : array_like
+        Expected increase of M per unit AoP variance [1/rad^2], (3, 3).
+    C : array_like
+        Expected residual ``s^T M s`` per unit AoP variance as a quadratic form, (3, 3).
+    bias_correction : bool, default True
+        Subtract the estimated noise term ``sigma0^2 B``.
+    iterations : int, default 3
+        Number of fixed-point iterations of the noise scale.
+
+    Returns
+    -------
+    lambdas : numpy.ndarray
+        Eigenvalues, ascending, (3,).
+    U : numpy.ndarray
+        Eigenvectors as columns, (3, 3); ``U[:, 0]`` is the camera-frame sun up to sign.
+    sigma0_sq : float
+        Estimated AoP noise scale sigma0^2 [rad^2]; 0 without bias correction.
+
+    Raises
+    ------
+    LinAlgError
+        ``M`` has non-finite entries (``numpy.linalg.LinAlgError``).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (the least-square
+       approach, after its refs [33-35]).
+    .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
+       vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
     """
     M = np.ascontiguousarray(M, dtype=np.float64)
     if not np.all(np.isfinite(M)):
@@ -163,12 +197,57 @@ class _LSBase(KnobbedEstimator, Estimator):
         self.knobs = self._validate_knobs(knobs)
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        """Tell a renderer which pixels the method reads, so sweeps render only those.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            The camera the frames come from.
+
+        Returns
+        -------
+        PixelSelection
+            The pixels that ``stride`` and ``region`` select.
+        """
         return selection_for(self.knobs, camera)
 
     # ------------------------------------------------------------------------------------------
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
-        """One heading. ``sigma=False`` (error-map sweeps): ``sigma_deg`` None and no ``rms_residual_deg``;
-        the sun-elevation sigma of the sign rule is computed either way, so psi and status are the same."""
+        """Estimate one heading from the smallest eigenvector of ``M = sum w e e^T`` (the sun).
+
+        Each AoP is lifted to its 3-D E-vector, the sun is fitted by total least squares
+        (optionally noise-debiased, :func:`solve_sun`), levelled with the known pitch and roll when
+        the method does so (``tilt_aware``), and its sign is chosen by the elevation rule, the
+        brightness gradient or a prior. ``sigma=False`` (error-map sweeps): ``sigma_deg`` None and
+        no ``rms_residual_deg``; the sun-elevation sigma of the sign rule is computed either way,
+        so psi and status are the same.
+
+        Parameters
+        ----------
+        obs : Observation
+            AoP [rad, eq 28], DoP, valid mask, camera-frame rays, the sun (azimuth clockwise from
+            North and geometric altitude, deg); known ``pitch_deg``/``roll_deg`` [deg, eq 21]
+            (required by ``tilt_aware``) and an optional ``prior_bearing_deg`` [deg].
+        sigma : bool, default True
+            Compute the 1-sigma uncertainty ``sigma_deg`` (first-order eigenvector perturbation,
+            cluster-robust).
+
+        Returns
+        -------
+        HeadingResult
+            psi [deg, (-180, 180]] (eq 21), true bearing of camera +y and REP-103 yaw,
+            ``sigma_deg``, pixels used and quality, ``sun_altitude_deg`` implied by the data (a
+            consistency check); or a failure status with a reason (sun below the horizon or near
+            the zenith, bad input, too few pixels, degenerate data, missing tilt), never NaN.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 21 and 28; Sec. 3
+           (the least-square approach, after its refs [33-35]).
+        .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
+           vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+        """
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
@@ -330,7 +409,33 @@ class _LSBase(KnobbedEstimator, Estimator):
 
 
 class LeastSquaresEstimator(_LSBase):
-    """The paper's least-squares approach (level-camera assumption for the heading)."""
+    """Estimate the heading by the paper's least-squares approach (level-camera assumption).
+
+    The camera-frame sun is the eigenvector of the smallest eigenvalue of ``sum w e e^T`` of the
+    lifted E-vectors; ``psi = -atan2(s_x, s_y)`` assumes a level camera, so it reproduces the
+    paper's tilt error.
+
+    Parameters
+    ----------
+    **knobs
+        Validated against :meth:`knob_specs`: ``weighting``, ``sign_margin_sigma`` [sigmas],
+        ``min_eigen_gap``, ``noise_model``, ``bias_correction``, ``max_aop_noise_deg`` [deg],
+        ``max_tilt_deg`` [deg, assumed tilt bound for the sign rule] and the common knobs
+        (``stride``, ``region`` [sensor pixels], ``min_dop``, ...).
+
+    Raises
+    ------
+    EstimatorError
+        A knob is unknown or out of range.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (the least-square
+       approach, after its refs [33-35]).
+    .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
+       vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+    """
 
     name = "least_squares"
     label = "Least-squares"
@@ -345,7 +450,32 @@ class LeastSquaresEstimator(_LSBase):
 
 
 class TiltAwareEstimator(_LSBase):
-    """Least squares after levelling with the known pitch and roll: exact under Rayleigh at any tilt."""
+    """Estimate the heading by least squares after levelling with the known pitch and roll.
+
+    ``s_lev = Rx(pitch) Ry(roll) s_cam`` (the transpose of eq 21's tilt part applied to the fitted
+    sun) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact under the Rayleigh model at any tilt.
+
+    Parameters
+    ----------
+    **knobs
+        Validated against :meth:`knob_specs`: the least-squares knobs (``weighting``,
+        ``sign_margin_sigma`` [sigmas], ``min_eigen_gap``, ``noise_model``, ``bias_correction``,
+        ``max_aop_noise_deg`` [deg]) and the common knobs (``stride``, ``region`` [sensor pixels],
+        ...).
+
+    Raises
+    ------
+    EstimatorError
+        A knob is unknown or out of range.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21; Sec. 3 (the
+       least-square approach, after its refs [33-35]).
+    .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
+       vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+    """
 
     name = "tilt_aware"
     label = "Tilt-aware LS"

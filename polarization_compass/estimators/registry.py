@@ -42,10 +42,27 @@ def _load() -> dict[str, type[Estimator]]:
 
 
 def register(cls: type[Estimator]) -> type[Estimator]:
-    """Add the estimator class ``cls`` under ``cls.name`` (usable as a class decorator).
+    """Add an estimator class under its ``name`` (usable as a class decorator).
 
-    Raises :class:`EstimatorError` when ``cls`` is not an :class:`Estimator`, has no name of its own, or
-    the name is taken by another class. Returns ``cls``."""
+    The built-in methods are loaded first, so they keep their places and names.
+
+    Parameters
+    ----------
+    cls : type
+        An :class:`~.base.Estimator` subclass that sets its own class attribute ``name`` (an
+        identifier).
+
+    Returns
+    -------
+    type
+        ``cls`` itself.
+
+    Raises
+    ------
+    EstimatorError
+        ``cls`` is not an Estimator subclass, has no name of its own, or the name is taken by
+        another class.
+    """
     _load()                                     # the built-ins first: they keep their places and names
     if not (isinstance(cls, type) and issubclass(cls, Estimator)):
         raise EstimatorError(f"register: {cls!r} is not an Estimator subclass")
@@ -59,32 +76,86 @@ def register(cls: type[Estimator]) -> type[Estimator]:
 
 
 def unregister(name: str) -> None:
-    """Remove method ``name`` (plug-ins and tests); unknown names raise :class:`EstimatorError`."""
+    """Remove a registered method (plug-ins and tests).
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Raises
+    ------
+    EstimatorError
+        No method of that name is registered.
+    """
     get(name)
     del _CLASSES[name]
 
 
 def names(paper: bool | None = None, needs_tilt: bool | None = None) -> tuple[str, ...]:
-    """The registered method names in their stable order (built-ins in the paper's order, then the others
-    in registration order), optionally only those whose ``paper_method``/``needs_tilt`` equal the given
-    values."""
+    """List the registered method names in their stable order, optionally filtered.
+
+    Built-ins come in the paper's order, then the others in registration order.
+
+    Parameters
+    ----------
+    paper : bool, optional
+        Keep only methods whose ``paper_method`` equals this; None keeps all.
+    needs_tilt : bool, optional
+        Keep only methods whose ``needs_tilt`` equals this; None keeps all.
+
+    Returns
+    -------
+    tuple of str
+        The method names.
+    """
     return tuple(n for n, c in _load().items()
                  if (paper is None or bool(c.paper_method) == paper)
                  and (needs_tilt is None or bool(c.needs_tilt) == needs_tilt))
 
 
 def paper_methods() -> tuple[str, ...]:
-    """The paper's four approaches (``paper_method`` True), in order."""
+    """List the paper's four approaches (``paper_method`` True), in order.
+
+    Returns
+    -------
+    tuple of str
+        The method names.
+    """
     return names(paper=True)
 
 
 def tilt_methods() -> tuple[str, ...]:
-    """Methods that read the known pitch and roll (``needs_tilt``): they run without a tilt corrector."""
+    """List the methods that read the known pitch and roll (``needs_tilt``).
+
+    They run without a tilt corrector.
+
+    Returns
+    -------
+    tuple of str
+        The method names.
+    """
     return names(needs_tilt=True)
 
 
 def get(name: str) -> type[Estimator]:
-    """The estimator class of method ``name``; :class:`EstimatorError` names the known ones."""
+    """Look up the estimator class of a method.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    type
+        The :class:`~.base.Estimator` subclass.
+
+    Raises
+    ------
+    EstimatorError
+        ``name`` is not registered; the message names the known methods.
+    """
     classes = _load()
     try:
         return classes[name]
@@ -93,49 +164,149 @@ def get(name: str) -> type[Estimator]:
 
 
 def find(name: str) -> type[Estimator] | None:
-    """The estimator class of ``name``, or None when no such method is registered (e.g. a method named
-    in an old file)."""
+    """Look up the estimator class of a method, or None when it is not registered.
+
+    For names read from old files, where an unknown method is not an error.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    type or None
+        The :class:`~.base.Estimator` subclass, or None.
+    """
     return _load().get(name)
 
 
 def make(name: str, **knobs) -> Estimator:
-    """A new estimator of method ``name`` with ``knobs`` (validated by the class)."""
+    """Create a new estimator of a method with the given knobs.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+    **knobs
+        Knob values, validated by the class (:meth:`~.base.Estimator.knob_specs`).
+
+    Returns
+    -------
+    Estimator
+        The new estimator.
+
+    Raises
+    ------
+    EstimatorError
+        ``name`` is not registered, or a knob is unknown or out of range.
+    """
     return get(name)(**knobs)
 
 
 def knob_names(name: str) -> frozenset:
-    """Names of the knobs method ``name`` accepts (empty for a method without knobs)."""
+    """List the names of the knobs a method accepts.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    frozenset of str
+        The knob names; empty for a method without knobs.
+
+    Raises
+    ------
+    EstimatorError
+        ``name`` is not registered.
+    """
     return frozenset(get(name).knob_specs())
 
 
 def label(name: str) -> str:
-    """Human-readable label of ``name`` (figures, tables); the name itself when unknown or unset."""
+    """Give the human-readable label of a method (figures, tables).
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    str
+        The class's ``label``; the name itself when unknown or unset.
+    """
     c = find(name)
     return (c.label or name) if c is not None else name
 
 
 def style(name: str) -> tuple | None:
-    """(matplotlib colour, line style) of ``name``; None when unknown or unset."""
+    """Give the (matplotlib colour, line style) of a method in figures.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    tuple or None
+        ``(colour, line style)``; None when unknown or unset (the next colour of the cycle).
+    """
     c = find(name)
     return c.style if c is not None else None
 
 
 def relative_cost(name: str) -> float:
-    """Relative time per frame of ``name`` (the replay balances its threads on it); the base class's
-    default for unknown methods."""
+    """Give the relative CPU time per frame of a method (the replay balances its threads on it).
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    float
+        The class's ``relative_cost`` (dimensionless); the base class's default for unknown
+        methods.
+    """
     c = find(name)
     return float((c or Estimator).relative_cost)
 
 
 def sweep_knobs(name: str) -> dict:
-    """A copy of the error-map sweep's default sampling knobs of ``name`` ({} when unknown)."""
+    """Give a copy of the default sampling knobs of a method in error-map sweeps.
+
+    Parameters
+    ----------
+    name : str
+        Name of the method.
+
+    Returns
+    -------
+    dict
+        ``{knob: value}``; {} when the method is unknown or uses its defaults.
+    """
     c = find(name)
     return dict(c.sweep_knobs) if c is not None else {}
 
 
 class MethodNames(Sequence):
-    """A live, read-only sequence of the registered method names (optionally filtered like :func:`names`):
-    parameter and launch-argument choices built at import time still see methods registered later."""
+    """Provide a live, read-only sequence of the registered method names.
+
+    Filtered like :func:`names`: parameter and launch-argument choices built at import time still
+    see methods registered later.
+
+    Parameters
+    ----------
+    paper : bool, optional
+        Keep only methods whose ``paper_method`` equals this; None keeps all.
+    needs_tilt : bool, optional
+        Keep only methods whose ``needs_tilt`` equals this; None keeps all.
+    """
 
     def __init__(self, paper: bool | None = None, needs_tilt: bool | None = None):
         self._filter = {"paper": paper, "needs_tilt": needs_tilt}

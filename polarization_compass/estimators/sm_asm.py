@@ -42,7 +42,31 @@ __all__ = ["SmAsmEstimator"]
 
 
 class SmAsmEstimator(DiscEstimator):
-    """Solar/anti-solar meridian from |AOPLM| ~ 90 deg pixels (level-camera assumption)."""
+    """Estimate the heading by the SM-ASM approach: the meridian of pixels with |AOPLM| ~ 90 deg.
+
+    A weighted axial line fit through the zenith pixel (not a Hough transform; see the module
+    docstring); level-camera assumption, axial result (:meth:`DiscEstimator.estimate`).
+
+    Parameters
+    ----------
+    **knobs
+        Validated against :meth:`knob_specs`: ``aoplm_tol_deg`` [deg, 1-sigma width of the band
+        around |AOPLM| = 90 deg], the disc knobs and the common knobs (``stride``, ``region``
+        [sensor pixels], ``min_dop``, ...).
+
+    Raises
+    ------
+    EstimatorError
+        A knob is unknown or out of range.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 29-30 (AOPLM) and Sec. 3
+       (the SM-ASM approach, after its refs [26-29]).
+    .. [2] H. Lu, K. Zhao, Z. You et al., "Angle algorithm based on Hough transform for imaging
+       polarization navigation sensor", Opt Express 23(6): 7248-62, 2015.
+    """
 
     name = "sm_asm"
     label = "SM-ASM"

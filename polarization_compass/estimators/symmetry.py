@@ -197,7 +197,33 @@ def _axis_search(a, K, steps, near=None):
 
 
 class SymmetryEstimator(DiscEstimator):
-    """Axis of antisymmetry of the AOPLM map (level-camera assumption)."""
+    """Estimate the heading by the symmetry approach: the axis of antisymmetry of the AOPLM map.
+
+    A polar correlation of the map with its mirror image from ring Fourier coefficients, coarse
+    grid then Newton (see the module docstring); level-camera assumption, axial result
+    (:meth:`DiscEstimator.estimate`).
+
+    Parameters
+    ----------
+    **knobs
+        Validated against :meth:`knob_specs`: ``harmonics`` (K), ``rings``, ``inner_fraction`` (of
+        the disc radius), ``search_steps`` (over 180 deg), the disc knobs and the common knobs
+        (``stride``, ``region`` [sensor pixels], ``min_dop``, ...).
+
+    Raises
+    ------
+    EstimatorError
+        A knob is unknown or out of range.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 29-30 (AOPLM) and Sec. 3
+       (the symmetry approach, after its refs [30-32]).
+    .. [2] Z. Huijie, X. Wujian, Z. Ying et al., "Polarization patterns under different sky
+       conditions and a navigation method based on the symmetry of the AOP map of skylight", Optics
+       Express 26(22), 2018.
+    """
 
     name = "symmetry"
     label = "Symmetry"

@@ -50,8 +50,31 @@ __all__ = ["ZenithEstimator", "zenith_window"]
 
 @lru_cache(maxsize=32)
 def zenith_window(camera: CameraModel, window_px: int):
-    """(x_lo, x_hi, y_lo, y_hi) of the ``window_px`` square centred on the principal point (inclusive,
-    pixel centres), and the matching PixelSelection."""
+    """Locate the zenith window: the square centred on the principal point.
+
+    Under the level-camera assumption the zenith is the principal point (eq 20 with ``V = (0, 0,
+    f)``).
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera; the window is clipped to its sensor.
+    window_px : int
+        Side of the square window [sensor pixels].
+
+    Returns
+    -------
+    bounds : tuple of int
+        ``(x_lo, x_hi, y_lo, y_hi)``, 1-based eq 20 pixel coordinates of the pixel centres,
+        inclusive.
+    selection : PixelSelection
+        The matching rectangle.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+    """
     half = window_px / 2.0
     x_lo = math.ceil(camera.cx_px - half)
     y_lo = math.ceil(camera.cy_px - half)
@@ -124,7 +147,34 @@ def _eigh3(m):  # pragma: no cover - compiled
 
 
 class ZenithEstimator(KnobbedEstimator, Estimator):
-    """The paper's zenith approach (level-camera assumption: the zenith is the principal point)."""
+    """Estimate the heading by the paper's zenith approach (level camera).
+
+    The zenith is the principal point and its E-vector is perpendicular to the solar meridian; this
+    implementation fits the window's lifted E-vectors exactly instead of averaging the AoP (see the
+    module docstring).
+
+    Parameters
+    ----------
+    **knobs
+        Validated against :meth:`knob_specs`: ``window_px`` (side of the centred window, sensor
+        pixels, default 32) and the common knobs (``min_dop``, ``min_pixels``, ``block_px`` [sensor
+        pixels], sun-altitude limits [deg], ...); ``stride`` and ``region`` do not apply.
+
+    Raises
+    ------
+    EstimatorError
+        A knob is unknown or out of range.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (the zenith approach,
+       after its refs [3, 16, 23-25]) and eq 28 (the AoP it reads).
+    .. [2] K. D. Pham, J. L. Cox, T. M. Aycock et al., "Using Atmospheric Polarization Patterns for
+       Azimuth Sensing", Sensors and Systems for Space Applications VII, 2014.
+    .. [3] J. Dupeyroux, S. Viollet and J. R. Serres, "Polarized skylight-based heading
+       measurements: a bio-inspired approach", J R Soc Interface 16(150): 20180878, 2019.
+    """
 
     name = "zenith"
     label = "Zenith"
@@ -143,9 +193,51 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
         self.knobs = self._validate_knobs(knobs)
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
+        """Tell a renderer which pixels the method reads, so sweeps render only those.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            The camera the frames come from.
+
+        Returns
+        -------
+        PixelSelection
+            The zenith window (:func:`zenith_window`).
+        """
         return zenith_window(camera, self.knobs["window_px"])[1]
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
+        """Estimate one heading from the E-vectors of the zenith window.
+
+        The dominant eigenvector of the window's ``sum e e^T`` is the zenith E-vector axis; the sun
+        lies on the plane perpendicular to it at the ephemeris altitude, which gives psi and psi +
+        180 deg; the brightness gradient of the window or a prior bearing may resolve that
+        ambiguity.
+
+        Parameters
+        ----------
+        obs : Observation
+            AoP [rad, eq 28], DoP, valid mask, camera-frame rays, the sun (azimuth clockwise from
+            North and geometric altitude, deg); optional ``prior_bearing_deg`` [deg].
+        sigma : bool, default True
+            Compute the 1-sigma uncertainty ``sigma_deg`` (cluster-robust over blocks of
+            ``block_px``).
+
+        Returns
+        -------
+        HeadingResult
+            psi [deg, (-180, 180]] (eq 21), true bearing of camera +y and REP-103 yaw,
+            ``sigma_deg``, pixels used and quality (status ``ambiguous`` when the 180 deg ambiguity
+            is unresolved); or a failure status with a reason (sun below the horizon or near the
+            zenith, bad input, too few pixels, degenerate data), never NaN.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (zenith
+           approach), eqs 21 and 28.
+        """
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:

@@ -56,22 +56,28 @@ class HeadingEstimatorNode(Node):
         self.front = None
         self.params = ParameterSet(self, ESTIMATOR, on_change=self._on_change)
         self.method = self.params["method"]
+        p = self.params
+        self.array = None
+        self._array_geometry = None
+        self._knob_specs = None             # None: the image method's knobs; a photodiode array's otherwise
+        if p["input"] == "array":
+            from ..photodiode.geometry import load_array_geometry
+            from ..photodiode.heading import ARRAY_KNOBS
+            if not p["array_geometry"]:
+                raise CompassError("input array needs array_geometry (a sensor description YAML)")
+            self._array_geometry = load_array_geometry(p["array_geometry"])
+            self._knob_specs = ARRAY_KNOBS
         try:
-            knobs = knob_params(self.method)
+            knobs = knob_params(self.method, self._knob_specs)
         except CompassError as exc:
             raise CompassError(f"method {self.method!r}: {exc}") from None
         self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
-        p = self.params
-        self.front = HeadingFrontEnd(self.method, knob_values(self.method, self.knob_set.values),
+        self.front = HeadingFrontEnd(self.method,
+                                     {} if self.array_input else knob_values(self.method, self.knob_set.values),
                                      layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
                                      p["use_intensity"])
-        self.array = None
-        if p["input"] == "array":
-            from ..photodiode.geometry import load_array_geometry
-            from ..photodiode.heading import make_array_estimator
-            if not p["array_geometry"]:
-                raise CompassError("input array needs array_geometry (a sensor description YAML)")
-            self.array = make_array_estimator(self.method, load_array_geometry(p["array_geometry"]))
+        if self.array_input:
+            self.array = self._make_array(self.knob_set.values)
         else:
             try:
                 dt = warm_up(self.front, camera=self._fallback_camera_or_none())
@@ -148,10 +154,25 @@ class HeadingEstimatorNode(Node):
             return str(exc)
         return None
 
+    @property
+    def array_input(self) -> bool:
+        return self._array_geometry is not None
+
+    def _make_array(self, values: dict):
+        from ..photodiode.heading import make_array_estimator
+        return make_array_estimator(self.method, self._array_geometry,
+                                    **knob_values(self.method, values, self._knob_specs))
+
     def _on_knob_change(self, changed: dict):
         if self.front is None:
             return None
         merged = {**self.knob_set.values, **changed}
+        if self.array_input:
+            try:
+                self.array = self._make_array(merged)
+            except (CompassError, ValueError) as exc:
+                return str(exc)
+            return None
         try:
             self.front.set_knobs(knob_values(self.method, merged))
         except (CompassError, ValueError) as exc:

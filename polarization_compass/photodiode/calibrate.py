@@ -32,8 +32,11 @@ class CalibrationError(CompassError):
 
 @dataclass
 class GainCalibration:
-    """Per unit: ``gains`` (C,), ``gains_sigma`` (C,) (None: not estimated), ``condition`` (ratio of the two
-    smallest singular values, > ~3 is well identified), ``note`` (why not estimated / warnings)."""
+    """Relative channel gains of each unit, with their uncertainty.
+
+    Per unit: ``gains`` (C,), ``gains_sigma`` (C,) (None: not estimated), ``condition`` (ratio of the two
+    smallest singular values, > ~3 is well identified), ``note`` (why not estimated / warnings).
+    """
 
     gains: list
     gains_sigma: list
@@ -65,10 +68,26 @@ def _unit_gains(samples: np.ndarray, channels_deg) -> tuple[np.ndarray, float]:
 
 
 def calibrate_gains(recordings, geometry, min_condition: float = 3.0) -> GainCalibration:
-    """Gains of every unit from one or more recordings' ``intensities`` (S, U, C) (a list of arrays).
+    """Estimate every unit's relative channel gains from recordings of full turns.
 
-    Samples with non-finite or negative readings in a unit are skipped for that unit. Raises
-    :class:`CalibrationError` when no unit can be calibrated.
+    Parameters
+    ----------
+    recordings : sequence of array_like
+        Readings (S, U, C) of one or more recordings (one turn each is best; several give the jackknife groups).
+    geometry : ArrayGeometry
+        Channel angles and the current gains (kept for units that cannot be calibrated).
+    min_condition : float, optional
+        Singular-value ratio a unit needs to be calibrated (default 3).
+
+    Returns
+    -------
+    GainCalibration
+        Gains (mean 1 per unit), jackknife sigmas, conditions and notes.
+
+    Raises
+    ------
+    CalibrationError
+        No recording, or no unit could be calibrated.
     """
     recs = [np.asarray(r, dtype=float) for r in recordings]
     if not recs:
@@ -99,7 +118,14 @@ def calibrate_gains(recordings, geometry, min_condition: float = 3.0) -> GainCal
             notes.append(f"only {allx.shape[0]} usable sample(s) (kept the old gains)")
             continue
         g, cond = _unit_gains(allx, unit.channels_deg)
-        if not np.all(np.isfinite(g)) or cond < min_condition:
+        if not np.all(np.isfinite(g)):
+            gains.append(list(unit.gains))
+            sigmas.append(None)
+            conds.append(cond)
+            notes.append("the fitted gains are not all positive: the unit does not follow the ideal-polarizer model "
+                         "(faulty channel?) (kept)")
+            continue
+        if cond < min_condition:
             gains.append(list(unit.gains))
             sigmas.append(None)
             conds.append(cond)

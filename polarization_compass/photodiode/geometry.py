@@ -53,6 +53,7 @@ class UnitGeometry:
 
     @property
     def n_channels(self) -> int:
+        """Number of polarizer channels of this unit."""
         return len(self.channels_deg)
 
 
@@ -67,6 +68,7 @@ class ArrayGeometry:
 
     @property
     def n_units(self) -> int:
+        """Number of units."""
         return len(self.units)
 
     @property
@@ -75,20 +77,64 @@ class ArrayGeometry:
         return max(u.n_channels for u in self.units)
 
     def axes_body(self) -> np.ndarray:
-        """(U, 3) unit viewing axes in the REP-103 body frame."""
+        """Viewing axes of the units in the REP-103 body frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (U, 3) unit vectors (:func:`~polarization_compass.conventions.unit_axis_body`).
+        """
         return unit_axis_body([u.azimuth_deg for u in self.units], [u.elevation_deg for u in self.units])
 
     def evectors_body(self, angle_rad) -> np.ndarray:
-        """(..., U, 3) body-frame E-vectors for polarization angles (..., U) in the units' convention."""
+        """Body-frame E-vectors of polarization angles measured by the units.
+
+        Parameters
+        ----------
+        angle_rad : array_like
+            (..., U) angles of polarization [rad] in the units' convention (``angle_zero``, ``angle_sense``).
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., U, 3) unit E-vectors in the body frame (:func:`~polarization_compass.conventions.unit_evector_body`).
+        """
         az = np.array([u.azimuth_deg for u in self.units])
         el = np.array([u.elevation_deg for u in self.units])
         return unit_evector_body(angle_rad, az, el, self.angle_zero, self.angle_sense)
 
     def with_convention(self, angle_zero: str, angle_sense: str) -> "ArrayGeometry":
+        """Return a copy with another polarizer angle convention.
+
+        Parameters
+        ----------
+        angle_zero : str
+            ``meridian`` or ``horizontal``.
+        angle_sense : str
+            ``cw`` or ``ccw``.
+
+        Returns
+        -------
+        ArrayGeometry
+            The same units with the given convention.
+        """
         return ArrayGeometry(self.units, angle_zero, angle_sense, dict(self.extra))
 
     def with_gains(self, gains, gains_sigma=None) -> "ArrayGeometry":
-        """A copy with per-unit gains (list of per-channel sequences) and optional sigmas."""
+        """Return a copy with new per-unit channel gains.
+
+        Parameters
+        ----------
+        gains : sequence of sequence of float
+            Per unit, one relative gain per channel.
+        gains_sigma : sequence of (sequence of float or None), optional
+            Per unit, the 1-sigma of each gain (None: not known).
+
+        Returns
+        -------
+        ArrayGeometry
+            The same units and convention with these gains.
+        """
         units = []
         for i, u in enumerate(self.units):
             g = tuple(float(v) for v in gains[i])
@@ -153,7 +199,25 @@ def _unit(i: int, d) -> UnitGeometry:
 
 
 def geometry_from_dict(d, where: str = "array geometry") -> ArrayGeometry:
-    """Validate a parsed sensor description; raises :class:`ArrayGeometryError` (one line)."""
+    """Validate a parsed sensor description and build the geometry.
+
+    Parameters
+    ----------
+    d : dict
+        The YAML mapping (see the module docstring for the keys).
+    where : str, optional
+        Name of the source, for the error messages.
+
+    Returns
+    -------
+    ArrayGeometry
+        The validated geometry.
+
+    Raises
+    ------
+    ArrayGeometryError
+        One line naming the key that is missing, unknown or out of range.
+    """
     if not isinstance(d, dict):
         raise ArrayGeometryError(f"{where}: expected a mapping with 'units', 'angle_zero', 'angle_sense'")
     unknown = sorted(set(map(str, d)) - _TOP_KEYS)
@@ -177,7 +241,23 @@ def geometry_from_dict(d, where: str = "array geometry") -> ArrayGeometry:
 
 
 def load_array_geometry(path) -> ArrayGeometry:
-    """Read and validate a sensor description YAML file (see the module docstring)."""
+    """Read and validate a sensor description YAML file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file (safe loader; at most 1e6 characters).
+
+    Returns
+    -------
+    ArrayGeometry
+        The validated geometry.
+
+    Raises
+    ------
+    ArrayGeometryError
+        Missing, unreadable, too large or invalid file (one line).
+    """
     text = read_text(path, ArrayGeometryError, "array geometry")
     if len(text) > _MAX_TEXT:
         raise ArrayGeometryError(f"array geometry {str(path)!r}: {len(text)} characters, more than {_MAX_TEXT}")
@@ -185,7 +265,18 @@ def load_array_geometry(path) -> ArrayGeometry:
 
 
 def geometry_to_dict(g: ArrayGeometry) -> dict:
-    """The YAML mapping of a geometry (round-trips through :func:`geometry_from_dict`)."""
+    """Return the YAML mapping of a geometry (round-trips through :func:`geometry_from_dict`).
+
+    Parameters
+    ----------
+    g : ArrayGeometry
+        The geometry.
+
+    Returns
+    -------
+    dict
+        ``angle_zero``, ``angle_sense``, ``units`` (with gains, and gains_sigma / enabled when set).
+    """
     units = []
     for u in g.units:
         d = {"azimuth_deg": u.azimuth_deg, "elevation_deg": u.elevation_deg, "channels_deg": list(u.channels_deg),

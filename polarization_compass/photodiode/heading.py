@@ -44,7 +44,13 @@ __all__ = ["array_methods", "ArrayMethodError", "ArrayHeadingEstimator", "make_a
 
 
 def array_methods() -> tuple[str, ...]:
-    """Registered methods that run on a photodiode array's units (class fact ``accepts_units``)."""
+    """Name the registered methods that run on a photodiode array's units.
+
+    Returns
+    -------
+    tuple of str
+        The methods whose class fact ``accepts_units`` is true, in the registry's order.
+    """
     return tuple(n for n in registry.names() if registry.get(n).accepts_units)
 
 
@@ -132,10 +138,41 @@ class ArrayHeadingEstimator:
     def estimate(self, aop_rad, dop, s0, valid, sun_azimuth_deg: float, sun_altitude_deg: float,
                  pitch_deg: float | None = None, roll_deg: float | None = None,
                  prior_bearing_deg: float | None = None) -> HeadingResult:
-        """One heading from per-unit angles (U,) rad in the units' convention, DoP (U,), brightness S0 (U,)
-        and validity (U,); the sun from the ephemeris (deg); pitch/roll (deg) for tilt_aware (and the sign
-        rule); a prior bearing (deg) for the 180 deg ambiguity. Returns a :class:`HeadingResult` whose
-        bearing is the body front's, ``pixels`` the number of units used."""
+        """Estimate one heading from one sample of per-unit angles of polarization.
+
+        Parameters
+        ----------
+        aop_rad : array_like
+            (U,) angle of polarization of each unit [rad] in the units' convention.
+        dop : array_like
+            (U,) degree of polarization of each unit.
+        s0 : array_like
+            (U,) brightness (gain-corrected S0) of each unit, for the 180 deg ambiguity.
+        valid : array_like of bool
+            (U,) units with a usable fit in this sample.
+        sun_azimuth_deg : float
+            Sun azimuth [deg], clockwise from true North (ephemeris).
+        sun_altitude_deg : float
+            Sun altitude [deg] (ephemeris).
+        pitch_deg : float, optional
+            Known pitch [deg] (paper's alpha, about body right); tilt_aware needs it, least_squares uses it for the
+            sign rule.
+        roll_deg : float, optional
+            Known roll [deg] (paper's beta, about body front).
+        prior_bearing_deg : float, optional
+            Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else does.
+
+        Returns
+        -------
+        HeadingResult
+            psi, bearing and REP-103 yaw of the body front, sigma [deg], status with the reason; ``pixels`` is the
+            number of units used. Never NaN: a case without an answer is a status.
+
+        References
+        ----------
+        The paper's eqs 18 and 25-27 (least-squares sun from E-vectors); Lambrinos et al. 2000, Robot. Auton.
+        Syst. 30 (POL-OP units).
+        """
         k = self.knobs
         sky = _Sky(sun_azimuth_deg, sun_altitude_deg, prior_bearing_deg)
         bad = check_sun(self.name, sky, k)
@@ -260,14 +297,51 @@ def _method_message(name: str) -> str:
 
 
 def make_array_estimator(name: str, geometry, **knobs) -> ArrayHeadingEstimator:
-    """An array estimator; :class:`ArrayMethodError` (one line) for image-only or unknown methods."""
+    """Build an array estimator, refusing image-only or unknown methods.
+
+    Parameters
+    ----------
+    name : str
+        Method name (one of :func:`array_methods`).
+    geometry : ArrayGeometry
+        The sensor description.
+    **knobs
+        Array knobs (:data:`ARRAY_KNOBS`).
+
+    Returns
+    -------
+    ArrayHeadingEstimator
+        The estimator.
+    """
     return ArrayHeadingEstimator(name, geometry, **knobs)
 
 
 def estimate_recording(estimator: ArrayHeadingEstimator, intensities, sun_azimuth_deg, sun_altitude_deg,
                        pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> list:
-    """Headings for every sample of readings (S, U, C); sun (deg) scalars or per-sample arrays (S,);
-    pitch/roll/prior likewise (None: not known). Returns a list of :class:`HeadingResult`."""
+    """Estimate a heading for every sample of a recording.
+
+    Parameters
+    ----------
+    estimator : ArrayHeadingEstimator
+        The estimator (its geometry fits the readings).
+    intensities : array_like
+        (S, U, C) readings.
+    sun_azimuth_deg : float or array_like
+        Sun azimuth [deg], a scalar or (S,).
+    sun_altitude_deg : float or array_like
+        Sun altitude [deg], a scalar or (S,).
+    pitch_deg : float or array_like, optional
+        Known pitch [deg], scalar or (S,); None: not known.
+    roll_deg : float or array_like, optional
+        Known roll [deg], scalar or (S,).
+    prior_bearing_deg : float or array_like, optional
+        Prior bearing of the front [deg], scalar or (S,).
+
+    Returns
+    -------
+    list of HeadingResult
+        One per sample.
+    """
     st = fit_stokes(intensities, estimator.geometry)
     S = st.aop_rad.shape[0]
 

@@ -41,10 +41,22 @@ class ArrayRecording:
 
     @property
     def n_samples(self) -> int:
+        """Number of samples."""
         return int(self.intensities.shape[0])
 
     def check_against(self, geometry) -> None:
-        """Raise :class:`ArrayRecordingError` when the shape does not fit ``geometry``."""
+        """Check that the recording's shape fits a geometry.
+
+        Parameters
+        ----------
+        geometry : ArrayGeometry
+            The sensor description the readings are for.
+
+        Raises
+        ------
+        ArrayRecordingError
+            The numbers of units or channels do not match.
+        """
         _, U, C = self.intensities.shape
         if U != geometry.n_units:
             raise ArrayRecordingError(f"the recording has {U} unit(s), the geometry {geometry.n_units}")
@@ -131,7 +143,23 @@ def _load_csv(path) -> ArrayRecording:
 
 
 def load_array_recording(path) -> ArrayRecording:
-    """Read a recording (``.npz`` or ``.csv`` by extension); :class:`ArrayRecordingError` on any problem."""
+    """Read a recording (``.npz`` or ``.csv`` by extension).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The recording (layouts in the module docstring).
+
+    Returns
+    -------
+    ArrayRecording
+        ``intensities`` (S, U, C) and ``t_offset_s`` (S,) or None.
+
+    Raises
+    ------
+    ArrayRecordingError
+        Any problem with the file, in one line.
+    """
     p = str(path)
     if p.lower().endswith(".csv"):
         return _load_csv(path)
@@ -144,7 +172,17 @@ def load_array_recording(path) -> ArrayRecording:
 
 
 def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
-    """Write the ``.npz`` layout :func:`load_array_recording` reads."""
+    """Write the ``.npz`` layout :func:`load_array_recording` reads.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Output file.
+    intensities : array_like
+        (S, U, C) readings.
+    t_offset_s : array_like, optional
+        (S,) seconds after the reference time.
+    """
     arrays = {"intensities": np.asarray(intensities, dtype=np.float64)}
     if t_offset_s is not None:
         arrays["t_offset_s"] = np.asarray(t_offset_s, dtype=np.float64)
@@ -152,7 +190,17 @@ def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
 
 
 def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
-    """Write the CSV layout :func:`load_array_recording` reads."""
+    """Write the CSV layout :func:`load_array_recording` reads.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Output file.
+    intensities : array_like
+        (S, U, C) readings.
+    t_offset_s : array_like, optional
+        (S,) seconds after the reference time.
+    """
     a = np.asarray(intensities, dtype=np.float64)
     S, U, C = a.shape
     header = (["t_offset_s"] if t_offset_s is not None else []) + [f"u{u}_c{c}" for u in range(U) for c in range(C)]
@@ -165,14 +213,32 @@ def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
 
 
 def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.ndarray:
-    """One sample (U, C) from a flat message (``std_msgs/Float32MultiArray``: ``data``, the sizes of
-    ``layout.dim`` and ``layout.data_offset``).
+    """Decode one sample (U, C) from a flat message such as ``std_msgs/Float32MultiArray``.
 
     Layout: row-major units x channels, channels in each unit's ``channels_deg`` order; ``layout.dim`` either
     empty (then ``data`` holds exactly units x channels values after the offset) or two dimensions of sizes
-    (units, channels) (labels are not read; strides must be the row-major ones, which the sizes imply).
-    Raises :class:`ArrayRecordingError` (one line) for a layout that does not fit ``geometry`` or values
-    that are not finite.
+    (units, channels) (labels are not read; the strides are the row-major ones the sizes imply).
+
+    Parameters
+    ----------
+    data : sequence of float
+        The message's ``data``.
+    dim_sizes : sequence of int
+        The sizes of ``layout.dim`` (empty or [units, channels]).
+    data_offset : int
+        ``layout.data_offset``: values to skip at the start.
+    geometry : ArrayGeometry
+        The sensor description.
+
+    Returns
+    -------
+    numpy.ndarray
+        (U, C) float64 readings.
+
+    Raises
+    ------
+    ArrayRecordingError
+        A layout that does not fit the geometry, or values that are not finite.
     """
     U, C = geometry.n_units, geometry.n_channels
     sizes = [int(s) for s in dim_sizes]

@@ -19,6 +19,7 @@ __all__ = ["ConventionScore", "check_convention"]
 
 @dataclass
 class ConventionScore:
+    """How well one polarizer convention explains a recording."""
     angle_zero: str
     angle_sense: str
     misfit_median_deg: float | None       # median rms angle residual over the samples with a fit
@@ -29,9 +30,31 @@ class ConventionScore:
 
 def check_convention(intensities, geometry, sun_azimuth_deg, sun_altitude_deg, pitch_deg=0.0, roll_deg=0.0,
                      reference_bearing_deg=None) -> tuple[list, str]:
-    """Score the four conventions on readings (S, U, C) with the sun (deg, scalar or (S,)) and the tilt
-    (deg; 0 for a robot on level ground). Returns (scores sorted best first, verdict line). The verdict is
-    'clear' when the best median misfit is below 2/3 of the runner-up's."""
+    """Score the four polarizer conventions on a recording, best first.
+
+    Parameters
+    ----------
+    intensities : array_like
+        (S, U, C) readings.
+    geometry : ArrayGeometry
+        Units, channels and gains (its own convention is ignored).
+    sun_azimuth_deg : float or array_like
+        Sun azimuth [deg], scalar or (S,).
+    sun_altitude_deg : float or array_like
+        Sun altitude [deg], scalar or (S,).
+    pitch_deg : float or array_like, optional
+        Tilt [deg] (0 for a robot on level ground).
+    roll_deg : float or array_like, optional
+        Tilt [deg].
+    reference_bearing_deg : float or array_like, optional
+        Reference bearing of the front [deg], scalar or (S,): adds each convention's axial error RMS.
+
+    Returns
+    -------
+    tuple of (list of ConventionScore, str)
+        The scores sorted by median misfit, and a verdict line ('clear' when the best misfit is below 2/3 of the
+        runner-up's).
+    """
     scores = []
     for zero in ANGLE_ZEROS:
         for sense in ANGLE_SENSES:

@@ -21,8 +21,26 @@ __all__ = ["sun_body", "simulate_unit_stokes", "simulate_readings", "ArraySensor
 
 
 def sun_body(sun_azimuth_deg, sun_altitude_deg, bearing_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
-    """Sun direction (3,) in the body frame of a body whose front has true ``bearing_deg``, tilted by the
-    paper's pitch/roll (about the default-mounted camera's x/y axes; :mod:`..conventions`)."""
+    """Return the sun direction in the body frame of a body with a given attitude.
+
+    Parameters
+    ----------
+    sun_azimuth_deg : float
+        Sun azimuth [deg], clockwise from true North.
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    bearing_deg : float
+        True bearing of the body's front [deg].
+    pitch_deg : float, optional
+        Paper's pitch [deg] (about the default-mounted camera's x = body right).
+    roll_deg : float, optional
+        Paper's roll [deg] (about camera y = body front).
+
+    Returns
+    -------
+    numpy.ndarray
+        (3,) unit sun vector in the REP-103 body frame.
+    """
     R_enu_body = R_enu_body_from_camera_attitude(CameraAttitude(float(bearing_deg), float(pitch_deg), float(roll_deg)))
     return R_enu_body.T @ enu_direction(sun_azimuth_deg, sun_altitude_deg)
 
@@ -38,10 +56,27 @@ def _cone_quadrature(acceptance_deg: float, rings: int = 6, per_ring: int = 24):
 
 
 def simulate_unit_stokes(geometry, s_body, dop_max: float = 1.0, integrate: bool = True) -> np.ndarray:
-    """(U, 3) Stokes (S0, S1, S2) each unit sees, S0 relative (Rayleigh radiance ~ 1 + cos^2 gamma).
+    """Return the Stokes vector each unit sees under a Rayleigh sky.
 
-    ``s_body`` the sun in the body frame; angles in each unit's polarizer convention. ``integrate``
-    False: the axis direction only (no acceptance cone).
+    Parameters
+    ----------
+    geometry : ArrayGeometry
+        Units (axes, acceptance cones) and convention.
+    s_body : array_like
+        (3,) sun direction in the body frame.
+    dop_max : float, optional
+        Rayleigh maximum degree of polarization.
+    integrate : bool, optional
+        Integrate the acceptance cone (else the axis direction only).
+
+    Returns
+    -------
+    numpy.ndarray
+        (U, 3) (S0, S1, S2), S0 relative (Rayleigh radiance ~ 1 + cos^2 gamma), angles in each unit's convention.
+
+    References
+    ----------
+    The paper's eqs 11-19 (Rayleigh sky).
     """
     s = np.asarray(s_body, dtype=float)
     out = np.zeros((geometry.n_units, 3))
@@ -73,10 +108,37 @@ def simulate_unit_stokes(geometry, s_body, dop_max: float = 1.0, integrate: bool
 def simulate_readings(geometry, sun_azimuth_deg: float, sun_altitude_deg: float, bearings_deg, pitch_deg=0.0,
                       roll_deg=0.0, dop_max: float = 0.7, brightness: float = 1000.0, noise_rel: float = 0.0,
                       integrate: bool = True, rng=None) -> np.ndarray:
-    """Readings (S, U, C) for a body turning through ``bearings_deg`` (true bearing of the front, deg).
+    """Simulate the readings of a body turning through a list of bearings.
 
-    ``brightness`` scales S0 (counts); ``noise_rel`` the Gaussian noise sigma per channel relative to
-    ``brightness``; gains from the geometry. Pitch/roll scalars or per-sample arrays (deg).
+    Parameters
+    ----------
+    geometry : ArrayGeometry
+        Units, channels, gains and convention.
+    sun_azimuth_deg : float
+        Sun azimuth [deg].
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    bearings_deg : array_like
+        (S,) true bearings of the front [deg].
+    pitch_deg : float or array_like, optional
+        Pitch [deg], scalar or (S,).
+    roll_deg : float or array_like, optional
+        Roll [deg], scalar or (S,).
+    dop_max : float, optional
+        Rayleigh maximum degree of polarization.
+    brightness : float, optional
+        Scale of S0 [counts].
+    noise_rel : float, optional
+        Gaussian noise sigma per channel, relative to ``brightness``.
+    integrate : bool, optional
+        Integrate each unit's acceptance cone.
+    rng : numpy.random.Generator, optional
+        Noise source (default: seeded 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        (S, U, C) readings.
     """
     b = np.atleast_1d(np.asarray(bearings_deg, dtype=float))
     p = np.broadcast_to(np.asarray(pitch_deg, dtype=float), b.shape)
@@ -116,7 +178,23 @@ class ArraySensor:
 
     @staticmethod
     def from_config(cfg) -> "ArraySensor":
-        """Validate a scene's ``photodiode_array`` mapping; raises :class:`~.geometry.ArrayGeometryError`."""
+        """Validate a scene's ``photodiode_array`` mapping and build the sensor.
+
+        Parameters
+        ----------
+        cfg : dict
+            ``geometry`` (mapping or YAML path), ``brightness``, ``noise_rel``, ``integrate``.
+
+        Returns
+        -------
+        ArraySensor
+            The sensor.
+
+        Raises
+        ------
+        ArrayGeometryError
+            A key that is missing, unknown or out of range (one line).
+        """
         from .geometry import ArrayGeometryError, geometry_from_dict, load_array_geometry
         if not isinstance(cfg, dict):
             raise ArrayGeometryError("photodiode_array must be a mapping with 'geometry' (a mapping or a YAML path)")
@@ -142,18 +220,47 @@ class ArraySensor:
         return ArraySensor(geometry, b, num("noise_rel", 0.0, 0.0, 1.0), integrate, source=g)
 
     def params(self) -> dict:
+        """Return what a frame's metadata records about the sensor.
+
+        Returns
+        -------
+        dict
+            Units, convention, brightness, noise and integration.
+        """
         return {"units": self.geometry.n_units, "angle_zero": self.geometry.angle_zero,
                 "angle_sense": self.geometry.angle_sense, "brightness": self.brightness, "noise_rel": self.noise_rel,
                 "integrate": self.integrate}
 
     def to_config(self) -> dict:
+        """Return the scene mapping that rebuilds this sensor.
+
+        Returns
+        -------
+        dict
+            ``geometry`` (the path given, or the mapping), ``brightness``, ``noise_rel``, ``integrate``.
+        """
         from .geometry import geometry_to_dict
         src = self._source if isinstance(self._source, str) else geometry_to_dict(self.geometry)
         return {"geometry": src, "brightness": self.brightness, "noise_rel": self.noise_rel,
                 "integrate": self.integrate}
 
     def read(self, s_body, dop_max: float, rng=None) -> np.ndarray:
-        """Readings (U, C) for the sun at ``s_body`` (body frame) under a Rayleigh sky of ``dop_max``."""
+        """Read one sample for the sun at ``s_body``.
+
+        Parameters
+        ----------
+        s_body : array_like
+            (3,) sun direction in the body frame.
+        dop_max : float
+            Rayleigh maximum degree of polarization.
+        rng : numpy.random.Generator, optional
+            Noise source (used when ``noise_rel`` > 0; default seeded 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            (U, C) readings.
+        """
         st = simulate_unit_stokes(self.geometry, s_body, dop_max, self.integrate)
         out = np.zeros((self.geometry.n_units, self.geometry.n_channels))
         for u, unit in enumerate(self.geometry.units):

@@ -19,7 +19,22 @@ __all__ = ["UnitStokes", "fit_stokes", "design_matrix"]
 
 
 def design_matrix(channels_deg) -> np.ndarray:
-    """(C, 3) matrix A with ``I / g = A @ (S0, S1, S2)``: rows ``0.5 * (1, cos 2 theta, sin 2 theta)``."""
+    """Return the matrix A with ``I / g = A @ (S0, S1, S2)`` for ideal polarizers (Malus's law).
+
+    Parameters
+    ----------
+    channels_deg : array_like
+        (C,) polarizer angles [deg] in the unit's convention.
+
+    Returns
+    -------
+    numpy.ndarray
+        (C, 3) rows ``0.5 * (1, cos 2 theta, sin 2 theta)``.
+
+    References
+    ----------
+    Tyo, Goldstein, Chenault and Shaw 2006, Appl. Opt. 45(22), eq 5.
+    """
     t = np.radians(np.asarray(channels_deg, dtype=float))
     return 0.5 * np.stack([np.ones_like(t), np.cos(2 * t), np.sin(2 * t)], axis=-1)
 
@@ -45,10 +60,24 @@ class UnitStokes:
 
 
 def fit_stokes(intensities, geometry) -> UnitStokes:
-    """Fit (S0, S1, S2) per sample and unit from readings (S, U, C) and the geometry's angles and gains.
+    """Fit (S0, S1, S2), the angle and the degree of polarization of every unit in every sample.
 
-    Parameters: ``intensities`` (S, U, C) readings (counts, any linear unit); ``geometry`` an
-    :class:`~.geometry.ArrayGeometry` (channel angles, deg; gains). Returns :class:`UnitStokes`.
+    Parameters
+    ----------
+    intensities : array_like
+        (S, U, C) readings (counts, any linear unit).
+    geometry : ArrayGeometry
+        Channel angles [deg], gains and enabled units.
+
+    Returns
+    -------
+    UnitStokes
+        Arrays (S, U): least-squares Stokes vector of the gain-corrected readings, ``aop_rad`` =
+        ``0.5 atan2(S2, S1)`` folded to [-pi/2, pi/2), ``dop`` = ``hypot(S1, S2) / S0``, misfit and validity.
+
+    References
+    ----------
+    Tyo, Goldstein, Chenault and Shaw 2006, Appl. Opt. 45(22), eqs 5-8.
     """
     x = np.asarray(intensities, dtype=np.float64)
     S, U, _ = x.shape

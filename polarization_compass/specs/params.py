@@ -402,13 +402,14 @@ def defaults(specs) -> dict:
 KNOB_PREFIX = "knob."
 
 
-def knob_params(method: str) -> tuple:
+def knob_params(method: str, specs: dict | None = None) -> tuple:
     """The estimator's own knobs as run-time parameters ``knob.<name>`` (ranges from the estimator).
 
     ``region`` and optional numbers become strings: ``""`` means None, a region is ``"x0,y0,w,h"``.
+    ``specs``: another knob table than the method's (a photodiode array's ``ARRAY_KNOBS``).
     """
     from ..estimators import registry
-    specs = registry.get(method).knob_specs()
+    specs = registry.get(method).knob_specs() if specs is None else specs
     out = []
     for name, k in sorted(specs.items()):
         lo = None if not math.isfinite(k.lo) else float(k.lo)
@@ -431,10 +432,11 @@ def knob_params(method: str) -> tuple:
     return tuple(out)
 
 
-def knob_values(method: str, values: dict) -> dict:
-    """Estimator knobs from ``knob.<name>`` parameter values (strings back to None / tuples / choices)."""
+def knob_values(method: str, values: dict, specs: dict | None = None) -> dict:
+    """Estimator knobs from ``knob.<name>`` parameter values (strings back to None / tuples / choices);
+    ``specs`` as for :func:`knob_params`."""
     from ..estimators import registry
-    specs = registry.get(method).knob_specs()
+    specs = registry.get(method).knob_specs() if specs is None else specs
     out = {}
     for name, k in specs.items():
         key = KNOB_PREFIX + name

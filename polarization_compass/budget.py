@@ -1,0 +1,242 @@
+"""The error budget: what heading accuracy a scene gives, per method, and what each declared effect costs.
+
+A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sky, atmosphere, optics and
+sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| + |roll| <=
+tilt_max_deg``, as the accuracy benchmark samples it), the scene's seed varied per sample (a new cloud
+field, new sensor noise) and the IMU/mounting errors of :class:`~polarization_compass.motion.MountingErrors`
+applied to the pitch and roll that tilt-aware methods read. Every method of the registry estimates every
+frame; per method it reports the heading error's RMS, p95 and max over the ok results, the share of
+results that are not ok, and the sigma calibration ``mean(err^2 / sigma^2)`` (1 for an honest sigma).
+
+The breakdown by source repeats the run with one declared source switched off, on the same samples
+(same bearings, tilts, seeds and IMU draws: paired), and reports the RMS without it and its contribution
+``sqrt(max(0, RMS_all^2 - RMS_without^2))`` (deg; sources are not independent, so contributions need not
+add up to the total). Sources: ``noise`` (sensor shot/read noise, quantisation), ``calibration`` (DoFP
+calibration errors), ``clouds``, ``haze``, ``skyline``, ``optics`` (sun glare, flare, vignetting),
+``sky_model`` (a non-Rayleigh sky against the Rayleigh one the estimators assume, same DoP_max),
+``tilt`` (the camera level instead), ``imu`` (noise, bias, time offset) and ``boresight``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
+from .errors import CompassError
+from .motion import MountingErrors
+from .scene import Scene
+
+__all__ = ["BudgetError", "BudgetConfig", "SOURCES", "declared_sources", "run_budget", "parse_imu", "plot_budget"]
+
+_NOISE_KEYS = ("shot_noise", "read_noise", "quantization")
+SOURCES = ("noise", "calibration", "clouds", "haze", "skyline", "optics", "sky_model", "tilt", "imu", "boresight")
+
+
+class BudgetError(CompassError):
+    """Unusable budget input (no method, bad --imu, no samples)."""
+
+
+@dataclass(frozen=True)
+class BudgetConfig:
+    scene: Scene
+    samples: int = 50
+    tilt_max_deg: float = 0.0
+    imu: MountingErrors = MountingErrors()
+    methods: tuple = ()
+
+
+def parse_imu(text: str | None) -> MountingErrors:
+    """``key=value,key=value`` (keys of :class:`MountingErrors`; ``bias_deg`` sets both tilt biases,
+    ``boresight_deg`` the roll and pitch boresight) to a :class:`MountingErrors`."""
+    if not text:
+        return MountingErrors()
+    vals = {}
+    for part in text.split(","):
+        if not part.strip():
+            continue
+        if "=" not in part:
+            raise BudgetError(f"--imu: expected key=value, got {part!r}")
+        k, v = (s.strip() for s in part.split("=", 1))
+        try:
+            f = float(v)
+        except ValueError:
+            raise BudgetError(f"--imu: {k} must be a number, got {v!r}") from None
+        if k == "bias_deg":
+            vals.update(pitch_bias_deg=f, roll_bias_deg=f)
+        elif k == "boresight_deg":
+            vals.update(boresight_roll_deg=f, boresight_pitch_deg=f)
+        elif k in MountingErrors.FIELDS:
+            vals[k] = f
+        else:
+            raise BudgetError(f"--imu: unknown key {k!r}; known: bias_deg, boresight_deg, "
+                              f"{', '.join(MountingErrors.FIELDS)}")
+    try:
+        return MountingErrors(**vals)
+    except ValueError as exc:
+        raise BudgetError(f"--imu: {exc}") from None
+
+
+def declared_sources(cfg: BudgetConfig) -> list[str]:
+    """The sources of error the configuration declares, in :data:`SOURCES` order."""
+    s = cfg.scene
+    atm = s.atmosphere or {}
+    on = {
+        "noise": any(k in s.sensor for k in _NOISE_KEYS),
+        "calibration": "calibration" in s.sensor,
+        "clouds": atm.get("clouds") is not None,
+        "haze": atm.get("haze") is not None,
+        "skyline": atm.get("skyline") is not None,
+        "optics": bool(s.optics),
+        "sky_model": (s.sky or {}).get("model", "rayleigh") != "rayleigh",
+        "tilt": cfg.tilt_max_deg > 0,
+        "imu": cfg.imu.has_imu,
+        "boresight": cfg.imu.has_boresight,
+    }
+    return [k for k in SOURCES if on[k]]
+
+
+def without(cfg: BudgetConfig, source: str) -> BudgetConfig:
+    """The configuration with ``source`` switched off."""
+    import dataclasses
+    s = cfg.scene
+    if source == "noise":
+        return dataclasses.replace(cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items()
+                                                                if k not in _NOISE_KEYS}))
+    if source == "calibration":
+        return dataclasses.replace(cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items()
+                                                                if k != "calibration"}))
+    if source in ("clouds", "haze", "skyline"):
+        atm = {k: v for k, v in (s.atmosphere or {}).items() if k != source}
+        return dataclasses.replace(cfg, scene=s.replace(atmosphere=atm or None))
+    if source == "optics":
+        return dataclasses.replace(cfg, scene=s.replace(optics=None))
+    if source == "sky_model":
+        return dataclasses.replace(cfg, scene=s.replace(sky={"model": "rayleigh",
+                                                             "dop_max": float(s.sky.get("dop_max", 1.0))}))
+    if source == "tilt":
+        return dataclasses.replace(cfg, tilt_max_deg=0.0)
+    if source in ("imu", "boresight"):
+        return dataclasses.replace(cfg, imu=cfg.imu.without(source))
+    raise BudgetError(f"unknown source {source!r}")
+
+
+def _samples(cfg: BudgetConfig):
+    """Seeded (bearing, pitch, roll, scene seed, IMU normals) per sample, from the scene's seed only."""
+    out = []
+    for i in range(cfg.samples):
+        rng = np.random.default_rng([cfg.scene.seed, 0xB0D6, i])
+        bearing = float(rng.uniform(0.0, 360.0))
+        pitch = float(rng.uniform(-1.0, 1.0))
+        roll = float(rng.uniform(-1.0, 1.0)) * (1.0 - abs(pitch))     # |pitch| + |roll| <= 1, scaled below
+        seed = int(rng.integers(0, 2 ** 31 - 1))
+        out.append((bearing, pitch, roll, seed, rng.standard_normal(3)))
+    return out
+
+
+def _stats(errs, statuses_ok, sigmas) -> dict:
+    n = len(statuses_ok)
+    e = np.abs(np.asarray(errs, dtype=float))
+    d = {"count": n, "ok": int(e.size), "share_not_ok": (n - e.size) / n if n else None}
+    if e.size:
+        d.update(rms_deg=float(np.sqrt(np.mean(e ** 2))), p95_deg=float(np.percentile(e, 95)),
+                 max_deg=float(e.max()))
+    else:
+        d.update(rms_deg=None, p95_deg=None, max_deg=None)
+    pairs = [(x, s) for x, s in zip(errs, sigmas) if s is not None and s > 0]
+    d["sigma_calibration"] = float(np.mean([(x / s) ** 2 for x, s in pairs])) if pairs else None
+    d["sigma_count"] = len(pairs)
+    return d
+
+
+def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
+    from .estimators import registry
+    from .estimators.base import Observation
+    from .render import Renderer
+    estimators = {m: registry.make(m) for m in methods}
+    needs_tilt = {m: bool(registry.get(m).needs_tilt) for m in methods}
+    res = {m: ([], [], []) for m in methods}
+    for bearing, p, r, seed, normals in samples:
+        att = CameraAttitude(bearing, p * cfg.tilt_max_deg, r * cfg.tilt_max_deg)
+        scene = cfg.scene.replace(seed=seed)
+        frame = Renderer(scene).render(attitude=att)
+        seen = cfg.imu.measured_attitude(att, normals)
+        for m in methods:
+            obs = Observation.from_frame(frame, camera=scene.camera)
+            if needs_tilt[m]:
+                obs.pitch_deg, obs.roll_deg = seen.pitch_deg, seen.roll_deg
+            out = estimators[m].estimate(obs)
+            errs, oks, sig = res[m]
+            oks.append(bool(out.ok))
+            if out.ok:
+                d = out.psi_deg - frame.psi_deg
+                errs.append(float(fold_axial_deg(d)) if out.axial else float(wrap_180_deg(d)))
+                sig.append(out.sigma_deg)
+    return {m: _stats(res[m][0], res[m][1], res[m][2]) for m in methods}
+
+
+def run_budget(cfg: BudgetConfig, progress=None) -> dict:
+    """The budget as a JSON-able dict (module docstring). ``progress(text)`` is called per condition."""
+    from .estimators import registry
+    if cfg.samples < 1:
+        raise BudgetError("samples must be >= 1")
+    methods = list(cfg.methods) or list(registry.names())
+    unknown = [m for m in methods if m not in registry.names()]
+    if unknown:
+        raise BudgetError(f"unknown method(s) {unknown}; known: {', '.join(registry.names())}")
+    samples = _samples(cfg)
+    sources = declared_sources(cfg)
+    conditions = {}
+    for name, c in [("all", cfg)] + [(f"without {s}", without(cfg, s)) for s in sources]:
+        if progress:
+            progress(name)
+        conditions[name] = _run_condition(c, samples, methods)
+    breakdown = {}
+    for m in methods:
+        total = conditions["all"][m]["rms_deg"]
+        b = {}
+        for s in sources:
+            w = conditions[f"without {s}"][m]["rms_deg"]
+            contrib = None
+            if total is not None and w is not None:
+                contrib = math.sqrt(max(0.0, total ** 2 - w ** 2))
+            b[s] = {"rms_without_deg": w, "contribution_deg": contrib}
+        breakdown[m] = b
+    imu = {k: getattr(cfg.imu, k) for k in MountingErrors.FIELDS}
+    return {"scene": cfg.scene.name, "samples": cfg.samples, "tilt_max_deg": cfg.tilt_max_deg, "imu": imu,
+            "methods": methods, "sources": sources, "conditions": conditions, "breakdown": breakdown,
+            "sampling": {"bearing_deg": [0, 360], "tilt": f"|pitch| + |roll| <= {cfg.tilt_max_deg:g} deg",
+                         "sun": "the scene's", "seeds": "scene seed per sample"}}
+
+
+def plot_budget(result: dict, path) -> None:
+    """One panel per method (its own scale): the total RMS and each source's contribution, PNG at ``path``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    methods = result["methods"]
+    sources = result["sources"]
+    rows = ["total"] + sources
+    fig, axes = plt.subplots(len(methods), 1, figsize=(7, 0.6 + (0.3 * len(rows) + 0.5) * len(methods)),
+                             squeeze=False)
+    for ax, m in zip(axes[:, 0], methods):
+        st = result["conditions"]["all"][m]
+        vals = [st["rms_deg"]] + [result["breakdown"][m][s]["contribution_deg"] for s in sources]
+        y = -np.arange(len(rows))
+        ax.barh(y, [v or 0.0 for v in vals], color=["k"] + ["C0"] * len(sources))
+        ax.set_yticks(y)
+        ax.set_yticklabels(rows, fontsize=8)
+        sig = st["sigma_calibration"]
+        title = (f"{m}: RMS {st['rms_deg']:.3g} deg, p95 {st['p95_deg']:.3g}, not ok {st['share_not_ok']:.0%}, "
+                 f"mean err^2/sigma^2 {'-' if sig is None else f'{sig:.3g}'}" if st["rms_deg"] is not None
+                 else f"{m}: no ok result ({st['share_not_ok']:.0%} not ok)")
+        ax.set_title(title, fontsize=8, loc="left")
+        ax.grid(axis="x", alpha=0.3)
+        ax.tick_params(axis="x", labelsize=7)
+    axes[-1, 0].set_xlabel("heading error RMS (total) / contribution of the source (deg)", fontsize=8)
+    fig.suptitle(f"error budget: {result['scene']}, {result['samples']} samples, "
+                 f"tilt <= {result['tilt_max_deg']:g} deg", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
