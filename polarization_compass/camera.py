@@ -209,15 +209,33 @@ MAX_PRINCIPAL_OFFSET_FRACTION = 0.25
 def check_intrinsics(camera: "CameraModel", image_size: tuple[int, int] | None = None,
                      max_aspect_deviation: float = MAX_PIXEL_ASPECT_DEVIATION,
                      max_principal_offset: float = MAX_PRINCIPAL_OFFSET_FRACTION) -> "CameraModel":
-    """Plausibility of calibrated intrinsics (e.g. from a ROS camera_info); returns ``camera`` or raises
-    :class:`CameraError` naming the first problem.
+    """Check that calibrated intrinsics (e.g. from a ROS camera_info) are plausible.
 
-    Checks: focal length > 0 (also enforced by :class:`CameraModel`); square pixels within
-    ``max_aspect_deviation`` (``|fx/fy - 1|``, fx = f / D_x and fy = f / D_y in pixels); the principal point
-    inside the image and within ``max_principal_offset`` of the width/height from the centre
-    ((eta + 1) / 2, eq 20, 1-based); with ``image_size`` = (width, height) in pixels, the camera's size equal
-    to it. A wrong calibration otherwise gives a confident, wrong heading (issue 18: the principal point
-    at the corner of a 612 x 512 image moved a level camera's heading by 24 deg with status ok).
+    A wrong calibration otherwise gives a confident, wrong heading (issue 18: the principal point at
+    the corner of a 612 x 512 image moved a level camera's heading by 24 deg with status ok).
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The intrinsics; fx = f / D_x and fy = f / D_y in pixels, principal point 1-based (eq 20).
+    image_size : tuple of int, optional
+        (width, height) [px] of the images the camera is used with; must equal the camera's.
+    max_aspect_deviation : float, default MAX_PIXEL_ASPECT_DEVIATION
+        Largest ``|fx / fy - 1|`` (square pixels calibrate to a few 1e-3).
+    max_principal_offset : float, default MAX_PRINCIPAL_OFFSET_FRACTION
+        Largest distance of the principal point from the image centre ((eta + 1) / 2, eq 20), as a
+        fraction of the width (x) or height (y).
+
+    Returns
+    -------
+    CameraModel
+        ``camera`` itself when plausible.
+
+    Raises
+    ------
+    CameraError
+        The first problem: image size, focal length <= 0, fx/fy, principal point outside the image or
+        too far from its centre.
     """
     W, H = int(camera.width_px), int(camera.height_px)
     if image_size is not None and (int(image_size[0]), int(image_size[1])) != (W, H):

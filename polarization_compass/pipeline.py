@@ -368,8 +368,23 @@ class TiltAndPrior:
         return FrameInputs(pitch, roll, prior, self.needs_tilt and tilt is None)
 
     def checked(self, result, inputs: FrameInputs):
-        """``result`` after :func:`check_prior_agreement` against the IMU prior of ``inputs`` (``prior_source``
-        imu only: the ``last`` heading is no independent prior, the robot may have turned)."""
+        """Apply :func:`check_prior_agreement` against the IMU prior of ``inputs``.
+
+        Only with ``prior_source`` imu: the ``last`` heading is no independent prior (the robot may
+        have turned).
+
+        Parameters
+        ----------
+        result : HeadingResult
+            The estimate.
+        inputs : FrameInputs
+            The frame's inputs (their ``prior_bearing_deg``).
+
+        Returns
+        -------
+        HeadingResult
+            ``result``, or a ``prior_disagrees`` failure.
+        """
         if self.prior_source != "imu":
             return result
         return check_prior_agreement(result, inputs.prior_bearing_deg, self.prior_sigma_deg)
@@ -394,14 +409,30 @@ PRIOR_DISAGREES_N_SIGMA = 3.0
 
 def check_prior_agreement(result, prior_bearing_deg: float | None, prior_sigma_deg: float,
                           n_sigma: float = PRIOR_DISAGREES_N_SIGMA):
-    """The named consistency step "heading vs. IMU prior": ``result`` unchanged, or a failed result with
-    status ``prior_disagrees`` and the reason when its bearing is further from ``prior_bearing_deg`` (deg,
-    an independent yaw such as the IMU's) than ``n_sigma`` times ``sqrt(sigma^2 + prior_sigma_deg^2)``.
+    """Check a heading against an independent prior bearing (the named step "heading vs. IMU prior").
 
-    An axial result is compared modulo 180 deg (:func:`~polarization_compass.conventions.fold_axial_deg`),
-    a resolved one modulo 360 (:func:`~polarization_compass.conventions.wrap_180_deg`). No prior, a failed
-    result or ``prior_sigma_deg`` <= 0 (check off): ``result`` unchanged. Separate from any check of the
-    sky fit itself (those belong to the estimators).
+    A result whose bearing is further from ``prior_bearing_deg`` than ``n_sigma`` times
+    ``sqrt(sigma^2 + prior_sigma_deg^2)`` becomes a failed result with status ``prior_disagrees`` and
+    the reason. An axial result is compared modulo 180 deg
+    (:func:`~polarization_compass.conventions.fold_axial_deg`), a resolved one modulo 360
+    (:func:`~polarization_compass.conventions.wrap_180_deg`). Separate from any check of the sky fit
+    itself (those belong to the estimators).
+
+    Parameters
+    ----------
+    result : HeadingResult
+        The estimate.
+    prior_bearing_deg : float or None
+        The prior true bearing of camera +y [deg] (e.g. the IMU's yaw); None: no check.
+    prior_sigma_deg : float
+        1-sigma of the prior [deg]; <= 0: no check.
+    n_sigma : float, default PRIOR_DISAGREES_N_SIGMA
+        The gate in combined sigmas.
+
+    Returns
+    -------
+    HeadingResult
+        ``result`` itself, or the failed result (its ``extras`` keep the rejected bearing and sigma).
     """
     if prior_bearing_deg is None or not result.ok or result.bearing_deg is None or not prior_sigma_deg > 0:
         return result
@@ -446,19 +477,46 @@ class CameraInfoState:
         self.rejected = 0
 
     def accept(self, camera) -> None:
+        """Use a camera from now on.
+
+        Parameters
+        ----------
+        camera : CameraModel
+            Decoded and validated (:func:`~polarization_compass.camera.check_intrinsics`).
+        """
         self._camera = camera
         self.rejected_reason = None
         self.accepted += 1
 
     def reject(self, reason: str) -> None:
+        """Record a rejected camera_info; the camera in use is withdrawn.
+
+        Parameters
+        ----------
+        reason : str
+            Why it was rejected (one line).
+        """
         self.rejected_reason = str(reason)
         self.rejected += 1
 
     @property
     def received_any(self) -> bool:
+        """Whether any camera_info arrived (accepted or rejected)."""
         return self.accepted + self.rejected > 0
 
     def camera(self):
+        """Return the camera to use.
+
+        Returns
+        -------
+        CameraModel or None
+            The accepted camera; None before any camera_info (the caller's fallback applies).
+
+        Raises
+        ------
+        PipelineError
+            The latest camera_info was rejected (its reason).
+        """
         if self.rejected_reason is not None:
             raise PipelineError(f"the latest camera_info was rejected ({self.rejected_reason}); no intrinsics "
                                 "in use until a valid one arrives")
@@ -466,12 +524,14 @@ class CameraInfoState:
 
 
 class ImageLossWatch:
-    """Images lost before they reached the node (the middleware's keep-last queue overflowing, transport
-    loss), counted from the camera_info stream: a camera driver publishes one camera_info per image with
-    the image's stamp, so a camera_info stamp without any image of that stamp ``after_ns`` (stamp time)
-    behind the newest camera_info is one image lost. Never counts a frame twice; undercounts when
-    camera_info messages are lost too (or when no camera_info is published: then nothing is counted).
-    Thread-safe (images and camera_info arrive on different executor threads).
+    """Count images lost before they reached the node, from the camera_info stream.
+
+    Lost means the middleware's keep-last queue overflowed or the transport dropped them. A camera
+    driver publishes one camera_info per image with the image's stamp, so a camera_info stamp without
+    any image of that stamp ``after_ns`` (stamp time) behind the newest camera_info is one image lost.
+    Never counts a frame twice; undercounts when camera_info messages are lost too (or when no
+    camera_info is published: then nothing is counted). Thread-safe (images and camera_info arrive on
+    different executor threads).
     """
 
     def __init__(self, after_ns: int = 1_000_000_000, keep: int = 512):
@@ -485,6 +545,13 @@ class ImageLossWatch:
         self.lost = 0
 
     def image(self, t_ns: int) -> None:
+        """Record an image that arrived (good or bad).
+
+        Parameters
+        ----------
+        t_ns : int
+            Its header stamp [ns].
+        """
         with self._lock:
             t = int(t_ns)
             self._info.pop(t, None)
@@ -493,7 +560,18 @@ class ImageLossWatch:
                 self._images.popitem(last=False)
 
     def camera_info(self, t_ns: int) -> int:
-        """Record a camera_info stamp; returns how many images were found lost now."""
+        """Record a camera_info stamp and count the images found lost now.
+
+        Parameters
+        ----------
+        t_ns : int
+            The camera_info's header stamp [ns].
+
+        Returns
+        -------
+        int
+            Images newly found lost (their camera_info is ``after_ns`` behind the newest).
+        """
         with self._lock:
             t = int(t_ns)
             if t not in self._images:
