@@ -530,8 +530,9 @@ class ImageLossWatch:
     driver publishes one camera_info per image with the image's stamp, so a camera_info stamp without
     any image of that stamp ``after_ns`` (stamp time) behind the newest camera_info is one image lost.
     Never counts a frame twice; undercounts when camera_info messages are lost too (or when no
-    camera_info is published: then nothing is counted). Thread-safe (images and camera_info arrive on
-    different executor threads).
+    camera_info is published: then nothing is counted). Counts only once an image and a camera_info of
+    the same stamp were seen (a driver stamping them differently is never reported as losing every
+    image). Thread-safe (images and camera_info arrive on different executor threads).
     """
 
     def __init__(self, after_ns: int = 1_000_000_000, keep: int = 512):
@@ -543,6 +544,7 @@ class ImageLossWatch:
         self._info: OrderedDict = OrderedDict()      # camera_info stamps waiting for their image
         self._images: OrderedDict = OrderedDict()    # image stamps seen (good or bad)
         self.lost = 0
+        self.paired = False                          # an image and a camera_info of one stamp were seen
 
     def image(self, t_ns: int) -> None:
         """Record an image that arrived (good or bad).
@@ -554,7 +556,8 @@ class ImageLossWatch:
         """
         with self._lock:
             t = int(t_ns)
-            self._info.pop(t, None)
+            if self._info.pop(t, 0) is None:
+                self.paired = True
             self._images[t] = None
             while len(self._images) > self.keep:
                 self._images.popitem(last=False)
@@ -576,8 +579,10 @@ class ImageLossWatch:
             t = int(t_ns)
             if t not in self._images:
                 self._info[t] = None
+            else:
+                self.paired = True
             newest = max(self._info, default=t)
-            lost = [s for s in self._info if s < newest - self.after_ns]
+            lost = [s for s in self._info if s < newest - self.after_ns] if self.paired else []
             for s in lost:
                 del self._info[s]
             while len(self._info) > self.keep:       # a stream of camera_info without images at all

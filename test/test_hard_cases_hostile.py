@@ -307,3 +307,14 @@ def test_bag_metadata_that_is_a_device_or_fifo_is_refused(tmp_path):
         make(d / "metadata.yaml")
         with pytest.raises(BagError, match="device|FIFO"):
             BagReader(d)
+
+
+def test_image_loss_watch_never_counts_streams_that_are_not_paired():
+    """A driver stamping camera_info differently from its images: nothing is ever counted as lost."""
+    from polarization_compass.pipeline import ImageLossWatch
+    w = ImageLossWatch(after_ns=1_000_000_000)
+    lost = 0
+    for k in range(50):
+        w.image(k * 100_000_000)
+        lost += w.camera_info(k * 100_000_000 + 1234)
+    assert lost == 0 and not w.paired
