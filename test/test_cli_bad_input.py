@@ -504,7 +504,8 @@ def _hostile_cases():
                   (["errormap", "--scene", "{%s}" % scene, "--sun-altitude", "20", "--yaw", "0", "--pitch", "0",
                     "--roll", "0", "--no-progress", "--out", "{out}/e.npz"], words),
                   (["record-sim", "--duration", "1", "--scene", "{%s}" % scene, "--out", "{out}/bag"], words),
-                  (["sim", "--scene", "{%s}" % scene, "--out", "{out}/sim"], words)]
+                  (["sim", "--scene", "{%s}" % scene, "--out", "{out}/sim"], words),
+                  (["budget", "--scene", "{%s}" % scene, "--samples", "1", "--out", "{out}/b"], words)]
         if scene != "width_true_yaml":
             tw = "" if scene == "bad_date_yaml" else words          # (a topic map has no time: any one line)
             cases += [(["record-sim", "--duration", "1", "--topics", "{%s}" % scene, "--out", "{out}/bag"], tw),
