@@ -18,7 +18,7 @@ import numpy as np
 
 from .camera import CameraModel
 from .conventions import R_BODY_CAM_DEFAULT, camera_attitude_from_body_quat
-from .demosaic import IMX250MZR_LAYOUT
+from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "SunSource", "HeadingFrontEnd",
@@ -486,7 +486,7 @@ class HeadingFrontEnd:
     """
 
     def __init__(self, method: str, knobs: dict | None = None, layout=IMX250MZR_LAYOUT,
-                 pol45_toward: str = "+x+y", demosaic: str = "superpixel", intensity: bool = False):
+                 pol45_toward: str = IMX250MZR_POL45, demosaic: str = "superpixel", intensity: bool = False):
         from .demosaic import parse_layout
         from .estimators import make_estimator
         self.method = method

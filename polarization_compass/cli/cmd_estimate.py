@@ -127,7 +127,8 @@ def run(args) -> int:
             layout = [list(r) for r in IMX250MZR_LAYOUT]
             assumed.append("layout")
         if pol45 is None:
-            pol45 = "+x+y"
+            from ..demosaic import IMX250MZR_POL45
+            pol45 = IMX250MZR_POL45
             assumed.append("pol45_toward")
         shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
         if method is None:

@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..camera import CameraModel, PixelSelection
-from ..demosaic import IMX250MZR_LAYOUT, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
+from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
     aop_dop_from_stokes
 from ..errors import CompassError
 from .base import Observation
@@ -89,7 +89,7 @@ def _superpixel_blocks(m: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int
 
 def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float, *,
                             origin_px=(1, 1), method: str = "superpixel", layout=IMX250MZR_LAYOUT,
-                            pol45_toward: str = "+x+y", saturation_level=None,
+                            pol45_toward: str = IMX250MZR_POL45, saturation_level=None,
                             selection: PixelSelection | None = None, with_intensity: bool = False,
                             pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> Observation:
     """Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.

@@ -1,0 +1,223 @@
+"""Whole-sky robust fit of the single-scattering (Rayleigh) AoP pattern: a second opinion on real skies.
+
+The estimators fit the sky each in their own way; on a real sky (clouds, lens flare, haze, a wrong
+polarizer convention) a fit can be precise and wrong. This module fits the one thing every method
+assumes, the Rayleigh E-vector field ``E = S x P`` (eq 18) seen through the sensor (eq 28), to the whole
+usable sky with a robust (Cauchy) loss, and measures how well the frame agrees with it:
+
+- :func:`fit_sky`: the sun (psi, and the altitude unless given) that best explains the AoP image, by a
+  coarse grid over the whole circle then a fine grid (no local minimum can trap it, no starting point);
+- :func:`misfit_at`: the robust residual statistics of the sky at a given heading (poor-fit test);
+- :func:`jackknife_sigma_deg`: the heading's spread when each of K sky sectors is left out in turn
+  (delete-a-group jackknife, Efron 1982, ch. 2): the misfit of a real sky to the model is spatially
+  correlated, so it is the sectors, not the pixels, that are the independent samples;
+- :func:`side_preference`: which end of an axial heading the whole sky supports, from the AoP pattern
+  at the known sun altitude and from the brightness of the two half-skies (never a small window).
+
+Residuals are axial angle differences computed from doubled angles (no angle subtraction and wrap).
+Cost: a few thousand sampled pixels, a few 10 ms per fit (numpy, float32).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .conventions import R_sun_cam_from_attitude, wrap_180_deg
+
+__all__ = ["SkySample", "SkyFit", "sample_sky", "fit_sky", "misfit_at", "jackknife_sigma_deg",
+           "side_preference", "CAUCHY_SCALE_DEG", "OUTLIER_DEG"]
+
+#: Cauchy loss scale: residuals well beyond it (cloud, flare, a foreign object) stop pulling the fit
+CAUCHY_SCALE_DEG = 5.0
+#: a pixel whose AoP is further than this from the fitted sky counts as an outlier
+OUTLIER_DEG = 15.0
+
+
+@dataclass(frozen=True)
+class SkySample:
+    """Usable sky pixels for the fit: rays (3, N) camera frame, doubled-angle AoP (cos 2a, sin 2a),
+    weights in [0, 1] (DoP-based), intensity (or None), and the image azimuth of each ray (rad)."""
+
+    rays: np.ndarray
+    c2a: np.ndarray
+    s2a: np.ndarray
+    weight: np.ndarray
+    intensity: np.ndarray | None
+    ray_azimuth_rad: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.c2a.size)
+
+
+@dataclass(frozen=True)
+class SkyFit:
+    """A robust whole-sky fit. ``psi_deg``, ``sun_altitude_deg`` the best sun (camera-frame psi of eq 21);
+    ``scatter_deg`` 1.4826 x median |residual| (weighted pixels); ``inlier_fraction`` share of weight within
+    :data:`OUTLIER_DEG`; ``loss`` the mean Cauchy loss; ``pixels`` the sample size."""
+
+    psi_deg: float
+    sun_altitude_deg: float
+    loss: float
+    scatter_deg: float
+    inlier_fraction: float
+    pixels: int
+
+
+def sample_sky(aop_rad, dop, valid, rays_cam, intensity=None, max_pixels: int = 4000, min_dop: float = 0.02,
+               extra_mask=None) -> SkySample | None:
+    """Up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride, deterministic).
+
+    ``aop_rad`` eq 28 angles, ``dop`` in [0, 1], ``valid`` bool, ``rays_cam`` (3, N) unit rays in the order
+    of ``aop_rad.reshape(-1)``; ``extra_mask`` (same shape, True = usable) e.g. the data-driven mask.
+    Returns None when fewer than 30 pixels are usable.
+    """
+    a = np.asarray(aop_rad, dtype=np.float32).reshape(-1)
+    d = np.asarray(dop, dtype=np.float32).reshape(-1)
+    ok = np.asarray(valid, dtype=bool).reshape(-1) & np.isfinite(a) & np.isfinite(d) & (d >= min_dop)
+    if extra_mask is not None:
+        ok &= np.asarray(extra_mask, dtype=bool).reshape(-1)
+    idx = np.flatnonzero(ok)
+    if idx.size < 30:
+        return None
+    if idx.size > max_pixels:
+        idx = idx[np.linspace(0, idx.size - 1, max_pixels).astype(np.int64)]
+    r = np.asarray(rays_cam, dtype=np.float32).reshape(3, -1)[:, idx]
+    aa = a[idx].astype(np.float64)
+    w = np.clip(d[idx] / 0.3, 0.0, 1.0).astype(np.float32)
+    inten = None if intensity is None else np.asarray(intensity, dtype=np.float32).reshape(-1)[idx]
+    return SkySample(np.ascontiguousarray(r), np.cos(2 * aa).astype(np.float32), np.sin(2 * aa).astype(np.float32),
+                     w, inten, np.arctan2(r[1], r[0]).astype(np.float32))
+
+
+def _sun_cam(psi_deg, alt_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
+    """(K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21 transposed)."""
+    psi = np.asarray(psi_deg, dtype=float).reshape(-1)
+    alt = np.radians(np.asarray(alt_deg, dtype=float).reshape(-1))
+    s_a = np.stack([np.zeros_like(alt), np.cos(alt), np.sin(alt)], axis=-1)          # frame a: y at the sun
+    R = R_sun_cam_from_attitude(psi, np.full_like(psi, pitch_deg), np.full_like(psi, roll_deg))
+    return np.einsum("kji,kj->ki", R, s_a)                                           # R^T s_a
+
+
+def _cos_sin_2res(sample: SkySample, sun_cam: np.ndarray):
+    """cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq 18, 28)."""
+    P = sample.rays
+    S = sun_cam.astype(np.float32)
+    ex = S[:, 1:2] * P[2] - S[:, 2:3] * P[1]
+    ey = S[:, 2:3] * P[0] - S[:, 0:1] * P[2]
+    n2 = ex * ex + ey * ey
+    n2 = np.where(n2 > 1e-12, n2, np.float32(1.0))
+    c2m = (ey * ey - ex * ex) / n2          # model AoP m = atan2(ex, ey): cos 2m, sin 2m
+    s2m = 2 * ex * ey / n2
+    c = sample.c2a * c2m + sample.s2a * s2m
+    s = sample.s2a * c2m - sample.c2a * s2m
+    return c, s
+
+
+def _loss(sample: SkySample, sun_cam: np.ndarray, weight=None) -> np.ndarray:
+    """Mean weighted Cauchy loss per candidate sun (K,). sin^2 r = (1 - cos 2r) / 2."""
+    c, _ = _cos_sin_2res(sample, sun_cam)
+    s2 = np.float32(math.sin(math.radians(CAUCHY_SCALE_DEG)) ** 2)
+    rho = np.log1p(np.maximum(0.5 * (1 - c), 0) / s2)
+    w = sample.weight if weight is None else weight
+    return (rho @ w) / max(float(w.sum()), 1e-9)
+
+
+def _chunked_loss(sample, psi, alt, pitch, roll, weight=None, chunk=256):
+    out = np.empty(psi.size)
+    for i in range(0, psi.size, chunk):
+        out[i:i + chunk] = _loss(sample, _sun_cam(psi[i:i + chunk], alt[i:i + chunk], pitch, roll), weight)
+    return out
+
+
+def misfit_at(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
+              roll_deg: float = 0.0) -> SkyFit:
+    """Residual statistics of the sky for one sun (psi, altitude) and known tilt (deg)."""
+    sun = _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg)
+    c, s = _cos_sin_2res(sample, sun)
+    res_deg = np.degrees(0.5 * np.arctan2(s[0], c[0]).astype(np.float64))
+    w = sample.weight.astype(np.float64)
+    keep = w > 0
+    ad = np.abs(res_deg[keep])
+    scatter = 1.4826 * float(np.median(ad)) if ad.size else 90.0
+    inl = float(w[keep][ad < OUTLIER_DEG].sum() / max(w[keep].sum(), 1e-9)) if ad.size else 0.0
+    loss = float(_loss(sample, sun)[0])
+    return SkyFit(float(wrap_180_deg(psi_deg)), float(sun_altitude_deg), loss, scatter, inl, sample.count)
+
+
+def fit_sky(sample: SkySample, sun_altitude_deg: float | None = None, pitch_deg: float = 0.0,
+            roll_deg: float = 0.0, psi_range_deg=None, weight=None) -> SkyFit:
+    """Robust fit of psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
+
+    Coarse grid psi every 2 deg over the circle (or ``psi_range_deg = (lo, hi)``), altitude every 4 deg in
+    [0, 88]; then a fine grid (0.1 deg, 0.5 deg) around the best. Tilt (``pitch_deg``, ``roll_deg``) is
+    taken as known. Returns the fit with its residual statistics (:func:`misfit_at`).
+    """
+    lo, hi = (-180.0, 180.0) if psi_range_deg is None else psi_range_deg
+    psis = np.arange(lo, hi, 2.0)
+    alts = np.array([sun_altitude_deg], float) if sun_altitude_deg is not None else np.arange(0.0, 88.1, 4.0)
+    P, A = np.meshgrid(psis, alts, indexing="ij")
+    L = _chunked_loss(sample, P.ravel(), A.ravel(), pitch_deg, roll_deg, weight)
+    k = int(np.argmin(L))
+    p0, a0 = float(P.ravel()[k]), float(A.ravel()[k])
+    fp = p0 + np.arange(-2.5, 2.51, 0.1)
+    fa = np.array([a0]) if sun_altitude_deg is not None else np.clip(a0 + np.arange(-4.5, 4.51, 0.5), 0.0, 89.5)
+    P, A = np.meshgrid(fp, fa, indexing="ij")
+    L = _chunked_loss(sample, P.ravel(), A.ravel(), pitch_deg, roll_deg, weight)
+    k = int(np.argmin(L))
+    return misfit_at(sample, float(P.ravel()[k]), float(A.ravel()[k]), pitch_deg, roll_deg)
+
+
+def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
+                        roll_deg: float = 0.0, sectors: int = 8) -> float:
+    """Delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal sky sectors.
+
+    Each sector (by the ray's azimuth about the optical axis) is left out in turn and psi refitted near
+    ``psi_deg`` at the given sun altitude; ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``. Sectors with no
+    pixels are skipped; fewer than 3 usable sectors give 180 (unknown).
+    """
+    edges = np.linspace(-math.pi, math.pi, sectors + 1)
+    grid = psi_deg + np.arange(-6.0, 6.001, 0.05)
+    alts = np.full(grid.size, sun_altitude_deg)
+    suns = _sun_cam(grid, alts, pitch_deg, roll_deg)
+    c, _ = _cos_sin_2res(sample, suns)
+    s2 = np.float32(math.sin(math.radians(CAUCHY_SCALE_DEG)) ** 2)
+    rho = np.log1p(np.maximum(0.5 * (1 - c), 0) / s2)
+    est = []
+    for i in range(sectors):
+        out = (sample.ray_azimuth_rad >= edges[i]) & (sample.ray_azimuth_rad < edges[i + 1])
+        if not out.any():
+            continue
+        w = np.where(out, 0.0, sample.weight).astype(np.float32)
+        if w.sum() <= 0:
+            continue
+        est.append(float(grid[int(np.argmin(rho @ w))]))
+    if len(est) < 3:
+        return 180.0
+    e = np.asarray(est)
+    k = e.size
+    return float(math.sqrt((k - 1) / k * float(np.sum((e - e.mean()) ** 2))))
+
+
+def side_preference(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
+                    roll_deg: float = 0.0) -> dict:
+    """Which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
+
+    ``pattern``: the Cauchy loss difference (other end minus this end; > 0 favours ``psi_deg``) of the AoP
+    pattern at the known sun altitude (the pattern of a sun at altitude h is not symmetric under a 180 deg
+    turn unless h is near 0 or 90 deg); ``brightness``: the mean intensity of the half-sky towards the sun
+    minus the half-sky away from it, over the mean (> 0 favours ``psi_deg``; saturated sun and glare pixels
+    count as bright, flare ghosts are small against a half-sky), None without intensity.
+    """
+    this = _loss(sample, _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg))[0]
+    other = _loss(sample, _sun_cam([psi_deg + 180.0], [sun_altitude_deg], pitch_deg, roll_deg))[0]
+    out = {"pattern": float(other - this), "brightness": None}
+    if sample.intensity is not None:
+        s = _sun_cam([psi_deg], [0.0], pitch_deg, roll_deg)[0]
+        toward = (s[0] * sample.rays[0] + s[1] * sample.rays[1]) > 0
+        i = sample.intensity.astype(np.float64)
+        if toward.any() and (~toward).any() and i.mean() > 0:
+            out["brightness"] = float((i[toward].mean() - i[~toward].mean()) / i.mean())
+    return out
