@@ -221,3 +221,144 @@ def side_preference(sample: SkySample, psi_deg: float, sun_altitude_deg: float, 
         if toward.any() and (~toward).any() and i.mean() > 0:
             out["brightness"] = float((i[toward].mean() - i[~toward].mean()) / i.mean())
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# Assessment of an estimator's result against the whole sky (honest sigma and status on real skies)
+# --------------------------------------------------------------------------------------------
+#: a sky whose robust residual scatter at the estimate exceeds this, or whose inlier share is below
+#: :data:`MIN_INLIER_FRACTION`, fits no single sun well: status ``poor_fit``
+MAX_SCATTER_DEG = 25.0
+MIN_INLIER_FRACTION = 0.5
+#: a side vote counts when the pattern loss difference / brightness contrast exceeds these
+PATTERN_VOTE = 0.05
+BRIGHTNESS_VOTE = 0.05
+
+
+def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pitch_deg=None, roll_deg=None,
+                  prior_bearing_deg=None):
+    """An estimator's :class:`~polarization_compass.estimators.HeadingResult` checked against the whole sky.
+
+    - sigma: ``hypot(method sigma, jackknife sigma)``; the jackknife over sky sectors measures the misfit
+      of this frame to the model (:func:`jackknife_sigma_deg`), which on real skies dominates shot noise;
+    - side: unless a prior decides it, the 180 deg side is re-decided by the whole sky
+      (:func:`side_preference`: AoP pattern at the known sun altitude, half-sky brightness); when every
+      vote is against the method's side the heading is turned by 180 deg, when the votes disagree the
+      result becomes axial (``ambiguous``);
+    - status ``poor_fit`` when the sky at the estimate has a robust scatter above :data:`MAX_SCATTER_DEG`
+      or less than :data:`MIN_INLIER_FRACTION` of its weight within :data:`OUTLIER_DEG`.
+
+    Results without a heading are returned unchanged; so is everything when ``sample`` is None (too
+    little usable sky to judge: the method's own status stands). ``extras["sky_check"]`` says what was
+    measured. Tilt unknown (None) counts as level.
+    """
+    from dataclasses import replace
+    from .estimators.base import HeadingResult, Status
+    if sample is None or result.psi_deg is None or result.status not in (Status.OK, Status.AMBIGUOUS):
+        return result
+    pitch = 0.0 if pitch_deg is None else float(pitch_deg)
+    roll = 0.0 if roll_deg is None else float(roll_deg)
+    psi = float(result.psi_deg)
+    axial = bool(result.axial)
+    check = {}
+    side_note = ""
+    if prior_bearing_deg is None:
+        pref = side_preference(sample, psi, sun_altitude_deg, pitch, roll)
+        votes = []
+        if abs(pref["pattern"]) > PATTERN_VOTE:
+            votes.append(1 if pref["pattern"] > 0 else -1)
+        b = pref["brightness"]
+        if b is not None and abs(b) > BRIGHTNESS_VOTE:
+            votes.append(1 if b > 0 else -1)
+        check["side_votes"] = {"pattern": round(pref["pattern"], 4), "brightness": None if b is None else round(b, 4)}
+        if votes and all(v < 0 for v in votes):
+            psi = float(wrap_180_deg(psi + 180.0))
+            side_note = "; 180 deg side re-decided by the whole sky (AoP pattern and brightness)"
+            axial = False
+        elif votes and all(v > 0 for v in votes):
+            if axial:
+                side_note = "; 180 deg side decided by the whole sky (AoP pattern and brightness)"
+            axial = False
+        elif votes:
+            axial = True
+            side_note = "; the whole sky's side votes disagree: 180 deg ambiguity left open"
+    fit = misfit_at(sample, psi, sun_altitude_deg, pitch, roll)
+    jk = jackknife_sigma_deg(sample, psi, sun_altitude_deg, pitch, roll)
+    check.update({"scatter_deg": round(fit.scatter_deg, 3), "inlier_fraction": round(fit.inlier_fraction, 3),
+                  "jackknife_sigma_deg": round(jk, 3), "pixels": fit.pixels,
+                  "method_sigma_deg": result.sigma_deg})
+    sigma = None if result.sigma_deg is None else float(math.hypot(result.sigma_deg, jk))
+    extras = dict(result.extras)
+    extras["sky_check"] = check
+    new = HeadingResult.from_psi(result.method, psi, _sun_az(result), sigma if sigma is not None else None,
+                                 result.pixels, result.quality, axial, result.reason + side_note,
+                                 sun_altitude_deg=result.sun_altitude_deg, extras=extras)
+    if fit.scatter_deg > MAX_SCATTER_DEG or fit.inlier_fraction < MIN_INLIER_FRACTION:
+        new = replace(new, status=Status.POOR_FIT,
+                      reason=f"the sky fits no single sun well at this heading: robust AoP scatter "
+                             f"{fit.scatter_deg:.1f} deg (limit {MAX_SCATTER_DEG:g}), {100 * fit.inlier_fraction:.0f} % "
+                             f"of the sky within {OUTLIER_DEG:g} deg (need {100 * MIN_INLIER_FRACTION:.0f} %)")
+    return new
+
+
+def _sun_az(result) -> float:
+    """The sun azimuth a result was made with (bearing - psi)."""
+    return float(wrap_180_deg(result.bearing_deg - result.psi_deg))
+
+
+def mark_inconsistent(results, min_sigma_deg: float = 0.5):
+    """Results of several methods on one frame: each usable one that disagrees with most of the others by
+    more than 3 combined sigmas (axially when either is axial; sigma floored at ``min_sigma_deg``) gets
+    status ``inconsistent``. Returns a new list."""
+    from dataclasses import replace
+    from .conventions import fold_axial_deg
+    from .estimators.base import Status
+    usable = [i for i, r in enumerate(results) if r.status in (Status.OK, Status.AMBIGUOUS) and r.psi_deg is not None]
+    out = list(results)
+    if len(usable) < 2:
+        return out
+    for i in usable:
+        ri = results[i]
+        bad, seen, worst = 0, 0, None
+        for j in usable:
+            if j == i:
+                continue
+            rj = results[j]
+            d = ri.psi_deg - rj.psi_deg
+            d = abs(float(fold_axial_deg(d) if (ri.axial or rj.axial) else wrap_180_deg(d)))
+            s = math.hypot(max(ri.sigma_deg or 0.0, min_sigma_deg), max(rj.sigma_deg or 0.0, min_sigma_deg))
+            seen += 1
+            if d > 3.0 * s:
+                bad += 1
+                if worst is None or d > worst[0]:
+                    worst = (d, rj.method, s)
+        if seen and bad * 2 > seen:
+            out[i] = replace(ri, status=Status.INCONSISTENT,
+                             reason=f"disagrees with {bad} of {seen} other methods beyond 3 sigma (e.g. "
+                                    f"{worst[1]}: {worst[0]:.1f} deg apart, combined sigma {worst[2]:.2f} deg)")
+    return out
+
+
+def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float = 0.02):
+    """Pixels to keep, from the data: inside the lens' field, not saturated and not next to saturation
+    (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image diagonal with
+    OpenCV's dilation). ``saturation_level`` None: taken from the data when at least 0.05 % of the
+    in-field pixels sit at the maximum (a clipped plateau), else nothing counts as saturated.
+    Lens-flare ghosts, clouds and obstacles are not masked here: they are down-weighted by the robust
+    loss (and show up as misfit)."""
+    import cv2
+    i = np.asarray(intensity, dtype=np.float32)
+    keep = np.asarray(has_ray, dtype=bool).reshape(i.shape).copy()
+    if not keep.any():
+        return keep
+    if saturation_level is None:
+        top = float(i[keep].max())
+        if top > 0 and np.mean(i[keep] >= top * 0.995) >= 5e-4:
+            saturation_level = top * 0.995
+    if saturation_level is not None:
+        sat = (i >= saturation_level).astype(np.uint8)
+        if sat.any():
+            r = max(1, int(round(glare_fraction * math.hypot(*i.shape))))
+            k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+            keep &= cv2.dilate(sat, k) == 0
+    return keep
