@@ -259,7 +259,8 @@ def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superp
         s0, s1, s2 = stokes_from_mosaic(inp.mosaic, cam_file.layout, cam_file.pol45_toward, demosaic,
                                         inp.saturation_level)
         shp = s0.shape
-        sat = "from the mosaic"          # saturated samples already give S0 = 0 (invalid)
+        from ..polarizer_check import saturated_blocks
+        sat = saturated_blocks(inp.mosaic, inp.saturation_level, shp)
     if shp == (H, W):
         sp = select_pixels(cam, PixelSelection.full())
         xg, yg, rays, has_ray = sp.x_px, sp.y_px, sp.rays_cam, sp.has_ray
@@ -271,8 +272,8 @@ def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superp
     aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
     if sat is None:
         keep = data_mask(s0, has_ray)
-    else:       # saturated samples gave S0 = 0: grow those into the glare mask
-        keep = data_mask(np.where(s0 > 0, s0, np.float32(np.inf)), has_ray, float("inf"))
+    else:       # saturated raw samples: grow those into the glare mask
+        keep = data_mask(np.where(sat, np.float32(np.inf), s0), has_ray, float("inf"))
     if mask is not None:
         if mask.shape == shp:
             keep &= mask
