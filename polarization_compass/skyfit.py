@@ -151,23 +151,30 @@ def fit_sky(sample: SkySample, sun_altitude_deg: float | None = None, pitch_deg:
             roll_deg: float = 0.0, psi_range_deg=None, weight=None) -> SkyFit:
     """Robust fit of psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
 
-    Coarse grid psi every 2 deg over the circle (or ``psi_range_deg = (lo, hi)``), altitude every 4 deg in
-    [0, 88]; then a fine grid (0.1 deg, 0.5 deg) around the best. Tilt (``pitch_deg``, ``roll_deg``) is
-    taken as known. Returns the fit with its residual statistics (:func:`misfit_at`).
+    Coarse grid on at most 600 of the pixels: psi every 2 deg over the circle (or ``psi_range_deg = (lo,
+    hi)``), altitude every 4 deg in [0, 88]; then on all pixels two rounds of fine line searches (psi
+    +-3 deg by 0.1 deg, altitude +-6 deg by 0.5 deg) around the best. Tilt (``pitch_deg``, ``roll_deg``)
+    is taken as known. Returns the fit with its residual statistics (:func:`misfit_at`).
     """
     lo, hi = (-180.0, 180.0) if psi_range_deg is None else psi_range_deg
     psis = np.arange(lo, hi, 2.0)
     alts = np.array([sun_altitude_deg], float) if sun_altitude_deg is not None else np.arange(0.0, 88.1, 4.0)
+    coarse = sample
+    if sample.count > 600:
+        idx = np.linspace(0, sample.count - 1, 600).astype(np.int64)
+        coarse = SkySample(np.ascontiguousarray(sample.rays[:, idx]), sample.c2a[idx], sample.s2a[idx],
+                           (sample.weight if weight is None else weight)[idx], None, sample.ray_azimuth_rad[idx])
     P, A = np.meshgrid(psis, alts, indexing="ij")
-    L = _chunked_loss(sample, P.ravel(), A.ravel(), pitch_deg, roll_deg, weight)
+    L = _chunked_loss(coarse, P.ravel(), A.ravel(), pitch_deg, roll_deg)
     k = int(np.argmin(L))
     p0, a0 = float(P.ravel()[k]), float(A.ravel()[k])
-    fp = p0 + np.arange(-2.5, 2.51, 0.1)
-    fa = np.array([a0]) if sun_altitude_deg is not None else np.clip(a0 + np.arange(-4.5, 4.51, 0.5), 0.0, 89.5)
-    P, A = np.meshgrid(fp, fa, indexing="ij")
-    L = _chunked_loss(sample, P.ravel(), A.ravel(), pitch_deg, roll_deg, weight)
-    k = int(np.argmin(L))
-    return misfit_at(sample, float(P.ravel()[k]), float(A.ravel()[k]), pitch_deg, roll_deg)
+    for _ in range(2):
+        fp = p0 + np.arange(-3.0, 3.001, 0.1)
+        p0 = float(fp[int(np.argmin(_chunked_loss(sample, fp, np.full(fp.size, a0), pitch_deg, roll_deg, weight)))])
+        if sun_altitude_deg is None:
+            fa = np.unique(np.clip(a0 + np.arange(-6.0, 6.001, 0.5), 0.0, 89.5))
+            a0 = float(fa[int(np.argmin(_chunked_loss(sample, np.full(fa.size, p0), fa, pitch_deg, roll_deg, weight)))])
+    return misfit_at(sample, p0, a0, pitch_deg, roll_deg)
 
 
 def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
