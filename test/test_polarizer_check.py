@@ -3,7 +3,6 @@ simulated sensor has, the check names it (and calls the configured one supported
 a sun on an image axis -- where the mirrored pattern is itself a valid sky -- is never mis-decided."""
 import math
 
-import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from polarization_compass.camera import CameraModel, PixelSelection, select_pixels

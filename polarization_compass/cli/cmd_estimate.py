@@ -108,7 +108,7 @@ def _methods(text: str) -> list[str]:
 
 def run(args) -> int:
     from ..conventions import fold_axial_deg, wrap_180_deg
-    from ..estimators import Observation, make_estimator
+    from ..estimators import Observation
     from ..frame_io import load_frame_npz
 
     check_range("pitch", args.pitch, -89.999, 89.999)
@@ -130,19 +130,7 @@ def run(args) -> int:
     frame = load_frame_npz(args.frame)
     camera = frame.camera
     sun_az, sun_alt, sun_src = _sun(frame.meta, args)
-    from ..estimators import registry
-    estimators = []
-    used = set()
-    for name in methods:
-        specs = registry.get(name).knob_specs()
-        kn = {k: v for k, v in knobs.items() if k in specs}
-        used.update(kn)
-        if args.stride is not None and "stride" in specs:
-            kn["stride"] = args.stride
-        estimators.append((name, make_estimator(name, **kn), kn))
-    unused = sorted(set(knobs) - used)
-    if unused:
-        raise CompassError(f"--knob {', '.join(unused)}: no selected method has that knob")
+    estimators = _make_estimators(methods, knobs, args.stride)
 
     source = {"sun": sun_src}
     use_mosaic = frame.mosaic is not None and not args.use_stored
@@ -216,12 +204,10 @@ def run(args) -> int:
 
 
 def _make_estimators(methods, knobs, stride):
-    from ..estimators import make_estimator
-    from ..estimators.base import _REGISTRY
+    from ..estimators import make_estimator, registry
     estimators, used = [], set()
     for name in methods:
-        cls = _REGISTRY[name]
-        specs = cls.knob_specs() if hasattr(cls, "knob_specs") else {}
+        specs = registry.get(name).knob_specs()
         kn = {k: v for k, v in knobs.items() if k in specs}
         used.update(kn)
         if stride is not None and "stride" in specs:
