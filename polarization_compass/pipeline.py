@@ -12,6 +12,7 @@ R_body_cam)`` and, with the default mounting, the REP-103 yaw of the body is ``9
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -667,3 +668,57 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraMode
     mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
     front.estimate(mosaic, cam, 180.0, 30.0, -3.0, 2.0, 30.0)
     return time.perf_counter() - t0
+
+
+# ------------------------------------------------------------------------------------------------
+# Polarizer convention watched on live frames
+# ------------------------------------------------------------------------------------------------
+class PolarizerMonitor:
+    """Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th mosaic
+    (0 = never), on a decimated superpixel grid (at most ``max_blocks`` 2 x 2 blocks, block-aligned so the
+    layout's phase is kept), and remembers the last decisive verdict.
+
+    :attr:`error` is the text a node publishes as a diagnostics ERROR while the last decisive check
+    contradicts the configured layout (it names the fix); ``cannot_tell`` keeps the previous verdict.
+    """
+
+    def __init__(self, every_n: int = 100, max_blocks: int = 40000):
+        self.every_n = int(every_n)
+        self.max_blocks = int(max_blocks)
+        self.count = 0
+        self.last: dict | None = None
+        self.error: str | None = None
+
+    def feed(self, mosaic, camera: CameraModel, layout, sun_altitude_deg=None, pitch_deg=None,
+             roll_deg=None) -> dict | None:
+        """Count a frame; on every ``every_n``-th run the check and return its report (else None).
+        ``layout``: the configured :class:`~polarization_compass.demosaic.MosaicLayout`."""
+        if self.every_n <= 0:
+            return None
+        self.count += 1
+        if (self.count - 1) % self.every_n:
+            return None
+        from .estimators.mosaic_input import _grid_rays
+        from .polarizer_check import check_polarizer
+        m = np.asarray(mosaic)
+        H, W = m.shape
+        by, bx = H // 2, W // 2
+        k = max(1, int(math.ceil(math.sqrt(by * bx / self.max_blocks))))
+        ny, nx = (by + k - 1) // k, (bx + k - 1) // k
+        blocks = m[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
+        small = np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx)
+
+        def rays_for_shape(shape):
+            _, _, rays, ok = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
+            return rays, ok
+
+        sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
+        rep = check_polarizer([("mosaic", small, sat)], camera, layout.angles_deg, layout.pol45_toward,
+                              rays_for_shape, sun_altitude_deg, pitch_deg or 0.0, roll_deg or 0.0)
+        self.last = rep
+        if rep["verdict"] == "contradicted":
+            self.error = (f"polarizer convention contradicted by the sky (margin {rep['margin']:.2f}): "
+                          f"{rep.get('fix', '')}")
+        elif rep["verdict"] == "supported":
+            self.error = None
+        return rep

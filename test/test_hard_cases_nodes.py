@@ -22,6 +22,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
+from polarization_compass.demosaic import IMX250MZR_POL45
 from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer
 
@@ -38,7 +39,9 @@ def ideal_mosaic(bearing, pitch, roll, sun_az, sun_alt, cam=CAM):
     from polarization_compass.scene import Scene
     f = Renderer(Scene(camera=cam)).render(attitude=CameraAttitude(bearing, pitch, roll),
                                            sun=SunDirection(sun_az, sun_alt))
-    phi = np.radians(np.tile(np.array(LAYOUT, float), (cam.height_px // 2, cam.width_px // 2)))
+    # the node's default polarizer is the IMX250MZR as delivered: 45 deg towards +x-y, camera angle -label
+    sign = 1.0 if IMX250MZR_POL45 == "+x+y" else -1.0
+    phi = sign * np.radians(np.tile(np.array(LAYOUT, float), (cam.height_px // 2, cam.width_px // 2)))
     aolp = np.pi / 2 - f.aop_rad.astype(float)
     m = 0.5 * (1 + f.dop.astype(float) * np.cos(2 * (phi - aolp)))
     return np.where(f.valid, m, 0.5).astype(np.float32)
@@ -400,3 +403,28 @@ def test_simulator_counts_unreadable_lockstep_acks(topic_simulator, text):
     assert topic_simulator.acks[topic] == 5                            # no ack was invented
     topic_simulator._on_ack(topic, String(data='{"stamp_ns": 9}'))
     assert topic_simulator.acks[topic] == 9                            # and good acks still count
+
+
+def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
+    """The images follow the IMX250MZR as delivered (+x-y); a node configured +x+y must say so as a
+    diagnostics ERROR naming the fix, keep processing frames, and clear the error once reconfigured."""
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    node = HeadingEstimatorNode(context=ctx, parameter_overrides=[
+        Parameter("method", value="least_squares"), Parameter("site_source", value="navsatfix"),
+        Parameter("pol45_toward", value="+x+y"), Parameter("polarizer_check_every", value=2)])
+    node.statuses = []
+    node._publish_status = node.statuses.append
+    try:
+        st = feed_good_frame(node, T0, bearing=65.0, pitch=0.0, roll=0.0)
+        assert st["polarizer_check"]["verdict"] == "contradicted"
+        assert node.diag.error and "pol45_toward: '+x-y'" in node.diag.error
+        from diagnostic_msgs.msg import DiagnosticStatus
+        assert node.diag.level_and_message()[0] == DiagnosticStatus.ERROR
+        st = feed_good_frame(node, T0 + 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert "polarizer_check" not in st and st["status"]     # every 2nd frame only; frames still processed
+        node.set_parameters([Parameter("pol45_toward", value="+x-y")])
+        st = feed_good_frame(node, T0 + 2 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert st["polarizer_check"]["verdict"] == "supported"
+        assert node.diag.error is None
+    finally:
+        node.destroy_node()

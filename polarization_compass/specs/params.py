@@ -305,6 +305,10 @@ ESTIMATOR = (
                                   "displayed image: the IMX250MZR as delivered) or +x+y (a readout "
                                   "flipped in x or y); check with 'polarization-compass check-polarizer'",
           choices=("+x+y", "+x-y")),
+    Param("polarizer_check_every", 100, "every N-th image, fit the sky under each polarizer hypothesis "
+                                        "(check-polarizer) and publish a diagnostics ERROR with the fix when "
+                                        "the sky contradicts polarizer_layout/pol45_toward (0 = never)",
+          0, 100000),
     Param("use_intensity", False, "also compute S0 so that a method can resolve the 180 deg ambiguity from "
                                   "the sky's brightness gradient (costs a second pass over the mosaic)"),
     Param("frame_id", "base_link", "frame_id of the published heading: z up, with a TF to base_link "
