@@ -675,14 +675,14 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraMode
 # ------------------------------------------------------------------------------------------------
 class PolarizerMonitor:
     """Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th mosaic
-    (0 = never), on a decimated superpixel grid (at most ``max_blocks`` 2 x 2 blocks, block-aligned so the
+    (0 = never; the first check is on frame ``every_n``), on a decimated superpixel grid (at most ``max_blocks`` 2 x 2 blocks, block-aligned so the
     layout's phase is kept), and remembers the last decisive verdict.
 
     :attr:`error` is the text a node publishes as a diagnostics ERROR while the last decisive check
     contradicts the configured layout (it names the fix); ``cannot_tell`` keeps the previous verdict.
     """
 
-    def __init__(self, every_n: int = 100, max_blocks: int = 40000):
+    def __init__(self, every_n: int = 100, max_blocks: int = 10000):
         self.every_n = int(every_n)
         self.max_blocks = int(max_blocks)
         self.count = 0
@@ -696,7 +696,7 @@ class PolarizerMonitor:
         if self.every_n <= 0:
             return None
         self.count += 1
-        if (self.count - 1) % self.every_n:
+        if self.count % self.every_n:           # the every_n-th frame, not the first: start-up stays fast
             return None
         from .estimators.mosaic_input import _grid_rays
         from .polarizer_check import check_polarizer

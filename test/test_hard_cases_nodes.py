@@ -415,6 +415,8 @@ def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
     node.statuses = []
     node._publish_status = node.statuses.append
     try:
+        st = feed_good_frame(node, T0 - 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert "polarizer_check" not in st and node.diag.error is None     # the first check is on frame N
         st = feed_good_frame(node, T0, bearing=65.0, pitch=0.0, roll=0.0)
         assert st["polarizer_check"]["verdict"] == "contradicted"
         assert node.diag.error and "pol45_toward: '+x-y'" in node.diag.error
@@ -423,7 +425,8 @@ def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
         st = feed_good_frame(node, T0 + 10**9, bearing=65.0, pitch=0.0, roll=0.0)
         assert "polarizer_check" not in st and st["status"]     # every 2nd frame only; frames still processed
         node.set_parameters([Parameter("pol45_toward", value="+x-y")])
-        st = feed_good_frame(node, T0 + 2 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        feed_good_frame(node, T0 + 2 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        st = feed_good_frame(node, T0 + 3 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
         assert st["polarizer_check"]["verdict"] == "supported"
         assert node.diag.error is None
     finally:

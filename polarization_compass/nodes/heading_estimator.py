@@ -128,6 +128,7 @@ class HeadingEstimatorNode(Node):
         try:
             if {"polarizer_layout", "pol45_toward"} & set(changed):
                 self.front.set_layout(layout_from_text(merged["polarizer_layout"]), merged["pol45_toward"])
+                self.polarizer.count = 0          # check the new convention N frames from now
             if "demosaic" in changed:
                 self.front.demosaic = merged["demosaic"]
             if "polarizer_check_every" in changed:
