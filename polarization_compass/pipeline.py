@@ -472,13 +472,17 @@ class HeadingFrontEnd:
         The method's knobs.
     layout : str or sequence, default IMX250MZR_LAYOUT
         The sensor's 2 x 2 polarizer pattern [deg] (:mod:`~polarization_compass.demosaic`).
-    pol45_toward : str, default "+x+y"
-        Image direction of the 45 deg polarizer.
+    pol45_toward : str, default "+x-y"
+        Image direction of the 45 deg polarizer (IMX250MZR as delivered: +x-y).
     demosaic : {"superpixel", "bilinear"}, default "superpixel"
         Demosaicing.
     intensity : bool, default False
         Also compute S0 and pass it as the observation's intensity (lets a method resolve the 180
         deg ambiguity from the sky's brightness gradient).
+    sky_check : bool, default False
+        Check each result against the whole sky (:func:`~polarization_compass.skyfit.assess_result`
+        on :func:`whole_sky_sample`: misfit sigma, 180 deg side, ``poor_fit``; ~15-30 ms per frame), as
+        ``estimate`` does on real images.
 
     Raises
     ------
@@ -487,7 +491,8 @@ class HeadingFrontEnd:
     """
 
     def __init__(self, method: str, knobs: dict | None = None, layout=IMX250MZR_LAYOUT,
-                 pol45_toward: str = IMX250MZR_POL45, demosaic: str = "superpixel", intensity: bool = False):
+                 pol45_toward: str = IMX250MZR_POL45, demosaic: str = "superpixel", intensity: bool = False,
+                 sky_check: bool = False):
         from .demosaic import parse_layout
         from .estimators import make_estimator
         self.method = method
@@ -495,6 +500,7 @@ class HeadingFrontEnd:
         self.layout = parse_layout(layout, pol45_toward)
         self.demosaic = demosaic
         self.intensity = bool(intensity)
+        self.sky_check = bool(sky_check)
 
     def set_knobs(self, knobs: dict) -> None:
         """Replace the estimator's knobs; the old ones stay when the new ones are refused.
@@ -625,10 +631,15 @@ class HeadingFrontEnd:
         PipelineError
             The mosaic does not match the camera or cannot be demosaiced.
         """
-        est = self.estimator
+        est, layout = self.estimator, self.layout
         obs = self.observation(mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
                                prior_bearing_deg, est)
-        return est.estimate(obs)
+        res = est.estimate(obs)
+        if self.sky_check:
+            from .skyfit import assess_result
+            sample = whole_sky_sample(mosaic, camera, layout)
+            res = assess_result(res, sample, sun_altitude_deg, pitch_deg, roll_deg, prior_bearing_deg)
+        return res
 
 
 def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraModel | None = None) -> float:
@@ -701,12 +712,7 @@ class PolarizerMonitor:
         from .estimators.mosaic_input import _grid_rays
         from .polarizer_check import check_polarizer
         m = np.asarray(mosaic)
-        H, W = m.shape
-        by, bx = H // 2, W // 2
-        k = max(1, int(math.ceil(math.sqrt(by * bx / self.max_blocks))))
-        ny, nx = (by + k - 1) // k, (bx + k - 1) // k
-        blocks = m[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
-        small = np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx)
+        small, k, nx, ny = decimated_blocks(m, self.max_blocks)
 
         def rays_for_shape(shape):
             _, _, rays, ok = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
@@ -722,3 +728,34 @@ class PolarizerMonitor:
         elif rep["verdict"] == "supported":
             self.error = None
         return rep
+
+
+def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
+    """Every k-th 2 x 2 block of a mosaic in each direction (k the smallest giving at most ``max_blocks``),
+    as one smaller mosaic with the same 2 x 2 phase: ``(small, k, nx, ny)``; block (j, i) of it is centred
+    at 1-based sensor pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``."""
+    H, W = mosaic.shape
+    by, bx = H // 2, W // 2
+    k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
+    ny, nx = (by + k - 1) // k, (bx + k - 1) // k
+    blocks = mosaic[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
+    return np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx), k, nx, ny
+
+
+def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000):
+    """The whole usable sky of a full-sensor mosaic as a :class:`~polarization_compass.skyfit.SkySample`
+    (superpixels of a block decimation, saturated blocks and their glare removed, intensity kept for the
+    side vote), independent of which pixels a method reads; None when too little sky is usable."""
+    from .estimators.mosaic_input import _grid_rays
+    from .demosaic import stokes_from_mosaic, aop_dop_from_stokes
+    from .polarizer_check import saturated_blocks
+    from .skyfit import data_mask, sample_sky
+    m = np.asarray(mosaic)
+    small, k, nx, ny = decimated_blocks(m, max_blocks)
+    sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
+    s0, s1, s2 = stokes_from_mosaic(small, layout.angles_deg, layout.pol45_toward, "superpixel", sat)
+    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+    _, _, rays, has_ray = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
+    bright = np.where(saturated_blocks(small, sat, s0.shape), np.float32(np.inf), s0)
+    keep = data_mask(bright, has_ray, float("inf"))
+    return sample_sky(aop, dop, valid & keep, rays, s0)

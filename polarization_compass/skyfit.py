@@ -349,8 +349,9 @@ def mark_inconsistent(results, min_sigma_deg: float = 0.5):
 def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float = 0.02):
     """Pixels to keep, from the data: inside the lens' field, not saturated and not next to saturation
     (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image diagonal with
-    OpenCV's dilation). ``saturation_level`` None: taken from the data when at least 0.05 % of the
-    in-field pixels sit at the maximum (a clipped plateau), else nothing counts as saturated.
+    OpenCV's dilation). ``saturation_level`` None: taken from the data when 0.05-50 % of the in-field
+    pixels sit at a maximum at least 10 % above the median (a clipped plateau), else nothing counts as
+    saturated.
     Lens-flare ghosts, clouds and obstacles are not masked here: they are down-weighted by the robust
     loss (and show up as misfit)."""
     import cv2
@@ -359,8 +360,11 @@ def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float =
     if not keep.any():
         return keep
     if saturation_level is None:
-        top = float(i[keep].max())
-        if top > 0 and np.mean(i[keep] >= top * 0.995) >= 5e-4:
+        vals = i[keep]
+        top = float(vals.max())
+        share = float(np.mean(vals >= top * 0.995)) if top > 0 else 0.0
+        # a clipped plateau: some (not most) pixels at a maximum well above the typical sky
+        if 5e-4 <= share <= 0.5 and top > 1.1 * float(np.median(vals)):
             saturation_level = top * 0.995
     if saturation_level is not None:
         sat = (i >= saturation_level).astype(np.uint8)

@@ -70,7 +70,7 @@ class HeadingEstimatorNode(Node):
         self.front = HeadingFrontEnd(self.method,
                                      {} if self.array_input else knob_values(self.method, self.knob_set.values),
                                      layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
-                                     p["use_intensity"])
+                                     p["use_intensity"], p["sky_check"])
         if self.array_input:
             self.array = self._make_array(self.knob_set.values)
         else:
@@ -131,6 +131,8 @@ class HeadingEstimatorNode(Node):
                 self.polarizer.count = 0          # check the new convention N frames from now
             if "demosaic" in changed:
                 self.front.demosaic = merged["demosaic"]
+            if "sky_check" in changed:
+                self.front.sky_check = bool(merged["sky_check"])
             if "polarizer_check_every" in changed:
                 self.polarizer.every_n = int(merged["polarizer_check_every"])
                 self.polarizer.count = 0

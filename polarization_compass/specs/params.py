@@ -309,6 +309,9 @@ ESTIMATOR = (
                                         "(check-polarizer) and publish a diagnostics ERROR with the fix when "
                                         "the sky contradicts polarizer_layout/pol45_toward (0 = never)",
           0, 100000),
+    Param("sky_check", False, "check every result against the whole sky (as 'estimate' does on real images): "
+                              "sigma includes the frame's model misfit, the 180 deg side is decided by the "
+                              "whole sky, status poor_fit when no single sun fits (~15-30 ms per image)"),
     Param("use_intensity", False, "also compute S0 so that a method can resolve the 180 deg ambiguity from "
                                   "the sky's brightness gradient (costs a second pass over the mosaic)"),
     Param("frame_id", "base_link", "frame_id of the published heading: z up, with a TF to base_link "
