@@ -148,9 +148,10 @@ def _stokes(planes, p: Path) -> PolarizationInput:
     return PolarizationInput("stokes", str(p), stokes=tuple(out))
 
 
-def load_mask(path, shape) -> np.ndarray:
-    """A static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape``; True (use) where non-zero,
-    False (obstructed: mast, antenna, the robot) where zero (OpenCV's mask convention)."""
+def load_mask(path, shape, sensor_shape=None) -> np.ndarray:
+    """A static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of ``sensor_shape``, the
+    full sensor, for half-resolution Stokes planes); True (use) where non-zero, False (obstructed: mast,
+    antenna, the robot) where zero (OpenCV's mask convention)."""
     p = Path(path)
     _check_size(p)
     if p.suffix.lower() == ".npy":
@@ -162,6 +163,6 @@ def load_mask(path, shape) -> np.ndarray:
         pages = _read_images(p)
         a = pages[0]
     a = np.asarray(a)
-    if a.shape != tuple(shape):
+    if a.shape != tuple(shape) and (sensor_shape is None or a.shape != tuple(sensor_shape)):
         raise RealInputError(f"--mask {p.name}: shape {a.shape} does not match the input image {tuple(shape)}")
     return a != 0

@@ -284,7 +284,7 @@ def _run_real(args, inp, methods, knobs) -> int:
     sun_az, sun_alt, sun_src = _sun({}, args)
     estimators = _make_estimators(methods, knobs, args.stride)
     shape = inp.stokes[0].shape if inp.kind == "stokes" else inp.mosaic.shape
-    mask = load_mask(args.mask, shape) if args.mask else None
+    mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
     obs, _ = real_observation(inp, cam_file, sun_az, sun_alt, mask, args.demosaic, args.pitch, args.roll,
                               args.prior_bearing)
     sample = None if args.no_sky_check else sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
