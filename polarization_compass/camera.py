@@ -153,7 +153,13 @@ class CameraModel:
         return any(v != 0.0 for v in self.distortion)
 
     def K_matrix(self) -> np.ndarray:
-        """ROS/OpenCV camera matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels, 0-based principal point."""
+        """Return the ROS/OpenCV camera matrix K.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels, 0-based principal point (OpenCV's).
+        """
         fx = self.focal_length_mm / (self.pixel_pitch_x_um * 1e-3)
         fy = self.focal_length_mm / (self.pixel_pitch_y_um * 1e-3)
         return np.array([[fx, 0.0, self.cx_px - 1.0], [0.0, fy, self.cy_px - 1.0], [0.0, 0.0, 1.0]])
@@ -516,15 +522,35 @@ def _freeze(p: SelectedPixels) -> SelectedPixels:
 
 def camera_from_intrinsics(width_px: int, height_px: int, K, D=(), distortion_model: str = "",
                            pixel_pitch_um: float = 3.45, max_field_angle_deg: float = 90.0) -> CameraModel:
-    """A :class:`CameraModel` from ROS/OpenCV intrinsics (``sensor_msgs/CameraInfo``, ``camera_calibration``).
+    """Build a :class:`CameraModel` from ROS/OpenCV intrinsics (``CameraInfo``, ``camera_calibration``).
 
-    ``K``: 3 x 3 (or 9 values, row-major) ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels with a 0-based
-    principal point (the model is 1-based, eq 20: ``principal_x_px = cx + 1``); ``D``: the distortion
-    coefficients of ``distortion_model`` (``plumb_bob`` 5, ``rational_polynomial`` 8, ``equidistant`` 4;
-    an empty or all-zero D is the ideal pinhole / equidistant fisheye). ``pixel_pitch_um`` only scales
-    the focal length to mm (rays depend on fx, fy in pixels); the y pitch is scaled by fx / fy so
-    non-square pixels keep their shape. ``max_field_angle_deg``: fisheye pixels beyond it have no ray.
-    Raises :class:`CameraError` on unusable intrinsics.
+    Parameters
+    ----------
+    width_px, height_px : int
+        Image size [px].
+    K : array_like
+        3 x 3 (or 9 values, row-major) ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` [px], 0-based principal
+        point (the model is 1-based, eq 20: ``principal_x_px = cx + 1``).
+    D : array_like, optional
+        Distortion coefficients of ``distortion_model`` (``plumb_bob`` 5 or 4, ``rational_polynomial`` 8,
+        ``equidistant`` 4); empty or all zero: the ideal pinhole / equidistant fisheye.
+    distortion_model : str, optional
+        ``plumb_bob`` | ``rational_polynomial`` | ``equidistant`` | "" (pinhole).
+    pixel_pitch_um : float, default 3.45
+        Only scales the focal length to mm (rays depend on fx, fy in pixels); the y pitch is scaled by
+        fx / fy so non-square pixels keep their shape.
+    max_field_angle_deg : float, default 90
+        Fisheye pixels beyond this angle from the optical axis [deg] have no ray.
+
+    Returns
+    -------
+    CameraModel
+        The lens, distorted when D is non-zero (rays through OpenCV, see :meth:`CameraModel.rays_from_pixels`).
+
+    Raises
+    ------
+    CameraError
+        Non-finite or wrongly sized K or D, non-positive focal lengths, an unknown distortion model.
     """
     Km = np.asarray(K, dtype=float).reshape(-1)
     Dv = np.asarray(D if D is not None else (), dtype=float).reshape(-1)
@@ -557,8 +583,12 @@ def camera_from_intrinsics(width_px: int, height_px: int, K, D=(), distortion_mo
 
 @dataclass(frozen=True)
 class CameraFile:
-    """What a ``CAMERA.yaml`` says: the lens (``camera``) and the polarizer layout (``layout`` 2 x 2 angles,
-    ``pol45_toward``), with ``layout_given`` False when the file had no ``polarizer:`` section (defaults)."""
+    """What a ``CAMERA.yaml`` says: the lens and the polarizer layout.
+
+    ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the top-left block;
+    ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False when the file had no
+    ``polarizer:`` section (the IMX250MZR defaults were used).
+    """
 
     camera: CameraModel
     layout: tuple
@@ -588,7 +618,21 @@ def load_camera_yaml(path) -> CameraFile:
     ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default 3.45),
     ``max_field_angle_deg`` (fisheye, default 90) and ``polarizer: {layout: [[90, 45], [135, 0]],
     pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`).
-    Raises :class:`CameraError` with a one-line reason.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file (at most 1 MiB is read).
+
+    Returns
+    -------
+    CameraFile
+        The lens and the polarizer layout.
+
+    Raises
+    ------
+    CameraError
+        Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
     """
     import yaml
     from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError, parse_layout

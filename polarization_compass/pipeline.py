@@ -685,7 +685,9 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraMode
 # Polarizer convention watched on live frames
 # ------------------------------------------------------------------------------------------------
 class PolarizerMonitor:
-    """Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th mosaic
+    """Watch the polarizer convention on live frames.
+
+    Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th mosaic
     (0 = never; the first check is on frame ``every_n``), on a decimated superpixel grid (at most ``max_blocks`` 2 x 2 blocks, block-aligned so the
     layout's phase is kept), and remembers the last decisive verdict.
 
@@ -702,8 +704,27 @@ class PolarizerMonitor:
 
     def feed(self, mosaic, camera: CameraModel, layout, sun_altitude_deg=None, pitch_deg=None,
              roll_deg=None) -> dict | None:
-        """Count a frame; on every ``every_n``-th run the check and return its report (else None).
-        ``layout``: the configured :class:`~polarization_compass.demosaic.MosaicLayout`."""
+        """Count a frame and, on every ``every_n``-th, check the polarizer convention.
+
+        Parameters
+        ----------
+        mosaic : numpy.ndarray
+            Raw full-sensor DoFP image.
+        camera : CameraModel
+            The camera (rays of the decimated superpixels, cached).
+        layout : MosaicLayout
+            The configured :class:`~polarization_compass.demosaic.MosaicLayout`.
+        sun_altitude_deg : float, optional
+            Sun altitude [deg]; None: fitted.
+        pitch_deg, roll_deg : float, optional
+            Known tilt [deg] (eq 21); None: level.
+
+        Returns
+        -------
+        dict or None
+            The :func:`~polarization_compass.polarizer_check.check_polarizer` report on a checked frame,
+            else None.
+        """
         if self.every_n <= 0:
             return None
         self.count += 1
@@ -731,9 +752,21 @@ class PolarizerMonitor:
 
 
 def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
-    """Every k-th 2 x 2 block of a mosaic in each direction (k the smallest giving at most ``max_blocks``),
-    as one smaller mosaic with the same 2 x 2 phase: ``(small, k, nx, ny)``; block (j, i) of it is centred
-    at 1-based sensor pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``."""
+    """Keep every k-th 2 x 2 block of a mosaic, as one smaller mosaic with the same 2 x 2 phase.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (H, W).
+    max_blocks : int
+        At most this many blocks are kept (k the smallest step that achieves it).
+
+    Returns
+    -------
+    tuple
+        ``(small, k, nx, ny)``: the (2 ny, 2 nx) mosaic whose block (j, i) is centred at 1-based sensor
+        pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``, the step k and the block counts.
+    """
     H, W = mosaic.shape
     by, bx = H // 2, W // 2
     k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
@@ -743,9 +776,27 @@ def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
 
 
 def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000):
-    """The whole usable sky of a full-sensor mosaic as a :class:`~polarization_compass.skyfit.SkySample`
-    (superpixels of a block decimation, saturated blocks and their glare removed, intensity kept for the
-    side vote), independent of which pixels a method reads; None when too little sky is usable."""
+    """Sample the whole usable sky of a full-sensor mosaic, whatever pixels a method reads.
+
+    Superpixels of a block decimation; saturated blocks and their glare removed; intensity kept for the
+    whole-sky side vote.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw full-sensor DoFP image.
+    camera : CameraModel
+        The camera (rays cached per intrinsics and grid).
+    layout : MosaicLayout
+        The polarizer layout.
+    max_blocks : int, default 8000
+        Blocks demosaiced at most.
+
+    Returns
+    -------
+    SkySample or None
+        The :class:`~polarization_compass.skyfit.SkySample`, None when too little sky is usable.
+    """
     from .estimators.mosaic_input import _grid_rays
     from .demosaic import stokes_from_mosaic, aop_dop_from_stokes
     from .polarizer_check import saturated_blocks
