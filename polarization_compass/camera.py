@@ -149,7 +149,7 @@ class CameraModel:
 
     @property
     def distorted(self) -> bool:
-        """True when the lens has non-zero distortion coefficients (rays come from OpenCV)."""
+        """Return True when the lens has non-zero distortion coefficients (rays come from OpenCV)."""
         return any(v != 0.0 for v in self.distortion)
 
     def K_matrix(self) -> np.ndarray:
@@ -165,7 +165,7 @@ class CameraModel:
         return np.array([[fx, 0.0, self.cx_px - 1.0], [0.0, fy, self.cy_px - 1.0], [0.0, 0.0, 1.0]])
 
     def _rays_opencv(self, x, y):
-        """Rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV 0-based)."""
+        """Compute rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV 0-based)."""
         import cv2
         K = self.K_matrix()
         D = np.asarray(self.distortion, dtype=np.float64)

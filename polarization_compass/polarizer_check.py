@@ -38,11 +38,12 @@ class Hypothesis:
     pol45_toward: str
 
     def describe(self) -> dict:
+        """Return the hypothesis as JSON: ``{"layout": [[...], [...]], "pol45_toward": ...}``."""
         return {"layout": [list(r) for r in self.layout], "pol45_toward": self.pol45_toward}
 
 
 def polarizer_hypotheses(layout, pol45_toward: str, raw: bool) -> list[Hypothesis]:
-    """The configured convention first, then the alternatives (both directions; all four phases if raw)."""
+    """List the configured convention first, then the alternatives (both directions; all four phases if raw)."""
     base = parse_layout(layout, pol45_toward)
     other = "+x+y" if base.pol45_toward == "+x-y" else "+x-y"
     out = []
@@ -54,7 +55,7 @@ def polarizer_hypotheses(layout, pol45_toward: str, raw: bool) -> list[Hypothesi
 
 
 def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
-    """True where a raw sample is at or above ``saturation_level``, at the resolution ``shape`` (the
+    """Mark where a raw sample is at or above ``saturation_level``, at the resolution ``shape`` (the
     mosaic's own, or one value per 2 x 2 superpixel: any saturated sample saturates the block)."""
     m = np.asarray(mosaic)
     if saturation_level is None:
@@ -67,7 +68,7 @@ def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
 
 
 def _aop_for(kind: str, data, hyp: Hypothesis, saturation_level):
-    """(aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a mosaic."""
+    """Return (aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a mosaic."""
     if kind == "mosaic":
         s0, s1, s2 = stokes_from_mosaic(data, hyp.layout, hyp.pol45_toward, "superpixel", saturation_level)
         s0 = np.where(saturated_blocks(data, saturation_level, s0.shape), np.float32(np.inf), s0)

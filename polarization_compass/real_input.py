@@ -149,7 +149,7 @@ def _stokes(planes, p: Path) -> PolarizationInput:
 
 
 def load_mask(path, shape, sensor_shape=None) -> np.ndarray:
-    """A static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of ``sensor_shape``, the
+    """Read a static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of ``sensor_shape``, the
     full sensor, for half-resolution Stokes planes); True (use) where non-zero, False (obstructed: mast,
     antenna, the robot) where zero (OpenCV's mask convention)."""
     p = Path(path)

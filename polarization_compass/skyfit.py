@@ -49,6 +49,7 @@ class SkySample:
 
     @property
     def count(self) -> int:
+        """Return the number of sampled pixels."""
         return int(self.c2a.size)
 
 
@@ -68,7 +69,7 @@ class SkyFit:
 
 def sample_sky(aop_rad, dop, valid, rays_cam, intensity=None, max_pixels: int = 4000, min_dop: float = 0.02,
                extra_mask=None) -> SkySample | None:
-    """Up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride, deterministic).
+    """Sample up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride, deterministic).
 
     ``aop_rad`` eq 28 angles, ``dop`` in [0, 1], ``valid`` bool, ``rays_cam`` (3, N) unit rays in the order
     of ``aop_rad.reshape(-1)``; ``extra_mask`` (same shape, True = usable) e.g. the data-driven mask.
@@ -93,7 +94,7 @@ def sample_sky(aop_rad, dop, valid, rays_cam, intensity=None, max_pixels: int = 
 
 
 def _sun_cam(psi_deg, alt_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
-    """(K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21 transposed)."""
+    """Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21 transposed)."""
     psi = np.asarray(psi_deg, dtype=float).reshape(-1)
     alt = np.radians(np.asarray(alt_deg, dtype=float).reshape(-1))
     s_a = np.stack([np.zeros_like(alt), np.cos(alt), np.sin(alt)], axis=-1)          # frame a: y at the sun
@@ -102,7 +103,7 @@ def _sun_cam(psi_deg, alt_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
 
 
 def _cos_sin_2res(sample: SkySample, sun_cam: np.ndarray):
-    """cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq 18, 28)."""
+    """Return cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq 18, 28)."""
     P = sample.rays
     S = sun_cam.astype(np.float32)
     ex = S[:, 1:2] * P[2] - S[:, 2:3] * P[1]
@@ -117,7 +118,7 @@ def _cos_sin_2res(sample: SkySample, sun_cam: np.ndarray):
 
 
 def _loss(sample: SkySample, sun_cam: np.ndarray, weight=None) -> np.ndarray:
-    """Mean weighted Cauchy loss per candidate sun (K,). sin^2 r = (1 - cos 2r) / 2."""
+    """Return the mean weighted Cauchy loss per candidate sun (K,). sin^2 r = (1 - cos 2r) / 2."""
     c, _ = _cos_sin_2res(sample, sun_cam)
     s2 = np.float32(math.sin(math.radians(CAUCHY_SCALE_DEG)) ** 2)
     rho = np.log1p(np.maximum(0.5 * (1 - c), 0) / s2)
@@ -134,7 +135,7 @@ def _chunked_loss(sample, psi, alt, pitch, roll, weight=None, chunk=256):
 
 def misfit_at(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
               roll_deg: float = 0.0) -> SkyFit:
-    """Residual statistics of the sky for one sun (psi, altitude) and known tilt (deg)."""
+    """Return the residual statistics of the sky for one sun (psi, altitude) and known tilt (deg)."""
     sun = _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg)
     c, s = _cos_sin_2res(sample, sun)
     res_deg = np.degrees(0.5 * np.arctan2(s[0], c[0]).astype(np.float64))
@@ -149,7 +150,7 @@ def misfit_at(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_
 
 def fit_sky(sample: SkySample, sun_altitude_deg: float | None = None, pitch_deg: float = 0.0,
             roll_deg: float = 0.0, psi_range_deg=None, weight=None) -> SkyFit:
-    """Robust fit of psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
+    """Fit psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
 
     Coarse grid on at most 600 of the pixels: psi every 2 deg over the circle (or ``psi_range_deg = (lo,
     hi)``), altitude every 4 deg in [0, 88]; then on all pixels two rounds of fine line searches (psi
@@ -179,7 +180,7 @@ def fit_sky(sample: SkySample, sun_altitude_deg: float | None = None, pitch_deg:
 
 def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
                         roll_deg: float = 0.0, sectors: int = 8) -> float:
-    """Delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal sky sectors.
+    """Estimate the delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal sky sectors.
 
     Each sector (by the ray's azimuth about the optical axis) is left out in turn and psi refitted near
     ``psi_deg`` at the given sun altitude; ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``. Sectors with no
@@ -210,7 +211,7 @@ def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: flo
 
 def side_preference(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
                     roll_deg: float = 0.0) -> dict:
-    """Which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
+    """Tell which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
 
     ``pattern``: the Cauchy loss difference (other end minus this end; > 0 favours ``psi_deg``) of the AoP
     pattern at the known sun altitude (the pattern of a sun at altitude h is not symmetric under a 180 deg
@@ -244,7 +245,7 @@ BRIGHTNESS_VOTE = 0.05
 
 def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pitch_deg=None, roll_deg=None,
                   prior_bearing_deg=None):
-    """An estimator's :class:`~polarization_compass.estimators.HeadingResult` checked against the whole sky.
+    """Check an estimator's :class:`~polarization_compass.estimators.HeadingResult` against the whole sky.
 
     - sigma: ``hypot(method sigma, jackknife sigma)``; the jackknife over sky sectors measures the misfit
       of this frame to the model (:func:`jackknife_sigma_deg`), which on real skies dominates shot noise;
@@ -309,12 +310,12 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
 
 
 def _sun_az(result) -> float:
-    """The sun azimuth a result was made with (bearing - psi)."""
+    """Return the sun azimuth a result was made with (bearing - psi)."""
     return float(wrap_180_deg(result.bearing_deg - result.psi_deg))
 
 
 def mark_inconsistent(results, min_sigma_deg: float = 0.5):
-    """Results of several methods on one frame: each usable one that disagrees with most of the others by
+    """Mark results of several methods on one frame as inconsistent: each usable one that disagrees with most of the others by
     more than 3 combined sigmas (axially when either is axial; sigma floored at ``min_sigma_deg``) gets
     status ``inconsistent``. Returns a new list."""
     from dataclasses import replace
@@ -347,7 +348,7 @@ def mark_inconsistent(results, min_sigma_deg: float = 0.5):
 
 
 def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float = 0.02):
-    """Pixels to keep, from the data: inside the lens' field, not saturated and not next to saturation
+    """Return the pixels to keep, from the data: inside the lens' field, not saturated and not next to saturation
     (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image diagonal with
     OpenCV's dilation). ``saturation_level`` None: taken from the data when 0.05-50 % of the in-field
     pixels sit at a maximum at least 10 % above the median (a clipped plateau), else nothing counts as

@@ -221,7 +221,7 @@ def _make_estimators(methods, knobs, stride):
 
 def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superpixel", pitch=None, roll=None,
                      prior=None):
-    """(Observation of the whole image, data mask) from a real input: Stokes planes turned into camera-frame
+    """Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into camera-frame
     Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see ``demosaic``), or a raw mosaic
     demosaiced with the camera file's layout. Invalid: outside the lens, saturated (+ glare), masked."""
     import numpy as np
