@@ -26,6 +26,7 @@ GROUPS = {
     "errormap_sampling": "errormap_sampling",
     "pipeline": "pipeline",
     "estimator_speed": "estimator_speed",
+    "sky_check": "sky_check",
     "replay": "replay_bench",
     "graph": "graph_bench",
     "peers": "peers",

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import CameraError, CameraModel, check_intrinsics
+from .camera import CameraError, CameraModel, camera_from_intrinsics, check_intrinsics
 from .conventions import QuaternionError, R_BODY_CAM_DEFAULT, validate_quaternion
 from .errors import CompassError
 
@@ -354,8 +354,9 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     ROS ``K = [fx 0 cx; 0 fy cy; 0 0 1]`` in pixels with a 0-based principal point; the model is 1-based
     (eq 20), so ``principal_x_px = cx + 1``. The focal length in mm is ``fx * pixel_pitch``; the y pitch
     is scaled by ``fx / fy`` so non-square pixels keep their shape. ``plumb_bob``/``rational_polynomial``
-    with zero distortion -> pinhole; ``equidistant`` with zero coefficients -> fisheye_equidistant
-    (r = f theta). Non-zero distortion, binning or a ROI are not supported (``unsupported_camera``).
+    -> pinhole, ``equidistant`` -> fisheye_equidistant (r = f theta); non-zero D is the lens distortion,
+    undistorted through OpenCV (:func:`~polarization_compass.camera.camera_from_intrinsics`; rays are
+    cached per intrinsics). Binning or a ROI are not supported (``unsupported_camera``).
     Implausible intrinsics (:func:`~polarization_compass.camera.check_intrinsics`: principal point outside
     the image or far from its centre, fx and fy differing by more than 5 %) are ``bad_camera_info``.
     """
@@ -366,12 +367,7 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     fx, fy, cx, cy = K[0], K[4], K[2], K[5]
     if not (fx > 0 and fy > 0):
         raise MessageError("bad_camera_info", f"focal lengths must be positive, got fx={fx}, fy={fy}")
-    if np.any(D != 0):
-        raise MessageError("unsupported_camera", f"distortion {msg.distortion_model!r} with non-zero "
-                                                 "coefficients: rectification is not supported")
-    model = {"plumb_bob": "pinhole", "rational_polynomial": "pinhole", "": "pinhole",
-             "equidistant": "fisheye_equidistant"}.get(str(msg.distortion_model))
-    if model is None:
+    if str(msg.distortion_model) not in ("", "plumb_bob", "rational_polynomial", "equidistant"):
         raise MessageError("unsupported_camera", f"distortion model {msg.distortion_model!r}")
     if int(msg.binning_x) > 1 or int(msg.binning_y) > 1:
         raise MessageError("unsupported_camera", "binned images are not supported")
@@ -379,10 +375,8 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     if int(roi.width) not in (0, int(msg.width)) or int(roi.height) not in (0, int(msg.height)):
         raise MessageError("unsupported_camera", "a region of interest is not supported")
     try:
-        cam = CameraModel(model=model, width_px=int(msg.width), height_px=int(msg.height),
-                          focal_length_mm=float(fx * pixel_pitch_um * 1e-3),
-                          pixel_pitch_x_um=float(pixel_pitch_um), pixel_pitch_y_um=float(pixel_pitch_um * fx / fy),
-                          principal_x_px=float(cx + 1.0), principal_y_px=float(cy + 1.0))
+        cam = camera_from_intrinsics(int(msg.width), int(msg.height), K, D, str(msg.distortion_model),
+                                     float(pixel_pitch_um))
         return check_intrinsics(cam)         # plausible calibration: pp near the centre, fx ~ fy
     except CameraError as exc:
         raise MessageError("bad_camera_info", str(exc)) from None
@@ -448,7 +442,7 @@ def encode_mosaic(mosaic: np.ndarray, t_ns: int, frame_id: str):
 
 
 def encode_camera_info(camera: CameraModel, t_ns: int, frame_id: str):
-    """sensor_msgs/CameraInfo of a :class:`CameraModel` (no distortion; 0-based principal point)."""
+    """sensor_msgs/CameraInfo of a :class:`CameraModel` (its distortion, or none; 0-based principal point)."""
     ts = typestore().types
     fx = camera.focal_length_mm / (camera.pixel_pitch_x_um * 1e-3)
     fy = camera.focal_length_mm / (camera.pixel_pitch_y_um * 1e-3)
@@ -459,8 +453,8 @@ def encode_camera_info(camera: CameraModel, t_ns: int, frame_id: str):
     roi = ts["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
     return ts["sensor_msgs/msg/CameraInfo"](
         header=_header(t_ns, frame_id), height=int(camera.height_px), width=int(camera.width_px),
-        distortion_model="equidistant" if fisheye else "plumb_bob",
-        d=np.zeros(4 if fisheye else 5, dtype=float), k=K, r=np.eye(3).reshape(-1), p=P,
+        distortion_model=camera.distortion_model or ("equidistant" if fisheye else "plumb_bob"),
+        d=np.array(camera.distortion, dtype=float) if camera.distortion else np.zeros(4 if fisheye else 5), k=K, r=np.eye(3).reshape(-1), p=P,
         binning_x=0, binning_y=0, roi=roi)
 
 

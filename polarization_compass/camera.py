@@ -9,6 +9,14 @@ Models
 ``fisheye_equidistant``  r = f * theta (theta the angle from the optical axis); pixels with
                          theta > ``max_field_angle_deg`` have no ray (marked invalid).
 
+Lens distortion (a calibrated real lens) follows ROS ``camera_calibration`` / ``sensor_msgs/CameraInfo``:
+``distortion_model`` ``plumb_bob`` (k1 k2 p1 p2 k3) or ``rational_polynomial`` (k1 k2 p1 p2 k3 k4 k5 k6)
+on the pinhole model, ``equidistant`` (k1..k4, OpenCV's fisheye model theta_d = theta (1 + k1 theta^2 +
+... + k4 theta^8)) on the fisheye model. Rays of a distorted lens come from OpenCV's undistortion
+(``cv2.undistortPoints``, ``cv2.fisheye.undistortPoints``), the inverse from ``cv2.projectPoints`` /
+``cv2.fisheye.projectPoints``; all-zero coefficients are the ideal models above. :func:`camera_from_intrinsics`
+builds a model from ROS K/D, :func:`load_camera_yaml` from a ``camera_calibration`` YAML file.
+
 Rays are returned as a (3, N) float32 array (structure of arrays, what the render kernels want)
 and cached per (camera, selection): a camera that does not change costs nothing per frame.
 """
@@ -23,8 +31,13 @@ from .errors import CompassError
 
 import numpy as np
 
-__all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError", "check_intrinsics",
+__all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError",
+           "camera_from_intrinsics", "load_camera_yaml", "CameraFile", "DISTORTION_MODELS", "check_intrinsics",
            "MAX_PIXEL_ASPECT_DEVIATION", "MAX_PRINCIPAL_OFFSET_FRACTION"]
+
+# ROS distortion model -> (projection model, number of coefficients OpenCV wants)
+DISTORTION_MODELS = {"plumb_bob": ("pinhole", 5), "rational_polynomial": ("pinhole", 8),
+                     "equidistant": ("fisheye_equidistant", 4)}
 
 
 class CameraError(CompassError):
@@ -70,8 +83,26 @@ class CameraModel:
     principal_x_px: float | None = None   # 1-based; None = image centre
     principal_y_px: float | None = None
     max_field_angle_deg: float = 90.0     # fisheye only
+    distortion_model: str = ""             # "" (ideal) | plumb_bob | rational_polynomial | equidistant
+    distortion: tuple = ()                 # OpenCV/ROS coefficients D of that model
 
     def __post_init__(self):
+        d = tuple(float(v) for v in (self.distortion or ()))
+        object.__setattr__(self, "distortion", d)
+        if not all(math.isfinite(v) for v in d):
+            raise CameraError(f"distortion coefficients must be finite, got {d}")
+        if self.distortion_model:
+            if self.distortion_model not in DISTORTION_MODELS:
+                raise CameraError(f"distortion_model must be one of {', '.join(DISTORTION_MODELS)}, "
+                                  f"got {self.distortion_model!r}")
+            want_model, n = DISTORTION_MODELS[self.distortion_model]
+            if want_model != self.model:
+                raise CameraError(f"distortion_model {self.distortion_model!r} needs camera model {want_model!r}, "
+                                  f"got {self.model!r}")
+            if len(d) != n:
+                raise CameraError(f"distortion_model {self.distortion_model!r} takes {n} coefficients, got {len(d)}")
+        elif d:
+            raise CameraError("distortion coefficients given without a distortion_model")
         if self.model not in ("pinhole", "fisheye_equidistant"):
             raise CameraError(f"camera model must be 'pinhole' or 'fisheye_equidistant', got {self.model!r}")
         for name in ("width_px", "height_px"):
@@ -121,10 +152,63 @@ class CameraModel:
             fov = lambda r: min(2 * math.degrees(r / f), 2 * self.max_field_angle_deg)  # noqa: E731
         return fov(hw), fov(hh), fov(math.hypot(hw, hh))
 
+    @property
+    def distorted(self) -> bool:
+        """Return True when the lens has non-zero distortion coefficients (rays come from OpenCV)."""
+        return any(v != 0.0 for v in self.distortion)
+
+    def K_matrix(self) -> np.ndarray:
+        """Return the ROS/OpenCV camera matrix K.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels, 0-based principal point (OpenCV's).
+        """
+        fx = self.focal_length_mm / (self.pixel_pitch_x_um * 1e-3)
+        fy = self.focal_length_mm / (self.pixel_pitch_y_um * 1e-3)
+        return np.array([[fx, 0.0, self.cx_px - 1.0], [0.0, fy, self.cy_px - 1.0], [0.0, 0.0, 1.0]])
+
+    def _rays_opencv(self, x, y):
+        """Compute rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV 0-based)."""
+        import cv2
+        K = self.K_matrix()
+        D = np.asarray(self.distortion, dtype=np.float64)
+        pts = np.stack([x - 1.0, y - 1.0], axis=-1).reshape(-1, 1, 2).astype(np.float64)
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        if self.model == "pinhole":
+            n = cv2.undistortPoints(pts, K, D, None, None, None, crit).reshape(-1, 2)
+            r = np.stack([n[:, 0], n[:, 1], np.ones(n.shape[0])])
+            r /= np.linalg.norm(r, axis=0, keepdims=True)
+            ok = np.all(np.isfinite(r), axis=0)
+            # undistortPoints inverts the polynomial iteratively: keep only pixels it maps back onto themselves
+            if ok.any():
+                back, _ = cv2.projectPoints(np.ascontiguousarray(r.T[ok]), np.zeros(3), np.zeros(3), K, D)
+                ok[ok] = np.hypot(*(back.reshape(-1, 2) - pts.reshape(-1, 2)[ok]).T) < 0.05
+            return np.where(ok, r, np.array([[0.0], [0.0], [1.0]])), ok
+        n = cv2.fisheye.undistortPoints(pts, K, D, None, None, None, crit).reshape(-1, 2)
+        # OpenCV returns tan(theta) along the pixel's direction; beyond 90 deg tan < 0 flips the point
+        # through the centre, so theta comes from the length and the side, the direction from the pixel.
+        # OpenCV clamps the distorted angle theta_d to 90 deg: pixels at or beyond it get no ray.
+        du = (pts[:, 0, 0] - K[0, 2]) / K[0, 0]
+        dv = (pts[:, 0, 1] - K[1, 2]) / K[1, 1]
+        rho_d = np.hypot(du, dv)
+        rho_u = np.hypot(n[:, 0], n[:, 1])
+        same_side = n[:, 0] * du + n[:, 1] * dv >= 0
+        theta = np.where(same_side, np.arctan2(rho_u, 1.0), np.pi - np.arctan2(rho_u, 1.0))
+        safe = np.where(rho_d > 0, rho_d, 1.0)
+        st = np.sin(theta)
+        r = np.stack([st * du / safe, st * dv / safe, np.cos(theta)])
+        ok = np.isfinite(theta) & (theta <= math.radians(self.max_field_angle_deg)) & np.all(np.isfinite(n), axis=1)
+        ok &= rho_d < 0.5 * np.pi - 1e-9
+        return np.where(ok, r, np.array([[0.0], [0.0], [1.0]])), ok
+
     def rays_from_pixels(self, x_px, y_px):
         """Compute unit viewing rays in the camera frame for 1-based pixel coordinates.
 
-        Pinhole: eq 20, ``(D_x (x - c_x), D_y (y - c_y), f)`` normalised; fisheye: r = f * theta.
+        Pinhole: eq 20, ``(D_x (x - c_x), D_y (y - c_y), f)`` normalised; fisheye: r = f * theta. A
+        distorted lens (:attr:`distorted`) goes through OpenCV's undistortion (``cv2.undistortPoints``,
+        ``cv2.fisheye.undistortPoints``); pixels the inverse does not reach have no ray.
 
         Parameters
         ----------
@@ -137,7 +221,9 @@ class CameraModel:
             float64, shape (3, N), camera frame (x along columns, y along rows, z the optical
             axis).
         has_ray : numpy.ndarray
-            bool, shape (N,): False for fisheye pixels beyond ``max_field_angle_deg``.
+            bool, shape (N,): False for fisheye pixels beyond ``max_field_angle_deg`` (or beyond
+            OpenCV's 90 deg limit on the distorted angle), and for distorted pinhole pixels whose ray
+            does not project back onto them.
 
         References
         ----------
@@ -146,6 +232,8 @@ class CameraModel:
         """
         x = np.asarray(x_px, dtype=float).reshape(-1)
         y = np.asarray(y_px, dtype=float).reshape(-1)
+        if self.distorted:
+            return self._rays_opencv(x, y)
         u = (x - self.cx_px) * (self.pixel_pitch_x_um * 1e-3)   # mm on the sensor
         v = (y - self.cy_px) * (self.pixel_pitch_y_um * 1e-3)
         f = self.focal_length_mm
@@ -185,6 +273,16 @@ class CameraModel:
            Polarized Skylight Orientation Determination" (the seed paper), eq 20.
         """
         r = np.asarray(rays_cam, dtype=float)
+        if self.distorted:
+            import cv2
+            obj = np.ascontiguousarray(r.reshape(3, -1).T).reshape(-1, 1, 3)
+            K, D = self.K_matrix(), np.asarray(self.distortion, dtype=np.float64)
+            if self.model == "pinhole":
+                px, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, D)
+            else:
+                px, _ = cv2.fisheye.projectPoints(obj, np.zeros(3), np.zeros(3), K, D)
+            px = px.reshape(-1, 2)
+            return px[:, 0] + 1.0, px[:, 1] + 1.0
         f = self.focal_length_mm
         if self.model == "pinhole":
             u = f * r[0] / r[2]
@@ -485,3 +583,152 @@ def _freeze(p: SelectedPixels) -> SelectedPixels:
     for a in (p.x_px, p.y_px, p.rays_cam, p.has_ray):
         a.setflags(write=False)
     return p
+
+
+def camera_from_intrinsics(width_px: int, height_px: int, K, D=(), distortion_model: str = "",
+                           pixel_pitch_um: float = 3.45, max_field_angle_deg: float = 90.0) -> CameraModel:
+    """Build a :class:`CameraModel` from ROS/OpenCV intrinsics (``CameraInfo``, ``camera_calibration``).
+
+    Parameters
+    ----------
+    width_px, height_px : int
+        Image size [px].
+    K : array_like
+        3 x 3 (or 9 values, row-major) ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` [px], 0-based principal
+        point (the model is 1-based, eq 20: ``principal_x_px = cx + 1``).
+    D : array_like, optional
+        Distortion coefficients of ``distortion_model`` (``plumb_bob`` 5 or 4, ``rational_polynomial`` 8,
+        ``equidistant`` 4); empty or all zero: the ideal pinhole / equidistant fisheye.
+    distortion_model : str, optional
+        ``plumb_bob`` | ``rational_polynomial`` | ``equidistant`` | "" (pinhole).
+    pixel_pitch_um : float, default 3.45
+        Only scales the focal length to mm (rays depend on fx, fy in pixels); the y pitch is scaled by
+        fx / fy so non-square pixels keep their shape.
+    max_field_angle_deg : float, default 90
+        Fisheye pixels beyond this angle from the optical axis [deg] have no ray.
+
+    Returns
+    -------
+    CameraModel
+        The lens, distorted when D is non-zero (rays through OpenCV, see :meth:`CameraModel.rays_from_pixels`).
+
+    Raises
+    ------
+    CameraError
+        Non-finite or wrongly sized K or D, non-positive focal lengths, an unknown distortion model.
+    """
+    Km = np.asarray(K, dtype=float).reshape(-1)
+    Dv = np.asarray(D if D is not None else (), dtype=float).reshape(-1)
+    if Km.size != 9 or not np.all(np.isfinite(Km)):
+        raise CameraError("camera matrix K must hold 9 finite numbers")
+    if not np.all(np.isfinite(Dv)):
+        raise CameraError("distortion coefficients must be finite")
+    fx, fy, cx, cy = (float(Km[i]) for i in (0, 4, 2, 5))
+    if not (fx > 0 and fy > 0):
+        raise CameraError(f"focal lengths must be positive, got fx={fx}, fy={fy}")
+    dm = str(distortion_model or "")
+    if dm not in ("",) + tuple(DISTORTION_MODELS):
+        raise CameraError(f"distortion model must be one of {', '.join(DISTORTION_MODELS)}, got {dm!r}")
+    model = DISTORTION_MODELS[dm][0] if dm else "pinhole"
+    if dm and Dv.size and np.any(Dv != 0):
+        n = DISTORTION_MODELS[dm][1]
+        if dm == "plumb_bob" and Dv.size == 4:           # OpenCV accepts k1 k2 p1 p2: k3 = 0
+            Dv = np.append(Dv, 0.0)
+        if Dv.size != n:
+            raise CameraError(f"distortion model {dm!r} takes {n} coefficients, got {Dv.size}")
+        dist = (dm, tuple(float(v) for v in Dv))
+    else:
+        dist = ("", ())
+    pitch = float(pixel_pitch_um)
+    return CameraModel(model=model, width_px=int(width_px), height_px=int(height_px),
+                       focal_length_mm=fx * pitch * 1e-3, pixel_pitch_x_um=pitch, pixel_pitch_y_um=pitch * fx / fy,
+                       principal_x_px=cx + 1.0, principal_y_px=cy + 1.0, max_field_angle_deg=float(max_field_angle_deg),
+                       distortion_model=dist[0], distortion=dist[1])
+
+
+@dataclass(frozen=True)
+class CameraFile:
+    """What a ``CAMERA.yaml`` says: the lens and the polarizer layout.
+
+    ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the top-left block;
+    ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False when the file had no
+    ``polarizer:`` section (the IMX250MZR defaults were used).
+    """
+
+    camera: CameraModel
+    layout: tuple
+    pol45_toward: str
+    layout_given: bool
+
+
+def _matrix_field(doc: dict, key: str, size: int | None, path: str):
+    v = doc.get(key)
+    if isinstance(v, dict):
+        v = v.get("data")
+    if v is None:
+        return None
+    try:
+        a = np.asarray(v, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise CameraError(f"{path}: {key} must be a list of numbers") from None
+    if size is not None and a.size != size:
+        raise CameraError(f"{path}: {key} must hold {size} numbers, got {a.size}")
+    return a
+
+
+def load_camera_yaml(path) -> CameraFile:
+    """Read a ROS ``camera_calibration`` YAML file (what ``camera_info_url`` points at) plus the polarizer.
+
+    Keys used: ``image_width``, ``image_height``, ``camera_matrix`` (``{rows, cols, data}`` or a list),
+    ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default 3.45),
+    ``max_field_angle_deg`` (fisheye, default 90) and ``polarizer: {layout: [[90, 45], [135, 0]],
+    pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file (at most 1 MiB is read).
+
+    Returns
+    -------
+    CameraFile
+        The lens and the polarizer layout.
+
+    Raises
+    ------
+    CameraError
+        Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
+    """
+    import yaml
+    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError, parse_layout
+    p = str(path)
+    try:
+        with open(p, "rb") as fh:
+            raw = fh.read(1 << 20)
+        doc = yaml.safe_load(raw)
+    except OSError as exc:
+        raise CameraError(f"{p}: cannot read camera file ({exc.strerror or exc})") from None
+    except yaml.YAMLError as exc:
+        raise CameraError(f"{p}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(doc, dict):
+        raise CameraError(f"{p}: a camera file is a YAML mapping (ROS camera_calibration format)")
+    try:
+        w, h = int(doc["image_width"]), int(doc["image_height"])
+    except (KeyError, TypeError, ValueError):
+        raise CameraError(f"{p}: needs integer image_width and image_height") from None
+    K = _matrix_field(doc, "camera_matrix", 9, p)
+    if K is None:
+        raise CameraError(f"{p}: needs camera_matrix (3 x 3, pixels)")
+    D = _matrix_field(doc, "distortion_coefficients", None, p)
+    pol = doc.get("polarizer")
+    if pol is not None and not isinstance(pol, dict):
+        raise CameraError(f"{p}: polarizer must be a mapping with layout and pol45_toward")
+    pol = pol or {}
+    try:
+        lay = parse_layout(pol.get("layout", IMX250MZR_LAYOUT), pol.get("pol45_toward", IMX250MZR_POL45))
+        cam = camera_from_intrinsics(w, h, K, D if D is not None else (), doc.get("distortion_model", "") or "",
+                                     float(doc.get("pixel_pitch_um", 3.45)),
+                                     float(doc.get("max_field_angle_deg", 90.0)))
+    except (SensorError, CameraError, TypeError, ValueError) as exc:
+        raise CameraError(f"{p}: {exc}") from None
+    return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol))

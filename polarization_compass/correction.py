@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from enum import Enum
 from importlib import resources
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -70,6 +71,25 @@ _MAX_ROOTS = 16
 STATUS_INT = {CorrectionStatus.OK: 0, CorrectionStatus.OUT_OF_DOMAIN: 1,
               CorrectionStatus.MULTIPLE_SOLUTIONS: 2, CorrectionStatus.NO_SOLUTION: 3}
 _FROM_INT = {v: k for k, v in STATUS_INT.items()}
+
+
+class BearingCorrections(NamedTuple):
+    """Hold the corrected bearings of :meth:`TiltCorrector.correct_bearings`, all finite.
+
+    Parameters
+    ----------
+    bearing_deg : numpy.ndarray
+        Corrected bearings of camera +y [deg] in [0, 360), clockwise from North, shape (N,);
+        0.0 where ``ok`` is False (no heading there: read ``status``, never this value).
+    ok : numpy.ndarray
+        bool (N,): True where the correction succeeded (status ``ok``).
+    status : list of str
+        :class:`CorrectionStatus` value per heading, the reason there is no heading when not ok.
+    """
+
+    bearing_deg: np.ndarray
+    ok: np.ndarray
+    status: list
 
 
 @dataclass(frozen=True)
@@ -588,7 +608,8 @@ class TiltCorrector:
         ErrorMapError
             Unknown ``mode``.
         """
-        psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_azimuth_deg))
+        finite = math.isfinite(raw_bearing_deg) and math.isfinite(sun_azimuth_deg)
+        psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_azimuth_deg)) if finite else math.nan
         c = self.correct(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         return (float(psi_to_bearing_deg(c.psi_deg, sun_azimuth_deg)) if c.ok else None), c
 
@@ -613,11 +634,10 @@ class TiltCorrector:
 
         Returns
         -------
-        bearings_deg : numpy.ndarray
-            Corrected bearings [deg] in [0, 360) where the status is ``ok``, NaN elsewhere, shape
-            (N,).
-        statuses : list of str
-            :class:`CorrectionStatus` value per heading.
+        BearingCorrections
+            ``(bearing_deg, ok, status)``: corrected bearings [deg] in [0, 360), shape (N,),
+            finite everywhere (0.0 where ``ok`` is False); the bool validity mask; and the
+            :class:`CorrectionStatus` value per heading, which says why a heading is not ok.
 
         Raises
         ------
@@ -626,11 +646,13 @@ class TiltCorrector:
         """
         raw, az = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(raw_bearing_deg,
                                                                                             sun_azimuth_deg))
-        psi_meas = wrap_180_deg(raw - az)
+        finite = np.isfinite(raw) & np.isfinite(az)
+        az = np.where(finite, az, 0.0)         # a non-finite input is out_of_domain, never NaN out
+        psi_meas = np.where(finite, wrap_180_deg(np.where(finite, raw, 0.0) - az), np.nan)
         psi, status, _ = self.correct_many(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         ok = status == STATUS_INT[CorrectionStatus.OK]
-        bearings = np.where(ok, psi_to_bearing_deg(psi, az), np.nan)
-        return bearings, [_FROM_INT[int(v)].value for v in status]
+        bearings = np.where(ok, psi_to_bearing_deg(np.where(ok, psi, 0.0), az), 0.0)
+        return BearingCorrections(bearings, ok, [_FROM_INT[int(v)].value for v in status])
 
     def _why_out(self, h, p, r) -> str:
         a = self.alt

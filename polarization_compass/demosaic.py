@@ -58,13 +58,20 @@ from numba import njit, prange
 from .errors import CompassError
 from .fastmath import axial_atan2_f32
 
-__all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "parse_layout", "layout_from_mapping",
+__all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "IMX250MZR_POL45", "parse_layout", "layout_from_mapping",
            "stokes_from_mosaic", "aop_dop_from_stokes", "polarization_from_mosaic", "DEMOSAIC_METHODS"]
 
 #: Sony IMX250MZR, top-left 2 x 2 block, row by row.
 IMX250MZR_LAYOUT = ((90, 45), (135, 0))
 DEMOSAIC_METHODS = ("superpixel", "bilinear")
 _POL45 = ("+x+y", "+x-y")
+#: The image direction of the IMX250MZR's 45 deg polarizer as real cameras deliver the image (no
+#: ReverseX/ReverseY): towards +x-y, up and to the right on the displayed image (Sony's drawing, whose
+#: angles run counter-clockwise with the image's y axis up). Measured on real sky frames (two independent
+#: sources, ``test/data/real-sky``; ``polarization-compass check-polarizer``). A readout flipped in one
+#: axis (ReverseX or ReverseY) mirrors the image and turns this into +x+y (and moves the 2 x 2 phase);
+#: flipped in both it stays +x-y (a 180 deg rotation keeps polarizer angles).
+IMX250MZR_POL45 = "+x-y"
 
 # fastmath without 'nnan'/'ninf': the kernels rely on NaN comparisons being false.
 _FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -82,7 +89,7 @@ class MosaicLayout:
     the top-left block; ``pol45_toward`` the image direction of the 45 deg polarizer."""
 
     angles_deg: tuple = IMX250MZR_LAYOUT
-    pol45_toward: str = "+x+y"
+    pol45_toward: str = IMX250MZR_POL45
 
     @property
     def camera_angles_deg(self) -> np.ndarray:
@@ -107,7 +114,7 @@ class MosaicLayout:
         return {"layout": [list(r) for r in self.angles_deg], "pol45_toward": self.pol45_toward}
 
 
-def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = "+x+y") -> MosaicLayout:
+def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -> MosaicLayout:
     """Validate a 2 x 2 layout holding 0, 45, 90, 135 once each, and the 45 deg direction."""
     if isinstance(layout, MosaicLayout):
         return layout
@@ -134,7 +141,7 @@ def layout_from_mapping(mosaic) -> MosaicLayout:
     """The layout of a ``mosaic`` mapping in the form of a scene's ``sensor.mosaic`` (also a topic
     map's ``mosaic:``): ``layout`` and ``pol45_toward``, each defaulting to the IMX250MZR's."""
     mos = mosaic or {}
-    return parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", "+x+y"))
+    return parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", IMX250MZR_POL45))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -359,7 +366,7 @@ def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
     return out
 
 
-def stokes_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = "+x+y", method: str = "superpixel",
+def stokes_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45, method: str = "superpixel",
                        saturation_level=None):
     """Camera-frame Stokes ``(S0, S1, S2)`` (float32, input units) of a raw DoFP image.
 
@@ -390,7 +397,7 @@ def aop_dop_from_stokes(s0, s1, s2):
     return aop, dop, valid
 
 
-def polarization_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = "+x+y",
+def polarization_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45,
                              method: str = "superpixel", saturation_level=None):
     """Fused fast path: ``(aop_rad, dop, valid)`` straight from the raw image (no Stokes images).
 

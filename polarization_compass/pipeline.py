@@ -12,13 +12,14 @@ R_body_cam)`` and, with the default mounting, the REP-103 yaw of the body is ``9
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .camera import CameraModel
 from .conventions import R_BODY_CAM_DEFAULT, camera_attitude_from_body_quat
-from .demosaic import IMX250MZR_LAYOUT
+from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 from .errors import CompassError
 
 __all__ = ["AttitudeBuffer", "CameraTilt", "SunSource", "HeadingFrontEnd",
@@ -695,13 +696,17 @@ class HeadingFrontEnd:
         The method's knobs.
     layout : str or sequence, default IMX250MZR_LAYOUT
         The sensor's 2 x 2 polarizer pattern [deg] (:mod:`~polarization_compass.demosaic`).
-    pol45_toward : str, default "+x+y"
-        Image direction of the 45 deg polarizer.
+    pol45_toward : str, default "+x-y"
+        Image direction of the 45 deg polarizer (IMX250MZR as delivered: +x-y).
     demosaic : {"superpixel", "bilinear"}, default "superpixel"
         Demosaicing.
     intensity : bool, default False
         Also compute S0 and pass it as the observation's intensity (lets a method resolve the 180
         deg ambiguity from the sky's brightness gradient).
+    sky_check : bool, default False
+        Check each result against the whole sky (:func:`~polarization_compass.skyfit.assess_result`
+        on :func:`whole_sky_sample`: misfit sigma, 180 deg side, ``poor_fit``; ~15-30 ms per frame), as
+        ``estimate`` does on real images.
 
     Raises
     ------
@@ -710,7 +715,8 @@ class HeadingFrontEnd:
     """
 
     def __init__(self, method: str, knobs: dict | None = None, layout=IMX250MZR_LAYOUT,
-                 pol45_toward: str = "+x+y", demosaic: str = "superpixel", intensity: bool = False):
+                 pol45_toward: str = IMX250MZR_POL45, demosaic: str = "superpixel", intensity: bool = False,
+                 sky_check: bool = False):
         from .demosaic import parse_layout
         from .estimators import make_estimator
         self.method = method
@@ -718,6 +724,7 @@ class HeadingFrontEnd:
         self.layout = parse_layout(layout, pol45_toward)
         self.demosaic = demosaic
         self.intensity = bool(intensity)
+        self.sky_check = bool(sky_check)
 
     def set_knobs(self, knobs: dict) -> None:
         """Replace the estimator's knobs; the old ones stay when the new ones are refused.
@@ -848,10 +855,15 @@ class HeadingFrontEnd:
         PipelineError
             The mosaic does not match the camera or cannot be demosaiced.
         """
-        est = self.estimator
+        est, layout = self.estimator, self.layout
         obs = self.observation(mosaic, camera, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
                                prior_bearing_deg, est)
-        return est.estimate(obs)
+        res = est.estimate(obs)
+        if self.sky_check:
+            from .skyfit import assess_result
+            sample = whole_sky_sample(mosaic, camera, layout)
+            res = assess_result(res, sample, sun_altitude_deg, pitch_deg, roll_deg, prior_bearing_deg)
+        return res
 
 
 def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraModel | None = None) -> float:
@@ -891,3 +903,134 @@ def warm_up(front: HeadingFrontEnd, encoding_dtype=np.uint16, camera: CameraMode
     mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, cfg.layout, np.random.default_rng(0))
     front.estimate(mosaic, cam, 180.0, 30.0, -3.0, 2.0, 30.0)
     return time.perf_counter() - t0
+
+
+# ------------------------------------------------------------------------------------------------
+# Polarizer convention watched on live frames
+# ------------------------------------------------------------------------------------------------
+class PolarizerMonitor:
+    """Watch the polarizer convention on live frames.
+
+    Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th mosaic
+    (0 = never; the first check is on frame ``every_n``), on a decimated superpixel grid (at most ``max_blocks`` 2 x 2 blocks, block-aligned so the
+    layout's phase is kept), and remembers the last decisive verdict.
+
+    :attr:`error` is the text a node publishes as a diagnostics ERROR while the last decisive check
+    contradicts the configured layout (it names the fix); ``cannot_tell`` keeps the previous verdict.
+    """
+
+    def __init__(self, every_n: int = 100, max_blocks: int = 10000):
+        self.every_n = int(every_n)
+        self.max_blocks = int(max_blocks)
+        self.count = 0
+        self.last: dict | None = None
+        self.error: str | None = None
+
+    def feed(self, mosaic, camera: CameraModel, layout, sun_altitude_deg=None, pitch_deg=None,
+             roll_deg=None) -> dict | None:
+        """Count a frame and, on every ``every_n``-th, check the polarizer convention.
+
+        Parameters
+        ----------
+        mosaic : numpy.ndarray
+            Raw full-sensor DoFP image.
+        camera : CameraModel
+            The camera (rays of the decimated superpixels, cached).
+        layout : MosaicLayout
+            The configured :class:`~polarization_compass.demosaic.MosaicLayout`.
+        sun_altitude_deg : float, optional
+            Sun altitude [deg]; None: fitted.
+        pitch_deg, roll_deg : float, optional
+            Known tilt [deg] (eq 21); None: level.
+
+        Returns
+        -------
+        dict or None
+            The :func:`~polarization_compass.polarizer_check.check_polarizer` report on a checked frame,
+            else None.
+        """
+        if self.every_n <= 0:
+            return None
+        self.count += 1
+        if self.count % self.every_n:           # the every_n-th frame, not the first: start-up stays fast
+            return None
+        from .estimators.mosaic_input import _grid_rays
+        from .polarizer_check import check_polarizer
+        m = np.asarray(mosaic)
+        small, k, nx, ny = decimated_blocks(m, self.max_blocks)
+
+        def rays_for_shape(shape):
+            _, _, rays, ok = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
+            return rays, ok
+
+        sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
+        rep = check_polarizer([("mosaic", small, sat)], camera, layout.angles_deg, layout.pol45_toward,
+                              rays_for_shape, sun_altitude_deg, pitch_deg or 0.0, roll_deg or 0.0)
+        self.last = rep
+        if rep["verdict"] == "contradicted":
+            self.error = (f"polarizer convention contradicted by the sky (margin {rep['margin']:.2f}): "
+                          f"{rep.get('fix', '')}")
+        elif rep["verdict"] == "supported":
+            self.error = None
+        return rep
+
+
+def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
+    """Keep every k-th 2 x 2 block of a mosaic, as one smaller mosaic with the same 2 x 2 phase.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (H, W).
+    max_blocks : int
+        At most this many blocks are kept (k the smallest step that achieves it).
+
+    Returns
+    -------
+    tuple
+        ``(small, k, nx, ny)``: the (2 ny, 2 nx) mosaic whose block (j, i) is centred at 1-based sensor
+        pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``, the step k and the block counts.
+    """
+    H, W = mosaic.shape
+    by, bx = H // 2, W // 2
+    k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
+    ny, nx = (by + k - 1) // k, (bx + k - 1) // k
+    blocks = mosaic[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
+    return np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx), k, nx, ny
+
+
+def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000):
+    """Sample the whole usable sky of a full-sensor mosaic, whatever pixels a method reads.
+
+    Superpixels of a block decimation; saturated blocks and their glare removed; intensity kept for the
+    whole-sky side vote.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw full-sensor DoFP image.
+    camera : CameraModel
+        The camera (rays cached per intrinsics and grid).
+    layout : MosaicLayout
+        The polarizer layout.
+    max_blocks : int, default 8000
+        Blocks demosaiced at most.
+
+    Returns
+    -------
+    SkySample or None
+        The :class:`~polarization_compass.skyfit.SkySample`, None when too little sky is usable.
+    """
+    from .estimators.mosaic_input import _grid_rays
+    from .demosaic import stokes_from_mosaic, aop_dop_from_stokes
+    from .polarizer_check import saturated_blocks
+    from .skyfit import data_mask, sample_sky
+    m = np.asarray(mosaic)
+    small, k, nx, ny = decimated_blocks(m, max_blocks)
+    sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
+    s0, s1, s2 = stokes_from_mosaic(small, layout.angles_deg, layout.pol45_toward, "superpixel", sat)
+    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+    _, _, rays, has_ray = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
+    bright = np.where(saturated_blocks(small, sat, s0.shape), np.float32(np.inf), s0)
+    keep = data_mask(bright, has_ray, float("inf"))
+    return sample_sky(aop, dop, valid & keep, rays, s0)

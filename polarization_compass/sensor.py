@@ -8,7 +8,7 @@ effects, and each effect runs only if declared.
 Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX250MZR)::
 
     sensor:
-      mosaic: {layout: [[90, 45], [135, 0]], pol45_toward: "+x+y"}   # or "+x-y"; see ``demosaic``
+      mosaic: {layout: [[90, 45], [135, 0]], pol45_toward: "+x-y"}   # or "+x+y"; see ``demosaic``
       exposure: {full_well_e: 10500, fill: 0.5}
       shot_noise: {gaussian_above_e: 20}      # Poisson photon noise; {} for the default
       read_noise: {sigma_e: 2.3}              # Gaussian read noise, electrons rms

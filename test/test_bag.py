@@ -164,13 +164,21 @@ def test_camera_info_fisheye_and_pixel_pitch_independence():
     assert math.acos(a.rays_from_pixels([64.0], [48.0])[0][2, 0]) == pytest.approx(theta, abs=1e-9)
 
 
-def test_camera_info_with_distortion_or_nan_is_refused():
+def test_camera_info_distortion_is_kept_and_unknown_models_or_nan_are_refused():
     msg = B.encode_camera_info(CameraModel(width_px=8, height_px=6), 0, "c")
     msg.d[0] = 0.1
+    cam = B.decode_camera_info(msg, 3.45)
+    assert cam.distortion_model == "plumb_bob" and cam.distortion[0] == 0.1 and cam.distorted
+    msg.distortion_model = "kannala_brandt"
     with pytest.raises(B.MessageError) as ei:
         B.decode_camera_info(msg, 3.45)
     assert ei.value.reason == "unsupported_camera"
-    msg.d[0] = 0.0
+    msg.distortion_model = "plumb_bob"
+    msg.d = [0.1, 0.2]
+    with pytest.raises(B.MessageError) as ei:
+        B.decode_camera_info(msg, 3.45)
+    assert ei.value.reason == "bad_camera_info"
+    msg.d = [0.0] * 5
     msg.k[0] = float("nan")
     with pytest.raises(B.MessageError) as ei:
         B.decode_camera_info(msg, 3.45)

@@ -241,3 +241,28 @@ def test_a_partial_yaw_axis_is_refused():
         TiltCorrector(part, "m")
     with pytest.raises(ErrorMapError, match="not in this map"):
         TiltCorrector(m, "zenith")
+
+
+def test_correct_bearings_is_finite_with_an_explicit_status(shipped):
+    """The vectorised correction returns finite bearings, a validity mask and a status per heading:
+    a heading without a valid correction (outside the map, non-finite input) is 0.0 with ``ok``
+    False and its status, never NaN; valid ones agree with the per-heading :meth:`correct_bearing`
+    and, for a level camera (no tilt error), with the measured bearing itself."""
+    c = TiltCorrector(shipped, "least_squares")
+    raw = np.array([10.0, 200.0, 10.0, math.nan, 10.0, 359.0])
+    az = np.array([120.0, 300.0, 120.0, 120.0, math.inf, 15.0])
+    h = np.array([30.0, 20.0, 55.0, 30.0, 30.0, 40.0])
+    p = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    r = np.zeros(6)
+    out = c.correct_bearings(raw, az, h, p, r)
+    assert np.all(np.isfinite(out.bearing_deg))
+    assert out.ok.tolist() == [True, True, False, False, False, True]
+    assert out.status == ["ok", "ok", "out_of_domain", "out_of_domain", "out_of_domain", "ok"]
+    assert np.all(out.bearing_deg[~out.ok] == 0.0)
+    for i in np.flatnonzero(out.ok):
+        one, corr = c.correct_bearing(raw[i], az[i], h[i], p[i], r[i])
+        assert corr.ok and one == pytest.approx(out.bearing_deg[i], abs=1e-9)
+        # level camera: the level-assumption heading has no tilt error to correct
+        assert abs(cv.wrap_180_deg(out.bearing_deg[i] - raw[i])) < 0.05
+    for i in np.flatnonzero(~out.ok):
+        assert c.correct_bearing(raw[i], az[i], h[i], p[i], r[i])[0] is None

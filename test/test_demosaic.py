@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from polarization_compass.conventions import fold_axial_rad
-from polarization_compass.demosaic import (IMX250MZR_LAYOUT, MosaicLayout, SensorError, aop_dop_from_stokes,
+from polarization_compass.demosaic import (IMX250MZR_LAYOUT, IMX250MZR_POL45, MosaicLayout, SensorError, aop_dop_from_stokes,
                                            parse_layout, polarization_from_mosaic, stokes_from_mosaic)
 
 LAYOUTS = [((p[0], p[1]), (p[2], p[3])) for p in itertools.permutations((0, 45, 90, 135))]
@@ -202,7 +202,7 @@ def test_shifted_layout_describes_a_cropped_mosaic(dy, dx):
                                          (np.float32, 1.0), (np.float64, 1.0)])
 @pytest.mark.parametrize("method", METHODS)
 def test_integer_and_float_inputs_agree(dtype, scale, method):
-    m = malus_mosaic((10, 12), 0.4, 0.6, 1.0, IMX250MZR_LAYOUT, "+x+y")
+    m = malus_mosaic((10, 12), 0.4, 0.6, 1.0, IMX250MZR_LAYOUT, IMX250MZR_POL45)
     mi = np.rint(m * scale).astype(dtype) if np.dtype(dtype).kind in "ui" else (m * scale).astype(dtype)
     a, d, ok = polarization_from_mosaic(mi, method=method)
     assert ok.all()
@@ -225,7 +225,7 @@ def test_all_zero_and_saturated_images_are_invalid_without_nan(method):
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_a_non_finite_sample_invalidates_exactly_its_footprint(bad):
-    m = malus_mosaic((10, 12), 0.3, 0.5, 100.0, IMX250MZR_LAYOUT, "+x+y")
+    m = malus_mosaic((10, 12), 0.3, 0.5, 100.0, IMX250MZR_LAYOUT, IMX250MZR_POL45)
     m[4, 6] = bad
     a, d, ok = polarization_from_mosaic(m, method="bilinear")
     expect = np.ones_like(ok)
@@ -241,7 +241,7 @@ def test_a_non_finite_sample_invalidates_exactly_its_footprint(bad):
 
 
 def test_one_saturated_sample_invalidates_its_footprint():
-    m = np.rint(malus_mosaic((8, 8), -1.0, 0.4, 1000.0, IMX250MZR_LAYOUT, "+x+y")).astype(np.uint16)
+    m = np.rint(malus_mosaic((8, 8), -1.0, 0.4, 1000.0, IMX250MZR_LAYOUT, IMX250MZR_POL45)).astype(np.uint16)
     m[0, 0] = 4095                                  # image corner: mirrored footprint
     _, _, ok = polarization_from_mosaic(m, method="bilinear", saturation_level=4095)
     assert set(zip(*np.nonzero(~ok))) == {(0, 0), (0, 1), (1, 0), (1, 1)}

@@ -32,6 +32,8 @@ COMPLETED = (
     'estimators/sm_asm.py',
     'estimators/symmetry.py',
     'estimators/least_squares.py',
+    'estimators/mosaic_input.py',
+    'estimators/__init__.py',
     'errormap.py',
     'frame_io.py',
     'pipeline.py',

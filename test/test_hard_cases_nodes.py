@@ -22,6 +22,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
+from polarization_compass.demosaic import IMX250MZR_POL45
 from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer
 
@@ -38,7 +39,9 @@ def ideal_mosaic(bearing, pitch, roll, sun_az, sun_alt, cam=CAM):
     from polarization_compass.scene import Scene
     f = Renderer(Scene(camera=cam)).render(attitude=CameraAttitude(bearing, pitch, roll),
                                            sun=SunDirection(sun_az, sun_alt))
-    phi = np.radians(np.tile(np.array(LAYOUT, float), (cam.height_px // 2, cam.width_px // 2)))
+    # the node's default polarizer is the IMX250MZR as delivered: 45 deg towards +x-y, camera angle -label
+    sign = 1.0 if IMX250MZR_POL45 == "+x+y" else -1.0
+    phi = sign * np.radians(np.tile(np.array(LAYOUT, float), (cam.height_px // 2, cam.width_px // 2)))
     aolp = np.pi / 2 - f.aop_rad.astype(float)
     m = 0.5 * (1 + f.dop.astype(float) * np.cos(2 * (phi - aolp)))
     return np.where(f.valid, m, 0.5).astype(np.float32)
@@ -195,7 +198,7 @@ def test_estimator_survives_a_fix_with_an_absurd_altitude(estimator):
 @pytest.mark.parametrize("edit, reason", [
     (lambda m: m.k.__setitem__(0, float("nan")), "camera_info_non_finite"),
     (lambda m: m.k.__setitem__(0, 0.0), "camera_info_bad_camera_info"),
-    (lambda m: m.d.__setitem__(0, 0.1), "camera_info_unsupported_camera"),
+    (lambda m: setattr(m, "distortion_model", "kannala_brandt"), "camera_info_unsupported_camera"),
 ])
 def test_estimator_counts_bad_camera_info(estimator, edit, reason):
     m = M.camera_info_msg(CAM, T0, "cam")
@@ -508,3 +511,31 @@ def test_estimator_counts_images_dropped_from_a_full_queue(estimator):
     estimator._drain()
     done = [s["stamp_ns"] for s in estimator.statuses[n_status:]]
     assert done == [t + (k + 1) * 5 * 10**5 for k in range(3, n)]                   # the newest, in order
+
+
+def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
+    """The images follow the IMX250MZR as delivered (+x-y); a node configured +x+y must say so as a
+    diagnostics ERROR naming the fix, keep processing frames, and clear the error once reconfigured."""
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    node = HeadingEstimatorNode(context=ctx, parameter_overrides=[
+        Parameter("method", value="least_squares"), Parameter("site_source", value="navsatfix"),
+        Parameter("pol45_toward", value="+x+y"), Parameter("polarizer_check_every", value=2)])
+    node.statuses = []
+    node._publish_status = node.statuses.append
+    try:
+        st = feed_good_frame(node, T0 - 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert "polarizer_check" not in st and node.diag.error is None     # the first check is on frame N
+        st = feed_good_frame(node, T0, bearing=65.0, pitch=0.0, roll=0.0)
+        assert st["polarizer_check"]["verdict"] == "contradicted"
+        assert node.diag.error and "pol45_toward: '+x-y'" in node.diag.error
+        from diagnostic_msgs.msg import DiagnosticStatus
+        assert node.diag.level_and_message()[0] == DiagnosticStatus.ERROR
+        st = feed_good_frame(node, T0 + 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert "polarizer_check" not in st and st["status"]     # every 2nd frame only; frames still processed
+        node.set_parameters([Parameter("pol45_toward", value="+x-y")])
+        feed_good_frame(node, T0 + 2 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        st = feed_good_frame(node, T0 + 3 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert st["polarizer_check"]["verdict"] == "supported"
+        assert node.diag.error is None
+    finally:
+        node.destroy_node()

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from polarization_compass import conventions as cv
-from polarization_compass.demosaic import (IMX250MZR_LAYOUT, SensorError, aop_dop_from_stokes,
+from polarization_compass.demosaic import (IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError, aop_dop_from_stokes,
                                            polarization_from_mosaic, stokes_from_mosaic)
 
 METHODS = ("superpixel", "bilinear")
@@ -35,9 +35,11 @@ def check(aop, dop, valid, shape):
 
 
 def malus(h, w, aop_rad, dop, s0, layout=IMX250MZR_LAYOUT):
-    """Ideal samples I(phi) = S0/2 (1 + DoP cos(2 (phi - AoLP_x))) with phi from +x towards +y and
-    AoLP_x = pi/2 - AoP (physics notes section 1), written out here."""
-    phi = np.radians(np.tile(np.array(layout, float), (h // 2 + 1, w // 2 + 1))[:h, :w])
+    """Ideal samples I(phi) = S0/2 (1 + DoP cos(2 (phi - AoLP_x))) with phi the polarizer angle from +x
+    towards +y in the camera frame and AoLP_x = pi/2 - AoP (physics notes section 1), written out here.
+    The default (IMX250MZR as delivered) has its 45 deg polarizer towards +x-y: camera angle = -label."""
+    sign = 1.0 if IMX250MZR_POL45 == "+x+y" else -1.0
+    phi = sign * np.radians(np.tile(np.array(layout, float), (h // 2 + 1, w // 2 + 1))[:h, :w])
     aolp = np.pi / 2 - aop_rad
     return s0 / 2 * (1 + dop * np.cos(2 * (phi - aolp)))
 

@@ -398,8 +398,8 @@ def test_corrupt_messages_are_counted_by_reason_and_the_rest_is_processed(clean,
             return [(_ser(m, mtype), log_ns)]                                            # no fix
         if role == "camera_info" and k == 2:
             m = B.deserialize(raw, mtype)
-            m.d = np.array([0.3, 0.0, 0.0, 0.0, 0.0])
-            return [(_ser(m, mtype), log_ns)]                                            # distortion
+            m.distortion_model = "kannala_brandt"
+            return [(_ser(m, mtype), log_ns)]                                            # unknown lens model
         return [(raw, log_ns)]
 
     _copy_bag(clean, tmp_path / "bad", edit)

@@ -11,7 +11,7 @@ import pytest
 from polarization_compass import instrumentation as instr
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_rad
-from polarization_compass.demosaic import polarization_from_mosaic
+from polarization_compass.demosaic import IMX250MZR_POL45, polarization_from_mosaic
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, SceneError, load_scene, scene_from_dict
 from polarization_compass.sensor import (SensorError, SensorPipeline, parse_sensor_config, simulate_mosaic,
@@ -281,7 +281,7 @@ def test_radiance_scales_the_electrons_and_bad_radiance_is_dark():
     d = np.full((6, 8), 0.4, np.float32)
     s0 = np.linspace(0.5, 1.2, 48).reshape(6, 8).astype(np.float32)     # stays below full well
     m = simulate_mosaic(a, d, s0, cfg, cfg.layout, rng)
-    np.testing.assert_allclose(m, malus_electrons(a, d, 5250.0, cfg.layout.angles_deg, "+x+y", s0=s0), rtol=2e-6)
+    np.testing.assert_allclose(m, malus_electrons(a, d, 5250.0, cfg.layout.angles_deg, IMX250MZR_POL45, s0=s0), rtol=2e-6)
     s0[0, 0], s0[0, 1], s0[0, 2] = np.nan, np.inf, -1
     m = simulate_mosaic(a, d, s0, cfg, cfg.layout, rng)
     assert np.all(m[0, :3] == 0) and np.all(np.isfinite(m))
@@ -382,7 +382,7 @@ def _expected(sensor, aop, dop, s0, key):
     layout = [[90, 45], [135, 0]]
     er = (sensor.get("extinction_ratio") or {}).get("value")
     d = 1.0 if er is None else (er - 1) / (er + 1)
-    lam = malus_electrons(aop, dop, 5250.0, layout, "+x+y", d=d, s0=s0)
+    lam = malus_electrons(aop, dop, 5250.0, layout, IMX250MZR_POL45, d=d, s0=s0)
     var = np.zeros_like(lam)
     if "shot_noise" in sensor:
         var = var + lam

@@ -9,6 +9,7 @@ import pytest
 from polarization_compass import instrumentation as instr
 from polarization_compass.camera import PixelSelection
 from polarization_compass.conventions import CameraAttitude
+from polarization_compass.demosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, SceneError, scene_from_dict
 from polarization_compass.sensor import calibration_maps, parse_sensor_config, simulate_mosaic
@@ -37,7 +38,10 @@ def malus(aop, dop, phi, d=1.0, g=1.0, s0=1.0):
 
 
 def nominal_phi(shape):
-    return np.radians(np.tile(NOMINAL_DEG, (shape[0] // 2, shape[1] // 2)))
+    """Camera-frame angles (from +x towards +y) of the default layout: the IMX250MZR as delivered has its
+    45 deg polarizer towards +x-y, so a label theta lies at -theta in the camera frame."""
+    sign = 1.0 if IMX250MZR_POL45 == "+x+y" else -1.0
+    return sign * np.radians(np.tile(NOMINAL_DEG, (shape[0] // 2, shape[1] // 2)))
 
 
 def test_polarizer_angle_errors_follow_malus_with_each_pixels_own_angle():

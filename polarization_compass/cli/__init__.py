@@ -18,7 +18,7 @@ import sys
 from ..errors import CompassError
 
 COMMANDS = ["sun", "render", "estimate", "errormap", "allowable_tilt", "plot", "sim", "record_sim", "replay",
-            "estimate_array", "calibrate_array", "check_array", "budget"]
+            "estimate_array", "calibrate_array", "check_array", "budget", "check_polarizer"]
 
 
 class _Parser(argparse.ArgumentParser):

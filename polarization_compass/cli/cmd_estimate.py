@@ -1,4 +1,10 @@
-"""`polarization-compass estimate`: heading estimates from a rendered frame file, as JSON.
+"""`polarization-compass estimate`: heading estimates from a frame file or a real camera image, as JSON.
+
+Real images (:mod:`polarization_compass.real_input`: a raw mosaic PNG/TIFF/.npy, Stokes planes .npz or
+3-page TIFF) need ``--camera CAMERA.yaml`` (ROS camera_calibration plus ``polarizer:``) and the sun
+(``--lat --lon --time`` or ``--sun-azimuth --sun-altitude``); ``--mask`` excludes obstructions. Every
+usable result is then checked against the whole sky (:func:`polarization_compass.skyfit.assess_result`:
+misfit sigma, 180 deg side, ``poor_fit``) and, with several methods, against each other (``inconsistent``).
 
 Reads a ``render`` output (.npz). When it holds the raw mosaic, the mosaic is demosaiced (the scene's
 demosaic method and polarizer layout from the frame's meta, else superpixel and the IMX250MZR layout,
@@ -22,7 +28,21 @@ def register(sub):
                        description="Estimate the heading from a frame written by 'render'. psi is the paper's yaw "
                                    "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
                                    "camera +y, yaw_enu the REP-103 yaw (90 - bearing).")
-    p.add_argument("frame", metavar="FRAME.npz", help="frame file written by 'polarization-compass render'")
+    p.add_argument("frame", metavar="INPUT", help="frame file written by 'polarization-compass render', or a "
+                                                  "real image: raw mosaic (.png/.tif 8/16-bit, .npy) or Stokes "
+                                                  "planes (.npz with s0, s1, s2, or a 3-page .tif)")
+    p.add_argument("--camera", metavar="CAMERA.yaml", help="ROS camera_calibration file plus 'polarizer: {layout, "
+                                                           "pol45_toward}' (needed for real images)")
+    p.add_argument("--bits", type=int, help="significant bits of a raw mosaic in a 16-bit container (10, 12)")
+    p.add_argument("--mask", metavar="MASK.png", help="static mask of the input's size: non-zero = sky, zero = "
+                                                      "obstruction")
+    p.add_argument("--demosaic", choices=("superpixel", "bilinear"), default="superpixel",
+                   help="demosaic of a raw mosaic input (default superpixel)")
+    p.add_argument("--sun-azimuth", type=float, help="given sun azimuth, deg clockwise from North (instead of "
+                                                     "--lat/--lon/--time)")
+    p.add_argument("--sun-altitude", type=float, help="given sun altitude, deg")
+    p.add_argument("--no-sky-check", action="store_true",
+                   help="skip the whole-sky check (misfit sigma, 180 deg side, poor_fit, inconsistent)")
     p.add_argument("--method", default="all",
                    help=" | ".join(registry.names()) + " | all (default), or a comma-separated list")
     p.add_argument("--pitch", type=float, help=f"known camera pitch, deg ({', '.join(registry.tilt_methods())} "
@@ -57,12 +77,18 @@ def _parse_knobs(items) -> dict:
 
 
 def _sun(meta: dict, args):
+    if args.sun_azimuth is not None or args.sun_altitude is not None:
+        check_together("sun-azimuth", args.sun_azimuth, "sun-altitude", args.sun_altitude)
+        check_range("sun-azimuth", args.sun_azimuth, -360, 360)
+        check_range("sun-altitude", args.sun_altitude, -90, 90)
+        return float(args.sun_azimuth), float(args.sun_altitude), "given (--sun-azimuth/--sun-altitude)"
     az, alt = meta.get("sun_azimuth_deg"), meta.get("sun_altitude_deg")
     ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (az, alt))
     if ok:
         return float(az), float(alt), "frame meta"
     if args.lat is None or args.lon is None or args.time is None:
-        raise CompassError("the frame does not say where the sun was: give --lat, --lon and --time")
+        raise CompassError("the input does not say where the sun was: give --lat, --lon and --time, or "
+                           "--sun-azimuth and --sun-altitude")
     from ..solar import sun_position
     pos = sun_position(args.time, args.lat, args.lon, 0.0)
     return float(pos.azimuth_deg), float(pos.altitude_deg), "ephemeris (SPA) for --lat/--lon/--time"
@@ -109,7 +135,7 @@ def _methods(text: str) -> list[str]:
 
 def run(args) -> int:
     from ..conventions import fold_axial_deg, wrap_180_deg
-    from ..estimators import Observation, make_estimator
+    from ..estimators import Observation
     from ..frame_io import load_frame_npz
 
     check_range("pitch", args.pitch, -89.999, 89.999)
@@ -122,22 +148,16 @@ def run(args) -> int:
         raise CompassError(f"--stride must be in [1, 1024], got {args.stride}")
     methods = _methods(args.method)
     knobs = _parse_knobs(args.knob)
+    from ..real_input import load_polarization_input
+    inp = load_polarization_input(args.frame, args.bits)
+    if inp.kind != "frame":
+        return _run_real(args, inp, methods, knobs)
+    if args.mask or args.camera:
+        raise CompassError("--camera and --mask apply to real images; a frame file carries its camera")
     frame = load_frame_npz(args.frame)
     camera = frame.camera
     sun_az, sun_alt, sun_src = _sun(frame.meta, args)
-    from ..estimators import registry
-    estimators = []
-    used = set()
-    for name in methods:
-        specs = registry.get(name).knob_specs()
-        kn = {k: v for k, v in knobs.items() if k in specs}
-        used.update(kn)
-        if args.stride is not None and "stride" in specs:
-            kn["stride"] = args.stride
-        estimators.append((name, make_estimator(name, **kn), kn))
-    unused = sorted(set(knobs) - used)
-    if unused:
-        raise CompassError(f"--knob {', '.join(unused)}: no selected method has that knob")
+    estimators = _make_estimators(methods, knobs, args.stride)
 
     source = {"sun": sun_src}
     use_mosaic = frame.mosaic is not None and not args.use_stored
@@ -152,7 +172,8 @@ def run(args) -> int:
             layout = [list(r) for r in IMX250MZR_LAYOUT]
             assumed.append("layout")
         if pol45 is None:
-            pol45 = "+x+y"
+            from ..demosaic import IMX250MZR_POL45
+            pol45 = IMX250MZR_POL45
             assumed.append("pol45_toward")
         shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
         if method is None:
@@ -199,6 +220,118 @@ def run(args) -> int:
             err = res.psi_deg - float(truth)
             d["truth_psi_deg"] = float(truth)
             d["error_deg"] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
+        d["source"] = source
+        out.append(d)
+    json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
+    sys.stdout.write("\n")
+    return 0
+
+
+def _make_estimators(methods, knobs, stride):
+    from ..estimators import make_estimator, registry
+    estimators, used = [], set()
+    for name in methods:
+        specs = registry.get(name).knob_specs()
+        kn = {k: v for k, v in knobs.items() if k in specs}
+        used.update(kn)
+        if stride is not None and "stride" in specs:
+            kn["stride"] = stride
+        estimators.append((name, make_estimator(name, **kn), kn))
+    unused = sorted(set(knobs) - used)
+    if unused:
+        raise CompassError(f"--knob {', '.join(unused)}: no selected method has that knob")
+    return estimators
+
+
+def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superpixel", pitch=None, roll=None,
+                     prior=None):
+    """Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into camera-frame
+    Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see ``demosaic``), or a raw mosaic
+    demosaiced with the camera file's layout. Invalid: outside the lens, saturated (+ glare), masked."""
+    import numpy as np
+    from ..camera import PixelSelection, select_pixels
+    from ..demosaic import aop_dop_from_stokes, stokes_from_mosaic
+    from ..estimators import Observation
+    from ..estimators.mosaic_input import _grid_rays
+    from ..skyfit import data_mask
+    cam = cam_file.camera
+    H, W = cam.shape
+    sat = None
+    if inp.kind == "stokes":
+        s0, s1, s2 = inp.stokes
+        if cam_file.pol45_toward == "+x-y":
+            s2 = -s2
+        shp = s0.shape
+    else:
+        if inp.mosaic.shape != (H, W):
+            raise CompassError(f"the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file says "
+                               f"{W} x {H}")
+        s0, s1, s2 = stokes_from_mosaic(inp.mosaic, cam_file.layout, cam_file.pol45_toward, demosaic,
+                                        inp.saturation_level)
+        shp = s0.shape
+        from ..polarizer_check import saturated_blocks
+        sat = saturated_blocks(inp.mosaic, inp.saturation_level, shp)
+    if shp == (H, W):
+        sp = select_pixels(cam, PixelSelection.full())
+        xg, yg, rays, has_ray = sp.x_px, sp.y_px, sp.rays_cam, sp.has_ray
+    elif shp == (H // 2, W // 2):
+        xg, yg, rays, has_ray = _grid_rays(cam, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
+    else:
+        raise CompassError(f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
+                           f"{W} x {H} or {W // 2} x {H // 2} (superpixel)")
+    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+    if sat is None:
+        keep = data_mask(s0, has_ray)
+    else:       # saturated raw samples: grow those into the glare mask
+        keep = data_mask(np.where(sat, np.float32(np.inf), s0), has_ray, float("inf"))
+    if mask is not None:
+        if mask.shape == shp:
+            keep &= mask
+        elif mask.shape == (H, W):
+            keep &= mask[np.clip(np.rint(yg).astype(int) - 1, 0, H - 1), np.clip(np.rint(xg).astype(int) - 1, 0, W - 1)]
+        else:
+            raise CompassError(f"--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}")
+    valid = valid & keep
+    obs = Observation(aop, dop, valid, rays, xg, yg, cam, sun_az, sun_alt, s0, pitch, roll, prior)
+    return obs, keep
+
+
+def _run_real(args, inp, methods, knobs) -> int:
+    from ..camera import load_camera_yaml
+    from ..real_input import load_mask
+    from ..skyfit import assess_result, mark_inconsistent, sample_sky
+    if not args.camera:
+        raise CompassError(f"{args.frame}: a real image needs --camera CAMERA.yaml (ROS camera_calibration format)")
+    if args.use_stored:
+        raise CompassError("--use-stored applies to frame files")
+    cam_file = load_camera_yaml(args.camera)
+    sun_az, sun_alt, sun_src = _sun({}, args)
+    estimators = _make_estimators(methods, knobs, args.stride)
+    shape = inp.stokes[0].shape if inp.kind == "stokes" else inp.mosaic.shape
+    mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
+    obs, _ = real_observation(inp, cam_file, sun_az, sun_alt, mask, args.demosaic, args.pitch, args.roll,
+                              args.prior_bearing)
+    sample = None if args.no_sky_check else sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
+    source = {"sun": sun_src, "input": {"kind": inp.kind, "path": inp.path, "layout": [list(r) for r in cam_file.layout],
+                                        "pol45_toward": cam_file.pol45_toward,
+                                        "assumed": [] if cam_file.layout_given else ["layout", "pol45_toward"],
+                                        "usable_pixels": int(obs.valid.sum())}}
+    results, times = [], []
+    for name, est, kn in estimators:
+        t0 = time.perf_counter()
+        res = est.estimate(obs)
+        if not args.no_sky_check:
+            res = assess_result(res, sample, sun_alt, args.pitch, args.roll, args.prior_bearing)
+        times.append((time.perf_counter() - t0) * 1e3)
+        results.append((res, kn))
+    final = [r for r, _ in results]
+    if not args.no_sky_check and len(final) > 1:
+        final = mark_inconsistent(final)
+    out = []
+    for res, (_, kn), dt in zip(final, results, times):
+        d = res.to_json_dict()
+        d["time_ms"] = round(dt, 3)
+        d["knobs"] = kn
         d["source"] = source
         out.append(d)
     json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)

@@ -10,5 +10,11 @@ from .registry import make as make_estimator  # noqa: F401
 
 
 def estimator_names() -> list[str]:
-    """The registered methods in the registry's stable order (the paper's first)."""
+    """List the registered methods in the registry's stable order (the paper's first).
+
+    Returns
+    -------
+    list of str
+        The method names (:func:`.registry.names`).
+    """
     return list(registry.names())

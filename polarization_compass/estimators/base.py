@@ -44,6 +44,7 @@ class Status(str, Enum):
     INSUFFICIENT_COVERAGE = "insufficient_coverage"  # too little of the sky usable for the method's geometry
     TOO_FEW_UNITS = "too_few_units"          # photodiode array: fewer usable units than the method needs
     POOR_FIT = "poor_fit"                    # the data do not fit the sky model well enough to trust a heading
+    INCONSISTENT = "inconsistent"            # methods on the same frame disagree beyond their sigmas
     PRIOR_DISAGREES = "prior_disagrees"      # the heading contradicts an independent prior (IMU yaw) beyond sigma
 
 

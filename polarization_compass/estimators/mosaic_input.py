@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..camera import CameraModel, PixelSelection
-from ..demosaic import IMX250MZR_LAYOUT, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
+from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
     aop_dop_from_stokes
 from ..errors import CompassError
 from .base import Observation
@@ -89,14 +89,61 @@ def _superpixel_blocks(m: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int
 
 def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float, *,
                             origin_px=(1, 1), method: str = "superpixel", layout=IMX250MZR_LAYOUT,
-                            pol45_toward: str = "+x+y", saturation_level=None,
+                            pol45_toward: str = IMX250MZR_POL45, saturation_level=None,
                             selection: PixelSelection | None = None, with_intensity: bool = False,
                             pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> Observation:
-    """Demosaic the part of ``mosaic`` that ``selection`` needs and wrap it as an :class:`Observation`.
+    """Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.
 
-    ``origin_px``: 1-based sensor (x, y) of the mosaic's top-left sample; ``layout`` is the full sensor's
-    (pixel (1, 1) first), so the mosaic's top-left polarizer is ``layout[(y-1) % 2][(x-1) % 2]``. ``with_intensity``: also return S0
-    (costs the Stokes path instead of the fused AoP kernel). Grid and list selections read everything.
+    ``layout`` is the full sensor's (pixel (1, 1) first), so the mosaic's top-left polarizer is
+    ``layout[(y-1) % 2][(x-1) % 2]`` for ``origin_px = (x, y)``. Grid and list selections read
+    everything.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (uint8, uint16 or float), 2-D, at least 2 x 2.
+    camera : CameraModel
+        The camera whose sensor the mosaic is (part of).
+    sun_azimuth_deg : float
+        Sun azimuth [deg], clockwise from North.
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    origin_px : tuple of int, default (1, 1)
+        1-based sensor (x, y) of the mosaic's top-left sample (eq 20 coordinates).
+    method : {"superpixel", "bilinear"}, default "superpixel"
+        Demosaicing.
+    layout : str or sequence, default IMX250MZR_LAYOUT
+        The sensor's 2 x 2 polarizer angles [deg]
+        (:func:`~polarization_compass.demosaic.parse_layout`).
+    pol45_toward : str, default "+x+y"
+        Image direction of the 45 deg polarizer.
+    saturation_level : float, optional
+        Samples at or above this are saturated; default the dtype's maximum.
+    selection : PixelSelection, optional
+        The pixels the estimator reads (its ``pixels_needed``); all by default.
+    with_intensity : bool, default False
+        Also return S0 as the intensity (costs the Stokes path instead of the fused AoP kernel).
+    pitch_deg, roll_deg : float, optional
+        Known camera pitch and roll [deg] (eq 21).
+    prior_bearing_deg : float, optional
+        Prior bearing of camera +y [deg, clockwise from North].
+
+    Returns
+    -------
+    Observation
+        AoP [rad, eq 28], DoP, valid mask, pixel coordinates, unit rays (camera frame) and the sun,
+        tilt and prior.
+
+    Raises
+    ------
+    MosaicInputError
+        A mosaic that is not 2-D or does not fit the camera, wanted pixels outside it or holding no
+        complete superpixel, or an unknown demosaic method.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 20 and 28.
     """
     m = np.asarray(mosaic)
     if m.ndim != 2 or m.shape[0] < 2 or m.shape[1] < 2:

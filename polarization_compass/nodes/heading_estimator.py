@@ -36,7 +36,7 @@ from ..bag import MessageError, decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..pipeline import (AttitudeBuffer, CameraInfoState, HeadingFrontEnd, ImageLossWatch, PipelineError,
-                        TiltAndPrior, warm_up)
+                        PolarizerMonitor, TiltAndPrior, warm_up)
 from ..specs import topics
 from .diagnostics import Diagnostics
 from .msgs import decode_image, heading_imu
@@ -75,7 +75,7 @@ class HeadingEstimatorNode(Node):
         self.front = HeadingFrontEnd(self.method,
                                      {} if self.array_input else knob_values(self.method, self.knob_set.values),
                                      layout_from_text(p["polarizer_layout"]), p["pol45_toward"], p["demosaic"],
-                                     p["use_intensity"])
+                                     p["use_intensity"], p["sky_check"])
         if self.array_input:
             self.array = self._make_array(self.knob_set.values)
         else:
@@ -95,6 +95,7 @@ class HeadingEstimatorNode(Node):
         self.pending: deque = deque()     # decoded images waiting to be processed (tilt_aware: for their IMU)
         self._pending_lock = threading.Lock()
         self.diag = Diagnostics(self, f"heading estimator ({self.method})")
+        self.polarizer = PolarizerMonitor(p["polarizer_check_every"])
 
         t = topics.method_topics(self.method)
         self.pub_heading = self.create_publisher(Imu, t["heading_raw"], qos_profile_system_default)
@@ -140,8 +141,14 @@ class HeadingEstimatorNode(Node):
         try:
             if {"polarizer_layout", "pol45_toward"} & set(changed):
                 self.front.set_layout(layout_from_text(merged["polarizer_layout"]), merged["pol45_toward"])
+                self.polarizer.count = 0          # check the new convention N frames from now
             if "demosaic" in changed:
                 self.front.demosaic = merged["demosaic"]
+            if "sky_check" in changed:
+                self.front.sky_check = bool(merged["sky_check"])
+            if "polarizer_check_every" in changed:
+                self.polarizer.every_n = int(merged["polarizer_check_every"])
+                self.polarizer.count = 0
             if "use_intensity" in changed:
                 self.front.intensity = bool(merged["use_intensity"])
             if {"prior_source", "prior_max_age_s", "prior_sigma_deg"} & set(changed):
@@ -371,6 +378,8 @@ class HeadingEstimatorNode(Node):
                 result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
             result = self.tilt_prior.checked(result, inp)      # heading vs. the IMU prior (a named step)
             status["estimate_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+            if self.array is None:
+                self._check_polarizer(mosaic, camera, sun_alt, pitch, roll, status)
         except (PipelineError, CompassError) as exc:
             self.get_logger().warning(f"frame {t_ns / 1e9:.3f} s: {exc}", throttle_duration_sec=5.0)
             status.update(status="bad_input", reason=str(exc), ok=False, published=False)
@@ -415,6 +424,27 @@ class HeadingEstimatorNode(Node):
     def _estimate_array(self, sample, sun_az, sun_alt, pitch, roll, prior):
         from ..photodiode.heading import estimate_recording
         return estimate_recording(self.array, sample[None], sun_az, sun_alt, pitch, roll, prior)[0]
+
+    def _check_polarizer(self, mosaic, camera, sun_alt, pitch, roll, status: dict) -> None:
+        """Every polarizer_check_every-th image: does the sky support the configured polarizer convention?
+        A contradiction is a diagnostics ERROR naming the fix (until a later check supports the
+        configuration); a failing check is logged and never stops the frame."""
+        had_error = self.polarizer.error
+        try:
+            t0 = time.perf_counter()
+            rep = self.polarizer.feed(mosaic, camera, self.front.layout, sun_alt, pitch, roll)
+        except Exception as exc:  # noqa: BLE001 - a diagnostic, never fatal
+            self.get_logger().warning(f"polarizer check failed: {type(exc).__name__}: {exc}", throttle_duration_sec=30.0)
+            return
+        if rep is None:
+            return
+        status["polarizer_check"] = {"verdict": rep["verdict"], "margin": rep.get("margin"),
+                                     "ms": round((time.perf_counter() - t0) * 1e3, 1)}
+        if self.polarizer.error:
+            self.get_logger().error(self.polarizer.error, throttle_duration_sec=60.0)
+            self.diag.set_error(self.polarizer.error)
+        elif had_error and self.diag.error == had_error:
+            self.diag.set_error(None)
 
     def _newest_imu_text(self) -> str:
         n = self.imu.newest_ns

@@ -147,8 +147,8 @@ def decode_image(msg) -> np.ndarray:
 
 
 def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo:
-    """CameraInfo of the raw mosaic: K in pixels with a 0-based principal point, no distortion
-    (``plumb_bob`` for the pinhole model, ``equidistant`` for the r = f theta fisheye)."""
+    """CameraInfo of the raw mosaic: K in pixels with a 0-based principal point, the camera's distortion
+    or none (``plumb_bob`` for the pinhole model, ``equidistant`` for the r = f theta fisheye)."""
     fx = camera.focal_length_mm / (camera.pixel_pitch_x_um * 1e-3)
     fy = camera.focal_length_mm / (camera.pixel_pitch_y_um * 1e-3)
     cx, cy = camera.cx_px - 1.0, camera.cy_px - 1.0
@@ -157,8 +157,8 @@ def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo
     m.header.frame_id = frame_id
     m.height, m.width = int(camera.height_px), int(camera.width_px)
     fisheye = camera.model == "fisheye_equidistant"
-    m.distortion_model = "equidistant" if fisheye else "plumb_bob"
-    m.d = [0.0] * (4 if fisheye else 5)
+    m.distortion_model = camera.distortion_model or ("equidistant" if fisheye else "plumb_bob")
+    m.d = list(camera.distortion) if camera.distortion else [0.0] * (4 if fisheye else 5)
     m.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
     m.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
     m.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]

@@ -277,8 +277,8 @@ class _Corrector:
                 continue
             cols = np.array([(r.raw_bearing_deg, r.sun_azimuth_deg, r.sun_altitude_deg, r.pitch_deg, r.roll_deg)
                              for r in rows], dtype=float)
-            bearings, statuses = cor.correct_bearings(*cols.T)
-            for r, b, st in zip(rows, bearings, statuses):
-                r.corrected_bearing_deg = float(b) if st == "ok" else None
+            fixed = cor.correct_bearings(*cols.T)
+            for r, b, ok, st in zip(rows, fixed.bearing_deg, fixed.ok, fixed.status):
+                r.corrected_bearing_deg = float(b) if ok else None
                 r.correction_status = st
         self.queue = []

@@ -301,9 +301,17 @@ ESTIMATOR = (
     Param("polarizer_layout", "90,45,135,0", "polarizer angles (deg, from +x_cam towards +y_cam) of the "
                                              "2x2 cell, row-major from the top-left pixel (Sony IMX250MZR: "
                                              "90,45,135,0)", check=lambda v: _layout_problem(v)),
-    Param("pol45_toward", "+x+y", "image direction of the 45 deg polarizer: +x+y (towards +y_cam, down "
-                                  "the rows) or +x-y; check once with a known linear polarizer",
+    Param("pol45_toward", "+x-y", "image direction of the 45 deg polarizer: +x-y (up and right on the "
+                                  "displayed image: the IMX250MZR as delivered) or +x+y (a readout "
+                                  "flipped in x or y); check with 'polarization-compass check-polarizer'",
           choices=("+x+y", "+x-y")),
+    Param("polarizer_check_every", 100, "every N-th image, fit the sky under each polarizer hypothesis "
+                                        "(check-polarizer) and publish a diagnostics ERROR with the fix when "
+                                        "the sky contradicts polarizer_layout/pol45_toward (0 = never)",
+          0, 100000),
+    Param("sky_check", False, "check every result against the whole sky (as 'estimate' does on real images): "
+                              "sigma includes the frame's model misfit, the 180 deg side is decided by the "
+                              "whole sky, status poor_fit when no single sun fits (~15-30 ms per image)"),
     Param("use_intensity", False, "also compute S0 so that a method can resolve the 180 deg ambiguity from "
                                   "the sky's brightness gradient (costs a second pass over the mosaic)"),
     Param("frame_id", "base_link", "frame_id of the published heading: z up, with a TF to base_link "

@@ -1,0 +1,118 @@
+"""The whole-sky check (skyfit) on simulated skies with known truth: the robust fit recovers the sun,
+the jackknife sigma grows with a sky that disagrees with itself, the 180 deg side is re-decided by the
+whole sky, a wrong polarizer convention is poor_fit, disagreeing methods are inconsistent; and the node
+front end applies the same check."""
+import math
+
+import numpy as np
+import pytest
+
+from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.conventions import CameraAttitude, wrap_180_deg
+from polarization_compass.demosaic import parse_layout
+from polarization_compass.estimators.base import HeadingResult, Status
+from polarization_compass.pipeline import HeadingFrontEnd
+from polarization_compass.render import Renderer, SunDirection
+from polarization_compass.scene import Scene
+from polarization_compass.skyfit import (assess_result, data_mask, fit_sky, jackknife_sigma_deg, mark_inconsistent,
+                                         misfit_at, sample_sky, side_preference)
+
+N = 160
+CAM = CameraModel(model="fisheye_equidistant", width_px=N, height_px=N,
+                  focal_length_mm=(N / 2) * 3.45e-3 / (math.pi / 2), max_field_angle_deg=85.0)
+PSI, ALT, SUN_AZ = 37.0, 40.0, 120.0
+
+
+@pytest.fixture(scope="module")
+def frame():
+    scene = Scene(camera=CAM, pixels=PixelSelection.full(), sky={"model": "rayleigh", "dop_max": 0.7})
+    return Renderer(scene).render(attitude=CameraAttitude(PSI + SUN_AZ, 0.0, 0.0), sun=SunDirection(SUN_AZ, ALT))
+
+
+def _sample(f, aop=None, intensity=None):
+    sp = select_pixels(CAM, PixelSelection.full())
+    return sample_sky(f.aop_rad if aop is None else aop, f.dop, f.valid, sp.rays_cam, intensity)
+
+
+def test_robust_fit_recovers_the_sun_of_a_clean_sky(frame):
+    s = _sample(frame)
+    f = fit_sky(s)
+    assert abs(wrap_180_deg(f.psi_deg - PSI)) < 0.1 and abs(f.sun_altitude_deg - ALT) < 0.6
+    assert f.scatter_deg < 0.05 and f.inlier_fraction > 0.999
+    assert jackknife_sigma_deg(s, f.psi_deg, ALT) < 0.06
+
+
+def test_outliers_do_not_pull_the_fit_but_raise_the_jackknife(frame):
+    """A quarter of the sky (one side) with its AoP turned by 30 deg: a least-squares fit would move by
+    degrees; the Cauchy fit stays within 0.5 deg, and the sector jackknife reports the disagreement."""
+    sp = select_pixels(CAM, PixelSelection.full())
+    x = sp.rays_cam[0].reshape(frame.aop_rad.shape)
+    aop = frame.aop_rad.copy()
+    bad = x > 0.5
+    aop[bad] = aop[bad] + np.float32(math.radians(30.0))
+    s = _sample(frame, aop)
+    f = fit_sky(s, ALT)
+    assert abs(wrap_180_deg(f.psi_deg - PSI)) < 0.5
+    assert f.inlier_fraction < 0.95
+    assert jackknife_sigma_deg(s, f.psi_deg, ALT) > 5 * jackknife_sigma_deg(_sample(frame), PSI, ALT)
+
+
+def test_side_and_poor_fit_and_prior(frame):
+    s = _sample(frame)
+    pref = side_preference(s, PSI, ALT)
+    assert pref["pattern"] > 0.1 and side_preference(s, PSI + 180.0, ALT)["pattern"] < -0.1
+    wrong = HeadingResult.from_psi("zenith", PSI + 180.0, SUN_AZ, 0.2, 100, 1.0, False, "from a small window")
+    fixed = assess_result(wrong, s, ALT)
+    assert fixed.status == Status.OK and abs(wrap_180_deg(fixed.psi_deg - PSI)) < 1e-9
+    assert "re-decided" in fixed.reason and fixed.sigma_deg >= 0.2
+    kept = assess_result(wrong, s, ALT, prior_bearing_deg=PSI + 180.0 + SUN_AZ)     # a prior decides: untouched side
+    assert abs(wrap_180_deg(kept.psi_deg - PSI - 180.0)) < 1e-9
+    mirrored = _sample(frame, -frame.aop_rad)                                       # the flipped 45 deg direction
+    res = assess_result(HeadingResult.from_psi("least_squares", -PSI, SUN_AZ, 0.1, 100, 1.0, False), mirrored, ALT)
+    assert res.status == Status.POOR_FIT and "no single sun" in res.reason
+    failed = HeadingResult.failed("symmetry", Status.TOO_FEW_PIXELS, "none")
+    assert assess_result(failed, s, ALT) is failed
+    assert assess_result(wrong, None, ALT) is wrong
+
+
+def test_misfit_statistics_against_a_known_rotation(frame):
+    """Every AoP turned by 10 deg: the robust scatter is 1.4826 x 10 deg, nothing within 8 deg."""
+    s = _sample(frame, frame.aop_rad + np.float32(math.radians(10.0)))
+    m = misfit_at(s, PSI, ALT)
+    assert m.scatter_deg == pytest.approx(14.826, abs=0.05)
+
+
+def test_inconsistent_methods_are_marked():
+    mk = lambda name, psi, sig: HeadingResult.from_psi(name, psi, 0.0, sig, 100, 1.0, False)  # noqa: E731
+    out = mark_inconsistent([mk("a", 10.0, 0.5), mk("b", 10.5, 0.5), mk("c", 30.0, 0.5)])
+    assert [r.status for r in out] == [Status.OK, Status.OK, Status.INCONSISTENT]
+    assert "3 sigma" in out[2].reason
+    out = mark_inconsistent([mk("a", 10.0, 0.5), mk("b", 190.5, 0.5)])        # side disagreement
+    assert all(r.status == Status.INCONSISTENT for r in out)
+    out = mark_inconsistent([mk("a", 10.0, 5.0), mk("b", 20.0, 5.0)])         # within 3 combined sigmas
+    assert all(r.status == Status.OK for r in out)
+
+
+def test_data_mask_grows_saturation_into_glare():
+    i = np.full((200, 200), 0.4, np.float32)
+    i[100:110, 100:110] = 1.0                         # 0.25 % of the image at the maximum: a clipped plateau
+    keep = data_mask(i, np.ones((200, 200), bool), glare_fraction=0.02)
+    r = round(0.02 * math.hypot(200, 200))
+    assert not keep[105, 105] and not keep[105, 109 + r] and keep[105, 109 + r + 2] and keep[0, 0]
+    assert data_mask(np.full((50, 50), 0.4, np.float32), np.ones((50, 50), bool)).all()
+
+
+@pytest.mark.parametrize("pol45", ["+x-y", "+x+y"])
+def test_front_end_sky_check(pol45):
+    """The node's front end with sky_check: a mosaic read with its own convention is ok at the truth;
+    read with the other one it is poor_fit, never ok."""
+    scene = Scene(camera=CAM, pixels=PixelSelection.full(), sky={"model": "rayleigh", "dop_max": 0.7},
+                  sensor={"mosaic": {"pol45_toward": "+x-y"}})
+    f = Renderer(scene).render(attitude=CameraAttitude(PSI + SUN_AZ, 0.0, 0.0), sun=SunDirection(SUN_AZ, ALT))
+    front = HeadingFrontEnd("least_squares", layout=parse_layout().angles_deg, pol45_toward=pol45, sky_check=True)
+    res = front.estimate(f.mosaic, CAM, SUN_AZ, ALT)
+    if pol45 == "+x-y":
+        assert res.status == Status.OK and abs(wrap_180_deg(res.psi_deg - PSI)) < 0.2
+        assert "sky_check" in res.extras
+    else:
+        assert res.status != Status.OK
