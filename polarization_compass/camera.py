@@ -699,17 +699,11 @@ def load_camera_yaml(path) -> CameraFile:
     CameraError
         Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
     """
-    import yaml
     from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError, parse_layout
+    from .safe_load import load_yaml, read_text
     p = str(path)
-    try:
-        with open(p, "rb") as fh:
-            raw = fh.read(1 << 20)
-        doc = yaml.safe_load(raw)
-    except OSError as exc:
-        raise CameraError(f"{p}: cannot read camera file ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        raise CameraError(f"{p}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    # a regular file of at most 1 MiB (a FIFO or /dev/zero is refused), YAML nesting and bad dates one line
+    doc = load_yaml(read_text(p, CameraError, "camera file"), p, CameraError)
     if not isinstance(doc, dict):
         raise CameraError(f"{p}: a camera file is a YAML mapping (ROS camera_calibration format)")
     try:

@@ -49,12 +49,8 @@ class PolarizationInput:
 
 
 def _check_size(p: Path) -> None:
-    try:
-        n = p.stat().st_size
-    except OSError as exc:
-        raise RealInputError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    if n > _MAX_FILE_BYTES:
-        raise RealInputError(f"{p}: {n} bytes is larger than the 1 GiB accepted")
+    from .safe_load import regular_file
+    regular_file(p, RealInputError, "input", max_bytes=_MAX_FILE_BYTES)    # no FIFO or device, at most 1 GiB
 
 
 def _check_plane(a: np.ndarray, what: str, p: Path) -> np.ndarray:

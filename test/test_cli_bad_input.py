@@ -491,6 +491,10 @@ def hostile(tmp_path_factory):
                                                   pitch_deg=np.arange(61.0) - 30, roll_deg=np.arange(61.0) - 30))
     f["map_fifo"] = d / "map_fifo.npz"
     os.mkfifo(f["map_fifo"])
+    f["npz_dev_zero"] = d / "zero.npz"
+    os.symlink("/dev/zero", f["npz_dev_zero"])
+    f["npy_bomb"] = d / "bomb.npy"                                  # a raw-mosaic .npy declaring 1.6 GB
+    f["npy_bomb"].write_bytes(npy((10000, 20000), "<u2", payload=1 << 10))
     return f
 
 
@@ -513,8 +517,13 @@ def _hostile_cases():
     for frame, words in [("frame_bomb", "declares shape"), ("frame_deep_meta", "nested"),
                          ("frame_bad_bits", "quantization_bits"), ("frame_bad_sensor", "sensor"),
                          ("frame_huge_bits", "quantization_bits"), ("frame_bad_exposure", "exposure"),
-                         ("dev_zero", "device"), ("fifo", "FIFO")]:
+                         ("npz_dev_zero", "device"), ("map_fifo", "FIFO")]:
         cases.append((["estimate", "{%s}" % frame], words))
+    cases += [(["estimate", "{npy_bomb}", "--camera", "{deep_yaml}"], ""),
+              (["estimate", "{npy_bomb}"], "")]
+    for inp, cam in (("npy_bomb", "{deep_yaml}"), ("frame_bomb", "{dev_zero}"), ("map_fifo", "{fifo}"),
+                     ("npz_dev_zero", "{width_true_yaml}")):
+        cases.append((["check-polarizer", "{%s}" % inp, "--camera", cam], ""))
     for m, words in [("map_deep_meta", "nested"), ("map_bomb", "declare"), ("dev_zero", "device"),
                      ("map_fifo", "FIFO")]:
         cases += [(["allowable-tilt", "--max-error", "1", "--map", "{%s}" % m], words),
