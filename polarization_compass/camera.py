@@ -703,7 +703,11 @@ def load_camera_yaml(path) -> CameraFile:
     from .safe_load import load_yaml, read_text
     p = str(path)
     # a regular file of at most 1 MiB (a FIFO or /dev/zero is refused), YAML nesting and bad dates one line
-    doc = load_yaml(read_text(p, CameraError, "camera file"), p, CameraError)
+    try:
+        text = read_text(p, CameraError, "camera file")
+    except CameraError as exc:
+        raise CameraError(f"{p}: cannot read camera file ({exc})") from None
+    doc = load_yaml(text, p, CameraError)
     if not isinstance(doc, dict):
         raise CameraError(f"{p}: a camera file is a YAML mapping (ROS camera_calibration format)")
     try:
