@@ -48,6 +48,8 @@ COMPLETED = (
     'photodiode/calibrate.py',
     'photodiode/selfcheck.py',
     'photodiode/simulate.py',
+    'demosaic.py',
+    'fastmath.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
