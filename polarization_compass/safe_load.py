@@ -30,7 +30,27 @@ def _existing_file(path, error, what) -> Path:
 
 
 def read_text(path, error=CompassError, what="file") -> str:
-    """The UTF-8 text of ``path``; missing, directory, unreadable or binary files raise ``error``."""
+    """Return the UTF-8 text of ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to read.
+    error : type, default CompassError
+        Exception class raised on failure (the caller's :class:`CompassError` subclass).
+    what : str, default "file"
+        What the file is, for the message (e.g. ``"scene file"``).
+
+    Returns
+    -------
+    str
+        The decoded text.
+
+    Raises
+    ------
+    error
+        The file is missing, a directory, unreadable, or not UTF-8 text (one-line message).
+    """
     p = _existing_file(path, error, what)
     try:
         return p.read_text(encoding="utf-8")
@@ -41,7 +61,19 @@ def read_text(path, error=CompassError, what="file") -> str:
 
 
 def yaml_problem(exc: yaml.YAMLError) -> str:
-    """One line from a YAML error: the problem and where it is (line/column), without the source excerpt."""
+    """Return one line from a YAML error: the problem and where it is, without the source excerpt.
+
+    Parameters
+    ----------
+    exc : yaml.YAMLError
+        The parser's error.
+
+    Returns
+    -------
+    str
+        E.g. ``"found unexpected end of stream at line 3, column 1"`` (line and column 1-based,
+        when the error has a mark).
+    """
     problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
     mark = getattr(exc, "problem_mark", None)
     where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -49,7 +81,27 @@ def yaml_problem(exc: yaml.YAMLError) -> str:
 
 
 def load_yaml(text: str, where: str, error=CompassError):
-    """``yaml.safe_load`` (tags such as ``!!python/object`` are refused, never executed)."""
+    """Parse YAML text with ``yaml.safe_load``; tags such as ``!!python/object`` are refused.
+
+    Parameters
+    ----------
+    text : str
+        The YAML document.
+    where : str
+        Where it came from (a path or a parameter name), the prefix of the error message.
+    error : type, default CompassError
+        Exception class raised on failure.
+
+    Returns
+    -------
+    object
+        The parsed document (dict, list, scalar or None); nothing is executed.
+
+    Raises
+    ------
+    error
+        The text is not valid YAML for the safe loader (message with line and column).
+    """
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -58,10 +110,31 @@ def load_yaml(text: str, where: str, error=CompassError):
 
 @contextmanager
 def open_npz(path, error=CompassError, what="file"):
-    """Yield a numpy ``NpzFile`` opened with ``allow_pickle=False``; close it (and the file) on every path.
+    """Open a ``.npz`` archive with ``allow_pickle=False``; close it on every path.
 
-    A missing file, a directory, a ``.npy`` saved under an ``.npz`` name, a corrupt or truncated zip:
-    all raise ``error`` with the reason. Object arrays raise when read (pickle disabled), reported the same.
+    A missing file, a directory, a ``.npy`` saved under an ``.npz`` name, a corrupt or truncated
+    zip: all raise ``error`` with the reason. Object arrays raise when read (pickle disabled),
+    reported the same way, as do corrupt members read inside the ``with`` body.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The archive.
+    error : type, default CompassError
+        Exception class raised on failure.
+    what : str, default "file"
+        What the archive is, for the message (e.g. ``"error map"``).
+
+    Yields
+    ------
+    numpy.lib.npyio.NpzFile
+        The open archive (arrays are read lazily by key).
+
+    Raises
+    ------
+    error
+        The file is missing, a directory, unreadable, not an ``.npz`` archive, corrupt, or holds
+        object arrays.
     """
     p = _existing_file(path, error, what)
     try:

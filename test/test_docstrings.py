@@ -50,6 +50,10 @@ COMPLETED = (
     'photodiode/simulate.py',
     'demosaic.py',
     'fastmath.py',
+    'instrumentation.py',
+    'safe_load.py',
+    'errors.py',
+    'evaluation.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
