@@ -54,6 +54,8 @@ COMPLETED = (
     'safe_load.py',
     'errors.py',
     'evaluation.py',
+    'motion.py',
+    'recording.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
