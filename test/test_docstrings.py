@@ -56,6 +56,7 @@ COMPLETED = (
     'evaluation.py',
     'motion.py',
     'recording.py',
+    'bag.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
