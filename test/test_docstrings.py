@@ -57,6 +57,8 @@ COMPLETED = (
     'motion.py',
     'recording.py',
     'bag.py',
+    'specs/params.py',
+    'specs/topics.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
