@@ -69,8 +69,7 @@ from numba import njit, prange
 
 from .errors import CompassError
 
-__all__ = ["AtmosphereError", "Atmosphere", "CloudLayer", "Haze", "Skyline", "cloud_density_at",
-           "haze_dop_factor"]
+__all__ = ["AtmosphereError", "Atmosphere", "CloudLayer", "Haze", "Skyline", "haze_dop_factor"]
 
 
 class AtmosphereError(CompassError):
@@ -343,11 +342,6 @@ class CloudLayer:
                       aop, dop, intensity, float(min_dop), valid)
 
 
-def cloud_density_at(layer: CloudLayer, east_m, north_m, dt_s=0.0):
-    """Module-level alias of :meth:`CloudLayer.density_at` (for tests and figures)."""
-    return layer.density_at(east_m, north_m, dt_s)
-
-
 # ---------------------------------------------------------------------------------------------- haze
 def haze_dop_factor(turbidity: float) -> float:
     """The factor on the DoP for Preetham turbidity T relative to the clearest sky (T = 2): ``2 / T``, the
@@ -488,9 +482,6 @@ class Atmosphere:
 
     def params(self) -> dict:
         return {n: getattr(self, n).params() for n in self.stages}
-
-    def needs_radiance(self) -> bool:
-        return bool(self.stages)
 
     def apply(self, R_enu_cam, rays_cam, aop, dop, valid, intensity, min_dop: float, dt_s: float, instr,
               block_shape=None):
