@@ -59,6 +59,8 @@ COMPLETED = (
     'bag.py',
     'specs/params.py',
     'specs/topics.py',
+    'figures.py',
+    'plotting.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
