@@ -35,7 +35,8 @@ from .estimators import registry
 from .specs.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
 
 __all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
-           "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE"]
+           "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE", "STOP_TIMEOUT_S",
+           "SIGKILL_TIMEOUT_S"]
 
 PACKAGE = "polarization_compass"
 GRAPH_NAMES = ("sim", "compass", "replay")
@@ -43,6 +44,12 @@ GRAPH_NAMES = ("sim", "compass", "replay")
 #: with the default transports, best-effort 10 MB images are lost in fragments. Used by
 #: ``polarization-compass sim`` and the tests; optional on a robot (docs/ros.md).
 FASTDDS_PROFILE = "config/fastdds_large_images.xml"
+#: Seconds a node gets to stop after SIGINT before SIGTERM (then SIGKILL after SIGKILL_TIMEOUT_S more):
+#: ``sigterm_timeout`` of every launched node and the wait of ``polarization-compass sim``. A node
+#: stops in well under a second (nodes.runner), but the evaluator draws its report figure at the end
+#: and ten processes share two cores here: launch's default of 5 s was measured too short (issue 15).
+STOP_TIMEOUT_S = 20.0
+SIGKILL_TIMEOUT_S = 5.0
 
 
 class GraphError(CompassError):
@@ -329,7 +336,9 @@ ARGUMENTS = {
         LaunchArg("pitch_deg", "-20.0", "camera pitch during the turn (paper Fig 17: -20)", "float"),
         LaunchArg("roll_deg", "0.0", "camera roll during the turn", "float"),
         LaunchArg("scene", "", "scene YAML for camera, sky and sensor ('' = the paper's set-up)"),
-        LaunchArg("lockstep", "false", "simulator waits for every estimator before the next frame", "bool"),
+        LaunchArg("lockstep", "true", "simulator waits for every estimator before the next frame: every frame is "
+                  "processed however loaded the machine is (the README table); false = real time at the camera "
+                  "rate, frames an estimator cannot keep up with are missed (the speed measurement)", "bool"),
         LaunchArg("array_geometry", "", "photodiode-array sensor YAML: also simulate the array and run "
                   "least_squares/tilt_aware on it in namespace 'array' (not evaluated); '' = no array"),
         LaunchArg("exit_when_done", "true", "stop the whole graph after the last frame", "bool"),
@@ -538,7 +547,7 @@ def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
 
 
 def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
-              turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
+              turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=True,
               exit_when_done=True, error_map="", report_dir="out/sim", array_geometry="") -> Graph:
     """Return the ``sim`` graph: simulator, estimators, correctors and the evaluator on sim time.
 
@@ -744,9 +753,12 @@ def launch_description(name: str):
     Declares the graph's launch arguments; the nodes are built from :func:`build` once the arguments
     are known (an OpaqueFunction), with the parameter files of the installed share directory. When
     the graph names a node whose exit ends it (the simulator with exit_when_done), the launch shuts
-    down with it. ``large_image_transport`` (sim and replay: default true) points Fast DDS at
-    config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is set.
-    Needs the ``launch`` and ``launch_ros`` packages (a ROS 2 install).
+    down with it. ``large_image_transport`` (every graph, default true) points Fast DDS at
+    config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is set:
+    without it a full-resolution camera's best-effort images are lost in fragments (issue 15: 0 of 21
+    reached compass.launch.py). Every node gets ``sigterm_timeout`` = :data:`STOP_TIMEOUT_S`, the wait
+    of ``polarization-compass sim``, instead of launch's 5 s. Needs the ``launch`` and ``launch_ros``
+    packages (a ROS 2 install).
     """
     from .errors import MissingDependencyError
     try:
@@ -766,10 +778,11 @@ def launch_description(name: str):
     actions = [DeclareLaunchArgument(a.name, default_value=a.default,
                                      description=a.description + (f" ({', '.join(a.choices)})" if a.choices else ""))
                for a in ARGUMENTS[name]]
-    if name in ("sim", "replay"):
-        actions.append(DeclareLaunchArgument("large_image_transport", default_value="true",
-                                             description="use the shared-memory Fast DDS profile for "
-                                                         "full-resolution images"))
+    actions.append(DeclareLaunchArgument(
+        "large_image_transport", default_value="true",
+        description="set FASTDDS_DEFAULT_PROFILES_FILE to the package's shared-memory profile for "
+                    "full-resolution images (unless already set); false when the camera is on another "
+                    "machine: the profile carries data over shared memory only"))
 
     def make_nodes(context, *_, **__):
         values = {a.name: LaunchConfiguration(a.name).perform(context) for a in ARGUMENTS[name]}
@@ -779,15 +792,18 @@ def launch_description(name: str):
             raise GraphError("inconsistent graph: " + "; ".join(problems))
         share = share_dir()
         out = []
-        if name in ("sim", "replay") and parse_arg(LaunchArg("large_image_transport", "true", "", "bool"),
-                                                   LaunchConfiguration("large_image_transport").perform(context)) \
+        if parse_arg(LaunchArg("large_image_transport", "true", "", "bool"),
+                     LaunchConfiguration("large_image_transport").perform(context)) \
                 and not os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE"):
             out.append(SetEnvironmentVariable("FASTDDS_DEFAULT_PROFILES_FILE", str(share / FASTDDS_PROFILE)))
         by_name = {}
         for n in graph.nodes:
             node = Node(package=n.package, executable=n.executable, name=n.name, namespace=n.namespace or None,
                         parameters=[str(share / f) for f in n.param_files] + [dict(n.parameters)],
-                        remappings=list(n.remappings), output="screen", emulate_tty=True)
+                        remappings=list(n.remappings), output="screen", emulate_tty=True,
+                        # a node stops in < 1 s, the evaluator draws its figure first, ten processes
+                        # share two cores: launch's default 5 s before SIGTERM was too short (issue 15)
+                        sigterm_timeout=str(STOP_TIMEOUT_S), sigkill_timeout=str(SIGKILL_TIMEOUT_S))
             by_name[n.name] = node
             out.append(node)
         if graph.shutdown_with:

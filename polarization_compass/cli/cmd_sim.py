@@ -279,18 +279,20 @@ def _progress(log: Path) -> str:
 
 
 def _stop_all(procs: dict) -> dict:
-    """SIGINT every running node, then SIGTERM / SIGKILL stragglers. Returns exit codes."""
+    """SIGINT every running node, then SIGTERM / SIGKILL stragglers after the launch files' timeouts
+    (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S). Returns exit codes."""
+    from ..graphs import SIGKILL_TIMEOUT_S, STOP_TIMEOUT_S
     for p in procs.values():
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + 20.0
+    deadline = time.monotonic() + STOP_TIMEOUT_S
     for p in procs.values():
         try:
             p.wait(timeout=max(0.1, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
             p.terminate()
             try:
-                p.wait(timeout=5.0)
+                p.wait(timeout=SIGKILL_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
