@@ -147,3 +147,41 @@ def test_nodes_stop_with_exit_0_on_repeated_signals_while_data_flows(ros_env, tm
     s = json.loads(summary.read_text())
     assert s["complete"] is True and s["truth_frames"] >= 10
     assert s["streams"]["tilt_aware/raw"]["count"] >= 8
+
+
+# ------------------------------------------------------------------------------------------------
+# the signal handlers themselves (in this process; pytest's own handlers are put back)
+# ------------------------------------------------------------------------------------------------
+@pytest.fixture
+def own_handlers():
+    import os
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield os.getpid()
+    for s, h in saved.items():
+        signal.signal(s, h)
+
+
+def test_stop_signals_record_and_never_raise_while_spinning(own_handlers):
+    import os
+
+    from polarization_compass.nodes.runner import StopSignals
+    stop = StopSignals().install()
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGINT):
+        os.kill(own_handlers, s)
+        time.sleep(0.01)                     # the handler runs at the next bytecode boundary
+    assert stop.requested and stop.received == [signal.SIGINT, signal.SIGTERM, signal.SIGINT]
+    assert stop.names() == "SIGINT+SIGTERM+SIGINT"
+
+
+def test_stop_signals_interrupt_a_start_up_once(own_handlers):
+    import os
+
+    from polarization_compass.nodes.runner import StopSignals
+    stop = StopSignals().install()
+    stop.interrupt_now = True                # the node is being built (warm-up)
+    with pytest.raises(KeyboardInterrupt):
+        os.kill(own_handlers, signal.SIGTERM)
+        time.sleep(1.0)
+    os.kill(own_handlers, signal.SIGINT)     # while that interrupt unwinds: recorded only
+    time.sleep(0.01)
+    assert stop.received == [signal.SIGTERM, signal.SIGINT]

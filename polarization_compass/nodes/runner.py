@@ -140,7 +140,9 @@ def _run(factory, name: str, argv) -> int:
     executor = None
     code = 0
     try:
-        stop.interrupt_now = not stop.requested
+        if stop.requested:                   # stopped while ROS started: do not build the node at all
+            raise KeyboardInterrupt
+        stop.interrupt_now = True
         try:
             node = factory()
         finally:
