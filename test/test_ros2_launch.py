@@ -111,9 +111,9 @@ def test_a_bad_argument_is_one_clear_error_and_starts_nothing(ws):
 def test_ctrl_c_while_frames_flow_ends_every_process_with_exit_0_and_keeps_the_report(ws, tmp_path, twice):
     log = tmp_path / "launch.log"
     report = tmp_path / "report"
-    # once: the smallest graph (simulator, tilt_aware, evaluator); twice: with a corrector too
-    methods = "zenith" if twice else ""
-    p = _launch(ws, "sim.launch.py", f"methods:={methods}", "turns:=0", f"report_dir:={report}", log=log)
+    # once: simulator, zenith estimator and corrector, evaluator; twice: tilt_aware too
+    p = _launch(ws, "sim.launch.py", "methods:=zenith", f"tilt_aware:={str(twice).lower()}", "turns:=0",
+                f"report_dir:={report}", log=log)
     try:
         _wait_for(log, r"\[sky_simulator\]: frame 25\b", p, timeout=240)
         os.killpg(p.pid, signal.SIGINT)                   # what a terminal's Ctrl-C does
@@ -132,13 +132,14 @@ def test_ctrl_c_while_frames_flow_ends_every_process_with_exit_0_and_keeps_the_r
     text = log.read_text(errors="replace")
     assert rc == 0, text[-3000:]
     started, clean = _finished_cleanly(text)
-    assert len(started) == (5 if twice else 3) and clean == started, text[-3000:]
+    assert len(started) == (5 if twice else 4) and clean == started, text[-3000:]
     assert not [m for m in FAILURE_MARKS if m in text], text[-3000:]
     s = json.loads((report / "evaluation_summary.json").read_text())
-    assert s["complete"] is True and s["truth_frames"] >= 25
-    assert s["streams"]["tilt_aware/raw"]["count"] >= 20
-    if twice:
-        assert s["streams"]["zenith/corrected"]["count"] >= 20
+    # frames still in flight at the stop may not reach the evaluator; what did is in the report
+    assert s["complete"] is True and s["truth_frames"] >= 15
+    streams = ["zenith/raw", "zenith/corrected"] + (["tilt_aware/raw"] if twice else [])
+    for stream in streams:
+        assert s["truth_frames"] - 3 <= s["streams"][stream]["count"] <= s["truth_frames"], (stream, s)
     rows = (report / "evaluation_samples.csv").read_text().strip().splitlines()
     assert len(rows) - 1 == sum(d["count"] for d in s["streams"].values())
 
@@ -168,17 +169,16 @@ def test_live_compass_launch_gets_full_resolution_headings_and_refuses_a_bad_par
     try:
         _wait_for(log, r"method tilt_aware", p, timeout=180)
         # ros2 param set of a bad value is refused, the node keeps the old one (range [0, 10] s)
-        r = subprocess.run(["ros2", "param", "set", "--no-daemon", "--spin-time", "10", "/heading_estimator_tilt_aware",
-                            "imu_max_wait_s", "-5.0"], env=ws["env"], capture_output=True, text=True, timeout=60)
+        r = _ros2_param(ws, "set", "-5.0")
         assert "Setting parameter failed" in r.stdout + r.stderr, r.stdout + r.stderr
-        r = subprocess.run(["ros2", "param", "get", "--no-daemon", "--spin-time", "10", "/heading_estimator_tilt_aware", "imu_max_wait_s"],
-                           env=ws["env"], capture_output=True, text=True, timeout=60)
+        r = _ros2_param(ws, "get")
         assert "-5.0" not in r.stdout and re.search(r"value is: \d", r.stdout), r.stdout + r.stderr
         # 10 frames at 2 Hz (0.1 turn at 7.2 deg/s = 5 s simulated)
         cam_log = stack.enter_context(open(tmp_path / "cam.log", "w"))
-        cam = subprocess.Popen(["ros2", "run", "polarization_compass", "sky_simulator", "--ros-args", "-p", "rate_hz:=2.0",
-                                "-p", "turns:=0.1", "-p", "turn_rate_deg_s:=7.2", "-p", "wait_for_subscribers:=1",
-                                "-p", "wait_for_imu_subscribers:=1", "-p", "exit_when_done:=true"], env=cam_env, stdout=cam_log,
+        cam_params = ("rate_hz:=2.0", "turns:=0.1", "turn_rate_deg_s:=7.2", "wait_for_subscribers:=1",
+                      "wait_for_imu_subscribers:=1", "exit_when_done:=true")
+        cam = subprocess.Popen(["ros2", "run", "polarization_compass", "sky_simulator", "--ros-args",
+                                *[a for v in cam_params for a in ("-p", v)]], env=cam_env, stdout=cam_log,
                                stderr=subprocess.STDOUT)
         t0 = time.monotonic()
         while cam.poll() is None and time.monotonic() - t0 < 180:
@@ -206,3 +206,14 @@ def test_live_compass_launch_gets_full_resolution_headings_and_refuses_a_bad_par
     assert len(started) == 1 and clean == started, text[-3000:]
     assert not [m for m in FAILURE_MARKS if m in text], text[-3000:]
 
+
+
+def _ros2_param(ws, verb: str, *value):
+    """``ros2 param <verb>`` on the estimator without the daemon, retried while discovery is not done."""
+    cmd = ["ros2", "param", verb, "--no-daemon", "--spin-time", "2", "/heading_estimator_tilt_aware",
+           "imu_max_wait_s", *value]
+    for _ in range(5):
+        r = subprocess.run(cmd, env=ws["env"], capture_output=True, text=True, timeout=60)
+        if "Node not found" not in r.stdout + r.stderr:
+            break
+    return r

@@ -465,7 +465,7 @@ EVALUATOR = (
     Param("include_corrected", True, "evaluate compass/<m>/heading", read_only=True),
     Param("axial_methods", [""], "methods whose errors are folded to (-90, 90] (heading mod 180 deg)",
           read_only=True),
-    Param("report_dir", "out/sim", "CSV and PNG reports are written here when the node stops",
+    Param("report_dir", "out/sim", "CSV and PNG reports go here: kept current while the node runs, final when it stops",
           read_only=True),
     Param("horizon_s", 5.0, "a truth frame with no estimate on a stream after this (stamp time) counts as "
                             "missed", 0.1, 3600.0, unit="s"),
