@@ -88,11 +88,18 @@ class StopSignals:
     def __init__(self):
         self.received: list[int] = []
         self.interrupt_now = False
+        self._previous: dict = {}
 
     def install(self) -> "StopSignals":
         for s in self.SIGNALS:
-            signal.signal(s, self._handler)
+            self._previous[s] = signal.signal(s, self._handler)
         return self
+
+    def restore(self) -> None:
+        """Put back the handlers that were there before :meth:`install`."""
+        for s, h in self._previous.items():
+            signal.signal(s, h)
+        self._previous.clear()
 
     @property
     def requested(self) -> bool:
@@ -107,13 +114,21 @@ class StopSignals:
             raise KeyboardInterrupt
 
 
-def run_node(factory, name: str, argv=None, exit_process: bool = True) -> int:
+def run_node(factory, name: str, argv=None, exit_process: bool | None = None) -> int:
     """Start ROS, build the node with ``factory()``, spin it until a stop signal, ``node.exit_code`` or
     :class:`ExitRequest`, then stop in order (``close()``, executor, node, rclpy context). The exit code
     is 0 after a stop signal or a normal end, 2 for a configuration error (one line on stderr). With
-    ``exit_process`` (the console scripts) the process ends here with that code (see the module
-    docstring); otherwise it is returned."""
-    code = _run(factory, name, argv)
+    ``exit_process`` (default: when ``argv`` is None, i.e. a console script's ``main()``) the process
+    ends here with that code (see the module docstring); otherwise it is returned and the signal
+    handlers that were there before are put back (a test calling ``main([...])`` in-process)."""
+    if exit_process is None:
+        exit_process = argv is None
+    stop = StopSignals().install()          # before anything slow: no signal is lost or raised from here on
+    try:
+        code = _run(factory, name, argv, stop)
+    finally:
+        if not exit_process:
+            stop.restore()
     if exit_process:
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -124,12 +139,11 @@ def run_node(factory, name: str, argv=None, exit_process: bool = True) -> int:
     return code
 
 
-def _run(factory, name: str, argv) -> int:
+def _run(factory, name: str, argv, stop: StopSignals) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
-    stop = StopSignals().install()          # before anything slow: no signal is lost or raised from here on
     keep_large_buffers_in_heap()
     try:
         rclpy.init(args=argv if argv is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
