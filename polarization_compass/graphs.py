@@ -748,17 +748,37 @@ def share_dir() -> Path:
 # ros2 launch
 # ------------------------------------------------------------------------------------------------
 def launch_description(name: str):
-    """The LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
+    """Return the LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
 
-    Declares the graph's launch arguments; the nodes are built from :func:`build` once the arguments
-    are known (an OpaqueFunction), with the parameter files of the installed share directory. When
-    the graph names a node whose exit ends it (the simulator with exit_when_done), the launch shuts
-    down with it. ``large_image_transport`` (every graph, default true) points Fast DDS at
-    config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is set:
-    without it a full-resolution camera's best-effort images are lost in fragments (issue 15: 0 of 21
-    reached compass.launch.py). Every node gets ``sigterm_timeout`` = :data:`STOP_TIMEOUT_S`, the wait
-    of ``polarization-compass sim``, instead of launch's 5 s. Needs the ``launch`` and ``launch_ros``
-    packages (a ROS 2 install).
+    Declares the graph's launch arguments (plus ``large_image_transport``); the nodes are built from
+    :func:`build` once the arguments are known (an OpaqueFunction), with the parameter files of the
+    installed share directory. When the graph names a node whose exit ends it (the simulator with
+    exit_when_done), the launch shuts down with it.
+
+    * ``large_image_transport`` (every graph, default true) points Fast DDS at
+      config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is
+      set; the camera driver must publish with the same profile (without it a full-resolution
+      camera's best-effort images are lost in fragments: issue 15, docs/ros.md).
+    * Every node gets ``sigterm_timeout`` = :data:`STOP_TIMEOUT_S` (the wait of ``polarization-compass
+      sim``) and ``sigkill_timeout`` = :data:`SIGKILL_TIMEOUT_S` instead of launch's 5 s and 5 s: the
+      evaluator draws its report figure when it stops and ten processes share two cores here.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`GRAPH_NAMES`.
+
+    Returns
+    -------
+    launch.LaunchDescription
+        The argument declarations and the OpaqueFunction that starts the nodes.
+
+    Raises
+    ------
+    MissingDependencyError
+        ``launch`` or ``launch_ros`` is not installed (a ROS 2 install has them).
+    GraphError
+        Unknown graph; when the launch runs, a bad argument or an inconsistent graph (one line).
     """
     from .errors import MissingDependencyError
     try:
