@@ -61,6 +61,7 @@ COMPLETED = (
     'bag.py',
     'specs/params.py',
     'specs/topics.py',
+    'graphs.py',
     'figures.py',
     'plotting.py',
     'replay/__init__.py',
