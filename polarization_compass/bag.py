@@ -119,6 +119,7 @@ class TopicSpec:
     type : str
         Message type, e.g. ``"sensor_msgs/msg/Image"`` (one of :data:`ROLE_TYPES` for the role).
     """
+
     topic: str
     type: str
 

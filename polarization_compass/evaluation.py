@@ -146,7 +146,7 @@ class RunningStats:
 
     @property
     def samples(self) -> np.ndarray:
-        """The stored samples (all of them while count <= max_samples), read-only view."""
+        """Read-only view of the stored errors [deg]: all of them while count <= max_samples."""
         v = self._buf[:self._stored]
         v.setflags(write=False)
         return v

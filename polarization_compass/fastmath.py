@@ -107,11 +107,12 @@ def sincos(a):  # pragma: no cover - compiled
 
 @njit(inline="always", cache=True, error_model="numpy")
 def atan2(y, x):  # pragma: no cover - compiled
-    """Return atan2(y, x) in [-pi, pi] for finite y, x, with atan2(0, 0) = 0 (float64).
+    """Return the angle of (x, y) in [-pi, pi] for finite x, y: the two-argument arctangent.
 
-    ``t = min / max`` of |x|, |y| in [0, 1] is halved twice in angle
-    (``atan t = 2 atan(t / (1 + sqrt(1 + t^2)))``) to |v| <= tan(pi / 16) < 0.2, where 11 terms
-    of the odd series leave < 1e-17; then the octant is restored. Error < 1e-15 rad.
+    float64, branch-free; atan2(0, 0) = 0. ``t = min / max`` of |x|, |y| in [0, 1] is halved
+    twice in angle (``atan t = 2 atan(t / (1 + sqrt(1 + t^2)))``) to |v| <= tan(pi / 16) < 0.2,
+    where 11 terms of the odd series leave < 1e-17; then the octant is restored. Error < 1e-15
+    rad.
 
     Parameters
     ----------

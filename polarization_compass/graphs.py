@@ -73,6 +73,7 @@ class LaunchArg:
     choices : tuple of str, default ()
         Allowed values (for a list: allowed items).
     """
+
     name: str
     default: str
     description: str
@@ -224,6 +225,7 @@ class Graph:
     shutdown_with : str, optional
         Name of the node whose exit ends the whole graph.
     """
+
     name: str
     description: str
     nodes: tuple

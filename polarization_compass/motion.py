@@ -49,6 +49,7 @@ class MotionProfile:
        Polarized Skylight Orientation Determination" (the seed paper), eq 21 (pitch alpha, roll
        beta) and Fig 17 (a full turn at pitch -20 deg).
     """
+
     start_bearing_deg: float = 0.0
     turn_rate_deg_s: float = 10.0
     pitch_deg: float = -20.0

@@ -46,6 +46,7 @@ class ReplayResult:
     workers : int, default 1
         Threads that shared the methods.
     """
+
     rows: list
     summary: dict           # evaluator summary per stream
     tally: Tally
