@@ -88,6 +88,7 @@ def _optics_kernel(rays, x, y, use_xy, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do
     one = np.float32(1.0)
     zero = np.float32(0.0)
     one_deg = np.float32(math.pi / 180.0)
+    disk_rad = np.float32(math.acos(cos_disk))
     for i in prange(rays.shape[1]):
         px = rays[0, i]
         py = rays[1, i]
@@ -106,24 +107,19 @@ def _optics_kernel(rays, x, y, use_xy, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do
             v = one + q * (k1 + q * (k2 + q * k3))
         base = inten[i] * v
         g = zero
+        # branch-free below (selects, not ifs): such loops vectorise; branchy ones ran several times slower
         if do_sun:
             c = min(max(sx * px + sy * py + sz * pz, -one), one)
-            if c >= cos_disk:
-                g = disk
-            else:
-                gam = math.acos(c)
-                g = g1 * math.exp(expo * math.log(one_deg / gam))
+            gam = max(math.acos(c), disk_rad)
+            glare = g1 * math.exp(expo * math.log(one_deg / gam))
+            g = disk if c >= cos_disk else glare
         for k in range(gx.size):
             dx = xi - gx[k]
             dy = yi - gy[k]
-            if dx * dx + dy * dy <= r2:
-                g += grad
-        if g > zero:
-            tot = base + g
-            dop[i] = dop[i] * base / tot
-            inten[i] = tot
-        else:
-            inten[i] = base
+            g += grad if dx * dx + dy * dy <= r2 else zero
+        tot = base + g
+        dop[i] = dop[i] * (base / tot) if g > zero else dop[i]
+        inten[i] = tot
 
 
 def ghost_centres_px(sun_px, centre_px, positions):
