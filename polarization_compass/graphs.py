@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -450,6 +452,33 @@ def build(name: str, args: dict | None = None) -> Graph:
                          f"known: {', '.join(sorted(specs))}")
     values = {k: parse_arg(a, args.get(k, a.default)) for k, a in specs.items()}
     return {"sim": sim_graph, "compass": compass_graph, "replay": replay_graph}[name](**values)
+
+
+def node_command(executable: str) -> list[str]:
+    """Return the command that starts one of the package's node executables outside ``ros2 launch``.
+
+    The console script next to this interpreter (a venv's ``bin``) when it is there, else one on
+    ``PATH``, else ``python -m polarization_compass.nodes.<executable>``: on a ROS install the
+    scripts live in ``install/lib/polarization_compass``, which is on neither, and the module form
+    runs the same ``main``.
+
+    Parameters
+    ----------
+    executable : str
+        Node executable name as in ``setup.py``'s console scripts (e.g. ``"heading_estimator"``).
+
+    Returns
+    -------
+    list of str
+        The argv prefix; append ``--ros-args ...``.
+    """
+    here = Path(sys.executable).parent / executable
+    if here.is_file() and os.access(here, os.X_OK):
+        return [str(here)]
+    found = shutil.which(executable)
+    if found:
+        return [found]
+    return [sys.executable, "-m", f"{PACKAGE}.nodes.{executable}"]
 
 
 def node_lines(name: str, args: dict | None = None) -> list[str]:
