@@ -116,3 +116,25 @@ def test_front_end_sky_check(pol45):
         assert "sky_check" in res.extras
     else:
         assert res.status != Status.OK
+
+
+@pytest.mark.parametrize("method", ["least_squares", "tilt_aware"])
+def test_least_squares_robust_refit_ignores_a_disagreeing_sector(frame, method):
+    """30 % of the sky (rays with x > 0.5) with its AoP turned by 30 deg, as a cloud bank or a reflecting
+    obstacle could: the plain total least squares is pulled by degrees; with ``outlier_deg`` the consensus
+    refit (seeded by the robust whole-view sun, not by the pulled fit) is back on the truth."""
+    from polarization_compass.estimators import Observation, make_estimator
+    sp = select_pixels(CAM, PixelSelection.full())
+    aop = frame.aop_rad.copy()
+    aop[sp.rays_cam[0].reshape(aop.shape) > 0.5] += np.float32(math.radians(30.0))
+    obs = Observation(aop, frame.dop, frame.valid, sp.rays_cam, sp.x_px, sp.y_px, CAM, SUN_AZ, ALT, None, 0.0, 0.0)
+    plain = make_estimator(method, stride=1, max_aop_noise_deg=90.0).estimate(obs)
+    robust = make_estimator(method, stride=1, max_aop_noise_deg=90.0, outlier_deg=10.0).estimate(obs)
+    assert abs(wrap_180_deg(plain.psi_deg - PSI)) > 5.0
+    assert robust.status == Status.OK and abs(wrap_180_deg(robust.psi_deg - PSI)) < 0.05
+    assert robust.extras["outliers_dropped"] > 0.2 * robust.pixels
+    clean = Observation(frame.aop_rad, frame.dop, frame.valid, sp.rays_cam, sp.x_px, sp.y_px, CAM, SUN_AZ, ALT,
+                        None, 0.0, 0.0)
+    a = make_estimator(method, stride=2).estimate(clean)
+    b = make_estimator(method, stride=2, outlier_deg=10.0).estimate(clean)
+    assert b.extras["outliers_dropped"] == 0 and b.psi_deg == a.psi_deg        # a clean sky: nothing changes

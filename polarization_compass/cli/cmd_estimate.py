@@ -203,12 +203,20 @@ def run(args) -> int:
     return 0
 
 
-def _make_estimators(methods, knobs, stride):
+#: real images: the robust refit's outlier threshold for the methods that have the knob (``outlier_deg``)
+REAL_SKY_OUTLIER_DEG = 15.0
+
+
+def _make_estimators(methods, knobs, stride, defaults=None):
     from ..estimators import make_estimator, registry
     estimators, used = [], set()
     for name in methods:
         specs = registry.get(name).knob_specs()
         kn = {k: v for k, v in knobs.items() if k in specs}
+        if defaults and "outlier_deg" in specs and "outlier_deg" not in knobs:
+            for k, v in defaults.items():
+                if k in specs and k not in knobs:
+                    kn[k] = v
         used.update(kn)
         if stride is not None and "stride" in specs:
             kn["stride"] = stride
@@ -282,7 +290,10 @@ def _run_real(args, inp, methods, knobs) -> int:
         raise CompassError("--use-stored applies to frame files")
     cam_file = load_camera_yaml(args.camera)
     sun_az, sun_alt, sun_src = _sun({}, args)
-    estimators = _make_estimators(methods, knobs, args.stride)
+    # real skies: least_squares/tilt_aware refit robustly (consensus, outliers beyond 15 deg dropped) unless
+    # the user set outlier_deg
+    estimators = _make_estimators(methods, knobs, args.stride,
+                                  {"outlier_deg": REAL_SKY_OUTLIER_DEG, "max_aop_noise_deg": 90.0})
     shape = inp.stokes[0].shape if inp.kind == "stokes" else inp.mosaic.shape
     mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
     obs, _ = real_observation(inp, cam_file, sun_az, sun_alt, mask, args.demosaic, args.pitch, args.roll,
