@@ -25,9 +25,12 @@ from ._checks import check_range, check_together
 def register(sub):
     from ..estimators import registry
     p = sub.add_parser("estimate", help="heading from a frame file (JSON, one object per method)",
-                       description="Estimate the heading from a frame written by 'render'. psi is the paper's yaw "
+                       description="Estimate the heading from a frame written by 'render' or from a real camera "
+                                   "image (with --camera; docs/real-cameras.md). psi is the paper's yaw "
                                    "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
-                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing).")
+                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing). On real images each result "
+                                   "is checked against the whole sky: status poor_fit / inconsistent when it "
+                                   "does not hold.")
     p.add_argument("frame", metavar="INPUT", help="frame file written by 'polarization-compass render', or a "
                                                   "real image: raw mosaic (.png/.tif 8/16-bit, .npy) or Stokes "
                                                   "planes (.npz with s0, s1, s2, or a 3-page .tif)")
