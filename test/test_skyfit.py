@@ -75,6 +75,17 @@ def test_side_and_poor_fit_and_prior(frame):
     assert assess_result(wrong, None, ALT) is wrong
 
 
+def test_a_heading_the_whole_sky_does_not_support_is_inconsistent(frame):
+    """Same sun, same tilt: the whole sky's own best heading is the truth, so a result 8 deg off with a
+    0.1 deg sigma is inconsistent (a level-assumption heading under a known tilt looks like this); 0.05 deg
+    off is ok."""
+    s = _sample(frame)
+    off = assess_result(HeadingResult.from_psi("least_squares", PSI + 8.0, SUN_AZ, 0.1, 100, 1.0, False), s, ALT)
+    assert off.status == Status.INCONSISTENT and "fits best" in off.reason
+    near = assess_result(HeadingResult.from_psi("least_squares", PSI + 0.05, SUN_AZ, 0.1, 100, 1.0, False), s, ALT)
+    assert near.status == Status.OK
+
+
 def test_misfit_statistics_against_a_known_rotation(frame):
     """Every AoP turned by 10 deg: the robust scatter is 1.4826 x 10 deg, nothing within 8 deg."""
     s = _sample(frame, frame.aop_rad + np.float32(math.radians(10.0)))

@@ -36,6 +36,7 @@ class ReplayConfig:
     knobs: dict = field(default_factory=lambda: {"*": {"stride": 8}})
     demosaic: str = "superpixel"
     use_intensity: bool = False
+    sky_check: bool = False
     prior_source: str = "imu"
     prior_max_age_s: float = 2.0
     sun_model: str = "spa"
@@ -236,6 +237,12 @@ class FramePipeline:
                     t0 = time.perf_counter()
                 result = front.estimator.estimate(dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll,
                                                                       prior_bearing_deg=prior))
+                if c.sky_check:          # the whole-sky check of real skies (skyfit), one sample per frame
+                    from ..pipeline import whole_sky_sample
+                    from ..skyfit import assess_result
+                    if "sky" not in obs_cache:
+                        obs_cache["sky"] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
+                    result = assess_result(result, obs_cache["sky"], sun_alt, pitch, roll, prior)
             except CompassError as exc:
                 rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
                                       reference_bearing_deg=frame.true_bearing_deg, pitch_deg=pitch, roll_deg=roll,
