@@ -27,7 +27,9 @@ nodes one grid step outside the diamond are computed; everything further out is 
 ``full_domain=True`` computes every node.
 
 The sweep that computes a map (chunks, workers, checkpoints, resume) is :mod:`polarization_compass.sweep`;
-this module is the map type the nodes and the correction read.
+this module is the map type the nodes and the correction read. The same map as a labelled xarray Dataset, in a
+Zarr store or one NetCDF 3 file: :mod:`polarization_compass.errormap_store`; :func:`load_error_map` reads
+``.npz``, NetCDF and complete Zarr stores.
 """
 from __future__ import annotations
 
@@ -317,12 +319,14 @@ def _axis_text(a: np.ndarray) -> str:
 
 
 def load_error_map(path) -> ErrorMap:
-    """Load and validate a map written by :meth:`ErrorMap.save` (never unpickles).
+    """Load and validate a map (never unpickles).
 
     Parameters
     ----------
     path : str or os.PathLike
-        The ``.npz`` file.
+        An ``.npz`` of :meth:`ErrorMap.save`, a NetCDF 3 file or a complete Zarr sweep store
+        (:mod:`~polarization_compass.errormap_store`; the NetCDF reader needs only scipy, the Zarr one
+        the ``sweep`` extra).
 
     Returns
     -------
@@ -332,10 +336,19 @@ def load_error_map(path) -> ErrorMap:
     Raises
     ------
     ErrorMapError
-        The file is missing, not an ``.npz`` error map, corrupt, or inconsistent (the message names
-        the file and the reason).
+        The file is missing, not an error map, corrupt, or inconsistent (the message names the file
+        and the reason); a Zarr store that is unfinished or whose chunks do not match their checksums.
     """
     p = Path(path)
+    if p.is_dir():
+        from .errormap_store import read_store_map
+        return read_store_map(p)
+    if p.is_file():
+        with open(p, "rb") as fh:
+            head = fh.read(4)
+        if head[:3] == b"CDF":
+            from .errormap_store import read_netcdf_map
+            return read_netcdf_map(p)
     if not p.is_file():
         raise ErrorMapError(f"error map {str(p)!r} does not exist")
     try:

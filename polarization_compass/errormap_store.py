@@ -39,7 +39,7 @@ import numpy as np
 
 from .errormap import AXES, ErrorMap, ErrorMapError
 
-__all__ = ["SweepStore", "map_to_dataset", "export_netcdf", "read_netcdf_map", "chunk_checksum",
+__all__ = ["SweepStore", "map_to_dataset", "export_netcdf", "read_netcdf_map", "read_store_map", "chunk_checksum",
            "STORE_KIND", "STORE_FORMAT_VERSION", "DIMS", "require_sweep_extra"]
 
 STORE_KIND = "polarization_compass.errormap.sweep"
@@ -307,3 +307,40 @@ class SweepStore:
 
 class _DamagedChunk(Exception):
     pass
+
+
+def read_store_map(path) -> ErrorMap:
+    """Load and validate the map of a *complete* sweep store: every written chunk must match its checksum,
+    every unwritten one must be all "not computed". Raises :class:`ErrorMapError`."""
+    _, zarr = require_sweep_extra("reading a Zarr error map")
+    p = Path(path)
+    try:
+        g = zarr.open_group(str(p), mode="r")
+        attrs = dict(g.attrs)
+    except Exception as exc:  # noqa: BLE001 - zarr's errors for an unreadable group vary by cause
+        raise ErrorMapError(f"{p}: not a readable Zarr store ({type(exc).__name__}: {exc})") from None
+    if attrs.get("store_kind") != STORE_KIND:
+        raise ErrorMapError(f"{p} is a Zarr store this package did not write (no '{STORE_KIND}' marker)")
+    if not attrs.get("complete"):
+        raise ErrorMapError(f"{p} is an unfinished sweep; rerun the sweep to complete it")
+    try:
+        meta = json.loads(attrs["meta_json"])
+        methods = tuple(str(x) for x in np.asarray(g["method"][:]).tolist())
+        axes = [np.asarray(g[_AXIS_DIM[k]][:], dtype=float) for k in AXES]
+        err = np.asarray(g["error_deg"][:])
+        status = np.asarray(g["status"][:])
+        sums = np.asarray(g["chunk_checksum"][:])
+    except Exception as exc:  # noqa: BLE001 - a missing array, a damaged chunk, bad JSON
+        raise ErrorMapError(f"{p}: corrupt sweep store ({type(exc).__name__}: {exc})") from None
+    if err.ndim != 5 or sums.shape != (err.shape[1], err.shape[3]) or status.shape != err.shape:
+        raise ErrorMapError(f"{p}: corrupt sweep store (array shapes disagree)")
+    for ia in range(sums.shape[0]):
+        for ip in range(sums.shape[1]):
+            e, s = err[:, ia, :, ip, :], status[:, ia, :, ip, :]
+            if sums[ia, ip] == 0 and np.any(s != -1) or sums[ia, ip] != 0 and chunk_checksum(e, s) != sums[ia, ip]:
+                raise ErrorMapError(f"{p}: chunk [{ia}, {ip}] does not match its checksum (damaged store)")
+    m = ErrorMap(err.astype(float), status, methods, *axes, meta=meta if isinstance(meta, dict) else {})
+    try:
+        return m.validate()
+    except ErrorMapError as exc:
+        raise ErrorMapError(f"{p}: {exc}") from None

@@ -2,21 +2,22 @@
 section 3): what to compute (:class:`SweepSpec`, :func:`parse_range` for its axes), per-process
 evaluators, checkpoints and the driver (:func:`run_sweep`).
 
-Sweeps run in chunks of one (sun altitude, pitch) pair each, on all cores (``multiprocessing``, spawn,
-numba limited to one thread per worker), with a tqdm progress bar on stderr. Each finished chunk is
-checkpointed to ``<out>.partial/``; an interrupted sweep rerun with the same arguments continues where it
-stopped and gives the same map (noise seeds are a function of the cell, not of the order of work).
+Sweeps run in chunks of one (sun altitude, pitch) pair each: in this process, or on Dask distributed (an
+embedded LocalCluster on all cores, or an existing cluster; :mod:`~polarization_compass.sweep_dask`), with a
+tqdm progress bar (rate, ETA) on stderr. Each finished chunk is written into its own region of a checksummed
+Zarr store (:class:`~polarization_compass.errormap_store.SweepStore`, ``<out>.partial.zarr``); an interrupted
+sweep rerun with the same arguments continues from the verified chunks and gives the same map (noise seeds
+are a function of the cell, not of the order of work or the worker). The complete map is exported to
+``.npz``, NetCDF 3 or kept as the Zarr store.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-import os
 import shutil
 import sys
 import time
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -329,154 +330,105 @@ class _Evaluator:
         return 0.0, code
 
 
-_WORKER: _Evaluator | None = None
-_WORKER_INIT_ERROR: BaseException | None = None
-
-
-def _worker_init(spec: SweepSpec):
-    # A Pool whose initializer raises respawns workers forever: keep the exception, raise it per task.
-    global _WORKER, _WORKER_INIT_ERROR
-    try:
-        import numba
-        numba.set_num_threads(1)
-        _WORKER = _Evaluator(spec)
-    except BaseException as exc:  # noqa: BLE001 - re-raised in _worker_chunk, i.e. in the parent
-        _WORKER_INIT_ERROR = exc
-
-
-def _worker_chunk(key):
-    if _WORKER_INIT_ERROR is not None:
-        raise _WORKER_INIT_ERROR
-    ia, ip = key
-    err, status = _WORKER.chunk(ia, ip)
-    errors, _WORKER.errors = _WORKER.errors, []
-    return ia, ip, err, status, errors
-
-
-# --------------------------------------------------------------------------------------------
-# Checkpoints
-# --------------------------------------------------------------------------------------------
-def _partial_dir(out: Path) -> Path:
-    return out.with_name(out.name + ".partial")
-
-
-def _chunk_path(d: Path, ia: int, ip: int) -> Path:
-    return d / f"chunk_{ia:04d}_{ip:04d}.npz"
-
-
-def _save_chunk(d: Path, ia, ip, err, status):
-    p = _chunk_path(d, ia, ip)
-    tmp = p.with_name(p.name + ".tmp.npz")
-    np.savez(tmp, error_deg=err, status=status)
-    os.replace(tmp, p)
-
-
-def _load_chunk(d: Path, ia, ip, shape):
-    p = _chunk_path(d, ia, ip)
-    try:
-        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            err, status = z["error_deg"], z["status"]
-        if err.shape != shape or status.shape != shape or not np.all(np.isfinite(err)):
-            return None
-        return err, status
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
-        return None                  # a chunk torn by a kill: recompute it
-
-
-def _open_partial(d: Path, spec: SweepSpec) -> None:
-    digest = spec.digest()
-    stamp = d / "sweep.json"
-    if d.exists():
-        try:
-            old = json.loads(stamp.read_text()).get("digest")
-        except (OSError, ValueError):
-            old = None
-        if old != digest and not any(d.glob("chunk_*.npz")):
-            shutil.rmtree(d)                   # nothing finished there: start afresh
-        elif old != digest:
-            raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene); "
-                                f"delete it or choose another --out")
-        if d.exists():
-            return
-    d.mkdir(parents=True)
-    stamp.write_text(json.dumps({"digest": digest, "shape": list(spec.shape)}))
-
-
 # --------------------------------------------------------------------------------------------
 # Driver
 # --------------------------------------------------------------------------------------------
-def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
-              resume: bool = True, max_chunks: int | None = None, float32: bool = False) -> ErrorMap | None:
-    """Compute the map. With ``out``, checkpoints chunks in ``<out>.partial/`` and writes ``out`` at the end.
+#: What ``out`` may name: today's ``.npz``, one NetCDF 3 file, or the Zarr store itself.
+OUTPUT_SUFFIXES = (".npz", ".nc", ".zarr")
 
-    ``workers``: processes (default: all cores; 1 runs in this process). ``max_chunks`` stops after that
-    many new chunks (tests of resuming) and returns None. A KeyboardInterrupt keeps finished chunks.
+
+def store_path_for(out: Path) -> Path:
+    """Where a sweep to ``out`` keeps its Zarr store: ``out`` itself for ``.zarr``, else ``<out>.partial.zarr``."""
+    return out if out.suffix == ".zarr" else out.with_name(out.name + ".partial.zarr")
+
+
+def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
+              resume: bool = True, max_chunks: int | None = None, float32: bool = False,
+              scheduler: str | None = None, stats: dict | None = None) -> ErrorMap | None:
+    """Compute the map of ``spec``; returns it, or None when ``max_chunks`` stopped the sweep early.
+
+    Where: ``workers=1`` without ``scheduler`` runs in this process; otherwise the chunks run on Dask
+    distributed (:mod:`~polarization_compass.sweep_dask`): an embedded ``LocalCluster`` of ``workers``
+    single-threaded processes (default: one per core), or the existing cluster at ``scheduler``
+    (``tcp://HOST:PORT``).
+
+    ``out`` (``.npz``, ``.nc`` or ``.zarr``; None: nothing stored): every finished chunk is written into the
+    Zarr store :func:`store_path_for` (:class:`~polarization_compass.errormap_store.SweepStore`, checksummed
+    regions) as it arrives; a rerun with the same spec resumes from the verified chunks (a damaged one is
+    named and recomputed), and the complete map is exported to ``out`` (the ``.partial.zarr`` store is then
+    removed). ``resume=False`` discards an earlier store of this package first. ``max_chunks`` stops after
+    that many new chunks (tests of resuming). ``float32`` halves an ``.npz``. ``stats``, if given, receives
+    the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``, ``startup_s`` (cluster start),
+    ``task_s`` (summed compute seconds of the chunks).
+
+    Raises :class:`ErrorMapError` for a bad ``out``, a foreign/corrupt/other-sweep store, an unreachable
+    scheduler or a missing ``sweep`` extra. A KeyboardInterrupt keeps every written chunk.
     """
     out_path = Path(out) if out is not None else None
-    part = None
+    if out_path is not None and out_path.suffix not in OUTPUT_SUFFIXES:
+        raise ErrorMapError(f"the map must be written to {', '.join(OUTPUT_SUFFIXES)}, got {str(out_path)!r}")
+    in_process = scheduler is None and workers == 1
+    store = None
     if out_path is not None:
-        part = _partial_dir(out_path)
-        if part.exists() and not resume:
-            shutil.rmtree(part)
-        _open_partial(part, spec)
+        from .errormap_store import SweepStore
+        store = SweepStore.open(store_path_for(out_path), spec, restart=not resume)
     M, A, Y, P, R = spec.shape
     err = np.zeros(spec.shape, dtype=float)
     status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
-    todo = []
+    todo = store.scan(spec.chunks(), err, status) if store is not None else spec.chunks()
     mask = spec.tilt_mask()
-    for ia, ip in spec.chunks():
-        got = _load_chunk(part, ia, ip, (M, Y, R)) if part is not None and _chunk_path(part, ia, ip).exists() \
-            else None
-        if got is None:
-            todo.append((ia, ip))
-        else:
-            err[:, ia, :, ip, :], status[:, ia, :, ip, :] = got
-    per_chunk = np.array([M * Y * int(mask[ip].sum()) for _, ip in todo])
-    total = int(per_chunk.sum())
-    n_workers = max(1, int(workers if workers else (os.cpu_count() or 1)))
-    n_workers = min(n_workers, max(1, len(todo)))
+    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
+    run = todo[:limit]
+    total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
     errors: list[str] = []
+    info = {"tasks": 0, "task_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1}
     t0 = time.perf_counter()
     bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
-                   desc=f"errormap ({n_workers} worker{'s' if n_workers > 1 else ''})")
-    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
-    done = 0
-    sampling = None
 
-    def accept(ia, ip, e, s, errs):
-        nonlocal done
+    def on_start(n_workers: int, where: str, startup_s: float):
+        nonlocal bar
+        info["workers"], info["startup_s"] = n_workers, startup_s
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
+                       desc=f"errormap ({where}, {n_workers} worker{'s' if n_workers != 1 else ''})")
+
+    def accept(ia, ip, e, s, errs, task_s):
         err[:, ia, :, ip, :] = e
         status[:, ia, :, ip, :] = s
-        if part is not None:
-            _save_chunk(part, ia, ip, e, s)
+        if store is not None:
+            store.write_chunk(ia, ip, e, s)
         errors.extend(errs)
-        done += 1
+        info["tasks"] += 1
+        info["task_s"] += task_s
         if bar is not None:
             bar.update(M * Y * int(mask[ip].sum()))
 
     try:
-        if n_workers == 1 or limit == 0:
-            ev = _Evaluator(spec)
-            sampling = ev.sampling()
-            for ia, ip in todo[:limit]:
+        ev = _Evaluator(spec)                 # in the client too: sampling() for the meta, and a bad spec fails here
+        sampling = ev.sampling()
+        if in_process or not run:
+            on_start(1, "in process", 0.0)
+            for ia, ip in run:
+                t1 = time.perf_counter()
                 e, s = ev.chunk(ia, ip)
-                accept(ia, ip, e, s, ev.errors)
+                accept(ia, ip, e, s, ev.errors, time.perf_counter() - t1)
                 ev.errors = []
         else:
-            sampling = _Evaluator(spec).sampling()
-            _run_pool(spec, todo[:limit], n_workers, accept)
+            from .sweep_dask import run_chunks
+            run_chunks(spec, run, accept, on_start, scheduler=scheduler, workers=workers)
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()
-        if part is not None:
-            print(f"errormap: interrupted after {done} new chunk(s); finished chunks are kept in {part}; "
-                  f"rerun the same command to resume", file=sys.stderr)
+        if store is not None:
+            print(f"errormap: interrupted after {info['tasks']} new chunk(s); finished chunks are kept in "
+                  f"{store.path}; rerun the same command to resume", file=sys.stderr)
         raise
     if bar is not None:
         bar.close()
+    info["wall_s"] = time.perf_counter() - t0
+    if stats is not None:
+        stats.update(info)
     if errors:
         print(f"errormap: warning: estimator exceptions (status {STATUS_ESTIMATOR_ERROR}), first: "
               + "; ".join(errors[:3]), file=sys.stderr)
@@ -485,37 +437,17 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     meta = spec.to_meta()
     meta["sampling"] = sampling
     meta["cells_estimated"] = spec.cell_count()
-    meta["elapsed_s_last_run"] = round(time.perf_counter() - t0, 3)
-    meta["workers"] = n_workers
+    meta["elapsed_s_last_run"] = round(info["wall_s"], 3)
+    meta["workers"] = info["workers"]
     m = ErrorMap(err, status, spec.methods, spec.sun_altitude_deg, spec.yaw_deg, spec.pitch_deg,
-                 spec.roll_deg, meta)
-    if out_path is not None:
-        m.save(out_path, float32=float32)
-        shutil.rmtree(part, ignore_errors=True)
+                 spec.roll_deg, meta).validate()
+    if store is not None:
+        from .errormap_store import export_netcdf
+        store.finish(meta)
+        if out_path.suffix == ".npz":
+            m.save(out_path, float32=float32)
+        elif out_path.suffix == ".nc":
+            export_netcdf(m, out_path)
+        if out_path.suffix != ".zarr":
+            shutil.rmtree(store.path, ignore_errors=True)
     return m
-
-
-def _run_pool(spec, todo, n_workers, accept):
-    import multiprocessing as mp
-    ctx = mp.get_context("spawn")      # numba's thread pool and BLAS are not fork-safe once started
-    saved = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                                            "NUMBA_NUM_THREADS")}
-    for k in saved:
-        os.environ[k] = "1"            # inherited by the spawned workers only
-    try:
-        pool = ctx.Pool(n_workers, initializer=_worker_init, initargs=(spec,))
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    try:
-        for ia, ip, e, s, errs in pool.imap_unordered(_worker_chunk, todo, chunksize=1):
-            accept(ia, ip, e, s, errs)
-        pool.close()
-    except BaseException:
-        pool.terminate()
-        raise
-    finally:
-        pool.join()

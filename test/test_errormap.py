@@ -354,13 +354,17 @@ def test_failed_estimates_are_status_codes_not_nan():
     assert np.all(m.error_deg[0, 1] == 0.0)
 
 
-def _chunk_file(ia, ip):
-    return f"chunk_{ia:04d}_{ip:04d}.npz"
+def _chunk_files(store, ia, ip):
+    """The Zarr (format 3) chunk files of sweep chunk (ia, ip): error_deg and status, then its checksum."""
+    return [store / "error_deg" / "c" / "0" / str(ia) / "0" / str(ip) / "0",
+            store / "status" / "c" / "0" / str(ia) / "0" / str(ip) / "0",
+            store / "chunk_checksum" / "c" / str(ia) / str(ip)]
 
 
-def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch):
-    """A resumed sweep computes exactly the chunks that are not finished (each once; a checkpoint torn by a
-    kill counts as unfinished) and gives the same map as an uninterrupted one."""
+def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch, capsys):
+    """A resumed sweep computes exactly the chunks that are not finished (each once; a chunk whose stored bytes
+    do not match its checksum is named and recomputed, never used) and gives the same map as an uninterrupted
+    one."""
     spec = SweepSpec(["least_squares", "tilt_aware"], [10.0, 40.0], np.arange(-180.0, 180, 60), [-10.0, 10.0],
                      [0.0, 5.0])
     whole = run_sweep(spec, workers=1, progress=False)
@@ -374,57 +378,63 @@ def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch):
     monkeypatch.setattr(sweep._Evaluator, "chunk", counting_chunk)
     out = tmp_path / "m.npz"
     assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=2) is None    # "interrupted"
-    part = tmp_path / "m.npz.partial"
+    store = tmp_path / "m.npz.partial.zarr"
     finished = list(computed)
     assert len(finished) == 2 and len(set(finished)) == 2
-    assert sorted(p.name for p in part.glob("chunk_*.npz")) == sorted(_chunk_file(*c) for c in finished)
+    written = {(ia, ip) for ia in range(2) for ip in range(2) if all(f.is_file() for f in _chunk_files(store, ia, ip))}
+    assert written == set(finished)
     assert not out.exists()
     torn = finished[1]
-    (part / _chunk_file(*torn)).write_bytes(b"torn write")    # a chunk killed mid-write is recomputed
+    f = _chunk_files(store, *torn)[0]
+    f.write_bytes(f.read_bytes()[:-7] + b"damaged")          # same size, other bytes: only the checksum sees it
     computed.clear()
+    capsys.readouterr()
     resumed = run_sweep(spec, out=out, workers=1, progress=False)
+    h, p = spec.sun_altitude_deg[torn[0]], spec.pitch_deg[torn[1]]
+    assert f"chunk (sun altitude {h:g} deg, pitch {p:g} deg) [{torn[0]}, {torn[1]}] is damaged" in capsys.readouterr().err
     everything = set(spec.chunks())
     assert len(everything) == 4
     assert sorted(computed) == sorted((everything - set(finished)) | {torn})    # not the intact finished chunk
     np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
     np.testing.assert_array_equal(resumed.status, whole.status)
-    assert not part.exists()
+    assert not store.exists()
     loaded = load_error_map(out)
     np.testing.assert_array_equal(loaded.error_deg, whole.error_deg)
-    # checkpoints of another sweep are refused, not mixed in
+    # a store of another sweep is refused, not mixed in
     other = SweepSpec(["least_squares"], [10.0], [0.0], [0.0], [0.0])
     run_sweep(spec, out=tmp_path / "x.npz", workers=1, progress=False, max_chunks=1)
     with pytest.raises(ErrorMapError, match="different sweep"):
         run_sweep(other, out=tmp_path / "x.npz", workers=1, progress=False)
 
 
-def test_resume_with_the_worker_pool_leaves_finished_checkpoints_alone(tmp_path):
-    """With worker processes (no hook reaches them) the checkpoints themselves show it: a resumed run adds the
-    missing chunk files and never rewrites a finished one (a rewrite is a new file: new inode, new mtime)."""
+def test_resume_on_dask_leaves_finished_chunks_alone(tmp_path):
+    """With Dask worker processes (no hook reaches them) the store itself shows it: a resumed run writes the
+    missing chunks and never rewrites a finished one (a rewrite is a new file: new inode or mtime)."""
     spec = SweepSpec(["least_squares"], [10.0, 40.0], np.arange(-180.0, 180, 90), [-10.0, 0.0, 10.0], [0.0])
     whole = run_sweep(spec, workers=1, progress=False)
-    out = tmp_path / "p.npz"
-    part = tmp_path / "p.npz.partial"
+    out = store = tmp_path / "p.zarr"                       # kept as the map: the store stays after the end
 
-    def checkpoints():
-        return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns, p.read_bytes()) for p in part.glob("chunk_*.npz")}
+    def chunk_files():
+        return {str(f): (f.stat().st_ino, f.stat().st_mtime_ns, f.read_bytes())
+                for ia in range(2) for ip in range(3) for f in _chunk_files(store, ia, ip) if f.is_file()}
 
     assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=2) is None
-    first = checkpoints()
-    assert len(first) == 2
-    assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=2) is None
-    second = checkpoints()
-    assert len(second) == 4 and set(first) < set(second)
-    assert all(second[k] == first[k] for k in first)
-    assert run_sweep(spec, out=out, workers=2, progress=False, max_chunks=0) is None    # nothing new: untouched
-    assert checkpoints() == second
-    resumed = run_sweep(spec, out=out, workers=2, progress=False)
-    assert resumed.meta["workers"] == 2
+    first = chunk_files()
+    assert len(first) == 2 * 3
+    assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=0) is None    # nothing new: untouched
+    assert chunk_files() == first
+    resumed = run_sweep(spec, out=out, workers=2, progress=False, stats=(stats := {}))
+    assert stats["tasks"] == 4 and resumed.meta["workers"] == 2
+    final = chunk_files()
+    assert len(final) == 6 * 3 and all(final[k] == first[k] for k in first)
     np.testing.assert_array_equal(resumed.error_deg, whole.error_deg)
     np.testing.assert_array_equal(resumed.status, whole.status)
+    loaded = load_error_map(store)                          # the Zarr store read back as a map, checksums verified
+    np.testing.assert_array_equal(loaded.error_deg, whole.error_deg)
+    np.testing.assert_array_equal(loaded.status, whole.status)
 
 
-def test_worker_pool_gives_the_same_map_as_one_process():
+def test_dask_local_cluster_gives_the_same_map_as_one_process():
     spec = SweepSpec(["least_squares"], [20.0, 50.0], np.arange(-180.0, 180, 45), [-20.0, 0.0, 20.0], [0.0])
     one = run_sweep(spec, workers=1, progress=False)
     two = run_sweep(spec, workers=2, progress=False)
