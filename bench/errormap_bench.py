@@ -17,12 +17,27 @@ The CPU time of this process and the workers (``getrusage`` of the reaped childr
 subtracted) gives the CPU per
 cell, which other jobs on a shared machine change much less than the wall time; the load average before and
 after the timed sweep is recorded with it.
+
+Backends (issue 17): one smaller sub-grid (``BACKEND_STEPS``) runs in this process (no Dask), on an embedded
+``LocalCluster`` of 1 and of 2 workers, and on a loopback cluster of separate processes (``python -m dask
+scheduler`` + two ``python -m dask worker`` on 127.0.0.1). Each row: cells/s over the compute time (wall minus
+the cluster's start-up), tasks/s, and the overhead share ``1 - sum(task compute s) / (workers x compute
+wall)`` (scheduling, transfer, the client's Zarr-free bookkeeping, idle workers at the end). Scaling
+efficiency = rate(2 workers) / (2 x rate(1 worker)). The projection of a 10^8-estimate map on N workers uses
+the measured per-estimate cost and per-task overhead: ``(1e8 x s_per_estimate + tasks x overhead_per_task) /
+N`` with the tasks of the 1-deg map (91 sun altitudes x 61 pitches).
 """
 from __future__ import annotations
 
+import json
 import os
 import resource
+import subprocess
+import sys
+import tempfile
 import time
+from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 
@@ -33,6 +48,11 @@ TARGET_LIMIT_S = 120.0
 TARGET_AXES = (np.arange(0.0, 50.1, 1.0), np.arange(-180.0, 176.1, 4.0), np.arange(-30.0, 30.1, 2.0))
 #: Sub-grid run per mode: (every k-th sun altitude, every k-th pitch, every k-th yaw).
 SAMPLE_STEPS = {"full": (5, 3, 1), "quick": (25, 15, 1)}
+#: Backend comparison sub-grid per mode: (every k-th sun altitude, every k-th pitch, every k-th yaw).
+BACKEND_STEPS = {"full": (10, 3, 2), "quick": (25, 5, 6)}
+#: The 1-deg map of issue 17: ~1e8 estimates in 91 sun altitudes x 61 pitches = 5551 chunks.
+BIG_MAP_ESTIMATES = 1e8
+BIG_MAP_TASKS = 91 * 61
 
 
 def _children_cpu_s() -> float:
@@ -47,6 +67,98 @@ def _timed(sweep, spec, workers: int):
     t0 = time.perf_counter()
     m = sweep.run_sweep(spec, out=None, workers=workers, progress=False)
     return time.perf_counter() - t0, _children_cpu_s() + time.process_time() - c0, m
+
+
+@contextmanager
+def loopback_cluster(n_workers: int):
+    """A scheduler and ``n_workers`` single-threaded workers, each its own process, on 127.0.0.1 (no dashboard);
+    yields the scheduler address; stops them all (they also stop by themselves: idle/death timeouts)."""
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    procs = []
+    with tempfile.TemporaryDirectory(prefix="bench_dask_") as tmp:
+        f = Path(tmp) / "scheduler.json"
+
+        def spawn(*args):
+            procs.append(subprocess.Popen([sys.executable, "-m", "dask", *args], env=env, cwd=tmp,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        try:
+            spawn("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(f),
+                  "--idle-timeout", "300s")
+            deadline = time.monotonic() + 60
+            while not (f.exists() and f.read_text().strip()):
+                if time.monotonic() > deadline or procs[0].poll() is not None:
+                    raise RuntimeError("the loopback scheduler did not start")
+                time.sleep(0.1)
+            address = json.loads(f.read_text())["address"]
+            for _ in range(n_workers):
+                spawn("worker", "--scheduler-file", str(f), "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
+                      "--no-dashboard", "--death-timeout", "30s")
+            from distributed import Client
+            with Client(address, timeout="30s", set_as_default=False) as c:
+                c.wait_for_workers(n_workers, timeout=120)
+            yield address
+        finally:
+            for p in reversed(procs):
+                if p.poll() is None:
+                    p.terminate()
+            for p in procs:
+                try:
+                    p.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait(timeout=5)
+
+
+def _backend_row(sweep, spec, label: str, **kw) -> dict:
+    st: dict = {}
+    t0 = time.perf_counter()
+    m = sweep.run_sweep(spec, out=None, progress=False, stats=st, **kw)
+    wall = time.perf_counter() - t0
+    compute = max(st["wall_s"] - st["startup_s"], 1e-9)
+    cells = spec.cell_count() // len(spec.methods)
+    n = st["workers"]
+    return {"backend": label, "workers": n, "startup_s": st["startup_s"], "compute_s": compute, "wall_s": wall,
+            "tasks": st["tasks"], "cells": cells, "cells_per_s": cells / compute, "tasks_per_s": st["tasks"] / compute,
+            "task_s": st["task_s"], "overhead_share": max(0.0, 1.0 - st["task_s"] / (n * compute)),
+            "s_per_estimate": st["task_s"] / max(st["estimates"], 1),
+            "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["tasks"], 1),
+            "_map": m}
+
+
+def run_backends(cfg, sweep, methods, scene) -> dict:
+    """In process vs LocalCluster (1, 2 workers) vs a loopback two-worker cluster on one sub-grid."""
+    alt, yaw, pitch = TARGET_AXES
+    if cfg.tiny:
+        s_alt, s_yaw, s_pitch = alt[[10, 40]], yaw[::30], pitch[[5, 15, 25]]
+    else:
+        ka, kp, ky = BACKEND_STEPS["full" if cfg.mode == "full" else "quick"]
+        s_alt, s_yaw, s_pitch = alt[::ka], yaw[::ky], pitch[::kp]
+    spec = sweep.SweepSpec(list(methods), s_alt, s_yaw, s_pitch, [0.0], scene=scene)
+    load_before = os.getloadavg()
+    rows = [_backend_row(sweep, spec, "in process (no Dask)", workers=1),
+            _backend_row(sweep, spec, "LocalCluster", workers=1),
+            _backend_row(sweep, spec, "LocalCluster", workers=2)]
+    with loopback_cluster(2) as address:
+        rows.append(_backend_row(sweep, spec, "loopback cluster (3 processes)", scheduler=address))
+    load_after = os.getloadavg()
+    ref = rows[0].pop("_map")
+    identical = True
+    for r in rows[1:]:
+        m = r.pop("_map")
+        identical &= bool(np.array_equal(m.error_deg, ref.error_deg) and np.array_equal(m.status, ref.status))
+    one, two = rows[1], rows[2]
+    per_est = float(np.median([r["s_per_estimate"] for r in rows]))
+    per_task = max(r["overhead_s_per_task"] for r in rows[1:])
+    projection = {str(n): (BIG_MAP_ESTIMATES * per_est + BIG_MAP_TASKS * per_task) / n for n in (2, 8, 32, 128)}
+    return {"sample": {"sun_altitude_deg": s_alt.tolist(), "pitch_deg": s_pitch.tolist(), "yaw_count": int(s_yaw.size),
+                       "cells": int(spec.cell_count() // len(methods)), "chunks": len(spec.chunks())},
+            "rows": rows, "identical_maps": identical,
+            "scaling_efficiency_1_to_2": two["cells_per_s"] / (2 * one["cells_per_s"]),
+            "localcluster_per_worker_vs_in_process": one["cells_per_s"] / rows[0]["cells_per_s"],
+            "projection_1e8_estimates_s": projection, "s_per_estimate": per_est, "overhead_s_per_task": per_task,
+            "load_average_before": list(load_before), "load_average_after": list(load_after)}
 
 
 def run(cfg) -> dict:
@@ -80,7 +192,9 @@ def run(cfg) -> dict:
     rate = cells / max(wall_s - startup_s, 1e-9)
     projected_s = startup_s + target_cells / rate
     cpu_ms_per_cell = max(cpu_s - probe_cpu_s, 0.0) / max(cells - probe_cells, 1) * 1e3
+    backends = run_backends(cfg, sweep, methods, scene)
     return {
+        "backends": backends,
         "methods": methods, "workers": m.meta["workers"],
         "target": {"cells": int(target_cells), "estimates": int(target_cells * len(methods)), "limit_s": TARGET_LIMIT_S,
                    "sun_altitude_deg": "0:50:1", "yaw_deg": "-180:176:4", "pitch_deg": "-30:30:2", "roll_deg": "0"},
