@@ -344,13 +344,15 @@ def store_path_for(out: Path) -> Path:
 
 def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
               resume: bool = True, max_chunks: int | None = None, float32: bool = False,
-              scheduler: str | None = None, stats: dict | None = None) -> ErrorMap | None:
+              scheduler: str | None = None, stats: dict | None = None,
+              in_process: bool | None = None) -> ErrorMap | None:
     """Compute the map of ``spec``; returns it, or None when ``max_chunks`` stopped the sweep early.
 
-    Where: ``workers=1`` without ``scheduler`` runs in this process; otherwise the chunks run on Dask
-    distributed (:mod:`~polarization_compass.sweep_dask`): an embedded ``LocalCluster`` of ``workers``
-    single-threaded processes (default: one per core), or the existing cluster at ``scheduler``
-    (``tcp://HOST:PORT``).
+    Where: ``workers=1`` without ``scheduler`` runs in this process (``in_process``, if given, decides
+    instead); otherwise the chunks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`): an
+    embedded ``LocalCluster`` of ``workers`` single-threaded processes (default: one per core), or the
+    existing cluster at ``scheduler`` (``tcp://HOST:PORT``). numba runs one thread per chunk everywhere, so
+    every backend gives the same bits.
 
     ``out`` (``.npz``, ``.nc`` or ``.zarr``; None: nothing stored): every finished chunk is written into the
     Zarr store :func:`store_path_for` (:class:`~polarization_compass.errormap_store.SweepStore`, checksummed
@@ -359,7 +361,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     removed). ``resume=False`` discards an earlier store of this package first. ``max_chunks`` stops after
     that many new chunks (tests of resuming). ``float32`` halves an ``.npz``. ``stats``, if given, receives
     the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``, ``startup_s`` (cluster start),
-    ``task_s`` (summed compute seconds of the chunks).
+    ``task_s`` and ``task_cpu_s`` (summed wall and CPU seconds of the chunks' computation).
 
     Raises :class:`ErrorMapError` for a bad ``out``, a foreign/corrupt/other-sweep store, an unreachable
     scheduler or a missing ``sweep`` extra. A KeyboardInterrupt keeps every written chunk.
@@ -367,7 +369,10 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     out_path = Path(out) if out is not None else None
     if out_path is not None and out_path.suffix not in OUTPUT_SUFFIXES:
         raise ErrorMapError(f"the map must be written to {', '.join(OUTPUT_SUFFIXES)}, got {str(out_path)!r}")
-    in_process = scheduler is None and workers == 1
+    if in_process is None:
+        in_process = scheduler is None and workers == 1
+    elif in_process and scheduler is not None:
+        raise ErrorMapError("in_process and scheduler exclude each other")
     store = None
     if out_path is not None:
         from .errormap_store import SweepStore
@@ -381,7 +386,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     run = todo[:limit]
     total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
     errors: list[str] = []
-    info = {"tasks": 0, "task_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1}
+    info = {"tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1}
     t0 = time.perf_counter()
     bar = None
 
@@ -393,7 +398,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
             bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
                        desc=f"errormap ({where}, {n_workers} worker{'s' if n_workers != 1 else ''})")
 
-    def accept(ia, ip, e, s, errs, task_s):
+    def accept(ia, ip, e, s, errs, task_s, task_cpu_s):
         err[:, ia, :, ip, :] = e
         status[:, ia, :, ip, :] = s
         if store is not None:
@@ -401,6 +406,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
         errors.extend(errs)
         info["tasks"] += 1
         info["task_s"] += task_s
+        info["task_cpu_s"] += task_cpu_s
         if bar is not None:
             bar.update(M * Y * int(mask[ip].sum()))
 
@@ -408,11 +414,13 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
         ev = _Evaluator(spec)                 # in the client too: sampling() for the meta, and a bad spec fails here
         sampling = ev.sampling()
         if in_process or not run:
+            from .runtime import single_threaded_kernels
             on_start(1, "in process", 0.0)
             for ia, ip in run:
-                t1 = time.perf_counter()
-                e, s = ev.chunk(ia, ip)
-                accept(ia, ip, e, s, ev.errors, time.perf_counter() - t1)
+                t1, c1 = time.perf_counter(), time.thread_time()
+                with single_threaded_kernels():          # as on a worker: the same bits everywhere
+                    e, s = ev.chunk(ia, ip)
+                accept(ia, ip, e, s, ev.errors, time.perf_counter() - t1, time.thread_time() - c1)
                 ev.errors = []
         else:
             from .sweep_dask import run_chunks

@@ -32,18 +32,19 @@ _EVALUATOR: dict = {}
 
 
 def _chunk_task(spec, digest: str, ia: int, ip: int):
-    """Runs on a Dask worker: one chunk. Returns (ia, ip, err, status, estimator errors, compute seconds)."""
+    """Runs on a Dask worker: one chunk. Returns (ia, ip, err, status, estimator errors, compute wall seconds,
+    compute CPU seconds of this thread)."""
+    from .runtime import single_threaded_kernels
     from .sweep import _Evaluator
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     ev = _EVALUATOR.get(digest)
     if ev is None:
-        import numba
-        numba.set_num_threads(1)
         _EVALUATOR.clear()
         ev = _EVALUATOR[digest] = _Evaluator(spec)
-    err, status = ev.chunk(ia, ip)
+    with single_threaded_kernels():                  # numba's thread count is per calling thread
+        err, status = ev.chunk(ia, ip)
     errors, ev.errors = ev.errors, []
-    return ia, ip, err, status, errors, time.perf_counter() - t0
+    return ia, ip, err, status, errors, time.perf_counter() - t0, time.thread_time() - c0
 
 
 def _require_distributed():
@@ -56,8 +57,9 @@ def _require_distributed():
     return distributed
 
 
-def _start(scheduler: str | None, workers: int | None):
-    """(client, cluster or None) on the scheduler, or on a new LocalCluster."""
+def start(scheduler: str | None, workers: int | None):
+    """(client, cluster or None) on the scheduler, or on a new LocalCluster of ``workers`` single-threaded
+    processes on 127.0.0.1 (default: one per core; no dashboard). The caller closes both."""
     import logging
     distributed = _require_distributed()
     if scheduler:
@@ -91,7 +93,7 @@ def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, 
     LocalCluster it started) on every exit; cancels the chunks left on an exception or interrupt.
     """
     t0 = time.perf_counter()
-    client, cluster = _start(scheduler, workers)
+    client, cluster = start(scheduler, workers)
     try:
         n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
         on_start(n_workers, f"Dask {scheduler or 'LocalCluster'}", time.perf_counter() - t0)

@@ -128,7 +128,7 @@ def test_a_small_sweep_on_the_cluster_equals_the_in_process_one(cluster, referen
 
 
 def test_a_worker_killed_mid_sweep_loses_only_its_chunk(cluster, reference, tmp_path):
-    """SIGKILL one of the two workers once the first chunk is stored: the scheduler reruns its chunk on the
+    """SIGKILL one of the two workers while it holds chunks of the sweep: the scheduler reruns them on the
     other worker, and the map is still identical."""
     store = tmp_path / "k.zarr"
     victim = cluster.workers[-2]
@@ -139,9 +139,9 @@ def test_a_worker_killed_mid_sweep_loses_only_its_chunk(cluster, reference, tmp_
         with Client(cluster.address, timeout="30s", set_as_default=False) as c:
             addr = next(a for a, pid in c.run(os.getpid).items() if pid == victim.pid)
             deadline = time.monotonic() + 60
-            # once a chunk is stored and the victim holds chunks of this sweep (running or assigned to it)
-            while time.monotonic() < deadline and not (
-                    _written_chunks(store) >= 1 and c.processing(workers=[addr]).get(addr)):
+            # once the victim holds chunks of this sweep (running or assigned to it)
+            while time.monotonic() < deadline and not any(
+                    str(k).startswith("errormap-") for k in c.processing(workers=[addr]).get(addr, ())):
                 time.sleep(0.02)
             seen["victim_chunks"] = list(c.processing(workers=[addr]).get(addr, ()))
             seen["written_at_kill"] = _written_chunks(store)
@@ -153,7 +153,7 @@ def test_a_worker_killed_mid_sweep_loses_only_its_chunk(cluster, reference, tmp_
     m = run_sweep(_spec(), out=store, scheduler=cluster.address, progress=False, stats=stats)
     t.join(timeout=10)
     assert victim.wait(timeout=10) == -signal.SIGKILL
-    assert 1 <= seen["written_at_kill"] < 8, seen                          # it died mid-sweep ...
+    assert seen["written_at_kill"] < 8, seen                              # it died mid-sweep ...
     assert any(str(k).startswith("errormap-") for k in seen["victim_chunks"]), seen   # ... holding a chunk
     np.testing.assert_array_equal(m.error_deg, reference.error_deg)
     np.testing.assert_array_equal(m.status, reference.status)
