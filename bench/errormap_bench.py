@@ -51,7 +51,7 @@ TARGET_AXES = (np.arange(0.0, 50.1, 1.0), np.arange(-180.0, 176.1, 4.0), np.aran
 #: Sub-grid run per mode: (every k-th sun altitude, every k-th pitch, every k-th yaw).
 SAMPLE_STEPS = {"full": (5, 3, 1), "quick": (25, 15, 1)}
 #: Backend comparison sub-grid per mode: (every k-th sun altitude, every k-th pitch, every k-th yaw).
-BACKEND_STEPS = {"full": (10, 5, 5), "quick": (25, 10, 10)}
+BACKEND_STEPS = {"full": (10, 5, 5), "quick": (25, 5, 8)}
 #: ... with rolls too, so that a chunk is as big as in a real map (yaws x rolls x methods estimates)
 BACKEND_ROLLS = {"full": np.arange(-30.0, 30.1, 10.0), "quick": np.arange(-30.0, 30.1, 10.0)}
 #: The 1-deg map of issue 17: about 1e8 estimates.
@@ -126,7 +126,7 @@ def _backend_row(sweep, spec, probe, label: str, **kw) -> dict:
     n = st["workers"]
     return {"backend": label, "workers": n, "compute_s": compute, "tasks": st["tasks"], "cells": cells,
             "cells_per_s": cells / compute, "tasks_per_s": st["tasks"] / compute, "task_s": st["task_s"],
-            "task_cpu_s": st["task_cpu_s"], "overhead_share": max(0.0, 1.0 - st["task_s"] / (n * compute)),
+            "task_cpu_s": st["task_cpu_s"], "setup_cpu_s": st["setup_cpu_s"], "overhead_share": max(0.0, 1.0 - st["task_s"] / (n * compute)),
             "cpu_ms_per_estimate": st["task_cpu_s"] / max(st["estimates"], 1) * 1e3,
             "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["tasks"], 1), "_map": m}
 

@@ -362,7 +362,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     that many new chunks (tests of resuming). ``float32`` halves an ``.npz``. ``stats``, if given, receives
     the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``, ``startup_s`` (cluster start),
     ``compute_s`` (from the cluster being up to the last chunk received), ``task_s`` and ``task_cpu_s``
-    (summed wall and CPU seconds of the chunks' computation).
+    (summed wall and CPU seconds of the chunks' computation), ``setup_cpu_s`` (the workers' evaluators).
 
     Raises :class:`ErrorMapError` for a bad ``out``, a foreign/corrupt/other-sweep store, an unreachable
     scheduler or a missing ``sweep`` extra. A KeyboardInterrupt keeps every written chunk.
@@ -387,7 +387,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     run = todo[:limit]
     total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
     errors: list[str] = []
-    info = {"tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1,
+    info = {"tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "setup_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1,
             "compute_s": 0.0}
     t_up = time.perf_counter()
     t0 = time.perf_counter()
@@ -402,7 +402,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
             bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
                        desc=f"errormap ({where}, {n_workers} worker{'s' if n_workers != 1 else ''})")
 
-    def accept(ia, ip, e, s, errs, task_s, task_cpu_s):
+    def accept(ia, ip, e, s, errs, task_s, task_cpu_s, setup_cpu_s=0.0):
         err[:, ia, :, ip, :] = e
         status[:, ia, :, ip, :] = s
         if store is not None:
@@ -411,6 +411,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
         info["tasks"] += 1
         info["task_s"] += task_s
         info["task_cpu_s"] += task_cpu_s
+        info["setup_cpu_s"] += setup_cpu_s
         info["compute_s"] = time.perf_counter() - t_up
         if bar is not None:
             bar.update(M * Y * int(mask[ip].sum()))
