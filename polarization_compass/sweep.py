@@ -35,9 +35,29 @@ __all__ = ["SweepSpec", "parse_range", "run_sweep"]
 # --------------------------------------------------------------------------------------------
 def parse_range(text: str, name: str = "range", lo: float = -math.inf, hi: float = math.inf,
                 max_count: int = 100000) -> np.ndarray:
-    """``"A:B:STEP"`` (inclusive of B when B - A is a multiple of STEP) or a single value ``"A"``.
+    """Parse an axis ``"A:B:STEP"`` (B included when B - A is a multiple of STEP) or ``"A"``.
 
-    Returns a float64 strictly increasing array. Raises :class:`ErrorMapError` with the reason.
+    Parameters
+    ----------
+    text : str
+        The range, in the axis's unit (e.g. deg).
+    name : str, default "range"
+        Option name for messages (``--<name>``).
+    lo, hi : float, default -inf and inf
+        Inclusive bounds every value must lie in.
+    max_count : int, default 100000
+        Most values allowed.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, strictly increasing (rounded to 1e-9, so 0.1 * 3 is 0.3).
+
+    Raises
+    ------
+    ErrorMapError
+        Not a number or ``A:B:STEP``, non-finite, STEP <= 0, B < A, too many values, or a value
+        outside [lo, hi] (the message says which).
     """
     parts = str(text).split(":")
     try:
@@ -72,10 +92,42 @@ def parse_range(text: str, name: str = "range", lo: float = -math.inf, hi: float
 # --------------------------------------------------------------------------------------------
 @dataclass
 class SweepSpec:
-    """What to compute. ``scene`` is a :class:`~polarization_compass.scene.Scene` (its attitude, sun and
-    pixel selection are overridden per cell); ``knobs`` maps a method to its estimator knobs (absent: the
-    estimator class's ``sweep_knobs``, chosen so that errors change by < 0.05 deg against full resolution,
-    see docs/error-maps.md)."""
+    """Describe what a sweep computes: methods and the four axes of the error map.
+
+    Parameters
+    ----------
+    methods : tuple of str
+        Estimator names (for ``array``: photodiode-array methods); not empty.
+    sun_altitude_deg, yaw_deg, pitch_deg, roll_deg : array_like
+        Axes [deg], each finite and strictly increasing; yaw psi, pitch alpha and roll beta of
+        eq 21 (the sun azimuth is 0, so bearing == psi).
+    scene : Scene, optional
+        :class:`~polarization_compass.scene.Scene` (its attitude, sun and pixel selection are
+        overridden per cell); default :func:`~polarization_compass.scene.default_scene`.
+    knobs : dict, default {}
+        ``{method: knobs}``; absent: the estimator class's ``sweep_knobs``, chosen so that errors
+        change by < 0.05 deg against full resolution (docs/error-maps.md).
+    full_domain : bool, default False
+        Compute every (pitch, roll) node, not only |pitch| + |roll| <= ``tilt_limit_deg``.
+    tilt_limit_deg : float, default 30
+        Tilt domain limit [deg] (the paper's |pitch| + |roll| <= 30).
+    support : int, default 2
+        Grid nodes outside the limit kept for interpolation inside it.
+    array : bool, default False
+        Sweep the scene's photodiode array instead of its camera.
+
+    Raises
+    ------
+    ErrorMapError
+        No methods, an axis not finite or not increasing, or array methods that the scene or the
+        array do not support.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3 (the simulated
+       errors over sun altitude, yaw, pitch and roll).
+    """
 
     methods: tuple
     sun_altitude_deg: np.ndarray
@@ -140,26 +192,55 @@ class SweepSpec:
 
     @property
     def shape(self) -> tuple:
+        """Shape of the map: (methods, sun altitudes, yaws, pitches, rolls)."""
         return (len(self.methods), self.sun_altitude_deg.size, self.yaw_deg.size, self.pitch_deg.size,
                 self.roll_deg.size)
 
     def tilt_mask(self) -> np.ndarray:
-        """(pitches, rolls) bool: nodes to compute."""
+        """Return the (pitch, roll) nodes to compute.
+
+        Returns
+        -------
+        numpy.ndarray
+            bool (pitches, rolls): every node for ``full_domain``, else the tilt domain and its
+            support (:func:`~polarization_compass.errormap.tilt_domain_mask`).
+        """
         if self.full_domain:
             return np.ones((self.pitch_deg.size, self.roll_deg.size), dtype=bool)
         return tilt_domain_mask(self.pitch_deg, self.roll_deg, self.tilt_limit_deg, support=self.support)
 
     def chunks(self) -> list[tuple[int, int]]:
-        """(sun altitude index, pitch index) pairs that have at least one node to compute."""
+        """Return the chunks of work: (sun altitude, pitch) pairs with a node to compute.
+
+        Returns
+        -------
+        list of tuple of int
+            ``(sun altitude index, pitch index)`` pairs.
+        """
         mask = self.tilt_mask()
         return [(ia, ip) for ia in range(self.sun_altitude_deg.size) for ip in range(self.pitch_deg.size)
                 if mask[ip].any()]
 
     def cell_count(self) -> int:
-        """Number of (method, cell) estimates the sweep runs."""
+        """Return the number of (method, cell) estimates the sweep runs.
+
+        Returns
+        -------
+        int
+            Methods x sun altitudes x yaws x (pitch, roll) nodes of :meth:`tilt_mask`.
+        """
         return int(len(self.methods) * self.sun_altitude_deg.size * self.yaw_deg.size * self.tilt_mask().sum())
 
     def to_meta(self) -> dict:
+        """Return the map's metadata for this sweep.
+
+        Returns
+        -------
+        dict
+            Format and package versions, scene, knobs per method, tilt domain rule, sun azimuth 0,
+            the error definition (``fold_axial(estimated psi - true psi)`` [deg] in (-90, 90]) and
+            the status legend.
+        """
         from . import __version__
         return {
             "format_version": FORMAT_VERSION,
@@ -177,7 +258,13 @@ class SweepSpec:
         } | ({"sensor": "photodiode_array"} if self.array else {})
 
     def digest(self) -> str:
-        """Identifies a sweep for resuming: same digest, same cells and values."""
+        """Return the identity of a sweep for resuming: same digest, same cells and values.
+
+        Returns
+        -------
+        str
+            20 hex digits of the SHA-256 of the metadata (package version excluded) and the axes.
+        """
         meta = self.to_meta()
         meta.pop("package_version", None)
         key = {"meta": meta, "methods": list(self.methods),
@@ -338,7 +425,18 @@ OUTPUT_SUFFIXES = (".npz", ".nc", ".zarr")
 
 
 def store_path_for(out: Path) -> Path:
-    """Where a sweep to ``out`` keeps its Zarr store: ``out`` itself for ``.zarr``, else ``<out>.partial.zarr``."""
+    """Return where a sweep to ``out`` keeps its Zarr store.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The map's output path.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out`` itself for ``.zarr``, else ``<out>.partial.zarr``.
+    """
     return out if out.suffix == ".zarr" else out.with_name(out.name + ".partial.zarr")
 
 
@@ -346,26 +444,60 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
               resume: bool = True, max_chunks: int | None = None, float32: bool = False,
               scheduler: str | None = None, stats: dict | None = None,
               in_process: bool | None = None) -> ErrorMap | None:
-    """Compute the map of ``spec``; returns it, or None when ``max_chunks`` stopped the sweep early.
+    """Compute the error map of ``spec``.
 
-    Where: ``workers=1`` without ``scheduler`` runs in this process (``in_process``, if given, decides
-    instead); otherwise the chunks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`): an
-    embedded ``LocalCluster`` of ``workers`` single-threaded processes (default: one per core), or the
-    existing cluster at ``scheduler`` (``tcp://HOST:PORT``). numba runs one thread per chunk everywhere, so
-    every backend gives the same bits.
+    Where: ``workers=1`` without ``scheduler`` runs in this process (``in_process``, if given,
+    decides instead); otherwise the chunks run on Dask distributed
+    (:mod:`~polarization_compass.sweep_dask`). numba runs one thread per chunk everywhere, so
+    every backend gives the same bits. Every finished chunk is written into the Zarr store
+    :func:`store_path_for` (:class:`~polarization_compass.errormap_store.SweepStore`,
+    checksummed regions) as it arrives; a rerun with the same spec resumes from the verified
+    chunks (a damaged one is named and recomputed), and the complete map is exported to ``out``
+    (the ``.partial.zarr`` store is then removed). A KeyboardInterrupt keeps every written chunk.
 
-    ``out`` (``.npz``, ``.nc`` or ``.zarr``; None: nothing stored): every finished chunk is written into the
-    Zarr store :func:`store_path_for` (:class:`~polarization_compass.errormap_store.SweepStore`, checksummed
-    regions) as it arrives; a rerun with the same spec resumes from the verified chunks (a damaged one is
-    named and recomputed), and the complete map is exported to ``out`` (the ``.partial.zarr`` store is then
-    removed). ``resume=False`` discards an earlier store of this package first. ``max_chunks`` stops after
-    that many new chunks (tests of resuming). ``float32`` halves an ``.npz``. ``stats``, if given, receives
-    the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``, ``startup_s`` (cluster start),
-    ``compute_s`` (from the cluster being up to the last chunk received), ``task_s`` and ``task_cpu_s``
-    (summed wall and CPU seconds of the chunks' computation), ``setup_cpu_s`` (the workers' evaluators).
+    Parameters
+    ----------
+    spec : SweepSpec
+        What to compute.
+    out : str or os.PathLike, optional
+        ``.npz``, ``.nc`` (NetCDF 3) or ``.zarr``; None: nothing stored.
+    workers : int, optional
+        Single-threaded worker processes of an embedded ``LocalCluster`` (default: one per core).
+    progress : bool, default True
+        A tqdm progress bar (rate, ETA) on stderr.
+    resume : bool, default True
+        Continue an earlier store of the same sweep; False discards it first.
+    max_chunks : int, optional
+        Stop after this many new chunks (tests of resuming).
+    float32 : bool, default False
+        Store an ``.npz`` in float32 (half the size).
+    scheduler : str, optional
+        Address of an existing Dask cluster (``tcp://HOST:PORT``).
+    stats : dict, optional
+        Receives the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``,
+        ``startup_s`` (cluster start), ``compute_s`` (from the cluster being up to the last chunk
+        received), ``task_s`` and ``task_cpu_s`` (summed wall and CPU seconds of the chunks'
+        computation), ``setup_cpu_s`` (the workers' evaluators) [s].
+    in_process : bool, optional
+        Force (True) or forbid (False) the in-process path.
 
-    Raises :class:`ErrorMapError` for a bad ``out``, a foreign/corrupt/other-sweep store, an unreachable
-    scheduler or a missing ``sweep`` extra. A KeyboardInterrupt keeps every written chunk.
+    Returns
+    -------
+    ErrorMap or None
+        The validated map (errors [deg], statuses), or None when ``max_chunks`` stopped the sweep
+        early.
+
+    Raises
+    ------
+    ErrorMapError
+        A bad ``out`` suffix, ``in_process`` with ``scheduler``, a foreign, corrupt or other-sweep
+        store, an unreachable scheduler or a missing ``sweep`` extra.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3 (the simulated
+       errors over sun altitude, yaw, pitch and roll).
     """
     out_path = Path(out) if out is not None else None
     if out_path is not None and out_path.suffix not in OUTPUT_SUFFIXES:

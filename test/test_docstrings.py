@@ -68,6 +68,7 @@ COMPLETED = (
     'replay/outputs.py',
     'replay/processing.py',
     'replay/threads.py',
+    'sweep.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
