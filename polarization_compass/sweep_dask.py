@@ -23,7 +23,7 @@ import time
 
 from .errormap import ErrorMapError
 
-__all__ = ["run_chunks"]
+__all__ = ["run_chunks", "run_tasks", "start"]
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
@@ -97,18 +97,30 @@ def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, 
     ``on_start(n_workers, where, startup_s)`` is called once the cluster is up. Closes the client (and the
     LocalCluster it started) on every exit; cancels the chunks left on an exception or interrupt.
     """
+    digest = spec.digest()
+    calls = [(f"errormap-{digest}-{ia}-{ip}", _chunk_task, (spec, digest, ia, ip)) for ia, ip in run]
+    run_tasks(calls, lambda key, result: accept(*result), on_start, scheduler=scheduler, workers=workers)
+
+
+def run_tasks(calls: list, on_result, on_start=None, scheduler: str | None = None,
+              workers: int | None = None) -> None:
+    """Run ``calls`` ([(key, function, args), ...], the functions importable on the workers) on Dask.
+
+    ``on_result(key, result)`` is called in this process for each as it arrives (any order);
+    ``on_start(n_workers, where, startup_s)`` once the cluster is up. Closes the client (and the LocalCluster it
+    started) on every exit; cancels what is left on an exception or interrupt.
+    """
     t0 = time.perf_counter()
     client, cluster = start(scheduler, workers)
     try:
         n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
-        on_start(n_workers, f"Dask {scheduler or 'LocalCluster'}", time.perf_counter() - t0)
+        if on_start is not None:
+            on_start(n_workers, f"Dask {scheduler or 'LocalCluster'}", time.perf_counter() - t0)
         from distributed import as_completed
-        digest = spec.digest()
-        futures = [client.submit(_chunk_task, spec, digest, ia, ip, key=f"errormap-{digest}-{ia}-{ip}", pure=False)
-                   for ia, ip in run]
+        futures = [client.submit(fn, *args, key=key, pure=False) for key, fn, args in calls]
         try:
             for fut, result in as_completed(futures, with_results=True, loop=client.loop):
-                accept(*result)
+                on_result(fut.key, result)
                 fut.release()
         except BaseException:
             client.cancel(futures)

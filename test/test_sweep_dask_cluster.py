@@ -185,3 +185,24 @@ def test_an_interrupted_client_is_resumed_and_finishes_identical(cluster, refere
     np.testing.assert_array_equal(m.error_deg, reference.error_deg)
     np.testing.assert_array_equal(m.status, reference.status)
     assert out.exists() and not store.exists()
+
+
+def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
+    """The Monte Carlo budget's (condition, block of samples) tasks on the loopback cluster give the same
+    statistics as the in-process run on one numba thread (blocks joined in sample order)."""
+    from polarization_compass.budget import BudgetConfig, run_budget
+    from polarization_compass.camera import CameraModel, PixelSelection
+    from polarization_compass.motion import MountingErrors
+    from polarization_compass.runtime import single_threaded_kernels
+    from polarization_compass.scene import Scene
+    scene = Scene(camera=CameraModel(width_px=96, height_px=80), pixels=PixelSelection.full(),
+                  sun_fixed=(120.0, 40.0), sky={"model": "rayleigh", "dop_max": 0.75}, seed=3)
+    cfg = BudgetConfig(scene, samples=9, tilt_max_deg=10.0, imu=MountingErrors(boresight_pitch_deg=2.0),
+                       methods=("zenith", "tilt_aware"))
+    with single_threaded_kernels():
+        here = run_budget(cfg)
+    seen = []
+    there = run_budget(cfg, scheduler=cluster.address, progress=seen.append)
+    assert json.dumps(there, sort_keys=True) == json.dumps(here, sort_keys=True)
+    assert sorted(seen) == sorted(here["conditions"]) and len(here["conditions"]) == 3     # all, -boresight, -tilt
+    assert here["conditions"]["all"]["tilt_aware"]["count"] == 9
