@@ -24,6 +24,8 @@ setup(
         ("share/" + PACKAGE + "/config/arrays", glob("config/arrays/*.yaml")),
     ],
     install_requires=["setuptools"],
+    # Error-map sweeps on Dask distributed with maps as xarray/Zarr (docs/error-maps.md); never needed by the nodes.
+    extras_require={"sweep": ["dask==2026.8.0", "distributed==2026.8.0", "xarray==2026.9.0", "zarr==3.1.6"]},
     zip_safe=False,
     maintainer="polarization_compass developers",
     maintainer_email="polarization-compass@example.invalid",

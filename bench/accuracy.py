@@ -72,6 +72,9 @@ class Condition:
     occlude: bool = False
     only_methods: tuple = ()                # empty: every method
     exclude_methods: tuple = ()
+    scene: dict = field(default_factory=dict)       # issue 16: scene changes (atmosphere, optics)
+    calibration: dict | None = None                 # issue 16: sensor.calibration (sensor conditions)
+    mounting: dict | None = None                    # issue 16: motion.MountingErrors of the tilt given
 
 
 CONDITIONS = {c.name: c for c in (
@@ -90,6 +93,29 @@ CONDITIONS = {c.name: c for c in (
               occlude=True),
     Condition("eight_bit", "as noise_imx250 but 8-bit quantisation",
               sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, sensor_bits=8),
+    # issue 16: real skies and sensors (atmosphere.py, optics.py, sensor calibration, motion.MountingErrors)
+    Condition("clouds_30", "Rayleigh (DoP_max 0.7) with CIE clear-sky radiance, 30 % broken clouds (optical "
+                           "thickness 3), ideal sensor, level", sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX},
+              scene={"radiance": {"model": "cie_clear"},
+                     "atmosphere": {"clouds": {"coverage": 0.3, "optical_thickness": 3.0}}}),
+    Condition("clouds_70", "as clouds_30 with 70 % cover", sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX},
+              scene={"radiance": {"model": "cie_clear"},
+                     "atmosphere": {"clouds": {"coverage": 0.7, "optical_thickness": 3.0}}}),
+    Condition("overcast", "as clouds_30 under a uniform overcast of optical thickness 2",
+              sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX},
+              scene={"radiance": {"model": "cie_clear"},
+                     "atmosphere": {"clouds": {"coverage": 1.0, "optical_thickness": 2.0}}}),
+    Condition("haze", "Rayleigh (DoP_max 0.7), haze of turbidity 5 (DoP x 0.4, Preetham radiance), ideal sensor",
+              sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, scene={"atmosphere": {"haze": {"turbidity": 5.0}}}),
+    Condition("glare_flare", "Rayleigh (DoP_max 0.7), sun glare, flare ghosts and cos4 vignetting, ideal sensor",
+              sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX},
+              scene={"optics": {"sun": {}, "flare": {}, "vignetting": {"law": "cos4"}}}),
+    Condition("calibration", "as noise_imx250 plus DoFP calibration errors (polarizer angle 1 deg, gain 1 %, "
+                             "crosstalk 1 %)", sky={"model": "rayleigh", "dop_max": NOISE_DOP_MAX}, sensor_bits=12,
+              calibration={"angle_error_deg": 1.0, "gain_rms": 0.01, "crosstalk": 0.01}),
+    Condition("boresight", "as 'tilted_tilt_aware' with a 1 deg camera-to-IMU boresight misalignment (pitch and "
+                           "roll)", tilted=True, give_tilt=True, only_methods=("tilt_aware",),
+              mounting={"boresight_pitch_deg": 1.0, "boresight_roll_deg": 1.0}),
 )}
 
 
@@ -307,11 +333,13 @@ def run(cfg) -> dict:
                 skipped.append({"condition": cond.name, "reason": str(exc)})
                 continue
         try:
-            base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0)
+            base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0).replace(**cond.scene)
             if sensor:
                 from . import simulator
-                base_scene = base_scene.replace(sensor=simulator.sensor_config(ALL_SENSOR_EFFECTS, "superpixel",
-                                                                               bits=cond.sensor_bits))
+                scfg = simulator.sensor_config(ALL_SENSOR_EFFECTS, "superpixel", bits=cond.sensor_bits)
+                if cond.calibration:
+                    scfg["calibration"] = dict(cond.calibration)
+                base_scene = base_scene.replace(sensor=scfg)
                 Renderer(base_scene)      # fails early if the sensor code is not there yet
         except Exception as exc:  # noqa: BLE001
             skipped.append({"condition": cond.name, "reason": f"{type(exc).__name__}: {exc}"})
@@ -387,6 +415,10 @@ def _observation(frame, s, cond, camera, Observation, method=""):
     if cond.give_tilt or method in registry.tilt_methods():   # always given the true pitch and roll
         obs.pitch_deg = s["attitude"].pitch_deg
         obs.roll_deg = s["attitude"].roll_deg
+        if cond.mounting:                                        # ... or what a misaligned IMU says
+            from polarization_compass.motion import MountingErrors
+            seen = MountingErrors(**cond.mounting).measured_attitude(s["attitude"], np.zeros(3))
+            obs.pitch_deg, obs.roll_deg = seen.pitch_deg, seen.roll_deg
     if cond.occlude:
         keep = occlusion_mask(frame.x_px, frame.y_px, camera, s["occluder_angle_rad"])
         obs.valid = np.asarray(frame.valid) & keep

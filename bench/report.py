@@ -393,6 +393,23 @@ def _errormap_section(em) -> list[str]:
                       _f(r["cpu_ms_per_cell"]), _f(r["projected_target_sweep_s"]), _pass(r["pass"])]])
     lines += ["", "Knobs: " + "; ".join(f"{m} {k} ({r['pixels'].get(m, '?')} px)" for m, k in r["knobs"].items()),
               "", f"{r['note']}.", ""]
+    b = r.get("backends")
+    if b:
+        smp = b["sample"]
+        lines += [f"Backends (issue 17) on a sub-grid of {smp['cells']} cells in {smp['chunks']} chunks "
+                  f"({len(smp['sun_altitude_deg'])} sun altitudes x {len(smp['pitch_deg'])} pitches x "
+                  f"{smp['yaw_count']} yaws), load average {_f(b['load_average_before'][0])} -> "
+                  f"{_f(b['load_average_after'][0])}; maps identical to the in-process one: "
+                  f"{'yes' if b['identical_maps'] else 'NO'}.", ""]
+        lines += _table(["backend", "workers", "start-up (s)", "compute (s)", "cells/s", "tasks/s", "overhead share",
+                         "CPU ms per estimate"],
+                        [[x["backend"], x["workers"], _f(x["startup_s"]), _f(x["compute_s"]), _f(x["cells_per_s"]),
+                          _f(x["tasks_per_s"]), _f(x["overhead_share"]), _f(x["cpu_ms_per_estimate"])]
+                         for x in b["rows"]])
+        proj = ", ".join(f"{n} workers {_f(v / 3600)} h" for n, v in b["projection_1e8_estimates_s"].items())
+        lines += ["", f"Scaling 1 -> 2 workers (LocalCluster): efficiency {_f(b['scaling_efficiency_1_to_2'])}; "
+                      f"one LocalCluster worker / in process: {_f(b['localcluster_per_worker_vs_in_process'])}. "
+                      f"Projected 10^8-estimate map: {proj}. {b['note']}.", ""]
     return lines
 
 

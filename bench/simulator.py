@@ -53,6 +53,19 @@ STAGE_TARGETS_MS = {
 FULL_SIZE = (2448, 2048)
 
 
+#: Issue 16's effects (atmosphere.py, optics.py, sensor calibration): (row name, scene changes).
+REAL_SKY_ROWS = (
+    ("clouds (coverage 0.5)", {"atmosphere": {"clouds": {"coverage": 0.5}}}),
+    ("haze (turbidity 3, Preetham radiance)", {"atmosphere": {"haze": {"turbidity": 3.0}}}),
+    ("skyline (random, 15 deg)", {"atmosphere": {"skyline": {"max_elevation_deg": 15.0}}}),
+    ("optics: sun glare", {"optics": {"sun": {}}}),
+    ("optics: flare ghosts", {"optics": {"flare": {}}}),
+    ("optics: vignetting cos4", {"optics": {"vignetting": {"law": "cos4"}}}),
+    ("clouds + sun glare + flare + vignetting", {"atmosphere": {"clouds": {"coverage": 0.5}},
+                                                 "optics": {"sun": {}, "flare": {}, "vignetting": {"law": "cos4"}}}),
+)
+
+
 def sensor_config(effects, demosaic="superpixel", bits=None) -> dict:
     """A scene ``sensor`` mapping with the given effects (names of :data:`EFFECTS`)."""
     cfg = {k: dict(EFFECTS[k]) for k in effects}
@@ -92,6 +105,9 @@ def _configs(tiny: bool):
                  "sensor"))
     rows.append(("sensor: all effects, 8-bit", {"sensor": sensor_config(every, "superpixel", bits=8)}, full,
                  "sensor"))
+    # issue 16: real skies and optics, each alone and all together (the 2x-of-"full" target is the last row)
+    for name, ch in REAL_SKY_ROWS:
+        rows.append((name, ch, full, "real sky"))
     return cam, rows
 
 
@@ -141,6 +157,13 @@ def run(cfg) -> dict:
                 summary[f"stride8_at_least_30x_{label}"] = bool(sp >= 30.0)
         summary["full_frame_ideal_ms"] = {k: by["full"][k]["median_ms"] for k in ("single_thread", "all_threads")}
     summary["targets"] = targets(by, (cam.width_px, cam.height_px) == FULL_SIZE)
+    both = REAL_SKY_ROWS[-1][0]
+    if "full" in by and both in by:
+        # issue 16: a frame with clouds and the optical effects within 2x of the ideal full frame
+        summary["clouds_optics_vs_full"] = {
+            label: {"ratio": by[both][label]["median_ms"] / by["full"][label]["median_ms"],
+                    "within_2x": bool(by[both][label]["median_ms"] <= 2.0 * by["full"][label]["median_ms"])}
+            for label in ("single_thread", "all_threads")}
     return {"camera": {"width_px": cam.width_px, "height_px": cam.height_px},
             "attitude": vars(ATTITUDE) if hasattr(ATTITUDE, "__dict__") else str(ATTITUDE),
             "sun": {"azimuth_deg": SUN.azimuth_deg, "altitude_deg": SUN.altitude_deg},

@@ -5,6 +5,12 @@ robot_localization, see config/ekf_heading_example.yaml and docs/ros.md).
     ros2 launch polarization_compass compass.launch.py method:=least_squares \
         image_topic:=/pol_camera/image_raw camera_info_topic:=/pol_camera/camera_info imu_topic:=/imu/data
 
+Full-resolution images: this launch points Fast DDS at the package's shared-memory profile
+(large_image_transport, default true; false when the camera is on another machine). The camera
+driver must publish with the same profile (start it with FASTDDS_DEFAULT_PROFILES_FILE set to
+share/polarization_compass/config/fastdds_large_images.xml): with Fast DDS's default transports
+on the driver's side 10 MB best-effort images are lost in fragments (docs/ros.md).
+
 Nodes started with the default arguments (generated from polarization_compass.graphs;
 test/test_launch_docs.py keeps this list current; `--show-args` lists the arguments):
 

@@ -1,7 +1,11 @@
 """The simulation graph: sky_simulator -> heading_estimator per method -> tilt_corrector per paper method
 -> error_evaluator, on sim time from the simulator's /clock. Ends when the simulator finishes (exit_when_done).
 
-    ros2 launch polarization_compass sim.launch.py [methods:=zenith,least_squares] [lockstep:=true] ...
+    ros2 launch polarization_compass sim.launch.py [methods:=zenith,least_squares] [lockstep:=false] ...
+
+Lockstep by default (every frame processed: the README table on any machine); lockstep:=false runs in
+real time and measures drops and latency. Every node gets 20 s to stop after SIGINT before SIGTERM
+(graphs.STOP_TIMEOUT_S, see docs/ros.md "Starting and stopping").
 
 Without ros2 launch (e.g. a pip-only install): `polarization-compass sim` starts the same graph.
 

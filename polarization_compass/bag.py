@@ -90,7 +90,14 @@ _TYPESTORE = None
 
 
 def typestore():
-    """The rosbags typestore used to (de)serialize; Kilted definitions (the ROS this repo pins)."""
+    """Return the rosbags typestore used to (de)serialize: ROS 2 Kilted definitions (cached).
+
+    Returns
+    -------
+    rosbags.typesys.store.Typestore
+        The one typestore of the process (Kilted, the ROS this repo pins; identical to Jazzy for
+        the message types used here).
+    """
     global _TYPESTORE
     if _TYPESTORE is None:
         from rosbags.typesys import Stores, get_typestore
@@ -103,22 +110,48 @@ def typestore():
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TopicSpec:
+    """Hold the topic name and message type of one role.
+
+    Parameters
+    ----------
+    topic : str
+        Absolute topic name, e.g. ``"/camera/image_raw"``.
+    type : str
+        Message type, e.g. ``"sensor_msgs/msg/Image"`` (one of :data:`ROLE_TYPES` for the role).
+    """
+
     topic: str
     type: str
 
 
 @dataclass(frozen=True)
 class TopicMap:
-    """Role -> topic/type, plus what a bag cannot say: the mosaic layout, the pixel pitch, the camera
-    mounting, fallbacks for a missing camera_info / NavSatFix, and synchronisation tolerances.
+    """Map roles to topics and types, plus what a bag cannot say.
 
-    ``mosaic``: the sensor's mosaic description in the form of the scene's ``sensor.mosaic`` section.
-    ``pixel_pitch_um``: converts camera_info focal lengths (pixels) into the model's millimetres.
-    ``camera``: optional fallback :class:`CameraModel` fields when the bag has no camera_info.
-    ``site``: optional fallback ``{latitude_deg, longitude_deg, altitude_m}`` when it has no NavSatFix.
-    ``max_gap_s``: for ``imu`` and ``reference``, the largest time between an image stamp and a sample
-    used with it (the site is the latest NavSatFix, as on the nodes).
-    ``lookahead_s``: how far (bag receive time) the reader looks past an image before processing it.
+    The mosaic layout, the pixel pitch, the camera mounting, fallbacks for a missing camera_info
+    or NavSatFix, and synchronisation tolerances. Built by :func:`load_topic_map`.
+
+    Parameters
+    ----------
+    topics : dict
+        ``{role: TopicSpec}`` for every role of :data:`ROLES`.
+    mosaic : dict
+        The sensor's mosaic description in the form of the scene's ``sensor.mosaic`` section.
+    pixel_pitch_um : float, default 3.45
+        Pixel pitch [um]: converts camera_info focal lengths [px] into the model's [mm].
+    R_body_cam : tuple of tuple of float
+        (3, 3) rotation from camera to body (columns: the camera axes in REP-103 base_link);
+        default :data:`~polarization_compass.conventions.R_BODY_CAM_DEFAULT`.
+    camera : dict, optional
+        Fallback :class:`CameraModel` fields when the bag has no camera_info.
+    site : dict, optional
+        Fallback ``{latitude_deg, longitude_deg, altitude_m}`` [deg, deg, m] when the bag has no
+        NavSatFix.
+    max_gap_s : dict
+        For ``imu`` and ``reference``, the largest time [s] between an image stamp and a sample
+        used with it (the site is the latest NavSatFix, as on the nodes).
+    lookahead_s : float, default 0.5
+        How far [s of bag receive time] the reader looks past an image before processing it.
     """
 
     topics: dict
@@ -134,9 +167,33 @@ class TopicMap:
         return id(self)
 
     def spec(self, role: str) -> TopicSpec:
+        """Return the topic and type of ``role``.
+
+        Parameters
+        ----------
+        role : str
+            One of :data:`ROLES`.
+
+        Returns
+        -------
+        TopicSpec
+            Its topic and type (``KeyError`` for an unknown role).
+        """
         return self.topics[role]
 
     def role_of_topic(self, topic: str) -> str | None:
+        """Return the role a topic is mapped to.
+
+        Parameters
+        ----------
+        topic : str
+            Absolute topic name.
+
+        Returns
+        -------
+        str or None
+            The role, or None when the topic is not mapped.
+        """
         for role, s in self.topics.items():
             if s.topic == topic:
                 return role
@@ -144,9 +201,18 @@ class TopicMap:
 
     @property
     def R_body_cam_array(self) -> np.ndarray:
+        """The camera mounting ``R_body_cam`` as a (3, 3) float array."""
         return np.array(self.R_body_cam, dtype=float)
 
     def to_dict(self) -> dict:
+        """Return the mapping in its YAML form (what :func:`load_topic_map` reads).
+
+        Returns
+        -------
+        dict
+            ``topics``, ``mosaic``, ``pixel_pitch_um``, ``mounting.R_body_cam``, ``camera``,
+            ``site``, ``max_gap_s`` and ``lookahead_s``.
+        """
         return {"topics": {r: {"topic": s.topic, "type": s.type} for r, s in self.topics.items()},
                 "mosaic": dict(self.mosaic), "pixel_pitch_um": self.pixel_pitch_um,
                 "mounting": {"R_body_cam": [list(r) for r in self.R_body_cam]},
@@ -269,8 +335,25 @@ def _builtin_defaults() -> dict:
 
 
 def load_topic_map(path: str | Path | None = None) -> TopicMap:
-    """Load a topic mapping YAML (safe loader); ``None`` gives the defaults (what ``record-sim`` writes).
-    Keys not given keep their defaults."""
+    """Load a topic mapping YAML (safe loader); keys not given keep their defaults.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The YAML file (form of ``config/replay_topics.yaml``); None gives the defaults (what
+        ``record-sim`` writes).
+
+    Returns
+    -------
+    TopicMap
+        The validated mapping.
+
+    Raises
+    ------
+    BagError
+        The file is missing or unreadable, not valid YAML, or a key, role, topic, type, mounting
+        rotation, camera, site or tolerance is invalid (one-line message naming it).
+    """
     from .safe_load import load_yaml, read_text
     if path is None:
         return _topic_map_from_dict(_builtin_defaults(), "default topic mapping")
@@ -279,6 +362,13 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
 
 
 def default_topic_map() -> TopicMap:
+    """Return the default topic mapping (what ``record-sim`` writes).
+
+    Returns
+    -------
+    TopicMap
+        :func:`load_topic_map` of None.
+    """
     return load_topic_map(None)
 
 
@@ -286,25 +376,70 @@ def default_topic_map() -> TopicMap:
 # Time
 # --------------------------------------------------------------------------------------------
 def stamp_ns(header) -> int:
-    """Nanoseconds since the epoch of a std_msgs/Header (or builtin_interfaces/Time) ``stamp``."""
+    """Return the nanoseconds since the epoch of a std_msgs/Header or builtin_interfaces/Time.
+
+    Parameters
+    ----------
+    header : object
+        A message header with a ``stamp``, or the stamp itself (``sec``, ``nanosec``).
+
+    Returns
+    -------
+    int
+        The stamp [ns since the Unix epoch].
+    """
     st = getattr(header, "stamp", header)
     return int(st.sec) * 1_000_000_000 + int(st.nanosec)
 
 
 def stamp_from_ns(t_ns: int):
-    """builtin_interfaces/msg/Time (rosbags class) for nanoseconds since the epoch."""
+    """Return a builtin_interfaces/msg/Time (rosbags class) for nanoseconds since the epoch.
+
+    Parameters
+    ----------
+    t_ns : int
+        Stamp [ns since the Unix epoch].
+
+    Returns
+    -------
+    builtin_interfaces.msg.Time
+        ``sec`` and ``nanosec`` (in [0, 1e9)).
+    """
     Time = typestore().types["builtin_interfaces/msg/Time"]
     sec, nsec = divmod(int(t_ns), 1_000_000_000)
     return Time(sec=int(sec), nanosec=int(nsec))
 
 
 def utc_from_ns(t_ns: int) -> _dt.datetime:
-    """Aware UTC datetime of a ROS stamp (ROS time is Unix time: UTC without leap seconds)."""
+    """Return the aware UTC datetime of a ROS stamp (ROS time is Unix time: UTC, no leap seconds).
+
+    Parameters
+    ----------
+    t_ns : int
+        Stamp [ns since the Unix epoch].
+
+    Returns
+    -------
+    datetime.datetime
+        UTC, truncated to the microsecond.
+    """
     sec, nsec = divmod(int(t_ns), 1_000_000_000)
     return _dt.datetime.fromtimestamp(sec, tz=_dt.timezone.utc) + _dt.timedelta(microseconds=nsec // 1000)
 
 
 def ns_from_utc(t: _dt.datetime) -> int:
+    """Return the ROS stamp of a datetime (the inverse of :func:`utc_from_ns`).
+
+    Parameters
+    ----------
+    t : datetime.datetime
+        An aware datetime (any zone; a naive one is taken as local time by ``astimezone``).
+
+    Returns
+    -------
+    int
+        Stamp [ns since the Unix epoch], exact to the microsecond.
+    """
     t = t.astimezone(_dt.timezone.utc)
     epoch = _dt.datetime(1970, 1, 1, tzinfo=_dt.timezone.utc)
     d = t - epoch
@@ -315,13 +450,28 @@ def ns_from_utc(t: _dt.datetime) -> int:
 # Decoding (message -> numpy). Duck-typed: works on rosbags classes and on rclpy messages alike.
 # --------------------------------------------------------------------------------------------
 def decode_mosaic(msg) -> np.ndarray:
-    """The raw mosaic of a sensor_msgs/Image as a (height, width) array in native byte order:
-    uint8 (``mono8``/``8UC1``), uint16 (``mono16``/``16UC1``: drivers put 10/12-bit samples in these) or
-    float32 (``32FC1``: the simulator's ideal polarizer intensities, finite and >= 0).
+    """Return the raw mosaic of a sensor_msgs/Image as a (height, width) array, native byte order.
 
-    Raises :class:`MessageError` for an unsupported encoding (``bad_encoding``), inconsistent sizes
-    (``bad_size``: step < width * bytes per pixel, data length != step * height, odd dimensions), and
-    for ``32FC1`` NaN/inf (``non_finite``) or negative intensities (``bad_value``).
+    uint8 (``mono8``/``8UC1``), uint16 (``mono16``/``16UC1``: drivers put 10/12-bit samples in
+    these) or float32 (``32FC1``: the simulator's ideal polarizer intensities, finite and >= 0).
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.Image
+        The message (rosbags class or rclpy message: duck-typed).
+
+    Returns
+    -------
+    numpy.ndarray
+        The mosaic [counts, or intensity for ``32FC1``], shape (height, width); a view of the
+        message's data when already native and unpadded.
+
+    Raises
+    ------
+    MessageError
+        ``bad_encoding`` (unsupported encoding), ``bad_size`` (odd or < 2 dimensions, step <
+        width x bytes per pixel, data length != step x height), and for ``32FC1``
+        ``non_finite`` (NaN/inf) or ``bad_value`` (negative intensities).
     """
     enc = str(msg.encoding)
     if enc not in _ENCODINGS:
@@ -349,16 +499,40 @@ def decode_mosaic(msg) -> np.ndarray:
 
 
 def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
-    """A :class:`CameraModel` from sensor_msgs/CameraInfo of the raw mosaic.
+    """Return a :class:`CameraModel` from the sensor_msgs/CameraInfo of the raw mosaic.
 
-    ROS ``K = [fx 0 cx; 0 fy cy; 0 0 1]`` in pixels with a 0-based principal point; the model is 1-based
-    (eq 20), so ``principal_x_px = cx + 1``. The focal length in mm is ``fx * pixel_pitch``; the y pitch
-    is scaled by ``fx / fy`` so non-square pixels keep their shape. ``plumb_bob``/``rational_polynomial``
-    -> pinhole, ``equidistant`` -> fisheye_equidistant (r = f theta); non-zero D is the lens distortion,
-    undistorted through OpenCV (:func:`~polarization_compass.camera.camera_from_intrinsics`; rays are
-    cached per intrinsics). Binning or a ROI are not supported (``unsupported_camera``).
-    Implausible intrinsics (:func:`~polarization_compass.camera.check_intrinsics`: principal point outside
-    the image or far from its centre, fx and fy differing by more than 5 %) are ``bad_camera_info``.
+    ROS ``K = [fx 0 cx; 0 fy cy; 0 0 1]`` in pixels with a 0-based principal point; the model is
+    1-based (eq 20), so ``principal_x_px = cx + 1``. The focal length in mm is
+    ``fx * pixel_pitch``; the y pitch is scaled by ``fx / fy`` so non-square pixels keep their
+    shape. ``plumb_bob``/``rational_polynomial`` -> pinhole, ``equidistant`` ->
+    fisheye_equidistant (r = f theta); non-zero D is the lens distortion, undistorted through
+    OpenCV (:func:`~polarization_compass.camera.camera_from_intrinsics`). Implausible intrinsics
+    (:func:`~polarization_compass.camera.check_intrinsics`: principal point outside the image or far
+    from its centre, fx and fy differing by more than 5 %) are ``bad_camera_info``.
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.CameraInfo
+        The message (duck-typed).
+    pixel_pitch_um : float
+        Pixel pitch [um] along x (the bag does not carry it).
+
+    Returns
+    -------
+    CameraModel
+        The camera, focal length [mm], principal point [px, 1-based].
+
+    Raises
+    ------
+    MessageError
+        ``non_finite`` (K/D NaN, inf or wrong size), ``bad_camera_info`` (focal lengths <= 0 or
+        intrinsics the camera model refuses), ``unsupported_camera`` (other distortion model,
+        binning or a region of interest).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20.
     """
     K = np.asarray(msg.k, dtype=float).reshape(-1)
     D = np.asarray(msg.d, dtype=float).reshape(-1)
@@ -383,9 +557,23 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
 
 
 def decode_orientation(msg) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a sensor_msgs/Imu orientation or a geometry_msgs/QuaternionStamped.
+    """Return the unit quaternion of a sensor_msgs/Imu or geometry_msgs/QuaternionStamped.
 
-    An Imu whose ``orientation_covariance[0]`` is -1 carries no orientation (REP-145): ``no_orientation``.
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.Imu or geometry_msgs.msg.QuaternionStamped
+        The message (duck-typed); the orientation is the body (REP-103 base_link) in ENU.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(x, y, z, w)``, normalised.
+
+    Raises
+    ------
+    MessageError
+        ``no_orientation`` (an Imu whose ``orientation_covariance[0]`` is -1, REP-145),
+        ``non_finite`` (NaN/inf components) or ``bad_quaternion`` (not a usable quaternion).
     """
     if hasattr(msg, "orientation"):
         cov = np.asarray(msg.orientation_covariance, dtype=float).reshape(-1)
@@ -402,11 +590,28 @@ def decode_orientation(msg) -> np.ndarray:
 
 
 def decode_navsatfix(msg) -> tuple[float, float, float]:
-    """(latitude_deg, longitude_deg, altitude_m) of a sensor_msgs/NavSatFix with a fix.
+    """Return the site of a sensor_msgs/NavSatFix with a fix.
 
-    ``no_fix`` when status < STATUS_FIX (0); ``non_finite``/``bad_value`` for NaN or out-of-range
-    coordinates. A NaN altitude (allowed by the message: "unknown") becomes 0 m; it changes the sun by
-    far less than a microdegree.
+    A NaN altitude (allowed by the message: "unknown") becomes 0 m; it changes the sun by far less
+    than a microdegree.
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.NavSatFix
+        The message (duck-typed).
+
+    Returns
+    -------
+    latitude_deg, longitude_deg : float
+        WGS-84 latitude [deg] in [-90, 90] and longitude [deg] in [-180, 180], east positive.
+    altitude_m : float
+        Altitude [m] (0 when unknown).
+
+    Raises
+    ------
+    MessageError
+        ``no_fix`` (status < STATUS_FIX, 0), ``non_finite`` (NaN/inf latitude or longitude) or
+        ``bad_value`` (out of range).
     """
     status = int(msg.status.status)
     if status < 0:
@@ -430,7 +635,29 @@ def _header(t_ns: int, frame_id: str):
 
 
 def encode_mosaic(mosaic: np.ndarray, t_ns: int, frame_id: str):
-    """sensor_msgs/Image ``mono8``/``mono16`` (little endian) of a raw mosaic, as a camera driver sends it."""
+    """Return a sensor_msgs/Image ``mono8``/``mono16`` (little endian) of a raw mosaic.
+
+    As a camera driver sends it.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        2-D uint8 or uint16 raw mosaic [counts].
+    t_ns : int
+        Header stamp [ns since the Unix epoch].
+    frame_id : str
+        Header frame id.
+
+    Returns
+    -------
+    sensor_msgs.msg.Image
+        The rosbags message.
+
+    Raises
+    ------
+    BagError
+        The mosaic is not a 2-D uint8/uint16 array.
+    """
     m = np.asarray(mosaic)
     if m.ndim != 2 or m.dtype not in (np.uint8, np.uint16):
         raise BagError(f"a mosaic must be a 2-D uint8/uint16 array, got {m.dtype} {m.shape}")
@@ -442,7 +669,25 @@ def encode_mosaic(mosaic: np.ndarray, t_ns: int, frame_id: str):
 
 
 def encode_camera_info(camera: CameraModel, t_ns: int, frame_id: str):
-    """sensor_msgs/CameraInfo of a :class:`CameraModel` (its distortion, or none; 0-based principal point)."""
+    """Return the sensor_msgs/CameraInfo of a :class:`CameraModel`.
+
+    The inverse of :func:`decode_camera_info`: K in pixels with a 0-based principal point, the
+    model's distortion (or none: zeros of ``plumb_bob``/``equidistant``).
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera (focal length [mm], pixel pitch [um], principal point [px, 1-based]).
+    t_ns : int
+        Header stamp [ns since the Unix epoch].
+    frame_id : str
+        Header frame id.
+
+    Returns
+    -------
+    sensor_msgs.msg.CameraInfo
+        The rosbags message.
+    """
     ts = typestore().types
     fx = camera.focal_length_mm / (camera.pixel_pitch_x_um * 1e-3)
     fy = camera.focal_length_mm / (camera.pixel_pitch_y_um * 1e-3)
@@ -459,8 +704,26 @@ def encode_camera_info(camera: CameraModel, t_ns: int, frame_id: str):
 
 
 def encode_imu(q_xyzw, t_ns: int, frame_id: str, orientation_var_rad2=(0.0, 0.0, 0.0)):
-    """sensor_msgs/Imu carrying an orientation only (REP-145: angular velocity and acceleration
-    covariances -1 = not provided); ``orientation_var_rad2`` = roll, pitch, yaw variances (diagonal)."""
+    """Return a sensor_msgs/Imu carrying an orientation only.
+
+    Angular velocity and acceleration covariances are -1 (REP-145: not provided).
+
+    Parameters
+    ----------
+    q_xyzw : array_like
+        Orientation quaternion ``(x, y, z, w)`` of the body in ENU.
+    t_ns : int
+        Header stamp [ns since the Unix epoch].
+    frame_id : str
+        Header frame id.
+    orientation_var_rad2 : sequence of float, default (0, 0, 0)
+        Roll, pitch and yaw variances [rad^2] (the covariance's diagonal).
+
+    Returns
+    -------
+    sensor_msgs.msg.Imu
+        The rosbags message.
+    """
     ts = typestore().types
     q = np.asarray(q_xyzw, dtype=float)
     Q = ts["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
@@ -474,6 +737,22 @@ def encode_imu(q_xyzw, t_ns: int, frame_id: str, orientation_var_rad2=(0.0, 0.0,
 
 
 def encode_quaternion_stamped(q_xyzw, t_ns: int, frame_id: str):
+    """Return a geometry_msgs/QuaternionStamped of an orientation.
+
+    Parameters
+    ----------
+    q_xyzw : array_like
+        Orientation quaternion ``(x, y, z, w)`` of the body in ENU.
+    t_ns : int
+        Header stamp [ns since the Unix epoch].
+    frame_id : str
+        Header frame id.
+
+    Returns
+    -------
+    geometry_msgs.msg.QuaternionStamped
+        The rosbags message.
+    """
     ts = typestore().types
     q = np.asarray(q_xyzw, dtype=float)
     Q = ts["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
@@ -482,6 +761,27 @@ def encode_quaternion_stamped(q_xyzw, t_ns: int, frame_id: str):
 
 def encode_navsatfix(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, frame_id: str,
                      horizontal_sigma_m: float = 1.0, vertical_sigma_m: float = 2.0):
+    """Return a sensor_msgs/NavSatFix with a GPS fix at a site.
+
+    Parameters
+    ----------
+    lat_deg, lon_deg : float
+        WGS-84 latitude and longitude [deg], east positive.
+    alt_m : float
+        Altitude [m].
+    t_ns : int
+        Header stamp [ns since the Unix epoch].
+    frame_id : str
+        Header frame id.
+    horizontal_sigma_m, vertical_sigma_m : float, default 1 and 2
+        Position standard deviations [m] (diagonal covariance, type
+        ``COVARIANCE_TYPE_DIAGONAL_KNOWN``).
+
+    Returns
+    -------
+    sensor_msgs.msg.NavSatFix
+        The rosbags message (status ``STATUS_FIX``, service GPS).
+    """
     ts = typestore().types
     St = ts["sensor_msgs/msg/NavSatStatus"]
     status = St(status=0, service=1)                  # STATUS_FIX, SERVICE_GPS
@@ -495,8 +795,12 @@ def encode_navsatfix(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, fr
 # Skip accounting
 # --------------------------------------------------------------------------------------------
 class Tally:
-    """Per-topic counts: messages read, used, and skipped by reason. Nothing leaves a bag unaccounted:
-    for every topic, ``read == used + sum(skipped)`` once a replay finishes."""
+    """Count per topic the messages read, used, and skipped by reason.
+
+    Nothing leaves a bag unaccounted: for every topic, ``read == used + sum(skipped)`` once a
+    replay finishes (:meth:`balanced`). ``read`` and ``used`` are :class:`collections.Counter`
+    objects by topic that callers increment.
+    """
 
     def __init__(self):
         self.read: Counter = Counter()
@@ -506,19 +810,66 @@ class Tally:
         self.examples: dict = {}                   # (topic, reason) -> first detail message
 
     def skip(self, topic: str, reason: str, detail: str = "") -> None:
+        """Count one skipped message of ``topic``.
+
+        Parameters
+        ----------
+        topic : str
+            Topic name.
+        reason : str
+            Short tag, e.g. ``"bad_cdr"`` (a :class:`MessageError`'s ``reason``).
+        detail : str, default ""
+            Message of the first skip for this topic and reason, kept as an example.
+        """
         self.skipped[(topic, reason)] += 1
         self.examples.setdefault((topic, reason), detail)
 
     def note(self, topic: str, what: str) -> None:
+        """Count one event of ``topic`` that is not a skip (e.g. ``out_of_order``).
+
+        Parameters
+        ----------
+        topic : str
+            Topic name.
+        what : str
+            Short tag of the event.
+        """
         self.notes[(topic, what)] += 1
 
     def skipped_total(self, topic: str | None = None) -> int:
+        """Return the number of skipped messages.
+
+        Parameters
+        ----------
+        topic : str, optional
+            Count this topic only; None counts all topics.
+
+        Returns
+        -------
+        int
+            Skips over all reasons.
+        """
         return sum(n for (t, _), n in self.skipped.items() if topic is None or t == topic)
 
     def balanced(self) -> bool:
+        """Return whether every topic's read count equals used plus skipped.
+
+        Returns
+        -------
+        bool
+            True when no message is unaccounted.
+        """
         return all(self.read[t] == self.used[t] + self.skipped_total(t) for t in self.read)
 
     def to_dict(self) -> dict:
+        """Return the counts as plain data, by topic.
+
+        Returns
+        -------
+        dict
+            ``{topic: {"read", "used", "skipped": {reason: n}, "notes": {what: n}[, "first_reason":
+            {reason: detail}]}}``, topics sorted.
+        """
         topics = sorted(set(self.read) | {t for t, _ in self.skipped} | {t for t, _ in self.notes})
         out = {}
         for t in topics:
@@ -531,7 +882,13 @@ class Tally:
         return out
 
     def lines(self) -> list[str]:
-        """Human-readable summary, one line per topic."""
+        """Return a human-readable summary, one line per topic.
+
+        Returns
+        -------
+        list of str
+            E.g. ``"/imu/data: read 10, used 9, skipped: bad_cdr 1"``.
+        """
         out = []
         for t, d in self.to_dict().items():
             s = ", ".join(f"{r} {n}" for r, n in d["skipped"].items()) or "none"
@@ -598,6 +955,7 @@ class BagReader:
         self.close()
 
     def close(self):
+        """Close the bag; errors while closing a half-broken bag are ignored."""
         try:
             self._reader.close()
         except Exception:  # noqa: BLE001 - closing a half-broken bag must not mask the real error
@@ -605,10 +963,12 @@ class BagReader:
 
     @property
     def duration_s(self) -> float:
+        """Time between the first and the last message [s] (0 for an empty bag)."""
         return self._reader.duration / 1e9 if self._reader.message_count else 0.0
 
     @property
     def message_count(self) -> int:
+        """Number of messages in the bag, all topics."""
         return int(self._reader.message_count)
 
     def topic_types(self) -> dict:
@@ -621,7 +981,14 @@ class BagReader:
         return out
 
     def topics(self) -> dict:
-        """{topic: (msgtype, message count)} over all connections (types joined by ``|`` when mixed)."""
+        """Return the topics of the bag with their types and message counts.
+
+        Returns
+        -------
+        dict
+            ``{topic: (msgtype, message count)}`` over all connections (types joined by ``|``
+            when a topic has several).
+        """
         out: dict = {}
         for c in self._reader.connections:
             t, n = out.get(c.topic, (c.msgtype, 0))
@@ -631,9 +998,22 @@ class BagReader:
         return out
 
     def messages(self, topics):
-        """Yield ``(topic, msgtype, log_time_ns, raw)`` for the given topic names, in receive-time order.
+        """Yield the messages of the given topics in receive-time order.
 
-        A storage-level failure (truncated file, bad chunk) becomes a :class:`BagError` naming the bag.
+        Parameters
+        ----------
+        topics : iterable of str
+            Topic names; unknown ones are ignored.
+
+        Yields
+        ------
+        tuple
+            ``(topic, msgtype, log_time_ns, raw)``: receive time [ns], raw CDR bytes.
+
+        Raises
+        ------
+        BagError
+            A storage-level failure part-way (truncated file, bad chunk), naming the bag.
         """
         conns = [c for c in self._reader.connections if c.topic in set(topics)]
         if not conns:
@@ -854,10 +1234,28 @@ def _one_line(exc) -> str:
 
 
 def deserialize(raw, msgtype: str):
-    """CDR bytes to a rosbags message; :class:`MessageError` ``bad_cdr`` if they do not parse.
+    """Return the rosbags message of CDR bytes.
 
     Through a memoryview: rosbags then slices without copying, and array fields (an image's data)
-    are read-only views of ``raw`` (a 10 MB mosaic is not copied twice per frame)."""
+    are read-only views of ``raw`` (a 10 MB mosaic is not copied twice per frame).
+
+    Parameters
+    ----------
+    raw : bytes or memoryview
+        Serialized message.
+    msgtype : str
+        Message type, e.g. ``"sensor_msgs/msg/Imu"``.
+
+    Returns
+    -------
+    object
+        The message (rosbags class).
+
+    Raises
+    ------
+    MessageError
+        ``bad_cdr`` if the bytes do not parse.
+    """
     try:
         return typestore().deserialize_cdr(memoryview(raw), msgtype)
     except Exception as exc:  # noqa: BLE001 - SerdeError, struct.error, ... all mean the same here
@@ -868,10 +1266,27 @@ def deserialize(raw, msgtype: str):
 # Writing
 # --------------------------------------------------------------------------------------------
 class BagWriter:
-    """Write a rosbag2 with rosbags (``storage`` 'mcap' or 'sqlite3'); one connection per role.
+    """Write a rosbag2 with rosbags; one connection per role.
 
-    ``write(role, msg, log_time_ns)`` serialises a rosbags message; ``write_raw`` stores bytes as they
-    are (tests use it to plant corrupt messages). The path must not exist (rosbag2 refuses to overwrite).
+    ``write(role, msg, log_time_ns)`` serialises a rosbags message; ``write_raw`` stores bytes as
+    they are (tests use it to plant corrupt messages). Use as a context manager.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The bag directory to create; it must not exist (rosbag2 refuses to overwrite) and its
+        parent must.
+    topic_map : TopicMap, optional
+        Topics and types of the roles; default :func:`default_topic_map`.
+    storage : {"mcap", "sqlite3"}, default "mcap"
+        Storage plugin.
+    extra_topics : dict, optional
+        ``{topic: msgtype}`` of further connections, written under the topic name as role.
+
+    Raises
+    ------
+    BagError
+        The path exists, its directory does not, or the storage is unknown.
     """
 
     def __init__(self, path, topic_map: TopicMap | None = None, storage: str = "mcap", extra_topics=None):
@@ -903,14 +1318,37 @@ class BagWriter:
         self.close()
 
     def close(self):
+        """Close the bag (writes its metadata); closing twice is harmless."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None
 
     def write(self, role: str, msg, log_time_ns: int) -> None:
+        """Serialise and write one message.
+
+        Parameters
+        ----------
+        role : str
+            A role of the topic map, or a topic of ``extra_topics``.
+        msg : object
+            A rosbags message of that connection's type.
+        log_time_ns : int
+            Receive time [ns since the Unix epoch] (the bag's order).
+        """
         raw = typestore().serialize_cdr(msg, self._conns[role].msgtype)
         self.write_raw(role, raw, log_time_ns)
 
     def write_raw(self, role: str, raw: bytes, log_time_ns: int) -> None:
+        """Write bytes as they are (no serialisation), e.g. a planted corrupt message.
+
+        Parameters
+        ----------
+        role : str
+            A role of the topic map, or a topic of ``extra_topics``.
+        raw : bytes
+            The CDR payload.
+        log_time_ns : int
+            Receive time [ns since the Unix epoch].
+        """
         self._writer.write(self._conns[role], int(log_time_ns), raw)
         self.counts[role] += 1

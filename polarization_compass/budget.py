@@ -151,6 +151,20 @@ def _stats(errs, statuses_ok, sigmas) -> dict:
 
 
 def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
+    raw = _condition_part(cfg, samples, methods)
+    return {m: _stats(*raw[m]) for m in methods}
+
+
+def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
+    """Runs on a Dask worker: the raw results of some samples of one condition, numba on one thread."""
+    from .runtime import keep_large_buffers_in_heap, single_threaded_kernels
+    keep_large_buffers_in_heap()
+    with single_threaded_kernels():
+        return _condition_part(cfg, samples, methods)
+
+
+def _condition_part(cfg: BudgetConfig, samples, methods) -> dict:
+    """Per method ([errors], [ok flags], [sigmas]) over ``samples``, in their order."""
     from .estimators import registry
     from .estimators.base import Observation
     from .render import Renderer
@@ -173,11 +187,42 @@ def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
                 d = out.psi_deg - frame.psi_deg
                 errs.append(float(fold_axial_deg(d)) if out.axial else float(wrap_180_deg(d)))
                 sig.append(out.sigma_deg)
-    return {m: _stats(res[m][0], res[m][1], res[m][2]) for m in methods}
+    return res
 
 
-def run_budget(cfg: BudgetConfig, progress=None) -> dict:
-    """The budget as a JSON-able dict (module docstring). ``progress(text)`` is called per condition."""
+def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progress) -> dict:
+    """Every (condition, block of samples) a Dask task; the blocks joined in sample order, so the statistics
+    equal the in-process ones (each block runs numba on one thread)."""
+    from .sweep_dask import run_tasks
+    n = max(1, int(workers or 0) or 2)
+    block = max(1, math.ceil(len(samples) / (4 * n)))
+    calls, parts = [], {}
+    for ci, (name, c) in enumerate(conds):
+        for bi, i in enumerate(range(0, len(samples), block)):
+            calls.append((f"budget-{ci}-{bi}-{id(calls)}", _budget_task, (c, samples[i:i + block], methods)))
+
+    def on_result(key, raw):
+        _, ci, bi, _ = key.split("-")
+        parts[(int(ci), int(bi))] = raw
+        if progress and all((int(ci), b) in parts for b in range(math.ceil(len(samples) / block))):
+            progress(conds[int(ci)][0])
+
+    run_tasks(calls, on_result, scheduler=scheduler, workers=workers)
+    out = {}
+    for ci, (name, _) in enumerate(conds):
+        blocks = [parts[(ci, b)] for b in range(math.ceil(len(samples) / block))]
+        out[name] = {m: _stats(*[sum((bl[m][k] for bl in blocks), []) for k in range(3)]) for m in methods}
+    return out
+
+
+def run_budget(cfg: BudgetConfig, progress=None, workers: int | None = 1, scheduler: str | None = None) -> dict:
+    """The budget as a JSON-able dict (module docstring). ``progress(text)`` is called per condition.
+
+    ``workers=1`` without ``scheduler`` (default) runs in this process; otherwise (condition, block of
+    samples) tasks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`: a LocalCluster of
+    ``workers`` processes, None = one per core, or the cluster at ``scheduler``), each with numba on one
+    thread; the same statistics as an in-process run on one numba thread.
+    """
     from .estimators import registry
     if cfg.samples < 1:
         raise BudgetError("samples must be >= 1")
@@ -187,11 +232,15 @@ def run_budget(cfg: BudgetConfig, progress=None) -> dict:
         raise BudgetError(f"unknown method(s) {unknown}; known: {', '.join(registry.names())}")
     samples = _samples(cfg)
     sources = declared_sources(cfg)
+    conds = [("all", cfg)] + [(f"without {s}", without(cfg, s)) for s in sources]
     conditions = {}
-    for name, c in [("all", cfg)] + [(f"without {s}", without(cfg, s)) for s in sources]:
-        if progress:
-            progress(name)
-        conditions[name] = _run_condition(c, samples, methods)
+    if workers == 1 and scheduler is None:
+        for name, c in conds:
+            if progress:
+                progress(name)
+            conditions[name] = _run_condition(c, samples, methods)
+    else:
+        conditions = _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progress)
     breakdown = {}
     for m in methods:
         total = conditions["all"][m]["rms_deg"]

@@ -85,8 +85,17 @@ class SensorError(CompassError):
 
 @dataclass(frozen=True)
 class MosaicLayout:
-    """A validated 2 x 2 polarizer layout. ``angles_deg[r][c]`` is the polarizer at row r, column c of
-    the top-left block; ``pol45_toward`` the image direction of the 45 deg polarizer."""
+    """Hold a validated 2 x 2 polarizer layout of a DoFP mosaic.
+
+    Parameters
+    ----------
+    angles_deg : tuple of tuple of int, default ((90, 45), (135, 0))
+        ``angles_deg[r][c]`` is the polarizer angle [deg] at row r, column c of the mosaic's
+        top-left 2 x 2 block (0, 45, 90 and 135 once each; IMX250MZR by default).
+    pol45_toward : {"+x-y", "+x+y"}, default "+x-y"
+        Image direction of the 45 deg polarizer from +x_cam (columns): towards +y_cam (down the
+        rows) or -y_cam (up); see the module docstring.
+    """
 
     angles_deg: tuple = IMX250MZR_LAYOUT
     pol45_toward: str = IMX250MZR_POL45
@@ -98,24 +107,71 @@ class MosaicLayout:
         return a if self.pol45_toward == "+x+y" else -a
 
     def shifted(self, dy: int, dx: int) -> "MosaicLayout":
-        """The layout seen by a block whose top-left pixel is (dy, dx) pixels into this pattern."""
+        """Return the layout seen by a block whose top-left pixel is (dy, dx) into this pattern.
+
+        Parameters
+        ----------
+        dy, dx : int
+            Offset [px] of the block's top-left pixel from the pattern's, along rows and columns
+            (only the parities matter).
+
+        Returns
+        -------
+        MosaicLayout
+            The same polarizers, rolled by (dy, dx), with the same ``pol45_toward``.
+        """
         a = self.angles_deg
         return MosaicLayout(tuple(tuple(a[(r + dy) % 2][(c + dx) % 2] for c in range(2)) for r in range(2)),
                             self.pol45_toward)
 
     def stokes_weights(self) -> np.ndarray:
-        """(2, 2, 2) float32: ``w[r, c] = (cos 2phi, sin 2phi)`` of the polarizer at (r, c), phi its
-        camera-frame angle. ``S1 = sum w0 I``, ``S2 = sum w1 I`` over one block of four."""
+        """Return the Stokes weights of the four polarizers of one block.
+
+        ``S1 = sum(w[..., 0] * I)`` and ``S2 = sum(w[..., 1] * I)`` over one block of four.
+
+        Returns
+        -------
+        numpy.ndarray
+            float32 (2, 2, 2): ``w[r, c] = (cos 2phi, sin 2phi)`` of the polarizer at (r, c), phi
+            its camera-frame angle (from +x_cam towards +y_cam); exactly 0 or +-1.
+        """
         phi = np.radians(self.camera_angles_deg)
         w = np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)
         return np.rint(w).astype(np.float32)          # exactly 0 or +-1 for 0/45/90/135
 
     def describe(self) -> dict:
+        """Return the layout as plain data for logs, JSON and diagnostics.
+
+        Returns
+        -------
+        dict
+            ``{"layout": [[deg, deg], [deg, deg]], "pol45_toward": "+x-y" | "+x+y"}``.
+        """
         return {"layout": [list(r) for r in self.angles_deg], "pol45_toward": self.pol45_toward}
 
 
 def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -> MosaicLayout:
-    """Validate a 2 x 2 layout holding 0, 45, 90, 135 once each, and the 45 deg direction."""
+    """Validate a 2 x 2 layout holding 0, 45, 90, 135 once each, and the 45 deg direction.
+
+    Parameters
+    ----------
+    layout : array_like of shape (2, 2) or MosaicLayout, default ((90, 45), (135, 0))
+        Polarizer angles [deg] of the mosaic's top-left block, row by row; a
+        :class:`MosaicLayout` is returned as it is.
+    pol45_toward : {"+x-y", "+x+y"}, default "+x-y"
+        Image direction of the 45 deg polarizer (see the module docstring).
+
+    Returns
+    -------
+    MosaicLayout
+        The validated layout, angles as int.
+
+    Raises
+    ------
+    SensorError
+        ``pol45_toward`` is neither value, the layout is not 2 x 2, holds an angle other than
+        0/45/90/135 (or a bool), or does not hold each of them once.
+    """
     if isinstance(layout, MosaicLayout):
         return layout
     if pol45_toward not in _POL45:
@@ -138,8 +194,21 @@ def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -
 
 
 def layout_from_mapping(mosaic) -> MosaicLayout:
-    """The layout of a ``mosaic`` mapping in the form of a scene's ``sensor.mosaic`` (also a topic
-    map's ``mosaic:``): ``layout`` and ``pol45_toward``, each defaulting to the IMX250MZR's."""
+    """Return the layout of a ``mosaic`` mapping such as a scene's ``sensor.mosaic``.
+
+    Also the form of a topic map's ``mosaic:`` entry.
+
+    Parameters
+    ----------
+    mosaic : mapping or None
+        ``layout`` (2 x 2 angles [deg]) and ``pol45_toward``, each defaulting to the IMX250MZR's
+        when missing (None means both defaults).
+
+    Returns
+    -------
+    MosaicLayout
+        The validated layout (see :func:`parse_layout`, whose :class:`SensorError` propagates).
+    """
     mos = mosaic or {}
     return parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", IMX250MZR_POL45))
 
@@ -368,22 +437,72 @@ def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
 
 def stokes_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45, method: str = "superpixel",
                        saturation_level=None):
-    """Camera-frame Stokes ``(S0, S1, S2)`` (float32, input units) of a raw DoFP image.
+    """Compute the camera-frame Stokes images ``(S0, S1, S2)`` of a raw DoFP image.
 
-    ``mosaic``: 2-D uint8/uint16/other integer or float array; ``layout``: 2 x 2 polarizer angles of its
-    top-left block (deg); ``pol45_toward``: '+x+y' | '+x-y'; ``method``: 'superpixel' (output
-    ``(H // 2, W // 2)``) | 'bilinear' (output ``(H, W)``). Invalid pixels (saturated or non-finite
-    samples, S0 <= 0, S1 = S2 = 0) hold S0 = S1 = S2 = 0. See the module docstring.
+    ``S1 = I(0) - I(90)``, ``S2 = I(45) - I(135)`` with angles from +x_cam towards +y_cam and
+    ``S0 = (I0 + I45 + I90 + I135) / 2``. Invalid pixels (a saturated or non-finite sample,
+    ``S0 <= 0`` or ``S1 = S2 = 0``) hold S0 = S1 = S2 = 0, never NaN. See the module docstring.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        2-D raw image, unsigned/signed integer, float32 or float64 [counts or any intensity unit].
+    layout : array_like of shape (2, 2) or MosaicLayout, default ((90, 45), (135, 0))
+        Polarizer angles [deg] of the mosaic's top-left 2 x 2 block.
+    pol45_toward : {"+x-y", "+x+y"}, default "+x-y"
+        Image direction of the 45 deg polarizer.
+    method : {"superpixel", "bilinear"}, default "superpixel"
+        Output of shape ``(H // 2, W // 2)`` (one per 2 x 2 block) or ``(H, W)`` (bilinear
+        interpolation of each channel).
+    saturation_level : float, optional
+        Samples ``>=`` this are saturated [input units]; default the dtype's maximum for integer
+        input, none for float input.
+
+    Returns
+    -------
+    s0, s1, s2 : numpy.ndarray
+        float32 Stokes images in the input's units.
+
+    Raises
+    ------
+    SensorError
+        A bad layout, ``pol45_toward`` or ``method``, a mosaic that is not 2-D, has an
+        unsupported dtype or fewer than 2 x 2 pixels, or a NaN ``saturation_level``.
     """
     return _run(mosaic, layout, pol45_toward, method, saturation_level, True)
 
 
 def aop_dop_from_stokes(s0, s1, s2):
-    """``(aop_rad, dop, valid)`` from camera-frame Stokes arrays of equal shape.
+    """Compute the AoP, DoP and validity from camera-frame Stokes arrays of equal shape.
 
-    ``aop_rad``: the paper's eq 28 angle, ``0.5 atan2(S2, -S1)`` folded to [-pi/2, pi/2), float32;
-    ``dop``: ``hypot(S1, S2) / S0`` clipped to [0, 1]; ``valid``: False where S0 <= 0, S1 = S2 = 0 or any
-    input is NaN/inf (those pixels get aop = dop = 0; never NaN).
+    ``AoP = 0.5 atan2(S2, -S1)`` folded to [-pi/2, pi/2) (the paper's AoP, from +y_cam towards
+    +x_cam) and ``DoP = hypot(S1, S2) / S0`` clipped to [0, 1].
+
+    Parameters
+    ----------
+    s0, s1, s2 : array_like
+        Camera-frame Stokes parameters (angles from +x_cam towards +y_cam), any one intensity
+        unit, equal shapes.
+
+    Returns
+    -------
+    aop_rad : numpy.ndarray
+        float32 angle of polarization [rad] in [-pi/2, pi/2); 0 where invalid.
+    dop : numpy.ndarray
+        float32 degree of linear polarization in [0, 1]; 0 where invalid.
+    valid : numpy.ndarray
+        bool: False where S0 <= 0, S1 = S2 = 0 or an input is NaN/inf.
+
+    Raises
+    ------
+    SensorError
+        The three arrays do not have the same shape.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28 (the AoP's
+       reference direction).
     """
     a0 = np.ascontiguousarray(s0, dtype=np.float32)
     a1 = np.ascontiguousarray(s1, dtype=np.float32)
@@ -399,8 +518,42 @@ def aop_dop_from_stokes(s0, s1, s2):
 
 def polarization_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45,
                              method: str = "superpixel", saturation_level=None):
-    """Fused fast path: ``(aop_rad, dop, valid)`` straight from the raw image (no Stokes images).
+    """Compute ``(aop_rad, dop, valid)`` straight from a raw DoFP image (no Stokes images).
 
-    Same conventions and validity as :func:`stokes_from_mosaic` followed by :func:`aop_dop_from_stokes`.
+    The fused fast path: same conventions, validity and numbers as :func:`stokes_from_mosaic`
+    followed by :func:`aop_dop_from_stokes`.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        2-D raw image, unsigned/signed integer, float32 or float64 [counts or any intensity unit].
+    layout : array_like of shape (2, 2) or MosaicLayout, default ((90, 45), (135, 0))
+        Polarizer angles [deg] of the mosaic's top-left 2 x 2 block.
+    pol45_toward : {"+x-y", "+x+y"}, default "+x-y"
+        Image direction of the 45 deg polarizer.
+    method : {"superpixel", "bilinear"}, default "superpixel"
+        Half-resolution blocks or full-resolution bilinear interpolation.
+    saturation_level : float, optional
+        Samples ``>=`` this are saturated [input units]; default the dtype's maximum for integer
+        input, none for float input.
+
+    Returns
+    -------
+    aop_rad : numpy.ndarray
+        float32 AoP [rad] in [-pi/2, pi/2), from +y_cam towards +x_cam (eq 28); 0 where invalid.
+    dop : numpy.ndarray
+        float32 DoP in [0, 1]; 0 where invalid.
+    valid : numpy.ndarray
+        bool validity (see :func:`stokes_from_mosaic`).
+
+    Raises
+    ------
+    SensorError
+        As :func:`stokes_from_mosaic`.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28.
     """
     return _run(mosaic, layout, pol45_toward, method, saturation_level, False)

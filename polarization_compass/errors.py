@@ -7,7 +7,16 @@ class CompassError(ValueError):
 
 
 class MissingDependencyError(CompassError):
-    """An optional ROS piece (launch, tf2_ros, rosbag2_py, ...) is not installed here."""
+    """An optional ROS piece (launch, tf2_ros, rosbag2_py, ...) is not installed here.
+
+    Parameters
+    ----------
+    what : str
+        The missing piece, e.g. ``"tf2_ros"``.
+    install : str
+        How to install it, e.g. ``"ros-jazzy-tf2-ros"``; both end up in the message and as
+        attributes of the same names.
+    """
 
     def __init__(self, what: str, install: str):
         super().__init__(f"{what} is not available: install {install}")

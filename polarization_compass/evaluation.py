@@ -43,16 +43,47 @@ class EvaluationError(CompassError):
 
 
 def heading_error_deg(estimated_bearing_deg, true_bearing_deg, axial: bool):
-    """Estimated minus true bearing, wrapped to (-180, 180], or folded to (-90, 90] when ``axial``."""
+    """Return the estimated minus the true bearing, wrapped or folded.
+
+    Parameters
+    ----------
+    estimated_bearing_deg : float or array_like
+        Estimated bearing of camera +y [deg], clockwise from North.
+    true_bearing_deg : float or array_like
+        True bearing [deg], same frame; broadcast with the estimate.
+    axial : bool
+        True for a method that does not resolve the 180 deg ambiguity: the error is folded to
+        (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`); else wrapped to
+        (-180, 180].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Signed heading error [deg].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4 and
+       Figs 17-19 (orientation error against the heading).
+    """
     d = np.asarray(estimated_bearing_deg, dtype=float) - np.asarray(true_bearing_deg, dtype=float)
     return fold_axial_deg(d) if axial else wrap_180_deg(d)
 
 
 class RunningStats:
-    """Mean, std, RMS, p95 and max of signed errors (deg), updated one sample at a time.
+    """Accumulate mean, std, RMS, p95 and max of signed errors (deg), one sample at a time.
 
     Sums are accumulated with Welford's update (mean and variance) so that long runs do not lose
-    precision; ``max`` and the sample store are updated in O(1) amortised time.
+    precision; ``max`` and the sample store are updated in O(1) amortised time. Beyond
+    ``max_samples`` the percentiles come from a uniform reservoir sample (Vitter's algorithm R).
+
+    Parameters
+    ----------
+    max_samples : int, default 2_000_000
+        Samples kept for the percentiles (8 bytes each); >= 1, else :class:`EvaluationError`.
+    seed : int, default 0
+        Seed of the reservoir sampling (deterministic summaries).
     """
 
     def __init__(self, max_samples: int = 2_000_000, seed: int = 0):
@@ -69,6 +100,18 @@ class RunningStats:
         self._rng = np.random.default_rng(seed)
 
     def add(self, error_deg: float) -> None:
+        """Add one signed error.
+
+        Parameters
+        ----------
+        error_deg : float
+            Signed heading error [deg] (see :func:`heading_error_deg`).
+
+        Raises
+        ------
+        EvaluationError
+            The error is NaN or infinite (nothing is recorded).
+        """
         e = float(error_deg)
         if not math.isfinite(e):
             raise EvaluationError(f"non-finite error {error_deg!r}")
@@ -91,22 +134,38 @@ class RunningStats:
                 self._buf[j] = e
 
     def extend(self, errors_deg) -> None:
+        """Add every error of an array, in order, as :meth:`add` does.
+
+        Parameters
+        ----------
+        errors_deg : array_like
+            Signed heading errors [deg], any shape (read flattened).
+        """
         for e in np.asarray(errors_deg, dtype=float).reshape(-1):
             self.add(e)
 
     @property
     def samples(self) -> np.ndarray:
-        """The stored samples (all of them while count <= max_samples), read-only view."""
+        """Read-only view of the stored errors [deg]: all of them while count <= max_samples."""
         v = self._buf[:self._stored]
         v.setflags(write=False)
         return v
 
     @property
     def exact_percentiles(self) -> bool:
+        """Whether ``p95`` is exact (every sample kept) rather than from the reservoir."""
         return self.count <= self.max_samples
 
     def summary(self) -> dict:
-        """``{count, mean, std, rms, p95, max}``; zeros (never NaN) for an empty stream."""
+        """Return the statistics of the errors added so far.
+
+        Returns
+        -------
+        dict
+            ``{"count": int, "mean", "std", "rms", "p95", "max": float [deg]}`` (``std`` is
+            the population standard deviation, ``p95`` and ``max`` of |error|); zeros, never
+            NaN, for an empty stream.
+        """
         if self.count == 0:
             return {k: 0 if k == "count" else 0.0 for k in STAT_FIELDS}
         p95 = float(np.percentile(np.abs(self._buf[:self._stored]), 95.0))
@@ -142,11 +201,18 @@ class _Stream:
 
 
 class StampMatcher:
-    """Pairs estimates with truth by identical stamp and keeps one :class:`RunningStats` per stream.
+    """Pair estimates with truth by identical stamp and keep one :class:`RunningStats` per stream.
 
-    ``horizon_ns``: how long (in stamp time) a truth frame waits for each stream before it is
-    counted as missed there, and how long an early estimate waits for its truth. ``max_pending``
-    bounds memory per stream.
+    Parameters
+    ----------
+    horizon_ns : int, default 5_000_000_000
+        How long [ns of stamp time] a truth frame waits for each stream before it is counted as
+        missed there, and how long an early estimate waits for its truth; > 0.
+    max_pending : int, default 1000
+        Early estimates kept per stream (bounds memory); > 0. The oldest beyond it is dropped and
+        counted as unmatched.
+    max_samples : int, default 2_000_000
+        ``max_samples`` of each stream's :class:`RunningStats`.
     """
 
     def __init__(self, horizon_ns: int = 5_000_000_000, max_pending: int = 1000, max_samples: int = 2_000_000):
@@ -162,11 +228,38 @@ class StampMatcher:
         self._latest_ns = None
 
     def add_stream(self, name: str, axial: bool) -> None:
+        """Declare a stream (an estimator output); declaring one twice keeps the first.
+
+        Parameters
+        ----------
+        name : str
+            Stream name, e.g. ``"zenith/raw"``.
+        axial : bool
+            Whether its errors are folded to (-90, 90] (a method with a 180 deg ambiguity).
+        """
         if name not in self.streams:
             self.streams[name] = _Stream(name, bool(axial), RunningStats(self.max_samples))
 
     def add_truth(self, stamp_ns: int, true_bearing_deg: float) -> list[Match]:
-        """Record a truth sample; returns the matches it completes (estimates that arrived first)."""
+        """Record a truth sample and return the matches it completes.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp [ns] of the image the truth belongs to.
+        true_bearing_deg : float
+            True bearing of camera +y [deg], clockwise from North.
+
+        Returns
+        -------
+        list of Match
+            Estimates with this stamp that arrived first; empty when the stamp is known already.
+
+        Raises
+        ------
+        EvaluationError
+            The true bearing is NaN or infinite.
+        """
         b = float(true_bearing_deg)
         if not math.isfinite(b):
             raise EvaluationError("non-finite true bearing")
@@ -185,9 +278,33 @@ class StampMatcher:
 
     def add_estimate(self, stream: str, stamp_ns: int, bearing_deg: float, axial: bool = False,
                      extra: dict | None = None) -> Match | None:
-        """Record an estimate; returns its :class:`Match` when the truth is known already.
+        """Record an estimate and return its :class:`Match` when the truth is known already.
 
-        The error is folded (axial) when the stream was declared axial or this estimate says so."""
+        The error is folded (axial) when the stream was declared axial or this estimate says so.
+
+        Parameters
+        ----------
+        stream : str
+            A stream declared with :meth:`add_stream`.
+        stamp_ns : int
+            Stamp [ns] of the image the estimate was computed from.
+        bearing_deg : float
+            Estimated bearing of camera +y [deg], clockwise from North.
+        axial : bool, default False
+            Fold this estimate's error to (-90, 90].
+        extra : dict, optional
+            Extra columns carried into the :class:`Match` (e.g. status, sigma).
+
+        Returns
+        -------
+        Match or None
+            The match, or None while the estimate waits for its truth.
+
+        Raises
+        ------
+        EvaluationError
+            Unknown stream, or a NaN or infinite bearing.
+        """
         if stream not in self.streams:
             raise EvaluationError(f"unknown stream {stream!r}")
         b = float(bearing_deg)
@@ -254,13 +371,31 @@ class StampMatcher:
             s.pending.clear()
 
     def missed_so_far(self, stream: str) -> int:
-        """Truth frames (all received so far) without an estimate on ``stream``, pending ones included."""
+        """Return the truth frames received so far without an estimate on ``stream``.
+
+        Parameters
+        ----------
+        stream : str
+            A declared stream.
+
+        Returns
+        -------
+        int
+            Missed frames, those still waiting within the horizon included.
+        """
         s = self.streams[stream]
         waiting = sum(1 for t in self.truth if t not in s.seen)
         return s.missed + waiting
 
     def summary(self) -> dict:
-        """Per stream: the statistics plus received / matched / missed / unmatched counts and ``axial``."""
+        """Return the statistics and counts of every stream.
+
+        Returns
+        -------
+        dict
+            ``{stream: {count, mean, std, rms, p95, max [deg], received, matched, missed,
+            unmatched, axial}}`` (see :meth:`RunningStats.summary`).
+        """
         out = {}
         for name, s in self.streams.items():
             d = s.stats.summary()
@@ -274,7 +409,25 @@ class StampMatcher:
 # Report files
 # ------------------------------------------------------------------------------------------------
 def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> Path:
-    """One row per matched estimate: stamp, stream, truth, estimate, error (deg), axial, extras."""
+    """Write one CSV row per matched estimate.
+
+    Columns: ``stamp_s`` [s], ``stream``, ``true_bearing_deg``, ``estimated_bearing_deg``,
+    ``error_deg`` [deg], ``axial`` (0/1), then ``extra_fields``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; its directory is created.
+    matches : list of Match
+        The matches, in the order to write.
+    extra_fields : tuple of str, default ()
+        Keys of :attr:`Match.extra` to add as columns (empty where a match lacks one).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     with p.open("w", newline="") as f:
@@ -289,7 +442,22 @@ def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> P
 
 
 def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
-    """One row per stream: the :meth:`StampMatcher.summary` fields (and ``extra[stream]`` columns)."""
+    """Write one CSV row per stream with its :meth:`StampMatcher.summary` fields.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; its directory is created.
+    summary : dict
+        ``{stream: fields}`` as :meth:`StampMatcher.summary` returns.
+    extra : dict, optional
+        ``{stream: {column: value}}``: more columns (sorted by name), empty where missing.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     extra = extra or {}
@@ -308,10 +476,30 @@ def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
 
 
 def plot_report(path, matches: list[Match], title: str = "") -> Path | None:
-    """Error against true bearing per stream (like the paper's Fig 17), one panel per method.
+    """Plot the error against the true bearing per stream, one panel per method.
 
-    Streams named ``<method>/raw`` and ``<method>/corrected`` share a panel. Returns None when
-    there is nothing to plot.
+    Like the paper's Fig 17. Streams named ``<method>/raw`` and ``<method>/corrected`` share a
+    panel; each legend entry gives the stream's RMS error [deg].
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output image (format from the suffix, e.g. ``.png``); its directory is created.
+    matches : list of Match
+        The matched estimates.
+    title : str, default ""
+        Figure title, none when empty.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The file written, or None when there is nothing to plot.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4 and
+       Figs 17-19 (orientation error against the heading).
     """
     if not matches:
         return None

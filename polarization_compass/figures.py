@@ -174,14 +174,98 @@ def _surfaces(m: ErrorMap, tilt: str, opts, shift=False):
 
 
 def fig7(m, opts):
+    """Draw the paper's Fig 7: error surfaces over yaw x pitch (roll 0), one per method.
+
+    Pitch only: one 3-D panel per method at one sun altitude.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods`` (list of str, default the paper's methods in the map) and ``sun_altitude``
+        (deg, a node of the map; default the highest node <= 50 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.1, Fig 7.
+    """
     return _surfaces(m, "pitch", opts)
 
 
 def fig10(m, opts):
+    """Draw the paper's Fig 10: error surfaces over yaw x roll (pitch 0), one per method.
+
+    Roll only, yaw over [-180, 180].
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods`` (list of str, default the paper's methods in the map) and ``sun_altitude``
+        (deg, a node of the map; default the highest node <= 50 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.2, Fig 10.
+    """
     return _surfaces(m, "roll", opts)
 
 
 def fig11(m, opts):
+    """Draw the paper's Fig 11: Fig 10 with yaw shown over [-90, 270].
+
+    The paper's shift for comparison with Fig 7.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods`` (list of str, default the paper's methods in the map) and ``sun_altitude``
+        (deg, a node of the map; default the highest node <= 50 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.2, Fig 11.
+    """
     return _surfaces(m, "roll", opts, shift=True)
 
 
@@ -229,10 +313,66 @@ def _all_altitude_curves(m: ErrorMap, tilt: str, opts):
 
 
 def fig8(m, opts):
+    """Draw the paper's Fig 8: the methods' error curves over yaw for every sun altitude.
+
+    Pitch only (roll 0), at one pitch; colour by sun altitude, line style by method.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods`` and ``pitch`` (deg, a node of the map; default -20 if a node, else the largest
+        |pitch|).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.1, Fig 8.
+    """
     return _all_altitude_curves(m, "pitch", opts)
 
 
 def fig12(m, opts):
+    """Draw the paper's Fig 12: the methods' error curves over yaw for every sun altitude.
+
+    Roll only (pitch 0), at one roll; colour by sun altitude, line style by method.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods`` and ``roll`` (deg, a node of the map; default -20 if a node, else the largest
+        |roll|).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.2, Fig 12.
+    """
     return _all_altitude_curves(m, "roll", opts)
 
 
@@ -283,10 +423,68 @@ def _zoom_curves(m: ErrorMap, tilt: str, opts, with_pitch_shift=False):
 
 
 def fig9(m, opts):
+    """Draw the paper's Fig 9: the methods' curves at one sun altitude and pitch, enlarged.
+
+    Below: each method minus the methods' mean (how far apart they are).
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods``, ``pitch`` (deg; default -20 if a node, else the largest |pitch|) and
+        ``sun_altitude`` (deg; default the highest node <= 50 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.1, Fig 9.
+    """
     return _zoom_curves(m, "pitch", opts)
 
 
 def fig13(m, opts):
+    """Draw the paper's Fig 13: the roll-only curves with the pitch-only curve shifted.
+
+    At one sun altitude and roll; the pitch-only curve (pitch = roll) is shifted by +90 deg of
+    yaw (eq 32). Below: each method minus the methods' mean.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``methods``, ``roll`` (deg; default -20 if a node, else the largest |roll|) and
+        ``sun_altitude`` (deg; default the highest node <= 50 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map lacks the nodes the figure needs (e.g. pitch 0 or roll 0, or
+        fewer than 2-3 nodes on an axis).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.2, eq 32 and
+       Fig 13.
+    """
     return _zoom_curves(m, "roll", opts, with_pitch_shift=True)
 
 
@@ -294,6 +492,36 @@ def fig13(m, opts):
 # Pitch and roll (fig 14)
 # --------------------------------------------------------------------------------------------
 def fig14(m, opts):
+    """Draw the paper's Fig 14: one method's error over pitch x roll at four yaws.
+
+    Cells outside |pitch| + |roll| <= the map's tilt limit (30 deg) are blank; the diamond
+    marks the limit.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map (errors [deg], ``fold(estimated psi - true psi)``; invalid cells blank).
+    opts : dict
+        ``method`` (default the first paper method in the map: zenith, as in the paper),
+        ``sun_altitude`` (deg; default the highest node <= 50 deg) and ``yaws`` (four yaw nodes
+        [deg]; default the nodes nearest -135, -45, 45 and 135 deg).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (Agg backend); the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Through its helpers: the map has fewer than 2 pitch or roll nodes, or a yaw in ``yaws``
+        is not a node.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3.3, Fig 14.
+    """
     plt = _plt()
     # the paper's fig 14 shows its first approach (zenith)
     method = opts.get("method") or next((x for x in registry.paper_methods() if x in m.methods), m.methods[0])
@@ -340,12 +568,51 @@ FIGURES = {"fig7": fig7, "fig8": fig8, "fig9": fig9, "fig10": fig10, "fig11": fi
 
 
 def draw_figure(m: ErrorMap, name: str, **opts):
+    """Draw one of the paper's figures from an error map.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map.
+    name : str
+        A key of :data:`FIGURES` (``"fig7"`` ... ``"fig14"``).
+    **opts
+        The figure's options (see each ``figN``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure; the caller saves and closes it.
+
+    Raises
+    ------
+    ErrorMapError
+        Unknown figure name (or, from the figure, a map without the nodes it needs).
+    """
     if name not in FIGURES:
         raise ErrorMapError(f"unknown figure {name!r}; known: {', '.join(FIGURES)} (or all)")
     return FIGURES[name](m, opts)
 
 
 def save_figure(m: ErrorMap, name: str, out, **opts) -> Path:
+    """Draw one figure and save it.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map.
+    name : str
+        A key of :data:`FIGURES`.
+    out : str or os.PathLike
+        Output image (format from the suffix); its directory is created.
+    **opts
+        The figure's options.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     plt = _plt()
     fig = draw_figure(m, name, **opts)
     p = Path(out)
@@ -356,6 +623,21 @@ def save_figure(m: ErrorMap, name: str, out, **opts) -> Path:
 
 
 def save_all(m: ErrorMap, out_dir, **opts) -> list[Path]:
-    """Every figure into ``out_dir/figN.png``."""
+    """Save every figure into ``out_dir/figN.png``.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map.
+    out_dir : str or os.PathLike
+        Output directory (created).
+    **opts
+        Options passed to every figure.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in :data:`FIGURES` order.
+    """
     return [save_figure(m, name, Path(out_dir) / f"{name}.png", **opts) for name in FIGURES]
 

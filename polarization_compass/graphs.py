@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,7 +37,8 @@ from .estimators import registry
 from .specs.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
 
 __all__ = ["PACKAGE", "LaunchArg", "NodeSpec", "Graph", "ARGUMENTS", "build", "sim_graph", "compass_graph",
-           "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE"]
+           "replay_graph", "share_dir", "GraphError", "parse_arg", "GRAPH_NAMES", "FASTDDS_PROFILE", "STOP_TIMEOUT_S",
+           "SIGKILL_TIMEOUT_S"]
 
 PACKAGE = "polarization_compass"
 GRAPH_NAMES = ("sim", "compass", "replay")
@@ -43,6 +46,12 @@ GRAPH_NAMES = ("sim", "compass", "replay")
 #: with the default transports, best-effort 10 MB images are lost in fragments. Used by
 #: ``polarization-compass sim`` and the tests; optional on a robot (docs/ros.md).
 FASTDDS_PROFILE = "config/fastdds_large_images.xml"
+#: Seconds a node gets to stop after SIGINT before SIGTERM (then SIGKILL after SIGKILL_TIMEOUT_S more):
+#: ``sigterm_timeout`` of every launched node and the wait of ``polarization-compass sim``. A node
+#: stops in well under a second (nodes.runner), but the evaluator draws its report figure at the end
+#: and ten processes share two cores here: launch's default of 5 s was measured too short (issue 15).
+STOP_TIMEOUT_S = 20.0
+SIGKILL_TIMEOUT_S = 5.0
 
 
 class GraphError(CompassError):
@@ -51,6 +60,22 @@ class GraphError(CompassError):
 
 @dataclass(frozen=True)
 class LaunchArg:
+    """Describe one launch argument of a graph (a string, as ``ros2 launch`` passes it).
+
+    Parameters
+    ----------
+    name : str
+        Argument name, units in the name (e.g. ``rate_hz``).
+    default : str
+        Default text.
+    description : str
+        Meaning, shown by ``ros2 launch --show-args``.
+    kind : {"str", "bool", "float", "int", "list"}, default "str"
+        How :func:`parse_arg` reads the text (``list``: comma separated).
+    choices : tuple of str, default ()
+        Allowed values (for a list: allowed items).
+    """
+
     name: str
     default: str
     description: str
@@ -60,7 +85,28 @@ class LaunchArg:
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One node of a graph. Topic names in ``publishes``/``subscribes`` are before remapping."""
+    """Describe one node of a graph.
+
+    Parameters
+    ----------
+    executable : str
+        Console script of ``setup.py``, e.g. ``"heading_estimator"``.
+    name : str
+        Node name.
+    namespace : str, default ""
+        Node namespace ("" = root).
+    param_files : tuple of str, default ()
+        Parameter files, paths in the package's share directory.
+    parameters : dict, default {}
+        Inline parameters, applied after the files.
+    remappings : tuple of tuple of str, default ()
+        ``((from, to), ...)`` topic remappings.
+    publishes, subscribes : tuple of tuple of str, default ()
+        ``((topic, type), ...)`` before remapping (the names of
+        :mod:`polarization_compass.specs.topics`).
+    package : str, default "polarization_compass"
+        ROS package of the executable.
+    """
 
     executable: str
     name: str
@@ -73,13 +119,36 @@ class NodeSpec:
     package: str = PACKAGE
 
     def remap(self, topic: str) -> str:
+        """Return a topic's name after this node's remappings (namespace not applied).
+
+        Parameters
+        ----------
+        topic : str
+            Topic name as the node code uses it.
+
+        Returns
+        -------
+        str
+            The remapped name, or ``topic`` when no remapping names it.
+        """
         for a, b in self.remappings:
             if a == topic:
                 return b
         return topic
 
     def resolved(self, topic: str) -> str:
-        """Absolute name of a (possibly relative) topic after remapping and namespacing."""
+        """Return the absolute name of a (possibly relative) topic after remapping and namespacing.
+
+        Parameters
+        ----------
+        topic : str
+            Topic name as the node code uses it.
+
+        Returns
+        -------
+        str
+            Absolute topic name, e.g. ``"/array/imu/data"``.
+        """
         t = self.remap(topic)
         if t.startswith("/"):
             return t
@@ -87,13 +156,39 @@ class NodeSpec:
         return f"/{ns}/{t}" if ns else f"/{t}"
 
     def resolved_publishes(self) -> list[tuple[str, str]]:
+        """Return the topics this node publishes, resolved (:meth:`resolved`).
+
+        Returns
+        -------
+        list of tuple of str
+            ``(absolute topic, type)`` pairs.
+        """
         return [(self.resolved(t), ty) for t, ty in self.publishes]
 
     def resolved_subscribes(self) -> list[tuple[str, str]]:
+        """Return the topics this node subscribes to, resolved (:meth:`resolved`).
+
+        Returns
+        -------
+        list of tuple of str
+            ``(absolute topic, type)`` pairs.
+        """
         return [(self.resolved(t), ty) for t, ty in self.subscribes]
 
     def ros_arguments(self, share: Path) -> list[str]:
-        """``--ros-args ...`` for running the executable directly (what ``ros2 launch`` would pass)."""
+        """Return the ``--ros-args ...`` to run the executable directly, as ``ros2 launch`` would.
+
+        Parameters
+        ----------
+        share : pathlib.Path
+            The package's share directory (:func:`share_dir`), where the parameter files are.
+
+        Returns
+        -------
+        list of str
+            Node name, namespace, ``--params-file`` per file, ``-p name:=value`` per inline
+            parameter (YAML scalars) and ``-r from:=to`` per remapping.
+        """
         args = ["--ros-args", "-r", f"__node:={self.name}"]
         if self.namespace:
             args += ["-r", f"__ns:=/{self.namespace.strip('/')}"]
@@ -117,6 +212,22 @@ def _yaml_scalar(v) -> str:
 
 @dataclass(frozen=True)
 class Graph:
+    """Describe one node graph: its nodes and what it expects from outside.
+
+    Parameters
+    ----------
+    name : str
+        Graph name (one of :data:`GRAPH_NAMES`).
+    description : str
+        One-line description.
+    nodes : tuple of NodeSpec
+        The nodes.
+    external_inputs : tuple of str, default ()
+        Absolute topics expected from outside the graph (a camera driver, ``ros2 bag play``).
+    shutdown_with : str, optional
+        Name of the node whose exit ends the whole graph.
+    """
+
     name: str
     description: str
     nodes: tuple
@@ -124,12 +235,36 @@ class Graph:
     shutdown_with: str | None = None         # node name whose exit ends the whole graph
 
     def node(self, name: str) -> NodeSpec:
+        """Return the node named ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Node name.
+
+        Returns
+        -------
+        NodeSpec
+            The node.
+
+        Raises
+        ------
+        GraphError
+            The graph has no such node.
+        """
         for n in self.nodes:
             if n.name == name:
                 return n
         raise GraphError(f"graph {self.name!r} has no node {name!r}")
 
     def published_topics(self) -> dict:
+        """Return every topic the graph's nodes publish, resolved, with its types.
+
+        Returns
+        -------
+        dict
+            ``{absolute topic: set of types}``.
+        """
         out: dict = {}
         for n in self.nodes:
             for t, ty in n.resolved_publishes():
@@ -137,9 +272,17 @@ class Graph:
         return out
 
     def check(self) -> list[str]:
-        """Wiring problems: a subscription nobody in the graph (or outside it) publishes, a topic with
-        two types, duplicate node names, a corrector whose site (gps/fix or parameters) is not its
-        estimator's. Empty when the graph is consistent."""
+        """Return the wiring problems of the graph.
+
+        A subscription nobody in the graph (or outside it) publishes, a topic with two types,
+        duplicate node names, a corrector whose site (gps/fix or parameters) is not its
+        estimator's.
+
+        Returns
+        -------
+        list of str
+            One line per problem; empty when the graph is consistent.
+        """
         problems = []
         names = [(n.namespace, n.name) for n in self.nodes]
         if len(set(names)) != len(names):
@@ -197,7 +340,9 @@ ARGUMENTS = {
         LaunchArg("pitch_deg", "-20.0", "camera pitch during the turn (paper Fig 17: -20)", "float"),
         LaunchArg("roll_deg", "0.0", "camera roll during the turn", "float"),
         LaunchArg("scene", "", "scene YAML for camera, sky and sensor ('' = the paper's set-up)"),
-        LaunchArg("lockstep", "false", "simulator waits for every estimator before the next frame", "bool"),
+        LaunchArg("lockstep", "true", "simulator waits for every estimator before the next frame: every frame is "
+                  "processed however loaded the machine is (the README table); false = real time at the camera "
+                  "rate, frames an estimator cannot keep up with are missed (the speed measurement)", "bool"),
         LaunchArg("array_geometry", "", "photodiode-array sensor YAML: also simulate the array and run "
                   "least_squares/tilt_aware on it in namespace 'array' (not evaluated); '' = no array"),
         LaunchArg("exit_when_done", "true", "stop the whole graph after the last frame", "bool"),
@@ -228,7 +373,26 @@ ARGUMENTS = {
 
 
 def parse_arg(arg: LaunchArg, text) -> object:
-    """A launch-argument string to its value (bool: true/false/1/0; list: comma separated)."""
+    """Return the value of a launch-argument string.
+
+    Parameters
+    ----------
+    arg : LaunchArg
+        The argument's description (its ``kind`` and ``choices``).
+    text : str
+        The text: bool ``true/false/1/0/yes/no``, a finite float, an int, or a comma-separated
+        list.
+
+    Returns
+    -------
+    bool, float, int, str or list of str
+        The value.
+
+    Raises
+    ------
+    GraphError
+        The text cannot be read as the argument's kind, or is (holds) a value outside its choices.
+    """
     s = str(text).strip()
     try:
         if arg.kind == "bool":
@@ -258,7 +422,26 @@ def parse_arg(arg: LaunchArg, text) -> object:
 
 
 def build(name: str, args: dict | None = None) -> Graph:
-    """The graph ``name`` with launch arguments ``args`` (strings; missing ones take their default)."""
+    """Return the graph ``name`` for launch arguments ``args``.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`GRAPH_NAMES`.
+    args : dict, optional
+        ``{argument: text}`` (strings, as ``ros2 launch`` passes them); missing ones take their
+        default.
+
+    Returns
+    -------
+    Graph
+        The graph (not yet checked: see :meth:`Graph.check`).
+
+    Raises
+    ------
+    GraphError
+        Unknown graph or argument, or an argument that :func:`parse_arg` refuses.
+    """
     if name not in ARGUMENTS:
         raise GraphError(f"unknown graph {name!r}; known: {', '.join(GRAPH_NAMES)}")
     args = dict(args or {})
@@ -271,12 +454,51 @@ def build(name: str, args: dict | None = None) -> Graph:
     return {"sim": sim_graph, "compass": compass_graph, "replay": replay_graph}[name](**values)
 
 
+def node_command(executable: str) -> list[str]:
+    """Return the command that starts one of the package's node executables outside ``ros2 launch``.
+
+    The console script next to this interpreter (a venv's ``bin``) when it is there, else one on
+    ``PATH``, else ``python -m polarization_compass.nodes.<executable>``: on a ROS install the
+    scripts live in ``install/lib/polarization_compass``, which is on neither, and the module form
+    runs the same ``main``.
+
+    Parameters
+    ----------
+    executable : str
+        Node executable name as in ``setup.py``'s console scripts (e.g. ``"heading_estimator"``).
+
+    Returns
+    -------
+    list of str
+        The argv prefix; append ``--ros-args ...``.
+    """
+    here = Path(sys.executable).parent / executable
+    if here.is_file() and os.access(here, os.X_OK):
+        return [str(here)]
+    found = shutil.which(executable)
+    if found:
+        return [found]
+    return [sys.executable, "-m", f"{PACKAGE}.nodes.{executable}"]
+
+
 def node_lines(name: str, args: dict | None = None) -> list[str]:
-    """One line per node that graph ``name`` starts with launch arguments ``args``: executable and name.
+    """Return one line per node that graph ``name`` starts: executable and name.
 
     The launch files quote this list (with the default arguments) in their docstrings, so that a
     reader sees what a launch starts without running it; ``test/test_launch_docs.py`` keeps the
     quoted lists equal to the generated graphs.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`GRAPH_NAMES`.
+    args : dict, optional
+        Launch arguments as for :func:`build`.
+
+    Returns
+    -------
+    list of str
+        ``"<executable> [/<namespace>/]<node name>"`` per node.
     """
     return [f"{n.executable:<18} {('/' + n.namespace.strip('/') + '/') if n.namespace else ''}{n.name}"
             for n in build(name, args).nodes]
@@ -356,8 +578,53 @@ def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
 
 
 def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz=10.0, time_scale=1.0,
-              turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=False,
+              turns=1.0, turn_rate_deg_s=10.0, pitch_deg=-20.0, roll_deg=0.0, scene="", lockstep=True,
               exit_when_done=True, error_map="", report_dir="out/sim", array_geometry="") -> Graph:
+    """Return the ``sim`` graph: simulator, estimators, correctors and the evaluator on sim time.
+
+    Parameters
+    ----------
+    methods : iterable of str
+        Paper methods: an estimator and a corrector each (a method whose class needs the tilt
+        gets no corrector).
+    tilt_aware : bool
+        Also run every registered method that reads the IMU tilt (no corrector).
+    encoding : {"mono16", "mono8", "32FC1"}
+        Simulated camera encoding.
+    rate_hz : float
+        Camera frame rate [Hz] of simulated time.
+    time_scale : float
+        Simulated seconds per wall second.
+    turns : float
+        Full turns to simulate (0: until stopped).
+    turn_rate_deg_s : float
+        Turn rate [deg/s].
+    pitch_deg, roll_deg : float
+        Camera pitch and roll during the turn [deg] (paper eq 21; Fig 17: pitch -20).
+    scene : str
+        Scene YAML for camera, sky and sensor ("" = the paper's set-up).
+    lockstep : bool
+        The simulator waits for every estimator before the next frame.
+    exit_when_done : bool
+        Stop the whole graph after the last frame.
+    error_map : str
+        Tilt error map (.npz) of the correctors ("" = the map shipped with the package).
+    report_dir : str
+        Where the error_evaluator writes its report.
+    array_geometry : str
+        Photodiode-array sensor YAML: also simulate the array and run its estimators in
+        namespace ``array`` ("" = no array).
+
+    Returns
+    -------
+    Graph
+        The graph; it ends with the simulator when ``exit_when_done``.
+
+    Raises
+    ------
+    GraphError
+        No method to run.
+    """
     methods, direct = _split_direct(methods, tilt_aware)
     all_methods = methods + direct
     if not all_methods:
@@ -395,6 +662,32 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
 def compass_graph(method="least_squares", correction="error_map", image_topic=T.IMAGE,
                   camera_info_topic=T.CAMERA_INFO, imu_topic=T.IMU, fix_topic=T.FIX, site_source="navsatfix",
                   frame_id="base_link", namespace="", use_sim_time=False, error_map="") -> Graph:
+    """Return the ``compass`` graph: a real camera and IMU, one estimator and its corrector.
+
+    Parameters
+    ----------
+    method : str
+        Heading method (a method that reads the tilt gets no corrector).
+    correction : {"error_map", "none"}
+        Tilt correction of the heading.
+    image_topic, camera_info_topic, imu_topic, fix_topic : str
+        Input topics (remappings of the nodes' default names).
+    site_source : {"parameters", "navsatfix"}
+        Where the site comes from.
+    frame_id : str
+        frame_id of the published heading (z up, e.g. base_link).
+    namespace : str
+        Namespace of the compass nodes.
+    use_sim_time : bool
+        Use ``/clock``.
+    error_map : str
+        Tilt error map (.npz) ("" = the map shipped with the package).
+
+    Returns
+    -------
+    Graph
+        The graph, its camera, IMU and fix topics as external inputs.
+    """
     remaps = tuple((a, b) for a, b in ((T.IMAGE, image_topic), (T.CAMERA_INFO, camera_info_topic),
                                         (T.IMU, imu_topic), (T.FIX, fix_topic)) if a != b)
     common = {"use_sim_time": bool(use_sim_time)}
@@ -410,6 +703,29 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
 
 def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix", error_map="",
                  report_dir="out/replay") -> Graph:
+    """Return the ``replay`` graph: the sim graph without the simulator, for a played bag.
+
+    For ``ros2 bag play --clock`` of a recorded run; ``use_sim_time`` on.
+
+    Parameters
+    ----------
+    methods : iterable of str
+        Paper methods to run on the bag.
+    tilt_aware : bool
+        Also run every registered method that reads the IMU tilt.
+    site_source : {"parameters", "navsatfix"}
+        Site from the bag's NavSatFix or from parameters.
+    error_map : str
+        Tilt error map (.npz) ("" = the map shipped with the package).
+    report_dir : str
+        Where the error_evaluator writes its report.
+
+    Returns
+    -------
+    Graph
+        The graph; the bag's image, camera_info, IMU, fix, truth and ``/clock`` are external
+        inputs.
+    """
     methods, direct = _split_direct(methods, tilt_aware)
     all_methods = methods + direct
     common = {"use_sim_time": True}
@@ -426,8 +742,21 @@ def replay_graph(methods=PAPER_METHODS, tilt_aware=True, site_source="navsatfix"
 # Where the parameter files are
 # ------------------------------------------------------------------------------------------------
 def share_dir() -> Path:
-    """The package's share directory: the colcon install when this package is in the ament index,
-    else the source tree (which has the same ``config/`` and ``launch/`` layout)."""
+    """Return the package's share directory (``config/``, ``launch/``).
+
+    ``POLARIZATION_COMPASS_SHARE`` if set; else the source tree when this is a source checkout
+    (same layout); else the colcon install found through the ament index.
+
+    Returns
+    -------
+    pathlib.Path
+        The directory.
+
+    Raises
+    ------
+    GraphError
+        None of them is found.
+    """
     env = os.environ.get("POLARIZATION_COMPASS_SHARE")
     if env:
         return Path(env)
@@ -450,14 +779,37 @@ def share_dir() -> Path:
 # ros2 launch
 # ------------------------------------------------------------------------------------------------
 def launch_description(name: str):
-    """The LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
+    """Return the LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
 
-    Declares the graph's launch arguments; the nodes are built from :func:`build` once the arguments
-    are known (an OpaqueFunction), with the parameter files of the installed share directory. When
-    the graph names a node whose exit ends it (the simulator with exit_when_done), the launch shuts
-    down with it. ``large_image_transport`` (sim and replay: default true) points Fast DDS at
-    config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is set.
-    Needs the ``launch`` and ``launch_ros`` packages (a ROS 2 install).
+    Declares the graph's launch arguments (plus ``large_image_transport``); the nodes are built from
+    :func:`build` once the arguments are known (an OpaqueFunction), with the parameter files of the
+    installed share directory. When the graph names a node whose exit ends it (the simulator with
+    exit_when_done), the launch shuts down with it.
+
+    * ``large_image_transport`` (every graph, default true) points Fast DDS at
+      config/fastdds_large_images.xml for the launched nodes unless FASTDDS_DEFAULT_PROFILES_FILE is
+      set; the camera driver must publish with the same profile (without it a full-resolution
+      camera's best-effort images are lost in fragments: issue 15, docs/ros.md).
+    * Every node gets ``sigterm_timeout`` = :data:`STOP_TIMEOUT_S` (the wait of ``polarization-compass
+      sim``) and ``sigkill_timeout`` = :data:`SIGKILL_TIMEOUT_S` instead of launch's 5 s and 5 s: the
+      evaluator draws its report figure when it stops and ten processes share two cores here.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`GRAPH_NAMES`.
+
+    Returns
+    -------
+    launch.LaunchDescription
+        The argument declarations and the OpaqueFunction that starts the nodes.
+
+    Raises
+    ------
+    MissingDependencyError
+        ``launch`` or ``launch_ros`` is not installed (a ROS 2 install has them).
+    GraphError
+        Unknown graph; when the launch runs, a bad argument or an inconsistent graph (one line).
     """
     from .errors import MissingDependencyError
     try:
@@ -477,10 +829,11 @@ def launch_description(name: str):
     actions = [DeclareLaunchArgument(a.name, default_value=a.default,
                                      description=a.description + (f" ({', '.join(a.choices)})" if a.choices else ""))
                for a in ARGUMENTS[name]]
-    if name in ("sim", "replay"):
-        actions.append(DeclareLaunchArgument("large_image_transport", default_value="true",
-                                             description="use the shared-memory Fast DDS profile for "
-                                                         "full-resolution images"))
+    actions.append(DeclareLaunchArgument(
+        "large_image_transport", default_value="true",
+        description="set FASTDDS_DEFAULT_PROFILES_FILE to the package's shared-memory profile for "
+                    "full-resolution images (unless already set); false when the camera is on another "
+                    "machine: the profile carries data over shared memory only"))
 
     def make_nodes(context, *_, **__):
         values = {a.name: LaunchConfiguration(a.name).perform(context) for a in ARGUMENTS[name]}
@@ -490,15 +843,18 @@ def launch_description(name: str):
             raise GraphError("inconsistent graph: " + "; ".join(problems))
         share = share_dir()
         out = []
-        if name in ("sim", "replay") and parse_arg(LaunchArg("large_image_transport", "true", "", "bool"),
-                                                   LaunchConfiguration("large_image_transport").perform(context)) \
+        if parse_arg(LaunchArg("large_image_transport", "true", "", "bool"),
+                     LaunchConfiguration("large_image_transport").perform(context)) \
                 and not os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE"):
             out.append(SetEnvironmentVariable("FASTDDS_DEFAULT_PROFILES_FILE", str(share / FASTDDS_PROFILE)))
         by_name = {}
         for n in graph.nodes:
             node = Node(package=n.package, executable=n.executable, name=n.name, namespace=n.namespace or None,
                         parameters=[str(share / f) for f in n.param_files] + [dict(n.parameters)],
-                        remappings=list(n.remappings), output="screen", emulate_tty=True)
+                        remappings=list(n.remappings), output="screen", emulate_tty=True,
+                        # a node stops in < 1 s, the evaluator draws its figure first, ten processes
+                        # share two cores: launch's default 5 s before SIGTERM was too short (issue 15)
+                        sigterm_timeout=str(STOP_TIMEOUT_S), sigkill_timeout=str(SIGKILL_TIMEOUT_S))
             by_name[n.name] = node
             out.append(node)
         if graph.shutdown_with:

@@ -16,23 +16,50 @@ _counts: Counter = Counter()
 
 @contextmanager
 def stage(name: str):
-    """Mark one execution of pipeline stage ``name``."""
+    """Mark one execution of pipeline stage ``name`` (a context manager).
+
+    The count is taken on entry, so a stage that raises still counts as run.
+
+    Parameters
+    ----------
+    name : str
+        Stage name, e.g. ``"demosaic"``.
+
+    Yields
+    ------
+    None
+        Control to the ``with`` body.
+    """
     with _lock:
         _counts[name] += 1
     yield
 
 
 def count(name: str) -> None:
+    """Count one execution of pipeline stage ``name`` (the non-context form of :func:`stage`).
+
+    Parameters
+    ----------
+    name : str
+        Stage name.
+    """
     with _lock:
         _counts[name] += 1
 
 
 def counts() -> dict:
-    """A snapshot {stage name: times run} since the last :func:`reset`."""
+    """Return a snapshot of the stage counts since the last :func:`reset`.
+
+    Returns
+    -------
+    dict
+        ``{stage name: times run}``; a copy, safe to keep.
+    """
     with _lock:
         return dict(_counts)
 
 
 def reset() -> None:
+    """Forget every stage count (thread-safe)."""
     with _lock:
         _counts.clear()

@@ -20,6 +20,36 @@ __all__ = ["MotionProfile", "frame_times_ns", "imu_reading", "MountingErrors"]
 
 @dataclass(frozen=True)
 class MotionProfile:
+    """Describe the simulator's built-in motion: a turn at a constant rate with a tilt schedule.
+
+    ``bearing(t) = start + turn_rate * t`` (wrapped to [0, 360)),
+    ``pitch(t) = pitch + pitch_amplitude * sin(2 pi t / period)``,
+    ``roll(t) = roll + roll_amplitude * sin(2 pi t / period - pi / 2)``.
+
+    Parameters
+    ----------
+    start_bearing_deg : float, default 0
+        Bearing of camera +y at t = 0 [deg], clockwise from North.
+    turn_rate_deg_s : float, default 10
+        Turn rate [deg/s], clockwise positive.
+    pitch_deg, roll_deg : float, default -20 and 0
+        Mean camera pitch alpha and roll beta [deg] (eq 21).
+    pitch_amplitude_deg, roll_amplitude_deg : float, default 0
+        Amplitudes [deg] of the sinusoidal tilt schedule (roll lags pitch by 90 deg).
+    tilt_period_s : float, default 20
+        Period [s] of the tilt schedule.
+    turns : float, default 1
+        Length of the run in turns, when ``duration_s`` is 0; 0 with no duration: until stopped.
+    duration_s : float, default 0
+        Length of the run [s]; 0 to use ``turns``.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21 (pitch alpha, roll
+       beta) and Fig 17 (a full turn at pitch -20 deg).
+    """
+
     start_bearing_deg: float = 0.0
     turn_rate_deg_s: float = 10.0
     pitch_deg: float = -20.0
@@ -31,13 +61,31 @@ class MotionProfile:
     duration_s: float = 0.0
 
     def attitude(self, t_s: float) -> CameraAttitude:
+        """Return the camera attitude at simulated time ``t_s``.
+
+        Parameters
+        ----------
+        t_s : float
+            Time since the start of the run [s].
+
+        Returns
+        -------
+        CameraAttitude
+            Bearing [deg] in [0, 360), pitch and roll [deg] (eq 21).
+        """
         w = 2.0 * math.pi * t_s / self.tilt_period_s
         return CameraAttitude(float(wrap_360_deg(self.start_bearing_deg + self.turn_rate_deg_s * t_s)),
                               self.pitch_deg + self.pitch_amplitude_deg * math.sin(w),
                               self.roll_deg + self.roll_amplitude_deg * math.sin(w - math.pi / 2))
 
     def total_s(self) -> float | None:
-        """Length of the run in simulated seconds; None = until stopped."""
+        """Return the length of the run in simulated seconds.
+
+        Returns
+        -------
+        float or None
+            ``duration_s`` if set, else ``turns`` turns at the turn rate [s]; None = until stopped.
+        """
         if self.duration_s > 0:
             return float(self.duration_s)
         if self.turns > 0 and self.turn_rate_deg_s != 0:
@@ -45,15 +93,37 @@ class MotionProfile:
         return None
 
     def yaw_rate_enu_rad_s(self) -> float:
-        """REP-103 yaw rate (counter-clockwise positive) of the turn."""
+        """Return the REP-103 yaw rate of the turn (counter-clockwise positive).
+
+        Returns
+        -------
+        float
+            Yaw rate about ENU z [rad/s]: minus the clockwise turn rate.
+        """
         return -math.radians(self.turn_rate_deg_s)
 
 
 def frame_times_ns(start_ns: int, rate_hz: float, total_s: float | None, k: int) -> int | None:
-    """Stamp of frame ``k`` (``start + k / rate``), or None past the end of the run.
+    """Return the stamp of frame ``k`` (``start + k / rate``), or None past the end of the run.
 
     Frames are at ``t = k / rate`` for ``0 <= t < total``: a full turn at 10 deg/s and 10 Hz is
     360 frames, bearings 0, 1, ..., 359 deg.
+
+    Parameters
+    ----------
+    start_ns : int
+        Stamp of frame 0 [ns].
+    rate_hz : float
+        Frame rate [Hz], > 0.
+    total_s : float or None
+        Length of the run [s] (:meth:`MotionProfile.total_s`); None = no end.
+    k : int
+        Frame index, >= 0.
+
+    Returns
+    -------
+    int or None
+        The stamp [ns], or None when frame ``k`` is at or past the end.
     """
     t_ns = int(start_ns) + int(round(k * 1e9 / rate_hz))
     if total_s is not None and (t_ns - start_ns) >= total_s * 1e9 - 1:
@@ -63,13 +133,33 @@ def frame_times_ns(start_ns: int, rate_hz: float, total_s: float | None, k: int)
 
 def imu_reading(R_enu_body, normals, attitude_noise_deg: float, yaw_noise_deg: float, yaw_bias_deg: float,
                 roll_bias_deg: float = 0.0, pitch_bias_deg: float = 0.0):
-    """The simulated IMU's orientation of a body attitude, and the variances it reports.
+    """Return the simulated IMU's orientation of a body attitude and the variances it reports.
 
-    ``normals``: three standard normal draws (roll, pitch, yaw). Roll and pitch errors (bias + noise x
-    draw, deg) rotate about body x and y, the yaw error about ENU z:
-    ``R_meas = Rz(d_yaw) @ R_enu_body @ Ry(d_pitch) @ Rx(d_roll)``. Reported variances (rad^2, floored
-    at 1e-12): roll = pitch = (noise and the larger roll/pitch bias in quadrature)^2, yaw = (yaw noise
-    and yaw bias in quadrature)^2. Returns ``(R_meas, (var_roll, var_pitch, var_yaw))``.
+    Roll and pitch errors (bias + noise x draw) rotate about body x and y, the yaw error about ENU
+    z: ``R_meas = Rz(d_yaw) @ R_enu_body @ Ry(d_pitch) @ Rx(d_roll)``.
+
+    Parameters
+    ----------
+    R_enu_body : numpy.ndarray
+        (3, 3) true rotation, body (REP-103 base_link) to ENU.
+    normals : sequence of float
+        Three standard normal draws (roll, pitch, yaw).
+    attitude_noise_deg : float
+        Roll/pitch white noise [deg], 1 sigma.
+    yaw_noise_deg : float
+        Yaw white noise [deg], 1 sigma.
+    yaw_bias_deg : float
+        Yaw bias [deg].
+    roll_bias_deg, pitch_bias_deg : float, default 0
+        Roll and pitch biases [deg].
+
+    Returns
+    -------
+    R_meas : numpy.ndarray
+        (3, 3) measured rotation, body to ENU.
+    variances : tuple of float
+        ``(var_roll, var_pitch, var_yaw)`` [rad^2], floored at 1e-12: roll = pitch = (noise and the
+        larger roll/pitch bias in quadrature)^2, yaw = (yaw noise and yaw bias in quadrature)^2.
     """
     d_roll = math.radians(roll_bias_deg + attitude_noise_deg * normals[0])
     d_pitch = math.radians(pitch_bias_deg + attitude_noise_deg * normals[1])
@@ -83,18 +173,38 @@ def imu_reading(R_enu_body, normals, attitude_noise_deg: float, yaw_noise_deg: f
 
 @dataclass(frozen=True)
 class MountingErrors:
-    """What the tilt correction is told about the camera's pitch and roll, against the truth: the errors of
-    the camera-to-IMU mounting and of the IMU (all deg unless named otherwise; all zero = a perfect IMU).
+    """Describe what the tilt correction is told about the camera's pitch and roll.
 
-    ``boresight_roll_deg``/``boresight_pitch_deg``/``boresight_yaw_deg``: the camera is mounted rotated by
-    ``B`` (camera axes, below) from where the IMU-to-camera calibration says, so
-    the attitude derived from the IMU is ``R_enu_cam_true @ B^T`` (boresight misalignment);
-    ``noise_deg``: IMU pitch/roll white noise per reading (1 sigma); ``pitch_bias_deg``/``roll_bias_deg``:
-    IMU tilt biases; ``time_offset_s``: the IMU sample belongs to ``time_offset_s`` later than the image,
-    during which the platform tilts at ``tilt_rate_deg_s`` in a random direction. Pitch and roll are the
-    paper's (eq 21, ``R = Rz(-bearing) Rx(pitch) Ry(roll)``): rotations about camera x and y, so
-    ``B = Rz(yaw) Rx(pitch) Ry(roll)`` and the noise and bias rotate by ``Rx(d_pitch) Ry(d_roll)`` on the
-    right; for a level camera a pitch bias b reads pitch b, a boresight pitch p reads pitch -p.
+    Against the truth: the errors of the camera-to-IMU mounting and of the IMU (all zero = a
+    perfect IMU). Pitch and roll are the paper's (eq 21, ``R = Rz(-bearing) Rx(pitch) Ry(roll)``):
+    rotations about camera x and y, so ``B = Rz(yaw) Rx(pitch) Ry(roll)`` and the noise and bias
+    rotate by ``Rx(d_pitch) Ry(d_roll)`` on the right; for a level camera a pitch bias b reads
+    pitch b, a boresight pitch p reads pitch -p.
+
+    Parameters
+    ----------
+    noise_deg : float, default 0
+        IMU pitch/roll white noise per reading [deg], 1 sigma.
+    pitch_bias_deg, roll_bias_deg : float, default 0
+        IMU tilt biases [deg].
+    boresight_roll_deg, boresight_pitch_deg, boresight_yaw_deg : float, default 0
+        The camera is mounted rotated by ``B`` (camera axes) from where the IMU-to-camera
+        calibration says, so the attitude derived from the IMU is ``R_enu_cam_true @ B^T``
+        (boresight misalignment) [deg].
+    time_offset_s : float, default 0
+        The IMU sample belongs to this much later than the image [s] ...
+    tilt_rate_deg_s : float, default 0
+        ... during which the platform tilts at this rate [deg/s] in a random direction.
+
+    Raises
+    ------
+    ValueError
+        A field is not a finite number with absolute value <= 90.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
     """
 
     noise_deg: float = 0.0
@@ -117,16 +227,30 @@ class MountingErrors:
 
     @property
     def has_boresight(self) -> bool:
+        """Whether any boresight angle is non-zero."""
         return any(getattr(self, k) != 0.0 for k in ("boresight_roll_deg", "boresight_pitch_deg",
                                                       "boresight_yaw_deg"))
 
     @property
     def has_imu(self) -> bool:
+        """Whether any IMU error (noise, bias, or a time offset with a tilt rate) is non-zero."""
         return any(getattr(self, k) != 0.0 for k in ("noise_deg", "pitch_bias_deg", "roll_bias_deg")) or \
             (self.time_offset_s != 0.0 and self.tilt_rate_deg_s != 0.0)
 
     def without(self, *groups: str) -> "MountingErrors":
-        """A copy with the ``boresight`` and/or ``imu`` (noise, bias, time offset) errors set to zero."""
+        """Return a copy with the ``boresight`` and/or ``imu`` errors set to zero.
+
+        Parameters
+        ----------
+        *groups : {"boresight", "imu"}
+            The error groups to remove (``imu``: noise, bias and time offset); other names are
+        ignored.
+
+        Returns
+        -------
+        MountingErrors
+            The copy.
+        """
         import dataclasses
         ch = {}
         if "boresight" in groups:
@@ -136,10 +260,23 @@ class MountingErrors:
         return dataclasses.replace(self, **ch)
 
     def measured_attitude(self, true: CameraAttitude, normals) -> CameraAttitude:
-        """The camera attitude the pipeline derives from the IMU for the true attitude ``true``.
+        """Return the camera attitude the pipeline derives from the IMU for the attitude ``true``.
 
-        ``normals``: three standard normal draws (roll noise, pitch noise, direction of the tilt during the
-        time offset as an angle 2 pi Phi(z)); pass the same draws to compare error sources paired."""
+        Parameters
+        ----------
+        true : CameraAttitude
+            True bearing [deg], pitch and roll [deg] (eq 21).
+        normals : sequence of float
+            Three standard normal draws (roll noise, pitch noise, direction of the tilt during the
+            time offset as the angle ``2 pi Phi(z)``); pass the same draws to compare error sources
+            paired.
+
+        Returns
+        -------
+        CameraAttitude
+            The measured attitude: the time-offset tilt, then the boresight, then the IMU bias
+            and noise applied.
+        """
         R = R_enu_cam_from_attitude(true.bearing_deg, true.pitch_deg, true.roll_deg)
         if self.time_offset_s != 0.0 and self.tilt_rate_deg_s != 0.0:
             ang = math.radians(self.tilt_rate_deg_s * self.time_offset_s)

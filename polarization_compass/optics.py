@@ -80,39 +80,46 @@ def _keys(d, allowed, where):
         raise OpticsError(f"unknown key(s) {sorted(unknown)} in optics.{where}; allowed: {sorted(allowed)}")
 
 
-@njit(parallel=True, cache=True)
-def _add_unpolarized(dop, inten, add):  # pragma: no cover - compiled
-    for i in prange(dop.size):
-        g = add[i]
-        if g > 0.0:
-            tot = inten[i] + g
-            dop[i] = np.float32(dop[i] * inten[i] / tot)
-            inten[i] = np.float32(tot)
-
-
-@njit(parallel=True, cache=True)
-def _sun_kernel(rays, sx, sy, sz, cos_disk, disk, g1, expo, out):  # pragma: no cover - compiled
-    one_deg = math.pi / 180.0
+@njit(parallel=True, cache=True, fastmath=True)
+def _optics_kernel(rays, x, y, use_xy, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, cos_disk, disk,
+                   g1, expo, gx, gy, r2, grad, dop, inten):  # pragma: no cover - compiled
+    """All declared lens effects in one pass (float32): vignetting (mode 1 cos^4, 2 radial polynomial)
+    multiplies the radiance; the sun disk, its glare and the ghosts add unpolarized light."""
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    one_deg = np.float32(math.pi / 180.0)
+    disk_rad = np.float32(math.acos(cos_disk))
     for i in prange(rays.shape[1]):
-        c = sx * rays[0, i] + sy * rays[1, i] + sz * rays[2, i]
-        c = min(max(c, -1.0), 1.0)
-        if c >= cos_disk:
-            out[i] = disk
-        else:
-            gam = math.acos(c)
-            out[i] = g1 * (one_deg / gam) ** expo
-
-
-@njit(parallel=True, cache=True)
-def _ghost_kernel(x, y, cx, cy, r2, rad, out):  # pragma: no cover - compiled
-    for i in prange(x.size):
-        s = 0.0
-        for k in range(cx.size):
-            dx = x[i] - cx[k]
-            dy = y[i] - cy[k]
-            if dx * dx + dy * dy <= r2:
-                s += rad
-        out[i] = s
+        px = rays[0, i]
+        py = rays[1, i]
+        pz = rays[2, i]
+        xi = np.float32(0.0)
+        yi = np.float32(0.0)
+        if use_xy:
+            xi = np.float32(x[i])
+            yi = np.float32(y[i])
+        v = one
+        if vig_mode == 1:
+            z = max(pz, zero)
+            v = z * z * z * z
+        elif vig_mode == 2:
+            q = ((xi - cx) * (xi - cx) + (yi - cy) * (yi - cy)) * inv_hd2
+            v = one + q * (k1 + q * (k2 + q * k3))
+        base = inten[i] * v
+        g = zero
+        # branch-free below (selects, not ifs): such loops vectorise; branchy ones ran several times slower
+        if do_sun:
+            c = min(max(sx * px + sy * py + sz * pz, -one), one)
+            gam = max(math.acos(c), disk_rad)
+            glare = g1 * math.exp(expo * math.log(one_deg / gam))
+            g = disk if c >= cos_disk else glare
+        for k in range(gx.size):
+            dx = xi - gx[k]
+            dy = yi - gy[k]
+            g += grad if dx * dx + dy * dy <= r2 else zero
+        tot = base + g
+        dop[i] = dop[i] * (base / tot) if g > zero else dop[i]
+        inten[i] = tot
 
 
 def ghost_centres_px(sun_px, centre_px, positions):
@@ -172,19 +179,6 @@ class Optics:
     def params(self) -> dict:
         return {n: dict(getattr(self, n)) for n in self.stages}
 
-    def vignetting_factor(self, rays_cam, x_px, y_px) -> np.ndarray:
-        """V (float64, (N,)) at the pixels (flat): cos^4 of the angle from the axis, or the radial polynomial."""
-        if "law" in self.vignetting:
-            cz = np.clip(np.asarray(rays_cam[2], dtype=float), 0.0, 1.0)
-            return cz ** 4
-        cam = self.camera
-        half_diag = 0.5 * math.hypot(cam.width_px, cam.height_px)
-        r2 = ((np.asarray(x_px, float) - cam.cx_px) ** 2 + (np.asarray(y_px, float) - cam.cy_px) ** 2) / half_diag ** 2
-        v = np.ones_like(r2)
-        for j, c in enumerate(self.vignetting["k"]):
-            v += c * r2 ** (j + 1)
-        return v
-
     def sun_px(self, sun_cam):
         """The sun's image point (x, y) px, or None when it does not project into the lens' field."""
         s = np.asarray(sun_cam, dtype=float).reshape(3, 1)
@@ -198,30 +192,37 @@ class Optics:
         return float(x[0]), float(y[0])
 
     def apply(self, sun_cam, rays_cam, x_px, y_px, aop, dop, intensity, instr) -> None:
-        """The declared lens effects on the flat arrays (in place): intensity float32 writable."""
+        """The declared lens effects on the flat arrays (in place; intensity float32 writable), in one fused
+        kernel; each declared stage is counted."""
+        f32 = np.float32
+        vig_mode, ks = 0, (0.0, 0.0, 0.0)
         if self.vignetting is not None:
-            with instr.stage("optics.vignetting"):
-                intensity *= self.vignetting_factor(rays_cam, x_px, y_px).astype(np.float32)
-        add = None
+            instr.count("optics.vignetting")
+            if "law" in self.vignetting:
+                vig_mode = 1
+            else:
+                vig_mode = 2
+                ks = tuple(self.vignetting["k"]) + (0.0,) * (3 - len(self.vignetting["k"]))
+        s = np.asarray(sun_cam, dtype=float)
+        s = s / np.linalg.norm(s)
+        p = self.sun or {"disk_radiance": 0.0, "glare_at_1deg": 0.0, "glare_exponent": 2.0}
         if self.sun is not None:
-            with instr.stage("optics.sun"):
-                s = np.asarray(sun_cam, dtype=float)
-                s = s / np.linalg.norm(s)
-                add = np.empty(dop.size, np.float64)
-                p = self.sun
-                _sun_kernel(np.ascontiguousarray(rays_cam, dtype=np.float32), s[0], s[1], s[2],
-                            math.cos(math.radians(SUN_SEMIDIAMETER_DEG)), p["disk_radiance"], p["glare_at_1deg"],
-                            p["glare_exponent"], add)
+            instr.count("optics.sun")
+        gx = gy = np.empty(0, np.float32)
+        r2 = grad = 0.0
         if self.flare is not None:
-            with instr.stage("optics.flare"):
-                sp = self.sun_px(sun_cam)
-                if sp is not None:
-                    g = ghost_centres_px(sp, (self.camera.cx_px, self.camera.cy_px), self.flare["positions"])
-                    ghosts = np.empty(dop.size, np.float64)
-                    _ghost_kernel(np.ascontiguousarray(x_px, dtype=np.float64).ravel(),
-                                  np.ascontiguousarray(y_px, dtype=np.float64).ravel(),
-                                  np.ascontiguousarray(g[:, 0]), np.ascontiguousarray(g[:, 1]),
-                                  self.flare["radius_px"] ** 2, self.flare["radiance"], ghosts)
-                    add = ghosts if add is None else add + ghosts
-        if add is not None:
-            _add_unpolarized(dop, intensity, add)
+            instr.count("optics.flare")
+            sp = self.sun_px(sun_cam)
+            if sp is not None:
+                g = ghost_centres_px(sp, (self.camera.cx_px, self.camera.cy_px), self.flare["positions"])
+                gx, gy = np.ascontiguousarray(g[:, 0], np.float32), np.ascontiguousarray(g[:, 1], np.float32)
+                r2, grad = self.flare["radius_px"] ** 2, self.flare["radiance"]
+        use_xy = vig_mode == 2 or gx.size > 0
+        x = np.asarray(x_px).reshape(-1) if use_xy else np.empty(1)
+        y = np.asarray(y_px).reshape(-1) if use_xy else np.empty(1)
+        cam = self.camera
+        _optics_kernel(np.ascontiguousarray(rays_cam, dtype=np.float32), x, y, use_xy, vig_mode, f32(cam.cx_px),
+                       f32(cam.cy_px), f32(4.0 / (cam.width_px ** 2 + cam.height_px ** 2)), f32(ks[0]), f32(ks[1]),
+                       f32(ks[2]), self.sun is not None, f32(s[0]), f32(s[1]), f32(s[2]),
+                       f32(math.cos(math.radians(SUN_SEMIDIAMETER_DEG))), f32(p["disk_radiance"]),
+                       f32(p["glare_at_1deg"]), f32(p["glare_exponent"]), gx, gy, f32(r2), f32(grad), dop, intensity)

@@ -14,9 +14,33 @@ def _plt():
 
 
 def save_frame_pngs(frame, out_dir) -> list[Path]:
-    """Write ``aop.png`` (cyclic colour map, degrees) and ``dop.png`` with colour bars; returns the paths.
+    """Write ``aop.png`` and ``dop.png`` of a rendered frame, with colour bars.
 
-    Pixels without sky (``valid`` False) are shown in grey.
+    AoP in degrees on a cyclic colour map (eq 28: from +y_cam towards +x_cam, [-90, 90]), DoP in
+    [0, 1]; pixels without sky (``valid`` False) are grey. The title gives the sun and attitude.
+
+    Parameters
+    ----------
+    frame : Frame
+        A rendered frame on a 2-D pixel grid: ``aop_rad``, ``dop``, ``valid``, ``x_px``,
+        ``y_px`` and ``meta`` (sun azimuth/altitude, bearing, pitch, roll [deg]).
+    out_dir : str or os.PathLike
+        Output directory (created).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The two files, AoP first.
+
+    Raises
+    ------
+    ValueError
+        The frame's pixels are not a 2-D grid (a ring or list selection).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28 and Fig 5.
     """
     plt = _plt()
     out = Path(out_dir)

@@ -43,10 +43,41 @@ FIG17_PITCH_DEG = -20.0
 
 @dataclass(frozen=True)
 class RecordSpec:
-    """What to record. Angles in degrees, rates in Hz, times in seconds.
+    """Describe what to record. Angles in degrees, rates in Hz, times in seconds.
 
-    ``pitch_deg``/``roll_deg`` None: the scene's attitude if it is tilted, else Fig 17 (pitch -20).
-    ``reference_rate_hz`` None: the reference heading is stamped with the image stamps.
+    Parameters
+    ----------
+    duration_s : float
+        Length of the run [s], in (0, 86400].
+    rate_hz : float, default 10
+        Image rate [Hz].
+    storage : {"mcap", "sqlite3"}, default "mcap"
+        rosbag2 storage plugin.
+    encoding : {"mono16", "mono8"}, default "mono16"
+        Image encoding of the raw mosaics.
+    pitch_deg, roll_deg : float, optional
+        Camera pitch and roll [deg] (eq 21), in [-60, 60]; None: the scene's attitude if it is
+        tilted, else Fig 17's run (pitch -20, roll 0).
+    turns : float, default 1
+        Turns during the run (sign: direction).
+    imu_rate_hz : float, default 50
+        IMU rate [Hz].
+    imu_attitude_noise_deg, imu_yaw_noise_deg, imu_yaw_bias_deg : float
+        IMU roll/pitch noise, yaw noise (1 sigma) and yaw bias [deg].
+    reference_noise_deg : float, default 0.1
+        Noise of the reference heading [deg], 1 sigma.
+    reference_rate_hz : float, optional
+        Reference heading rate [Hz]; None: stamped with the image stamps.
+    fix_rate_hz : float, default 1
+        NavSatFix rate [Hz].
+    seed : int, default 0
+        Seed of the latencies, IMU and reference noise.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21 (pitch alpha, roll
+       beta) and Fig 17 (a full turn at pitch -20 deg).
     """
 
     duration_s: float
@@ -66,6 +97,14 @@ class RecordSpec:
     seed: int = 0
 
     def check(self) -> None:
+        """Check every field's range and choice.
+
+        Raises
+        ------
+        CompassError
+            A field is non-finite or out of range (the message names it and the range), an unknown
+            storage or encoding, or a run too short to hold one frame.
+        """
         def rng_(name, v, lo, hi, lo_open=False):
             if v is None:
                 return
@@ -99,8 +138,33 @@ def _latency_ns(rng, mean_ms: float, jitter_ms: float) -> int:
 def record_sim(scene, spec: RecordSpec, out, topic_map: TopicMap | None = None, progress=None) -> dict:
     """Render ``spec.duration_s`` of a field run of ``scene`` into the rosbag2 ``out``.
 
-    Returns a summary: frames and messages per topic, the start stamp, the tilt used, and the true
-    camera bearing per image stamp (``truth``: {stamp_ns: bearing_deg}) for tests.
+    Images (raw mosaics), IMU, reference heading and NavSatFix, with the latencies and noise of
+    ``spec``; the motion is a :class:`~polarization_compass.motion.MotionProfile`.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (site, time, sky, camera, sensor); its sun must come from an ephemeris.
+    spec : RecordSpec
+        What to record (checked first).
+    out : str or os.PathLike
+        The bag directory to write.
+    topic_map : TopicMap, optional
+        Topic names and types; default :func:`default_topic_map`.
+    progress : callable, optional
+        ``progress(frames_done, frames_total)`` after each image.
+
+    Returns
+    -------
+    dict
+        ``bag``, ``storage``, ``frames``, ``start_ns`` [ns], ``duration_s`` [s], ``pitch_deg``,
+        ``roll_deg``, ``turn_rate_deg_s`` [deg/s], ``messages`` ({topic: count}), ``truth``
+        ({image stamp_ns: true bearing_deg}), ``camera`` (``"WxH"``), ``encoding`` and ``sensor``.
+
+    Raises
+    ------
+    CompassError
+        A bad ``spec`` (see :meth:`RecordSpec.check`), or a scene with a fixed sun.
     """
     from .motion import MotionProfile, frame_times_ns, imu_reading
     from .pipeline import SunSource

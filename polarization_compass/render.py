@@ -241,8 +241,11 @@ class Renderer:
         if time_utc is not None:
             from .scene import parse_time_utc
             dt_s = (parse_time_utc(time_utc) - self.scene.time_utc).total_seconds()
+        sel = self.selection
+        block = self.pixels.shape if (sel.mode in ("full", "region") and sel.stride == 1
+                                      and len(self.pixels.shape) == 2) else None
         return self.atmosphere.apply(R, self.pixels.rays_cam, aop, dop, valid, intensity, self._limits[2], dt_s,
-                                     instr)
+                                     instr, block)
 
     def render_sky(self, sun_cam, zenith_cam):
         """What :meth:`render` computes for a scene without sensor effects, and nothing else: flat (N,) aop,

@@ -73,8 +73,30 @@ def regular_file(path, error=CompassError, what="file", max_bytes: int | None = 
 
 
 def read_text(path, error=CompassError, what="file", max_bytes: int = MAX_TEXT_BYTES) -> str:
-    """The UTF-8 text of ``path`` (at most ``max_bytes``); missing, special, too large, unreadable or
-    binary files raise ``error``."""
+    """Return the UTF-8 text of ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to read.
+    error : type, default CompassError
+        Exception class raised on failure (the caller's :class:`CompassError` subclass).
+    what : str, default "file"
+        What the file is, for the message (e.g. ``"scene file"``).
+    max_bytes : int, default MAX_TEXT_BYTES
+        Largest size read [bytes].
+
+    Returns
+    -------
+    str
+        The decoded text.
+
+    Raises
+    ------
+    error
+        The file is missing, a directory, a special file (FIFO, device), larger than ``max_bytes``,
+        unreadable, or not UTF-8 text (one-line message).
+    """
     p = regular_file(path, error, what, max_bytes)
     try:
         with open(p, "rb") as fh:
@@ -90,7 +112,19 @@ def read_text(path, error=CompassError, what="file", max_bytes: int = MAX_TEXT_B
 
 
 def yaml_problem(exc: yaml.YAMLError) -> str:
-    """One line from a YAML error: the problem and where it is (line/column), without the source excerpt."""
+    """Return one line from a YAML error: the problem and where it is, without the source excerpt.
+
+    Parameters
+    ----------
+    exc : yaml.YAMLError
+        The parser's error.
+
+    Returns
+    -------
+    str
+        E.g. ``"found unexpected end of stream at line 3, column 1"`` (line and column 1-based,
+        when the error has a mark).
+    """
     problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
     mark = getattr(exc, "problem_mark", None)
     where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -98,10 +132,29 @@ def yaml_problem(exc: yaml.YAMLError) -> str:
 
 
 def load_yaml(text: str, where: str, error=CompassError):
-    """``yaml.safe_load`` (tags such as ``!!python/object`` are refused, never executed).
+    """Parse YAML text with ``yaml.safe_load``; tags such as ``!!python/object`` are refused.
 
-    Also user errors (``error``): a value the safe constructors refuse (``2023-02-30`` read as a date),
-    nesting too deep for Python's recursion limit, and running out of memory while parsing."""
+    Parameters
+    ----------
+    text : str
+        The YAML document.
+    where : str
+        Where it came from (a path or a parameter name), the prefix of the error message.
+    error : type, default CompassError
+        Exception class raised on failure.
+
+    Returns
+    -------
+    object
+        The parsed document (dict, list, scalar or None); nothing is executed.
+
+    Raises
+    ------
+    error
+        The text is not valid YAML for the safe loader (message with line and column), a value
+        the safe constructors refuse (``2023-02-30`` read as a date), nesting too deep for Python's
+        recursion limit, or a MemoryError while parsing.
+    """
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -174,13 +227,41 @@ def npz_headers(z, error=CompassError, name: str = "archive") -> dict:
 @contextmanager
 def open_npz(path, error=CompassError, what="file", check=None, max_file_bytes: int = MAX_NPZ_FILE_BYTES,
              max_total_bytes: int = MAX_NPZ_TOTAL_BYTES):
-    """Yield a numpy ``NpzFile`` opened with ``allow_pickle=False``; close it (and the file) on every path.
+    """Open a ``.npz`` archive with ``allow_pickle=False``; close it on every path.
 
-    A missing file, a directory, a special file, a file over ``max_file_bytes``, a ``.npy`` saved under
-    an ``.npz`` name, a corrupt or truncated zip: all raise ``error`` with the reason. Before the archive
-    is yielded, the ``.npy`` headers of its members are read (:func:`npz_headers`): arrays declaring more
-    than ``max_total_bytes`` in all, or object arrays, are refused, and ``check(headers)`` (the caller's
+    A missing file, a directory, a ``.npy`` saved under an ``.npz`` name, a corrupt or truncated
+    zip: all raise ``error`` with the reason. Object arrays raise when read (pickle disabled),
+    reported the same way, as do corrupt members read inside the ``with`` body. Bounded: a special
+    file or one over ``max_file_bytes`` is refused, and before the archive is yielded the ``.npy``
+    headers of its members are read (:func:`npz_headers`): arrays declaring more than
+    ``max_total_bytes`` in all, or object arrays, are refused, and ``check(headers)`` (the caller's
     context: which shapes the file may hold) may raise ``error`` too -- nothing is decompressed before.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The archive.
+    error : type, default CompassError
+        Exception class raised on failure.
+    what : str, default "file"
+        What the archive is, for the message (e.g. ``"error map"``).
+    check : callable, optional
+        ``check(headers)`` with ``{name: NpyHeader}``; raises ``error`` for shapes the context refuses.
+    max_file_bytes : int, default MAX_NPZ_FILE_BYTES
+        Largest file size [bytes].
+    max_total_bytes : int, default MAX_NPZ_TOTAL_BYTES
+        Largest total size [bytes] the arrays may declare (decompressed).
+
+    Yields
+    ------
+    numpy.lib.npyio.NpzFile
+        The open archive (arrays are read lazily by key).
+
+    Raises
+    ------
+    error
+        The file is missing, a directory, unreadable, not an ``.npz`` archive, corrupt, or holds
+        object arrays.
     """
     p = regular_file(path, error, what, max_file_bytes)
     try:

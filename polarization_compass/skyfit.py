@@ -241,6 +241,9 @@ MIN_INLIER_FRACTION = 0.5
 #: a side vote counts when the pattern loss difference / brightness contrast exceeds these
 PATTERN_VOTE = 0.05
 BRIGHTNESS_VOTE = 0.05
+#: a heading further than 3 sigma + this from the whole sky's own best heading (same sun, same tilt) is
+#: ``inconsistent`` (e.g. a method that assumed a level camera when the tilt is known)
+AGREE_FLOOR_DEG = 0.5
 
 
 def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pitch_deg=None, roll_deg=None,
@@ -254,7 +257,9 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
       vote is against the method's side the heading is turned by 180 deg, when the votes disagree the
       result becomes axial (``ambiguous``);
     - status ``poor_fit`` when the sky at the estimate has a robust scatter above :data:`MAX_SCATTER_DEG`
-      or less than :data:`MIN_INLIER_FRACTION` of its weight within :data:`OUTLIER_DEG`.
+      or less than :data:`MIN_INLIER_FRACTION` of its weight within :data:`OUTLIER_DEG`;
+    - status ``inconsistent`` when the whole sky's own robust fit (same sun altitude and tilt, psi within
+      +-30 deg) is further from the heading than 3 combined sigmas + :data:`AGREE_FLOOR_DEG`.
 
     Results without a heading are returned unchanged; so is everything when ``sample`` is None (too
     little usable sky to judge: the method's own status stands). ``extras["sky_check"]`` says what was
@@ -292,6 +297,9 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
             side_note = "; the whole sky's side votes disagree: 180 deg ambiguity left open"
     fit = misfit_at(sample, psi, sun_altitude_deg, pitch, roll)
     jk = jackknife_sigma_deg(sample, psi, sun_altitude_deg, pitch, roll)
+    best = fit_sky(sample, sun_altitude_deg, pitch, roll, psi_range_deg=(psi - 30.0, psi + 30.0))
+    off = float(wrap_180_deg(psi - best.psi_deg))
+    check["whole_sky_psi_deg"] = round(best.psi_deg, 3)
     check.update({"scatter_deg": round(fit.scatter_deg, 3), "inlier_fraction": round(fit.inlier_fraction, 3),
                   "jackknife_sigma_deg": round(jk, 3), "pixels": fit.pixels,
                   "method_sigma_deg": result.sigma_deg})
@@ -301,6 +309,11 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
     new = HeadingResult.from_psi(result.method, psi, _sun_az(result), sigma if sigma is not None else None,
                                  result.pixels, result.quality, axial, result.reason + side_note,
                                  sun_altitude_deg=result.sun_altitude_deg, extras=extras)
+    limit = 3.0 * math.hypot(result.sigma_deg or 0.0, jk) + AGREE_FLOOR_DEG
+    if fit.scatter_deg <= MAX_SCATTER_DEG and fit.inlier_fraction >= MIN_INLIER_FRACTION and abs(off) > limit:
+        new = replace(new, status=Status.INCONSISTENT,
+                      reason=f"the whole sky at the known sun and tilt fits best {off:+.2f} deg away from this "
+                             f"heading, beyond 3 sigma + {AGREE_FLOOR_DEG:g} deg ({limit:.2f} deg)")
     if fit.scatter_deg > MAX_SCATTER_DEG or fit.inlier_fraction < MIN_INLIER_FRACTION:
         new = replace(new, status=Status.POOR_FIT,
                       reason=f"the sky fits no single sun well at this heading: robust AoP scatter "

@@ -2,17 +2,19 @@
 section 3): what to compute (:class:`SweepSpec`, :func:`parse_range` for its axes), per-process
 evaluators, checkpoints and the driver (:func:`run_sweep`).
 
-Sweeps run in chunks of one (sun altitude, pitch) pair each, on all cores (``multiprocessing``, spawn,
-numba limited to one thread per worker), with a tqdm progress bar on stderr. Each finished chunk is
-checkpointed to ``<out>.partial/``; an interrupted sweep rerun with the same arguments continues where it
-stopped and gives the same map (noise seeds are a function of the cell, not of the order of work).
+Sweeps run in chunks of one (sun altitude, pitch) pair each: in this process, or on Dask distributed (an
+embedded LocalCluster on all cores, or an existing cluster; :mod:`~polarization_compass.sweep_dask`), with a
+tqdm progress bar (rate, ETA) on stderr. Each finished chunk is written into its own region of a checksummed
+Zarr store (:class:`~polarization_compass.errormap_store.SweepStore`, ``<out>.partial.zarr``); an interrupted
+sweep rerun with the same arguments continues from the verified chunks and gives the same map (noise seeds
+are a function of the cell, not of the order of work or the worker). The complete map is exported to
+``.npz``, NetCDF 3 or kept as the Zarr store.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-import os
 import shutil
 import sys
 import time
@@ -33,9 +35,29 @@ __all__ = ["SweepSpec", "parse_range", "run_sweep"]
 # --------------------------------------------------------------------------------------------
 def parse_range(text: str, name: str = "range", lo: float = -math.inf, hi: float = math.inf,
                 max_count: int = 100000) -> np.ndarray:
-    """``"A:B:STEP"`` (inclusive of B when B - A is a multiple of STEP) or a single value ``"A"``.
+    """Parse an axis ``"A:B:STEP"`` (B included when B - A is a multiple of STEP) or ``"A"``.
 
-    Returns a float64 strictly increasing array. Raises :class:`ErrorMapError` with the reason.
+    Parameters
+    ----------
+    text : str
+        The range, in the axis's unit (e.g. deg).
+    name : str, default "range"
+        Option name for messages (``--<name>``).
+    lo, hi : float, default -inf and inf
+        Inclusive bounds every value must lie in.
+    max_count : int, default 100000
+        Most values allowed.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, strictly increasing (rounded to 1e-9, so 0.1 * 3 is 0.3).
+
+    Raises
+    ------
+    ErrorMapError
+        Not a number or ``A:B:STEP``, non-finite, STEP <= 0, B < A, too many values, or a value
+        outside [lo, hi] (the message says which).
     """
     parts = str(text).split(":")
     try:
@@ -70,10 +92,42 @@ def parse_range(text: str, name: str = "range", lo: float = -math.inf, hi: float
 # --------------------------------------------------------------------------------------------
 @dataclass
 class SweepSpec:
-    """What to compute. ``scene`` is a :class:`~polarization_compass.scene.Scene` (its attitude, sun and
-    pixel selection are overridden per cell); ``knobs`` maps a method to its estimator knobs (absent: the
-    estimator class's ``sweep_knobs``, chosen so that errors change by < 0.05 deg against full resolution,
-    see docs/error-maps.md)."""
+    """Describe what a sweep computes: methods and the four axes of the error map.
+
+    Parameters
+    ----------
+    methods : tuple of str
+        Estimator names (for ``array``: photodiode-array methods); not empty.
+    sun_altitude_deg, yaw_deg, pitch_deg, roll_deg : array_like
+        Axes [deg], each finite and strictly increasing; yaw psi, pitch alpha and roll beta of
+        eq 21 (the sun azimuth is 0, so bearing == psi).
+    scene : Scene, optional
+        :class:`~polarization_compass.scene.Scene` (its attitude, sun and pixel selection are
+        overridden per cell); default :func:`~polarization_compass.scene.default_scene`.
+    knobs : dict, default {}
+        ``{method: knobs}``; absent: the estimator class's ``sweep_knobs``, chosen so that errors
+        change by < 0.05 deg against full resolution (docs/error-maps.md).
+    full_domain : bool, default False
+        Compute every (pitch, roll) node, not only |pitch| + |roll| <= ``tilt_limit_deg``.
+    tilt_limit_deg : float, default 30
+        Tilt domain limit [deg] (the paper's |pitch| + |roll| <= 30).
+    support : int, default 2
+        Grid nodes outside the limit kept for interpolation inside it.
+    array : bool, default False
+        Sweep the scene's photodiode array instead of its camera.
+
+    Raises
+    ------
+    ErrorMapError
+        No methods, an axis not finite or not increasing, or array methods that the scene or the
+        array do not support.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3 (the simulated
+       errors over sun altitude, yaw, pitch and roll).
+    """
 
     methods: tuple
     sun_altitude_deg: np.ndarray
@@ -138,26 +192,55 @@ class SweepSpec:
 
     @property
     def shape(self) -> tuple:
+        """Shape of the map: (methods, sun altitudes, yaws, pitches, rolls)."""
         return (len(self.methods), self.sun_altitude_deg.size, self.yaw_deg.size, self.pitch_deg.size,
                 self.roll_deg.size)
 
     def tilt_mask(self) -> np.ndarray:
-        """(pitches, rolls) bool: nodes to compute."""
+        """Return the (pitch, roll) nodes to compute.
+
+        Returns
+        -------
+        numpy.ndarray
+            bool (pitches, rolls): every node for ``full_domain``, else the tilt domain and its
+            support (:func:`~polarization_compass.errormap.tilt_domain_mask`).
+        """
         if self.full_domain:
             return np.ones((self.pitch_deg.size, self.roll_deg.size), dtype=bool)
         return tilt_domain_mask(self.pitch_deg, self.roll_deg, self.tilt_limit_deg, support=self.support)
 
     def chunks(self) -> list[tuple[int, int]]:
-        """(sun altitude index, pitch index) pairs that have at least one node to compute."""
+        """Return the chunks of work: (sun altitude, pitch) pairs with a node to compute.
+
+        Returns
+        -------
+        list of tuple of int
+            ``(sun altitude index, pitch index)`` pairs.
+        """
         mask = self.tilt_mask()
         return [(ia, ip) for ia in range(self.sun_altitude_deg.size) for ip in range(self.pitch_deg.size)
                 if mask[ip].any()]
 
     def cell_count(self) -> int:
-        """Number of (method, cell) estimates the sweep runs."""
+        """Return the number of (method, cell) estimates the sweep runs.
+
+        Returns
+        -------
+        int
+            Methods x sun altitudes x yaws x (pitch, roll) nodes of :meth:`tilt_mask`.
+        """
         return int(len(self.methods) * self.sun_altitude_deg.size * self.yaw_deg.size * self.tilt_mask().sum())
 
     def to_meta(self) -> dict:
+        """Return the map's metadata for this sweep.
+
+        Returns
+        -------
+        dict
+            Format and package versions, scene, knobs per method, tilt domain rule, sun azimuth 0,
+            the error definition (``fold_axial(estimated psi - true psi)`` [deg] in (-90, 90]) and
+            the status legend.
+        """
         from . import __version__
         return {
             "format_version": FORMAT_VERSION,
@@ -175,7 +258,13 @@ class SweepSpec:
         } | ({"sensor": "photodiode_array"} if self.array else {})
 
     def digest(self) -> str:
-        """Identifies a sweep for resuming: same digest, same cells and values."""
+        """Return the identity of a sweep for resuming: same digest, same cells and values.
+
+        Returns
+        -------
+        str
+            20 hex digits of the SHA-256 of the metadata (package version excluded) and the axes.
+        """
         meta = self.to_meta()
         meta.pop("package_version", None)
         key = {"meta": meta, "methods": list(self.methods),
@@ -328,193 +417,164 @@ class _Evaluator:
         return 0.0, code
 
 
-_WORKER: _Evaluator | None = None
-_WORKER_INIT_ERROR: BaseException | None = None
-
-
-def _worker_init(spec: SweepSpec):
-    # A Pool whose initializer raises respawns workers forever: keep the exception, raise it per task.
-    global _WORKER, _WORKER_INIT_ERROR
-    import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's: it terminates the pool (no
-    try:                                             # traceback per worker, twice on a second Ctrl-C)
-        import numba
-        numba.set_num_threads(1)
-        _WORKER = _Evaluator(spec)
-    except BaseException as exc:  # noqa: BLE001 - re-raised in _worker_chunk, i.e. in the parent
-        _WORKER_INIT_ERROR = exc
-
-
-def _worker_chunk(key):
-    if _WORKER_INIT_ERROR is not None:
-        raise _WORKER_INIT_ERROR
-    ia, ip = key
-    err, status = _WORKER.chunk(ia, ip)
-    errors, _WORKER.errors = _WORKER.errors, []
-    return ia, ip, err, status, errors
-
-
-# --------------------------------------------------------------------------------------------
-# Checkpoints
-# --------------------------------------------------------------------------------------------
-def _partial_dir(out: Path) -> Path:
-    return out.with_name(out.name + ".partial")
-
-
-def _chunk_path(d: Path, ia: int, ip: int) -> Path:
-    return d / f"chunk_{ia:04d}_{ip:04d}.npz"
-
-
-def _chunk_checksum(digest: str, ia: int, ip: int, err: np.ndarray, status: np.ndarray) -> str:
-    """SHA-256 of a checkpoint's content and the sweep it belongs to (the spec digest and its place)."""
-    h = hashlib.sha256(f"{digest}:{int(ia)}:{int(ip)}:".encode())
-    for a, dt in ((err, "<f8"), (status, "|i1")):
-        a = np.ascontiguousarray(a, dtype=dt)
-        h.update(f"{a.shape}".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
-
-
-def _save_chunk(d: Path, ia, ip, err, status, digest: str = ""):
-    p = _chunk_path(d, ia, ip)
-    tmp = p.with_name(p.name + ".tmp.npz")
-    np.savez(tmp, error_deg=err, status=status, checksum=np.array(_chunk_checksum(digest, ia, ip, err, status)))
-    os.replace(tmp, p)
-
-
-_CHUNK_STATUS_CODES = frozenset(STATUS_CODES.values()) | {STATUS_NOT_COMPUTED, STATUS_ESTIMATOR_ERROR, STATUS_OTHER}
-
-
-def _load_chunk(d: Path, ia, ip, shape, digest: str = ""):
-    """(error_deg, status) of a checkpoint, or (None, reason) when it cannot be trusted: torn by a kill,
-    another shape, non-finite errors, unknown status codes, or a checksum (of the content and the sweep
-    spec) that does not match -- then it is recomputed, never used."""
-    from .safe_load import open_npz
-    p = _chunk_path(d, ia, ip)
-
-    def check(h):
-        for k in ("error_deg", "status", "checksum"):
-            if k not in h:
-                raise ErrorMapError(f"no {k}" + (" (a checkpoint of an older version)" if k == "checksum" else ""))
-        if h["error_deg"].shape != shape or h["status"].shape != shape:
-            raise ErrorMapError(f"shape {h['error_deg'].shape}, the sweep needs {shape}")
-    try:
-        with open_npz(p, ErrorMapError, "checkpoint", check=check) as z:
-            err, status, stored = z["error_deg"], z["status"], str(z["checksum"][()])
-    except ErrorMapError as exc:
-        return None, str(exc)
-    if err.dtype.kind != "f" or status.dtype.kind not in "iu" or not np.all(np.isfinite(err)):
-        return None, "non-finite or non-numeric values"
-    bad = set(np.unique(status).tolist()) - _CHUNK_STATUS_CODES
-    if bad:
-        return None, f"unknown status codes {sorted(bad)[:5]}"
-    if stored != _chunk_checksum(digest, ia, ip, err, status):
-        return None, "checksum mismatch (content changed after it was written, or another sweep's)"
-    return (err, status), ""
-
-
-def _open_partial(d: Path, spec: SweepSpec) -> None:
-    digest = spec.digest()
-    stamp = d / "sweep.json"
-    if d.exists():
-        try:
-            old = json.loads(stamp.read_text()).get("digest")
-        except (OSError, ValueError):
-            old = None
-        if old != digest and not any(d.glob("chunk_*.npz")):
-            shutil.rmtree(d)                   # nothing finished there: start afresh
-        elif old != digest:
-            raise ErrorMapError(f"{d} holds checkpoints of a different sweep (other arguments or scene) or a "
-                                f"damaged sweep.json; rerun with --restart, delete it, or choose another --out")
-        if d.exists():
-            return
-    d.mkdir(parents=True)
-    stamp.write_text(json.dumps({"digest": digest, "shape": list(spec.shape)}))
-
-
 # --------------------------------------------------------------------------------------------
 # Driver
 # --------------------------------------------------------------------------------------------
-def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
-              resume: bool = True, max_chunks: int | None = None, float32: bool = False) -> ErrorMap | None:
-    """Compute the map. With ``out``, checkpoints chunks in ``<out>.partial/`` and writes ``out`` at the end.
+#: What ``out`` may name: today's ``.npz``, one NetCDF 3 file, or the Zarr store itself.
+OUTPUT_SUFFIXES = (".npz", ".nc", ".zarr")
 
-    ``workers``: processes (default: all cores; 1 runs in this process). ``max_chunks`` stops after that
-    many new chunks (tests of resuming) and returns None. A KeyboardInterrupt keeps finished chunks.
+
+def store_path_for(out: Path) -> Path:
+    """Return where a sweep to ``out`` keeps its Zarr store.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        The map's output path.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out`` itself for ``.zarr``, else ``<out>.partial.zarr``.
+    """
+    return out if out.suffix == ".zarr" else out.with_name(out.name + ".partial.zarr")
+
+
+def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: bool = True,
+              resume: bool = True, max_chunks: int | None = None, float32: bool = False,
+              scheduler: str | None = None, stats: dict | None = None,
+              in_process: bool | None = None) -> ErrorMap | None:
+    """Compute the error map of ``spec``.
+
+    Where: ``workers=1`` without ``scheduler`` runs in this process (``in_process``, if given,
+    decides instead); otherwise the chunks run on Dask distributed
+    (:mod:`~polarization_compass.sweep_dask`). numba runs one thread per chunk everywhere, so
+    every backend gives the same bits. Every finished chunk is written into the Zarr store
+    :func:`store_path_for` (:class:`~polarization_compass.errormap_store.SweepStore`,
+    checksummed regions) as it arrives; a rerun with the same spec resumes from the verified
+    chunks (a damaged one is named and recomputed), and the complete map is exported to ``out``
+    (the ``.partial.zarr`` store is then removed). A KeyboardInterrupt keeps every written chunk.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        What to compute.
+    out : str or os.PathLike, optional
+        ``.npz``, ``.nc`` (NetCDF 3) or ``.zarr``; None: nothing stored.
+    workers : int, optional
+        Single-threaded worker processes of an embedded ``LocalCluster`` (default: one per core).
+    progress : bool, default True
+        A tqdm progress bar (rate, ETA) on stderr.
+    resume : bool, default True
+        Continue an earlier store of the same sweep; False discards it first.
+    max_chunks : int, optional
+        Stop after this many new chunks (tests of resuming).
+    float32 : bool, default False
+        Store an ``.npz`` in float32 (half the size).
+    scheduler : str, optional
+        Address of an existing Dask cluster (``tcp://HOST:PORT``).
+    stats : dict, optional
+        Receives the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``,
+        ``startup_s`` (cluster start), ``compute_s`` (from the cluster being up to the last chunk
+        received), ``task_s`` and ``task_cpu_s`` (summed wall and CPU seconds of the chunks'
+        computation), ``setup_cpu_s`` (the workers' evaluators) [s].
+    in_process : bool, optional
+        Force (True) or forbid (False) the in-process path.
+
+    Returns
+    -------
+    ErrorMap or None
+        The validated map (errors [deg], statuses), or None when ``max_chunks`` stopped the sweep
+        early.
+
+    Raises
+    ------
+    ErrorMapError
+        A bad ``out`` suffix, ``in_process`` with ``scheduler``, a foreign, corrupt or other-sweep
+        store, an unreachable scheduler or a missing ``sweep`` extra.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 3 (the simulated
+       errors over sun altitude, yaw, pitch and roll).
     """
     out_path = Path(out) if out is not None else None
-    part = None
+    if out_path is not None and out_path.suffix not in OUTPUT_SUFFIXES:
+        raise ErrorMapError(f"the map must be written to {', '.join(OUTPUT_SUFFIXES)}, got {str(out_path)!r}")
+    if in_process is None:
+        in_process = scheduler is None and workers == 1
+    elif in_process and scheduler is not None:
+        raise ErrorMapError("in_process and scheduler exclude each other")
+    store = None
     if out_path is not None:
-        part = _partial_dir(out_path)
-        if part.exists() and not resume:
-            shutil.rmtree(part)
-        _open_partial(part, spec)
+        from .errormap_store import SweepStore
+        store = SweepStore.open(store_path_for(out_path), spec, restart=not resume)
     M, A, Y, P, R = spec.shape
     err = np.zeros(spec.shape, dtype=float)
     status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
-    todo = []
+    todo = store.scan(spec.chunks(), err, status) if store is not None else spec.chunks()
     mask = spec.tilt_mask()
-    digest = spec.digest()
-    damaged = []
-    for ia, ip in spec.chunks():
-        got = None
-        if part is not None and _chunk_path(part, ia, ip).exists():
-            got, why = _load_chunk(part, ia, ip, (M, Y, R), digest)
-            if got is None:
-                damaged.append(f"{_chunk_path(part, ia, ip).name} ({why})")
-        if got is None:
-            todo.append((ia, ip))
-        else:
-            err[:, ia, :, ip, :], status[:, ia, :, ip, :] = got
-    if damaged:
-        print(f"errormap: {len(damaged)} damaged checkpoint(s) recomputed, not used: " + "; ".join(damaged[:5])
-              + (" ..." if len(damaged) > 5 else ""), file=sys.stderr)
-    per_chunk = np.array([M * Y * int(mask[ip].sum()) for _, ip in todo])
-    total = int(per_chunk.sum())
-    n_workers = max(1, int(workers if workers else (os.cpu_count() or 1)))
-    n_workers = min(n_workers, max(1, len(todo)))
+    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
+    run = todo[:limit]
+    total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
     errors: list[str] = []
+    info = {"tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "setup_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1,
+            "compute_s": 0.0}
+    t_up = time.perf_counter()
     t0 = time.perf_counter()
     bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
-                   desc=f"errormap ({n_workers} worker{'s' if n_workers > 1 else ''})")
-    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
-    done = 0
-    sampling = None
 
-    def accept(ia, ip, e, s, errs):
-        nonlocal done
+    def on_start(n_workers: int, where: str, startup_s: float):
+        nonlocal bar, t_up
+        info["workers"], info["startup_s"] = n_workers, startup_s
+        t_up = time.perf_counter()
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=total, unit=" estimates", file=sys.stderr, dynamic_ncols=True, smoothing=0.1,
+                       desc=f"errormap ({where}, {n_workers} worker{'s' if n_workers != 1 else ''})")
+
+    def accept(ia, ip, e, s, errs, task_s, task_cpu_s, setup_cpu_s=0.0):
         err[:, ia, :, ip, :] = e
         status[:, ia, :, ip, :] = s
-        if part is not None:
-            _save_chunk(part, ia, ip, e, s, digest)
+        if store is not None:
+            store.write_chunk(ia, ip, e, s)
         errors.extend(errs)
-        done += 1
+        info["tasks"] += 1
+        info["task_s"] += task_s
+        info["task_cpu_s"] += task_cpu_s
+        info["setup_cpu_s"] += setup_cpu_s
+        info["compute_s"] = time.perf_counter() - t_up
         if bar is not None:
             bar.update(M * Y * int(mask[ip].sum()))
 
     try:
-        if n_workers == 1 or limit == 0:
-            ev = _Evaluator(spec)
-            sampling = ev.sampling()
-            for ia, ip in todo[:limit]:
-                e, s = ev.chunk(ia, ip)
-                accept(ia, ip, e, s, ev.errors)
+        ev = _Evaluator(spec)                 # in the client too: sampling() for the meta, and a bad spec fails here
+        sampling = ev.sampling()
+        if in_process or not run:
+            from .runtime import single_threaded_kernels
+            on_start(1, "in process", 0.0)
+            for ia, ip in run:
+                t1, c1 = time.perf_counter(), time.thread_time()
+                with single_threaded_kernels():          # as on a worker: the same bits everywhere
+                    e, s = ev.chunk(ia, ip)
+                accept(ia, ip, e, s, ev.errors, time.perf_counter() - t1, time.thread_time() - c1)
                 ev.errors = []
         else:
-            sampling = _Evaluator(spec).sampling()
-            _run_pool(spec, todo[:limit], n_workers, accept)
+            from .sweep_dask import run_chunks
+            run_chunks(spec, run, accept, on_start, scheduler=scheduler, workers=workers)
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()
-        if part is not None:
-            print(f"errormap: interrupted after {done} new chunk(s); finished chunks are kept in {part}; "
-                  f"rerun the same command to resume", file=sys.stderr)
+        if store is not None:
+            print(f"errormap: interrupted after {info['tasks']} new chunk(s); finished chunks are kept in "
+                  f"{store.path}; rerun the same command to resume", file=sys.stderr)
         raise
     if bar is not None:
         bar.close()
+    info["wall_s"] = time.perf_counter() - t0
+    if stats is not None:
+        stats.update(info)
     if errors:
         print(f"errormap: warning: estimator exceptions (status {STATUS_ESTIMATOR_ERROR}), first: "
               + "; ".join(errors[:3]), file=sys.stderr)
@@ -523,49 +583,17 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     meta = spec.to_meta()
     meta["sampling"] = sampling
     meta["cells_estimated"] = spec.cell_count()
-    meta["elapsed_s_last_run"] = round(time.perf_counter() - t0, 3)
-    meta["workers"] = n_workers
+    meta["elapsed_s_last_run"] = round(info["wall_s"], 3)
+    meta["workers"] = info["workers"]
     m = ErrorMap(err, status, spec.methods, spec.sun_altitude_deg, spec.yaw_deg, spec.pitch_deg,
-                 spec.roll_deg, meta)
-    if out_path is not None:
-        m.save(out_path, float32=float32)
-        shutil.rmtree(part, ignore_errors=True)
+                 spec.roll_deg, meta).validate()
+    if store is not None:
+        from .errormap_store import export_netcdf
+        store.finish(meta)
+        if out_path.suffix == ".npz":
+            m.save(out_path, float32=float32)
+        elif out_path.suffix == ".nc":
+            export_netcdf(m, out_path)
+        if out_path.suffix != ".zarr":
+            shutil.rmtree(store.path, ignore_errors=True)
     return m
-
-
-def _run_pool(spec, todo, n_workers, accept):
-    import multiprocessing as mp
-    ctx = mp.get_context("spawn")      # numba's thread pool and BLAS are not fork-safe once started
-    saved = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                                            "NUMBA_NUM_THREADS")}
-    for k in saved:
-        os.environ[k] = "1"            # inherited by the spawned workers only
-    try:
-        pool = ctx.Pool(n_workers, initializer=_worker_init, initargs=(spec,))
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    import signal
-    try:
-        for ia, ip, e, s, errs in pool.imap_unordered(_worker_chunk, todo, chunksize=1):
-            accept(ia, ip, e, s, errs)
-        pool.close()
-    except BaseException:
-        # a second Ctrl-C while the workers are stopped must not interrupt the stopping (tracebacks)
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
-        try:
-            pool.terminate()
-            pool.join()
-        finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
-        raise
-    pool.join()
-
-
-def _main_thread() -> bool:
-    import threading
-    return threading.current_thread() is threading.main_thread()

@@ -45,3 +45,15 @@ def ctx():
     rclpy.init(context=c)
     yield c
     rclpy.shutdown(context=c)
+
+
+#: launch_testing test files (generate_test_description + unittest classes with proc_output/proc_info):
+#: run by launch_testing's pytest plugin where it loads (pytest 7.4, `colcon test` on a robot) and by
+#: `launch_test` (`make test`, where the plugin is switched off: it does not load under pytest >= 8).
+LAUNCH_TESTING_FILES = {"test_launch_files.py"}
+
+
+def pytest_ignore_collect(collection_path, config):
+    if collection_path.name in LAUNCH_TESTING_FILES and not config.pluginmanager.has_plugin("launch_testing"):
+        return True
+    return None

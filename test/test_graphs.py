@@ -294,3 +294,18 @@ def test_readme_lists_every_topic_of_every_graph():
                 assert f"`{generic}`" in text or f"`/{generic}`" in text, (name, node.name, topic)
                 seen += 1
     assert seen > 30
+
+
+def test_node_command_falls_back_to_the_module_form(monkeypatch, tmp_path):
+    """On a ROS install the console scripts are in install/lib/<pkg>, on no PATH: run the module."""
+    import sys
+
+    from polarization_compass import graphs as G
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "python3"))
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert G.node_command("heading_estimator") == [
+        str(tmp_path / "python3"), "-m", "polarization_compass.nodes.heading_estimator"]
+    script = tmp_path / "heading_estimator"
+    script.write_text("#!/bin/sh\n")
+    script.chmod(0o755)
+    assert G.node_command("heading_estimator") == [str(script)]

@@ -5,15 +5,15 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import sys
 import time
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
+from polarization_compass.graphs import node_command
+
 ROOT = Path(__file__).resolve().parent.parent
-BIN = Path(sys.executable).parent
 CONFIG = ROOT / "config"
 SHM_PROFILE = CONFIG / "fastdds_large_images.xml"
 
@@ -53,7 +53,7 @@ class Proc:
         self.err_path = log_dir / f"{name}.err"
         self._out = open(self.out_path, "w")
         self._err = open(self.err_path, "w")
-        self.p = subprocess.Popen([str(BIN / exe), "--ros-args", "-r", f"__node:={name}", *ros_args], env=env,
+        self.p = subprocess.Popen([*node_command(exe), "--ros-args", "-r", f"__node:={name}", *ros_args], env=env,
                                   stdout=self._out, stderr=self._err)
 
     def alive(self) -> bool:

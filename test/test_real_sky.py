@@ -106,6 +106,24 @@ def test_bad_real_inputs_exit_2_with_one_line(files, tmp_path, capsys):
     cases.append(["estimate", str(raw), "--camera", str(files["+x-y"]), "--bits", "12", "--sun-azimuth", "0",
                   "--sun-altitude", "30"])
     cases.append(["check-polarizer", str(files["sunny"]), "--camera", str(tmp_path / "none.yaml")])
+    import cv2
+    cv2.imwrite(str(tmp_path / "colour.png"), np.zeros((2048, 2048, 3), np.uint8))       # a rendering, not raw
+    cases.append(["estimate", str(tmp_path / "colour.png"), "--camera", str(files["+x-y"]), "--sun-azimuth", "0",
+                  "--sun-altitude", "30"])
+    (tmp_path / "frame.bmp").write_bytes(b"BM")
+    cases.append(["estimate", str(tmp_path / "frame.bmp"), "--camera", str(files["+x-y"]), "--sun-azimuth", "0",
+                  "--sun-altitude", "30"])
+    bad_cam = tmp_path / "bad_cam.yaml"
+    bad_cam.write_text(R.camera_yaml_text().replace("data: [0, 0, 0, 0]", "data: [0.1, 0.2]"))
+    cases.append(["estimate", str(files["sunny"]), "--camera", str(bad_cam), "--sun-azimuth", "0",
+                  "--sun-altitude", "30"])
+    cases.append(["estimate", str(raw), "--camera", str(files["+x-y"]), "--bits", "20", "--sun-azimuth", "0",
+                  "--sun-altitude", "30"])
+    mask = tmp_path / "mask.png"
+    cv2.imwrite(str(mask), np.zeros((10, 10), np.uint8))
+    cases.append(["estimate", str(files["sunny"]), "--camera", str(files["+x-y"]), "--mask", str(mask),
+                  "--sun-azimuth", "0", "--sun-altitude", "30"])
+    cases.append(["estimate", str(files["sunny"]), "--camera", str(files["+x-y"]), "--sun-azimuth", "0"])
     for argv in cases:
         capsys.readouterr()
         rc = main(argv)

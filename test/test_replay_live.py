@@ -6,7 +6,6 @@ replay's, frame by frame and stream by stream."""
 import csv
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import pytest
 from polarization_compass import bag as B
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
+from polarization_compass.graphs import node_command
 from polarization_compass.recording import RecordSpec, record_sim
 from polarization_compass.replay import ReplayConfig, replay_bag
 from polarization_compass.scene import load_scene
@@ -24,7 +24,6 @@ from test_nodes_helpers import stop_process
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[1]
 STRIDE = 2                                   # knob.stride of the nodes and of the offline replay
 CAMERA = CameraModel(width_px=96, height_px=80, focal_length_mm=4.0, pixel_pitch_x_um=2448 * 3.45 / 96,
@@ -35,7 +34,7 @@ class _Node:
     def __init__(self, spec, share, extra, env, log_dir):
         self.name = spec.name
         self.log = open(log_dir / f"{spec.name}.log", "w")
-        self.p = subprocess.Popen([str(BIN / spec.executable), *spec.ros_arguments(share), *extra], env=env,
+        self.p = subprocess.Popen([*node_command(spec.executable), *spec.ros_arguments(share), *extra], env=env,
                                   stdout=self.log, stderr=subprocess.STDOUT)
         self.path = log_dir / f"{spec.name}.log"
 

@@ -75,6 +75,17 @@ def test_side_and_poor_fit_and_prior(frame):
     assert assess_result(wrong, None, ALT) is wrong
 
 
+def test_a_heading_the_whole_sky_does_not_support_is_inconsistent(frame):
+    """Same sun, same tilt: the whole sky's own best heading is the truth, so a result 8 deg off with a
+    0.1 deg sigma is inconsistent (a level-assumption heading under a known tilt looks like this); 0.05 deg
+    off is ok."""
+    s = _sample(frame)
+    off = assess_result(HeadingResult.from_psi("least_squares", PSI + 8.0, SUN_AZ, 0.1, 100, 1.0, False), s, ALT)
+    assert off.status == Status.INCONSISTENT and "fits best" in off.reason
+    near = assess_result(HeadingResult.from_psi("least_squares", PSI + 0.05, SUN_AZ, 0.1, 100, 1.0, False), s, ALT)
+    assert near.status == Status.OK
+
+
 def test_misfit_statistics_against_a_known_rotation(frame):
     """Every AoP turned by 10 deg: the robust scatter is 1.4826 x 10 deg, nothing within 8 deg."""
     s = _sample(frame, frame.aop_rad + np.float32(math.radians(10.0)))
@@ -116,3 +127,25 @@ def test_front_end_sky_check(pol45):
         assert "sky_check" in res.extras
     else:
         assert res.status != Status.OK
+
+
+@pytest.mark.parametrize("method", ["least_squares", "tilt_aware"])
+def test_least_squares_robust_refit_ignores_a_disagreeing_sector(frame, method):
+    """30 % of the sky (rays with x > 0.5) with its AoP turned by 30 deg, as a cloud bank or a reflecting
+    obstacle could: the plain total least squares is pulled by degrees; with ``outlier_deg`` the consensus
+    refit (seeded by the robust whole-view sun, not by the pulled fit) is back on the truth."""
+    from polarization_compass.estimators import Observation, make_estimator
+    sp = select_pixels(CAM, PixelSelection.full())
+    aop = frame.aop_rad.copy()
+    aop[sp.rays_cam[0].reshape(aop.shape) > 0.5] += np.float32(math.radians(30.0))
+    obs = Observation(aop, frame.dop, frame.valid, sp.rays_cam, sp.x_px, sp.y_px, CAM, SUN_AZ, ALT, None, 0.0, 0.0)
+    plain = make_estimator(method, stride=1, max_aop_noise_deg=90.0).estimate(obs)
+    robust = make_estimator(method, stride=1, max_aop_noise_deg=90.0, outlier_deg=10.0).estimate(obs)
+    assert abs(wrap_180_deg(plain.psi_deg - PSI)) > 5.0
+    assert robust.status == Status.OK and abs(wrap_180_deg(robust.psi_deg - PSI)) < 0.05
+    assert robust.extras["outliers_dropped"] > 0.2 * robust.pixels
+    clean = Observation(frame.aop_rad, frame.dop, frame.valid, sp.rays_cam, sp.x_px, sp.y_px, CAM, SUN_AZ, ALT,
+                        None, 0.0, 0.0)
+    a = make_estimator(method, stride=2).estimate(clean)
+    b = make_estimator(method, stride=2, outlier_deg=10.0).estimate(clean)
+    assert b.extras["outliers_dropped"] == 0 and b.psi_deg == a.psi_deg        # a clean sky: nothing changes

@@ -22,6 +22,9 @@ def register(sub):
                         "boresight_yaw_deg), time_offset_s, tilt_rate_deg_s")
     p.add_argument("--samples", type=int, default=50, help="frames per condition (default 50)")
     p.add_argument("--methods", default="", help="comma-separated methods (default: all registered)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="Dask LocalCluster worker processes (default 1: in this process, without Dask)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on this existing Dask cluster")
     p.add_argument("--out", default="budget", help="output directory (default ./budget)")
     p.set_defaults(func=run)
 
@@ -34,10 +37,15 @@ def run(args) -> int:
         raise BudgetError(f"--samples must be in [1, 100000], got {args.samples}")
     if not (0.0 <= args.tilt <= 60.0):
         raise BudgetError(f"--tilt must be in [0, 60] deg, got {args.tilt}")
+    if not (1 <= args.workers <= 256):
+        raise BudgetError(f"--workers must be in [1, 256], got {args.workers}")
+    if args.scheduler is not None and not args.scheduler.startswith(("tcp://", "tls://")):
+        raise BudgetError(f"--scheduler must be an address like tcp://HOST:PORT, got {args.scheduler!r}")
     scene = load_scene(args.scene)
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     cfg = BudgetConfig(scene, int(args.samples), float(args.tilt), parse_imu(args.imu), methods)
-    result = run_budget(cfg, progress=lambda name: print(f"budget: {name} ...", file=sys.stderr, flush=True))
+    result = run_budget(cfg, progress=lambda name: print(f"budget: {name} ...", file=sys.stderr, flush=True),
+                        workers=args.workers, scheduler=args.scheduler)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "budget.json").write_text(json.dumps(result, indent=1, sort_keys=True))

@@ -1,4 +1,5 @@
-"""`polarization-compass errormap`: sweep heading errors over sun altitude x yaw x pitch x roll to an .npz map."""
+"""`polarization-compass errormap`: sweep heading errors over sun altitude x yaw x pitch x roll to a map
+(.npz, NetCDF 3 or a Zarr store), in this process or on Dask distributed."""
 from __future__ import annotations
 
 import json
@@ -24,8 +25,10 @@ def register(sub):
                     "error_deg[method, sun altitude, yaw, pitch, roll] = fold(estimated psi - true psi) in "
                     "(-90, 90]. Ranges are A:B:STEP, inclusive, or one value. Cells with |pitch|+|roll| > 30 "
                     "are skipped, except the grid nodes interpolation inside that region reads "
-                    "(--support); --full-domain computes them all. Interrupt at any time: finished chunks are "
-                    "kept in OUT.partial/ and the same command resumes.")
+                    "(--support); --full-domain computes them all. Chunks run on Dask: an embedded LocalCluster on "
+                    "all cores, or an existing cluster with --scheduler. Interrupt at any time: finished chunks "
+                    "are kept in the Zarr store OUT.partial.zarr (or OUT itself for .zarr) and the same "
+                    "command resumes.")
     p.add_argument("--scene", help="scene YAML: sky model, noise, lens (default: the paper's set-up)")
     p.add_argument("--array-geometry", metavar="G.yaml",
                    help="map a photodiode-array compass with this geometry instead of the camera (mounted like "
@@ -38,16 +41,20 @@ def register(sub):
     p.add_argument("--roll", required=True, metavar="A:B:STEP", help="roll (about camera y), deg")
     p.add_argument("--stride", type=int, help="methods with a stride knob read every N-th sensor pixel "
                                               "(default: the sweep sampling, see docs/error-maps.md)")
-    p.add_argument("--workers", type=int, help="processes (default: all cores)")
+    p.add_argument("--workers", type=int, help="LocalCluster worker processes (default: all cores; 1 runs in "
+                                                "this process, without Dask)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this existing Dask cluster (dask scheduler / dask worker) instead of a LocalCluster")
     p.add_argument("--full-domain", action="store_true", help="also compute cells with |pitch|+|roll| > 30")
     p.add_argument("--tilt-limit", type=float, default=30.0, help="the |pitch|+|roll| limit, deg (default 30)")
     p.add_argument("--support", type=int, default=2, choices=(0, 1, 2),
                    help="grid steps computed beyond the limit: 2 for cubic interpolation (default), "
                         "1 for multilinear, 0 none")
     p.add_argument("--float32", action="store_true", help="store error_deg as float32 (half the file)")
-    p.add_argument("--restart", action="store_true", help="discard checkpoints of an earlier run")
+    p.add_argument("--restart", action="store_true", help="discard the Zarr store of an earlier run")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--out", required=True, help="output map .npz")
+    p.add_argument("--out", required=True, help="output map: .npz (what the nodes ship), .nc (one NetCDF 3 "
+                                                "file) or .zarr (the labelled Zarr store itself)")
     allow_negative_ranges(p)
     p.set_defaults(func=run)
 
@@ -73,7 +80,7 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..sweep import SweepSpec, parse_range, run_sweep
+    from ..sweep import OUTPUT_SUFFIXES, SweepSpec, parse_range, run_sweep
     from ..scene import load_scene
 
     if args.array_geometry:
@@ -91,8 +98,10 @@ def run(args) -> int:
         raise CompassError(f"--workers must be in [1, 256], got {args.workers}")
     if not (math.isfinite(args.tilt_limit) and 0 <= args.tilt_limit <= 180):
         raise CompassError(f"--tilt-limit must be in [0, 180], got {args.tilt_limit}")
-    if not str(args.out).endswith(".npz"):
-        raise CompassError(f"--out must name an .npz file, got {args.out!r}")
+    if not str(args.out).endswith(OUTPUT_SUFFIXES):
+        raise CompassError(f"--out must name a {', '.join(OUTPUT_SUFFIXES)} map, got {args.out!r}")
+    if args.scheduler is not None and not re.match(r"^(tcp|tls|inproc|ucx|ws|wss)://\S+$", args.scheduler):
+        raise CompassError(f"--scheduler must be an address like tcp://HOST:PORT, got {args.scheduler!r}")
     scene = load_scene(args.scene)
     if args.array_geometry:
         from ..scene import scene_from_dict
@@ -115,7 +124,7 @@ def run(args) -> int:
     if spec.cell_count() == 0:
         raise CompassError("no cell to compute: every (pitch, roll) is outside the tilt limit (use --full-domain)")
     m = run_sweep(spec, out=args.out, workers=args.workers, progress=not args.no_progress,
-                  resume=not args.restart, float32=args.float32)
+                  resume=not args.restart, float32=args.float32, scheduler=args.scheduler)
     v = m.valid
     summary = {"out": str(args.out), "shape": list(m.shape), "methods": list(m.methods),
                "cells_estimated": m.meta["cells_estimated"], "valid_cells": int(v.sum()),

@@ -25,9 +25,12 @@ from ._checks import check_range, check_together
 def register(sub):
     from ..estimators import registry
     p = sub.add_parser("estimate", help="heading from a frame file (JSON, one object per method)",
-                       description="Estimate the heading from a frame written by 'render'. psi is the paper's yaw "
+                       description="Estimate the heading from a frame written by 'render' or from a real camera "
+                                   "image (with --camera; docs/real-cameras.md). psi is the paper's yaw "
                                    "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
-                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing).")
+                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing). On real images each result "
+                                   "is checked against the whole sky: status poor_fit / inconsistent when it "
+                                   "does not hold.")
     p.add_argument("frame", metavar="INPUT", help="frame file written by 'polarization-compass render', or a "
                                                   "real image: raw mosaic (.png/.tif 8/16-bit, .npy) or Stokes "
                                                   "planes (.npz with s0, s1, s2, or a 3-page .tif)")
@@ -227,12 +230,20 @@ def run(args) -> int:
     return 0
 
 
-def _make_estimators(methods, knobs, stride):
+#: real images: the robust refit's outlier threshold for the methods that have the knob (``outlier_deg``)
+REAL_SKY_OUTLIER_DEG = 15.0
+
+
+def _make_estimators(methods, knobs, stride, defaults=None):
     from ..estimators import make_estimator, registry
     estimators, used = [], set()
     for name in methods:
         specs = registry.get(name).knob_specs()
         kn = {k: v for k, v in knobs.items() if k in specs}
+        if defaults and "outlier_deg" in specs and "outlier_deg" not in knobs:
+            for k, v in defaults.items():
+                if k in specs and k not in knobs:
+                    kn[k] = v
         used.update(kn)
         if stride is not None and "stride" in specs:
             kn["stride"] = stride
@@ -306,7 +317,10 @@ def _run_real(args, inp, methods, knobs) -> int:
         raise CompassError("--use-stored applies to frame files")
     cam_file = load_camera_yaml(args.camera)
     sun_az, sun_alt, sun_src = _sun({}, args)
-    estimators = _make_estimators(methods, knobs, args.stride)
+    # real skies: least_squares/tilt_aware refit robustly (consensus, outliers beyond 15 deg dropped) unless
+    # the user set outlier_deg
+    estimators = _make_estimators(methods, knobs, args.stride,
+                                  {"outlier_deg": REAL_SKY_OUTLIER_DEG, "max_aop_noise_deg": 90.0})
     shape = inp.stokes[0].shape if inp.kind == "stokes" else inp.mosaic.shape
     mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
     obs, _ = real_observation(inp, cam_file, sun_az, sun_alt, mask, args.demosaic, args.pitch, args.roll,

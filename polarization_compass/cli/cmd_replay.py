@@ -28,6 +28,9 @@ def register(sub):
                    help="error map for the tilt correction (default: the map shipped with the package, as the "
                         "tilt_corrector node; 'none': raw headings only)")
     p.add_argument("--no-plots", action="store_true", help="CSV and summary only")
+    p.add_argument("--sky-check", action="store_true",
+                   help="check every result against the whole sky, as estimate does on real images (sigma with "
+                        "the frame's misfit, 180 deg side, poor_fit; ~15-30 ms per frame)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="threads sharing the methods over one read of the bag (default: one per core; results do "
                         "not depend on it)")
@@ -78,7 +81,7 @@ def run(args) -> int:
         if error_map is None:
             note = "no error map shipped with this build: corrected headings are not computed (give --error-map)"
     config = ReplayConfig(methods=methods, knobs=_parse_knobs(args.knob, args.stride), prior_source=args.prior,
-                          error_map=error_map)
+                          error_map=error_map, sky_check=args.sky_check)
     tm = load_topic_map(args.topics)
 
     def progress(k):

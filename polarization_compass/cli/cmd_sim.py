@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -74,17 +73,6 @@ def _child_env(out: Path) -> dict:
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     return env
-
-
-def _executable(name: str) -> list[str]:
-    """The console script next to this interpreter (the venv's bin), else on PATH, else ``python -m``."""
-    here = Path(sys.executable).parent / name
-    if here.is_file() and os.access(here, os.X_OK):
-        return [str(here)]
-    found = shutil.which(name)
-    if found:
-        return [found]
-    return [sys.executable, "-m", f"polarization_compass.nodes.{name}"]
 
 
 def _available_methods(wanted: list[str]) -> tuple[list[str], list[str]]:
@@ -213,6 +201,7 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
 
 
 def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
+    from .. import graphs
     share = share_dir()
     logs = out / "logs"
     logs.mkdir(parents=True, exist_ok=True)
@@ -228,7 +217,7 @@ def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
         for n in order:
             f = open(logs / f"{n.name}.log", "w")
             files.append(f)
-            cmd = _executable(n.executable) + n.ros_arguments(share)
+            cmd = graphs.node_command(n.executable) + n.ros_arguments(share)
             procs[n.name] = subprocess.Popen(cmd, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=os.getcwd())
         sim = procs[sim_name]
         last_note = t_start
@@ -281,18 +270,20 @@ def _progress(log: Path) -> str:
 
 
 def _stop_all(procs: dict) -> dict:
-    """SIGINT every running node, then SIGTERM / SIGKILL stragglers. Returns exit codes."""
+    """SIGINT every running node, then SIGTERM / SIGKILL stragglers after the launch files' timeouts
+    (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S). Returns exit codes."""
+    from ..graphs import SIGKILL_TIMEOUT_S, STOP_TIMEOUT_S
     for p in procs.values():
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + 20.0
+    deadline = time.monotonic() + STOP_TIMEOUT_S
     for p in procs.values():
         try:
             p.wait(timeout=max(0.1, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
             p.terminate()
             try:
-                p.wait(timeout=5.0)
+                p.wait(timeout=SIGKILL_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()

@@ -173,6 +173,42 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     return out
 
 
+def _consensus_sun(view, obs):
+    """Return the camera-frame sun of the robust whole-view fit (:func:`polarization_compass.skyfit.fit_sky`
+    at the ephemeris altitude and the known tilt, level when unknown), or None with too few pixels."""
+    from ..skyfit import _sun_cam, fit_sky, sample_sky
+    sample = sample_sky(view.aop, view.dop, view.valid, view.rays, max_pixels=2000)
+    if sample is None:
+        return None
+    p = float(obs.pitch_deg) if obs.pitch_deg is not None else 0.0
+    r = float(obs.roll_deg) if obs.roll_deg is not None else 0.0
+    f = fit_sky(sample, float(obs.sun_altitude_deg), p, r)
+    return _sun_cam([f.psi_deg], [f.sun_altitude_deg], p, r)[0]
+
+
+def _trim_outliers(view, sun_cam, outlier_deg: float):
+    """Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of ``sun_cam``.
+
+    The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial difference,
+    computed from doubled angles. Returns the view with those pixels invalid and how many were dropped
+    (of the valid ones). This is the consensus step of the robust refit (``outlier_deg`` knob): a fit
+    that clouds, flare ghosts or an obstacle pulled is refitted on the pixels that agree with it.
+    """
+    from dataclasses import replace
+    P = np.asarray(view.rays, dtype=np.float64)
+    s = np.asarray(sun_cam, dtype=np.float64)
+    ex = s[1] * P[2] - s[2] * P[1]
+    ey = s[2] * P[0] - s[0] * P[2]
+    a = np.asarray(view.aop, dtype=np.float64)
+    n2 = ex * ex + ey * ey
+    ok = n2 > 1e-24
+    safe = np.where(ok, n2, 1.0)
+    c2m, s2m = (ey * ey - ex * ex) / safe, 2 * ex * ey / safe        # cos 2m, sin 2m of m = atan2(ex, ey)
+    c = np.cos(2 * a) * c2m + np.sin(2 * a) * s2m                     # cos 2(a - m)
+    bad = np.asarray(view.valid, dtype=bool) & ok & (c < math.cos(math.radians(2.0 * outlier_deg)))
+    return replace(view, valid=np.asarray(view.valid, dtype=bool) & ~bad), int(bad.sum())
+
+
 class _LSBase(KnobbedEstimator, Estimator):
     axial = False
     accepts_units = True          # the same eigen-solve runs on a photodiode array's unit E-vectors
@@ -189,6 +225,9 @@ class _LSBase(KnobbedEstimator, Estimator):
         "bias_correction": Knob(True, "bool", doc="remove the O(sigma^2) noise bias of the eigenvector"),
         "max_aop_noise_deg": Knob(5.0, "float", 0.1, 90.0,
                                   doc="drop pixels whose estimated AoP noise (sigma0 / DoP) exceeds this"),
+        "outlier_deg": Knob(0.0, "float", 0.0, 90.0,
+                            doc="robust refit (real skies: clouds, flare, obstacles): pixels whose AoP is further "
+                                "than this from the fitted sky are dropped and the sun refitted, twice; 0 = off"),
     }
     level_with_tilt = False
 
@@ -266,6 +305,23 @@ class _LSBase(KnobbedEstimator, Estimator):
         sol = self._solve(acc, sub, n)
         if isinstance(sol, HeadingResult):
             return sol
+        trimmed = 0
+        for it in range(2 if k["outlier_deg"] > 0 else 0):
+            # consensus: first against the robust whole-view sun (candidate suns over the circle, Cauchy
+            # loss: a fit pulled by clouds or flare cannot seed it), then against the refitted sun
+            sun0 = _consensus_sun(view, obs) if it == 0 else sol[2][:, 0]
+            if sun0 is None:
+                break
+            view2, dropped = _trim_outliers(view, sun0, k["outlier_deg"])
+            if dropped == trimmed:
+                break
+            acc2, sub2, min_dop2 = self._accumulate(view2)
+            if acc2["n"] < k["min_pixels"]:
+                break
+            sol2 = self._solve(acc2, sub2, acc2["n"])
+            if isinstance(sol2, HeadingResult):
+                break
+            acc, sub, min_dop, n, sol, trimmed = acc2, sub2, min_dop2, acc2["n"], sol2, dropped
         M, lam, U, sigma0_sq = sol
         s = U[:, 0].copy()
         R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
@@ -292,7 +348,7 @@ class _LSBase(KnobbedEstimator, Estimator):
         extras = {"eigenvalues": [float(v / wsum) for v in lam], "sigma_sun_elevation_deg": math.degrees(sigma_el),
                   "sun_altitude_ephemeris_deg": float(obs.sun_altitude_deg),
                   "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)), "min_dop_used": min_dop,
-                  "sun_cam": [float(v) for v in s_pick]}
+                  "sun_cam": [float(v) for v in s_pick], "outliers_dropped": int(trimmed)}
         sigma_deg = None
         if sigma:
             extras["rms_residual_deg"] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))

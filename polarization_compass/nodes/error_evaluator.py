@@ -10,7 +10,11 @@ Publishes ``evaluation/summary`` (std_msgs/String, JSON: per stream count, mean,
 missed frames, latency) and ``/diagnostics``. On shutdown (Ctrl-C, SIGTERM, end of the launch) it
 writes into ``report_dir``: ``evaluation_samples.csv`` (one row per estimate),
 ``evaluation_summary.csv`` and ``.json`` (one row per stream) and ``evaluation.png`` (error against
-true bearing per method, raw and corrected, like the paper's Fig 17).
+true bearing per method, raw and corrected, like the paper's Fig 17). While it runs it keeps a current
+report there (CSV and JSON every ``REPORT_PERIOD_S``, the figure every ``FIGURE_PERIOD_S`` wall
+seconds when new estimates came in; the JSON's ``complete`` is false until the final one), so that
+not even a SIGKILL loses the run. Every file is written to a temporary name and renamed into place
+(atomic on POSIX): a reader never sees half a report.
 
 Latency: wall time from the image stamp to the arrival here. Under ``use_sim_time`` the sim time of
 arrival is the last ``/clock`` plus the wall time since it (at most 50 ms extrapolated), converted to
@@ -20,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -41,7 +46,11 @@ from ..specs.params import EVALUATOR
 from .rosparams import ParameterSet
 from .runner import run_node
 
-__all__ = ["ErrorEvaluatorNode", "main", "bearing_from_imu"]
+__all__ = ["ErrorEvaluatorNode", "main", "bearing_from_imu", "REPORT_PERIOD_S", "FIGURE_PERIOD_S"]
+
+#: Wall seconds between two current reports (CSV, JSON) and two current figures while the node runs.
+REPORT_PERIOD_S = 5.0
+FIGURE_PERIOD_S = 30.0
 
 
 class ErrorEvaluatorNode(Node):
@@ -83,6 +92,10 @@ class ErrorEvaluatorNode(Node):
         self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, self._on_diagnostics, QoSProfile(depth=50))
         self.pub_summary = self.create_publisher(String, topics.EVAL_SUMMARY, QoSProfile(depth=10))
         self.summary_timer = self.create_timer(1.0 / p["summary_rate_hz"], self.publish_summary)
+        from .diagnostics import _wall_clock
+        self._reported = (0, 0)                      # matches in the last current report, figure
+        self._figure_wall = time.monotonic()
+        self.create_timer(REPORT_PERIOD_S, self.write_current_report, clock=_wall_clock())
         self.get_logger().info(f"evaluating {len(self.streams)} stream(s) against {topics.TRUTH}; "
                                f"report in {p['report_dir']} at shutdown")
 
@@ -202,24 +215,60 @@ class ErrorEvaluatorNode(Node):
         self.diag.extra = flat
         self.diag.last_status = f"{s['truth_frames']} truth frame(s)"
 
+    def write_current_report(self) -> None:
+        """The report so far (timer, every REPORT_PERIOD_S): CSV and JSON when new estimates came in, the
+        figure too every FIGURE_PERIOD_S. A failure is logged and the node goes on."""
+        n = len(self.matcher.matches)
+        if self._closed or n == self._reported[0]:
+            return
+        figure = n != self._reported[1] and time.monotonic() - self._figure_wall >= FIGURE_PERIOD_S
+        try:
+            self._write_report(self.summary(), complete=False, figure=figure)
+        except Exception as exc:  # noqa: BLE001 - a full disk must not stop the evaluation
+            self.get_logger().warning(f"cannot write the current report: {type(exc).__name__}: {exc}",
+                                      throttle_duration_sec=30.0)
+            return
+        self._reported = (n, n if figure else self._reported[1])
+        if figure:
+            self._figure_wall = time.monotonic()
+
+    def _write_report(self, s: dict, complete: bool, figure: bool = True) -> list[str]:
+        """Write the report files of summary ``s``, each to a temporary name renamed into place."""
+        out = Path(self.params["report_dir"])
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+
+        def atomic(name, write):
+            final = out / name
+            tmp = out / f".{final.stem}.partial{final.suffix}"      # same directory: rename is atomic
+            try:
+                if write(tmp) is None:
+                    return
+                os.replace(tmp, final)
+            finally:
+                tmp.unlink(missing_ok=True)
+            written.append(name)
+
+        atomic("evaluation_samples.csv",
+               lambda t: write_samples_csv(t, self.matcher.matches, ("latency_ms", "sigma_deg")))
+        extra = {n: {k: v for k, v in d.items() if k.startswith("latency")} for n, d in s["streams"].items()}
+        atomic("evaluation_summary.csv", lambda t: write_summary_csv(t, {n: d for n, d in s["streams"].items()}, extra))
+        body = json.dumps({**s, "complete": complete}, indent=1, sort_keys=True) + "\n"
+        atomic("evaluation_summary.json", lambda t: t.write_text(body))
+        if figure:
+            atomic("evaluation.png", lambda t: plot_report(t, self.matcher.matches,
+                                                           f"{s['truth_frames']} frames; error = estimated - "
+                                                           "true bearing"))
+        return written
+
     def close(self) -> None:
-        """Write the report (called once when the node stops)."""
+        """Write the final report (called once when the node stops)."""
         if self._closed:
             return
         self._closed = True
         self.matcher.finish()
-        s = self.summary()
         out = Path(self.params["report_dir"])
-        out.mkdir(parents=True, exist_ok=True)
-        write_samples_csv(out / "evaluation_samples.csv", self.matcher.matches, ("latency_ms", "sigma_deg"))
-        extra = {n: {k: v for k, v in d.items() if k.startswith("latency")} for n, d in s["streams"].items()}
-        write_summary_csv(out / "evaluation_summary.csv", {n: d for n, d in s["streams"].items()}, extra)
-        (out / "evaluation_summary.json").write_text(json.dumps(s, indent=1, sort_keys=True) + "\n")
-        png = plot_report(out / "evaluation.png", self.matcher.matches,
-                          f"{s['truth_frames']} frames; error = estimated - true bearing")
-        written = ["evaluation_samples.csv", "evaluation_summary.csv", "evaluation_summary.json"]
-        if png is not None:
-            written.append("evaluation.png")
+        written = self._write_report(self.summary(), complete=True)
         print(f"error_evaluator: report written to {out}: {', '.join(written)}", flush=True)
 
 

@@ -14,19 +14,21 @@ mosaics (``mono8``/``mono16``), camera_info, orientations and NavSatFix; this mo
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import KeyValue
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix, NavSatStatus
 
+from ..bag import _ENCODINGS as _MOSAIC_DTYPES  # the encodings decode_mosaic accepts
 from ..bag import MessageError, decode_mosaic, decode_orientation, stamp_ns
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
 
 __all__ = ["MessageError", "stamp_ns", "time_msg", "heading_imu", "attitude_imu", "image_msg",
            "decode_image", "camera_info_msg", "navsatfix_msg", "yaw_enu_from_quat", "bearing_from_imu",
-           "heading_from_imu", "kv", "IMAGE_ENCODINGS"]
+           "heading_from_imu", "kv", "IMAGE_ENCODINGS", "image_decoder"]
 
 IMAGE_ENCODINGS = ("mono8", "mono16", "32FC1")
 NOT_PROVIDED = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
@@ -139,11 +141,69 @@ def array_msg(intensities: np.ndarray):
     return m
 
 
+_BRIDGE: list = []          # [CvBridge instance or None], filled on first use
+
+
+def image_decoder() -> str:
+    """Which decoder :func:`decode_image` uses in this process: ``"cv_bridge"`` where the ROS package
+    ``cv_bridge`` imports (a ROS install) and ``POLARIZATION_COMPASS_CV_BRIDGE`` is not ``0``, else
+    ``"decode_mosaic"`` (:func:`polarization_compass.bag.decode_mosaic`, the project's tested decoder)."""
+    return "cv_bridge" if _bridge() is not None else "decode_mosaic"
+
+
+def _bridge():
+    if not _BRIDGE:
+        bridge = None
+        if os.environ.get("POLARIZATION_COMPASS_CV_BRIDGE", "1").strip() != "0":
+            try:
+                from cv_bridge import CvBridge
+                bridge = CvBridge()
+            except Exception:  # noqa: BLE001 - missing, or broken (PyPI's ROS 1 cv-bridge on numpy 2)
+                bridge = None
+        _BRIDGE.append(bridge)
+    return _BRIDGE[0]
+
+
 def decode_image(msg) -> np.ndarray:
-    """The mosaic of an Image: uint8 (mono8), uint16 (mono16) or float32 (32FC1: ideal polarizer
-    intensities, finite and >= 0), via :func:`polarization_compass.bag.decode_mosaic` (the replay uses
-    the same decoder). Raises :class:`MessageError` with a ``reason`` tag."""
-    return decode_mosaic(msg)
+    """The mosaic of a sensor_msgs/Image as a (height, width) array: uint8 (``mono8``/``8UC1``), uint16
+    (``mono16``/``16UC1``) or float32 (``32FC1``: ideal polarizer intensities, finite and >= 0). The one
+    function every node converts images with.
+
+    Through ``cv_bridge`` (``imgmsg_to_cv2``, passthrough encoding: row padding and byte order handled
+    by it) where it is importable, then held to the same contract as the project's decoder: the same
+    encodings, even dimensions, the array's shape and dtype as the message says, and for ``32FC1``
+    finite, non-negative values. Elsewhere (no ROS install: PyPI has no cv_bridge for ROS 2) through
+    :func:`polarization_compass.bag.decode_mosaic`, which the offline replay also uses.
+    Raises :class:`MessageError` with a ``reason`` tag (``bad_encoding``, ``bad_size``, ``non_finite``,
+    ``bad_value``, ``bad_image``).
+    """
+    bridge = _bridge()
+    if bridge is None:
+        return decode_mosaic(msg)
+    enc = str(msg.encoding)
+    dtype = _MOSAIC_DTYPES.get(enc)
+    if dtype is None:
+        raise MessageError("bad_encoding", f"image encoding {enc!r} is not a raw polarizer mosaic "
+                                           f"(expected one of {', '.join(_MOSAIC_DTYPES)})")
+    h, w = int(msg.height), int(msg.width)
+    if h < 2 or w < 2 or h % 2 or w % 2:
+        raise MessageError("bad_size", f"mosaic {w}x{h} must have even width and height >= 2")
+    try:
+        img = bridge.imgmsg_to_cv2(msg, desired_encoding="passthrough")
+    except Exception as exc:  # noqa: BLE001 - CvBridgeError, TypeError, ValueError for a short buffer
+        raise MessageError("bad_size" if isinstance(exc, (TypeError, ValueError)) else "bad_image",
+                           f"cv_bridge: {type(exc).__name__}: {exc}") from None
+    img = np.asarray(img)
+    if img.shape != (h, w) or img.dtype.kind != np.dtype(dtype).kind or img.dtype.itemsize != np.dtype(dtype).itemsize:
+        raise MessageError("bad_image", f"cv_bridge gave {img.dtype} {img.shape} for a {w}x{h} {enc} image")
+    img = np.ascontiguousarray(img, dtype=dtype)
+    if img.dtype.kind == "f":
+        if not np.isfinite(img).all():
+            raise MessageError("non_finite", f"{enc} mosaic has NaN or inf pixels")
+        if (img < 0).any():
+            raise MessageError("bad_value", f"{enc} mosaic has negative intensities")
+    return img
+
 
 
 def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo:

@@ -23,8 +23,29 @@ def _fmt(v):
 
 
 def write_outputs(result: ReplayResult, out_dir, bag_path: str = "", plots: bool = True) -> dict:
-    """``replay.csv`` (one row per frame and method), ``summary.csv``/``summary.json`` (the evaluator's
-    statistics per stream, skip counts per topic and reason, speed) and the figures. Returns paths."""
+    """Write a replay's ``replay.csv``, ``summary.csv``, ``summary.json`` and figures.
+
+    ``replay.csv`` has one row per frame and method (:data:`MethodRow.CSV_FIELDS`; angles [deg],
+    times [s]); ``summary.csv``/``summary.json`` the evaluator's statistics per stream [deg], the
+    statuses per method, the skip counts per topic and reason, the bag's problems and the speed.
+    Empty cells, never NaN, where a value does not exist.
+
+    Parameters
+    ----------
+    result : ReplayResult
+        What :func:`~polarization_compass.replay.threads.replay_bag` returned.
+    out_dir : str or os.PathLike
+        Output directory (created).
+    bag_path : str, default ""
+        The bag, recorded in ``summary.json``.
+    plots : bool, default True
+        Also draw the figures (:func:`plot_replay`).
+
+    Returns
+    -------
+    dict
+        ``{"csv", "summary_csv", "summary_json"[, figure keys]: pathlib.Path}``.
+    """
     from ..evaluation import write_summary_csv
 
     out = Path(out_dir)
@@ -63,8 +84,30 @@ def write_outputs(result: ReplayResult, out_dir, bag_path: str = "", plots: bool
 
 
 def plot_replay(result: ReplayResult, out_dir) -> dict:
-    """Figures like the paper's: error against time per method (Fig 17-19, raw) and raw vs corrected
-    per method (Fig 20-22); plus the evaluator's error-against-bearing figure."""
+    """Draw the replay's figures like the paper's.
+
+    Error against time per method (``errors_raw.png``, Figs 17-19), raw against corrected per
+    method (``errors_corrected.png``, Figs 20-22), and the evaluator's error against the reference
+    bearing (``errors_vs_bearing.png``); errors [deg], time [s] from the first frame.
+
+    Parameters
+    ----------
+    result : ReplayResult
+        What :func:`~polarization_compass.replay.threads.replay_bag` returned.
+    out_dir : str or os.PathLike
+        Output directory (must exist).
+
+    Returns
+    -------
+    dict
+        ``{"plot_raw", "plot_corrected", "plot_vs_bearing": pathlib.Path}``, only those drawn (none
+        without evaluated headings).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4, Figs 17-22.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

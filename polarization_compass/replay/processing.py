@@ -39,6 +39,7 @@ class ReplayConfig:
     default_knobs: dict = field(default_factory=lambda: {"stride": 8})
     demosaic: str = "superpixel"
     use_intensity: bool = False
+    sky_check: bool = False
     prior_source: str = "imu"
     prior_max_age_s: float = 2.0
     sun_model: str = "spa"
@@ -47,6 +48,18 @@ class ReplayConfig:
     direct_methods: tuple = field(default_factory=lambda: registry.tilt_methods())
 
     def method_list(self) -> list[str]:
+        """Return the methods to run: ``methods``, or every registered estimator when empty.
+
+        Returns
+        -------
+        list of str
+            Estimator names, in the given order.
+
+        Raises
+        ------
+        ReplayError
+            A name that is not a registered estimator.
+        """
         from ..estimators import estimator_names
         known = estimator_names()
         ms = list(self.methods) or known
@@ -56,8 +69,21 @@ class ReplayConfig:
         return ms
 
     def knobs_for(self, method: str) -> dict:
-        """Knobs of ``method``: the ``"*"`` entries it has (zenith has no stride, for example), then
-        its own entries (an unknown name there is an error of the estimator)."""
+        """Return the estimator knobs of ``method``.
+
+        The shared entries the method has (zenith has no stride, for example), then its own entries
+        (an unknown name there is an error of the estimator).
+
+        Parameters
+        ----------
+        method : str
+            Estimator name.
+
+        Returns
+        -------
+        dict
+            ``{knob: value}`` for the estimator's constructor.
+        """
         from ..estimators import estimator_knob_names
         names = estimator_knob_names(method)
         k = {n: v for n, v in self.default_knobs.items() if n in names}
@@ -66,8 +92,21 @@ class ReplayConfig:
         return k
 
     def for_methods(self, methods) -> "ReplayConfig":
-        """This configuration for a subset of its methods (a worker's group): ``"*"`` keeps the knobs
-        one of them has, so that :meth:`check_knobs`, already passed by the whole set, passes again."""
+        """Return this configuration for a subset of its methods (a worker's group).
+
+        ``"*"`` keeps the knobs one of them has, so that :meth:`check_knobs`, already passed by the
+        whole set, passes again.
+
+        Parameters
+        ----------
+        methods : iterable of str
+            The subset.
+
+        Returns
+        -------
+        ReplayConfig
+            A copy with those methods and knobs.
+        """
         from ..estimators import estimator_knob_names
         names = set().union(*(estimator_knob_names(m) for m in methods))
         knobs = {k: v for k, v in self.knobs.items() if k != "*"}
@@ -75,7 +114,13 @@ class ReplayConfig:
         return dataclasses.replace(self, methods=tuple(methods), knobs=knobs)
 
     def check_knobs(self) -> None:
-        """A ``"*"`` knob no selected method has is a typo, not a no-op."""
+        """Check that every ``"*"`` knob belongs to a selected method (a typo, not a no-op).
+
+        Raises
+        ------
+        ReplayError
+            An unknown method, or a ``"*"`` knob no selected method has.
+        """
         from ..estimators import estimator_knob_names
         ms = self.method_list()
         known = set().union(*(estimator_knob_names(m) for m in ms))
@@ -149,6 +194,22 @@ class FramePipeline:
         return self.sun.at_ns(frame.stamp_ns)
 
     def process(self, frame: SyncedFrame) -> list[MethodRow]:
+        """Run every method on one synchronised frame, as the nodes would.
+
+        Sun position at the stamp, per-method prior and tilt, one observation per demosaic front
+        (shared), the estimate, and the tilt correction (or ``pending`` when deferred).
+
+        Parameters
+        ----------
+        frame : SyncedFrame
+            The image with its camera, site, IMU tilt and reference bearing.
+
+        Returns
+        -------
+        list of MethodRow
+            One row per method; a frame that cannot be estimated (no sun, no tilt for a method that
+            needs it, bad input) gives rows with status ``bad_input`` and the reason.
+        """
         from ..pipeline import PipelineError
         c = self.config
         t_ns = frame.stamp_ns
@@ -180,6 +241,12 @@ class FramePipeline:
                     t0 = time.perf_counter()
                 result = front.estimator.estimate(dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll,
                                                                       prior_bearing_deg=prior))
+                if c.sky_check:          # the whole-sky check of real skies (skyfit), one sample per frame
+                    from ..pipeline import whole_sky_sample
+                    from ..skyfit import assess_result
+                    if "sky" not in obs_cache:
+                        obs_cache["sky"] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
+                    result = assess_result(result, obs_cache["sky"], sun_alt, pitch, roll, prior)
             except CompassError as exc:
                 rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
                                       reference_bearing_deg=frame.true_bearing_deg, pitch_deg=pitch, roll_deg=roll,
@@ -202,7 +269,13 @@ class FramePipeline:
 
 
 def default_error_map() -> str | None:
-    """The error map shipped with the package (the ``tilt_corrector`` node's default), if there is one."""
+    """Return the error map shipped with the package (the ``tilt_corrector`` node's default).
+
+    Returns
+    -------
+    str or None
+        Its path, or None when the package has none.
+    """
     from ..correction import default_map_path
     p = default_map_path()
     return str(p) if p.is_file() else None

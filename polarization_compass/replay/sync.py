@@ -101,8 +101,26 @@ def prefetched(iterable, depth: int = 8):
     """Iterate ``iterable`` in a background thread, ``depth`` items ahead.
 
     Reading a bag is mostly file reads and copies; the file reads release the GIL, so on a 2-core
-    machine they overlap with the processing of the previous frame. Exceptions (a truncated bag) are
-    re-raised here, in order; closing the generator early stops the thread.
+    machine they overlap with the processing of the previous frame. Closing the generator early
+    stops the thread.
+
+    Parameters
+    ----------
+    iterable : iterable
+        The source (e.g. :meth:`BagReader.messages`).
+    depth : int, default 8
+        Items read ahead at most.
+
+    Yields
+    ------
+    object
+        The items of ``iterable``, in order.
+
+    Raises
+    ------
+    BaseException
+        Whatever iterating ``iterable`` raised (e.g. :class:`BagError` of a truncated bag),
+        re-raised here in order.
     """
     import queue
     import threading
@@ -284,10 +302,29 @@ class _FrameSync:
 
 def iter_synced_frames(reader: BagReader, topic_map: TopicMap, tally: Tally, plan: BagPlan | None = None,
                        prior_max_age_s: float = 2.0):
-    """Yield :class:`SyncedFrame` for every usable image, in receive-time order (see the package doc).
+    """Yield a :class:`SyncedFrame` for every usable image, in receive-time order.
 
-    Images that cannot be processed (no camera intrinsics, size not matching camera_info, duplicate
-    stamp, no site) are counted as skipped with a reason.
+    Images that cannot be processed (no camera intrinsics, size not matching camera_info,
+    duplicate stamp, no site) are counted on ``tally`` as skipped with a reason (see the package
+    docstring).
+
+    Parameters
+    ----------
+    reader : BagReader
+        The open bag.
+    topic_map : TopicMap
+        Topics, mosaic layout, mounting, fallbacks and tolerances.
+    tally : Tally
+        Per-topic counts, updated.
+    plan : BagPlan, optional
+        The bag's plan (:func:`plan_bag`), computed when None.
+    prior_max_age_s : float, default 2.0
+        Largest age [s] of the IMU sample used as the ``imu`` prior.
+
+    Yields
+    ------
+    SyncedFrame
+        One image with its camera, site, tilt and reference bearing [deg].
     """
     sync = _FrameSync(topic_map, tally, plan or plan_bag(reader, topic_map), prior_max_age_s)
     for topic, mtype, log_ns, raw in prefetched(reader.messages(list(sync.wanted))):

@@ -17,6 +17,36 @@ __all__ = ["ReplayResult", "method_groups", "default_workers", "replay_bag"]
 
 @dataclass
 class ReplayResult:
+    """Hold the result of an offline replay.
+
+    Parameters
+    ----------
+    rows : list of MethodRow
+        One row per frame and method, by stamp then method order.
+    summary : dict
+        The evaluator's statistics per stream (:meth:`StampMatcher.summary`, errors [deg]).
+    tally : Tally
+        Messages read, used and skipped per topic and reason.
+    plan : BagPlan
+        What the bag holds and its problems.
+    frames : int
+        Images processed.
+    bag_duration_s : float
+        Recorded time the frames cover [s].
+    wall_s : float
+        Wall-clock time of the replay [s].
+    matches : list of Match
+        Estimates paired with the reference.
+    timing_ms : dict
+        ``{stage or method: [ms per frame]}``.
+    error_map : str, optional
+        The error map used for the tilt correction.
+    cpu_s : float, default 0
+        CPU time of the process (all threads) while replaying [s].
+    workers : int, default 1
+        Threads that shared the methods.
+    """
+
     rows: list
     summary: dict           # evaluator summary per stream
     tally: Tally
@@ -42,8 +72,23 @@ class ReplayResult:
 
 
 def method_groups(methods: list[str], workers: int) -> list[list[str]]:
-    """Split ``methods`` into at most ``workers`` groups of similar cost (largest first onto the lightest
-    group), each group keeping the given method order."""
+    """Split ``methods`` into at most ``workers`` groups of similar cost.
+
+    Largest first onto the lightest group (cost: the estimator's ``relative_cost``), each group
+    keeping the given method order.
+
+    Parameters
+    ----------
+    methods : list of str
+        Estimator names.
+    workers : int
+        Groups wanted (clipped to [1, number of methods]).
+
+    Returns
+    -------
+    list of list of str
+        The non-empty groups.
+    """
     workers = max(1, min(int(workers), len(methods)))
     groups: list[list[str]] = [[] for _ in range(workers)]
     load = [0.0] * workers
@@ -155,7 +200,13 @@ _LAG = 8            # frames a method group may fall behind the reader (each hol
 
 
 def default_workers() -> int:
-    """Cores this process may run on."""
+    """Return the number of cores this process may run on.
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
     import os
     try:
         return max(1, len(os.sched_getaffinity(0)))
@@ -165,12 +216,38 @@ def default_workers() -> int:
 
 def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None,
                workers: int | None = None) -> ReplayResult:
-    """Process a bag offline. Raises :class:`BagError` (one line) for a path that is not a usable bag.
+    """Process a bag offline, as the nodes would, and evaluate the headings.
 
-    ``workers`` (default: every core) threads run the methods in groups of similar cost over one read of
-    the bag (:func:`_replay_threads`; a method's frames stay in order on one thread, so its state, e.g. the
-    ``last`` prior, is the node's); every pending heading is then corrected with one vectorised inversion
-    per method and evaluated. The result does not depend on ``workers``."""
+    ``workers`` threads run the methods in groups of similar cost over one read of the bag (a
+    method's frames stay in order on one thread, so its state, e.g. the ``last`` prior, is the
+    node's); every pending heading is then corrected with one vectorised inversion per method and
+    evaluated. The result does not depend on ``workers``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The rosbag2 directory.
+    config : ReplayConfig, optional
+        Methods, knobs, priors and error map; default the nodes' shipped parameters.
+    topic_map : TopicMap, optional
+        Topics and what the bag cannot say; default :func:`default_topic_map`.
+    progress : callable, optional
+        ``progress(frames_done)`` as frames are processed.
+    workers : int, optional
+        Threads (default: every core this process may use).
+
+    Returns
+    -------
+    ReplayResult
+        Rows, statistics, skip counts, speed.
+
+    Raises
+    ------
+    BagError
+        A path that is not a usable bag, or a bag with nothing to compute (one line).
+    ReplayError
+        Unknown method or knob, or a configured error map that does not exist.
+    """
     from ..evaluation import StampMatcher
 
     config = config or ReplayConfig()

@@ -21,12 +21,27 @@ __all__ = ["Param", "validate_value", "SIMULATOR", "ESTIMATOR", "CORRECTOR", "EV
 
 @dataclass(frozen=True)
 class Param:
-    """A node parameter.
+    """Describe one node parameter.
 
-    ``lo``/``hi`` bound numbers (inclusive); ``choices`` lists allowed strings (for a string array:
-    allowed items); ``read_only`` parameters are fixed once the node runs (topics and graph wiring
-    depend on them); the others are method knobs and change at run time. ``check`` is an extra rule
-    returning an error message or None.
+    Parameters
+    ----------
+    name : str
+        ROS parameter name, units in the name (e.g. ``latitude_deg``).
+    default : bool, int, float, str or list
+        Default value; its type decides the parameter's type (:attr:`kind`).
+    description : str
+        One-line meaning, shown by ``ros2 param describe`` and in docs/ros.md.
+    lo, hi : float, optional
+        Inclusive bounds of a number, in ``unit``.
+    choices : tuple of str, default ()
+        Allowed strings (for a string array: allowed items).
+    read_only : bool, default False
+        Fixed once the node runs (topics and graph wiring depend on it); otherwise a method knob
+        that changes at run time.
+    check : callable, optional
+        Extra rule ``check(value) -> str | None`` returning an error message or None.
+    unit : str, default ""
+        Unit of a number for messages and docs (e.g. ``"deg"``).
     """
 
     name: str
@@ -41,6 +56,7 @@ class Param:
 
     @property
     def kind(self) -> str:
+        """ROS type from the default: bool, int, float, str, str_list or float_list."""
         d = self.default
         if isinstance(d, bool):
             return "bool"
@@ -56,7 +72,21 @@ class Param:
 
 
 def validate_value(p: Param, value) -> str | None:
-    """Why ``value`` is not acceptable for ``p``, or None when it is."""
+    """Return why ``value`` is not acceptable for ``p``, or None when it is.
+
+    Parameters
+    ----------
+    p : Param
+        The parameter's specification.
+    value : object
+        The proposed value (a ROS parameter value: bool, int, float, str or list).
+
+    Returns
+    -------
+    str or None
+        A one-line reason naming the parameter (type, finiteness, range with unit, choice, or the
+        extra ``check``), or None when the value is acceptable.
+    """
     k = p.kind
     if k == "bool":
         if not isinstance(value, bool):
@@ -91,8 +121,23 @@ def validate_value(p: Param, value) -> str | None:
 
 
 def parse_downstream(items) -> list[tuple[str, frozenset]]:
-    """``["topic=node_a,node_b", ...]`` (empty strings ignored) -> [(topic, {node names})]; ValueError
-    with the reason."""
+    """Parse ``wait_for_downstream`` entries into topics and the nodes to wait for.
+
+    Parameters
+    ----------
+    items : iterable of str
+        Entries ``"topic=node_a,node_b"``; empty strings are ignored.
+
+    Returns
+    -------
+    list of tuple
+        ``[(topic, frozenset of node names)]`` in the order given.
+
+    Raises
+    ------
+    ValueError
+        An entry without ``=``, a topic or at least one node name (the message quotes it).
+    """
     out = []
     for item in items:
         if not item:
@@ -144,7 +189,19 @@ def _layout_problem(text: str):
 
 
 def layout_from_text(text: str):
-    """``"90,45,135,0"`` -> ((90, 45), (135, 0))."""
+    """Parse a ``polarizer_layout`` parameter into a 2 x 2 layout.
+
+    Parameters
+    ----------
+    text : str
+        Four comma-separated polarizer angles [deg], row by row, e.g. ``"90,45,135,0"``
+        (validated beforehand by the parameter's check).
+
+    Returns
+    -------
+    tuple of tuple of int
+        ``((90, 45), (135, 0))`` for the example.
+    """
     v = [int(x) for x in text.split(",")]
     return ((v[0], v[1]), (v[2], v[3]))
 
@@ -160,8 +217,19 @@ SUN_PARAMS = ("latitude_deg", "longitude_deg", "altitude_m", "sun_model")
 
 
 def sun_source(values):
-    """The :class:`~polarization_compass.pipeline.SunSource` of a node's site and ``sun_model`` parameters
-    (``values``: a mapping holding :data:`SUN_PARAMS`)."""
+    """Return the :class:`~polarization_compass.pipeline.SunSource` of a node's site parameters.
+
+    Parameters
+    ----------
+    values : mapping
+        Holds :data:`SUN_PARAMS`: ``latitude_deg`` and ``longitude_deg`` [deg, WGS84, north and
+        east positive], ``altitude_m`` [m] and ``sun_model``.
+
+    Returns
+    -------
+    SunSource
+        The sun's position source at that site.
+    """
     from ..pipeline import SunSource
     return SunSource(*(values[k] for k in SUN_PARAMS))
 
@@ -175,10 +243,27 @@ SITE_SOURCE = Param("site_source", "parameters",
 
 
 def apply_fix(sun, diag, msg):
-    """Move ``sun`` (a SunSource) to the site of a sensor_msgs/NavSatFix; the site (lat, lon, alt), or None
-    after counting the message on ``diag`` (a nodes.diagnostics.Diagnostics) as rejected: ``fix_<reason>``
-    for a fix :func:`~polarization_compass.bag.decode_navsatfix` refuses, ``fix_bad_value`` for a site the
-    ephemeris refuses (``sun`` keeps its site then)."""
+    """Move ``sun`` to the site of a sensor_msgs/NavSatFix.
+
+    A fix :func:`~polarization_compass.bag.decode_navsatfix` refuses is counted on ``diag`` as
+    rejected ``fix_<reason>``; a site the ephemeris refuses as ``fix_bad_value`` (``sun`` keeps
+    its site then).
+
+    Parameters
+    ----------
+    sun : SunSource
+        The node's sun source, updated in place.
+    diag : Diagnostics
+        The node's :class:`~polarization_compass.nodes.diagnostics.Diagnostics` (counts
+        rejections).
+    msg : sensor_msgs.msg.NavSatFix
+        The fix.
+
+    Returns
+    -------
+    tuple of float or None
+        The site ``(latitude_deg, longitude_deg, altitude_m)``, or None when the fix was rejected.
+    """
     from ..bag import decode_navsatfix
     from ..errors import CompassError
     site = diag.decoded("fix", decode_navsatfix, msg)
@@ -383,7 +468,7 @@ EVALUATOR = (
     Param("include_corrected", True, "evaluate compass/<m>/heading", read_only=True),
     Param("axial_methods", [""], "methods whose errors are folded to (-90, 90] (heading mod 180 deg)",
           read_only=True),
-    Param("report_dir", "out/sim", "CSV and PNG reports are written here when the node stops",
+    Param("report_dir", "out/sim", "CSV and PNG reports go here: kept current while the node runs, final when it stops",
           read_only=True),
     Param("horizon_s", 5.0, "a truth frame with no estimate on a stream after this (stamp time) counts as "
                             "missed", 0.1, 3600.0, unit="s"),
@@ -400,10 +485,34 @@ SPECS = {"sky_simulator": SIMULATOR, "heading_estimator": ESTIMATOR, "tilt_corre
 
 
 def spec_by_name(specs) -> dict:
+    """Return a node's parameter specifications by name.
+
+    Parameters
+    ----------
+    specs : iterable of Param
+        E.g. :data:`ESTIMATOR`.
+
+    Returns
+    -------
+    dict
+        ``{name: Param}``.
+    """
     return {p.name: p for p in specs}
 
 
 def defaults(specs) -> dict:
+    """Return the default value of every parameter (tuples as lists, as ROS gives them).
+
+    Parameters
+    ----------
+    specs : iterable of Param
+        E.g. :data:`ESTIMATOR`.
+
+    Returns
+    -------
+    dict
+        ``{name: default}``.
+    """
     return {p.name: (list(p.default) if isinstance(p.default, (list, tuple)) else p.default) for p in specs}
 
 
@@ -411,10 +520,22 @@ KNOB_PREFIX = "knob."
 
 
 def knob_params(method: str, specs: dict | None = None) -> tuple:
-    """The estimator's own knobs as run-time parameters ``knob.<name>`` (ranges from the estimator).
+    """Return the estimator's own knobs as run-time parameters ``knob.<name>``.
 
-    ``region`` and optional numbers become strings: ``""`` means None, a region is ``"x0,y0,w,h"``.
-    ``specs``: another knob table than the method's (a photodiode array's ``ARRAY_KNOBS``).
+    Ranges come from the estimator. ``region`` and optional numbers become strings: ``""``
+    means None, a region is ``"x0,y0,w,h"`` [px].
+
+    Parameters
+    ----------
+    method : str
+        A registered estimator name.
+    specs : dict, optional
+        Another knob table than the method's (a photodiode array's ``ARRAY_KNOBS``).
+
+    Returns
+    -------
+    tuple of Param
+        One parameter per knob, sorted by name, not read-only.
     """
     from ..estimators import registry
     specs = registry.get(method).knob_specs() if specs is None else specs
@@ -441,8 +562,25 @@ def knob_params(method: str, specs: dict | None = None) -> tuple:
 
 
 def knob_values(method: str, values: dict, specs: dict | None = None) -> dict:
-    """Estimator knobs from ``knob.<name>`` parameter values (strings back to None / tuples / choices);
-    ``specs`` as for :func:`knob_params`."""
+    """Return estimator knobs from ``knob.<name>`` parameter values.
+
+    Strings go back to None, tuples or choices (the inverse of :func:`knob_params`); knobs not in
+    ``values`` are left out.
+
+    Parameters
+    ----------
+    method : str
+        A registered estimator name.
+    values : dict
+        Parameter values by full name (``knob.<name>``).
+    specs : dict, optional
+        As for :func:`knob_params`.
+
+    Returns
+    -------
+    dict
+        ``{knob name: value}`` for the estimator's constructor.
+    """
     from ..estimators import registry
     specs = registry.get(method).knob_specs() if specs is None else specs
     out = {}
@@ -463,7 +601,13 @@ def knob_values(method: str, values: dict, specs: dict | None = None) -> dict:
 
 
 def markdown_tables() -> str:
-    """The parameter tables of docs/ros.md (a test keeps the document equal to this)."""
+    """Return the parameter tables of docs/ros.md (a test keeps the document equal to this).
+
+    Returns
+    -------
+    str
+        One Markdown table per node: parameter, default, range or choices, run time, meaning.
+    """
     lines = []
     for node, specs in SPECS.items():
         lines += ["", f"#### {node}", "", "| parameter | default | range / choices | run time | meaning |",

@@ -47,7 +47,20 @@ IMU_DEPTH = 200
 
 
 def method_topics(method: str) -> dict:
-    """Per-method topic names."""
+    """Return the per-method topic names (relative, under ``compass/<method>/``).
+
+    Parameters
+    ----------
+    method : str
+        Estimator name.
+
+    Returns
+    -------
+    dict
+        ``heading_raw`` (Imu), ``bearing_raw`` (Float64 [deg]), ``status`` (String, JSON),
+        ``heading`` (Imu, tilt-corrected), ``bearing`` (Float64 [deg]) and
+        ``correction_status`` (String).
+    """
     base = f"compass/{method}"
     return {
         "heading_raw": f"{base}/heading_raw",          # Imu, estimator output (not tilt-corrected)
@@ -61,7 +74,25 @@ def method_topics(method: str) -> dict:
 
 def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu",
                      array: bool = False):
-    """(publishes, subscribes): lists of (topic, type). ``array``: also a photodiode-array compass."""
+    """Return the topics the ``sky_simulator`` publishes and subscribes to.
+
+    Parameters
+    ----------
+    attitude_source : str, default "motion"
+        ``"topic"`` adds the attitude input subscription.
+    publish_clock : bool, default True
+        Also publish ``/clock``.
+    attitude_input_type : str, default "imu"
+        Message type of the attitude input: ``"imu"`` (Imu), anything else QuaternionStamped
+        (the simulator's ``attitude_topic_type`` parameter).
+    array : bool, default False
+        Also publish a photodiode-array compass's readings.
+
+    Returns
+    -------
+    publishes, subscribes : list of tuple
+        ``(topic, type)`` pairs.
+    """
     pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
             (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
     if array:
@@ -76,6 +107,26 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
 
 def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: bool = False,
                      prior_source: str = "none", input_kind: str = "image"):
+    """Return the topics a ``heading_estimator`` publishes and subscribes to.
+
+    Parameters
+    ----------
+    method : str
+        Estimator name.
+    site_source : {"parameters", "navsatfix"}, default "parameters"
+        ``"navsatfix"`` adds the fix subscription.
+    needs_tilt : bool, default False
+        The method needs the IMU tilt (adds the IMU subscription).
+    prior_source : str, default "none"
+        ``"imu"`` adds the IMU subscription as well.
+    input_kind : {"image", "array"}, default "image"
+        Camera image and camera_info, or a photodiode array's readings.
+
+    Returns
+    -------
+    publishes, subscribes : list of tuple
+        ``(topic, type)`` pairs.
+    """
     t = method_topics(method)
     pubs = [(t["heading_raw"], T_IMU), (t["bearing_raw"], T_FLOAT64), (t["status"], T_STRING),
             (DIAGNOSTICS, T_DIAG)]
@@ -88,6 +139,20 @@ def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: b
 
 
 def corrector_topics(method: str, site_source: str = "parameters"):
+    """Return the topics a ``tilt_corrector`` publishes and subscribes to.
+
+    Parameters
+    ----------
+    method : str
+        Estimator name whose raw heading it corrects.
+    site_source : {"parameters", "navsatfix"}, default "parameters"
+        ``"navsatfix"`` adds the fix subscription.
+
+    Returns
+    -------
+    publishes, subscribes : list of tuple
+        ``(topic, type)`` pairs.
+    """
     t = method_topics(method)
     pubs = [(t["heading"], T_IMU), (t["bearing"], T_FLOAT64), (t["correction_status"], T_STRING),
             (DIAGNOSTICS, T_DIAG)]
@@ -99,8 +164,27 @@ def corrector_topics(method: str, site_source: str = "parameters"):
 
 def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool = True,
                       direct_methods=()) -> list[tuple[str, str]]:
-    """(stream name, topic) pairs: ``<method>/raw`` and ``<method>/corrected`` for each method, and
-    ``<method>/raw`` only for methods in ``direct_methods`` (no corrector, e.g. tilt_aware)."""
+    """Return the evaluator's streams and the topics they come from.
+
+    ``<method>/raw`` and ``<method>/corrected`` for each method, and ``<method>/raw`` only for
+    methods in ``direct_methods`` (no corrector, e.g. tilt_aware).
+
+    Parameters
+    ----------
+    methods : iterable of str
+        Estimator names.
+    include_raw : bool, default True
+        Evaluate the raw headings.
+    include_corrected : bool, default True
+        Evaluate the corrected headings.
+    direct_methods : iterable of str, default ()
+        Methods without a corrector.
+
+    Returns
+    -------
+    list of tuple of str
+        ``(stream name, topic)`` pairs.
+    """
     out = []
     for m in methods:
         t = method_topics(m)
@@ -112,6 +196,20 @@ def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool
 
 
 def evaluator_topics(streams, latency_source: str = "sim_frames"):
+    """Return the topics the ``error_evaluator`` publishes and subscribes to.
+
+    Parameters
+    ----------
+    streams : list of tuple of str
+        ``(stream name, topic)`` pairs of :func:`evaluator_streams`.
+    latency_source : str, default "sim_frames"
+        ``"sim_frames"`` adds the simulator's frame-time subscription (wall-clock latency).
+
+    Returns
+    -------
+    publishes, subscribes : list of tuple
+        ``(topic, type)`` pairs, with each stream's status topic.
+    """
     pubs = [(EVAL_SUMMARY, T_STRING), (DIAGNOSTICS, T_DIAG)]
     subs = [(TRUTH, T_IMU), (DIAGNOSTICS, T_DIAG)] + [(topic, T_IMU) for _, topic in streams]
     if latency_source == "sim_frames":
