@@ -972,8 +972,14 @@ class BagReader:
         return int(self._reader.message_count)
 
     def topic_types(self) -> dict:
-        """{topic: {msgtype: message count}} over all connections (a topic recorded from publishers of
-        different types has one connection per type)."""
+        """Return each topic's message types and counts over all connections.
+
+        Returns
+        -------
+        dict
+            ``{topic: {msgtype: message count}}`` (a topic recorded from publishers of different
+            types has one connection per type).
+        """
         out: dict = {}
         for c in self._reader.connections:
             types = out.setdefault(c.topic, {})
@@ -1029,8 +1035,14 @@ class BagReader:
             self.damage = f"reading stopped part-way ({_one_line(exc)})"
 
     def lost(self) -> dict:
-        """{topic: messages the bag's index announces but that were not read} after :meth:`messages` (a
-        damaged or truncated bag); empty when everything announced was read or nothing is announced."""
+        """Return the messages the bag's index announces that were not read (a damaged bag).
+
+        Returns
+        -------
+        dict
+            ``{topic: count}`` for the topics read by :meth:`messages`; empty when everything
+            announced was read or nothing is announced.
+        """
         expected = {c.topic: 0 for c in self._reader.connections}
         for c in self._reader.connections:
             expected[c.topic] += int(getattr(c, "msgcount", 0) or 0)
@@ -1040,7 +1052,13 @@ class BagReader:
                 if n > self._read_counts.get(t, 0) and t in asked}
 
     def damage_notes(self) -> list[str]:
-        """One-line statements of damage found while opening or reading (empty for a sound bag)."""
+        """Return one-line statements of damage found while opening or reading.
+
+        Returns
+        -------
+        list of str
+            Empty for a sound bag; else how it was read and the messages lost per topic.
+        """
         notes = []
         if self.recovered:
             notes.append(f"damaged bag: {self.recovered}")

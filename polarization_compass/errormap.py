@@ -384,6 +384,8 @@ def load_error_map(path) -> ErrorMap:
     from .safe_load import load_json, open_npz
     p = Path(path)
     if p.is_dir():
+        if not any((p / n).exists() for n in (".zgroup", "zarr.json", ".zattrs")):
+            raise ErrorMapError(f"error map {str(p)!r} does not exist (a directory, not a sweep store)")
         from .errormap_store import read_store_map
         return read_store_map(p)
     if not p.exists() and not p.is_symlink():

@@ -47,10 +47,29 @@ def _size_text(n: int) -> str:
 
 
 def regular_file(path, error=CompassError, what="file", max_bytes: int | None = None) -> Path:
-    """``path`` as a Path when it is a regular file (symlinks followed) of at most ``max_bytes``.
+    """Return ``path`` as a Path when it is a regular file (symlinks followed) of bounded size.
 
-    Raises ``error`` when it does not exist, is a directory, is a special file (FIFO, character or
-    block device such as ``/dev/zero``, socket: reading one could block or never end) or is too large.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    error : type, default CompassError
+        Exception class raised on failure.
+    what : str, default "file"
+        What the file is, for the message.
+    max_bytes : int, optional
+        Largest size [bytes]; None: any.
+
+    Returns
+    -------
+    pathlib.Path
+        The path.
+
+    Raises
+    ------
+    error
+        It does not exist, is a directory, is a special file (FIFO, character or block device such
+        as ``/dev/zero``, socket: reading one could block or never end) or is too large.
     """
     p = Path(path)
     try:
@@ -168,8 +187,29 @@ def load_yaml(text: str, where: str, error=CompassError):
 
 
 def load_json(text: str, where: str, error=CompassError):
-    """``json.loads`` with every failure (syntax, nesting too deep for the recursion limit, memory) as
-    ``error`` naming ``where``. NaN/Infinity literals are refused too (no NaN reaches an output)."""
+    """Parse JSON text with every failure as a one-line user error.
+
+    NaN/Infinity literals are refused too (no NaN reaches an output).
+
+    Parameters
+    ----------
+    text : str
+        The JSON document.
+    where : str
+        Where it came from, the prefix of the message.
+    error : type, default CompassError
+        Exception class raised on failure.
+
+    Returns
+    -------
+    object
+        The parsed document.
+
+    Raises
+    ------
+    error
+        Invalid JSON, nesting too deep for the recursion limit, or a MemoryError while parsing.
+    """
     def _no_constant(name):
         raise ValueError(f"{name} is not a JSON number")
     try:
@@ -183,8 +223,10 @@ def load_json(text: str, where: str, error=CompassError):
 
 
 class NpyHeader:
-    """What an ``.npy`` member of an archive declares (read from its header, before its data):
-    ``shape``, ``dtype`` and ``nbytes`` (Python int, no overflow)."""
+    """What an ``.npy`` member of an archive declares, read from its header before its data.
+
+    Attributes: ``shape``, ``dtype`` and ``nbytes`` (Python int, no overflow).
+    """
 
     __slots__ = ("shape", "dtype", "nbytes")
 
@@ -198,9 +240,29 @@ class NpyHeader:
 
 
 def npz_headers(z, error=CompassError, name: str = "archive") -> dict:
-    """``{array name: NpyHeader}`` of an open ``NpzFile``, from each member's ``.npy`` header only (a few
-    hundred bytes decompressed per member; numpy's ``max_header_size`` applies). Object dtypes are
-    refused here (they would need pickle). Raises ``error`` for a member that is not a readable ``.npy``."""
+    """Read the ``.npy`` headers of an open archive's members (a few hundred bytes each).
+
+    numpy's ``max_header_size`` applies; object dtypes are refused here (they would need pickle).
+
+    Parameters
+    ----------
+    z : numpy.lib.npyio.NpzFile
+        The open archive.
+    error : type, default CompassError
+        Exception class raised on failure.
+    name : str, default "archive"
+        The archive's name, for the message.
+
+    Returns
+    -------
+    dict
+        ``{array name: NpyHeader}``.
+
+    Raises
+    ------
+    error
+        A member that is not a readable ``.npy`` header, or an object array.
+    """
     fmt = np.lib.format
     out = {}
     for info in z.zip.infolist():
