@@ -3,23 +3,25 @@
 A photodiode-array driver publishes each sample as ``std_msgs/Float32MultiArray`` (no header) on
 ``compass_array/intensities`` and, right beside it, a ``std_msgs/Header`` on ``compass_array/header``
 carrying the sample's acquisition ``stamp`` and ``frame_id`` (docs/photodiode-arrays.md, "Stamps").
-The two messages share no field, so they are matched by *publication time*: the DDS source
-timestamp of each message (``MessageInfo["source_timestamp"]``: the publisher's wall clock when it
-called ``publish``), which the two back-to-back ``publish`` calls make nearly equal and which does not
-depend on when the subscriber's callbacks happen to run. Within each topic messages keep their order
-(one writer), so the pairing walks both queues from the oldest:
+The two messages share no field, so they are matched by *arrival time*: the receiver's monotonic
+clock when each message's callback starts (both callbacks in one callback group, so they run one
+after the other). A driver publishes the two back to back, so they arrive nearly together, and a
+sample interval apart from the neighbouring sample's. (rclpy's ``MessageInfo`` source timestamp would
+be a better key, but Kilted's EventsExecutor, the nodes' default, fails with ``SystemError`` on
+callbacks that take it.) Within each topic messages keep their order (one writer), so the pairing
+walks both queues from the oldest:
 
-- the oldest array and the oldest header are a pair when their publication times differ by at most
+- the oldest array and the oldest header are a pair when their arrival times differ by at most
   ``tolerance_s``;
 - otherwise the older of the two has lost its partner (a best-effort message that never arrived):
   an array is dropped with reason ``no_header``, a header is discarded (``header_without_array``);
-- an array still without a header ``timeout_s`` (wall clock, on the receiving side) after it
-  arrived is dropped with reason ``header_timeout``; a header alone that long is discarded
-  (``header_without_array``).
+- an array still without a header ``timeout_s`` after it arrived is dropped with reason
+  ``header_timeout``; a header alone that long is discarded (``header_without_array``).
 
 Dropped arrays are counted by reason, never stamped with another sample's time. Correct pairing
-needs ``tolerance_s`` below half the shortest interval between two samples (a driver at 100 Hz:
-below 5 ms); the default 20 ms suits drivers up to 25 Hz.
+needs ``tolerance_s`` below half the shortest interval between two samples and above the receiver's
+callback delay between the two messages (one callback's duration at most; an array's estimate takes
+about a millisecond); the default 40 ms suits drivers up to 12 Hz -- set it lower for faster drivers.
 
 ROS-free: no rclpy import here.
 """
@@ -66,12 +68,12 @@ class _Entry:
 
 
 class StampPairer:
-    """Match arrays and headers by publication time (see the module docstring for the rules).
+    """Match arrays and headers by arrival time (see the module docstring for the rules).
 
     Parameters
     ----------
-    tolerance_s : float, default 0.02
-        Largest difference of publication times [s] of an array and its header.
+    tolerance_s : float, default 0.04
+        Largest difference of the arrival times (``key_ns``) [s] of an array and its header.
     timeout_s : float, default 0.5
         Longest wait [s] (receiver's wall clock) of an array for its header, and of a header for
         its array.
@@ -86,7 +88,7 @@ class StampPairer:
         Arrays paired so far.
     """
 
-    def __init__(self, tolerance_s: float = 0.02, timeout_s: float = 0.5, max_pending: int = 100):
+    def __init__(self, tolerance_s: float = 0.04, timeout_s: float = 0.5, max_pending: int = 100):
         if not (tolerance_s >= 0.0 and timeout_s >= 0.0 and max_pending >= 1):
             raise ValueError("StampPairer: tolerance_s and timeout_s must be >= 0 and max_pending >= 1")
         self.tolerance_ns = int(round(tolerance_s * 1e9))
@@ -103,13 +105,13 @@ class StampPairer:
         """Arrays waiting for their header."""
         return len(self._arrays)
 
-    def add_array(self, published_ns: int, arrived_s: float, payload) -> list[PairedSample]:
+    def add_array(self, key_ns: int, arrived_s: float, payload) -> list[PairedSample]:
         """Add an array message.
 
         Parameters
         ----------
-        published_ns : int
-            Its publication time [ns] (DDS source timestamp, publisher's wall clock).
+        key_ns : int
+            Its arrival time [ns] (the pairing key; any clock common to arrays and headers).
         arrived_s : float
             When it arrived [s] (receiver's wall clock, for the timeout).
         payload : object
@@ -120,16 +122,16 @@ class StampPairer:
         list of PairedSample
             Arrays paired by this call, oldest first (possibly empty).
         """
-        self._insert(self._arrays, published_ns, arrived_s, payload, "no_header")
+        self._insert(self._arrays, key_ns, arrived_s, payload, "no_header")
         return self._match()
 
-    def add_header(self, published_ns: int, arrived_s: float, stamp_ns: int, frame_id: str) -> list[PairedSample]:
+    def add_header(self, key_ns: int, arrived_s: float, stamp_ns: int, frame_id: str) -> list[PairedSample]:
         """Add a companion header.
 
         Parameters
         ----------
-        published_ns : int
-            Its publication time [ns] (DDS source timestamp).
+        key_ns : int
+            Its arrival time [ns] (the pairing key).
         arrived_s : float
             When it arrived [s] (receiver's wall clock).
         stamp_ns : int
@@ -143,7 +145,7 @@ class StampPairer:
         list of PairedSample
             Arrays paired by this call, oldest first.
         """
-        self._insert(self._headers, published_ns, arrived_s, (int(stamp_ns), str(frame_id)), "header_without_array")
+        self._insert(self._headers, key_ns, arrived_s, (int(stamp_ns), str(frame_id)), "header_without_array")
         return self._match()
 
     def expire(self, now_s: float) -> list[PairedSample]:
@@ -170,9 +172,9 @@ class StampPairer:
         return []
 
     # internals ----------------------------------------------------------------------------------
-    def _insert(self, queue: list, published_ns: int, arrived_s: float, value, overflow_reason: str) -> None:
+    def _insert(self, queue: list, key_ns: int, arrived_s: float, value, overflow_reason: str) -> None:
         self._seq += 1
-        bisect.insort(queue, _Entry(int(published_ns), self._seq, float(arrived_s), value))
+        bisect.insort(queue, _Entry(int(key_ns), self._seq, float(arrived_s), value))
         while len(queue) > self.max_pending:
             queue.pop(0)
             self.drops["queue_full" if overflow_reason == "no_header" else overflow_reason] += 1

@@ -273,3 +273,59 @@ def test_array_knobs_are_node_parameters(ctx):
         assert n.array.knobs["min_units"] == 7
     finally:
         n.destroy_node()
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
+    """sky_simulator and an array heading_estimator as processes on DDS (loopback): every published heading
+    has the stamp and frame_id of the std_msgs/Header the simulator published for its sample, on the
+    simulator's frame grid (start + k / rate), and the estimator drops nothing."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import Imu
+    from std_msgs.msg import String
+    from test_nodes_helpers import SMALL_SCENE, Proc, Recorder, node_env, stamp
+
+    from polarization_compass.specs import topics as T
+
+    scene = tmp_path / "small.yaml"
+    scene.write_text(SMALL_SCENE)
+    env = node_env(ros_env)
+    logs = tmp_path / "logs"
+    t = T.method_topics("least_squares")
+    est = Proc("heading_estimator_array", "heading_estimator",
+               ["-p", "method:=least_squares", "-p", "input:=array", "-p", f"array_geometry:={GEOMETRY}",
+                "-p", "prior_source:=none", "-p", "use_sim_time:=true", "-p", "image_qos:=reliable"], env, logs)
+    rec = Recorder(int(env["ROS_DOMAIN_ID"]))
+    rate_hz, start_ns = 5.0, 1_573_797_600_000_000_000            # 2019-11-15T06:00:00Z, the simulator's default
+    sim = None
+    try:
+        rec.sub(Header, T.ARRAY_HEADER)
+        rec.sub(Imu, t["heading_raw"])
+        rec.sub(String, t["status"])
+        rec.sub(DiagnosticArray, T.DIAGNOSTICS)
+        sim = Proc("sky_simulator", "sky_simulator",
+                   ["-p", f"scene:={scene}", "-p", f"array_geometry:={GEOMETRY}", "-p", f"rate_hz:={rate_hz}",
+                    "-p", "duration_s:=1.6", "-p", "turn_rate_deg_s:=30.0", "-p", "pitch_deg:=0.0",
+                    "-p", "wait_for_downstream:=['compass_array/intensities=heading_estimator_array,test_recorder',"
+                    "'compass_array/header=heading_estimator_array,test_recorder']"], env, logs)
+        n_frames = 8
+        assert rec.spin_until(lambda: len(rec.msgs[t["status"]]) >= n_frames, 240, [est]), \
+            (est.stderr[-2000:], sim.stderr[-2000:])
+        rec.spin_for(1.5)                                              # diagnostics of the last period
+    finally:
+        codes = [p.stop() for p in (sim, est) if p is not None]
+        rec.close()
+    assert codes == [0, 0], (est.stderr[-2000:], sim.stderr[-2000:] if sim else "")
+    headers = {stamp(type("M", (), {"header": h})): h.frame_id for _, h in rec.msgs[T.ARRAY_HEADER]}
+    grid = [start_ns + round(k * 1e9 / rate_hz) for k in range(n_frames)]
+    assert sorted(headers)[:n_frames] == grid                          # the simulator's frame stamps
+    statuses = rec.statuses(t["status"])
+    assert [s["stamp_ns"] for s in statuses][:n_frames] == grid        # one per sample, none lost
+    imus = [m for _, m in rec.msgs[t["heading_raw"]]]
+    assert len(imus) == len(statuses) and all(s["published"] for s in statuses)
+    for m in imus:
+        assert stamp(m) in headers and m.header.frame_id == headers[stamp(m)] == "base_link"
+    diag = [s for _, a in rec.msgs[T.DIAGNOSTICS] for s in a.status if s.name.startswith("heading_estimator_array")]
+    keys = {kv.key: kv.value for kv in diag[-1].values}
+    assert keys["rejected"] == "0", keys

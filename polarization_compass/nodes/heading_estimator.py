@@ -112,16 +112,16 @@ class HeadingEstimatorNode(Node):
                                      callback_group=small)
         image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
         if self.array is not None:
-            self.create_subscription(Float32MultiArray, topics.ARRAY, lambda m, info: self._on_array(m, info),
-                                     image_qos, callback_group=images)       # with MessageInfo: publication time
+            self.create_subscription(Float32MultiArray, topics.ARRAY, self._on_array, image_qos, callback_group=images)
             if p["array_stamp"] == "header":
                 from ..stamp_pairing import StampPairer
                 from .diagnostics import _wall_clock
                 self.pairer = StampPairer(p["array_header_tolerance_s"], p["array_header_timeout_s"])
                 self._pair_drops_seen: dict = {}
-                # same callback group as the arrays: the pairer is used from one thread only
-                self.create_subscription(Header, topics.ARRAY_HEADER, lambda m, info: self._on_array_header(m, info),
-                                         image_qos, callback_group=images)
+                # same callback group as the arrays: the pairer is used from one thread only, and a header and
+                # its sample reach their callbacks one after the other (the arrival times the pairing compares)
+                self.create_subscription(Header, topics.ARRAY_HEADER, self._on_array_header, image_qos,
+                                         callback_group=images)
                 self.create_timer(0.05, self._expire_array_pairs, callback_group=images, clock=_wall_clock())
         else:
             self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_camera_info, qos_profile_sensor_data,
@@ -240,9 +240,10 @@ class HeadingEstimatorNode(Node):
                              time.monotonic() + self.params["imu_max_wait_s"], None))
         self._drain()
 
-    def _on_array(self, msg, info=None):
+    def _on_array(self, msg):
         """A photodiode-array sample: decoded against the geometry, stamped by its paired header (or on arrival
-        with array_stamp arrival), then queued like an image. ``info``: rclpy's MessageInfo."""
+        with array_stamp arrival), then queued like an image."""
+        arrived_ns = time.monotonic_ns()
         from ..photodiode.readings import ArrayRecordingError, array_sample_from_flat
         t_in = self.diag.input()
         geometry = self.array.geometry
@@ -256,20 +257,20 @@ class HeadingEstimatorNode(Node):
         sample = self.diag.decoded("", decode, msg)
         if sample is None:
             if self.pairer is not None:        # it still takes its header with it (never the next sample's)
-                self._enqueue_paired(self.pairer.add_array(_published_ns(info), time.monotonic(), None))
+                self._enqueue_paired(self.pairer.add_array(arrived_ns, arrived_ns / 1e9, None))
             return
         if self.pairer is None:
             t_ns = self.get_clock().now().nanoseconds
             self.pending.append((t_ns, sample, None, None, t_in, time.monotonic() + self.params["imu_max_wait_s"],
                                  None))
         else:
-            self._enqueue_paired(self.pairer.add_array(_published_ns(info), time.monotonic(), (sample, t_in)))
+            self._enqueue_paired(self.pairer.add_array(arrived_ns, arrived_ns / 1e9, (sample, t_in)))
         self._drain()
 
-    def _on_array_header(self, msg, info=None):
+    def _on_array_header(self, msg):
         """The companion header of an array sample (array_stamp header)."""
-        self._enqueue_paired(self.pairer.add_header(_published_ns(info), time.monotonic(), stamp_ns(msg.stamp),
-                                                    msg.frame_id))
+        arrived_ns = time.monotonic_ns()
+        self._enqueue_paired(self.pairer.add_header(arrived_ns, arrived_ns / 1e9, stamp_ns(msg.stamp), msg.frame_id))
         self._drain()
 
     def _expire_array_pairs(self) -> None:
@@ -414,17 +415,6 @@ class HeadingEstimatorNode(Node):
 
     def _publish_status(self, status: dict) -> None:
         self.pub_status.publish(String(data=json.dumps(status, default=_json_default, allow_nan=False)))
-
-
-def _published_ns(info) -> int:
-    """Publication time [ns] of a message: the DDS source timestamp from rclpy's MessageInfo, else its reception
-    time, else now (a callback called without MessageInfo, e.g. in-process)."""
-    if info:
-        for key in ("source_timestamp", "received_timestamp"):
-            v = info.get(key) or 0
-            if v > 0:
-                return int(v)
-    return time.time_ns()
 
 
 def _json_default(o):

@@ -382,12 +382,12 @@ ESTIMATOR = (
           read_only=True),
     Param("array_stamp", "header", "input array: header = each sample takes the stamp and frame_id of the "
                                    "std_msgs/Header its driver publishes beside it on compass_array/header "
-                                   "(paired by publication time; unpaired samples are dropped and counted); "
+                                   "(paired by arrival time; unpaired samples are dropped and counted); "
                                    "arrival = this node's clock when the sample arrives (drivers without a "
                                    "header; latency becomes heading lag)", choices=("header", "arrival"),
           read_only=True),
-    Param("array_header_tolerance_s", 0.02, "array_stamp header: largest difference of the publication times "
-                                            "of a sample and its header (keep below half the sample interval)",
+    Param("array_header_tolerance_s", 0.04, "array_stamp header: largest difference of the arrival times of "
+                                            "a sample and its header (keep below half the sample interval)",
           0.0, 1.0, unit="s", read_only=True),
     Param("array_header_timeout_s", 0.5, "array_stamp header: how long a sample waits for its header before "
                                          "it is dropped (wall clock)", 0.001, 60.0, unit="s", read_only=True),
