@@ -125,10 +125,12 @@ def _backend_row(sweep, spec, probe, label: str, **kw) -> dict:
     cells = spec.cell_count() // len(spec.methods)
     n = st["workers"]
     return {"backend": label, "workers": n, "compute_s": compute, "tasks": st["tasks"], "cells": cells,
-            "cells_per_s": cells / compute, "tasks_per_s": st["tasks"] / compute, "task_s": st["task_s"],
+            "cells_per_s": cells / compute, "tasks_per_s": (st["dask_tasks"] or st["tasks"]) / compute,
+            "dask_tasks": st["dask_tasks"], "task_s": st["task_s"],
             "task_cpu_s": st["task_cpu_s"], "setup_cpu_s": st["setup_cpu_s"], "overhead_share": max(0.0, 1.0 - st["task_s"] / (n * compute)),
             "cpu_ms_per_estimate": st["task_cpu_s"] / max(st["estimates"], 1) * 1e3,
-            "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["tasks"], 1), "_map": m}
+            "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["dask_tasks"] or st["tasks"], 1),
+            "_map": m}
 
 
 def run_backends(cfg, sweep, methods, scene) -> dict:
