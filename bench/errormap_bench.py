@@ -18,8 +18,8 @@ subtracted) gives the CPU per
 cell, which other jobs on a shared machine change much less than the wall time; the load average before and
 after the timed sweep is recorded with it.
 
-Backends (issue 17): one sub-grid with rolls (``BACKEND_STEPS``, ``BACKEND_ROLLS``: chunks of a real map's
-size) runs in this process (no Dask), on an embedded
+Backends (issue 17): one sub-grid with rolls (``BACKEND_STEPS``, ``BACKEND_ROLLS``: chunks of yaws x rolls x
+methods, closer to a real map's than the pitch-only sub-grid's) runs in this process (no Dask), on an embedded
 ``LocalCluster`` of 1 and of 2 workers, and on a loopback cluster of separate processes (``python -m dask
 scheduler`` + two ``python -m dask worker`` on 127.0.0.1). Each row: cells/s over the compute time (from the cluster
 being up to the last chunk received), tasks/s, and the overhead share ``1 - sum(task compute s) / (workers x compute
@@ -52,7 +52,7 @@ TARGET_AXES = (np.arange(0.0, 50.1, 1.0), np.arange(-180.0, 176.1, 4.0), np.aran
 SAMPLE_STEPS = {"full": (5, 3, 1), "quick": (25, 15, 1)}
 #: Backend comparison sub-grid per mode: (every k-th sun altitude, every k-th pitch, every k-th yaw).
 BACKEND_STEPS = {"full": (10, 5, 5), "quick": (25, 5, 8)}
-#: ... with rolls too, so that a chunk is as big as in a real map (yaws x rolls x methods estimates)
+#: ... with rolls too, so that a chunk is yaws x rolls x methods estimates, as in a real map
 BACKEND_ROLLS = {"full": np.arange(-30.0, 30.1, 10.0), "quick": np.arange(-30.0, 30.1, 10.0)}
 #: The 1-deg map of issue 17: about 1e8 estimates.
 BIG_MAP_ESTIMATES = 1e8
@@ -125,10 +125,12 @@ def _backend_row(sweep, spec, probe, label: str, **kw) -> dict:
     cells = spec.cell_count() // len(spec.methods)
     n = st["workers"]
     return {"backend": label, "workers": n, "compute_s": compute, "tasks": st["tasks"], "cells": cells,
-            "cells_per_s": cells / compute, "tasks_per_s": st["tasks"] / compute, "task_s": st["task_s"],
+            "cells_per_s": cells / compute, "tasks_per_s": (st["dask_tasks"] or st["tasks"]) / compute,
+            "dask_tasks": st["dask_tasks"], "task_s": st["task_s"],
             "task_cpu_s": st["task_cpu_s"], "setup_cpu_s": st["setup_cpu_s"], "overhead_share": max(0.0, 1.0 - st["task_s"] / (n * compute)),
             "cpu_ms_per_estimate": st["task_cpu_s"] / max(st["estimates"], 1) * 1e3,
-            "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["tasks"], 1), "_map": m}
+            "overhead_s_per_task": max(0.0, n * compute - st["task_s"]) / max(st["dask_tasks"] or st["tasks"], 1),
+            "_map": m}
 
 
 def run_backends(cfg, sweep, methods, scene) -> dict:

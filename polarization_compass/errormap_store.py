@@ -281,11 +281,12 @@ class SweepStore:
         return (f"chunk (sun altitude {self.spec.sun_altitude_deg[ia]:g} deg, pitch {self.spec.pitch_deg[ip]:g} deg)"
                 f" [{ia}, {ip}]")
 
-    def scan(self, chunks, err: np.ndarray, status: np.ndarray, log=sys.stderr) -> list:
+    def scan(self, chunks, err: np.ndarray, status: np.ndarray, log=None) -> list:
         """Copy every verified stored chunk of ``chunks`` into ``err``/``status``; return the ones to compute.
 
-        A damaged chunk is named on ``log`` and returned for recomputation.
+        A damaged chunk is named on ``log`` (default: the current ``sys.stderr``) and returned for recomputation.
         """
+        log = sys.stderr if log is None else log
         todo = []
         for ia, ip in chunks:
             try:

@@ -547,7 +547,8 @@ def _estimator(method: str, params: dict, remappings=(), namespace="") -> NodeSp
     site_source = params.get("site_source", "parameters")
     prior = params.get("prior_source", "imu")
     pubs, subs = T.estimator_topics(method, site_source, needs_tilt=registry.get(method).needs_tilt,
-                                    prior_source=prior, input_kind=params.get("input", "image"))
+                                    prior_source=prior, input_kind=params.get("input", "image"),
+                                    array_stamp=params.get("array_stamp", "header"))
     return NodeSpec("heading_estimator", f"heading_estimator_{method}", namespace,
                     ("config/heading_estimator.yaml",), {"method": method, **params}, _used(remappings, pubs, subs),
                     tuple(pubs), tuple(subs))
@@ -646,7 +647,7 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
     nodes += [_estimator(m, dict(sim_time)) for m in all_methods]
     nodes += [_corrector(m, {**sim_time, "error_map": error_map}) for m in methods]
     if array_geometry:       # the array's estimators in namespace array, reading the simulator's topics
-        to_root = tuple((t, "/" + t) for t in (T.ARRAY, T.IMU, T.FIX))
+        to_root = tuple((t, "/" + t) for t in (T.ARRAY, T.ARRAY_HEADER, T.IMU, T.FIX))
         nodes += [dataclasses.replace(_estimator(m, {**sim_time, "input": "array", "array_geometry": array_geometry},
                                                  to_root, "array"), name=f"heading_estimator_array_{m}")
                   for m in registry.names() if registry.get(m).accepts_units]

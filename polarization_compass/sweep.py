@@ -474,7 +474,8 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     scheduler : str, optional
         Address of an existing Dask cluster (``tcp://HOST:PORT``).
     stats : dict, optional
-        Receives the run's measurements: ``workers``, ``tasks``, ``estimates``, ``wall_s``,
+        Receives the run's measurements: ``workers``, ``tasks`` (chunks), ``dask_tasks`` (tasks of
+        whole chunks), ``estimates``, ``wall_s``,
         ``startup_s`` (cluster start), ``compute_s`` (from the cluster being up to the last chunk
         received), ``task_s`` and ``task_cpu_s`` (summed wall and CPU seconds of the chunks'
         computation), ``setup_cpu_s`` (the workers' evaluators) [s].
@@ -519,7 +520,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
     run = todo[:limit]
     total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
     errors: list[str] = []
-    info = {"tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "setup_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1,
+    info = {"tasks": 0, "dask_tasks": 0, "task_s": 0.0, "task_cpu_s": 0.0, "setup_cpu_s": 0.0, "estimates": total, "startup_s": 0.0, "workers": 1,
             "compute_s": 0.0}
     t_up = time.perf_counter()
     t0 = time.perf_counter()
@@ -562,7 +563,7 @@ def run_sweep(spec: SweepSpec, out=None, workers: int | None = None, progress: b
                 ev.errors = []
         else:
             from .sweep_dask import run_chunks
-            run_chunks(spec, run, accept, on_start, scheduler=scheduler, workers=workers)
+            info["dask_tasks"] = run_chunks(spec, run, accept, on_start, scheduler=scheduler, workers=workers)
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()

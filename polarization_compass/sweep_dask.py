@@ -91,15 +91,55 @@ def start(scheduler: str | None, workers: int | None):
         raise
 
 
-def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, workers: int | None = None) -> None:
+#: A task holds whole chunks and at least this many estimates (~0.3 s of work): the scheduler's ~5-10 ms per
+#: task stays a few per cent even for pitch-only sweeps, whose chunks are small.
+MIN_TASK_ESTIMATES = 2000
+#: ... but the sweep is split into at least this many tasks, so that every worker gets work and the last
+#: tasks do not leave workers idle for long.
+MIN_TASKS = 8
+
+
+def _chunks_task(spec, digest: str, keys: list) -> list:
+    """Runs on a Dask worker: several chunks, one result of :func:`_chunk_task` each."""
+    return [_chunk_task(spec, digest, ia, ip) for ia, ip in keys]
+
+
+def group_chunks(spec, run: list) -> list[list]:
+    """The chunks ``run`` in consecutive groups of at least :data:`MIN_TASK_ESTIMATES` estimates, at least
+    :data:`MIN_TASKS` groups when there are that many chunks."""
+    mask = spec.tilt_mask()
+    per = [len(spec.methods) * spec.yaw_deg.size * int(mask[ip].sum()) for _, ip in run]
+    total = sum(per)
+    want = max(1, min(MIN_TASK_ESTIMATES, total // MIN_TASKS if total >= MIN_TASKS else 1))
+    groups, cur, size = [], [], 0
+    for key, n in zip(run, per):
+        cur.append(key)
+        size += n
+        if size >= want:
+            groups.append(cur)
+            cur, size = [], 0
+    if cur:
+        groups.append(cur)
+    return groups
+
+
+def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, workers: int | None = None) -> int:
     """Run the chunks ``run`` ([(ia, ip), ...]) of ``spec`` on Dask; ``accept(*result)`` for each as it arrives.
 
-    ``on_start(n_workers, where, startup_s)`` is called once the cluster is up. Closes the client (and the
-    LocalCluster it started) on every exit; cancels the chunks left on an exception or interrupt.
+    Chunks travel in tasks of :func:`group_chunks`. ``on_start(n_workers, where, startup_s)`` is called once the
+    cluster is up. Closes the client (and the LocalCluster it started) on every exit; cancels the tasks left on an
+    exception or interrupt. Returns the number of Dask tasks.
     """
     digest = spec.digest()
-    calls = [(f"errormap-{digest}-{ia}-{ip}", _chunk_task, (spec, digest, ia, ip)) for ia, ip in run]
-    run_tasks(calls, lambda key, result: accept(*result), on_start, scheduler=scheduler, workers=workers)
+    calls = [(f"errormap-{digest}-{g[0][0]}-{g[0][1]}-{len(g)}", _chunks_task, (spec, digest, g))
+             for g in group_chunks(spec, run)]
+
+    def on_result(key, results):
+        for r in results:
+            accept(*r)
+
+    run_tasks(calls, on_result, on_start, scheduler=scheduler, workers=workers)
+    return len(calls)
 
 
 def run_tasks(calls: list, on_result, on_start=None, scheduler: str | None = None,

@@ -6,8 +6,10 @@ Subscribes (relative names, remappable):
   ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always: camera_info_source)
   ``compass_array/intensities`` instead of the two above when ``input`` is ``array``: a photodiode-array
                          compass, std_msgs/Float32MultiArray, units x channels row-major (layout.dim empty or
-                         [units, channels]); it has no header, so a sample is stamped with this node's clock
-                         on arrival (sim time under /clock). Geometry from ``array_geometry``.
+                         [units, channels]). Geometry from ``array_geometry``.
+  ``compass_array/header`` std_msgs/Header published beside each array sample (``array_stamp: header``, the
+                         default): the sample takes its stamp and frame_id (stamp_pairing.py); with
+                         ``array_stamp: arrival`` a sample is stamped with this node's clock on arrival.
   ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior (prior_source imu)
   ``gps/fix``            sensor_msgs/NavSatFix when site_source is navsatfix
 Publishes, stamped with the image's header.stamp:
@@ -30,7 +32,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data, qos_profile_system_default
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-from std_msgs.msg import Float32MultiArray, Float64, String
+from std_msgs.msg import Float32MultiArray, Float64, Header, String
 
 from ..bag import MessageError, decode_camera_info, decode_orientation, stamp_ns
 from ..camera import CameraError, CameraModel
@@ -59,6 +61,7 @@ class HeadingEstimatorNode(Node):
         p = self.params
         self.array = None
         self._array_geometry = None
+        self.pairer = None                  # array_stamp header: pairs each array sample with its header
         self._knob_specs = None             # None: the image method's knobs; a photodiode array's otherwise
         if p["input"] == "array":
             from ..photodiode.geometry import load_array_geometry
@@ -123,6 +126,16 @@ class HeadingEstimatorNode(Node):
         image_qos = qos_profile_sensor_data if p["image_qos"] == "sensor_data" else QoSProfile(depth=5)
         if self.array is not None:
             self.create_subscription(Float32MultiArray, topics.ARRAY, self._on_array, image_qos, callback_group=images)
+            if p["array_stamp"] == "header":
+                from ..stamp_pairing import StampPairer
+                from .diagnostics import _wall_clock
+                self.pairer = StampPairer(p["array_header_tolerance_s"], p["array_header_timeout_s"])
+                self._pair_drops_seen: dict = {}
+                # same callback group as the arrays: the pairer is used from one thread only, and a header and
+                # its sample reach their callbacks one after the other (the arrival times the pairing compares)
+                self.create_subscription(Header, topics.ARRAY_HEADER, self._on_array_header, image_qos,
+                                         callback_group=images)
+                self.create_timer(0.05, self._expire_array_pairs, callback_group=images, clock=_wall_clock())
             if self.needs_tilt:
                 from .diagnostics import _wall_clock
                 self.create_timer(0.02, self._drain, callback_group=images, clock=_wall_clock())  # IMU 50+ Hz
@@ -267,7 +280,7 @@ class HeadingEstimatorNode(Node):
         if mosaic is None:
             return False
         item = (stamp_ns(msg.header), mosaic, int(msg.width), int(msg.height), t_in,
-                time.monotonic() + self.params["imu_max_wait_s"])
+                time.monotonic() + self.params["imu_max_wait_s"], None)
         with self._pending_lock:
             dropped = self.pending.popleft() if len(self.pending) >= MAX_PENDING_IMAGES else None
             self.pending.append(item)
@@ -315,7 +328,9 @@ class HeadingEstimatorNode(Node):
             self._drain()
 
     def _on_array(self, msg):
-        """A photodiode-array sample: decoded against the geometry, stamped on arrival, then queued like an image."""
+        """A photodiode-array sample: decoded against the geometry, stamped by its paired header (or on arrival
+        with array_stamp arrival), then queued like an image."""
+        arrived_ns = time.monotonic_ns()
         from ..photodiode.readings import ArrayRecordingError, array_sample_from_flat
         t_in = self.diag.input()
         geometry = self.array.geometry
@@ -328,10 +343,48 @@ class HeadingEstimatorNode(Node):
 
         sample = self.diag.decoded("", decode, msg)
         if sample is None:
+            if self.pairer is not None:        # it still takes its header with it (never the next sample's)
+                self._enqueue_paired(self.pairer.add_array(arrived_ns, arrived_ns / 1e9, None))
             return
-        t_ns = self.get_clock().now().nanoseconds
-        self.pending.append((t_ns, sample, None, None, t_in, time.monotonic() + self.params["imu_max_wait_s"]))
+        if self.pairer is None:
+            t_ns = self.get_clock().now().nanoseconds
+            self.pending.append((t_ns, sample, None, None, t_in, time.monotonic() + self.params["imu_max_wait_s"],
+                                 None))
+        else:
+            self._enqueue_paired(self.pairer.add_array(arrived_ns, arrived_ns / 1e9, (sample, t_in)))
         self._drain()
+
+    def _on_array_header(self, msg):
+        """The companion header of an array sample (array_stamp header)."""
+        arrived_ns = time.monotonic_ns()
+        self._enqueue_paired(self.pairer.add_header(arrived_ns, arrived_ns / 1e9, stamp_ns(msg.stamp), msg.frame_id))
+        self._drain()
+
+    def _expire_array_pairs(self) -> None:
+        self.pairer.expire(time.monotonic())
+        self._count_pair_drops()
+
+    def _enqueue_paired(self, paired) -> None:
+        """Queue array samples that found their header; count the pairer's drops in /diagnostics."""
+        for s in paired:
+            if s.payload is None:               # a sample rejected when decoded: already counted
+                continue
+            sample, t_in = s.payload
+            frame_id = s.frame_id or self.params["frame_id"]
+            if frame_id.endswith(("_optical_frame", "_optical")):
+                self.diag.reject("array_header_optical_frame", f"header frame_id {frame_id!r} is an optical "
+                                 "frame (z forward); the heading needs a z-up frame")
+                continue
+            self.pending.append((s.stamp_ns, sample, None, None, t_in,
+                                 time.monotonic() + self.params["imu_max_wait_s"], frame_id))
+        self._count_pair_drops()
+
+    def _count_pair_drops(self) -> None:
+        for reason, n in self.pairer.drops.items():
+            for _ in range(n - self._pair_drops_seen.get(reason, 0)):
+                self.diag.reject(f"array_{reason}", "array sample without its header"
+                                 if reason != "header_without_array" else "header without its array sample")
+            self._pair_drops_seen[reason] = n
 
     def _drain(self) -> None:
         """Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than the
@@ -342,15 +395,15 @@ class HeadingEstimatorNode(Node):
             with self._pending_lock:
                 if not self.pending:
                     return
-                t_ns, _, _, _, _, deadline = self.pending[0]
+                t_ns, _, _, _, _, deadline, _ = self.pending[0]
                 newest = self.imu.newest_ns
                 lagging = newest is not None and t_ns - wait_ns <= newest < t_ns
                 if self.needs_tilt and lagging and time.monotonic() < deadline and len(self.pending) <= 2:
                     return
                 item = self.pending.popleft()
-            self._process(*item[:5])
+            self._process(*item[:5], frame_id=item[6])
 
-    def _process(self, t_ns: int, mosaic, width: int, height: int, t_in: float) -> None:
+    def _process(self, t_ns: int, mosaic, width: int, height: int, t_in: float, frame_id: str | None = None) -> None:
         p = self.params
         status = {"stamp_ns": t_ns, "method": self.method}
         try:
@@ -402,8 +455,9 @@ class HeadingEstimatorNode(Node):
             values = (result.yaw_enu_deg, result.sigma_deg, result.bearing_deg)
             if all(v is not None and math.isfinite(v) for v in values):
                 sigma = max(float(result.sigma_deg), p["sigma_floor_deg"], 1e-9)
-                self.pub_heading.publish(heading_imu(t_ns, p["frame_id"], math.radians(result.yaw_enu_deg),
-                                                     math.radians(sigma) ** 2, p["roll_pitch_variance_rad2"]))
+                self.pub_heading.publish(heading_imu(t_ns, frame_id or p["frame_id"],
+                                                     math.radians(result.yaw_enu_deg), math.radians(sigma) ** 2,
+                                                     p["roll_pitch_variance_rad2"]))
                 self.pub_bearing.publish(Float64(data=float(result.bearing_deg)))
                 published = True
                 self.tilt_prior.remember(t_ns, result)

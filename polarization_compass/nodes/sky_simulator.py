@@ -10,6 +10,10 @@ Publishes (relative names):
                             of the turn, gravity; ``imu_rate_hz``
   ``ground_truth/heading``  sensor_msgs/Imu, the true heading in the estimator's form (yaw only)
   ``gps/fix``               sensor_msgs/NavSatFix of the site, 1 Hz
+  ``compass_array/intensities`` + ``compass_array/header``  with ``array_geometry`` (or a scene's
+                            ``photodiode_array``): each frame's photodiode-array sample (Float32MultiArray)
+                            and, published just before it, its std_msgs/Header (the frame's stamp,
+                            ``heading_frame_id``), as docs/photodiode-arrays.md asks of an array driver
   ``/clock``                with clock_mode sim
   ``/diagnostics``
 
@@ -36,7 +40,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-from std_msgs.msg import Float32MultiArray, String
+from std_msgs.msg import Float32MultiArray, Header, String
 
 from ..bag import decode_orientation, ns_from_utc, stamp_ns
 from ..camera import PixelSelection
@@ -107,6 +111,8 @@ class SkySimulatorNode(Node):
         self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
         self.pub_array = (self.create_publisher(Float32MultiArray, topics.ARRAY, img_qos)
                           if self.renderer.array is not None else None)
+        self.pub_array_header = (self.create_publisher(Header, topics.ARRAY_HEADER, img_qos)
+                                 if self.renderer.array is not None else None)
         self.pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, img_qos)
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
@@ -263,7 +269,8 @@ class SkySimulatorNode(Node):
         self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
         self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
         self.pub_image.publish(img[0])
-        if img[1] is not None:
+        if img[1] is not None:          # the header first, then its sample (paired by publication time)
+            self.pub_array_header.publish(Header(stamp=time_msg(t_ns), frame_id=p["heading_frame_id"]))
             self.pub_array.publish(img[1])
         self.pub_frames.publish(String(data=json.dumps({"stamp_ns": int(t_ns), "wall_ns": time.time_ns()})))
         self.frames += 1

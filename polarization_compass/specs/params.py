@@ -377,9 +377,20 @@ ESTIMATOR = (
     Param("method", "least_squares", "heading method (one node per method)", choices=ALL_METHODS,
           read_only=True),
     Param("input", "image", "image: a polarization camera on camera/image_raw; array: a photodiode-array "
-                            "compass on compass_array/intensities (std_msgs/Float32MultiArray, units x channels, "
-                            "stamped on arrival; docs/photodiode-arrays.md)", choices=("image", "array"),
+                            "compass on compass_array/intensities (std_msgs/Float32MultiArray, units x channels; "
+                            "stamped as array_stamp says; docs/photodiode-arrays.md)", choices=("image", "array"),
           read_only=True),
+    Param("array_stamp", "header", "input array: header = each sample takes the stamp and frame_id of the "
+                                   "std_msgs/Header its driver publishes beside it on compass_array/header "
+                                   "(paired by arrival time; unpaired samples are dropped and counted); "
+                                   "arrival = this node's clock when the sample arrives (drivers without a "
+                                   "header; latency becomes heading lag)", choices=("header", "arrival"),
+          read_only=True),
+    Param("array_header_tolerance_s", 0.04, "array_stamp header: largest difference of the arrival times of "
+                                            "a sample and its header (keep below half the sample interval)",
+          0.0, 1.0, unit="s", read_only=True),
+    Param("array_header_timeout_s", 0.5, "array_stamp header: how long a sample waits for its header before "
+                                         "it is dropped (wall clock)", 0.001, 60.0, unit="s", read_only=True),
     Param("array_geometry", "", "input array: the sensor description YAML (units, channels_deg, angle_zero, "
                                 "angle_sense, gains)", read_only=True),
     Param("demosaic", "superpixel", "how the 2x2 mosaic becomes AoP/DoP", choices=("superpixel", "bilinear")),

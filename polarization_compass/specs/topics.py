@@ -10,7 +10,7 @@ ROS-free: no rclpy import here.
 """
 from __future__ import annotations
 
-__all__ = ["IMAGE", "ARRAY", "T_FLOAT32_MULTIARRAY", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
+__all__ = ["IMAGE", "ARRAY", "ARRAY_HEADER", "T_FLOAT32_MULTIARRAY", "T_HEADER", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
            "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
            "evaluator_streams",
            "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
@@ -27,10 +27,12 @@ T_STRING = "std_msgs/msg/String"
 T_FLOAT64 = "std_msgs/msg/Float64"
 T_QUAT_STAMPED = "geometry_msgs/msg/QuaternionStamped"
 T_FLOAT32_MULTIARRAY = "std_msgs/msg/Float32MultiArray"
+T_HEADER = "std_msgs/msg/Header"
 
 IMAGE = "camera/image_raw"              # the polarization mosaic, as a camera driver publishes it
 CAMERA_INFO = "camera/camera_info"
 ARRAY = "compass_array/intensities"     # photodiode-array readings, units x channels (docs/photodiode-arrays.md)
+ARRAY_HEADER = "compass_array/header"   # the stamp and frame of each array sample, published beside it
 IMU = "imu/data"                        # attitude of base_link in ENU (roll/pitch used)
 TRUTH = "ground_truth/heading"          # simulator only: true heading, same Imu form as the estimate
 FIX = "gps/fix"                         # site (latitude/longitude/altitude)
@@ -86,7 +88,7 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
         Message type of the attitude input: ``"imu"`` (Imu), anything else QuaternionStamped
         (the simulator's ``attitude_topic_type`` parameter).
     array : bool, default False
-        Also publish a photodiode-array compass's readings.
+        Also publish a photodiode-array compass's readings and the companion header of each.
 
     Returns
     -------
@@ -96,7 +98,7 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
     pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
             (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
     if array:
-        pubs.append((ARRAY, T_FLOAT32_MULTIARRAY))
+        pubs += [(ARRAY, T_FLOAT32_MULTIARRAY), (ARRAY_HEADER, T_HEADER)]
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
@@ -106,7 +108,7 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
 
 
 def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: bool = False,
-                     prior_source: str = "none", input_kind: str = "image"):
+                     prior_source: str = "none", input_kind: str = "image", array_stamp: str = "header"):
     """Return the topics a ``heading_estimator`` publishes and subscribes to.
 
     Parameters
@@ -121,6 +123,8 @@ def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: b
         ``"imu"`` adds the IMU subscription as well.
     input_kind : {"image", "array"}, default "image"
         Camera image and camera_info, or a photodiode array's readings.
+    array_stamp : {"header", "arrival"}, default "header"
+        With an array input, ``"header"`` adds the companion header subscription.
 
     Returns
     -------
@@ -130,7 +134,10 @@ def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: b
     t = method_topics(method)
     pubs = [(t["heading_raw"], T_IMU), (t["bearing_raw"], T_FLOAT64), (t["status"], T_STRING),
             (DIAGNOSTICS, T_DIAG)]
-    subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] if input_kind == "array" else [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
+    if input_kind == "array":
+        subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] + ([(ARRAY_HEADER, T_HEADER)] if array_stamp == "header" else [])
+    else:
+        subs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
     if site_source == "navsatfix":
         subs.append((FIX, T_FIX))
     if needs_tilt or prior_source == "imu":
