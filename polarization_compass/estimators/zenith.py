@@ -153,7 +153,24 @@ def side_grid_px(camera: CameraModel, n: int):
     """Return the 1-based pixel columns and rows (eq 20) of an ``n`` x ``n`` grid spread evenly over the sensor.
 
     The same pixels as ``PixelSelection.grid(n, n)`` (centres of equal blocks, rounded), clipped to the
-    sensor size. Parameters: ``camera`` the camera, ``n`` the grid size (>= 1). Returns ``(xs, ys)`` int arrays.
+    sensor size; the zenith method decides its 180 deg side from them.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera (its sensor size [px]).
+    n : int
+        Grid size (>= 1) along each axis.
+
+    Returns
+    -------
+    xs, ys : numpy.ndarray of int
+        Columns and rows [sensor pixels, 1-based]; the grid is their outer product.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20.
     """
     W, H = int(camera.width_px), int(camera.height_px)
     nx, ny = min(n, W), min(n, H)
