@@ -359,6 +359,9 @@ ARGUMENTS = {
         LaunchArg("frame_id", "base_link", "frame_id of the published heading (z up)"),
         LaunchArg("namespace", "", "namespace of the compass nodes"),
         LaunchArg("use_sim_time", "false", "use /clock", "bool"),
+        LaunchArg("sky_check", "true", "check every heading against the whole sky (misfit sigma, 180 deg side, "
+                  "poor_fit/inconsistent): a real sky is not the model, so a wrong heading is never 'ok' "
+                  "unchecked (~15-30 ms per image)", "bool"),
         _COMMON[0],
     ),
     "replay": (
@@ -662,7 +665,7 @@ def sim_graph(methods=PAPER_METHODS, tilt_aware=True, encoding="mono16", rate_hz
 
 def compass_graph(method="least_squares", correction="error_map", image_topic=T.IMAGE,
                   camera_info_topic=T.CAMERA_INFO, imu_topic=T.IMU, fix_topic=T.FIX, site_source="navsatfix",
-                  frame_id="base_link", namespace="", use_sim_time=False, error_map="") -> Graph:
+                  frame_id="base_link", namespace="", use_sim_time=False, error_map="", sky_check=True) -> Graph:
     """Return the ``compass`` graph: a real camera and IMU, one estimator and its corrector.
 
     Parameters
@@ -683,6 +686,9 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
         Use ``/clock``.
     error_map : str
         Tilt error map (.npz) ("" = the map shipped with the package).
+    sky_check : bool, default True
+        The estimator checks every heading against the whole sky (its ``sky_check`` parameter): on
+        real skies a heading is ``ok`` only when the whole sky agrees (docs/real-cameras.md).
 
     Returns
     -------
@@ -692,7 +698,8 @@ def compass_graph(method="least_squares", correction="error_map", image_topic=T.
     remaps = tuple((a, b) for a, b in ((T.IMAGE, image_topic), (T.CAMERA_INFO, camera_info_topic),
                                         (T.IMU, imu_topic), (T.FIX, fix_topic)) if a != b)
     common = {"use_sim_time": bool(use_sim_time)}
-    nodes = [_estimator(method, {**common, "site_source": site_source, "frame_id": frame_id}, remaps, namespace)]
+    nodes = [_estimator(method, {**common, "site_source": site_source, "frame_id": frame_id,
+                                 "sky_check": bool(sky_check)}, remaps, namespace)]
     if not registry.get(method).needs_tilt:          # a method that reads the tilt needs no corrector
         nodes.append(_corrector(method, {**common, "site_source": site_source, "correction": correction,
                                          "error_map": error_map}, remaps, namespace))

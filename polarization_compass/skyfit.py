@@ -27,7 +27,7 @@ import numpy as np
 from .conventions import R_sun_cam_from_attitude, wrap_180_deg
 
 __all__ = ["SkySample", "SkyFit", "sample_sky", "fit_sky", "misfit_at", "jackknife_sigma_deg",
-           "side_preference", "CAUCHY_SCALE_DEG", "OUTLIER_DEG"]
+           "side_preference", "side_votes", "CAUCHY_SCALE_DEG", "OUTLIER_DEG"]
 
 #: Cauchy loss scale: residuals well beyond it (cloud, flare, a foreign object) stop pulling the fit
 CAUCHY_SCALE_DEG = 5.0
@@ -231,6 +231,24 @@ def side_preference(sample: SkySample, psi_deg: float, sun_altitude_deg: float, 
     return out
 
 
+def side_votes(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
+               roll_deg: float = 0.0):
+    """Return the whole sky's votes on the 180 deg side of ``psi_deg`` and their values.
+
+    Each of :func:`side_preference`'s two measures votes +1 (``psi_deg``) or -1 (``psi_deg + 180``) when it
+    exceeds its threshold (:data:`PATTERN_VOTE`, :data:`BRIGHTNESS_VOTE`), else abstains. Returns ``(votes,
+    values)``: the list of votes and ``{"pattern": ..., "brightness": ...}`` rounded for reports.
+    """
+    pref = side_preference(sample, psi_deg, sun_altitude_deg, pitch_deg, roll_deg)
+    votes = []
+    if abs(pref["pattern"]) > PATTERN_VOTE:
+        votes.append(1 if pref["pattern"] > 0 else -1)
+    b = pref["brightness"]
+    if b is not None and abs(b) > BRIGHTNESS_VOTE:
+        votes.append(1 if b > 0 else -1)
+    return votes, {"pattern": round(pref["pattern"], 4), "brightness": None if b is None else round(b, 4)}
+
+
 # --------------------------------------------------------------------------------------------
 # Assessment of an estimator's result against the whole sky (honest sigma and status on real skies)
 # --------------------------------------------------------------------------------------------
@@ -276,14 +294,7 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
     check = {}
     side_note = ""
     if prior_bearing_deg is None:
-        pref = side_preference(sample, psi, sun_altitude_deg, pitch, roll)
-        votes = []
-        if abs(pref["pattern"]) > PATTERN_VOTE:
-            votes.append(1 if pref["pattern"] > 0 else -1)
-        b = pref["brightness"]
-        if b is not None and abs(b) > BRIGHTNESS_VOTE:
-            votes.append(1 if b > 0 else -1)
-        check["side_votes"] = {"pattern": round(pref["pattern"], 4), "brightness": None if b is None else round(b, 4)}
+        votes, check["side_votes"] = side_votes(sample, psi, sun_altitude_deg, pitch, roll)
         if votes and all(v < 0 for v in votes):
             psi = float(wrap_180_deg(psi + 180.0))
             side_note = "; 180 deg side re-decided by the whole sky (AoP pattern and brightness)"

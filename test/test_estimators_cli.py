@@ -144,7 +144,13 @@ def test_mosaic_front_end_reads_the_same_pixels(noisy_full, demo):
                                    saturation_level=4095)
     assert np.array_equal(full.aop_rad, f.aop_rad) and np.array_equal(full.x_px, f.x_px)
     assert np.allclose(full.rays_cam, f.rays_cam, atol=1e-7)
-    for name, kn in (("zenith", {}), ("sm_asm", {"stride": 8}), ("least_squares", {"stride": 12})):
+    # zenith with its whole-sky side grid wants an explicit pixel list: the front end demosaics it all
+    sel = make_estimator("zenith").pixels_needed(sc.camera)
+    assert sel.mode == "list"
+    sub = observation_from_mosaic(f.mosaic, sc.camera, 0.0, 40.0, origin_px=origin, method=demo, selection=sel,
+                                  saturation_level=4095)
+    assert np.array_equal(sub.aop_rad, full.aop_rad)
+    for name, kn in (("zenith", {"side_grid": 0}), ("sm_asm", {"stride": 8}), ("least_squares", {"stride": 12})):
         sel = make_estimator(name, **kn).pixels_needed(sc.camera)
         sub = observation_from_mosaic(f.mosaic, sc.camera, 0.0, 40.0, origin_px=origin, method=demo,
                                       selection=sel, saturation_level=4095)

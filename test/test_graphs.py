@@ -154,6 +154,21 @@ def test_default_graphs_connect_without_remapping():
     assert len(g.nodes) == 1 + 5 + 4 + 1
 
 
+def test_real_camera_graph_checks_against_the_whole_sky_by_default():
+    """A real sky is not the model: the compass graph's estimator runs the whole-sky check unless told not to;
+    the simulated graph's skies are the model, so the node's own default (off) stands there."""
+    from polarization_compass.specs.params import SPECS as P
+    node_default = {p.name: p.default for p in P["heading_estimator"]}["sky_check"]
+    assert node_default is False
+    for method in ("zenith", "least_squares", "tilt_aware"):
+        est = graphs.build("compass", {"method": method}).node(f"heading_estimator_{method}")
+        assert est.parameters["sky_check"] is True
+    est = graphs.build("compass", {"method": "zenith", "sky_check": "false"}).node("heading_estimator_zenith")
+    assert est.parameters["sky_check"] is False
+    for n in graphs.build("sim", {}).nodes:
+        assert "sky_check" not in n.parameters
+
+
 def test_compass_graph_remaps_inputs_and_namespaces():
     g = graphs.build("compass", {"method": "zenith", "image_topic": "/pol/image_raw", "namespace": "front",
                                  "imu_topic": "/vn/imu"})

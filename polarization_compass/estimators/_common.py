@@ -585,20 +585,23 @@ def brightness_t_from_stats(stats, direction_cam) -> float | None:
 
 
 def resolve_ambiguity(name: str, first: Candidate, second: Candidate, brightness: float | None, obs: Observation,
-                      knobs: dict, sun_rule=None):
+                      knobs: dict, sun_rule=None, rule_name: str = "sun_elevation", use_brightness: bool = True):
     """Pick one of two candidates 180 deg apart; returns (candidate, resolved_by or None, reason).
 
-    Order: ``sun_rule`` (a callable giving (candidate or None, reason) from the sun's elevation), the
-    sky's brightness gradient (``brightness``: the t statistic of intensity against ``r . (s_first -
-    s_second)``, None without intensity), the prior bearing. Unresolved: ``first`` and None."""
+    Order: ``sun_rule`` (a callable giving (candidate or None, reason), e.g. from the sun's elevation;
+    ``resolved_by`` is then ``rule_name``), the sky's brightness gradient (``brightness``: the t statistic
+    of intensity against ``r . (s_first - s_second)``, None without intensity; not consulted when
+    ``use_brightness`` is False), the prior bearing. Unresolved: ``first`` and None."""
     reasons = []
     if sun_rule is not None:
         pick, why = sun_rule()
         if pick is not None:
-            return pick, "sun_elevation", why
+            return pick, rule_name, why
         reasons.append(why)
     t = brightness
-    if t is not None:
+    if not use_brightness:
+        pass
+    elif t is not None:
         if abs(t) >= knobs["brightness_min_t"]:
             pick = first if t > 0 else second
             return pick, "brightness", f"sun side from the brightness gradient (t = {t:.1f})"

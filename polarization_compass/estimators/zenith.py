@@ -21,7 +21,10 @@ of the plane through the pixel's ray and the sun, not of the meridian plane; one
 the meridian only together with the sun's altitude. Step 3 is where the altitude enters.
 
 The result is axial (the zenith E-vector does not say which end of the meridian holds the sun) unless
-the brightness gradient of the window or a prior bearing resolves it. Uncertainty: to first order
+the whole sky (a sparse grid of pixels over the sensor: the AoP pattern at the sun's altitude and the
+half-sky brightness, :func:`polarization_compass.skyfit.side_votes`) or a prior bearing resolves it --
+never the window's own brightness gradient, which lens-flare ghosts opposite the sun can dominate (a
+real frame gave 177 deg error that way). Uncertainty: to first order
 ``d psi = -sum_i w_i da_i / sum w``; ``da_i`` is the residual against the Rayleigh AoP of the fitted
 sun; cluster-robust over blocks of ``block_px`` (default 4 sensor pixels: the window is small).
 
@@ -40,7 +43,7 @@ from numba import njit
 
 from ..camera import CameraModel, PixelSelection
 from .base import Estimator, HeadingResult, Observation, Status
-from ._common import (Knob, KnobbedEstimator, _BadInput, axial_residual_rad, brightness_t_from_stats, check_sun,
+from ._common import (Knob, KnobbedEstimator, _BadInput, axial_residual_rad, check_sun,
                       cluster_sigma_rad, finish_sigma_deg, level_sun_candidates, psi_from_sun_rad, rayleigh_aop_rad,
                       resolve_ambiguity, result_from, samples_from_view, select_view)
 from ._kernels import N_STATS, acc_brightness, acc_sym
@@ -146,6 +149,104 @@ def _eigh3(m):  # pragma: no cover - compiled
     return np.linalg.eigh(M)
 
 
+def side_grid_px(camera: CameraModel, n: int):
+    """Return the 1-based pixel columns and rows (eq 20) of an ``n`` x ``n`` grid spread evenly over the sensor.
+
+    The same pixels as ``PixelSelection.grid(n, n)`` (centres of equal blocks, rounded), clipped to the
+    sensor size; the zenith method decides its 180 deg side from them.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera (its sensor size [px]).
+    n : int
+        Grid size (>= 1) along each axis.
+
+    Returns
+    -------
+    xs, ys : numpy.ndarray of int
+        Columns and rows [sensor pixels, 1-based]; the grid is their outer product.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+    """
+    W, H = int(camera.width_px), int(camera.height_px)
+    nx, ny = min(n, W), min(n, H)
+    xs = np.rint(0.5 + (np.arange(nx) + 0.5) * W / nx).astype(np.int64)
+    ys = np.rint(0.5 + (np.arange(ny) + 0.5) * H / ny).astype(np.int64)
+    return xs, ys
+
+
+@lru_cache(maxsize=64)
+def _pixels_needed(camera: CameraModel, window_px: int, side_grid: int) -> PixelSelection:
+    """The zenith window plus the whole-sky side grid as one explicit pixel list (cached per camera)."""
+    (x_lo, x_hi, y_lo, y_hi), sel = zenith_window(camera, window_px)
+    if side_grid <= 0:
+        return sel
+    wx, wy = np.meshgrid(np.arange(x_lo, x_hi + 1), np.arange(y_lo, y_hi + 1))
+    gx, gy = np.meshgrid(*side_grid_px(camera, side_grid))
+    outside = ~((gx >= x_lo) & (gx <= x_hi) & (gy >= y_lo) & (gy <= y_hi))
+    return PixelSelection.explicit(np.concatenate([wx.ravel(), gx[outside]]),
+                                   np.concatenate([wy.ravel(), gy[outside]]))
+
+
+def _side_sample(obs: Observation, side_grid: int):
+    """The observation's pixels nearest the whole-sky side grid (:func:`side_grid_px`) as a
+    :class:`~polarization_compass.skyfit.SkySample`, or None when fewer than 30 are usable.
+
+    A 2-D observation is read at the nearest row and column to each grid pixel; a 1-D pixel list at the grid
+    pixels it contains. Either way a frame and a sweep that renders :meth:`ZenithEstimator.pixels_needed`
+    read the same pixels."""
+    from ..skyfit import sample_sky
+    gx, gy = side_grid_px(obs.camera, side_grid)
+    aop = np.asarray(obs.aop_rad)
+    if aop.ndim == 2:
+        xa = np.asarray(obs.x_px, dtype=float)[0]
+        ya = np.asarray(obs.y_px, dtype=float)[:, 0]
+        ci = np.unique(np.clip(np.searchsorted(xa, gx), 0, xa.size - 1))
+        ri = np.unique(np.clip(np.searchsorted(ya, gy), 0, ya.size - 1))
+        ix = np.ix_(ri, ci)
+        W = aop.shape[1]
+        flat = (ri[:, None] * W + ci[None, :]).reshape(-1)
+        pick = (aop[ix], np.asarray(obs.dop)[ix], np.asarray(obs.valid)[ix],
+                np.asarray(obs.rays_cam).reshape(3, -1)[:, flat],
+                None if obs.intensity is None else np.asarray(obs.intensity)[ix])
+    else:
+        W = int(obs.camera.width_px) + 1
+        key = np.rint(np.asarray(obs.y_px, dtype=float)).astype(np.int64) * W + \
+            np.rint(np.asarray(obs.x_px, dtype=float)).astype(np.int64)
+        want = (gy[:, None] * W + gx[None, :]).reshape(-1)
+        sel = np.flatnonzero(np.isin(key.reshape(-1), want))
+        pick = (aop.reshape(-1)[sel], np.asarray(obs.dop).reshape(-1)[sel], np.asarray(obs.valid).reshape(-1)[sel],
+                np.asarray(obs.rays_cam).reshape(3, -1)[:, sel],
+                None if obs.intensity is None else np.asarray(obs.intensity).reshape(-1)[sel])
+    return sample_sky(*pick[:4], intensity=pick[4], max_pixels=side_grid * side_grid)
+
+
+def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dict):
+    """Decide the 180 deg side from the whole sky: (candidate or None, reason).
+
+    The votes of :func:`polarization_compass.skyfit.side_votes` (the AoP pattern at the ephemeris sun
+    altitude, and the brightness of the half-sky towards each candidate sun) over the side grid: all
+    votes for one candidate decide; no vote, disagreeing votes or too little sky leave it open. The
+    votes go to ``extras["side_votes"]``."""
+    from ..skyfit import side_votes
+    if side_grid <= 0:
+        return None, "no whole-sky side grid (side_grid 0)"
+    sample = _side_sample(obs, side_grid)
+    if sample is None:
+        return None, "too little usable sky outside the zenith window to decide the 180 deg side"
+    votes, extras["side_votes"] = side_votes(sample, math.degrees(first.psi_rad), float(obs.sun_altitude_deg))
+    if votes and all(v > 0 for v in votes):
+        return first, "sun side decided by the whole sky (AoP pattern and half-sky brightness)"
+    if votes and all(v < 0 for v in votes):
+        return second, "sun side decided by the whole sky (AoP pattern and half-sky brightness)"
+    return None, ("the whole sky's side votes disagree" if votes else "the whole sky does not tell the side "
+                  "(sun altitude near 0 or 90 deg and no brightness contrast)")
+
+
 class ZenithEstimator(KnobbedEstimator, Estimator):
     """Estimate the heading by the paper's zenith approach (level camera).
 
@@ -184,7 +285,10 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
     sweep_knobs = {}                    # reads its 32 x 32 px window at the image centre
     relative_cost = 0.7
     OWN_KNOBS = {"window_px": Knob(32, "int", 1, 2048, doc="side of the square window at the image centre, "
-                                                           "sensor pixels")}
+                                                           "sensor pixels"),
+                 "side_grid": Knob(32, "int", 0, 512, doc="the 180 deg side is decided from a side_grid x "
+                                                          "side_grid grid of pixels over the whole sensor "
+                                                          "(0: only a prior bearing decides it)")}
     KNOB_DEFAULTS = {"min_pixels": 4, "block_px": 4, "min_dop": 0.0}
     NO_KNOBS = ("stride", "region")    # it reads its window, every pixel
 
@@ -203,17 +307,18 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
         Returns
         -------
         PixelSelection
-            The zenith window (:func:`zenith_window`).
+            The zenith window (:func:`zenith_window`), plus the whole-sky grid that decides the 180
+            deg side (:func:`side_grid_px`) unless ``side_grid`` is 0.
         """
-        return zenith_window(camera, self.knobs["window_px"])[1]
+        return _pixels_needed(camera, self.knobs["window_px"], self.knobs["side_grid"])
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
         """Estimate one heading from the E-vectors of the zenith window.
 
         The dominant eigenvector of the window's ``sum e e^T`` is the zenith E-vector axis; the sun
         lies on the plane perpendicular to it at the ephemeris altitude, which gives psi and psi +
-        180 deg; the brightness gradient of the window or a prior bearing may resolve that
-        ambiguity.
+        180 deg; the whole sky (the ``side_grid`` pixels) or a prior bearing may resolve that
+        ambiguity, never the window alone.
 
         Parameters
         ----------
@@ -283,10 +388,16 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
         psi = psi_from_sun_rad(s)
         first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
         first.sun_cam = s                            # the exact fit (the other end is the level mirror)
-        bt = brightness_t_from_stats(stats if has_i and not cnt[3] and n >= 10 else None,
-                                     first.sun_cam - second.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
         extras = {"window_px": k["window_px"]}
+        # the 180 deg side: a prior bearing when given, else the whole sky (a sparse grid over the sensor)
+        # -- never the window's own brightness gradient, which lens-flare ghosts opposite the sun can dominate
+        pick, by, reason = resolve_ambiguity(self.name, first, second, None, obs, k, use_brightness=False)
+        if by is None:
+            sky_pick, why = _whole_sky_side(obs, k["side_grid"], first, second, extras)
+            if sky_pick is not None:
+                pick, by, reason = sky_pick, "whole_sky", why
+            else:
+                reason = f"{reason}; {why}"
         sigma_deg = None
         if sigma:
             smp = samples_from_view(view, k["min_dop"])
