@@ -149,3 +149,38 @@ def test_least_squares_robust_refit_ignores_a_disagreeing_sector(frame, method):
     a = make_estimator(method, stride=2).estimate(clean)
     b = make_estimator(method, stride=2, outlier_deg=10.0).estimate(clean)
     assert b.extras["outliers_dropped"] == 0 and b.psi_deg == a.psi_deg        # a clean sky: nothing changes
+
+
+def test_outlier_trim_pass_matches_an_independent_aop_residual():
+    """The compiled trim (float32, doubled angles, no trig of the residual) drops exactly the pixels whose
+    axial AoP residual against the Rayleigh AoP of E = S x P (eq 18, 28: atan2(E_x, E_y)) exceeds the limit,
+    away from the limit itself; invalid pixels stay invalid, NaN AoP is kept for the fit's own pass."""
+    import dataclasses
+
+    from polarization_compass.estimators.least_squares import _trim_outliers
+    rng = np.random.default_rng(3)
+    n = 20000
+    rays = rng.normal(size=(3, n))
+    rays[2] = np.abs(rays[2])
+    rays = (rays / np.linalg.norm(rays, axis=0)).astype(np.float32)
+    sun = np.array([0.3, -0.5, 0.81])
+    sun /= np.linalg.norm(sun)
+    E = np.cross(sun[None, :], rays.T.astype(np.float64))
+    model = np.arctan2(E[:, 0], E[:, 1])
+    resid = rng.uniform(-90.0, 90.0, n)
+    aop = (model + np.radians(resid) + np.pi * rng.integers(-2, 3, n)).astype(np.float32)
+    valid = rng.random(n) > 0.1
+    aop[:5] = np.nan
+
+    @dataclasses.dataclass
+    class V:
+        aop: np.ndarray
+        valid: np.ndarray
+        rays: np.ndarray
+    out, dropped = _trim_outliers(V(aop, valid, rays), sun, 15.0)
+    far = np.abs(resid) > 15.0
+    clear = np.abs(np.abs(resid) - 15.0) > 1e-3
+    want = valid & ~(far & np.isfinite(aop))
+    assert np.array_equal(out.valid[clear], want[clear])
+    assert dropped == int((valid & ~out.valid).sum()) and dropped > 0.5 * valid.sum()
+    assert out.valid[:5].tolist() == valid[:5].tolist()

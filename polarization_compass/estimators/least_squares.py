@@ -41,7 +41,8 @@ from .base import Estimator, HeadingResult, Observation, Status
 from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, cr1_factor,
                       finish_sigma_deg, psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
                       view_grid_layout, view_segments)
-from ._kernels import full_pass, sub_pass
+from ._kernels import _FM, full_pass, sub_pass
+from ..fastmath import sincos32_folded as _sincos32
 
 __all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
 
@@ -175,9 +176,15 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
 
 def _consensus_sun(view, obs):
     """Return the camera-frame sun of the robust whole-view fit (:func:`polarization_compass.skyfit.fit_sky`
-    at the ephemeris altitude and the known tilt, level when unknown), or None with too few pixels."""
+    at the ephemeris altitude and the known tilt, level when unknown), or None with too few pixels.
+
+    The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about 20000
+    first (a regular step through its pixels) so that picking them does not scan a multi-megapixel frame."""
     from ..skyfit import _sun_cam, fit_sky, sample_sky
-    sample = sample_sky(view.aop, view.dop, view.valid, view.rays, max_pixels=2000)
+    n = int(np.size(view.aop))
+    step = max(1, n // 20000)
+    sample = sample_sky(np.ravel(view.aop)[::step], np.ravel(view.dop)[::step], np.ravel(view.valid)[::step],
+                        np.asarray(view.rays).reshape(3, -1)[:, ::step], max_pixels=2000)
     if sample is None:
         return None
     p = float(obs.pitch_deg) if obs.pitch_deg is not None else 0.0
@@ -186,27 +193,50 @@ def _consensus_sun(view, obs):
     return _sun_cam([f.psi_deg], [f.sun_altitude_deg], p, r)[0]
 
 
+@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
+def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no cover - compiled
+    """One pass: ``keep[i] = valid[i]`` unless pixel i's AoP is further than the limit from the Rayleigh AoP
+    of the sun ``(s0, s1, s2)``: ``cos 2(a - m) < cos_lim`` with ``m`` the eq 28 angle of ``E = S x P``
+    (eq 18), from doubled angles (no angle subtraction). float32, branch-free with the vectorising
+    ``sincos32_folded`` (a non-finite AoP compares false and is kept, as the fit's own pass decides
+    about it). Returns how many valid pixels were dropped."""
+    f0 = np.float32(0.0)
+    f2 = np.float32(2.0)
+    t0, t1, t2 = np.float32(s0), np.float32(s1), np.float32(s2)
+    lim = np.float32(cos_lim)
+    tiny = np.float32(1e-24)
+    dropped = 0.0
+    for i in range(aop.size):
+        px, py, pz = rays[0, i], rays[1, i], rays[2, i]
+        ex = t1 * pz - t2 * py
+        ey = t2 * px - t0 * pz
+        n2 = ex * ex + ey * ey
+        sa, ca = _sincos32(np.float32(aop[i]))
+        num = (ca * ca - sa * sa) * (ey * ey - ex * ex) + f2 * sa * ca * f2 * ex * ey     # cos 2(a - m) * n2
+        drop = valid[i] and n2 > tiny and num < lim * n2
+        keep[i] = valid[i] and not drop
+        x = 1.0 if drop else 0.0
+        dropped += x
+    return int(dropped)
+
+
 def _trim_outliers(view, sun_cam, outlier_deg: float):
     """Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of ``sun_cam``.
 
     The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial difference,
     computed from doubled angles. Returns the view with those pixels invalid and how many were dropped
     (of the valid ones). This is the consensus step of the robust refit (``outlier_deg`` knob): a fit
-    that clouds, flare ghosts or an obstacle pulled is refitted on the pixels that agree with it.
+    that clouds, flare ghosts or an obstacle pulled is refitted on the pixels that agree with it. One
+    compiled pass over the pixels the estimator already reads, no temporaries (:func:`_outlier_pass`).
     """
     from dataclasses import replace
-    P = np.asarray(view.rays, dtype=np.float64)
+    valid = np.asarray(view.valid, dtype=bool)
+    keep = np.empty(valid.shape, dtype=bool)
     s = np.asarray(sun_cam, dtype=np.float64)
-    ex = s[1] * P[2] - s[2] * P[1]
-    ey = s[2] * P[0] - s[0] * P[2]
-    a = np.asarray(view.aop, dtype=np.float64)
-    n2 = ex * ex + ey * ey
-    ok = n2 > 1e-24
-    safe = np.where(ok, n2, 1.0)
-    c2m, s2m = (ey * ey - ex * ex) / safe, 2 * ex * ey / safe        # cos 2m, sin 2m of m = atan2(ex, ey)
-    c = np.cos(2 * a) * c2m + np.sin(2 * a) * s2m                     # cos 2(a - m)
-    bad = np.asarray(view.valid, dtype=bool) & ok & (c < math.cos(math.radians(2.0 * outlier_deg)))
-    return replace(view, valid=np.asarray(view.valid, dtype=bool) & ~bad), int(bad.sum())
+    rays = np.asarray(view.rays)
+    dropped = _outlier_pass(np.ravel(view.aop), np.ravel(valid), rays.reshape(3, -1), float(s[0]), float(s[1]),
+                            float(s[2]), math.cos(math.radians(2.0 * outlier_deg)), keep.reshape(-1))
+    return replace(view, valid=keep), int(dropped)
 
 
 class _LSBase(KnobbedEstimator, Estimator):
