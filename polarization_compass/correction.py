@@ -39,7 +39,8 @@ import numpy as np
 from numba import njit
 
 from .conventions import psi_to_bearing_deg, wrap_180_deg, wrap_180_deg_float
-from .errormap import ErrorMap, ErrorMapError, load_error_map
+from .errormap import ErrorMap, ErrorMapError
+from .errormap_io import load_error_map
 
 __all__ = ["TiltCorrector", "Correction", "CorrectionStatus", "STATUS_INT", "default_map_path",
            "DEFAULT_MAP_NAME", "REGENERATE_DEFAULT_MAP"]

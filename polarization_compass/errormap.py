@@ -28,7 +28,7 @@ nodes one grid step outside the diamond are computed; everything further out is 
 
 The sweep that computes a map (chunks, workers, checkpoints, resume) is :mod:`polarization_compass.sweep`;
 this module is the map type the nodes and the correction read. The same map as a labelled xarray Dataset, in a
-Zarr store or one NetCDF 3 file: :mod:`polarization_compass.errormap_store`; :func:`load_error_map` reads
+Zarr store or one NetCDF 3 file: :mod:`polarization_compass.errormap_store`; :func:`~polarization_compass.errormap_io.load_error_map` reads
 ``.npz``, NetCDF and complete Zarr stores.
 """
 from __future__ import annotations
@@ -42,7 +42,7 @@ import numpy as np
 
 from .errors import CompassError
 
-__all__ = ["ErrorMap", "ErrorMapError", "load_error_map", "tilt_domain_mask", "AXES", "STATUS_CODES",
+__all__ = ["ErrorMap", "ErrorMapError", "read_npz_map", "tilt_domain_mask", "AXES", "STATUS_CODES",
            "STATUS_NOT_COMPUTED", "STATUS_ESTIMATOR_ERROR", "STATUS_OTHER", "STATUS_LEGEND",
            "DEFAULT_TILT_LIMIT_DEG", "FORMAT_VERSION"]
 
@@ -356,19 +356,17 @@ def _check_map_headers(name: str, h: dict) -> None:
                             f"got {m.dtype} of shape {m.shape}")
 
 
-def load_error_map(path) -> ErrorMap:
-    """Load and validate a map (never unpickles).
+def read_npz_map(path) -> ErrorMap:
+    """Read and validate an ``.npz`` map written by :meth:`ErrorMap.save` (never unpickles).
 
     Bounded: only a regular file is opened, and the shapes its arrays declare are checked
     (:func:`_check_map_headers`) before anything is decompressed; deeply nested meta JSON is an
-    error too.
+    error too. :func:`polarization_compass.errormap_io.load_error_map` reads every map format.
 
     Parameters
     ----------
     path : str or os.PathLike
-        An ``.npz`` of :meth:`ErrorMap.save`, a NetCDF 3 file or a complete Zarr sweep store
-        (:mod:`~polarization_compass.errormap_store`; the NetCDF reader needs only scipy, the Zarr one
-        the ``sweep`` extra).
+        An ``.npz`` of :meth:`ErrorMap.save`.
 
     Returns
     -------
@@ -378,25 +376,14 @@ def load_error_map(path) -> ErrorMap:
     Raises
     ------
     ErrorMapError
-        The file is missing, not an error map, corrupt, or inconsistent (the message names the file
-        and the reason); a Zarr store that is unfinished or whose chunks do not match their checksums.
+        The file is missing, not a regular file, not an error map, corrupt, or inconsistent (the
+        message names the file and the reason).
     """
-    from .safe_load import load_json, open_npz
+    from .safe_load import load_json, open_npz, regular_file
     p = Path(path)
-    if p.is_dir():
-        if not any((p / n).exists() for n in (".zgroup", "zarr.json", ".zattrs")):
-            raise ErrorMapError(f"error map {str(p)!r} does not exist (a directory, not a sweep store)")
-        from .errormap_store import read_store_map
-        return read_store_map(p)
     if not p.exists() and not p.is_symlink():
         raise ErrorMapError(f"error map {str(p)!r} does not exist")
-    from .safe_load import regular_file
     regular_file(p, ErrorMapError, "error map")        # a FIFO or a device is refused before it is read
-    with open(p, "rb") as fh:
-        head = fh.read(4)
-    if head[:3] == b"CDF":
-        from .errormap_store import read_netcdf_map
-        return read_netcdf_map(p)
     with open_npz(p, ErrorMapError, "error map", check=lambda h: _check_map_headers(str(p), h)) as z:
         arrays = {k: z[k] for k in _MAP_KEYS}
     meta = load_json(str(arrays["meta"][()]), f"{p}: meta", ErrorMapError)

@@ -5,7 +5,7 @@
   with ``dask scheduler`` / ``dask worker`` or any deployment Dask supports; every worker needs this package
   and the ``sweep`` extra, same version);
 - a task is one sweep chunk, (sun altitude, pitch) x every method, yaw and roll, rendering only the pixels
-  each method reads (:class:`~polarization_compass.sweep._Evaluator`, built once per worker process and
+  each method reads (:class:`~polarization_compass.sweep_cells.CellEvaluator`, built once per worker process and
   sweep). A chunk is 10^2-10^4 estimates (0.1-30 s), so the scheduler's few ms per task stay a small share
   (``bench/errormap_bench.py`` measures it);
 - results come back to the client, which writes each chunk's region into the Zarr store as it arrives (the
@@ -35,7 +35,7 @@ def _chunk_task(spec, digest: str, ia: int, ip: int):
     """Runs on a Dask worker: one chunk. Returns (ia, ip, err, status, estimator errors, compute wall seconds,
     compute CPU seconds of this thread, CPU seconds of building this worker's evaluator (0 once built))."""
     from .runtime import keep_large_buffers_in_heap, single_threaded_kernels
-    from .sweep import _Evaluator
+    from .sweep_cells import CellEvaluator
     c0 = time.thread_time()
     ev = _EVALUATOR.get(digest)
     if ev is None:
@@ -44,7 +44,7 @@ def _chunk_task(spec, digest: str, ia: int, ip: int):
         # estimate instead of 0.14-0.19 ms in process)
         keep_large_buffers_in_heap()
         _EVALUATOR.clear()
-        ev = _EVALUATOR[digest] = _Evaluator(spec)
+        ev = _EVALUATOR[digest] = CellEvaluator(spec)
     t1, c1 = time.perf_counter(), time.thread_time()
     with single_threaded_kernels():                  # numba's thread count is per calling thread
         err, status = ev.chunk(ia, ip)

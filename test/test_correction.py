@@ -11,7 +11,8 @@ from polarization_compass import conventions as cv
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.correction import (REGENERATE_DEFAULT_MAP, STATUS_INT, CorrectionStatus, TiltCorrector,
                                              default_map_path)
-from polarization_compass.errormap import ErrorMap, ErrorMapError, load_error_map
+from polarization_compass.errormap import ErrorMap, ErrorMapError
+from polarization_compass.errormap_io import load_error_map
 from polarization_compass.sweep import SweepSpec, run_sweep
 from polarization_compass.estimators import make_estimator
 from polarization_compass.estimators.base import Observation

@@ -37,6 +37,8 @@ COMPLETED = (
     'estimators/mosaic_input.py',
     'estimators/__init__.py',
     'errormap.py',
+    'errormap_io.py',
+    'sweep_cells.py',
     'frame_io.py',
     'pipeline.py',
     'solar.py',

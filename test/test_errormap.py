@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from polarization_compass import conventions as cv
-from polarization_compass import sweep
-from polarization_compass.errormap import STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, load_error_map, tilt_domain_mask
+from polarization_compass import sweep_cells
+from polarization_compass.errormap import STATUS_CODES, STATUS_NOT_COMPUTED, ErrorMapError, tilt_domain_mask
+from polarization_compass.errormap_io import load_error_map
 from polarization_compass.sweep import SweepSpec, parse_range, run_sweep
 from polarization_compass.estimators import estimator_names
 
@@ -380,13 +381,13 @@ def test_resume_after_interruption_gives_the_same_map(tmp_path, monkeypatch, cap
                      [0.0, 5.0])
     whole = run_sweep(spec, workers=1, progress=False)
     computed = []                                   # every chunk evaluation, in this process (workers=1)
-    real_chunk = sweep._Evaluator.chunk
+    real_chunk = sweep_cells.CellEvaluator.chunk
 
     def counting_chunk(self, ia, ip):
         computed.append((ia, ip))
         return real_chunk(self, ia, ip)
 
-    monkeypatch.setattr(sweep._Evaluator, "chunk", counting_chunk)
+    monkeypatch.setattr(sweep_cells.CellEvaluator, "chunk", counting_chunk)
     out = tmp_path / "m.npz"
     assert run_sweep(spec, out=out, workers=1, progress=False, max_chunks=2) is None    # "interrupted"
     store = tmp_path / "m.npz.partial.zarr"

@@ -13,7 +13,8 @@ import xarray as xr  # noqa: E402
 import zarr  # noqa: E402
 
 from polarization_compass.cli import main  # noqa: E402
-from polarization_compass.errormap import ErrorMap, ErrorMapError, load_error_map  # noqa: E402
+from polarization_compass.errormap import ErrorMap, ErrorMapError  # noqa: E402
+from polarization_compass.errormap_io import load_error_map
 from polarization_compass.errormap_store import (DIMS, SweepStore, chunk_checksum, export_netcdf,  # noqa: E402
                                                  map_to_dataset, read_netcdf_map)
 from polarization_compass.sweep import SweepSpec, run_sweep  # noqa: E402

@@ -17,7 +17,8 @@ from hypothesis import strategies as st
 
 from polarization_compass import conventions as cv
 from polarization_compass.correction import CorrectionStatus, TiltCorrector
-from polarization_compass.errormap import ErrorMap, ErrorMapError, load_error_map
+from polarization_compass.errormap import ErrorMap, ErrorMapError
+from polarization_compass.errormap_io import load_error_map
 
 from hard_cases_npz import assert_no_leaked_handle, assert_refused, npy_named_npz, truncate_half
 

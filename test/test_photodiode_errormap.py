@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from polarization_compass.cli import main
-from polarization_compass.errormap import load_error_map
+from polarization_compass.errormap_io import load_error_map
 from polarization_compass.errors import CompassError
 from polarization_compass.scene import scene_from_dict
 from polarization_compass.sweep import SweepSpec, run_sweep

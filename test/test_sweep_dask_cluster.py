@@ -121,7 +121,7 @@ def test_a_small_sweep_on_the_cluster_equals_the_in_process_one(cluster, referen
     np.testing.assert_array_equal(m.error_deg, reference.error_deg)
     np.testing.assert_array_equal(m.status, reference.status)
     assert (m.status >= 0).sum() > 100 and m.valid.sum() > 100          # real estimates, not fill values
-    from polarization_compass.errormap import load_error_map
+    from polarization_compass.errormap_io import load_error_map
     back = load_error_map(tmp_path / "m.nc")                             # the NetCDF export, read with scipy
     np.testing.assert_array_equal(back.error_deg, reference.error_deg)
     assert not (tmp_path / "m.nc.partial.zarr").exists()

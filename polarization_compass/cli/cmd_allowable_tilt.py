@@ -27,7 +27,7 @@ def register(sub):
 
 def run(args) -> int:
     from ..allowable import allowable_envelope, format_envelopes
-    from ..errormap import load_error_map
+    from ..errormap_io import load_error_map
 
     if not (math.isfinite(args.max_error) and args.max_error > 0):
         raise CompassError(f"--max-error must be a positive number of degrees, got {args.max_error}")

@@ -30,7 +30,7 @@ def register(sub):
 
 
 def run(args) -> int:
-    from ..errormap import load_error_map
+    from ..errormap_io import load_error_map
     from ..figures import save_all, save_figure
 
     for name in ("sun_altitude", "pitch", "roll"):

@@ -157,7 +157,7 @@ def run(args) -> int:
     from ..correction import default_map_path
     if args.error_map:
         map_path = Path(args.error_map)
-        from ..errormap import load_error_map
+        from ..errormap_io import load_error_map
         from ..safe_load import regular_file
         regular_file(map_path, CompassError, "--error-map")      # missing, a directory, a FIFO, a device
         load_error_map(map_path)             # a bad map is refused here, before the nodes start

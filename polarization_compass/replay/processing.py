@@ -312,7 +312,8 @@ class _Corrector:
 
     def _get(self, method):
         from ..correction import TiltCorrector
-        from ..errormap import ErrorMapError, load_error_map
+        from ..errormap import ErrorMapError
+        from ..errormap_io import load_error_map
         if method not in self.correctors:
             try:
                 if self._map is None:
