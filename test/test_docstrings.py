@@ -69,6 +69,7 @@ COMPLETED = (
     'replay/__init__.py',
     'replay/outputs.py',
     'replay/processing.py',
+    'replay/sync.py',
     'replay/threads.py',
     'sweep.py',
 )

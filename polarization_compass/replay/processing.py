@@ -71,8 +71,8 @@ class ReplayConfig:
     def knobs_for(self, method: str) -> dict:
         """Return the estimator knobs of ``method``.
 
-        The shared entries the method has (zenith has no stride, for example), then its own entries
-        (an unknown name there is an error of the estimator).
+        The ``default_knobs`` it has, then the ``"*"`` entries it has (zenith has no stride, for
+        example), then its own entries (an unknown name there is an error of the estimator).
 
         Parameters
         ----------

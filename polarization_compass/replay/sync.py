@@ -32,9 +32,26 @@ class BagPlan:
 
 
 def plan_bag(reader: BagReader, topic_map: TopicMap) -> BagPlan:
-    """Compare the bag's topics with the mapping. A mapped topic whose connections have several types
-    (e.g. one extra publisher of another type) is used through its connections of the mapped type; the
-    messages of the other types are reported here and skipped one by one as ``type_mismatch``."""
+    """Compare the bag's topics with the mapping, before any processing.
+
+    A mapped topic whose connections have several types (e.g. one extra publisher of another
+    type) is used through its connections of the mapped type; the messages of the other types are
+    reported here and skipped one by one as ``type_mismatch``.
+
+    Parameters
+    ----------
+    reader : BagReader
+        The open bag.
+    topic_map : TopicMap
+        Roles, topics and types, and the fallbacks for a missing camera_info or NavSatFix.
+
+    Returns
+    -------
+    BagPlan
+        Message counts per role, type mismatches, problems (what is missing and what that
+        means) and fatal problems (nothing to compute; the caller raises them as one
+        :class:`BagError`).
+    """
     types_of = reader.topic_types()
     present, mismatch, problems, fatal = {}, {}, [], []
     for role, spec in topic_map.topics.items():
