@@ -166,8 +166,8 @@ class Renderer:
         if self.optics is not None:
             if intensity is None:
                 intensity = np.ones(aop.shape, np.float32)
-            self.optics.apply(sun_cam, self.pixels.rays_cam, self.pixels.x_px.reshape(-1),
-                              self.pixels.y_px.reshape(-1), aop, dop, intensity, instr)
+            self.optics.apply(sun_cam, self.pixels.rays_cam, self.pixels.x_px, self.pixels.y_px, aop, dop,
+                              intensity, instr)
         if intensity is not None:
             intensity = intensity.reshape(shape)
         frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
