@@ -204,32 +204,46 @@ def _cloud_transmission_kernel(rays, R, height_over_scale, off_x, off_y, seed, t
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cm, cm1, cf, bright, aop, dop, inten, min_dop,
+def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cols, cf, bright, aop, dop, inten, min_dop,
                                  valid):  # pragma: no cover - compiled
     """Composite the clouds with T interpolated bilinearly from the grid ``tg``: pixel (i, j) lies between
-    grid rows rk[i], rk1[i] at fraction rf[i] and grid columns cm[j], cm1[j] at fraction cf[j]."""
+    grid rows rk[i], rk1[i] at fraction rf[i], and between grid columns g and g + 1 at fraction cf[j] for
+    cols[g] <= j < cols[g + 1] (``cols``: the grid's pixel columns, increasing, the last one W - 1)."""
     H = rk.size
-    W = cm.size
+    W = cf.size
     one = np.float32(1.0)
+    zero = np.float32(0.0)
+    G = tg.shape[1]
     for i in prange(H):
-        a = rk[i]
-        b = rk1[i]
+        # T along the row: the two grid rows blended, then spread over the columns (a gather loop), so that
+        # the composite below is a plain loop over row slices, which vectorises (the per-pixel gather and a
+        # flat index i * W + j kept it scalar, measured)
         fy = rf[i]
+        trow = np.empty(G, np.float32)
+        for g in range(G):
+            trow[g] = tg[rk[i], g] * (one - fy) + tg[rk1[i], g] * fy
+        t = np.empty(W, np.float32)
+        for g in range(G):
+            a = trow[g]
+            b = trow[min(g + 1, G - 1)]
+            for j in range(cols[g], cols[g + 1] if g + 1 < G else W):
+                t[j] = a * (one - cf[j]) + b * cf[j]
+        o = i * W
+        ap = aop[o:o + W]
+        dp = dop[o:o + W]
+        it = inten[o:o + W]
+        vd = valid[o:o + W]
         for j in range(W):
-            fx = cf[j]
-            t = (tg[a, cm[j]] * (one - fx) + tg[a, cm1[j]] * fx) * (one - fy) + \
-                (tg[b, cm[j]] * (one - fx) + tg[b, cm1[j]] * fx) * fy
-            # branch-free (t = 1 leaves the pixel as it is): such loops vectorise, branchy ones ran slower
-            n = i * W + j
-            i_clear = inten[n]
-            w = i_clear * t
-            i_tot = w + bright * (one - t)
-            d = dop[n] * w / i_tot
-            keep = (d >= min_dop) | (~valid[n])
-            dop[n] = d if keep else np.float32(0.0)
-            aop[n] = aop[n] if keep else np.float32(0.0)
-            valid[n] = valid[n] & keep
-            inten[n] = i_tot
+            # branch-free (t = 1 leaves the pixel as it is); invalid pixels hold DoP 0, so "drop" leaves them
+            # as they are; valid = valid and not drop as a comparison of bools (2x faster than & and ~, measured)
+            w = it[j] * t[j]
+            i_tot = w + bright * (one - t[j])
+            d = dp[j] * w / i_tot
+            drop = d < min_dop
+            dp[j] = zero if drop else d
+            ap[j] = zero if drop else ap[j]
+            vd[j] = vd[j] > drop
+            it[j] = i_tot
 
 
 def _grid_axis(n: int, step: int):
@@ -326,16 +340,16 @@ class CloudLayer:
             key = (id(rays_cam), H, W)
             if getattr(self, "_grid_key", None) != key:
                 rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
-                cols, cm, cm1, cf = _grid_axis(W, GRID_STEP)
+                cols, _, _, cf = _grid_axis(W, GRID_STEP)
                 self._grid = (np.ascontiguousarray(rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)),
-                              (rows.size, cols.size), rk, rk1, rf, cm, cm1, cf)
+                              (rows.size, cols.size), rk, rk1, rf, cols.astype(np.int64), cf)
                 self._grid_key = key
-            grays, gshape, rk, rk1, rf, cm, cm1, cf = self._grid
+            grays, gshape, rk, rk1, rf, gcols, cf = self._grid
             tg = np.empty(grays.shape[1], np.float64)
             _cloud_transmission_kernel(grays, R, self.height_m / self.scale_m, off_x, off_y, self.seed,
                                        self.threshold, 1.0 / self.softness, self.overcast, self.optical_thickness,
                                        tg)
-            _cloud_composite_grid_kernel(tg.reshape(gshape).astype(np.float32), rk, rk1, rf, cm, cm1, cf,
+            _cloud_composite_grid_kernel(tg.reshape(gshape).astype(np.float32), rk, rk1, rf, gcols, cf,
                                          np.float32(self.brightness), aop, dop, intensity, np.float32(min_dop), valid)
             return
         _cloud_kernel(rays_cam, R, self.height_m / self.scale_m, off_x, off_y, self.seed, self.threshold,
