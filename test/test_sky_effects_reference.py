@@ -1,7 +1,9 @@
-"""The fused, vectorised lens-effects kernels of polarization_compass.optics against a straightforward float64
-numpy evaluation of each effect (the formulas of the optics module docstring, written out per pixel with
-arccos and powers, as the first implementation computed them), on full frames, regions, strided and
-scattered selections, a pinhole and a fisheye, glare exponent 2 (the divisions-only path) and another one."""
+"""The fused, vectorised kernels of issue 16's effects against straightforward float64 numpy evaluations of each
+effect. Lens effects (polarization_compass.optics): the formulas of the module docstring written out per
+pixel with arccos-like angles and powers, as the first implementation computed them, on full frames, regions,
+strided and scattered selections, a pinhole and a fisheye, glare exponent 2 (the divisions-only path) and
+another one. Clouds (polarization_compass.atmosphere): the layer's transmission from ``CloudLayer.density_at``
+on every 8th row and column, interpolated with np.interp and composited with the module's formulas."""
 import math
 
 import numpy as np
@@ -11,7 +13,7 @@ from polarization_compass import conventions as cv
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.optics import SUN_SEMIDIAMETER_DEG, _glare_angle_f32, ghost_centres_px
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene
+from polarization_compass.scene import Scene, Validity
 
 FISHEYE = CameraModel(model="fisheye_equidistant", width_px=400, height_px=360, focal_length_mm=1.0,
                       pixel_pitch_x_um=6.0, pixel_pitch_y_um=6.0)
@@ -125,3 +127,42 @@ def test_glare_angle_chord_form_matches_arccos_in_float64():
     # glare is 1e-3 of the clear zenith and its error 1e-9
     np.testing.assert_allclose(out[~near], truth[~near], atol=1e-3)
     np.testing.assert_allclose(out, gam, rtol=1e-3, atol=1e-7)          # and of the exact ones
+
+
+def _grid(n, step=8):
+    return np.unique(np.r_[np.arange(0, n, step), n - 1])
+
+
+@pytest.mark.parametrize("min_dop", [0.0, 0.12])
+def test_cloud_composite_equals_the_numpy_reference(min_dop):
+    from polarization_compass.atmosphere import CloudLayer
+    clouds = {"coverage": 0.5, "scale_m": 300.0, "optical_thickness": 2.0, "brightness": 1.5}
+    att = cv.CameraAttitude(30.0, 8.0, -4.0)
+    sun = SunDirection(120.0, 40.0)
+    scene = Scene(camera=FISHEYE, sky={"model": "rayleigh", "dop_max": 0.8}, validity=Validity(min_dop=min_dop),
+                  atmosphere={"clouds": clouds}, seed=5)
+    frame = Renderer(scene).render(attitude=att, sun=sun)
+    clear = Renderer(scene.replace(atmosphere=None)).render(attitude=att, sun=sun)
+    H, W = frame.pixels.shape
+    R = cv.R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
+    enu = (R @ frame.rays_cam.astype(float)).reshape(3, H, W)
+    rows, cols = _grid(H), _grid(W)
+    e, n, u = (c[np.ix_(rows, cols)] for c in enu)
+    layer = CloudLayer(**clouds, seed=(5 * 2654435761 + 1) & 0x7FFFFFFF)
+    h = layer.height_m / np.maximum(u, 0.02)
+    d = layer.density_at(e * h, n * h).reshape(u.shape)
+    tg = np.where(u > 0, np.exp(-layer.optical_thickness * d), 1.0)
+    t_cols = np.array([np.interp(np.arange(H), rows, tg[:, j]) for j in range(cols.size)]).T     # (H, grid cols)
+    t = np.array([np.interp(np.arange(W), cols, t_cols[i]) for i in range(H)])
+    i_clear = 1.0
+    inten = i_clear * t + layer.brightness * (1 - t)
+    dop = clear.dop.astype(float) * i_clear * t / inten
+    valid = clear.valid & (dop >= min_dop)
+    assert 0.2 < (t < 0.99).mean() < 0.8                          # clouds and clear sky both in the frame
+    np.testing.assert_allclose(frame.intensity, inten, rtol=2e-5)
+    np.testing.assert_array_equal(frame.valid, valid)
+    np.testing.assert_allclose(frame.dop[valid], dop[valid], rtol=2e-5, atol=1e-7)
+    np.testing.assert_array_equal(frame.aop_rad[valid], clear.aop_rad[valid])
+    assert not frame.dop[~valid].any() and not frame.aop_rad[~valid].any()
+    if min_dop > 0:
+        assert (clear.valid & ~valid).sum() > 0.01 * valid.size   # the minimum DoP really removed pixels
