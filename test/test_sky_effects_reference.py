@@ -41,7 +41,8 @@ def reference(frame, clear, camera, optics):
         v = np.maximum(rays[2], 0.0) ** 4
     elif vig:
         k = list(vig["k"]) + [0.0] * (3 - len(vig["k"]))
-        q = ((x - camera.cx_px) ** 2 + (y - camera.cy_px) ** 2) / (0.25 * (camera.width_px ** 2 + camera.height_px ** 2))
+        half_diag2 = 0.25 * (camera.width_px ** 2 + camera.height_px ** 2)
+        q = ((x - camera.cx_px) ** 2 + (y - camera.cy_px) ** 2) / half_diag2
         v = 1 + k[0] * q + k[1] * q ** 2 + k[2] * q ** 3
     base = inten * v
     g = np.zeros_like(base)
