@@ -19,6 +19,8 @@ every worker runs numba with one thread.
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import time
 
 from .errormap import ErrorMapError
@@ -75,10 +77,17 @@ def start(scheduler: str | None, workers: int | None):
     n = max(1, int(workers or os.cpu_count() or 1))
     saved = {k: os.environ.get(k) for k in _THREAD_VARS}
     os.environ.update({k: "1" for k in _THREAD_VARS})        # inherited by the worker processes only
+    # A terminal's Ctrl-C reaches the whole process group, the worker processes too: they start with
+    # SIGINT ignored (an ignored signal stays ignored across exec), so only this client reacts to it
+    # and closes the cluster, instead of every worker printing a KeyboardInterrupt traceback.
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
     try:
         cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                            dashboard_address=None, silence_logs=logging.ERROR)
     finally:
+        if in_main:
+            signal.signal(signal.SIGINT, previous)
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)

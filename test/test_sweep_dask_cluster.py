@@ -206,3 +206,40 @@ def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
     assert json.dumps(there, sort_keys=True) == json.dumps(here, sort_keys=True)
     assert sorted(seen) == sorted(here["conditions"]) and len(here["conditions"]) == 3     # all, -boresight, -tilt
     assert here["conditions"]["all"]["tilt_aware"]["count"] == 9
+
+
+def test_two_sigints_end_an_embedded_cluster_sweep_quietly(tmp_path):
+    """Ctrl-C twice (an impatient user, or a supervisor signalling the process group) while chunks
+    run on the embedded LocalCluster: exit 130 with the one resume hint, no traceback from the
+    client or its worker processes, no worker left behind, and the stored chunks are kept."""
+    out = tmp_path / "q.npz"
+    store = tmp_path / "q.npz.partial.zarr"
+    argv = [sys.executable, "-m", "polarization_compass.cli", "errormap", "--methods", ",".join(METHODS),
+            "--no-progress", "--workers", "2", "--out", str(out)]
+    argv += [x for k, v in AXES.items() for x in (f"--{k}={v}",)]
+    p = subprocess.Popen(argv, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path,
+                         start_new_session=True)
+    deadline = time.monotonic() + 90
+    while _written_chunks(store) < 1 and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert p.poll() is None, "the sweep ended before it could be interrupted"
+    os.killpg(p.pid, signal.SIGINT)          # as a terminal's Ctrl-C: the whole process group
+    time.sleep(0.2)
+    if p.poll() is None:
+        os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    text = err.decode(errors="replace")
+    assert p.returncode == 130, text
+    assert "Traceback" not in text, text
+    assert "rerun the same command to resume" in text
+    assert _written_chunks(store) >= 1 and not out.exists()
+    deadline = time.monotonic() + 15         # workers close with the client; allow their own exit
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(p.pid, 0)              # a worker of the group still alive?
+        except ProcessLookupError:
+            break
+        time.sleep(0.2)
+    else:
+        left = subprocess.run(["ps", "-o", "pid,args", "-g", str(p.pid)], capture_output=True, text=True)
+        raise AssertionError(f"processes of the interrupted sweep still running:\n{left.stdout}")
