@@ -72,6 +72,8 @@ def test_tiny_run_writes_valid_json_for_every_group(tiny_results):
             assert math.isfinite(v), (name, key)
             if key == "startup_s":          # extrapolated from two sweep sizes and clipped at 0: may be 0
                 assert v >= 0, (name, key, v)
+            elif key == "setup_cpu_s":      # the workers' evaluators, built by the untimed probe: 0 when warm
+                assert v >= 0, (name, key, v)
             elif key.endswith("_ms") or key.endswith("_s") or key.endswith("per_s") or key.startswith("crb"):
                 assert v > 0, (name, key, v)
             if key in ("rms_deg", "p95_deg", "max_deg", "n", "failures"):
