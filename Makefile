@@ -12,7 +12,7 @@ export NUMBA_CACHE_DIR := $(CURDIR)/.venv/numba-cache
 export OMP_NUM_THREADS ?= 1
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: venv sim test bench bench-quick clean figures
+.PHONY: venv sim test bench bench-quick clean figures format lint
 
 venv:
 	@./tools/bootstrap.sh
@@ -26,6 +26,14 @@ sim: venv
 test: venv
 	$(PY) -m pytest -p no:launch_testing -p no:launch_ros
 	VENV=$(VENV) ./tools/launch_tests.sh
+
+# Style (docs/contributing.md): `make format` rewrites the code to what the linters accept
+# (ruff + tools/lint_fix.py, idempotent); `make lint` runs only the linter tests of `make test`.
+format: venv
+	$(PY) tools/lint_fix.py
+
+lint: venv
+	$(PY) -m pytest -q -m linter
 
 bench: venv
 	$(PY) -m bench.run
