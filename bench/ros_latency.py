@@ -1,15 +1,33 @@
-"""End-to-end latency of the heading_estimator node through rclpy (run as a child process by
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+End-to-end latency of the heading_estimator node through rclpy.
+
+End-to-end latency of the heading_estimator node through rclpy (run as a child process by
 :mod:`bench.pipeline`, with loopback-only discovery, a domain id of its own and the project's
 shared-memory Fast DDS profile for 10 MB images).
 
 One process holds three nodes on one executor: a probe that publishes a rendered 12-bit mosaic
-(``camera/image_raw``, mono16, system-default QoS as a driver would), the ``heading_estimator`` node
-(``least_squares``, superpixel demosaic, site and time from parameters) and a probe subscriber on
-``compass/<method>/status``. One frame is in flight at a time; latency = status received - image
+(``camera/image_raw``, mono16, system-default QoS as a driver would), the ``heading_estimator``
+node (``least_squares``, superpixel demosaic, site and time from parameters) and a probe subscriber
+on ``compass/<method>/status``. One frame is in flight at a time; latency = status received - image
 published (wall clock), so it includes serialisation, DDS transport, decoding, demosaic, estimation
-and publishing. Prints one JSON object.
-Usage: ``python -m bench.ros_latency '{"frames": 10, "method": "least_squares"}'``.
+and publishing. Prints one JSON object. Usage: ``python -m bench.ros_latency '{"frames": 10,
+"method": "least_squares"}'``.
 """
+
 from __future__ import annotations
 
 import json
@@ -19,46 +37,65 @@ import time
 
 def main(argv) -> int:
     cfg = json.loads(argv[1]) if len(argv) > 1 else {}
-    frames = int(cfg.get("frames", 10))
-    method = str(cfg.get("method", "least_squares"))
-    tiny = bool(cfg.get("tiny", False))
+    frames = int(cfg.get('frames', 10))
+    method = str(cfg.get('method', 'least_squares'))
+    tiny = bool(cfg.get('tiny', False))
     import numpy as np
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.qos import QoSProfile, qos_profile_system_default
-    from std_msgs.msg import String
-
     from polarization_compass.camera import CameraModel
     from polarization_compass.conventions import CameraAttitude
-    from polarization_compass.specs import topics
     from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
     from polarization_compass.nodes.msgs import image_msg
     from polarization_compass.render import Renderer
     from polarization_compass.scene import default_scene
+    from polarization_compass.specs import topics
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.qos import qos_profile_system_default, QoSProfile
+    from std_msgs.msg import String
 
     from .simulator import ALL_EFFECTS, sensor_config
 
     cam = CameraModel(width_px=192, height_px=160) if tiny else CameraModel()
-    scene = default_scene().replace(camera=cam, sensor=sensor_config(ALL_EFFECTS, "superpixel"))
+    scene = default_scene().replace(camera=cam, sensor=sensor_config(ALL_EFFECTS, 'superpixel'))
     renderer = Renderer(scene)
-    time_utc = "2019-11-15T06:00:00Z"
+    time_utc = '2019-11-15T06:00:00Z'
     sun = renderer.sun_at(time_utc)
-    mosaics = [renderer.render(attitude=CameraAttitude(37.0 * k % 360.0, 0.0, 0.0), sun=sun, seed=k).mosaic
-               for k in range(min(frames, 4))]
+    mosaics = [
+        renderer.render(
+            attitude=CameraAttitude(37.0 * k % 360.0, 0.0, 0.0), sun=sun, seed=k
+        ).mosaic
+        for k in range(min(frames, 4))
+    ]
     rclpy.init(args=[])
-    out = {"status": "ok", "method": method, "frames": frames, "image_px": [cam.width_px, cam.height_px]}
+    out = {
+        'status': 'ok',
+        'method': method,
+        'frames': frames,
+        'image_px': [cam.width_px, cam.height_px],
+    }
     try:
-        est = HeadingEstimatorNode(parameter_overrides=[
-            Parameter("method", value=method), Parameter("camera_info_source", value="parameters"),
-            Parameter("time_source", value="parameter"), Parameter("time_utc", value=time_utc),
-            Parameter("prior_source", value="none"), Parameter("publish_ambiguous", value=True)])
-        probe = rclpy.create_node("bench_probe")
-        pub = probe.create_publisher(type(image_msg(mosaics[0], 0, "camera_link")), topics.IMAGE,
-                                     qos_profile_system_default)
+        est = HeadingEstimatorNode(
+            parameter_overrides=[
+                Parameter('method', value=method),
+                Parameter('camera_info_source', value='parameters'),
+                Parameter('time_source', value='parameter'),
+                Parameter('time_utc', value=time_utc),
+                Parameter('prior_source', value='none'),
+                Parameter('publish_ambiguous', value=True),
+            ]
+        )
+        probe = rclpy.create_node('bench_probe')
+        pub = probe.create_publisher(
+            type(image_msg(mosaics[0], 0, 'camera_link')), topics.IMAGE, qos_profile_system_default
+        )
         got = []
-        probe.create_subscription(String, topics.method_topics(method)["status"],
-                                  lambda m: got.append((time.perf_counter(), json.loads(m.data))), QoSProfile(depth=50))
+        probe.create_subscription(
+            String,
+            topics.method_topics(method)['status'],
+            lambda m: got.append((time.perf_counter(), json.loads(m.data))),
+            QoSProfile(depth=50),
+        )
         ex = SingleThreadedExecutor()
         ex.add_node(est)
         ex.add_node(probe)
@@ -67,11 +104,11 @@ def main(argv) -> int:
         while pub.get_subscription_count() < 1 and time.perf_counter() < t_end:
             ex.spin_once(timeout_sec=0.05)
         if pub.get_subscription_count() < 1:
-            out["status"] = "failed: the estimator never subscribed (discovery)"
+            out['status'] = 'failed: the estimator never subscribed (discovery)'
             return _print(out)
         lat, est_ms, lost = [], [], 0
         for k in range(frames + 1):
-            msg = image_msg(mosaics[k % len(mosaics)], 1_000_000_000 * (k + 1), "camera_link")
+            msg = image_msg(mosaics[k % len(mosaics)], 1_000_000_000 * (k + 1), 'camera_link')
             n0 = len(got)
             t0 = time.perf_counter()
             pub.publish(msg)
@@ -82,19 +119,23 @@ def main(argv) -> int:
                 lost += 1
                 continue
             if k == 0:
-                continue                    # first frame: caches
+                continue  # first frame: caches
             lat.append(got[-1][0] - t0)
-            if "estimate_ms" in got[-1][1]:
-                est_ms.append(got[-1][1]["estimate_ms"])
+            if 'estimate_ms' in got[-1][1]:
+                est_ms.append(got[-1][1]['estimate_ms'])
         s = np.asarray(lat) * 1e3
-        out.update(n=int(s.size), lost=lost, median_ms=float(np.median(s)) if s.size else None,
-                   p95_ms=float(np.percentile(s, 95)) if s.size else None,
-                   node_estimate_median_ms=float(np.median(est_ms)) if est_ms else None,
-                   last_status=got[-1][1].get("status") if got else None)
+        out.update(
+            n=int(s.size),
+            lost=lost,
+            median_ms=float(np.median(s)) if s.size else None,
+            p95_ms=float(np.percentile(s, 95)) if s.size else None,
+            node_estimate_median_ms=float(np.median(est_ms)) if est_ms else None,
+            last_status=got[-1][1].get('status') if got else None,
+        )
         est.destroy_node()
         probe.destroy_node()
     except Exception as exc:  # noqa: BLE001 - reported to the parent as JSON
-        out["status"] = f"failed: {type(exc).__name__}: {exc}"
+        out['status'] = f'failed: {type(exc).__name__}: {exc}'
     finally:
         rclpy.try_shutdown()
     return _print(out)
@@ -105,5 +146,5 @@ def _print(out) -> int:
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main(sys.argv))

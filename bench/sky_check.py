@@ -1,39 +1,57 @@
-"""Issue 14: what the real-sky robustness costs, per method.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-For each method, on one core: the estimate alone (and, for least_squares/tilt_aware, with the robust
-refit ``outlier_deg`` 15 that ``estimate`` turns on for real images), and the whole-sky check that
-``estimate`` adds on real images (:func:`polarization_compass.skyfit.assess_result`: sampling the usable sky, the misfit at the
-estimate, the 8-sector jackknife sigma and the 180 deg side vote; plus one shared ``sample_sky`` per
-frame); and the polarizer check (:class:`polarization_compass.pipeline.PolarizerMonitor`, what the node
-runs every ``polarizer_check_every``-th image) on a full-size raw mosaic.
+"""
+Issue 14: what the real-sky robustness costs, per method.
+
+For each method, on one core: the estimate alone (and, for least_squares/tilt_aware, with the
+robust refit ``outlier_deg`` 15 that ``estimate`` turns on for real images), and the whole-sky
+check that ``estimate`` adds on real images (:func:`polarization_compass.skyfit.assess_result`:
+sampling the usable sky, the misfit at the estimate, the 8-sector jackknife sigma and the 180 deg
+side vote; plus one shared ``sample_sky`` per frame); and the polarizer check
+(:class:`polarization_compass.pipeline.PolarizerMonitor`, what the node runs every
+``polarizer_check_every``-th image) on a full-size raw mosaic.
 
 Frames: the real ``sunny.jpg`` (test/data/real-sky, 2048 x 2048 Stokes planes, fisheye) through the
-``estimate`` CLI's own observation builder, and a simulated ``imx250mzr_noisy`` mosaic for the monitor.
+``estimate`` CLI's own observation builder, and a simulated ``imx250mzr_noisy`` mosaic for the
+monitor.
 """
+
 from __future__ import annotations
 
 import importlib.util
-import time
 from pathlib import Path
+import time
 
-from .common import Unavailable, optional_import, single_core, timing_stats
+from .common import optional_import, single_core, timing_stats, Unavailable
 
 ROOT = Path(__file__).resolve().parent.parent
-METHODS = ("zenith", "sm_asm", "symmetry", "least_squares", "tilt_aware")
+METHODS = ('zenith', 'sm_asm', 'symmetry', 'least_squares', 'tilt_aware')
 
 
 def _real_sky():
-    p = ROOT / "test" / "real_sky.py"
-    if not (ROOT / "test" / "data" / "real-sky" / "sunny.jpg").exists():
-        raise Unavailable("test/data/real-sky/sunny.jpg is not there")
-    spec = importlib.util.spec_from_file_location("real_sky_bench", p)
+    p = ROOT / 'test' / 'real_sky.py'
+    if not (ROOT / 'test' / 'data' / 'real-sky' / 'sunny.jpg').exists():
+        raise Unavailable('test/data/real-sky/sunny.jpg is not there')
+    spec = importlib.util.spec_from_file_location('real_sky_bench', p)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
 def run(cfg) -> dict:
-    optional_import("polarization_compass.skyfit")
+    optional_import('polarization_compass.skyfit')
     import tempfile
 
     from polarization_compass.camera import load_camera_yaml
@@ -41,25 +59,31 @@ def run(cfg) -> dict:
     from polarization_compass.estimators import estimator_names, make_estimator
     from polarization_compass.real_input import PolarizationInput
     from polarization_compass.skyfit import assess_result, sample_sky
+
     R = _real_sky()
-    i, q, u = R.read_quadrants("sunny")
+    i, q, u = R.read_quadrants('sunny')
     step = 4 if cfg.tiny else 1
-    inp = PolarizationInput("stokes", "sunny.jpg", stokes=(i[::step, ::step], q[::step, ::step], u[::step, ::step]))
+    inp = PolarizationInput(
+        'stokes', 'sunny.jpg', stokes=(i[::step, ::step], q[::step, ::step], u[::step, ::step])
+    )
     with tempfile.TemporaryDirectory() as d:
-        y = Path(d) / "cam.yaml"
+        y = Path(d) / 'cam.yaml'
         text = R.camera_yaml_text()
-        if step > 1:        # the decimated planes: the same lens at 1/step scale
+        if step > 1:  # the decimated planes: the same lens at 1/step scale
             import math
+
             f = R.RADIUS_90_PX / (math.pi / 2) / step
             cx, cy = R.CENTRE_PX[0] / step, R.CENTRE_PX[1] / step
-            text = text.replace("image_width: 2048", f"image_width: {2048 // step}").replace(
-                "image_height: 2048", f"image_height: {2048 // step}")
-            text = text.split("camera_matrix")[0] + (
-                f"camera_matrix: {{rows: 3, cols: 3, data: [{f}, 0, {cx}, 0, {f}, {cy}, 0, 0, 1]}}\n"
-                + "distortion_model" + text.split("distortion_model", 1)[1])
+            text = text.replace('image_width: 2048', f'image_width: {2048 // step}').replace(
+                'image_height: 2048', f'image_height: {2048 // step}'
+            )
+            text = text.split('camera_matrix')[0] + (
+                f'camera_matrix: {{rows: 3, cols: 3, data: [{f}, 0, {cx}, 0, {f}, {cy}, 0, 0, '
+                f'1]}}\n' + 'distortion_model' + text.split('distortion_model', 1)[1]
+            )
         y.write_text(text)
         cf = load_camera_yaml(y)
-    alt = R.sun_altitude_deg("sunny")
+    alt = R.sun_altitude_deg('sunny')
     repeats = max(1, int(cfg.repeats))
     obs, _ = real_observation(inp, cf, 0.0, alt, pitch=0.0, roll=0.0)
     rows = []
@@ -69,9 +93,11 @@ def run(cfg) -> dict:
             t0 = time.perf_counter()
             sample = sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
             t_sample.append(time.perf_counter() - t0)
-        for m in (x for x in METHODS if x in estimator_names() and (not cfg.methods or x in cfg.methods)):
+        for m in (
+            x for x in METHODS if x in estimator_names() and (not cfg.methods or x in cfg.methods)
+        ):
             est = make_estimator(m)
-            assess_result(est.estimate(obs), sample, alt, 0.0, 0.0)          # warm-up
+            assess_result(est.estimate(obs), sample, alt, 0.0, 0.0)  # warm-up
             t_est, t_chk, statuses = [], [], {}
             for _ in range(repeats):
                 t0 = time.perf_counter()
@@ -82,9 +108,13 @@ def run(cfg) -> dict:
                 t_est.append(t1 - t0)
                 t_chk.append(t2 - t1)
                 statuses[out.status.value] = statuses.get(out.status.value, 0) + 1
-            row = {"method": m, "estimate": timing_stats(t_est), "sky_check": timing_stats(t_chk),
-                   "statuses": statuses}
-            if "outlier_deg" in est.knobs:          # the robust refit estimate turns on for real images
+            row = {
+                'method': m,
+                'estimate': timing_stats(t_est),
+                'sky_check': timing_stats(t_chk),
+                'statuses': statuses,
+            }
+            if 'outlier_deg' in est.knobs:  # the robust refit estimate turns on for real images
                 rob = make_estimator(m, outlier_deg=15.0, max_aop_noise_deg=90.0)
                 rob.estimate(obs)
                 t_rob = []
@@ -92,14 +122,23 @@ def run(cfg) -> dict:
                     t0 = time.perf_counter()
                     rob.estimate(obs)
                     t_rob.append(time.perf_counter() - t0)
-                row["estimate_robust_refit"] = timing_stats(t_rob)
+                row['estimate_robust_refit'] = timing_stats(t_rob)
             rows.append(row)
         monitor = _monitor(cfg, repeats)
-    return {"frame": "sunny.jpg (real, 2048 x 2048 Stokes)" if step == 1 else "sunny.jpg decimated (tiny)",
-            "pixels": int(obs.valid.size), "sample_sky": timing_stats(t_sample[1:]), "rows": rows,
-            "polarizer_monitor": monitor, "threads": 1,
-            "note": "sky_check = assess_result per method (misfit, jackknife sigma, side vote) after one shared "
-                    "sample_sky per frame; polarizer_monitor = one check on a full-size mosaic (node, every N-th image)"}
+    return {
+        'frame': 'sunny.jpg (real, 2048 x 2048 Stokes)'
+        if step == 1
+        else 'sunny.jpg decimated (tiny)',
+        'pixels': int(obs.valid.size),
+        'sample_sky': timing_stats(t_sample[1:]),
+        'rows': rows,
+        'polarizer_monitor': monitor,
+        'threads': 1,
+        'note': 'sky_check = assess_result per method (misfit, jackknife sigma, side vote) after '
+        'one shared '
+        'sample_sky per frame; polarizer_monitor = one check on a full-size mosaic (node, every '
+        'N-th image)',
+    }
 
 
 def _monitor(cfg, repeats) -> dict:
@@ -109,19 +148,26 @@ def _monitor(cfg, repeats) -> dict:
     from polarization_compass.pipeline import PolarizerMonitor
     from polarization_compass.render import Renderer, SunDirection
     from polarization_compass.scene import load_scene
-    scene = load_scene(str(ROOT / "config" / "scenes" / "imx250mzr_noisy.yaml"))
+
+    scene = load_scene(str(ROOT / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'))
     if cfg.tiny:
         scene = scene.replace(camera=CameraModel(width_px=192, height_px=160))
-    f = Renderer(scene).render(attitude=CameraAttitude(40.0, 0.0, 0.0), sun=SunDirection(135.0, 35.0), seed=3)
+    f = Renderer(scene).render(
+        attitude=CameraAttitude(40.0, 0.0, 0.0), sun=SunDirection(135.0, 35.0), seed=3
+    )
     if f.mosaic is None:
-        raise Unavailable("the scene rendered no mosaic")
+        raise Unavailable('the scene rendered no mosaic')
     mon = PolarizerMonitor(every_n=1)
     lay = parse_layout()
-    mon.feed(f.mosaic, scene.camera, lay, 35.0)                      # warm-up
+    mon.feed(f.mosaic, scene.camera, lay, 35.0)  # warm-up
     t = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         rep = mon.feed(f.mosaic, scene.camera, lay, 35.0)
         t.append(time.perf_counter() - t0)
-    return {"camera": [scene.camera.width_px, scene.camera.height_px], "check": timing_stats(t),
-            "verdict": rep["verdict"], "margin": rep["margin"]}
+    return {
+        'camera': [scene.camera.width_px, scene.camera.height_px],
+        'check': timing_stats(t),
+        'verdict': rep['verdict'],
+        'margin': rep['margin'],
+    }

@@ -1,3 +1,17 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """A real polarization camera and IMU: heading_estimator (method) and its tilt_corrector. The input
 topics are launch arguments (remappings); the output is compass/<method>/heading (sensor_msgs/Imu for
 robot_localization, see config/ekf_heading_example.yaml and docs/ros.md).
@@ -24,4 +38,5 @@ description of each graph); launch and launch_ros are imported only when the lau
 
 def generate_launch_description():
     from polarization_compass.graphs import launch_description
-    return launch_description("compass")
+
+    return launch_description('compass')

@@ -1,4 +1,19 @@
-"""Live replay of a recorded run: every estimator, corrector and the evaluator on sim time.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Live replay of a recorded run: every estimator, corrector and the evaluator on sim time.
 
     ros2 launch polarization_compass replay.launch.py report_dir:=out/replay
     ros2 bag play RUN_BAG --clock      # in a second terminal
@@ -26,4 +41,5 @@ description of each graph); launch and launch_ros are imported only when the lau
 
 def generate_launch_description():
     from polarization_compass.graphs import launch_description
-    return launch_description("replay")
+
+    return launch_description('replay')

@@ -1,5 +1,21 @@
-"""polarization_compass: heading from skylight polarization, with tilt error maps and correction.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+polarization_compass: heading from skylight polarization, with tilt error maps and correction.
 
 The core library (this package minus ``nodes``) is ROS-free and works on numpy arrays.
 """
-__version__ = "0.1.0"
+
+__version__ = '0.1.0'

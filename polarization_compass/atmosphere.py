@@ -1,4 +1,19 @@
-"""What lies between the clear sky and the camera: clouds, haze and a skyline (trees, buildings).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What lies between the clear sky and the camera: clouds, haze and a skyline (trees, buildings).
 
 A scene declares these under ``atmosphere`` (each key optional; anything not declared is never
 constructed and costs nothing -- each stage that runs is counted in
@@ -19,11 +34,11 @@ skyline) comes from the scene's ``seed`` only, so a scene renders the same frame
 Clouds
 ------
 A single cloud layer at ``height_m`` above the camera. A viewing ray with ENU direction (e, n, u),
-u > 0, meets it at the horizontal point ``height_m * (e, n) / u`` (metres); the layer moves with the
-wind, so the point sampled at scene time t (s since the scene's ``time_utc``) is that minus
+u > 0, meets it at the horizontal point ``height_m * (e, n) / u`` (metres); the layer moves with
+the wind, so the point sampled at scene time t (s since the scene's ``time_utc``) is that minus
 ``wind_mps * t``. The density there is a seeded value-noise fBm (4 octaves, feature size
-``scale_m``) thresholded so that a fraction ``coverage`` of the layer is cloudy, with a linear ramp of
-width ``softness`` (in noise units) at the cloud edges: density d in [0, 1], optical thickness
+``scale_m``) thresholded so that a fraction ``coverage`` of the layer is cloudy, with a linear ramp
+of width ``softness`` (in noise units) at the cloud edges: density d in [0, 1], optical thickness
 tau = ``optical_thickness`` * d; ``coverage: 1`` is an overcast layer of uniform thickness.
 
 Light through the cloud (single-layer two-stream picture): the clear-sky light of that direction is
@@ -35,22 +50,22 @@ radiance ``brightness`` (1 - T) (relative to the clear zenith)::
 So thin clouds raise the radiance and lower the DoP but keep the clear-sky AoP, as measured by
 Pomozi, Horvath & Wehner (2001), "How the clear-sky angle of polarization pattern continues
 underneath clouds", J. Exp. Biol. 204:2933-2942; thick clouds (tau >> 1) depolarize (DoP -> 0; the
-residual AoP of overcast skies still follows the clear-sky pattern at DoP of a few per cent, Hegedus,
-Akesson & Horvath (2007), J. Opt. Soc. Am. A 24:2347-2356). Pixels whose DoP falls below the scene's
-``validity.min_dop`` become invalid.
+residual AoP of overcast skies still follows the clear-sky pattern at DoP of a few per cent,
+Hegedus, Akesson & Horvath (2007), J. Opt. Soc. Am. A 24:2347-2356). Pixels whose DoP falls below
+the scene's ``validity.min_dop`` become invalid.
 
 Haze
 ----
-Turbidity T (Preetham, Shirley & Smits 1999, "A practical analytic model for daylight", SIGGRAPH:
-T = (t_m + t_h) / t_m, the optical thickness of molecules plus haze over that of molecules alone; T = 2
-very clear, 3 clear, 6+ hazy). Haze aerosols scatter nearly unpolarized light, so in single
-scattering the polarized share of the sky light is the molecular share 1/T; relative to the clearest
-sky of the model (T = 2) the DoP is scaled by ``2 / T`` (this project's derivation from that
-definition: with the sky model's ``dop_max`` = 0.75 of clean air, T = 3-5 gives DoP_max 0.5-0.3, the
-measured range in haze, physics notes 4). The radiance, when the scene declares no ``radiance`` model,
-is Preetham's luminance distribution (:class:`polarization_compass.radiance.PreethamSky`, written
-from the paper: no maintained PyPI package provides it). Valid for 2 <= T <= 10 (the range of the
-paper's fit).
+Turbidity T (Preetham, Shirley & Smits 1999, "A practical analytic model for daylight", SIGGRAPH: T
+= (t_m + t_h) / t_m, the optical thickness of molecules plus haze over that of molecules alone; T =
+2 very clear, 3 clear, 6+ hazy). Haze aerosols scatter nearly unpolarized light, so in single
+scattering the polarized share of the sky light is the molecular share 1/T; relative to the
+clearest sky of the model (T = 2) the DoP is scaled by ``2 / T`` (this project's derivation from
+that definition: with the sky model's ``dop_max`` = 0.75 of clean air, T = 3-5 gives DoP_max
+0.5-0.3, the measured range in haze, physics notes 4). The radiance, when the scene declares no
+``radiance`` model, is Preetham's luminance distribution
+(:class:`polarization_compass.radiance.PreethamSky`, written from the paper: no maintained PyPI
+package provides it). Valid for 2 <= T <= 10 (the range of the paper's fit).
 
 Skyline
 -------
@@ -59,17 +74,19 @@ periodic interpolation between equally spaced azimuths from North, clockwise), e
 seeded random one (``features`` random heights in [0, ``max_elevation_deg``]). Pixels looking below
 it see the obstacle or the ground: invalid, DoP 0, radiance ``ground_radiance`` (a diffuse,
 unpolarized reflector, relative to the clear zenith).
+
 """
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
 from .errors import CompassError
 
-__all__ = ["AtmosphereError", "Atmosphere", "CloudLayer", "Haze", "Skyline", "haze_dop_factor"]
+__all__ = ['AtmosphereError', 'Atmosphere', 'CloudLayer', 'Haze', 'Skyline', 'haze_dop_factor']
 
 
 class AtmosphereError(CompassError):
@@ -79,38 +96,43 @@ class AtmosphereError(CompassError):
 def _num(d: dict, key: str, default, lo, hi, where: str) -> float:
     v = d.get(key, default)
     if isinstance(v, bool):
-        raise AtmosphereError(f"atmosphere.{where}.{key} must be a number, got {v!r}")
+        raise AtmosphereError(f'atmosphere.{where}.{key} must be a number, got {v!r}')
     try:
         f = float(v)
     except (TypeError, ValueError):
-        raise AtmosphereError(f"atmosphere.{where}.{key} must be a number, got {v!r}") from None
+        raise AtmosphereError(f'atmosphere.{where}.{key} must be a number, got {v!r}') from None
     if not math.isfinite(f) or not (lo <= f <= hi):
-        raise AtmosphereError(f"atmosphere.{where}.{key} must be finite and in [{lo}, {hi}], got {v!r}")
+        raise AtmosphereError(
+            f'atmosphere.{where}.{key} must be finite and in [{lo}, {hi}], got {v!r}'
+        )
     return f
 
 
 def _keys(d, allowed, where):
     if not isinstance(d, dict):
-        raise AtmosphereError(f"atmosphere.{where} must be a mapping, got {type(d).__name__}")
+        raise AtmosphereError(f'atmosphere.{where} must be a mapping, got {type(d).__name__}')
     unknown = set(d) - set(allowed)
     if unknown:
-        raise AtmosphereError(f"unknown key(s) {sorted(unknown)} in atmosphere.{where}; allowed: {sorted(allowed)}")
+        raise AtmosphereError(
+            f'unknown key(s) {sorted(unknown)} in atmosphere.{where}; allowed: {sorted(allowed)}'
+        )
 
 
-# ---------------------------------------------------------------------------------------------- noise
+# ----------------------------------------------------------------------------------------------
+# noise
 _OCTAVES = 4
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _hash01(ix, iy, seed):  # pragma: no cover - compiled
-    """A lattice hash of (ix, iy, seed) to [0, 1) (integer mixing, wraps mod 2^32)."""
+    """Hash (ix, iy, seed) on a lattice to [0, 1) (integer mixing, wraps mod 2^32)."""
     h = (ix * 374761393 + iy * 668265263 + seed * 1442695041) & 0xFFFFFFFF
     h = ((h ^ (h >> 13)) * 1274126177) & 0xFFFFFFFF
     h = h ^ (h >> 16)
     return (h & 0xFFFFFF) / 16777216.0
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _value_noise(x, y, seed):  # pragma: no cover - compiled
     x0 = math.floor(x)
     y0 = math.floor(y)
@@ -127,7 +149,7 @@ def _value_noise(x, y, seed):  # pragma: no cover - compiled
     return (a + (b - a) * sx) + ((c + (d - c) * sx) - (a + (b - a) * sx)) * sy
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _fbm(x, y, seed):  # pragma: no cover - compiled
     s = 0.0
     amp = 0.5
@@ -148,8 +170,24 @@ def _noise_at(x, y, seed, out):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, cache=True)
-def _cloud_kernel(rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max,
-                  bright, aop, dop, inten, min_dop, valid):  # pragma: no cover - compiled
+def _cloud_kernel(
+    rays,
+    R,
+    height_over_scale,
+    off_x,
+    off_y,
+    seed,
+    thr,
+    inv_soft,
+    overcast,
+    tau_max,
+    bright,
+    aop,
+    dop,
+    inten,
+    min_dop,
+    valid,
+):  # pragma: no cover - compiled
     n = rays.shape[1]
     for i in prange(n):
         px = rays[0, i]
@@ -159,7 +197,7 @@ def _cloud_kernel(rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft,
         nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
         u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
         if u <= 0.0:
-            continue                      # below the horizon: no cloud layer there
+            continue  # below the horizon: no cloud layer there
         k = height_over_scale / max(u, 0.02)
         if overcast:
             d = 1.0
@@ -180,8 +218,9 @@ def _cloud_kernel(rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft,
 
 
 @njit(parallel=True, cache=True)
-def _cloud_transmission_kernel(rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max,
-                               out):  # pragma: no cover - compiled
+def _cloud_transmission_kernel(
+    rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max, out
+):  # pragma: no cover - compiled
     """T = exp(-tau) of the layer along each ray (1 below the horizon or between clouds)."""
     for i in prange(rays.shape[1]):
         px = rays[0, i]
@@ -204,20 +243,24 @@ def _cloud_transmission_kernel(rays, R, height_over_scale, off_x, off_y, seed, t
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cols, cf, bright, aop, dop, inten, min_dop,
-                                 valid):  # pragma: no cover - compiled
-    """Composite the clouds with T interpolated bilinearly from the grid ``tg``: pixel (i, j) lies between
-    grid rows rk[i], rk1[i] at fraction rf[i], and between grid columns g and g + 1 at fraction cf[j] for
-    cols[g] <= j < cols[g + 1] (``cols``: the grid's pixel columns, increasing, the last one W - 1)."""
+def _cloud_composite_grid_kernel(
+    tg, rk, rk1, rf, cols, cf, bright, aop, dop, inten, min_dop, valid
+):  # pragma: no cover - compiled
+    """
+    Composite the clouds with T interpolated bilinearly from the grid ``tg``: pixel (i, j) lies
+    between grid rows rk[i], rk1[i] at fraction rf[i], and between grid columns g and g + 1 at
+    fraction cf[j] for cols[g] <= j < cols[g + 1] (``cols``: the grid's pixel columns, increasing,
+    the last one W - 1).
+    """
     H = rk.size
     W = cf.size
     one = np.float32(1.0)
     zero = np.float32(0.0)
     G = tg.shape[1]
     for i in prange(H):
-        # T along the row: the two grid rows blended, then spread over the columns (a gather loop), so that
-        # the composite below is a plain loop over row slices, which vectorises (the per-pixel gather and a
-        # flat index i * W + j kept it scalar, measured)
+        # T along the row: the two grid rows blended, then spread over the columns (a gather loop),
+        # so that the composite below is a plain loop over row slices, which vectorises (the
+        # per-pixel gather and a flat index i * W + j kept it scalar, measured)
         fy = rf[i]
         trow = np.empty(G, np.float32)
         for g in range(G):
@@ -232,8 +275,8 @@ def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cols, cf, bright, aop, dop, in
         dp = dop[o:o + W]
         it = inten[o:o + W]
         if min_dop <= zero:
-            # no pixel can fall below the minimum DoP: AoP and validity are not touched (a third less memory
-            # traffic; the DoP of a valid pixel stays >= 0)
+            # no pixel can fall below the minimum DoP: AoP and validity are not touched (a third
+            # less memory traffic; the DoP of a valid pixel stays >= 0)
             for j in range(W):
                 w = it[j] * t[j]
                 i_tot = w + bright * (one - t[j])
@@ -243,8 +286,9 @@ def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cols, cf, bright, aop, dop, in
         ap = aop[o:o + W]
         vd = valid[o:o + W]
         for j in range(W):
-            # branch-free (t = 1 leaves the pixel as it is); invalid pixels hold DoP 0, so "drop" leaves them
-            # as they are; valid = valid and not drop as a comparison of bools (2x faster than & and ~, measured)
+            # branch-free (t = 1 leaves the pixel as it is); invalid pixels hold DoP 0, so "drop"
+            # leaves them as they are; valid = valid and not drop as a comparison of bools (2x
+            # faster than & and ~, measured)
             w = it[j] * t[j]
             i_tot = w + bright * (one - t[j])
             d = dp[j] * w / i_tot
@@ -256,53 +300,84 @@ def _cloud_composite_grid_kernel(tg, rk, rk1, rf, cols, cf, bright, aop, dop, in
 
 
 def _grid_axis(n: int, step: int):
-    """Grid indices (every ``step``-th and the last) of an axis of n pixels, and per pixel its two grid
-    neighbours and the fraction between them (float32)."""
+    """
+    Return the grid indices of an axis and each pixel's grid neighbours and fraction.
+
+    Grid indices (every ``step``-th and the last) of an axis of n pixels, and per pixel its two
+    grid neighbours and the fraction between them (float32).
+    """
     idx = np.unique(np.minimum(np.arange(0, n - 1 + step, step), n - 1))
-    k = np.minimum(np.searchsorted(idx, np.arange(n), side="right") - 1, idx.size - 1)
+    k = np.minimum(np.searchsorted(idx, np.arange(n), side='right') - 1, idx.size - 1)
     k1 = np.minimum(k + 1, idx.size - 1)
     span = (idx[k1] - idx[k]).astype(float)
     f = np.where(span > 0, (np.arange(n) - idx[k]) / np.where(span > 0, span, 1.0), 0.0)
     return idx, k.astype(np.int64), k1.astype(np.int64), f.astype(np.float32)
 
 
-#: A contiguous block is clouded from T on every GRID_STEP-th pixel, interpolated (see CloudLayer.apply).
+#: A contiguous block is clouded from T on every GRID_STEP-th pixel, interpolated (see
+#: CloudLayer.apply).
 GRID_STEP = 8
 
 
 class CloudLayer:
-    """A procedural cloud layer (see the module docstring for the model and its references).
+    """
+    A procedural cloud layer (see the module docstring for the model and its references).
 
     ``coverage`` [0, 1] fraction of the layer that is cloudy; ``scale_m`` feature size (m);
-    ``height_m`` cloud base above the camera (m); ``optical_thickness`` tau of a full-density cloud;
-    ``brightness`` radiance of an optically thick cloud relative to the clear zenith; ``softness``
-    width of the cloud edge ramp (noise units, > 0); ``wind_mps`` (east, north) layer velocity (m/s);
-    ``seed`` the cloud field's seed (from the scene's)."""
+    ``height_m`` cloud base above the camera (m); ``optical_thickness`` tau of a full-density
+    cloud; ``brightness`` radiance of an optically thick cloud relative to the clear zenith;
+    ``softness`` width of the cloud edge ramp (noise units, > 0); ``wind_mps`` (east, north) layer
+    velocity (m/s); ``seed`` the cloud field's seed (from the scene's).
+    """
 
-    def __init__(self, coverage=0.5, scale_m=800.0, height_m=2000.0, optical_thickness=3.0, brightness=1.5,
-                 softness=0.08, wind_mps=(0.0, 0.0), seed=0):
-        d = dict(coverage=coverage, scale_m=scale_m, height_m=height_m, optical_thickness=optical_thickness,
-                 brightness=brightness, softness=softness)
-        self.coverage = _num(d, "coverage", 0.5, 0.0, 1.0, "clouds")
-        self.scale_m = _num(d, "scale_m", 800.0, 1.0, 1e6, "clouds")
-        self.height_m = _num(d, "height_m", 2000.0, 1.0, 2e4, "clouds")
-        self.optical_thickness = _num(d, "optical_thickness", 3.0, 0.0, 200.0, "clouds")
-        self.brightness = _num(d, "brightness", 1.5, 1e-3, 1e3, "clouds")
-        self.softness = _num(d, "softness", 0.08, 1e-4, 1.0, "clouds")
+    def __init__(
+        self,
+        coverage=0.5,
+        scale_m=800.0,
+        height_m=2000.0,
+        optical_thickness=3.0,
+        brightness=1.5,
+        softness=0.08,
+        wind_mps=(0.0, 0.0),
+        seed=0,
+    ):
+        d = {
+            'coverage': coverage,
+            'scale_m': scale_m,
+            'height_m': height_m,
+            'optical_thickness': optical_thickness,
+            'brightness': brightness,
+            'softness': softness,
+        }
+        self.coverage = _num(d, 'coverage', 0.5, 0.0, 1.0, 'clouds')
+        self.scale_m = _num(d, 'scale_m', 800.0, 1.0, 1e6, 'clouds')
+        self.height_m = _num(d, 'height_m', 2000.0, 1.0, 2e4, 'clouds')
+        self.optical_thickness = _num(d, 'optical_thickness', 3.0, 0.0, 200.0, 'clouds')
+        self.brightness = _num(d, 'brightness', 1.5, 1e-3, 1e3, 'clouds')
+        self.softness = _num(d, 'softness', 0.08, 1e-4, 1.0, 'clouds')
         try:
             w = [float(v) for v in wind_mps]
         except (TypeError, ValueError):
-            raise AtmosphereError(f"atmosphere.clouds.wind_mps must be [east, north] in m/s, got {wind_mps!r}") from None
+            raise AtmosphereError(
+                f'atmosphere.clouds.wind_mps must be [east, north] in m/s, got {wind_mps!r}'
+            ) from None
         if len(w) != 2 or not all(math.isfinite(v) and abs(v) <= 200 for v in w):
-            raise AtmosphereError(f"atmosphere.clouds.wind_mps must be [east, north], |v| <= 200 m/s, got {wind_mps!r}")
+            raise AtmosphereError(
+                'atmosphere.clouds.wind_mps must be [east, north], |v| <= 200 m/s, got '
+                f'{wind_mps!r}'
+            )
         self.wind_mps = (w[0], w[1])
         self.seed = int(seed) & 0x7FFFFFFF
         self.overcast = self.coverage >= 1.0
         self.threshold = self._threshold()
 
     def _threshold(self) -> float:
-        """The noise level above which a fraction ``coverage`` of the layer is cloudy: the (1 - coverage)
-        quantile of the field sampled at 40 000 seeded points over 200 x 200 features."""
+        """
+        Return the noise level above which a fraction ``coverage`` of the layer is cloudy.
+
+        The noise level above which a fraction ``coverage`` of the layer is cloudy: the (1 -
+        coverage) quantile of the field sampled at 40 000 seeded points over 200 x 200 features.
+        """
         if self.overcast:
             return -1.0
         if self.coverage <= 0.0:
@@ -315,13 +390,23 @@ class CloudLayer:
         return float(np.quantile(v, 1.0 - self.coverage))
 
     def params(self) -> dict:
-        return {"coverage": self.coverage, "scale_m": self.scale_m, "height_m": self.height_m,
-                "optical_thickness": self.optical_thickness, "brightness": self.brightness,
-                "softness": self.softness, "wind_mps": list(self.wind_mps)}
+        return {
+            'coverage': self.coverage,
+            'scale_m': self.scale_m,
+            'height_m': self.height_m,
+            'optical_thickness': self.optical_thickness,
+            'brightness': self.brightness,
+            'softness': self.softness,
+            'wind_mps': list(self.wind_mps),
+        }
 
     def density_at(self, east_m, north_m, dt_s: float = 0.0) -> np.ndarray:
-        """Cloud density d in [0, 1] at horizontal points of the layer (metres east/north of the camera)
-        at ``dt_s`` seconds after the scene's time."""
+        """
+        Return the cloud density in [0, 1] at horizontal points of the layer.
+
+        Cloud density d in [0, 1] at horizontal points of the layer (metres east/north of the
+        camera) at ``dt_s`` seconds after the scene's time.
+        """
         e = np.asarray(east_m, dtype=float).ravel()
         n = np.asarray(north_m, dtype=float).ravel()
         if self.overcast:
@@ -332,54 +417,124 @@ class CloudLayer:
         _noise_at(x, y, self.seed, v)
         return np.clip((v - self.threshold) / self.softness, 0.0, 1.0)
 
-    def apply(self, R_enu_cam, rays_cam, aop, dop, intensity, valid, min_dop: float, dt_s: float,
-              block_shape=None) -> None:
-        """Clouds over the flat clear-sky arrays, in place (float32 aop, dop, intensity; bool valid).
+    def apply(
+        self,
+        R_enu_cam,
+        rays_cam,
+        aop,
+        dop,
+        intensity,
+        valid,
+        min_dop: float,
+        dt_s: float,
+        block_shape=None,
+    ) -> None:
+        """
+        Apply the clouds to the flat clear-sky arrays, in place.
 
-        ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region): the layer's
-        transmission is evaluated on every ``GRID_STEP``-th row and column (and the last ones) and
-        interpolated bilinearly, 64x fewer noise evaluations (the field changes over many pixels: cloud
-        edges are smoothed over a few pixels, and pixels just below the horizon next to a cloud get part
-        of it -- they are not sky anyway); any other selection is evaluated at every pixel."""
+        Clouds over the flat clear-sky arrays, in place (float32 aop, dop, intensity; bool valid).
+
+        ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region): the
+        layer's transmission is evaluated on every ``GRID_STEP``-th row and column (and the last
+        ones) and interpolated bilinearly, 64x fewer noise evaluations (the field changes over many
+        pixels: cloud edges are smoothed over a few pixels, and pixels just below the horizon next
+        to a cloud get part of it -- they are not sky anyway); any other selection is evaluated at
+        every pixel.
+        """
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
         off_x = self.wind_mps[0] * dt_s / self.scale_m
         off_y = self.wind_mps[1] * dt_s / self.scale_m
         if block_shape is not None and min(block_shape) > 2 * GRID_STEP:
             H, W = block_shape
             key = (id(rays_cam), H, W)
-            if getattr(self, "_grid_key", None) != key:
+            if getattr(self, '_grid_key', None) != key:
                 rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
                 cols, _, _, cf = _grid_axis(W, GRID_STEP)
-                self._grid = (np.ascontiguousarray(rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)),
-                              (rows.size, cols.size), rk, rk1, rf, cols.astype(np.int64), cf)
+                self._grid = (
+                    np.ascontiguousarray(
+                        rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
+                    ),
+                    (rows.size, cols.size),
+                    rk,
+                    rk1,
+                    rf,
+                    cols.astype(np.int64),
+                    cf,
+                )
                 self._grid_key = key
             grays, gshape, rk, rk1, rf, gcols, cf = self._grid
             tg = np.empty(grays.shape[1], np.float64)
-            _cloud_transmission_kernel(grays, R, self.height_m / self.scale_m, off_x, off_y, self.seed,
-                                       self.threshold, 1.0 / self.softness, self.overcast, self.optical_thickness,
-                                       tg)
-            _cloud_composite_grid_kernel(tg.reshape(gshape).astype(np.float32), rk, rk1, rf, gcols, cf,
-                                         np.float32(self.brightness), aop, dop, intensity, np.float32(min_dop), valid)
+            _cloud_transmission_kernel(
+                grays,
+                R,
+                self.height_m / self.scale_m,
+                off_x,
+                off_y,
+                self.seed,
+                self.threshold,
+                1.0 / self.softness,
+                self.overcast,
+                self.optical_thickness,
+                tg,
+            )
+            _cloud_composite_grid_kernel(
+                tg.reshape(gshape).astype(np.float32),
+                rk,
+                rk1,
+                rf,
+                gcols,
+                cf,
+                np.float32(self.brightness),
+                aop,
+                dop,
+                intensity,
+                np.float32(min_dop),
+                valid,
+            )
             return
-        _cloud_kernel(rays_cam, R, self.height_m / self.scale_m, off_x, off_y, self.seed, self.threshold,
-                      1.0 / self.softness, self.overcast, self.optical_thickness, self.brightness,
-                      aop, dop, intensity, float(min_dop), valid)
+        _cloud_kernel(
+            rays_cam,
+            R,
+            self.height_m / self.scale_m,
+            off_x,
+            off_y,
+            self.seed,
+            self.threshold,
+            1.0 / self.softness,
+            self.overcast,
+            self.optical_thickness,
+            self.brightness,
+            aop,
+            dop,
+            intensity,
+            float(min_dop),
+            valid,
+        )
 
 
-# ---------------------------------------------------------------------------------------------- haze
+# ----------------------------------------------------------------------------------------------
+# haze
 def haze_dop_factor(turbidity: float) -> float:
-    """The factor on the DoP for Preetham turbidity T relative to the clearest sky (T = 2): ``2 / T``, the
-    molecular share of the scattering optical thickness (Preetham et al. 1999's definition of T; aerosol
-    scattering taken as unpolarized). Returns a float in (0, 1]."""
+    """
+    Return the DoP factor ``2 / T`` for Preetham turbidity T.
+
+    The factor on the DoP for Preetham turbidity T relative to the clearest sky (T = 2): ``2 / T``,
+    the molecular share of the scattering optical thickness (Preetham et al. 1999's definition of
+    T; aerosol scattering taken as unpolarized). Returns a float in (0, 1].
+    """
     return 2.0 / float(turbidity)
 
 
 class Haze:
-    """Haze by turbidity (module docstring): DoP scaled by :func:`haze_dop_factor`; the Preetham radiance
-    when the scene declares no radiance model."""
+    """
+    Haze by turbidity: DoP scaled by :func:`haze_dop_factor`.
+
+    Haze by turbidity (module docstring): DoP scaled by :func:`haze_dop_factor`; the Preetham
+    radiance when the scene declares no radiance model.
+    """
 
     def __init__(self, turbidity=3.0):
-        self.turbidity = _num({"turbidity": turbidity}, "turbidity", 3.0, 2.0, 10.0, "haze")
+        self.turbidity = _num({'turbidity': turbidity}, 'turbidity', 3.0, 2.0, 10.0, 'haze')
         self.factor = haze_dop_factor(self.turbidity)
         self._radiance = None
 
@@ -387,11 +542,12 @@ class Haze:
     def radiance_model(self):
         if self._radiance is None:
             from .radiance import PreethamSky
+
             self._radiance = PreethamSky(self.turbidity)
         return self._radiance
 
     def params(self) -> dict:
-        return {"turbidity": self.turbidity, "dop_factor": self.factor}
+        return {'turbidity': self.turbidity, 'dop_factor': self.factor}
 
     def apply(self, dop, valid, aop, min_dop: float) -> None:
         dop *= np.float32(self.factor)
@@ -402,12 +558,17 @@ class Haze:
             dop[low] = 0.0
 
 
-# ---------------------------------------------------------------------------------------------- skyline
+# ----------------------------------------------------------------------------------------------
+# skyline
 @njit(parallel=True, cache=True)
 def _skyline_candidates_kernel(rays, r0, r1, r2, t_max, flag):  # pragma: no cover - compiled
-    """flag[i] = 1 where the ray is below the skyline's highest point (u < t_max * horizontal length):
-    a branch-free pass (a loop that contains the atan2 branch runs ~15x slower even when it is never
-    taken, measured), the few flagged pixels are then tested exactly."""
+    """
+    Flag the rays below the skyline's highest point (branch-free pass).
+
+    flag[i] = 1 where the ray is below the skyline's highest point (u < t_max * horizontal length):
+    a branch-free pass (a loop that contains the atan2 branch runs ~15x slower even when it is
+    never taken, measured), the few flagged pixels are then tested exactly.
+    """
     for i in prange(rays.shape[1]):
         px = rays[0, i]
         py = rays[1, i]
@@ -419,7 +580,9 @@ def _skyline_candidates_kernel(rays, r0, r1, r2, t_max, flag):  # pragma: no cov
 
 
 @njit(cache=True)
-def _skyline_kernel(idx, rays, R, tan_elev, ground, aop, dop, inten, valid):  # pragma: no cover - compiled
+def _skyline_kernel(
+    idx, rays, R, tan_elev, ground, aop, dop, inten, valid
+):  # pragma: no cover - compiled
     m = tan_elev.size
     for i in idx:
         px = rays[0, i]
@@ -429,7 +592,7 @@ def _skyline_kernel(idx, rays, R, tan_elev, ground, aop, dop, inten, valid):  # 
         nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
         u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
         h = math.sqrt(e * e + nn * nn)
-        az = math.atan2(e, nn)                   # clockwise from North
+        az = math.atan2(e, nn)  # clockwise from North
         if az < 0.0:
             az += 2.0 * math.pi
         pos = az / (2.0 * math.pi) * m
@@ -437,7 +600,7 @@ def _skyline_kernel(idx, rays, R, tan_elev, ground, aop, dop, inten, valid):  # 
         f = pos - j
         j1 = j + 1 if j + 1 < m else 0
         t = tan_elev[j] * (1.0 - f) + tan_elev[j1] * f
-        if u < t * h:                            # below the skyline (or the horizon)
+        if u < t * h:  # below the skyline (or the horizon)
             valid[i] = False
             aop[i] = np.float32(0.0)
             dop[i] = np.float32(0.0)
@@ -445,31 +608,51 @@ def _skyline_kernel(idx, rays, R, tan_elev, ground, aop, dop, inten, valid):  # 
 
 
 class Skyline:
-    """Obstacles at the horizon: skyline elevation (deg) at ``len(elevation_deg)`` equally spaced azimuths
-    from North clockwise, linearly interpolated in tan(elevation) (periodic); or a seeded random one."""
+    """
+    Obstacles at the horizon: the skyline elevation per azimuth.
 
-    def __init__(self, elevation_deg=None, max_elevation_deg=None, features=24, ground_radiance=0.2, seed=0):
+    Obstacles at the horizon: skyline elevation (deg) at ``len(elevation_deg)`` equally spaced
+    azimuths from North clockwise, linearly interpolated in tan(elevation) (periodic); or a seeded
+    random one.
+    """
+
+    def __init__(
+        self, elevation_deg=None, max_elevation_deg=None, features=24, ground_radiance=0.2, seed=0
+    ):
         if elevation_deg is not None and max_elevation_deg is not None:
-            raise AtmosphereError("atmosphere.skyline: give elevation_deg or max_elevation_deg, not both")
+            raise AtmosphereError(
+                'atmosphere.skyline: give elevation_deg or max_elevation_deg, not both'
+            )
         if elevation_deg is None and max_elevation_deg is None:
-            raise AtmosphereError("atmosphere.skyline needs elevation_deg (a number or a list) or max_elevation_deg")
+            raise AtmosphereError(
+                'atmosphere.skyline needs elevation_deg (a number or a list) or max_elevation_deg'
+            )
         if elevation_deg is not None:
             vals = elevation_deg if isinstance(elevation_deg, (list, tuple)) else [elevation_deg]
             if not 1 <= len(vals) <= 3600:
-                raise AtmosphereError("atmosphere.skyline.elevation_deg needs 1-3600 values")
-            elev = np.array([_num({"e": v}, "e", 0, 0.0, 80.0, "skyline.elevation_deg") for v in vals])
+                raise AtmosphereError('atmosphere.skyline.elevation_deg needs 1-3600 values')
+            elev = np.array(
+                [_num({'e': v}, 'e', 0, 0.0, 80.0, 'skyline.elevation_deg') for v in vals]
+            )
             self.random = None
         else:
-            mx = _num({"m": max_elevation_deg}, "m", 0, 0.0, 80.0, "skyline.max_elevation_deg")
-            k = int(_num({"f": features}, "f", 24, 2, 3600, "skyline.features"))
+            mx = _num({'m': max_elevation_deg}, 'm', 0, 0.0, 80.0, 'skyline.max_elevation_deg')
+            k = int(_num({'f': features}, 'f', 24, 2, 3600, 'skyline.features'))
             elev = np.random.default_rng([int(seed), 0x5C7]).uniform(0.0, mx, k)
-            self.random = {"max_elevation_deg": mx, "features": k}
+            self.random = {'max_elevation_deg': mx, 'features': k}
         self.elevation_deg = elev
         self.tan_elev = np.tan(np.radians(elev))
-        self.ground_radiance = _num({"g": ground_radiance}, "g", 0.2, 0.0, 1e3, "skyline.ground_radiance")
+        self.ground_radiance = _num(
+            {'g': ground_radiance}, 'g', 0.2, 0.0, 1e3, 'skyline.ground_radiance'
+        )
 
     def elevation_at(self, azimuth_deg) -> np.ndarray:
-        """Skyline elevation (deg) at azimuths (deg, clockwise from North), as the kernel interpolates it."""
+        """
+        Return the skyline elevation (deg) at azimuths (deg, clockwise from North).
+
+        Skyline elevation (deg) at azimuths (deg, clockwise from North), as the kernel interpolates
+        it.
+        """
         a = np.mod(np.asarray(azimuth_deg, dtype=float), 360.0)
         m = self.tan_elev.size
         pos = a / 360.0 * m
@@ -479,64 +662,103 @@ class Skyline:
         return np.degrees(np.arctan(t))
 
     def params(self) -> dict:
-        p = {"ground_radiance": self.ground_radiance}
+        p = {'ground_radiance': self.ground_radiance}
         if self.random:
             p.update(self.random)
         else:
-            p["elevation_deg"] = [float(v) for v in self.elevation_deg]
+            p['elevation_deg'] = [float(v) for v in self.elevation_deg]
         return p
 
     def apply(self, R_enu_cam, rays_cam, aop, dop, intensity, valid) -> None:
         """Mask what lies below the skyline in the flat arrays, in place (module docstring)."""
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
         flag = np.empty(rays_cam.shape[1], np.bool_)
-        _skyline_candidates_kernel(rays_cam, R[0].copy(), R[1].copy(), R[2].copy(),
-                                   float(max(self.tan_elev.max(), 0.0)), flag)
+        _skyline_candidates_kernel(
+            rays_cam,
+            R[0].copy(),
+            R[1].copy(),
+            R[2].copy(),
+            float(max(self.tan_elev.max(), 0.0)),
+            flag,
+        )
         idx = np.flatnonzero(flag)
         if idx.size:
-            _skyline_kernel(idx, rays_cam, R, self.tan_elev, self.ground_radiance, aop, dop, intensity, valid)
+            _skyline_kernel(
+                idx, rays_cam, R, self.tan_elev, self.ground_radiance, aop, dop, intensity, valid
+            )
 
 
-# ---------------------------------------------------------------------------------------------- all
+# ----------------------------------------------------------------------------------------------
+# all
 class Atmosphere:
     """The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline."""
 
     def __init__(self, cfg: dict, seed: int = 0):
-        _keys(cfg, {"clouds", "haze", "skyline"}, "")
+        _keys(cfg, {'clouds', 'haze', 'skyline'}, '')
         self.clouds = self.haze = self.skyline = None
-        if cfg.get("haze") is not None:
-            h = cfg["haze"]
-            _keys(h, {"turbidity"}, "haze")
+        if cfg.get('haze') is not None:
+            h = cfg['haze']
+            _keys(h, {'turbidity'}, 'haze')
             self.haze = Haze(**h)
-        if cfg.get("clouds") is not None:
-            c = cfg["clouds"]
-            _keys(c, {"coverage", "scale_m", "height_m", "optical_thickness", "brightness", "softness", "wind_mps"},
-                  "clouds")
+        if cfg.get('clouds') is not None:
+            c = cfg['clouds']
+            _keys(
+                c,
+                {
+                    'coverage',
+                    'scale_m',
+                    'height_m',
+                    'optical_thickness',
+                    'brightness',
+                    'softness',
+                    'wind_mps',
+                },
+                'clouds',
+            )
             self.clouds = CloudLayer(**c, seed=(int(seed) * 2654435761 + 1) & 0x7FFFFFFF)
-        if cfg.get("skyline") is not None:
-            s = cfg["skyline"]
-            _keys(s, {"elevation_deg", "max_elevation_deg", "features", "ground_radiance"}, "skyline")
+        if cfg.get('skyline') is not None:
+            s = cfg['skyline']
+            _keys(
+                s, {'elevation_deg', 'max_elevation_deg', 'features', 'ground_radiance'}, 'skyline'
+            )
             self.skyline = Skyline(**s, seed=seed)
 
     @property
     def stages(self) -> list[str]:
-        return [n for n in ("haze", "clouds", "skyline") if getattr(self, n) is not None]
+        return [n for n in ('haze', 'clouds', 'skyline') if getattr(self, n) is not None]
 
     def params(self) -> dict:
         return {n: getattr(self, n).params() for n in self.stages}
 
-    def apply(self, R_enu_cam, rays_cam, aop, dop, valid, intensity, min_dop: float, dt_s: float, instr,
-              block_shape=None):
-        """Apply the declared stages to flat clear-sky arrays. ``intensity`` (float32, writable) must be given
-        (the radiance model's or uniform 1). Returns (aop, dop, valid, intensity)."""
+    def apply(
+        self,
+        R_enu_cam,
+        rays_cam,
+        aop,
+        dop,
+        valid,
+        intensity,
+        min_dop: float,
+        dt_s: float,
+        instr,
+        block_shape=None,
+    ):
+        """
+        Apply the declared stages to flat clear-sky arrays.
+
+        ``intensity`` (float32, writable) must be given
+        (the radiance model's or uniform 1). Returns (aop, dop, valid, intensity).
+        """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         if self.haze is not None:
-            with instr.stage("atmosphere.haze"):
+            with instr.stage('atmosphere.haze'):
                 self.haze.apply(dop, valid, aop, min_dop)
         if self.clouds is not None:
-            with instr.stage("atmosphere.clouds"):
-                self.clouds.apply(R_enu_cam, rays, aop, dop, intensity, valid, min_dop, dt_s, block_shape)
+            with instr.stage('atmosphere.clouds'):
+                self.clouds.apply(
+                    R_enu_cam, rays, aop, dop, intensity, valid, min_dop, dt_s, block_shape
+                )
         if self.skyline is not None:
-            with instr.stage("atmosphere.skyline"):
+            with instr.stage('atmosphere.skyline'):
                 self.skyline.apply(R_enu_cam, rays, aop, dop, intensity, valid)
         return aop, dop, valid, intensity

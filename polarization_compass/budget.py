@@ -1,25 +1,46 @@
-"""The error budget: what heading accuracy a scene gives, per method, and what each declared effect costs.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sky, atmosphere, optics and
-sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| + |roll| <=
-tilt_max_deg``, as the accuracy benchmark samples it), the scene's seed varied per sample (a new cloud
-field, new sensor noise) and the IMU/mounting errors of :class:`~polarization_compass.motion.MountingErrors`
-applied to the pitch and roll that tilt-aware methods read. Every method of the registry estimates every
-frame; per method it reports the heading error's RMS, p95 and max over the ok results, the share of
-results that are not ok, and the sigma calibration ``mean(err^2 / sigma^2)`` (1 for an honest sigma).
+"""
+The error budget: heading accuracy per method and the cost of each declared effect.
+
+The error budget: what heading accuracy a scene gives, per method, and what each declared effect
+costs.
+
+A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sky, atmosphere,
+optics and sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| +
+|roll| <= tilt_max_deg``, as the accuracy benchmark samples it), the scene's seed varied per sample
+(a new cloud field, new sensor noise) and the IMU/mounting errors of
+:class:`~polarization_compass.motion.MountingErrors` applied to the pitch and roll that tilt-aware
+methods read. Every method of the registry estimates every frame; per method it reports the heading
+error's RMS, p95 and max over the ok results, the share of results that are not ok, and the sigma
+calibration ``mean(err^2 / sigma^2)`` (1 for an honest sigma).
 
 The breakdown by source repeats the run with one declared source switched off, on the same samples
-(same bearings, tilts, seeds and IMU draws: paired), and reports the RMS without it and its contribution
-``sqrt(max(0, RMS_all^2 - RMS_without^2))`` (deg; sources are not independent, so contributions need not
-add up to the total). Sources: ``noise`` (sensor shot/read noise, quantisation), ``calibration`` (DoFP
-calibration errors), ``clouds``, ``haze``, ``skyline``, ``optics`` (sun glare, flare, vignetting),
-``sky_model`` (a non-Rayleigh sky against the Rayleigh one the estimators assume, same DoP_max),
-``tilt`` (the camera level instead), ``imu`` (noise, bias, time offset) and ``boresight``.
+(same bearings, tilts, seeds and IMU draws: paired), and reports the RMS without it and its
+contribution ``sqrt(max(0, RMS_all^2 - RMS_without^2))`` (deg; sources are not independent, so
+contributions need not add up to the total). Sources: ``noise`` (sensor shot/read noise,
+quantisation), ``calibration`` (DoFP calibration errors), ``clouds``, ``haze``, ``skyline``,
+``optics`` (sun glare, flare, vignetting), ``sky_model`` (a non-Rayleigh sky against the Rayleigh
+one the estimators assume, same DoP_max), ``tilt`` (the camera level instead), ``imu`` (noise,
+bias, time offset) and ``boresight``.
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -28,10 +49,29 @@ from .errors import CompassError
 from .motion import MountingErrors
 from .scene import Scene
 
-__all__ = ["BudgetError", "BudgetConfig", "SOURCES", "declared_sources", "run_budget", "parse_imu", "plot_budget"]
+__all__ = [
+    'BudgetError',
+    'BudgetConfig',
+    'SOURCES',
+    'declared_sources',
+    'run_budget',
+    'parse_imu',
+    'plot_budget',
+]
 
-_NOISE_KEYS = ("shot_noise", "read_noise", "quantization")
-SOURCES = ("noise", "calibration", "clouds", "haze", "skyline", "optics", "sky_model", "tilt", "imu", "boresight")
+_NOISE_KEYS = ('shot_noise', 'read_noise', 'quantization')
+SOURCES = (
+    'noise',
+    'calibration',
+    'clouds',
+    'haze',
+    'skyline',
+    'optics',
+    'sky_model',
+    'tilt',
+    'imu',
+    'boresight',
+)
 
 
 class BudgetError(CompassError):
@@ -48,89 +88,109 @@ class BudgetConfig:
 
 
 def parse_imu(text: str | None) -> MountingErrors:
-    """``key=value,key=value`` (keys of :class:`MountingErrors`; ``bias_deg`` sets both tilt biases,
-    ``boresight_deg`` the roll and pitch boresight) to a :class:`MountingErrors`."""
+    """
+    Parse ``key=value,...`` into :class:`MountingErrors`.
+
+    ``key=value,key=value`` (keys of :class:`MountingErrors`; ``bias_deg`` sets both tilt biases,
+    ``boresight_deg`` the roll and pitch boresight) to a :class:`MountingErrors`.
+    """
     if not text:
         return MountingErrors()
     vals = {}
-    for part in text.split(","):
+    for part in text.split(','):
         if not part.strip():
             continue
-        if "=" not in part:
-            raise BudgetError(f"--imu: expected key=value, got {part!r}")
-        k, v = (s.strip() for s in part.split("=", 1))
+        if '=' not in part:
+            raise BudgetError(f'--imu: expected key=value, got {part!r}')
+        k, v = (s.strip() for s in part.split('=', 1))
         try:
             f = float(v)
         except ValueError:
-            raise BudgetError(f"--imu: {k} must be a number, got {v!r}") from None
-        if k == "bias_deg":
+            raise BudgetError(f'--imu: {k} must be a number, got {v!r}') from None
+        if k == 'bias_deg':
             vals.update(pitch_bias_deg=f, roll_bias_deg=f)
-        elif k == "boresight_deg":
+        elif k == 'boresight_deg':
             vals.update(boresight_roll_deg=f, boresight_pitch_deg=f)
         elif k in MountingErrors.FIELDS:
             vals[k] = f
         else:
-            raise BudgetError(f"--imu: unknown key {k!r}; known: bias_deg, boresight_deg, "
-                              f"{', '.join(MountingErrors.FIELDS)}")
+            raise BudgetError(
+                f'--imu: unknown key {k!r}; known: bias_deg, boresight_deg, '
+                f'{", ".join(MountingErrors.FIELDS)}'
+            )
     try:
         return MountingErrors(**vals)
     except ValueError as exc:
-        raise BudgetError(f"--imu: {exc}") from None
+        raise BudgetError(f'--imu: {exc}') from None
 
 
 def declared_sources(cfg: BudgetConfig) -> list[str]:
-    """The sources of error the configuration declares, in :data:`SOURCES` order."""
+    """Return the sources of error the configuration declares, in :data:`SOURCES` order."""
     s = cfg.scene
     atm = s.atmosphere or {}
     on = {
-        "noise": any(k in s.sensor for k in _NOISE_KEYS),
-        "calibration": "calibration" in s.sensor,
-        "clouds": atm.get("clouds") is not None,
-        "haze": atm.get("haze") is not None,
-        "skyline": atm.get("skyline") is not None,
-        "optics": bool(s.optics),
-        "sky_model": (s.sky or {}).get("model", "rayleigh") != "rayleigh",
-        "tilt": cfg.tilt_max_deg > 0,
-        "imu": cfg.imu.has_imu,
-        "boresight": cfg.imu.has_boresight,
+        'noise': any(k in s.sensor for k in _NOISE_KEYS),
+        'calibration': 'calibration' in s.sensor,
+        'clouds': atm.get('clouds') is not None,
+        'haze': atm.get('haze') is not None,
+        'skyline': atm.get('skyline') is not None,
+        'optics': bool(s.optics),
+        'sky_model': (s.sky or {}).get('model', 'rayleigh') != 'rayleigh',
+        'tilt': cfg.tilt_max_deg > 0,
+        'imu': cfg.imu.has_imu,
+        'boresight': cfg.imu.has_boresight,
     }
     return [k for k in SOURCES if on[k]]
 
 
 def without(cfg: BudgetConfig, source: str) -> BudgetConfig:
-    """The configuration with ``source`` switched off."""
+    """Return the configuration with ``source`` switched off."""
     import dataclasses
+
     s = cfg.scene
-    if source == "noise":
-        return dataclasses.replace(cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items()
-                                                                if k not in _NOISE_KEYS}))
-    if source == "calibration":
-        return dataclasses.replace(cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items()
-                                                                if k != "calibration"}))
-    if source in ("clouds", "haze", "skyline"):
+    if source == 'noise':
+        return dataclasses.replace(
+            cfg,
+            scene=s.replace(sensor={k: v for k, v in s.sensor.items() if k not in _NOISE_KEYS}),
+        )
+    if source == 'calibration':
+        return dataclasses.replace(
+            cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items() if k != 'calibration'})
+        )
+    if source in ('clouds', 'haze', 'skyline'):
         atm = {k: v for k, v in (s.atmosphere or {}).items() if k != source}
         return dataclasses.replace(cfg, scene=s.replace(atmosphere=atm or None))
-    if source == "optics":
+    if source == 'optics':
         return dataclasses.replace(cfg, scene=s.replace(optics=None))
-    if source == "sky_model":
-        return dataclasses.replace(cfg, scene=s.replace(sky={"model": "rayleigh",
-                                                             "dop_max": float(s.sky.get("dop_max", 1.0))}))
-    if source == "tilt":
+    if source == 'sky_model':
+        return dataclasses.replace(
+            cfg,
+            scene=s.replace(
+                sky={'model': 'rayleigh', 'dop_max': float(s.sky.get('dop_max', 1.0))}
+            ),
+        )
+    if source == 'tilt':
         return dataclasses.replace(cfg, tilt_max_deg=0.0)
-    if source in ("imu", "boresight"):
+    if source in ('imu', 'boresight'):
         return dataclasses.replace(cfg, imu=cfg.imu.without(source))
-    raise BudgetError(f"unknown source {source!r}")
+    raise BudgetError(f'unknown source {source!r}')
 
 
 def _samples(cfg: BudgetConfig):
-    """Seeded (bearing, pitch, roll, scene seed, IMU normals) per sample, from the scene's seed only."""
+    """
+    Draw the seeded per-sample attitudes, scene seeds and IMU normals.
+
+    Seeded (bearing, pitch, roll, scene seed, IMU normals) per sample, from the scene's seed only.
+    """
     out = []
     for i in range(cfg.samples):
         rng = np.random.default_rng([cfg.scene.seed, 0xB0D6, i])
         bearing = float(rng.uniform(0.0, 360.0))
         pitch = float(rng.uniform(-1.0, 1.0))
-        roll = float(rng.uniform(-1.0, 1.0)) * (1.0 - abs(pitch))     # |pitch| + |roll| <= 1, scaled below
-        seed = int(rng.integers(0, 2 ** 31 - 1))
+        roll = float(rng.uniform(-1.0, 1.0)) * (
+            1.0 - abs(pitch)
+        )  # |pitch| + |roll| <= 1, scaled below
+        seed = int(rng.integers(0, 2**31 - 1))
         out.append((bearing, pitch, roll, seed, rng.standard_normal(3)))
     return out
 
@@ -138,15 +198,18 @@ def _samples(cfg: BudgetConfig):
 def _stats(errs, statuses_ok, sigmas) -> dict:
     n = len(statuses_ok)
     e = np.abs(np.asarray(errs, dtype=float))
-    d = {"count": n, "ok": int(e.size), "share_not_ok": (n - e.size) / n if n else None}
+    d = {'count': n, 'ok': int(e.size), 'share_not_ok': (n - e.size) / n if n else None}
     if e.size:
-        d.update(rms_deg=float(np.sqrt(np.mean(e ** 2))), p95_deg=float(np.percentile(e, 95)),
-                 max_deg=float(e.max()))
+        d.update(
+            rms_deg=float(np.sqrt(np.mean(e**2))),
+            p95_deg=float(np.percentile(e, 95)),
+            max_deg=float(e.max()),
+        )
     else:
         d.update(rms_deg=None, p95_deg=None, max_deg=None)
     pairs = [(x, s) for x, s in zip(errs, sigmas) if s is not None and s > 0]
-    d["sigma_calibration"] = float(np.mean([(x / s) ** 2 for x, s in pairs])) if pairs else None
-    d["sigma_count"] = len(pairs)
+    d['sigma_calibration'] = float(np.mean([(x / s) ** 2 for x, s in pairs])) if pairs else None
+    d['sigma_count'] = len(pairs)
     return d
 
 
@@ -156,8 +219,13 @@ def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
 
 
 def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
-    """Runs on a Dask worker: the raw results of some samples of one condition, numba on one thread."""
+    """
+    Run some samples of one condition on a Dask worker (numba on one thread).
+
+    Run on a Dask worker: the raw results of some samples of one condition, numba on one thread.
+    """
     from .runtime import keep_large_buffers_in_heap, single_threaded_kernels
+
     keep_large_buffers_in_heap()
     with single_threaded_kernels():
         return _condition_part(cfg, samples, methods)
@@ -168,6 +236,7 @@ def _condition_part(cfg: BudgetConfig, samples, methods) -> dict:
     from .estimators import registry
     from .estimators.base import Observation
     from .render import Renderer
+
     estimators = {m: registry.make(m) for m in methods}
     needs_tilt = {m: bool(registry.get(m).needs_tilt) for m in methods}
     res = {m: ([], [], []) for m in methods}
@@ -191,18 +260,29 @@ def _condition_part(cfg: BudgetConfig, samples, methods) -> dict:
 
 
 def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progress) -> dict:
-    """Every (condition, block of samples) a Dask task; the blocks joined in sample order, so the statistics
-    equal the in-process ones (each block runs numba on one thread)."""
+    """
+    Run every (condition, block of samples) as a Dask task, joined in sample order.
+
+    Every (condition, block of samples) a Dask task; the blocks joined in sample order, so the
+    statistics equal the in-process ones (each block runs numba on one thread).
+    """
     from .sweep_dask import run_tasks
+
     n = max(1, int(workers or 0) or 2)
     block = max(1, math.ceil(len(samples) / (4 * n)))
     calls, parts = [], {}
     for ci, (name, c) in enumerate(conds):
         for bi, i in enumerate(range(0, len(samples), block)):
-            calls.append((f"budget-{ci}-{bi}-{id(calls)}", _budget_task, (c, samples[i:i + block], methods)))
+            calls.append(
+                (
+                    f'budget-{ci}-{bi}-{id(calls)}',
+                    _budget_task,
+                    (c, samples[i:i + block], methods),
+                )
+            )
 
     def on_result(key, raw):
-        _, ci, bi, _ = key.split("-")
+        _, ci, bi, _ = key.split('-')
         parts[(int(ci), int(bi))] = raw
         if progress and all((int(ci), b) in parts for b in range(math.ceil(len(samples) / block))):
             progress(conds[int(ci)][0])
@@ -211,28 +291,36 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
     out = {}
     for ci, (name, _) in enumerate(conds):
         blocks = [parts[(ci, b)] for b in range(math.ceil(len(samples) / block))]
-        out[name] = {m: _stats(*[sum((bl[m][k] for bl in blocks), []) for k in range(3)]) for m in methods}
+        out[name] = {
+            m: _stats(*[sum((bl[m][k] for bl in blocks), []) for k in range(3)]) for m in methods
+        }
     return out
 
 
-def run_budget(cfg: BudgetConfig, progress=None, workers: int | None = 1, scheduler: str | None = None) -> dict:
-    """The budget as a JSON-able dict (module docstring). ``progress(text)`` is called per condition.
+def run_budget(
+    cfg: BudgetConfig, progress=None, workers: int | None = 1, scheduler: str | None = None
+) -> dict:
+    """
+    Run the budget and return it as a JSON-able dict (module docstring).
 
-    ``workers=1`` without ``scheduler`` (default) runs in this process; otherwise (condition, block of
-    samples) tasks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`: a LocalCluster of
-    ``workers`` processes, None = one per core, or the cluster at ``scheduler``), each with numba on one
-    thread; the same statistics as an in-process run on one numba thread.
+    ``progress(text)`` is called per condition.
+
+    ``workers=1`` without ``scheduler`` (default) runs in this process; otherwise (condition, block
+    of samples) tasks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`: a
+    LocalCluster of ``workers`` processes, None = one per core, or the cluster at ``scheduler``),
+    each with numba on one thread; the same statistics as an in-process run on one numba thread.
     """
     from .estimators import registry
+
     if cfg.samples < 1:
-        raise BudgetError("samples must be >= 1")
+        raise BudgetError('samples must be >= 1')
     methods = list(cfg.methods) or list(registry.names())
     unknown = [m for m in methods if m not in registry.names()]
     if unknown:
-        raise BudgetError(f"unknown method(s) {unknown}; known: {', '.join(registry.names())}")
+        raise BudgetError(f'unknown method(s) {unknown}; known: {", ".join(registry.names())}')
     samples = _samples(cfg)
     sources = declared_sources(cfg)
-    conds = [("all", cfg)] + [(f"without {s}", without(cfg, s)) for s in sources]
+    conds = [('all', cfg)] + [(f'without {s}', without(cfg, s)) for s in sources]
     conditions = {}
     if workers == 1 and scheduler is None:
         for name, c in conds:
@@ -243,49 +331,78 @@ def run_budget(cfg: BudgetConfig, progress=None, workers: int | None = 1, schedu
         conditions = _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progress)
     breakdown = {}
     for m in methods:
-        total = conditions["all"][m]["rms_deg"]
+        total = conditions['all'][m]['rms_deg']
         b = {}
         for s in sources:
-            w = conditions[f"without {s}"][m]["rms_deg"]
+            w = conditions[f'without {s}'][m]['rms_deg']
             contrib = None
             if total is not None and w is not None:
-                contrib = math.sqrt(max(0.0, total ** 2 - w ** 2))
-            b[s] = {"rms_without_deg": w, "contribution_deg": contrib}
+                contrib = math.sqrt(max(0.0, total**2 - w**2))
+            b[s] = {'rms_without_deg': w, 'contribution_deg': contrib}
         breakdown[m] = b
     imu = {k: getattr(cfg.imu, k) for k in MountingErrors.FIELDS}
-    return {"scene": cfg.scene.name, "samples": cfg.samples, "tilt_max_deg": cfg.tilt_max_deg, "imu": imu,
-            "methods": methods, "sources": sources, "conditions": conditions, "breakdown": breakdown,
-            "sampling": {"bearing_deg": [0, 360], "tilt": f"|pitch| + |roll| <= {cfg.tilt_max_deg:g} deg",
-                         "sun": "the scene's", "seeds": "scene seed per sample"}}
+    return {
+        'scene': cfg.scene.name,
+        'samples': cfg.samples,
+        'tilt_max_deg': cfg.tilt_max_deg,
+        'imu': imu,
+        'methods': methods,
+        'sources': sources,
+        'conditions': conditions,
+        'breakdown': breakdown,
+        'sampling': {
+            'bearing_deg': [0, 360],
+            'tilt': f'|pitch| + |roll| <= {cfg.tilt_max_deg:g} deg',
+            'sun': "the scene's",
+            'seeds': 'scene seed per sample',
+        },
+    }
 
 
 def plot_budget(result: dict, path) -> None:
-    """One panel per method (its own scale): the total RMS and each source's contribution, PNG at ``path``."""
+    """
+    Plot one panel per method: total RMS and each source's contribution.
+
+    One panel per method (its own scale): the total RMS and each source's contribution, PNG at
+    ``path``.
+    """
     import matplotlib
-    matplotlib.use("Agg")
+
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    methods = result["methods"]
-    sources = result["sources"]
-    rows = ["total"] + sources
-    fig, axes = plt.subplots(len(methods), 1, figsize=(7, 0.6 + (0.3 * len(rows) + 0.5) * len(methods)),
-                             squeeze=False)
+
+    methods = result['methods']
+    sources = result['sources']
+    rows = ['total'] + sources
+    fig, axes = plt.subplots(
+        len(methods), 1, figsize=(7, 0.6 + (0.3 * len(rows) + 0.5) * len(methods)), squeeze=False
+    )
     for ax, m in zip(axes[:, 0], methods):
-        st = result["conditions"]["all"][m]
-        vals = [st["rms_deg"]] + [result["breakdown"][m][s]["contribution_deg"] for s in sources]
+        st = result['conditions']['all'][m]
+        vals = [st['rms_deg']] + [result['breakdown'][m][s]['contribution_deg'] for s in sources]
         y = -np.arange(len(rows))
-        ax.barh(y, [v or 0.0 for v in vals], color=["k"] + ["C0"] * len(sources))
+        ax.barh(y, [v or 0.0 for v in vals], color=['k'] + ['C0'] * len(sources))
         ax.set_yticks(y)
         ax.set_yticklabels(rows, fontsize=8)
-        sig = st["sigma_calibration"]
-        title = (f"{m}: RMS {st['rms_deg']:.3g} deg, p95 {st['p95_deg']:.3g}, not ok {st['share_not_ok']:.0%}, "
-                 f"mean err^2/sigma^2 {'-' if sig is None else f'{sig:.3g}'}" if st["rms_deg"] is not None
-                 else f"{m}: no ok result ({st['share_not_ok']:.0%} not ok)")
-        ax.set_title(title, fontsize=8, loc="left")
-        ax.grid(axis="x", alpha=0.3)
-        ax.tick_params(axis="x", labelsize=7)
-    axes[-1, 0].set_xlabel("heading error RMS (total) / contribution of the source (deg)", fontsize=8)
-    fig.suptitle(f"error budget: {result['scene']}, {result['samples']} samples, "
-                 f"tilt <= {result['tilt_max_deg']:g} deg", fontsize=9)
+        sig = st['sigma_calibration']
+        title = (
+            f'{m}: RMS {st["rms_deg"]:.3g} deg, p95 {st["p95_deg"]:.3g}, not ok '
+            f'{st["share_not_ok"]:.0%}, '
+            f'mean err^2/sigma^2 {"-" if sig is None else f"{sig:.3g}"}'
+            if st['rms_deg'] is not None
+            else f'{m}: no ok result ({st["share_not_ok"]:.0%} not ok)'
+        )
+        ax.set_title(title, fontsize=8, loc='left')
+        ax.grid(axis='x', alpha=0.3)
+        ax.tick_params(axis='x', labelsize=7)
+    axes[-1, 0].set_xlabel(
+        'heading error RMS (total) / contribution of the source (deg)', fontsize=8
+    )
+    fig.suptitle(
+        f'error budget: {result["scene"]}, {result["samples"]} samples, '
+        f'tilt <= {result["tilt_max_deg"]:g} deg',
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

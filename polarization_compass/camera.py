@@ -1,4 +1,19 @@
-"""Camera models and pixel selections; unit viewing rays in the camera optical frame, cached.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Camera models and pixel selections; unit viewing rays in the camera optical frame, cached.
 
 Pixel coordinates follow eq 20: ``x_px`` is the 1-based column, ``y_px`` the 1-based row; the
 principal point defaults to the image centre ``((eta_x + 1) / 2, (eta_y + 1) / 2)``.
@@ -19,25 +34,41 @@ builds a model from ROS K/D, :func:`load_camera_yaml` from a ``camera_calibratio
 
 Rays are returned as a (3, N) float32 array (structure of arrays, what the render kernels want)
 and cached per (camera, selection): a camera that does not change costs nothing per frame.
+
 """
+
 from __future__ import annotations
 
-import hashlib
-import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-
-from .errors import CompassError
+import hashlib
+import math
 
 import numpy as np
 
-__all__ = ["CameraModel", "PixelSelection", "SelectedPixels", "select_pixels", "CameraError",
-           "camera_from_intrinsics", "load_camera_yaml", "CameraFile", "DISTORTION_MODELS", "check_intrinsics",
-           "MAX_PIXEL_ASPECT_DEVIATION", "MAX_PRINCIPAL_OFFSET_FRACTION"]
+from .errors import CompassError
+
+__all__ = [
+    'CameraModel',
+    'PixelSelection',
+    'SelectedPixels',
+    'select_pixels',
+    'CameraError',
+    'camera_from_intrinsics',
+    'load_camera_yaml',
+    'CameraFile',
+    'DISTORTION_MODELS',
+    'check_intrinsics',
+    'MAX_PIXEL_ASPECT_DEVIATION',
+    'MAX_PRINCIPAL_OFFSET_FRACTION',
+]
 
 # ROS distortion model -> (projection model, number of coefficients OpenCV wants)
-DISTORTION_MODELS = {"plumb_bob": ("pinhole", 5), "rational_polynomial": ("pinhole", 8),
-                     "equidistant": ("fisheye_equidistant", 4)}
+DISTORTION_MODELS = {
+    'plumb_bob': ('pinhole', 5),
+    'rational_polynomial': ('pinhole', 8),
+    'equidistant': ('fisheye_equidistant', 4),
+}
 
 
 class CameraError(CompassError):
@@ -46,7 +77,8 @@ class CameraError(CompassError):
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Hold camera intrinsics; the defaults are the paper's imager (Table 1).
+    """
+    Hold camera intrinsics; the defaults are the paper's imager (Table 1).
 
     Sony IMX250MZR: 2448 x 2048 pixels of 3.45 um, f = 4 mm. Invalid values raise
     :class:`CameraError` on construction.
@@ -72,63 +104,90 @@ class CameraModel:
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 20 and Table 1.
+
     """
 
-    model: str = "pinhole"
-    width_px: int = 2448            # eta_x, number of columns
-    height_px: int = 2048           # eta_y, number of rows
+    model: str = 'pinhole'
+    width_px: int = 2448  # eta_x, number of columns
+    height_px: int = 2048  # eta_y, number of rows
     focal_length_mm: float = 4.0
     pixel_pitch_x_um: float = 3.45  # D_x
     pixel_pitch_y_um: float = 3.45  # D_y
-    principal_x_px: float | None = None   # 1-based; None = image centre
+    principal_x_px: float | None = None  # 1-based; None = image centre
     principal_y_px: float | None = None
-    max_field_angle_deg: float = 90.0     # fisheye only
-    distortion_model: str = ""             # "" (ideal) | plumb_bob | rational_polynomial | equidistant
-    distortion: tuple = ()                 # OpenCV/ROS coefficients D of that model
+    max_field_angle_deg: float = 90.0  # fisheye only
+    distortion_model: str = ''  # "" (ideal) | plumb_bob | rational_polynomial | equidistant
+    distortion: tuple = ()  # OpenCV/ROS coefficients D of that model
 
     def __post_init__(self):
         d = tuple(float(v) for v in (self.distortion or ()))
-        object.__setattr__(self, "distortion", d)
+        object.__setattr__(self, 'distortion', d)
         if not all(math.isfinite(v) for v in d):
-            raise CameraError(f"distortion coefficients must be finite, got {d}")
+            raise CameraError(f'distortion coefficients must be finite, got {d}')
         if self.distortion_model:
             if self.distortion_model not in DISTORTION_MODELS:
-                raise CameraError(f"distortion_model must be one of {', '.join(DISTORTION_MODELS)}, "
-                                  f"got {self.distortion_model!r}")
+                raise CameraError(
+                    f'distortion_model must be one of {", ".join(DISTORTION_MODELS)}, '
+                    f'got {self.distortion_model!r}'
+                )
             want_model, n = DISTORTION_MODELS[self.distortion_model]
             if want_model != self.model:
-                raise CameraError(f"distortion_model {self.distortion_model!r} needs camera model {want_model!r}, "
-                                  f"got {self.model!r}")
+                raise CameraError(
+                    f'distortion_model {self.distortion_model!r} needs camera model '
+                    f'{want_model!r}, '
+                    f'got {self.model!r}'
+                )
             if len(d) != n:
-                raise CameraError(f"distortion_model {self.distortion_model!r} takes {n} coefficients, got {len(d)}")
+                raise CameraError(
+                    f'distortion_model {self.distortion_model!r} takes {n} coefficients, got '
+                    f'{len(d)}'
+                )
         elif d:
-            raise CameraError("distortion coefficients given without a distortion_model")
-        if self.model not in ("pinhole", "fisheye_equidistant"):
-            raise CameraError(f"camera model must be 'pinhole' or 'fisheye_equidistant', got {self.model!r}")
-        for name in ("width_px", "height_px"):
+            raise CameraError('distortion coefficients given without a distortion_model')
+        if self.model not in ('pinhole', 'fisheye_equidistant'):
+            raise CameraError(
+                f"camera model must be 'pinhole' or 'fisheye_equidistant', got {self.model!r}"
+            )
+        for name in ('width_px', 'height_px'):
             v = getattr(self, name)
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not (1 <= int(v) <= 20000):
-                raise CameraError(f"{name} must be an integer in [1, 20000], got {v!r}")
-        for name in ("focal_length_mm", "pixel_pitch_x_um", "pixel_pitch_y_um"):
+            if (
+                isinstance(v, (bool, np.bool_))
+                or not isinstance(v, (int, np.integer))
+                or not (1 <= int(v) <= 20000)
+            ):
+                raise CameraError(f'{name} must be an integer in [1, 20000], got {v!r}')
+        for name in ('focal_length_mm', 'pixel_pitch_x_um', 'pixel_pitch_y_um'):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise CameraError(f"{name} must be a positive finite number, got {v!r}")
-        for name in ("principal_x_px", "principal_y_px"):
+            if isinstance(v, bool) or not (
+                isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+            ):
+                raise CameraError(f'{name} must be a positive finite number, got {v!r}')
+        for name in ('principal_x_px', 'principal_y_px'):
             v = getattr(self, name)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
-                raise CameraError(f"{name} must be a finite number or None, got {v!r}")
+            if v is not None and (
+                isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            ):
+                raise CameraError(f'{name} must be a finite number or None, got {v!r}')
         if not (0 < self.max_field_angle_deg <= 180):
-            raise CameraError("max_field_angle_deg must be in (0, 180]")
+            raise CameraError('max_field_angle_deg must be in (0, 180]')
 
     @property
     def cx_px(self) -> float:
         """Principal point column [px, 1-based]; the image centre by default."""
-        return (self.width_px + 1) / 2.0 if self.principal_x_px is None else float(self.principal_x_px)
+        return (
+            (self.width_px + 1) / 2.0
+            if self.principal_x_px is None
+            else float(self.principal_x_px)
+        )
 
     @property
     def cy_px(self) -> float:
         """Principal point row [px, 1-based]; the image centre by default."""
-        return (self.height_px + 1) / 2.0 if self.principal_y_px is None else float(self.principal_y_px)
+        return (
+            (self.height_px + 1) / 2.0
+            if self.principal_y_px is None
+            else float(self.principal_y_px)
+        )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -136,17 +195,19 @@ class CameraModel:
         return (int(self.height_px), int(self.width_px))
 
     def field_of_view_deg(self) -> tuple[float, float, float]:
-        """Compute the horizontal, vertical and diagonal full field of view.
+        """
+        Compute the horizontal, vertical and diagonal full field of view.
 
         Returns
         -------
         tuple of float
             ``(horizontal, vertical, diagonal)`` [deg].
+
         """
         f = self.focal_length_mm * 1e3
         hw = self.width_px * self.pixel_pitch_x_um / 2
         hh = self.height_px * self.pixel_pitch_y_um / 2
-        if self.model == "pinhole":
+        if self.model == 'pinhole':
             fov = lambda r: 2 * math.degrees(math.atan2(r, f))  # noqa: E731
         else:
             fov = lambda r: min(2 * math.degrees(r / f), 2 * self.max_field_angle_deg)  # noqa: E731
@@ -154,42 +215,57 @@ class CameraModel:
 
     @property
     def distorted(self) -> bool:
-        """Return True when the lens has non-zero distortion coefficients (rays come from OpenCV)."""
+        """Return True when the lens has non-zero distortion coefficients (OpenCV rays)."""
         return any(v != 0.0 for v in self.distortion)
 
     def K_matrix(self) -> np.ndarray:
-        """Return the ROS/OpenCV camera matrix K.
+        """
+        Return the ROS/OpenCV camera matrix K.
 
         Returns
         -------
         numpy.ndarray
-            ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels, 0-based principal point (OpenCV's).
+            ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels, 0-based principal point
+            (OpenCV's).
+
         """
         fx = self.focal_length_mm / (self.pixel_pitch_x_um * 1e-3)
         fy = self.focal_length_mm / (self.pixel_pitch_y_um * 1e-3)
-        return np.array([[fx, 0.0, self.cx_px - 1.0], [0.0, fy, self.cy_px - 1.0], [0.0, 0.0, 1.0]])
+        return np.array(
+            [[fx, 0.0, self.cx_px - 1.0], [0.0, fy, self.cy_px - 1.0], [0.0, 0.0, 1.0]]
+        )
 
     def _rays_opencv(self, x, y):
-        """Compute rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV 0-based)."""
+        """
+        Compute the rays of a distorted lens through OpenCV's undistortion.
+
+        Compute rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV
+        0-based).
+        """
         import cv2
+
         K = self.K_matrix()
         D = np.asarray(self.distortion, dtype=np.float64)
         pts = np.stack([x - 1.0, y - 1.0], axis=-1).reshape(-1, 1, 2).astype(np.float64)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-        if self.model == "pinhole":
+        if self.model == 'pinhole':
             n = cv2.undistortPoints(pts, K, D, None, None, None, crit).reshape(-1, 2)
             r = np.stack([n[:, 0], n[:, 1], np.ones(n.shape[0])])
             r /= np.linalg.norm(r, axis=0, keepdims=True)
             ok = np.all(np.isfinite(r), axis=0)
-            # undistortPoints inverts the polynomial iteratively: keep only pixels it maps back onto themselves
+            # undistortPoints inverts the polynomial iteratively: keep only pixels it maps back
+            # onto themselves
             if ok.any():
-                back, _ = cv2.projectPoints(np.ascontiguousarray(r.T[ok]), np.zeros(3), np.zeros(3), K, D)
+                back, _ = cv2.projectPoints(
+                    np.ascontiguousarray(r.T[ok]), np.zeros(3), np.zeros(3), K, D
+                )
                 ok[ok] = np.hypot(*(back.reshape(-1, 2) - pts.reshape(-1, 2)[ok]).T) < 0.05
             return np.where(ok, r, np.array([[0.0], [0.0], [1.0]])), ok
         n = cv2.fisheye.undistortPoints(pts, K, D, None, None, None, crit).reshape(-1, 2)
-        # OpenCV returns tan(theta) along the pixel's direction; beyond 90 deg tan < 0 flips the point
-        # through the centre, so theta comes from the length and the side, the direction from the pixel.
-        # OpenCV clamps the distorted angle theta_d to 90 deg: pixels at or beyond it get no ray.
+        # OpenCV returns tan(theta) along the pixel's direction; beyond 90 deg tan < 0 flips the
+        # point through the centre, so theta comes from the length and the side, the direction from
+        # the pixel. OpenCV clamps the distorted angle theta_d to 90 deg: pixels at or beyond it
+        # get no ray.
         du = (pts[:, 0, 0] - K[0, 2]) / K[0, 0]
         dv = (pts[:, 0, 1] - K[1, 2]) / K[1, 1]
         rho_d = np.hypot(du, dv)
@@ -199,16 +275,22 @@ class CameraModel:
         safe = np.where(rho_d > 0, rho_d, 1.0)
         st = np.sin(theta)
         r = np.stack([st * du / safe, st * dv / safe, np.cos(theta)])
-        ok = np.isfinite(theta) & (theta <= math.radians(self.max_field_angle_deg)) & np.all(np.isfinite(n), axis=1)
+        ok = (
+            np.isfinite(theta)
+            & (theta <= math.radians(self.max_field_angle_deg))
+            & np.all(np.isfinite(n), axis=1)
+        )
         ok &= rho_d < 0.5 * np.pi - 1e-9
         return np.where(ok, r, np.array([[0.0], [0.0], [1.0]])), ok
 
     def rays_from_pixels(self, x_px, y_px):
-        """Compute unit viewing rays in the camera frame for 1-based pixel coordinates.
+        """
+        Compute unit viewing rays in the camera frame for 1-based pixel coordinates.
 
         Pinhole: eq 20, ``(D_x (x - c_x), D_y (y - c_y), f)`` normalised; fisheye: r = f * theta. A
-        distorted lens (:attr:`distorted`) goes through OpenCV's undistortion (``cv2.undistortPoints``,
-        ``cv2.fisheye.undistortPoints``); pixels the inverse does not reach have no ray.
+        distorted lens (:attr:`distorted`) goes through OpenCV's undistortion
+        (``cv2.undistortPoints``, ``cv2.fisheye.undistortPoints``); pixels the inverse does not
+        reach have no ray.
 
         Parameters
         ----------
@@ -222,22 +304,23 @@ class CameraModel:
             axis).
         has_ray : numpy.ndarray
             bool, shape (N,): False for fisheye pixels beyond ``max_field_angle_deg`` (or beyond
-            OpenCV's 90 deg limit on the distorted angle), and for distorted pinhole pixels whose ray
-            does not project back onto them.
+            OpenCV's 90 deg limit on the distorted angle), and for distorted pinhole pixels whose
+            ray does not project back onto them.
 
         References
         ----------
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), eq 20 and Fig 4.
+
         """
         x = np.asarray(x_px, dtype=float).reshape(-1)
         y = np.asarray(y_px, dtype=float).reshape(-1)
         if self.distorted:
             return self._rays_opencv(x, y)
-        u = (x - self.cx_px) * (self.pixel_pitch_x_um * 1e-3)   # mm on the sensor
+        u = (x - self.cx_px) * (self.pixel_pitch_x_um * 1e-3)  # mm on the sensor
         v = (y - self.cy_px) * (self.pixel_pitch_y_um * 1e-3)
         f = self.focal_length_mm
-        if self.model == "pinhole":
+        if self.model == 'pinhole':
             r = np.stack([u, v, np.full_like(u, f)])
             r /= np.linalg.norm(r, axis=0, keepdims=True)
             ok = np.ones(x.shape, dtype=bool)
@@ -251,7 +334,8 @@ class CameraModel:
         return r, ok
 
     def pixels_from_rays(self, rays_cam):
-        """Project camera-frame rays back to 1-based pixel coordinates (the inverse of eq 20).
+        """
+        Project camera-frame rays back to 1-based pixel coordinates (the inverse of eq 20).
 
         Used by tests and sparse renders.
 
@@ -271,46 +355,54 @@ class CameraModel:
         ----------
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+
         """
         r = np.asarray(rays_cam, dtype=float)
         if self.distorted:
             import cv2
+
             obj = np.ascontiguousarray(r.reshape(3, -1).T).reshape(-1, 1, 3)
             K, D = self.K_matrix(), np.asarray(self.distortion, dtype=np.float64)
-            if self.model == "pinhole":
+            if self.model == 'pinhole':
                 px, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, D)
             else:
                 px, _ = cv2.fisheye.projectPoints(obj, np.zeros(3), np.zeros(3), K, D)
             px = px.reshape(-1, 2)
             return px[:, 0] + 1.0, px[:, 1] + 1.0
         f = self.focal_length_mm
-        if self.model == "pinhole":
+        if self.model == 'pinhole':
             u = f * r[0] / r[2]
             v = f * r[1] / r[2]
         else:
             theta = np.arctan2(np.hypot(r[0], r[1]), r[2])
             phi = np.arctan2(r[1], r[0])
             u, v = f * theta * np.cos(phi), f * theta * np.sin(phi)
-        return (u / (self.pixel_pitch_x_um * 1e-3) + self.cx_px,
-                v / (self.pixel_pitch_y_um * 1e-3) + self.cy_px)
+        return (
+            u / (self.pixel_pitch_x_um * 1e-3) + self.cx_px,
+            v / (self.pixel_pitch_y_um * 1e-3) + self.cy_px,
+        )
 
 
-#: Largest relative difference of the focal lengths in x and y pixels (|fx / fy - 1|) accepted from a
-#: calibration: square-pixel sensors calibrate to within a few 1e-3.
+#: Largest relative difference of the focal lengths in x and y pixels (|fx / fy - 1|) accepted from
+#: a calibration: square-pixel sensors calibrate to within a few 1e-3.
 MAX_PIXEL_ASPECT_DEVIATION = 0.05
-#: Largest distance of the principal point from the image centre, as a fraction of the width (x) or the
-#: height (y): calibrated lenses sit within a few percent; a K from another resolution or binning puts it
-#: near a corner (2x: exactly at the far edge).
+#: Largest distance of the principal point from the image centre, as a fraction of the width (x) or
+#: the height (y): calibrated lenses sit within a few percent; a K from another resolution or
+#: binning puts it near a corner (2x: exactly at the far edge).
 MAX_PRINCIPAL_OFFSET_FRACTION = 0.25
 
 
-def check_intrinsics(camera: "CameraModel", image_size: tuple[int, int] | None = None,
-                     max_aspect_deviation: float = MAX_PIXEL_ASPECT_DEVIATION,
-                     max_principal_offset: float = MAX_PRINCIPAL_OFFSET_FRACTION) -> "CameraModel":
-    """Check that calibrated intrinsics (e.g. from a ROS camera_info) are plausible.
+def check_intrinsics(
+    camera: 'CameraModel',
+    image_size: tuple[int, int] | None = None,
+    max_aspect_deviation: float = MAX_PIXEL_ASPECT_DEVIATION,
+    max_principal_offset: float = MAX_PRINCIPAL_OFFSET_FRACTION,
+) -> 'CameraModel':
+    """
+    Check that calibrated intrinsics (e.g. from a ROS camera_info) are plausible.
 
-    A wrong calibration otherwise gives a confident, wrong heading (issue 18: the principal point at
-    the corner of a 612 x 512 image moved a level camera's heading by 24 deg with status ok).
+    A wrong calibration otherwise gives a confident, wrong heading (issue 18: the principal point
+    at the corner of a 612 x 512 image moved a level camera's heading by 24 deg with status ok).
 
     Parameters
     ----------
@@ -332,61 +424,76 @@ def check_intrinsics(camera: "CameraModel", image_size: tuple[int, int] | None =
     Raises
     ------
     CameraError
-        The first problem: image size, focal length <= 0, fx/fy, principal point outside the image or
-        too far from its centre.
+        The first problem: image size, focal length <= 0, fx/fy, principal point outside the image
+        or too far from its centre.
+
     """
     W, H = int(camera.width_px), int(camera.height_px)
     if image_size is not None and (int(image_size[0]), int(image_size[1])) != (W, H):
-        raise CameraError(f"image is {int(image_size[0])}x{int(image_size[1])} but the intrinsics are for {W}x{H}")
+        raise CameraError(
+            f'image is {int(image_size[0])}x{int(image_size[1])} but the intrinsics are for '
+            f'{W}x{H}'
+        )
     if not camera.focal_length_mm > 0:
-        raise CameraError(f"focal length must be positive, got {camera.focal_length_mm!r} mm")
-    aspect = camera.pixel_pitch_y_um / camera.pixel_pitch_x_um          # = fx / fy in pixels
+        raise CameraError(f'focal length must be positive, got {camera.focal_length_mm!r} mm')
+    aspect = camera.pixel_pitch_y_um / camera.pixel_pitch_x_um  # = fx / fy in pixels
     if abs(aspect - 1.0) > max_aspect_deviation:
-        raise CameraError(f"fx/fy = {aspect:.4g}: pixels this far from square (more than "
-                          f"{max_aspect_deviation:g}) mean a calibration of another camera or mode")
+        raise CameraError(
+            f'fx/fy = {aspect:.4g}: pixels this far from square (more than '
+            f'{max_aspect_deviation:g}) mean a calibration of another camera or mode'
+        )
     cx, cy = camera.cx_px, camera.cy_px
     if not (0.5 <= cx <= W + 0.5 and 0.5 <= cy <= H + 0.5):
-        raise CameraError(f"principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is outside the {W}x{H} image")
+        raise CameraError(
+            f'principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is outside the {W}x{H} image'
+        )
     dx, dy = abs(cx - (W + 1) / 2.0) / W, abs(cy - (H + 1) / 2.0) / H
     if dx > max_principal_offset or dy > max_principal_offset:
-        raise CameraError(f"principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is {max(dx, dy):.0%} of the "
-                          f"image size from the centre of the {W}x{H} image (at most {max_principal_offset:.0%}): "
-                          "a calibration from another resolution or binning?")
+        raise CameraError(
+            f'principal point ({cx - 1:.6g}, {cy - 1:.6g}) (0-based) is {max(dx, dy):.0%} of the '
+            f'image size from the centre of the {W}x{H} image (at most '
+            f'{max_principal_offset:.0%}): '
+            'a calibration from another resolution or binning?'
+        )
     return camera
 
 
 @dataclass(frozen=True)
 class PixelSelection:
-    """Which pixels a consumer wants rendered.
+    """
+    Which pixels a consumer wants rendered.
 
     ``mode``: ``full`` | ``stride`` (every ``stride``-th row and column, centred) | ``region``
     (a rectangle ``x0, y0, width, height`` in 1-based pixels, optionally strided) | ``grid``
     (``nx`` x ``ny`` evenly spread pixels) | ``list`` (explicit 1-based ``x_px``/``y_px``).
     """
 
-    mode: str = "full"
+    mode: str = 'full'
     stride: int = 1
-    region: tuple[int, int, int, int] | None = None   # x0, y0, width, height (1-based x0, y0)
+    region: tuple[int, int, int, int] | None = None  # x0, y0, width, height (1-based x0, y0)
     nx: int = 0
     ny: int = 0
-    x_list: bytes = b""            # int32 bytes of explicit columns (hashable)
-    y_list: bytes = b""
-    _digest: str = field(default="", compare=False)
+    x_list: bytes = b''  # int32 bytes of explicit columns (hashable)
+    y_list: bytes = b''
+    _digest: str = field(default='', compare=False)
 
     @staticmethod
-    def full() -> "PixelSelection":
-        """Select every pixel.
+    def full() -> 'PixelSelection':
+        """
+        Select every pixel.
 
         Returns
         -------
         PixelSelection
             Mode ``full``.
+
         """
-        return PixelSelection("full")
+        return PixelSelection('full')
 
     @staticmethod
-    def strided(stride: int) -> "PixelSelection":
-        """Select every ``stride``-th row and column, centred on the image.
+    def strided(stride: int) -> 'PixelSelection':
+        """
+        Select every ``stride``-th row and column, centred on the image.
 
         Parameters
         ----------
@@ -397,12 +504,14 @@ class PixelSelection:
         -------
         PixelSelection
             Mode ``stride``.
+
         """
-        return PixelSelection("stride", stride=int(stride))
+        return PixelSelection('stride', stride=int(stride))
 
     @staticmethod
-    def grid(nx: int, ny: int) -> "PixelSelection":
-        """Select ``nx`` x ``ny`` evenly spread pixels (centres of equal blocks).
+    def grid(nx: int, ny: int) -> 'PixelSelection':
+        """
+        Select ``nx`` x ``ny`` evenly spread pixels (centres of equal blocks).
 
         Parameters
         ----------
@@ -413,12 +522,14 @@ class PixelSelection:
         -------
         PixelSelection
             Mode ``grid``.
+
         """
-        return PixelSelection("grid", nx=int(nx), ny=int(ny))
+        return PixelSelection('grid', nx=int(nx), ny=int(ny))
 
     @staticmethod
-    def rect(x0: int, y0: int, width: int, height: int, stride: int = 1) -> "PixelSelection":
-        """Select a rectangle of pixels, optionally strided.
+    def rect(x0: int, y0: int, width: int, height: int, stride: int = 1) -> 'PixelSelection':
+        """
+        Select a rectangle of pixels, optionally strided.
 
         Parameters
         ----------
@@ -433,12 +544,16 @@ class PixelSelection:
         -------
         PixelSelection
             Mode ``region``.
+
         """
-        return PixelSelection("region", stride=int(stride), region=(int(x0), int(y0), int(width), int(height)))
+        return PixelSelection(
+            'region', stride=int(stride), region=(int(x0), int(y0), int(width), int(height))
+        )
 
     @staticmethod
-    def explicit(x_px, y_px) -> "PixelSelection":
-        """Select an explicit list of pixels.
+    def explicit(x_px, y_px) -> 'PixelSelection':
+        """
+        Select an explicit list of pixels.
 
         Parameters
         ----------
@@ -454,31 +569,38 @@ class PixelSelection:
         ------
         CameraError
             ``x_px`` and ``y_px`` differ in length.
+
         """
         x = np.asarray(x_px, dtype=np.int32).reshape(-1)
         y = np.asarray(y_px, dtype=np.int32).reshape(-1)
         if x.shape != y.shape:
-            raise CameraError("x_px and y_px must have the same length")
-        return PixelSelection("list", x_list=x.tobytes(), y_list=y.tobytes(),
-                              _digest=hashlib.sha1(x.tobytes() + y.tobytes()).hexdigest())
+            raise CameraError('x_px and y_px must have the same length')
+        return PixelSelection(
+            'list',
+            x_list=x.tobytes(),
+            y_list=y.tobytes(),
+            _digest=hashlib.sha1(x.tobytes() + y.tobytes()).hexdigest(),
+        )
 
     def describe(self) -> str:
-        """Describe the selection in a few words (logs, tables).
+        """
+        Describe the selection in a few words (logs, tables).
 
         Returns
         -------
         str
             E.g. ``"stride 8"`` or ``"grid 96x80"``.
+
         """
-        if self.mode == "full":
-            return "full"
-        if self.mode == "stride":
-            return f"stride {self.stride}"
-        if self.mode == "grid":
-            return f"grid {self.nx}x{self.ny}"
-        if self.mode == "region":
-            return f"region {self.region} stride {self.stride}"
-        return f"list of {len(self.x_list) // 4} pixels"
+        if self.mode == 'full':
+            return 'full'
+        if self.mode == 'stride':
+            return f'stride {self.stride}'
+        if self.mode == 'grid':
+            return f'grid {self.nx}x{self.ny}'
+        if self.mode == 'region':
+            return f'region {self.region} stride {self.stride}'
+        return f'list of {len(self.x_list) // 4} pixels'
 
 
 def _centred_axis(n_pixels: int, stride: int) -> np.ndarray:
@@ -491,11 +613,12 @@ def _centred_axis(n_pixels: int, stride: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SelectedPixels:
-    """Pixel coordinates and unit rays for a (camera, selection). Arrays are read-only (cached).
+    """
+    Pixel coordinates and unit rays for a (camera, selection). Arrays are read-only (cached).
 
     ``shape`` is the output image shape (2-D for full/stride/region/grid, 1-D for a list);
-    ``x_px``/``y_px`` are float64 1-based coordinates of that shape; ``rays_cam`` is (3, N) float32;
-    ``has_ray`` is False for fisheye pixels outside the lens' field.
+    ``x_px``/``y_px`` are float64 1-based coordinates of that shape; ``rays_cam`` is (3, N)
+    float32; ``has_ray`` is False for fisheye pixels outside the lens' field.
     """
 
     shape: tuple
@@ -511,8 +634,11 @@ class SelectedPixels:
 
 
 @lru_cache(maxsize=32)
-def select_pixels(camera: CameraModel, selection: PixelSelection = PixelSelection()) -> SelectedPixels:
-    """Compute the coordinates and rays of the selected pixels, once per (camera, selection).
+def select_pixels(
+    camera: CameraModel, selection: PixelSelection = PixelSelection()
+) -> SelectedPixels:
+    """
+    Compute the coordinates and rays of the selected pixels, once per (camera, selection).
 
     The result is cached and its arrays are read-only.
 
@@ -538,45 +664,51 @@ def select_pixels(camera: CameraModel, selection: PixelSelection = PixelSelectio
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 20.
+
     """
     W, H = int(camera.width_px), int(camera.height_px)
     m = selection.mode
-    if m == "full":
+    if m == 'full':
         xs, ys = np.arange(1, W + 1), np.arange(1, H + 1)
-    elif m == "stride":
+    elif m == 'stride':
         if not (1 <= selection.stride <= min(W, H)):
-            raise CameraError(f"stride must be in [1, {min(W, H)}], got {selection.stride}")
+            raise CameraError(f'stride must be in [1, {min(W, H)}], got {selection.stride}')
         xs, ys = _centred_axis(W, selection.stride), _centred_axis(H, selection.stride)
-    elif m == "grid":
+    elif m == 'grid':
         if not (1 <= selection.nx <= W and 1 <= selection.ny <= H):
-            raise CameraError(f"grid must be between 1x1 and {W}x{H}, got {selection.nx}x{selection.ny}")
+            raise CameraError(
+                f'grid must be between 1x1 and {W}x{H}, got {selection.nx}x{selection.ny}'
+            )
         # centres of nx x ny equal blocks, rounded to the nearest pixel
         xs = np.rint(0.5 + (np.arange(selection.nx) + 0.5) * W / selection.nx).astype(int)
         ys = np.rint(0.5 + (np.arange(selection.ny) + 0.5) * H / selection.ny).astype(int)
-    elif m == "region":
+    elif m == 'region':
         x0, y0, w, h = selection.region
         if not (1 <= x0 and 1 <= y0 and w >= 1 and h >= 1 and x0 + w - 1 <= W and y0 + h - 1 <= H):
-            raise CameraError(f"region {selection.region} is not inside the {W}x{H} image")
+            raise CameraError(f'region {selection.region} is not inside the {W}x{H} image')
         s = max(1, selection.stride)
         xs = x0 - 1 + _centred_axis(w, s)
         ys = y0 - 1 + _centred_axis(h, s)
-    elif m == "list":
+    elif m == 'list':
         x = np.frombuffer(selection.x_list, dtype=np.int32)
         y = np.frombuffer(selection.y_list, dtype=np.int32)
         if x.size == 0:
-            raise CameraError("explicit pixel list is empty")
+            raise CameraError('explicit pixel list is empty')
         if x.min() < 1 or y.min() < 1 or x.max() > W or y.max() > H:
-            raise CameraError(f"explicit pixels must lie in [1, {W}] x [1, {H}]")
+            raise CameraError(f'explicit pixels must lie in [1, {W}] x [1, {H}]')
         xg, yg = x.astype(float), y.astype(float)
         rays, ok = camera.rays_from_pixels(xg, yg)
         return _freeze(SelectedPixels((x.size,), xg, yg, rays.astype(np.float32), ok))
     else:
-        raise CameraError(f"pixel selection mode must be full|stride|region|grid|list, got {m!r}")
+        raise CameraError(f'pixel selection mode must be full|stride|region|grid|list, got {m!r}')
     xg, yg = np.meshgrid(xs.astype(float), ys.astype(float))
     rays, ok = camera.rays_from_pixels(xg, yg)
     shape = xg.shape
-    return _freeze(SelectedPixels(shape, xg, yg, np.ascontiguousarray(rays.astype(np.float32)),
-                                  ok.reshape(shape)))
+    return _freeze(
+        SelectedPixels(
+            shape, xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(shape)
+        )
+    )
 
 
 def _freeze(p: SelectedPixels) -> SelectedPixels:
@@ -585,74 +717,101 @@ def _freeze(p: SelectedPixels) -> SelectedPixels:
     return p
 
 
-def camera_from_intrinsics(width_px: int, height_px: int, K, D=(), distortion_model: str = "",
-                           pixel_pitch_um: float = 3.45, max_field_angle_deg: float = 90.0) -> CameraModel:
-    """Build a :class:`CameraModel` from ROS/OpenCV intrinsics (``CameraInfo``, ``camera_calibration``).
+def camera_from_intrinsics(
+    width_px: int,
+    height_px: int,
+    K,
+    D=(),
+    distortion_model: str = '',
+    pixel_pitch_um: float = 3.45,
+    max_field_angle_deg: float = 90.0,
+) -> CameraModel:
+    """
+    Build a :class:`CameraModel` from ROS/OpenCV intrinsics.
+
+    Build a :class:`CameraModel` from ROS/OpenCV intrinsics (``CameraInfo``,
+    ``camera_calibration``).
 
     Parameters
     ----------
     width_px, height_px : int
         Image size [px].
     K : array_like
-        3 x 3 (or 9 values, row-major) ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` [px], 0-based principal
-        point (the model is 1-based, eq 20: ``principal_x_px = cx + 1``).
+        3 x 3 (or 9 values, row-major) ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` [px], 0-based
+        principal point (the model is 1-based, eq 20: ``principal_x_px = cx + 1``).
     D : array_like, optional
-        Distortion coefficients of ``distortion_model`` (``plumb_bob`` 5 or 4, ``rational_polynomial`` 8,
-        ``equidistant`` 4); empty or all zero: the ideal pinhole / equidistant fisheye.
+        Distortion coefficients of ``distortion_model`` (``plumb_bob`` 5 or 4,
+        ``rational_polynomial`` 8, ``equidistant`` 4); empty or all zero: the ideal pinhole /
+        equidistant fisheye.
     distortion_model : str, optional
         ``plumb_bob`` | ``rational_polynomial`` | ``equidistant`` | "" (pinhole).
     pixel_pitch_um : float, default 3.45
-        Only scales the focal length to mm (rays depend on fx, fy in pixels); the y pitch is scaled by
-        fx / fy so non-square pixels keep their shape.
+        Only scales the focal length to mm (rays depend on fx, fy in pixels); the y pitch is scaled
+        by fx / fy so non-square pixels keep their shape.
     max_field_angle_deg : float, default 90
         Fisheye pixels beyond this angle from the optical axis [deg] have no ray.
 
     Returns
     -------
     CameraModel
-        The lens, distorted when D is non-zero (rays through OpenCV, see :meth:`CameraModel.rays_from_pixels`).
+        The lens, distorted when D is non-zero (rays through OpenCV, see
+        :meth:`CameraModel.rays_from_pixels`).
 
     Raises
     ------
     CameraError
-        Non-finite or wrongly sized K or D, non-positive focal lengths, an unknown distortion model.
+        Non-finite or wrongly sized K or D, non-positive focal lengths, an unknown distortion
+        model.
+
     """
     Km = np.asarray(K, dtype=float).reshape(-1)
     Dv = np.asarray(D if D is not None else (), dtype=float).reshape(-1)
     if Km.size != 9 or not np.all(np.isfinite(Km)):
-        raise CameraError("camera matrix K must hold 9 finite numbers")
+        raise CameraError('camera matrix K must hold 9 finite numbers')
     if not np.all(np.isfinite(Dv)):
-        raise CameraError("distortion coefficients must be finite")
+        raise CameraError('distortion coefficients must be finite')
     fx, fy, cx, cy = (float(Km[i]) for i in (0, 4, 2, 5))
     if not (fx > 0 and fy > 0):
-        raise CameraError(f"focal lengths must be positive, got fx={fx}, fy={fy}")
-    dm = str(distortion_model or "")
-    if dm not in ("",) + tuple(DISTORTION_MODELS):
-        raise CameraError(f"distortion model must be one of {', '.join(DISTORTION_MODELS)}, got {dm!r}")
-    model = DISTORTION_MODELS[dm][0] if dm else "pinhole"
+        raise CameraError(f'focal lengths must be positive, got fx={fx}, fy={fy}')
+    dm = str(distortion_model or '')
+    if dm not in ('',) + tuple(DISTORTION_MODELS):
+        raise CameraError(
+            f'distortion model must be one of {", ".join(DISTORTION_MODELS)}, got {dm!r}'
+        )
+    model = DISTORTION_MODELS[dm][0] if dm else 'pinhole'
     if dm and Dv.size and np.any(Dv != 0):
         n = DISTORTION_MODELS[dm][1]
-        if dm == "plumb_bob" and Dv.size == 4:           # OpenCV accepts k1 k2 p1 p2: k3 = 0
+        if dm == 'plumb_bob' and Dv.size == 4:  # OpenCV accepts k1 k2 p1 p2: k3 = 0
             Dv = np.append(Dv, 0.0)
         if Dv.size != n:
-            raise CameraError(f"distortion model {dm!r} takes {n} coefficients, got {Dv.size}")
+            raise CameraError(f'distortion model {dm!r} takes {n} coefficients, got {Dv.size}')
         dist = (dm, tuple(float(v) for v in Dv))
     else:
-        dist = ("", ())
+        dist = ('', ())
     pitch = float(pixel_pitch_um)
-    return CameraModel(model=model, width_px=int(width_px), height_px=int(height_px),
-                       focal_length_mm=fx * pitch * 1e-3, pixel_pitch_x_um=pitch, pixel_pitch_y_um=pitch * fx / fy,
-                       principal_x_px=cx + 1.0, principal_y_px=cy + 1.0, max_field_angle_deg=float(max_field_angle_deg),
-                       distortion_model=dist[0], distortion=dist[1])
+    return CameraModel(
+        model=model,
+        width_px=int(width_px),
+        height_px=int(height_px),
+        focal_length_mm=fx * pitch * 1e-3,
+        pixel_pitch_x_um=pitch,
+        pixel_pitch_y_um=pitch * fx / fy,
+        principal_x_px=cx + 1.0,
+        principal_y_px=cy + 1.0,
+        max_field_angle_deg=float(max_field_angle_deg),
+        distortion_model=dist[0],
+        distortion=dist[1],
+    )
 
 
 @dataclass(frozen=True)
 class CameraFile:
-    """What a ``CAMERA.yaml`` says: the lens and the polarizer layout.
+    """
+    What a ``CAMERA.yaml`` says: the lens and the polarizer layout.
 
-    ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the top-left block;
-    ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False when the file had no
-    ``polarizer:`` section (the IMX250MZR defaults were used).
+    ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the
+    top-left block; ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False
+    when the file had no ``polarizer:`` section (the IMX250MZR defaults were used).
     """
 
     camera: CameraModel
@@ -664,25 +823,29 @@ class CameraFile:
 def _matrix_field(doc: dict, key: str, size: int | None, path: str):
     v = doc.get(key)
     if isinstance(v, dict):
-        v = v.get("data")
+        v = v.get('data')
     if v is None:
         return None
     try:
         a = np.asarray(v, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise CameraError(f"{path}: {key} must be a list of numbers") from None
+        raise CameraError(f'{path}: {key} must be a list of numbers') from None
     if size is not None and a.size != size:
-        raise CameraError(f"{path}: {key} must hold {size} numbers, got {a.size}")
+        raise CameraError(f'{path}: {key} must hold {size} numbers, got {a.size}')
     return a
 
 
 def load_camera_yaml(path) -> CameraFile:
-    """Read a ROS ``camera_calibration`` YAML file (what ``camera_info_url`` points at) plus the polarizer.
+    """
+    Read a ROS ``camera_calibration`` YAML file plus the polarizer.
 
-    Keys used: ``image_width``, ``image_height``, ``camera_matrix`` (``{rows, cols, data}`` or a list),
-    ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default 3.45),
-    ``max_field_angle_deg`` (fisheye, default 90) and ``polarizer: {layout: [[90, 45], [135, 0]],
-    pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`).
+    Read a ROS ``camera_calibration`` YAML file (what ``camera_info_url`` points at) plus the
+    polarizer.
+
+    Keys used: ``image_width``, ``image_height``, ``camera_matrix`` (``{rows, cols, data}`` or a
+    list), ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default
+    3.45), ``max_field_angle_deg`` (fisheye, default 90) and ``polarizer: {layout: [[90, 45], [135,
+    0]], pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`).
 
     Parameters
     ----------
@@ -698,35 +861,46 @@ def load_camera_yaml(path) -> CameraFile:
     ------
     CameraError
         Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
+
     """
-    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError, parse_layout
+    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
     from .safe_load import load_yaml, read_text
+
     p = str(path)
-    # a regular file of at most 1 MiB (a FIFO or /dev/zero is refused), YAML nesting and bad dates one line
+    # a regular file of at most 1 MiB (a FIFO or /dev/zero is refused), YAML nesting and bad dates
+    # one line
     try:
-        text = read_text(p, CameraError, "camera file")
+        text = read_text(p, CameraError, 'camera file')
     except CameraError as exc:
-        raise CameraError(f"{p}: cannot read camera file ({exc})") from None
+        raise CameraError(f'{p}: cannot read camera file ({exc})') from None
     doc = load_yaml(text, p, CameraError)
     if not isinstance(doc, dict):
-        raise CameraError(f"{p}: a camera file is a YAML mapping (ROS camera_calibration format)")
+        raise CameraError(f'{p}: a camera file is a YAML mapping (ROS camera_calibration format)')
     try:
-        w, h = int(doc["image_width"]), int(doc["image_height"])
+        w, h = int(doc['image_width']), int(doc['image_height'])
     except (KeyError, TypeError, ValueError):
-        raise CameraError(f"{p}: needs integer image_width and image_height") from None
-    K = _matrix_field(doc, "camera_matrix", 9, p)
+        raise CameraError(f'{p}: needs integer image_width and image_height') from None
+    K = _matrix_field(doc, 'camera_matrix', 9, p)
     if K is None:
-        raise CameraError(f"{p}: needs camera_matrix (3 x 3, pixels)")
-    D = _matrix_field(doc, "distortion_coefficients", None, p)
-    pol = doc.get("polarizer")
+        raise CameraError(f'{p}: needs camera_matrix (3 x 3, pixels)')
+    D = _matrix_field(doc, 'distortion_coefficients', None, p)
+    pol = doc.get('polarizer')
     if pol is not None and not isinstance(pol, dict):
-        raise CameraError(f"{p}: polarizer must be a mapping with layout and pol45_toward")
+        raise CameraError(f'{p}: polarizer must be a mapping with layout and pol45_toward')
     pol = pol or {}
     try:
-        lay = parse_layout(pol.get("layout", IMX250MZR_LAYOUT), pol.get("pol45_toward", IMX250MZR_POL45))
-        cam = camera_from_intrinsics(w, h, K, D if D is not None else (), doc.get("distortion_model", "") or "",
-                                     float(doc.get("pixel_pitch_um", 3.45)),
-                                     float(doc.get("max_field_angle_deg", 90.0)))
+        lay = parse_layout(
+            pol.get('layout', IMX250MZR_LAYOUT), pol.get('pol45_toward', IMX250MZR_POL45)
+        )
+        cam = camera_from_intrinsics(
+            w,
+            h,
+            K,
+            D if D is not None else (),
+            doc.get('distortion_model', '') or '',
+            float(doc.get('pixel_pitch_um', 3.45)),
+            float(doc.get('max_field_angle_deg', 90.0)),
+        )
     except (SensorError, CameraError, TypeError, ValueError) as exc:
-        raise CameraError(f"{p}: {exc}") from None
+        raise CameraError(f'{p}: {exc}') from None
     return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol))

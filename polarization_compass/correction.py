@@ -1,81 +1,112 @@
-"""Tilt correction from an error map (paper, section 3.4, done properly).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-A tilted camera makes a classical method report ``psi_meas = psi + e(psi, h, pitch, roll)``, where the
-error ``e`` (an :class:`~polarization_compass.errormap.ErrorMap`) is a function of the *true* yaw psi,
-which the corrector does not know. Two corrections are offered:
+"""
+Tilt correction from an error map (paper, section 3.4, done properly).
 
-``invert`` (default)  solve ``psi + e(psi, h, pitch, roll) = psi_meas`` for psi: a 1-D search over a
-                      +-90 deg window of yaw around the measurement (the map's errors are folded to
-                      (-90, 90]), bracketing sign changes on a sub-grid of the yaw axis, then bisection
-                      to 1e-9 deg. Several roots: status ``multiple_solutions`` (the heading returned
-                      is the root nearest the ``subtract`` estimate; all roots are listed); none:
-                      ``no_solution``.
-``subtract``          the paper's reading: ``psi = psi_meas - e(psi_meas, ...)``, i.e. the error looked
-                      up at the measured yaw. Wrong by about ``e * de/dpsi``: several degrees at large
-                      tilt and high sun (docs/error-maps.md gives the numbers).
+A tilted camera makes a classical method report ``psi_meas = psi + e(psi, h, pitch, roll)``, where
+the error ``e`` (an :class:`~polarization_compass.errormap.ErrorMap`) is a function of the *true*
+yaw psi, which the corrector does not know. Two corrections are offered:
+
+``invert`` (default)  solve ``psi + e(psi, h, pitch, roll) = psi_meas`` for psi: a 1-D search over
+                      a +-90 deg window of yaw around the measurement (the map's errors are folded
+                      to (-90, 90]), bracketing sign changes on a sub-grid of the yaw axis, then
+                      bisection to 1e-9 deg. Several roots: status ``multiple_solutions`` (the
+                      heading returned is the root nearest the ``subtract`` estimate; all roots are
+                      listed); none: ``no_solution``.
+``subtract``          the paper's reading: ``psi = psi_meas - e(psi_meas, ...)``, i.e. the error
+                      looked up at the measured yaw. Wrong by about ``e * de/dpsi``: several
+                      degrees at large tilt and high sun (docs/error-maps.md gives the numbers).
 
 Interpolation: tensor-product cubic convolution (Keys, a = -1/2; periodic along yaw, Keys' cubic
 boundary rule at the ends of the other axes) on uniform axes, multilinear on non-uniform or short
-(< 4 nodes) axes; where a cubic stencil touches a node without a valid estimate the point falls back to
-multilinear in its grid cell. ``order=1`` forces multilinear everywhere.
+(< 4 nodes) axes; where a cubic stencil touches a node without a valid estimate the point falls
+back to multilinear in its grid cell. ``order=1`` forces multilinear everywhere.
 
 Domain (status ``out_of_domain``, never silent extrapolation): sun altitude, pitch and roll inside
 the map's axes; |pitch| + |roll| <= the map's tilt limit unless the map was computed on the full
-domain; and every node the interpolation reads holds a valid estimate. The map's yaw axis must cover
-a full turn with a uniform step (it is periodic).
+domain; and every node the interpolation reads holds a valid estimate. The map's yaw axis must
+cover a full turn with a uniform step (it is periodic).
 
 Angles in degrees; psi is the paper's yaw (bearing minus sun azimuth), (-180, 180].
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from enum import Enum
 from importlib import resources
+import math
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from .conventions import psi_to_bearing_deg, wrap_180_deg, wrap_180_deg_float
 from .errormap import ErrorMap, ErrorMapError
 from .errormap_io import load_error_map
 
-__all__ = ["TiltCorrector", "Correction", "CorrectionStatus", "STATUS_INT", "default_map_path",
-           "DEFAULT_MAP_NAME", "REGENERATE_DEFAULT_MAP"]
+__all__ = [
+    'TiltCorrector',
+    'Correction',
+    'CorrectionStatus',
+    'STATUS_INT',
+    'default_map_path',
+    'DEFAULT_MAP_NAME',
+    'REGENERATE_DEFAULT_MAP',
+]
 
-DEFAULT_MAP_NAME = "tilt_error_map.npz"
+DEFAULT_MAP_NAME = 'tilt_error_map.npz'
 #: The command that regenerates the shipped map (documented in docs/error-maps.md).
-REGENERATE_DEFAULT_MAP = ("polarization-compass errormap --methods zenith,sm_asm,symmetry,least_squares "
-                          "--sun-altitude 0:50:5 --yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 "
-                          "--float32 --out polarization_compass/data/tilt_error_map.npz")
+REGENERATE_DEFAULT_MAP = (
+    'polarization-compass errormap --methods zenith,sm_asm,symmetry,least_squares '
+    '--sun-altitude 0:50:5 --yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 '
+    '--float32 --out polarization_compass/data/tilt_error_map.npz'
+)
 
 
 class CorrectionStatus(str, Enum):
-    """Outcome of one tilt correction (values are strings).
+    """
+    Outcome of one tilt correction (values are strings).
 
     ``ok``; ``out_of_domain`` (outside the map's axes or tilt limit, or an invalid node is needed);
     ``multiple_solutions`` (several yaws predict the measurement); ``no_solution`` (none does).
     """
 
-    OK = "ok"
-    OUT_OF_DOMAIN = "out_of_domain"
-    MULTIPLE_SOLUTIONS = "multiple_solutions"
-    NO_SOLUTION = "no_solution"
+    OK = 'ok'
+    OUT_OF_DOMAIN = 'out_of_domain'
+    MULTIPLE_SOLUTIONS = 'multiple_solutions'
+    NO_SOLUTION = 'no_solution'
 
 
 #: int8 codes of :meth:`TiltCorrector.correct_many`.
 #: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
 _MAX_ROOTS = 16
 
-STATUS_INT = {CorrectionStatus.OK: 0, CorrectionStatus.OUT_OF_DOMAIN: 1,
-              CorrectionStatus.MULTIPLE_SOLUTIONS: 2, CorrectionStatus.NO_SOLUTION: 3}
+STATUS_INT = {
+    CorrectionStatus.OK: 0,
+    CorrectionStatus.OUT_OF_DOMAIN: 1,
+    CorrectionStatus.MULTIPLE_SOLUTIONS: 2,
+    CorrectionStatus.NO_SOLUTION: 3,
+}
 _FROM_INT = {v: k for k, v in STATUS_INT.items()}
 
 
 class BearingCorrections(NamedTuple):
-    """Hold the corrected bearings of :meth:`TiltCorrector.correct_bearings`, all finite.
+    """
+    Hold the corrected bearings of :meth:`TiltCorrector.correct_bearings`, all finite.
 
     Parameters
     ----------
@@ -86,6 +117,7 @@ class BearingCorrections(NamedTuple):
         bool (N,): True where the correction succeeded (status ``ok``).
     status : list of str
         :class:`CorrectionStatus` value per heading, the reason there is no heading when not ok.
+
     """
 
     bearing_deg: np.ndarray
@@ -95,7 +127,8 @@ class BearingCorrections(NamedTuple):
 
 @dataclass(frozen=True)
 class Correction:
-    """Hold one corrected heading; ``psi_deg`` is None when there is none (status says why).
+    """
+    Hold one corrected heading; ``psi_deg`` is None when there is none (status says why).
 
     Parameters
     ----------
@@ -111,14 +144,15 @@ class Correction:
         ``invert`` or ``subtract``.
     reason : str
         Why the status is not ``ok`` (or how a root was chosen).
+
     """
 
     status: CorrectionStatus
     psi_deg: float | None = None
     error_deg: float | None = None
     candidates_deg: tuple = ()
-    mode: str = "invert"
-    reason: str = ""
+    mode: str = 'invert'
+    reason: str = ''
 
     @property
     def ok(self) -> bool:
@@ -127,14 +161,16 @@ class Correction:
 
 
 def default_map_path() -> Path:
-    """Locate the shipped error map.
+    """
+    Locate the shipped error map.
 
     Returns
     -------
     pathlib.Path
         ``polarization_compass/data/tilt_error_map.npz`` inside the installed package.
+
     """
-    return Path(str(resources.files("polarization_compass").joinpath("data/" + DEFAULT_MAP_NAME)))
+    return Path(str(resources.files('polarization_compass').joinpath('data/' + DEFAULT_MAP_NAME)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -148,27 +184,56 @@ def _is_uniform(axis: np.ndarray) -> bool:
 
 
 def _keys(t):
-    """Keys (a = -1/2) cubic convolution weights of nodes i-1, i, i+1, i+2 at fraction t in [0, 1]."""
+    """
+    Return Keys (a = -1/2) cubic convolution weights of four nodes at fraction t.
+
+    Keys (a = -1/2) cubic convolution weights of nodes i-1, i, i+1, i+2 at fraction t in [0, 1].
+    """
     t2 = t * t
     t3 = t2 * t
-    return np.stack([-0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0,
-                     -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2], -1)
+    return np.stack(
+        [
+            -0.5 * t3 + t2 - 0.5 * t,
+            1.5 * t3 - 2.5 * t2 + 1.0,
+            -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+            0.5 * t3 - 0.5 * t2,
+        ],
+        -1,
+    )
 
 
-#: How the four Keys weights of stencil nodes i-1..i+2 land on the 4-node window ``start..start+3``:
-#: inside the axis the window is the stencil (identity); at the low end (window shifted up by one) the
-#: ghost node f(-1) = 3 f(0) - 3 f(1) + f(2) (Keys' cubic boundary rule); mirrored at the high end.
-_KEYS_BOUNDARY = np.array([
-    [[3.0, -3.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],   # off = -1
-    np.eye(4),                                                                                    # off = 0
-    [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 1.0, -3.0, 3.0]],   # off = +1
-])
+#: How the four Keys weights of stencil nodes i-1..i+2 land on the 4-node window
+#: ``start..start+3``: inside the axis the window is the stencil (identity); at the low end (window
+#: shifted up by one) the ghost node f(-1) = 3 f(0) - 3 f(1) + f(2) (Keys' cubic boundary rule);
+#: mirrored at the high end.
+_KEYS_BOUNDARY = np.array(
+    [
+        [
+            [3.0, -3.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ],  # off = -1
+        np.eye(4),  # off = 0
+        [
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, -3.0, 3.0],
+        ],  # off = +1
+    ]
+)
 
 
 def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
-    """Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,) bool.
+    """
+    Return node indices and weights of points on a non-periodic axis.
 
-    Outside the axis the indices are clipped and ``inside`` is False (the caller rejects the point).
+    Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,)
+    bool.
+
+    Outside the axis the indices are clipped and ``inside`` is False (the caller rejects the
+    point).
     """
     x = np.asarray(x, dtype=float)
     n = axis.size
@@ -177,14 +242,14 @@ def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
     if n == 1:
         return np.zeros(x.shape + (1,), dtype=np.intp), np.ones(x.shape + (1,)), inside
     xc = np.clip(x, axis[0], axis[-1])
-    i = np.clip(np.searchsorted(axis, xc, side="right") - 1, 0, n - 2)
+    i = np.clip(np.searchsorted(axis, xc, side='right') - 1, 0, n - 2)
     t = np.clip((xc - axis[i]) / (axis[i + 1] - axis[i]), 0.0, 1.0)
     if order == 1 or n < 4 or not _is_uniform(axis):
         return np.stack([i, i + 1], -1), np.stack([1.0 - t, t], -1), inside
     w = _keys(t)
     start = np.clip(i - 1, 0, n - 4)
-    off = (i - 1) - start                       # -1 at the low end, +1 at the high end, else 0
-    W = np.einsum("...k,...kj->...j", w, _KEYS_BOUNDARY[off + 1])
+    off = (i - 1) - start  # -1 at the low end, +1 at the high end, else 0
+    W = np.einsum('...k,...kj->...j', w, _KEYS_BOUNDARY[off + 1])
     return start[..., None] + np.arange(4), W, inside
 
 
@@ -200,14 +265,18 @@ def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int):
 
 
 # --------------------------------------------------------------------------------------------
-# Compiled kernels: per query, the error curve over the yaw nodes and the 1-D inversion. One heading
-# in numpy cost ~8 ms of call overhead (60 bisection steps, 64 stencil terms); the same algorithm
-# compiled costs microseconds, which matters for a node correcting every frame.
+# Compiled kernels: per query, the error curve over the yaw nodes and the 1-D inversion. One
+# heading in numpy cost ~8 ms of call overhead (60 bisection steps, 64 stencil terms); the same
+# algorithm compiled costs microseconds, which matters for a node correcting every frame.
 # --------------------------------------------------------------------------------------------
 @njit(cache=True, nogil=True)
 def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - compiled
-    """Tensor-product interpolation of the error curves: out[q, y] = sum w_a w_p w_r E[a, y, p, r].
-    A node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in place)."""
+    """
+    Tensor-product interpolation of the error curves: out[q, y] = sum w_a w_p w_r E[a, y, p, r].
+
+    A
+    node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in place).
+    """
     N = ia.shape[0]
     Y = E.shape[1]
     out = np.zeros((N, Y))
@@ -230,12 +299,17 @@ def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - 
 
 
 #: :func:`~polarization_compass.conventions.wrap_180_deg_float` compiled for the kernels below.
-_wrap180 = njit(inline="always", cache=True)(wrap_180_deg_float)
+_wrap180 = njit(inline='always', cache=True)(wrap_180_deg_float)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _curve_at(curve, q, psi, yaw0, step, n, cubic):  # pragma: no cover - compiled
-    """The error curve of query q at yaw psi (periodic; Keys cubic or linear), as :func:`_yaw_weights`."""
+    """
+    Return the error curve of query q at yaw psi (periodic).
+
+    The error curve of query q at yaw psi (periodic; Keys cubic or linear), as
+    :func:`_yaw_weights`.
+    """
     u = np.mod(psi - yaw0, 360.0) / step
     i = int(np.floor(u))
     t = min(max(u - i, 0.0), 1.0)
@@ -244,16 +318,26 @@ def _curve_at(curve, q, psi, yaw0, step, n, cubic):  # pragma: no cover - compil
         return curve[q, i] * (1.0 - t) + curve[q, (i + 1) % n] * t
     t2 = t * t
     t3 = t2 * t
-    return (curve[q, (i - 1) % n] * (-0.5 * t3 + t2 - 0.5 * t) + curve[q, i] * (1.5 * t3 - 2.5 * t2 + 1.0)
-            + curve[q, (i + 1) % n] * (-1.5 * t3 + 2.0 * t2 + 0.5 * t) + curve[q, (i + 2) % n] * (0.5 * t3 - 0.5 * t2))
+    return (
+        curve[q, (i - 1) % n] * (-0.5 * t3 + t2 - 0.5 * t)
+        + curve[q, i] * (1.5 * t3 - 2.5 * t2 + 1.0)
+        + curve[q, (i + 1) % n] * (-1.5 * t3 + 2.0 * t2 + 0.5 * t)
+        + curve[q, (i + 2) % n] * (0.5 * t3 - 0.5 * t2)
+    )
 
 
 @njit(cache=True, nogil=True)
-def _invert_kernel(curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert):  # pragma: no cover - compiled
-    """Per query: ``sub`` (the subtract estimate), the roots of f(u) = u + e(meas + u) on the sample grid
-    ``u`` (sign changes, exact zeros), each refined by 60 bisection steps, as yaws wrapped to (-180, 180]
-    (``cand``, NaN-padded, first ``max_roots``), their count, and the root nearest ``sub`` (``psi``).
-    With ``invert`` False only ``sub`` is computed."""
+def _invert_kernel(
+    curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert
+):  # pragma: no cover - compiled
+    """
+    Invert the error curve per query: subtract estimate and refined roots.
+
+    Per query: ``sub`` (the subtract estimate), the roots of f(u) = u + e(meas + u) on the sample
+    grid ``u`` (sign changes, exact zeros), each refined by 60 bisection steps, as yaws wrapped to
+    (-180, 180] (``cand``, NaN-padded, first ``max_roots``), their count, and the root nearest
+    ``sub`` (``psi``). With ``invert`` False only ``sub`` is computed.
+    """
     N = meas.shape[0]
     S = u.shape[0]
     sub = np.zeros(N)
@@ -299,7 +383,8 @@ def _invert_kernel(curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert):
 # The corrector
 # --------------------------------------------------------------------------------------------
 class TiltCorrector:
-    """Correct one method's headings with a tilt error map.
+    """
+    Correct one method's headings with a tilt error map.
 
     Parameters
     ----------
@@ -322,47 +407,54 @@ class TiltCorrector:
        tilt error with the simulated errors).
     .. [2] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
        Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
+
     """
 
     def __init__(self, error_map: ErrorMap, method: str, order: int = 3):
         if order not in (1, 3):
-            raise ErrorMapError(f"interpolation order must be 1 or 3, got {order}")
+            raise ErrorMapError(f'interpolation order must be 1 or 3, got {order}')
         self.map = error_map
         self.method = method
         self.order = order
         m = error_map.method_index(method)
         yaw = error_map.yaw_deg
         if yaw.size < 4 or not _is_uniform(yaw):
-            raise ErrorMapError("correction needs a map whose yaw axis has a uniform step and covers a full turn")
+            raise ErrorMapError(
+                'correction needs a map whose yaw axis has a uniform step and covers a full turn'
+            )
         step = float(yaw[1] - yaw[0])
         n_turn = 360.0 / step
         if abs(n_turn - round(n_turn)) > 1e-6:
-            raise ErrorMapError(f"the yaw step {step:g} deg does not divide 360 deg")
+            raise ErrorMapError(f'the yaw step {step:g} deg does not divide 360 deg')
         n_turn = int(round(n_turn))
         if yaw.size == n_turn + 1 and abs(yaw[-1] - yaw[0] - 360.0) < 1e-6:
-            keep = slice(0, n_turn)              # last node repeats the first
+            keep = slice(0, n_turn)  # last node repeats the first
         elif yaw.size == n_turn:
             keep = slice(0, n_turn)
         else:
-            raise ErrorMapError(f"correction needs a map whose yaw axis covers a full turn "
-                                f"(it has {yaw[0]:g}..{yaw[-1]:g} in steps of {step:g})")
+            raise ErrorMapError(
+                f'correction needs a map whose yaw axis covers a full turn '
+                f'(it has {yaw[0]:g}..{yaw[-1]:g} in steps of {step:g})'
+            )
         self.yaw0 = float(yaw[0])
         self.yaw_step = step
         self.n_yaw = n_turn
-        self.E = np.ascontiguousarray(error_map.error_deg[m][:, keep])       # (A, Y, P, R)
+        self.E = np.ascontiguousarray(error_map.error_deg[m][:, keep])  # (A, Y, P, R)
         self.V = np.ascontiguousarray(error_map.valid[m][:, keep])
         self.alt = error_map.sun_altitude_deg
         self.pitch = error_map.pitch_deg
         self.roll = error_map.roll_deg
-        dom = error_map.meta.get("domain", {}) if isinstance(error_map.meta, dict) else {}
-        self.full_domain = bool(dom.get("full_domain", False))
-        self.tilt_limit_deg = float(dom.get("tilt_limit_deg", math.inf))
-        # compile (or load from numba's cache) the kernels now, not on the first heading a node corrects
-        self._correct(0.0, float(self.alt[0]), float(self.pitch[0]), float(self.roll[0]), "invert")
+        dom = error_map.meta.get('domain', {}) if isinstance(error_map.meta, dict) else {}
+        self.full_domain = bool(dom.get('full_domain', False))
+        self.tilt_limit_deg = float(dom.get('tilt_limit_deg', math.inf))
+        # compile (or load from numba's cache) the kernels now, not on the first heading a node
+        # corrects
+        self._correct(0.0, float(self.alt[0]), float(self.pitch[0]), float(self.roll[0]), 'invert')
 
     @staticmethod
-    def from_file(path=None, method: str = "least_squares", order: int = 3) -> "TiltCorrector":
-        """Build a corrector from a map file (default: the shipped map).
+    def from_file(path=None, method: str = 'least_squares', order: int = 3) -> 'TiltCorrector':
+        """
+        Build a corrector from a map file (default: the shipped map).
 
         Parameters
         ----------
@@ -382,8 +474,11 @@ class TiltCorrector:
         ------
         ErrorMapError
             The file is missing, corrupt or unusable for correction.
+
         """
-        return TiltCorrector(load_error_map(default_map_path() if path is None else path), method, order)
+        return TiltCorrector(
+            load_error_map(default_map_path() if path is None else path), method, order
+        )
 
     # ------------------------------------------------------------------------------------------
     def _tilt_weights(self, h, p, r, order):
@@ -399,11 +494,14 @@ class TiltCorrector:
         """Error curves over the yaw nodes (N, Y), their validity (N,), and inside (N,)."""
         (ia, wa), (ip, wp), (ir, wr), inside = self._tilt_weights(h, p, r, order)
         ok = inside.copy()
-        out = _accumulate_curves(self.E, self.V, *(np.ascontiguousarray(v) for v in (ia, wa, ip, wp, ir, wr)), ok)
+        out = _accumulate_curves(
+            self.E, self.V, *(np.ascontiguousarray(v) for v in (ia, wa, ip, wp, ir, wr)), ok
+        )
         return out, ok, inside
 
     def curves(self, h, p, r):
-        """Interpolate the error at every yaw node for each (sun altitude, pitch, roll) query.
+        """
+        Interpolate the error at every yaw node for each (sun altitude, pitch, roll) query.
 
         Cubic where every node of the stencil is valid, else multilinear in the cell, else invalid.
 
@@ -425,6 +523,7 @@ class TiltCorrector:
         ----------
         .. [1] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
            Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
+
         """
         h, p, r = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(h, p, r))
         c, ok, inside = self._curves_order(h, p, r, self.order)
@@ -441,7 +540,8 @@ class TiltCorrector:
         return np.sum(curve[rows[..., None], idx] * w, axis=-1)
 
     def predicted_error(self, psi_true_deg, h_deg, pitch_deg, roll_deg):
-        """Interpolate the map's heading error at given true yaws.
+        """
+        Interpolate the map's heading error at given true yaws.
 
         Parameters
         ----------
@@ -458,17 +558,22 @@ class TiltCorrector:
             ``psi_meas - psi`` [deg], shape (N,); 0 where not ok.
         ok : numpy.ndarray
             bool (N,).
+
         """
-        psi, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
-                        for v in np.broadcast_arrays(psi_true_deg, h_deg, pitch_deg, roll_deg))
+        psi, h, p, r = (
+            np.atleast_1d(np.asarray(v, dtype=float))
+            for v in np.broadcast_arrays(psi_true_deg, h_deg, pitch_deg, roll_deg)
+        )
         curve, ok = self.curves(h, p, r)
         e = self._eval_on_curve(curve, np.arange(psi.size), psi)
         return np.where(ok, e, 0.0), ok
 
     # ------------------------------------------------------------------------------------------
-    def correct_many(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode: str = "invert",
-                     oversample: int = 4):
-        """Correct many measured yaws at once.
+    def correct_many(
+        self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode: str = 'invert', oversample: int = 4
+    ):
+        """
+        Correct many measured yaws at once.
 
         Parameters
         ----------
@@ -502,37 +607,60 @@ class TiltCorrector:
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 (correcting the
            tilt error with the simulated errors).
+
         """
         return self._correct(psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample)[:3]
 
     def _correct(self, psi_meas_deg, h_deg, pitch_deg, roll_deg, mode, oversample=4):
-        if mode not in ("invert", "subtract"):
+        if mode not in ('invert', 'subtract'):
             raise ErrorMapError(f"correction mode must be 'invert' or 'subtract', got {mode!r}")
-        meas, h, p, r = (np.atleast_1d(np.asarray(v, dtype=float))
-                         for v in np.broadcast_arrays(psi_meas_deg, h_deg, pitch_deg, roll_deg))
+        meas, h, p, r = (
+            np.atleast_1d(np.asarray(v, dtype=float))
+            for v in np.broadcast_arrays(psi_meas_deg, h_deg, pitch_deg, roll_deg)
+        )
         finite = np.isfinite(meas) & np.isfinite(h) & np.isfinite(p) & np.isfinite(r)
         meas = np.where(finite, meas, 0.0)
         h, p, r = (np.where(finite, v, 0.0) for v in (h, p, r))
         curve, ok = self.curves(h, p, r)
         ok &= finite
-        status = np.where(ok, STATUS_INT[CorrectionStatus.OK], STATUS_INT[CorrectionStatus.OUT_OF_DOMAIN])
+        status = np.where(
+            ok, STATUS_INT[CorrectionStatus.OK], STATUS_INT[CorrectionStatus.OUT_OF_DOMAIN]
+        )
         status = status.astype(np.int8)
         du = self.yaw_step / max(1, int(oversample))
         n_s = int(math.ceil(180.0 / du)) + 1
-        u = np.linspace(-90.0, 90.0, n_s)                 # offsets of the yaw search window, deg
-        sub, psi, n_roots, cand = _invert_kernel(curve, ok, meas, self.yaw0, self.yaw_step, self.n_yaw,
-                                                 self.order == 3 and self.n_yaw >= 4, u, _MAX_ROOTS,
-                                                 mode == "invert")
-        if mode == "subtract":
+        u = np.linspace(-90.0, 90.0, n_s)  # offsets of the yaw search window, deg
+        sub, psi, n_roots, cand = _invert_kernel(
+            curve,
+            ok,
+            meas,
+            self.yaw0,
+            self.yaw_step,
+            self.n_yaw,
+            self.order == 3 and self.n_yaw >= 4,
+            u,
+            _MAX_ROOTS,
+            mode == 'invert',
+        )
+        if mode == 'subtract':
             return np.where(ok, sub, 0.0), status, ok.astype(np.int64), cand
         status = np.where(ok & (n_roots == 0), STATUS_INT[CorrectionStatus.NO_SOLUTION], status)
-        status = np.where(ok & (n_roots > 1), STATUS_INT[CorrectionStatus.MULTIPLE_SOLUTIONS], status)
+        status = np.where(
+            ok & (n_roots > 1), STATUS_INT[CorrectionStatus.MULTIPLE_SOLUTIONS], status
+        )
         psi = np.where(ok & (n_roots > 0), psi, 0.0)
         return psi, status.astype(np.int8), n_roots, cand
 
-    def correct(self, psi_meas_deg: float, sun_altitude_deg: float, pitch_deg: float, roll_deg: float,
-                mode: str = "invert") -> Correction:
-        """Correct one measured yaw; out-of-domain input is a status, never an exception.
+    def correct(
+        self,
+        psi_meas_deg: float,
+        sun_altitude_deg: float,
+        pitch_deg: float,
+        roll_deg: float,
+        mode: str = 'invert',
+    ) -> Correction:
+        """
+        Correct one measured yaw; out-of-domain input is a status, never an exception.
 
         Parameters
         ----------
@@ -560,26 +688,46 @@ class TiltCorrector:
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), Sec. 3.4 (correcting the
            tilt error with the simulated errors).
+
         """
         vals = (psi_meas_deg, sun_altitude_deg, pitch_deg, roll_deg)
-        if not all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(float(v)) for v in vals):
-            return Correction(CorrectionStatus.OUT_OF_DOMAIN, mode=mode, reason=f"non-finite input {vals}")
+        if not all(
+            isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(float(v))
+            for v in vals
+        ):
+            return Correction(
+                CorrectionStatus.OUT_OF_DOMAIN, mode=mode, reason=f'non-finite input {vals}'
+            )
         psi, status, n_roots, cand = self._correct(*[float(v) for v in vals], mode=mode)
         st = _FROM_INT[int(status[0])]
         if st == CorrectionStatus.OUT_OF_DOMAIN:
             return Correction(st, mode=mode, reason=self._why_out(*[float(v) for v in vals[1:]]))
         if st == CorrectionStatus.NO_SOLUTION:
-            return Correction(st, mode=mode, reason="no yaw in +-90 deg of the measurement predicts it")
+            return Correction(
+                st, mode=mode, reason='no yaw in +-90 deg of the measurement predicts it'
+            )
         cands = tuple(float(c) for c in np.sort(cand[0][np.isfinite(cand[0])]))
         psi0 = float(psi[0])
         err = float(wrap_180_deg(float(psi_meas_deg) - psi0))
-        reason = "" if st == CorrectionStatus.OK else \
-            f"{len(cands)} yaws predict this measurement; returned the one nearest the subtract estimate"
+        reason = (
+            ''
+            if st == CorrectionStatus.OK
+            else f'{len(cands)} yaws predict this measurement; returned the one nearest the '
+            'subtract estimate'
+        )
         return Correction(st, psi0, err, cands, mode, reason)
 
-    def correct_bearing(self, raw_bearing_deg: float, sun_azimuth_deg: float, sun_altitude_deg: float,
-                        pitch_deg: float, roll_deg: float, mode: str = "invert"):
-        """Correct a true bearing of camera +y, as the ``tilt_corrector`` node and the replay do.
+    def correct_bearing(
+        self,
+        raw_bearing_deg: float,
+        sun_azimuth_deg: float,
+        sun_altitude_deg: float,
+        pitch_deg: float,
+        roll_deg: float,
+        mode: str = 'invert',
+    ):
+        """
+        Correct a true bearing of camera +y, as the ``tilt_corrector`` node and the replay do.
 
         Its psi against the sun (wrapped to (-180, 180]), :meth:`correct`, back to a bearing in [0,
         360).
@@ -608,15 +756,24 @@ class TiltCorrector:
         ------
         ErrorMapError
             Unknown ``mode``.
+
         """
         finite = math.isfinite(raw_bearing_deg) and math.isfinite(sun_azimuth_deg)
         psi_meas = float(wrap_180_deg(raw_bearing_deg - sun_azimuth_deg)) if finite else math.nan
         c = self.correct(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         return (float(psi_to_bearing_deg(c.psi_deg, sun_azimuth_deg)) if c.ok else None), c
 
-    def correct_bearings(self, raw_bearing_deg, sun_azimuth_deg, sun_altitude_deg, pitch_deg, roll_deg,
-                         mode: str = "invert"):
-        """Correct arrays of bearings as :meth:`correct_bearing` does, in one vectorised inversion.
+    def correct_bearings(
+        self,
+        raw_bearing_deg,
+        sun_azimuth_deg,
+        sun_altitude_deg,
+        pitch_deg,
+        roll_deg,
+        mode: str = 'invert',
+    ):
+        """
+        Correct arrays of bearings as :meth:`correct_bearing` does, in one vectorised inversion.
 
         For the offline replay (one inversion instead of one per heading).
 
@@ -644,11 +801,14 @@ class TiltCorrector:
         ------
         ErrorMapError
             Unknown ``mode``.
+
         """
-        raw, az = (np.atleast_1d(np.asarray(v, dtype=float)) for v in np.broadcast_arrays(raw_bearing_deg,
-                                                                                            sun_azimuth_deg))
+        raw, az = (
+            np.atleast_1d(np.asarray(v, dtype=float))
+            for v in np.broadcast_arrays(raw_bearing_deg, sun_azimuth_deg)
+        )
         finite = np.isfinite(raw) & np.isfinite(az)
-        az = np.where(finite, az, 0.0)         # a non-finite input is out_of_domain, never NaN out
+        az = np.where(finite, az, 0.0)  # a non-finite input is out_of_domain, never NaN out
         psi_meas = np.where(finite, wrap_180_deg(np.where(finite, raw, 0.0) - az), np.nan)
         psi, status, _ = self.correct_many(psi_meas, sun_altitude_deg, pitch_deg, roll_deg, mode)
         ok = status == STATUS_INT[CorrectionStatus.OK]
@@ -658,11 +818,14 @@ class TiltCorrector:
     def _why_out(self, h, p, r) -> str:
         a = self.alt
         if not (a[0] - 1e-9 <= h <= a[-1] + 1e-9):
-            return f"sun altitude {h:g} deg outside the map ({a[0]:g}..{a[-1]:g})"
+            return f'sun altitude {h:g} deg outside the map ({a[0]:g}..{a[-1]:g})'
         if not (self.pitch[0] - 1e-9 <= p <= self.pitch[-1] + 1e-9):
-            return f"pitch {p:g} deg outside the map ({self.pitch[0]:g}..{self.pitch[-1]:g})"
+            return f'pitch {p:g} deg outside the map ({self.pitch[0]:g}..{self.pitch[-1]:g})'
         if not (self.roll[0] - 1e-9 <= r <= self.roll[-1] + 1e-9):
-            return f"roll {r:g} deg outside the map ({self.roll[0]:g}..{self.roll[-1]:g})"
+            return f'roll {r:g} deg outside the map ({self.roll[0]:g}..{self.roll[-1]:g})'
         if not self.full_domain and abs(p) + abs(r) > self.tilt_limit_deg + 1e-9:
-            return f"|pitch| + |roll| = {abs(p) + abs(r):g} deg exceeds the map's limit {self.tilt_limit_deg:g}"
-        return "the map has no valid estimate at the nodes this point needs"
+            return (
+                f"|pitch| + |roll| = {abs(p) + abs(r):g} deg exceeds the map's limit "
+                f'{self.tilt_limit_deg:g}'
+            )
+        return 'the map has no valid estimate at the nodes this point needs'

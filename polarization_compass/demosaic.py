@@ -1,4 +1,19 @@
-"""From a division-of-focal-plane (DoFP) mosaic back to Stokes, AoP and DoP.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+From a division-of-focal-plane (DoFP) mosaic back to Stokes, AoP and DoP.
 
 A DoFP sensor (Sony IMX250MZR) puts a wire-grid polarizer over every pixel, in a repeating 2 x 2
 pattern of 0, 45, 90 and 135 deg. ``layout`` gives that pattern for the mosaic's own top-left 2 x 2
@@ -12,8 +27,8 @@ Conventions of the outputs
 --------------------------
 ``S0, S1, S2`` are **camera-frame** Stokes parameters: angles from +x_cam towards +y_cam whatever
 ``pol45_toward`` is, so ``S1 = I(0) - I(90)`` and ``S2 = I(+45 cam) - I(135 cam)``; with
-``pol45_toward="+x-y"`` the physical 45 deg pixel measures the camera's 135 deg, so S2 changes sign.
-``S0 = (I0 + I45 + I90 + I135) / 2`` in the input's units.
+``pol45_toward="+x-y"`` the physical 45 deg pixel measures the camera's 135 deg, so S2 changes
+sign. ``S0 = (I0 + I45 + I90 + I135) / 2`` in the input's units.
 
 The angle of linear polarization from +x_cam is ``AoLP_x = 0.5 atan2(S2, S1)``; the paper's AoP
 (eq 28: from +y_cam towards +x_cam, see ``conventions``) is ``pi/2 - AoLP_x``, computed as
@@ -23,58 +38,72 @@ The angle of linear polarization from +x_cam is ``AoLP_x = 0.5 atan2(S2, S1)``; 
 Validity (never NaN out): a pixel is invalid, with aop = dop = 0 and S0 = S1 = S2 = 0, when any raw
 sample its estimate uses is saturated (``>= saturation_level``; default the dtype's maximum for
 integer input, none for float input) or not finite (float input), when ``S0 <= 0`` (DoP undefined:
-all-zero input), or when ``S1 = S2 = 0`` (AoP undefined: unpolarized, or a uniformly saturated image).
+all-zero input), or when ``S1 = S2 = 0`` (AoP undefined: unpolarized, or a uniformly saturated
+image).
 
 Methods
 -------
 ``superpixel``  each non-overlapping 2 x 2 block gives one output (half resolution, no
-                interpolation; a trailing odd row/column is dropped). Output pixel (k, l) sits at the
-                centre of input pixels (2k..2k+1, 2l..2l+1).
+                interpolation; a trailing odd row/column is dropped). Output pixel (k, l) sits at
+                the centre of input pixels (2k..2k+1, 2l..2l+1).
 ``bilinear``    full resolution: each channel is bilinearly interpolated on its 2-pixel lattice,
                 i.e. at a pixel the own channel is taken as is, the horizontal/vertical neighbours'
                 channels as the mean of two samples and the diagonal channel as the mean of four
                 (kernel ``[.5 1 .5] x [.5 1 .5]``). Image borders mirror without repeating the edge
-                (OpenCV's BORDER_REFLECT_101), which keeps the 2 x 2 phase. A pixel's estimate uses its
-                3 x 3 neighbourhood. Needs at least 2 rows and 2 columns.
+                (OpenCV's BORDER_REFLECT_101), which keeps the 2 x 2 phase. A pixel's estimate uses
+                its 3 x 3 neighbourhood. Needs at least 2 rows and 2 columns.
 
-Implementation: fused numba kernels (parallel over rows) from the raw samples straight to AoP, DoP and
-validity: one pass, no full-frame temporaries; the interior loop is branch-free and LLVM vectorises it
-(8-wide AVX2, checked in the assembly), using the float32 polynomial ``axial_atan2_f32`` of ``fastmath``
-(numpy's float32 ``arctan2`` alone costs ~75 ms single-core on a 5 Mpixel frame here).
-Measured single-core (``tools/bench_sensor.py``, 2448 x 2048 uint16): bilinear ~21-23 ms, superpixel
-~6-10 ms. The OpenCV route for the bilinear case (three ``filter2D`` passes on sign-modulated copies,
-then :func:`aop_dop_from_stokes`) took ~28 ms and three 20 MB Stokes temporaries, and has no saturation
-check, so it is not used; OpenCV serves the 3 x 3 erosion of validity masks in :mod:`sensor` and the
-independent per-channel reference in the tests.
+Implementation: fused numba kernels (parallel over rows) from the raw samples straight to AoP, DoP
+and validity: one pass, no full-frame temporaries; the interior loop is branch-free and LLVM
+vectorises it (8-wide AVX2, checked in the assembly), using the float32 polynomial
+``axial_atan2_f32`` of ``fastmath`` (numpy's float32 ``arctan2`` alone costs ~75 ms single-core on
+a 5 Mpixel frame here). Measured single-core (``tools/bench_sensor.py``, 2448 x 2048 uint16):
+bilinear ~21-23 ms, superpixel ~6-10 ms. The OpenCV route for the bilinear case (three ``filter2D``
+passes on sign-modulated copies, then :func:`aop_dop_from_stokes`) took ~28 ms and three 20 MB
+Stokes temporaries, and has no saturation check, so it is not used; OpenCV serves the 3 x 3 erosion
+of validity masks in :mod:`sensor` and the independent per-channel reference in the tests.
+
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
 from .errors import CompassError
 from .fastmath import axial_atan2_f32
 
-__all__ = ["SensorError", "MosaicLayout", "IMX250MZR_LAYOUT", "IMX250MZR_POL45", "parse_layout", "layout_from_mapping",
-           "stokes_from_mosaic", "aop_dop_from_stokes", "polarization_from_mosaic", "DEMOSAIC_METHODS"]
+__all__ = [
+    'SensorError',
+    'MosaicLayout',
+    'IMX250MZR_LAYOUT',
+    'IMX250MZR_POL45',
+    'parse_layout',
+    'layout_from_mapping',
+    'stokes_from_mosaic',
+    'aop_dop_from_stokes',
+    'polarization_from_mosaic',
+    'DEMOSAIC_METHODS',
+]
 
 #: Sony IMX250MZR, top-left 2 x 2 block, row by row.
 IMX250MZR_LAYOUT = ((90, 45), (135, 0))
-DEMOSAIC_METHODS = ("superpixel", "bilinear")
-_POL45 = ("+x+y", "+x-y")
+DEMOSAIC_METHODS = ('superpixel', 'bilinear')
+_POL45 = ('+x+y', '+x-y')
 #: The image direction of the IMX250MZR's 45 deg polarizer as real cameras deliver the image (no
-#: ReverseX/ReverseY): towards +x-y, up and to the right on the displayed image (Sony's drawing, whose
-#: angles run counter-clockwise with the image's y axis up). Measured on real sky frames (two independent
-#: sources, ``test/data/real-sky``; ``polarization-compass check-polarizer``). A readout flipped in one
-#: axis (ReverseX or ReverseY) mirrors the image and turns this into +x+y (and moves the 2 x 2 phase);
-#: flipped in both it stays +x-y (a 180 deg rotation keeps polarizer angles).
-IMX250MZR_POL45 = "+x-y"
+#: ReverseX/ReverseY): towards +x-y, up and to the right on the displayed image (Sony's drawing,
+#: whose angles run counter-clockwise with the image's y axis up). Measured on real sky frames (two
+#: independent sources, ``test/data/real-sky``; ``polarization-compass check-polarizer``). A
+#: readout flipped in one axis (ReverseX or ReverseY) mirrors the image and turns this into +x+y
+#: (and moves the 2 x 2 phase); flipped in both it stays +x-y (a 180 deg rotation keeps polarizer
+#: angles).
+IMX250MZR_POL45 = '+x-y'
 
 # fastmath without 'nnan'/'ninf': the kernels rely on NaN comparisons being false.
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+_FM = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
 _PI32 = np.float32(math.pi)
 _HALF_PI32 = np.float32(math.pi / 2)
 
@@ -85,7 +114,8 @@ class SensorError(CompassError):
 
 @dataclass(frozen=True)
 class MosaicLayout:
-    """Hold a validated 2 x 2 polarizer layout of a DoFP mosaic.
+    """
+    Hold a validated 2 x 2 polarizer layout of a DoFP mosaic.
 
     Parameters
     ----------
@@ -95,6 +125,7 @@ class MosaicLayout:
     pol45_toward : {"+x-y", "+x+y"}, default "+x-y"
         Image direction of the 45 deg polarizer from +x_cam (columns): towards +y_cam (down the
         rows) or -y_cam (up); see the module docstring.
+
     """
 
     angles_deg: tuple = IMX250MZR_LAYOUT
@@ -102,12 +133,17 @@ class MosaicLayout:
 
     @property
     def camera_angles_deg(self) -> np.ndarray:
-        """(2, 2) polarizer angles from +x_cam towards +y_cam (deg): the physical angle, or minus it."""
-        a = np.asarray(self.angles_deg, dtype=float)
-        return a if self.pol45_toward == "+x+y" else -a
+        """
+        Return the (2, 2) polarizer angles from +x_cam towards +y_cam (deg).
 
-    def shifted(self, dy: int, dx: int) -> "MosaicLayout":
-        """Return the layout seen by a block whose top-left pixel is (dy, dx) into this pattern.
+        (2, 2) polarizer angles from +x_cam towards +y_cam (deg): the physical angle, or minus it.
+        """
+        a = np.asarray(self.angles_deg, dtype=float)
+        return a if self.pol45_toward == '+x+y' else -a
+
+    def shifted(self, dy: int, dx: int) -> 'MosaicLayout':
+        """
+        Return the layout seen by a block whose top-left pixel is (dy, dx) into this pattern.
 
         Parameters
         ----------
@@ -119,13 +155,17 @@ class MosaicLayout:
         -------
         MosaicLayout
             The same polarizers, rolled by (dy, dx), with the same ``pol45_toward``.
+
         """
         a = self.angles_deg
-        return MosaicLayout(tuple(tuple(a[(r + dy) % 2][(c + dx) % 2] for c in range(2)) for r in range(2)),
-                            self.pol45_toward)
+        return MosaicLayout(
+            tuple(tuple(a[(r + dy) % 2][(c + dx) % 2] for c in range(2)) for r in range(2)),
+            self.pol45_toward,
+        )
 
     def stokes_weights(self) -> np.ndarray:
-        """Return the Stokes weights of the four polarizers of one block.
+        """
+        Return the Stokes weights of the four polarizers of one block.
 
         ``S1 = sum(w[..., 0] * I)`` and ``S2 = sum(w[..., 1] * I)`` over one block of four.
 
@@ -134,24 +174,28 @@ class MosaicLayout:
         numpy.ndarray
             float32 (2, 2, 2): ``w[r, c] = (cos 2phi, sin 2phi)`` of the polarizer at (r, c), phi
             its camera-frame angle (from +x_cam towards +y_cam); exactly 0 or +-1.
+
         """
         phi = np.radians(self.camera_angles_deg)
         w = np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)
-        return np.rint(w).astype(np.float32)          # exactly 0 or +-1 for 0/45/90/135
+        return np.rint(w).astype(np.float32)  # exactly 0 or +-1 for 0/45/90/135
 
     def describe(self) -> dict:
-        """Return the layout as plain data for logs, JSON and diagnostics.
+        """
+        Return the layout as plain data for logs, JSON and diagnostics.
 
         Returns
         -------
         dict
             ``{"layout": [[deg, deg], [deg, deg]], "pol45_toward": "+x-y" | "+x+y"}``.
+
         """
-        return {"layout": [list(r) for r in self.angles_deg], "pol45_toward": self.pol45_toward}
+        return {'layout': [list(r) for r in self.angles_deg], 'pol45_toward': self.pol45_toward}
 
 
 def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -> MosaicLayout:
-    """Validate a 2 x 2 layout holding 0, 45, 90, 135 once each, and the 45 deg direction.
+    """
+    Validate a 2 x 2 layout holding 0, 45, 90, 135 once each, and the 45 deg direction.
 
     Parameters
     ----------
@@ -171,6 +215,7 @@ def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -
     SensorError
         ``pol45_toward`` is neither value, the layout is not 2 x 2, holds an angle other than
         0/45/90/135 (or a bool), or does not hold each of them once.
+
     """
     if isinstance(layout, MosaicLayout):
         return layout
@@ -182,19 +227,26 @@ def parse_layout(layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45) -
     except TypeError:
         ok_shape = False
     if not ok_shape:
-        raise SensorError(f"mosaic layout must be 2 x 2, e.g. [[90, 45], [135, 0]], got {layout!r}")
+        raise SensorError(
+            f'mosaic layout must be 2 x 2, e.g. [[90, 45], [135, 0]], got {layout!r}'
+        )
     vals = []
     for v in (x for r in rows for x in r):
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or v not in (0, 45, 90, 135):
-            raise SensorError(f"mosaic layout angles must be 0, 45, 90 or 135 deg, got {v!r}")
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float, np.integer, np.floating))
+            or v not in (0, 45, 90, 135)
+        ):
+            raise SensorError(f'mosaic layout angles must be 0, 45, 90 or 135 deg, got {v!r}')
         vals.append(int(v))
     if sorted(vals) != [0, 45, 90, 135]:
-        raise SensorError(f"mosaic layout must hold 0, 45, 90 and 135 once each, got {rows}")
+        raise SensorError(f'mosaic layout must hold 0, 45, 90 and 135 once each, got {rows}')
     return MosaicLayout(((vals[0], vals[1]), (vals[2], vals[3])), pol45_toward)
 
 
 def layout_from_mapping(mosaic) -> MosaicLayout:
-    """Return the layout of a ``mosaic`` mapping such as a scene's ``sensor.mosaic``.
+    """
+    Return the layout of a ``mosaic`` mapping such as a scene's ``sensor.mosaic``.
 
     Also the form of a topic map's ``mosaic:`` entry.
 
@@ -208,19 +260,22 @@ def layout_from_mapping(mosaic) -> MosaicLayout:
     -------
     MosaicLayout
         The validated layout (see :func:`parse_layout`, whose :class:`SensorError` propagates).
+
     """
     mos = mosaic or {}
-    return parse_layout(mos.get("layout", IMX250MZR_LAYOUT), mos.get("pol45_toward", IMX250MZR_POL45))
+    return parse_layout(
+        mos.get('layout', IMX250MZR_LAYOUT), mos.get('pol45_toward', IMX250MZR_POL45)
+    )
 
 
 # ------------------------------------------------------------------------------------------------
 # Kernels
 # ------------------------------------------------------------------------------------------------
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _finish(s0, s1, s2, ok):  # pragma: no cover - compiled
     """(aop, dop, valid) from camera-frame Stokes; branch-free so that row loops vectorise."""
     c = -s1
-    ax = axial_atan2_f32(s2, c)                       # atan2(S2, -S1) folded to [-pi/2, pi/2)
+    ax = axial_atan2_f32(s2, c)  # atan2(S2, -S1) folded to [-pi/2, pi/2)
     full = ax + (_PI32 if ax <= np.float32(0.0) else -_PI32)
     # unfold to (-pi, pi]; on the c = 0 line the fold gives -pi/2 for both signs of S2, so S2 > 0
     # (true angle +pi/2, AoP +45 deg) unfolds too
@@ -234,15 +289,19 @@ def _finish(s0, s1, s2, ok):  # pragma: no cover - compiled
     return (a if ok else np.float32(0.0)), (d if ok else np.float32(0.0)), ok
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _good(v, sat):  # pragma: no cover - compiled
     """Finite (NaN/inf comparisons are false) and below saturation."""
     return (v < sat) & (v > np.float32(-np.inf))
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _superpixel_pixel(m, i, j, w, sat):  # pragma: no cover - compiled
-    """Stokes of the 2 x 2 block whose top-left sample is (i, j); ``w`` (2, 2, 2) Stokes weights."""
+    """
+    Compute the Stokes vector of the 2 x 2 block whose top-left sample is (i, j).
+
+    Stokes of the 2 x 2 block whose top-left sample is (i, j); ``w`` (2, 2, 2) Stokes weights.
+    """
     a = np.float32(m[i, j])
     b = np.float32(m[i, j + 1])
     c = np.float32(m[i + 1, j])
@@ -264,10 +323,14 @@ def _superpixel_kernel(m, w, sat, aop, dop, valid):  # pragma: no cover - compil
             aop[k, l], dop[k, l], valid[k, l] = _finish(s0, s1, s2, ok)
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _stokes_or_zero(s0, s1, s2, ok):  # pragma: no cover - compiled
-    """The Stokes output of one pixel: (S0, S1, S2) when its samples are usable (``ok``), S0 > 0 and
-    S1, S2 not both 0; else zeros. Branch-free (selects), so that row loops vectorise."""
+    """
+    Return the Stokes output (S0, S1, S2) of one pixel, or zeros when unusable.
+
+    The Stokes output of one pixel: (S0, S1, S2) when its samples are usable (``ok``), S0 > 0 and
+    S1, S2 not both 0; else zeros. Branch-free (selects), so that row loops vectorise.
+    """
     z = np.float32(0.0)
     ok = ok & (s0 > z) & ((s1 != z) | (s2 != z))
     return (s0 if ok else z), (s1 if ok else z), (s2 if ok else z)
@@ -283,10 +346,16 @@ def _superpixel_stokes_kernel(m, w, sat, s0o, s1o, s2o):  # pragma: no cover - c
             s0o[k, l], s1o[k, l], s2o[k, l] = _stokes_or_zero(s0, s1, s2, ok)
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
-def _bilinear_pixel(m, i, im, ip, j, jm, jp, w0, w1, w2, w3, v0, v1, v2, v3, sat):  # pragma: no cover
-    """Stokes at (i, j) from its 3 x 3 neighbourhood. (w0..w3) / (v0..v3): S1 / S2 weights of the
-    channels at the centre, the horizontal pair, the vertical pair and the diagonal four."""
+@njit(inline='always', fastmath=_FM, cache=True)
+def _bilinear_pixel(
+    m, i, im, ip, j, jm, jp, w0, w1, w2, w3, v0, v1, v2, v3, sat
+):  # pragma: no cover
+    """
+    Stokes at (i, j) from its 3 x 3 neighbourhood.
+
+    (w0..w3) / (v0..v3): S1 / S2 weights of the
+    channels at the centre, the horizontal pair, the vertical pair and the diagonal four.
+    """
     vc = np.float32(m[i, j])
     a = np.float32(m[i, jm])
     b = np.float32(m[i, jp])
@@ -302,29 +371,58 @@ def _bilinear_pixel(m, i, im, ip, j, jm, jp, w0, w1, w2, w3, v0, v1, v2, v3, sat
     s0 = np.float32(0.5) * ((vc + ih) + (iv + idg))
     s1 = (w0 * vc + w1 * ih) + (w2 * iv + w3 * idg)
     s2 = (v0 * vc + v1 * ih) + (v2 * iv + v3 * idg)
-    ok = (_good(vc, sat) & _good(a, sat) & _good(b, sat) & _good(c, sat) & _good(d, sat)
-          & _good(e, sat) & _good(f, sat) & _good(g, sat) & _good(h, sat))
+    ok = (
+        _good(vc, sat)
+        & _good(a, sat)
+        & _good(b, sat)
+        & _good(c, sat)
+        & _good(d, sat)
+        & _good(e, sat)
+        & _good(f, sat)
+        & _good(g, sat)
+        & _good(h, sat)
+    )
     return s0, s1, s2, ok
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _bilinear_at(m, i, im, ip, j, W, r, rw, sat):  # pragma: no cover - compiled
     """Stokes at an edge column j (0 or W - 1), mirrored like BORDER_REFLECT_101."""
     jm = j - 1 if j > 0 else 1
     jp = j + 1 if j < W - 1 else W - 2
     q = j & 1
-    return _bilinear_pixel(m, i, im, ip, j, jm, jp, rw[r, q, 0], rw[r, q, 1], rw[r, q, 2], rw[r, q, 3],
-                           rw[r, q, 4], rw[r, q, 5], rw[r, q, 6], rw[r, q, 7], sat)
+    return _bilinear_pixel(
+        m,
+        i,
+        im,
+        ip,
+        j,
+        jm,
+        jp,
+        rw[r, q, 0],
+        rw[r, q, 1],
+        rw[r, q, 2],
+        rw[r, q, 3],
+        rw[r, q, 4],
+        rw[r, q, 5],
+        rw[r, q, 6],
+        rw[r, q, 7],
+        sat,
+    )
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
 def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compiled
-    """Full-resolution bilinear demosaic to (aop, dop, valid). ``rw`` (2 row parities, 2 column
+    """
+    Full-resolution bilinear demosaic to (aop, dop, valid).
+
+    ``rw`` (2 row parities, 2 column
     parities, 8): S1 and S2 weights of the (centre, horizontal, vertical, diagonal) channels.
-    The interior loop is branch-free (selects only) so that LLVM vectorises it; keep it that way."""
+    The interior loop is branch-free (selects only) so that LLVM vectorises it; keep it that way.
+    """
     H, W = m.shape
     for i in prange(H):
-        im = i - 1 if i > 0 else 1                  # BORDER_REFLECT_101 keeps the 2 x 2 phase
+        im = i - 1 if i > 0 else 1  # BORDER_REFLECT_101 keeps the 2 x 2 phase
         ip = i + 1 if i < H - 1 else H - 2
         r = i & 1
         e0, e1, e2, e3 = rw[r, 0, 0], rw[r, 0, 1], rw[r, 0, 2], rw[r, 0, 3]
@@ -334,9 +432,23 @@ def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compile
         for j in range(1, W - 1):
             odd = (j & 1) == 1
             s0, s1, s2, ok = _bilinear_pixel(
-                m, i, im, ip, j, j - 1, j + 1,
-                o0 if odd else e0, o1 if odd else e1, o2 if odd else e2, o3 if odd else e3,
-                p0 if odd else f0, p1 if odd else f1, p2 if odd else f2, p3 if odd else f3, sat)
+                m,
+                i,
+                im,
+                ip,
+                j,
+                j - 1,
+                j + 1,
+                o0 if odd else e0,
+                o1 if odd else e1,
+                o2 if odd else e2,
+                o3 if odd else e3,
+                p0 if odd else f0,
+                p1 if odd else f1,
+                p2 if odd else f2,
+                p3 if odd else f3,
+                sat,
+            )
             aop[i, j], dop[i, j], valid[i, j] = _finish(s0, s1, s2, ok)
         for j in (0, W - 1):
             s0, s1, s2, ok = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
@@ -378,8 +490,13 @@ def _stokes_to_aop_kernel(s0, s1, s2, aop, dop, valid):  # pragma: no cover - co
 # Public functions
 # ------------------------------------------------------------------------------------------------
 def _bilinear_weights(layout: MosaicLayout) -> np.ndarray:
-    """(2, 2, 8) float32: for a pixel of parity (r, c), the S1 then S2 weights of the channel at the
-    centre (r, c), the horizontal neighbours (r, 1-c), the vertical (1-r, c) and the diagonal (1-r, 1-c)."""
+    """
+    Return the (2, 2, 8) float32 bilinear S1, S2 weights per pixel parity.
+
+    (2, 2, 8) float32: for a pixel of parity (r, c), the S1 then S2 weights of the channel at the
+    centre (r, c), the horizontal neighbours (r, 1-c), the vertical (1-r, c) and the diagonal (1-r,
+    1-c).
+    """
     w = layout.stokes_weights()
     out = np.zeros((2, 2, 8), np.float32)
     for r in range(2):
@@ -391,28 +508,33 @@ def _bilinear_weights(layout: MosaicLayout) -> np.ndarray:
 
 
 def _prepare(mosaic, saturation_level, read_once: bool = False):
-    """Validate the raw image; float32 copy for the kernels and the float32 saturation threshold.
+    """
+    Validate the raw image; float32 copy for the kernels and the float32 saturation threshold.
 
-    ``read_once``: the kernel reads each sample once (superpixels), so an 8- or 16-bit unsigned image is
-    passed as it is (the kernel converts each sample to float32 exactly as ``astype`` would; the copy of a
-    full 2448 x 2048 frame cost 2 ms, a third of the demosaic)."""
+    ``read_once``: the kernel reads each sample once (superpixels), so an 8- or 16-bit unsigned
+    image is passed as it is (the kernel converts each sample to float32 exactly as ``astype``
+    would; the copy of a full 2448 x 2048 frame cost 2 ms, a third of the demosaic).
+    """
     m = np.asarray(mosaic)
     if m.ndim != 2:
-        raise SensorError(f"a mosaic must be a 2-D image, got shape {m.shape}")
-    if m.dtype.kind not in "uif" or m.dtype == np.float16:
-        raise SensorError(f"mosaic dtype must be unsigned/signed integer, float32 or float64, got {m.dtype}")
+        raise SensorError(f'a mosaic must be a 2-D image, got shape {m.shape}')
+    if m.dtype.kind not in 'uif' or m.dtype == np.float16:
+        raise SensorError(
+            f'mosaic dtype must be unsigned/signed integer, float32 or float64, got {m.dtype}'
+        )
     if saturation_level is None:
-        sat = float(np.iinfo(m.dtype).max) if m.dtype.kind in "ui" else math.inf
+        sat = float(np.iinfo(m.dtype).max) if m.dtype.kind in 'ui' else math.inf
     else:
         sat = float(saturation_level)
         if math.isnan(sat):
-            raise SensorError("saturation_level must be a number, got NaN")
+            raise SensorError('saturation_level must be a number, got NaN')
     if read_once and m.dtype in (np.uint8, np.uint16):
         return np.ascontiguousarray(m), np.float32(sat)
     if m.dtype != np.float32:
-        # float32 holds every uint16 exactly; converting once is cheaper than converting 9x per pixel.
-        # A float64 sample beyond float32's range becomes +-inf, which the kernels treat as invalid.
-        with np.errstate(over="ignore"):
+        # float32 holds every uint16 exactly; converting once is cheaper than converting 9x per
+        # pixel. A float64 sample beyond float32's range becomes +-inf, which the kernels treat as
+        # invalid.
+        with np.errstate(over='ignore'):
             m = m.astype(np.float32)
     return np.ascontiguousarray(m), np.float32(sat)
 
@@ -420,24 +542,37 @@ def _prepare(mosaic, saturation_level, read_once: bool = False):
 def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
     lay = parse_layout(layout, pol45_toward)
     if method not in DEMOSAIC_METHODS:
-        raise SensorError(f"demosaic method must be one of {DEMOSAIC_METHODS}, got {method!r}")
-    m, sat = _prepare(mosaic, saturation_level, read_once=method == "superpixel")
+        raise SensorError(f'demosaic method must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    m, sat = _prepare(mosaic, saturation_level, read_once=method == 'superpixel')
     H, W = m.shape
     if H < 2 or W < 2:
-        raise SensorError(f"a mosaic needs at least 2 x 2 pixels, got {H} x {W}")
-    shape = (H // 2, W // 2) if method == "superpixel" else (H, W)
-    out = tuple(np.empty(shape, np.float32) for _ in range(2)) + (np.empty(shape, np.bool_),) \
-        if not stokes_out else tuple(np.empty(shape, np.float32) for _ in range(3))
-    if method == "superpixel":
-        (_superpixel_stokes_kernel if stokes_out else _superpixel_kernel)(m, lay.stokes_weights(), sat, *out)
+        raise SensorError(f'a mosaic needs at least 2 x 2 pixels, got {H} x {W}')
+    shape = (H // 2, W // 2) if method == 'superpixel' else (H, W)
+    out = (
+        tuple(np.empty(shape, np.float32) for _ in range(2)) + (np.empty(shape, np.bool_),)
+        if not stokes_out
+        else tuple(np.empty(shape, np.float32) for _ in range(3))
+    )
+    if method == 'superpixel':
+        (_superpixel_stokes_kernel if stokes_out else _superpixel_kernel)(
+            m, lay.stokes_weights(), sat, *out
+        )
     else:
-        (_bilinear_stokes_kernel if stokes_out else _bilinear_kernel)(m, _bilinear_weights(lay), sat, *out)
+        (_bilinear_stokes_kernel if stokes_out else _bilinear_kernel)(
+            m, _bilinear_weights(lay), sat, *out
+        )
     return out
 
 
-def stokes_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45, method: str = "superpixel",
-                       saturation_level=None):
-    """Compute the camera-frame Stokes images ``(S0, S1, S2)`` of a raw DoFP image.
+def stokes_from_mosaic(
+    mosaic,
+    layout=IMX250MZR_LAYOUT,
+    pol45_toward: str = IMX250MZR_POL45,
+    method: str = 'superpixel',
+    saturation_level=None,
+):
+    """
+    Compute the camera-frame Stokes images ``(S0, S1, S2)`` of a raw DoFP image.
 
     ``S1 = I(0) - I(90)``, ``S2 = I(45) - I(135)`` with angles from +x_cam towards +y_cam and
     ``S0 = (I0 + I45 + I90 + I135) / 2``. Invalid pixels (a saturated or non-finite sample,
@@ -468,12 +603,14 @@ def stokes_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX2
     SensorError
         A bad layout, ``pol45_toward`` or ``method``, a mosaic that is not 2-D, has an
         unsupported dtype or fewer than 2 x 2 pixels, or a NaN ``saturation_level``.
+
     """
     return _run(mosaic, layout, pol45_toward, method, saturation_level, True)
 
 
 def aop_dop_from_stokes(s0, s1, s2):
-    """Compute the AoP, DoP and validity from camera-frame Stokes arrays of equal shape.
+    """
+    Compute the AoP, DoP and validity from camera-frame Stokes arrays of equal shape.
 
     ``AoP = 0.5 atan2(S2, -S1)`` folded to [-pi/2, pi/2) (the paper's AoP, from +y_cam towards
     +x_cam) and ``DoP = hypot(S1, S2) / S0`` clipped to [0, 1].
@@ -503,12 +640,15 @@ def aop_dop_from_stokes(s0, s1, s2):
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 28 (the AoP's
        reference direction).
+
     """
     a0 = np.ascontiguousarray(s0, dtype=np.float32)
     a1 = np.ascontiguousarray(s1, dtype=np.float32)
     a2 = np.ascontiguousarray(s2, dtype=np.float32)
     if not (a0.shape == a1.shape == a2.shape):
-        raise SensorError(f"S0, S1, S2 must have the same shape, got {a0.shape}, {a1.shape}, {a2.shape}")
+        raise SensorError(
+            f'S0, S1, S2 must have the same shape, got {a0.shape}, {a1.shape}, {a2.shape}'
+        )
     aop = np.empty(a0.shape, np.float32)
     dop = np.empty(a0.shape, np.float32)
     valid = np.empty(a0.shape, np.bool_)
@@ -516,9 +656,15 @@ def aop_dop_from_stokes(s0, s1, s2):
     return aop, dop, valid
 
 
-def polarization_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str = IMX250MZR_POL45,
-                             method: str = "superpixel", saturation_level=None):
-    """Compute ``(aop_rad, dop, valid)`` straight from a raw DoFP image (no Stokes images).
+def polarization_from_mosaic(
+    mosaic,
+    layout=IMX250MZR_LAYOUT,
+    pol45_toward: str = IMX250MZR_POL45,
+    method: str = 'superpixel',
+    saturation_level=None,
+):
+    """
+    Compute ``(aop_rad, dop, valid)`` straight from a raw DoFP image (no Stokes images).
 
     The fused fast path: same conventions, validity and numbers as :func:`stokes_from_mosaic`
     followed by :func:`aop_dop_from_stokes`.
@@ -555,5 +701,6 @@ def polarization_from_mosaic(mosaic, layout=IMX250MZR_LAYOUT, pol45_toward: str 
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 28.
+
     """
     return _run(mosaic, layout, pol45_toward, method, saturation_level, False)

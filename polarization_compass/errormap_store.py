@@ -1,98 +1,165 @@
-"""Error maps as labelled arrays: the xarray Dataset, the Zarr store a sweep writes into, NetCDF export.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Error maps as labelled arrays: xarray Dataset, Zarr sweep store, NetCDF export.
+
+Error maps as labelled arrays: the xarray Dataset, the Zarr store a sweep writes into, NetCDF
+export.
 
 The Dataset of a map (:func:`map_to_dataset`) has
 
-``error_deg``  float64 (method, sun_altitude, yaw, pitch, roll): fold_axial(estimated psi - true psi), deg
+``error_deg``  float64 (method, sun_altitude, yaw, pitch, roll): fold_axial(estimated psi - true
+               psi), deg
 ``status``     int8, same dims: the codes of :data:`~polarization_compass.errormap.STATUS_CODES`
-coordinates    ``method`` (names) and ``sun_altitude``, ``yaw``, ``pitch``, ``roll`` in degrees (attribute
-               ``units: deg``)
-attributes     ``meta_json`` (the map's whole ``meta``, JSON), and, for a reader that does not parse it,
-               ``camera``, ``sky``, ``sampling`` (JSON) and ``package_version``.
+coordinates    ``method`` (names) and ``sun_altitude``, ``yaw``, ``pitch``, ``roll`` in degrees
+               (attribute ``units: deg``)
+attributes     ``meta_json`` (the map's whole ``meta``, JSON), and, for a reader that does not
+               parse it, ``camera``, ``sky``, ``sampling`` (JSON) and ``package_version``.
 
-A sweep writes into a :class:`SweepStore`, a Zarr (format 3) directory holding that Dataset plus the
-bookkeeping variable ``chunk_checksum`` (sun_altitude, pitch), uint64. The Zarr chunks of ``error_deg`` and
-``status`` are exactly the sweep's chunks (one sun altitude x one pitch, every method, yaw and roll), so each
-finished chunk writes its own region, then its checksum (blake2b of the region's bytes); 0 means "not written".
-Reopening the store with the same sweep (same :meth:`SweepSpec.digest`) resumes: a chunk counts as done only
-when its stored bytes hash to its checksum; a chunk that does not (a kill between the two writes, a damaged
-file) is named on stderr and recomputed, never used. A directory that is not such a store (another program's
-Zarr, another sweep, unreadable metadata) is refused with :class:`ErrorMapError`.
+A sweep writes into a :class:`SweepStore`, a Zarr (format 3) directory holding that Dataset plus
+the bookkeeping variable ``chunk_checksum`` (sun_altitude, pitch), uint64. The Zarr chunks of
+``error_deg`` and ``status`` are exactly the sweep's chunks (one sun altitude x one pitch, every
+method, yaw and roll), so each finished chunk writes its own region, then its checksum (blake2b of
+the region's bytes); 0 means "not written". Reopening the store with the same sweep (same
+:meth:`SweepSpec.digest`) resumes: a chunk counts as done only when its stored bytes hash to its
+checksum; a chunk that does not (a kill between the two writes, a damaged file) is named on stderr
+and recomputed, never used. A directory that is not such a store (another program's Zarr, another
+sweep, unreadable metadata) is refused with :class:`ErrorMapError`.
 
-Exports: :func:`export_netcdf` writes one NetCDF **3** file (classic 64-bit offset format, through xarray's
-scipy engine: no HDF5/netCDF4 library needed); :meth:`ErrorMap.save` writes today's ``.npz``.
-:func:`read_netcdf_map` reads such a file with ``scipy.io.netcdf_file`` only (no xarray, no pickle) and
-validates it like the ``.npz`` loader (names, shapes, axes, finiteness, folding, status codes).
+Exports: :func:`export_netcdf` writes one NetCDF **3** file (classic 64-bit offset format, through
+xarray's scipy engine: no HDF5/netCDF4 library needed); :meth:`ErrorMap.save` writes today's
+``.npz``. :func:`read_netcdf_map` reads such a file with ``scipy.io.netcdf_file`` only (no xarray,
+no pickle) and validates it like the ``.npz`` loader (names, shapes, axes, finiteness, folding,
+status codes).
 
-xarray, zarr and dask are the optional extra ``sweep`` (``pip install polarization_compass[sweep]``); the
-NetCDF reader needs only numpy and scipy.
+xarray, zarr and dask are the optional extra ``sweep`` (``pip install
+polarization_compass[sweep]``); the NetCDF reader needs only numpy and scipy.
 """
+
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+from pathlib import Path
 import shutil
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from .errormap import AXES, ErrorMap, ErrorMapError
 
-__all__ = ["SweepStore", "map_to_dataset", "export_netcdf", "read_netcdf_map", "read_store_map", "chunk_checksum",
-           "STORE_KIND", "STORE_FORMAT_VERSION", "DIMS", "require_sweep_extra"]
+__all__ = [
+    'SweepStore',
+    'map_to_dataset',
+    'export_netcdf',
+    'read_netcdf_map',
+    'read_store_map',
+    'chunk_checksum',
+    'STORE_KIND',
+    'STORE_FORMAT_VERSION',
+    'DIMS',
+    'require_sweep_extra',
+]
 
-STORE_KIND = "polarization_compass.errormap.sweep"
+STORE_KIND = 'polarization_compass.errormap.sweep'
 STORE_FORMAT_VERSION = 1
 #: Dataset dimension of each ErrorMap axis.
-DIMS = ("method", "sun_altitude", "yaw", "pitch", "roll")
+DIMS = ('method', 'sun_altitude', 'yaw', 'pitch', 'roll')
 _AXIS_DIM = dict(zip(AXES, DIMS[1:]))
-_NETCDF_MAGIC = (b"CDF\x01", b"CDF\x02")
+_NETCDF_MAGIC = (b'CDF\x01', b'CDF\x02')
 
 
-def require_sweep_extra(what: str = "this"):
-    """Import and return (xarray, zarr); :class:`ErrorMapError` naming the extra when they are missing."""
+def require_sweep_extra(what: str = 'this'):
+    """
+    Import and return (xarray, zarr), naming the extra when they are missing.
+
+    Import and return (xarray, zarr); :class:`ErrorMapError` naming the extra when they are
+    missing.
+    """
     try:
         import xarray
         import zarr
     except ImportError as exc:
-        raise ErrorMapError(f"{what} needs the optional extra 'sweep' (pip install polarization_compass[sweep], "
-                            f"installed by make): {exc}") from None
+        raise ErrorMapError(
+            f"{what} needs the optional extra 'sweep' (pip install polarization_compass[sweep], "
+            f'installed by make): {exc}'
+        ) from None
     return xarray, zarr
 
 
 def chunk_checksum(err: np.ndarray, status: np.ndarray) -> int:
-    """uint64 checksum (blake2b, never 0) of one chunk's float64 errors and int8 statuses, C order."""
+    """
+    Return the uint64 checksum of one chunk's errors and statuses.
+
+    uint64 checksum (blake2b, never 0) of one chunk's float64 errors and int8 statuses, C order.
+    """
     h = hashlib.blake2b(digest_size=8)
-    h.update(np.ascontiguousarray(err, dtype="<f8").tobytes())
-    h.update(np.ascontiguousarray(status, dtype="i1").tobytes())
-    return int.from_bytes(h.digest(), "little") or 1
+    h.update(np.ascontiguousarray(err, dtype='<f8').tobytes())
+    h.update(np.ascontiguousarray(status, dtype='i1').tobytes())
+    return int.from_bytes(h.digest(), 'little') or 1
 
 
 def _attrs_from_meta(meta: dict) -> dict:
-    scene = meta.get("scene") or {}
-    return {"meta_json": json.dumps(meta, sort_keys=True),
-            "camera": json.dumps(scene.get("camera"), sort_keys=True),
-            "sky": json.dumps(scene.get("sky"), sort_keys=True),
-            "sampling": json.dumps(meta.get("sampling"), sort_keys=True),
-            "package_version": str(meta.get("package_version", ""))}
+    scene = meta.get('scene') or {}
+    return {
+        'meta_json': json.dumps(meta, sort_keys=True),
+        'camera': json.dumps(scene.get('camera'), sort_keys=True),
+        'sky': json.dumps(scene.get('sky'), sort_keys=True),
+        'sampling': json.dumps(meta.get('sampling'), sort_keys=True),
+        'package_version': str(meta.get('package_version', '')),
+    }
 
 
 def _coords(methods, axes) -> dict:
-    coords = {"method": ("method", np.array(list(methods), dtype=object))}     # variable-length UTF-8 in Zarr 3
+    coords = {
+        'method': ('method', np.array(list(methods), dtype=object))
+    }  # variable-length UTF-8 in Zarr 3
     for name, a in zip(AXES, axes):
-        coords[_AXIS_DIM[name]] = (_AXIS_DIM[name], np.asarray(a, dtype=float), {"units": "deg"})
+        coords[_AXIS_DIM[name]] = (_AXIS_DIM[name], np.asarray(a, dtype=float), {'units': 'deg'})
     return coords
 
 
 def map_to_dataset(m: ErrorMap):
-    """The map as an ``xarray.Dataset`` (dims :data:`DIMS`, coordinates in deg, meta in the attributes)."""
-    xr, _ = require_sweep_extra("an xarray Dataset of a map")
+    """
+    Return the map as an ``xarray.Dataset``.
+
+    The map as an ``xarray.Dataset`` (dims :data:`DIMS`, coordinates in deg, meta in the
+    attributes).
+    """
+    xr, _ = require_sweep_extra('an xarray Dataset of a map')
     m.validate()
-    ds = xr.Dataset({"error_deg": (DIMS, m.error_deg, {"units": "deg", "long_name":
-                                                       "fold_axial(estimated psi - true psi), in (-90, 90]"}),
-                     "status": (DIMS, m.status.astype(np.int8), {"long_name": "status code, see meta_json"})},
-                    coords=_coords(m.methods, m.axes()), attrs=_attrs_from_meta(m.meta))
+    ds = xr.Dataset(
+        {
+            'error_deg': (
+                DIMS,
+                m.error_deg,
+                {
+                    'units': 'deg',
+                    'long_name': 'fold_axial(estimated psi - true psi), in (-90, 90]',
+                },
+            ),
+            'status': (
+                DIMS,
+                m.status.astype(np.int8),
+                {'long_name': 'status code, see meta_json'},
+            ),
+        },
+        coords=_coords(m.methods, m.axes()),
+        attrs=_attrs_from_meta(m.meta),
+    )
     return ds
 
 
@@ -100,8 +167,8 @@ def export_netcdf(m: ErrorMap, path) -> Path:
     """Write the map as one NetCDF 3 file (64-bit offset, xarray's scipy engine), atomically."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + ".tmp")
-    map_to_dataset(m).to_netcdf(tmp, engine="scipy", format="NETCDF3_64BIT")
+    tmp = p.with_name(p.name + '.tmp')
+    map_to_dataset(m).to_netcdf(tmp, engine='scipy', format='NETCDF3_64BIT')
     os.replace(tmp, p)
     return p
 
@@ -109,59 +176,71 @@ def export_netcdf(m: ErrorMap, path) -> Path:
 def _char_rows(a: np.ndarray) -> list[str]:
     """Names stored as a NetCDF 3 char array (rows of bytes) -> str."""
     a = np.asarray(a)
-    if a.dtype.kind == "S" and a.ndim == 2:
-        return [b"".join(row).decode("utf-8").rstrip("\x00") for row in a]
-    if a.dtype.kind in "SU" and a.ndim == 1:
-        return [x.decode("utf-8") if isinstance(x, bytes) else str(x) for x in a]
-    raise ValueError(f"method names must be a char array, got {a.dtype} {a.shape}")
+    if a.dtype.kind == 'S' and a.ndim == 2:
+        return [b''.join(row).decode('utf-8').rstrip('\x00') for row in a]
+    if a.dtype.kind in 'SU' and a.ndim == 1:
+        return [x.decode('utf-8') if isinstance(x, bytes) else str(x) for x in a]
+    raise ValueError(f'method names must be a char array, got {a.dtype} {a.shape}')
 
 
 def read_netcdf_map(path) -> ErrorMap:
-    """Load and validate a map written by :func:`export_netcdf` (scipy's NetCDF 3 reader, no pickle).
+    """
+    Load and validate a map written by :func:`export_netcdf` (scipy's NetCDF 3 reader, no pickle).
 
     Raises :class:`ErrorMapError` naming the file and the reason.
     """
     from scipy.io import netcdf_file
+
     p = Path(path)
     if not p.is_file():
-        raise ErrorMapError(f"error map {str(p)!r} does not exist")
-    with open(p, "rb") as fh:
+        raise ErrorMapError(f'error map {str(p)!r} does not exist')
+    with open(p, 'rb') as fh:
         if fh.read(4) not in _NETCDF_MAGIC:
-            raise ErrorMapError(f"{p}: not a NetCDF 3 file")
+            raise ErrorMapError(f'{p}: not a NetCDF 3 file')
     size = p.stat().st_size
     try:
-        with netcdf_file(p, "r", mmap=False) as nc:
+        with netcdf_file(p, 'r', mmap=False) as nc:
             v = nc.variables
-            missing = [k for k in ("error_deg", "status", *DIMS) if k not in v]
+            missing = [k for k in ('error_deg', 'status', *DIMS) if k not in v]
             if missing:
-                raise ErrorMapError(f"{p}: not an error map (missing {', '.join(missing)})")
-            if tuple(v["error_deg"].dimensions) != DIMS or tuple(v["status"].dimensions) != DIMS:
-                raise ErrorMapError(f"{p}: error_deg/status must have dims {DIMS}")
-            n = int(np.prod(v["error_deg"].shape, dtype=np.int64))
-            if n * 9 > 64 * size + (1 << 20):         # the header claims far more data than the file holds
-                raise ErrorMapError(f"{p}: truncated (the header's shapes need more bytes than the file has)")
-            methods = _char_rows(v["method"].data)
+                raise ErrorMapError(f'{p}: not an error map (missing {", ".join(missing)})')
+            if tuple(v['error_deg'].dimensions) != DIMS or tuple(v['status'].dimensions) != DIMS:
+                raise ErrorMapError(f'{p}: error_deg/status must have dims {DIMS}')
+            n = int(np.prod(v['error_deg'].shape, dtype=np.int64))
+            if n * 9 > 64 * size + (
+                1 << 20
+            ):  # the header claims far more data than the file holds
+                raise ErrorMapError(
+                    f"{p}: truncated (the header's shapes need more bytes than the file has)"
+                )
+            methods = _char_rows(v['method'].data)
             axes = [np.array(v[_AXIS_DIM[k]].data, dtype=float) for k in AXES]
-            err = np.array(v["error_deg"].data)
-            status = np.array(v["status"].data)
-            meta_raw = nc._attributes.get("meta_json", b"{}")   # noqa: SLF001 - scipy keeps global attrs here
+            err = np.array(v['error_deg'].data)
+            status = np.array(v['status'].data)
+            # scipy keeps global attrs here
+            meta_raw = nc._attributes.get('meta_json', b'{}')  # noqa: SLF001
     except ErrorMapError:
         raise
-    except Exception as exc:  # noqa: BLE001 - scipy raises many types on a malformed file; all mean "corrupt"
-        raise ErrorMapError(f"{p}: corrupt or not a NetCDF error map ({type(exc).__name__}: {exc})") from None
+    # scipy raises many types on a malformed file; all mean "corrupt"
+    except Exception as exc:  # noqa: BLE001
+        raise ErrorMapError(
+            f'{p}: corrupt or not a NetCDF error map ({type(exc).__name__}: {exc})'
+        ) from None
     try:
-        meta = json.loads(meta_raw.decode("utf-8") if isinstance(meta_raw, bytes) else str(meta_raw))
+        meta = json.loads(
+            meta_raw.decode('utf-8') if isinstance(meta_raw, bytes) else str(meta_raw)
+        )
         if not isinstance(meta, dict):
-            raise ValueError("meta_json is not a JSON object")
+            raise ValueError('meta_json is not a JSON object')
     except (ValueError, UnicodeDecodeError) as exc:
-        raise ErrorMapError(f"{p}: meta_json is not valid JSON ({exc})") from None
-    if err.dtype.kind != "f":
-        raise ErrorMapError(f"{p}: error_deg must be floating point, got {err.dtype}")
+        raise ErrorMapError(f'{p}: meta_json is not valid JSON ({exc})') from None
+    if err.dtype.kind != 'f':
+        raise ErrorMapError(f'{p}: error_deg must be floating point, got {err.dtype}')
     m = ErrorMap(err.astype(float), status, tuple(methods), *axes, meta=meta)
     try:
         return m.validate()
     except ErrorMapError as exc:
-        raise ErrorMapError(f"{p}: {exc}") from None
+        raise ErrorMapError(f'{p}: {exc}') from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -177,13 +256,14 @@ class SweepStore:
 
     # ---- opening -----------------------------------------------------------------------
     @classmethod
-    def open(cls, path, spec, restart: bool = False) -> "SweepStore":
-        """Create the store for ``spec`` at ``path``, or reopen it to resume.
+    def open(cls, path, spec, restart: bool = False) -> 'SweepStore':
+        """
+        Create the store for ``spec`` at ``path``, or reopen it to resume.
 
         ``restart`` deletes an earlier store *of this package* first (never a foreign directory).
         Raises :class:`ErrorMapError` for a foreign, corrupt or other-sweep store.
         """
-        _, zarr = require_sweep_extra("a sweep store")
+        _, zarr = require_sweep_extra('a sweep store')
         p = Path(path)
         if p.exists():
             group = cls._check_existing(p, spec, zarr, allow_other_sweep=restart)
@@ -191,31 +271,43 @@ class SweepStore:
                 return cls(p, group, spec)
             shutil.rmtree(p)
         cls._create(p, spec)
-        return cls(p, zarr.open_group(str(p), mode="r+"), spec)
+        return cls(p, zarr.open_group(str(p), mode='r+'), spec)
 
     @staticmethod
     def _check_existing(p: Path, spec, zarr, allow_other_sweep: bool = False):
         if not p.is_dir():
-            raise ErrorMapError(f"{p} exists and is not a directory: not an error-map sweep store")
+            raise ErrorMapError(f'{p} exists and is not a directory: not an error-map sweep store')
         try:
-            group = zarr.open_group(str(p), mode="r+")
+            group = zarr.open_group(str(p), mode='r+')
             attrs = dict(group.attrs)
-        except Exception as exc:  # noqa: BLE001 - zarr's errors for an unreadable group vary by cause
-            raise ErrorMapError(f"{p}: not a readable Zarr store ({type(exc).__name__}: {exc}); "
-                                f"delete it or choose another --out") from None
-        if attrs.get("store_kind") != STORE_KIND:
-            raise ErrorMapError(f"{p} is a Zarr store this package did not write (no '{STORE_KIND}' marker); "
-                                f"refusing to write into it")
-        if attrs.get("store_format_version") != STORE_FORMAT_VERSION:
-            raise ErrorMapError(f"{p}: store format {attrs.get('store_format_version')!r}, this package reads "
-                                f"{STORE_FORMAT_VERSION}")
+        # zarr's errors for an unreadable group vary by cause
+        except Exception as exc:  # noqa: BLE001
+            raise ErrorMapError(
+                f'{p}: not a readable Zarr store ({type(exc).__name__}: {exc}); '
+                f'delete it or choose another --out'
+            ) from None
+        if attrs.get('store_kind') != STORE_KIND:
+            raise ErrorMapError(
+                f"{p} is a Zarr store this package did not write (no '{STORE_KIND}' marker); "
+                f'refusing to write into it'
+            )
+        if attrs.get('store_format_version') != STORE_FORMAT_VERSION:
+            raise ErrorMapError(
+                f'{p}: store format {attrs.get("store_format_version")!r}, this package reads '
+                f'{STORE_FORMAT_VERSION}'
+            )
         if allow_other_sweep:
             return group
-        if attrs.get("sweep_digest") != spec.digest():
-            raise ErrorMapError(f"{p} holds a different sweep (other arguments or scene); delete it, pass "
-                                f"--restart, or choose another --out")
-        want = {"error_deg": (spec.shape, "float64"), "status": (spec.shape, "int8"),
-                "chunk_checksum": ((spec.shape[1], spec.shape[3]), "uint64")}
+        if attrs.get('sweep_digest') != spec.digest():
+            raise ErrorMapError(
+                f'{p} holds a different sweep (other arguments or scene); delete it, pass '
+                f'--restart, or choose another --out'
+            )
+        want = {
+            'error_deg': (spec.shape, 'float64'),
+            'status': (spec.shape, 'int8'),
+            'chunk_checksum': ((spec.shape[1], spec.shape[3]), 'uint64'),
+        }
         for name, (shape, dtype) in want.items():
             try:
                 arr = group[name]
@@ -223,68 +315,107 @@ class SweepStore:
             except Exception:  # noqa: BLE001 - a missing or unreadable array
                 ok = False
             if not ok:
-                raise ErrorMapError(f"{p}: array {name!r} is missing or has the wrong shape/type "
-                                    f"(want {shape} {dtype}); the store is corrupt, delete it")
+                raise ErrorMapError(
+                    f'{p}: array {name!r} is missing or has the wrong shape/type '
+                    f'(want {shape} {dtype}); the store is corrupt, delete it'
+                )
         return group
 
     @staticmethod
     def _create(p: Path, spec) -> None:
         import dask.array as da
-        xr, _ = require_sweep_extra("a sweep store")
+
+        xr, _ = require_sweep_extra('a sweep store')
         M, A, Y, P, R = spec.shape
         chunks = (M, 1, Y, 1, R)
         meta = spec.to_meta()
         ds = xr.Dataset(
-            {"error_deg": (DIMS, da.zeros(spec.shape, dtype=np.float64, chunks=chunks), {"units": "deg"}),
-             "status": (DIMS, da.full(spec.shape, -1, dtype=np.int8, chunks=chunks)),
-             "chunk_checksum": (("sun_altitude", "pitch"), da.zeros((A, P), dtype=np.uint64, chunks=(1, 1)),
-                                {"long_name": "blake2b-64 of the chunk's error_deg and status bytes; "
-                                              "0 = not written"})},
+            {
+                'error_deg': (
+                    DIMS,
+                    da.zeros(spec.shape, dtype=np.float64, chunks=chunks),
+                    {'units': 'deg'},
+                ),
+                'status': (DIMS, da.full(spec.shape, -1, dtype=np.int8, chunks=chunks)),
+                'chunk_checksum': (
+                    ('sun_altitude', 'pitch'),
+                    da.zeros((A, P), dtype=np.uint64, chunks=(1, 1)),
+                    {
+                        'long_name': "blake2b-64 of the chunk's error_deg and status bytes; "
+                        '0 = not written'
+                    },
+                ),
+            },
             coords=_coords(spec.methods, [getattr(spec, k) for k in AXES]),
-            attrs={**_attrs_from_meta(meta), "store_kind": STORE_KIND, "store_format_version": STORE_FORMAT_VERSION,
-                   "sweep_digest": spec.digest(), "complete": False})
-        encoding = {"error_deg": {"chunks": chunks, "fill_value": 0.0},
-                    "status": {"chunks": chunks, "fill_value": -1},
-                    "chunk_checksum": {"chunks": (1, 1), "fill_value": 0}}
+            attrs={
+                **_attrs_from_meta(meta),
+                'store_kind': STORE_KIND,
+                'store_format_version': STORE_FORMAT_VERSION,
+                'sweep_digest': spec.digest(),
+                'complete': False,
+            },
+        )
+        encoding = {
+            'error_deg': {'chunks': chunks, 'fill_value': 0.0},
+            'status': {'chunks': chunks, 'fill_value': -1},
+            'chunk_checksum': {'chunks': (1, 1), 'fill_value': 0},
+        }
         p.parent.mkdir(parents=True, exist_ok=True)
-        # compute=False: metadata and coordinates only; each chunk's region is written when it is computed
-        ds.to_zarr(str(p), mode="w-", compute=False, encoding=encoding, consolidated=False, zarr_format=3)
+        # compute=False: metadata and coordinates only; each chunk's region is written when it is
+        # computed
+        ds.to_zarr(
+            str(p), mode='w-', compute=False, encoding=encoding, consolidated=False, zarr_format=3
+        )
 
     # ---- chunks ------------------------------------------------------------------------
     def write_chunk(self, ia: int, ip: int, err: np.ndarray, status: np.ndarray) -> None:
-        """Write one chunk's region, then its checksum (so a torn write is detected, never trusted)."""
-        self.group["error_deg"][:, ia, :, ip, :] = err
-        self.group["status"][:, ia, :, ip, :] = status
-        self.group["chunk_checksum"][ia, ip] = np.uint64(chunk_checksum(err, status))
+        """
+        Write one chunk's region, then its checksum.
+
+        Write one chunk's region, then its checksum (so a torn write is detected, never trusted).
+        """
+        self.group['error_deg'][:, ia, :, ip, :] = err
+        self.group['status'][:, ia, :, ip, :] = status
+        self.group['chunk_checksum'][ia, ip] = np.uint64(chunk_checksum(err, status))
 
     def read_chunk(self, ia: int, ip: int):
-        """(err, status) of a stored chunk whose bytes match its checksum; None when not written.
+        """
+        (err, status) of a stored chunk whose bytes match its checksum; None when not written.
 
         Raises :class:`_DamagedChunk` when it was written but cannot be read or does not match.
         """
         try:
-            want = int(self.group["chunk_checksum"][ia, ip])
+            want = int(self.group['chunk_checksum'][ia, ip])
         except Exception as exc:  # noqa: BLE001 - a damaged checksum chunk
-            raise _DamagedChunk(f"its checksum cannot be read ({type(exc).__name__})") from None
+            raise _DamagedChunk(f'its checksum cannot be read ({type(exc).__name__})') from None
         if want == 0:
             return None
         try:
-            err = np.asarray(self.group["error_deg"][:, ia, :, ip, :])
-            status = np.asarray(self.group["status"][:, ia, :, ip, :])
-        except Exception as exc:  # noqa: BLE001 - a damaged data chunk (codec, truncated file, ...)
-            raise _DamagedChunk(f"its data cannot be read ({type(exc).__name__}: {exc})") from None
+            err = np.asarray(self.group['error_deg'][:, ia, :, ip, :])
+            status = np.asarray(self.group['status'][:, ia, :, ip, :])
+        # a damaged data chunk (codec, truncated file, ...)
+        except Exception as exc:  # noqa: BLE001
+            raise _DamagedChunk(f'its data cannot be read ({type(exc).__name__}: {exc})') from None
         if chunk_checksum(err, status) != want:
-            raise _DamagedChunk("its data do not match its checksum")
+            raise _DamagedChunk('its data do not match its checksum')
         return err, status
 
     def chunk_name(self, ia: int, ip: int) -> str:
-        return (f"chunk (sun altitude {self.spec.sun_altitude_deg[ia]:g} deg, pitch {self.spec.pitch_deg[ip]:g} deg)"
-                f" [{ia}, {ip}]")
+        return (
+            f'chunk (sun altitude {self.spec.sun_altitude_deg[ia]:g} deg, pitch '
+            f'{self.spec.pitch_deg[ip]:g} deg)'
+            f' [{ia}, {ip}]'
+        )
 
     def scan(self, chunks, err: np.ndarray, status: np.ndarray, log=None) -> list:
-        """Copy every verified stored chunk of ``chunks`` into ``err``/``status``; return the ones to compute.
+        """
+        Copy every verified stored chunk into ``err``/``status``; return the ones to compute.
 
-        A damaged chunk is named on ``log`` (default: the current ``sys.stderr``) and returned for recomputation.
+        Copy every verified stored chunk of ``chunks`` into ``err``/``status``; return the ones to
+        compute.
+
+        A damaged chunk is named on ``log`` (default: the current ``sys.stderr``) and returned for
+        recomputation.
         """
         log = sys.stderr if log is None else log
         todo = []
@@ -292,8 +423,11 @@ class SweepStore:
             try:
                 got = self.read_chunk(ia, ip)
             except _DamagedChunk as exc:
-                print(f"errormap: {self.path}: {self.chunk_name(ia, ip)} is damaged ({exc}); recomputing it",
-                      file=log)
+                print(
+                    f'errormap: {self.path}: {self.chunk_name(ia, ip)} is damaged ({exc}); '
+                    'recomputing it',
+                    file=log,
+                )
                 got = None
             if got is None:
                 todo.append((ia, ip))
@@ -303,7 +437,7 @@ class SweepStore:
 
     def finish(self, meta: dict) -> None:
         """Record the final meta and mark the store complete."""
-        self.group.attrs.update({**_attrs_from_meta(meta), "complete": True})
+        self.group.attrs.update({**_attrs_from_meta(meta), 'complete': True})
 
 
 class _DamagedChunk(Exception):
@@ -311,37 +445,54 @@ class _DamagedChunk(Exception):
 
 
 def read_store_map(path) -> ErrorMap:
-    """Load and validate the map of a *complete* sweep store: every written chunk must match its checksum,
-    every unwritten one must be all "not computed". Raises :class:`ErrorMapError`."""
-    _, zarr = require_sweep_extra("reading a Zarr error map")
+    """
+    Load and validate the map of a complete sweep store.
+
+    Load and validate the map of a *complete* sweep store: every written chunk must match its
+    checksum, every unwritten one must be all "not computed". Raises :class:`ErrorMapError`.
+    """
+    _, zarr = require_sweep_extra('reading a Zarr error map')
     p = Path(path)
     try:
-        g = zarr.open_group(str(p), mode="r")
+        g = zarr.open_group(str(p), mode='r')
         attrs = dict(g.attrs)
     except Exception as exc:  # noqa: BLE001 - zarr's errors for an unreadable group vary by cause
-        raise ErrorMapError(f"{p}: not a readable Zarr store ({type(exc).__name__}: {exc})") from None
-    if attrs.get("store_kind") != STORE_KIND:
-        raise ErrorMapError(f"{p} is a Zarr store this package did not write (no '{STORE_KIND}' marker)")
-    if not attrs.get("complete"):
-        raise ErrorMapError(f"{p} is an unfinished sweep; rerun the sweep to complete it")
+        raise ErrorMapError(
+            f'{p}: not a readable Zarr store ({type(exc).__name__}: {exc})'
+        ) from None
+    if attrs.get('store_kind') != STORE_KIND:
+        raise ErrorMapError(
+            f"{p} is a Zarr store this package did not write (no '{STORE_KIND}' marker)"
+        )
+    if not attrs.get('complete'):
+        raise ErrorMapError(f'{p} is an unfinished sweep; rerun the sweep to complete it')
     try:
-        meta = json.loads(attrs["meta_json"])
-        methods = tuple(str(x) for x in np.asarray(g["method"][:]).tolist())
+        meta = json.loads(attrs['meta_json'])
+        methods = tuple(str(x) for x in np.asarray(g['method'][:]).tolist())
         axes = [np.asarray(g[_AXIS_DIM[k]][:], dtype=float) for k in AXES]
-        err = np.asarray(g["error_deg"][:])
-        status = np.asarray(g["status"][:])
-        sums = np.asarray(g["chunk_checksum"][:])
+        err = np.asarray(g['error_deg'][:])
+        status = np.asarray(g['status'][:])
+        sums = np.asarray(g['chunk_checksum'][:])
     except Exception as exc:  # noqa: BLE001 - a missing array, a damaged chunk, bad JSON
-        raise ErrorMapError(f"{p}: corrupt sweep store ({type(exc).__name__}: {exc})") from None
+        raise ErrorMapError(f'{p}: corrupt sweep store ({type(exc).__name__}: {exc})') from None
     if err.ndim != 5 or sums.shape != (err.shape[1], err.shape[3]) or status.shape != err.shape:
-        raise ErrorMapError(f"{p}: corrupt sweep store (array shapes disagree)")
+        raise ErrorMapError(f'{p}: corrupt sweep store (array shapes disagree)')
     for ia in range(sums.shape[0]):
         for ip in range(sums.shape[1]):
             e, s = err[:, ia, :, ip, :], status[:, ia, :, ip, :]
-            if sums[ia, ip] == 0 and np.any(s != -1) or sums[ia, ip] != 0 and chunk_checksum(e, s) != sums[ia, ip]:
-                raise ErrorMapError(f"{p}: chunk [{ia}, {ip}] does not match its checksum (damaged store)")
-    m = ErrorMap(err.astype(float), status, methods, *axes, meta=meta if isinstance(meta, dict) else {})
+            if (
+                sums[ia, ip] == 0
+                and np.any(s != -1)
+                or sums[ia, ip] != 0
+                and chunk_checksum(e, s) != sums[ia, ip]
+            ):
+                raise ErrorMapError(
+                    f'{p}: chunk [{ia}, {ip}] does not match its checksum (damaged store)'
+                )
+    m = ErrorMap(
+        err.astype(float), status, methods, *axes, meta=meta if isinstance(meta, dict) else {}
+    )
     try:
         return m.validate()
     except ErrorMapError as exc:
-        raise ErrorMapError(f"{p}: {exc}") from None
+        raise ErrorMapError(f'{p}: {exc}') from None

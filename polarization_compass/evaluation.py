@@ -1,9 +1,24 @@
-"""Running heading-error statistics and the stamp matching behind ``error_evaluator`` (ROS-free).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Running heading-error statistics and the stamp matching behind ``error_evaluator`` (ROS-free).
 
 Error convention (the paper's): ``error_deg = estimated bearing - true bearing``, which equals
-``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg ambiguity,
-folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an axial one, where
-a heading and its opposite are the same measurement. Statistics of a stream:
+``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg
+ambiguity, folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an
+axial one, where a heading and its opposite are the same measurement. Statistics of a stream:
 
 ``count``   matched estimates
 ``mean``    mean signed error (deg)              ``std``  its standard deviation (deg)
@@ -14,17 +29,18 @@ Every sample is kept up to ``max_samples`` (default 2 million, 16 MB), so ``p95`
 run this project simulates; beyond that, percentiles come from a uniform reservoir sample of that
 size (deterministic seed) while count, mean, RMS, std and max stay exact.
 
-:class:`StampMatcher` pairs estimates with the ground truth by identical stamp (the estimator stamps
-its output with the image's stamp, and the simulator stamps the truth with the same stamp): an
-estimate that arrives before its truth waits (bounded), a truth frame without an estimate on a
+:class:`StampMatcher` pairs estimates with the ground truth by identical stamp (the estimator
+stamps its output with the image's stamp, and the simulator stamps the truth with the same stamp):
+an estimate that arrives before its truth waits (bounded), a truth frame without an estimate on a
 stream after ``horizon_ns`` counts as *missed* for that stream.
 """
+
 from __future__ import annotations
 
-import csv
-import math
 from collections import OrderedDict
+import csv
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
 
 import numpy as np
@@ -32,10 +48,19 @@ import numpy as np
 from .conventions import fold_axial_deg, wrap_180_deg
 from .errors import CompassError
 
-__all__ = ["RunningStats", "heading_error_deg", "StampMatcher", "Match", "EvaluationError",
-           "write_samples_csv", "write_summary_csv", "plot_report", "STAT_FIELDS"]
+__all__ = [
+    'RunningStats',
+    'heading_error_deg',
+    'StampMatcher',
+    'Match',
+    'EvaluationError',
+    'write_samples_csv',
+    'write_summary_csv',
+    'plot_report',
+    'STAT_FIELDS',
+]
 
-STAT_FIELDS = ("count", "mean", "std", "rms", "p95", "max")
+STAT_FIELDS = ('count', 'mean', 'std', 'rms', 'p95', 'max')
 
 
 class EvaluationError(CompassError):
@@ -43,7 +68,8 @@ class EvaluationError(CompassError):
 
 
 def heading_error_deg(estimated_bearing_deg, true_bearing_deg, axial: bool):
-    """Return the estimated minus the true bearing, wrapped or folded.
+    """
+    Return the estimated minus the true bearing, wrapped or folded.
 
     Parameters
     ----------
@@ -66,13 +92,15 @@ def heading_error_deg(estimated_bearing_deg, true_bearing_deg, axial: bool):
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), section 4 and
        Figs 17-19 (orientation error against the heading).
+
     """
     d = np.asarray(estimated_bearing_deg, dtype=float) - np.asarray(true_bearing_deg, dtype=float)
     return fold_axial_deg(d) if axial else wrap_180_deg(d)
 
 
 class RunningStats:
-    """Accumulate mean, std, RMS, p95 and max of signed errors (deg), one sample at a time.
+    """
+    Accumulate mean, std, RMS, p95 and max of signed errors (deg), one sample at a time.
 
     Sums are accumulated with Welford's update (mean and variance) so that long runs do not lose
     precision; ``max`` and the sample store are updated in O(1) amortised time. Beyond
@@ -84,15 +112,16 @@ class RunningStats:
         Samples kept for the percentiles (8 bytes each); >= 1, else :class:`EvaluationError`.
     seed : int, default 0
         Seed of the reservoir sampling (deterministic summaries).
+
     """
 
     def __init__(self, max_samples: int = 2_000_000, seed: int = 0):
         if max_samples < 1:
-            raise EvaluationError("max_samples must be >= 1")
+            raise EvaluationError('max_samples must be >= 1')
         self.max_samples = int(max_samples)
         self.count = 0
         self._mean = 0.0
-        self._m2 = 0.0           # sum of squared deviations from the mean (Welford)
+        self._m2 = 0.0  # sum of squared deviations from the mean (Welford)
         self._sumsq = 0.0
         self._max_abs = 0.0
         self._buf = np.empty(min(1024, self.max_samples), dtype=float)
@@ -100,7 +129,8 @@ class RunningStats:
         self._rng = np.random.default_rng(seed)
 
     def add(self, error_deg: float) -> None:
-        """Add one signed error.
+        """
+        Add one signed error.
 
         Parameters
         ----------
@@ -111,10 +141,11 @@ class RunningStats:
         ------
         EvaluationError
             The error is NaN or infinite (nothing is recorded).
+
         """
         e = float(error_deg)
         if not math.isfinite(e):
-            raise EvaluationError(f"non-finite error {error_deg!r}")
+            raise EvaluationError(f'non-finite error {error_deg!r}')
         self.count += 1
         delta = e - self._mean
         self._mean += delta / self.count
@@ -124,22 +155,24 @@ class RunningStats:
         if self._stored < self.max_samples:
             if self._stored == self._buf.size:
                 grown = np.empty(min(self.max_samples, 2 * self._buf.size), dtype=float)
-                grown[:self._stored] = self._buf[:self._stored]
+                grown[: self._stored] = self._buf[: self._stored]
                 self._buf = grown
             self._buf[self._stored] = e
             self._stored += 1
-        else:                                   # reservoir sampling (Vitter's algorithm R)
+        else:  # reservoir sampling (Vitter's algorithm R)
             j = int(self._rng.integers(0, self.count))
             if j < self.max_samples:
                 self._buf[j] = e
 
     def extend(self, errors_deg) -> None:
-        """Add every error of an array, in order, as :meth:`add` does.
+        """
+        Add every error of an array, in order, as :meth:`add` does.
 
         Parameters
         ----------
         errors_deg : array_like
             Signed heading errors [deg], any shape (read flattened).
+
         """
         for e in np.asarray(errors_deg, dtype=float).reshape(-1):
             self.add(e)
@@ -147,7 +180,7 @@ class RunningStats:
     @property
     def samples(self) -> np.ndarray:
         """Read-only view of the stored errors [deg]: all of them while count <= max_samples."""
-        v = self._buf[:self._stored]
+        v = self._buf[: self._stored]
         v.setflags(write=False)
         return v
 
@@ -157,7 +190,8 @@ class RunningStats:
         return self.count <= self.max_samples
 
     def summary(self) -> dict:
-        """Return the statistics of the errors added so far.
+        """
+        Return the statistics of the errors added so far.
 
         Returns
         -------
@@ -165,13 +199,19 @@ class RunningStats:
             ``{"count": int, "mean", "std", "rms", "p95", "max": float [deg]}`` (``std`` is
             the population standard deviation, ``p95`` and ``max`` of |error|); zeros, never
             NaN, for an empty stream.
+
         """
         if self.count == 0:
-            return {k: 0 if k == "count" else 0.0 for k in STAT_FIELDS}
-        p95 = float(np.percentile(np.abs(self._buf[:self._stored]), 95.0))
-        return {"count": self.count, "mean": self._mean,
-                "std": math.sqrt(max(self._m2, 0.0) / self.count),
-                "rms": math.sqrt(self._sumsq / self.count), "p95": p95, "max": self._max_abs}
+            return {k: 0 if k == 'count' else 0.0 for k in STAT_FIELDS}
+        p95 = float(np.percentile(np.abs(self._buf[: self._stored]), 95.0))
+        return {
+            'count': self.count,
+            'mean': self._mean,
+            'std': math.sqrt(max(self._m2, 0.0) / self.count),
+            'rms': math.sqrt(self._sumsq / self.count),
+            'p95': p95,
+            'max': self._max_abs,
+        }
 
 
 @dataclass
@@ -194,14 +234,15 @@ class _Stream:
     stats: RunningStats
     received: int = 0
     matched: int = 0
-    unmatched: int = 0          # estimates whose truth never arrived (dropped from the wait buffer)
-    missed: int = 0             # truth frames that got no estimate on this stream within the horizon
-    pending: OrderedDict = field(default_factory=OrderedDict)   # stamp_ns -> (bearing, extra)
-    seen: set = field(default_factory=set)                      # stamps matched, for miss accounting
+    unmatched: int = 0  # estimates whose truth never arrived (dropped from the wait buffer)
+    missed: int = 0  # truth frames that got no estimate on this stream within the horizon
+    pending: OrderedDict = field(default_factory=OrderedDict)  # stamp_ns -> (bearing, extra)
+    seen: set = field(default_factory=set)  # stamps matched, for miss accounting
 
 
 class StampMatcher:
-    """Pair estimates with truth by identical stamp and keep one :class:`RunningStats` per stream.
+    """
+    Pair estimates with truth by identical stamp and keep one :class:`RunningStats` per stream.
 
     Parameters
     ----------
@@ -213,22 +254,29 @@ class StampMatcher:
         counted as unmatched.
     max_samples : int, default 2_000_000
         ``max_samples`` of each stream's :class:`RunningStats`.
+
     """
 
-    def __init__(self, horizon_ns: int = 5_000_000_000, max_pending: int = 1000, max_samples: int = 2_000_000):
+    def __init__(
+        self,
+        horizon_ns: int = 5_000_000_000,
+        max_pending: int = 1000,
+        max_samples: int = 2_000_000,
+    ):
         if horizon_ns <= 0 or max_pending <= 0:
-            raise EvaluationError("horizon_ns and max_pending must be positive")
+            raise EvaluationError('horizon_ns and max_pending must be positive')
         self.horizon_ns = int(horizon_ns)
         self.max_pending = int(max_pending)
         self.max_samples = int(max_samples)
-        self.truth: OrderedDict = OrderedDict()        # stamp_ns -> true bearing
+        self.truth: OrderedDict = OrderedDict()  # stamp_ns -> true bearing
         self.truth_count = 0
         self.streams: dict[str, _Stream] = {}
         self.matches: list[Match] = []
         self._latest_ns = None
 
     def add_stream(self, name: str, axial: bool) -> None:
-        """Declare a stream (an estimator output); declaring one twice keeps the first.
+        """
+        Declare a stream (an estimator output); declaring one twice keeps the first.
 
         Parameters
         ----------
@@ -236,12 +284,14 @@ class StampMatcher:
             Stream name, e.g. ``"zenith/raw"``.
         axial : bool
             Whether its errors are folded to (-90, 90] (a method with a 180 deg ambiguity).
+
         """
         if name not in self.streams:
             self.streams[name] = _Stream(name, bool(axial), RunningStats(self.max_samples))
 
     def add_truth(self, stamp_ns: int, true_bearing_deg: float) -> list[Match]:
-        """Record a truth sample and return the matches it completes.
+        """
+        Record a truth sample and return the matches it completes.
 
         Parameters
         ----------
@@ -259,10 +309,11 @@ class StampMatcher:
         ------
         EvaluationError
             The true bearing is NaN or infinite.
+
         """
         b = float(true_bearing_deg)
         if not math.isfinite(b):
-            raise EvaluationError("non-finite true bearing")
+            raise EvaluationError('non-finite true bearing')
         stamp_ns = int(stamp_ns)
         if stamp_ns in self.truth:
             return []
@@ -276,9 +327,16 @@ class StampMatcher:
         self._advance(stamp_ns)
         return out
 
-    def add_estimate(self, stream: str, stamp_ns: int, bearing_deg: float, axial: bool = False,
-                     extra: dict | None = None) -> Match | None:
-        """Record an estimate and return its :class:`Match` when the truth is known already.
+    def add_estimate(
+        self,
+        stream: str,
+        stamp_ns: int,
+        bearing_deg: float,
+        axial: bool = False,
+        extra: dict | None = None,
+    ) -> Match | None:
+        """
+        Record an estimate and return its :class:`Match` when the truth is known already.
 
         The error is folded (axial) when the stream was declared axial or this estimate says so.
 
@@ -304,12 +362,13 @@ class StampMatcher:
         ------
         EvaluationError
             Unknown stream, or a NaN or infinite bearing.
+
         """
         if stream not in self.streams:
-            raise EvaluationError(f"unknown stream {stream!r}")
+            raise EvaluationError(f'unknown stream {stream!r}')
         b = float(bearing_deg)
         if not math.isfinite(b):
-            raise EvaluationError("non-finite estimated bearing")
+            raise EvaluationError('non-finite estimated bearing')
         s = self.streams[stream]
         s.received += 1
         stamp_ns = int(stamp_ns)
@@ -371,7 +430,8 @@ class StampMatcher:
             s.pending.clear()
 
     def missed_so_far(self, stream: str) -> int:
-        """Return the truth frames received so far without an estimate on ``stream``.
+        """
+        Return the truth frames received so far without an estimate on ``stream``.
 
         Parameters
         ----------
@@ -382,25 +442,33 @@ class StampMatcher:
         -------
         int
             Missed frames, those still waiting within the horizon included.
+
         """
         s = self.streams[stream]
         waiting = sum(1 for t in self.truth if t not in s.seen)
         return s.missed + waiting
 
     def summary(self) -> dict:
-        """Return the statistics and counts of every stream.
+        """
+        Return the statistics and counts of every stream.
 
         Returns
         -------
         dict
             ``{stream: {count, mean, std, rms, p95, max [deg], received, matched, missed,
             unmatched, axial}}`` (see :meth:`RunningStats.summary`).
+
         """
         out = {}
         for name, s in self.streams.items():
             d = s.stats.summary()
-            d.update(received=s.received, matched=s.matched, missed=self.missed_so_far(name),
-                     unmatched=s.unmatched, axial=s.axial)
+            d.update(
+                received=s.received,
+                matched=s.matched,
+                missed=self.missed_so_far(name),
+                unmatched=s.unmatched,
+                axial=s.axial,
+            )
             out[name] = d
         return out
 
@@ -409,7 +477,8 @@ class StampMatcher:
 # Report files
 # ------------------------------------------------------------------------------------------------
 def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> Path:
-    """Write one CSV row per matched estimate.
+    """
+    Write one CSV row per matched estimate.
 
     Columns: ``stamp_s`` [s], ``stream``, ``true_bearing_deg``, ``estimated_bearing_deg``,
     ``error_deg`` [deg], ``axial`` (0/1), then ``extra_fields``.
@@ -427,22 +496,41 @@ def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> P
     -------
     pathlib.Path
         The file written.
+
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open("w", newline="") as f:
+    with p.open('w', newline='') as f:
         w = csv.writer(f)
-        w.writerow(["stamp_s", "stream", "true_bearing_deg", "estimated_bearing_deg", "error_deg", "axial",
-                    *extra_fields])
+        w.writerow(
+            [
+                'stamp_s',
+                'stream',
+                'true_bearing_deg',
+                'estimated_bearing_deg',
+                'error_deg',
+                'axial',
+                *extra_fields,
+            ]
+        )
         for m in matches:
-            w.writerow([f"{m.stamp_ns / 1e9:.9f}", m.stream, f"{m.true_bearing_deg:.6f}",
-                        f"{m.estimated_bearing_deg:.6f}", f"{m.error_deg:.6f}", int(m.axial),
-                        *[m.extra.get(k, "") for k in extra_fields]])
+            w.writerow(
+                [
+                    f'{m.stamp_ns / 1e9:.9f}',
+                    m.stream,
+                    f'{m.true_bearing_deg:.6f}',
+                    f'{m.estimated_bearing_deg:.6f}',
+                    f'{m.error_deg:.6f}',
+                    int(m.axial),
+                    *[m.extra.get(k, '') for k in extra_fields],
+                ]
+            )
     return p
 
 
 def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
-    """Write one CSV row per stream with its :meth:`StampMatcher.summary` fields.
+    """
+    Write one CSV row per stream with its :meth:`StampMatcher.summary` fields.
 
     Parameters
     ----------
@@ -457,26 +545,39 @@ def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
     -------
     pathlib.Path
         The file written.
+
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     extra = extra or {}
     extra_cols = sorted({k for v in extra.values() for k in v})
-    cols = ["stream", *STAT_FIELDS, "received", "matched", "missed", "unmatched", "axial", *extra_cols]
-    with p.open("w", newline="") as f:
+    cols = [
+        'stream',
+        *STAT_FIELDS,
+        'received',
+        'matched',
+        'missed',
+        'unmatched',
+        'axial',
+        *extra_cols,
+    ]
+    with p.open('w', newline='') as f:
         w = csv.writer(f)
         w.writerow(cols)
         for name, d in summary.items():
             row = [name]
             for c in cols[1:]:
-                v = d.get(c, extra.get(name, {}).get(c, ""))
-                row.append(f"{v:.6f}" if isinstance(v, float) else (int(v) if isinstance(v, bool) else v))
+                v = d.get(c, extra.get(name, {}).get(c, ''))
+                row.append(
+                    f'{v:.6f}' if isinstance(v, float) else (int(v) if isinstance(v, bool) else v)
+                )
             w.writerow(row)
     return p
 
 
-def plot_report(path, matches: list[Match], title: str = "") -> Path | None:
-    """Plot the error against the true bearing per stream, one panel per method.
+def plot_report(path, matches: list[Match], title: str = '') -> Path | None:
+    """
+    Plot the error against the true bearing per stream, one panel per method.
 
     Like the paper's Fig 17. Streams named ``<method>/raw`` and ``<method>/corrected`` share a
     panel; each legend entry gives the stream's RMS error [deg].
@@ -500,31 +601,35 @@ def plot_report(path, matches: list[Match], title: str = "") -> Path | None:
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), section 4 and
        Figs 17-19 (orientation error against the heading).
+
     """
     if not matches:
         return None
     import matplotlib
-    matplotlib.use("Agg")
+
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     by_stream: dict[str, list[Match]] = {}
     for m in matches:
         by_stream.setdefault(m.stream, []).append(m)
-    methods = sorted({s.split("/")[0] for s in by_stream})
+    methods = sorted({s.split('/')[0] for s in by_stream})
     n = len(methods)
-    fig, axes = plt.subplots(n, 1, figsize=(8.0, 2.4 * n + 0.6), dpi=100, sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        n, 1, figsize=(8.0, 2.4 * n + 0.6), dpi=100, sharex=True, squeeze=False
+    )
     for ax, method in zip(axes[:, 0], methods):
-        for name in sorted(s for s in by_stream if s.split("/")[0] == method):
+        for name in sorted(s for s in by_stream if s.split('/')[0] == method):
             ms = sorted(by_stream[name], key=lambda m: m.stamp_ns)
             x = np.array([m.true_bearing_deg for m in ms])
             y = np.array([m.error_deg for m in ms])
-            label = name.split("/", 1)[1] if "/" in name else name
-            ax.plot(x, y, ".", ms=3, label=f"{label} (rms {math.sqrt(float(np.mean(y * y))):.2f})")
-        ax.axhline(0.0, color="0.5", lw=0.6)
-        ax.set_ylabel(f"{method}\nerror, deg")
-        ax.legend(loc="upper right", fontsize=7)
+            label = name.split('/', 1)[1] if '/' in name else name
+            ax.plot(x, y, '.', ms=3, label=f'{label} (rms {math.sqrt(float(np.mean(y * y))):.2f})')
+        ax.axhline(0.0, color='0.5', lw=0.6)
+        ax.set_ylabel(f'{method}\nerror, deg')
+        ax.legend(loc='upper right', fontsize=7)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("true bearing of camera +y, deg clockwise from North")
+    axes[-1, 0].set_xlabel('true bearing of camera +y, deg clockwise from North')
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()

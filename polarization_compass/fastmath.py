@@ -1,47 +1,77 @@
-"""Fast elementary functions for compiled (numba) loops: the one home of the project's fast float math.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Fast elementary functions for compiled (numba) loops.
+
+Fast elementary functions for compiled (numba) loops: the one home of the project's fast float
+math.
 
 float64, branch-free (:func:`sincos_folded`, :func:`sincos`, :func:`atan2`, :func:`exp_nonpos`; the
-fast-math flags :data:`FM` for loops built from them). numba lowers ``math.exp``, ``math.atan2`` and
-``math.cos`` to calls into libm, and a call (with no SVML, as on these machines: ``numba -s`` reports
-``SVML State: False``) keeps a loop scalar. These are polynomials, square roots, divisions and selects
-only, so a loop built from them runs 4 float64 lanes wide on AVX2. They are exact to a few units in the
-last place on the stated domains (tested against numpy over wide random samples in
-``test/test_vecmath.py``); the pass-2 (uncertainty) kernels of SM-ASM and Symmetry use them, where a
-relative error of 1e-12 in a sigma does not matter and a factor 2-3 in time does.
+fast-math flags :data:`FM` for loops built from them). numba lowers ``math.exp``, ``math.atan2``
+and ``math.cos`` to calls into libm, and a call (with no SVML, as on these machines: ``numba -s``
+reports ``SVML State: False``) keeps a loop scalar. These are polynomials, square roots, divisions
+and selects only, so a loop built from them runs 4 float64 lanes wide on AVX2. They are exact to a
+few units in the last place on the stated domains (tested against numpy over wide random samples in
+``test/test_vecmath.py``); the pass-2 (uncertainty) kernels of SM-ASM and Symmetry use them, where
+a relative error of 1e-12 in a sigma does not matter and a factor 2-3 in time does.
 
-Loops that use them must be compiled with ``error_model="numpy"`` (the default "python" model tests every
-float division for zero and raises: an early exit that stops vectorisation) and should write
-``x = x if ok else 0.0`` before a reduction, not ``acc += x if ok else 0.0`` (LLVM does not recognise a
-select inside the reduction chain).
+Loops that use them must be compiled with ``error_model="numpy"`` (the default "python" model tests
+every float division for zero and raises: an early exit that stops vectorisation) and should write
+``x = x if ok else 0.0`` before a reduction, not ``acc += x if ok else 0.0`` (LLVM does not
+recognise a select inside the reduction chain).
 
-float32 (:func:`sincos32`, :func:`sincos32_folded`, :func:`axial_atan2_f32`, its array form :func:`axial_atan2_array`): for the
-float32 render, sensor and demosaic kernels and the least-squares pass. They are inlined into the
-caller's loop, which keeps its own fastmath flags and vectorises.
+float32 (:func:`sincos32`, :func:`sincos32_folded`, :func:`axial_atan2_f32`, its array form
+:func:`axial_atan2_array`): for the float32 render, sensor and demosaic kernels and the
+least-squares pass. They are inlined into the caller's loop, which keeps its own fastmath flags and
+vectorises.
 
 ROS-free, no state.
 """
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
-__all__ = ["sincos_folded", "sincos", "atan2", "exp_nonpos", "FM", "sincos32", "sincos32_folded", "axial_atan2_f32",
-           "axial_atan2_array"]
+__all__ = [
+    'sincos_folded',
+    'sincos',
+    'atan2',
+    'exp_nonpos',
+    'FM',
+    'sincos32',
+    'sincos32_folded',
+    'axial_atan2_f32',
+    'axial_atan2_array',
+]
 
-#: LLVM fast-math flags for vectorised loops: reassociation (vector reductions), contraction (FMA), reciprocal.
-#: No nnan/ninf: finiteness tests in the loops must stay.
-FM = {"nsz", "arcp", "contract", "reassoc"}
+#: LLVM fast-math flags for vectorised loops: reassociation (vector reductions), contraction (FMA),
+#: reciprocal. No nnan/ninf: finiteness tests in the loops must stay.
+FM = {'nsz', 'arcp', 'contract', 'reassoc'}
 
-_LN2_HI = 0.693147180369123816490        # ln 2 split so that k * _LN2_HI is exact for |k| < 2^11
+_LN2_HI = 0.693147180369123816490  # ln 2 split so that k * _LN2_HI is exact for |k| < 2^11
 _LN2_LO = 1.90821492927058770002e-10
 _INV_LN2 = 1.0 / math.log(2.0)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def sincos_folded(a):  # pragma: no cover - compiled
-    """Return (sin, cos) of ``a`` folded to [-pi/2, pi/2] by a multiple n of pi (float64).
+    """
+    Return (sin, cos) of ``a`` folded to [-pi/2, pi/2] by a multiple n of pi (float64).
 
     That is ``(-1)^n (sin a, cos a)``: the sign flip is harmless for axial angles (products such
     as ``cos 2a = c^2 - s^2``). Taylor polynomials to a^19 and a^20 in Horner form; the first
@@ -56,6 +86,7 @@ def sincos_folded(a):  # pragma: no cover - compiled
     -------
     s, c : float
         ``(-1)^n sin a`` and ``(-1)^n cos a``, n = round(a / pi).
+
     """
     a = a - math.pi * np.rint(a * (1.0 / math.pi))
     z = a * a
@@ -83,9 +114,10 @@ def sincos_folded(a):  # pragma: no cover - compiled
     return s, c
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def sincos(a):  # pragma: no cover - compiled
-    """Return (sin a, cos a) for finite ``a`` (float64, branch-free).
+    """
+    Return (sin a, cos a) for finite ``a`` (float64, branch-free).
 
     :func:`sincos_folded` with the sign ``(-1)^n`` restored.
 
@@ -98,6 +130,7 @@ def sincos(a):  # pragma: no cover - compiled
     -------
     s, c : float
         sin a and cos a, to a few units in the last place.
+
     """
     n = np.rint(a * (1.0 / math.pi))
     s, c = sincos_folded(a)
@@ -105,9 +138,10 @@ def sincos(a):  # pragma: no cover - compiled
     return sign * s, sign * c
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def atan2(y, x):  # pragma: no cover - compiled
-    """Return the angle of (x, y) in [-pi, pi] for finite x, y: the two-argument arctangent.
+    """
+    Return the angle of (x, y) in [-pi, pi] for finite x, y: the two-argument arctangent.
 
     float64, branch-free; atan2(0, 0) = 0. ``t = min / max`` of |x|, |y| in [0, 1] is halved
     twice in angle (``atan t = 2 atan(t / (1 + sqrt(1 + t^2)))``) to |v| <= tan(pi / 16) < 0.2,
@@ -123,6 +157,7 @@ def atan2(y, x):  # pragma: no cover - compiled
     -------
     float
         The angle [rad] of (x, y) from +x towards +y, in [-pi, pi].
+
     """
     ax = abs(x)
     ay = abs(y)
@@ -148,9 +183,10 @@ def atan2(y, x):  # pragma: no cover - compiled
     return -r if y < 0.0 else r
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def exp_nonpos(x):  # pragma: no cover - compiled
-    """Return exp(x) for x <= 0 (float64, branch-free).
+    """
+    Return exp(x) for x <= 0 (float64, branch-free).
 
     ``exp(x) = 2^-n exp(r)`` with ``n = round(x / ln 2)``, |r| <= ln 2 / 2 (Taylor to r^13,
     < 1e-17); ``2^-n`` is the exact product of the powers of two of n's bits. Relative error
@@ -166,6 +202,7 @@ def exp_nonpos(x):  # pragma: no cover - compiled
     -------
     float
         exp(x) in (0, 1].
+
     """
     x = min(max(x, -700.0), 0.0)
     k = np.rint(x * _INV_LN2)
@@ -186,18 +223,25 @@ def exp_nonpos(x):  # pragma: no cover - compiled
     p = p * r + 1.0
     n = np.int64(-k)
     s = (0.5 if n & 1 else 1.0) * (0.25 if n & 2 else 1.0) * (0.0625 if n & 4 else 1.0)
-    s *= (2.0 ** -8 if n & 8 else 1.0) * (2.0 ** -16 if n & 16 else 1.0) * (2.0 ** -32 if n & 32 else 1.0)
-    s *= (2.0 ** -64 if n & 64 else 1.0) * (2.0 ** -128 if n & 128 else 1.0) * (2.0 ** -256 if n & 256 else 1.0)
-    s *= 2.0 ** -512 if n & 512 else 1.0
+    s *= (
+        (2.0**-8 if n & 8 else 1.0) * (2.0**-16 if n & 16 else 1.0) * (2.0**-32 if n & 32 else 1.0)
+    )
+    s *= (
+        (2.0**-64 if n & 64 else 1.0)
+        * (2.0**-128 if n & 128 else 1.0)
+        * (2.0**-256 if n & 256 else 1.0)
+    )
+    s *= 2.0**-512 if n & 512 else 1.0
     return p * s
 
 
 # --------------------------------------------------------------------------------------------
 # float32
 # --------------------------------------------------------------------------------------------
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def sincos32(a):  # pragma: no cover - compiled
-    """Return float32 (sin a, cos a) for |a| <= pi/2.
+    """
+    Return float32 (sin a, cos a) for |a| <= pi/2.
 
     Taylor polynomials to a^11 and a^12 in Horner form (truncation < 6e-8 at pi/2, below float32
     rounding). Callers with wider angles fold them first (:func:`sincos32_folded`).
@@ -211,6 +255,7 @@ def sincos32(a):  # pragma: no cover - compiled
     -------
     s, c : numpy.float32
         sin a and cos a.
+
     """
     z = a * a
     s = np.float32(1.0 / 39916800.0)
@@ -229,9 +274,10 @@ def sincos32(a):  # pragma: no cover - compiled
     return s, c
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def sincos32_folded(a):  # pragma: no cover - compiled
-    """Return float32 (sin, cos) of ``a`` folded to [-pi/2, pi/2] by a multiple n of pi.
+    """
+    Return float32 (sin, cos) of ``a`` folded to [-pi/2, pi/2] by a multiple n of pi.
 
     That is ``(-1)^n (sin a, cos a)`` (a sign flip is harmless for axial angles), by
     :func:`sincos32`: error < 4e-6 at pi/2 in the polynomial, float32 rounding 1e-7.
@@ -245,22 +291,25 @@ def sincos32_folded(a):  # pragma: no cover - compiled
     -------
     s, c : numpy.float32
         ``(-1)^n sin a`` and ``(-1)^n cos a``, n = round(a / pi).
+
     """
     return sincos32(a - np.float32(math.pi) * np.rint(a * np.float32(1.0 / math.pi)))
 
 
-# Odd minimax polynomial for atan(t), |t| <= tan(pi/8): atan(t) ~ t + t^3 (C3 + C5 t^2 + C7 t^4 + C9 t^6).
-# Fitted for this project (Lawson-weighted least squares); max error 5e-9 rad in float64, 2.3e-8 rad
-# evaluated in float32 (tests compare against numpy.arctan2). Unlike libm's scalar atan2f it vectorises.
+# Odd minimax polynomial for atan(t), |t| <= tan(pi/8): atan(t) ~ t + t^3 (C3 + C5 t^2 + C7 t^4 +
+# C9 t^6). Fitted for this project (Lawson-weighted least squares); max error 5e-9 rad in float64,
+# 2.3e-8 rad evaluated in float32 (tests compare against numpy.arctan2). Unlike libm's scalar
+# atan2f it vectorises.
 _ATAN_C3 = -0.3333275666758043
 _ATAN_C5 = 0.19971879261954273
 _ATAN_C7 = -0.1382445336732415
 _ATAN_C9 = 0.07902597096846205
 
 
-@njit(inline="always", fastmath=True, cache=True)
+@njit(inline='always', fastmath=True, cache=True)
 def axial_atan2_f32(x, y):  # pragma: no cover - compiled
-    """Return atan2(x, y) folded to [-pi/2, pi/2): the axial angle of (x, y) from +y towards +x.
+    """
+    Return atan2(x, y) folded to [-pi/2, pi/2): the axial angle of (x, y) from +y towards +x.
 
     Folding mod pi makes this atan(x / y) without the division hazards: 0/0 (a ray at the sun)
     gives 0. An odd minimax polynomial on |t| <= tan(pi/8) plus octant steps; error 2.3e-8 rad in
@@ -280,13 +329,14 @@ def axial_atan2_f32(x, y):  # pragma: no cover - compiled
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 28.
+
     """
     ax = abs(x)
     ay = abs(y)
     mx = max(ax, ay)
     mn = min(ax, ay)
-    q = mn / (mx if mx > np.float32(0.0) else np.float32(1.0))       # [0, 1]
-    big = q > np.float32(0.41421356237309503)                          # tan(pi/8)
+    q = mn / (mx if mx > np.float32(0.0) else np.float32(1.0))  # [0, 1]
+    big = q > np.float32(0.41421356237309503)  # tan(pi/8)
     t = (q - np.float32(1.0)) / (q + np.float32(1.0)) if big else q
     z = t * t
     p = np.float32(_ATAN_C9)
@@ -307,7 +357,8 @@ def axial_atan2_f32(x, y):  # pragma: no cover - compiled
 
 @njit(parallel=True, cache=True, fastmath=True)
 def axial_atan2_array(x, y, out):  # pragma: no cover - compiled
-    """Apply :func:`axial_atan2_f32` elementwise over float32 arrays, in parallel.
+    """
+    Apply :func:`axial_atan2_f32` elementwise over float32 arrays, in parallel.
 
     Parameters
     ----------
@@ -317,6 +368,7 @@ def axial_atan2_array(x, y, out):  # pragma: no cover - compiled
     out : numpy.ndarray
         float32 array of the same size, written in place with the axial angles [rad] in
         [-pi/2, pi/2).
+
     """
     xf = x.reshape(-1)
     yf = y.reshape(-1)

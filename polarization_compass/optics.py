@@ -1,7 +1,22 @@
-"""What the lens adds: the sun and its glare in the field, lens-flare ghosts, vignetting.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-A scene declares these under ``optics`` (each key optional; nothing undeclared is constructed or run,
-and each stage that runs is counted in :mod:`polarization_compass.instrumentation`)::
+"""
+What the lens adds: the sun and its glare in the field, lens-flare ghosts, vignetting.
+
+A scene declares these under ``optics`` (each key optional; nothing undeclared is constructed or
+run, and each stage that runs is counted in :mod:`polarization_compass.instrumentation`)::
 
     optics:
       sun:        {disk_radiance: 2.0e5, glare_at_1deg: 30.0, glare_exponent: 2.0}
@@ -9,28 +24,28 @@ and each stage that runs is counted in :mod:`polarization_compass.instrumentatio
       vignetting: {law: cos4}  |  {k: [k1, k2, k3]}
 
 All radiances are relative to the clear-sky zenith (the radiance models' unit). Light the lens adds
-is unpolarized: where it adds ``G`` to a pixel of radiance ``I`` the DoP becomes ``DoP I / (I + G)``
-and the AoP is unchanged. A scene with a sensor ``exposure`` then saturates where the sum exceeds the
-full well (the demosaic marks those pixels invalid), as the sun does in real frames.
+is unpolarized: where it adds ``G`` to a pixel of radiance ``I`` the DoP becomes ``DoP I / (I +
+G)`` and the AoP is unchanged. A scene with a sensor ``exposure`` then saturates where the sum
+exceeds the full well (the demosaic marks those pixels invalid), as the sun does in real frames.
 
 Sun and glare
 -------------
 The solar disk (angular radius 0.2666 deg, the mean apparent semi-diameter) has radiance
-``disk_radiance`` (the sun's luminance, ~1.6e9 cd/m^2, over a clear sky's ~8e3: about 2e5). Around it
-the lens's veiling glare falls as a power of the angle gamma from the sun,
-``glare_at_1deg * (1 deg / gamma) ** glare_exponent`` for gamma > the disk radius, the form of the
-Stiles-Holladay disability-glare law (exponent 2; CIE 135/1-1999, Vos & van den Berg) that a lens's
-point-spread wings also follow.
+``disk_radiance`` (the sun's luminance, ~1.6e9 cd/m^2, over a clear sky's ~8e3: about 2e5). Around
+it the lens's veiling glare falls as a power of the angle gamma from the sun, ``glare_at_1deg * (1
+deg / gamma) ** glare_exponent`` for gamma > the disk radius, the form of the Stiles-Holladay
+disability-glare law (exponent 2; CIE 135/1-1999, Vos & van den Berg) that a lens's point-spread
+wings also follow.
 
 Lens-flare ghosts
 -----------------
-Internal reflections image the sun to ghosts on the line through the sun's image point ``s`` and the
-optical centre ``c`` (the principal point): ghost k is centred on ``c + t_k (s - c)``, a disk of
-``radius_px`` with radiance ``radiance``. The default positions ``t`` are measured on the real frame
-``sunny.jpg`` (``../shared/data/real-sky/README.md``: sun at (762, 1750), centre (1076.3, 1000.9),
-ghosts at (1194, 726), (1272, 518), (1336, 373), (1427, 171): t = -0.37, -0.63, -0.83, -1.11).
-Ghosts exist only while the sun projects into the image (its ray in front of a pinhole or inside a
-fisheye's field).
+Internal reflections image the sun to ghosts on the line through the sun's image point ``s`` and
+the optical centre ``c`` (the principal point): ghost k is centred on ``c + t_k (s - c)``, a disk
+of ``radius_px`` with radiance ``radiance``. The default positions ``t`` are measured on the real
+frame ``sunny.jpg`` (``../shared/data/real-sky/README.md``: sun at (762, 1750), centre (1076.3,
+1000.9), ghosts at (1194, 726), (1272, 518), (1336, 373), (1427, 171): t = -0.37, -0.63, -0.83,
+-1.11). Ghosts exist only while the sun projects into the image (its ray in front of a pinhole or
+inside a fisheye's field).
 
 Vignetting
 ----------
@@ -39,17 +54,25 @@ optical axis (e.g. Kingslake, "Optical System Design", 1983). ``k: [k1, k2, k3]`
 polynomial ``V = 1 + k1 r^2 + k2 r^4 + k3 r^6`` of the distance r from the principal point over the
 half-diagonal (Goldman 2010, "Vignette and exposure calibration and compensation", IEEE TPAMI 32).
 The radiance is multiplied by V; the DoP and AoP are unchanged.
+
 """
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
 from .errors import CompassError
 
-__all__ = ["OpticsError", "Optics", "SUN_SEMIDIAMETER_DEG", "REAL_FRAME_GHOST_POSITIONS", "ghost_centres_px"]
+__all__ = [
+    'OpticsError',
+    'Optics',
+    'SUN_SEMIDIAMETER_DEG',
+    'REAL_FRAME_GHOST_POSITIONS',
+    'ghost_centres_px',
+]
 
 SUN_SEMIDIAMETER_DEG = 0.2666
 #: Ghost positions t along sun -> centre measured on the real frame sunny.jpg (module docstring).
@@ -62,30 +85,35 @@ class OpticsError(CompassError):
 
 def _num(v, name, lo, hi):
     if isinstance(v, bool):
-        raise OpticsError(f"optics.{name} must be a number, got {v!r}")
+        raise OpticsError(f'optics.{name} must be a number, got {v!r}')
     try:
         f = float(v)
     except (TypeError, ValueError):
-        raise OpticsError(f"optics.{name} must be a number, got {v!r}") from None
+        raise OpticsError(f'optics.{name} must be a number, got {v!r}') from None
     if not math.isfinite(f) or not (lo <= f <= hi):
-        raise OpticsError(f"optics.{name} must be finite and in [{lo}, {hi}], got {v!r}")
+        raise OpticsError(f'optics.{name} must be finite and in [{lo}, {hi}], got {v!r}')
     return f
 
 
 def _keys(d, allowed, where):
     if not isinstance(d, dict):
-        raise OpticsError(f"optics.{where} must be a mapping, got {type(d).__name__}")
+        raise OpticsError(f'optics.{where} must be a mapping, got {type(d).__name__}')
     unknown = set(d) - set(allowed)
     if unknown:
-        raise OpticsError(f"unknown key(s) {sorted(unknown)} in optics.{where}; allowed: {sorted(allowed)}")
+        raise OpticsError(
+            f'unknown key(s) {sorted(unknown)} in optics.{where}; allowed: {sorted(allowed)}'
+        )
 
 
-@njit(inline="always", fastmath=True, cache=True)
+@njit(inline='always', fastmath=True, cache=True)
 def _glare_angle_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
-    """Angle (rad, float32) between the unit ray p and the unit sun direction s, branch-free and without
-    acos: gamma = 2 asin(|p - s| / 2), the chord form (exact for unit vectors, and unlike acos(p.s) not
-    losing the small angles near the sun to float32 rounding of a cosine near 1). asin is the Cephes
-    ``asinf`` polynomial (relative error ~2.5e-7 on [0, 1]), with its two ranges as selects."""
+    """
+    Angle (rad, float32) between the unit ray p and the unit sun direction s, branch-free and
+    without acos: gamma = 2 asin(|p - s| / 2), the chord form (exact for unit vectors, and unlike
+    acos(p.s) not losing the small angles near the sun to float32 rounding of a cosine near 1).
+    asin is the Cephes ``asinf`` polynomial (relative error ~2.5e-7 on [0, 1]), with its two ranges
+    as selects.
+    """
     half = np.float32(0.5)
     one = np.float32(1.0)
     dx = px - sx
@@ -96,17 +124,31 @@ def _glare_angle_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     zb = half * (one - a)
     z = zb if big else a * a
     x = math.sqrt(zb) if big else a
-    r = ((((np.float32(4.2163199048e-2) * z + np.float32(2.4181311049e-2)) * z + np.float32(4.5470025998e-2)) * z
-          + np.float32(7.4953002686e-2)) * z + np.float32(1.6666752422e-1)) * z * x + x
+    r = (
+        (
+            (
+                (np.float32(4.2163199048e-2) * z + np.float32(2.4181311049e-2)) * z
+                + np.float32(4.5470025998e-2)
+            )
+            * z
+            + np.float32(7.4953002686e-2)
+        )
+        * z
+        + np.float32(1.6666752422e-1)
+    ) * z * x + x
     r = np.float32(math.pi / 2) - (r + r) if big else r
     return r + r
 
 
-@njit(inline="always", fastmath=True, cache=True)
-def _lens_pixel(px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz):  # pragma: no cover
-    """Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the angle from the sun (rad) at
-    one pixel (float32). Every term is computed and selected: branches, even loop-invariant ones, kept
-    these loops scalar (measured)."""
+@njit(inline='always', fastmath=True, cache=True)
+def _lens_pixel(
+    px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
+):  # pragma: no cover
+    """
+    Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the angle from the sun
+    (rad) at one pixel (float32). Every term is computed and selected: branches, even
+    loop-invariant ones, kept these loops scalar (measured).
+    """
     one = np.float32(1.0)
     z = max(pz, np.float32(0.0))
     q = ((xi - cx) * (xi - cx) + (yi - cy) * (yi - cy)) * inv_hd2
@@ -115,12 +157,14 @@ def _lens_pixel(px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3
     return i_sky * v, _glare_angle_f32(px, py, pz, sx, sy, sz)
 
 
-@njit(inline="always", fastmath=True, cache=True)
+@njit(inline='always', fastmath=True, cache=True)
 def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cover - compiled
-    """The sun's light at angle ``gam`` (rad) from it: ``disk`` inside the disk, else the glare
-    ``glare_at_1deg (1 deg / gamma)^expo``. ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg (1 deg)^2``
-    and the glare is ``g1 / gamma^2``, divisions only; the callers keep that case in its own loop, which
-    vectorises (exp/log are libm calls)."""
+    """
+    The sun's light at angle ``gam`` (rad) from it: ``disk`` inside the disk, else the glare
+    ``glare_at_1deg (1 deg / gamma)^expo``. ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg
+    (1 deg)^2`` and the glare is ``g1 / gamma^2``, divisions only; the callers keep that case in
+    its own loop, which vectorises (exp/log are libm calls).
+    """
     ga = max(gam, disk_rad)
     if square:
         glare = g1 / (ga * ga)
@@ -130,15 +174,40 @@ def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cov
     return g if do_sun else np.float32(0.0)
 
 
-@njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
-def _optics_block_kernel(rays, xcol, yrow, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad,
-                         disk, g1, expo, square, dop, inten):  # pragma: no cover - compiled
-    """Vignetting and the sun over a block of pixels whose coordinates are the product of the columns
-    ``xcol`` and the rows ``yrow`` (full frame, region, stride, grid): no per-pixel coordinate arrays."""
+@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+def _optics_block_kernel(
+    rays,
+    xcol,
+    yrow,
+    vig_mode,
+    cx,
+    cy,
+    inv_hd2,
+    k1,
+    k2,
+    k3,
+    do_sun,
+    sx,
+    sy,
+    sz,
+    disk_rad,
+    disk,
+    g1,
+    expo,
+    square,
+    dop,
+    inten,
+):  # pragma: no cover - compiled
+    """
+    Vignetting and the sun over a block of pixels whose coordinates are the product of the columns
+    ``xcol`` and the rows ``yrow`` (full frame, region, stride, grid): no per-pixel coordinate
+    arrays.
+    """
     W = xcol.size
     zero = np.float32(0.0)
     for r in prange(yrow.size):
-        # per-row slices: with a flat index r * W + c LLVM kept this loop scalar (14x slower, measured)
+        # per-row slices: with a flat index r * W + c LLVM kept this loop scalar (14x slower,
+        # measured)
         o = r * W
         rx = rays[0, o:o + W]
         ry = rays[1, o:o + W]
@@ -148,16 +217,48 @@ def _optics_block_kernel(rays, xcol, yrow, vig_mode, cx, cy, inv_hd2, k1, k2, k3
         yi = yrow[r]
         if square:
             for c in range(W):
-                base, gam = _lens_pixel(rx[c], ry[c], rz[c], xcol[c], yi, it[c], vig_mode, cx, cy, inv_hd2,
-                                        k1, k2, k3, sx, sy, sz)
+                base, gam = _lens_pixel(
+                    rx[c],
+                    ry[c],
+                    rz[c],
+                    xcol[c],
+                    yi,
+                    it[c],
+                    vig_mode,
+                    cx,
+                    cy,
+                    inv_hd2,
+                    k1,
+                    k2,
+                    k3,
+                    sx,
+                    sy,
+                    sz,
+                )
                 g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, True)
                 tot = base + g
                 dp[c] = dp[c] * (base / tot) if g > zero else dp[c]
                 it[c] = tot
         else:
             for c in range(W):
-                base, gam = _lens_pixel(rx[c], ry[c], rz[c], xcol[c], yi, it[c], vig_mode, cx, cy, inv_hd2,
-                                        k1, k2, k3, sx, sy, sz)
+                base, gam = _lens_pixel(
+                    rx[c],
+                    ry[c],
+                    rz[c],
+                    xcol[c],
+                    yi,
+                    it[c],
+                    vig_mode,
+                    cx,
+                    cy,
+                    inv_hd2,
+                    k1,
+                    k2,
+                    k3,
+                    sx,
+                    sy,
+                    sz,
+                )
                 g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, False)
                 tot = base + g
                 dp[c] = dp[c] * (base / tot) if g > zero else dp[c]
@@ -165,10 +266,15 @@ def _optics_block_kernel(rays, xcol, yrow, vig_mode, cx, cy, inv_hd2, k1, k2, k3
 
 
 @njit(cache=True)
-def _flare_box_kernel(boxes, xcol, yrow, gx, gy, r2, grad, dop, inten):  # pragma: no cover - compiled
-    """Add each ghost (unpolarized ``grad``) inside its disk, visiting only its bounding box
-    ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I / (I + grad), which
-    composes with the sun's light added before to the one-step ``DoP I_sky / (I_sky + G_sun + G_ghosts)``."""
+def _flare_box_kernel(
+    boxes, xcol, yrow, gx, gy, r2, grad, dop, inten
+):  # pragma: no cover - compiled
+    """
+    Add each ghost (unpolarized ``grad``) inside its disk, visiting only its bounding box
+    ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I / (I + grad),
+    which composes with the sun's light added before to the one-step ``DoP I_sky / (I_sky + G_sun +
+    G_ghosts)``.
+    """
     W = xcol.size
     for k in range(gx.size):
         for r in range(boxes[k, 0], boxes[k, 1]):
@@ -182,17 +288,60 @@ def _flare_box_kernel(boxes, xcol, yrow, gx, gy, r2, grad, dop, inten):  # pragm
                     inten[i] = tot
 
 
-@njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
-def _optics_kernel(rays, x, y, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad, disk,
-                   g1, expo, square, gx, gy, r2, grad, dop, inten):  # pragma: no cover - compiled
-    """All declared lens effects in one pass over scattered pixels (float32, flat x/y): vignetting, the sun
-    disk and glare, the ghosts."""
+@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+def _optics_kernel(
+    rays,
+    x,
+    y,
+    vig_mode,
+    cx,
+    cy,
+    inv_hd2,
+    k1,
+    k2,
+    k3,
+    do_sun,
+    sx,
+    sy,
+    sz,
+    disk_rad,
+    disk,
+    g1,
+    expo,
+    square,
+    gx,
+    gy,
+    r2,
+    grad,
+    dop,
+    inten,
+):  # pragma: no cover - compiled
+    """
+    All declared lens effects in one pass over scattered pixels (float32, flat x/y): vignetting,
+    the sun disk and glare, the ghosts.
+    """
     zero = np.float32(0.0)
     for i in prange(rays.shape[1]):
         xi = x[i]
         yi = y[i]
-        base, gam = _lens_pixel(rays[0, i], rays[1, i], rays[2, i], xi, yi, inten[i], vig_mode, cx, cy, inv_hd2,
-                                k1, k2, k3, sx, sy, sz)
+        base, gam = _lens_pixel(
+            rays[0, i],
+            rays[1, i],
+            rays[2, i],
+            xi,
+            yi,
+            inten[i],
+            vig_mode,
+            cx,
+            cy,
+            inv_hd2,
+            k1,
+            k2,
+            k3,
+            sx,
+            sy,
+            sz,
+        )
         g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
         for k in range(gx.size):
             dx = xi - gx[k]
@@ -204,23 +353,31 @@ def _optics_kernel(rays, x, y, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx
 
 
 def _block_axes(x_px, y_px):
-    """(columns, rows) float32 when the pixel coordinates are their product (x_px[r, c] = columns[c],
-    y_px[r, c] = rows[r], both increasing), else None."""
+    """
+    (columns, rows) float32 when the pixel coordinates are their product (x_px[r, c] = columns[c],
+    y_px[r, c] = rows[r], both increasing), else None.
+    """
     if x_px.ndim != 2 or y_px.shape != x_px.shape or x_px.size == 0:
         return None
     xc = np.ascontiguousarray(x_px[0], np.float32)
     yr = np.ascontiguousarray(y_px[:, 0], np.float32)
     if (np.diff(xc) <= 0).any() or (np.diff(yr) <= 0).any():
         return None
-    if not (np.array_equal(x_px, np.broadcast_to(x_px[0], x_px.shape))
-            and np.array_equal(y_px, np.broadcast_to(y_px[:, :1], y_px.shape))):
+    if not (
+        np.array_equal(x_px, np.broadcast_to(x_px[0], x_px.shape))
+        and np.array_equal(y_px, np.broadcast_to(y_px[:, :1], y_px.shape))
+    ):
         return None
     return xc, yr
 
 
 def ghost_centres_px(sun_px, centre_px, positions):
-    """Ghost centres (k, 2) px on the line through the sun's image point and the optical centre:
-    ``c + t_k (s - c)``."""
+    """
+    Return the ghost centres (k, 2) px on the line through the sun's image and the centre.
+
+    Ghost centres (k, 2) px on the line through the sun's image point and the optical centre: ``c +
+    t_k (s - c)``.
+    """
     s = np.asarray(sun_px, dtype=float)
     c = np.asarray(centre_px, dtype=float)
     t = np.asarray(positions, dtype=float).reshape(-1, 1)
@@ -228,58 +385,78 @@ def ghost_centres_px(sun_px, centre_px, positions):
 
 
 class Optics:
-    """The declared lens effects of a scene, applied in the order vignetting (to the sky), sun, flare."""
+    """
+    The declared lens effects of a scene.
+
+    The declared lens effects of a scene, applied in the order vignetting (to the sky), sun, flare.
+    """
 
     def __init__(self, cfg: dict, camera):
-        _keys(cfg, {"sun", "flare", "vignetting"}, "")
+        _keys(cfg, {'sun', 'flare', 'vignetting'}, '')
         self.camera = camera
         self.sun = self.flare = self.vignetting = None
-        if cfg.get("sun") is not None:
-            s = cfg["sun"]
-            _keys(s, {"disk_radiance", "glare_at_1deg", "glare_exponent"}, "sun")
-            self.sun = {"disk_radiance": _num(s.get("disk_radiance", 2.0e5), "sun.disk_radiance", 0.0, 1e9),
-                        "glare_at_1deg": _num(s.get("glare_at_1deg", 30.0), "sun.glare_at_1deg", 0.0, 1e9),
-                        "glare_exponent": _num(s.get("glare_exponent", 2.0), "sun.glare_exponent", 0.5, 6.0)}
-        if cfg.get("flare") is not None:
-            f = cfg["flare"]
-            _keys(f, {"positions", "radius_px", "radiance"}, "flare")
-            pos = f.get("positions", list(REAL_FRAME_GHOST_POSITIONS))
+        if cfg.get('sun') is not None:
+            s = cfg['sun']
+            _keys(s, {'disk_radiance', 'glare_at_1deg', 'glare_exponent'}, 'sun')
+            self.sun = {
+                'disk_radiance': _num(
+                    s.get('disk_radiance', 2.0e5), 'sun.disk_radiance', 0.0, 1e9
+                ),
+                'glare_at_1deg': _num(s.get('glare_at_1deg', 30.0), 'sun.glare_at_1deg', 0.0, 1e9),
+                'glare_exponent': _num(
+                    s.get('glare_exponent', 2.0), 'sun.glare_exponent', 0.5, 6.0
+                ),
+            }
+        if cfg.get('flare') is not None:
+            f = cfg['flare']
+            _keys(f, {'positions', 'radius_px', 'radiance'}, 'flare')
+            pos = f.get('positions', list(REAL_FRAME_GHOST_POSITIONS))
             if not isinstance(pos, (list, tuple)) or not 1 <= len(pos) <= 32:
-                raise OpticsError("optics.flare.positions must be a list of 1-32 numbers (t along sun -> centre)")
-            self.flare = {"positions": [_num(t, "flare.positions", -10.0, 10.0) for t in pos],
-                          "radius_px": _num(f.get("radius_px", 18.0), "flare.radius_px", 0.5, 5000.0),
-                          "radiance": _num(f.get("radiance", 0.6), "flare.radiance", 0.0, 1e9)}
-        if cfg.get("vignetting") is not None:
-            v = cfg["vignetting"]
-            _keys(v, {"law", "k"}, "vignetting")
-            if ("law" in v) == ("k" in v):
-                raise OpticsError("optics.vignetting needs either law: cos4 or k: [k1, k2, k3]")
-            if "law" in v:
-                if v["law"] != "cos4":
+                raise OpticsError(
+                    'optics.flare.positions must be a list of 1-32 numbers (t along sun -> centre)'
+                )
+            self.flare = {
+                'positions': [_num(t, 'flare.positions', -10.0, 10.0) for t in pos],
+                'radius_px': _num(f.get('radius_px', 18.0), 'flare.radius_px', 0.5, 5000.0),
+                'radiance': _num(f.get('radiance', 0.6), 'flare.radiance', 0.0, 1e9),
+            }
+        if cfg.get('vignetting') is not None:
+            v = cfg['vignetting']
+            _keys(v, {'law', 'k'}, 'vignetting')
+            if ('law' in v) == ('k' in v):
+                raise OpticsError('optics.vignetting needs either law: cos4 or k: [k1, k2, k3]')
+            if 'law' in v:
+                if v['law'] != 'cos4':
                     raise OpticsError(f"optics.vignetting.law must be 'cos4', got {v['law']!r}")
-                self.vignetting = {"law": "cos4"}
+                self.vignetting = {'law': 'cos4'}
             else:
-                k = v["k"] if isinstance(v["k"], (list, tuple)) else [v["k"]]
+                k = v['k'] if isinstance(v['k'], (list, tuple)) else [v['k']]
                 if not 1 <= len(k) <= 3:
-                    raise OpticsError("optics.vignetting.k must be 1-3 numbers [k1, k2, k3]")
-                ks = [_num(x, "vignetting.k", -10.0, 10.0) for x in k]
+                    raise OpticsError('optics.vignetting.k must be 1-3 numbers [k1, k2, k3]')
+                ks = [_num(x, 'vignetting.k', -10.0, 10.0) for x in k]
                 r = np.linspace(0.0, 1.0, 101)
                 if (1.0 + sum(c * r ** (2 * (j + 1)) for j, c in enumerate(ks))).min() <= 0.0:
-                    raise OpticsError("optics.vignetting.k gives a non-positive falloff inside the image")
-                self.vignetting = {"k": ks}
+                    raise OpticsError(
+                        'optics.vignetting.k gives a non-positive falloff inside the image'
+                    )
+                self.vignetting = {'k': ks}
 
     @property
     def stages(self) -> list[str]:
-        return [n for n in ("vignetting", "sun", "flare") if getattr(self, n) is not None]
+        return [n for n in ('vignetting', 'sun', 'flare') if getattr(self, n) is not None]
 
     def params(self) -> dict:
         return {n: dict(getattr(self, n)) for n in self.stages}
 
     def sun_px(self, sun_cam):
-        """The sun's image point (x, y) px, or None when it does not project into the lens' field."""
+        """
+        Return the sun's image point (x, y) px, or None outside the lens' field.
+
+        The sun's image point (x, y) px, or None when it does not project into the lens' field.
+        """
         s = np.asarray(sun_cam, dtype=float).reshape(3, 1)
         cam = self.camera
-        if cam.model == "pinhole":
+        if cam.model == 'pinhole':
             if s[2, 0] <= 1e-6:
                 return None
         elif math.degrees(math.acos(min(1.0, max(-1.0, s[2, 0])))) > cam.max_field_angle_deg:
@@ -288,42 +465,63 @@ class Optics:
         return float(x[0]), float(y[0])
 
     def apply(self, sun_cam, rays_cam, x_px, y_px, aop, dop, intensity, instr) -> None:
-        """The declared lens effects on the flat arrays (in place; intensity float32 writable); each declared
-        stage is counted. ``x_px``/``y_px``: the pixels' 1-based coordinates in the selection's shape. A block
-        of pixels (the product of its columns and rows: full, region, stride, grid) runs one fused
-        vignetting + sun pass and then the ghosts over their bounding boxes only; scattered pixels run one
-        fused pass with flat coordinates."""
+        """
+        The declared lens effects on the flat arrays (in place; intensity float32 writable); each
+        declared stage is counted. ``x_px``/``y_px``: the pixels' 1-based coordinates in the
+        selection's shape. A block of pixels (the product of its columns and rows: full, region,
+        stride, grid) runs one fused vignetting + sun pass and then the ghosts over their bounding
+        boxes only; scattered pixels run one fused pass with flat coordinates.
+        """
         f32 = np.float32
         vig_mode, ks = 0, (0.0, 0.0, 0.0)
         if self.vignetting is not None:
-            instr.count("optics.vignetting")
-            if "law" in self.vignetting:
+            instr.count('optics.vignetting')
+            if 'law' in self.vignetting:
                 vig_mode = 1
             else:
                 vig_mode = 2
-                ks = tuple(self.vignetting["k"]) + (0.0,) * (3 - len(self.vignetting["k"]))
+                ks = tuple(self.vignetting['k']) + (0.0,) * (3 - len(self.vignetting['k']))
         s = np.asarray(sun_cam, dtype=float)
         s = s / np.linalg.norm(s)
-        p = self.sun or {"disk_radiance": 0.0, "glare_at_1deg": 0.0, "glare_exponent": 2.0}
+        p = self.sun or {'disk_radiance': 0.0, 'glare_at_1deg': 0.0, 'glare_exponent': 2.0}
         if self.sun is not None:
-            instr.count("optics.sun")
-        square = p["glare_exponent"] == 2.0
-        g1 = p["glare_at_1deg"] * (math.radians(1.0) ** 2 if square else 1.0)
+            instr.count('optics.sun')
+        square = p['glare_exponent'] == 2.0
+        g1 = p['glare_at_1deg'] * (math.radians(1.0) ** 2 if square else 1.0)
         gx = gy = np.empty(0, np.float32)
         r2 = grad = 0.0
         if self.flare is not None:
-            instr.count("optics.flare")
+            instr.count('optics.flare')
             sp = self.sun_px(sun_cam)
             if sp is not None:
-                g = ghost_centres_px(sp, (self.camera.cx_px, self.camera.cy_px), self.flare["positions"])
-                gx, gy = np.ascontiguousarray(g[:, 0], np.float32), np.ascontiguousarray(g[:, 1], np.float32)
-                r2, grad = self.flare["radius_px"] ** 2, self.flare["radiance"]
+                g = ghost_centres_px(
+                    sp, (self.camera.cx_px, self.camera.cy_px), self.flare['positions']
+                )
+                gx, gy = (
+                    np.ascontiguousarray(g[:, 0], np.float32),
+                    np.ascontiguousarray(g[:, 1], np.float32),
+                )
+                r2, grad = self.flare['radius_px'] ** 2, self.flare['radiance']
         cam = self.camera
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
-        common = (vig_mode, f32(cam.cx_px), f32(cam.cy_px), f32(4.0 / (cam.width_px ** 2 + cam.height_px ** 2)),
-                  f32(ks[0]), f32(ks[1]), f32(ks[2]), self.sun is not None, f32(s[0]), f32(s[1]), f32(s[2]),
-                  f32(math.radians(SUN_SEMIDIAMETER_DEG)), f32(p["disk_radiance"]), f32(g1),
-                  f32(p["glare_exponent"]), square)
+        common = (
+            vig_mode,
+            f32(cam.cx_px),
+            f32(cam.cy_px),
+            f32(4.0 / (cam.width_px**2 + cam.height_px**2)),
+            f32(ks[0]),
+            f32(ks[1]),
+            f32(ks[2]),
+            self.sun is not None,
+            f32(s[0]),
+            f32(s[1]),
+            f32(s[2]),
+            f32(math.radians(SUN_SEMIDIAMETER_DEG)),
+            f32(p['disk_radiance']),
+            f32(g1),
+            f32(p['glare_exponent']),
+            square,
+        )
         axes = self._axes(x_px, y_px)
         if axes is not None:
             xc, yr = axes
@@ -331,9 +529,18 @@ class Optics:
                 _optics_block_kernel(rays, xc, yr, *common, dop, intensity)
             if gx.size:
                 rad = math.sqrt(r2)
-                boxes = np.array([[np.searchsorted(yr, gy[k] - rad, "left"), np.searchsorted(yr, gy[k] + rad, "right"),
-                                   np.searchsorted(xc, gx[k] - rad, "left"), np.searchsorted(xc, gx[k] + rad, "right")]
-                                  for k in range(gx.size)], dtype=np.int64)
+                boxes = np.array(
+                    [
+                        [
+                            np.searchsorted(yr, gy[k] - rad, 'left'),
+                            np.searchsorted(yr, gy[k] + rad, 'right'),
+                            np.searchsorted(xc, gx[k] - rad, 'left'),
+                            np.searchsorted(xc, gx[k] + rad, 'right'),
+                        ]
+                        for k in range(gx.size)
+                    ],
+                    dtype=np.int64,
+                )
                 _flare_box_kernel(boxes, xc, yr, gx, gy, f32(r2), f32(grad), dop, intensity)
             return
         x = np.ascontiguousarray(np.asarray(x_px, np.float32).reshape(-1))
@@ -341,10 +548,13 @@ class Optics:
         _optics_kernel(rays, x, y, *common, gx, gy, f32(r2), f32(grad), dop, intensity)
 
     def _axes(self, x_px, y_px):
-        """:func:`_block_axes` of the selection's coordinates, computed once per coordinate array."""
+        """
+        :func:`_block_axes` of the selection's coordinates, computed once per coordinate
+        array.
+        """
         key = (id(x_px), id(y_px), np.shape(x_px))
-        if getattr(self, "_axes_key", None) != key:
+        if getattr(self, '_axes_key', None) != key:
             self._axes_val = _block_axes(np.asarray(x_px), np.asarray(y_px))
             self._axes_key = key
-            self._axes_ref = (x_px, y_px)          # keep them alive so that their ids stay theirs
+            self._axes_ref = (x_px, y_px)  # keep them alive so that their ids stay theirs
         return self._axes_val

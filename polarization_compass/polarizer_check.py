@@ -1,18 +1,35 @@
-"""Which polarizer convention does the sky support? A check that needs no calibration rig.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Which polarizer convention does the sky support? A check that needs no calibration rig.
 
 A wrong +45 deg direction mirrors every AoP about the image x axis; a wrong 2 x 2 phase of a raw
 mosaic swaps polarizer channels (AoP rotated by 45 or 90 deg, or mirrored and rotated). Neither
-image is a single-scattering sky for *any* sun except in special geometries, so fitting the Rayleigh
-pattern (:func:`polarization_compass.skyfit.fit_sky`, sun azimuth and altitude free unless the
-altitude is given) under each hypothesis and comparing the robust losses tells which convention the
-sky supports, and by what margin. Losses of several frames add up (one camera, one convention).
+image is a single-scattering sky for *any* sun except in special geometries, so fitting the
+Rayleigh pattern (:func:`polarization_compass.skyfit.fit_sky`, sun azimuth and altitude free unless
+the altitude is given) under each hypothesis and comparing the robust losses tells which convention
+the sky supports, and by what margin. Losses of several frames add up (one camera, one convention).
 
 Hypotheses: for Stokes planes both 45 deg directions; for a raw mosaic the four 2 x 2 phases of the
 configured layout times both directions (eight). The verdict is ``supported`` (the configuration is
-the best and beats the runner-up by at least :data:`DECISIVE_MARGIN` in mean Cauchy loss per frame),
-``contradicted`` (another hypothesis wins by that margin: the report says what to set), or
-``cannot_tell`` (the margin is smaller: e.g. a sun near an image axis or the zenith, an overcast sky).
+the best and beats the runner-up by at least :data:`DECISIVE_MARGIN` in mean Cauchy loss per
+frame), ``contradicted`` (another hypothesis wins by that margin: the report says what to set), or
+``cannot_tell`` (the margin is smaller: e.g. a sun near an image axis or the zenith, an overcast
+sky).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -23,29 +40,46 @@ from .demosaic import aop_dop_from_stokes, parse_layout, stokes_from_mosaic
 from .errors import CompassError
 from .skyfit import data_mask, fit_sky, sample_sky
 
-__all__ = ["Hypothesis", "polarizer_hypotheses", "check_polarizer", "saturated_blocks", "DECISIVE_MARGIN"]
+__all__ = [
+    'Hypothesis',
+    'polarizer_hypotheses',
+    'check_polarizer',
+    'saturated_blocks',
+    'DECISIVE_MARGIN',
+]
 
 #: mean Cauchy-loss difference per frame between the best and the runner-up needed for a verdict.
-#: Measured: real clear sky 1.18, real broken cloud 0.24, real overcast 0.22, clean simulated skies > 1.
+#: Measured: real clear sky 1.18, real broken cloud 0.24, real overcast 0.22, clean simulated skies
+#: > 1.
 DECISIVE_MARGIN = 0.1
 
 
 @dataclass(frozen=True)
 class Hypothesis:
-    """A polarizer convention: ``layout`` (2 x 2 angles of the image's top-left block), ``pol45_toward``."""
+    """
+    A polarizer convention: ``layout`` and ``pol45_toward``.
+
+    A polarizer convention: ``layout`` (2 x 2 angles of the image's top-left block),
+    ``pol45_toward``.
+    """
 
     layout: tuple
     pol45_toward: str
 
     def describe(self) -> dict:
         """Return the hypothesis as JSON: ``{"layout": [[...], [...]], "pol45_toward": ...}``."""
-        return {"layout": [list(r) for r in self.layout], "pol45_toward": self.pol45_toward}
+        return {'layout': [list(r) for r in self.layout], 'pol45_toward': self.pol45_toward}
 
 
 def polarizer_hypotheses(layout, pol45_toward: str, raw: bool) -> list[Hypothesis]:
-    """List the configured convention first, then the alternatives (both directions; all four phases if raw)."""
+    """
+    List the configured polarizer convention first, then the alternatives.
+
+    List the configured convention first, then the alternatives (both directions; all four phases
+    if raw).
+    """
     base = parse_layout(layout, pol45_toward)
-    other = "+x+y" if base.pol45_toward == "+x-y" else "+x-y"
+    other = '+x+y' if base.pol45_toward == '+x-y' else '+x-y'
     out = []
     phases = [(0, 0), (0, 1), (1, 0), (1, 1)] if raw else [(0, 0)]
     for pol in (base.pol45_toward, other):
@@ -55,8 +89,12 @@ def polarizer_hypotheses(layout, pol45_toward: str, raw: bool) -> list[Hypothesi
 
 
 def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
-    """Mark where a raw sample is at or above ``saturation_level``, at the resolution ``shape`` (the
-    mosaic's own, or one value per 2 x 2 superpixel: any saturated sample saturates the block)."""
+    """
+    Mark where a raw sample is saturated, at the resolution ``shape``.
+
+    Mark where a raw sample is at or above ``saturation_level``, at the resolution ``shape`` (the
+    mosaic's own, or one value per 2 x 2 superpixel: any saturated sample saturates the block).
+    """
     m = np.asarray(mosaic)
     if saturation_level is None:
         return np.zeros(shape, bool)
@@ -68,83 +106,130 @@ def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
 
 
 def _aop_for(kind: str, data, hyp: Hypothesis, saturation_level):
-    """Return (aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a mosaic."""
-    if kind == "mosaic":
-        s0, s1, s2 = stokes_from_mosaic(data, hyp.layout, hyp.pol45_toward, "superpixel", saturation_level)
+    """
+    Return (aop, dop, valid, s0) of one input under one hypothesis.
+
+    Return (aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a
+    mosaic.
+    """
+    if kind == 'mosaic':
+        s0, s1, s2 = stokes_from_mosaic(
+            data, hyp.layout, hyp.pol45_toward, 'superpixel', saturation_level
+        )
         s0 = np.where(saturated_blocks(data, saturation_level, s0.shape), np.float32(np.inf), s0)
     else:
         s0, s1, s2 = data
-        if hyp.pol45_toward == "+x-y":       # SDK Stokes use the sensor's labels: camera S2 flips
+        if hyp.pol45_toward == '+x-y':  # SDK Stokes use the sensor's labels: camera S2 flips
             s2 = -s2
     a, d, v = aop_dop_from_stokes(s0, s1, s2)
     return a, d, v, s0
 
 
-def check_polarizer(inputs, camera, layout, pol45_toward, rays_for_shape, sun_altitude_deg=None,
-                    pitch_deg: float = 0.0, roll_deg: float = 0.0, masks=None) -> dict:
-    """Fit every hypothesis to every input and rank them.
+def check_polarizer(
+    inputs,
+    camera,
+    layout,
+    pol45_toward,
+    rays_for_shape,
+    sun_altitude_deg=None,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    masks=None,
+) -> dict:
+    """
+    Fit every hypothesis to every input and rank them.
 
     ``inputs``: list of ``(kind, data, saturation_level)`` with kind ``mosaic`` (2-D raw image) or
     ``stokes`` ((S0, S1, S2) in the SDK's convention); ``camera``: the lens (:class:`CameraModel`);
-    ``layout``/``pol45_toward``: the configured convention; ``rays_for_shape(shape) -> (rays (3, N), has_ray)``
-    gives the pixel rays of an output grid; ``sun_altitude_deg``: per input (list) or None (fitted);
-    ``masks``: optional per-input bool arrays of the output grid (True = sky).
-    Returns a JSON-ready dict: ``verdict``, ``best``, ``configured``, ``margin``, ``hypotheses`` (each with
-    total loss and per-frame psi, sun altitude, scatter), and ``fix`` when contradicted.
+    ``layout``/``pol45_toward``: the configured convention; ``rays_for_shape(shape) -> (rays (3,
+    N), has_ray)`` gives the pixel rays of an output grid; ``sun_altitude_deg``: per input (list)
+    or None (fitted); ``masks``: optional per-input bool arrays of the output grid (True = sky).
+    Returns a JSON-ready dict: ``verdict``, ``best``, ``configured``, ``margin``, ``hypotheses``
+    (each with total loss and per-frame psi, sun altitude, scatter), and ``fix`` when contradicted.
     """
     if not inputs:
-        raise CompassError("check-polarizer needs at least one input")
-    raw = all(k == "mosaic" for k, _, _ in inputs)
+        raise CompassError('check-polarizer needs at least one input')
+    raw = all(k == 'mosaic' for k, _, _ in inputs)
     hyps = polarizer_hypotheses(layout, pol45_toward, raw)
-    alts = sun_altitude_deg if isinstance(sun_altitude_deg, (list, tuple)) else [sun_altitude_deg] * len(inputs)
+    alts = (
+        sun_altitude_deg
+        if isinstance(sun_altitude_deg, (list, tuple))
+        else [sun_altitude_deg] * len(inputs)
+    )
     rows = []
     for h in hyps:
         total, frames, usable = 0.0, [], True
         for n, (kind, data, sat) in enumerate(inputs):
             a, d, v, s0 = _aop_for(kind, data, h, sat)
             rays, has_ray = rays_for_shape(a.shape)
-            keep = data_mask(s0, has_ray.reshape(a.shape), float("inf") if kind == "mosaic" else None)
+            keep = data_mask(
+                s0, has_ray.reshape(a.shape), float('inf') if kind == 'mosaic' else None
+            )
             if masks is not None and masks[n] is not None:
                 keep &= masks[n]
             sample = sample_sky(a, d, v & keep, rays)
             if sample is None:
                 usable = False
-                frames.append({"status": "too_few_pixels"})
+                frames.append({'status': 'too_few_pixels'})
                 continue
             f = fit_sky(sample, alts[n], pitch_deg, roll_deg)
             total += f.loss
-            frames.append({"psi_deg": round(f.psi_deg, 2), "sun_altitude_deg": round(f.sun_altitude_deg, 1),
-                           "loss": round(f.loss, 4), "scatter_deg": round(f.scatter_deg, 2),
-                           "inlier_fraction": round(f.inlier_fraction, 3)})
-        rows.append({"hypothesis": h.describe(), "loss": round(total / len(inputs), 4) if usable else None,
-                     "frames": frames})
-    scored = [r for r in rows if r["loss"] is not None]
-    out = {"configured": hyps[0].describe(), "hypotheses": rows, "frames": len(inputs)}
+            frames.append(
+                {
+                    'psi_deg': round(f.psi_deg, 2),
+                    'sun_altitude_deg': round(f.sun_altitude_deg, 1),
+                    'loss': round(f.loss, 4),
+                    'scatter_deg': round(f.scatter_deg, 2),
+                    'inlier_fraction': round(f.inlier_fraction, 3),
+                }
+            )
+        rows.append(
+            {
+                'hypothesis': h.describe(),
+                'loss': round(total / len(inputs), 4) if usable else None,
+                'frames': frames,
+            }
+        )
+    scored = [r for r in rows if r['loss'] is not None]
+    out = {'configured': hyps[0].describe(), 'hypotheses': rows, 'frames': len(inputs)}
     if len(scored) < 2:
-        out.update(verdict="cannot_tell", reason="too few usable sky pixels under the hypotheses", margin=0.0,
-                   best=None)
+        out.update(
+            verdict='cannot_tell',
+            reason='too few usable sky pixels under the hypotheses',
+            margin=0.0,
+            best=None,
+        )
         return out
-    ranked = sorted(scored, key=lambda r: r["loss"])
+    ranked = sorted(scored, key=lambda r: r['loss'])
     best, second = ranked[0], ranked[1]
-    margin = second["loss"] - best["loss"]
-    out["best"] = best["hypothesis"]
-    out["margin"] = round(margin, 4)
+    margin = second['loss'] - best['loss']
+    out['best'] = best['hypothesis']
+    out['margin'] = round(margin, 4)
     conf = rows[0]
     if margin < DECISIVE_MARGIN:
-        out["verdict"] = "cannot_tell"
-        out["reason"] = (f"the best two hypotheses differ by {margin:.3f} in mean robust loss (need "
-                         f"{DECISIVE_MARGIN}): the sky does not decide (sun near an image axis or the zenith, "
-                         "overcast, or too little sky)")
+        out['verdict'] = 'cannot_tell'
+        out['reason'] = (
+            f'the best two hypotheses differ by {margin:.3f} in mean robust loss (need '
+            f'{DECISIVE_MARGIN}): the sky does not decide (sun near an image axis or the zenith, '
+            'overcast, or too little sky)'
+        )
     elif best is conf:
-        out["verdict"] = "supported"
-        out["reason"] = f"the configured convention fits best, by {margin:.3f} over the runner-up"
+        out['verdict'] = 'supported'
+        out['reason'] = f'the configured convention fits best, by {margin:.3f} over the runner-up'
     else:
-        out["verdict"] = "contradicted"
-        b = best["hypothesis"]
-        out["reason"] = (f"the sky fits {b} better than the configured convention by "
-                         f"{(conf['loss'] or 0) - best['loss']:.3f}" if conf["loss"] is not None else
-                         f"the sky fits {b} and the configured convention leaves too few usable pixels")
-        out["fix"] = (f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in CAMERA.yaml "
-                      f"(node parameters polarizer_layout: \"{','.join(str(v) for r in b['layout'] for v in r)}\", "
-                      f"pol45_toward: \"{b['pol45_toward']}\")")
+        out['verdict'] = 'contradicted'
+        b = best['hypothesis']
+        out['reason'] = (
+            f'the sky fits {b} better than the configured convention by '
+            f'{(conf["loss"] or 0) - best["loss"]:.3f}'
+            if conf['loss'] is not None
+            else f'the sky fits {b} and the configured convention leaves too few usable pixels'
+        )
+        out['fix'] = (
+            f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in "
+            'CAMERA.yaml '
+            '(node parameters polarizer_layout: '
+            f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
+            f'pol45_toward: "{b["pol45_toward"]}")'
+        )
     return out

@@ -1,21 +1,37 @@
-"""Real camera images in: a raw DoFP mosaic or Stokes planes, as camera SDKs and drivers save them.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Real camera images in: a raw DoFP mosaic or Stokes planes, as camera SDKs and drivers save them.
 
 Accepted files (what :func:`load_polarization_input` returns as ``kind``):
 
-``mosaic``  the raw division-of-focal-plane image: a single-page PNG or TIFF (8- or 16-bit grey, read
-            with OpenCV unchanged), or a 2-D ``.npy`` (integer or float). 10/12-bit data in a 16-bit
-            container: give ``bits`` (saturation at ``2**bits - 1``; values above it are an error, e.g.
-            MSB-aligned data that needs ``bits=16``).
+``mosaic``  the raw division-of-focal-plane image: a single-page PNG or TIFF (8- or 16-bit grey,
+            read with OpenCV unchanged), or a 2-D ``.npy`` (integer or float). 10/12-bit data in a
+            16-bit container: give ``bits`` (saturation at ``2**bits - 1``; values above it are an
+            error, e.g. MSB-aligned data that needs ``bits=16``).
 ``stokes``  Stokes planes ``S0, S1, S2`` in the camera SDK's convention (polarizer labels of the
-            sensor, S1 = I0 - I90, S2 = I45 - I135): an ``.npz`` with arrays ``s0``, ``s1``, ``s2`` or a
-            multi-page TIFF with three pages in that order. Full sensor resolution or half (one value
-            per 2 x 2 superpixel).
+            sensor, S1 = I0 - I90, S2 = I45 - I135): an ``.npz`` with arrays ``s0``, ``s1``, ``s2``
+            or a multi-page TIFF with three pages in that order. Full sensor resolution or half
+            (one value per 2 x 2 superpixel).
 ``frame``   this package's own frame ``.npz`` (``polarization-compass render``): read with
             :mod:`frame_io`.
 
 Files are size-checked before decoding (at most :data:`MAX_PIXELS` per plane). Errors raise
 :class:`RealInputError` with a one-line reason.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,7 +41,13 @@ import numpy as np
 
 from .errors import CompassError
 
-__all__ = ["RealInputError", "PolarizationInput", "load_polarization_input", "load_mask", "MAX_PIXELS"]
+__all__ = [
+    'RealInputError',
+    'PolarizationInput',
+    'load_polarization_input',
+    'load_mask',
+    'MAX_PIXELS',
+]
 
 #: largest plane accepted (pixels): a 24 Mpixel sensor
 MAX_PIXELS = 24_000_000
@@ -38,8 +60,12 @@ class RealInputError(CompassError):
 
 @dataclass(frozen=True)
 class PolarizationInput:
-    """``kind`` mosaic | stokes | frame; ``mosaic`` 2-D array; ``stokes`` (S0, S1, S2) float32 planes;
-    ``saturation_level`` the raw value that counts as saturated (mosaic), ``path`` the file."""
+    """
+    A real polarization input: a raw mosaic, Stokes planes or a frame.
+
+    ``kind`` mosaic | stokes | frame; ``mosaic`` 2-D array; ``stokes`` (S0, S1, S2) float32 planes;
+    ``saturation_level`` the raw value that counts as saturated (mosaic), ``path`` the file.
+    """
 
     kind: str
     path: str
@@ -50,30 +76,42 @@ class PolarizationInput:
 
 def _check_size(p: Path) -> None:
     from .safe_load import regular_file
-    regular_file(p, RealInputError, "input", max_bytes=_MAX_FILE_BYTES)    # no FIFO or device, at most 1 GiB
+
+    regular_file(
+        p, RealInputError, 'input', max_bytes=_MAX_FILE_BYTES
+    )  # no FIFO or device, at most 1 GiB
 
 
 def _check_plane(a: np.ndarray, what: str, p: Path) -> np.ndarray:
     if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 2:
-        raise RealInputError(f"{p}: {what} must be a 2-D image of at least 2 x 2, got shape {a.shape}")
+        raise RealInputError(
+            f'{p}: {what} must be a 2-D image of at least 2 x 2, got shape {a.shape}'
+        )
     if a.size > MAX_PIXELS:
-        raise RealInputError(f"{p}: {what} has {a.size} pixels, more than the {MAX_PIXELS} accepted")
-    if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)) or a.dtype == np.bool_:
-        raise RealInputError(f"{p}: {what} must hold integers or floats, got {a.dtype}")
+        raise RealInputError(
+            f'{p}: {what} has {a.size} pixels, more than the {MAX_PIXELS} accepted'
+        )
+    if (
+        not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating))
+        or a.dtype == np.bool_
+    ):
+        raise RealInputError(f'{p}: {what} must hold integers or floats, got {a.dtype}')
     return a
 
 
 def _saturation(m: np.ndarray, bits: int | None, p: Path) -> float | None:
     if bits is not None:
         if not (1 <= int(bits) <= 16):
-            raise RealInputError(f"--bits must be in [1, 16], got {bits}")
+            raise RealInputError(f'--bits must be in [1, 16], got {bits}')
         if not np.issubdtype(m.dtype, np.integer):
-            raise RealInputError(f"{p}: --bits applies to integer images, this one is {m.dtype}")
+            raise RealInputError(f'{p}: --bits applies to integer images, this one is {m.dtype}')
         sat = float((1 << int(bits)) - 1)
         top = int(m.max())
         if top > sat:
-            raise RealInputError(f"{p}: values up to {top} exceed {bits}-bit data (max {int(sat)}); "
-                                 "MSB-aligned data needs --bits 16")
+            raise RealInputError(
+                f'{p}: values up to {top} exceed {bits}-bit data (max {int(sat)}); '
+                'MSB-aligned data needs --bits 16'
+            )
         return sat
     if np.issubdtype(m.dtype, np.integer):
         return float(np.iinfo(m.dtype).max)
@@ -82,17 +120,20 @@ def _saturation(m: np.ndarray, bits: int | None, p: Path) -> float | None:
 
 def _read_images(p: Path) -> list:
     import cv2
+
     ok, pages = cv2.imreadmulti(str(p), flags=cv2.IMREAD_UNCHANGED)
     if not ok or not pages:
         img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
         if img is None:
-            raise RealInputError(f"{p}: OpenCV cannot decode this image")
+            raise RealInputError(f'{p}: OpenCV cannot decode this image')
         pages = [img]
     out = []
     for img in pages:
         if img.ndim == 3:
-            raise RealInputError(f"{p}: a raw mosaic or Stokes plane is one grey channel, this image has "
-                                 f"{img.shape[2]} (save the raw mono8/mono16 data, not a colour rendering)")
+            raise RealInputError(
+                f'{p}: a raw mosaic or Stokes plane is one grey channel, this image has '
+                f'{img.shape[2]} (save the raw mono8/mono16 data, not a colour rendering)'
+            )
         out.append(img)
     return out
 
@@ -102,63 +143,84 @@ def load_polarization_input(path, bits: int | None = None) -> PolarizationInput:
     p = Path(path)
     _check_size(p)
     suf = p.suffix.lower()
-    if suf == ".npz":
+    if suf == '.npz':
         from .safe_load import open_npz
-        with open_npz(p, RealInputError, "input") as z:
+
+        with open_npz(p, RealInputError, 'input') as z:
             names = set(z.files)
-            if {"aop_rad", "meta"} <= names:
-                return PolarizationInput("frame", str(p))
-            if not {"s0", "s1", "s2"} <= names:
-                raise RealInputError(f"{p}: an .npz input holds s0, s1, s2 (Stokes planes) or is a frame file "
-                                     f"from 'render'; found {sorted(names)[:6]}")
-            planes = [_check_plane(np.asarray(z[k]), k, p) for k in ("s0", "s1", "s2")]
+            if {'aop_rad', 'meta'} <= names:
+                return PolarizationInput('frame', str(p))
+            if not {'s0', 's1', 's2'} <= names:
+                raise RealInputError(
+                    f'{p}: an .npz input holds s0, s1, s2 (Stokes planes) or is a frame file '
+                    f"from 'render'; found {sorted(names)[:6]}"
+                )
+            planes = [_check_plane(np.asarray(z[k]), k, p) for k in ('s0', 's1', 's2')]
         return _stokes(planes, p)
-    if suf == ".npy":
+    if suf == '.npy':
         try:
-            a = np.load(p, allow_pickle=False, mmap_mode="r")
+            a = np.load(p, allow_pickle=False, mmap_mode='r')
         except (ValueError, OSError, EOFError) as exc:
-            raise RealInputError(f"{p}: not a readable .npy array ({str(exc).splitlines()[0]})") from None
-        m = np.ascontiguousarray(_check_plane(a, "the mosaic", p))
-        return PolarizationInput("mosaic", str(p), mosaic=m, saturation_level=_saturation(m, bits, p))
-    if suf in (".png", ".tif", ".tiff", ".pgm"):
+            raise RealInputError(
+                f'{p}: not a readable .npy array ({str(exc).splitlines()[0]})'
+            ) from None
+        m = np.ascontiguousarray(_check_plane(a, 'the mosaic', p))
+        return PolarizationInput(
+            'mosaic', str(p), mosaic=m, saturation_level=_saturation(m, bits, p)
+        )
+    if suf in ('.png', '.tif', '.tiff', '.pgm'):
         pages = _read_images(p)
         if len(pages) == 3:
-            return _stokes([_check_plane(a, f"page {i}", p) for i, a in enumerate(pages)], p)
+            return _stokes([_check_plane(a, f'page {i}', p) for i, a in enumerate(pages)], p)
         if len(pages) != 1:
-            raise RealInputError(f"{p}: {len(pages)} pages; a raw mosaic has 1, Stokes planes have 3 (S0, S1, S2)")
-        m = _check_plane(pages[0], "the mosaic", p)
-        return PolarizationInput("mosaic", str(p), mosaic=m, saturation_level=_saturation(m, bits, p))
-    raise RealInputError(f"{p}: unknown input type {suf or '(no suffix)'!r}; use .png/.tif (raw mosaic or 3-page "
-                         "Stokes), .npy (raw mosaic), .npz (s0/s1/s2 or a frame file)")
+            raise RealInputError(
+                f'{p}: {len(pages)} pages; a raw mosaic has 1, Stokes planes have 3 (S0, S1, S2)'
+            )
+        m = _check_plane(pages[0], 'the mosaic', p)
+        return PolarizationInput(
+            'mosaic', str(p), mosaic=m, saturation_level=_saturation(m, bits, p)
+        )
+    raise RealInputError(
+        f'{p}: unknown input type {suf or "(no suffix)"!r}; use .png/.tif (raw mosaic or 3-page '
+        'Stokes), .npy (raw mosaic), .npz (s0/s1/s2 or a frame file)'
+    )
 
 
 def _stokes(planes, p: Path) -> PolarizationInput:
     if not (planes[0].shape == planes[1].shape == planes[2].shape):
-        raise RealInputError(f"{p}: S0, S1, S2 differ in shape: {[a.shape for a in planes]}")
+        raise RealInputError(f'{p}: S0, S1, S2 differ in shape: {[a.shape for a in planes]}')
     out = []
     for a in planes:
         f = a.astype(np.float32)
         if not np.all(np.isfinite(f)):
-            raise RealInputError(f"{p}: Stokes planes hold NaN or inf")
+            raise RealInputError(f'{p}: Stokes planes hold NaN or inf')
         out.append(f)
-    return PolarizationInput("stokes", str(p), stokes=tuple(out))
+    return PolarizationInput('stokes', str(p), stokes=tuple(out))
 
 
 def load_mask(path, shape, sensor_shape=None) -> np.ndarray:
-    """Read a static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of ``sensor_shape``, the
-    full sensor, for half-resolution Stokes planes); True (use) where non-zero, False (obstructed: mast,
-    antenna, the robot) where zero (OpenCV's mask convention)."""
+    """
+    Read a static obstruction mask: True (use) where non-zero.
+
+    Read a static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of
+    ``sensor_shape``, the full sensor, for half-resolution Stokes planes); True (use) where
+    non-zero, False (obstructed: mast, antenna, the robot) where zero (OpenCV's mask convention).
+    """
     p = Path(path)
     _check_size(p)
-    if p.suffix.lower() == ".npy":
+    if p.suffix.lower() == '.npy':
         try:
             a = np.load(p, allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
-            raise RealInputError(f"{p}: not a readable .npy mask ({str(exc).splitlines()[0]})") from None
+            raise RealInputError(
+                f'{p}: not a readable .npy mask ({str(exc).splitlines()[0]})'
+            ) from None
     else:
         pages = _read_images(p)
         a = pages[0]
     a = np.asarray(a)
     if a.shape != tuple(shape) and (sensor_shape is None or a.shape != tuple(sensor_shape)):
-        raise RealInputError(f"--mask {p.name}: shape {a.shape} does not match the input image {tuple(shape)}")
+        raise RealInputError(
+            f'--mask {p.name}: shape {a.shape} does not match the input image {tuple(shape)}'
+        )
     return a != 0

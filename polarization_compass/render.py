@@ -1,35 +1,59 @@
-"""The renderer: a scene plus an attitude and a sun position in, a :class:`Frame` out.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The renderer: a scene plus an attitude and a sun position in, a :class:`Frame` out.
 
 The pipeline is built once per scene from what it declares:
 
 1. geometry (always): the sun and zenith directions rotated into the camera frame;
 2. sky polarization (always): the scene's sky model at the selected pixels' rays;
 3. radiance (only if ``scene.radiance``): relative sky brightness at those rays;
-3b. atmosphere (only if ``scene.atmosphere`` declares it): haze, clouds and a skyline over the clear sky
+3b. atmosphere (only if ``scene.atmosphere`` declares it): haze, clouds and a skyline over the
+clear sky
    (:mod:`polarization_compass.atmosphere`; a declared atmosphere always gives ``intensity``);
-3c. optics (only if ``scene.optics`` declares it): vignetting, the sun and its glare, lens-flare ghosts
+3c. optics (only if ``scene.optics`` declares it): vignetting, the sun and its glare, lens-flare
+ghosts
    (:mod:`polarization_compass.optics`);
 4. sensor (only if ``scene.sensor`` declares effects): mosaic, noise, quantisation and demosaic,
-   giving the *measured* AoP/DoP and the raw mosaic.
+giving the *measured* AoP/DoP and the raw mosaic.
 
 Stages that a scene does not declare are never constructed, so they cost nothing; each stage
 that runs is counted in :mod:`polarization_compass.instrumentation` (tests use that, not timing).
 """
+
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import json
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import instrumentation as instr
-from .camera import PixelSelection, SelectedPixels, select_pixels
-from .conventions import R_BODY_CAM_DEFAULT, CameraAttitude, R_enu_cam_from_attitude, bearing_to_psi_deg, enu_direction
+from .camera import PixelSelection, select_pixels, SelectedPixels
+from .conventions import (
+    bearing_to_psi_deg,
+    CameraAttitude,
+    enu_direction,
+    R_BODY_CAM_DEFAULT,
+    R_enu_cam_from_attitude,
+)
 from .scene import Scene
 from .sky_models import make_sky_model
 
-__all__ = ["Frame", "Renderer", "SunDirection", "render"]
+__all__ = ['Frame', 'Renderer', 'SunDirection', 'render']
 
 
 @dataclass(frozen=True)
@@ -43,11 +67,12 @@ class SunDirection:
 
 @dataclass
 class Frame:
-    """One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0.
+    """
+    One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0.
 
-    ``aop_rad``: eq 28 convention, [-pi/2, pi/2), float32. ``dop``: [0, 1], float32.
-    ``valid``: bool. ``intensity``: relative radiance (float32) when the scene declares one.
-    ``mosaic``: raw division-of-focal-plane image (uint16 / uint8) when sensor effects are declared.
+    ``aop_rad``: eq 28 convention, [-pi/2, pi/2), float32. ``dop``: [0, 1], float32. ``valid``:
+    bool. ``intensity``: relative radiance (float32) when the scene declares one. ``mosaic``: raw
+    division-of-focal-plane image (uint16 / uint8) when sensor effects are declared.
     ``aop_ideal_rad`` / ``dop_ideal``: the noise-free values when sensor effects changed them.
     """
 
@@ -64,7 +89,9 @@ class Frame:
     aop_ideal_rad: np.ndarray | None = None
     dop_ideal: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
-    array_intensities: np.ndarray | None = None    # (units, channels) when the scene declares a photodiode array
+    array_intensities: np.ndarray | None = (
+        None  # (units, channels) when the scene declares a photodiode array
+    )
 
     @property
     def x_px(self) -> np.ndarray:
@@ -81,7 +108,7 @@ class Frame:
 
     @property
     def psi_deg(self) -> float:
-        """The paper's yaw psi of this frame (truth), (-180, 180]."""
+        """Return the paper's yaw psi of this frame (truth), (-180, 180]."""
         return float(bearing_to_psi_deg(self.attitude.bearing_deg, self.sun.azimuth_deg))
 
     def meta_json(self) -> str:
@@ -89,9 +116,11 @@ class Frame:
 
 
 class Renderer:
-    """Renders frames of one scene. Construct once; call :meth:`render` per frame.
+    """
+    Renders frames of one scene. Construct once; call :meth:`render` per frame.
 
-    ``pixels`` overrides the scene's pixel selection (a consumer that needs few pixels asks for them).
+    ``pixels`` overrides the scene's pixel selection (a consumer that needs few pixels asks for
+    them).
     """
 
     def __init__(self, scene: Scene, pixels: PixelSelection | None = None):
@@ -103,190 +132,304 @@ class Renderer:
         self.radiance = None
         if scene.radiance:
             from .radiance import make_radiance_model
+
             self.radiance = make_radiance_model(scene.radiance)
         self.sensor = None
         if scene.effects:
             from .sensor import SensorPipeline
+
             self.sensor = SensorPipeline.from_config(scene.sensor, scene.camera)
-            if self.selection.mode not in ("full", "region") or self.selection.stride > 1:
+            if self.selection.mode not in ('full', 'region') or self.selection.stride > 1:
                 from .sensor import SensorError
-                raise SensorError(f"sensor effects ({', '.join(scene.effects)}) need a contiguous pixel block "
-                                  f"(pixels full, or a region with stride 1), got {self.selection.describe()}: "
-                                  "a polarization mosaic has no meaning on a strided or scattered subset")
+
+                raise SensorError(
+                    f'sensor effects ({", ".join(scene.effects)}) need a contiguous pixel block '
+                    f'(pixels full, or a region with stride 1), got {self.selection.describe()}: '
+                    'a polarization mosaic has no meaning on a strided or scattered subset'
+                )
         v = scene.validity
-        self._limits = (math.cos(math.radians(v.sun_exclusion_deg)), math.sin(math.radians(v.min_altitude_deg)),
-                        v.min_dop)
+        self._limits = (
+            math.cos(math.radians(v.sun_exclusion_deg)),
+            math.sin(math.radians(v.min_altitude_deg)),
+            v.min_dop,
+        )
         self._sun_cache = None
         self._frames = 0
         self.array = None
         if scene.photodiode_array is not None:
             from .photodiode.simulate import ArraySensor
+
             self.array = ArraySensor.from_config(scene.photodiode_array)
         self.atmosphere = None
         if scene.atmosphere:
             from .atmosphere import Atmosphere
+
             self.atmosphere = Atmosphere(scene.atmosphere, scene.seed)
         self.optics = None
         if scene.optics:
             from .optics import Optics
+
             self.optics = Optics(scene.optics, scene.camera)
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
-        """The sun for this scene: fixed if the scene says so, else the ephemeris (batched ephemeris, interpolated)."""
+        """
+        Return the sun for this scene: fixed, or from the ephemeris.
+
+        The sun for this scene: fixed if the scene says so, else the ephemeris (batched ephemeris,
+        interpolated).
+        """
         s = self.scene
         if s.sun_fixed is not None:
             return SunDirection(float(s.sun_fixed[0]), float(s.sun_fixed[1]))
         from .scene import parse_time_utc
+
         t = parse_time_utc(time_utc) if time_utc is not None else s.time_utc
         if self._sun_cache is None:
             # one batched ephemeris call per 10 minutes of scene time, interpolated (< 2e-6 deg)
             from .solar import SunCache
-            self._sun_cache = SunCache(s.site.latitude_deg, s.site.longitude_deg, s.site.altitude_m, model=s.sun_model)
-        p = self._sun_cache(t)
-        return SunDirection(float(p.azimuth_deg), float(p.altitude_deg),
-                            None if p.apparent_altitude_deg is None else float(p.apparent_altitude_deg))
 
-    def render(self, attitude: CameraAttitude | None = None, sun: SunDirection | None = None,
-               time_utc=None, seed: int | None = None) -> Frame:
-        """Render one frame. Defaults: the scene's attitude, and its sun at its time (or ``time_utc``)."""
+            self._sun_cache = SunCache(
+                s.site.latitude_deg, s.site.longitude_deg, s.site.altitude_m, model=s.sun_model
+            )
+        p = self._sun_cache(t)
+        return SunDirection(
+            float(p.azimuth_deg),
+            float(p.altitude_deg),
+            None if p.apparent_altitude_deg is None else float(p.apparent_altitude_deg),
+        )
+
+    def render(
+        self,
+        attitude: CameraAttitude | None = None,
+        sun: SunDirection | None = None,
+        time_utc=None,
+        seed: int | None = None,
+    ) -> Frame:
+        """
+        Render one frame.
+
+        Defaults: the scene's attitude, and its sun at its time (or
+        ``time_utc``).
+        """
         att = attitude if attitude is not None else self.scene.attitude
         sun_meta = self._sun_meta(sun, time_utc)
         sun = sun if sun is not None else self.sun_at(time_utc)
-        with instr.stage("geometry"):
+        with instr.stage('geometry'):
             R = R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
             s_enu = enu_direction(sun.azimuth_deg, sun.altitude_deg)
             sun_cam = R.T @ s_enu
-            zenith_cam = R[2, :].copy()          # R^T (0, 0, 1)
+            zenith_cam = R[2, :].copy()  # R^T (0, 0, 1)
         shape = self.pixels.shape
         aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
         if self.atmosphere is not None:
-            aop, dop, valid, intensity = self._atmosphere(R, sun_cam, zenith_cam, aop, dop, valid, intensity,
-                                                          time_utc)
+            aop, dop, valid, intensity = self._atmosphere(
+                R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc
+            )
         if self.optics is not None:
             if intensity is None:
                 intensity = np.ones(aop.shape, np.float32)
-            self.optics.apply(sun_cam, self.pixels.rays_cam, self.pixels.x_px, self.pixels.y_px, aop, dop,
-                              intensity, instr)
+            self.optics.apply(
+                sun_cam,
+                self.pixels.rays_cam,
+                self.pixels.x_px,
+                self.pixels.y_px,
+                aop,
+                dop,
+                intensity,
+                instr,
+            )
         if intensity is not None:
             intensity = intensity.reshape(shape)
-        frame = Frame(aop.reshape(shape), dop.reshape(shape), valid.reshape(shape), self.pixels, sun, att,
-                      sun_cam, zenith_cam, intensity=intensity)
+        frame = Frame(
+            aop.reshape(shape),
+            dop.reshape(shape),
+            valid.reshape(shape),
+            self.pixels,
+            sun,
+            att,
+            sun_cam,
+            zenith_cam,
+            intensity=intensity,
+        )
         if self.sensor is not None:
-            # reproducible and independent per frame: (scene seed, frame index) unless a seed is given
-            ss = np.random.SeedSequence([self.scene.seed, self._frames] if seed is None else [int(seed)])
+            # reproducible and independent per frame: (scene seed, frame index) unless a seed is
+            # given
+            ss = np.random.SeedSequence(
+                [self.scene.seed, self._frames] if seed is None else [int(seed)]
+            )
             rng = np.random.default_rng(ss)
-            with instr.stage("sensor"):
+            with instr.stage('sensor'):
                 self.sensor.apply(frame, rng)
         if self.array is not None:
             # the array is mounted like the default camera: body = R_BODY_CAM_DEFAULT @ camera
-            ss = np.random.SeedSequence([self.scene.seed, self._frames, 1] if seed is None else [int(seed), 1])
-            with instr.stage("photodiode_array"):
-                frame.array_intensities = self.array.read(R_BODY_CAM_DEFAULT @ sun_cam,
-                                                          float(self.sky.params().get("dop_max", 1.0)),
-                                                          np.random.default_rng(ss))
+            ss = np.random.SeedSequence(
+                [self.scene.seed, self._frames, 1] if seed is None else [int(seed), 1]
+            )
+            with instr.stage('photodiode_array'):
+                frame.array_intensities = self.array.read(
+                    R_BODY_CAM_DEFAULT @ sun_cam,
+                    float(self.sky.params().get('dop_max', 1.0)),
+                    np.random.default_rng(ss),
+                )
         self._frames += 1
         frame.meta = {
-            "scene": self.scene.name,
-            "sun_azimuth_deg": float(sun.azimuth_deg),
-            "sun_altitude_deg": float(sun.altitude_deg),
-            "sun_apparent_altitude_deg": sun.apparent_altitude_deg,
-            "bearing_deg": att.bearing_deg,
-            "pitch_deg": att.pitch_deg,
-            "roll_deg": att.roll_deg,
-            "psi_deg": frame.psi_deg,
-            "sky": self.sky.params(),
-            "radiance": None if self.radiance is None else self.radiance.params(),
-            "effects": list(self.scene.effects),
-            "sensor": None if self.sensor is None else self.sensor.params(),
-            "pixels": self.selection.describe(),
-            "photodiode_array": None if self.array is None else self.array.params(),
-            "atmosphere": None if self.atmosphere is None else self.atmosphere.params(),
-            "optics": None if self.optics is None else self.optics.params(),
-            "camera": {"model": self.scene.camera.model, "width_px": self.scene.camera.width_px,
-                       "height_px": self.scene.camera.height_px,
-                       "focal_length_mm": self.scene.camera.focal_length_mm,
-                       "pixel_pitch_x_um": self.scene.camera.pixel_pitch_x_um,
-                       "pixel_pitch_y_um": self.scene.camera.pixel_pitch_y_um},
+            'scene': self.scene.name,
+            'sun_azimuth_deg': float(sun.azimuth_deg),
+            'sun_altitude_deg': float(sun.altitude_deg),
+            'sun_apparent_altitude_deg': sun.apparent_altitude_deg,
+            'bearing_deg': att.bearing_deg,
+            'pitch_deg': att.pitch_deg,
+            'roll_deg': att.roll_deg,
+            'psi_deg': frame.psi_deg,
+            'sky': self.sky.params(),
+            'radiance': None if self.radiance is None else self.radiance.params(),
+            'effects': list(self.scene.effects),
+            'sensor': None if self.sensor is None else self.sensor.params(),
+            'pixels': self.selection.describe(),
+            'photodiode_array': None if self.array is None else self.array.params(),
+            'atmosphere': None if self.atmosphere is None else self.atmosphere.params(),
+            'optics': None if self.optics is None else self.optics.params(),
+            'camera': {
+                'model': self.scene.camera.model,
+                'width_px': self.scene.camera.width_px,
+                'height_px': self.scene.camera.height_px,
+                'focal_length_mm': self.scene.camera.focal_length_mm,
+                'pixel_pitch_x_um': self.scene.camera.pixel_pitch_x_um,
+                'pixel_pitch_y_um': self.scene.camera.pixel_pitch_y_um,
+            },
             **sun_meta,
         }
         return frame
 
     def _sky(self, sun_cam, zenith_cam):
-        """The sky and radiance stages: flat (aop, dop, valid, intensity or None) at the selected pixels."""
-        with instr.stage("sky." + self.sky.name):
-            aop, dop, valid = self.sky.polarization(sun_cam, zenith_cam, self.pixels.rays_cam, self._limits)
-        if not self._all_have_rays:          # fisheye pixels beyond the lens' field: no sky, 0/0
+        """
+        Run the sky and radiance stages at the selected pixels.
+
+        The sky and radiance stages: flat (aop, dop, valid, intensity or None) at the selected
+        pixels.
+        """
+        with instr.stage('sky.' + self.sky.name):
+            aop, dop, valid = self.sky.polarization(
+                sun_cam, zenith_cam, self.pixels.rays_cam, self._limits
+            )
+        if not self._all_have_rays:  # fisheye pixels beyond the lens' field: no sky, 0/0
             no_ray = ~self.pixels.has_ray.reshape(-1)
             valid[no_ray] = False
             aop[no_ray] = 0.0
             dop[no_ray] = 0.0
         intensity = None
         if self.radiance is not None:
-            with instr.stage("radiance." + self.radiance.name):
+            with instr.stage('radiance.' + self.radiance.name):
                 intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
         return aop, dop, valid, intensity
 
     def _atmosphere(self, R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc):
-        """The declared atmosphere over the clear sky (flat arrays). The clouds move with the time since the
-        scene's ``time_utc``. Without a radiance model the base radiance is the haze's Preetham sky if haze is
-        declared, else uniform 1."""
+        """
+        Apply the declared atmosphere over the clear sky (flat arrays).
+
+        The clouds move with the time since the scene's ``time_utc``. Without a radiance model the
+        base radiance is the haze's Preetham sky if haze is declared, else uniform 1.
+        """
         if intensity is None:
             if self.atmosphere.haze is not None:
-                with instr.stage("radiance.preetham"):
-                    intensity = self.atmosphere.haze.radiance_model.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
+                with instr.stage('radiance.preetham'):
+                    intensity = self.atmosphere.haze.radiance_model.radiance(
+                        sun_cam, zenith_cam, self.pixels.rays_cam
+                    )
             else:
                 intensity = np.ones(aop.shape, np.float32)
         dt_s = 0.0
         if time_utc is not None:
             from .scene import parse_time_utc
+
             dt_s = (parse_time_utc(time_utc) - self.scene.time_utc).total_seconds()
         sel = self.selection
-        block = self.pixels.shape if (sel.mode in ("full", "region") and sel.stride == 1
-                                      and len(self.pixels.shape) == 2) else None
-        return self.atmosphere.apply(R, self.pixels.rays_cam, aop, dop, valid, intensity, self._limits[2], dt_s,
-                                     instr, block)
+        block = (
+            self.pixels.shape
+            if (sel.mode in ('full', 'region') and sel.stride == 1 and len(self.pixels.shape) == 2)
+            else None
+        )
+        return self.atmosphere.apply(
+            R,
+            self.pixels.rays_cam,
+            aop,
+            dop,
+            valid,
+            intensity,
+            self._limits[2],
+            dt_s,
+            instr,
+            block,
+        )
 
     def render_sky(self, sun_cam, zenith_cam):
-        """What :meth:`render` computes for a scene without sensor effects, and nothing else: flat (N,) aop,
-        dop, valid and intensity (None without a radiance model) in the selection's pixel order, for the sun and
-        the zenith already in the camera frame (``R.T @ s_enu`` and ``R[2]`` for the camera-to-ENU rotation
-        ``R = conventions.R_enu_cam_from_attitude(...)``, as :meth:`render` computes them). No Frame, no
-        metadata, no geometry stage: for error-map sweeps, which render 1e5 frames and compute the rotations of
-        a whole chunk at once. A scene with sensor effects is refused (its frames need :meth:`render`)."""
+        """
+        Render a scene without sensor effects at the selected pixels, and nothing else.
+
+        What :meth:`render` computes for a scene without sensor effects, and nothing else: flat
+        (N,) aop, dop, valid and intensity (None without a radiance model) in the selection's pixel
+        order, for the sun and the zenith already in the camera frame (``R.T @ s_enu`` and ``R[2]``
+        for the camera-to-ENU rotation ``R = conventions.R_enu_cam_from_attitude(...)``, as
+        :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
+        sweeps, which render 1e5 frames and compute the rotations of a whole chunk at once. A scene
+        with sensor effects is refused (its frames need :meth:`render`).
+        """
         if self.sensor is not None:
             from .sensor import SensorError
-            raise SensorError("render_sky: the scene declares sensor effects; use render()")
+
+            raise SensorError('render_sky: the scene declares sensor effects; use render()')
         if self.optics is not None:
             from .optics import OpticsError
-            raise OpticsError("render_sky: the scene declares lens optics (sun glare, flare, vignetting); use render()")
+
+            raise OpticsError(
+                'render_sky: the scene declares lens optics (sun glare, flare, vignetting); use '
+                'render()'
+            )
         if self.atmosphere is not None:
             from .atmosphere import AtmosphereError
-            raise AtmosphereError("render_sky: the scene declares an atmosphere (clouds/haze/skyline need the "
-                                  "full camera attitude); use render()")
+
+            raise AtmosphereError(
+                'render_sky: the scene declares an atmosphere (clouds/haze/skyline need the '
+                'full camera attitude); use render()'
+            )
         return self._sky(sun_cam, zenith_cam)
 
     def _sun_meta(self, sun: SunDirection | None, time_utc) -> dict:
-        """How this frame's sun was obtained, and the time only when the sun is that time's.
+        """
+        How this frame's sun was obtained, and the time only when the sun is that time's.
 
-        ``sun_source``: ``ephemeris`` (computed for ``time_utc`` with ``sun_model``), ``scene`` (the scene
-        fixes the sun) or ``given`` (the caller passed it, e.g. ``render --sun-altitude/--sun-azimuth``).
-        ``sun_fixed`` is true unless the ephemeris was used. A fixed sun has ``time_utc`` None: no time was
-        used (a caller that passes both a sun and a time gets its time recorded as given)."""
+        ``sun_source``: ``ephemeris`` (computed for ``time_utc`` with ``sun_model``), ``scene``
+        (the scene fixes the sun) or ``given`` (the caller passed it, e.g. ``render
+        --sun-altitude/--sun-azimuth``). ``sun_fixed`` is true unless the ephemeris was used. A
+        fixed sun has ``time_utc`` None: no time was used (a caller that passes both a sun and a
+        time gets its time recorded as given).
+        """
         from .scene import parse_time_utc
+
         t = None if time_utc is None else parse_time_utc(time_utc)
         if sun is not None:
-            src, model = "given", None
+            src, model = 'given', None
         elif self.scene.sun_fixed is not None:
-            src, model, t = "scene", None, None
+            src, model, t = 'scene', None, None
         else:
-            src, model = "ephemeris", self.scene.sun_model
+            src, model = 'ephemeris', self.scene.sun_model
             t = self.scene.time_utc if t is None else t
-        iso = None if t is None else t.isoformat().replace("+00:00", "Z")
-        return {"sun_source": src, "sun_fixed": src != "ephemeris", "sun_model": model, "time_utc": iso}
+        iso = None if t is None else t.isoformat().replace('+00:00', 'Z')
+        return {
+            'sun_source': src,
+            'sun_fixed': src != 'ephemeris',
+            'sun_model': model,
+            'time_utc': iso,
+        }
 
 
 def render(scene: Scene | None = None, **kwargs) -> Frame:
-    """One-shot convenience: ``render(scene, attitude=..., sun=...)``."""
+    """
+    Render one frame of a scene in a single call.
+
+    One-shot convenience: ``render(scene, attitude=..., sun=...)``.
+    """
     from .scene import default_scene
+
     return Renderer(scene or default_scene()).render(**kwargs)

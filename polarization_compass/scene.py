@@ -1,4 +1,19 @@
-"""Scenes: what a render simulates, declared in YAML (loaded with ``yaml.safe_load`` only).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Scenes: what a render simulates, declared in YAML (loaded with ``yaml.safe_load`` only).
 
 A scene names the site and time (or a fixed sun), the camera, the attitude, the pixels wanted,
 the sky model, an optional radiance model and each sensor effect. Anything not declared is not
@@ -26,13 +41,14 @@ Schema (every key optional; defaults are the paper's set-up, see ``data/default_
     optics: null | {sun: {...}, flare: {...}, vignetting: {...}}            # see optics.py
     seed: int
 """
+
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
-import math
 from dataclasses import dataclass, field
+import datetime as _dt
 from importlib import resources
+import math
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +58,15 @@ from .conventions import CameraAttitude
 from .errors import CompassError
 from .safe_load import load_yaml, read_text
 
-__all__ = ["Scene", "Site", "Validity", "SceneError", "load_scene", "default_scene", "parse_time_utc"]
+__all__ = [
+    'Scene',
+    'Site',
+    'Validity',
+    'SceneError',
+    'load_scene',
+    'default_scene',
+    'parse_time_utc',
+]
 
 
 class SceneError(CompassError):
@@ -51,15 +75,19 @@ class SceneError(CompassError):
 
 @dataclass(frozen=True)
 class Site:
-    latitude_deg: float = 32.026778      # 32 deg 01' 36.4" N (paper, section 4)
-    longitude_deg: float = 118.853306    # 118 deg 51' 11.9" E
+    latitude_deg: float = 32.026778  # 32 deg 01' 36.4" N (paper, section 4)
+    longitude_deg: float = 118.853306  # 118 deg 51' 11.9" E
     altitude_m: float = 30.0
 
 
 @dataclass(frozen=True)
 class Validity:
-    """Which rendered pixels are usable: not within ``sun_exclusion_deg`` of the sun, at or above
-    ``min_altitude_deg``, and with DoP >= ``min_dop``."""
+    """
+    Which rendered pixels are usable.
+
+    Which rendered pixels are usable: not within ``sun_exclusion_deg`` of the sun, at or above
+    ``min_altitude_deg``, and with DoP >= ``min_dop``.
+    """
 
     sun_exclusion_deg: float = 3.0
     min_altitude_deg: float = 0.0
@@ -68,57 +96,63 @@ class Validity:
 
 @dataclass(frozen=True)
 class Scene:
-    name: str = "paper_nanjing"
+    name: str = 'paper_nanjing'
     site: Site = Site()
     time_utc: _dt.datetime = _dt.datetime(2019, 11, 15, 6, 0, 0, tzinfo=_dt.timezone.utc)
-    sun_model: str = "spa"
-    sun_fixed: tuple[float, float] | None = None      # (azimuth_deg, altitude_deg)
+    sun_model: str = 'spa'
+    sun_fixed: tuple[float, float] | None = None  # (azimuth_deg, altitude_deg)
     attitude: CameraAttitude = CameraAttitude(0.0, 0.0, 0.0)
     camera: CameraModel = CameraModel()
     pixels: PixelSelection = PixelSelection()
-    sky: dict = field(default_factory=lambda: {"model": "rayleigh", "dop_max": 1.0})
+    sky: dict = field(default_factory=lambda: {'model': 'rayleigh', 'dop_max': 1.0})
     radiance: dict | None = None
     validity: Validity = Validity()
     sensor: dict = field(default_factory=dict)
     seed: int = 0
-    photodiode_array: dict | None = None          # rendered only when declared
-    atmosphere: dict | None = None                # clouds / haze / skyline, applied only when declared
-    optics: dict | None = None                    # sun glare / flare ghosts / vignetting, only when declared
+    photodiode_array: dict | None = None  # rendered only when declared
+    atmosphere: dict | None = None  # clouds / haze / skyline, applied only when declared
+    optics: dict | None = None  # sun glare / flare ghosts / vignetting, only when declared
 
     def __hash__(self):  # dict fields: hash by identity is enough for caching per scene object
         return id(self)
 
-    def replace(self, **changes) -> "Scene":
+    def replace(self, **changes) -> 'Scene':
         return dataclasses.replace(self, **changes)
 
     @property
     def effects(self) -> list[str]:
         """Sensor effects the scene declares (empty for an ideal sensor)."""
-        return [k for k in self.sensor if k != "demosaic"]
+        return [k for k in self.sensor if k != 'demosaic']
 
     def to_dict(self) -> dict:
         d = {
-            "name": self.name,
-            "site": dataclasses.asdict(self.site),
-            "time_utc": self.time_utc.isoformat().replace("+00:00", "Z"),
-            "sun": ({"azimuth_deg": self.sun_fixed[0], "altitude_deg": self.sun_fixed[1]}
-                    if self.sun_fixed else {"model": self.sun_model}),
-            "attitude": {"bearing_deg": self.attitude.bearing_deg, "pitch_deg": self.attitude.pitch_deg,
-                         "roll_deg": self.attitude.roll_deg},
-            "camera": {k: v for k, v in dataclasses.asdict(self.camera).items() if v is not None},
-            "pixels": _pixels_to_dict(self.pixels),
-            "sky": dict(self.sky),
-            "radiance": dict(self.radiance) if self.radiance else None,
-            "validity": dataclasses.asdict(self.validity),
-            "sensor": dict(self.sensor),
-            "seed": self.seed,
+            'name': self.name,
+            'site': dataclasses.asdict(self.site),
+            'time_utc': self.time_utc.isoformat().replace('+00:00', 'Z'),
+            'sun': (
+                {'azimuth_deg': self.sun_fixed[0], 'altitude_deg': self.sun_fixed[1]}
+                if self.sun_fixed
+                else {'model': self.sun_model}
+            ),
+            'attitude': {
+                'bearing_deg': self.attitude.bearing_deg,
+                'pitch_deg': self.attitude.pitch_deg,
+                'roll_deg': self.attitude.roll_deg,
+            },
+            'camera': {k: v for k, v in dataclasses.asdict(self.camera).items() if v is not None},
+            'pixels': _pixels_to_dict(self.pixels),
+            'sky': dict(self.sky),
+            'radiance': dict(self.radiance) if self.radiance else None,
+            'validity': dataclasses.asdict(self.validity),
+            'sensor': dict(self.sensor),
+            'seed': self.seed,
         }
         if self.photodiode_array is not None:
-            d["photodiode_array"] = dict(self.photodiode_array)
+            d['photodiode_array'] = dict(self.photodiode_array)
         if self.atmosphere is not None:
-            d["atmosphere"] = dict(self.atmosphere)
+            d['atmosphere'] = dict(self.atmosphere)
         if self.optics is not None:
-            d["optics"] = dict(self.optics)
+            d['optics'] = dict(self.optics)
         return d
 
 
@@ -130,185 +164,260 @@ def parse_time_utc(value) -> _dt.datetime:
         t = _dt.datetime(value.year, value.month, value.day)
     elif isinstance(value, str):
         s = value.strip()
-        if s.endswith("Z") or s.endswith("z"):
-            s = s[:-1] + "+00:00"
+        if s.endswith('Z') or s.endswith('z'):
+            s = s[:-1] + '+00:00'
         try:
             t = _dt.datetime.fromisoformat(s)
         except ValueError:
-            raise SceneError(f"time {value!r} is not ISO 8601 (e.g. 2019-11-15T06:00:00Z)") from None
+            raise SceneError(
+                f'time {value!r} is not ISO 8601 (e.g. 2019-11-15T06:00:00Z)'
+            ) from None
     else:
-        raise SceneError(f"time must be an ISO 8601 string, got {type(value).__name__}")
+        raise SceneError(f'time must be an ISO 8601 string, got {type(value).__name__}')
     if t.tzinfo is None:
         t = t.replace(tzinfo=_dt.timezone.utc)
     return t.astimezone(_dt.timezone.utc)
 
 
-def _num(mapping: dict, key: str, default, lo=-math.inf, hi=math.inf, where="") -> float:
+def _num(mapping: dict, key: str, default, lo=-math.inf, hi=math.inf, where='') -> float:
     v = mapping.get(key, default)
     try:
         f = float(v)
     except (TypeError, ValueError):
-        raise SceneError(f"{where}{key} must be a number, got {v!r}") from None
+        raise SceneError(f'{where}{key} must be a number, got {v!r}') from None
     if not math.isfinite(f) or not (lo <= f <= hi):
-        raise SceneError(f"{where}{key} must be finite and in [{lo}, {hi}], got {v!r}")
+        raise SceneError(f'{where}{key} must be finite and in [{lo}, {hi}], got {v!r}')
     return f
 
 
 def _check_keys(mapping, allowed, where):
     if not isinstance(mapping, dict):
-        raise SceneError(f"{where.rstrip('.')} must be a mapping, got {type(mapping).__name__}")
+        raise SceneError(f'{where.rstrip(".")} must be a mapping, got {type(mapping).__name__}')
     unknown = set(mapping) - set(allowed)
     if unknown:
-        raise SceneError(f"unknown key(s) {sorted(unknown)} in {where.rstrip('.') or 'scene'}; "
-                         f"allowed: {sorted(allowed)}")
+        raise SceneError(
+            f'unknown key(s) {sorted(unknown)} in {where.rstrip(".") or "scene"}; '
+            f'allowed: {sorted(allowed)}'
+        )
 
 
 def _pixels_from_dict(d: dict) -> PixelSelection:
-    _check_keys(d, {"mode", "stride", "nx", "ny", "x0", "y0", "width", "height"}, "pixels.")
-    mode = d.get("mode", "full")
-    if mode == "full":
+    _check_keys(d, {'mode', 'stride', 'nx', 'ny', 'x0', 'y0', 'width', 'height'}, 'pixels.')
+    mode = d.get('mode', 'full')
+    if mode == 'full':
         return PixelSelection.full()
-    if mode == "stride":
-        return PixelSelection.strided(int(_num(d, "stride", 1, 1, 20000, "pixels.")))
-    if mode == "grid":
-        return PixelSelection.grid(int(_num(d, "nx", 96, 1, 20000, "pixels.")),
-                                   int(_num(d, "ny", 80, 1, 20000, "pixels.")))
-    if mode == "region":
-        return PixelSelection.rect(*(int(_num(d, k, None, 1, 20000, "pixels."))
-                                     for k in ("x0", "y0", "width", "height")),
-                                   stride=int(_num(d, "stride", 1, 1, 20000, "pixels.")))
-    raise SceneError(f"pixels.mode must be full|stride|grid|region, got {mode!r}")
+    if mode == 'stride':
+        return PixelSelection.strided(int(_num(d, 'stride', 1, 1, 20000, 'pixels.')))
+    if mode == 'grid':
+        return PixelSelection.grid(
+            int(_num(d, 'nx', 96, 1, 20000, 'pixels.')),
+            int(_num(d, 'ny', 80, 1, 20000, 'pixels.')),
+        )
+    if mode == 'region':
+        return PixelSelection.rect(
+            *(int(_num(d, k, None, 1, 20000, 'pixels.')) for k in ('x0', 'y0', 'width', 'height')),
+            stride=int(_num(d, 'stride', 1, 1, 20000, 'pixels.')),
+        )
+    raise SceneError(f'pixels.mode must be full|stride|grid|region, got {mode!r}')
 
 
 def _pixels_to_dict(p: PixelSelection) -> dict:
-    if p.mode == "stride":
-        return {"mode": "stride", "stride": p.stride}
-    if p.mode == "grid":
-        return {"mode": "grid", "nx": p.nx, "ny": p.ny}
-    if p.mode == "region":
+    if p.mode == 'stride':
+        return {'mode': 'stride', 'stride': p.stride}
+    if p.mode == 'grid':
+        return {'mode': 'grid', 'nx': p.nx, 'ny': p.ny}
+    if p.mode == 'region':
         x0, y0, w, h = p.region
-        return {"mode": "region", "x0": x0, "y0": y0, "width": w, "height": h, "stride": p.stride}
-    if p.mode == "list":
-        return {"mode": "list", "count": len(p.x_list) // 4}
-    return {"mode": "full"}
+        return {'mode': 'region', 'x0': x0, 'y0': y0, 'width': w, 'height': h, 'stride': p.stride}
+    if p.mode == 'list':
+        return {'mode': 'list', 'count': len(p.x_list) // 4}
+    return {'mode': 'full'}
 
 
 def scene_from_dict(d: dict) -> Scene:
-    """Validate a scene mapping (as from YAML) and build a :class:`Scene`. Raises :class:`SceneError`."""
+    """
+    Validate a scene mapping (as from YAML) and build a :class:`Scene`.
+
+    Raises :class:`SceneError`.
+    """
     if d is None:
         d = {}
-    _check_keys(d, {"name", "site", "time_utc", "sun", "attitude", "camera", "pixels", "sky", "radiance",
-                    "validity", "sensor", "seed", "photodiode_array", "atmosphere", "optics"}, "")
+    _check_keys(
+        d,
+        {
+            'name',
+            'site',
+            'time_utc',
+            'sun',
+            'attitude',
+            'camera',
+            'pixels',
+            'sky',
+            'radiance',
+            'validity',
+            'sensor',
+            'seed',
+            'photodiode_array',
+            'atmosphere',
+            'optics',
+        },
+        '',
+    )
     base = Scene()
-    site_d = d.get("site", {}) or {}
-    _check_keys(site_d, {"latitude_deg", "longitude_deg", "altitude_m"}, "site.")
-    site = Site(_num(site_d, "latitude_deg", base.site.latitude_deg, -90, 90, "site."),
-                _num(site_d, "longitude_deg", base.site.longitude_deg, -180, 180, "site."),
-                _num(site_d, "altitude_m", base.site.altitude_m, -500, 10000, "site."))
-    t = parse_time_utc(d["time_utc"]) if "time_utc" in d else base.time_utc
-    sun_d = d.get("sun", {}) or {}
-    _check_keys(sun_d, {"model", "azimuth_deg", "altitude_deg"}, "sun.")
+    site_d = d.get('site', {}) or {}
+    _check_keys(site_d, {'latitude_deg', 'longitude_deg', 'altitude_m'}, 'site.')
+    site = Site(
+        _num(site_d, 'latitude_deg', base.site.latitude_deg, -90, 90, 'site.'),
+        _num(site_d, 'longitude_deg', base.site.longitude_deg, -180, 180, 'site.'),
+        _num(site_d, 'altitude_m', base.site.altitude_m, -500, 10000, 'site.'),
+    )
+    t = parse_time_utc(d['time_utc']) if 'time_utc' in d else base.time_utc
+    sun_d = d.get('sun', {}) or {}
+    _check_keys(sun_d, {'model', 'azimuth_deg', 'altitude_deg'}, 'sun.')
     sun_fixed = None
-    sun_model = sun_d.get("model", "spa")
-    if sun_model not in ("spa", "paper"):
+    sun_model = sun_d.get('model', 'spa')
+    if sun_model not in ('spa', 'paper'):
         raise SceneError(f"sun.model must be 'spa' or 'paper', got {sun_model!r}")
-    if "azimuth_deg" in sun_d or "altitude_deg" in sun_d:
-        if not ("azimuth_deg" in sun_d and "altitude_deg" in sun_d):
-            raise SceneError("a fixed sun needs both sun.azimuth_deg and sun.altitude_deg")
-        sun_fixed = (_num(sun_d, "azimuth_deg", 0, -360, 720, "sun."),
-                     _num(sun_d, "altitude_deg", 0, -90, 90, "sun."))
-    att_d = d.get("attitude", {}) or {}
-    _check_keys(att_d, {"bearing_deg", "pitch_deg", "roll_deg"}, "attitude.")
-    att = CameraAttitude(_num(att_d, "bearing_deg", 0.0, -360, 720, "attitude."),
-                         _num(att_d, "pitch_deg", 0.0, -90, 90, "attitude."),
-                         _num(att_d, "roll_deg", 0.0, -180, 180, "attitude."))
-    cam_d = d.get("camera", {}) or {}
+    if 'azimuth_deg' in sun_d or 'altitude_deg' in sun_d:
+        if not ('azimuth_deg' in sun_d and 'altitude_deg' in sun_d):
+            raise SceneError('a fixed sun needs both sun.azimuth_deg and sun.altitude_deg')
+        sun_fixed = (
+            _num(sun_d, 'azimuth_deg', 0, -360, 720, 'sun.'),
+            _num(sun_d, 'altitude_deg', 0, -90, 90, 'sun.'),
+        )
+    att_d = d.get('attitude', {}) or {}
+    _check_keys(att_d, {'bearing_deg', 'pitch_deg', 'roll_deg'}, 'attitude.')
+    att = CameraAttitude(
+        _num(att_d, 'bearing_deg', 0.0, -360, 720, 'attitude.'),
+        _num(att_d, 'pitch_deg', 0.0, -90, 90, 'attitude.'),
+        _num(att_d, 'roll_deg', 0.0, -180, 180, 'attitude.'),
+    )
+    cam_d = d.get('camera', {}) or {}
     allowed = {f.name for f in dataclasses.fields(CameraModel)}
-    _check_keys(cam_d, allowed, "camera.")
+    _check_keys(cam_d, allowed, 'camera.')
     try:
-        # 2448.0 is a whole number of pixels; true, "2448" or 2448.5 are not (CameraModel says which field)
-        cam = CameraModel(**{k: (int(v) if k in ("width_px", "height_px") and isinstance(v, float) and v.is_integer()
-                                 else v) for k, v in cam_d.items()})
+        # 2448.0 is a whole number of pixels; true, "2448" or 2448.5 are not (CameraModel says
+        # which field)
+        cam = CameraModel(
+            **{
+                k: (
+                    int(v)
+                    if k in ('width_px', 'height_px') and isinstance(v, float) and v.is_integer()
+                    else v
+                )
+                for k, v in cam_d.items()
+            }
+        )
     except (CameraError, TypeError, ValueError) as exc:
-        raise SceneError(f"camera: {exc}") from None
-    pixels = _pixels_from_dict(d.get("pixels", {}) or {})
-    sky = d.get("sky") or {"model": "rayleigh", "dop_max": 1.0}
+        raise SceneError(f'camera: {exc}') from None
+    pixels = _pixels_from_dict(d.get('pixels', {}) or {})
+    sky = d.get('sky') or {'model': 'rayleigh', 'dop_max': 1.0}
     if not isinstance(sky, dict):
-        raise SceneError("sky must be a mapping such as {model: rayleigh, dop_max: 1.0}")
-    radiance = d.get("radiance")
+        raise SceneError('sky must be a mapping such as {model: rayleigh, dop_max: 1.0}')
+    radiance = d.get('radiance')
     if radiance is not None and not isinstance(radiance, dict):
-        raise SceneError("radiance must be null or a mapping such as {model: cie_clear}")
-    val_d = d.get("validity", {}) or {}
-    _check_keys(val_d, {"sun_exclusion_deg", "min_altitude_deg", "min_dop"}, "validity.")
-    validity = Validity(_num(val_d, "sun_exclusion_deg", base.validity.sun_exclusion_deg, 0, 90, "validity."),
-                        _num(val_d, "min_altitude_deg", base.validity.min_altitude_deg, -90, 90, "validity."),
-                        _num(val_d, "min_dop", base.validity.min_dop, 0, 1, "validity."))
-    sensor = d.get("sensor") or {}
+        raise SceneError('radiance must be null or a mapping such as {model: cie_clear}')
+    val_d = d.get('validity', {}) or {}
+    _check_keys(val_d, {'sun_exclusion_deg', 'min_altitude_deg', 'min_dop'}, 'validity.')
+    validity = Validity(
+        _num(val_d, 'sun_exclusion_deg', base.validity.sun_exclusion_deg, 0, 90, 'validity.'),
+        _num(val_d, 'min_altitude_deg', base.validity.min_altitude_deg, -90, 90, 'validity.'),
+        _num(val_d, 'min_dop', base.validity.min_dop, 0, 1, 'validity.'),
+    )
+    sensor = d.get('sensor') or {}
     if not isinstance(sensor, dict):
-        raise SceneError("sensor must be a mapping of effect name to its parameters")
-    seed = int(_num(d, "seed", 0, 0, 2 ** 32 - 1))
-    scene = Scene(str(d.get("name", base.name)), site, t, sun_model, sun_fixed, att, cam, pixels,
-                  dict(sky), dict(radiance) if radiance else None, validity, dict(sensor), seed)
-    if d.get("photodiode_array") is not None:
-        from .photodiode.simulate import ArraySensor
+        raise SceneError('sensor must be a mapping of effect name to its parameters')
+    seed = int(_num(d, 'seed', 0, 0, 2**32 - 1))
+    scene = Scene(
+        str(d.get('name', base.name)),
+        site,
+        t,
+        sun_model,
+        sun_fixed,
+        att,
+        cam,
+        pixels,
+        dict(sky),
+        dict(radiance) if radiance else None,
+        validity,
+        dict(sensor),
+        seed,
+    )
+    if d.get('photodiode_array') is not None:
         from .photodiode.geometry import ArrayGeometryError
+        from .photodiode.simulate import ArraySensor
+
         try:
-            ArraySensor.from_config(d["photodiode_array"])
+            ArraySensor.from_config(d['photodiode_array'])
         except ArrayGeometryError as exc:
             raise SceneError(str(exc)) from None
-        scene = scene.replace(photodiode_array=dict(d["photodiode_array"]))
-    if d.get("atmosphere") is not None:
+        scene = scene.replace(photodiode_array=dict(d['photodiode_array']))
+    if d.get('atmosphere') is not None:
         from .atmosphere import Atmosphere, AtmosphereError
+
         try:
-            Atmosphere(d["atmosphere"], seed)
+            Atmosphere(d['atmosphere'], seed)
         except (AtmosphereError, TypeError) as exc:
             raise SceneError(str(exc)) from None
-        scene = scene.replace(atmosphere=dict(d["atmosphere"]))
-    if d.get("optics") is not None:
+        scene = scene.replace(atmosphere=dict(d['atmosphere']))
+    if d.get('optics') is not None:
         from .optics import Optics, OpticsError
+
         try:
-            Optics(d["optics"], cam)
+            Optics(d['optics'], cam)
         except (OpticsError, TypeError) as exc:
             raise SceneError(str(exc)) from None
-        scene = scene.replace(optics=dict(d["optics"]))
+        scene = scene.replace(optics=dict(d['optics']))
     # fail early on bad model parameters, not at the first frame
     from .sky import SkyModelError
     from .sky_models import make_sky_model
+
     try:
         make_sky_model(scene.sky)
     except SkyModelError as exc:
-        raise SceneError(f"sky: {exc}") from None
+        raise SceneError(f'sky: {exc}') from None
     if scene.sensor:
         from .sensor import SensorError, SensorPipeline
+
         try:
             SensorPipeline.from_config(scene.sensor, scene.camera)
         except SensorError as exc:
-            raise SceneError(f"sensor: {exc}") from None
-    if scene.effects and (pixels.mode not in ("full", "region") or pixels.stride > 1):
-        raise SceneError(f"sensor effects ({', '.join(scene.effects)}) need contiguous pixels (pixels.mode full, "
-                         f"or region with stride 1), got pixels {pixels.describe()}")
+            raise SceneError(f'sensor: {exc}') from None
+    if scene.effects and (pixels.mode not in ('full', 'region') or pixels.stride > 1):
+        raise SceneError(
+            f'sensor effects ({", ".join(scene.effects)}) need contiguous pixels (pixels.mode '
+            'full, '
+            f'or region with stride 1), got pixels {pixels.describe()}'
+        )
     if scene.radiance:
-        from .radiance import RadianceError, make_radiance_model
+        from .radiance import make_radiance_model, RadianceError
+
         try:
             make_radiance_model(scene.radiance)
         except RadianceError as exc:
-            raise SceneError(f"radiance: {exc}") from None
+            raise SceneError(f'radiance: {exc}') from None
     return scene
 
 
 def load_scene(path: str | Path | None = None) -> Scene:
-    """Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up)."""
+    """
+    Load a scene YAML file (safe loader).
+
+    Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up).
+    """
     if path is None:
-        text = resources.files("polarization_compass").joinpath("data/default_scene.yaml").read_text()
-        where = "embedded default scene"
+        text = (
+            resources.files('polarization_compass').joinpath('data/default_scene.yaml').read_text()
+        )
+        where = 'embedded default scene'
     else:
-        text = read_text(path, SceneError, "scene file")
+        text = read_text(path, SceneError, 'scene file')
         where = str(path)
     data = load_yaml(text, where, SceneError)
     try:
         return scene_from_dict(data)
     except SceneError as exc:
-        raise SceneError(f"{where}: {exc}") from None
+        raise SceneError(f'{where}: {exc}') from None
 
 
 def default_scene() -> Scene:

@@ -1,4 +1,19 @@
-"""Sensor effects: a rendered (ideal) frame through a division-of-focal-plane camera and back.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sensor effects: a rendered (ideal) frame through a division-of-focal-plane camera and back.
 
 :class:`SensorPipeline` turns the ideal AoP/DoP (and relative radiance, if the scene has one) of a
 contiguous pixel block into the raw mosaic a polarization camera would record, then demosaics it
@@ -19,34 +34,36 @@ Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX25
       demosaic: bilinear                      # or superpixel
 
 ``{}`` or null parameters mean the defaults shown. Once any key is declared the mosaic and the
-demosaic always run (IMX250MZR layout if ``mosaic`` is absent). Each other effect is a stage of its own
-that runs only if declared; its arithmetic exists only in the kernels of that stage (``_IMPLEMENTS``):
+demosaic always run (IMX250MZR layout if ``mosaic`` is absent). Each other effect is a stage of its
+own that runs only if declared; its arithmetic exists only in the kernels of that stage
+(``_IMPLEMENTS``):
 
 - ``mosaic``: Malus's law per pixel behind ideal polarizers (``_mean_electrons_kernel``);
 - ``extinction_ratio``: the same with leaky polarizers (``_mean_electrons_er_kernel`` replaces it);
 - ``shot_noise`` / ``read_noise``: ``_shot_noise_kernel``, ``_read_noise_kernel``, or both fused in
-  ``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
-- ``exposure``: the finite well, saturation at ``full_well_e`` (``_saturate_kernel``, fused into the DN
-  pass as ``_saturate_quantize_kernel`` when quantised). Without it the well is unlimited: nothing
-  saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every electron-domain
-  stage, not a computation; without ``exposure`` it is the default's 5250 e-;
+``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
+- ``exposure``: the finite well, saturation at ``full_well_e`` (``_saturate_kernel``, fused into
+  the DN pass as ``_saturate_quantize_kernel`` when quantised). Without it the well is unlimited:
+  nothing saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every
+  electron-domain stage, not a computation; without ``exposure`` it is the default's 5250 e-;
 - ``quantization``: electrons to DN (``_quantize_kernel``); the ADC range clips at 2^bits - 1.
 - ``calibration``: the calibration errors of a real division-of-focal-plane sensor, a fixed pattern
   per pixel drawn once from ``calibration.seed`` over the whole sensor (so a region render sees the
   same pixels' errors as a full one): polarizer angle error delta ~ N(0, ``angle_error_deg``) added
   to the pixel's nominal angle; extinction ratio ER exp(``extinction_ratio_spread`` z), z ~ N(0, 1)
   (needs ``extinction_ratio``); gain 1 + ``gain_rms`` z (photo-response non-uniformity); then
-  crosstalk: each pixel passes a fraction ``crosstalk`` of its electrons to each of its 4 neighbours
-  (edge pixels keep what would leave the block). ``_mean_electrons_cal_kernel`` replaces the Malus
-  kernels and ``_crosstalk_kernel`` follows it. The per-pixel model of angle, extinction and gain is
-  that of Powell & Gruev (2013), "Calibration methods for division-of-focal-plane polarimeters",
-  Opt. Express 21:21039; crosstalk between neighbouring micro-polarizers as discussed there and by
-  York & Gruev (2012), "Characterization of a visible spectrum division-of-focal-plane polarimeter",
-  Appl. Opt. 51:5392.
+  crosstalk: each pixel passes a fraction ``crosstalk`` of its electrons to each of its 4
+  neighbours (edge pixels keep what would leave the block). ``_mean_electrons_cal_kernel`` replaces
+  the Malus kernels and ``_crosstalk_kernel`` follows it. The per-pixel model of angle, extinction
+  and gain is that of Powell & Gruev (2013), "Calibration methods for division-of-focal-plane
+  polarimeters", Opt. Express 21:21039; crosstalk between neighbouring micro-polarizers as
+  discussed there and by York & Gruev (2012), "Characterization of a visible spectrum
+  division-of-focal-plane polarimeter", Appl. Opt. 51:5392.
 
 Each kernel run counts, in :mod:`instrumentation`, ``sensor.<effect>`` for every effect the kernel
-implements and ``sensor.kernel.<kernel>``; the demosaic counts ``sensor.demosaic.<method>``. A stage
-that is not declared is neither run nor counted (tests replace its kernels by ones that raise).
+implements and ``sensor.kernel.<kernel>``; the demosaic counts ``sensor.demosaic.<method>``. A
+stage that is not declared is neither run nor counted (tests replace its kernels by ones that
+raise).
 
 Physics
 -------
@@ -59,63 +76,89 @@ radiance (``frame.intensity``) or 1 for a uniform sky.
 Mean photo-electrons: ``lambda = 2 I N0 = N0 S0 (1 + ...)`` with ``N0 = fill * full_well_e``, the
 electrons of an unpolarized S0 = 1 pixel. Shot noise: exact Poisson (Knuth's product method) where
 ``lambda < gaussian_above_e``, else Gaussian with the same mean and variance (at 20 e- the Poisson
-skewness 1/sqrt(20) = 0.22 is the only difference; it falls as 1/sqrt(lambda)). Read noise: Gaussian
-``sigma_e``; with shot noise in the Gaussian regime both are one draw of variance
-``lambda + sigma_e^2`` (independent Gaussians add). With ``exposure`` the signal is then clipped at
-``full_well_e`` (saturation; clipped pixels read exactly full scale and the demosaic marks them invalid). Without
-``quantization`` the mosaic is float32 electrons (read noise can make it slightly negative); with it,
-``DN = round(e * (2^bits - 1) / full_well_e)`` clipped to [0, 2^bits - 1], uint8 for 8 bits else uint16.
-The demosaic does not correct for ``d`` (like an uncalibrated camera): measured DoP = d * DoP.
+skewness 1/sqrt(20) = 0.22 is the only difference; it falls as 1/sqrt(lambda)). Read noise:
+Gaussian ``sigma_e``; with shot noise in the Gaussian regime both are one draw of variance ``lambda
++ sigma_e^2`` (independent Gaussians add). With ``exposure`` the signal is then clipped at
+``full_well_e`` (saturation; clipped pixels read exactly full scale and the demosaic marks them
+invalid). Without ``quantization`` the mosaic is float32 electrons (read noise can make it slightly
+negative); with it, ``DN = round(e * (2^bits - 1) / full_well_e)`` clipped to [0, 2^bits - 1],
+uint8 for 8 bits else uint16. The demosaic does not correct for ``d`` (like an uncalibrated
+camera): measured DoP = d * DoP.
 
 Random numbers: a counter-based SplitMix64 stream (pixel (i, j) of a W-wide block owns counters
-``(i W + j) * 1024 ...``, keyed by one 64-bit draw from the frame's ``numpy.random.Generator``) feeding
-a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals, in a numba kernel
-parallel over rows whose fast path (98.5 % of draws) is branch-free and vectorises. The same seed gives
-the same mosaic bit for bit, whatever the thread count. Measured single-core for 5 Mpixels: shot + read
-noise ~24 ms, against 50-67 ms for ``Generator.standard_normal(dtype=float32)`` alone; the whole
-mosaic + shot + read noise + 12-bit stage ~30 ms (up to ~50 ms while the machine was shared).
+``(i W + j) * 1024 ...``, keyed by one 64-bit draw from the frame's ``numpy.random.Generator``)
+feeding a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals, in a
+numba kernel parallel over rows whose fast path (98.5 % of draws) is branch-free and vectorises.
+The same seed gives the same mosaic bit for bit, whatever the thread count. Measured single-core
+for 5 Mpixels: shot + read noise ~24 ms, against 50-67 ms for
+``Generator.standard_normal(dtype=float32)`` alone; the whole mosaic + shot + read noise + 12-bit
+stage ~30 ms (up to ~50 ms while the machine was shared).
 
 Output geometry (``frame`` is modified in place)
 ------------------------------------------------
 ``frame.aop_ideal_rad``/``frame.dop_ideal`` keep the noise-free values; ``frame.mosaic`` is the raw
 image of the rendered pixel block (its 2 x 2 phase follows the block's position on the full sensor,
-whose pixel (1, 1) carries ``layout[0][0]``); ``aop_rad``/``dop``/``valid`` become the measured values.
+whose pixel (1, 1) carries ``layout[0][0]``); ``aop_rad``/``dop``/``valid`` become the measured
+values.
 
 - ``bilinear`` (default): same shape and pixels. A measured pixel is valid only if its whole 3 x 3
-  neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
-  says so (no saturation, S0 > 0, AoP defined).
+neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
+says so (no saturation, S0 > 0, AoP defined).
 - ``superpixel``: half resolution. ``frame.pixels`` is replaced by the 2 x 2 block centres
-  (x_px/y_px at half-pixel positions, rays from the camera model, cached); ``intensity`` becomes the
-  block mean; the ideal AoP/DoP become those of the block's mean ideal Stokes vector (what a perfect
-  co-located superpixel measures); valid needs all four ideal pixels valid. An odd trailing
+  (x_px/y_px at half-pixel positions, rays from the camera model, cached); ``intensity`` becomes
+  the block mean; the ideal AoP/DoP become those of the block's mean ideal Stokes vector (what a
+  perfect co-located superpixel measures); valid needs all four ideal pixels valid. An odd trailing
   row/column is dropped.
 
 Sensor effects need a contiguous block of pixels (``pixels.mode`` full or region with stride 1).
+
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
+import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
+from .demosaic import (
+    _finish,
+    DEMOSAIC_METHODS,
+    layout_from_mapping,
+    MosaicLayout,
+    polarization_from_mosaic,
+    SensorError,
+)
 from .errors import CompassError
 from .fastmath import sincos32
-from .demosaic import (DEMOSAIC_METHODS, MosaicLayout, SensorError, _finish, layout_from_mapping,
-                       polarization_from_mosaic)
 
-__all__ = ["SensorError", "SensorPipeline", "EFFECTS", "standard_normal_f32", "simulate_mosaic",
-           "superpixel_pixels", "sensor_config_for_encoding"]
+__all__ = [
+    'SensorError',
+    'SensorPipeline',
+    'EFFECTS',
+    'standard_normal_f32',
+    'simulate_mosaic',
+    'superpixel_pixels',
+    'sensor_config_for_encoding',
+]
 
 #: Every key a ``sensor:`` mapping may hold, in pipeline order.
-EFFECTS = ("mosaic", "exposure", "extinction_ratio", "calibration", "shot_noise", "read_noise", "quantization",
-           "demosaic")
+EFFECTS = (
+    'mosaic',
+    'exposure',
+    'extinction_ratio',
+    'calibration',
+    'shot_noise',
+    'read_noise',
+    'quantization',
+    'demosaic',
+)
 _BITS = (8, 10, 12, 14, 16)
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
+_FM = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -126,21 +169,25 @@ def _params(cfg, name, allowed):
     if d is None:
         return {}
     if not isinstance(d, dict):
-        raise SensorError(f"sensor.{name} must be a mapping (e.g. {{}}), got {type(d).__name__}")
+        raise SensorError(f'sensor.{name} must be a mapping (e.g. {{}}), got {type(d).__name__}')
     unknown = set(d) - set(allowed)
     if unknown:
-        raise SensorError(f"unknown key(s) {sorted(unknown)} in sensor.{name}; allowed: {sorted(allowed)}")
+        raise SensorError(
+            f'unknown key(s) {sorted(unknown)} in sensor.{name}; allowed: {sorted(allowed)}'
+        )
     return d
 
 
 def _number(d, key, default, lo, hi, where, lo_open=False):
     v = d.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise SensorError(f"sensor.{where}.{key} must be a number, got {v!r}")
+        raise SensorError(f'sensor.{where}.{key} must be a number, got {v!r}')
     f = float(v)
     if not math.isfinite(f) or not ((lo < f) if lo_open else (lo <= f)) or f > hi:
-        raise SensorError(f"sensor.{where}.{key} must be finite and in {'(' if lo_open else '['}{lo}, {hi}], "
-                          f"got {v!r}")
+        raise SensorError(
+            f'sensor.{where}.{key} must be finite and in {"(" if lo_open else "["}{lo}, {hi}], '
+            f'got {v!r}'
+        )
     return f
 
 
@@ -156,8 +203,10 @@ class SensorConfig:
     read_sigma_e: float | None
     bits: int | None
     demosaic: str
-    saturates: bool = False          # ``exposure`` declared: the well is finite (clip at full_well_e)
-    calibration: dict | None = None  # per-pixel DoFP calibration errors (module docstring), None if undeclared
+    saturates: bool = False  # ``exposure`` declared: the well is finite (clip at full_well_e)
+    calibration: dict | None = (
+        None  # per-pixel DoFP calibration errors (module docstring), None if undeclared
+    )
 
     @property
     def d(self) -> float:
@@ -176,100 +225,162 @@ class SensorConfig:
 
     @property
     def saturation_level(self) -> float | None:
-        """The raw value at which a sample is saturated: the ADC's full scale when quantised, the full well
-        when ``exposure`` is declared, else None (an unlimited well never saturates)."""
+        """
+        Return the raw value at which a sample is saturated, or None.
+
+        The raw value at which a sample is saturated: the ADC's full scale when quantised, the full
+        well when ``exposure`` is declared, else None (an unlimited well never saturates).
+        """
         if self.bits is not None:
             return float(self.max_dn)
         return self.full_well_e if self.saturates else None
 
     def describe(self) -> dict:
-        # exposure.full_well_e is the saturation level of an unquantised mosaic (None: unlimited well);
-        # n0_e the electrons of an unpolarized S0 = 1 pixel, the scale of every electron-domain stage
-        return {"mosaic": self.layout.describe(),
-                "exposure": {"full_well_e": self.full_well_e if self.saturates else None, "fill": self.fill,
-                             "n0_e": self.n0_e, "saturation": self.saturates,
-                             "adc_full_scale_e": None if self.bits is None else self.full_well_e},
-                "extinction_ratio": self.extinction_ratio, "shot_noise_gaussian_above_e": self.shot_gaussian_above_e,
-                "read_noise_sigma_e": self.read_sigma_e, "quantization_bits": self.bits, "demosaic": self.demosaic,
-                "calibration": None if self.calibration is None else dict(self.calibration)}
+        # exposure.full_well_e is the saturation level of an unquantised mosaic (None: unlimited
+        # well); n0_e the electrons of an unpolarized S0 = 1 pixel, the scale of every
+        # electron-domain stage
+        return {
+            'mosaic': self.layout.describe(),
+            'exposure': {
+                'full_well_e': self.full_well_e if self.saturates else None,
+                'fill': self.fill,
+                'n0_e': self.n0_e,
+                'saturation': self.saturates,
+                'adc_full_scale_e': None if self.bits is None else self.full_well_e,
+            },
+            'extinction_ratio': self.extinction_ratio,
+            'shot_noise_gaussian_above_e': self.shot_gaussian_above_e,
+            'read_noise_sigma_e': self.read_sigma_e,
+            'quantization_bits': self.bits,
+            'demosaic': self.demosaic,
+            'calibration': None if self.calibration is None else dict(self.calibration),
+        }
 
 
 def parse_sensor_config(cfg: dict) -> SensorConfig:
-    """Validate a scene's ``sensor:`` mapping (see the module docstring). Raises :class:`SensorError`."""
+    """
+    Validate a scene's ``sensor:`` mapping (see the module docstring).
+
+    Raises :class:`SensorError`.
+    """
     if cfg is None:
         cfg = {}
     if not isinstance(cfg, dict):
-        raise SensorError(f"sensor must be a mapping of effect name to parameters, got {type(cfg).__name__}")
+        raise SensorError(
+            f'sensor must be a mapping of effect name to parameters, got {type(cfg).__name__}'
+        )
     unknown = [k for k in cfg if k not in EFFECTS]
     if unknown:
-        raise SensorError(f"unknown sensor effect(s) {sorted(map(str, unknown))}; known: {', '.join(EFFECTS)}")
-    mos = _params(cfg, "mosaic", ("layout", "pol45_toward"))
+        raise SensorError(
+            f'unknown sensor effect(s) {sorted(map(str, unknown))}; known: {", ".join(EFFECTS)}'
+        )
+    mos = _params(cfg, 'mosaic', ('layout', 'pol45_toward'))
     layout = layout_from_mapping(mos)
-    exp = _params(cfg, "exposure", ("full_well_e", "fill"))
-    full_well = _number(exp, "full_well_e", 10500.0, 1.0, 1e8, "exposure")
-    fill = _number(exp, "fill", 0.5, 0.0, 1000.0, "exposure", lo_open=True)
+    exp = _params(cfg, 'exposure', ('full_well_e', 'fill'))
+    full_well = _number(exp, 'full_well_e', 10500.0, 1.0, 1e8, 'exposure')
+    fill = _number(exp, 'fill', 0.5, 0.0, 1000.0, 'exposure', lo_open=True)
     er = None
-    if "extinction_ratio" in cfg:
-        er = _number(_params(cfg, "extinction_ratio", ("value",)), "value", 100.0, 1.0, 1e12, "extinction_ratio",
-                     lo_open=True)
+    if 'extinction_ratio' in cfg:
+        er = _number(
+            _params(cfg, 'extinction_ratio', ('value',)),
+            'value',
+            100.0,
+            1.0,
+            1e12,
+            'extinction_ratio',
+            lo_open=True,
+        )
     shot = None
-    if "shot_noise" in cfg:
-        # Knuth's Poisson method multiplies uniforms down to exp(-lambda): keep lambda where that is exact
-        shot = _number(_params(cfg, "shot_noise", ("gaussian_above_e",)), "gaussian_above_e", 20.0, 0.0, 200.0,
-                       "shot_noise")
+    if 'shot_noise' in cfg:
+        # Knuth's Poisson method multiplies uniforms down to exp(-lambda): keep lambda where that
+        # is exact
+        shot = _number(
+            _params(cfg, 'shot_noise', ('gaussian_above_e',)),
+            'gaussian_above_e',
+            20.0,
+            0.0,
+            200.0,
+            'shot_noise',
+        )
     read = None
-    if "read_noise" in cfg:
-        read = _number(_params(cfg, "read_noise", ("sigma_e",)), "sigma_e", 2.3, 0.0, 1e6, "read_noise")
+    if 'read_noise' in cfg:
+        read = _number(
+            _params(cfg, 'read_noise', ('sigma_e',)), 'sigma_e', 2.3, 0.0, 1e6, 'read_noise'
+        )
     bits = None
-    if "quantization" in cfg:
-        q = _params(cfg, "quantization", ("bits",))
-        b = q.get("bits", 12)
+    if 'quantization' in cfg:
+        q = _params(cfg, 'quantization', ('bits',))
+        b = q.get('bits', 12)
         if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in _BITS:
-            raise SensorError(f"sensor.quantization.bits must be one of {_BITS}, got {b!r}")
+            raise SensorError(f'sensor.quantization.bits must be one of {_BITS}, got {b!r}')
         bits = int(b)
     cal = None
-    if "calibration" in cfg:
-        c = _params(cfg, "calibration", ("angle_error_deg", "extinction_ratio_spread", "gain_rms", "crosstalk",
-                                         "seed"))
-        cal = {"angle_error_deg": _number(c, "angle_error_deg", 0.0, 0.0, 45.0, "calibration"),
-               "extinction_ratio_spread": _number(c, "extinction_ratio_spread", 0.0, 0.0, 3.0, "calibration"),
-               "gain_rms": _number(c, "gain_rms", 0.0, 0.0, 0.3, "calibration"),
-               "crosstalk": _number(c, "crosstalk", 0.0, 0.0, 0.2, "calibration"),
-               "seed": int(_number(c, "seed", 0, 0, 2 ** 32 - 1, "calibration"))}
-        if cal["extinction_ratio_spread"] > 0 and er is None:
-            raise SensorError("sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the "
-                              "mean ratio the spread is around)")
-    method = cfg.get("demosaic", "bilinear")
+    if 'calibration' in cfg:
+        c = _params(
+            cfg,
+            'calibration',
+            ('angle_error_deg', 'extinction_ratio_spread', 'gain_rms', 'crosstalk', 'seed'),
+        )
+        cal = {
+            'angle_error_deg': _number(c, 'angle_error_deg', 0.0, 0.0, 45.0, 'calibration'),
+            'extinction_ratio_spread': _number(
+                c, 'extinction_ratio_spread', 0.0, 0.0, 3.0, 'calibration'
+            ),
+            'gain_rms': _number(c, 'gain_rms', 0.0, 0.0, 0.3, 'calibration'),
+            'crosstalk': _number(c, 'crosstalk', 0.0, 0.0, 0.2, 'calibration'),
+            'seed': int(_number(c, 'seed', 0, 0, 2**32 - 1, 'calibration')),
+        }
+        if cal['extinction_ratio_spread'] > 0 and er is None:
+            raise SensorError(
+                'sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the '
+                'mean ratio the spread is around)'
+            )
+    method = cfg.get('demosaic', 'bilinear')
     if method is None:
-        method = "bilinear"
+        method = 'bilinear'
     if method not in DEMOSAIC_METHODS:
-        raise SensorError(f"sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}")
-    return SensorConfig(layout, full_well, fill, er, shot, read, bits, method, saturates="exposure" in cfg,
-                        calibration=cal)
+        raise SensorError(f'sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    return SensorConfig(
+        layout,
+        full_well,
+        fill,
+        er,
+        shot,
+        read,
+        bits,
+        method,
+        saturates='exposure' in cfg,
+        calibration=cal,
+    )
 
 
 def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
-    """The SensorConfig a simulated camera applies for a raw image encoding (the ``sky_simulator``
+    """
+    Return the SensorConfig a simulated camera applies for a raw image encoding.
+
+    The SensorConfig a simulated camera applies for a raw image encoding (the ``sky_simulator``
     node and ``record-sim`` both use it).
 
     ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
-    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or, if it
-    declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding. Raises CompassError
-    (one line, ``scene sensor: ...`` for a bad scene mapping).
+    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or,
+    if it declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding. Raises
+    CompassError (one line, ``scene sensor: ...`` for a bad scene mapping).
     """
     cfg = dict(sensor_cfg or {})
-    if encoding == "32FC1":
-        cfg = {k: v for k, v in cfg.items() if k in ("mosaic", "exposure", "extinction_ratio")}
+    if encoding == '32FC1':
+        cfg = {k: v for k, v in cfg.items() if k in ('mosaic', 'exposure', 'extinction_ratio')}
     else:
-        cfg.setdefault("quantization", {"bits": 12 if encoding == "mono16" else 8})
+        cfg.setdefault('quantization', {'bits': 12 if encoding == 'mono16' else 8})
     try:
         parsed = parse_sensor_config(cfg)
     except SensorError as exc:
-        raise CompassError(f"scene sensor: {exc}") from None
-    if encoding == "mono8" and parsed.bits > 8:
-        raise CompassError(f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16")
-    if encoding == "mono16" and parsed.bits <= 8:
-        raise CompassError(f"the scene quantises to {parsed.bits} bits: use encoding mono8")
+        raise CompassError(f'scene sensor: {exc}') from None
+    if encoding == 'mono8' and parsed.bits > 8:
+        raise CompassError(
+            f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16"
+        )
+    if encoding == 'mono16' and parsed.bits <= 8:
+        raise CompassError(f'the scene quantises to {parsed.bits} bits: use encoding mono8')
     return parsed
 
 
@@ -280,14 +391,19 @@ _ZIG_N = 256
 
 
 def _ziggurat_tables(n: int = _ZIG_N):
-    """Layer edges for f(x) = exp(-x^2 / 2): ``x[0] = r`` (base layer, tail beyond it), x decreasing to
-    ``x[n-1] = 0`` at the top, every layer of area ``v``. ``r`` solved by bisection so the top closes.
-
-    Returns (width (n,), inner (n,), f_edge (n + 1,), r, v): a layer k draws ``x = u * width[k]`` and
-    accepts at once when ``x < inner[k]``; ``f_edge[k]`` / ``f_edge[k + 1]`` are f at its bottom / top.
     """
-    f = lambda x: math.exp(-0.5 * x * x)                                   # noqa: E731
-    tail = lambda r: math.sqrt(math.pi / 2) * math.erfc(r / math.sqrt(2))   # noqa: E731
+    Compute the ziggurat layer edges for the standard normal density.
+
+    Layer edges for f(x) = exp(-x^2 / 2): ``x[0] = r`` (base layer, tail beyond it), x decreasing
+    to ``x[n-1] = 0`` at the top, every layer of area ``v``. ``r`` solved by bisection so the top
+    closes.
+
+    Returns (width (n,), inner (n,), f_edge (n + 1,), r, v): a layer k draws ``x = u * width[k]``
+    and accepts at once when ``x < inner[k]``; ``f_edge[k]`` / ``f_edge[k + 1]`` are f at its
+    bottom / top.
+    """
+    f = lambda x: math.exp(-0.5 * x * x)  # noqa: E731
+    tail = lambda r: math.sqrt(math.pi / 2) * math.erfc(r / math.sqrt(2))  # noqa: E731
 
     def close(r):
         v = r * f(r) + tail(r)
@@ -310,10 +426,10 @@ def _ziggurat_tables(n: int = _ZIG_N):
             hi = mid
     _, v, xs = close(hi)
     r = hi
-    xs.append(0.0)                                   # x[n-1] = 0: the top layer has no inner box
+    xs.append(0.0)  # x[n-1] = 0: the top layer has no inner box
     x = np.array(xs)
     width = np.empty(n)
-    width[0] = v / f(r)                              # base strip: box [0, r] x [0, f(r)] plus the tail
+    width[0] = v / f(r)  # base strip: box [0, r] x [0, f(r)] plus the tail
     width[1:] = x[:-1]
     inner = x.copy()
     f_edge = np.empty(n + 1)
@@ -326,30 +442,42 @@ _ZW, _ZX, _ZF, _ZR, _ZV = _ziggurat_tables()
 _GAMMA = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
-_DRAWS_PER_ELEMENT = 1024   # counter space reserved per element (a normal needs ~1.01 draws on average)
+_DRAWS_PER_ELEMENT = (
+    1024  # counter space reserved per element (a normal needs ~1.01 draws on average)
+)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _splitmix(key, counter):  # pragma: no cover - compiled
-    """The ``counter``-th output of SplitMix64 started at ``key`` (state = key + counter * gamma)."""
+    """
+    Return the ``counter``-th output of SplitMix64 started at ``key``.
+
+    The ``counter``-th output of SplitMix64 started at ``key`` (state = key + counter * gamma).
+    """
     z = key + counter * _GAMMA
     z = (z ^ (z >> np.uint64(30))) * _M1
     z = (z ^ (z >> np.uint64(27))) * _M2
     return z ^ (z >> np.uint64(31))
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _uniform(key, counter):  # pragma: no cover - compiled
     """Uniform in (0, 1) from the top 53 bits (never exactly 0, so log() is safe)."""
-    return (np.float64(np.int64(_splitmix(key, counter) >> np.uint64(11))) + 0.5) * (1.0 / 9007199254740992.0)
+    return (np.float64(np.int64(_splitmix(key, counter) >> np.uint64(11))) + 0.5) * (
+        1.0 / 9007199254740992.0
+    )
 
 
 @njit(cache=True)
 def _normal_slow(key, base, j, k, x, neg):  # pragma: no cover - compiled
-    """The ziggurat's rare paths (~1.5 % of draws): tail, wedge, and restarts. ``j`` counters used."""
-    zw, zx, zf, r = _ZW, _ZX, _ZF, _ZR           # global arrays: compile-time constants, no call overhead
+    """
+    Draw on the ziggurat's rare paths (~1.5 % of draws): tail, wedge, and restarts.
+
+    ``j`` counters used.
+    """
+    zw, zx, zf, r = _ZW, _ZX, _ZF, _ZR  # global arrays: compile-time constants, no call overhead
     while True:
-        if k == 0:                                   # tail beyond r (Marsaglia 1964)
+        if k == 0:  # tail beyond r (Marsaglia 1964)
             while True:
                 a = -math.log(_uniform(key, base + j)) / r
                 b = -math.log(_uniform(key, base + j + np.uint64(1)))
@@ -360,7 +488,7 @@ def _normal_slow(key, base, j, k, x, neg):  # pragma: no cover - compiled
         j += np.uint64(1)
         if y < math.exp(-0.5 * x * x):
             return -x if neg else x
-        z = _splitmix(key, base + j)                 # rejected: a fresh draw
+        z = _splitmix(key, base + j)  # rejected: a fresh draw
         j += np.uint64(1)
         k = np.int64(z & np.uint64(0xFF))
         neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
@@ -369,10 +497,14 @@ def _normal_slow(key, base, j, k, x, neg):  # pragma: no cover - compiled
             return -x if neg else x
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _normal(key, base):  # pragma: no cover - compiled
-    """A standard normal from the counter stream starting at ``base``: one draw on the fast path
-    (98.5 %), ~1.02 on average. Bits: 0-7 layer, 8 sign, 11-63 the uniform."""
+    """
+    Draw a standard normal from the counter stream starting at ``base``.
+
+    A standard normal from the counter stream starting at ``base``: one draw on the fast path (98.5
+    %), ~1.02 on average. Bits: 0-7 layer, 8 sign, 11-63 the uniform.
+    """
     z = _splitmix(key, base)
     k = np.int64(z & np.uint64(0xFF))
     neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
@@ -384,7 +516,11 @@ def _normal(key, base):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _poisson_small(key, base, lam):  # pragma: no cover - compiled
-    """Exact Poisson(lam) by Knuth's product of uniforms; lam <= 200 (exp(-200) is a normal double)."""
+    """
+    Draw an exact Poisson(lam) by Knuth's product of uniforms; lam <= 200.
+
+    Exact Poisson(lam) by Knuth's product of uniforms; lam <= 200 (exp(-200) is a normal double).
+    """
     limit = math.exp(-lam)
     p = 1.0
     k = -1
@@ -406,8 +542,12 @@ def _normal_kernel(key, out):  # pragma: no cover - compiled
 
 
 def standard_normal_f32(key: int, shape) -> np.ndarray:
-    """Standard normals (float32) of the counter-based stream ``key``: element n uses counters
-    ``n * 1024 ...``. Exposed for tests of the generator's distribution."""
+    """
+    Return standard normals (float32) of the counter-based stream ``key``.
+
+    Standard normals (float32) of the counter-based stream ``key``: element n uses counters ``n *
+    1024 ...``. Exposed for tests of the generator's distribution.
+    """
     out = np.empty(shape, np.float32)
     _normal_kernel(np.uint64(key), out)
     return out
@@ -416,44 +556,71 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # Forward model: one kernel per stage (and per combination of fused effects)
 # ------------------------------------------------------------------------------------------------
-# Every effect's arithmetic lives only in the kernels that implement it; the kernels of the other stages
-# do not contain it (no "multiply by 1", no "add 0 * noise", no "min with +inf"). ``_IMPLEMENTS`` names
-# the effects each kernel computes and ``_count`` counts exactly those (plus the kernel itself) just before
-# that kernel runs, so a counter reports the code that ran, not the configuration that asked for it.
+# Every effect's arithmetic lives only in the kernels that implement it; the kernels of the other
+# stages do not contain it (no "multiply by 1", no "add 0 * noise", no "min with +inf").
+# ``_IMPLEMENTS`` names the effects each kernel computes and ``_count`` counts exactly those (plus
+# the kernel itself) just before that kernel runs, so a counter reports the code that ran, not the
+# configuration that asked for it.
 _IMPLEMENTS = {
-    "_mean_electrons_kernel": ("mosaic",),                          # ideal polarizers (Malus)
-    "_mean_electrons_er_kernel": ("mosaic", "extinction_ratio"),    # leaky polarizers: DoP scaled by d
-    "_mean_electrons_cal_kernel": ("mosaic", "calibration"),        # per-pixel angle, efficiency d and gain
-    "_crosstalk_kernel": ("calibration",),                          # electrons shared with the 4 neighbours
-    "_shot_noise_kernel": ("shot_noise",),
-    "_read_noise_kernel": ("read_noise",),
-    "_shot_read_noise_kernel": ("shot_noise", "read_noise"),        # one draw of variance lambda + sigma^2
-    "_saturate_kernel": ("exposure",),                              # full-well clip, float32 electrons
-    "_quantize_kernel": ("quantization",),                          # DN; the ADC range clips at 2^bits - 1
-    "_saturate_quantize_kernel": ("exposure", "quantization"),      # full-well clip fused into the DN pass
+    '_mean_electrons_kernel': ('mosaic',),  # ideal polarizers (Malus)
+    '_mean_electrons_er_kernel': (
+        'mosaic',
+        'extinction_ratio',
+    ),  # leaky polarizers: DoP scaled by d
+    '_mean_electrons_cal_kernel': (
+        'mosaic',
+        'calibration',
+    ),  # per-pixel angle, efficiency d and gain
+    '_crosstalk_kernel': ('calibration',),  # electrons shared with the 4 neighbours
+    '_shot_noise_kernel': ('shot_noise',),
+    '_read_noise_kernel': ('read_noise',),
+    '_shot_read_noise_kernel': (
+        'shot_noise',
+        'read_noise',
+    ),  # one draw of variance lambda + sigma^2
+    '_saturate_kernel': ('exposure',),  # full-well clip, float32 electrons
+    '_quantize_kernel': ('quantization',),  # DN; the ADC range clips at 2^bits - 1
+    '_saturate_quantize_kernel': (
+        'exposure',
+        'quantization',
+    ),  # full-well clip fused into the DN pass
 }
 
 
 def _count(name: str) -> None:
-    """Count ``sensor.<effect>`` for each effect the kernel ``name`` implements and ``sensor.kernel.<name>``
-    (called just before that kernel runs): one dict increment per stage per frame."""
+    """
+    Count the sensor stages of kernel ``name`` just before it runs.
+
+    Count ``sensor.<effect>`` for each effect the kernel ``name`` implements and
+    ``sensor.kernel.<name>`` (called just before that kernel runs): one dict increment per stage
+    per frame.
+    """
     for effect in _IMPLEMENTS[name]:
-        instr.count("sensor." + effect)
-    instr.count("sensor.kernel." + name)
+        instr.count('sensor.' + effect)
+    instr.count('sensor.kernel.' + name)
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _malus_unit(a, dp, p, q, n0):  # pragma: no cover - compiled
-    """Mean electrons at S0 = 1 behind an ideal polarizer: N0 (1 - DoP (p cos 2a - q sin 2a)), float32."""
+    """
+    Return the mean electrons at S0 = 1 behind an ideal polarizer (float32).
+
+    Mean electrons at S0 = 1 behind an ideal polarizer: N0 (1 - DoP (p cos 2a - q sin 2a)),
+    float32.
+    """
     sa, ca = sincos32(a)
     one = np.float32(1.0)
     dp = min(max(dp, np.float32(0.0)), one)
     return n0 * (one - dp * (p * (ca * ca - sa * sa) - q * (np.float32(2.0) * sa * ca)))
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _malus_unit_er(a, dp, p, q, n0, d):  # pragma: no cover - compiled
-    """The same behind a polarizer of efficiency d = (ER - 1) / (ER + 1): DoP is seen as d DoP."""
+    """
+    Return the same behind a polarizer of finite extinction ratio.
+
+    The same behind a polarizer of efficiency d = (ER - 1) / (ER + 1): DoP is seen as d DoP.
+    """
     sa, ca = sincos32(a)
     one = np.float32(1.0)
     dp = min(max(dp, np.float32(0.0)), one)
@@ -462,10 +629,15 @@ def _malus_unit_er(a, dp, p, q, n0, d):  # pragma: no cover - compiled
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _mean_electrons_kernel(aop, dop, s0, has_s0, pq, n0, out):  # pragma: no cover - compiled
-    """lambda = N0 S0 (1 - DoP (p cos 2a - q sin 2a)) per pixel (ideal polarizers), (p, q) = (cos, sin)
-    2phi of the pixel's polarizer (row/column parity). float32 and branch-free inner loops so that they
-    vectorise (8 lanes; keep them that way: a select on a loaded S0 inside one loop made it 5x slower).
-    The float32 sine/cosine polynomials are good to ~1e-7. Non-finite or negative S0 count as 0."""
+    """
+    Compute the mean electrons per pixel behind ideal polarizers.
+
+    lambda = N0 S0 (1 - DoP (p cos 2a - q sin 2a)) per pixel (ideal polarizers), (p, q) = (cos,
+    sin) 2phi of the pixel's polarizer (row/column parity). float32 and branch-free inner loops so
+    that they vectorise (8 lanes; keep them that way: a select on a loaded S0 inside one loop made
+    it 5x slower). The float32 sine/cosine polynomials are good to ~1e-7. Non-finite or negative S0
+    count as 0.
+    """
     H, W = aop.shape
     n0f = np.float32(n0)
     zero = np.float32(0.0)
@@ -478,12 +650,14 @@ def _mean_electrons_kernel(aop, dop, s0, has_s0, pq, n0, out):  # pragma: no cov
                 odd = (j & 1) == 1
                 lam = _malus_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f)
                 sv = s0[i, j]
-                ok = (sv >= zero) & (sv < np.float32(1e30))           # NaN and inf fail both
+                ok = (sv >= zero) & (sv < np.float32(1e30))  # NaN and inf fail both
                 out[i, j] = lam * sv if ok else zero
         else:
             for j in range(W):
                 odd = (j & 1) == 1
-                out[i, j] = _malus_unit(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f)
+                out[i, j] = _malus_unit(
+                    aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f
+                )
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
@@ -500,26 +674,39 @@ def _mean_electrons_er_kernel(aop, dop, s0, has_s0, pq, n0, d, out):  # pragma: 
         if has_s0:
             for j in range(W):
                 odd = (j & 1) == 1
-                lam = _malus_unit_er(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+                lam = _malus_unit_er(
+                    aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df
+                )
                 sv = s0[i, j]
                 ok = (sv >= zero) & (sv < np.float32(1e30))
                 out[i, j] = lam * sv if ok else zero
         else:
             for j in range(W):
                 odd = (j & 1) == 1
-                out[i, j] = _malus_unit_er(aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df)
+                out[i, j] = _malus_unit_er(
+                    aop[i, j], dop[i, j], po if odd else pe, qo if odd else qe, n0f, df
+                )
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
-def _mean_electrons_cal_kernel(aop, dop, s0, has_s0, pmap, qmap, dmap, gain, n0, out):  # pragma: no cover
-    """lambda = g N0 S0 (1 - d DoP (p cos 2a - q sin 2a)) with (p, q) = (cos, sin) 2phi of the pixel's own
-    polarizer angle phi (camera frame, nominal + error), efficiency d and gain g (maps of the block)."""
+def _mean_electrons_cal_kernel(
+    aop, dop, s0, has_s0, pmap, qmap, dmap, gain, n0, out
+):  # pragma: no cover
+    """
+    Compute the mean electrons per pixel with calibration errors.
+
+    lambda = g N0 S0 (1 - d DoP (p cos 2a - q sin 2a)) with (p, q) = (cos, sin) 2phi of the pixel's
+    own polarizer angle phi (camera frame, nominal + error), efficiency d and gain g (maps of the
+    block).
+    """
     H, W = aop.shape
     n0f = np.float32(n0)
     zero = np.float32(0.0)
     for i in prange(H):
         for j in range(W):
-            lam = gain[i, j] * _malus_unit_er(aop[i, j], dop[i, j], pmap[i, j], qmap[i, j], n0f, dmap[i, j])
+            lam = gain[i, j] * _malus_unit_er(
+                aop[i, j], dop[i, j], pmap[i, j], qmap[i, j], n0f, dmap[i, j]
+            )
             if has_s0:
                 sv = s0[i, j]
                 ok = (sv >= zero) & (sv < np.float32(1e30))
@@ -529,7 +716,12 @@ def _mean_electrons_cal_kernel(aop, dop, s0, has_s0, pmap, qmap, dmap, gain, n0,
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _crosstalk_kernel(e, c, out):  # pragma: no cover - compiled
-    """out = (1 - 4c) e + c (sum of the 4 neighbours); a neighbour outside the block is the pixel itself."""
+    """
+    Add crosstalk: each pixel takes a share c of each of its 4 neighbours.
+
+    out = (1 - 4c) e + c (sum of the 4 neighbours); a neighbour outside the block is the pixel
+    itself.
+    """
     H, W = e.shape
     cf = np.float32(c)
     keep = np.float32(1.0) - np.float32(4.0) * cf
@@ -546,12 +738,24 @@ _CAL_TILE = 64
 
 
 @lru_cache(maxsize=4)
-def _calibration_pattern(seed: int, row0: int, col0: int, height: int, width: int, angle_sd_deg: float,
-                         er_spread: float, gain_rms: float):
-    """The fixed pattern of the block (row0, col0, height, width) of the sensor: angle error (rad), ER factor
-    and gain maps (float32/float64), or None for a component of zero spread. Drawn per 64 x 64 tile of the
-    sensor keyed by (seed, tile row, tile column), so a pixel's errors do not depend on the block that
-    contains it. Cached per block."""
+def _calibration_pattern(
+    seed: int,
+    row0: int,
+    col0: int,
+    height: int,
+    width: int,
+    angle_sd_deg: float,
+    er_spread: float,
+    gain_rms: float,
+):
+    """
+    Return the fixed calibration pattern of a sensor block.
+
+    The fixed pattern of the block (row0, col0, height, width) of the sensor: angle error (rad), ER
+    factor and gain maps (float32/float64), or None for a component of zero spread. Drawn per 64 x
+    64 tile of the sensor keyed by (seed, tile row, tile column), so a pixel's errors do not depend
+    on the block that contains it. Cached per block.
+    """
     shape = (height, width)
     ang = np.zeros(shape, np.float32) if angle_sd_deg > 0 else None
     erf = np.ones(shape) if er_spread > 0 else None
@@ -577,14 +781,28 @@ def _calibration_pattern(seed: int, row0: int, col0: int, height: int, width: in
     return ang, erf, g
 
 
-def calibration_maps(cfg: "SensorConfig", layout: MosaicLayout, shape, row0: int = 0, col0: int = 0):
-    """Per-pixel (polarizer angle phi (rad), efficiency d, gain) float32 maps of the block of ``shape`` whose
-    top-left pixel is (row0, col0) (0-based) of the full sensor, for ``cfg.calibration``; ``layout`` is the
-    block's (already shifted) layout."""
+def calibration_maps(
+    cfg: 'SensorConfig', layout: MosaicLayout, shape, row0: int = 0, col0: int = 0
+):
+    """
+    Return per-pixel polarizer angle, efficiency and gain maps of a sensor block.
+
+    Per-pixel (polarizer angle phi (rad), efficiency d, gain) float32 maps of the block of
+    ``shape`` whose top-left pixel is (row0, col0) (0-based) of the full sensor, for
+    ``cfg.calibration``; ``layout`` is the block's (already shifted) layout.
+    """
     c = cfg.calibration
     H, W = shape
-    ang, erf, g = _calibration_pattern(c["seed"], int(row0), int(col0), H, W, c["angle_error_deg"],
-                                       c["extinction_ratio_spread"], c["gain_rms"])
+    ang, erf, g = _calibration_pattern(
+        c['seed'],
+        int(row0),
+        int(col0),
+        H,
+        W,
+        c['angle_error_deg'],
+        c['extinction_ratio_spread'],
+        c['gain_rms'],
+    )
     nominal = np.radians(np.asarray(layout.camera_angles_deg, dtype=float)).reshape(2, 2)
     phi = np.tile(nominal, (H // 2 + 1, W // 2 + 1))[:H, :W].astype(np.float32)
     if ang is not None:
@@ -598,33 +816,43 @@ def calibration_maps(cfg: "SensorConfig", layout: MosaicLayout, shape, row0: int
     return np.ascontiguousarray(phi), np.ascontiguousarray(dmap), np.ascontiguousarray(gain)
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _row_normals(key, b0, W):  # pragma: no cover - compiled
-    """Standard normals (float32) of pixels b0 ... b0 + W - 1: pixel n's normal starts at counter n * 1024.
-    (1) the ziggurat's fast path for every pixel, branch-free so that it vectorises, flagging the ~1.5 %
-    that need the slow path; (2) those, scalar. Equal to :func:`standard_normal_f32` element by element."""
+    """
+    Draw standard normals (float32) for a row of pixels.
+
+    Standard normals (float32) of pixels b0 ... b0 + W - 1: pixel n's normal starts at counter n *
+    1024. (1) the ziggurat's fast path for every pixel, branch-free so that it vectorises, flagging
+    the ~1.5 % that need the slow path; (2) those, scalar. Equal to :func:`standard_normal_f32`
+    element by element.
+    """
     stride = np.uint64(_DRAWS_PER_ELEMENT)
     z_row = np.empty(W, np.float32)
     slow = np.empty(W, np.bool_)
-    for j in range(W):                                   # (1) ziggurat fast path
+    for j in range(W):  # (1) ziggurat fast path
         z = _splitmix(key, (b0 + np.uint64(j)) * stride)
         k = np.int64(z & np.uint64(0xFF))
         neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
         x = np.float64(np.int64(z >> np.uint64(11))) * (1.0 / 9007199254740992.0) * _ZW[k]
         slow[j] = x >= _ZX[k]
         z_row[j] = np.float32(-x if neg else x)
-    for j in range(W):                                   # (2) its slow path
+    for j in range(W):  # (2) its slow path
         if slow[j]:
             z_row[j] = np.float32(_normal(key, (b0 + np.uint64(j)) * stride))
     return z_row
 
 
-# Noise kernels. Pixel (i, j) of a W-wide image owns the counters ``(i W + j) * 1024 + [0, 1024)``: its
-# normal starts at 0, the read noise of a Poisson pixel at 512. Results do not depend on the thread count.
+# Noise kernels. Pixel (i, j) of a W-wide image owns the counters ``(i W + j) * 1024 + [0, 1024)``:
+# its normal starts at 0, the read noise of a Poisson pixel at 512. Results do not depend on the
+# thread count.
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _shot_noise_kernel(e, key, gauss_above):  # pragma: no cover - compiled
-    """Photon shot noise on the mean electrons ``e`` (in place): Gaussian of variance lambda where
-    lambda >= gauss_above, exact Poisson below."""
+    """
+    Add photon shot noise to the mean electrons ``e`` in place.
+
+    Photon shot noise on the mean electrons ``e`` (in place): Gaussian of variance lambda where
+    lambda >= gauss_above, exact Poisson below.
+    """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
     for i in prange(H):
@@ -655,8 +883,13 @@ def _read_noise_kernel(e, key, read_sigma):  # pragma: no cover - compiled
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _shot_read_noise_kernel(e, key, gauss_above, read_sigma):  # pragma: no cover - compiled
-    """Shot and read noise on ``e`` (in place): one Gaussian draw of variance lambda + sigma^2 where
-    lambda >= gauss_above (independent Gaussians add), else exact Poisson plus a Gaussian read draw."""
+    """
+    Add shot and read noise to ``e`` in place.
+
+    Shot and read noise on ``e`` (in place): one Gaussian draw of variance lambda + sigma^2 where
+    lambda >= gauss_above (independent Gaussians add), else exact Poisson plus a Gaussian read
+    draw.
+    """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
     var_read = read_sigma * read_sigma
@@ -673,13 +906,15 @@ def _shot_read_noise_kernel(e, key, gauss_above, read_sigma):  # pragma: no cove
                 lam = np.float64(row[j])
                 if lam < gauss_above:
                     base = (b0 + np.uint64(j)) * stride
-                    v = np.float64(_poisson_small(key, base, lam)) + read_sigma * _normal(key, base + np.uint64(512))
+                    v = np.float64(_poisson_small(key, base, lam)) + read_sigma * _normal(
+                        key, base + np.uint64(512)
+                    )
                     row[j] = np.float32(v)
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _saturate_kernel(e, full_well):  # pragma: no cover - compiled
-    """The full well: e = min(e, full_well) in place (float32)."""
+    """Clip to the full well: e = min(e, full_well) in place (float32)."""
     ef = e.reshape(-1)
     fw = np.float32(full_well)
     for n in prange(ef.size):
@@ -695,12 +930,16 @@ def _quantize_kernel(e, gain, max_dn, out):  # pragma: no cover - compiled
     for n in prange(ef.size):
         x = np.float32(ef[n]) * gain + np.float32(0.5)
         x = min(max(x, np.float32(0.0)), top)
-        of[n] = np.uint16(x)                            # <= max_dn, so exact for a uint8 output too
+        of[n] = np.uint16(x)  # <= max_dn, so exact for a uint8 output too
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
 def _saturate_quantize_kernel(e, full_well, gain, max_dn, out):  # pragma: no cover - compiled
-    """:func:`_saturate_kernel` then :func:`_quantize_kernel` in one pass (``e`` is left unclipped)."""
+    """
+    Saturate and quantise in one pass.
+
+    :func:`_saturate_kernel` then :func:`_quantize_kernel` in one pass (``e`` is left unclipped).
+    """
     ef = e.reshape(-1)
     of = out.reshape(-1)
     top = np.float32(max_dn)
@@ -711,22 +950,34 @@ def _saturate_quantize_kernel(e, full_well, gain, max_dn, out):  # pragma: no co
         of[n] = np.uint16(x)
 
 
-def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, rng: np.random.Generator,
-                    block_origin: tuple[int, int] = (0, 0)):
-    """The raw image of a pixel block: float32 electrons, or uint8/uint16 DN if quantised.
+def simulate_mosaic(
+    aop_rad,
+    dop,
+    s0,
+    cfg: SensorConfig,
+    layout: MosaicLayout,
+    rng: np.random.Generator,
+    block_origin: tuple[int, int] = (0, 0),
+):
+    """
+    Return the raw image of a pixel block (electrons or DN).
 
-    ``aop_rad``/``dop``/``s0`` (or ``s0=None`` for S0 = 1): 2-D float arrays of the block; ``layout``
-    already shifted to the block's top-left pixel, ``block_origin`` that pixel's 0-based (row, col) on the
-    full sensor (where the calibration pattern is read). Only the kernels of declared effects run; each
-    run is counted in ``instrumentation`` (see ``_IMPLEMENTS``).
+    The raw image of a pixel block: float32 electrons, or uint8/uint16 DN if quantised.
+
+    ``aop_rad``/``dop``/``s0`` (or ``s0=None`` for S0 = 1): 2-D float arrays of the block;
+    ``layout`` already shifted to the block's top-left pixel, ``block_origin`` that pixel's 0-based
+    (row, col) on the full sensor (where the calibration pattern is read). Only the kernels of
+    declared effects run; each run is counted in ``instrumentation`` (see ``_IMPLEMENTS``).
     """
     aop = np.ascontiguousarray(aop_rad, dtype=np.float32)
     dp = np.ascontiguousarray(dop, dtype=np.float32)
     has_s0 = s0 is not None
     s0a = np.ascontiguousarray(s0, dtype=np.float32) if has_s0 else np.empty((1, 1), np.float32)
     if aop.ndim != 2 or dp.shape != aop.shape or (has_s0 and s0a.shape != aop.shape):
-        raise SensorError(f"aop, dop and intensity must be 2-D images of one shape, got {aop.shape}, {dp.shape}"
-                          + (f", {s0a.shape}" if has_s0 else ""))
+        raise SensorError(
+            f'aop, dop and intensity must be 2-D images of one shape, got {aop.shape}, {dp.shape}'
+            + (f', {s0a.shape}' if has_s0 else '')
+        )
     phi = np.radians(layout.camera_angles_deg)
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
@@ -735,44 +986,44 @@ def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, r
         two_phi = 2.0 * phi_map.astype(np.float64)
         pmap, qmap = np.cos(two_phi).astype(np.float32), np.sin(two_phi).astype(np.float32)
         if cfg.extinction_ratio is not None:
-            instr.count("sensor.extinction_ratio")        # the calibration kernel applies it per pixel
-        _count("_mean_electrons_cal_kernel")
+            instr.count('sensor.extinction_ratio')  # the calibration kernel applies it per pixel
+        _count('_mean_electrons_cal_kernel')
         _mean_electrons_cal_kernel(aop, dp, s0a, has_s0, pmap, qmap, dmap, gain, cfg.n0_e, e)
-        if cfg.calibration["crosstalk"] > 0:
+        if cfg.calibration['crosstalk'] > 0:
             e2 = np.empty_like(e)
-            _count("_crosstalk_kernel")
-            _crosstalk_kernel(e, cfg.calibration["crosstalk"], e2)
+            _count('_crosstalk_kernel')
+            _crosstalk_kernel(e, cfg.calibration['crosstalk'], e2)
             e = e2
     elif cfg.extinction_ratio is None:
-        _count("_mean_electrons_kernel")
+        _count('_mean_electrons_kernel')
         _mean_electrons_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, e)
     else:
-        _count("_mean_electrons_er_kernel")
+        _count('_mean_electrons_er_kernel')
         _mean_electrons_er_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
     shot, read = cfg.shot_gaussian_above_e, cfg.read_sigma_e
     if shot is not None or read is not None:
-        key = np.uint64(int(rng.integers(0, 2 ** 63, dtype=np.int64)))
+        key = np.uint64(int(rng.integers(0, 2**63, dtype=np.int64)))
         if read is None:
-            _count("_shot_noise_kernel")
+            _count('_shot_noise_kernel')
             _shot_noise_kernel(e, key, shot)
         elif shot is None:
-            _count("_read_noise_kernel")
+            _count('_read_noise_kernel')
             _read_noise_kernel(e, key, read)
         else:
-            _count("_shot_read_noise_kernel")
+            _count('_shot_read_noise_kernel')
             _shot_read_noise_kernel(e, key, shot, read)
     if cfg.bits is None:
         if cfg.saturates:
-            _count("_saturate_kernel")
+            _count('_saturate_kernel')
             _saturate_kernel(e, cfg.full_well_e)
         return e
     out = np.empty(e.shape, np.uint8 if cfg.bits <= 8 else np.uint16)
     gain = np.float32(cfg.max_dn / cfg.full_well_e)
     if cfg.saturates:
-        _count("_saturate_quantize_kernel")
+        _count('_saturate_quantize_kernel')
         _saturate_quantize_kernel(e, cfg.full_well_e, gain, cfg.max_dn, out)
     else:
-        _count("_quantize_kernel")
+        _count('_quantize_kernel')
         _quantize_kernel(e, gain, cfg.max_dn, out)
     return out
 
@@ -781,30 +1032,46 @@ def simulate_mosaic(aop_rad, dop, s0, cfg: SensorConfig, layout: MosaicLayout, r
 # Superpixel geometry and the ideal values at superpixels
 # ------------------------------------------------------------------------------------------------
 @lru_cache(maxsize=16)
-def superpixel_pixels(camera: CameraModel, x0_px: float, y0_px: float, rows: int, cols: int) -> SelectedPixels:
-    """Centres of the 2 x 2 blocks of a ``rows`` x ``cols`` block whose top-left pixel is (x0, y0),
-    1-based: ``x = x0 + 2l + 0.5``, ``y = y0 + 2k + 0.5``; rays from the camera model. Cached."""
+def superpixel_pixels(
+    camera: CameraModel, x0_px: float, y0_px: float, rows: int, cols: int
+) -> SelectedPixels:
+    """
+    Return the centres and rays of the 2 x 2 blocks of a pixel block (cached).
+
+    Centres of the 2 x 2 blocks of a ``rows`` x ``cols`` block whose top-left pixel is (x0, y0),
+    1-based: ``x = x0 + 2l + 0.5``, ``y = y0 + 2k + 0.5``; rays from the camera model. Cached.
+    """
     xs = float(x0_px) + 0.5 + 2.0 * np.arange(cols // 2)
     ys = float(y0_px) + 0.5 + 2.0 * np.arange(rows // 2)
     xg, yg = np.meshgrid(xs, ys)
     rays, ok = camera.rays_from_pixels(xg, yg)
-    p = SelectedPixels(xg.shape, xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(xg.shape))
+    p = SelectedPixels(
+        xg.shape, xg, yg, np.ascontiguousarray(rays.astype(np.float32)), ok.reshape(xg.shape)
+    )
     for a in (p.x_px, p.y_px, p.rays_cam, p.has_ray):
         a.setflags(write=False)
     return p
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _ideal_stokes(a, p, sv):  # pragma: no cover - compiled
-    """Camera-frame (S0, S1, S2) of an ideal pixel: S1 = -S0 P cos 2a, S2 = S0 P sin 2a (float32)."""
+    """
+    Return the camera-frame Stokes vector (S0, S1, S2) of an ideal pixel.
+
+    Camera-frame (S0, S1, S2) of an ideal pixel: S1 = -S0 P cos 2a, S2 = S0 P sin 2a (float32).
+    """
     sa, ca = sincos32(a)
     sp = sv * p
     return sv, -sp * (ca * ca - sa * sa), sp * (np.float32(2.0) * sa * ca)
 
 
-@njit(inline="always", fastmath=_FM, cache=True)
+@njit(inline='always', fastmath=_FM, cache=True)
 def _ideal_block(aop, dop, valid, i, j, w0, w1, w2, w3):  # pragma: no cover - compiled
-    """(aop, dop, valid, mean S0) of the mean ideal Stokes vector of the block at (i, j), S0 = w0..w3."""
+    """
+    Return AoP, DoP, validity and mean S0 of the ideal block at (i, j).
+
+    (aop, dop, valid, mean S0) of the mean ideal Stokes vector of the block at (i, j), S0 = w0..w3.
+    """
     a0, b0, c0 = _ideal_stokes(aop[i, j], dop[i, j], w0)
     a1, b1, c1 = _ideal_stokes(aop[i, j + 1], dop[i, j + 1], w1)
     a2, b2, c2 = _ideal_stokes(aop[i + 1, j], dop[i + 1, j], w2)
@@ -813,14 +1080,20 @@ def _ideal_block(aop, dop, valid, i, j, w0, w1, w2, w3):  # pragma: no cover - c
     q = np.float32(0.25)
     t0 = q * ((a0 + a1) + (a2 + a3))
     a, d, ok = _finish(t0, q * ((b0 + b1) + (b2 + b3)), q * ((c0 + c1) + (c2 + c3)), ok)
-    t0 = t0 if (t0 >= np.float32(0.0)) & (t0 < np.float32(np.inf)) else np.float32(0.0)   # NaN -> 0
+    t0 = t0 if (t0 >= np.float32(0.0)) & (t0 < np.float32(np.inf)) else np.float32(0.0)  # NaN -> 0
     return a, d, ok, t0
 
 
 @njit(parallel=True, fastmath=_FM, cache=True)
-def _ideal_superpixel_kernel(aop, dop, valid, s0, has_s0, out_aop, out_dop, out_valid, out_s0):  # pragma: no cover
-    """Block means of the ideal Stokes vectors and the AoP/DoP of the mean (float32); valid if all
-    four pixels are; ``out_s0`` the block mean of S0 (1 without a radiance model)."""
+def _ideal_superpixel_kernel(
+    aop, dop, valid, s0, has_s0, out_aop, out_dop, out_valid, out_s0
+):  # pragma: no cover
+    """
+    Compute block means of the ideal Stokes vectors and their AoP/DoP.
+
+    Block means of the ideal Stokes vectors and the AoP/DoP of the mean (float32); valid if all
+    four pixels are; ``out_s0`` the block mean of S0 (1 without a radiance model).
+    """
     H2, W2 = out_aop.shape
     one = np.float32(1.0)
     for k in prange(H2):
@@ -829,29 +1102,40 @@ def _ideal_superpixel_kernel(aop, dop, valid, s0, has_s0, out_aop, out_dop, out_
             for l in range(W2):
                 j = 2 * l
                 out_aop[k, l], out_dop[k, l], out_valid[k, l], out_s0[k, l] = _ideal_block(
-                    aop, dop, valid, i, j, s0[i, j], s0[i, j + 1], s0[i + 1, j], s0[i + 1, j + 1])
+                    aop, dop, valid, i, j, s0[i, j], s0[i, j + 1], s0[i + 1, j], s0[i + 1, j + 1]
+                )
         else:
             for l in range(W2):
                 out_aop[k, l], out_dop[k, l], out_valid[k, l], out_s0[k, l] = _ideal_block(
-                    aop, dop, valid, i, 2 * l, one, one, one, one)
+                    aop, dop, valid, i, 2 * l, one, one, one, one
+                )
 
 
 # ------------------------------------------------------------------------------------------------
 # The pipeline
 # ------------------------------------------------------------------------------------------------
 class SensorPipeline:
-    """Declared sensor effects for one camera. Build with :meth:`from_config`; call :meth:`apply`."""
+    """
+    Declared sensor effects for one camera.
+
+    Build with :meth:`from_config`; call
+    :meth:`apply`.
+    """
 
     def __init__(self, config: SensorConfig, camera: CameraModel):
         self.config = config
         self.camera = camera
 
     @staticmethod
-    def from_config(sensor_cfg: dict, camera: CameraModel) -> "SensorPipeline":
-        """Validate a scene's ``sensor:`` mapping (raises :class:`SensorError` naming the bad value)."""
+    def from_config(sensor_cfg: dict, camera: CameraModel) -> 'SensorPipeline':
+        """
+        Validate a scene's ``sensor:`` mapping.
+
+        Validate a scene's ``sensor:`` mapping (raises :class:`SensorError` naming the bad value).
+        """
         cfg = parse_sensor_config(sensor_cfg)
         if camera.width_px < 2 or camera.height_px < 2:
-            raise SensorError("a polarization mosaic needs a camera of at least 2 x 2 pixels")
+            raise SensorError('a polarization mosaic needs a camera of at least 2 x 2 pixels')
         return SensorPipeline(cfg, camera)
 
     def params(self) -> dict:
@@ -861,43 +1145,80 @@ class SensorPipeline:
         """1-based (x0, y0) of a contiguous, unit-stride pixel block; SensorError otherwise."""
         p = frame.pixels
         if len(p.shape) != 2 or p.shape[0] < 2 or p.shape[1] < 2:
-            raise SensorError(f"sensor effects need a 2-D block of at least 2 x 2 pixels, got shape {p.shape}")
+            raise SensorError(
+                f'sensor effects need a 2-D block of at least 2 x 2 pixels, got shape {p.shape}'
+            )
         x, y = p.x_px, p.y_px
         if not (x[0, 1] - x[0, 0] == 1.0 and y[1, 0] - y[0, 0] == 1.0):
-            raise SensorError("sensor effects need contiguous pixels (pixels.mode full, or region with stride 1): "
-                              "a mosaic has no meaning on a strided subset")
+            raise SensorError(
+                'sensor effects need contiguous pixels (pixels.mode full, or region with stride '
+                '1): '
+                'a mosaic has no meaning on a strided subset'
+            )
         return float(x[0, 0]), float(y[0, 0])
 
     def apply(self, frame, rng: np.random.Generator) -> None:
-        """Mosaic, declared noise/quantisation, demosaic: replaces the frame's AoP/DoP/valid in place."""
+        """
+        Apply the mosaic, noise, quantisation and demosaic to a frame in place.
+
+        Mosaic, declared noise/quantisation, demosaic: replaces the frame's AoP/DoP/valid in place.
+        """
         cfg = self.config
         x0, y0 = self._block_origin(frame)
         dy, dx = int(round(y0 - 1)) % 2, int(round(x0 - 1)) % 2
         layout = cfg.layout.shifted(dy, dx)
         frame.aop_ideal_rad = frame.aop_rad
         frame.dop_ideal = frame.dop
-        frame.mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, cfg, layout, rng,
-                                       (int(round(y0 - 1)), int(round(x0 - 1))))
+        frame.mosaic = simulate_mosaic(
+            frame.aop_rad,
+            frame.dop,
+            frame.intensity,
+            cfg,
+            layout,
+            rng,
+            (int(round(y0 - 1)), int(round(x0 - 1))),
+        )
         sat = cfg.saturation_level
-        with instr.stage("sensor.demosaic." + cfg.demosaic):
-            aop, dop, valid = polarization_from_mosaic(frame.mosaic, layout, layout.pol45_toward, cfg.demosaic,
-                                                       saturation_level=sat)
+        with instr.stage('sensor.demosaic.' + cfg.demosaic):
+            aop, dop, valid = polarization_from_mosaic(
+                frame.mosaic, layout, layout.pol45_toward, cfg.demosaic, saturation_level=sat
+            )
         ideal_valid = np.ascontiguousarray(frame.valid)
-        if cfg.demosaic == "bilinear":
+        if cfg.demosaic == 'bilinear':
             import cv2
-            eroded = cv2.erode(ideal_valid.view(np.uint8), np.ones((3, 3), np.uint8),
-                               borderType=cv2.BORDER_REFLECT_101).view(np.bool_)
+
+            eroded = cv2.erode(
+                ideal_valid.view(np.uint8),
+                np.ones((3, 3), np.uint8),
+                borderType=cv2.BORDER_REFLECT_101,
+            ).view(np.bool_)
             valid &= eroded
         else:
             rows, cols = frame.aop_rad.shape
             shape = (rows // 2, cols // 2)
-            ia, idp, iv, is0 = (np.empty(shape, np.float32), np.empty(shape, np.float32),
-                                np.empty(shape, np.bool_), np.empty(shape, np.float32))
+            ia, idp, iv, is0 = (
+                np.empty(shape, np.float32),
+                np.empty(shape, np.float32),
+                np.empty(shape, np.bool_),
+                np.empty(shape, np.float32),
+            )
             has_s0 = frame.intensity is not None
-            s0 = np.ascontiguousarray(frame.intensity, dtype=np.float32) if has_s0 else np.empty((1, 1), np.float32)
-            _ideal_superpixel_kernel(np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
-                                     np.ascontiguousarray(frame.dop, dtype=np.float32), ideal_valid, s0, has_s0,
-                                     ia, idp, iv, is0)
+            s0 = (
+                np.ascontiguousarray(frame.intensity, dtype=np.float32)
+                if has_s0
+                else np.empty((1, 1), np.float32)
+            )
+            _ideal_superpixel_kernel(
+                np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
+                np.ascontiguousarray(frame.dop, dtype=np.float32),
+                ideal_valid,
+                s0,
+                has_s0,
+                ia,
+                idp,
+                iv,
+                is0,
+            )
             frame.pixels = superpixel_pixels(self.camera, x0, y0, rows, cols)
             iv &= frame.pixels.has_ray
             valid &= iv

@@ -1,13 +1,27 @@
-"""Sky polarization models, evaluated in the camera frame.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sky polarization models, evaluated in the camera frame.
 
 Every model answers, for unit viewing rays in the camera frame, the angle of polarization in the
 paper's eq 28 convention (folded to [-pi/2, pi/2)), the degree of polarization and which pixels are
 valid: ``model.polarization(sun_cam, zenith_cam, rays_cam, limits) -> (aop, dop, valid)`` with
-``limits = (cos sun-exclusion radius, sin minimum altitude, minimum DoP)``; invalid pixels hold
-aop = dop = 0 (models that do not fuse validity use :func:`validity_kernel`). Working in the
-camera frame is exact and cheap: a rotation commutes with the cross product, so
-``R^T (S x P) = (R^T S) x (R^T P)`` and only the sun and zenith vectors are rotated per frame, never
-the millions of rays.
+``limits = (cos sun-exclusion radius, sin minimum altitude, minimum DoP)``; invalid pixels hold aop
+= dop = 0 (models that do not fuse validity use :func:`validity_kernel`). Working in the camera
+frame is exact and cheap: a rotation commutes with the cross product, so ``R^T (S x P) = (R^T S) x
+(R^T P)`` and only the sun and zenith vectors are rotated per frame, never the millions of rays.
 
 Models
 ------
@@ -16,17 +30,20 @@ Models
 
 The models by name, and building one from a scene's ``sky`` mapping, are
 :mod:`~polarization_compass.sky_models` (:func:`~polarization_compass.sky_models.make_sky_model`).
+
 """
+
 from __future__ import annotations
 
 import math
-import numpy as np
+
 from numba import njit, prange
+import numpy as np
 
 from .errors import CompassError
 from .fastmath import axial_atan2_f32
 
-__all__ = ["RayleighSky", "SkyModelError", "rayleigh_reference", "validity_kernel"]
+__all__ = ['RayleighSky', 'SkyModelError', 'rayleigh_reference', 'validity_kernel']
 
 
 class SkyModelError(CompassError):
@@ -36,13 +53,14 @@ class SkyModelError(CompassError):
 def _check_dop_max(dop_max) -> float:
     d = float(dop_max)
     if not (math.isfinite(d) and 0.0 < d <= 1.0):
-        raise SkyModelError(f"dop_max must be in (0, 1], got {dop_max!r}")
+        raise SkyModelError(f'dop_max must be in (0, 1], got {dop_max!r}')
     return d
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _rayleigh_kernel(rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop,
-                     aop, dop, valid):  # pragma: no cover - compiled
+def _rayleigh_kernel(
+    rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop, aop, dop, valid
+):  # pragma: no cover - compiled
     """Fused Rayleigh AoP/DoP and validity. Invalid pixels get aop = dop = 0."""
     n = rays.shape[1]
     one = np.float32(1.0)
@@ -51,7 +69,7 @@ def _rayleigh_kernel(rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_mi
         rx = rays[0, i]
         ry = rays[1, i]
         rz = rays[2, i]
-        ex = sy * rz - sz * ry          # E = S x P (camera frame)
+        ex = sy * rz - sz * ry  # E = S x P (camera frame)
         ey = sz * rx - sx * rz
         c = sx * rx + sy * ry + sz * rz  # cos(scattering angle)
         c2 = c * c
@@ -65,30 +83,40 @@ def _rayleigh_kernel(rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_mi
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def validity_kernel(rays, sx, sy, sz, zx, zy, zz, cos_sun_excl, sin_min_alt, min_dop, dop, valid):  # pragma: no cover
-    """Validity for models that do not fuse it: outside the sun disk, above the horizon, DoP >= min."""
+def validity_kernel(
+    rays, sx, sy, sz, zx, zy, zz, cos_sun_excl, sin_min_alt, min_dop, dop, valid
+):  # pragma: no cover
+    """
+    Compute validity for models that do not fuse it.
+
+    Validity for models that do not fuse it: outside the sun disk, above the horizon, DoP >= min.
+    """
     n = rays.shape[1]
     for i in prange(n):
         rx = rays[0, i]
         ry = rays[1, i]
         rz = rays[2, i]
-        valid[i] = ((sx * rx + sy * ry + sz * rz <= cos_sun_excl)
-                    & (zx * rx + zy * ry + zz * rz >= sin_min_alt) & (dop[i] >= min_dop))
+        valid[i] = (
+            (sx * rx + sy * ry + sz * rz <= cos_sun_excl)
+            & (zx * rx + zy * ry + zz * rz >= sin_min_alt)
+            & (dop[i] >= min_dop)
+        )
 
 
 class RayleighSky:
     """Single-scattering Rayleigh sky (eqs 11-19). ``dop_max`` in (0, 1]."""
 
-    name = "rayleigh"
+    name = 'rayleigh'
 
     def __init__(self, dop_max: float = 1.0):
         self.dop_max = _check_dop_max(dop_max)
 
     def params(self) -> dict:
-        return {"model": self.name, "dop_max": self.dop_max}
+        return {'model': self.name, 'dop_max': self.dop_max}
 
     def polarization(self, sun_cam, zenith_cam, rays_cam, limits=(1.0, -1.0, 0.0)):
-        """AoP (rad, [-pi/2, pi/2)), DoP (float32, (N,)) and validity (bool) for rays (3, N) float32.
+        """
+        Return the AoP (rad, [-pi/2, pi/2)), DoP and validity for rays (3, N) float32.
 
         ``limits`` = (cos of the sun-exclusion radius, sin of the minimum altitude, minimum DoP);
         the default accepts every pixel. Invalid pixels get aop = dop = 0.
@@ -101,24 +129,46 @@ class RayleighSky:
         s = np.asarray(sun_cam, dtype=np.float64)
         z = np.asarray(zenith_cam, dtype=np.float64)
         f32 = np.float32
-        _rayleigh_kernel(rays, f32(s[0]), f32(s[1]), f32(s[2]), f32(z[0]), f32(z[1]), f32(z[2]),
-                         f32(self.dop_max), f32(limits[0]), f32(limits[1]), f32(limits[2]), aop, dop, valid)
+        _rayleigh_kernel(
+            rays,
+            f32(s[0]),
+            f32(s[1]),
+            f32(s[2]),
+            f32(z[0]),
+            f32(z[1]),
+            f32(z[2]),
+            f32(self.dop_max),
+            f32(limits[0]),
+            f32(limits[1]),
+            f32(limits[2]),
+            aop,
+            dop,
+            valid,
+        )
         return aop, dop, valid
 
 
-def rayleigh_reference(sun_azimuth_deg, sun_altitude_deg, view_azimuth_deg, view_altitude_deg, dop_max=1.0):
-    """The paper's own formulas, eqs 11, 14, 16-18, in ENU (float64). For tests: an independent path.
+def rayleigh_reference(
+    sun_azimuth_deg, sun_altitude_deg, view_azimuth_deg, view_altitude_deg, dop_max=1.0
+):
+    """
+    Compute the paper's own formulas, eqs 11, 14, 16-18, in ENU (float64).
+
+    The paper's own formulas, eqs 11, 14, 16-18, in ENU (float64). For tests: an independent path.
 
     Returns (E_enu (..., 3) unit, DoP). Eq 18 divides by sin(gamma): undefined at the sun/anti-sun.
     """
     As, hs = np.radians(sun_azimuth_deg), np.radians(sun_altitude_deg)
     Ap, hp = np.radians(view_azimuth_deg), np.radians(view_altitude_deg)
     cos_g = np.sin(hp) * np.sin(hs) + np.cos(hp) * np.cos(hs) * np.cos(As - Ap)
-    sin_g = np.sqrt(np.clip(1 - cos_g ** 2, 0, None))
-    e = np.stack([
-        (np.cos(As) * np.sin(hp) * np.cos(hs) - np.cos(Ap) * np.cos(hp) * np.sin(hs)) / sin_g,
-        (-np.sin(As) * np.sin(hp) * np.cos(hs) + np.sin(Ap) * np.cos(hp) * np.sin(hs)) / sin_g,
-        np.sin(As - Ap) * np.cos(hs) * np.cos(hp) / sin_g,
-    ], axis=-1)
-    dop = dop_max * sin_g ** 2 / (1 + cos_g ** 2)
+    sin_g = np.sqrt(np.clip(1 - cos_g**2, 0, None))
+    e = np.stack(
+        [
+            (np.cos(As) * np.sin(hp) * np.cos(hs) - np.cos(Ap) * np.cos(hp) * np.sin(hs)) / sin_g,
+            (-np.sin(As) * np.sin(hp) * np.cos(hs) + np.sin(Ap) * np.cos(hp) * np.sin(hs)) / sin_g,
+            np.sin(As - Ap) * np.cos(hs) * np.cos(hp) / sin_g,
+        ],
+        axis=-1,
+    )
+    dop = dop_max * sin_g**2 / (1 + cos_g**2)
     return e, dop

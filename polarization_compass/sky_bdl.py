@@ -1,4 +1,19 @@
-"""Berry-Dennis-Lee (2004) neutral-point sky, evaluated in the camera frame.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Berry-Dennis-Lee (2004) neutral-point sky, evaluated in the camera frame.
 
 M. V. Berry, M. R. Dennis and R. L. Lee Jr, "Polarization singularities in the clear sky",
 New J. Phys. 6 (2004) 162. Single (Rayleigh) scattering has two index +1 singularities of the
@@ -22,59 +37,66 @@ with z_B, z_R Babinet and Brewster, and z_F = -1/conj(z_B), z_A = -1/conj(z_R) t
 
 Frame-independent form used here (derivation)
 ---------------------------------------------
-1. Chord lengths on the unit sphere: |p - q| = 2|zeta_p - zeta_q| / sqrt((1+|zeta_p|^2)(1+|zeta_q|^2)).
-   For an antipodal pair (n, -n) and a sky point P this gives
-   2 |zeta - z_n| |zeta - z_-n| / ((1 + |zeta|^2) |z_n - z_-n|) = 2 sin(g/2) cos(g/2) = |P x n|,
-   g the angle between P and n. Hence |w| = |P x n_B| |P x n_R|: the product of the sines of the
+1. Chord lengths on the unit sphere: |p - q| = 2|zeta_p - zeta_q| /
+   sqrt((1+|zeta_p|^2)(1+|zeta_q|^2)). For an antipodal pair (n, -n) and a sky point P this gives 2
+   |zeta - z_n| |zeta - z_-n| / ((1 + |zeta|^2) |z_n - z_-n|) = 2 sin(g/2) cos(g/2) = |P x n|, g
+   the angle between P and n. Hence |w| = |P x n_B| |P x n_R|: the product of the sines of the
    angular distances from P to Babinet and to Brewster. With n_B = n_R = S this is sin^2(gamma).
-2. Phase: for three points z1, z2, z of a circle, (z - z1)(z - z2)/(z2 - z1) is (a positive multiple
-   of) the tangent of the circle at z pointing towards z1 along the arc that avoids z2. The great
-   circle through P and n passes through -n, and stereographic projection maps it to a circle
-   and preserves angles, so arg[(zeta - z_n)(zeta - z_-n)] = theta_n + arg(z_-n - z_n), where
-   theta_n is the angle of the tangent t_n at P of the geodesic from P to n. Both constants
-   arg(z_F - z_B) and arg(z_A - z_R) equal arg(z_sun) + pi, so the constant phase is removed exactly
-   and 2 chi = pi + theta_B + theta_R: the E-vector is perpendicular to the bisector of the
+2. Phase: for three points z1, z2, z of a circle, (z - z1)(z - z2)/(z2 - z1) is (a positive
+   multiple of) the tangent of the circle at z pointing towards z1 along the arc that avoids z2.
+   The great circle through P and n passes through -n, and stereographic projection maps it to a
+   circle and preserves angles, so arg[(zeta - z_n)(zeta - z_-n)] = theta_n + arg(z_-n - z_n),
+   where theta_n is the angle of the tangent t_n at P of the geodesic from P to n. Both constants
+   arg(z_F - z_B) and arg(z_A - z_R) equal arg(z_sun) + pi, so the constant phase is removed
+   exactly and 2 chi = pi + theta_B + theta_R: the E-vector is perpendicular to the bisector of the
    geodesic directions from P towards Babinet and towards Brewster. The relation is covariant under
    any rotation or reflection of the local basis, so no basis (and no projection pole) is needed.
 3. In 3-D: a = n_B - (n_B . P) P and b = n_R - (n_R . P) P (|a| = |P x n_B|, |b| = |P x n_R|).
-   The bisector is s = |b| a + |a| b; the E axis is P x s, or equivalently d = |b| a - |a| b (the
-   two are parallel axes, s perpendicular to d). The kernel uses whichever of s, d is longer, so it
-   never divides and stays exact both where a ~ b (Rayleigh limit: E ~ P x S = -(S x P)) and where
-   a ~ -b (between Babinet and Brewster, and between Arago and the fourth point: E parallel to the
-   solar meridian, "negative" polarization). AoP is then atan2(E_x, E_y) folded to [-pi/2, pi/2)
-   exactly as in :class:`sky.RayleighSky` (paper eq 28).
+The bisector is s = |b| a + |a| b; the E axis is P x s, or equivalently d = |b| a - |a| b (the
+two are parallel axes, s perpendicular to d). The kernel uses whichever of s, d is longer, so it
+never divides and stays exact both where a ~ b (Rayleigh limit: E ~ P x S = -(S x P)) and where
+a ~ -b (between Babinet and Brewster, and between Arago and the fourth point: E parallel to the
+solar meridian, "negative" polarization). AoP is then atan2(E_x, E_y) folded to [-pi/2, pi/2)
+exactly as in :class:`sky.RayleighSky` (paper eq 28).
 4. DoP: BDL's |w| plays the role of Rayleigh's polarized intensity sin^2(gamma), and the total
-   intensity 1 + cos^2(gamma) = 2 - sin^2(gamma) becomes 2 - |w|, so
-   DoP = dop_max |w| / (2 - |w|); with separation 0 it is exactly Rayleigh's
-   dop_max sin^2(gamma) / (1 + cos^2(gamma)). |w| <= 1, so DoP is in [0, dop_max].
+intensity 1 + cos^2(gamma) = 2 - sin^2(gamma) becomes 2 - |w|, so
+DoP = dop_max |w| / (2 - |w|); with separation 0 it is exactly Rayleigh's
+dop_max sin^2(gamma) / (1 + cos^2(gamma)). |w| <= 1, so DoP is in [0, dop_max].
 
 This form needs no stereographic coordinates, so it has none of their artefacts: the projection
-formula above jumps by 90 deg of AoP when Babinet crosses the zenith (sun higher than 90 deg - separation),
-and z = infinity is the nadir; neutral points below the horizon (low sun) are ordinary points.
+formula above jumps by 90 deg of AoP when Babinet crosses the zenith (sun higher than 90 deg -
+separation), and z = infinity is the nadir; neutral points below the horizon (low sun) are ordinary
+points.
 
 Not modelled: the horizon depolarization that BDL add to the intensity of polarization, and the
-dependence of the neutral-point separation on sun altitude and wavelength (one constant here).
-With the sun exactly at the zenith (or nadir) the solar meridian is undefined; the neutral points are
-then put on the great circle through the sun and the frame's +x axis (or +y), a deterministic choice.
+dependence of the neutral-point separation on sun altitude and wavelength (one constant here). With
+the sun exactly at the zenith (or nadir) the solar meridian is undefined; the neutral points are
+then put on the great circle through the sun and the frame's +x axis (or +y), a deterministic
+choice.
+
 """
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit, prange
+import numpy as np
 
 from .fastmath import axial_atan2_f32
-from .sky import SkyModelError, _check_dop_max
+from .sky import _check_dop_max, SkyModelError
 
-__all__ = ["BerryDennisLeeSky", "neutral_points", "SEPARATION_RANGE_DEG"]
+__all__ = ['BerryDennisLeeSky', 'neutral_points', 'SEPARATION_RANGE_DEG']
 
 #: Allowed neutral-point separation (deg from the sun / anti-sun).
 SEPARATION_RANGE_DEG = (0.0, 40.0)
 
 
 def neutral_points(sun, zenith, separation_deg: float) -> dict:
-    """Unit directions of the four neutral points, in whatever frame ``sun`` and ``zenith`` are given.
+    """
+    Return unit directions of the four neutral points.
+
+    Unit directions of the four neutral points, in whatever frame ``sun`` and ``zenith`` are given.
 
     Babinet and Brewster lie on the solar meridian ``separation_deg`` above and below the sun
     (towards / away from the zenith along the great circle through sun and zenith); Arago and the
@@ -85,9 +107,9 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     z = np.asarray(zenith, dtype=np.float64).reshape(3)
     s = s / np.linalg.norm(s)
     z = z / np.linalg.norm(z)
-    up = z - np.dot(z, s) * s                        # tangent at the sun towards the zenith
+    up = z - np.dot(z, s) * s  # tangent at the sun towards the zenith
     n_up = float(np.linalg.norm(up))
-    if n_up < 1e-9:                                  # sun at the zenith/nadir: meridian undefined
+    if n_up < 1e-9:  # sun at the zenith/nadir: meridian undefined
         ref = np.array([1.0, 0.0, 0.0]) if abs(s[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
         up = ref - np.dot(ref, s) * s
         n_up = float(np.linalg.norm(up))
@@ -95,13 +117,38 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     d = math.radians(float(separation_deg))
     babinet = math.cos(d) * s + math.sin(d) * up
     brewster = math.cos(d) * s - math.sin(d) * up
-    return {"babinet": babinet, "brewster": brewster, "arago": -brewster, "fourth": -babinet}
+    return {'babinet': babinet, 'brewster': brewster, 'arago': -brewster, 'fourth': -babinet}
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _bdl_kernel(rays, bx, by, bz, rx_, ry_, rz_, sx, sy, sz, zx, zy, zz, dop_max,
-                cos_sun_excl, sin_min_alt, min_dop, aop, dop, valid):  # pragma: no cover - compiled
-    """Fused BDL AoP/DoP and validity (see the module docstring, steps 3-4). Invalid: aop = dop = 0."""
+def _bdl_kernel(
+    rays,
+    bx,
+    by,
+    bz,
+    rx_,
+    ry_,
+    rz_,
+    sx,
+    sy,
+    sz,
+    zx,
+    zy,
+    zz,
+    dop_max,
+    cos_sun_excl,
+    sin_min_alt,
+    min_dop,
+    aop,
+    dop,
+    valid,
+):  # pragma: no cover - compiled
+    """
+    Fused BDL AoP/DoP and validity (see the module docstring, steps 3-4).
+
+    Invalid: aop = dop =
+    0.
+    """
     n = rays.shape[1]
     one = np.float32(1.0)
     two = np.float32(2.0)
@@ -129,7 +176,7 @@ def _bdl_kernel(rays, bx, by, bz, rx_, ry_, rz_, sx, sy, sz, zx, zy, zz, dop_max
         d1 = lb * ay - la * cy
         d2 = lb * az - la * cz
         use_s = (s0 * s0 + s1 * s1 + s2 * s2) >= (d0 * d0 + d1 * d1 + d2 * d2)
-        ex = (py * s2 - pz * s1) if use_s else d0     # E = P x s  or  E = d
+        ex = (py * s2 - pz * s1) if use_s else d0  # E = P x s  or  E = d
         ey = (pz * s0 - px * s2) if use_s else d1
         w = la * lb
         if w > one:
@@ -146,33 +193,42 @@ def _bdl_kernel(rays, bx, by, bz, rx_, ry_, rz_, sx, sy, sz, zx, zy, zz, dop_max
 class BerryDennisLeeSky:
     """Berry-Dennis-Lee neutral-point sky. ``separation_deg`` in [0, 40], ``dop_max`` in (0, 1]."""
 
-    name = "berry_dennis_lee"
+    name = 'berry_dennis_lee'
 
     def __init__(self, separation_deg: float = 18.0, dop_max: float = 0.75):
         try:
             sep = float(separation_deg)
         except (TypeError, ValueError):
-            raise SkyModelError(f"separation_deg must be a number, got {separation_deg!r}") from None
+            raise SkyModelError(
+                f'separation_deg must be a number, got {separation_deg!r}'
+            ) from None
         lo, hi = SEPARATION_RANGE_DEG
         if not (math.isfinite(sep) and lo <= sep <= hi):
-            raise SkyModelError(f"separation_deg must be in [{lo:g}, {hi:g}] deg, got {separation_deg!r}")
+            raise SkyModelError(
+                f'separation_deg must be in [{lo:g}, {hi:g}] deg, got {separation_deg!r}'
+            )
         self.separation_deg = sep
         try:
             self.dop_max = _check_dop_max(dop_max)
         except (TypeError, ValueError) as exc:
             if isinstance(exc, SkyModelError):
                 raise
-            raise SkyModelError(f"dop_max must be a number in (0, 1], got {dop_max!r}") from None
+            raise SkyModelError(f'dop_max must be a number in (0, 1], got {dop_max!r}') from None
 
     def params(self) -> dict:
-        return {"model": self.name, "separation_deg": self.separation_deg, "dop_max": self.dop_max}
+        return {'model': self.name, 'separation_deg': self.separation_deg, 'dop_max': self.dop_max}
 
     def neutral_points_cam(self, sun_cam, zenith_cam) -> dict:
-        """The four neutral points as unit vectors in the camera frame (see :func:`neutral_points`)."""
+        """
+        Return the four neutral points as unit vectors in the camera frame.
+
+        The four neutral points as unit vectors in the camera frame (see :func:`neutral_points`).
+        """
         return neutral_points(sun_cam, zenith_cam, self.separation_deg)
 
     def polarization(self, sun_cam, zenith_cam, rays_cam, limits=(1.0, -1.0, 0.0)):
-        """AoP (rad, eq 28, [-pi/2, pi/2)), DoP (float32, (N,)) and validity (bool) for rays (3, N).
+        """
+        Return the AoP (rad, eq 28, [-pi/2, pi/2)), DoP and validity for rays (3, N).
 
         ``sun_cam``, ``zenith_cam``: unit 3-vectors in the camera frame. ``limits`` = (cos of the
         sun-exclusion radius, sin of the minimum altitude, minimum DoP); invalid pixels get 0, 0.
@@ -185,9 +241,28 @@ class BerryDennisLeeSky:
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
         z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         npts = neutral_points(s, z, self.separation_deg)
-        b, r = npts["babinet"], npts["brewster"]
+        b, r = npts['babinet'], npts['brewster']
         f32 = np.float32
-        _bdl_kernel(rays, f32(b[0]), f32(b[1]), f32(b[2]), f32(r[0]), f32(r[1]), f32(r[2]),
-                    f32(s[0]), f32(s[1]), f32(s[2]), f32(z[0]), f32(z[1]), f32(z[2]), f32(self.dop_max),
-                    f32(limits[0]), f32(limits[1]), f32(limits[2]), aop, dop, valid)
+        _bdl_kernel(
+            rays,
+            f32(b[0]),
+            f32(b[1]),
+            f32(b[2]),
+            f32(r[0]),
+            f32(r[1]),
+            f32(r[2]),
+            f32(s[0]),
+            f32(s[1]),
+            f32(s[2]),
+            f32(z[0]),
+            f32(z[1]),
+            f32(z[2]),
+            f32(self.dop_max),
+            f32(limits[0]),
+            f32(limits[1]),
+            f32(limits[2]),
+            aop,
+            dop,
+            valid,
+        )
         return aop, dop, valid

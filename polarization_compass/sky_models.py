@@ -1,9 +1,25 @@
-"""The sky models by name: what a scene's ``sky`` mapping (``{"model": "rayleigh", ...}``) builds.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The sky models by name: what a scene's ``sky`` mapping (``{"model": "rayleigh", ...}``) builds.
 
 Imports each model's module (:mod:`~polarization_compass.sky` for ``rayleigh``,
-:mod:`~polarization_compass.sky_bdl` for ``berry_dennis_lee``), so that neither of those imports the
-other upwards: a model module only defines its class; this module names it.
+:mod:`~polarization_compass.sky_bdl` for ``berry_dennis_lee``), so that neither of those imports
+the other upwards: a model module only defines its class; this module names it.
 """
+
 from __future__ import annotations
 
 from typing import Callable
@@ -11,20 +27,26 @@ from typing import Callable
 from .sky import RayleighSky, SkyModelError
 from .sky_bdl import BerryDennisLeeSky
 
-__all__ = ["make_sky_model", "register_sky_model", "sky_model_names"]
+__all__ = ['make_sky_model', 'register_sky_model', 'sky_model_names']
 
 _REGISTRY: dict[str, Callable[..., object]] = {
-    "rayleigh": RayleighSky,
-    "berry_dennis_lee": BerryDennisLeeSky,
+    'rayleigh': RayleighSky,
+    'berry_dennis_lee': BerryDennisLeeSky,
 }
 
 
 def register_sky_model(name: str):
-    """Class decorator: make ``factory(**params)`` the sky model called ``name`` (e.g. a model defined in a
-    test or a plugin). Returns the factory unchanged."""
+    """
+    Register ``factory(**params)`` as the sky model called ``name`` (class decorator).
+
+    Class decorator: make ``factory(**params)`` the sky model called ``name`` (e.g. a model defined
+    in a test or a plugin). Returns the factory unchanged.
+    """
+
     def deco(factory):
         _REGISTRY[name] = factory
         return factory
+
     return deco
 
 
@@ -34,17 +56,19 @@ def sky_model_names() -> list[str]:
 
 
 def make_sky_model(config: dict | None):
-    """Build a sky model from a mapping like ``{"model": "rayleigh", "dop_max": 0.75}``.
-
-    ``config``: ``model`` (default ``rayleigh``) and the model's parameters; None means Rayleigh with its
-    defaults. Returns the model object; raises :class:`~polarization_compass.sky.SkyModelError` (one line)
-    for an unknown name or bad parameters.
     """
-    cfg = dict(config or {"model": "rayleigh"})
-    name = cfg.pop("model", "rayleigh")
+    Build a sky model from a mapping like ``{"model": "rayleigh", "dop_max": 0.75}``.
+
+    ``config``: ``model`` (default ``rayleigh``) and the model's parameters; None means Rayleigh
+    with its defaults. Returns the model object; raises
+    :class:`~polarization_compass.sky.SkyModelError` (one line) for an unknown name or bad
+    parameters.
+    """
+    cfg = dict(config or {'model': 'rayleigh'})
+    name = cfg.pop('model', 'rayleigh')
     if name not in _REGISTRY:
-        raise SkyModelError(f"unknown sky model {name!r}; known: {', '.join(sky_model_names())}")
+        raise SkyModelError(f'unknown sky model {name!r}; known: {", ".join(sky_model_names())}')
     try:
         return _REGISTRY[name](**cfg)
     except TypeError as exc:
-        raise SkyModelError(f"bad parameters for sky model {name!r}: {exc}") from None
+        raise SkyModelError(f'bad parameters for sky model {name!r}: {exc}') from None

@@ -1,35 +1,67 @@
-"""Whole-sky robust fit of the single-scattering (Rayleigh) AoP pattern: a second opinion on real skies.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Whole-sky robust fit of the Rayleigh AoP pattern: a second opinion on real skies.
+
+Whole-sky robust fit of the single-scattering (Rayleigh) AoP pattern: a second opinion on real
+skies.
 
 The estimators fit the sky each in their own way; on a real sky (clouds, lens flare, haze, a wrong
 polarizer convention) a fit can be precise and wrong. This module fits the one thing every method
-assumes, the Rayleigh E-vector field ``E = S x P`` (eq 18) seen through the sensor (eq 28), to the whole
-usable sky with a robust (Cauchy) loss, and measures how well the frame agrees with it:
+assumes, the Rayleigh E-vector field ``E = S x P`` (eq 18) seen through the sensor (eq 28), to the
+whole usable sky with a robust (Cauchy) loss, and measures how well the frame agrees with it:
 
-- :func:`fit_sky`: the sun (psi, and the altitude unless given) that best explains the AoP image, by a
-  coarse grid over the whole circle then a fine grid (no local minimum can trap it, no starting point);
+- :func:`fit_sky`: the sun (psi, and the altitude unless given) that best explains the AoP image,
+  by a coarse grid over the whole circle then a fine grid (no local minimum can trap it, no
+  starting point);
 - :func:`misfit_at`: the robust residual statistics of the sky at a given heading (poor-fit test);
 - :func:`jackknife_sigma_deg`: the heading's spread when each of K sky sectors is left out in turn
-  (delete-a-group jackknife, Efron 1982, ch. 2): the misfit of a real sky to the model is spatially
-  correlated, so it is the sectors, not the pixels, that are the independent samples;
-- :func:`side_preference`: which end of an axial heading the whole sky supports, from the AoP pattern
-  at the known sun altitude and from the brightness of the two half-skies (never a small window).
+(delete-a-group jackknife, Efron 1982, ch. 2): the misfit of a real sky to the model is spatially
+correlated, so it is the sectors, not the pixels, that are the independent samples;
+- :func:`side_preference`: which end of an axial heading the whole sky supports, from the AoP
+  pattern at the known sun altitude and from the brightness of the two half-skies (never a small
+  window).
 
 Residuals are axial angle differences computed from doubled angles (no angle subtraction and wrap).
 Cost: a few thousand sampled pixels, a few 10 ms per fit (numpy, float32).
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from .conventions import R_sun_cam_from_attitude, wrap_180_deg
 
-__all__ = ["SkySample", "SkyFit", "sample_sky", "fit_sky", "misfit_at", "jackknife_sigma_deg",
-           "side_preference", "side_votes", "CAUCHY_SCALE_DEG", "OUTLIER_DEG"]
+__all__ = [
+    'SkySample',
+    'SkyFit',
+    'sample_sky',
+    'fit_sky',
+    'misfit_at',
+    'jackknife_sigma_deg',
+    'side_preference',
+    'side_votes',
+    'CAUCHY_SCALE_DEG',
+    'OUTLIER_DEG',
+]
 
-#: Cauchy loss scale: residuals well beyond it (cloud, flare, a foreign object) stop pulling the fit
+#: Cauchy loss scale: residuals well beyond it (cloud, flare, a foreign object) stop pulling the
+#: fit
 CAUCHY_SCALE_DEG = 5.0
 #: a pixel whose AoP is further than this from the fitted sky counts as an outlier
 OUTLIER_DEG = 15.0
@@ -37,8 +69,12 @@ OUTLIER_DEG = 15.0
 
 @dataclass(frozen=True)
 class SkySample:
-    """Usable sky pixels for the fit: rays (3, N) camera frame, doubled-angle AoP (cos 2a, sin 2a),
-    weights in [0, 1] (DoP-based), intensity (or None), and the image azimuth of each ray (rad)."""
+    """
+    Usable sky pixels for the whole-sky fit.
+
+    Usable sky pixels for the fit: rays (3, N) camera frame, doubled-angle AoP (cos 2a, sin 2a),
+    weights in [0, 1] (DoP-based), intensity (or None), and the image azimuth of each ray (rad).
+    """
 
     rays: np.ndarray
     c2a: np.ndarray
@@ -55,9 +91,13 @@ class SkySample:
 
 @dataclass(frozen=True)
 class SkyFit:
-    """A robust whole-sky fit. ``psi_deg``, ``sun_altitude_deg`` the best sun (camera-frame psi of eq 21);
-    ``scatter_deg`` 1.4826 x median |residual| (weighted pixels); ``inlier_fraction`` share of weight within
-    :data:`OUTLIER_DEG`; ``loss`` the mean Cauchy loss; ``pixels`` the sample size."""
+    """
+    A robust whole-sky fit.
+
+    ``psi_deg``, ``sun_altitude_deg`` the best sun (camera-frame psi of eq 21); ``scatter_deg``
+    1.4826 x median |residual| (weighted pixels); ``inlier_fraction`` share of weight within
+    :data:`OUTLIER_DEG`; ``loss`` the mean Cauchy loss; ``pixels`` the sample size.
+    """
 
     psi_deg: float
     sun_altitude_deg: float
@@ -67,17 +107,34 @@ class SkyFit:
     pixels: int
 
 
-def sample_sky(aop_rad, dop, valid, rays_cam, intensity=None, max_pixels: int = 4000, min_dop: float = 0.02,
-               extra_mask=None) -> SkySample | None:
-    """Sample up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride, deterministic).
+def sample_sky(
+    aop_rad,
+    dop,
+    valid,
+    rays_cam,
+    intensity=None,
+    max_pixels: int = 4000,
+    min_dop: float = 0.02,
+    extra_mask=None,
+) -> SkySample | None:
+    """
+    Sample up to ``max_pixels`` usable pixels spread evenly over the image.
 
-    ``aop_rad`` eq 28 angles, ``dop`` in [0, 1], ``valid`` bool, ``rays_cam`` (3, N) unit rays in the order
-    of ``aop_rad.reshape(-1)``; ``extra_mask`` (same shape, True = usable) e.g. the data-driven mask.
-    Returns None when fewer than 30 pixels are usable.
+    Sample up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride,
+    deterministic).
+
+    ``aop_rad`` eq 28 angles, ``dop`` in [0, 1], ``valid`` bool, ``rays_cam`` (3, N) unit rays in
+    the order of ``aop_rad.reshape(-1)``; ``extra_mask`` (same shape, True = usable) e.g. the
+    data-driven mask. Returns None when fewer than 30 pixels are usable.
     """
     a = np.asarray(aop_rad, dtype=np.float32).reshape(-1)
     d = np.asarray(dop, dtype=np.float32).reshape(-1)
-    ok = np.asarray(valid, dtype=bool).reshape(-1) & np.isfinite(a) & np.isfinite(d) & (d >= min_dop)
+    ok = (
+        np.asarray(valid, dtype=bool).reshape(-1)
+        & np.isfinite(a)
+        & np.isfinite(d)
+        & (d >= min_dop)
+    )
     if extra_mask is not None:
         ok &= np.asarray(extra_mask, dtype=bool).reshape(-1)
     idx = np.flatnonzero(ok)
@@ -89,28 +146,46 @@ def sample_sky(aop_rad, dop, valid, rays_cam, intensity=None, max_pixels: int = 
     aa = a[idx].astype(np.float64)
     w = np.clip(d[idx] / 0.3, 0.0, 1.0).astype(np.float32)
     inten = None if intensity is None else np.asarray(intensity, dtype=np.float32).reshape(-1)[idx]
-    return SkySample(np.ascontiguousarray(r), np.cos(2 * aa).astype(np.float32), np.sin(2 * aa).astype(np.float32),
-                     w, inten, np.arctan2(r[1], r[0]).astype(np.float32))
+    return SkySample(
+        np.ascontiguousarray(r),
+        np.cos(2 * aa).astype(np.float32),
+        np.sin(2 * aa).astype(np.float32),
+        w,
+        inten,
+        np.arctan2(r[1], r[0]).astype(np.float32),
+    )
 
 
 def _sun_cam(psi_deg, alt_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
-    """Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21 transposed)."""
+    """
+    Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs.
+
+    Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21
+    transposed).
+    """
     psi = np.asarray(psi_deg, dtype=float).reshape(-1)
     alt = np.radians(np.asarray(alt_deg, dtype=float).reshape(-1))
-    s_a = np.stack([np.zeros_like(alt), np.cos(alt), np.sin(alt)], axis=-1)          # frame a: y at the sun
+    s_a = np.stack(
+        [np.zeros_like(alt), np.cos(alt), np.sin(alt)], axis=-1
+    )  # frame a: y at the sun
     R = R_sun_cam_from_attitude(psi, np.full_like(psi, pitch_deg), np.full_like(psi, roll_deg))
-    return np.einsum("kji,kj->ki", R, s_a)                                           # R^T s_a
+    return np.einsum('kji,kj->ki', R, s_a)  # R^T s_a
 
 
 def _cos_sin_2res(sample: SkySample, sun_cam: np.ndarray):
-    """Return cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq 18, 28)."""
+    """
+    Return cos and sin of twice the residual (measured - model), shape (K, N).
+
+    Return cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq
+    18, 28).
+    """
     P = sample.rays
     S = sun_cam.astype(np.float32)
     ex = S[:, 1:2] * P[2] - S[:, 2:3] * P[1]
     ey = S[:, 2:3] * P[0] - S[:, 0:1] * P[2]
     n2 = ex * ex + ey * ey
     n2 = np.where(n2 > 1e-12, n2, np.float32(1.0))
-    c2m = (ey * ey - ex * ex) / n2          # model AoP m = atan2(ex, ey): cos 2m, sin 2m
+    c2m = (ey * ey - ex * ex) / n2  # model AoP m = atan2(ex, ey): cos 2m, sin 2m
     s2m = 2 * ex * ey / n2
     c = sample.c2a * c2m + sample.s2a * s2m
     s = sample.s2a * c2m - sample.c2a * s2m
@@ -129,13 +204,24 @@ def _loss(sample: SkySample, sun_cam: np.ndarray, weight=None) -> np.ndarray:
 def _chunked_loss(sample, psi, alt, pitch, roll, weight=None, chunk=256):
     out = np.empty(psi.size)
     for i in range(0, psi.size, chunk):
-        out[i:i + chunk] = _loss(sample, _sun_cam(psi[i:i + chunk], alt[i:i + chunk], pitch, roll), weight)
+        out[i:i + chunk] = _loss(
+            sample, _sun_cam(psi[i:i + chunk], alt[i:i + chunk], pitch, roll), weight
+        )
     return out
 
 
-def misfit_at(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
-              roll_deg: float = 0.0) -> SkyFit:
-    """Return the residual statistics of the sky for one sun (psi, altitude) and known tilt (deg)."""
+def misfit_at(
+    sample: SkySample,
+    psi_deg: float,
+    sun_altitude_deg: float,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+) -> SkyFit:
+    """
+    Return the residual statistics of the sky for one sun and known tilt.
+
+    Return the residual statistics of the sky for one sun (psi, altitude) and known tilt (deg).
+    """
     sun = _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg)
     c, s = _cos_sin_2res(sample, sun)
     res_deg = np.degrees(0.5 * np.arctan2(s[0], c[0]).astype(np.float64))
@@ -145,46 +231,96 @@ def misfit_at(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_
     scatter = 1.4826 * float(np.median(ad)) if ad.size else 90.0
     inl = float(w[keep][ad < OUTLIER_DEG].sum() / max(w[keep].sum(), 1e-9)) if ad.size else 0.0
     loss = float(_loss(sample, sun)[0])
-    return SkyFit(float(wrap_180_deg(psi_deg)), float(sun_altitude_deg), loss, scatter, inl, sample.count)
+    return SkyFit(
+        float(wrap_180_deg(psi_deg)), float(sun_altitude_deg), loss, scatter, inl, sample.count
+    )
 
 
-def fit_sky(sample: SkySample, sun_altitude_deg: float | None = None, pitch_deg: float = 0.0,
-            roll_deg: float = 0.0, psi_range_deg=None, weight=None) -> SkyFit:
-    """Fit psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
+def fit_sky(
+    sample: SkySample,
+    sun_altitude_deg: float | None = None,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    psi_range_deg=None,
+    weight=None,
+) -> SkyFit:
+    """
+    Fit psi (and the sun altitude when ``sun_altitude_deg`` is None) to the sampled sky.
 
-    Coarse grid on at most 600 of the pixels: psi every 2 deg over the circle (or ``psi_range_deg = (lo,
-    hi)``), altitude every 4 deg in [0, 88]; then on all pixels two rounds of fine line searches (psi
-    +-3 deg by 0.1 deg, altitude +-6 deg by 0.5 deg) around the best. Tilt (``pitch_deg``, ``roll_deg``)
-    is taken as known. Returns the fit with its residual statistics (:func:`misfit_at`).
+    Coarse grid on at most 600 of the pixels: psi every 2 deg over the circle (or ``psi_range_deg =
+    (lo, hi)``), altitude every 4 deg in [0, 88]; then on all pixels two rounds of fine line
+    searches (psi +-3 deg by 0.1 deg, altitude +-6 deg by 0.5 deg) around the best. Tilt
+    (``pitch_deg``, ``roll_deg``) is taken as known. Returns the fit with its residual statistics
+    (:func:`misfit_at`).
     """
     lo, hi = (-180.0, 180.0) if psi_range_deg is None else psi_range_deg
     psis = np.arange(lo, hi, 2.0)
-    alts = np.array([sun_altitude_deg], float) if sun_altitude_deg is not None else np.arange(0.0, 88.1, 4.0)
+    alts = (
+        np.array([sun_altitude_deg], float)
+        if sun_altitude_deg is not None
+        else np.arange(0.0, 88.1, 4.0)
+    )
     coarse = sample
     if sample.count > 600:
         idx = np.linspace(0, sample.count - 1, 600).astype(np.int64)
-        coarse = SkySample(np.ascontiguousarray(sample.rays[:, idx]), sample.c2a[idx], sample.s2a[idx],
-                           (sample.weight if weight is None else weight)[idx], None, sample.ray_azimuth_rad[idx])
-    P, A = np.meshgrid(psis, alts, indexing="ij")
+        coarse = SkySample(
+            np.ascontiguousarray(sample.rays[:, idx]),
+            sample.c2a[idx],
+            sample.s2a[idx],
+            (sample.weight if weight is None else weight)[idx],
+            None,
+            sample.ray_azimuth_rad[idx],
+        )
+    P, A = np.meshgrid(psis, alts, indexing='ij')
     L = _chunked_loss(coarse, P.ravel(), A.ravel(), pitch_deg, roll_deg)
     k = int(np.argmin(L))
     p0, a0 = float(P.ravel()[k]), float(A.ravel()[k])
     for _ in range(2):
         fp = p0 + np.arange(-3.0, 3.001, 0.1)
-        p0 = float(fp[int(np.argmin(_chunked_loss(sample, fp, np.full(fp.size, a0), pitch_deg, roll_deg, weight)))])
+        p0 = float(
+            fp[
+                int(
+                    np.argmin(
+                        _chunked_loss(
+                            sample, fp, np.full(fp.size, a0), pitch_deg, roll_deg, weight
+                        )
+                    )
+                )
+            ]
+        )
         if sun_altitude_deg is None:
             fa = np.unique(np.clip(a0 + np.arange(-6.0, 6.001, 0.5), 0.0, 89.5))
-            a0 = float(fa[int(np.argmin(_chunked_loss(sample, np.full(fa.size, p0), fa, pitch_deg, roll_deg, weight)))])
+            a0 = float(
+                fa[
+                    int(
+                        np.argmin(
+                            _chunked_loss(
+                                sample, np.full(fa.size, p0), fa, pitch_deg, roll_deg, weight
+                            )
+                        )
+                    )
+                ]
+            )
     return misfit_at(sample, p0, a0, pitch_deg, roll_deg)
 
 
-def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
-                        roll_deg: float = 0.0, sectors: int = 8) -> float:
-    """Estimate the delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal sky sectors.
+def jackknife_sigma_deg(
+    sample: SkySample,
+    psi_deg: float,
+    sun_altitude_deg: float,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    sectors: int = 8,
+) -> float:
+    """
+    Estimate the delete-a-group jackknife standard error of psi (deg).
 
-    Each sector (by the ray's azimuth about the optical axis) is left out in turn and psi refitted near
-    ``psi_deg`` at the given sun altitude; ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``. Sectors with no
-    pixels are skipped; fewer than 3 usable sectors give 180 (unknown).
+    Estimate the delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal
+    sky sectors.
+
+    Each sector (by the ray's azimuth about the optical axis) is left out in turn and psi refitted
+    near ``psi_deg`` at the given sun altitude; ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``.
+    Sectors with no pixels are skipped; fewer than 3 usable sectors give 180 (unknown).
     """
     edges = np.linspace(-math.pi, math.pi, sectors + 1)
     grid = psi_deg + np.arange(-6.0, 6.001, 0.05)
@@ -209,44 +345,61 @@ def jackknife_sigma_deg(sample: SkySample, psi_deg: float, sun_altitude_deg: flo
     return float(math.sqrt((k - 1) / k * float(np.sum((e - e.mean()) ** 2))))
 
 
-def side_preference(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
-                    roll_deg: float = 0.0) -> dict:
-    """Tell which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
+def side_preference(
+    sample: SkySample,
+    psi_deg: float,
+    sun_altitude_deg: float,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+) -> dict:
+    """
+    Tell which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
 
-    ``pattern``: the Cauchy loss difference (other end minus this end; > 0 favours ``psi_deg``) of the AoP
-    pattern at the known sun altitude (the pattern of a sun at altitude h is not symmetric under a 180 deg
-    turn unless h is near 0 or 90 deg); ``brightness``: the mean intensity of the half-sky towards the sun
-    minus the half-sky away from it, over the mean (> 0 favours ``psi_deg``; saturated sun and glare pixels
-    count as bright, flare ghosts are small against a half-sky), None without intensity.
+    ``pattern``: the Cauchy loss difference (other end minus this end; > 0 favours ``psi_deg``) of
+    the AoP pattern at the known sun altitude (the pattern of a sun at altitude h is not symmetric
+    under a 180 deg turn unless h is near 0 or 90 deg); ``brightness``: the mean intensity of the
+    half-sky towards the sun minus the half-sky away from it, over the mean (> 0 favours
+    ``psi_deg``; saturated sun and glare pixels count as bright, flare ghosts are small against a
+    half-sky), None without intensity.
     """
     this = _loss(sample, _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg))[0]
     other = _loss(sample, _sun_cam([psi_deg + 180.0], [sun_altitude_deg], pitch_deg, roll_deg))[0]
-    out = {"pattern": float(other - this), "brightness": None}
+    out = {'pattern': float(other - this), 'brightness': None}
     if sample.intensity is not None:
         s = _sun_cam([psi_deg], [0.0], pitch_deg, roll_deg)[0]
         toward = (s[0] * sample.rays[0] + s[1] * sample.rays[1]) > 0
         i = sample.intensity.astype(np.float64)
         if toward.any() and (~toward).any() and i.mean() > 0:
-            out["brightness"] = float((i[toward].mean() - i[~toward].mean()) / i.mean())
+            out['brightness'] = float((i[toward].mean() - i[~toward].mean()) / i.mean())
     return out
 
 
-def side_votes(sample: SkySample, psi_deg: float, sun_altitude_deg: float, pitch_deg: float = 0.0,
-               roll_deg: float = 0.0):
-    """Return the whole sky's votes on the 180 deg side of ``psi_deg`` and their values.
+def side_votes(
+    sample: SkySample,
+    psi_deg: float,
+    sun_altitude_deg: float,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+):
+    """
+    Return the whole sky's votes on the 180 deg side of ``psi_deg`` and their values.
 
-    Each of :func:`side_preference`'s two measures votes +1 (``psi_deg``) or -1 (``psi_deg + 180``) when it
-    exceeds its threshold (:data:`PATTERN_VOTE`, :data:`BRIGHTNESS_VOTE`), else abstains. Returns ``(votes,
-    values)``: the list of votes and ``{"pattern": ..., "brightness": ...}`` rounded for reports.
+    Each of :func:`side_preference`'s two measures votes +1 (``psi_deg``) or -1 (``psi_deg + 180``)
+    when it exceeds its threshold (:data:`PATTERN_VOTE`, :data:`BRIGHTNESS_VOTE`), else abstains.
+    Returns ``(votes, values)``: the list of votes and ``{"pattern": ..., "brightness": ...}``
+    rounded for reports.
     """
     pref = side_preference(sample, psi_deg, sun_altitude_deg, pitch_deg, roll_deg)
     votes = []
-    if abs(pref["pattern"]) > PATTERN_VOTE:
-        votes.append(1 if pref["pattern"] > 0 else -1)
-    b = pref["brightness"]
+    if abs(pref['pattern']) > PATTERN_VOTE:
+        votes.append(1 if pref['pattern'] > 0 else -1)
+    b = pref['brightness']
     if b is not None and abs(b) > BRIGHTNESS_VOTE:
         votes.append(1 if b > 0 else -1)
-    return votes, {"pattern": round(pref["pattern"], 4), "brightness": None if b is None else round(b, 4)}
+    return votes, {
+        'pattern': round(pref['pattern'], 4),
+        'brightness': None if b is None else round(b, 4),
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -259,49 +412,68 @@ MIN_INLIER_FRACTION = 0.5
 #: a side vote counts when the pattern loss difference / brightness contrast exceeds these
 PATTERN_VOTE = 0.05
 BRIGHTNESS_VOTE = 0.05
-#: a heading further than 3 sigma + this from the whole sky's own best heading (same sun, same tilt) is
-#: ``inconsistent`` (e.g. a method that assumed a level camera when the tilt is known)
+#: a heading further than 3 sigma + this from the whole sky's own best heading (same sun, same
+#: tilt) is ``inconsistent`` (e.g. a method that assumed a level camera when the tilt is known)
 AGREE_FLOOR_DEG = 0.5
 
 
-def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pitch_deg=None, roll_deg=None,
-                  prior_bearing_deg=None):
-    """Check an estimator's :class:`~polarization_compass.estimators.HeadingResult` against the whole sky.
+def assess_result(
+    result,
+    sample: SkySample | None,
+    sun_altitude_deg: float,
+    pitch_deg=None,
+    roll_deg=None,
+    prior_bearing_deg=None,
+):
+    """
+    Check an estimator's result against the whole sky.
 
-    - sigma: ``hypot(method sigma, jackknife sigma)``; the jackknife over sky sectors measures the misfit
-      of this frame to the model (:func:`jackknife_sigma_deg`), which on real skies dominates shot noise;
+    Check an estimator's :class:`~polarization_compass.estimators.HeadingResult` against the whole
+    sky.
+
+    - sigma: ``hypot(method sigma, jackknife sigma)``; the jackknife over sky sectors measures the
+      misfit of this frame to the model (:func:`jackknife_sigma_deg`), which on real skies
+      dominates shot noise;
     - side: unless a prior decides it, the 180 deg side is re-decided by the whole sky
-      (:func:`side_preference`: AoP pattern at the known sun altitude, half-sky brightness); when every
-      vote is against the method's side the heading is turned by 180 deg, when the votes disagree the
-      result becomes axial (``ambiguous``);
-    - status ``poor_fit`` when the sky at the estimate has a robust scatter above :data:`MAX_SCATTER_DEG`
-      or less than :data:`MIN_INLIER_FRACTION` of its weight within :data:`OUTLIER_DEG`;
-    - status ``inconsistent`` when the whole sky's own robust fit (same sun altitude and tilt, psi within
-      +-30 deg) is further from the heading than 3 combined sigmas + :data:`AGREE_FLOOR_DEG`.
+      (:func:`side_preference`: AoP pattern at the known sun altitude, half-sky brightness); when
+      every vote is against the method's side the heading is turned by 180 deg, when the votes
+      disagree the result becomes axial (``ambiguous``);
+    - status ``poor_fit`` when the sky at the estimate has a robust scatter above
+      :data:`MAX_SCATTER_DEG` or less than :data:`MIN_INLIER_FRACTION` of its weight within
+      :data:`OUTLIER_DEG`;
+    - status ``inconsistent`` when the whole sky's own robust fit (same sun altitude and tilt, psi
+      within +-30 deg) is further from the heading than 3 combined sigmas +
+      :data:`AGREE_FLOOR_DEG`.
 
     Results without a heading are returned unchanged; so is everything when ``sample`` is None (too
-    little usable sky to judge: the method's own status stands). ``extras["sky_check"]`` says what was
-    measured. Tilt unknown (None) counts as level.
+    little usable sky to judge: the method's own status stands). ``extras["sky_check"]`` says what
+    was measured. Tilt unknown (None) counts as level.
     """
     from dataclasses import replace
+
     from .estimators.base import HeadingResult, Status
-    if sample is None or result.psi_deg is None or result.status not in (Status.OK, Status.AMBIGUOUS):
+
+    if (
+        sample is None
+        or result.psi_deg is None
+        or result.status not in (Status.OK, Status.AMBIGUOUS)
+    ):
         return result
     pitch = 0.0 if pitch_deg is None else float(pitch_deg)
     roll = 0.0 if roll_deg is None else float(roll_deg)
     psi = float(result.psi_deg)
     axial = bool(result.axial)
     check = {}
-    side_note = ""
+    side_note = ''
     if prior_bearing_deg is None:
-        votes, check["side_votes"] = side_votes(sample, psi, sun_altitude_deg, pitch, roll)
+        votes, check['side_votes'] = side_votes(sample, psi, sun_altitude_deg, pitch, roll)
         if votes and all(v < 0 for v in votes):
             psi = float(wrap_180_deg(psi + 180.0))
-            side_note = "; 180 deg side re-decided by the whole sky (AoP pattern and brightness)"
+            side_note = '; 180 deg side re-decided by the whole sky (AoP pattern and brightness)'
             axial = False
         elif votes and all(v > 0 for v in votes):
             if axial:
-                side_note = "; 180 deg side decided by the whole sky (AoP pattern and brightness)"
+                side_note = '; 180 deg side decided by the whole sky (AoP pattern and brightness)'
             axial = False
         elif votes:
             axial = True
@@ -310,26 +482,53 @@ def assess_result(result, sample: SkySample | None, sun_altitude_deg: float, pit
     jk = jackknife_sigma_deg(sample, psi, sun_altitude_deg, pitch, roll)
     best = fit_sky(sample, sun_altitude_deg, pitch, roll, psi_range_deg=(psi - 30.0, psi + 30.0))
     off = float(wrap_180_deg(psi - best.psi_deg))
-    check["whole_sky_psi_deg"] = round(best.psi_deg, 3)
-    check.update({"scatter_deg": round(fit.scatter_deg, 3), "inlier_fraction": round(fit.inlier_fraction, 3),
-                  "jackknife_sigma_deg": round(jk, 3), "pixels": fit.pixels,
-                  "method_sigma_deg": result.sigma_deg})
+    check['whole_sky_psi_deg'] = round(best.psi_deg, 3)
+    check.update(
+        {
+            'scatter_deg': round(fit.scatter_deg, 3),
+            'inlier_fraction': round(fit.inlier_fraction, 3),
+            'jackknife_sigma_deg': round(jk, 3),
+            'pixels': fit.pixels,
+            'method_sigma_deg': result.sigma_deg,
+        }
+    )
     sigma = None if result.sigma_deg is None else float(math.hypot(result.sigma_deg, jk))
     extras = dict(result.extras)
-    extras["sky_check"] = check
-    new = HeadingResult.from_psi(result.method, psi, _sun_az(result), sigma if sigma is not None else None,
-                                 result.pixels, result.quality, axial, result.reason + side_note,
-                                 sun_altitude_deg=result.sun_altitude_deg, extras=extras)
+    extras['sky_check'] = check
+    new = HeadingResult.from_psi(
+        result.method,
+        psi,
+        _sun_az(result),
+        sigma if sigma is not None else None,
+        result.pixels,
+        result.quality,
+        axial,
+        result.reason + side_note,
+        sun_altitude_deg=result.sun_altitude_deg,
+        extras=extras,
+    )
     limit = 3.0 * math.hypot(result.sigma_deg or 0.0, jk) + AGREE_FLOOR_DEG
-    if fit.scatter_deg <= MAX_SCATTER_DEG and fit.inlier_fraction >= MIN_INLIER_FRACTION and abs(off) > limit:
-        new = replace(new, status=Status.INCONSISTENT,
-                      reason=f"the whole sky at the known sun and tilt fits best {off:+.2f} deg away from this "
-                             f"heading, beyond 3 sigma + {AGREE_FLOOR_DEG:g} deg ({limit:.2f} deg)")
+    if (
+        fit.scatter_deg <= MAX_SCATTER_DEG
+        and fit.inlier_fraction >= MIN_INLIER_FRACTION
+        and abs(off) > limit
+    ):
+        new = replace(
+            new,
+            status=Status.INCONSISTENT,
+            reason=f'the whole sky at the known sun and tilt fits best {off:+.2f} deg away from '
+            'this '
+            f'heading, beyond 3 sigma + {AGREE_FLOOR_DEG:g} deg ({limit:.2f} deg)',
+        )
     if fit.scatter_deg > MAX_SCATTER_DEG or fit.inlier_fraction < MIN_INLIER_FRACTION:
-        new = replace(new, status=Status.POOR_FIT,
-                      reason=f"the sky fits no single sun well at this heading: robust AoP scatter "
-                             f"{fit.scatter_deg:.1f} deg (limit {MAX_SCATTER_DEG:g}), {100 * fit.inlier_fraction:.0f} % "
-                             f"of the sky within {OUTLIER_DEG:g} deg (need {100 * MIN_INLIER_FRACTION:.0f} %)")
+        new = replace(
+            new,
+            status=Status.POOR_FIT,
+            reason=f'the sky fits no single sun well at this heading: robust AoP scatter '
+            f'{fit.scatter_deg:.1f} deg (limit {MAX_SCATTER_DEG:g}), '
+            f'{100 * fit.inlier_fraction:.0f} % '
+            f'of the sky within {OUTLIER_DEG:g} deg (need {100 * MIN_INLIER_FRACTION:.0f} %)',
+        )
     return new
 
 
@@ -339,13 +538,23 @@ def _sun_az(result) -> float:
 
 
 def mark_inconsistent(results, min_sigma_deg: float = 0.5):
-    """Mark results of several methods on one frame as inconsistent: each usable one that disagrees with most of the others by
-    more than 3 combined sigmas (axially when either is axial; sigma floored at ``min_sigma_deg``) gets
-    status ``inconsistent``. Returns a new list."""
+    """
+    Mark results of several methods on one frame as inconsistent.
+
+    Mark results of several methods on one frame as inconsistent: each usable one that disagrees
+    with most of the others by more than 3 combined sigmas (axially when either is axial; sigma
+    floored at ``min_sigma_deg``) gets status ``inconsistent``. Returns a new list.
+    """
     from dataclasses import replace
+
     from .conventions import fold_axial_deg
     from .estimators.base import Status
-    usable = [i for i, r in enumerate(results) if r.status in (Status.OK, Status.AMBIGUOUS) and r.psi_deg is not None]
+
+    usable = [
+        i
+        for i, r in enumerate(results)
+        if r.status in (Status.OK, Status.AMBIGUOUS) and r.psi_deg is not None
+    ]
     out = list(results)
     if len(usable) < 2:
         return out
@@ -358,28 +567,37 @@ def mark_inconsistent(results, min_sigma_deg: float = 0.5):
             rj = results[j]
             d = ri.psi_deg - rj.psi_deg
             d = abs(float(fold_axial_deg(d) if (ri.axial or rj.axial) else wrap_180_deg(d)))
-            s = math.hypot(max(ri.sigma_deg or 0.0, min_sigma_deg), max(rj.sigma_deg or 0.0, min_sigma_deg))
+            s = math.hypot(
+                max(ri.sigma_deg or 0.0, min_sigma_deg), max(rj.sigma_deg or 0.0, min_sigma_deg)
+            )
             seen += 1
             if d > 3.0 * s:
                 bad += 1
                 if worst is None or d > worst[0]:
                     worst = (d, rj.method, s)
         if seen and bad * 2 > seen:
-            out[i] = replace(ri, status=Status.INCONSISTENT,
-                             reason=f"disagrees with {bad} of {seen} other methods beyond 3 sigma (e.g. "
-                                    f"{worst[1]}: {worst[0]:.1f} deg apart, combined sigma {worst[2]:.2f} deg)")
+            out[i] = replace(
+                ri,
+                status=Status.INCONSISTENT,
+                reason=f'disagrees with {bad} of {seen} other methods beyond 3 sigma (e.g. '
+                f'{worst[1]}: {worst[0]:.1f} deg apart, combined sigma {worst[2]:.2f} deg)',
+            )
     return out
 
 
 def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float = 0.02):
-    """Return the pixels to keep, from the data: inside the lens' field, not saturated and not next to saturation
-    (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image diagonal with
-    OpenCV's dilation). ``saturation_level`` None: taken from the data when 0.05-50 % of the in-field
-    pixels sit at a maximum at least 10 % above the median (a clipped plateau), else nothing counts as
-    saturated.
-    Lens-flare ghosts, clouds and obstacles are not masked here: they are down-weighted by the robust
-    loss (and show up as misfit)."""
+    """
+    Return the pixels to keep: in the lens' field, away from saturation and glare.
+
+    Return the pixels to keep, from the data: inside the lens' field, not saturated and not next to
+    saturation (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image
+    diagonal with OpenCV's dilation). ``saturation_level`` None: taken from the data when 0.05-50 %
+    of the in-field pixels sit at a maximum at least 10 % above the median (a clipped plateau),
+    else nothing counts as saturated. Lens-flare ghosts, clouds and obstacles are not masked here:
+    they are down-weighted by the robust loss (and show up as misfit).
+    """
     import cv2
+
     i = np.asarray(intensity, dtype=np.float32)
     keep = np.asarray(has_ray, dtype=bool).reshape(i.shape).copy()
     if not keep.any():

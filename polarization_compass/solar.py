@@ -1,4 +1,22 @@
-"""Solar position: azimuth (clockwise from true North) and altitude of the sun for a UTC time and a site.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Solar position: azimuth and altitude of the sun for a UTC time and a site.
+
+Solar position: azimuth (clockwise from true North) and altitude of the sun for a UTC time and a
+site.
 
 Two models
 ----------
@@ -35,23 +53,35 @@ between the interpolated and true directions is at most about
 Times: an aware ``datetime`` (any zone), a naive ``datetime`` (taken as UTC, as elsewhere in the
 package), an ISO 8601 string, ``numpy.datetime64``, a pandas ``Timestamp``/``DatetimeIndex``, or a
 sequence/array of these. Leap seconds are ignored (POSIX time), as in pvlib.
+
 """
+
 from __future__ import annotations
 
+from dataclasses import dataclass
 import datetime as _dt
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .conventions import azimuth_altitude_from_enu, enu_direction, wrap_180_deg, wrap_360_deg
 from .errors import CompassError
 
-__all__ = ["SolarError", "SunPosition", "sun_position", "SunCache", "MODELS",
-           "paper_declination_deg", "paper_equation_of_time_min", "paper_hour_angle_deg",
-           "azimuth_altitude_from_equatorial", "spa_refraction_deg", "to_epoch_us"]
+__all__ = [
+    'SolarError',
+    'SunPosition',
+    'sun_position',
+    'SunCache',
+    'MODELS',
+    'paper_declination_deg',
+    'paper_equation_of_time_min',
+    'paper_hour_angle_deg',
+    'azimuth_altitude_from_equatorial',
+    'spa_refraction_deg',
+    'to_epoch_us',
+]
 
-MODELS = ("spa", "paper")
+MODELS = ('spa', 'paper')
 
 #: SPA's validity range (Reda & Andreas 2004).
 SPA_YEARS = (-2000, 6000)
@@ -61,7 +91,7 @@ ALTITUDE_RANGE_M = (-1000.0, 20000.0)
 ATMOS_REFRACT_DEG = 0.5667
 
 _US_PER_DAY = 86_400_000_000
-_EPOCH_US = np.datetime64(0, "us")
+_EPOCH_US = np.datetime64(0, 'us')
 
 
 class SolarError(CompassError):
@@ -70,7 +100,8 @@ class SolarError(CompassError):
 
 @dataclass(frozen=True)
 class SunPosition:
-    """Hold a sun position in degrees (floats for a scalar time, else arrays of its shape).
+    """
+    Hold a sun position in degrees (floats for a scalar time, else arrays of its shape).
 
     Parameters
     ----------
@@ -83,12 +114,13 @@ class SunPosition:
         (``"paper"``).
     model : str
         The model that computed it (:data:`MODELS`).
+
     """
 
     azimuth_deg: object
     altitude_deg: object
     apparent_altitude_deg: object = None
-    model: str = "spa"
+    model: str = 'spa'
 
     @property
     def zenith_deg(self):
@@ -96,12 +128,14 @@ class SunPosition:
         return 90.0 - self.altitude_deg
 
     def direction_enu(self):
-        """Compute the unit vector(s) to the sun in ENU (geometric altitude).
+        """
+        Compute the unit vector(s) to the sun in ENU (geometric altitude).
 
         Returns
         -------
         numpy.ndarray
             Shape (..., 3): ``(cos h sin A, cos h cos A, sin h)``.
+
         """
         return enu_direction(self.azimuth_deg, self.altitude_deg)
 
@@ -113,16 +147,18 @@ def _one_to_us(value) -> int:
     """One time to integer microseconds since 1970-01-01T00:00Z."""
     if isinstance(value, np.datetime64):
         if np.isnat(value):
-            raise SolarError("time is NaT (not a time)")
-        return int((value.astype("datetime64[us]") - _EPOCH_US).astype(np.int64))
+            raise SolarError('time is NaT (not a time)')
+        return int((value.astype('datetime64[us]') - _EPOCH_US).astype(np.int64))
     if isinstance(value, str):
         s = value.strip()
-        if s[-1:] in ("Z", "z"):
-            s = s[:-1] + "+00:00"
+        if s[-1:] in ('Z', 'z'):
+            s = s[:-1] + '+00:00'
         try:
             value = _dt.datetime.fromisoformat(s)
         except ValueError:
-            raise SolarError(f"time {value!r} is not ISO 8601 (e.g. 2019-11-15T06:00:00Z)") from None
+            raise SolarError(
+                f'time {value!r} is not ISO 8601 (e.g. 2019-11-15T06:00:00Z)'
+            ) from None
     if isinstance(value, _dt.datetime):
         if value.tzinfo is None:
             value = value.replace(tzinfo=_dt.timezone.utc)
@@ -130,11 +166,14 @@ def _one_to_us(value) -> int:
         return (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
     if isinstance(value, _dt.date):
         return (value - _dt.date(1970, 1, 1)).days * _US_PER_DAY
-    raise SolarError(f"time must be a datetime, ISO 8601 string or numpy datetime64, got {type(value).__name__}")
+    raise SolarError(
+        f'time must be a datetime, ISO 8601 string or numpy datetime64, got {type(value).__name__}'
+    )
 
 
 def to_epoch_us(time_utc):
-    """Convert times to int64 microseconds since the Unix epoch (UTC; leap seconds ignored).
+    """
+    Convert times to int64 microseconds since the Unix epoch (UTC; leap seconds ignored).
 
     Parameters
     ----------
@@ -153,56 +192,79 @@ def to_epoch_us(time_utc):
     ------
     SolarError
         No times, NaT, an unreadable string or type.
+
     """
     # pandas DatetimeIndex / Series with a time zone: convert to naive UTC datetime64 first.
-    if hasattr(time_utc, "tz_convert") and hasattr(time_utc, "__len__") and getattr(time_utc, "tz", None) is not None:
-        time_utc = time_utc.tz_convert("UTC").tz_localize(None)
+    if (
+        hasattr(time_utc, 'tz_convert')
+        and hasattr(time_utc, '__len__')
+        and getattr(time_utc, 'tz', None) is not None
+    ):
+        time_utc = time_utc.tz_convert('UTC').tz_localize(None)
     if isinstance(time_utc, (str, _dt.date, np.datetime64)):
         return np.array([_one_to_us(time_utc)], dtype=np.int64), True
     try:
         arr = np.asarray(time_utc)
     except Exception as exc:  # noqa: BLE001 - anything numpy cannot take is a bad time
-        raise SolarError(f"cannot read times from {type(time_utc).__name__}: {exc}") from None
+        raise SolarError(f'cannot read times from {type(time_utc).__name__}: {exc}') from None
     if arr.size == 0:
-        raise SolarError("no times given")
-    if arr.dtype.kind == "M":
-        flat = arr.reshape(-1).astype("datetime64[us]")
+        raise SolarError('no times given')
+    if arr.dtype.kind == 'M':
+        flat = arr.reshape(-1).astype('datetime64[us]')
         if np.isnat(flat).any():
-            raise SolarError("times contain NaT (not a time)")
+            raise SolarError('times contain NaT (not a time)')
         us = (flat - _EPOCH_US).astype(np.int64)
-    elif arr.dtype.kind in "OU":
-        us = np.array([_one_to_us(v) for v in arr.reshape(-1)], dtype=np.int64)  # loop over times, not pixels
+    elif arr.dtype.kind in 'OU':
+        us = np.array(
+            [_one_to_us(v) for v in arr.reshape(-1)], dtype=np.int64
+        )  # loop over times, not pixels
     else:
-        raise SolarError(f"times must be datetimes, ISO 8601 strings or datetime64, got dtype {arr.dtype}")
+        raise SolarError(
+            f'times must be datetimes, ISO 8601 strings or datetime64, got dtype {arr.dtype}'
+        )
     return us.reshape(arr.shape), arr.ndim == 0
 
 
 def _checked_number(name, v, lo, hi) -> float:
-    """``float(v)`` when it is a finite number in [lo, hi]; otherwise a one-line SolarError naming ``name``."""
+    """
+    Return ``float(v)`` when finite and in [lo, hi], else raise a SolarError.
+
+    ``float(v)`` when it is a finite number in [lo, hi]; otherwise a one-line SolarError naming
+    ``name``.
+    """
     try:
         f = float(v)
     except (TypeError, ValueError):
-        raise SolarError(f"{name} must be a number, got {v!r}") from None
+        raise SolarError(f'{name} must be a number, got {v!r}') from None
     if not math.isfinite(f) or not (lo <= f <= hi):
-        raise SolarError(f"{name} must be finite and in [{lo:g}, {hi:g}], got {v!r}")
+        raise SolarError(f'{name} must be finite and in [{lo:g}, {hi:g}], got {v!r}')
     return f
 
 
 def _check_site(latitude_deg, longitude_deg, altitude_m):
-    return [_checked_number(name, v, lo, hi) for name, v, lo, hi in (
-        ("latitude_deg", latitude_deg, -90.0, 90.0),
-        ("longitude_deg", longitude_deg, -180.0, 180.0),
-        ("altitude_m", altitude_m, *ALTITUDE_RANGE_M))]
+    return [
+        _checked_number(name, v, lo, hi)
+        for name, v, lo, hi in (
+            ('latitude_deg', latitude_deg, -90.0, 90.0),
+            ('longitude_deg', longitude_deg, -180.0, 180.0),
+            ('altitude_m', altitude_m, *ALTITUDE_RANGE_M),
+        )
+    ]
 
 
 def _calendar(us):
-    """int64 epoch microseconds -> (year, day_of_year with 1 Jan = 1, UTC fraction of the day in [0, 1))."""
+    """
+    Split epoch microseconds into year, day of year and fraction of the day (UTC).
+
+    int64 epoch microseconds -> (year, day_of_year with 1 Jan = 1, UTC fraction of the day in [0,
+    1)).
+    """
     days = np.floor_divide(us, _US_PER_DAY)
     frac = (us - days * _US_PER_DAY) / _US_PER_DAY
-    d64 = days.astype("datetime64[D]")
-    y64 = d64.astype("datetime64[Y]")
+    d64 = days.astype('datetime64[D]')
+    y64 = d64.astype('datetime64[Y]')
     year = y64.astype(np.int64) + 1970
-    doy = (d64 - y64.astype("datetime64[D]")).astype(np.int64) + 1
+    doy = (d64 - y64.astype('datetime64[D]')).astype(np.int64) + 1
     return year, doy, frac
 
 
@@ -210,18 +272,31 @@ def _calendar(us):
 # The paper's model (eqs 2-10), generalised to UTC + longitude
 # --------------------------------------------------------------------------------------------
 def _gregorian_leap_days_since_1985(y):
-    """Leap days in the years 1985 .. y-1 (negative before 1985), Gregorian rules (1900, 2100 are not leap)."""
+    """
+    Count the leap days in the years 1985 .. y-1 (Gregorian rules).
+
+    Leap days in the years 1985 .. y-1 (negative before 1985), Gregorian rules (1900, 2100 are not
+    leap).
+    """
+
     def before(yy):
-        return np.floor((yy - 1.0) / 4.0) - np.floor((yy - 1.0) / 100.0) + np.floor((yy - 1.0) / 400.0)
+        return (
+            np.floor((yy - 1.0) / 4.0)
+            - np.floor((yy - 1.0) / 100.0)
+            + np.floor((yy - 1.0) / 400.0)
+        )
+
     return before(y) - before(1985.0)
 
 
 def _day_angle_rad(year, day_of_year_frac):
-    """sigma_S = 2 pi (D - D0) / 365.2422 with eq 6's D0.
+    """
+    sigma_S = 2 pi (D - D0) / 365.2422 with eq 6's D0.
 
-    Eq 6's ``INT((y - 1985) / 4)`` counts the leap days since 1985 assuming every fourth year is one; that
-    equals the Gregorian count for 1901-2100 and is off by one day per skipped century year outside it
-    (a 0.13 deg jump of the sun at 1901-01-01 and 2101-01-01), so the Gregorian count is used.
+    Eq 6's ``INT((y - 1985) / 4)`` counts the leap days since 1985 assuming every fourth year is
+    one; that equals the Gregorian count for 1901-2100 and is off by one day per skipped century
+    year outside it (a 0.13 deg jump of the sun at 1901-01-01 and 2101-01-01), so the Gregorian
+    count is used.
     """
     y = np.asarray(year, dtype=float)
     d0 = 79.6764 + 0.2422 * (y - 1985.0) - _gregorian_leap_days_since_1985(y)
@@ -229,7 +304,8 @@ def _day_angle_rad(year, day_of_year_frac):
 
 
 def paper_declination_deg(year, day_of_year_frac):
-    """Compute the solar declination of eq 5 (Bourges 1985).
+    """
+    Compute the solar declination of eq 5 (Bourges 1985).
 
     With eq 6's spring-equinox day D0, its leap-day count made Gregorian (see ``_day_angle_rad``).
 
@@ -251,14 +327,23 @@ def paper_declination_deg(year, day_of_year_frac):
        Polarized Skylight Orientation Determination" (the seed paper), eqs 5-6.
     .. [2] B. Bourges, "Improvement in solar declination computation", Solar Energy 35(4):
        367-369, 1985.
+
     """
     s = _day_angle_rad(year, day_of_year_frac)
-    return (0.3723 + 23.2567 * np.sin(s) + 0.1149 * np.sin(2 * s) - 0.1712 * np.sin(3 * s)
-            - 0.758 * np.cos(s) + 0.3656 * np.cos(2 * s) + 0.0201 * np.cos(3 * s))
+    return (
+        0.3723
+        + 23.2567 * np.sin(s)
+        + 0.1149 * np.sin(2 * s)
+        - 0.1712 * np.sin(3 * s)
+        - 0.758 * np.cos(s)
+        + 0.3656 * np.cos(2 * s)
+        + 0.0201 * np.cos(3 * s)
+    )
 
 
 def paper_equation_of_time_min(year, day_of_year_frac):
-    """Compute the equation of time E_t of eq 8 (apparent minus mean solar time).
+    """
+    Compute the equation of time E_t of eq 8 (apparent minus mean solar time).
 
     Parameters
     ----------
@@ -276,14 +361,21 @@ def paper_equation_of_time_min(year, day_of_year_frac):
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eq 8.
+
     """
     s = _day_angle_rad(year, day_of_year_frac)
-    return (0.0028 - 1.9857 * np.sin(s) + 9.9059 * np.sin(2 * s)
-            - 7.0924 * np.cos(s) - 0.6882 * np.cos(2 * s))
+    return (
+        0.0028
+        - 1.9857 * np.sin(s)
+        + 9.9059 * np.sin(2 * s)
+        - 7.0924 * np.cos(s)
+        - 0.6882 * np.cos(2 * s)
+    )
 
 
 def paper_hour_angle_deg(utc_hours, longitude_deg, equation_of_time_min):
-    """Compute the solar hour angle of eqs 7, 9 and 10 from UTC and longitude.
+    """
+    Compute the solar hour angle of eqs 7, 9 and 10 from UTC and longitude.
 
     ``S_d = UTC_h + lon/15`` (eq 7 without Beijing time), ``S_t = S_d + E_t/60`` (eq 9),
     ``T = 15 (S_t - 12)`` (eq 10), wrapped to (-180, 180].
@@ -306,14 +398,19 @@ def paper_hour_angle_deg(utc_hours, longitude_deg, equation_of_time_min):
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eqs 7, 9 and 10.
+
     """
-    solar_time_h = (np.asarray(utc_hours, dtype=float) + np.asarray(longitude_deg, dtype=float) / 15.0
-                    + np.asarray(equation_of_time_min, dtype=float) / 60.0)
+    solar_time_h = (
+        np.asarray(utc_hours, dtype=float)
+        + np.asarray(longitude_deg, dtype=float) / 15.0
+        + np.asarray(equation_of_time_min, dtype=float) / 60.0
+    )
     return wrap_180_deg(15.0 * (solar_time_h - 12.0))
 
 
 def azimuth_altitude_from_equatorial(declination_deg, hour_angle_deg, latitude_deg):
-    """Compute the sun's azimuth and altitude from declination, hour angle and latitude.
+    """
+    Compute the sun's azimuth and altitude from declination, hour angle and latitude.
 
     Eq 3 for the altitude (arcsin of a clipped argument) and a robust replacement of eq 4 for the
     azimuth, ``atan2(sin T, cos T sin L - tan(delta) cos L) + 180 deg``: finite at the poles, at
@@ -339,13 +436,16 @@ def azimuth_altitude_from_equatorial(declination_deg, hour_angle_deg, latitude_d
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eqs 2-4.
+
     """
     d = np.radians(np.asarray(declination_deg, dtype=float))
     T = np.radians(wrap_180_deg(hour_angle_deg))
     L = np.radians(np.asarray(latitude_deg, dtype=float))
     sin_h = np.clip(np.sin(d) * np.sin(L) + np.cos(d) * np.cos(L) * np.cos(T), -1.0, 1.0)
     altitude = np.degrees(np.arcsin(sin_h))
-    azimuth = wrap_360_deg(np.degrees(np.arctan2(np.sin(T), np.cos(T) * np.sin(L) - np.tan(d) * np.cos(L))) + 180.0)
+    azimuth = wrap_360_deg(
+        np.degrees(np.arctan2(np.sin(T), np.cos(T) * np.sin(L) - np.tan(d) * np.cos(L))) + 180.0
+    )
     return azimuth, altitude
 
 
@@ -362,11 +462,13 @@ def _paper_model(us, latitude_deg, longitude_deg):
 # --------------------------------------------------------------------------------------------
 def _spa():
     from pvlib import spa  # imported lazily: pvlib pulls in pandas/scipy (~0.5 s)
+
     return spa
 
 
 def _default_pressure_hpa(altitude_m):
     from pvlib.atmosphere import alt2pres
+
     return float(alt2pres(altitude_m)) / 100.0
 
 
@@ -374,23 +476,42 @@ def _spa_delta_t_s(us, delta_t_s):
     if delta_t_s is not None:
         return float(delta_t_s)
     year, _, _ = _calendar(us)
-    month = (np.floor_divide(us, _US_PER_DAY).astype("datetime64[D]").astype("datetime64[M]").astype(np.int64) % 12) + 1
-    return np.asarray(_spa().calculate_deltat(year.astype(float), month.astype(float)), dtype=float)
+    month = (
+        np.floor_divide(us, _US_PER_DAY)
+        .astype('datetime64[D]')
+        .astype('datetime64[M]')
+        .astype(np.int64)
+        % 12
+    ) + 1
+    return np.asarray(
+        _spa().calculate_deltat(year.astype(float), month.astype(float)), dtype=float
+    )
 
 
 def _spa_model(us, lat, lon, alt_m, pressure_hpa, temperature_c, delta_t_s):
     year = _calendar(us)[0]
     if year.min() < SPA_YEARS[0] or year.max() > SPA_YEARS[1]:
-        raise SolarError(f"model 'spa' is valid for years {SPA_YEARS[0]}..{SPA_YEARS[1]}, "
-                         f"got {year.min()}..{year.max()}")
-    out = _spa().solar_position(us.astype(float) / 1e6, lat, lon, alt_m, pressure_hpa, temperature_c,
-                                _spa_delta_t_s(us, delta_t_s), ATMOS_REFRACT_DEG)
+        raise SolarError(
+            f"model 'spa' is valid for years {SPA_YEARS[0]}..{SPA_YEARS[1]}, "
+            f'got {year.min()}..{year.max()}'
+        )
+    out = _spa().solar_position(
+        us.astype(float) / 1e6,
+        lat,
+        lon,
+        alt_m,
+        pressure_hpa,
+        temperature_c,
+        _spa_delta_t_s(us, delta_t_s),
+        ATMOS_REFRACT_DEG,
+    )
     _app_zenith, _zenith, app_elev, elev, azimuth = (np.asarray(x, dtype=float) for x in out[:5])
     return wrap_360_deg(azimuth), np.clip(elev, -90.0, 90.0), np.clip(app_elev, -90.0, 90.0)
 
 
 def spa_refraction_deg(geometric_altitude_deg, pressure_hpa, temperature_c):
-    """Compute SPA's atmospheric refraction correction (pvlib's formula).
+    """
+    Compute SPA's atmospheric refraction correction (pvlib's formula).
 
     The formula is only evaluated where SPA's switch is on (geometric altitude at least
     -(0.26667 + 0.5667) deg), so no division by (e0 + 5.11) = 0; 0 below.
@@ -413,14 +534,17 @@ def spa_refraction_deg(geometric_altitude_deg, pressure_hpa, temperature_c):
     ----------
     .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
        Solar Energy 76(5): 577-589, 2004 (corrigendum 2007).
+
     """
     e0 = np.asarray(geometric_altitude_deg, dtype=float)
     on = e0 >= -(0.26667 + ATMOS_REFRACT_DEG)
     safe = np.where(on, e0, 10.0)
     fn = _spa().atmospheric_refraction_correction
-    if getattr(_spa(), "USE_NUMBA", False):  # numba-compiled pvlib takes scalars only
+    if getattr(_spa(), 'USE_NUMBA', False):  # numba-compiled pvlib takes scalars only
         fn = np.vectorize(fn, otypes=[float])
-    return np.where(on, fn(float(pressure_hpa), float(temperature_c), safe, ATMOS_REFRACT_DEG), 0.0)
+    return np.where(
+        on, fn(float(pressure_hpa), float(temperature_c), safe, ATMOS_REFRACT_DEG), 0.0
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -428,25 +552,43 @@ def spa_refraction_deg(geometric_altitude_deg, pressure_hpa, temperature_c):
 # --------------------------------------------------------------------------------------------
 def _check_model(model):
     if model not in MODELS:
-        raise SolarError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+        raise SolarError(f'model must be one of {", ".join(MODELS)}; got {model!r}')
 
 
 def _atmosphere(altitude_m, pressure_hpa, temperature_c):
     p = _default_pressure_hpa(altitude_m) if pressure_hpa is None else pressure_hpa
-    return (_checked_number("pressure_hpa", p, 1.0, 1200.0),
-            _checked_number("temperature_c", temperature_c, -90.0, 70.0))
+    return (
+        _checked_number('pressure_hpa', p, 1.0, 1200.0),
+        _checked_number('temperature_c', temperature_c, -90.0, 70.0),
+    )
 
 
 def _package(az, alt, app, scalar, shape, model):
     if scalar:
-        return SunPosition(float(az.reshape(-1)[0]), float(alt.reshape(-1)[0]),
-                           None if app is None else float(app.reshape(-1)[0]), model)
-    return SunPosition(az.reshape(shape), alt.reshape(shape), None if app is None else app.reshape(shape), model)
+        return SunPosition(
+            float(az.reshape(-1)[0]),
+            float(alt.reshape(-1)[0]),
+            None if app is None else float(app.reshape(-1)[0]),
+            model,
+        )
+    return SunPosition(
+        az.reshape(shape), alt.reshape(shape), None if app is None else app.reshape(shape), model
+    )
 
 
-def sun_position(time_utc, latitude_deg, longitude_deg, altitude_m=0.0, model="spa", *,
-                 pressure_hpa=None, temperature_c=12.0, delta_t_s=None) -> SunPosition:
-    """Compute the sun's azimuth and altitude at a UTC time for a site (WGS84).
+def sun_position(
+    time_utc,
+    latitude_deg,
+    longitude_deg,
+    altitude_m=0.0,
+    model='spa',
+    *,
+    pressure_hpa=None,
+    temperature_c=12.0,
+    delta_t_s=None,
+) -> SunPosition:
+    """
+    Compute the sun's azimuth and altitude at a UTC time for a site (WGS84).
 
     Vectorised over times. ``altitude_m`` sets SPA's parallax and, unless ``pressure_hpa`` is
     given, the pressure for refraction (standard atmosphere). The ``paper`` model ignores altitude,
@@ -492,13 +634,14 @@ def sun_position(time_utc, latitude_deg, longitude_deg, altitude_m=0.0, model="s
        Polarized Skylight Orientation Determination" (the seed paper), eqs 2-10.
     .. [3] B. Bourges, "Improvement in solar declination computation", Solar Energy 35(4):
        367-369, 1985.
+
     """
     _check_model(model)
     lat, lon, alt_m = _check_site(latitude_deg, longitude_deg, altitude_m)
     us, scalar = to_epoch_us(time_utc)
     shape = us.shape
     flat = us.reshape(-1)
-    if model == "paper":
+    if model == 'paper':
         az, alt = _paper_model(flat, lat, lon)
         return _package(np.asarray(az), np.asarray(alt), None, scalar, shape, model)
     p, t = _atmosphere(alt_m, pressure_hpa, temperature_c)
@@ -507,7 +650,8 @@ def sun_position(time_utc, latitude_deg, longitude_deg, altitude_m=0.0, model="s
 
 
 class SunCache:
-    """Compute sun positions for a fixed site fast per frame: SPA on a time grid, interpolated.
+    """
+    Compute sun positions for a fixed site fast per frame: SPA on a time grid, interpolated.
 
     ``cache(time_utc)`` (or ``cache.position(time_utc)``) returns the same :class:`SunPosition` as
     :func:`sun_position` (scalar or array times) to within ~1.4e-6 deg great-circle at the default
@@ -549,23 +693,40 @@ class SunCache:
     ----------
     .. [1] I. Reda and A. Andreas, "Solar position algorithm for solar radiation applications",
        Solar Energy 76(5): 577-589, 2004 (corrigendum 2007).
+
     """
 
-    def __init__(self, latitude_deg, longitude_deg, altitude_m=0.0, model="spa", *, step_s=10.0,
-                 window_s=600.0, pressure_hpa=None, temperature_c=12.0, delta_t_s=None):
+    def __init__(
+        self,
+        latitude_deg,
+        longitude_deg,
+        altitude_m=0.0,
+        model='spa',
+        *,
+        step_s=10.0,
+        window_s=600.0,
+        pressure_hpa=None,
+        temperature_c=12.0,
+        delta_t_s=None,
+    ):
         _check_model(model)
-        self.latitude_deg, self.longitude_deg, self.altitude_m = _check_site(latitude_deg, longitude_deg, altitude_m)
+        self.latitude_deg, self.longitude_deg, self.altitude_m = _check_site(
+            latitude_deg, longitude_deg, altitude_m
+        )
         self.model = model
         step_s, window_s = float(step_s), float(window_s)
         if not (math.isfinite(step_s) and 1e-3 <= step_s <= 600.0):
-            raise SolarError(f"step_s must be in [0.001, 600] s, got {step_s}")
+            raise SolarError(f'step_s must be in [0.001, 600] s, got {step_s}')
         if not (math.isfinite(window_s) and 2 * step_s <= window_s <= 7 * 86400.0):
-            raise SolarError(f"window_s must be in [2 step_s, 7 days], got {window_s}")
+            raise SolarError(f'window_s must be in [2 step_s, 7 days], got {window_s}')
         self._step_us = int(round(step_s * 1e6))
         self._n_window = int(math.ceil(window_s * 1e6 / self._step_us))
         self._n = self._n_window
-        self.pressure_hpa, self.temperature_c = ((None, None) if model == "paper"
-                                                 else _atmosphere(self.altitude_m, pressure_hpa, temperature_c))
+        self.pressure_hpa, self.temperature_c = (
+            (None, None)
+            if model == 'paper'
+            else _atmosphere(self.altitude_m, pressure_hpa, temperature_c)
+        )
         self.delta_t_s = delta_t_s
         self._t0_us = None
         self._v_enu = None
@@ -575,15 +736,26 @@ class SunCache:
     @property
     def span_us(self):
         """(first, last) grid time in epoch microseconds, or None before the first query."""
-        return None if self._t0_us is None else (self._t0_us, self._t0_us + self._n * self._step_us)
+        return (
+            None if self._t0_us is None else (self._t0_us, self._t0_us + self._n * self._step_us)
+        )
 
     def _fill(self, lo_us, hi_us):
         step = self._step_us
-        t0 = ((lo_us - 2 * step) // step) * step        # two steps of margin for slightly earlier queries
+        t0 = (
+            (lo_us - 2 * step) // step
+        ) * step  # two steps of margin for slightly earlier queries
         n = max(self._n_window, int(-(-(hi_us - t0) // step)))
         grid = t0 + step * np.arange(n + 1, dtype=np.int64)
-        az, alt, _ = _spa_model(grid, self.latitude_deg, self.longitude_deg, self.altitude_m,
-                                self.pressure_hpa, self.temperature_c, self.delta_t_s)
+        az, alt, _ = _spa_model(
+            grid,
+            self.latitude_deg,
+            self.longitude_deg,
+            self.altitude_m,
+            self.pressure_hpa,
+            self.temperature_c,
+            self.delta_t_s,
+        )
         self._t0_us, self._n, self._v_enu = t0, n, enu_direction(az, alt)
         self.refills += 1
 
@@ -592,14 +764,16 @@ class SunCache:
         shape = us.shape
         flat = us.reshape(-1)
         self.queries += 1
-        if self.model == "paper":
+        if self.model == 'paper':
             az, alt = _paper_model(flat, self.latitude_deg, self.longitude_deg)
             return _package(np.asarray(az), np.asarray(alt), None, scalar, shape, self.model)
         lo, hi = int(flat.min()), int(flat.max())
         span = self.span_us
         if span is None or lo < span[0] or hi > span[1]:
             if hi - lo > 7 * _US_PER_DAY:
-                raise SolarError("SunCache: times span more than 7 days in one call; use sun_position")
+                raise SolarError(
+                    'SunCache: times span more than 7 days in one call; use sun_position'
+                )
             self._fill(lo, hi)
         rel = flat - self._t0_us
         k = np.minimum(rel // self._step_us, self._n - 1)
@@ -608,7 +782,9 @@ class SunCache:
         v /= np.linalg.norm(v, axis=-1, keepdims=True)  # |v| >= cos(half a step's angle) > 0.99
         az, alt = azimuth_altitude_from_enu(v)
         az, alt = np.atleast_1d(az), np.atleast_1d(alt)
-        app = np.clip(alt + spa_refraction_deg(alt, self.pressure_hpa, self.temperature_c), -90.0, 90.0)
+        app = np.clip(
+            alt + spa_refraction_deg(alt, self.pressure_hpa, self.temperature_c), -90.0, 90.0
+        )
         return _package(az, alt, app, scalar, shape, self.model)
 
     position = __call__

@@ -1,21 +1,37 @@
-"""The Dask distributed backend of the error-map sweep (:func:`polarization_compass.sweep.run_sweep`).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-- where: an embedded ``distributed.LocalCluster`` of ``workers`` single-threaded processes on 127.0.0.1
-  (default: one per core; no dashboard), or an existing cluster (``scheduler="tcp://HOST:PORT"``, started
-  with ``dask scheduler`` / ``dask worker`` or any deployment Dask supports; every worker needs this package
-  and the ``sweep`` extra, same version);
-- a task is one sweep chunk, (sun altitude, pitch) x every method, yaw and roll, rendering only the pixels
-  each method reads (:class:`~polarization_compass.sweep_cells.CellEvaluator`, built once per worker process and
-  sweep). A chunk is 10^2-10^4 estimates (0.1-30 s), so the scheduler's few ms per task stay a small share
-  (``bench/errormap_bench.py`` measures it);
-- results come back to the client, which writes each chunk's region into the Zarr store as it arrives (the
-  workers need no shared file system). A SIGKILLed worker loses only the chunks it was running: the
-  scheduler reruns them on another worker. An interrupted client cancels what is left; the store keeps
-  every written chunk.
-
-Values do not depend on where or in which order a chunk runs: noise seeds are a function of the cell, and
-every worker runs numba with one thread.
 """
+The Dask distributed backend of the error-map sweep (:func:`polarization_compass.sweep.run_sweep`).
+
+- where: an embedded ``distributed.LocalCluster`` of ``workers`` single-threaded processes on
+  127.0.0.1 (default: one per core; no dashboard), or an existing cluster
+  (``scheduler="tcp://HOST:PORT"``, started with ``dask scheduler`` / ``dask worker`` or any
+  deployment Dask supports; every worker needs this package and the ``sweep`` extra, same version);
+- a task is one sweep chunk, (sun altitude, pitch) x every method, yaw and roll, rendering only the
+  pixels each method reads (:class:`~polarization_compass.sweep_cells.CellEvaluator`, built once
+  per worker process and sweep). A chunk is 10^2-10^4 estimates (0.1-30 s), so the scheduler's few
+  ms per task stay a small share (``bench/errormap_bench.py`` measures it);
+- results come back to the client, which writes each chunk's region into the Zarr store as it
+  arrives (the workers need no shared file system). A SIGKILLed worker loses only the chunks it was
+  running: the scheduler reruns them on another worker. An interrupted client cancels what is left;
+  the store keeps every written chunk.
+
+Values do not depend on where or in which order a chunk runs: noise seeds are a function of the
+cell, and every worker runs numba with one thread.
+"""
+
 from __future__ import annotations
 
 import os
@@ -25,30 +41,35 @@ import time
 
 from .errormap import ErrorMapError
 
-__all__ = ["run_chunks", "run_tasks", "start"]
+__all__ = ['run_chunks', 'run_tasks', 'start']
 
-_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+_THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS', 'NUMBA_NUM_THREADS')
 
 # one evaluator per worker process, for the sweep it was built for
 _EVALUATOR: dict = {}
 
 
 def _chunk_task(spec, digest: str, ia: int, ip: int):
-    """Runs on a Dask worker: one chunk. Returns (ia, ip, err, status, estimator errors, compute wall seconds,
-    compute CPU seconds of this thread, CPU seconds of building this worker's evaluator (0 once built))."""
+    """
+    Run on a Dask worker: one chunk.
+
+    Returns (ia, ip, err, status, estimator errors, compute wall seconds, compute CPU seconds of
+    this thread, CPU seconds of building this worker's evaluator (0 once built)).
+    """
     from .runtime import keep_large_buffers_in_heap, single_threaded_kernels
     from .sweep_cells import CellEvaluator
+
     c0 = time.thread_time()
     ev = _EVALUATOR.get(digest)
     if ev is None:
-        # distributed's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536: glibc then returns freed
-        # buffers to the kernel and every chunk's temporaries page-fault anew (measured: 0.29 ms of CPU per
-        # estimate instead of 0.14-0.19 ms in process)
+        # distributed's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536: glibc then returns
+        # freed buffers to the kernel and every chunk's temporaries page-fault anew (measured: 0.29
+        # ms of CPU per estimate instead of 0.14-0.19 ms in process)
         keep_large_buffers_in_heap()
         _EVALUATOR.clear()
         ev = _EVALUATOR[digest] = CellEvaluator(spec)
     t1, c1 = time.perf_counter(), time.thread_time()
-    with single_threaded_kernels():                  # numba's thread count is per calling thread
+    with single_threaded_kernels():  # numba's thread count is per calling thread
         err, status = ev.chunk(ia, ip)
     errors, ev.errors = ev.errors, []
     return ia, ip, err, status, errors, time.perf_counter() - t1, time.thread_time() - c1, c1 - c0
@@ -58,33 +79,49 @@ def _require_distributed():
     try:
         import distributed
     except ImportError as exc:
-        raise ErrorMapError(f"a sweep on more than one worker runs on Dask, which needs the optional extra "
-                            f"'sweep' (pip install polarization_compass[sweep], installed by make); or pass "
-                            f"--workers 1 ({exc})") from None
+        raise ErrorMapError(
+            f'a sweep on more than one worker runs on Dask, which needs the optional extra '
+            f"'sweep' (pip install polarization_compass[sweep], installed by make); or pass "
+            f'--workers 1 ({exc})'
+        ) from None
     return distributed
 
 
 def start(scheduler: str | None, workers: int | None):
-    """(client, cluster or None) on the scheduler, or on a new LocalCluster of ``workers`` single-threaded
-    processes on 127.0.0.1 (default: one per core; no dashboard). The caller closes both."""
+    """
+    Return (client, cluster or None) on a scheduler or a new LocalCluster.
+
+    (client, cluster or None) on the scheduler, or on a new LocalCluster of ``workers``
+    single-threaded processes on 127.0.0.1 (default: one per core; no dashboard). The caller closes
+    both.
+    """
     import logging
+
     distributed = _require_distributed()
     if scheduler:
         try:
-            return distributed.Client(scheduler, timeout="20s", set_as_default=False), None
+            return distributed.Client(scheduler, timeout='20s', set_as_default=False), None
         except (OSError, TimeoutError) as exc:
-            raise ErrorMapError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+            raise ErrorMapError(
+                f'cannot reach the Dask scheduler at {scheduler} ({exc})'
+            ) from None
     n = max(1, int(workers or os.cpu_count() or 1))
     saved = {k: os.environ.get(k) for k in _THREAD_VARS}
-    os.environ.update({k: "1" for k in _THREAD_VARS})        # inherited by the worker processes only
-    # A terminal's Ctrl-C reaches the whole process group, the worker processes too: they start with
-    # SIGINT ignored (an ignored signal stays ignored across exec), so only this client reacts to it
-    # and closes the cluster, instead of every worker printing a KeyboardInterrupt traceback.
+    os.environ.update(dict.fromkeys(_THREAD_VARS, '1'))  # inherited by the worker processes only
+    # A terminal's Ctrl-C reaches the whole process group, the worker processes too: they start
+    # with SIGINT ignored (an ignored signal stays ignored across exec), so only this client reacts
+    # to it and closes the cluster, instead of every worker printing a KeyboardInterrupt traceback.
     in_main = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
     try:
-        cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                           dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = distributed.LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host='127.0.0.1',
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
     finally:
         if in_main:
             signal.signal(signal.SIGINT, previous)
@@ -100,22 +137,26 @@ def start(scheduler: str | None, workers: int | None):
         raise
 
 
-#: A task holds whole chunks and at least this many estimates (~0.3 s of work): the scheduler's ~5-10 ms per
-#: task stays a few per cent even for pitch-only sweeps, whose chunks are small.
+#: A task holds whole chunks and at least this many estimates (~0.3 s of work): the scheduler's
+#: ~5-10 ms per task stays a few per cent even for pitch-only sweeps, whose chunks are small.
 MIN_TASK_ESTIMATES = 2000
-#: ... but the sweep is split into at least this many tasks, so that every worker gets work and the last
-#: tasks do not leave workers idle for long.
+#: ... but the sweep is split into at least this many tasks, so that every worker gets work and the
+#: last tasks do not leave workers idle for long.
 MIN_TASKS = 8
 
 
 def _chunks_task(spec, digest: str, keys: list) -> list:
-    """Runs on a Dask worker: several chunks, one result of :func:`_chunk_task` each."""
+    """Run on a Dask worker: several chunks, one result of :func:`_chunk_task` each."""
     return [_chunk_task(spec, digest, ia, ip) for ia, ip in keys]
 
 
 def group_chunks(spec, run: list) -> list[list]:
-    """The chunks ``run`` in consecutive groups of at least :data:`MIN_TASK_ESTIMATES` estimates, at least
-    :data:`MIN_TASKS` groups when there are that many chunks."""
+    """
+    Group the chunks ``run`` into tasks of at least :data:`MIN_TASK_ESTIMATES` estimates.
+
+    The chunks ``run`` in consecutive groups of at least :data:`MIN_TASK_ESTIMATES` estimates, at
+    least :data:`MIN_TASKS` groups when there are that many chunks.
+    """
     mask = spec.tilt_mask()
     per = [len(spec.methods) * spec.yaw_deg.size * int(mask[ip].sum()) for _, ip in run]
     total = sum(per)
@@ -132,16 +173,24 @@ def group_chunks(spec, run: list) -> list[list]:
     return groups
 
 
-def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, workers: int | None = None) -> int:
-    """Run the chunks ``run`` ([(ia, ip), ...]) of ``spec`` on Dask; ``accept(*result)`` for each as it arrives.
+def run_chunks(
+    spec, run: list, accept, on_start, scheduler: str | None = None, workers: int | None = None
+) -> int:
+    """
+    Run the chunks ``run`` of ``spec`` on Dask, accepting each result as it arrives.
 
-    Chunks travel in tasks of :func:`group_chunks`. ``on_start(n_workers, where, startup_s)`` is called once the
-    cluster is up. Closes the client (and the LocalCluster it started) on every exit; cancels the tasks left on an
-    exception or interrupt. Returns the number of Dask tasks.
+    Run the chunks ``run`` ([(ia, ip), ...]) of ``spec`` on Dask; ``accept(*result)`` for each as
+    it arrives.
+
+    Chunks travel in tasks of :func:`group_chunks`. ``on_start(n_workers, where, startup_s)`` is
+    called once the cluster is up. Closes the client (and the LocalCluster it started) on every
+    exit; cancels the tasks left on an exception or interrupt. Returns the number of Dask tasks.
     """
     digest = spec.digest()
-    calls = [(f"errormap-{digest}-{g[0][0]}-{g[0][1]}-{len(g)}", _chunks_task, (spec, digest, g))
-             for g in group_chunks(spec, run)]
+    calls = [
+        (f'errormap-{digest}-{g[0][0]}-{g[0][1]}-{len(g)}', _chunks_task, (spec, digest, g))
+        for g in group_chunks(spec, run)
+    ]
 
     def on_result(key, results):
         for r in results:
@@ -151,21 +200,24 @@ def run_chunks(spec, run: list, accept, on_start, scheduler: str | None = None, 
     return len(calls)
 
 
-def run_tasks(calls: list, on_result, on_start=None, scheduler: str | None = None,
-              workers: int | None = None) -> None:
-    """Run ``calls`` ([(key, function, args), ...], the functions importable on the workers) on Dask.
+def run_tasks(
+    calls: list, on_result, on_start=None, scheduler: str | None = None, workers: int | None = None
+) -> None:
+    """
+    Run ``calls`` ([(key, function, args), ...], the functions importable on the workers) on Dask.
 
     ``on_result(key, result)`` is called in this process for each as it arrives (any order);
-    ``on_start(n_workers, where, startup_s)`` once the cluster is up. Closes the client (and the LocalCluster it
-    started) on every exit; cancels what is left on an exception or interrupt.
+    ``on_start(n_workers, where, startup_s)`` once the cluster is up. Closes the client (and the
+    LocalCluster it started) on every exit; cancels what is left on an exception or interrupt.
     """
     t0 = time.perf_counter()
     client, cluster = start(scheduler, workers)
     try:
-        n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
+        n_workers = len(client.scheduler_info(n_workers=-1)['workers'])
         if on_start is not None:
-            on_start(n_workers, f"Dask {scheduler or 'LocalCluster'}", time.perf_counter() - t0)
+            on_start(n_workers, f'Dask {scheduler or "LocalCluster"}', time.perf_counter() - t0)
         from distributed import as_completed
+
         futures = [client.submit(fn, *args, key=key, pure=False) for key, fn, args in calls]
         try:
             for fut, result in as_completed(futures, with_results=True, loop=client.loop):

@@ -1,6 +1,25 @@
-"""Corrupt-.npz checks shared by the hard-case tests of every loader that reads .npz files (frame
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Corrupt-.npz checks shared by the hard-case tests of every .npz loader.
+
+Corrupt-.npz checks shared by the hard-case tests of every loader that reads .npz files (frame
 files, error maps): a truncated archive, a .npy saved under an .npz name, and no file handle leaked
-on the error path. Each check takes the loader and the error class it must raise."""
+on the error path. Each check takes the loader and the error class it must raise.
+"""
+
 from __future__ import annotations
 
 import gc
@@ -11,33 +30,46 @@ import pytest
 
 
 def truncate_half(path):
-    """Cut the file at ``path`` to its first half (a download or copy that stopped); returns the path."""
+    """
+    Cut the file at ``path`` to its first half and return the path.
+
+    Cut the file at ``path`` to its first half (a download or copy that stopped); returns the path.
+    """
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
     return path
 
 
 def npy_named_npz(path):
-    """A plain .npy array written under the (.npz) name ``path``; returns the path."""
-    with open(path, "wb") as fh:
+    """Write a plain .npy array under the (.npz) name ``path``; return the path."""
+    with open(path, 'wb') as fh:
         np.save(fh, np.zeros(3))
     return path
 
 
 def assert_refused(load, path, error, match=None):
-    """``load(path)`` raises ``error`` (a leaked handle is ignored here: :func:`assert_no_leaked_handle`
-    is that check)."""
+    """
+    Assert that ``load(path)`` raises ``error``.
+
+    ``load(path)`` raises ``error`` (a leaked handle is ignored here:
+    :func:`assert_no_leaked_handle` is that check).
+    """
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ResourceWarning)
+        warnings.simplefilter('ignore', ResourceWarning)
         with pytest.raises(error, match=match):
             load(path)
         gc.collect()
 
 
 def assert_no_leaked_handle(load, path, error):
-    """``load(path)`` fails with ``error`` and leaves no open file behind (no ResourceWarning once collected)."""
+    """
+    Assert that ``load(path)`` fails with ``error`` and leaves no open file behind.
+
+    ``load(path)`` fails with ``error`` and leaves no open file behind (no ResourceWarning once
+    collected).
+    """
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+        warnings.simplefilter('always')
         try:
             load(path)
         except error:

@@ -1,4 +1,19 @@
-"""Docstrings of public functions say parameters, returns and what they raise (issue 13).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Docstrings of public functions say parameters, returns and what they raise (issue 13).
 
 The style is numpydoc as pvlib writes it: a one-line summary ending with a period, a blank line,
 then ``Parameters``, ``Returns``, ``Raises`` and ``References`` sections. For every module in
@@ -17,9 +32,10 @@ of a public class must have
 Properties are attributes in numpydoc and need only the summary. The source is read with
 :mod:`ast`, not imported, so nothing runs and nested helpers are not counted.
 """
+
 import ast
-import re
 from pathlib import Path
+import re
 
 import pytest
 
@@ -81,8 +97,20 @@ INHERITED_FROM = (
     ('estimators/_disc_estimator.py', 'DiscEstimator'),
 )
 
-_SECTIONS = ('Parameters', 'Returns', 'Yields', 'Raises', 'Warns', 'See Also', 'Notes',
-             'References', 'Examples', 'Attributes', 'Other Parameters', 'Methods')
+_SECTIONS = (
+    'Parameters',
+    'Returns',
+    'Yields',
+    'Raises',
+    'Warns',
+    'See Also',
+    'Notes',
+    'References',
+    'Examples',
+    'Attributes',
+    'Other Parameters',
+    'Methods',
+)
 
 
 def _sections(doc: str) -> dict[str, list[str]]:
@@ -153,7 +181,7 @@ def _raised_names(func) -> set[str]:
         if isinstance(node, ast.Raise) and node.exc is not None:
             name = _exc_name(node.exc)
             if isinstance(node.exc, ast.Name) and name[:1].islower():
-                name = ''           # re-raises an exception object held in a variable, not a class
+                name = ''  # re-raises an exception object held in a variable, not a class
             if name and name not in caught and not caught & {'*', 'Exception'}:
                 raised.add(name)
         if isinstance(node, ast.Try):
@@ -213,23 +241,26 @@ def check_function(func, qualname: str) -> list[str]:
             if missing:
                 problems.append(f'{qualname}: Parameters section does not name {missing}')
     nodes = list(_own_nodes(func))
-    returns = any(isinstance(n, ast.Return) and n.value is not None
-                  and not (isinstance(n.value, ast.Constant) and n.value.value is None)
-                  for n in nodes)
+    returns = any(
+        isinstance(n, ast.Return)
+        and n.value is not None
+        and not (isinstance(n.value, ast.Constant) and n.value.value is None)
+        for n in nodes
+    )
     yields = any(isinstance(n, (ast.Yield, ast.YieldFrom)) for n in nodes)
     if yields and not ({'Yields', 'Returns'} & set(sections)):
         problems.append(f'{qualname}: yields values but has no Yields section')
     elif returns and 'Returns' not in sections:
         problems.append(f'{qualname}: returns a value but has no Returns section')
     raised = _raised_names(func)
-    raised.discard('NotImplementedError')   # an abstract method's body, not a documented failure
+    raised.discard('NotImplementedError')  # an abstract method's body, not a documented failure
     if raised:
-        documented = {x.rsplit('.', 1)[-1]
-                      for x in _entry_names(sections.get('Raises', []))}
+        documented = {x.rsplit('.', 1)[-1] for x in _entry_names(sections.get('Raises', []))}
         missing = sorted(raised - documented)
         if missing:
-            problems.append(f'{qualname}: raises {missing} but its Raises section does not '
-                            'name them')
+            problems.append(
+                f'{qualname}: raises {missing} but its Raises section does not name them'
+            )
     return problems
 
 
@@ -248,7 +279,8 @@ def check_summary(node, qualname: str) -> list[str]:
 
 
 def check_source(source: str, name: str = '<source>', classes=()) -> list[str]:
-    """Return the docstring problems of the public functions, classes and methods of a module.
+    """
+    Return the docstring problems of the public functions, classes and methods of a module.
 
     ``classes`` names private classes whose public methods are checked too.
     """
@@ -258,8 +290,9 @@ def check_source(source: str, name: str = '<source>', classes=()) -> list[str]:
     for node in tree.body:
         if isinstance(node, funcs) and not node.name.startswith('_'):
             problems += check_function(node, f'{name}:{node.name}')
-        elif isinstance(node, ast.ClassDef) and (not node.name.startswith('_')
-                                                 or node.name in classes):
+        elif isinstance(node, ast.ClassDef) and (
+            not node.name.startswith('_') or node.name in classes
+        ):
             if not node.name.startswith('_'):
                 problems += check_summary(node, f'{name}:{node.name}')
             for item in node.body:

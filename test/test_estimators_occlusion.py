@@ -1,23 +1,42 @@
-"""sm_asm and symmetry with part of the sky disc unusable (occluders, invalid pixels, a region that cuts the
-disc): either a heading close to the truth with an honest sigma, or a non-ok status with a reason --
-never status ok/ambiguous with an error of degrees (they were off by 10-20 deg RMS on half-occluded skies).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-References are independent of the estimators: the true psi of each render, the geometry of the occluder
-(the angle between the solar meridian and the occluder's edge decides how much of the disc has a usable
-mirror image), and a Gaussian AoP noise model for the sigma calibration."""
+"""
+sm_asm and symmetry with part of the sky disc unusable.
+
+sm_asm and symmetry with part of the sky disc unusable (occluders, invalid pixels, a region that
+cuts the disc): either a heading close to the truth with an honest sigma, or a non-ok status with a
+reason -- never status ok/ambiguous with an error of degrees (they were off by 10-20 deg RMS on
+half-occluded skies).
+
+References are independent of the estimators: the true psi of each render, the geometry of the
+occluder (the angle between the solar meridian and the occluder's edge decides how much of the disc
+has a usable mirror image), and a Gaussian AoP noise model for the sigma calibration.
+"""
+
 import math
 
 import numpy as np
-import pytest
-
 from polarization_compass import conventions as cv
 from polarization_compass.camera import CameraModel
-from polarization_compass.estimators import EstimatorError, Observation, make_estimator
+from polarization_compass.estimators import EstimatorError, make_estimator, Observation
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
+import pytest
 from test_estimators import _gauss_aop_noise
 
-METHODS = ["sm_asm", "symmetry"]
+METHODS = ['sm_asm', 'symmetry']
 CAMERA = CameraModel()
 _RENDERERS: dict = {}
 
@@ -30,16 +49,24 @@ def _renderer(est, scene):
 
 
 def half_plane(x_px, y_px, angle_rad):
-    """Pixels kept: one side of the line through the image centre whose normal has image angle angle_rad
-    (the bench's half_occluded condition)."""
+    """
+    Return the pixels kept on one side of a line through the image centre.
+
+    Pixels kept: one side of the line through the image centre whose normal has image angle
+    angle_rad (the bench's half_occluded condition).
+    """
     u = np.asarray(x_px, dtype=float) - CAMERA.cx_px
     v = np.asarray(y_px, dtype=float) - CAMERA.cy_px
     return (u * math.cos(angle_rad) + v * math.sin(angle_rad)) >= 0.0
 
 
 def meridian_to_edge_deg(psi_deg, angle_rad):
-    """Angle (0-90 deg) between the solar meridian's image direction (-psi from +y towards +x) and the
-    occluder's edge (direction (-sin a, cos a) in x, y)."""
+    """
+    Return the angle (0-90 deg) between the solar meridian and the occluder's edge.
+
+    Angle (0-90 deg) between the solar meridian's image direction (-psi from +y towards +x) and the
+    occluder's edge (direction (-sin a, cos a) in x, y).
+    """
     edge = math.degrees(math.atan2(-math.sin(angle_rad), math.cos(angle_rad)))
     return abs(float(cv.fold_axial_deg(-psi_deg - edge)))
 
@@ -49,7 +76,9 @@ def axial_error_deg(res, psi_true):
 
 
 def _scene_obs(est, scene, bearing, sun_az, sun_alt, angle_rad, noise=None, rng=None):
-    f = _renderer(est, scene).render(attitude=cv.CameraAttitude(bearing, 0.0, 0.0), sun=SunDirection(sun_az, sun_alt))
+    f = _renderer(est, scene).render(
+        attitude=cv.CameraAttitude(bearing, 0.0, 0.0), sun=SunDirection(sun_az, sun_alt)
+    )
     obs = Observation.from_frame(f)
     if noise is not None:
         obs.aop_rad = noise(f, rng)
@@ -58,13 +87,13 @@ def _scene_obs(est, scene, bearing, sun_az, sun_alt, angle_rad, noise=None, rng=
 
 
 # --------------------------------------------------------------------------------------------
-# Noise-free half planes: right to 0.02 deg (noise-free renders: the pixel lattice, not noise, limits it)
-# or refused with a reason; refused exactly where the
-# geometry says the mirror pairs cannot fix the axis
+# Noise-free half planes: right to 0.02 deg (noise-free renders: the pixel lattice, not noise,
+# limits it) or refused with a reason; refused exactly where the geometry says the mirror pairs
+# cannot fix the axis
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_half_occluded_is_right_or_refused(name):
-    est = make_estimator(name)                                    # default stride 8
+    est = make_estimator(name)  # default stride 8
     scene = Scene()
     n_ok = 0
     cases = 0
@@ -78,44 +107,66 @@ def test_half_occluded_is_right_or_refused(name):
                 if res.ok:
                     n_ok += 1
                     err = axial_error_deg(res, f.psi_deg)
-                    assert err < 0.02, (sun_alt, bearing, angle_deg, d, err, res.extras)   # lattice-limited
-                    assert res.extras["mirror_coverage"] >= 0.1
+                    assert err < 0.02, (
+                        sun_alt,
+                        bearing,
+                        angle_deg,
+                        d,
+                        err,
+                        res.extras,
+                    )  # lattice-limited
+                    assert res.extras['mirror_coverage'] >= 0.1
                 else:
-                    assert res.status.value == "insufficient_coverage", (res.status, res.reason)
-                    assert "unusable" in res.reason and res.psi_deg is None and res.sigma_deg is None
-                    # the usable pairs form a wedge of about 2 d around the meridian: only a narrow one fails
+                    assert res.status.value == 'insufficient_coverage', (res.status, res.reason)
+                    assert (
+                        'unusable' in res.reason and res.psi_deg is None and res.sigma_deg is None
+                    )
+                    # the usable pairs form a wedge of about 2 d around the meridian: only a narrow
+                    # one fails
                     assert d < 30.0, (sun_alt, bearing, angle_deg, d, res.reason)
-                if d < 8.0:           # a sliver of pairs (coverage ~ d / 180 < the 0.1 default)
+                if d < 8.0:  # a sliver of pairs (coverage ~ d / 180 < the 0.1 default)
                     assert not res.ok, (d, res.extras)
     assert n_ok >= 0.6 * cases
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_occluded_sigma_is_honest(name):
-    """Noisy half-occluded skies (Gaussian AoP noise 1/(P sqrt(8 N)), N = 5000, DoP_max 0.7): the headings
-    reported are calibrated (mean z^2 near 1, nothing beyond 4.5 sigma)."""
+    """
+    Noisy half-occluded skies report calibrated sigmas.
+
+    Noisy half-occluded skies (Gaussian AoP noise 1/(P sqrt(8 N)), N = 5000, DoP_max 0.7): the
+    headings reported are calibrated (mean z^2 near 1, nothing beyond 4.5 sigma).
+    """
     est = make_estimator(name)
-    scene = Scene(sky={"model": "rayleigh", "dop_max": 0.7})
+    scene = Scene(sky={'model': 'rayleigh', 'dop_max': 0.7})
     rng = np.random.default_rng(11)
     z, n = [], 36
     for _ in range(n):
-        f, obs = _scene_obs(est, scene, rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(10, 60),
-                            rng.uniform(0, 2 * math.pi), _gauss_aop_noise(5000), rng)
+        f, obs = _scene_obs(
+            est,
+            scene,
+            rng.uniform(0, 360),
+            rng.uniform(0, 360),
+            rng.uniform(10, 60),
+            rng.uniform(0, 2 * math.pi),
+            _gauss_aop_noise(5000),
+            rng,
+        )
         res = est.estimate(obs)
         if not res.ok:
-            assert res.status.value == "insufficient_coverage", res.reason
+            assert res.status.value == 'insufficient_coverage', res.reason
             continue
         z.append(float(cv.fold_axial_deg(res.psi_deg - f.psi_deg)) / res.sigma_deg)
     z = np.array(z)
     assert z.size >= 0.5 * n
     assert np.max(np.abs(z)) < 4.5, z
-    assert 0.3 < np.mean(z ** 2) < 2.0, np.mean(z ** 2)
+    assert 0.3 < np.mean(z**2) < 2.0, np.mean(z**2)
 
 
 # --------------------------------------------------------------------------------------------
 # Other incomplete discs
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_scattered_invalid_pixels_cost_nothing(name):
     """10 % of the pixels invalid at random: still ok, still exact, nearly full mirror coverage."""
     est = make_estimator(name, stride=16)
@@ -124,62 +175,84 @@ def test_scattered_invalid_pixels_cost_nothing(name):
     res = est.estimate(obs)
     assert res.ok, res.reason
     assert axial_error_deg(res, f.psi_deg) < 0.01
-    assert res.extras["mirror_coverage"] > 0.6
+    assert res.extras['mirror_coverage'] > 0.6
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_pixels_outside_the_disc_do_not_matter(name):
-    """Invalid corners (outside the sky disc) leave the result exactly as with every pixel valid."""
+    """
+    Invalid corners outside the sky disc leave the result unchanged.
+
+    Invalid corners (outside the sky disc) leave the result exactly as with every pixel valid.
+    """
     est = make_estimator(name, stride=16)
     f, obs = _scene_obs(est, Scene(), 25.0, 200.0, 40.0, 0.0)
     obs.valid = np.asarray(f.valid).copy()
     full = est.estimate(obs)
     r = np.hypot(np.asarray(f.rays_cam)[0], np.asarray(f.rays_cam)[1]).reshape(f.valid.shape)
-    obs.valid = obs.valid & (r < 0.9 * r.max())        # the disc is the largest circle inside the image
+    obs.valid = obs.valid & (r < 0.9 * r.max())  # the disc is the largest circle inside the image
     assert (~obs.valid).any()
     cut = est.estimate(obs)
-    assert "mirror_fits" not in full.extras and "mirror_fits" not in cut.extras
-    assert cut.psi_deg == full.psi_deg and cut.sigma_deg == full.sigma_deg and cut.pixels == full.pixels
+    assert 'mirror_fits' not in full.extras and 'mirror_fits' not in cut.extras
+    assert (
+        cut.psi_deg == full.psi_deg
+        and cut.sigma_deg == full.sigma_deg
+        and cut.pixels == full.pixels
+    )
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_region_that_cuts_the_disc(name):
-    """A region knob holding only the right half of the disc: no pixel is invalid, yet half the disc is
-    missing; the meridian here is 60 deg from the region's edge, so the answer must be right."""
+    """
+    A region that cuts the disc still gives the right answer.
+
+    A region knob holding only the right half of the disc: no pixel is invalid, yet half the disc
+    is missing; the meridian here is 60 deg from the region's edge, so the answer must be right.
+    """
     probe = make_estimator(name, stride=16)
     sel = probe.pixels_needed(CAMERA)
     x0, y0, w, h = sel.region
     region = (int(round(CAMERA.cx_px)), y0, x0 + w - int(round(CAMERA.cx_px)), h)
     est = make_estimator(name, stride=16, region=region)
     full = Renderer(Scene(), pixels=probe.pixels_needed(CAMERA))
-    f = full.render(attitude=cv.CameraAttitude(60.0, 0.0, 0.0), sun=SunDirection(0.0, 30.0))   # meridian 60 deg from +y
+    f = full.render(
+        attitude=cv.CameraAttitude(60.0, 0.0, 0.0), sun=SunDirection(0.0, 30.0)
+    )  # meridian 60 deg from +y
     res = est.estimate(Observation.from_frame(f))
     assert res.ok, res.reason
     assert axial_error_deg(res, f.psi_deg) < 0.01
-    assert 0.2 < res.extras["mirror_coverage"] < 0.5
+    assert 0.2 < res.extras['mirror_coverage'] < 0.5
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_pixel_list_of_an_occluded_frame_matches_the_grid(name):
     est = make_estimator(name, stride=16)
     f, obs = _scene_obs(est, Scene(), 30.0, 100.0, 30.0, 0.7)
     g = est.estimate(obs)
     perm = np.random.default_rng(2).permutation(obs.aop_rad.size)
-    lst = Observation(obs.aop_rad.reshape(-1)[perm], obs.dop.reshape(-1)[perm], obs.valid.reshape(-1)[perm],
-                      obs.rays_cam[:, perm], obs.x_px.reshape(-1)[perm], obs.y_px.reshape(-1)[perm], obs.camera,
-                      obs.sun_azimuth_deg, obs.sun_altitude_deg)
+    lst = Observation(
+        obs.aop_rad.reshape(-1)[perm],
+        obs.dop.reshape(-1)[perm],
+        obs.valid.reshape(-1)[perm],
+        obs.rays_cam[:, perm],
+        obs.x_px.reshape(-1)[perm],
+        obs.y_px.reshape(-1)[perm],
+        obs.camera,
+        obs.sun_azimuth_deg,
+        obs.sun_altitude_deg,
+    )
     h = est.estimate(lst)
     assert g.ok and h.ok and g.status == h.status
     assert abs(float(cv.fold_axial_deg(g.psi_deg - h.psi_deg))) < 1e-6
     assert axial_error_deg(g, f.psi_deg) < 0.01
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize('name', METHODS)
 def test_min_mirror_coverage_knob(name):
-    with pytest.raises(EstimatorError, match="min_mirror_coverage"):
+    with pytest.raises(EstimatorError, match='min_mirror_coverage'):
         make_estimator(name, min_mirror_coverage=1.5)
     strict = make_estimator(name, stride=16, min_mirror_coverage=0.9)
     f, obs = _scene_obs(strict, Scene(), 30.0, 100.0, 30.0, 0.7)
-    res = strict.estimate(obs)                              # half the disc: at most 0.5 mirrored
-    assert res.status.value == "insufficient_coverage" and "min_mirror_coverage 0.9" in res.reason
+    res = strict.estimate(obs)  # half the disc: at most 0.5 mirrored
+    assert res.status.value == 'insufficient_coverage' and 'min_mirror_coverage 0.9' in res.reason
     assert make_estimator(name, stride=16).estimate(obs).ok

@@ -1,4 +1,19 @@
-"""The package's import graph points downwards only (issue 13).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The package's import graph points downwards only (issue 13).
 
 Layers: the core and the ROS-free applications (everything outside ``nodes`` and ``cli``) never
 import the adapters; ``nodes`` (rclpy) and ``cli`` do not import each other; and no two modules
@@ -8,6 +23,7 @@ import that closes a cycle is still a cycle in the design).
 The graph is read from the source with :mod:`ast`, not by importing, so a module that is never
 imported in the test run is checked too.
 """
+
 import ast
 from pathlib import Path
 
@@ -27,7 +43,7 @@ def _module_name(path: Path, root: Path = ROOT) -> str:
 
 
 def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
-    """The absolute module a ``from ... import`` names (relative levels resolved)."""
+    """Return the absolute module a ``from ... import`` names (relative levels resolved)."""
     if node.level == 0:
         return node.module or ''
     base = module.split('.')
@@ -136,7 +152,10 @@ def test_the_checks_see_an_upward_import_and_a_cycle(tmp_path):
     (pkg / 'b.py').write_text('from . import a\n')
     (pkg / 'core.py').write_text('from .nodes import n\n')
     graph = import_graph(pkg)
-    assert layer_violations(graph) == [f'{PKG}.core -> {PKG}.nodes', f'{PKG}.core -> {PKG}.nodes.n']
+    assert layer_violations(graph) == [
+        f'{PKG}.core -> {PKG}.nodes',
+        f'{PKG}.core -> {PKG}.nodes.n',
+    ]
     assert cycles(graph) == [[f'{PKG}.a', f'{PKG}.b']]
 
 

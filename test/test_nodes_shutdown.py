@@ -1,9 +1,28 @@
-"""Clean stop of every node (issue 15), without ros2 launch: SIGINT and SIGTERM, once or repeatedly,
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Clean stop of every node (issue 15), without ros2 launch.
+
+Clean stop of every node (issue 15), without ros2 launch: SIGINT and SIGTERM, once or repeatedly,
 while data flows, end each node with exit 0, no traceback, no abort; the evaluator keeps a current
 report on disk while it runs and replaces it atomically.
 
 The same stops under the real ``ros2 launch`` (process group, launch's own SIGINT, its SIGTERM
-escalation) are in test_ros2_launch.py, which needs the launch packages."""
+escalation) are in test_ros2_launch.py, which needs the launch packages.
+"""
+
 from __future__ import annotations
 
 import json
@@ -11,18 +30,24 @@ import math
 import signal
 import time
 
+from polarization_compass.nodes import msgs as M
 import pytest
 from rclpy.parameter import Parameter
-
-from polarization_compass.nodes import msgs as M
-from test_nodes_helpers import SMALL_SCENE, Proc, node_env
+from test_nodes_helpers import node_env, Proc, SMALL_SCENE
 
 T0 = 1_700_000_000_000_000_000
-FAILURE_MARKS = ("Traceback", "terminate called", "pybind11", "context is invalid", "FATAL", "Segmentation")
+FAILURE_MARKS = (
+    'Traceback',
+    'terminate called',
+    'pybind11',
+    'context is invalid',
+    'FATAL',
+    'Segmentation',
+)
 
 
 def _heading(t_ns, bearing):
-    return M.heading_imu(t_ns, "base_link", math.radians(90.0 - bearing), 1e-4, 1000.0)
+    return M.heading_imu(t_ns, 'base_link', math.radians(90.0 - bearing), 1e-4, 1000.0)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -31,9 +56,16 @@ def _heading(t_ns, bearing):
 @pytest.fixture
 def evaluator(ctx, tmp_path):
     from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
-    node = ErrorEvaluatorNode(context=ctx, parameter_overrides=[
-        Parameter("report_dir", value=str(tmp_path)), Parameter("methods", value=["zenith"]),
-        Parameter("direct_methods", value=[""]), Parameter("include_corrected", value=False)])
+
+    node = ErrorEvaluatorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('report_dir', value=str(tmp_path)),
+            Parameter('methods', value=['zenith']),
+            Parameter('direct_methods', value=['']),
+            Parameter('include_corrected', value=False),
+        ],
+    )
     yield node
     node.destroy_node()
 
@@ -42,41 +74,55 @@ def _feed(node, k0, k1, error_deg):
     for k in range(k0, k1):
         t = T0 + k * 100_000_000
         node._on_truth(_heading(t, 10.0 * k))
-        node._on_estimate("zenith/raw", _heading(t, 10.0 * k + error_deg))
+        node._on_estimate('zenith/raw', _heading(t, 10.0 * k + error_deg))
 
 
-def test_evaluator_keeps_a_current_report_and_replaces_it_atomically(evaluator, tmp_path, monkeypatch):
+def test_evaluator_keeps_a_current_report_and_replaces_it_atomically(
+    evaluator, tmp_path, monkeypatch
+):
     from polarization_compass.nodes import error_evaluator as E
-    monkeypatch.setattr(E, "FIGURE_PERIOD_S", 0.0)
+
+    monkeypatch.setattr(E, 'FIGURE_PERIOD_S', 0.0)
     _feed(evaluator, 0, 4, 2.0)
     evaluator.write_current_report()
-    s = json.loads((tmp_path / "evaluation_summary.json").read_text())
-    assert s["complete"] is False and s["truth_frames"] == 4
-    assert s["streams"]["zenith/raw"]["count"] == 4
-    assert s["streams"]["zenith/raw"]["rms"] == pytest.approx(2.0, abs=1e-6)        # every error is +2 deg
-    rows = (tmp_path / "evaluation_samples.csv").read_text().strip().splitlines()
+    s = json.loads((tmp_path / 'evaluation_summary.json').read_text())
+    assert s['complete'] is False and s['truth_frames'] == 4
+    assert s['streams']['zenith/raw']['count'] == 4
+    assert s['streams']['zenith/raw']['rms'] == pytest.approx(
+        2.0, abs=1e-6
+    )  # every error is +2 deg
+    rows = (tmp_path / 'evaluation_samples.csv').read_text().strip().splitlines()
     assert len(rows) == 1 + 4
-    assert (tmp_path / "evaluation.png").stat().st_size > 0
-    png_before = (tmp_path / "evaluation.png").read_bytes()
+    assert (tmp_path / 'evaluation.png').stat().st_size > 0
+    png_before = (tmp_path / 'evaluation.png').read_bytes()
 
     # a failing figure leaves the previous one in place and no temporary file behind
     def broken(path, *a, **k):
-        path.write_bytes(b"half a png")
-        raise OSError("disk full")
-    monkeypatch.setattr(E, "plot_report", broken)
+        path.write_bytes(b'half a png')
+        raise OSError('disk full')
+
+    monkeypatch.setattr(E, 'plot_report', broken)
     _feed(evaluator, 4, 6, -1.0)
-    evaluator.write_current_report()                       # logged, not raised
-    assert (tmp_path / "evaluation.png").read_bytes() == png_before
-    assert json.loads((tmp_path / "evaluation_summary.json").read_text())["truth_frames"] == 6   # written before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["evaluation.png", "evaluation_samples.csv",
-                                                          "evaluation_summary.csv", "evaluation_summary.json"]
+    evaluator.write_current_report()  # logged, not raised
+    assert (tmp_path / 'evaluation.png').read_bytes() == png_before
+    assert (
+        json.loads((tmp_path / 'evaluation_summary.json').read_text())['truth_frames'] == 6
+    )  # written before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        'evaluation.png',
+        'evaluation_samples.csv',
+        'evaluation_summary.csv',
+        'evaluation_summary.json',
+    ]
     monkeypatch.undo()
 
-    evaluator.close()                                      # the final report: complete, 6 frames
-    s = json.loads((tmp_path / "evaluation_summary.json").read_text())
-    assert s["complete"] is True and s["truth_frames"] == 6
-    assert s["streams"]["zenith/raw"]["rms"] == pytest.approx(math.sqrt((4 * 4.0 + 2 * 1.0) / 6), abs=1e-6)
-    assert not [p for p in tmp_path.iterdir() if "partial" in p.name]
+    evaluator.close()  # the final report: complete, 6 frames
+    s = json.loads((tmp_path / 'evaluation_summary.json').read_text())
+    assert s['complete'] is True and s['truth_frames'] == 6
+    assert s['streams']['zenith/raw']['rms'] == pytest.approx(
+        math.sqrt((4 * 4.0 + 2 * 1.0) / 6), abs=1e-6
+    )
+    assert not [p for p in tmp_path.iterdir() if 'partial' in p.name]
 
 
 def test_evaluator_writes_no_current_report_without_new_estimates(evaluator, tmp_path):
@@ -84,10 +130,10 @@ def test_evaluator_writes_no_current_report_without_new_estimates(evaluator, tmp
     assert not list(tmp_path.iterdir())
     _feed(evaluator, 0, 2, 0.5)
     evaluator.write_current_report()
-    first = (tmp_path / "evaluation_summary.json").stat().st_mtime_ns
+    first = (tmp_path / 'evaluation_summary.json').stat().st_mtime_ns
     time.sleep(0.01)
-    evaluator.write_current_report()                       # nothing new: not rewritten
-    assert (tmp_path / "evaluation_summary.json").stat().st_mtime_ns == first
+    evaluator.write_current_report()  # nothing new: not rewritten
+    assert (tmp_path / 'evaluation_summary.json').stat().st_mtime_ns == first
 
 
 # ------------------------------------------------------------------------------------------------
@@ -99,36 +145,73 @@ def _wait_for(pred, timeout, what):
         if pred():
             return
         time.sleep(0.2)
-    raise AssertionError(f"timed out waiting for {what}")
+    raise AssertionError(f'timed out waiting for {what}')
 
 
 @pytest.mark.ros
 @pytest.mark.slow
-@pytest.mark.parametrize("signals", [(signal.SIGINT, signal.SIGINT, signal.SIGINT),
-                                     (signal.SIGTERM, signal.SIGINT, signal.SIGTERM)],
-                         ids=["3xSIGINT", "SIGTERM+SIGINT+SIGTERM"])
+@pytest.mark.parametrize(
+    'signals',
+    [
+        (signal.SIGINT, signal.SIGINT, signal.SIGINT),
+        (signal.SIGTERM, signal.SIGINT, signal.SIGTERM),
+    ],
+    ids=['3xSIGINT', 'SIGTERM+SIGINT+SIGTERM'],
+)
 def test_nodes_stop_with_exit_0_on_repeated_signals_while_data_flows(ros_env, tmp_path, signals):
-    scene = tmp_path / "small.yaml"
+    scene = tmp_path / 'small.yaml'
     scene.write_text(SMALL_SCENE)
     env = node_env(ros_env)
-    report = tmp_path / "report"
-    logs = tmp_path / "logs"
-    sim_args = ["-p", f"scene:={scene}", "-p", "clock_mode:=sim", "-p", "rate_hz:=10.0",
-                "-p", "turns:=0.0", "-p", "wait_for_subscribers:=1", "-p", "wait_for_imu_subscribers:=1",
-                "-p", "exit_when_done:=false"]
+    report = tmp_path / 'report'
+    logs = tmp_path / 'logs'
+    sim_args = [
+        '-p',
+        f'scene:={scene}',
+        '-p',
+        'clock_mode:=sim',
+        '-p',
+        'rate_hz:=10.0',
+        '-p',
+        'turns:=0.0',
+        '-p',
+        'wait_for_subscribers:=1',
+        '-p',
+        'wait_for_imu_subscribers:=1',
+        '-p',
+        'exit_when_done:=false',
+    ]
     procs = [
-        Proc("heading_estimator_tilt_aware", "heading_estimator",
-             ["-p", "method:=tilt_aware", "-p", "site_source:=parameters"], env, logs),
-        Proc("error_evaluator", "error_evaluator",
-             ["-p", "methods:=['tilt_aware']", "-p", "direct_methods:=['tilt_aware']", "-p",
-              f"report_dir:={report}"], env, logs),
-        Proc("sky_simulator", "sky_simulator", sim_args, env, logs),
+        Proc(
+            'heading_estimator_tilt_aware',
+            'heading_estimator',
+            ['-p', 'method:=tilt_aware', '-p', 'site_source:=parameters'],
+            env,
+            logs,
+        ),
+        Proc(
+            'error_evaluator',
+            'error_evaluator',
+            [
+                '-p',
+                "methods:=['tilt_aware']",
+                '-p',
+                "direct_methods:=['tilt_aware']",
+                '-p',
+                f'report_dir:={report}',
+            ],
+            env,
+            logs,
+        ),
+        Proc('sky_simulator', 'sky_simulator', sim_args, env, logs),
     ]
     try:
         # frames flow through the estimator to the evaluator: its current report counts them
-        summary = report / "evaluation_summary.json"
-        _wait_for(lambda: summary.is_file() and json.loads(summary.read_text())["truth_frames"] >= 10, 150,
-                  "a current report with 10 frames")
+        summary = report / 'evaluation_summary.json'
+        _wait_for(
+            lambda: summary.is_file() and json.loads(summary.read_text())['truth_frames'] >= 10,
+            150,
+            'a current report with 10 frames',
+        )
         assert all(p.alive() for p in procs)
         for s in signals:
             for p in procs:
@@ -143,10 +226,10 @@ def test_nodes_stop_with_exit_0_on_repeated_signals_while_data_flows(ros_env, tm
     for p in procs:
         out = p.stdout + p.stderr
         assert not [m for m in FAILURE_MARKS if m in out], (p.name, out[-1500:])
-        assert "stopping (SIG" in out, (p.name, out[-800:])
+        assert 'stopping (SIG' in out, (p.name, out[-800:])
     s = json.loads(summary.read_text())
-    assert s["complete"] is True and s["truth_frames"] >= 10
-    assert s["streams"]["tilt_aware/raw"]["count"] >= 8
+    assert s['complete'] is True and s['truth_frames'] >= 10
+    assert s['streams']['tilt_aware/raw']['count'] >= 8
 
 
 # ------------------------------------------------------------------------------------------------
@@ -155,6 +238,7 @@ def test_nodes_stop_with_exit_0_on_repeated_signals_while_data_flows(ros_env, tm
 @pytest.fixture
 def own_handlers():
     import os
+
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     yield os.getpid()
     for s, h in saved.items():
@@ -165,23 +249,25 @@ def test_stop_signals_record_and_never_raise_while_spinning(own_handlers):
     import os
 
     from polarization_compass.nodes.runner import StopSignals
+
     stop = StopSignals().install()
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGINT):
         os.kill(own_handlers, s)
-        time.sleep(0.01)                     # the handler runs at the next bytecode boundary
+        time.sleep(0.01)  # the handler runs at the next bytecode boundary
     assert stop.requested and stop.received == [signal.SIGINT, signal.SIGTERM, signal.SIGINT]
-    assert stop.names() == "SIGINT+SIGTERM+SIGINT"
+    assert stop.names() == 'SIGINT+SIGTERM+SIGINT'
 
 
 def test_stop_signals_interrupt_a_start_up_once(own_handlers):
     import os
 
     from polarization_compass.nodes.runner import StopSignals
+
     stop = StopSignals().install()
-    stop.interrupt_now = True                # the node is being built (warm-up)
+    stop.interrupt_now = True  # the node is being built (warm-up)
     with pytest.raises(KeyboardInterrupt):
         os.kill(own_handlers, signal.SIGTERM)
         time.sleep(1.0)
-    os.kill(own_handlers, signal.SIGINT)     # while that interrupt unwinds: recorded only
+    os.kill(own_handlers, signal.SIGINT)  # while that interrupt unwinds: recorded only
     time.sleep(0.01)
     assert stop.received == [signal.SIGTERM, signal.SIGINT]

@@ -1,53 +1,76 @@
-"""The real 8-unit POL-OP recordings (../shared/data/real-polop, GPL-3.0, read from there; skipped when absent):
-the polarizer convention the data show, and heading error against the reference on the clear sessions."""
-import numpy as np
-import pytest
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-import polop_json as pj
+"""
+The real 8-unit POL-OP recordings: convention and heading error.
+
+The real 8-unit POL-OP recordings (../shared/data/real-polop, GPL-3.0, read from there; skipped
+when absent): the polarizer convention the data show, and heading error against the reference on
+the clear sessions.
+"""
+
+import numpy as np
 from polarization_compass.conventions import wrap_180_deg
 from polarization_compass.estimators.base import Status
 from polarization_compass.photodiode.geometry import geometry_from_dict
 from polarization_compass.photodiode.heading import estimate_recording, make_array_estimator
 from polarization_compass.photodiode.selfcheck import check_convention
 from polarization_compass.solar import sun_position
+import polop_json as pj
+import pytest
 
 pytestmark = pytest.mark.skipif(not pj.available(), reason=pj.skip_reason())
-STEP = 4          # every 4th sample: ~100 per turn
+STEP = 4  # every 4th sample: ~100 per turn
 
 
 def _sun(row, turn):
-    t = np.datetime64(turn.time_utc.rstrip("Z"), "s") + np.timedelta64(int(turn.t_offset_s), "s")
-    p = sun_position(t, float(row["lat"]), float(row["lon"]))
+    t = np.datetime64(turn.time_utc.rstrip('Z'), 's') + np.timedelta64(int(turn.t_offset_s), 's')
+    p = sun_position(t, float(row['lat']), float(row['lon']))
     return p.azimuth_deg, p.altitude_deg
 
 
 def test_converter_reads_the_layout():
     rows = pj.sessions()
-    assert len(rows) == 3 and sum(int(r["n_recordings"]) for r in rows) == 36
+    assert len(rows) == 3 and sum(int(r['n_recordings']) for r in rows) == 36
     t = pj.load_turn(rows[0], 1)
-    assert t.intensities.ndim == 3 and t.intensities.shape[1:] == (8, 4) and np.all(t.intensities >= 0)
+    assert (
+        t.intensities.ndim == 3
+        and t.intensities.shape[1:] == (8, 4)
+        and np.all(t.intensities >= 0)
+    )
     np.testing.assert_allclose(t.azimuths_deg, [0, 90, 180, 270, 45, 135, 225, 315], atol=1e-6)
     assert t.reference_bearing_deg.shape == (t.intensities.shape[0],)
     # a full turn: the reference sweeps 360 deg
     assert np.ptp(np.unwrap(np.radians(t.reference_bearing_deg))) > np.radians(300)
 
 
-@pytest.mark.parametrize("session_index", [0, 1, 2])
+@pytest.mark.parametrize('session_index', [0, 1, 2])
 def test_the_data_show_horizontal_zero_counter_clockwise(session_index):
     row = pj.sessions()[session_index]
     turn = pj.load_turn(row, 2)
     az, alt = _sun(row, turn)
-    g = geometry_from_dict(pj.geometry_dict("meridian", "cw"))
+    g = geometry_from_dict(pj.geometry_dict('meridian', 'cw'))
     scores, verdict = check_convention(turn.intensities[::STEP], g, az, alt)
-    assert (scores[0].angle_zero, scores[0].angle_sense) == ("horizontal", "ccw"), verdict
-    assert verdict.startswith("clear")
+    assert (scores[0].angle_zero, scores[0].angle_sense) == ('horizontal', 'ccw'), verdict
+    assert verdict.startswith('clear')
 
 
-@pytest.mark.parametrize("session", ["08-30__Saturday_14-05-22", "12-02__Thursday_12-05-22"])
+@pytest.mark.parametrize('session', ['08-30__Saturday_14-05-22', '12-02__Thursday_12-05-22'])
 def test_clear_sky_heading_error_against_the_reference(session):
-    row = next(r for r in pj.sessions() if r["session"] == session)
+    row = next(r for r in pj.sessions() if r['session'] == session)
     g = geometry_from_dict(pj.geometry_dict())
-    est = make_array_estimator("tilt_aware", g)
+    est = make_array_estimator('tilt_aware', g)
     errs, sig, statuses = [], [], []
     for turn in pj.load_session(row):
         az, alt = _sun(row, turn)
@@ -59,8 +82,9 @@ def test_clear_sky_heading_error_against_the_reference(session):
                 sig.append(r.sigma_deg)
     e, s = np.abs(errs), np.array(sig)
     assert np.mean([x == Status.OK for x in statuses]) > 0.7
-    assert np.all(e < 90)                                      # no 180 deg flips among resolved headings
-    rms, p95 = float(np.sqrt(np.mean(e ** 2))), float(np.percentile(e, 95))
-    # measured 2026-11-25: 2.5 / 5.1 deg (morning), 8.2 / 16.2 deg (noon); the reference is good to ~5 deg
+    assert np.all(e < 90)  # no 180 deg flips among resolved headings
+    rms, p95 = float(np.sqrt(np.mean(e**2))), float(np.percentile(e, 95))
+    # measured 2026-11-25: 2.5 / 5.1 deg (morning), 8.2 / 16.2 deg (noon); the reference is good to
+    # ~5 deg
     assert rms < 12.0 and p95 < 25.0, (rms, p95)
-    assert np.mean(e < 2 * s) > 0.75                          # sigma of the right size (0.99 / 0.99 measured)
+    assert np.mean(e < 2 * s) > 0.75  # sigma of the right size (0.99 / 0.99 measured)

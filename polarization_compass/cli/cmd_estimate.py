@@ -1,16 +1,37 @@
-"""`polarization-compass estimate`: heading estimates from a frame file or a real camera image, as JSON.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-Real images (:mod:`polarization_compass.real_input`: a raw mosaic PNG/TIFF/.npy, Stokes planes .npz or
-3-page TIFF) need ``--camera CAMERA.yaml`` (ROS camera_calibration plus ``polarizer:``) and the sun
-(``--lat --lon --time`` or ``--sun-azimuth --sun-altitude``); ``--mask`` excludes obstructions. Every
-usable result is then checked against the whole sky (:func:`polarization_compass.skyfit.assess_result`:
-misfit sigma, 180 deg side, ``poor_fit``) and, with several methods, against each other (``inconsistent``).
-
-Reads a ``render`` output (.npz). When it holds the raw mosaic, the mosaic is demosaiced (the scene's
-demosaic method and polarizer layout from the frame's meta, else superpixel and the IMX250MZR layout,
-and the output says which) and each method reads only the pixels it needs; otherwise the stored
-AoP/DoP are used. The sun comes from the frame's meta; without it, from --lat/--lon/--time.
 """
+`polarization-compass estimate`: heading estimates from a frame or a real image.
+
+`polarization-compass estimate`: heading estimates from a frame file or a real camera image, as
+JSON.
+
+Real images (:mod:`polarization_compass.real_input`: a raw mosaic PNG/TIFF/.npy, Stokes planes .npz
+or 3-page TIFF) need ``--camera CAMERA.yaml`` (ROS camera_calibration plus ``polarizer:``) and the
+sun (``--lat --lon --time`` or ``--sun-azimuth --sun-altitude``); ``--mask`` excludes obstructions.
+Every usable result is then checked against the whole sky
+(:func:`polarization_compass.skyfit.assess_result`: misfit sigma, 180 deg side, ``poor_fit``) and,
+with several methods, against each other (``inconsistent``).
+
+Reads a ``render`` output (.npz). When it holds the raw mosaic, the mosaic is demosaiced (the
+scene's demosaic method and polarizer layout from the frame's meta, else superpixel and the
+IMX250MZR layout, and the output says which) and each method reads only the pixels it needs;
+otherwise the stored AoP/DoP are used. The sun comes from the frame's meta; without it, from
+--lat/--lon/--time.
+"""
+
 from __future__ import annotations
 
 import json
@@ -18,88 +39,157 @@ import math
 import sys
 import time
 
-from ..errors import CompassError
 from ._checks import check_range, check_together
+from ..errors import CompassError
 
 
 def register(sub):
     from ..estimators import registry
-    p = sub.add_parser("estimate", help="heading from a frame file (JSON, one object per method)",
-                       description="Estimate the heading from a frame written by 'render' or from a real camera "
-                                   "image (with --camera; docs/real-cameras.md). psi is the paper's yaw "
-                                   "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
-                                   "camera +y, yaw_enu the REP-103 yaw (90 - bearing). On real images each result "
-                                   "is checked against the whole sky: status poor_fit / inconsistent when it "
-                                   "does not hold.")
-    p.add_argument("frame", metavar="INPUT", help="frame file written by 'polarization-compass render', or a "
-                                                  "real image: raw mosaic (.png/.tif 8/16-bit, .npy) or Stokes "
-                                                  "planes (.npz with s0, s1, s2, or a 3-page .tif)")
-    p.add_argument("--camera", metavar="CAMERA.yaml", help="ROS camera_calibration file plus 'polarizer: {layout, "
-                                                           "pol45_toward}' (needed for real images)")
-    p.add_argument("--bits", type=int, help="significant bits of a raw mosaic in a 16-bit container (10, 12)")
-    p.add_argument("--mask", metavar="MASK.png", help="static mask of the input's size: non-zero = sky, zero = "
-                                                      "obstruction")
-    p.add_argument("--demosaic", choices=("superpixel", "bilinear"), default="superpixel",
-                   help="demosaic of a raw mosaic input (default superpixel)")
-    p.add_argument("--sun-azimuth", type=float, help="given sun azimuth, deg clockwise from North (instead of "
-                                                     "--lat/--lon/--time)")
-    p.add_argument("--sun-altitude", type=float, help="given sun altitude, deg")
-    p.add_argument("--no-sky-check", action="store_true",
-                   help="skip the whole-sky check (misfit sigma, 180 deg side, poor_fit, inconsistent)")
-    p.add_argument("--method", default="all",
-                   help=" | ".join(registry.names()) + " | all (default), or a comma-separated list")
-    p.add_argument("--pitch", type=float, help=f"known camera pitch, deg ({', '.join(registry.tilt_methods())} "
-                                               "needs it; also used to resolve the least-squares sign)")
-    p.add_argument("--roll", type=float, help="known camera roll, deg")
-    p.add_argument("--stride", type=int, help="use every N-th sensor pixel (overrides each method's default)")
-    p.add_argument("--prior-bearing", type=float, help="prior true bearing of camera +y, deg: resolves the "
-                                                       "180 deg ambiguity when nothing else does")
-    p.add_argument("--knob", action="append", default=[], metavar="NAME=VALUE",
-                   help="estimator knob, e.g. --knob min_dop=0.1 (repeatable; applied to every method that has it)")
-    p.add_argument("--use-stored", action="store_true",
-                   help="use the stored AoP/DoP even when the frame holds a mosaic")
-    p.add_argument("--lat", type=float, help="site latitude, deg (only when the frame has no sun)")
-    p.add_argument("--lon", type=float, help="site longitude, deg")
-    p.add_argument("--time", help="UTC time, ISO 8601 (only when the frame has no sun)")
-    p.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
+
+    p = sub.add_parser(
+        'estimate',
+        help='heading from a frame file (JSON, one object per method)',
+        description="Estimate the heading from a frame written by 'render' or from a real camera "
+        "image (with --camera; docs/real-cameras.md). psi is the paper's yaw "
+        "(bearing of camera +y minus the sun's azimuth), bearing the true bearing of "
+        'camera +y, yaw_enu the REP-103 yaw (90 - bearing). On real images each result '
+        'is checked against the whole sky: status poor_fit / inconsistent when it '
+        'does not hold.',
+    )
+    p.add_argument(
+        'frame',
+        metavar='INPUT',
+        help="frame file written by 'polarization-compass render', or a "
+        'real image: raw mosaic (.png/.tif 8/16-bit, .npy) or Stokes '
+        'planes (.npz with s0, s1, s2, or a 3-page .tif)',
+    )
+    p.add_argument(
+        '--camera',
+        metavar='CAMERA.yaml',
+        help="ROS camera_calibration file plus 'polarizer: {layout, "
+        "pol45_toward}' (needed for real images)",
+    )
+    p.add_argument(
+        '--bits', type=int, help='significant bits of a raw mosaic in a 16-bit container (10, 12)'
+    )
+    p.add_argument(
+        '--mask',
+        metavar='MASK.png',
+        help="static mask of the input's size: non-zero = sky, zero = obstruction",
+    )
+    p.add_argument(
+        '--demosaic',
+        choices=('superpixel', 'bilinear'),
+        default='superpixel',
+        help='demosaic of a raw mosaic input (default superpixel)',
+    )
+    p.add_argument(
+        '--sun-azimuth',
+        type=float,
+        help='given sun azimuth, deg clockwise from North (instead of --lat/--lon/--time)',
+    )
+    p.add_argument('--sun-altitude', type=float, help='given sun altitude, deg')
+    p.add_argument(
+        '--no-sky-check',
+        action='store_true',
+        help='skip the whole-sky check (misfit sigma, 180 deg side, poor_fit, inconsistent)',
+    )
+    p.add_argument(
+        '--method',
+        default='all',
+        help=' | '.join(registry.names()) + ' | all (default), or a comma-separated list',
+    )
+    p.add_argument(
+        '--pitch',
+        type=float,
+        help=f'known camera pitch, deg ({", ".join(registry.tilt_methods())} '
+        'needs it; also used to resolve the least-squares sign)',
+    )
+    p.add_argument('--roll', type=float, help='known camera roll, deg')
+    p.add_argument(
+        '--stride', type=int, help="use every N-th sensor pixel (overrides each method's default)"
+    )
+    p.add_argument(
+        '--prior-bearing',
+        type=float,
+        help='prior true bearing of camera +y, deg: resolves the '
+        '180 deg ambiguity when nothing else does',
+    )
+    p.add_argument(
+        '--knob',
+        action='append',
+        default=[],
+        metavar='NAME=VALUE',
+        help='estimator knob, e.g. --knob min_dop=0.1 (repeatable; applied to every method that '
+        'has it)',
+    )
+    p.add_argument(
+        '--use-stored',
+        action='store_true',
+        help='use the stored AoP/DoP even when the frame holds a mosaic',
+    )
+    p.add_argument('--lat', type=float, help='site latitude, deg (only when the frame has no sun)')
+    p.add_argument('--lon', type=float, help='site longitude, deg')
+    p.add_argument('--time', help='UTC time, ISO 8601 (only when the frame has no sun)')
+    p.add_argument('--indent', type=int, default=None, help='pretty-print the JSON')
     p.set_defaults(func=run)
 
 
 def _parse_knobs(items) -> dict:
     import yaml
+
     out = {}
     for it in items:
-        if "=" not in it:
-            raise CompassError(f"--knob must be NAME=VALUE, got {it!r}")
-        k, v = it.split("=", 1)
+        if '=' not in it:
+            raise CompassError(f'--knob must be NAME=VALUE, got {it!r}')
+        k, v = it.split('=', 1)
         try:
             out[k.strip()] = yaml.safe_load(v)
         except yaml.YAMLError:
-            raise CompassError(f"--knob {k}: cannot read value {v!r}") from None
+            raise CompassError(f'--knob {k}: cannot read value {v!r}') from None
     return out
 
 
 def _sun(meta: dict, args):
     if args.sun_azimuth is not None or args.sun_altitude is not None:
-        check_together("sun-azimuth", args.sun_azimuth, "sun-altitude", args.sun_altitude)
-        check_range("sun-azimuth", args.sun_azimuth, -360, 360)
-        check_range("sun-altitude", args.sun_altitude, -90, 90)
-        return float(args.sun_azimuth), float(args.sun_altitude), "given (--sun-azimuth/--sun-altitude)"
-    az, alt = meta.get("sun_azimuth_deg"), meta.get("sun_altitude_deg")
-    ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (az, alt))
+        check_together('sun-azimuth', args.sun_azimuth, 'sun-altitude', args.sun_altitude)
+        check_range('sun-azimuth', args.sun_azimuth, -360, 360)
+        check_range('sun-altitude', args.sun_altitude, -90, 90)
+        return (
+            float(args.sun_azimuth),
+            float(args.sun_altitude),
+            'given (--sun-azimuth/--sun-altitude)',
+        )
+    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
+    ok = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        for v in (az, alt)
+    )
     if ok:
-        return float(az), float(alt), "frame meta"
+        return float(az), float(alt), 'frame meta'
     if args.lat is None or args.lon is None or args.time is None:
-        raise CompassError("the input does not say where the sun was: give --lat, --lon and --time, or "
-                           "--sun-azimuth and --sun-altitude")
+        raise CompassError(
+            'the input does not say where the sun was: give --lat, --lon and --time, or '
+            '--sun-azimuth and --sun-altitude'
+        )
     from ..solar import sun_position
+
     pos = sun_position(args.time, args.lat, args.lon, 0.0)
-    return float(pos.azimuth_deg), float(pos.altitude_deg), "ephemeris (SPA) for --lat/--lon/--time"
+    return (
+        float(pos.azimuth_deg),
+        float(pos.altitude_deg),
+        'ephemeris (SPA) for --lat/--lon/--time',
+    )
 
 
 def _sensor_meta(meta: dict):
-    """(sensor, mosaic, demosaic, quantization_bits, full_well_e) from a frame's meta, types checked: a frame
-    file is user input, so a wrong type is a :class:`FrameFileError` (one line, exit 2), not a crash."""
+    """
+    Read the sensor settings from a frame's meta, types checked.
+
+    (sensor, mosaic, demosaic, quantization_bits, full_well_e) from a frame's meta, types checked:
+    a frame file is user input, so a wrong type is a :class:`FrameFileError` (one line, exit 2),
+    not a crash.
+    """
     from ..frame_io import FrameFileError
 
     def section(d, key):
@@ -107,32 +197,48 @@ def _sensor_meta(meta: dict):
         if v is None:
             return {}
         if not isinstance(v, dict):
-            raise FrameFileError(f"frame meta: {key} must be a mapping, got {type(v).__name__}")
+            raise FrameFileError(f'frame meta: {key} must be a mapping, got {type(v).__name__}')
         return v
-    sensor = section(meta, "sensor")
-    mos = section(sensor, "mosaic")
-    method = sensor.get("demosaic")
-    if method is not None and method not in ("superpixel", "bilinear"):
-        raise FrameFileError(f"frame meta: sensor.demosaic must be superpixel or bilinear, got {method!r}")
-    bits = sensor.get("quantization_bits")
-    if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 32):
-        raise FrameFileError(f"frame meta: sensor.quantization_bits must be an integer in [1, 32], got {bits!r}")
-    full_well = section(sensor, "exposure").get("full_well_e")
-    if full_well is not None and (isinstance(full_well, bool) or not isinstance(full_well, (int, float))
-                                  or not math.isfinite(full_well) or full_well <= 0):
-        raise FrameFileError(f"frame meta: sensor.exposure.full_well_e must be a positive number, got {full_well!r}")
+
+    sensor = section(meta, 'sensor')
+    mos = section(sensor, 'mosaic')
+    method = sensor.get('demosaic')
+    if method is not None and method not in ('superpixel', 'bilinear'):
+        raise FrameFileError(
+            f'frame meta: sensor.demosaic must be superpixel or bilinear, got {method!r}'
+        )
+    bits = sensor.get('quantization_bits')
+    if bits is not None and (
+        isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 32
+    ):
+        raise FrameFileError(
+            f'frame meta: sensor.quantization_bits must be an integer in [1, 32], got {bits!r}'
+        )
+    full_well = section(sensor, 'exposure').get('full_well_e')
+    if full_well is not None and (
+        isinstance(full_well, bool)
+        or not isinstance(full_well, (int, float))
+        or not math.isfinite(full_well)
+        or full_well <= 0
+    ):
+        raise FrameFileError(
+            f'frame meta: sensor.exposure.full_well_e must be a positive number, got {full_well!r}'
+        )
     return sensor, mos, method, bits, None if full_well is None else float(full_well)
 
 
 def _methods(text: str) -> list[str]:
     from ..estimators import estimator_names
+
     names = estimator_names()
-    if text == "all":
+    if text == 'all':
         return names
-    wanted = [t.strip() for t in text.split(",") if t.strip()]
+    wanted = [t.strip() for t in text.split(',') if t.strip()]
     bad = [w for w in wanted if w not in names]
     if bad or not wanted:
-        raise CompassError(f"--method: unknown {', '.join(bad) or repr(text)}; known: {', '.join(names)} or all")
+        raise CompassError(
+            f'--method: unknown {", ".join(bad) or repr(text)}; known: {", ".join(names)} or all'
+        )
     return wanted
 
 
@@ -141,146 +247,207 @@ def run(args) -> int:
     from ..estimators import Observation
     from ..frame_io import load_frame_npz
 
-    check_range("pitch", args.pitch, -89.999, 89.999)
-    check_range("roll", args.roll, -180, 180)
-    check_range("prior-bearing", args.prior_bearing, -360, 720)
-    check_range("lat", args.lat, -90, 90)
-    check_range("lon", args.lon, -180, 180)
-    check_together("pitch", args.pitch, "roll", args.roll)
+    check_range('pitch', args.pitch, -89.999, 89.999)
+    check_range('roll', args.roll, -180, 180)
+    check_range('prior-bearing', args.prior_bearing, -360, 720)
+    check_range('lat', args.lat, -90, 90)
+    check_range('lon', args.lon, -180, 180)
+    check_together('pitch', args.pitch, 'roll', args.roll)
     if args.stride is not None and not (1 <= args.stride <= 1024):
-        raise CompassError(f"--stride must be in [1, 1024], got {args.stride}")
+        raise CompassError(f'--stride must be in [1, 1024], got {args.stride}')
     methods = _methods(args.method)
     knobs = _parse_knobs(args.knob)
     from ..real_input import load_polarization_input
+
     inp = load_polarization_input(args.frame, args.bits)
-    if inp.kind != "frame":
+    if inp.kind != 'frame':
         return _run_real(args, inp, methods, knobs)
     if args.mask or args.camera:
-        raise CompassError("--camera and --mask apply to real images; a frame file carries its camera")
+        raise CompassError(
+            '--camera and --mask apply to real images; a frame file carries its camera'
+        )
     frame = load_frame_npz(args.frame)
     camera = frame.camera
     sun_az, sun_alt, sun_src = _sun(frame.meta, args)
     estimators = _make_estimators(methods, knobs, args.stride)
 
-    source = {"sun": sun_src}
+    source = {'sun': sun_src}
     use_mosaic = frame.mosaic is not None and not args.use_stored
     stored_obs = None
     if use_mosaic:
         sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
-        layout = mos.get("layout")
-        pol45 = mos.get("pol45_toward")
+        layout = mos.get('layout')
+        pol45 = mos.get('pol45_toward')
         assumed = []
         if layout is None:
             from ..demosaic import IMX250MZR_LAYOUT
+
             layout = [list(r) for r in IMX250MZR_LAYOUT]
-            assumed.append("layout")
+            assumed.append('layout')
         if pol45 is None:
             from ..demosaic import IMX250MZR_POL45
+
             pol45 = IMX250MZR_POL45
-            assumed.append("pol45_toward")
+            assumed.append('pol45_toward')
         shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
         if method is None:
-            method = "bilinear" if mshp == shp else "superpixel"
-            assumed.append("demosaic")
-        if method == "bilinear" and mshp == shp:
+            method = 'bilinear' if mshp == shp else 'superpixel'
+            assumed.append('demosaic')
+        if method == 'bilinear' and mshp == shp:
             origin = (frame.x_px.flat[0], frame.y_px.flat[0])
-        elif method == "superpixel" and len(shp) == 2 and mshp == (2 * shp[0], 2 * shp[1]):
+        elif method == 'superpixel' and len(shp) == 2 and mshp == (2 * shp[0], 2 * shp[1]):
             origin = (frame.x_px.flat[0] - 0.5, frame.y_px.flat[0] - 0.5)
         else:
-            raise CompassError(f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
-                               "demosaic; use --use-stored")
+            raise CompassError(
+                f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
+                'demosaic; use --use-stored'
+            )
         sat = float((1 << bits) - 1) if bits else full_well
-        source["input"] = {"mosaic": list(mshp), "demosaic": method, "layout": layout, "pol45_toward": pol45,
-                           "assumed": assumed, "saturation_level": sat}
+        source['input'] = {
+            'mosaic': list(mshp),
+            'demosaic': method,
+            'layout': layout,
+            'pol45_toward': pol45,
+            'assumed': assumed,
+            'saturation_level': sat,
+        }
         origin = (int(round(origin[0])), int(round(origin[1])))
     else:
-        source["input"] = "stored AoP/DoP" + (" (--use-stored)" if frame.mosaic is not None else "")
+        source['input'] = 'stored AoP/DoP' + (
+            ' (--use-stored)' if frame.mosaic is not None else ''
+        )
 
     out = []
     for name, est, kn in estimators:
         t0 = time.perf_counter()
         if use_mosaic:
             from ..estimators.mosaic_input import observation_from_mosaic
-            obs = observation_from_mosaic(frame.mosaic, camera, sun_az, sun_alt, origin_px=origin, method=method,
-                                          layout=layout, pol45_toward=pol45, saturation_level=sat,
-                                          selection=est.pixels_needed(camera),
-                                          with_intensity=frame.intensity is not None,
-                                          pitch_deg=args.pitch, roll_deg=args.roll,
-                                          prior_bearing_deg=args.prior_bearing)
+
+            obs = observation_from_mosaic(
+                frame.mosaic,
+                camera,
+                sun_az,
+                sun_alt,
+                origin_px=origin,
+                method=method,
+                layout=layout,
+                pol45_toward=pol45,
+                saturation_level=sat,
+                selection=est.pixels_needed(camera),
+                with_intensity=frame.intensity is not None,
+                pitch_deg=args.pitch,
+                roll_deg=args.roll,
+                prior_bearing_deg=args.prior_bearing,
+            )
         else:
             if stored_obs is None:
-                stored_obs = Observation(frame.aop_rad, frame.dop, frame.valid, frame.rays_cam(), frame.x_px,
-                                         frame.y_px, camera, sun_az, sun_alt, frame.intensity, args.pitch,
-                                         args.roll, args.prior_bearing)
+                stored_obs = Observation(
+                    frame.aop_rad,
+                    frame.dop,
+                    frame.valid,
+                    frame.rays_cam(),
+                    frame.x_px,
+                    frame.y_px,
+                    camera,
+                    sun_az,
+                    sun_alt,
+                    frame.intensity,
+                    args.pitch,
+                    args.roll,
+                    args.prior_bearing,
+                )
             obs = stored_obs
         res = est.estimate(obs)
         dt = (time.perf_counter() - t0) * 1e3
         d = res.to_json_dict()
-        d["time_ms"] = round(dt, 3)
-        d["knobs"] = kn
-        truth = frame.meta.get("psi_deg")
+        d['time_ms'] = round(dt, 3)
+        d['knobs'] = kn
+        truth = frame.meta.get('psi_deg')
         if res.psi_deg is not None and isinstance(truth, (int, float)) and math.isfinite(truth):
             err = res.psi_deg - float(truth)
-            d["truth_psi_deg"] = float(truth)
-            d["error_deg"] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
-        d["source"] = source
+            d['truth_psi_deg'] = float(truth)
+            d['error_deg'] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
+        d['source'] = source
         out.append(d)
     json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
-    sys.stdout.write("\n")
+    sys.stdout.write('\n')
     return 0
 
 
-#: real images: the robust refit's outlier threshold for the methods that have the knob (``outlier_deg``)
+#: real images: the robust refit's outlier threshold for the methods that have the knob
+#: (``outlier_deg``)
 REAL_SKY_OUTLIER_DEG = 15.0
 
 
 def _make_estimators(methods, knobs, stride, defaults=None):
     from ..estimators import make_estimator, registry
+
     estimators, used = [], set()
     for name in methods:
         specs = registry.get(name).knob_specs()
         kn = {k: v for k, v in knobs.items() if k in specs}
-        if defaults and "outlier_deg" in specs and "outlier_deg" not in knobs:
+        if defaults and 'outlier_deg' in specs and 'outlier_deg' not in knobs:
             for k, v in defaults.items():
                 if k in specs and k not in knobs:
                     kn[k] = v
         used.update(kn)
-        if stride is not None and "stride" in specs:
-            kn["stride"] = stride
+        if stride is not None and 'stride' in specs:
+            kn['stride'] = stride
         estimators.append((name, make_estimator(name, **kn), kn))
     unused = sorted(set(knobs) - used)
     if unused:
-        raise CompassError(f"--knob {', '.join(unused)}: no selected method has that knob")
+        raise CompassError(f'--knob {", ".join(unused)}: no selected method has that knob')
     return estimators
 
 
-def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superpixel", pitch=None, roll=None,
-                     prior=None):
-    """Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into camera-frame
-    Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see ``demosaic``), or a raw mosaic
-    demosaiced with the camera file's layout. Invalid: outside the lens, saturated (+ glare), masked."""
+def real_observation(
+    inp,
+    cam_file,
+    sun_az,
+    sun_alt,
+    mask=None,
+    demosaic='superpixel',
+    pitch=None,
+    roll=None,
+    prior=None,
+):
+    """
+    Build the observation of a whole real image and its data mask.
+
+    Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into
+    camera-frame Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see
+    ``demosaic``), or a raw mosaic demosaiced with the camera file's layout. Invalid: outside the
+    lens, saturated (+ glare), masked.
+    """
     import numpy as np
+
     from ..camera import PixelSelection, select_pixels
     from ..demosaic import aop_dop_from_stokes, stokes_from_mosaic
     from ..estimators import Observation
     from ..estimators.mosaic_input import _grid_rays
     from ..skyfit import data_mask
+
     cam = cam_file.camera
     H, W = cam.shape
     sat = None
-    if inp.kind == "stokes":
+    if inp.kind == 'stokes':
         s0, s1, s2 = inp.stokes
-        if cam_file.pol45_toward == "+x-y":
+        if cam_file.pol45_toward == '+x-y':
             s2 = -s2
         shp = s0.shape
     else:
         if inp.mosaic.shape != (H, W):
-            raise CompassError(f"the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file says "
-                               f"{W} x {H}")
-        s0, s1, s2 = stokes_from_mosaic(inp.mosaic, cam_file.layout, cam_file.pol45_toward, demosaic,
-                                        inp.saturation_level)
+            raise CompassError(
+                f'the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file '
+                'says '
+                f'{W} x {H}'
+            )
+        s0, s1, s2 = stokes_from_mosaic(
+            inp.mosaic, cam_file.layout, cam_file.pol45_toward, demosaic, inp.saturation_level
+        )
         shp = s0.shape
         from ..polarizer_check import saturated_blocks
+
         sat = saturated_blocks(inp.mosaic, inp.saturation_level, shp)
     if shp == (H, W):
         sp = select_pixels(cam, PixelSelection.full())
@@ -288,20 +455,27 @@ def real_observation(inp, cam_file, sun_az, sun_alt, mask=None, demosaic="superp
     elif shp == (H // 2, W // 2):
         xg, yg, rays, has_ray = _grid_rays(cam, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
     else:
-        raise CompassError(f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
-                           f"{W} x {H} or {W // 2} x {H // 2} (superpixel)")
+        raise CompassError(
+            f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
+            f'{W} x {H} or {W // 2} x {H // 2} (superpixel)'
+        )
     aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
     if sat is None:
         keep = data_mask(s0, has_ray)
-    else:       # saturated raw samples: grow those into the glare mask
-        keep = data_mask(np.where(sat, np.float32(np.inf), s0), has_ray, float("inf"))
+    else:  # saturated raw samples: grow those into the glare mask
+        keep = data_mask(np.where(sat, np.float32(np.inf), s0), has_ray, float('inf'))
     if mask is not None:
         if mask.shape == shp:
             keep &= mask
         elif mask.shape == (H, W):
-            keep &= mask[np.clip(np.rint(yg).astype(int) - 1, 0, H - 1), np.clip(np.rint(xg).astype(int) - 1, 0, W - 1)]
+            keep &= mask[
+                np.clip(np.rint(yg).astype(int) - 1, 0, H - 1),
+                np.clip(np.rint(xg).astype(int) - 1, 0, W - 1),
+            ]
         else:
-            raise CompassError(f"--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}")
+            raise CompassError(
+                f'--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}'
+            )
     valid = valid & keep
     obs = Observation(aop, dop, valid, rays, xg, yg, cam, sun_az, sun_alt, s0, pitch, roll, prior)
     return obs, keep
@@ -311,25 +485,53 @@ def _run_real(args, inp, methods, knobs) -> int:
     from ..camera import load_camera_yaml
     from ..real_input import load_mask
     from ..skyfit import assess_result, mark_inconsistent, sample_sky
+
     if not args.camera:
-        raise CompassError(f"{args.frame}: a real image needs --camera CAMERA.yaml (ROS camera_calibration format)")
+        raise CompassError(
+            f'{args.frame}: a real image needs --camera CAMERA.yaml (ROS camera_calibration '
+            'format)'
+        )
     if args.use_stored:
-        raise CompassError("--use-stored applies to frame files")
+        raise CompassError('--use-stored applies to frame files')
     cam_file = load_camera_yaml(args.camera)
     sun_az, sun_alt, sun_src = _sun({}, args)
-    # real skies: least_squares/tilt_aware refit robustly (consensus, outliers beyond 15 deg dropped) unless
-    # the user set outlier_deg
-    estimators = _make_estimators(methods, knobs, args.stride,
-                                  {"outlier_deg": REAL_SKY_OUTLIER_DEG, "max_aop_noise_deg": 90.0})
-    shape = inp.stokes[0].shape if inp.kind == "stokes" else inp.mosaic.shape
+    # real skies: least_squares/tilt_aware refit robustly (consensus, outliers beyond 15 deg
+    # dropped) unless the user set outlier_deg
+    estimators = _make_estimators(
+        methods,
+        knobs,
+        args.stride,
+        {'outlier_deg': REAL_SKY_OUTLIER_DEG, 'max_aop_noise_deg': 90.0},
+    )
+    shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
     mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
-    obs, _ = real_observation(inp, cam_file, sun_az, sun_alt, mask, args.demosaic, args.pitch, args.roll,
-                              args.prior_bearing)
-    sample = None if args.no_sky_check else sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
-    source = {"sun": sun_src, "input": {"kind": inp.kind, "path": inp.path, "layout": [list(r) for r in cam_file.layout],
-                                        "pol45_toward": cam_file.pol45_toward,
-                                        "assumed": [] if cam_file.layout_given else ["layout", "pol45_toward"],
-                                        "usable_pixels": int(obs.valid.sum())}}
+    obs, _ = real_observation(
+        inp,
+        cam_file,
+        sun_az,
+        sun_alt,
+        mask,
+        args.demosaic,
+        args.pitch,
+        args.roll,
+        args.prior_bearing,
+    )
+    sample = (
+        None
+        if args.no_sky_check
+        else sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
+    )
+    source = {
+        'sun': sun_src,
+        'input': {
+            'kind': inp.kind,
+            'path': inp.path,
+            'layout': [list(r) for r in cam_file.layout],
+            'pol45_toward': cam_file.pol45_toward,
+            'assumed': [] if cam_file.layout_given else ['layout', 'pol45_toward'],
+            'usable_pixels': int(obs.valid.sum()),
+        },
+    }
     results, times = [], []
     for name, est, kn in estimators:
         t0 = time.perf_counter()
@@ -344,18 +546,19 @@ def _run_real(args, inp, methods, knobs) -> int:
     out = []
     for res, (_, kn), dt in zip(final, results, times):
         d = res.to_json_dict()
-        d["time_ms"] = round(dt, 3)
-        d["knobs"] = kn
-        d["source"] = source
+        d['time_ms'] = round(dt, 3)
+        d['knobs'] = kn
+        d['source'] = source
         out.append(d)
     json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
-    sys.stdout.write("\n")
+    sys.stdout.write('\n')
     return 0
 
 
 def _jsonable(v):
     try:
         import numpy as np
+
         if isinstance(v, np.generic):
             return v.item()
         if isinstance(v, np.ndarray):

@@ -1,10 +1,25 @@
-"""`polarization-compass sim` (`make sim`): the ROS 2 sim graph without `ros2 launch`.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+`polarization-compass sim` (`make sim`): the ROS 2 sim graph without `ros2 launch`.
 
 Starts every node of :func:`polarization_compass.graphs.sim_graph` as its own process (the console
-scripts, with the graph's parameter files, parameters and remappings: exactly what
-``ros2 launch polarization_compass sim.launch.py`` starts), runs the default scene (one full turn at
-pitch -20 deg, the paper's Fig 17 set-up) to completion, stops every node with SIGINT, and prints
-the per-method table of raw and corrected heading errors from the evaluator's report.
+scripts, with the graph's parameter files, parameters and remappings: exactly what ``ros2 launch
+polarization_compass sim.launch.py`` starts), runs the default scene (one full turn at pitch -20
+deg, the paper's Fig 17 set-up) to completion, stops every node with SIGINT, and prints the
+per-method table of raw and corrected heading errors from the evaluator's report.
 
 DDS stays on this machine: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, and the Fast DDS shared-memory
 profile for full-resolution images (config/fastdds_large_images.xml) unless the environment names
@@ -12,91 +27,133 @@ another profile. By default the simulator runs in lockstep (it waits for every e
 next frame), so every frame is processed however loaded the machine is; ``--realtime`` runs at the
 camera rate and reports dropped frames and latency instead (the speed benchmark).
 """
+
 from __future__ import annotations
 
 import json
 import math
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 from ..errors import CompassError
 
 
 def register(sub):
-    p = sub.add_parser("sim", help="run the ROS 2 sim graph (simulator, estimators, correctors, evaluator)",
-                       description="Start the sim node graph as processes (no ros2 launch needed), simulate a "
-                                   "full turn at pitch -20 deg, print raw and corrected errors per method.")
+    p = sub.add_parser(
+        'sim',
+        help='run the ROS 2 sim graph (simulator, estimators, correctors, evaluator)',
+        description='Start the sim node graph as processes (no ros2 launch needed), simulate a '
+        'full turn at pitch -20 deg, print raw and corrected errors per method.',
+    )
     from ..estimators import registry
-    p.add_argument("--methods", default=",".join(registry.paper_methods()),
-                   help="paper methods, comma separated (each gets an estimator and a corrector); "
-                        "unavailable ones are skipped with a note")
-    p.add_argument("--no-tilt-aware", action="store_true",
-                   help=f"do not run the {', '.join(registry.tilt_methods())} estimator")
-    p.add_argument("--encoding", default="mono16", choices=("mono16", "mono8", "32FC1"))
-    p.add_argument("--rate", type=float, default=10.0, help="camera frame rate, Hz (default 10)")
-    p.add_argument("--turns", type=float, default=1.0, help="full turns (default 1)")
-    p.add_argument("--turn-rate", type=float, default=10.0, help="deg/s (default 10: 36 s per turn)")
-    p.add_argument("--pitch", type=float, default=-20.0, help="camera pitch, deg (default -20)")
-    p.add_argument("--roll", type=float, default=0.0, help="camera roll, deg (default 0)")
-    p.add_argument("--time-scale", type=float, default=1.0, help="simulated seconds per wall second")
-    p.add_argument("--scene", default="", help="scene YAML for camera, sky and sensor")
-    p.add_argument("--array-geometry", default="",
-                   help="photodiode-array sensor YAML: also simulate the array and run its estimators in namespace "
-                        "array (their headings are not in the evaluator's table)")
-    p.add_argument("--realtime", action="store_true",
-                   help="no lockstep: frames at the camera rate; measures drops and latency")
-    p.add_argument("--error-map", default="",
-                   help="error map for the correctors (default: the shipped map, else OUT/error_map.npz, "
-                        "built for this scenario when missing)")
-    p.add_argument("--out", default="out/sim", help="report directory (default out/sim)")
-    p.add_argument("--timeout", type=float, default=1800.0, help="give up after this many wall seconds")
+
+    p.add_argument(
+        '--methods',
+        default=','.join(registry.paper_methods()),
+        help='paper methods, comma separated (each gets an estimator and a corrector); '
+        'unavailable ones are skipped with a note',
+    )
+    p.add_argument(
+        '--no-tilt-aware',
+        action='store_true',
+        help=f'do not run the {", ".join(registry.tilt_methods())} estimator',
+    )
+    p.add_argument('--encoding', default='mono16', choices=('mono16', 'mono8', '32FC1'))
+    p.add_argument('--rate', type=float, default=10.0, help='camera frame rate, Hz (default 10)')
+    p.add_argument('--turns', type=float, default=1.0, help='full turns (default 1)')
+    p.add_argument(
+        '--turn-rate', type=float, default=10.0, help='deg/s (default 10: 36 s per turn)'
+    )
+    p.add_argument('--pitch', type=float, default=-20.0, help='camera pitch, deg (default -20)')
+    p.add_argument('--roll', type=float, default=0.0, help='camera roll, deg (default 0)')
+    p.add_argument(
+        '--time-scale', type=float, default=1.0, help='simulated seconds per wall second'
+    )
+    p.add_argument('--scene', default='', help='scene YAML for camera, sky and sensor')
+    p.add_argument(
+        '--array-geometry',
+        default='',
+        help='photodiode-array sensor YAML: also simulate the array and run its estimators in '
+        'namespace '
+        "array (their headings are not in the evaluator's table)",
+    )
+    p.add_argument(
+        '--realtime',
+        action='store_true',
+        help='no lockstep: frames at the camera rate; measures drops and latency',
+    )
+    p.add_argument(
+        '--error-map',
+        default='',
+        help='error map for the correctors (default: the shipped map, else OUT/error_map.npz, '
+        'built for this scenario when missing)',
+    )
+    p.add_argument('--out', default='out/sim', help='report directory (default out/sim)')
+    p.add_argument(
+        '--timeout', type=float, default=1800.0, help='give up after this many wall seconds'
+    )
     p.set_defaults(func=run)
 
 
 # ------------------------------------------------------------------------------------------------
 def _child_env(out: Path) -> dict:
     from ..graphs import FASTDDS_PROFILE, share_dir
+
     env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env.setdefault("ROS_DOMAIN_ID", "73")
-    if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and "FASTRTPS_DEFAULT_PROFILES_FILE" not in env:
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.setdefault('ROS_DOMAIN_ID', '73')
+    if 'FASTDDS_DEFAULT_PROFILES_FILE' not in env and 'FASTRTPS_DEFAULT_PROFILES_FILE' not in env:
         prof = share_dir() / FASTDDS_PROFILE
         if prof.is_file():
-            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(prof)
-    env["ROS_LOG_DIR"] = str(out / "ros_log")
-    env["PYTHONUNBUFFERED"] = "1"
-    env.setdefault("NUMBA_NUM_THREADS", "1")       # many processes on few cores: no thread oversubscription
-    env.setdefault("OMP_NUM_THREADS", "1")
-    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+            env['FASTDDS_DEFAULT_PROFILES_FILE'] = str(prof)
+    env['ROS_LOG_DIR'] = str(out / 'ros_log')
+    env['PYTHONUNBUFFERED'] = '1'
+    env.setdefault(
+        'NUMBA_NUM_THREADS', '1'
+    )  # many processes on few cores: no thread oversubscription
+    env.setdefault('OMP_NUM_THREADS', '1')
+    env.setdefault('OPENBLAS_NUM_THREADS', '1')
     return env
 
 
 def _available_methods(wanted: list[str]) -> tuple[list[str], list[str]]:
     from ..estimators import estimator_names
+
     known = set(estimator_names())
     return [m for m in wanted if m in known], [m for m in wanted if m not in known]
 
 
-def scenario_sun_altitudes(start_time_utc: str, duration_s: float, site: tuple) -> tuple[float, float]:
+def scenario_sun_altitudes(
+    start_time_utc: str, duration_s: float, site: tuple
+) -> tuple[float, float]:
     """Lowest and highest sun altitude (deg) during the run."""
     import numpy as np
 
     from ..bag import ns_from_utc
     from ..scene import parse_time_utc
     from ..solar import sun_position
+
     t0 = ns_from_utc(parse_time_utc(start_time_utc))
-    ts = np.datetime64(t0 // 1000, "us") + (np.linspace(0.0, max(duration_s, 1.0), 16) * 1e6).astype("timedelta64[us]")
+    ts = np.datetime64(t0 // 1000, 'us') + (
+        np.linspace(0.0, max(duration_s, 1.0), 16) * 1e6
+    ).astype('timedelta64[us]')
     p = sun_position(ts, *site)
     return float(np.min(p.altitude_deg)), float(np.max(p.altitude_deg))
 
 
-def ensure_error_map(path: Path, methods: list[str], pitch: float, roll: float, alt_range: tuple, env: dict) -> None:
-    """Build a small map around the scenario (sun altitude, pitch, roll; every yaw) with the errormap
-    command when ``path`` does not exist. Cubic interpolation needs 4 nodes per axis."""
+def ensure_error_map(
+    path: Path, methods: list[str], pitch: float, roll: float, alt_range: tuple, env: dict
+) -> None:
+    """
+    Build a small error map around the scenario when ``path`` does not exist.
+
+    Build a small map around the scenario (sun altitude, pitch, roll; every yaw) with the errormap
+    command when ``path`` does not exist. Cubic interpolation needs 4 nodes per axis.
+    """
     if path.is_file():
         return
 
@@ -111,78 +168,135 @@ def ensure_error_map(path: Path, methods: list[str], pitch: float, roll: float, 
     a0 = max(a0, 0.0)
     p0, p1 = span(pitch, pitch, margin=10.0)
     r0, r1 = span(roll, roll, margin=10.0)
-    cmd = [sys.executable, "-m", "polarization_compass.cli", "errormap", "--methods", ",".join(methods),
-           "--sun-altitude", f"{a0:g}:{a1:g}:5", "--yaw", "-180:175:5", "--pitch", f"{p0:g}:{p1:g}:5",
-           "--roll", f"{r0:g}:{r1:g}:5", "--out", str(path)]
-    print(f"sim: no error map at {path}: building one for this scenario (runs once):\n  {' '.join(cmd[2:])}",
-          flush=True)
+    cmd = [
+        sys.executable,
+        '-m',
+        'polarization_compass.cli',
+        'errormap',
+        '--methods',
+        ','.join(methods),
+        '--sun-altitude',
+        f'{a0:g}:{a1:g}:5',
+        '--yaw',
+        '-180:175:5',
+        '--pitch',
+        f'{p0:g}:{p1:g}:5',
+        '--roll',
+        f'{r0:g}:{r1:g}:5',
+        '--out',
+        str(path),
+    ]
+    print(
+        f'sim: no error map at {path}: building one for this scenario (runs once):\n  '
+        f'{" ".join(cmd[2:])}',
+        flush=True,
+    )
     rc = subprocess.call(cmd, env=env)
     if rc != 0 or not path.is_file():
-        raise CompassError(f"building the error map failed (exit {rc}); run the command above by hand")
+        raise CompassError(
+            f'building the error map failed (exit {rc}); run the command above by hand'
+        )
 
 
 # ------------------------------------------------------------------------------------------------
 def run(args) -> int:
     from .. import graphs
     from ..specs.params import PAPER_METHODS, TILT_METHODS
-    for name, v in (("rate", args.rate), ("turns", args.turns), ("time-scale", args.time_scale)):
+
+    for name, v in (('rate', args.rate), ('turns', args.turns), ('time-scale', args.time_scale)):
         if not (math.isfinite(v) and v > 0):
-            raise CompassError(f"--{name} must be a positive number, got {v}")
-    if not (math.isfinite(args.pitch) and math.isfinite(args.roll) and abs(args.pitch) + abs(args.roll) <= 60):
-        raise CompassError("--pitch and --roll must be finite with |pitch| + |roll| <= 60")
+            raise CompassError(f'--{name} must be a positive number, got {v}')
+    if not (
+        math.isfinite(args.pitch)
+        and math.isfinite(args.roll)
+        and abs(args.pitch) + abs(args.roll) <= 60
+    ):
+        raise CompassError('--pitch and --roll must be finite with |pitch| + |roll| <= 60')
     if not (math.isfinite(args.turn_rate) and 0.0 < abs(args.turn_rate) <= 360.0):
-        raise CompassError(f"--turn-rate must be a nonzero number of deg/s within +-360, got {args.turn_rate}")
+        raise CompassError(
+            f'--turn-rate must be a nonzero number of deg/s within +-360, got {args.turn_rate}'
+        )
     if not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise CompassError(f"--timeout must be a positive number of seconds, got {args.timeout}")
+        raise CompassError(f'--timeout must be a positive number of seconds, got {args.timeout}')
     if args.scene:
         from ..scene import load_scene
-        load_scene(args.scene)              # a bad scene is refused here, not 15 s into the run
-    wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
+
+        load_scene(args.scene)  # a bad scene is refused here, not 15 s into the run
+    wanted = [m.strip() for m in args.methods.split(',') if m.strip()]
     bad = [m for m in wanted if m not in PAPER_METHODS]
     if bad:
-        raise CompassError(f"--methods: {bad} are not paper methods ({', '.join(PAPER_METHODS)}); "
-                           f"{', '.join(TILT_METHODS)} runs unless --no-tilt-aware")
+        raise CompassError(
+            f'--methods: {bad} are not paper methods ({", ".join(PAPER_METHODS)}); '
+            f'{", ".join(TILT_METHODS)} runs unless --no-tilt-aware'
+        )
     methods, missing = _available_methods(wanted)
     tilt_aware = not args.no_tilt_aware and bool(TILT_METHODS)
     if missing:
-        print(f"sim: note: method(s) {', '.join(missing)} are not available in this build: skipped", flush=True)
+        print(
+            f'sim: note: method(s) {", ".join(missing)} are not available in this build: skipped',
+            flush=True,
+        )
     if not methods and not tilt_aware:
-        raise CompassError("no heading method is available")
+        raise CompassError('no heading method is available')
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for old in ("evaluation_summary.json", "evaluation_summary.csv", "evaluation_samples.csv", "evaluation.png"):
+    for old in (
+        'evaluation_summary.json',
+        'evaluation_summary.csv',
+        'evaluation_samples.csv',
+        'evaluation.png',
+    ):
         (out / old).unlink(missing_ok=True)
     env = _child_env(out)
 
     from ..correction import default_map_path
+
     if args.error_map:
         map_path = Path(args.error_map)
         from ..errormap_io import load_error_map
         from ..safe_load import regular_file
-        regular_file(map_path, CompassError, "--error-map")      # missing, a directory, a FIFO, a device
-        load_error_map(map_path)             # a bad map is refused here, before the nodes start
+
+        regular_file(
+            map_path, CompassError, '--error-map'
+        )  # missing, a directory, a FIFO, a device
+        load_error_map(map_path)  # a bad map is refused here, before the nodes start
     elif default_map_path().is_file():
         map_path = default_map_path()
     else:
-        map_path = out / "error_map.npz"
+        map_path = out / 'error_map.npz'
     if methods:
-        from ..specs.params import SIMULATOR, defaults
+        from ..specs.params import defaults, SIMULATOR
+
         d = defaults(SIMULATOR)
         duration = args.turns * 360.0 / abs(args.turn_rate)
-        alts = scenario_sun_altitudes(d["start_time_utc"], duration,
-                                      (d["latitude_deg"], d["longitude_deg"], d["altitude_m"]))
+        alts = scenario_sun_altitudes(
+            d['start_time_utc'], duration, (d['latitude_deg'], d['longitude_deg'], d['altitude_m'])
+        )
         if map_path != default_map_path():
             ensure_error_map(map_path, methods, args.pitch, args.roll, alts, env)
-    graph = graphs.build("sim", {
-        "methods": ",".join(methods), "tilt_aware": str(tilt_aware).lower(), "encoding": args.encoding,
-        "rate_hz": repr(float(args.rate)), "time_scale": repr(float(args.time_scale)),
-        "turns": repr(float(args.turns)), "turn_rate_deg_s": repr(float(args.turn_rate)),
-        "pitch_deg": repr(float(args.pitch)), "roll_deg": repr(float(args.roll)), "scene": args.scene,
-        "lockstep": str(not args.realtime).lower(), "exit_when_done": "true",
-        "error_map": str(map_path), "report_dir": str(out), "array_geometry": args.array_geometry})
+    graph = graphs.build(
+        'sim',
+        {
+            'methods': ','.join(methods),
+            'tilt_aware': str(tilt_aware).lower(),
+            'encoding': args.encoding,
+            'rate_hz': repr(float(args.rate)),
+            'time_scale': repr(float(args.time_scale)),
+            'turns': repr(float(args.turns)),
+            'turn_rate_deg_s': repr(float(args.turn_rate)),
+            'pitch_deg': repr(float(args.pitch)),
+            'roll_deg': repr(float(args.roll)),
+            'scene': args.scene,
+            'lockstep': str(not args.realtime).lower(),
+            'exit_when_done': 'true',
+            'error_map': str(map_path),
+            'report_dir': str(out),
+            'array_geometry': args.array_geometry,
+        },
+    )
     problems = graph.check()
     if problems:
-        raise CompassError("inconsistent graph: " + "; ".join(problems))
+        raise CompassError('inconsistent graph: ' + '; '.join(problems))
     return _run_graph(graph, out, env, args)
 
 
@@ -192,6 +306,7 @@ def _sigterm_as_interrupt(signum, frame):
 
 def _run_graph(graph, out: Path, env: dict, args) -> int:
     from ..graphs import share_dir
+
     # SIGTERM (a test runner, a supervisor) stops the nodes like Ctrl-C does: never orphan them
     previous = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
     try:
@@ -202,77 +317,104 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
 
 def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
     from .. import graphs
+
     share = share_dir()
-    logs = out / "logs"
+    logs = out / 'logs'
     logs.mkdir(parents=True, exist_ok=True)
     procs: dict[str, subprocess.Popen] = {}
     files = []
-    sim_name = graph.shutdown_with or "sky_simulator"
+    sim_name = graph.shutdown_with or 'sky_simulator'
     order = [n for n in graph.nodes if n.name != sim_name] + [graph.node(sim_name)]
-    print(f"sim: starting {len(order)} nodes (ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}, loopback only); "
-          f"logs in {logs}", flush=True)
+    print(
+        f'sim: starting {len(order)} nodes (ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, loopback only); '
+        f'logs in {logs}',
+        flush=True,
+    )
     t_start = time.monotonic()
     code = 0
     try:
         for n in order:
-            f = open(logs / f"{n.name}.log", "w")
+            f = open(logs / f'{n.name}.log', 'w')
             files.append(f)
             cmd = graphs.node_command(n.executable) + n.ros_arguments(share)
-            procs[n.name] = subprocess.Popen(cmd, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=os.getcwd())
+            procs[n.name] = subprocess.Popen(
+                cmd, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=os.getcwd()
+            )
         sim = procs[sim_name]
         last_note = t_start
         while sim.poll() is None:
             time.sleep(0.2)
             dead = [k for k, p in procs.items() if k != sim_name and p.poll() is not None]
             if dead:
-                raise CompassError(f"node(s) {', '.join(dead)} stopped early: " + _tail(logs, dead[0]))
+                raise CompassError(
+                    f'node(s) {", ".join(dead)} stopped early: ' + _tail(logs, dead[0])
+                )
             if time.monotonic() - t_start > args.timeout:
-                raise CompassError(f"the run took longer than --timeout {args.timeout:g} s")
+                raise CompassError(f'the run took longer than --timeout {args.timeout:g} s')
             if time.monotonic() - last_note > 15:
                 last_note = time.monotonic()
-                print(f"sim: running ({time.monotonic() - t_start:.0f} s{_progress(logs / f'{sim_name}.log')})",
-                      flush=True)
+                print(
+                    f'sim: running ({time.monotonic() - t_start:.0f} '
+                    f's{_progress(logs / f"{sim_name}.log")})',
+                    flush=True,
+                )
         if sim.returncode != 0:
-            raise CompassError(f"sky_simulator exited with {sim.returncode}: " + _tail(logs, sim_name))
+            raise CompassError(
+                f'sky_simulator exited with {sim.returncode}: ' + _tail(logs, sim_name)
+            )
         time.sleep(1.0)
     except KeyboardInterrupt:
-        print("sim: interrupted, stopping the nodes", file=sys.stderr)
+        print('sim: interrupted, stopping the nodes', file=sys.stderr)
         code = 130
     finally:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)        # let the shutdown finish
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # let the shutdown finish
         stopped = _stop_all(procs)
         for f in files:
             f.close()
     bad = {k: rc for k, rc in stopped.items() if rc not in (0, None)}
     if bad and code == 0:
-        raise CompassError("node(s) did not stop cleanly: " + ", ".join(f"{k} (exit {v})" for k, v in bad.items())
-                           + "; " + _tail(logs, next(iter(bad))))
+        raise CompassError(
+            'node(s) did not stop cleanly: '
+            + ', '.join(f'{k} (exit {v})' for k, v in bad.items())
+            + '; '
+            + _tail(logs, next(iter(bad)))
+        )
     if code:
         return code
-    summary_path = out / "evaluation_summary.json"
+    summary_path = out / 'evaluation_summary.json'
     if not summary_path.is_file():
-        raise CompassError(f"the evaluator wrote no report ({summary_path}): " + _tail(logs, "error_evaluator"))
+        raise CompassError(
+            f'the evaluator wrote no report ({summary_path}): ' + _tail(logs, 'error_evaluator')
+        )
     summary = json.loads(summary_path.read_text())
     print(format_table(summary, realtime=args.realtime))
-    print(f"\nreport: {out}/evaluation_summary.csv, evaluation_samples.csv, evaluation.png, "
-          f"evaluation_summary.json; node logs: {logs}/ ({time.monotonic() - t_start:.0f} s)")
+    print(
+        f'\nreport: {out}/evaluation_summary.csv, evaluation_samples.csv, evaluation.png, '
+        f'evaluation_summary.json; node logs: {logs}/ ({time.monotonic() - t_start:.0f} s)'
+    )
     return 0
 
 
 def _progress(log: Path) -> str:
-    """", frame N/M" from the simulator's last progress line, or ""."""
+    """Return ", frame N/M" from the simulator's last progress line, or ""."""
     import re
+
     try:
-        found = re.findall(r"\] frame (\d+(?:/\d+)?)", log.read_text(errors="replace"))
+        found = re.findall(r'\] frame (\d+(?:/\d+)?)', log.read_text(errors='replace'))
     except OSError:
-        return ""
-    return f", frame {found[-1]}" if found else ""
+        return ''
+    return f', frame {found[-1]}' if found else ''
 
 
 def _stop_all(procs: dict) -> dict:
-    """SIGINT every running node, then SIGTERM / SIGKILL stragglers after the launch files' timeouts
-    (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S). Returns exit codes."""
+    """
+    Stop every running node: SIGINT, then SIGTERM / SIGKILL for stragglers.
+
+    SIGINT every running node, then SIGTERM / SIGKILL stragglers after the launch files' timeouts
+    (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S). Returns exit codes.
+    """
     from ..graphs import SIGKILL_TIMEOUT_S, STOP_TIMEOUT_S
+
     for p in procs.values():
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
@@ -292,44 +434,68 @@ def _stop_all(procs: dict) -> dict:
 
 def _tail(logs: Path, name: str, n: int = 6) -> str:
     try:
-        lines = (logs / f"{name}.log").read_text(errors="replace").strip().splitlines()
+        lines = (logs / f'{name}.log').read_text(errors='replace').strip().splitlines()
     except OSError:
-        return "(no log)"
-    return " | ".join(lines[-n:]) if lines else "(empty log)"
+        return '(no log)'
+    return ' | '.join(lines[-n:]) if lines else '(empty log)'
 
 
 def format_table(summary: dict, realtime: bool = False) -> str:
-    """The per-method table: raw and corrected error statistics (deg), frames and latency."""
-    streams = summary.get("streams", {})
+    """
+    Format the per-method table of error statistics, frames and latency.
+
+    The per-method table: raw and corrected error statistics (deg), frames and latency.
+    """
+    streams = summary.get('streams', {})
     from ..estimators import registry
+
     order = list(registry.names())
-    methods = sorted({k.split("/")[0] for k in streams}, key=lambda m: (order + [m]).index(m))
-    n = summary.get("truth_frames", 0)
-    head = (f"{'method':<14} {'kind':<10} {'frames':>7} {'missed':>6} {'mean':>8} {'rms':>8} {'p95':>8} "
-            f"{'max':>8} {'lat p95 ms':>10}")
-    lines = [f"heading error = estimated - true bearing (deg), {n} frames", head, "-" * len(head)]
+    methods = sorted({k.split('/')[0] for k in streams}, key=lambda m: (order + [m]).index(m))
+    n = summary.get('truth_frames', 0)
+    head = (
+        f'{"method":<14} {"kind":<10} {"frames":>7} {"missed":>6} {"mean":>8} {"rms":>8} '
+        f'{"p95":>8} '
+        f'{"max":>8} {"lat p95 ms":>10}'
+    )
+    lines = [f'heading error = estimated - true bearing (deg), {n} frames', head, '-' * len(head)]
     for m in methods:
-        for kind in ("raw", "corrected"):
-            d = streams.get(f"{m}/{kind}")
+        for kind in ('raw', 'corrected'):
+            d = streams.get(f'{m}/{kind}')
             if d is None:
                 continue
-            label = "tilt-aware" if m in registry.tilt_methods() else kind     # its raw heading is final
-            lines.append(f"{m:<14} {label:<10} {d['count']:>7d} {d['missed']:>6d} {d['mean']:>8.3f} {d['rms']:>8.3f} "
-                         f"{d['p95']:>8.3f} {d['max']:>8.3f} {d.get('latency_ms_p95', 0.0):>10.1f}")
-    nodes = summary.get("nodes", {})
+            label = (
+                'tilt-aware' if m in registry.tilt_methods() else kind
+            )  # its raw heading is final
+            lines.append(
+                f'{m:<14} {label:<10} {d["count"]:>7d} {d["missed"]:>6d} {d["mean"]:>8.3f} '
+                f'{d["rms"]:>8.3f} '
+                f'{d["p95"]:>8.3f} {d["max"]:>8.3f} {d.get("latency_ms_p95", 0.0):>10.1f}'
+            )
+    nodes = summary.get('nodes', {})
     if nodes:
-        lines.append("per node (wall ms from input to output, p50/p95; rate over the last 100 inputs):")
+        lines.append(
+            'per node (wall ms from input to output, p50/p95; rate over the last 100 inputs):'
+        )
         for name, v in nodes.items():
-            if "processing_ms_p50" in v:
-                lines.append(f"  {name:<34} {float(v['processing_ms_p50']):8.1f} {float(v['processing_ms_p95']):8.1f} ms "
-                             f"{float(v.get('rate_hz', 0)):6.1f} Hz  rejected {v.get('rejected', '0')}")
-            elif "frame_ms_p95" in v:
-                lines.append(f"  {name:<34} frame p95 {float(v['frame_ms_p95']):.1f} ms, {v.get('frames')} frames, "
-                             f"{v.get('late_frames')} late")
+            if 'processing_ms_p50' in v:
+                lines.append(
+                    f'  {name:<34} {float(v["processing_ms_p50"]):8.1f} '
+                    f'{float(v["processing_ms_p95"]):8.1f} ms '
+                    f'{float(v.get("rate_hz", 0)):6.1f} Hz  rejected {v.get("rejected", "0")}'
+                )
+            elif 'frame_ms_p95' in v:
+                lines.append(
+                    f'  {name:<34} frame p95 {float(v["frame_ms_p95"]):.1f} ms, {v.get("frames")} '
+                    'frames, '
+                    f'{v.get("late_frames")} late'
+                )
     for name, d in streams.items():
-        if d.get("not_published"):
-            why = ", ".join(f"{k} x{v}" for k, v in sorted(d["not_published"].items()))
-            lines.append(f"note: {name}: frames not published: {why}")
+        if d.get('not_published'):
+            why = ', '.join(f'{k} x{v}' for k, v in sorted(d['not_published'].items()))
+            lines.append(f'note: {name}: frames not published: {why}')
     if not realtime:
-        lines.append("(lockstep run: latency includes waiting for the slowest node; use --realtime to measure it)")
-    return "\n".join(lines)
+        lines.append(
+            '(lockstep run: latency includes waiting for the slowest node; use --realtime to '
+            'measure it)'
+        )
+    return '\n'.join(lines)

@@ -1,43 +1,78 @@
-"""Machinery shared by the heading estimators: knob validation, pixel sampling, input checks, the
-180 deg ambiguity resolvers and the data-driven (cluster-robust sandwich) uncertainty.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Machinery shared by the heading estimators.
+
+Machinery shared by the heading estimators: knob validation, pixel sampling, input checks, the 180
+deg ambiguity resolvers and the data-driven (cluster-robust sandwich) uncertainty.
 
 Nothing here re-derives a convention: frames and angles come from :mod:`..conventions`.
 
 Sampling
 --------
 ``stride`` is in *sensor pixels*: an observation whose pixels are already ``d`` sensor pixels apart
-(a strided render, superpixels: ``d = 2``) is subsampled by ``max(1, round(stride / d))`` more, so an
-observation rendered from :meth:`Estimator.pixels_needed` is used as is. ``region`` is
-``(x0, y0, width, height)`` in 1-based sensor pixels. Pixel lists (1-D observations) are never strided.
+(a strided render, superpixels: ``d = 2``) is subsampled by ``max(1, round(stride / d))`` more, so
+an observation rendered from :meth:`Estimator.pixels_needed` is used as is. ``region`` is ``(x0,
+y0, width, height)`` in 1-based sensor pixels. Pixel lists (1-D observations) are never strided.
 The least-squares methods thin a full-resolution grid by an even step *phase-balanced* (see
-:func:`select_view`): the same number of pixels, a quarter on each phase of the 2 x 2 polarizer mosaic.
+:func:`select_view`): the same number of pixels, a quarter on each phase of the 2 x 2 polarizer
+mosaic.
 
 Uncertainty
 -----------
-Every method is a smooth function of the measured AoP values, so to first order
-``d psi = sum_i g_i * da_i`` with an analytic sensitivity ``g_i``. The noise ``da_i`` is estimated by the
-residual of pixel i against the Rayleigh pattern of the fitted solution, and the variance by the
-cluster-robust sandwich ``Var = G/(G-1) * (n-1)/(n-p) * sum_blocks (sum_{i in block} g_i r_i)^2`` with
-square blocks of ``block_px`` sensor pixels: noise that is correlated between neighbouring pixels
-(bilinear demosaicing) stays inside a block and is counted; independent noise (superpixels) gives the
-plain sandwich. No noise model or electron count is needed.
+Every method is a smooth function of the measured AoP values, so to first order ``d psi = sum_i g_i
+* da_i`` with an analytic sensitivity ``g_i``. The noise ``da_i`` is estimated by the residual of
+pixel i against the Rayleigh pattern of the fitted solution, and the variance by the cluster-robust
+sandwich ``Var = G/(G-1) * (n-1)/(n-p) * sum_blocks (sum_{i in block} g_i r_i)^2`` with square
+blocks of ``block_px`` sensor pixels: noise that is correlated between neighbouring pixels
+(bilinear demosaicing) stays inside a block and is counted; independent noise (superpixels) gives
+the plain sandwich. No noise model or electron count is needed.
+
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
+import math
 
 import numpy as np
 
+from .base import EstimatorError, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg
-from .base import EstimatorError, HeadingResult, Observation, Status
 
-__all__ = ["brightness_stats", "brightness_t_from_stats", "view_segments", "view_grid_layout",
-           "Knob", "KnobbedEstimator", "Samples", "PixelView", "select_view", "samples_from_view",
-           "cluster_sigma_rad", "cr1_factor", "Candidate",
-           "resolve_ambiguity", "psi_from_sun_rad", "level_sun_candidates", "rayleigh_aop_rad"]
+__all__ = [
+    'brightness_stats',
+    'brightness_t_from_stats',
+    'view_segments',
+    'view_grid_layout',
+    'Knob',
+    'KnobbedEstimator',
+    'Samples',
+    'PixelView',
+    'select_view',
+    'samples_from_view',
+    'cluster_sigma_rad',
+    'cr1_factor',
+    'Candidate',
+    'resolve_ambiguity',
+    'psi_from_sun_rad',
+    'level_sun_candidates',
+    'rayleigh_aop_rad',
+]
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,63 +81,101 @@ __all__ = ["brightness_stats", "brightness_t_from_stats", "view_segments", "view
 @dataclass(frozen=True)
 class Knob:
     default: object
-    kind: str                 # "int" | "float" | "bool" | "choice" | "region" | "float_or_none"
+    kind: str  # "int" | "float" | "bool" | "choice" | "region" | "float_or_none"
     lo: float = -math.inf
     hi: float = math.inf
     choices: tuple = ()
-    doc: str = ""
+    doc: str = ''
 
     def check(self, name: str, value):
-        if self.kind == "region":
+        if self.kind == 'region':
             if value is None:
                 return None
             try:
                 vals = tuple(int(v) for v in value)
             except (TypeError, ValueError):
-                raise EstimatorError(f"knob {name} must be (x0, y0, width, height) integers or None, got {value!r}") \
-                    from None
+                raise EstimatorError(
+                    f'knob {name} must be (x0, y0, width, height) integers or None, got {value!r}'
+                ) from None
             if len(vals) != 4 or vals[0] < 1 or vals[1] < 1 or vals[2] < 1 or vals[3] < 1:
-                raise EstimatorError(f"knob {name} must be (x0 >= 1, y0 >= 1, width >= 1, height >= 1), got {value!r}")
+                raise EstimatorError(
+                    f'knob {name} must be (x0 >= 1, y0 >= 1, width >= 1, height >= 1), got '
+                    f'{value!r}'
+                )
             return vals
-        if self.kind == "choice":
+        if self.kind == 'choice':
             if value not in self.choices:
-                raise EstimatorError(f"knob {name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
+                raise EstimatorError(
+                    f'knob {name} must be one of {", ".join(map(str, self.choices))}, got '
+                    f'{value!r}'
+                )
             return value
-        if self.kind == "bool":
+        if self.kind == 'bool':
             if not isinstance(value, (bool, np.bool_)):
-                raise EstimatorError(f"knob {name} must be true or false, got {value!r}")
+                raise EstimatorError(f'knob {name} must be true or false, got {value!r}')
             return bool(value)
-        if self.kind == "float_or_none" and value is None:
+        if self.kind == 'float_or_none' and value is None:
             return None
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise EstimatorError(f"knob {name} must be a number, got {value!r}")
+        if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)
+        ):
+            raise EstimatorError(f'knob {name} must be a number, got {value!r}')
         v = float(value)
-        if self.kind == "int":
+        if self.kind == 'int':
             if not math.isfinite(v) or v != int(v):
-                raise EstimatorError(f"knob {name} must be an integer, got {value!r}")
+                raise EstimatorError(f'knob {name} must be an integer, got {value!r}')
             v = int(v)
         if not (math.isfinite(v) and self.lo <= v <= self.hi):
-            raise EstimatorError(f"knob {name} must be in [{self.lo:g}, {self.hi:g}], got {value!r}")
+            raise EstimatorError(
+                f'knob {name} must be in [{self.lo:g}, {self.hi:g}], got {value!r}'
+            )
         return v
 
 
 #: Knobs every method has (a method may override a default).
 COMMON_KNOBS = {
-    "stride": Knob(1, "int", 1, 1024, doc="use every stride-th sensor pixel (rows and columns)"),
-    "region": Knob(None, "region", doc="(x0, y0, width, height) in 1-based sensor pixels, or None"),
-    "min_dop": Knob(0.02, "float", 0.0, 0.99, doc="ignore pixels with a lower degree of polarization"),
-    "min_pixels": Knob(50, "int", 3, 10**9, doc="fewer usable pixels: status too_few_pixels"),
-    "max_sun_altitude_deg": Knob(89.0, "float", 1.0, 90.0,
-                                 doc="sun higher than this (ephemeris or data): status sun_near_zenith"),
-    "min_sun_altitude_deg": Knob(0.0, "float", -10.0, 10.0,
-                                 doc="sun lower than this (ephemeris): status sun_below_horizon"),
-    "block_px": Knob(32, "int", 1, 4096, doc="block size (sensor pixels) of the cluster-robust uncertainty"),
-    "sigma_floor_deg": Knob(0.0, "float", 0.0, 90.0,
-                            doc="added in quadrature to the statistical sigma (sky-model error budget)"),
-    "brightness_min_t": Knob(8.0, "float", 1.0, 1e6,
-                             doc="t statistic the brightness gradient needs to resolve the 180 deg ambiguity"),
-    "prior_max_diff_deg": Knob(60.0, "float", 1.0, 90.0,
-                               doc="a prior bearing resolves the ambiguity only if a candidate is this close"),
+    'stride': Knob(1, 'int', 1, 1024, doc='use every stride-th sensor pixel (rows and columns)'),
+    'region': Knob(
+        None, 'region', doc='(x0, y0, width, height) in 1-based sensor pixels, or None'
+    ),
+    'min_dop': Knob(
+        0.02, 'float', 0.0, 0.99, doc='ignore pixels with a lower degree of polarization'
+    ),
+    'min_pixels': Knob(50, 'int', 3, 10**9, doc='fewer usable pixels: status too_few_pixels'),
+    'max_sun_altitude_deg': Knob(
+        89.0,
+        'float',
+        1.0,
+        90.0,
+        doc='sun higher than this (ephemeris or data): status sun_near_zenith',
+    ),
+    'min_sun_altitude_deg': Knob(
+        0.0, 'float', -10.0, 10.0, doc='sun lower than this (ephemeris): status sun_below_horizon'
+    ),
+    'block_px': Knob(
+        32, 'int', 1, 4096, doc='block size (sensor pixels) of the cluster-robust uncertainty'
+    ),
+    'sigma_floor_deg': Knob(
+        0.0,
+        'float',
+        0.0,
+        90.0,
+        doc='added in quadrature to the statistical sigma (sky-model error budget)',
+    ),
+    'brightness_min_t': Knob(
+        8.0,
+        'float',
+        1.0,
+        1e6,
+        doc='t statistic the brightness gradient needs to resolve the 180 deg ambiguity',
+    ),
+    'prior_max_diff_deg': Knob(
+        60.0,
+        'float',
+        1.0,
+        90.0,
+        doc='a prior bearing resolves the ambiguity only if a candidate is this close',
+    ),
 }
 
 
@@ -110,8 +183,8 @@ class KnobbedEstimator:
     """Mixin: validates ``self.knobs`` against ``KNOBS`` (COMMON_KNOBS plus the method's own)."""
 
     OWN_KNOBS: dict = {}
-    KNOB_DEFAULTS: dict = {}           # overrides of common defaults
-    NO_KNOBS: tuple = ()               # common knobs a method does not have
+    KNOB_DEFAULTS: dict = {}  # overrides of common defaults
+    NO_KNOBS: tuple = ()  # common knobs a method does not have
 
     @classmethod
     def knob_specs(cls) -> dict:
@@ -126,14 +199,19 @@ class KnobbedEstimator:
         specs = self.knob_specs()
         unknown = sorted(set(given) - set(specs))
         if unknown:
-            raise EstimatorError(f"{self.name}: unknown knob(s) {', '.join(unknown)}; known: {', '.join(sorted(specs))}")
+            raise EstimatorError(
+                f'{self.name}: unknown knob(s) {", ".join(unknown)}; known: '
+                f'{", ".join(sorted(specs))}'
+            )
         out = {k: s.default for k, s in specs.items()}
         for k, v in given.items():
             out[k] = specs[k].check(k, v)
-        out.setdefault("stride", 1)
-        out.setdefault("region", None)
-        if out["min_sun_altitude_deg"] >= out["max_sun_altitude_deg"]:
-            raise EstimatorError(f"{self.name}: min_sun_altitude_deg must be below max_sun_altitude_deg")
+        out.setdefault('stride', 1)
+        out.setdefault('region', None)
+        if out['min_sun_altitude_deg'] >= out['max_sun_altitude_deg']:
+            raise EstimatorError(
+                f'{self.name}: min_sun_altitude_deg must be below max_sun_altitude_deg'
+            )
         return out
 
 
@@ -142,8 +220,12 @@ class KnobbedEstimator:
 # --------------------------------------------------------------------------------------------
 @dataclass
 class Samples:
-    """The usable pixels of an observation, flat. ``aop_rad``/``dop`` float64, ``rays`` (3, n) float64,
-    ``x_px``/``y_px`` float64 1-based. ``grid_shape`` is the 2-D shape before masking (None for a list)."""
+    """
+    The usable pixels of an observation, flat.
+
+    ``aop_rad``/``dop`` float64, ``rays`` (3, n) float64, ``x_px``/``y_px`` float64 1-based.
+    ``grid_shape`` is the 2-D shape before masking (None for a list).
+    """
 
     aop_rad: np.ndarray
     dop: np.ndarray
@@ -160,29 +242,42 @@ class Samples:
 
 
 def _centred_indices(n: int, step: int) -> np.ndarray:
-    """Indices every ``step`` along an axis of length n, placed symmetrically about its centre."""
+    """
+    Return indices every ``step`` along an axis, placed symmetrically about its centre.
+
+    Indices every ``step`` along an axis of length n, placed symmetrically about its centre.
+    """
     count = (n - 1) // step + 1
     start = (n - 1 - (count - 1) * step) // 2
     return start + step * np.arange(count)
 
 
 def _phase_balanced_indices(n: int, step: int, first_px: float = 1.0) -> np.ndarray:
-    """Indices along an axis of length n, on average ``step`` apart, that alternate in parity: those
+    """
+    Return indices along an axis, about ``step`` apart, that alternate in parity.
+
+    Indices along an axis of length n, on average ``step`` apart, that alternate in parity: those
     whose sensor coordinate ``c`` (``first_px`` for index 0, 1-based) has ``(c - 1) mod 2 step`` in
-    ``{0, step - 1}`` (stride 2: c - 1 = 0, 1, 4, 5, 8, ...; stride 4: 0, 3, 8, 11, ...). For an even step
-    half are even and half odd. Anchored to sensor coordinates, so the close pairs (1 px apart at stride
-    2, whose bilinear neighbourhoods overlap) never straddle a block of ``block_px`` (a multiple of 2 step)."""
+    ``{0, step - 1}`` (stride 2: c - 1 = 0, 1, 4, 5, 8, ...; stride 4: 0, 3, 8, 11, ...). For an
+    even step half are even and half odd. Anchored to sensor coordinates, so the close pairs (1 px
+    apart at stride 2, whose bilinear neighbourhoods overlap) never straddle a block of
+    ``block_px`` (a multiple of 2 step).
+    """
     m = (np.arange(n) + int(round(first_px)) - 1) % (2 * step)
     return np.nonzero((m == 0) | (m == step - 1))[0]
 
 
 def _slice_of(idx: np.ndarray) -> slice:
-    """An arithmetic progression of indices (at least one) as a slice."""
+    """Return an arithmetic progression of indices (at least one) as a slice."""
     return slice(int(idx[0]), int(idx[-1]) + 1, int(idx[1] - idx[0]) if idx.size > 1 else 1)
 
 
 def grid_spacing_px(obs: Observation) -> float:
-    """Spacing in sensor pixels between neighbouring columns of a 2-D observation (1 for a list)."""
+    """
+    Return the spacing in sensor pixels between neighbouring columns of an observation.
+
+    Spacing in sensor pixels between neighbouring columns of a 2-D observation (1 for a list).
+    """
     x = np.asarray(obs.x_px)
     if x.ndim != 2 or x.shape[1] < 2:
         return 1.0
@@ -191,12 +286,14 @@ def grid_spacing_px(obs: Observation) -> float:
 
 @dataclass
 class PixelView:
-    """The pixels a method reads, flat (views where possible, else compact copies), before masking.
+    """
+    The pixels a method reads, flat (views where possible, else compact copies), before masking.
 
-    ``grid`` = ((x0, dx, nx), (y0, dy, ny)) for a regular 2-D grid in row-major order (sensor pixels),
-    else None. ``subgrids``: a tuple of such keys when the pixels are several regular grids one after
-    the other, each row-major (the phase-balanced stride of :func:`select_view`), else None. Neither: a
-    pixel list. ``rays`` is (3, n)."""
+    ``grid`` = ((x0, dx, nx), (y0, dy, ny)) for a regular 2-D grid in row-major order (sensor
+    pixels), else None. ``subgrids``: a tuple of such keys when the pixels are several regular
+    grids one after the other, each row-major (the phase-balanced stride of :func:`select_view`),
+    else None. Neither: a pixel list. ``rays`` is (3, n).
+    """
 
     aop: np.ndarray
     dop: np.ndarray
@@ -212,49 +309,70 @@ class PixelView:
 def _check_shapes(obs: Observation):
     aop = np.asarray(obs.aop_rad)
     n_all = int(aop.size)
-    for name in ("dop", "valid", "x_px", "y_px"):
+    for name in ('dop', 'valid', 'x_px', 'y_px'):
         a = np.asarray(getattr(obs, name))
         if a.size != n_all:
-            raise _BadInput(f"{name} has {a.size} values, aop_rad has {n_all}")
+            raise _BadInput(f'{name} has {a.size} values, aop_rad has {n_all}')
     if obs.intensity is not None and np.asarray(obs.intensity).size != n_all:
-        raise _BadInput(f"intensity has {np.asarray(obs.intensity).size} values, aop_rad has {n_all}")
+        raise _BadInput(
+            f'intensity has {np.asarray(obs.intensity).size} values, aop_rad has {n_all}'
+        )
     rays = np.asarray(obs.rays_cam)
     if rays.ndim != 2 or rays.shape != (3, n_all):
-        raise _BadInput(f"rays_cam must be (3, {n_all}), got {rays.shape}")
+        raise _BadInput(f'rays_cam must be (3, {n_all}), got {rays.shape}')
     if n_all == 0:
-        raise _BadInput("the observation has no pixels")
+        raise _BadInput('the observation has no pixels')
 
 
-def select_view(obs: Observation, knobs: dict, window=None, balance_phases: bool = False) -> PixelView:
-    """Apply ``stride`` and ``region`` (and a ``window`` (x_lo, x_hi, y_lo, y_hi), sensor pixels,
+def select_view(
+    obs: Observation, knobs: dict, window=None, balance_phases: bool = False
+) -> PixelView:
+    """
+    Apply ``stride``, ``region`` and ``window`` to a view without looking at the values.
+
+    Apply ``stride`` and ``region`` (and a ``window`` (x_lo, x_hi, y_lo, y_hi), sensor pixels,
     inclusive) without looking at the values. Raises _BadInput for inconsistent arrays.
 
-    ``balance_phases``: when a full-resolution grid (neighbours 1 sensor pixel apart) is thinned by an
-    even step, every second kept row and column is moved on by one pixel, so that the four phases of a
-    2 x 2 polarizer mosaic are read equally often. A plain even stride reads one phase only; after a
-    bilinear demosaic each phase has its own anisotropic Stokes noise and so its own O(sigma^2) AoP
-    bias, which cancels over the four phases but not within one (the view then has ``subgrids``, not
-    ``grid``)."""
+    ``balance_phases``: when a full-resolution grid (neighbours 1 sensor pixel apart) is thinned by
+    an even step, every second kept row and column is moved on by one pixel, so that the four
+    phases of a 2 x 2 polarizer mosaic are read equally often. A plain even stride reads one phase
+    only; after a bilinear demosaic each phase has its own anisotropic Stokes noise and so its own
+    O(sigma^2) AoP bias, which cancels over the four phases but not within one (the view then has
+    ``subgrids``, not ``grid``).
+    """
     _check_shapes(obs)
     shape = np.shape(obs.aop_rad)
     lims = _view_limits(knobs, window)
     if not (len(shape) == 2 and shape[0] >= 1 and shape[1] >= 1):
         return _list_view(obs, lims)
-    rows, cols, balanced = _grid_axes(obs, knobs["stride"], lims, balance_phases)
+    rows, cols, balanced = _grid_axes(obs, knobs['stride'], lims, balance_phases)
     if rows.size == 0 or cols.size == 0:
         e = np.zeros(0)
-        return PixelView(e, e, np.zeros(0, bool), np.zeros((3, 0)), e, e, None if obs.intensity is None else e, None)
+        return PixelView(
+            e,
+            e,
+            np.zeros(0, bool),
+            np.zeros((3, 0)),
+            e,
+            e,
+            None if obs.intensity is None else e,
+            None,
+        )
     if balanced:
         return _balanced_view(obs, rows, cols)
     return _strided_view(obs, rows, cols)
 
 
 def _view_limits(knobs: dict, window) -> list:
-    """The rectangles (x_lo, x_hi, y_lo, y_hi) (sensor pixels, inclusive) a pixel of the view must lie in:
-    the ``region`` knob's and the ``window``."""
+    """
+    Return the rectangles a pixel of the view must lie in.
+
+    The rectangles (x_lo, x_hi, y_lo, y_hi) (sensor pixels, inclusive) a pixel of the view must lie
+    in: the ``region`` knob's and the ``window``.
+    """
     lims = []
-    if knobs.get("region") is not None:
-        x0, y0, w, h = knobs["region"]
+    if knobs.get('region') is not None:
+        x0, y0, w, h = knobs['region']
         lims.append((x0, x0 + w - 1, y0, y0 + h - 1))
     if window is not None:
         lims.append(window)
@@ -262,8 +380,13 @@ def _view_limits(knobs: dict, window) -> list:
 
 
 def _grid_axes(obs: Observation, stride: int, lims: list, balance_phases: bool):
-    """(rows, columns, balanced): the indices a 2-D observation keeps along each axis at ``stride`` sensor
-    pixels (centred, or phase-balanced: see :func:`select_view`) inside the rectangles ``lims``."""
+    """
+    Return the indices a 2-D observation keeps along each axis at ``stride``.
+
+    (rows, columns, balanced): the indices a 2-D observation keeps along each axis at ``stride``
+    sensor pixels (centred, or phase-balanced: see :func:`select_view`) inside the rectangles
+    ``lims``.
+    """
     xs = np.asarray(obs.x_px)
     ys = np.asarray(obs.y_px)
     H, W = np.shape(obs.aop_rad)
@@ -278,7 +401,7 @@ def _grid_axes(obs: Observation, stride: int, lims: list, balance_phases: bool):
         cols = _centred_indices(W, step) if step > 1 else np.arange(W)
     xc = xs[0, cols]
     yr = ys[rows, 0]
-    for (xl, xh, yl, yh) in lims:
+    for xl, xh, yl, yh in lims:
         kc = (xc >= xl) & (xc <= xh)
         kr = (yr >= yl) & (yr <= yh)
         cols, xc = cols[kc], xc[kc]
@@ -287,14 +410,22 @@ def _grid_axes(obs: Observation, stride: int, lims: list, balance_phases: bool):
 
 
 def _balanced_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> PixelView:
-    """The phase-balanced view: rows (and columns) alternate between two arithmetic progressions, so the
-    pixels are four regular subgrids, copied one after the other (plain strided copies; the sums do not care
-    about the order)."""
+    """
+    Return the phase-balanced view: four regular subgrids copied one after the other.
+
+    The phase-balanced view: rows (and columns) alternate between two arithmetic progressions, so
+    the pixels are four regular subgrids, copied one after the other (plain strided copies; the
+    sums do not care about the order).
+    """
     xs = np.asarray(obs.x_px)
     ys = np.asarray(obs.y_px)
     shape = np.shape(obs.aop_rad)
-    parts = [(rr, cc) for rr in (rows[0::2], rows[1::2]) for cc in (cols[0::2], cols[1::2])
-             if rr.size and cc.size]
+    parts = [
+        (rr, cc)
+        for rr in (rows[0::2], rows[1::2])
+        for cc in (cols[0::2], cols[1::2])
+        if rr.size and cc.size
+    ]
     n_all = int(rows.size * cols.size)
 
     def take(a, lead=()):
@@ -307,29 +438,56 @@ def _balanced_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> Pixe
             dst[...] = src[..., _slice_of(rr), _slice_of(cc)]
             off += n
         return out
+
     keys, xg, yg = [], [], []
     for rr, cc in parts:
         xc_p, yr_p = xs[0, cc], ys[rr, 0]
-        xg.append(np.tile(xc_p, yr_p.size))        # coordinates from the axes: no pass over x_px
+        xg.append(np.tile(xc_p, yr_p.size))  # coordinates from the axes: no pass over x_px
         yg.append(np.repeat(yr_p, xc_p.size))
-        keys.append(((float(xc_p[0]), float(xc_p[1] - xc_p[0]) if xc_p.size > 1 else 1.0, int(xc_p.size)),
-                     (float(yr_p[0]), float(yr_p[1] - yr_p[0]) if yr_p.size > 1 else 1.0, int(yr_p.size))))
-    return PixelView(take(obs.aop_rad), take(obs.dop), take(obs.valid), take(obs.rays_cam, (3,)),
-                     np.concatenate(xg), np.concatenate(yg), None if obs.intensity is None else take(obs.intensity),
-                     None, tuple(keys))
+        keys.append(
+            (
+                (
+                    float(xc_p[0]),
+                    float(xc_p[1] - xc_p[0]) if xc_p.size > 1 else 1.0,
+                    int(xc_p.size),
+                ),
+                (
+                    float(yr_p[0]),
+                    float(yr_p[1] - yr_p[0]) if yr_p.size > 1 else 1.0,
+                    int(yr_p.size),
+                ),
+            )
+        )
+    return PixelView(
+        take(obs.aop_rad),
+        take(obs.dop),
+        take(obs.valid),
+        take(obs.rays_cam, (3,)),
+        np.concatenate(xg),
+        np.concatenate(yg),
+        None if obs.intensity is None else take(obs.intensity),
+        None,
+        tuple(keys),
+    )
 
 
 def _strided_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> PixelView:
-    """The view of one regular grid (rows and columns arithmetic progressions): the arrays themselves when
-    every pixel is kept, else strided slices copied compactly once."""
+    """
+    Return the view of one regular grid.
+
+    The view of one regular grid (rows and columns arithmetic progressions): the arrays themselves
+    when every pixel is kept, else strided slices copied compactly once.
+    """
     xs = np.asarray(obs.x_px)
     ys = np.asarray(obs.y_px)
     rays = np.asarray(obs.rays_cam)
     shape = np.shape(obs.aop_rad)
     H, W = shape
     if rows.size == H and cols.size == W:
+
         def take(a):
             return np.asarray(a).reshape(-1)
+
         r = rays
     else:
         rs = slice(int(rows[0]), int(rows[-1]) + 1, int(rows[1] - rows[0]) if rows.size > 1 else 1)
@@ -337,19 +495,32 @@ def _strided_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> Pixel
 
         def take(a):
             return np.ascontiguousarray(np.asarray(a).reshape(shape)[rs, cs]).reshape(-1)
+
         r = np.ascontiguousarray(rays.reshape(3, H, W)[:, rs, cs]).reshape(3, -1)
     xc = xs[0, cols]
     yr = ys[rows, 0]
     dx = float(xc[1] - xc[0]) if xc.size > 1 else 1.0
     dy = float(yr[1] - yr[0]) if yr.size > 1 else 1.0
     grid = ((float(xc[0]), dx, int(xc.size)), (float(yr[0]), dy, int(yr.size)))
-    return PixelView(take(obs.aop_rad), take(obs.dop), take(obs.valid), r, take(xs), take(ys),
-                     None if obs.intensity is None else take(obs.intensity), grid)
+    return PixelView(
+        take(obs.aop_rad),
+        take(obs.dop),
+        take(obs.valid),
+        r,
+        take(xs),
+        take(ys),
+        None if obs.intensity is None else take(obs.intensity),
+        grid,
+    )
 
 
 def _list_view(obs: Observation, lims: list) -> PixelView:
-    """The view of a pixel list (or of a 2-D observation that is not a grid): flat, the pixels inside the
-    rectangles ``lims``."""
+    """
+    Return the view of a pixel list: the pixels inside the rectangles ``lims``.
+
+    The view of a pixel list (or of a 2-D observation that is not a grid): flat, the pixels inside
+    the rectangles ``lims``.
+    """
     aop = np.asarray(obs.aop_rad)
     rays = np.asarray(obs.rays_cam)
     inten = None if obs.intensity is None else np.asarray(obs.intensity)
@@ -357,19 +528,38 @@ def _list_view(obs: Observation, lims: list) -> PixelView:
     flat_y = np.asarray(obs.y_px).reshape(-1)
     if lims:
         m = np.ones(flat_x.size, dtype=bool)
-        for (xl, xh, yl, yh) in lims:
+        for xl, xh, yl, yh in lims:
             m &= (flat_x >= xl) & (flat_x <= xh) & (flat_y >= yl) & (flat_y <= yh)
         idx = np.nonzero(m)[0]
-        return PixelView(aop.reshape(-1)[idx], np.asarray(obs.dop).reshape(-1)[idx],
-                         np.asarray(obs.valid).reshape(-1)[idx], rays[:, idx], flat_x[idx], flat_y[idx],
-                         None if inten is None else inten.reshape(-1)[idx], None)
-    return PixelView(aop.reshape(-1), np.asarray(obs.dop).reshape(-1), np.asarray(obs.valid).reshape(-1), rays,
-                     flat_x, flat_y, None if inten is None else inten.reshape(-1), None)
+        return PixelView(
+            aop.reshape(-1)[idx],
+            np.asarray(obs.dop).reshape(-1)[idx],
+            np.asarray(obs.valid).reshape(-1)[idx],
+            rays[:, idx],
+            flat_x[idx],
+            flat_y[idx],
+            None if inten is None else inten.reshape(-1)[idx],
+            None,
+        )
+    return PixelView(
+        aop.reshape(-1),
+        np.asarray(obs.dop).reshape(-1),
+        np.asarray(obs.valid).reshape(-1),
+        rays,
+        flat_x,
+        flat_y,
+        None if inten is None else inten.reshape(-1),
+        None,
+    )
 
 
 def samples_from_view(view: PixelView, min_dop: float, radius_limit=None) -> Samples:
-    """Mask a view: valid, finite, DoP >= min_dop (and ray radius in ``radius_limit`` = (lo, hi) of
-    hypot(r_x, r_y)); float64 copies of the usable pixels."""
+    """
+    Mask a view to its usable pixels and return float64 copies of them.
+
+    Mask a view: valid, finite, DoP >= min_dop (and ray radius in ``radius_limit`` = (lo, hi) of
+    hypot(r_x, r_y)); float64 copies of the usable pixels.
+    """
     a = view.aop
     d = view.dop
     v = np.asarray(view.valid, dtype=bool)
@@ -380,7 +570,10 @@ def samples_from_view(view: PixelView, min_dop: float, radius_limit=None) -> Sam
     keep = v & finite
     keep &= np.where(keep, d, 0.0) >= min_dop
     if radius_limit is not None:
-        rho = np.hypot(np.where(keep, r[0], 0.0).astype(np.float64), np.where(keep, r[1], 0.0).astype(np.float64))
+        rho = np.hypot(
+            np.where(keep, r[0], 0.0).astype(np.float64),
+            np.where(keep, r[1], 0.0).astype(np.float64),
+        )
         keep &= (rho >= radius_limit[0]) & (rho <= radius_limit[1])
     idx = np.nonzero(keep)[0]
     inten = None
@@ -388,40 +581,77 @@ def samples_from_view(view: PixelView, min_dop: float, radius_limit=None) -> Sam
         inten = view.intensity[idx].astype(np.float64)
         if not np.all(np.isfinite(inten)):
             inten = None
-    return Samples(a[idx].astype(np.float64), d[idx].astype(np.float64), r[:, idx].astype(np.float64),
-                   view.x_px[idx].astype(np.float64), view.y_px[idx].astype(np.float64), inten, nonfinite,
-                   considered)
+    return Samples(
+        a[idx].astype(np.float64),
+        d[idx].astype(np.float64),
+        r[:, idx].astype(np.float64),
+        view.x_px[idx].astype(np.float64),
+        view.y_px[idx].astype(np.float64),
+        inten,
+        nonfinite,
+        considered,
+    )
 
 
 def view_segments(view: PixelView, block_px: int):
-    """Flat arrays of a view in block order and their segments (runs of one block each), for the
-    compiled passes: ((aop, dop, valid, rays, x_px, y_px, intensity), (start, end, block, n_blocks))."""
+    """
+    Return a view's flat arrays in block order and their segments.
+
+    Flat arrays of a view in block order and their segments (runs of one block each), for the
+    compiled passes: ((aop, dop, valid, rays, x_px, y_px, intensity), (start, end, block,
+    n_blocks)).
+    """
     from ._kernels import grid_segments, list_segments
+
     if view.grid is not None:
-        return ((view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
-                grid_segments(view.grid[0], view.grid[1], int(block_px)))
+        return (
+            (view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
+            grid_segments(view.grid[0], view.grid[1], int(block_px)),
+        )
     if view.subgrids is not None:
-        return ((view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
-                subgrid_segments(view.subgrids, int(block_px)))
+        return (
+            (view.aop, view.dop, view.valid, view.rays, view.x_px, view.y_px, view.intensity),
+            subgrid_segments(view.subgrids, int(block_px)),
+        )
     order, segs = list_segments(view.x_px, view.y_px, int(block_px))
-    return ((view.aop[order], view.dop[order], view.valid[order], view.rays[:, order], view.x_px[order],
-             view.y_px[order], None if view.intensity is None else view.intensity[order]), segs)
+    return (
+        (
+            view.aop[order],
+            view.dop[order],
+            view.valid[order],
+            view.rays[:, order],
+            view.x_px[order],
+            view.y_px[order],
+            None if view.intensity is None else view.intensity[order],
+        ),
+        segs,
+    )
 
 
 def view_grid_layout(view: PixelView, block_px: int):
-    """The view's pixels as regular grids for the row-wise compiled pass
-    (:func:`polarization_compass.estimators._kernels.grid_layout`), or None for a pixel list."""
+    """
+    Return the view's pixels as regular grids for the row-wise compiled pass.
+
+    The view's pixels as regular grids for the row-wise compiled pass
+    (:func:`polarization_compass.estimators._kernels.grid_layout`), or None for a pixel list.
+    """
     from ._kernels import grid_layout
+
     keys = (view.grid,) if view.grid is not None else view.subgrids
     return None if keys is None else grid_layout(tuple(keys), int(block_px))
 
 
 @lru_cache(maxsize=64)
 def subgrid_segments(keys: tuple, block_px: int):
-    """Segments (start, end, block, n_blocks) of regular grids stored one after the other, each
+    """
+    Return the segments of regular grids stored one after the other.
+
+    Segments (start, end, block, n_blocks) of regular grids stored one after the other, each
     row-major with key ((x0, dx, nx), (y0, dy, ny)) (sensor pixels): one run per (grid, row, block
-    column), blocks of ``block_px`` sensor pixels numbered alike in every grid. Cached."""
+    column), blocks of ``block_px`` sensor pixels numbered alike in every grid. Cached.
+    """
     from ._kernels import block_indices
+
     bcs, brs, K, R = block_indices(keys, block_px)
     starts, ends, blks = [], [], []
     off = 0
@@ -435,8 +665,12 @@ def subgrid_segments(keys: tuple, block_px: int):
         ends.append((rows + ce[None, :]).reshape(-1))
         blks.append((br[:, None] * K + bc[cs][None, :]).reshape(-1))
         off += nx * ny
-    out = (np.concatenate(starts).astype(np.int64), np.concatenate(ends).astype(np.int64),
-           np.concatenate(blks).astype(np.int64), int(R * K))
+    out = (
+        np.concatenate(starts).astype(np.int64),
+        np.concatenate(ends).astype(np.int64),
+        np.concatenate(blks).astype(np.int64),
+        int(R * K),
+    )
     for a in out[:3]:
         a.setflags(write=False)
     return out
@@ -452,17 +686,26 @@ def check_sun(name: str, obs: Observation, knobs: dict) -> HeadingResult | None:
         alt = float(obs.sun_altitude_deg)
         az = float(obs.sun_azimuth_deg)
     except (TypeError, ValueError):
-        return HeadingResult.failed(name, Status.BAD_INPUT, "sun azimuth/altitude are not numbers")
+        return HeadingResult.failed(name, Status.BAD_INPUT, 'sun azimuth/altitude are not numbers')
     if not (math.isfinite(alt) and math.isfinite(az)) or abs(alt) > 90.0:
-        return HeadingResult.failed(name, Status.BAD_INPUT,
-                                    f"sun azimuth/altitude must be finite with |altitude| <= 90, got {az}, {alt}")
-    if alt > knobs["max_sun_altitude_deg"]:
-        return HeadingResult.failed(name, Status.SUN_NEAR_ZENITH,
-                                    f"sun altitude {alt:.3f} deg > {knobs['max_sun_altitude_deg']:g}: "
-                                    "the solar meridian is undefined")
-    if alt < knobs["min_sun_altitude_deg"]:
-        return HeadingResult.failed(name, Status.SUN_BELOW_HORIZON,
-                                    f"sun altitude {alt:.3f} deg < {knobs['min_sun_altitude_deg']:g}")
+        return HeadingResult.failed(
+            name,
+            Status.BAD_INPUT,
+            f'sun azimuth/altitude must be finite with |altitude| <= 90, got {az}, {alt}',
+        )
+    if alt > knobs['max_sun_altitude_deg']:
+        return HeadingResult.failed(
+            name,
+            Status.SUN_NEAR_ZENITH,
+            f'sun altitude {alt:.3f} deg > {knobs["max_sun_altitude_deg"]:g}: '
+            'the solar meridian is undefined',
+        )
+    if alt < knobs['min_sun_altitude_deg']:
+        return HeadingResult.failed(
+            name,
+            Status.SUN_BELOW_HORIZON,
+            f'sun altitude {alt:.3f} deg < {knobs["min_sun_altitude_deg"]:g}',
+        )
     return None
 
 
@@ -470,8 +713,12 @@ def check_sun(name: str, obs: Observation, knobs: dict) -> HeadingResult | None:
 # Geometry helpers
 # --------------------------------------------------------------------------------------------
 def psi_from_sun_rad(s_lev) -> float:
-    """psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``: s_lev = Rz(psi) s_sun, so
-    psi = -atan2(s_x, s_y)."""
+    """
+    Return psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``.
+
+    psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``: s_lev = Rz(psi) s_sun, so
+    psi = -atan2(s_x, s_y).
+    """
     return -math.atan2(float(s_lev[0]), float(s_lev[1]))
 
 
@@ -499,18 +746,28 @@ def axial_residual_rad(aop_rad, pred_rad) -> np.ndarray:
 # Uncertainty
 # --------------------------------------------------------------------------------------------
 def cr1_factor(n_clusters: int, n: int, n_params: int) -> float:
-    """The CR1 small-sample factor of a cluster-robust variance: ``G / (G - 1) * (n - 1) / (n - k)`` for
-    ``G = n_clusters`` clusters (blocks), ``n`` observations (pixels) and ``k = n_params`` parameters; each
-    part is 1 where it is undefined (``G <= 1``, ``n <= k``). Reference: A. C. Cameron and D. L. Miller, "A
-    Practitioner's Guide to Cluster-Robust Inference", J. Human Resources 50(2), 317-372 (2015) (the factor
-    Stata uses). Plain arithmetic: the compiled least-squares kernel runs it through numba."""
-    return ((n_clusters / (n_clusters - 1.0) if n_clusters > 1 else 1.0)
-            * ((n - 1.0) / (n - n_params) if n > n_params else 1.0))
+    """
+    Return the CR1 small-sample factor of a cluster-robust variance.
+
+    The CR1 small-sample factor of a cluster-robust variance: ``G / (G - 1) * (n - 1) / (n - k)``
+    for ``G = n_clusters`` clusters (blocks), ``n`` observations (pixels) and ``k = n_params``
+    parameters; each part is 1 where it is undefined (``G <= 1``, ``n <= k``). Reference: A. C.
+    Cameron and D. L. Miller, "A Practitioner's Guide to Cluster-Robust Inference", J. Human
+    Resources 50(2), 317-372 (2015) (the factor Stata uses). Plain arithmetic: the compiled
+    least-squares kernel runs it through numba.
+    """
+    return (n_clusters / (n_clusters - 1.0) if n_clusters > 1 else 1.0) * (
+        (n - 1.0) / (n - n_params) if n > n_params else 1.0
+    )
 
 
 def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) -> float:
-    """Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual) over
-    blocks of ``block_px`` sensor pixels, with the :func:`cr1_factor`."""
+    """
+    Return the cluster-robust sandwich variance of ``sum_i influence_i``.
+
+    Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual)
+    over blocks of ``block_px`` sensor pixels, with the :func:`cr1_factor`.
+    """
     phi = np.asarray(influence, dtype=float)
     n = phi.size
     if n == 0:
@@ -528,13 +785,15 @@ def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) ->
 
 
 def cluster_sigma_rad(influence, samples: Samples, block_px: int, n_params: int = 2) -> float:
-    return math.sqrt(max(cluster_variance(influence, samples.x_px, samples.y_px, block_px, n_params), 0.0))
+    return math.sqrt(
+        max(cluster_variance(influence, samples.x_px, samples.y_px, block_px, n_params), 0.0)
+    )
 
 
 def finish_sigma_deg(sigma_rad: float, knobs: dict) -> float:
     """Statistical sigma (rad) to degrees, with the floor in quadrature and never exactly zero."""
     s = math.degrees(sigma_rad)
-    return max(math.hypot(s, knobs["sigma_floor_deg"]), 1e-9)
+    return max(math.hypot(s, knobs['sigma_floor_deg']), 1e-9)
 
 
 # --------------------------------------------------------------------------------------------
@@ -549,26 +808,44 @@ class Candidate:
 
 
 def brightness_stats(intensity, rays) -> np.ndarray:
-    """Sufficient statistics of the brightness regression: n, sum I, sum I^2, sum r (3), sum I r (3),
-    sum r r^T (6: 00 01 02 11 12 22), for intensities (n,) and rays (3, n)."""
+    """
+    Return the sufficient statistics of the brightness regression.
+
+    Sufficient statistics of the brightness regression: n, sum I, sum I^2, sum r (3), sum I r (3),
+    sum r r^T (6: 00 01 02 11 12 22), for intensities (n,) and rays (3, n).
+    """
     I = np.asarray(intensity, dtype=float)
     r = np.asarray(rays, dtype=float)
     rr = r @ r.T
-    return np.concatenate([[I.size, I.sum(), float(I @ I)], r.sum(axis=1), r @ I,
-                           [rr[0, 0], rr[0, 1], rr[0, 2], rr[1, 1], rr[1, 2], rr[2, 2]]])
+    return np.concatenate(
+        [
+            [I.size, I.sum(), float(I @ I)],
+            r.sum(axis=1),
+            r @ I,
+            [rr[0, 0], rr[0, 1], rr[0, 2], rr[1, 1], rr[1, 2], rr[2, 2]],
+        ]
+    )
 
 
 def brightness_t_from_stats(stats, direction_cam) -> float | None:
-    """t statistic of the least-squares slope of intensity against ``r . direction``.
+    """
+    T statistic of the least-squares slope of intensity against ``r . direction``.
 
     Positive: the sky is brighter towards ``direction``. The residual standard error includes the
-    sky's non-linear brightness profile, so the test is conservative. None without data."""
+    sky's non-linear brightness profile, so the test is conservative. None without data.
+    """
     if stats is None or stats[0] < 10:
         return None
     n, sI, sII = float(stats[0]), float(stats[1]), float(stats[2])
     sr, sIr = np.asarray(stats[3:6]), np.asarray(stats[6:9])
-    Srr = np.array([[stats[9], stats[10], stats[11]], [stats[10], stats[12], stats[13]],
-                    [stats[11], stats[13], stats[14]]], dtype=float)
+    Srr = np.array(
+        [
+            [stats[9], stats[10], stats[11]],
+            [stats[10], stats[12], stats[13]],
+            [stats[11], stats[13], stats[14]],
+        ],
+        dtype=float,
+    )
     d = np.asarray(direction_cam, dtype=float)
     su = float(d @ sr)
     suu = float(d @ Srr @ d) - su * su / n
@@ -584,14 +861,26 @@ def brightness_t_from_stats(stats, direction_cam) -> float | None:
     return slope / math.sqrt(se2)
 
 
-def resolve_ambiguity(name: str, first: Candidate, second: Candidate, brightness: float | None, obs: Observation,
-                      knobs: dict, sun_rule=None, rule_name: str = "sun_elevation", use_brightness: bool = True):
-    """Pick one of two candidates 180 deg apart; returns (candidate, resolved_by or None, reason).
+def resolve_ambiguity(
+    name: str,
+    first: Candidate,
+    second: Candidate,
+    brightness: float | None,
+    obs: Observation,
+    knobs: dict,
+    sun_rule=None,
+    rule_name: str = 'sun_elevation',
+    use_brightness: bool = True,
+):
+    """
+    Pick one of two candidates 180 deg apart; returns (candidate, resolved_by or None, reason).
 
-    Order: ``sun_rule`` (a callable giving (candidate or None, reason), e.g. from the sun's elevation;
-    ``resolved_by`` is then ``rule_name``), the sky's brightness gradient (``brightness``: the t statistic
-    of intensity against ``r . (s_first - s_second)``, None without intensity; not consulted when
-    ``use_brightness`` is False), the prior bearing. Unresolved: ``first`` and None."""
+    Order: ``sun_rule`` (a callable giving (candidate or None, reason), e.g. from the sun's
+    elevation; ``resolved_by`` is then ``rule_name``), the sky's brightness gradient
+    (``brightness``: the t statistic of intensity against ``r . (s_first - s_second)``, None
+    without intensity; not consulted when ``use_brightness`` is False), the prior bearing.
+    Unresolved: ``first`` and None.
+    """
     reasons = []
     if sun_rule is not None:
         pick, why = sun_rule()
@@ -602,49 +891,101 @@ def resolve_ambiguity(name: str, first: Candidate, second: Candidate, brightness
     if not use_brightness:
         pass
     elif t is not None:
-        if abs(t) >= knobs["brightness_min_t"]:
+        if abs(t) >= knobs['brightness_min_t']:
             pick = first if t > 0 else second
-            return pick, "brightness", f"sun side from the brightness gradient (t = {t:.1f})"
-        reasons.append(f"brightness gradient too weak (|t| = {abs(t):.1f} < {knobs['brightness_min_t']:g})")
+            return pick, 'brightness', f'sun side from the brightness gradient (t = {t:.1f})'
+        reasons.append(
+            f'brightness gradient too weak (|t| = {abs(t):.1f} < {knobs["brightness_min_t"]:g})'
+        )
     else:
-        reasons.append("no intensity")
+        reasons.append('no intensity')
     if obs.prior_bearing_deg is not None and math.isfinite(float(obs.prior_bearing_deg)):
-        diffs = [abs(float(wrap_180_deg(psi_to_bearing_deg(math.degrees(c.psi_rad), obs.sun_azimuth_deg)
-                                        - float(obs.prior_bearing_deg)))) for c in (first, second)]
+        diffs = [
+            abs(
+                float(
+                    wrap_180_deg(
+                        psi_to_bearing_deg(math.degrees(c.psi_rad), obs.sun_azimuth_deg)
+                        - float(obs.prior_bearing_deg)
+                    )
+                )
+            )
+            for c in (first, second)
+        ]
         k = int(np.argmin(diffs))
-        if diffs[k] <= knobs["prior_max_diff_deg"]:
-            return (first, second)[k], "prior", f"sun side from the prior bearing ({diffs[k]:.1f} deg away)"
-        reasons.append(f"prior bearing {min(diffs):.1f} deg from the nearer candidate "
-                       f"(> {knobs['prior_max_diff_deg']:g})")
+        if diffs[k] <= knobs['prior_max_diff_deg']:
+            return (
+                (first, second)[k],
+                'prior',
+                f'sun side from the prior bearing ({diffs[k]:.1f} deg away)',
+            )
+        reasons.append(
+            f'prior bearing {min(diffs):.1f} deg from the nearer candidate '
+            f'(> {knobs["prior_max_diff_deg"]:g})'
+        )
     else:
-        reasons.append("no prior bearing")
-    return first, None, "180 deg ambiguity not resolved: " + "; ".join(reasons)
+        reasons.append('no prior bearing')
+    return first, None, '180 deg ambiguity not resolved: ' + '; '.join(reasons)
 
 
 def level_sun_candidates(psi_rad: float, altitude_deg: float) -> tuple[Candidate, Candidate]:
-    """The two headings psi and psi + 180 deg of an axial method, with the level-camera sun each implies."""
+    """
+    Return the two headings of an axial method with the level-camera sun each implies.
+
+    The two headings psi and psi + 180 deg of an axial method, with the level-camera sun each
+    implies.
+    """
     h = math.radians(altitude_deg)
     other = psi_rad + math.pi
-    return (Candidate(psi_rad, sun_from_psi_level(psi_rad, h)), Candidate(other, sun_from_psi_level(other, h)))
+    return (
+        Candidate(psi_rad, sun_from_psi_level(psi_rad, h)),
+        Candidate(other, sun_from_psi_level(other, h)),
+    )
 
 
-def result_from(name: str, cand: Candidate, resolved_by, reason: str, obs: Observation, sigma_deg: float,
-                pixels: int, nonfinite: int, quality: float, **kw) -> HeadingResult:
-    """The final result: axial (status ambiguous) unless ``resolved_by`` names what fixed the sun's side."""
-    extras = dict(kw.pop("extras", {}))
-    extras["ambiguity_resolved_by"] = resolved_by
+def result_from(
+    name: str,
+    cand: Candidate,
+    resolved_by,
+    reason: str,
+    obs: Observation,
+    sigma_deg: float,
+    pixels: int,
+    nonfinite: int,
+    quality: float,
+    **kw,
+) -> HeadingResult:
+    """
+    Build the final result: axial unless ``resolved_by`` names what fixed the sun's side.
+
+    The final result: axial (status ambiguous) unless ``resolved_by`` names what fixed the sun's
+    side.
+    """
+    extras = dict(kw.pop('extras', {}))
+    extras['ambiguity_resolved_by'] = resolved_by
     if nonfinite:
-        extras["nonfinite_pixels_ignored"] = int(nonfinite)
-        reason = (reason + "; " if reason else "") + f"ignored {nonfinite} valid pixel(s) with non-finite values"
-    return HeadingResult.from_psi(name, math.degrees(cand.psi_rad), float(obs.sun_azimuth_deg), sigma_deg, int(pixels),
-                                  quality, resolved_by is None, reason, extras=extras, **kw)
+        extras['nonfinite_pixels_ignored'] = int(nonfinite)
+        reason = (
+            reason + '; ' if reason else ''
+        ) + f'ignored {nonfinite} valid pixel(s) with non-finite values'
+    return HeadingResult.from_psi(
+        name,
+        math.degrees(cand.psi_rad),
+        float(obs.sun_azimuth_deg),
+        sigma_deg,
+        int(pixels),
+        quality,
+        resolved_by is None,
+        reason,
+        extras=extras,
+        **kw,
+    )
 
 
 def selection_for(knobs: dict, camera: CameraModel) -> PixelSelection:
-    """The PixelSelection a method with these stride/region knobs reads."""
-    if knobs.get("region") is not None:
-        x0, y0, w, h = knobs["region"]
-        return PixelSelection.rect(x0, y0, w, h, knobs["stride"])
-    if knobs["stride"] > 1:
-        return PixelSelection.strided(knobs["stride"])
+    """Return the PixelSelection a method with these stride/region knobs reads."""
+    if knobs.get('region') is not None:
+        x0, y0, w, h = knobs['region']
+        return PixelSelection.rect(x0, y0, w, h, knobs['stride'])
+    if knobs['stride'] > 1:
+        return PixelSelection.strided(knobs['stride'])
     return PixelSelection.full()

@@ -1,33 +1,61 @@
-"""The sky disc both disc methods (SM-ASM, Symmetry) fit on: the AoP relative to the local meridian
-(AOPLM, eqs 29-30) on a disc of sky centred on the zenith pixel, with a smooth radial taper; its geometry
-(:func:`disc_radius`, :func:`disc_selection`, :func:`taper`, :func:`disc_cells`) and the compiled per-pixel
-steps the methods' passes share (:mod:`._sm_asm_kernels`, :mod:`._symmetry_kernels`). Mirror pairs for an
-incomplete disc: :mod:`._mirror`; the estimator skeleton: :mod:`._disc_estimator`.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-``xi`` (eq 30, the angle between +y_cam and the local meridian at a pixel) is computed from the pixel's
-ray, ``xi = atan2(r_x, r_y)``: for the paper's pinhole with square pixels this is eq 30 exactly
-(``atan2(x - cx, y - cy)``, tested), and it stays right for a fisheye or non-square pixels. Both methods
-assume a level camera (the paper's premise); under tilt they show the paper's tilt errors.
-
-Why a disc with a smooth edge: both methods find an axis of mirror symmetry of the AOPLM pattern. The
-image rectangle is not mirror-symmetric about an arbitrary line through its centre, so its corners
-would bias the axis; a disc is symmetric about every such line, and a taper that goes smoothly to zero
-keeps the pixel lattice from aliasing at the edge.
 """
+The sky disc both disc methods (SM-ASM, Symmetry) fit on.
+
+The sky disc both disc methods (SM-ASM, Symmetry) fit on: the AoP relative to the local meridian
+(AOPLM, eqs 29-30) on a disc of sky centred on the zenith pixel, with a smooth radial taper; its
+geometry (:func:`disc_radius`, :func:`disc_selection`, :func:`taper`, :func:`disc_cells`) and the
+compiled per-pixel steps the methods' passes share (:mod:`._sm_asm_kernels`,
+:mod:`._symmetry_kernels`). Mirror pairs for an incomplete disc: :mod:`._mirror`; the estimator
+skeleton: :mod:`._disc_estimator`.
+
+``xi`` (eq 30, the angle between +y_cam and the local meridian at a pixel) is computed from the
+pixel's ray, ``xi = atan2(r_x, r_y)``: for the paper's pinhole with square pixels this is eq 30
+exactly (``atan2(x - cx, y - cy)``, tested), and it stays right for a fisheye or non-square pixels.
+Both methods assume a level camera (the paper's premise); under tilt they show the paper's tilt
+errors.
+
+Why a disc with a smooth edge: both methods find an axis of mirror symmetry of the AOPLM pattern.
+The image rectangle is not mirror-symmetric about an arbitrary line through its centre, so its
+corners would bias the axis; a disc is symmetric about every such line, and a taper that goes
+smoothly to zero keeps the pixel lattice from aliasing at the edge.
+"""
+
 from __future__ import annotations
 
-import math
 from functools import lru_cache
+import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from ..camera import CameraModel, PixelSelection
-from ..fastmath import atan2, sincos_folded
 from ._common import axial_residual_rad
 from ._kernels import acc_brightness
+from ..camera import CameraModel, PixelSelection
+from ..fastmath import atan2, sincos_folded
 
-__all__ = ["disc_radius", "disc_radius_mm", "disc_selection", "taper", "aoplm_rad", "disc_cells", "level_rss"]
+__all__ = [
+    'disc_radius',
+    'disc_radius_mm',
+    'disc_selection',
+    'taper',
+    'aoplm_rad',
+    'disc_cells',
+    'level_rss',
+]
 
 
 @lru_cache(maxsize=32)
@@ -42,15 +70,19 @@ def disc_radius(camera: CameraModel) -> float:
 
 
 def disc_radius_mm(camera: CameraModel, rho_max: float) -> float:
-    """Radius on the sensor (mm from the principal point) of the ray circle hypot(r_x, r_y) = rho_max."""
+    """
+    Return the disc radius on the sensor (mm from the principal point).
+
+    Radius on the sensor (mm from the principal point) of the ray circle hypot(r_x, r_y) = rho_max.
+    """
     f = camera.focal_length_mm
-    if camera.model == "pinhole":
+    if camera.model == 'pinhole':
         return f * math.tan(math.asin(min(rho_max, 1.0)))
     return f * math.asin(min(rho_max, 1.0))
 
 
 def disc_selection(camera: CameraModel, fraction: float, stride: int) -> PixelSelection:
-    """The square of sensor pixels holding the disc (and the stride)."""
+    """Return the square of sensor pixels holding the disc (and the stride)."""
     rr = disc_radius_mm(camera, disc_radius(camera) * fraction)
     hx = rr / (camera.pixel_pitch_x_um * 1e-3) + 1.0
     hy = rr / (camera.pixel_pitch_y_um * 1e-3) + 1.0
@@ -82,13 +114,27 @@ def aoplm_rad(aop_rad, rays):
 
 
 @lru_cache(maxsize=32)
-def disc_cells(camera: CameraModel, x0: float, dx: float, y0: float, dy: float, rho_lo: float, rho_max: float,
-               taper_frac: float) -> float:
-    """Sum of the taper over the points of the lattice (x0 + k dx, y0 + l dy), extended over the whole image,
-    whose ray lies in the disc ring [rho_lo, rho_max]: the denominator of the mirror coverage (a view that
-    does not cover the disc counts what it misses)."""
+def disc_cells(
+    camera: CameraModel,
+    x0: float,
+    dx: float,
+    y0: float,
+    dy: float,
+    rho_lo: float,
+    rho_max: float,
+    taper_frac: float,
+) -> float:
+    """
+    Return the taper sum over the lattice points inside the disc ring.
+
+    Sum of the taper over the points of the lattice (x0 + k dx, y0 + l dy), extended over the whole
+    image, whose ray lies in the disc ring [rho_lo, rho_max]: the denominator of the mirror
+    coverage (a view that does not cover the disc counts what it misses).
+    """
     xs = x0 + dx * np.arange(math.ceil((1 - x0) / dx), math.floor((camera.width_px - x0) / dx) + 1)
-    ys = y0 + dy * np.arange(math.ceil((1 - y0) / dy), math.floor((camera.height_px - y0) / dy) + 1)
+    ys = y0 + dy * np.arange(
+        math.ceil((1 - y0) / dy), math.floor((camera.height_px - y0) / dy) + 1
+    )
     X, Y = np.meshgrid(xs, ys)
     r, ok = camera.rays_from_pixels(X.reshape(-1), Y.reshape(-1))
     rho = np.hypot(r[0], r[1])
@@ -100,16 +146,22 @@ def disc_cells(camera: CameraModel, x0: float, dx: float, y0: float, dy: float, 
 # Compiled per-pixel steps (one loop over the view's pixels per pass; blocks via segments, see
 # _common.view_segments)
 #
-# Pass 1 (the plain fit) also counts: cnt = (usable, valid, valid non-finite, unusable pixels inside the
-# disc). With unusable pixels, a gather pass compacts the invariant per-pixel terms of the usable pixels
-# (times S(p)) once, and each trial axis of the mirror iteration is then a short fit over them with the
-# weight S(p'); pass 2 takes the final pair weights (none: ``mg`` of shape (0, 0), bit-identical sums).
+# Pass 1 (the plain fit) also counts: cnt = (usable, valid, valid non-finite, unusable pixels
+# inside the disc). With unusable pixels, a gather pass compacts the invariant per-pixel terms of
+# the usable pixels (times S(p)) once, and each trial axis of the mirror iteration is then a short
+# fit over them with the weight S(p'); pass 2 takes the final pair weights (none: ``mg`` of shape
+# (0, 0), bit-identical sums).
 # --------------------------------------------------------------------------------------------
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
-    """Load pixel i: (usable, all values finite, ray inside the disc ring [rho_lo, rho_hi], a, p, rx, ry, rz,
-    rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid pixels too). Branch-free
-    (``&`` and selects, not ``and``), so that loops over it can vectorise (:func:`_lane_pixel`)."""
+    """
+    Load pixel i for the disc passes (branch-free).
+
+    Load pixel i: (usable, all values finite, ray inside the disc ring [rho_lo, rho_hi], a, p, rx,
+    ry, rz, rho, cos 2a, sin 2a). The ring test needs only a finite ray (it holds for invalid
+    pixels too). Branch-free (``&`` and selects, not ``and``), so that loops over it can vectorise
+    (:func:`_lane_pixel`).
+    """
     a = np.float64(aop[i])
     p = np.float64(dop[i])
     rx = np.float64(rays[0, i])
@@ -125,12 +177,18 @@ def _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cov
     return ok, fin, inr, a, p, rx, ry, rz, rho, ca * ca - sa * sa, 2.0 * sa * ca
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: no cover - compiled
-    """Pixel i for a vectorised pass: (usable, valid, valid but non-finite, unusable inside the disc ring, p, rx,
-    ry, rz, rho, cos 2a, sin 2a) from :func:`_pixel`; an unusable pixel reads as p = 0 on the ray (1, 0, 0), so
-    that every value stays finite and its weight is 0 without a branch."""
-    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi)
+    """
+    Load pixel i for a vectorised pass; an unusable pixel reads as zeros.
+
+    Pixel i for a vectorised pass: (usable, valid, valid but non-finite, unusable inside the disc
+    ring, p, rx, ry, rz, rho, cos 2a, sin 2a) from :func:`_pixel`; an unusable pixel reads as p = 0
+    on the ray (1, 0, 0), so that every value stays finite and its weight is 0 without a branch.
+    """
+    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+        aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi
+    )
     v = valid[i]
     p = p if ok else 0.0
     rx = rx if ok else 1.0
@@ -140,29 +198,33 @@ def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: n
     return ok, v, v & ~fin, inr & ~(v & fin), p, rx, ry, rz, rho, c2a, s2a
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def _taper1(rho, rho_max, frac):  # pragma: no cover - compiled
-    """The taper (:func:`taper`) at rho, branch-free (vectorises)."""
+    """Return the taper (:func:`taper`) at rho, branch-free (vectorises)."""
     t = min(max((rho / rho_max - (1.0 - frac)) / frac, 0.0), 1.0)
     c = sincos_folded(0.5 * math.pi * t)[1]
     hard = 1.0 if rho <= rho_max else 0.0
     return c * c if frac > 0.0 else hard
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def _level_resid(c2a, s2a, rx, ry, rz, s0, s1, s2):  # pragma: no cover - compiled
-    """AoP residual (rad, axial) against the Rayleigh E-vector s x r of the sun s = (s0, s1, s2):
-    0.5 arg(exp(2ia) conj(u)^2), u = ey + i ex (branch-free atan2)."""
+    """
+    Return the axial AoP residual (rad) against the Rayleigh E-vector of the sun s.
+
+    AoP residual (rad, axial) against the Rayleigh E-vector s x r of the sun s = (s0, s1, s2): 0.5
+    arg(exp(2ia) conj(u)^2), u = ey + i ex (branch-free atan2).
+    """
     ex = s1 * rz - s2 * ry
     ey = s2 * rx - s0 * rz
-    ur = ey * ey - ex * ex               # u^2 = (ey + i ex)^2
+    ur = ey * ey - ex * ex  # u^2 = (ey + i ex)^2
     ui = 2.0 * ex * ey
-    qr = c2a * ur + s2a * ui             # exp(2ia) * conj(u^2)
+    qr = c2a * ur + s2a * ui  # exp(2ia) * conj(u^2)
     qi = s2a * ur - c2a * ui
     return 0.5 * atan2(qi, qr)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _exp2i_aoplm(c2a, s2a, rx, ry, rho):  # pragma: no cover - compiled
     """(Re, Im) of exp(2i AOPLM) = exp(2ia) x^2 with x = (r_y - i r_x) / rho = exp(-i xi)."""
     er = ry / rho
@@ -173,10 +235,18 @@ def _exp2i_aoplm(c2a, s2a, rx, ry, rho):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _brightness_pass(aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats):  # pragma: no cover - compiled
-    """Brightness statistics (:func:`acc_brightness`) of every usable pixel with a finite intensity."""
+def _brightness_pass(
+    aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats
+):  # pragma: no cover - compiled
+    """
+    Accumulate the brightness statistics of every usable pixel with a finite intensity.
+
+    Brightness statistics (:func:`acc_brightness`) of every usable pixel with a finite intensity.
+    """
     for i in range(aop.size):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+        )
         I = np.float64(inten[i])
         if ok and abs(I) < 1e30:
             acc_brightness(stats, 0, I, rx, ry, rz)
@@ -195,11 +265,19 @@ def _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum):  # pragma: no
 
 
 @njit(cache=True, nogil=True)
-def level_rss(aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss):  # pragma: no cover - compiled
-    """rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over every ``step``-th pixel
-    (rss[2] += 1 for each usable one)."""
+def level_rss(
+    aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss
+):  # pragma: no cover - compiled
+    """
+    Accumulate the squared AoP residuals against the level Rayleigh pattern.
+
+    rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over every
+    ``step``-th pixel (rss[2] += 1 for each usable one).
+    """
     for i in range(0, aop.size, step):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+        )
         if not ok:
             continue
         r1 = _level_resid(c2a, s2a, rx, ry, rz, s1[0], s1[1], s1[2])

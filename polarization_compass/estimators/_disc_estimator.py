@@ -1,51 +1,108 @@
-"""The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`): an axis of mirror symmetry
-through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on mirror-pair weights about its own
-axis when part of the disc is unusable (:mod:`._mirror`); the 180 deg ambiguity and the cluster-robust
-uncertainty from the methods' influence passes."""
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`).
+
+The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`): an axis of mirror
+symmetry through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on mirror-pair weights
+about its own axis when part of the disc is unusable (:mod:`._mirror`); the 180 deg ambiguity and
+the cluster-robust uncertainty from the methods' influence passes.
+"""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from ._common import (
+    _BadInput,
+    brightness_t_from_stats,
+    Candidate,
+    check_sun,
+    cr1_factor,
+    finish_sigma_deg,
+    Knob,
+    KnobbedEstimator,
+    level_sun_candidates,
+    resolve_ambiguity,
+    result_from,
+    select_view,
+    selection_for,
+    view_segments,
+)
+from ._disc import disc_radius, disc_selection, level_rss
+from ._mirror import (
+    AxisFit,
+    MIN_CONDITIONING,
+    mirror_map,
+    MirrorMap,
+    NO_MIRROR,
+    solve_axes,
+    view_covers_disc,
+)
+from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import fold_axial_rad_float
-from .base import Estimator, HeadingResult, Observation, Status
-from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, cr1_factor,
-                      finish_sigma_deg, level_sun_candidates, resolve_ambiguity, result_from, selection_for,
-                      select_view, view_segments)
-from ._disc import disc_radius, disc_selection, level_rss
-from ._mirror import MIN_CONDITIONING, NO_MIRROR, AxisFit, MirrorMap, mirror_map, solve_axes, view_covers_disc
 
-__all__ = ["DISC_KNOBS", "DiscEstimator", "cr1_sigma"]
+__all__ = ['DISC_KNOBS', 'DiscEstimator', 'cr1_sigma']
 
 DISC_KNOBS = {
-    "disc_fraction": Knob(1.0, "float", 0.05, 1.0,
-                          doc="radius of the sky disc used, as a fraction of the largest disc inside the image"),
-    "taper_fraction": Knob(0.2, "float", 0.0, 1.0, doc="outer part of the disc over which weights fall to zero"),
-    "min_mirror_coverage": Knob(0.1, "float", 0.0, 1.0,
-                                doc="part of the disc unusable (occluded, invalid, cut by region): the share of the "
-                                    "disc whose mirror image about the axis is also usable must reach this, else "
-                                    "status insufficient_coverage"),
+    'disc_fraction': Knob(
+        1.0,
+        'float',
+        0.05,
+        1.0,
+        doc='radius of the sky disc used, as a fraction of the largest disc inside the image',
+    ),
+    'taper_fraction': Knob(
+        0.2, 'float', 0.0, 1.0, doc='outer part of the disc over which weights fall to zero'
+    ),
+    'min_mirror_coverage': Knob(
+        0.1,
+        'float',
+        0.0,
+        1.0,
+        doc='part of the disc unusable (occluded, invalid, cut by region): the share of the '
+        'disc whose mirror image about the axis is also usable must reach this, else '
+        'status insufficient_coverage',
+    ),
 }
 
-#: Pixel subsampling of the coarse scan for self-consistent axes (``scan_at`` of :func:`._mirror.solve_axes`).
+#: Pixel subsampling of the coarse scan for self-consistent axes (``scan_at`` of
+#: :func:`._mirror.solve_axes`).
 SCAN_STEP = 8
-#: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this factor times
-#: the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian (the false ones we met
-#: were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
+#: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this
+#: factor times the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian
+#: (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
 MAX_MIRROR_RESIDUAL_RATIO = 1.5
 #: Pixel subsampling of the residual passes that compare self-consistent axes.
 RESIDUAL_STEP = 3
-#: The plain fit is kept when the fit on the mirror pairs about its own axis (with at least half the disc
-#: paired) moves it by less than this (deg): the unusable pixels do not bias it.
+#: The plain fit is kept when the fit on the mirror pairs about its own axis (with at least half
+#: the disc paired) moves it by less than this (deg): the unusable pixels do not bias it.
 MIRROR_AGREEMENT_DEG = 0.02
 
 
 def cr1_sigma(block_sum, n: int) -> float:
-    """Cluster-robust sigma (rad) from the block sums of the influence (rad) over ``n`` pixels: the blocks with
-    a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor` with two parameters (as
-    the other methods)."""
+    """
+    Return the cluster-robust sigma (rad) from the block sums of the influence.
+
+    Cluster-robust sigma (rad) from the block sums of the influence (rad) over ``n`` pixels: the
+    blocks with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
+    with two parameters (as the other methods).
+    """
     b = np.asarray(block_sum, dtype=float)
     b = b[b != 0.0]
     G = b.size
@@ -55,22 +112,25 @@ def cr1_sigma(block_sum, n: int) -> float:
 
 
 class DiscEstimator(KnobbedEstimator, Estimator):
-    """An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (level camera).
+    """
+    An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (level camera).
 
-    Subclasses implement :meth:`_fit` (pass 1 and the plain axis), :meth:`_gather` and :meth:`_mirror_fit`
-    (the axis on mirror-pair weights about a trial axis ``near``; None when there is no fit) and
-    :meth:`_influence` (pass 2: block sums of the sensitivity times the residual against each candidate
-    sun, and the residual sums of squares)."""
+    Subclasses implement :meth:`_fit` (pass 1 and the plain axis), :meth:`_gather` and
+    :meth:`_mirror_fit` (the axis on mirror-pair weights about a trial axis ``near``; None when
+    there is no fit) and :meth:`_influence` (pass 2: block sums of the sensitivity times the
+    residual against each candidate sun, and the residual sums of squares).
+    """
 
     axial = True
-    KNOB_DEFAULTS = {"stride": 8, "min_dop": 0.02}
+    KNOB_DEFAULTS = {'stride': 8, 'min_dop': 0.02}
 
     def __init__(self, **knobs):
         super().__init__(**knobs)
         self.knobs = self._validate_knobs(knobs)
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
-        """Tell a renderer which pixels the method reads, so sweeps render only those.
+        """
+        Tell a renderer which pixels the method reads, so sweeps render only those.
 
         Parameters
         ----------
@@ -81,25 +141,34 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         -------
         PixelSelection
             The pixels that ``stride`` and ``region`` select.
+
         """
         k = self.knobs
-        if k["region"] is not None:
+        if k['region'] is not None:
             return selection_for(k, camera)
-        return disc_selection(camera, k["disc_fraction"], k["stride"])
+        return disc_selection(camera, k['disc_fraction'], k['stride'])
 
     def _rho_lo(self, rho_max: float) -> float:
         return 0.0
 
-    def _fit(self, data, rho_lo, rho_max) -> AxisFit | HeadingResult:  # pragma: no cover - interface
+    def _fit(
+        self, data, rho_lo, rho_max
+    ) -> AxisFit | HeadingResult:  # pragma: no cover - interface
         raise NotImplementedError
 
-    def _gather(self, data, rho_lo, rho_max, mm: MirrorMap) -> dict:  # pragma: no cover - interface
+    def _gather(
+        self, data, rho_lo, rho_max, mm: MirrorMap
+    ) -> dict:  # pragma: no cover - interface
         raise NotImplementedError
 
-    def _mirror_fit(self, g: dict, mirror, near: float, plain: AxisFit) -> AxisFit | None:  # pragma: no cover
+    def _mirror_fit(
+        self, g: dict, mirror, near: float, plain: AxisFit
+    ) -> AxisFit | None:  # pragma: no cover
         raise NotImplementedError
 
-    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2):  # pragma: no cover
+    def _influence(
+        self, data, segs, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2
+    ):  # pragma: no cover
         raise NotImplementedError
 
     def _plain_fit(self, cnt, stats, theta: float, quality: float, state: dict) -> AxisFit:
@@ -107,73 +176,131 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         return AxisFit(theta, n, n, int(cnt[2]), int(cnt[3]), 1.0, stats, quality, state)
 
     def _too_few(self, n: int) -> HeadingResult | None:
-        if n < self.knobs["min_pixels"]:
-            return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                        f"{n} usable pixel(s) in the sky disc < min_pixels {self.knobs['min_pixels']}",
-                                        pixels=n)
+        if n < self.knobs['min_pixels']:
+            return HeadingResult.failed(
+                self.name,
+                Status.TOO_FEW_PIXELS,
+                f'{n} usable pixel(s) in the sky disc < min_pixels {self.knobs["min_pixels"]}',
+                pixels=n,
+            )
         return None
 
     def _root_ok(self, fit: AxisFit, lenient: bool = False) -> bool:
-        """Whether a self-consistent axis is acceptable beyond coverage and conditioning (default: yes);
-        ``lenient`` for a fit on the scan's subsample."""
+        """
+        Tell whether a self-consistent axis is acceptable beyond coverage and conditioning.
+
+        Whether a self-consistent axis is acceptable beyond coverage and conditioning (default:
+        yes); ``lenient`` for a fit on the scan's subsample.
+        """
         return True
 
-    def _root_why(self, fit: AxisFit) -> str:  # pragma: no cover - only with a _root_ok that can say no
-        return ""
+    def _root_why(
+        self, fit: AxisFit
+    ) -> str:  # pragma: no cover - only with a _root_ok that can say no
+        return ''
 
     def _level_ms(self, data, rho_lo, rho_max, theta, obs, step=RESIDUAL_STEP) -> float:
-        """Mean square AoP residual (rad^2) against the level Rayleigh pattern of axis theta (its better end),
-        over every ``step``-th usable pixel."""
+        """
+        Return the mean square AoP residual (rad^2) against the level pattern of axis theta.
+
+        Mean square AoP residual (rad^2) against the level Rayleigh pattern of axis theta (its
+        better end), over every ``step``-th usable pixel.
+        """
         s1, s2 = level_sun_candidates(-theta, float(obs.sun_altitude_deg))
         rss = np.zeros(3)
-        level_rss(data[0], data[1], data[2], data[3], self.knobs["min_dop"], rho_lo, rho_max, s1.sun_cam, s2.sun_cam,
-                  step, rss)
+        level_rss(
+            data[0],
+            data[1],
+            data[2],
+            data[3],
+            self.knobs['min_dop'],
+            rho_lo,
+            rho_max,
+            s1.sun_cam,
+            s2.sun_cam,
+            step,
+            rss,
+        )
         return float(min(rss[0], rss[1]) / max(rss[2], 1.0))
 
     def _solve_mirror(self, obs, view, data, rho_lo, rho_max, plain: AxisFit, extras: dict):
-        """The axis on mirror-pair weights: (fit, mirror arguments, sigma inflation) or a failed result."""
+        """
+        Solve for the axis on mirror-pair weights.
+
+        The axis on mirror-pair weights: (fit, mirror arguments, sigma inflation) or a failed
+        result.
+        """
         k = self.knobs
         mm = mirror_map(view, obs.camera, rho_max)
         g = self._gather(data, rho_lo, rho_max, mm)
-        gate = k["min_mirror_coverage"]
+        gate = k['min_mirror_coverage']
 
         def fit_at(theta, step=1):
             f = self._mirror_fit(g, mm.at(theta), theta, plain, step)
-            return f if f is not None and f.n_paired * step >= k["min_pixels"] else None
+            return f if f is not None and f.n_paired * step >= k['min_pixels'] else None
 
         f0 = fit_at(plain.theta)
-        if f0 is not None and f0.coverage >= 0.5 and self._root_ok(f0) \
-                and abs(fold_axial_rad_float(f0.theta - plain.theta)) <= math.radians(MIRROR_AGREEMENT_DEG):
-            extras["mirror_coverage"] = f0.coverage      # the unusable pixels do not bias the plain fit
+        if (
+            f0 is not None
+            and f0.coverage >= 0.5
+            and self._root_ok(f0)
+            and abs(fold_axial_rad_float(f0.theta - plain.theta))
+            <= math.radians(MIRROR_AGREEMENT_DEG)
+        ):
+            extras['mirror_coverage'] = (
+                f0.coverage
+            )  # the unusable pixels do not bias the plain fit
             return [(plain, NO_MIRROR, 1.0)]
-        roots, failed, used = solve_axes(fit_at, lambda t: fit_at(t, SCAN_STEP),
-                                         lambda f: f.coverage >= 0.8 * gate and self._root_ok(f, lenient=True), gate)
-        extras["mirror_fits"] = used + 1
-        why = f"part of the sky disc is unusable ({plain.holes} pixel(s)"
-        why += ")" if view_covers_disc(view, obs.camera, rho_max) else " and the view does not cover the disc)"
+        roots, failed, used = solve_axes(
+            fit_at,
+            lambda t: fit_at(t, SCAN_STEP),
+            lambda f: f.coverage >= 0.8 * gate and self._root_ok(f, lenient=True),
+            gate,
+        )
+        extras['mirror_fits'] = used + 1
+        why = f'part of the sky disc is unusable ({plain.holes} pixel(s)'
+        why += (
+            ')'
+            if view_covers_disc(view, obs.camera, rho_max)
+            else ' and the view does not cover the disc)'
+        )
         good = [(f, sl) for f, sl in roots if f.coverage >= gate and abs(sl) >= MIN_CONDITIONING]
         sound = [(f, sl) for f, sl in good if self._root_ok(f)]
         if good and not sound:
             f, sl = max(good, key=lambda r: r[0].quality)
-            extras["mirror_coverage"] = f.coverage
-            return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE,
-                                        f"{why}: no axis about which the usable mirror pairs are symmetric "
-                                        f"({self._root_why(f)})", pixels=plain.n, **extras)
+            extras['mirror_coverage'] = f.coverage
+            return HeadingResult.failed(
+                self.name,
+                Status.INSUFFICIENT_COVERAGE,
+                f'{why}: no axis about which the usable mirror pairs are symmetric '
+                f'({self._root_why(f)})',
+                pixels=plain.n,
+                **extras,
+            )
         if not sound:
             if roots:
                 f, sl = max(roots, key=lambda r: r[0].coverage)
-                detail = (f"only {f.coverage:.3f} of the disc has a usable mirror image about the best axis "
-                          f"(min_mirror_coverage {gate:g}; |1 - f'| = {abs(sl):.2g})")
-                extras["mirror_coverage"] = f.coverage
+                detail = (
+                    f'only {f.coverage:.3f} of the disc has a usable mirror image about the best '
+                    'axis '
+                    f"(min_mirror_coverage {gate:g}; |1 - f'| = {abs(sl):.2g})"
+                )
+                extras['mirror_coverage'] = f.coverage
             else:
-                detail = failed[0] if failed else "no self-consistent axis"
-            return HeadingResult.failed(self.name, Status.INSUFFICIENT_COVERAGE, f"{why}: {detail}",
-                                        pixels=plain.n, **extras)
-        extras["mirror_axes"] = len(sound)
+                detail = failed[0] if failed else 'no self-consistent axis'
+            return HeadingResult.failed(
+                self.name,
+                Status.INSUFFICIENT_COVERAGE,
+                f'{why}: {detail}',
+                pixels=plain.n,
+                **extras,
+            )
+        extras['mirror_axes'] = len(sound)
         return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound]
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
-        """Estimate one heading from the axis of mirror symmetry through the zenith pixel.
+        """
+        Estimate one heading from the axis of mirror symmetry through the zenith pixel.
 
         Pass 1 fits the axis theta (``psi = -theta``, axial); an incomplete disc is re-fitted on
         mirror-pair weights or reported as ``insufficient_coverage``; pass 2 (the influence kernel)
@@ -207,18 +334,19 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), eqs 29-30 (AOPLM) and
            Sec. 3 (SM-ASM and symmetry approaches).
+
         """
         k = self.knobs
         bad = check_sun(self.name, obs, k)
         if bad is not None:
             return bad
-        rho_max = disc_radius(obs.camera) * k["disc_fraction"]
+        rho_max = disc_radius(obs.camera) * k['disc_fraction']
         rho_lo = self._rho_lo(rho_max)
         try:
             view = select_view(obs, k)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        data, segs = view_segments(view, k["block_px"])
+        data, segs = view_segments(view, k['block_px'])
         fit = plain = self._fit(data, rho_lo, rho_max)
         if isinstance(fit, HeadingResult):
             return fit
@@ -228,28 +356,44 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             candidates = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
             if isinstance(candidates, HeadingResult):
                 return candidates
-        if len(candidates) > 1:                     # several self-consistent axes: the best Rayleigh fit
-            candidates = [min(candidates, key=lambda c: self._level_ms(data, rho_lo, rho_max, c[0].theta, obs))]
+        if len(candidates) > 1:  # several self-consistent axes: the best Rayleigh fit
+            candidates = [
+                min(
+                    candidates,
+                    key=lambda c: self._level_ms(data, rho_lo, rho_max, c[0].theta, obs),
+                )
+            ]
         fit, mirror, inflation = candidates[0]
         first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
         j, rms_deg = 0, None
-        if sigma or "mirror_axes" in extras:
-            block_sum, rss = self._influence(data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam,
-                                             second.sun_cam)
-            j = int(np.argmin(rss))                 # the end of the meridian the Rayleigh residuals prefer
+        if sigma or 'mirror_axes' in extras:
+            block_sum, rss = self._influence(
+                data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
+            )
+            j = int(np.argmin(rss))  # the end of the meridian the Rayleigh residuals prefer
             rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
-        if "mirror_axes" in extras:
-            extras["mirror_coverage"] = fit.coverage
-            extras["mirror_sigma_inflation"] = inflation
-            limit = MAX_MIRROR_RESIDUAL_RATIO * math.degrees(math.sqrt(
-                self._level_ms(data, rho_lo, rho_max, plain.theta, obs))) + 0.01
+        if 'mirror_axes' in extras:
+            extras['mirror_coverage'] = fit.coverage
+            extras['mirror_sigma_inflation'] = inflation
+            limit = (
+                MAX_MIRROR_RESIDUAL_RATIO
+                * math.degrees(math.sqrt(self._level_ms(data, rho_lo, rho_max, plain.theta, obs)))
+                + 0.01
+            )
             if rms_deg > limit:
                 return HeadingResult.failed(
-                    self.name, Status.INSUFFICIENT_COVERAGE,
-                    f"part of the sky disc is unusable ({fit.holes} pixel(s)): the self-consistent axes on the "
-                    f"usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg rms or more "
-                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + 0.01): none is the solar "
-                    "meridian", pixels=fit.n, **extras)
+                    self.name,
+                    Status.INSUFFICIENT_COVERAGE,
+                    f'part of the sky disc is unusable ({fit.holes} pixel(s)): the '
+                    'self-consistent axes on the '
+                    f'usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg '
+                    'rms or more '
+                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + 0.01): "
+                    'none is the solar '
+                    'meridian',
+                    pixels=fit.n,
+                    **extras,
+                )
         n = fit.n_paired
         sigma_deg = finish_sigma_deg(cr1_sigma(block_sum[j], n) * inflation, k) if sigma else None
         if j == 1:
@@ -257,8 +401,18 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         has_i = data[6] is not None
         bt = brightness_t_from_stats(fit.stats if has_i else None, first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k)
-        extras.update(fit.state.get("extras", {}))
+        extras.update(fit.state.get('extras', {}))
         if rms_deg is not None:
-            extras["rms_residual_deg"] = rms_deg
-        return result_from(self.name, Candidate(pick.psi_rad, pick.sun_cam), by, reason, obs,
-                           sigma_deg, n, fit.nonfinite, fit.quality, extras=extras)
+            extras['rms_residual_deg'] = rms_deg
+        return result_from(
+            self.name,
+            Candidate(pick.psi_rad, pick.sun_cam),
+            by,
+            reason,
+            obs,
+            sigma_deg,
+            n,
+            fit.nonfinite,
+            fit.quality,
+            extras=extras,
+        )

@@ -1,37 +1,67 @@
-"""Compiled single pass of the least-squares estimators (numba, cached), and the pixel-block segments
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Compiled single pass of the least-squares estimators and its pixel-block segments.
+
+Compiled single pass of the least-squares estimators (numba, cached), and the pixel-block segments
 it runs over.
 
-The pass reads the observation as it is (float32 AoP/DoP/rays, bool validity), skips unusable pixels
-without copying, lifts each AoP to its unit E-vector (the lift of
+The pass reads the observation as it is (float32 AoP/DoP/rays, bool validity), skips unusable
+pixels without copying, lifts each AoP to its unit E-vector (the lift of
 :func:`polarization_compass.conventions.evector_cam_from_aop`, written out inline; tests check both
 agree) and accumulates, per block of pixels, ``M_b = sum w e e^T``, plus frame totals of the
-noise-bias matrices ``B``, ``C`` and the sufficient statistics of the brightness regression. Because
-every per-pixel first-order influence on the solution is a quadratic form ``-w (s.e)(c.e) = -s^T (w e e^T) c``,
-the block sums of the influence are ``-s^T M_b c``: the uncertainty needs no second full pass.
+noise-bias matrices ``B``, ``C`` and the sufficient statistics of the brightness regression.
+Because every per-pixel first-order influence on the solution is a quadratic form ``-w (s.e)(c.e) =
+-s^T (w e e^T) c``, the block sums of the influence are ``-s^T M_b c``: the uncertainty needs no
+second full pass.
 
 Speed: the full pass is float32 inside a run of pixels (float64 across runs), branch-free, with
 ``error_model="numpy"`` (no Python zero-division guard) so LLVM vectorises it; sine and cosine are
 Taylor polynomials on the folded AoP (no SVML here; libm calls would dominate). The second-order
 terms and the brightness statistics come from a sparse, evenly spread subsample.
 """
+
 from __future__ import annotations
 
-import math
 from functools import lru_cache
+import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from ..fastmath import sincos32_folded as _sincos32
 
-__all__ = ["sub_pass", "full_pass", "grid_segments", "grid_layout", "block_indices", "list_segments", "N_STATS", "sym3", "acc_sym",
-           "acc_brightness"]
+__all__ = [
+    'sub_pass',
+    'full_pass',
+    'grid_segments',
+    'grid_layout',
+    'block_indices',
+    'list_segments',
+    'N_STATS',
+    'sym3',
+    'acc_sym',
+    'acc_brightness',
+]
 
-_FM = {"nsz", "arcp", "contract", "afn", "reassoc"}     # no nnan/ninf: NaN tests must stay
-N_STATS = 15     # brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
+_FM = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}  # no nnan/ninf: NaN tests must stay
+# brightness sufficient statistics: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6)
+N_STATS = 15
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def acc_sym(tot, off, w, x, y, z):  # pragma: no cover - compiled
     """tot[off:off + 6] += w * (x, y, z)(x, y, z)^T, upper triangle (00 01 02 11 12 22)."""
     tot[off] += w * x * x
@@ -42,10 +72,14 @@ def acc_sym(tot, off, w, x, y, z):  # pragma: no cover - compiled
     tot[off + 5] += w * z * z
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
-    """Brightness sufficient statistics of one pixel into tot[off:off + N_STATS]: n, sum I, sum I^2,
-    sum r (3), sum I r (3), sum r r^T (6)."""
+    """
+    Accumulate the brightness sufficient statistics of one pixel.
+
+    Brightness sufficient statistics of one pixel into tot[off:off + N_STATS]: n, sum I, sum I^2,
+    sum r (3), sum I r (3), sum r r^T (6).
+    """
     tot[off] += 1.0
     tot[off + 1] += I
     tot[off + 2] += I * I
@@ -58,20 +92,29 @@ def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
     acc_sym(tot, off + 9, 1.0, rx, ry, rz)
 
 
-@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
 def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - compiled
-    """counts: [0] usable pixels (the same test as :func:`_m_pass`), [1] valid pixels, [2] valid pixels
-    with a non-finite value."""
+    """
+    Count usable, valid and valid non-finite pixels.
+
+    counts: [0] usable pixels (the same test as :func:`_m_pass`), [1] valid pixels, [2] valid
+    pixels with a non-finite value.
+    """
     big = np.float32(1e6)
     md = np.float32(min_dop)
     n_ok = 0
     n_valid = 0
     n_bad = 0
-    for i in range(aop.size):                # branch-free int32 counts: vectorises
+    for i in range(aop.size):  # branch-free int32 counts: vectorises
         a = np.float32(aop[i])
         p = np.float32(dop[i])
-        fin = ((abs(a) < big) & (abs(p) < big) & (abs(np.float32(rays[0, i])) < big)
-               & (abs(np.float32(rays[1, i])) < big) & (abs(np.float32(rays[2, i])) < big))
+        fin = (
+            (abs(a) < big)
+            & (abs(p) < big)
+            & (abs(np.float32(rays[0, i])) < big)
+            & (abs(np.float32(rays[1, i])) < big)
+            & (abs(np.float32(rays[2, i])) < big)
+        )
         v = valid[i]
         n_valid += np.int32(v)
         n_bad += np.int32(v & (fin ^ True))
@@ -81,11 +124,15 @@ def _count_pass(aop, dop, valid, rays, min_dop, counts):  # pragma: no cover - c
     counts[2] = n_bad
 
 
-@njit(inline="always", fastmath=_FM, cache=True, error_model="numpy")
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
 def _lift_pixel(a, p, rx, ry, rz, v_in, md, dop_weight):  # pragma: no cover - compiled
-    """One pixel of the full pass, branch-free: (w, ex, ey, ez, usable, finite) with ``w e e^T`` its share of
-    M (``e`` unnormalised, ``w`` = DoP^2 or 1 over |e|^2; 0 for an unusable pixel). A non-finite value zeroes
-    the pixel's numbers (0 * inf would poison the block sum with NaN)."""
+    """
+    Lift one pixel of the full pass, branch-free.
+
+    One pixel of the full pass, branch-free: (w, ex, ey, ez, usable, finite) with ``w e e^T`` its
+    share of M (``e`` unnormalised, ``w`` = DoP^2 or 1 over |e|^2; 0 for an unusable pixel). A
+    non-finite value zeroes the pixel's numbers (0 * inf would poison the block sum with NaN).
+    """
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
     big = np.float32(1e6)
@@ -105,19 +152,31 @@ def _lift_pixel(a, p, rx, ry, rz, v_in, md, dop_weight):  # pragma: no cover - c
     return w, rz * sa, rz * ca, -q, use, fin
 
 
-@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
-def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight,
-            block_m):  # pragma: no cover - compiled
-    """Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across). Branch-free inner
-    loop without counters (selects; error_model numpy so division is not guarded): it vectorises."""
+@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
+def _m_pass(
+    aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight, block_m
+):  # pragma: no cover - compiled
+    """
+    Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across).
+
+    Branch-free inner
+    loop without counters (selects; error_model numpy so division is not guarded): it vectorises.
+    """
     f0 = np.float32(0.0)
     md = np.float32(min_dop)
     for k in range(seg_start.size):
         m0 = m1 = m2 = m3 = m4 = m5 = f0
         for i in range(seg_start[k], seg_end[k]):
-            w, ex, ey, ez, _, _ = _lift_pixel(np.float32(aop[i]), np.float32(dop[i]), np.float32(rays[0, i]),
-                                              np.float32(rays[1, i]), np.float32(rays[2, i]), valid[i], md,
-                                              dop_weight)
+            w, ex, ey, ez, _, _ = _lift_pixel(
+                np.float32(aop[i]),
+                np.float32(dop[i]),
+                np.float32(rays[0, i]),
+                np.float32(rays[1, i]),
+                np.float32(rays[2, i]),
+                valid[i],
+                md,
+                dop_weight,
+            )
             m0 += w * ex * ex
             m1 += w * ex * ey
             m2 += w * ex * ez
@@ -133,19 +192,38 @@ def _m_pass(aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_w
         block_m[bk, 5] += m5
 
 
-@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
-def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_block_cols, min_dop, dop_weight,
-                 block_m, counts):  # pragma: no cover - compiled
-    """:func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major ``ny`` x ``nx`` grid stored from
-    flat index ``off``: column j is in block column ``col_block[j]``, row r in block row ``row_block[r]``
-    (non-decreasing). Each pixel's ``w e e^T`` goes into a per-column float32 accumulator over the rows of
-    one block row, reduced into ``block_m`` (float64) once per block row: the inner loop runs along a whole
-    row with no per-block reduction, so it vectorises (per-block runs of a few pixels did not).
+@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
+def _m_pass_grid(
+    aop,
+    dop,
+    valid,
+    rays,
+    off,
+    nx,
+    ny,
+    col_block,
+    row_block,
+    n_block_cols,
+    min_dop,
+    dop_weight,
+    block_m,
+    counts,
+):  # pragma: no cover - compiled
+    """
+    Run :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major grid.
 
-    Counts: ``counts[0]`` += usable pixels, ``counts[1]`` += valid pixels whose values are all finite (the
-    caller gets the non-finite ones from the valid count). They are per-column float32 rows too (exact
-    below 2^24 rows per block row): an integer counter, or a select on the bare validity flag, in this
-    loop stops LLVM vectorising it (measured: 2x slower)."""
+    :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major ``ny`` x ``nx`` grid
+    stored from flat index ``off``: column j is in block column ``col_block[j]``, row r in block
+    row ``row_block[r]`` (non-decreasing). Each pixel's ``w e e^T`` goes into a per-column float32
+    accumulator over the rows of one block row, reduced into ``block_m`` (float64) once per block
+    row: the inner loop runs along a whole row with no per-block reduction, so it vectorises
+    (per-block runs of a few pixels did not).
+
+    Counts: ``counts[0]`` += usable pixels, ``counts[1]`` += valid pixels whose values are all
+    finite (the caller gets the non-finite ones from the valid count). They are per-column float32
+    rows too (exact below 2^24 rows per block row): an integer counter, or a select on the bare
+    validity flag, in this loop stops LLVM vectorising it (measured: 2x slower).
+    """
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
     md = np.float32(min_dop)
@@ -166,8 +244,8 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
             a5 = acc[5]
             a6 = acc[6]
             a7 = acc[7]
-            # row slices, indexed by the loop counter: with a computed index (base + j) numba's negative-index
-            # wrap-around made LLVM load every lane separately
+            # row slices, indexed by the loop counter: with a computed index (base + j) numba's
+            # negative-index wrap-around made LLVM load every lane separately
             ar = aop[base:base + nx]
             pr = dop[base:base + nx]
             vr = valid[base:base + nx]
@@ -176,8 +254,16 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
             zr = rays[2, base:base + nx]
             for j in range(nx):
                 v_in = vr[j]
-                w, ex, ey, ez, use, fin = _lift_pixel(np.float32(ar[j]), np.float32(pr[j]), np.float32(xr[j]),
-                                                      np.float32(yr[j]), np.float32(zr[j]), v_in, md, dop_weight)
+                w, ex, ey, ez, use, fin = _lift_pixel(
+                    np.float32(ar[j]),
+                    np.float32(pr[j]),
+                    np.float32(xr[j]),
+                    np.float32(yr[j]),
+                    np.float32(zr[j]),
+                    v_in,
+                    md,
+                    dop_weight,
+                )
                 a0[j] += w * ex * ex
                 a1[j] += w * ex * ey
                 a2[j] += w * ex * ez
@@ -198,19 +284,32 @@ def _m_pass_grid(aop, dop, valid, rays, off, nx, ny, col_block, row_block, n_blo
     counts[1] += np.int64(n_fin)
 
 
-@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
-def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_weight, var_mode, tot):  # pragma: no cover
-    """Runs of ``run`` pixels from each of ``starts``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the same
-    pixels, to scale), [18:33] brightness statistics (n, sum I, sum I^2, sum r, sum I r, sum r r^T)."""
+@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
+def _bc_pass(
+    aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_weight, var_mode, tot
+):  # pragma: no cover
+    """
+    Accumulate B, C, M and brightness statistics over runs of pixels.
+
+    Runs of ``run`` pixels from each of ``starts``: ``tot`` [0:6] B, [6:12] C, [12:18] M (of the
+    same pixels, to scale), [18:33] brightness statistics (n, sum I, sum I^2, sum r, sum I r, sum r
+    r^T).
+    """
     n = aop.size
     for i0 in starts:
-        for i in range(i0, min(i0 + run, n)):   # contiguous runs keep the cache warm
+        for i in range(i0, min(i0 + run, n)):  # contiguous runs keep the cache warm
             a = np.float64(aop[i])
             p = np.float64(dop[i])
             rx = np.float64(rays[0, i])
             ry = np.float64(rays[1, i])
             rz = np.float64(rays[2, i])
-            fin = (abs(a) < 1e6) & (abs(p) < 1e6) & (abs(rx) < 1e6) & (abs(ry) < 1e6) & (abs(rz) < 1e6)
+            fin = (
+                (abs(a) < 1e6)
+                & (abs(p) < 1e6)
+                & (abs(rx) < 1e6)
+                & (abs(ry) < 1e6)
+                & (abs(rz) < 1e6)
+            )
             if not (valid[i] and fin and p >= min_dop):
                 continue
             sa, ca = _sincos32(np.float32(a))
@@ -224,10 +323,10 @@ def _bc_pass(aop, dop, valid, rays, inten, has_inten, starts, run, min_dop, dop_
             ex = rz * sa * inv
             ey = rz * ca * inv
             ez = -q * inv
-            tx = ry * ez - rz * ey               # t = r x e: where e turns when the AoP changes
+            tx = ry * ez - rz * ey  # t = r x e: where e turns when the AoP changes
             ty = rz * ex - rx * ez
             tz = rx * ey - ry * ex
-            g = -rz / nn                         # d theta / d AoP
+            g = -rz / nn  # d theta / d AoP
             gp = 2.0 * rz * q * (rx * ca - ry * sa) / (nn * nn)
             pp = max(p * p, 1e-6)
             w = pp if dop_weight else 1.0
@@ -267,15 +366,24 @@ _RUN = 64
 
 
 def _reads_every_pixel(n: int, sub_pixels: int) -> bool:
-    """Whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them (:func:`_run_starts`)."""
+    """
+    Tell whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them.
+
+    Whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them
+    (:func:`_run_starts`).
+    """
     return n <= 2 * sub_pixels
 
 
 @lru_cache(maxsize=64)
 def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
-    """Starts of the subsample's runs: every pixel when n is small, else about sub_pixels / 64 runs at
-    golden-ratio (low-discrepancy) positions, sorted. Evenly spaced runs would lock onto the image rows
-    (a period that is a multiple of the row length samples one vertical strip)."""
+    """
+    Return the starts of the subsample's runs.
+
+    Starts of the subsample's runs: every pixel when n is small, else about sub_pixels / 64 runs at
+    golden-ratio (low-discrepancy) positions, sorted. Evenly spaced runs would lock onto the image
+    rows (a period that is a multiple of the row length samples one vertical strip).
+    """
     if _reads_every_pixel(n, sub_pixels):
         return np.arange(0, n, _RUN, dtype=np.int64)
     k = max(1, sub_pixels // _RUN)
@@ -285,33 +393,63 @@ def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
     return out
 
 
-def sub_pass(aop, dop, valid, rays, intensity, min_dop: float, weight_mode: int, var_mode: int,
-             sub_pixels: int = 16384):
-    """Second-order and brightness sums over about ``sub_pixels`` spread-out pixels (runs of 64).
+def sub_pass(
+    aop,
+    dop,
+    valid,
+    rays,
+    intensity,
+    min_dop: float,
+    weight_mode: int,
+    var_mode: int,
+    sub_pixels: int = 16384,
+):
+    """
+    Second-order and brightness sums over about ``sub_pixels`` spread-out pixels (runs of 64).
 
-    ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance v of a pixel) 0 uniform,
-    1 1/DoP^2, 2 1/(DoP^2 I). Returns dict of 3x3 ``M`` (= sum w e e^T), ``B`` (noise bias of M per unit
-    variance), ``C`` (expected residual sum per unit variance: s^T C s), ``stats`` (brightness, or None) and
-    ``every_pixel`` (the view was small enough to read whole: a larger ``sub_pixels`` reads the same).
+    ``weight_mode`` 0 uniform, 1 DoP^2; ``var_mode`` (relative AoP noise variance v of a pixel) 0
+    uniform, 1 1/DoP^2, 2 1/(DoP^2 I). Returns dict of 3x3 ``M`` (= sum w e e^T), ``B`` (noise bias
+    of M per unit variance), ``C`` (expected residual sum per unit variance: s^T C s), ``stats``
+    (brightness, or None) and ``every_pixel`` (the view was small enough to read whole: a larger
+    ``sub_pixels`` reads the same).
     """
     has_i = intensity is not None
     inten = intensity if has_i else np.zeros(1, np.float32)
     tot = np.zeros(33)
     n = int(aop.size)
-    _bc_pass(aop, dop, valid, rays, inten, has_i, _run_starts(n, int(sub_pixels)), _RUN,
-             float(min_dop), bool(weight_mode), int(var_mode), tot)
-    return {"M": sym3(tot[12:18]), "B": sym3(tot[0:6]), "C": sym3(tot[6:12]),
-            "stats": tot[18:33].copy() if has_i else None, "every_pixel": _reads_every_pixel(n, int(sub_pixels))}
+    _bc_pass(
+        aop,
+        dop,
+        valid,
+        rays,
+        inten,
+        has_i,
+        _run_starts(n, int(sub_pixels)),
+        _RUN,
+        float(min_dop),
+        bool(weight_mode),
+        int(var_mode),
+        tot,
+    )
+    return {
+        'M': sym3(tot[12:18]),
+        'B': sym3(tot[0:6]),
+        'C': sym3(tot[6:12]),
+        'stats': tot[18:33].copy() if has_i else None,
+        'every_pixel': _reads_every_pixel(n, int(sub_pixels)),
+    }
 
 
 def full_pass(aop, dop, valid, rays, segments, min_dop: float, weight_mode: int, grids=None):
-    """Per-block ``M_b = sum w e e^T`` over every usable pixel, and the pixel counts.
+    """
+    Per-block ``M_b = sum w e e^T`` over every usable pixel, and the pixel counts.
 
     ``segments`` = (start, end, block, n_blocks): runs of pixels [start, end) of block ``block``.
-    ``grids``: the same pixels as regular grids (:func:`grid_layout`), or None; when given, the row-wise
-    kernel runs instead of the per-segment one (the same block sums, numbered differently; faster).
-    Returns dict: ``block_m`` (G, 3, 3), ``block_w`` (G,) block weights (traces), ``n`` usable pixels,
-    ``nonfinite`` (valid pixels with a NaN/inf value), ``considered`` (valid pixels).
+    ``grids``: the same pixels as regular grids (:func:`grid_layout`), or None; when given, the
+    row-wise kernel runs instead of the per-segment one (the same block sums, numbered differently;
+    faster). Returns dict: ``block_m`` (G, 3, 3), ``block_w`` (G,) block weights (traces), ``n``
+    usable pixels, ``nonfinite`` (valid pixels with a NaN/inf value), ``considered`` (valid
+    pixels).
     """
     start, end, block, n_blocks = segments
     if grids is not None:
@@ -320,23 +458,48 @@ def full_pass(aop, dop, valid, rays, segments, min_dop: float, weight_mode: int,
     counts = np.zeros(3, np.int64)
     if grids is not None:
         for off, col_block, row_block, n_block_cols in grids:
-            _m_pass_grid(aop, dop, valid, rays, off, col_block.size, row_block.size, col_block, row_block,
-                         n_block_cols, float(min_dop), bool(weight_mode), block_m, counts)
+            _m_pass_grid(
+                aop,
+                dop,
+                valid,
+                rays,
+                off,
+                col_block.size,
+                row_block.size,
+                col_block,
+                row_block,
+                n_block_cols,
+                float(min_dop),
+                bool(weight_mode),
+                block_m,
+                counts,
+            )
         n_valid = int(np.count_nonzero(valid))
-        counts[2] = n_valid - counts[1]          # valid pixels with a non-finite value
+        counts[2] = n_valid - counts[1]  # valid pixels with a non-finite value
         counts[1] = n_valid
     else:
         _count_pass(aop, dop, valid, rays, float(min_dop), counts)
-        _m_pass(aop, dop, valid, rays, start, end, block, float(min_dop), bool(weight_mode), block_m)
-    return {"block_m": sym3(block_m), "block_w": block_m[:, 0] + block_m[:, 3] + block_m[:, 5],
-            "n": int(counts[0]), "nonfinite": int(counts[2]), "considered": int(counts[1])}
+        _m_pass(
+            aop, dop, valid, rays, start, end, block, float(min_dop), bool(weight_mode), block_m
+        )
+    return {
+        'block_m': sym3(block_m),
+        'block_w': block_m[:, 0] + block_m[:, 3] + block_m[:, 5],
+        'n': int(counts[0]),
+        'nonfinite': int(counts[2]),
+        'considered': int(counts[1]),
+    }
 
 
 @lru_cache(maxsize=64)
 def grid_segments(x_key: tuple, y_key: tuple, block_px: int):
-    """Segments of a row-major 2-D grid whose column coordinates are ``x0 + dx * arange(nx)`` and row
-    coordinates ``y0 + dy * arange(ny)`` (keys ``(x0, dx, nx)``, sensor pixels): one run per (row, block
-    column). Cached (a camera that does not change costs nothing)."""
+    """
+    Return the segments of a row-major 2-D grid, one run per (row, block column).
+
+    Segments of a row-major 2-D grid whose column coordinates are ``x0 + dx * arange(nx)`` and row
+    coordinates ``y0 + dy * arange(ny)`` (keys ``(x0, dx, nx)``, sensor pixels): one run per (row,
+    block column). Cached (a camera that does not change costs nothing).
+    """
     x0, dx, nx = x_key
     y0, dy, ny = y_key
     xs = x0 + dx * np.arange(nx)
@@ -360,10 +523,18 @@ def grid_segments(x_key: tuple, y_key: tuple, block_px: int):
 
 
 def block_indices(keys: tuple, block_px: int):
-    """Block column of every column and block row of every row of regular grids with keys
-    ``((x0, dx, nx), (y0, dy, ny))`` (sensor pixels; blocks of ``block_px`` sensor pixels), numbered from 0
-    alike in every grid: (column indices per grid, row indices per grid, block columns K, block rows R)."""
-    axes = [(k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2])) for k in keys]
+    """
+    Return the block column of every column and the block row of every row of grids.
+
+    Block column of every column and block row of every row of regular grids with keys ``((x0, dx,
+    nx), (y0, dy, ny))`` (sensor pixels; blocks of ``block_px`` sensor pixels), numbered from 0
+    alike in every grid: (column indices per grid, row indices per grid, block columns K, block
+    rows R).
+    """
+    axes = [
+        (k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2]))
+        for k in keys
+    ]
     bcs = [np.floor((xg - 0.5) / block_px).astype(np.int64) for xg, _ in axes]
     brs = [np.floor((yg - 0.5) / block_px).astype(np.int64) for _, yg in axes]
     c0 = min(int(b.min()) for b in bcs)
@@ -375,16 +546,21 @@ def block_indices(keys: tuple, block_px: int):
 
 @lru_cache(maxsize=64)
 def grid_layout(keys: tuple, block_px: int) -> tuple:
-    """Regular grids stored one after the other (row-major, keys ``((x0, dx, nx), (y0, dy, ny))`` in sensor
-    pixels) for :func:`_m_pass_grid`: ``(pieces, n_blocks)`` with ``(offset, col_block, row_block,
-    n_block_cols)`` per grid, blocks of ``block_px`` sensor pixels numbered ``row * n_block_cols + col`` alike
-    in every grid (the same partition as :func:`grid_segments` and ``subgrid_segments``; numbers may skip
-    blocks no pixel falls in). None when a grid's rows are not in block-row order. Cached."""
+    """
+    Lay out regular grids stored one after the other for :func:`_m_pass_grid`.
+
+    Regular grids stored one after the other (row-major, keys ``((x0, dx, nx), (y0, dy, ny))`` in
+    sensor pixels) for :func:`_m_pass_grid`: ``(pieces, n_blocks)`` with ``(offset, col_block,
+    row_block, n_block_cols)`` per grid, blocks of ``block_px`` sensor pixels numbered ``row *
+    n_block_cols + col`` alike in every grid (the same partition as :func:`grid_segments` and
+    ``subgrid_segments``; numbers may skip blocks no pixel falls in). None when a grid's rows are
+    not in block-row order. Cached.
+    """
     bcs, brs, K, R = block_indices(keys, block_px)
     out, off = [], 0
     for bc, br in zip(bcs, brs):
         if np.any(np.diff(br) < 0):
-            return None                    # rows not in block-row order: the per-segment kernel handles it
+            return None  # rows not in block-row order: the per-segment kernel handles it
         bc.setflags(write=False)
         br.setflags(write=False)
         out.append((off, bc, br, K))
@@ -393,13 +569,17 @@ def grid_layout(keys: tuple, block_px: int) -> tuple:
 
 
 def list_segments(x_px, y_px, block_px: int):
-    """Order and segments for a pixel list: returns (order, segments) with pixels sorted by block."""
+    """
+    Return the pixel order and segments for a pixel list, sorted by block.
+
+    Order and segments for a pixel list: returns (order, segments) with pixels sorted by block.
+    """
     bx = np.floor((np.asarray(x_px, dtype=float) - 0.5) / block_px).astype(np.int64)
     by = np.floor((np.asarray(y_px, dtype=float) - 0.5) / block_px).astype(np.int64)
     bx -= bx.min() if bx.size else 0
     by -= by.min() if by.size else 0
     key = by * (int(bx.max()) + 1 if bx.size else 1) + bx
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key, kind='stable')
     ks = key[order]
     if ks.size == 0:
         return order, (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), 0)

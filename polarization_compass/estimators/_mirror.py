@@ -1,58 +1,90 @@
-"""Mirror pairs for an incomplete sky disc, and the fixed-point solver for the axis of symmetry that SM-ASM
-and Symmetry share (see :mod:`._disc` for the disc and :mod:`._disc_estimator` for how the methods use it).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Mirror pairs for an incomplete sky disc and the axis fixed-point solver.
+
+Mirror pairs for an incomplete sky disc, and the fixed-point solver for the axis of symmetry that
+SM-ASM and Symmetry share (see :mod:`._disc` for the disc and :mod:`._disc_estimator` for how the
+methods use it).
 
 Incomplete sky (occluders, invalid pixels, a region that cuts the disc)
 -----------------------------------------------------------------------
-Both axis fits are unbiased only because the pixels they sum over form a set that is mirror-symmetric
-about the true axis. Half a disc is not (unless the cut is perpendicular to the meridian): the fits
-were off by 10-20 deg RMS with status ok. So when any pixel of the disc is unusable (invalid or
-non-finite) or the view does not cover the disc, each pixel gets the pair weight
-``m_i = S(p_i) S(p_i')``, where ``p_i'`` is the pixel's mirror image about the trial axis ``theta``
-(a reflection of its sensor-plane offset from the principal point, in millimetres: exact for the
-radially symmetric camera models) and ``S`` is a smooth usability map: the indicator of usable pixels
-(outside the view: usable beyond the disc, unusable inside it) blurred by a Gaussian of
-``MIRROR_BLUR_CELLS`` grid cells, then ``sin^2`` of its rise between the levels ``MIRROR_LEVELS`` (0.5,
-0.9), times the indicator itself, bilinear between grid points. An occluded region gets S = 0 with a
-smooth edge about 2.5 cells wide; an isolated unusable pixel (NaN, hot pixel) only zeroes S at its own
-grid point, so it costs almost no coverage, and the bilinear S(p') takes weight from the pixels paired
-with it (without that, 10 % of pixels invalid at random move a noise-free sm_asm heading by 0.1 deg;
-with it, < 0.02 deg at stride 16). ``S(p) S(p')`` is exactly mirror-symmetric about ``theta`` and
-smooth (no lattice aliasing at the occluder's edge, the same reason as the disc taper), so the fit on
-the weighted pixels returns ``theta`` when ``theta`` is the true axis: the axis is a fixed point
-``theta = f(theta)`` of "fit the pixels paired about theta". There can be several (the edge of the
-occluder is a degenerate one; a thin wedge of pairs elsewhere can balance a fit): :func:`solve_axes`
-scans ``h = f(theta) - theta`` on 18 axes with a subsample and refines every sign change by the secant
-method (the true axis may attract or repel a plain iteration). Kept are axes with mirror coverage
-``>= min_mirror_coverage``, ``|1 - f'| >= MIN_CONDITIONING``, the method's own test (symmetry: the
-paired map is symmetric, ``F / sum |a_k|^2 >= 0.95``) and a level-Rayleigh residual at most
-``MAX_MIRROR_RESIDUAL_RATIO`` times the plain fit's; of these the one with the smallest residual wins.
-When the pair fit about the plain axis agrees with the plain fit within ``MIRROR_AGREEMENT_DEG`` and
-pairs at least half the disc (a few or scattered unusable pixels), the plain result stands.
+Both axis fits are unbiased only because the pixels they sum over form a set that is
+mirror-symmetric about the true axis. Half a disc is not (unless the cut is perpendicular to the
+meridian): the fits were off by 10-20 deg RMS with status ok. So when any pixel of the disc is
+unusable (invalid or non-finite) or the view does not cover the disc, each pixel gets the pair
+weight ``m_i = S(p_i) S(p_i')``, where ``p_i'`` is the pixel's mirror image about the trial axis
+``theta`` (a reflection of its sensor-plane offset from the principal point, in millimetres: exact
+for the radially symmetric camera models) and ``S`` is a smooth usability map: the indicator of
+usable pixels (outside the view: usable beyond the disc, unusable inside it) blurred by a Gaussian
+of ``MIRROR_BLUR_CELLS`` grid cells, then ``sin^2`` of its rise between the levels
+``MIRROR_LEVELS`` (0.5, 0.9), times the indicator itself, bilinear between grid points. An occluded
+region gets S = 0 with a smooth edge about 2.5 cells wide; an isolated unusable pixel (NaN, hot
+pixel) only zeroes S at its own grid point, so it costs almost no coverage, and the bilinear S(p')
+takes weight from the pixels paired with it (without that, 10 % of pixels invalid at random move a
+noise-free sm_asm heading by 0.1 deg; with it, < 0.02 deg at stride 16). ``S(p) S(p')`` is exactly
+mirror-symmetric about ``theta`` and smooth (no lattice aliasing at the occluder's edge, the same
+reason as the disc taper), so the fit on the weighted pixels returns ``theta`` when ``theta`` is
+the true axis: the axis is a fixed point ``theta = f(theta)`` of "fit the pixels paired about
+theta". There can be several (the edge of the occluder is a degenerate one; a thin wedge of pairs
+elsewhere can balance a fit): :func:`solve_axes` scans ``h = f(theta) - theta`` on 18 axes with a
+subsample and refines every sign change by the secant method (the true axis may attract or repel a
+plain iteration). Kept are axes with mirror coverage ``>= min_mirror_coverage``, ``|1 - f'| >=
+MIN_CONDITIONING``, the method's own test (symmetry: the paired map is symmetric, ``F / sum |a_k|^2
+>= 0.95``) and a level-Rayleigh residual at most ``MAX_MIRROR_RESIDUAL_RATIO`` times the plain
+fit's; of these the one with the smallest residual wins. When the pair fit about the plain axis
+agrees with the plain fit within ``MIRROR_AGREEMENT_DEG`` and pairs at least half the disc (a few
+or scattered unusable pixels), the plain result stands.
 
 Uncertainty of the fixed point: ``d theta* = d f / (1 - f'(theta*))``: the statistical sigma of the
-weighted fit is divided by ``|1 - f'|`` (``f'`` from the last secant step or a finite difference). When
-the usable pairs form a thin wedge the fit follows the wedge (``f' -> 1``) and sigma grows accordingly.
-Without an acceptable axis the status is ``insufficient_coverage`` with the measured share or the failed
-test in the reason. A complete disc is never re-weighted: the plain fit, as before.
+weighted fit is divided by ``|1 - f'|`` (``f'`` from the last secant step or a finite difference).
+When the usable pairs form a thin wedge the fit follows the wedge (``f' -> 1``) and sigma grows
+accordingly. Without an acceptable axis the status is ``insufficient_coverage`` with the measured
+share or the failed test in the reason. A complete disc is never re-weighted: the plain fit, as
+before.
+
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
+import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
+from ._disc import _pixel, _taper1, disc_radius_mm
 from ..camera import CameraModel
 from ..conventions import fold_axial_rad_float
-from ._disc import _pixel, _taper1, disc_radius_mm
 
-__all__ = ["MirrorMap", "mirror_map", "NO_MIRROR", "view_covers_disc", "solve_axes", "AxisFit",
-           "MIRROR_BLUR_CELLS", "MIRROR_LEVELS", "MIN_CONDITIONING"]
+__all__ = [
+    'MirrorMap',
+    'mirror_map',
+    'NO_MIRROR',
+    'view_covers_disc',
+    'solve_axes',
+    'AxisFit',
+    'MIRROR_BLUR_CELLS',
+    'MIRROR_LEVELS',
+    'MIN_CONDITIONING',
+]
 
-#: The smooth usability map S: the usable-pixel indicator blurred by a Gaussian of this sigma (grid cells),
-#: then S = sin^2 of its rise between these two levels (0 below the first, 1 above the second).
+#: The smooth usability map S: the usable-pixel indicator blurred by a Gaussian of this sigma (grid
+#: cells), then S = sin^2 of its rise between these two levels (0 below the first, 1 above the
+#: second).
 MIRROR_BLUR_CELLS = 2.0
 MIRROR_LEVELS = (0.5, 0.9)
 #: Secant steps of the refinement of one fixed point before giving up.
@@ -72,17 +104,25 @@ NO_MIRROR = (np.zeros((0, 0)), np.zeros(10))
 # --------------------------------------------------------------------------------------------
 @dataclass
 class MirrorMap:
-    """Smooth usability ``S`` on a regular grid of sensor positions, and the reflection parameters.
+    """
+    Smooth usability ``S`` on a regular grid of sensor positions, and the reflection parameters.
 
-    ``grid`` (ny, nx) float64 in [0, 1]; grid point (r, c) is at sensor pixel (x0 + c dx, y0 + r dy)."""
+    ``grid`` (ny, nx) float64 in [0, 1]; grid point (r, c) is at sensor pixel (x0 + c dx, y0 + r
+    dy).
+    """
 
     grid: np.ndarray
-    params: np.ndarray          # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
-    lattice: tuple              # x0, dx, y0, dy of the view's own pixels
+    params: np.ndarray  # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
+    lattice: tuple  # x0, dx, y0, dy of the view's own pixels
     camera: CameraModel
 
     def at(self, theta_rad: float) -> tuple:
-        """Kernel arguments (mg, mp) for the reflection about the axis ``theta`` (from +y_cam towards +x_cam)."""
+        """
+        Return the kernel arguments (mg, mp) for the reflection about the axis ``theta``.
+
+        Kernel arguments (mg, mp) for the reflection about the axis ``theta`` (from +y_cam towards
+        +x_cam).
+        """
         p = self.params.copy()
         p[4] = math.sin(theta_rad)
         p[5] = math.cos(theta_rad)
@@ -90,9 +130,13 @@ class MirrorMap:
 
 
 def _usable_grid(view, camera: CameraModel):
-    """(usable (ny, nx) bool, x0, dx, y0, dy) of the view's pixels on a regular grid: the view's own grid,
-    or a pixel list scattered onto the grid of its smallest coordinate steps (cells without a pixel are
-    unusable)."""
+    """
+    Return the view's usable pixels on a regular grid, with its origin and steps.
+
+    (usable (ny, nx) bool, x0, dx, y0, dy) of the view's pixels on a regular grid: the view's own
+    grid, or a pixel list scattered onto the grid of its smallest coordinate steps (cells without a
+    pixel are unusable).
+    """
     fin = np.isfinite(view.aop) & np.isfinite(view.dop) & np.isfinite(view.rays).all(axis=0)
     usable = np.asarray(view.valid, dtype=bool) & fin
     if view.grid is not None:
@@ -106,7 +150,7 @@ def _usable_grid(view, camera: CameraModel):
         lo, hi = float(u[0]), float(u[-1])
         gaps = np.diff(u)
         step = float(gaps[gaps > 1e-6].min()) if (gaps > 1e-6).any() else 1.0
-        step = max(step, (hi - lo) / 2047.0)          # at most 2048 cells a side
+        step = max(step, (hi - lo) / 2047.0)  # at most 2048 cells a side
         return lo, step, int(round((hi - lo) / step)) + 1
 
     x0, dx, nx = axis(x)
@@ -119,47 +163,107 @@ def _usable_grid(view, camera: CameraModel):
 
 
 @lru_cache(maxsize=16)
-def _outside_disc(camera: CameraModel, x0: float, dx: float, nx: int, y0: float, dy: float, ny: int,
-                  rho_max: float) -> np.ndarray:
-    """Grid positions (x0 + c dx, y0 + r dy) beyond the disc's edge on the sensor (read-only bool (ny, nx))."""
-    r_mm = np.hypot(((x0 + dx * np.arange(nx) - camera.cx_px) * camera.pixel_pitch_x_um * 1e-3)[None, :],
-                    ((y0 + dy * np.arange(ny) - camera.cy_px) * camera.pixel_pitch_y_um * 1e-3)[:, None])
+def _outside_disc(
+    camera: CameraModel,
+    x0: float,
+    dx: float,
+    nx: int,
+    y0: float,
+    dy: float,
+    ny: int,
+    rho_max: float,
+) -> np.ndarray:
+    """
+    Return the grid positions beyond the disc's edge on the sensor.
+
+    Grid positions (x0 + c dx, y0 + r dy) beyond the disc's edge on the sensor (read-only bool (ny,
+    nx)).
+    """
+    r_mm = np.hypot(
+        ((x0 + dx * np.arange(nx) - camera.cx_px) * camera.pixel_pitch_x_um * 1e-3)[None, :],
+        ((y0 + dy * np.arange(ny) - camera.cy_px) * camera.pixel_pitch_y_um * 1e-3)[:, None],
+    )
     out = r_mm > disc_radius_mm(camera, rho_max)
     out.setflags(write=False)
     return out
 
 
 def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
-    """The smooth usability map S of a view (see the module doc). Outside the view, positions beyond the disc
-    count as usable (nothing is missing there) and positions inside it as unusable."""
+    """
+    Return the smooth usability map S of a view (see the module doc).
+
+    Outside the view, positions beyond the disc count as usable (nothing is missing there) and
+    positions inside it as unusable.
+    """
     usable, x0, dx, y0, dy = _usable_grid(view, camera)
     ny, nx = usable.shape
-    S, params = _smooth_usability(camera, float(x0), float(dx), float(y0), float(dy), int(ny), int(nx),
-                                  float(rho_max), np.packbits(usable).tobytes())
+    S, params = _smooth_usability(
+        camera,
+        float(x0),
+        float(dx),
+        float(y0),
+        float(dy),
+        int(ny),
+        int(nx),
+        float(rho_max),
+        np.packbits(usable).tobytes(),
+    )
     return MirrorMap(S, params, (float(x0), float(dx), float(y0), float(dy)), camera)
 
 
-@lru_cache(maxsize=2)          # the last frame's, for both disc methods (a full-resolution S is tens of MB)
-def _smooth_usability(camera: CameraModel, x0: float, dx: float, y0: float, dy: float, ny: int, nx: int,
-                      rho_max: float, usable_bits: bytes):
-    """(S, reflection parameters) of :func:`mirror_map` for a usable grid (packed bits): read-only, cached, so
-    the two disc methods run on one frame (an error-map cell) blur it once."""
-    usable = np.unpackbits(np.frombuffer(usable_bits, np.uint8), count=ny * nx).reshape(ny, nx).astype(bool)
+@lru_cache(
+    maxsize=2
+)  # the last frame's, for both disc methods (a full-resolution S is tens of MB)
+def _smooth_usability(
+    camera: CameraModel,
+    x0: float,
+    dx: float,
+    y0: float,
+    dy: float,
+    ny: int,
+    nx: int,
+    rho_max: float,
+    usable_bits: bytes,
+):
+    """
+    Return the smooth usability map and reflection parameters of a usable grid.
+
+    (S, reflection parameters) of :func:`mirror_map` for a usable grid (packed bits): read-only,
+    cached, so the two disc methods run on one frame (an error-map cell) blur it once.
+    """
+    usable = (
+        np.unpackbits(np.frombuffer(usable_bits, np.uint8), count=ny * nx)
+        .reshape(ny, nx)
+        .astype(bool)
+    )
     px, py = camera.pixel_pitch_x_um * 1e-3, camera.pixel_pitch_y_um * 1e-3
     pad = int(math.ceil(3.0 * MIRROR_BLUR_CELLS)) + 1
-    full = _outside_disc(camera, x0 - pad * dx, dx, nx + 2 * pad, y0 - pad * dy, dy, ny + 2 * pad,
-                         float(rho_max)).copy()
+    full = _outside_disc(
+        camera, x0 - pad * dx, dx, nx + 2 * pad, y0 - pad * dy, dy, ny + 2 * pad, float(rho_max)
+    ).copy()
     full[pad:pad + ny, pad:pad + nx] = usable
     import cv2
+
     cell = math.sqrt(dx * px * dy * py)
-    blur = cv2.GaussianBlur(full.astype(np.float32), (0, 0), sigmaX=MIRROR_BLUR_CELLS * cell / (dx * px),
-                            sigmaY=MIRROR_BLUR_CELLS * cell / (dy * py), borderType=cv2.BORDER_REPLICATE)
-    t = np.clip((blur.astype(np.float64) - MIRROR_LEVELS[0]) / (MIRROR_LEVELS[1] - MIRROR_LEVELS[0]), 0.0, 1.0)
-    S = (t >= 1.0).astype(np.float64)                 # sin^2 of the rise: 0 below it, 1 above, sin only on it
+    blur = cv2.GaussianBlur(
+        full.astype(np.float32),
+        (0, 0),
+        sigmaX=MIRROR_BLUR_CELLS * cell / (dx * px),
+        sigmaY=MIRROR_BLUR_CELLS * cell / (dy * py),
+        borderType=cv2.BORDER_REPLICATE,
+    )
+    t = np.clip(
+        (blur.astype(np.float64) - MIRROR_LEVELS[0]) / (MIRROR_LEVELS[1] - MIRROR_LEVELS[0]),
+        0.0,
+        1.0,
+    )
+    S = (t >= 1.0).astype(np.float64)  # sin^2 of the rise: 0 below it, 1 above, sin only on it
     rise = (t > 0.0) & (t < 1.0)
     S[rise] = np.sin(0.5 * math.pi * t[rise]) ** 2
-    S *= full                                         # exactly 0 on every unusable grid point
-    params = np.array([camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy])
+    S *= full  # exactly 0 on every unusable grid point
+    params = np.array(
+        [camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy]
+    )
     for a in (S, params):
         a.setflags(write=False)
     return S, params
@@ -172,12 +276,21 @@ def _grid_covers_disc(camera: CameraModel, grid: tuple, rho_max: float) -> bool:
     hx = rr / (camera.pixel_pitch_x_um * 1e-3)
     hy = rr / (camera.pixel_pitch_y_um * 1e-3)
     # the outermost grid lines lie within one grid step of the disc's edge or beyond it
-    return (x0 <= camera.cx_px - hx + dx and x0 + dx * (nx - 1) >= camera.cx_px + hx - dx
-            and y0 <= camera.cy_px - hy + dy and y0 + dy * (ny - 1) >= camera.cy_px + hy - dy)
+    return (
+        x0 <= camera.cx_px - hx + dx
+        and x0 + dx * (nx - 1) >= camera.cx_px + hx - dx
+        and y0 <= camera.cy_px - hy + dy
+        and y0 + dy * (ny - 1) >= camera.cy_px + hy - dy
+    )
 
 
 def view_covers_disc(view, camera: CameraModel, rho_max: float) -> bool:
-    """Whether a grid view reaches the disc's edge on every side (pixel lists: only their holes are seen)."""
+    """
+    Tell whether a grid view reaches the disc's edge on every side.
+
+    Whether a grid view reaches the disc's edge on every side (pixel lists: only their holes are
+    seen).
+    """
     if view.grid is None:
         return True
     return _grid_covers_disc(camera, view.grid, float(rho_max))
@@ -186,9 +299,9 @@ def view_covers_disc(view, camera: CameraModel, rho_max: float) -> bool:
 # --------------------------------------------------------------------------------------------
 # Compiled: S(p) and S(p') per pixel
 # --------------------------------------------------------------------------------------------
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _bilinear0(g, r, c):  # pragma: no cover - compiled
-    """g (2-D) at fractional (row r, column c), bilinear, 0 outside the grid."""
+    """G (2-D) at fractional (row r, column c), bilinear, 0 outside the grid."""
     ny, nx = g.shape
     if not (r > -1.0 and c > -1.0 and r < ny and c < nx):
         return 0.0
@@ -196,9 +309,10 @@ def _bilinear0(g, r, c):  # pragma: no cover - compiled
     j0 = int(math.floor(c))
     fr = r - i0
     fc = c - j0
-    if i0 >= 0 and j0 >= 0 and i0 + 1 < ny and j0 + 1 < nx:            # inside: no per-corner test
-        return ((1.0 - fr) * ((1.0 - fc) * g[i0, j0] + fc * g[i0, j0 + 1])
-                + fr * ((1.0 - fc) * g[i0 + 1, j0] + fc * g[i0 + 1, j0 + 1]))
+    if i0 >= 0 and j0 >= 0 and i0 + 1 < ny and j0 + 1 < nx:  # inside: no per-corner test
+        return (1.0 - fr) * ((1.0 - fc) * g[i0, j0] + fc * g[i0, j0 + 1]) + fr * (
+            (1.0 - fc) * g[i0 + 1, j0] + fc * g[i0 + 1, j0 + 1]
+        )
     acc = 0.0
     for di in range(2):
         i = i0 + di
@@ -213,25 +327,44 @@ def _bilinear0(g, r, c):  # pragma: no cover - compiled
     return acc
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _mirror_consts(mp):  # pragma: no cover - compiled
-    """(sin theta, cos theta, columns per mm, rows per mm, column and row of the principal point) of mp."""
-    return (mp[4], mp[5], 1.0 / (mp[2] * mp[7]), 1.0 / (mp[3] * mp[9]), (mp[0] - mp[6]) / mp[7],
-            (mp[1] - mp[8]) / mp[9])
+    """
+    Return the mirror constants of mp (angle, pixel scales, principal point).
+
+    (sin theta, cos theta, columns per mm, rows per mm, column and row of the principal point) of
+    mp.
+    """
+    return (
+        mp[4],
+        mp[5],
+        1.0 / (mp[2] * mp[7]),
+        1.0 / (mp[3] * mp[9]),
+        (mp[0] - mp[6]) / mp[7],
+        (mp[1] - mp[8]) / mp[9],
+    )
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
-    """S at the mirror image of the sensor offset (u, v) mm (constants from :func:`_mirror_consts`)."""
+    """
+    Return S at the mirror image of the sensor offset (u, v) mm.
+
+    S at the mirror image of the sensor offset (u, v) mm (constants from :func:`_mirror_consts`).
+    """
     d = 2.0 * (u * st + v * ct)
     return _bilinear0(mg, r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _mirror_weight(mg, mp, x, y):  # pragma: no cover - compiled
-    """The pair weight S(p) S(p') of the pixel at sensor position (x, y). ``mp``: cx, cy, pitch_x, pitch_y (mm),
-    sin theta, cos theta (the trial axis, from +y_cam towards +x_cam), x0, dx, y0, dy of the S grid; the
-    reflection acts on the offset from the principal point in millimetres."""
+    """
+    Return the pair weight S(p) S(p') of the pixel at sensor position (x, y).
+
+    ``mp``: cx, cy, pitch_x, pitch_y (mm), sin theta, cos theta (the trial axis, from +y_cam
+    towards +x_cam), x0, dx, y0, dy of the S grid; the reflection acts on the offset from the
+    principal point in millimetres.
+    """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     own = _bilinear0(mg, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
     return own * _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
@@ -239,7 +372,12 @@ def _mirror_weight(mg, mp, x, y):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def _pair_weights(mg, mp, xs, ys):  # pragma: no cover - compiled
-    """S(p) S(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg`` empty)."""
+    """
+    Return the pair weights S(p) S(p') of every pixel, or ones without a mirror map.
+
+    S(p) S(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg``
+    empty).
+    """
     out = np.ones(xs.size)
     if mg.shape[0]:
         for i in range(xs.size):
@@ -247,12 +385,20 @@ def _pair_weights(mg, mp, xs, ys):  # pragma: no cover - compiled
     return out
 
 
-@njit(inline="always", cache=True)
-def _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp,
-                  g_uv, n):  # pragma: no cover - compiled
-    """Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p); p, rx, ry,
-    rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes to g_uv[:, n]."""
-    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+@njit(inline='always', cache=True)
+def _gather_pixel(
+    aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp, g_uv, n
+):  # pragma: no cover - compiled
+    """
+    Load pixel i for a gather and store a kept pixel's sensor offset.
+
+    Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p); p,
+    rx, ry, rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes to
+    g_uv[:, n].
+    """
+    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+        aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+    )
     tp = 0.0
     s = 0.0
     if inr and valid[i] and fin:
@@ -270,22 +416,30 @@ def _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, ta
 # --------------------------------------------------------------------------------------------
 @dataclass
 class AxisFit:
-    """One axis fit on (possibly mirror-weighted) pixels. ``theta`` rad from +y_cam towards +x_cam (axial)."""
+    """
+    One axis fit on (possibly mirror-weighted) pixels.
+
+    ``theta`` rad from +y_cam towards +x_cam
+    (axial).
+    """
 
     theta: float
-    n: int                      # usable pixels
-    n_paired: int               # usable pixels with a non-zero pair weight
+    n: int  # usable pixels
+    n_paired: int  # usable pixels with a non-zero pair weight
     nonfinite: int
-    holes: int                  # unusable pixels inside the disc
-    coverage: float             # sum taper * m over valid pixels / sum taper over the disc
+    holes: int  # unusable pixels inside the disc
+    coverage: float  # sum taper * m over valid pixels / sum taper over the disc
     stats: np.ndarray
     quality: float
-    state: dict                 # method specific (for the influence pass)
+    state: dict  # method specific (for the influence pass)
 
 
 def _refine(fit_at, t0: float, slope: float, tol_rad: float, max_steps: int):
-    """Secant iteration on h(t) = fold(fit_at(t).theta - t) from t0 with a first slope estimate. Returns
-    (fit at the fixed point or None, the last secant slope, its step length, fits used)."""
+    """
+    Secant iteration on h(t) = fold(fit_at(t).theta - t) from t0 with a first slope estimate.
+
+    Returns (fit at the fixed point or None, the last secant slope, its step length, fits used).
+    """
     steps = 0
 
     def h(x):
@@ -309,18 +463,27 @@ def _refine(fit_at, t0: float, slope: float, tol_rad: float, max_steps: int):
     return fb, slope, abs(tb - ta), steps
 
 
-def solve_axes(fit_at, scan_at, keep, min_coverage: float, n_scan: int = SCAN_AXES, tol_rad: float = 1e-8,
-               max_steps: int = MAX_SOLVE_STEPS):
-    """Every self-consistent axis ``theta = fit_at(theta).theta`` (axial, rad) worth keeping.
+def solve_axes(
+    fit_at,
+    scan_at,
+    keep,
+    min_coverage: float,
+    n_scan: int = SCAN_AXES,
+    tol_rad: float = 1e-8,
+    max_steps: int = MAX_SOLVE_STEPS,
+):
+    """
+    Every self-consistent axis ``theta = fit_at(theta).theta`` (axial, rad) worth keeping.
 
-    ``h(theta) = fold(f(theta) - theta)`` is scanned on ``n_scan`` axes with ``scan_at`` (a cheaper fit on a
-    subsample); each interval where h changes sign (either way: the true axis may repel a plain iteration,
-    f' > 1; a jump of h across the fold is not a root) and whose mirror coverage reaches ``min_coverage / 2``
-    at an end (not the degenerate fixed point on an occluder's edge, where the pairs shrink to a sliver) is
-    refined by the secant method, first with ``scan_at`` to 1e-4 rad; roots that ``keep(fit)`` accepts are
-    then refined with ``fit_at`` to ``tol_rad``. ``h'`` (= f' - 1) is the last secant slope, or a finite
-    difference over 2e-3 rad when the last step was too short. Returns (list of (fit, h'), reasons why no
-    root was found, fits used)."""
+    ``h(theta) = fold(f(theta) - theta)`` is scanned on ``n_scan`` axes with ``scan_at`` (a cheaper
+    fit on a subsample); each interval where h changes sign (either way: the true axis may repel a
+    plain iteration, f' > 1; a jump of h across the fold is not a root) and whose mirror coverage
+    reaches ``min_coverage / 2`` at an end (not the degenerate fixed point on an occluder's edge,
+    where the pairs shrink to a sliver) is refined by the secant method, first with ``scan_at`` to
+    1e-4 rad; roots that ``keep(fit)`` accepts are then refined with ``fit_at`` to ``tol_rad``.
+    ``h'`` (= f' - 1) is the last secant slope, or a finite difference over 2e-3 rad when the last
+    step was too short. Returns (list of (fit, h'), reasons why no root was found, fits used).
+    """
     dt = math.pi / n_scan
     fs = [scan_at(i * dt) for i in range(n_scan)]
     hs = [None if f is None else fold_axial_rad_float(f.theta - i * dt) for i, f in enumerate(fs)]
@@ -329,8 +492,10 @@ def solve_axes(fit_at, scan_at, keep, min_coverage: float, n_scan: int = SCAN_AX
     dropped = -1.0
     best = max([f.coverage for f in fs if f is not None], default=0.0)
     if best < 0.5 * min_coverage:
-        failed.append(f"at most {best:.3f} of the disc has a usable mirror image about any axis "
-                      f"(min_mirror_coverage {min_coverage:g})")
+        failed.append(
+            f'at most {best:.3f} of the disc has a usable mirror image about any axis '
+            f'(min_mirror_coverage {min_coverage:g})'
+        )
     for i in range(n_scan):
         j = (i + 1) % n_scan
         h0, h1 = hs[i], hs[j]
@@ -339,20 +504,27 @@ def solve_axes(fit_at, scan_at, keep, min_coverage: float, n_scan: int = SCAN_AX
         if max(fs[i].coverage, fs[j].coverage) < 0.5 * min_coverage:
             dropped = max(dropped, fs[i].coverage, fs[j].coverage)
             continue
-        fit, slope, _, n = _refine(scan_at, i * dt + dt * h0 / (h0 - h1), (h1 - h0) / dt, 1e-4, max_steps)
+        fit, slope, _, n = _refine(
+            scan_at, i * dt + dt * h0 / (h0 - h1), (h1 - h0) / dt, 1e-4, max_steps
+        )
         used += n
         if fit is not None and not keep(fit):
             dropped = max(dropped, fit.coverage)
-        elif fit is not None and all(abs(fold_axial_rad_float(fit.theta - c[0].theta)) > 1e-3 for c in coarse):
+        elif fit is not None and all(
+            abs(fold_axial_rad_float(fit.theta - c[0].theta)) > 1e-3 for c in coarse
+        ):
             coarse.append((fit, slope))
     roots = []
     for fc, slope in coarse:
         fit, slope, last, n = _refine(fit_at, fc.theta, slope, tol_rad, max_steps)
         used += n
         if fit is None:
-            failed.append(f"no self-consistent axis near {math.degrees(fc.theta) % 180:.1f} deg at full resolution")
+            failed.append(
+                f'no self-consistent axis near {math.degrees(fc.theta) % 180:.1f} deg at full '
+                'resolution'
+            )
             continue
-        if not last >= 1e-6:                 # the last secant step is too short for a derivative
+        if not last >= 1e-6:  # the last secant step is too short for a derivative
             fd = fit_at(fit.theta + 2e-3)
             used += 1
             if fd is None:
@@ -360,6 +532,9 @@ def solve_axes(fit_at, scan_at, keep, min_coverage: float, n_scan: int = SCAN_AX
             slope = fold_axial_rad_float(fd.theta - fit.theta - 2e-3) / 2e-3
         roots.append((fit, slope))
     if not roots and not failed and dropped >= 0.0:
-        failed.append(f"the self-consistent axes have at most {dropped:.3f} of the disc with a usable mirror image "
-                      f"or are not symmetric (min_mirror_coverage {min_coverage:g})")
+        failed.append(
+            f'the self-consistent axes have at most {dropped:.3f} of the disc with a usable '
+            'mirror image '
+            f'or are not symmetric (min_mirror_coverage {min_coverage:g})'
+        )
     return roots, failed, used

@@ -1,34 +1,60 @@
-"""The compiled passes of SM-ASM (:mod:`.sm_asm`): the band sums of the plain fit (pass 1), the gather and
-per-axis fit on mirror pairs, and the influence pass (pass 2). Shared per-pixel steps: :mod:`._disc`;
-pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and ``_band_terms`` vectorise
-(``test/test_vecmath.py`` checks their LLVM IR)."""
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compiled passes of SM-ASM (:mod:`.sm_asm`).
+
+The compiled passes of SM-ASM (:mod:`.sm_asm`): the band sums of the plain fit (pass 1), the gather
+and per-axis fit on mirror pairs, and the influence pass (pass 2). Shared per-pixel steps:
+:mod:`._disc`; pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and
+``_band_terms`` vectorise (``test/test_vecmath.py`` checks their LLVM IR).
+"""
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from ..fastmath import FM as _FMV, exp_nonpos
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ..fastmath import exp_nonpos
+from ..fastmath import FM as _FMV
 
-__all__ = ["band_pass1", "band_gather", "band_fit", "band_pass2"]
+__all__ = ['band_pass1', 'band_gather', 'band_fit', 'band_pass2']
 
 
-@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
-def _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt):  # pragma: no cover
-    """The sums of :func:`band_pass1` (vectorised)."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _band_sums(
+    aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt
+):  # pragma: no cover
+    """Accumulate the sums of :func:`band_pass1` (vectorised)."""
     n_ok = n_v = n_bad = n_hole = 0
     Zr = Zi = nrm = 0.0
     for i in range(aop.size):
-        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(
+            aop, dop, valid, rays, i, min_dop, 0.0, rho_max
+        )
         n_ok += np.int64(ok)
         n_v += np.int64(v)
         n_bad += np.int64(bad)
         n_hole += np.int64(hole)
         cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-        W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)   # cos 2 delta = -cr
+        W = (
+            exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac)
+        )  # cos 2 delta = -cr
         Zr += W * (ry * ry - rx * rx)
         Zi += W * 2.0 * rx * ry
         nrm += W * rho * rho
@@ -42,26 +68,38 @@ def _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, ou
 
 
 @njit(cache=True, nogil=True)
-def band_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt,
-               stats):  # pragma: no cover - compiled
-    """SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4 tol^2))
-    DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc); with ``has_i`` the
-    brightness statistics of the usable pixels into ``stats`` (a second, scalar loop)."""
+def band_pass1(
+    aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt, stats
+):  # pragma: no cover - compiled
+    """
+    Run the SM-ASM first pass: the weighted sum Z of the pixels' z^2 and the counts.
+
+    SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4
+    tol^2)) DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc); with
+    ``has_i`` the brightness statistics of the usable pixels into ``stats`` (a second, scalar
+    loop).
+    """
     _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt)
     if has_i:
         _brightness_pass(aop, dop, valid, rays, inten, min_dop, 0.0, rho_max, stats)
 
 
 @njit(cache=True, nogil=True)
-def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp,
-                g_uv, g_val):  # pragma: no cover - compiled
-    """SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0, compacted:
-    g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p) z^2 (re, im),
-    W S(p) rho^2) (W = 0 below min_dop). Returns the count."""
+def band_gather(
+    aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp, g_uv, g_val
+):  # pragma: no cover - compiled
+    """
+    Gather the disc's valid pixels for SM-ASM with mirror pairs (step 1).
+
+    SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0,
+    compacted: g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p)
+    z^2 (re, im), W S(p) rho^2) (W = 0 below min_dop). Returns the count.
+    """
     n = 0
     for i in range(aop.size):
-        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, 0.0,
-                                                                  rho_max, taper_frac, mg, mp, g_uv, n)
+        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(
+            aop, dop, valid, rays, xs, ys, i, min_dop, 0.0, rho_max, taper_frac, mg, mp, g_uv, n
+        )
         if not keep:
             continue
         W = 0.0
@@ -78,8 +116,13 @@ def band_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv
 
 @njit(cache=True, nogil=True)
 def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
-    """SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2, coverage numerator
-    sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every ``step``-th gathered pixel."""
+    """
+    Fit one trial axis for SM-ASM with mirror pairs (step 2).
+
+    SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2, coverage
+    numerator sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every ``step``-th
+    gathered pixel.
+    """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     Zr = Zi = nrm = cov = 0.0
     n_pair = 0
@@ -99,19 +142,27 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
     out[4] = n_pair
 
 
-@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
-def _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2, wm, t0, t1,
-                rss):  # pragma: no cover - compiled
-    """Per pixel (vectorised): t_j = (d theta / d a) * residual_j (0 if unusable); rss[j] += residual_j^2."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _band_terms(
+    aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2, wm, t0, t1, rss
+):  # pragma: no cover - compiled
+    """
+    Compute the per-pixel SM-ASM influence terms and residual sums (vectorised).
+
+    Per pixel (vectorised): t_j = (d theta / d a) * residual_j (0 if unusable); rss[j] +=
+    residual_j^2.
+    """
     modZ2 = Zr * Zr + Zi * Zi
     a0, a1, a2 = s1[0], s1[1], s1[2]
     b0, b1, b2 = s2[0], s2[1], s2[2]
     q0 = q1 = 0.0
     for i in range(aop.size):
-        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, 0.0, rho_max)
+        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(
+            aop, dop, valid, rays, i, min_dop, 0.0, rho_max
+        )
         cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
         W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
-        dW = W * ci * 2.0 * inv4tol2             # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
+        dW = W * ci * 2.0 * inv4tol2  # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
         z2r = ry * ry - rx * rx
         z2i = 2.0 * rx * ry
         sens = 0.5 * dW * (z2i * Zr - z2r * Zi) / modZ2
@@ -128,13 +179,55 @@ def _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Z
 
 
 @njit(cache=True, nogil=True)
-def band_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_max, taper_frac, inv4tol2,
-               mg, mp, Zr, Zi, s1, s2, block_sum, rss):  # pragma: no cover - compiled
-    """SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate suns;
-    rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty). The per-pixel terms are
-    one vectorised loop (:mod:`polarization_compass.fastmath`), the block sums a second."""
+def band_pass2(
+    aop,
+    dop,
+    valid,
+    rays,
+    xs,
+    ys,
+    seg_start,
+    seg_end,
+    seg_block,
+    min_dop,
+    rho_max,
+    taper_frac,
+    inv4tol2,
+    mg,
+    mp,
+    Zr,
+    Zi,
+    s1,
+    s2,
+    block_sum,
+    rss,
+):  # pragma: no cover - compiled
+    """
+    Run the SM-ASM influence pass: block sums of the influence for both candidate suns.
+
+    SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate
+    suns; rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty). The
+    per-pixel terms are one vectorised loop (:mod:`polarization_compass.fastmath`), the block sums
+    a second.
+    """
     t0 = np.empty(aop.size)
     t1 = np.empty(aop.size)
-    _band_terms(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2,
-                _pair_weights(mg, mp, xs, ys), t0, t1, rss)
+    _band_terms(
+        aop,
+        dop,
+        valid,
+        rays,
+        min_dop,
+        rho_max,
+        taper_frac,
+        inv4tol2,
+        Zr,
+        Zi,
+        s1,
+        s2,
+        _pair_weights(mg, mp, xs, ys),
+        t0,
+        t1,
+        rss,
+    )
     _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum)

@@ -1,38 +1,67 @@
-"""The compiled passes of Symmetry (:mod:`.symmetry`): the ring coefficients of the plain fit (pass 1), the
-gather and per-axis fit on mirror pairs, and the influence pass (pass 2), in chunks of ``_RING_CHUNK``
-pixels. Shared per-pixel steps: :mod:`._disc`; pair weights: :mod:`._mirror`. The per-pixel loops
-``_ring1_terms`` and ``_ring_terms`` vectorise (``test/test_vecmath.py`` checks their LLVM IR)."""
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compiled passes of Symmetry (:mod:`.symmetry`).
+
+The compiled passes of Symmetry (:mod:`.symmetry`): the ring coefficients of the plain fit (pass
+1), the gather and per-axis fit on mirror pairs, and the influence pass (pass 2), in chunks of
+``_RING_CHUNK`` pixels. Shared per-pixel steps: :mod:`._disc`; pair weights: :mod:`._mirror`. The
+per-pixel loops ``_ring1_terms`` and ``_ring_terms`` vectorise (``test/test_vecmath.py`` checks
+their LLVM IR).
+"""
+
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
+import numpy as np
 
-from ..fastmath import FM as _FMV, atan2, sincos
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ..fastmath import atan2, sincos
+from ..fastmath import FM as _FMV
 
-__all__ = ["ring_pass1", "ring_gather", "ring_fit", "ring_pass2"]
+__all__ = ['ring_pass1', 'ring_gather', 'ring_fit', 'ring_pass2']
 
 #: Pixels per chunk of the vectorised Symmetry passes (their scratch arrays stay in L1/L2).
 _RING_CHUNK = 512
 
 
-@njit(inline="always", cache=True, error_model="numpy")
+@njit(inline='always', cache=True, error_model='numpy')
 def _ring_t(rho, rho_lo, span, n_rings):  # pragma: no cover - compiled
     """Ring position of radius rho: t in [0, n_rings - 1], rings at the integers (branch-free)."""
     return min(max((rho - rho_lo) / span, 0.0), 1.0) * (n_rings - 1)
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _ring_split(t, n_rings):  # pragma: no cover - compiled
-    """Ring index j and the linear split f towards ring j + 1 of a ring position t >= 0 (j + f = t)."""
+    """
+    Split a ring position t >= 0 into ring index j and fraction f.
+
+    Ring index j and the linear split f towards ring j + 1 of a ring position t >= 0 (j + f = t).
+    """
     j = min(np.int64(t), n_rings - 1)
     return j, t - j
 
 
-@njit(inline="always", cache=True)
+@njit(inline='always', cache=True)
 def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
-    """a_out[k + K, ring] += hat * c * e^k (k = -K..K), split linearly between rings j and j + 1."""
+    """
+    Add a pixel's harmonics to the ring coefficients, split linearly between two rings.
+
+    a_out[k + K, ring] += hat * c * e^k (k = -K..K), split linearly between rings j and j + 1.
+    """
     g0 = 1.0 - f
     a_out[K, j] += g0 * c
     if j + 1 < n_rings:
@@ -50,16 +79,38 @@ def _ring_add(a_out, K, n_rings, j, f, c, e):  # pragma: no cover - compiled
             a_out[K - kk, j + 1] += f * em
 
 
-@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
-def _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, cr, ci, er, ei, tr,
-                 cnt):  # pragma: no cover - compiled
-    """Pixels o..o+n of :func:`ring_pass1` (vectorised): c = w exp(2i AOPLM) (0 if unusable), e = exp(-i xi),
-    ring position tr; counts into cnt."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _ring1_terms(
+    aop,
+    dop,
+    valid,
+    rays,
+    o,
+    n,
+    min_dop,
+    rho_lo,
+    rho_max,
+    taper_frac,
+    n_rings,
+    cr,
+    ci,
+    er,
+    ei,
+    tr,
+    cnt,
+):  # pragma: no cover - compiled
+    """
+    Compute the per-pixel terms of :func:`ring_pass1` (vectorised).
+
+    Pixels o..o+n of :func:`ring_pass1` (vectorised): c = w exp(2i AOPLM) (0 if unusable), e =
+    exp(-i xi), ring position tr; counts into cnt.
+    """
     span = max(rho_max - rho_lo, 1e-12)
     n_ok = n_v = n_bad = n_hole = 0
     for q in range(n):
-        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, o + q, min_dop, rho_lo,
-                                                                     rho_max)
+        ok, v, bad, hole, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(
+            aop, dop, valid, rays, o + q, min_dop, rho_lo, rho_max
+        )
         n_ok += np.int64(ok)
         n_v += np.int64(v)
         n_bad += np.int64(bad)
@@ -77,12 +128,31 @@ def _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_fr
     cnt[3] += n_hole
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, taper_frac, n_rings, K,
-               a_out, cnt, stats):  # pragma: no cover - compiled
-    """Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM),
-    w = DoP^2 taper, linear split between neighbouring rings; cnt and stats as :func:`band_pass1`. In chunks:
-    the per-pixel terms (vectorised), then the scatter into the rings (scalar)."""
+@njit(cache=True, nogil=True, error_model='numpy')
+def ring_pass1(
+    aop,
+    dop,
+    valid,
+    rays,
+    inten,
+    has_i,
+    min_dop,
+    rho_lo,
+    rho_max,
+    taper_frac,
+    n_rings,
+    K,
+    a_out,
+    cnt,
+    stats,
+):  # pragma: no cover - compiled
+    """
+    Run the Symmetry first pass: the ring coefficients of the AoP harmonics.
+
+    Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM), w =
+    DoP^2 taper, linear split between neighbouring rings; cnt and stats as :func:`band_pass1`. In
+    chunks: the per-pixel terms (vectorised), then the scatter into the rings (scalar).
+    """
     CH = _RING_CHUNK
     cr = np.empty(CH)
     ci = np.empty(CH)
@@ -91,11 +161,28 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
     tr = np.empty(CH)
     for o in range(0, aop.size, CH):
         n = min(CH, aop.size - o)
-        _ring1_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, cr, ci, er, ei, tr,
-                     cnt)
+        _ring1_terms(
+            aop,
+            dop,
+            valid,
+            rays,
+            o,
+            n,
+            min_dop,
+            rho_lo,
+            rho_max,
+            taper_frac,
+            n_rings,
+            cr,
+            ci,
+            er,
+            ei,
+            tr,
+            cnt,
+        )
         for q in range(n):
             if cr[q] == 0.0 and ci[q] == 0.0:
-                continue                            # unusable (or zero weight: adds nothing)
+                continue  # unusable (or zero weight: adds nothing)
             j, f = _ring_split(tr[q], n_rings)
             _ring_add(a_out, K, n_rings, j, f, complex(cr[q], ci[q]), complex(er[q], ei[q]))
     if has_i:
@@ -103,15 +190,39 @@ def ring_pass1(aop, dop, valid, rays, inten, has_i, min_dop, rho_lo, rho_max, ta
 
 
 @njit(cache=True, nogil=True)
-def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_frac, n_rings, K, mg, mp,
-                g_uv, g_tp, g_v, g_ring):  # pragma: no cover - compiled
-    """Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w S(p) c
-    exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring position (:func:`_ring_t`). Returns the count."""
+def ring_gather(
+    aop,
+    dop,
+    valid,
+    rays,
+    xs,
+    ys,
+    min_dop,
+    rho_lo,
+    rho_max,
+    taper_frac,
+    n_rings,
+    K,
+    mg,
+    mp,
+    g_uv,
+    g_tp,
+    g_v,
+    g_ring,
+):  # pragma: no cover - compiled
+    """
+    Gather the disc's pixels for Symmetry with mirror pairs (step 1).
+
+    Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w
+    S(p) c exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring position (:func:`_ring_t`).
+    Returns the count.
+    """
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
-        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo,
-                                                                  rho_max, taper_frac, mg, mp, g_uv, n)
+        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(
+            aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp, g_uv, n
+        )
         if not keep:
             continue
         e = complex(ry / rho, -rx / rho)
@@ -134,10 +245,16 @@ def ring_gather(aop, dop, valid, rays, xs, ys, min_dop, rho_lo, rho_max, taper_f
 
 
 @njit(cache=True, nogil=True)
-def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out):  # pragma: no cover - compiled
-    """Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the gathered pixels
-    weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight > 0); every ``step``-th
-    gathered pixel."""
+def ring_fit(
+    g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out
+):  # pragma: no cover - compiled
+    """
+    Fit one trial axis for Symmetry with mirror pairs (step 2).
+
+    Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the
+    gathered pixels weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight
+    > 0); every ``step``-th gathered pixel.
+    """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     cov = 0.0
     n_pair = 0
@@ -161,19 +278,46 @@ def ring_fit(g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out): 
     out[1] = n_pair
 
 
-@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
-def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, s1, s2, wm,
-                cr, ci, xi, tr, r1, r2, rss):  # pragma: no cover - compiled
-    """Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper S S'; 0 if unusable) into cr, ci;
-    xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if unusable);
-    rss[j] += r_j^2."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _ring_terms(
+    aop,
+    dop,
+    valid,
+    rays,
+    o,
+    n,
+    min_dop,
+    rho_lo,
+    rho_max,
+    taper_frac,
+    n_rings,
+    s1,
+    s2,
+    wm,
+    cr,
+    ci,
+    xi,
+    tr,
+    r1,
+    r2,
+    rss,
+):  # pragma: no cover - compiled
+    """
+    Compute the per-pixel Symmetry influence terms and residuals (vectorised).
+
+    Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper S S'; 0 if unusable) into cr,
+    ci; xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if
+    unusable); rss[j] += r_j^2.
+    """
     span = max(rho_max - rho_lo, 1e-12)
     a0, a1, a2 = s1[0], s1[1], s1[2]
     b0, b1, b2 = s2[0], s2[1], s2[2]
     q0 = q1 = 0.0
     for q in range(n):
         i = o + q
-        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_max)
+        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+        )
         c_r, c_i = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
         w = p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
         cr[q] = c_r * w
@@ -192,29 +336,67 @@ def _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_fra
     rss[1] += q1
 
 
-@njit(cache=True, nogil=True, fastmath=_FMV, error_model="numpy")
-def _ring_harmonic(n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc):  # pragma: no cover - compiled
-    """Harmonic kk of d F' / d a: acc += Re(c E B+(ring)) + Re(c conj(E) B-(ring)), E = e^kk = exp(-i kk xi),
-    B+- linear between the rings (tables padded by a zero ring)."""
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _ring_harmonic(
+    n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc
+):  # pragma: no cover - compiled
+    """
+    Accumulate harmonic kk of the derivative of F' by the AoP.
+
+    Harmonic kk of d F' / d a: acc += Re(c E B+(ring)) + Re(c conj(E) B-(ring)), E = e^kk = exp(-i
+    kk xi), B+- linear between the rings (tables padded by a zero ring).
+    """
     for q in range(n):
         s, c = sincos(kk * xi[q])
-        pr = cr[q] * c + ci[q] * s           # c E
+        pr = cr[q] * c + ci[q] * s  # c E
         pi_ = ci[q] * c - cr[q] * s
-        mr = cr[q] * c - ci[q] * s           # c conj(E)
+        mr = cr[q] * c - ci[q] * s  # c conj(E)
         mi = ci[q] * c + cr[q] * s
         j, f = _ring_split(tr[q], n_rings)
         g = 1.0 - f
-        acc[q] += (pr * (g * Bpr[kk, j] + f * Bpr[kk, j + 1]) - pi_ * (g * Bpi[kk, j] + f * Bpi[kk, j + 1])
-                   + mr * (g * Bmr[kk, j] + f * Bmr[kk, j + 1]) - mi * (g * Bmi[kk, j] + f * Bmi[kk, j + 1]))
+        acc[q] += (
+            pr * (g * Bpr[kk, j] + f * Bpr[kk, j + 1])
+            - pi_ * (g * Bpi[kk, j] + f * Bpi[kk, j + 1])
+            + mr * (g * Bmr[kk, j] + f * Bmr[kk, j + 1])
+            - mi * (g * Bmi[kk, j] + f * Bmi[kk, j + 1])
+        )
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min_dop, rho_lo, rho_max, taper_frac,
-               n_rings, K, mg, mp, a_in, rot, F2, s1, s2, block_sum, rss):  # pragma: no cover - compiled
-    """Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with
-    d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's
-    ring), times the residual against each candidate sun (pair weights as :func:`band_pass2`). In chunks:
-    the per-pixel terms (vectorised), one loop per harmonic, then the block sums."""
+@njit(cache=True, nogil=True, error_model='numpy')
+def ring_pass2(
+    aop,
+    dop,
+    valid,
+    rays,
+    xs,
+    ys,
+    seg_start,
+    seg_end,
+    seg_block,
+    min_dop,
+    rho_lo,
+    rho_max,
+    taper_frac,
+    n_rings,
+    K,
+    mg,
+    mp,
+    a_in,
+    rot,
+    F2,
+    s1,
+    s2,
+    block_sum,
+    rss,
+):  # pragma: no cover - compiled
+    """
+    Run the Symmetry influence pass: the influence against each candidate sun.
+
+    Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k)
+    e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's ring), times the
+    residual against each candidate sun (pair weights as :func:`band_pass2`). In chunks: the
+    per-pixel terms (vectorised), one loop per harmonic, then the block sums.
+    """
     N = aop.size
     wm = _pair_weights(mg, mp, xs, ys)
     Bpr = np.zeros((K + 1, n_rings + 1))
@@ -241,8 +423,29 @@ def ring_pass2(aop, dop, valid, rays, xs, ys, seg_start, seg_end, seg_block, min
     acc = np.empty(CH)
     for o in range(0, N, CH):
         n = min(CH, N - o)
-        _ring_terms(aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_max, taper_frac, n_rings, s1, s2, wm,
-                    cr, ci, xi, tr, r1, r2, rss)
+        _ring_terms(
+            aop,
+            dop,
+            valid,
+            rays,
+            o,
+            n,
+            min_dop,
+            rho_lo,
+            rho_max,
+            taper_frac,
+            n_rings,
+            s1,
+            s2,
+            wm,
+            cr,
+            ci,
+            xi,
+            tr,
+            r1,
+            r2,
+            rss,
+        )
         acc[:n] = 0.0
         for kk in range(1, K + 1):
             _ring_harmonic(n, kk, n_rings, cr, ci, xi, tr, Bpr, Bpi, Bmr, Bmi, acc)

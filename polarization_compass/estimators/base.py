@@ -1,15 +1,33 @@
-"""The shared estimator interface: what goes in (:class:`Observation`), what comes out
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The shared estimator interface: observation, result and the facts of each method.
+
+The shared estimator interface: what goes in (:class:`Observation`), what comes out
 (:class:`HeadingResult`), and the facts every method declares (:class:`Estimator`). The methods are
 listed by :mod:`.registry`.
 
 Angles follow :mod:`polarization_compass.conventions`. A result never carries NaN or inf: a value
 that does not exist is ``None`` and ``status``/``reason`` say why.
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 from enum import Enum
+import math
 
 import numpy as np
 
@@ -17,7 +35,7 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg_float, wrap_360_deg_float
 from ..errors import CompassError
 
-__all__ = ["Status", "HeadingResult", "Observation", "Estimator", "EstimatorError"]
+__all__ = ['Status', 'HeadingResult', 'Observation', 'Estimator', 'EstimatorError']
 
 
 class EstimatorError(CompassError):
@@ -25,7 +43,8 @@ class EstimatorError(CompassError):
 
 
 class Status(str, Enum):
-    """Outcome of one heading estimate; every value but ``OK`` and ``AMBIGUOUS`` means no heading.
+    """
+    Outcome of one heading estimate; every value but ``OK`` and ``AMBIGUOUS`` means no heading.
 
     The values are strings (JSON, topics, tables). ``AMBIGUOUS``: the solar meridian was found but
     its 180 deg ambiguity was not resolved; the others name why no heading exists (sun near the
@@ -33,24 +52,29 @@ class Status(str, Enum):
     degenerate data, insufficient sky coverage, a poor fit to the sky model).
     """
 
-    OK = "ok"
-    AMBIGUOUS = "ambiguous"                  # solar meridian found, 180 deg ambiguity not resolved
-    SUN_NEAR_ZENITH = "sun_near_zenith"      # the meridian is undefined / ill-conditioned
-    SUN_BELOW_HORIZON = "sun_below_horizon"
-    TOO_FEW_PIXELS = "too_few_pixels"
-    OUT_OF_DOMAIN = "out_of_domain"          # e.g. tilt outside an error map
-    BAD_INPUT = "bad_input"
-    DEGENERATE = "degenerate"                # numerically degenerate data (e.g. all E-vectors parallel)
-    INSUFFICIENT_COVERAGE = "insufficient_coverage"  # too little of the sky usable for the method's geometry
-    TOO_FEW_UNITS = "too_few_units"          # photodiode array: fewer usable units than the method needs
-    POOR_FIT = "poor_fit"                    # the data do not fit the sky model well enough to trust a heading
-    INCONSISTENT = "inconsistent"            # methods on the same frame disagree beyond their sigmas
-    PRIOR_DISAGREES = "prior_disagrees"      # the heading contradicts an independent prior (IMU yaw) beyond sigma
+    OK = 'ok'
+    AMBIGUOUS = 'ambiguous'  # solar meridian found, 180 deg ambiguity not resolved
+    SUN_NEAR_ZENITH = 'sun_near_zenith'  # the meridian is undefined / ill-conditioned
+    SUN_BELOW_HORIZON = 'sun_below_horizon'
+    TOO_FEW_PIXELS = 'too_few_pixels'
+    OUT_OF_DOMAIN = 'out_of_domain'  # e.g. tilt outside an error map
+    BAD_INPUT = 'bad_input'
+    DEGENERATE = 'degenerate'  # numerically degenerate data (e.g. all E-vectors parallel)
+    INSUFFICIENT_COVERAGE = (
+        'insufficient_coverage'  # too little of the sky usable for the method's geometry
+    )
+    TOO_FEW_UNITS = 'too_few_units'  # photodiode array: fewer usable units than the method needs
+    POOR_FIT = 'poor_fit'  # the data do not fit the sky model well enough to trust a heading
+    INCONSISTENT = 'inconsistent'  # methods on the same frame disagree beyond their sigmas
+    PRIOR_DISAGREES = (
+        'prior_disagrees'  # the heading contradicts an independent prior (IMU yaw) beyond sigma
+    )
 
 
 @dataclass(frozen=True)
 class HeadingResult:
-    """One heading estimate.
+    """
+    One heading estimate.
 
     ``psi_deg``: the paper's yaw (bearing of camera +y minus sun azimuth), (-180, 180].
     ``bearing_deg``: true-North bearing of the camera +y axis, [0, 360).
@@ -64,7 +88,7 @@ class HeadingResult:
 
     method: str
     status: Status
-    reason: str = ""
+    reason: str = ''
     psi_deg: float | None = None
     bearing_deg: float | None = None
     yaw_enu_deg: float | None = None
@@ -72,17 +96,22 @@ class HeadingResult:
     pixels: int = 0
     quality: float = 0.0
     axial: bool = False
-    sun_altitude_deg: float | None = None      # implied by the data (least squares), a consistency check
+    sun_altitude_deg: float | None = (
+        None  # implied by the data (least squares), a consistency check
+    )
     extras: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
-        """A usable heading (possibly axial)."""
+        """Return whether the heading is usable (possibly axial)."""
         return self.status in (Status.OK, Status.AMBIGUOUS) and self.psi_deg is not None
 
     @staticmethod
-    def failed(method: str, status: Status, reason: str, pixels: int = 0, **extras) -> "HeadingResult":
-        """Build the result of an estimate that has no heading.
+    def failed(
+        method: str, status: Status, reason: str, pixels: int = 0, **extras
+    ) -> 'HeadingResult':
+        """
+        Build the result of an estimate that has no heading.
 
         Parameters
         ----------
@@ -101,13 +130,24 @@ class HeadingResult:
         -------
         HeadingResult
             A result whose heading fields are None.
+
         """
         return HeadingResult(method, status, reason, pixels=int(pixels), extras=dict(extras))
 
     @staticmethod
-    def from_psi(method: str, psi_deg: float, sun_azimuth_deg: float, sigma_deg: float, pixels: int,
-                 quality: float, axial: bool, reason: str = "", **kw) -> "HeadingResult":
-        """Build a result from the paper's yaw psi, filling the true bearing and REP-103 yaw.
+    def from_psi(
+        method: str,
+        psi_deg: float,
+        sun_azimuth_deg: float,
+        sigma_deg: float,
+        pixels: int,
+        quality: float,
+        axial: bool,
+        reason: str = '',
+        **kw,
+    ) -> 'HeadingResult':
+        """
+        Build a result from the paper's yaw psi, filling the true bearing and REP-103 yaw.
 
         ``bearing = psi + A_sun`` (eq 26 with its sign erratum fixed) and ``yaw_enu = 90 -
         bearing``.
@@ -150,42 +190,55 @@ class HeadingResult:
         ----------
         .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
            Polarized Skylight Orientation Determination" (the seed paper), eqs 21 and 26.
+
         """
         psi_deg, sun_azimuth_deg, quality = float(psi_deg), float(sun_azimuth_deg), float(quality)
-        for name, v in (("psi_deg", psi_deg), ("sigma_deg", sigma_deg), ("quality", quality)):
+        for name, v in (('psi_deg', psi_deg), ('sigma_deg', sigma_deg), ('quality', quality)):
             if v is not None and not math.isfinite(v):
-                raise FloatingPointError(f"{method}: non-finite {name} reached a result")
+                raise FloatingPointError(f'{method}: non-finite {name} reached a result')
         if not math.isfinite(sun_azimuth_deg):
-            bearing = float(psi_to_bearing_deg(psi_deg, sun_azimuth_deg))      # nan, as before
+            bearing = float(psi_to_bearing_deg(psi_deg, sun_azimuth_deg))  # nan, as before
         else:
             bearing = wrap_360_deg_float(psi_deg + sun_azimuth_deg)
-        return HeadingResult(method, Status.AMBIGUOUS if axial else Status.OK, reason,
-                             wrap_180_deg_float(psi_deg), bearing, wrap_180_deg_float(90.0 - bearing),
-                             None if sigma_deg is None else float(sigma_deg), int(pixels),
-                             min(max(quality, 0.0), 1.0), bool(axial), **kw)
+        return HeadingResult(
+            method,
+            Status.AMBIGUOUS if axial else Status.OK,
+            reason,
+            wrap_180_deg_float(psi_deg),
+            bearing,
+            wrap_180_deg_float(90.0 - bearing),
+            None if sigma_deg is None else float(sigma_deg),
+            int(pixels),
+            min(max(quality, 0.0), 1.0),
+            bool(axial),
+            **kw,
+        )
 
     def to_json_dict(self) -> dict:
-        """Convert the result to a JSON-ready dict.
+        """
+        Convert the result to a JSON-ready dict.
 
         Returns
         -------
         dict
             The dataclass fields by name, ``status`` as its string value.
+
         """
         d = asdict(self)
-        d["status"] = self.status.value
+        d['status'] = self.status.value
         return d
 
 
 @dataclass
 class Observation:
-    """What an estimator sees. Images may be 2-D (a grid) or 1-D (a pixel list); all share a shape.
+    """
+    What an estimator sees. Images may be 2-D (a grid) or 1-D (a pixel list); all share a shape.
 
     ``aop_rad`` eq 28 convention; ``rays_cam`` (3, N) float32 unit rays in the order of
-    ``aop_rad.reshape(-1)``; ``x_px``/``y_px`` 1-based eq 20 coordinates. The sun (azimuth clockwise
-    from North, geometric altitude) comes from the ephemeris; it turns psi into a bearing and flags
-    sun-at-zenith / below-horizon cases. ``pitch_deg``/``roll_deg`` are the known tilt (tilt_aware),
-    ``prior_bearing_deg`` an optional prior that resolves the 180 deg ambiguity.
+    ``aop_rad.reshape(-1)``; ``x_px``/``y_px`` 1-based eq 20 coordinates. The sun (azimuth
+    clockwise from North, geometric altitude) comes from the ephemeris; it turns psi into a bearing
+    and flags sun-at-zenith / below-horizon cases. ``pitch_deg``/``roll_deg`` are the known tilt
+    (tilt_aware), ``prior_bearing_deg`` an optional prior that resolves the 180 deg ambiguity.
     """
 
     aop_rad: np.ndarray
@@ -203,8 +256,11 @@ class Observation:
     prior_bearing_deg: float | None = None
 
     @staticmethod
-    def from_frame(frame, pitch_deg=None, roll_deg=None, prior_bearing_deg=None, camera=None) -> "Observation":
-        """Build an observation from a rendered frame (measured AoP/DoP when sensor effects ran).
+    def from_frame(
+        frame, pitch_deg=None, roll_deg=None, prior_bearing_deg=None, camera=None
+    ) -> 'Observation':
+        """
+        Build an observation from a rendered frame (measured AoP/DoP when sensor effects ran).
 
         Parameters
         ----------
@@ -223,17 +279,37 @@ class Observation:
         -------
         Observation
             The frame's arrays (not copied) with the sun, tilt and prior.
+
         """
         from ..scene import Scene  # noqa: F401  (documentation of origin)
-        cam = camera if camera is not None else CameraModel(**frame.meta["camera"]) if "camera" in frame.meta \
+
+        cam = (
+            camera
+            if camera is not None
+            else CameraModel(**frame.meta['camera'])
+            if 'camera' in frame.meta
             else CameraModel()
-        return Observation(frame.aop_rad, frame.dop, frame.valid, frame.rays_cam, frame.x_px, frame.y_px, cam,
-                           frame.sun.azimuth_deg, frame.sun.altitude_deg, frame.intensity,
-                           pitch_deg, roll_deg, prior_bearing_deg)
+        )
+        return Observation(
+            frame.aop_rad,
+            frame.dop,
+            frame.valid,
+            frame.rays_cam,
+            frame.x_px,
+            frame.y_px,
+            cam,
+            frame.sun.azimuth_deg,
+            frame.sun.altitude_deg,
+            frame.intensity,
+            pitch_deg,
+            roll_deg,
+            prior_bearing_deg,
+        )
 
 
 class Estimator:
-    """Declare a heading method: the base class every estimator derives from.
+    """
+    Declare a heading method: the base class every estimator derives from.
 
     A subclass implements :meth:`estimate` and declares the facts about its method as class
     attributes, which everything else reads through :mod:`.registry`. ``knobs`` trade accuracy for
@@ -272,10 +348,11 @@ class Estimator:
     relative_cost : float
         CPU time per frame relative to the others (median ms per frame at the nodes' knobs, ``make
         bench`` group replay, 2026-11-24), used only to balance the replay's worker threads.
+
     """
 
-    name = "base"
-    label = ""
+    name = 'base'
+    label = ''
     style: tuple | None = None
     axial = True
     needs_tilt = False
@@ -289,17 +366,20 @@ class Estimator:
 
     @classmethod
     def knob_specs(cls) -> dict:
-        """Describe the knobs the method accepts (none here).
+        """
+        Describe the knobs the method accepts (none here).
 
         Returns
         -------
         dict
             ``{knob name: Knob}``; empty for a method without knobs.
+
         """
         return {}
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
-        """Tell a renderer which pixels the method reads (all here), so sweeps render only those.
+        """
+        Tell a renderer which pixels the method reads (all here), so sweeps render only those.
 
         Parameters
         ----------
@@ -310,11 +390,15 @@ class Estimator:
         -------
         PixelSelection
             The pixels to render.
+
         """
         return PixelSelection.full()
 
-    def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:  # pragma: no cover - interface
-        """Estimate one heading from an observation.
+    def estimate(
+        self, obs: Observation, sigma: bool = True
+    ) -> HeadingResult:  # pragma: no cover - interface
+        """
+        Estimate one heading from an observation.
 
         ``sigma=False`` skips the uncertainty (``sigma_deg`` None, no residual statistics in
         ``extras``) for callers that use only psi and status (error-map sweeps): psi is the same as
@@ -333,5 +417,6 @@ class Estimator:
         HeadingResult
             psi [deg] (eq 21), bearing and REP-103 yaw, or a failure status with a reason; never
             NaN.
+
         """
         raise NotImplementedError

@@ -1,50 +1,81 @@
-"""Least-squares sun from E-vectors (the paper's fourth approach) and its exact tilt-aware variant.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Least-squares sun from E-vectors (the paper's fourth approach) and its exact tilt-aware variant.
 
 Each AoP is lifted to the unit 3-D E-vector ``e_i`` perpendicular to its pixel's ray
 (:func:`~polarization_compass.conventions.evector_cam_from_aop`). Under the Rayleigh model every
 ``e_i`` is perpendicular to the sun, so the camera-frame sun is the eigenvector of the smallest
 eigenvalue of ``M = sum_i w_i e_i e_i^T`` (a total least-squares fit), defined up to sign.
 
-``least_squares`` assumes a level camera: ``psi = -atan2(s_x, s_y)``. Under tilt this reproduces the
-paper's tilt error. ``tilt_aware`` levels the solution with the known pitch and roll first:
-``s_lev = Rx(pitch) Ry(roll) s_cam`` (the same eigenvector: levelling is a rotation, so M need not be
-rebuilt) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact at any tilt under the Rayleigh model.
+``least_squares`` assumes a level camera: ``psi = -atan2(s_x, s_y)``. Under tilt this reproduces
+the paper's tilt error. ``tilt_aware`` levels the solution with the known pitch and roll first:
+``s_lev = Rx(pitch) Ry(roll) s_cam`` (the same eigenvector: levelling is a rotation, so M need not
+be rebuilt) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact at any tilt under the Rayleigh model.
 
-Sign: the sun is above the horizon. ``tilt_aware`` (and ``least_squares`` when the observation carries
-pitch/roll) choose the sign whose *levelled* elevation is positive, if it exceeds ``sign_margin_sigma``
-standard deviations. ``least_squares`` without tilt knows only that the camera is tilted by at most
-``max_tilt_deg``: the sign is certain only when the camera-frame elevation exceeds that plus the margin.
-Otherwise the brightness gradient or a prior bearing decide, or the result is axial (ambiguous).
+Sign: the sun is above the horizon. ``tilt_aware`` (and ``least_squares`` when the observation
+carries pitch/roll) choose the sign whose *levelled* elevation is positive, if it exceeds
+``sign_margin_sigma`` standard deviations. ``least_squares`` without tilt knows only that the
+camera is tilted by at most ``max_tilt_deg``: the sign is certain only when the camera-frame
+elevation exceeds that plus the margin. Otherwise the brightness gradient or a prior bearing
+decide, or the result is axial (ambiguous).
 
 Sampling: an even ``stride`` on a full-resolution observation reads the four phases of the 2 x 2
-polarizer mosaic equally (``select_view(..., balance_phases=True)``). A bilinear demosaic gives each phase
-anisotropic Stokes noise and so an AoP bias of O(sigma^2) with a phase-dependent sign; a plain stride reads
-one phase, and on a full frame that bias (~0.001-0.002 deg) exceeded the statistical sigma (mean(err^2 /
-sigma^2) 2-3.5 at stride 2-4, 1.0 with the balanced stride).
+polarizer mosaic equally (``select_view(..., balance_phases=True)``). A bilinear demosaic gives
+each phase anisotropic Stokes noise and so an AoP bias of O(sigma^2) with a phase-dependent sign; a
+plain stride reads one phase, and on a full frame that bias (~0.001-0.002 deg) exceeded the
+statistical sigma (mean(err^2 / sigma^2) 2-3.5 at stride 2-4, 1.0 with the balanced stride).
 
 Uncertainty: first-order eigenvector perturbation. With residuals ``r_i = s . e_i`` (the noise
-projected on the sun), ``d s = -sum_{k=2,3} u_k (u_k^T dM s) / (lambda_k - lambda_1)`` and
-``dM s = sum_i w_i e_i r_i``, so pixel i moves psi by
-``phi_i = -sum_k (g . u_k)(u_k . e_i) w_i r_i / (lambda_k - lambda_1)`` with ``g = d psi / d s``; the
-variance is the cluster-robust sum of ``phi_i`` over blocks (see ``_common``).
+projected on the sun), ``d s = -sum_{k=2,3} u_k (u_k^T dM s) / (lambda_k - lambda_1)`` and ``dM s =
+sum_i w_i e_i r_i``, so pixel i moves psi by ``phi_i = -sum_k (g . u_k)(u_k . e_i) w_i r_i /
+(lambda_k - lambda_1)`` with ``g = d psi / d s``; the variance is the cluster-robust sum of
+``phi_i`` over blocks (see ``_common``).
 """
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
+from ._common import (
+    _BadInput,
+    brightness_t_from_stats,
+    Candidate,
+    check_sun,
+    cr1_factor,
+    finish_sigma_deg,
+    Knob,
+    KnobbedEstimator,
+    psi_from_sun_rad,
+    resolve_ambiguity,
+    result_from,
+    select_view,
+    selection_for,
+    view_grid_layout,
+    view_segments,
+)
+from ._kernels import _FM, full_pass, sub_pass
+from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y
-from .base import Estimator, HeadingResult, Observation, Status
-from ._common import (Candidate, Knob, KnobbedEstimator, _BadInput, brightness_t_from_stats, check_sun, cr1_factor,
-                      finish_sigma_deg, psi_from_sun_rad, resolve_ambiguity, result_from, select_view, selection_for,
-                      view_grid_layout, view_segments)
-from ._kernels import _FM, full_pass, sub_pass
 from ..fastmath import sincos32_folded as _sincos32
 
-__all__ = ["LeastSquaresEstimator", "TiltAwareEstimator", "solve_sun"]
+__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator', 'solve_sun']
 
 
 @njit(cache=True, nogil=True)
@@ -63,7 +94,8 @@ def _solve_sun_kernel(M, B, C, bias_correction, iterations):  # pragma: no cover
 
 
 def solve_sun(M, B, C, bias_correction=True, iterations=3):
-    """Find the smallest eigenvector of ``sum w e e^T`` of lifted E-vectors, optionally debiased.
+    """
+    Find the smallest eigenvector of ``sum w e e^T`` of lifted E-vectors, optionally debiased.
 
     AoP noise makes ``E[M] = M_true + sigma0^2 B``: a pixel's E-vector turns about its ray, adding
     ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by
@@ -108,40 +140,54 @@ def solve_sun(M, B, C, bias_correction=True, iterations=3):
        approach, after its refs [33-35]).
     .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
        vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+
     """
     M = np.ascontiguousarray(M, dtype=np.float64)
     if not np.all(np.isfinite(M)):
-        raise np.linalg.LinAlgError("the E-vector matrix has non-finite entries")
-    return _solve_sun_kernel(M, np.ascontiguousarray(B, dtype=np.float64), np.ascontiguousarray(C, dtype=np.float64),
-                             bool(bias_correction), int(iterations))
+        raise np.linalg.LinAlgError('the E-vector matrix has non-finite entries')
+    return _solve_sun_kernel(
+        M,
+        np.ascontiguousarray(B, dtype=np.float64),
+        np.ascontiguousarray(C, dtype=np.float64),
+        bool(bias_correction),
+        int(iterations),
+    )
 
 
 #: :func:`._common.cr1_factor` compiled for :func:`_block_sigmas`.
-_cr1_factor = njit(inline="always", cache=True)(cr1_factor)
+_cr1_factor = njit(inline='always', cache=True)(cr1_factor)
 
-_FIRST_LOOK = 4096     # pixels of the first, noise-scale subsample
+_FIRST_LOOK = 4096  # pixels of the first, noise-scale subsample
 
 
 def _noise_scale_sq(sub, bias_correction: bool) -> float:
-    """sigma0^2 (rad^2, the AoP noise variance at DoP 1 under the 1/DoP^2 model) from subsample sums."""
-    if not np.trace(sub["M"]) > 0.0:
+    """
+    Return sigma0^2 (rad^2), the AoP noise variance at DoP 1, from subsample sums.
+
+    sigma0^2 (rad^2, the AoP noise variance at DoP 1 under the 1/DoP^2 model) from subsample sums.
+    """
+    if not np.trace(sub['M']) > 0.0:
         return 0.0
     try:
-        _, U, s0sq = solve_sun(sub["M"], sub["B"], sub["C"], bias_correction)
+        _, U, s0sq = solve_sun(sub['M'], sub['B'], sub['C'], bias_correction)
     except np.linalg.LinAlgError:
         return 0.0
     if not bias_correction:
         s = U[:, 0]
-        den = float(s @ sub["C"] @ s)
-        s0sq = float(s @ sub["M"] @ s) / den if den > 0 else 0.0
+        den = float(s @ sub['C'] @ s)
+        s0sq = float(s @ sub['M'] @ s) / den if den > 0 else 0.0
     return max(s0sq, 0.0)
 
 
 @njit(cache=True, nogil=True)
 def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
-    """Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums centred
-    by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor
-    (:func:`._common.cr1_factor`)."""
+    """
+    Return the cluster-robust sigma for each row c of ``cs`` (CR1 factor).
+
+    Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums
+    centred by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1
+    small-sample factor (:func:`._common.cr1_factor`).
+    """
     K = cs.shape[0]
     G = block_m.shape[0]
     out = np.zeros(K)
@@ -175,16 +221,28 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
 
 
 def _consensus_sun(view, obs):
-    """Return the camera-frame sun of the robust whole-view fit (:func:`polarization_compass.skyfit.fit_sky`
-    at the ephemeris altitude and the known tilt, level when unknown), or None with too few pixels.
+    """
+    Return the camera-frame sun of the robust whole-view fit, or None.
 
-    The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about 20000
-    first (a regular step through its pixels) so that picking them does not scan a multi-megapixel frame."""
+    Return the camera-frame sun of the robust whole-view fit
+    (:func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known tilt,
+    level when unknown), or None with too few pixels.
+
+    The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about
+    20000 first (a regular step through its pixels) so that picking them does not scan a
+    multi-megapixel frame.
+    """
     from ..skyfit import _sun_cam, fit_sky, sample_sky
+
     n = int(np.size(view.aop))
     step = max(1, n // 20000)
-    sample = sample_sky(np.ravel(view.aop)[::step], np.ravel(view.dop)[::step], np.ravel(view.valid)[::step],
-                        np.asarray(view.rays).reshape(3, -1)[:, ::step], max_pixels=2000)
+    sample = sample_sky(
+        np.ravel(view.aop)[::step],
+        np.ravel(view.dop)[::step],
+        np.ravel(view.valid)[::step],
+        np.asarray(view.rays).reshape(3, -1)[:, ::step],
+        max_pixels=2000,
+    )
     if sample is None:
         return None
     p = float(obs.pitch_deg) if obs.pitch_deg is not None else 0.0
@@ -193,13 +251,17 @@ def _consensus_sun(view, obs):
     return _sun_cam([f.psi_deg], [f.sun_altitude_deg], p, r)[0]
 
 
-@njit(fastmath=_FM, cache=True, nogil=True, error_model="numpy")
+@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
 def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no cover - compiled
-    """One pass: ``keep[i] = valid[i]`` unless pixel i's AoP is further than the limit from the Rayleigh AoP
-    of the sun ``(s0, s1, s2)``: ``cos 2(a - m) < cos_lim`` with ``m`` the eq 28 angle of ``E = S x P``
-    (eq 18), from doubled angles (no angle subtraction). float32, branch-free with the vectorising
-    ``sincos32_folded`` (a non-finite AoP compares false and is kept, as the fit's own pass decides
-    about it). Returns how many valid pixels were dropped."""
+    """
+    Mark the valid pixels whose AoP is within the limit of the Rayleigh AoP of the sun.
+
+    One pass: ``keep[i] = valid[i]`` unless pixel i's AoP is further than the limit from the
+    Rayleigh AoP of the sun ``(s0, s1, s2)``: ``cos 2(a - m) < cos_lim`` with ``m`` the eq 28 angle
+    of ``E = S x P`` (eq 18), from doubled angles (no angle subtraction). float32, branch-free with
+    the vectorising ``sincos32_folded`` (a non-finite AoP compares false and is kept, as the fit's
+    own pass decides about it). Returns how many valid pixels were dropped.
+    """
     f0 = np.float32(0.0)
     f2 = np.float32(2.0)
     t0, t1, t2 = np.float32(s0), np.float32(s1), np.float32(s2)
@@ -212,7 +274,9 @@ def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no co
         ey = t2 * px - t0 * pz
         n2 = ex * ex + ey * ey
         sa, ca = _sincos32(np.float32(aop[i]))
-        num = (ca * ca - sa * sa) * (ey * ey - ex * ex) + f2 * sa * ca * f2 * ex * ey     # cos 2(a - m) * n2
+        num = (ca * ca - sa * sa) * (
+            ey * ey - ex * ex
+        ) + f2 * sa * ca * f2 * ex * ey  # cos 2(a - m) * n2
         drop = valid[i] and n2 > tiny and num < lim * n2
         keep[i] = valid[i] and not drop
         x = 1.0 if drop else 0.0
@@ -221,43 +285,87 @@ def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no co
 
 
 def _trim_outliers(view, sun_cam, outlier_deg: float):
-    """Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of ``sun_cam``.
+    """
+    Drop the view's pixels whose AoP is more than ``outlier_deg`` from Rayleigh's.
 
-    The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial difference,
-    computed from doubled angles. Returns the view with those pixels invalid and how many were dropped
-    (of the valid ones). This is the consensus step of the robust refit (``outlier_deg`` knob): a fit
-    that clouds, flare ghosts or an obstacle pulled is refitted on the pixels that agree with it. One
-    compiled pass over the pixels the estimator already reads, no temporaries (:func:`_outlier_pass`).
+    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of
+    ``sun_cam``.
+
+    The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial
+    difference, computed from doubled angles. Returns the view with those pixels invalid and how
+    many were dropped (of the valid ones). This is the consensus step of the robust refit
+    (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle pulled is refitted on
+    the pixels that agree with it. One compiled pass over the pixels the estimator already reads,
+    no temporaries (:func:`_outlier_pass`).
     """
     from dataclasses import replace
+
     valid = np.asarray(view.valid, dtype=bool)
     keep = np.empty(valid.shape, dtype=bool)
     s = np.asarray(sun_cam, dtype=np.float64)
     rays = np.asarray(view.rays)
-    dropped = _outlier_pass(np.ravel(view.aop), np.ravel(valid), rays.reshape(3, -1), float(s[0]), float(s[1]),
-                            float(s[2]), math.cos(math.radians(2.0 * outlier_deg)), keep.reshape(-1))
+    dropped = _outlier_pass(
+        np.ravel(view.aop),
+        np.ravel(valid),
+        rays.reshape(3, -1),
+        float(s[0]),
+        float(s[1]),
+        float(s[2]),
+        math.cos(math.radians(2.0 * outlier_deg)),
+        keep.reshape(-1),
+    )
     return replace(view, valid=keep), int(dropped)
 
 
 class _LSBase(KnobbedEstimator, Estimator):
     axial = False
-    accepts_units = True          # the same eigen-solve runs on a photodiode array's unit E-vectors
+    accepts_units = True  # the same eigen-solve runs on a photodiode array's unit E-vectors
     OWN_KNOBS = {
-        "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
-                          doc="pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform"),
-        "sign_margin_sigma": Knob(5.0, "float", 0.0, 100.0,
-                                  doc="elevation margin, in sigmas, before the sun's side is trusted"),
-        "min_eigen_gap": Knob(1e-9, "float", 0.0, 1.0,
-                              doc="(lambda2 - lambda1) / lambda3 below this: status degenerate"),
-        "noise_model": Knob("dop", "choice", choices=("dop", "dop_intensity", "uniform"),
-                            doc="relative AoP noise variance per pixel for the bias correction: 1/DoP^2, "
-                                "1/(DoP^2 I) (shot noise, needs intensity) or constant"),
-        "bias_correction": Knob(True, "bool", doc="remove the O(sigma^2) noise bias of the eigenvector"),
-        "max_aop_noise_deg": Knob(5.0, "float", 0.1, 90.0,
-                                  doc="drop pixels whose estimated AoP noise (sigma0 / DoP) exceeds this"),
-        "outlier_deg": Knob(0.0, "float", 0.0, 90.0,
-                            doc="robust refit (real skies: clouds, flare, obstacles): pixels whose AoP is further "
-                                "than this from the fitted sky are dropped and the sun refitted, twice; 0 = off"),
+        'weighting': Knob(
+            'dop2',
+            'choice',
+            choices=('dop2', 'uniform'),
+            doc='pixel weights: DoP^2 (AoP noise ~ 1/DoP) or uniform',
+        ),
+        'sign_margin_sigma': Knob(
+            5.0,
+            'float',
+            0.0,
+            100.0,
+            doc="elevation margin, in sigmas, before the sun's side is trusted",
+        ),
+        'min_eigen_gap': Knob(
+            1e-9,
+            'float',
+            0.0,
+            1.0,
+            doc='(lambda2 - lambda1) / lambda3 below this: status degenerate',
+        ),
+        'noise_model': Knob(
+            'dop',
+            'choice',
+            choices=('dop', 'dop_intensity', 'uniform'),
+            doc='relative AoP noise variance per pixel for the bias correction: 1/DoP^2, '
+            '1/(DoP^2 I) (shot noise, needs intensity) or constant',
+        ),
+        'bias_correction': Knob(
+            True, 'bool', doc='remove the O(sigma^2) noise bias of the eigenvector'
+        ),
+        'max_aop_noise_deg': Knob(
+            5.0,
+            'float',
+            0.1,
+            90.0,
+            doc='drop pixels whose estimated AoP noise (sigma0 / DoP) exceeds this',
+        ),
+        'outlier_deg': Knob(
+            0.0,
+            'float',
+            0.0,
+            90.0,
+            doc='robust refit (real skies: clouds, flare, obstacles): pixels whose AoP is further '
+            'than this from the fitted sky are dropped and the sun refitted, twice; 0 = off',
+        ),
     }
     level_with_tilt = False
 
@@ -266,7 +374,8 @@ class _LSBase(KnobbedEstimator, Estimator):
         self.knobs = self._validate_knobs(knobs)
 
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
-        """Tell a renderer which pixels the method reads, so sweeps render only those.
+        """
+        Tell a renderer which pixels the method reads, so sweeps render only those.
 
         Parameters
         ----------
@@ -277,12 +386,14 @@ class _LSBase(KnobbedEstimator, Estimator):
         -------
         PixelSelection
             The pixels that ``stride`` and ``region`` select.
+
         """
         return selection_for(self.knobs, camera)
 
     # ------------------------------------------------------------------------------------------
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
-        """Estimate one heading from the smallest eigenvector of ``M = sum w e e^T`` (the sun).
+        """
+        Estimate one heading from the smallest eigenvector of ``M = sum w e e^T`` (the sun).
 
         Each AoP is lifted to its 3-D E-vector, the sun is fitted by total least squares
         (optionally noise-debiased, :func:`solve_sun`), levelled with the known pitch and roll when
@@ -316,6 +427,7 @@ class _LSBase(KnobbedEstimator, Estimator):
            (the least-square approach, after its refs [33-35]).
         .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
            vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+
         """
         k = self.knobs
         bad = check_sun(self.name, obs, k)
@@ -329,66 +441,91 @@ class _LSBase(KnobbedEstimator, Estimator):
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
         acc, sub, min_dop = self._accumulate(view)
-        n = acc["n"]
-        if n < k["min_pixels"]:
-            return self._too_few(n, acc["nonfinite"], min_dop)
+        n = acc['n']
+        if n < k['min_pixels']:
+            return self._too_few(n, acc['nonfinite'], min_dop)
         sol = self._solve(acc, sub, n)
         if isinstance(sol, HeadingResult):
             return sol
         trimmed = 0
-        for it in range(2 if k["outlier_deg"] > 0 else 0):
-            # consensus: first against the robust whole-view sun (candidate suns over the circle, Cauchy
-            # loss: a fit pulled by clouds or flare cannot seed it), then against the refitted sun
+        for it in range(2 if k['outlier_deg'] > 0 else 0):
+            # consensus: first against the robust whole-view sun (candidate suns over the circle,
+            # Cauchy loss: a fit pulled by clouds or flare cannot seed it), then against the
+            # refitted sun
             sun0 = _consensus_sun(view, obs) if it == 0 else sol[2][:, 0]
             if sun0 is None:
                 break
-            view2, dropped = _trim_outliers(view, sun0, k["outlier_deg"])
+            view2, dropped = _trim_outliers(view, sun0, k['outlier_deg'])
             if dropped == trimmed:
                 break
             acc2, sub2, min_dop2 = self._accumulate(view2)
-            if acc2["n"] < k["min_pixels"]:
+            if acc2['n'] < k['min_pixels']:
                 break
-            sol2 = self._solve(acc2, sub2, acc2["n"])
+            sol2 = self._solve(acc2, sub2, acc2['n'])
             if isinstance(sol2, HeadingResult):
                 break
-            acc, sub, min_dop, n, sol, trimmed = acc2, sub2, min_dop2, acc2["n"], sol2, dropped
+            acc, sub, min_dop, n, sol, trimmed = acc2, sub2, min_dop2, acc2['n'], sol2, dropped
         M, lam, U, sigma0_sq = sol
         s = U[:, 0].copy()
         R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
-        s_h = R @ s                                   # the frame the heading is read in
+        s_h = R @ s  # the frame the heading is read in
         rho = math.hypot(s_h[0], s_h[1])
-        if rho < math.cos(math.radians(k["max_sun_altitude_deg"])):
-            return HeadingResult.failed(self.name, Status.SUN_NEAR_ZENITH,
-                                        f"the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from "
-                                        "the zenith: the solar meridian is ill-conditioned", pixels=n)
+        if rho < math.cos(math.radians(k['max_sun_altitude_deg'])):
+            return HeadingResult.failed(
+                self.name,
+                Status.SUN_NEAR_ZENITH,
+                f'the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from '
+                'the zenith: the solar meridian is ill-conditioned',
+                pixels=n,
+            )
         R_sign = R_lev if R_lev is not None else np.eye(3)
-        s_sign = R_sign @ s                           # the frame the sun's side is decided in
+        s_sign = R_sign @ s  # the frame the sun's side is decided in
         sigmas = self._sigmas(acc, n, s, lam, U, R, s_h, rho, R_sign, s_sign, sigma)
         sigma_el = float(sigmas[0])
         cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-        first, second = (cands if s_sign[2] >= 0 else cands[::-1])
+        first, second = cands if s_sign[2] >= 0 else cands[::-1]
         sun_rule = self._sign_rule(first, s_sign, sigma_el, R_lev is not None)
-        bt = brightness_t_from_stats(acc["stats"], first.sun_cam - second.sun_cam)
+        bt = brightness_t_from_stats(acc['stats'], first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k, sun_rule)
         s_pick = pick.sun_cam
         alt_frame = R_sign @ s_pick
         implied_alt = math.degrees(math.asin(float(np.clip(alt_frame[2], -1.0, 1.0))))
         wsum = float(np.trace(M))
         quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
-        extras = {"eigenvalues": [float(v / wsum) for v in lam], "sigma_sun_elevation_deg": math.degrees(sigma_el),
-                  "sun_altitude_ephemeris_deg": float(obs.sun_altitude_deg),
-                  "noise_scale_deg": math.degrees(math.sqrt(sigma0_sq)), "min_dop_used": min_dop,
-                  "sun_cam": [float(v) for v in s_pick], "outliers_dropped": int(trimmed)}
+        extras = {
+            'eigenvalues': [float(v / wsum) for v in lam],
+            'sigma_sun_elevation_deg': math.degrees(sigma_el),
+            'sun_altitude_ephemeris_deg': float(obs.sun_altitude_deg),
+            'noise_scale_deg': math.degrees(math.sqrt(sigma0_sq)),
+            'min_dop_used': min_dop,
+            'sun_cam': [float(v) for v in s_pick],
+            'outliers_dropped': int(trimmed),
+        }
         sigma_deg = None
         if sigma:
-            extras["rms_residual_deg"] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
+            extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
             sigma_deg = finish_sigma_deg(float(sigmas[1]), k)
-        return result_from(self.name, pick, by, reason, obs, sigma_deg, n, acc["nonfinite"], quality,
-                           sun_altitude_deg=implied_alt, extras=extras)
+        return result_from(
+            self.name,
+            pick,
+            by,
+            reason,
+            obs,
+            sigma_deg,
+            n,
+            acc['nonfinite'],
+            quality,
+            sun_altitude_deg=implied_alt,
+            extras=extras,
+        )
 
     def _levelling(self, obs: Observation):
-        """The levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt, None without a usable tilt
-        (``least_squares``), or a failed result (``tilt_aware`` needs it)."""
+        """
+        Return the levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt.
+
+        The levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt, None without a
+        usable tilt (``least_squares``), or a failed result (``tilt_aware`` needs it).
+        """
         if obs.pitch_deg is None or obs.roll_deg is None:
             R_lev = None
         else:
@@ -396,72 +533,105 @@ class _LSBase(KnobbedEstimator, Estimator):
             if math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0:
                 R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
             elif self.level_with_tilt:
-                return HeadingResult.failed(self.name, Status.BAD_INPUT,
-                                            f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
+                return HeadingResult.failed(
+                    self.name,
+                    Status.BAD_INPUT,
+                    f'pitch/roll must be finite, |pitch| < 90: got {p}, {r}',
+                )
             else:
                 R_lev = None
         if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(self.name, Status.BAD_INPUT,
-                                        "tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)")
+            return HeadingResult.failed(
+                self.name,
+                Status.BAD_INPUT,
+                'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)',
+            )
         return R_lev
 
     def _accumulate(self, view):
-        """The compiled passes over a view: (block sums of the full pass, subsample sums, min_dop used).
+        """
+        Run the compiled passes over a view.
+
+        The compiled passes over a view: (block sums of the full pass, subsample sums, min_dop
+        used).
 
         Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
-        max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model (and the
-        Gaussian picture of AoP noise) breaks down and they add bias, not information."""
+        max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model
+        (and the Gaussian picture of AoP noise) breaks down and they add bias, not information.
+        """
         k = self.knobs
-        flat, segs = view_segments(view, k["block_px"])
+        flat, segs = view_segments(view, k['block_px'])
         arrs = flat[:4] + flat[6:]
-        var_mode = {"uniform": 0, "dop": 1, "dop_intensity": 2}[k["noise_model"]]
+        var_mode = {'uniform': 0, 'dop': 1, 'dop_intensity': 2}[k['noise_model']]
         if var_mode == 2 and arrs[4] is None:
             var_mode = 1
-        wmode = 1 if k["weighting"] == "dop2" else 0
-        min_dop = k["min_dop"]
-        sigma_max = math.radians(k["max_aop_noise_deg"])
-        sub = sub_pass(*arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK)   # a first look at the noise
+        wmode = 1 if k['weighting'] == 'dop2' else 0
+        min_dop = k['min_dop']
+        sigma_max = math.radians(k['max_aop_noise_deg'])
+        sub = sub_pass(
+            *arrs, min_dop, wmode, var_mode, sub_pixels=_FIRST_LOOK
+        )  # a first look at the noise
         if var_mode == 1:
-            s0sq = _noise_scale_sq(sub, k["bias_correction"])
-            min_dop = min(max(k["min_dop"], math.sqrt(s0sq) / sigma_max), 0.99)
-        if not (min_dop == k["min_dop"] and sub["every_pixel"]):   # else the first look read what this would
+            s0sq = _noise_scale_sq(sub, k['bias_correction'])
+            min_dop = min(max(k['min_dop'], math.sqrt(s0sq) / sigma_max), 0.99)
+        if not (
+            min_dop == k['min_dop'] and sub['every_pixel']
+        ):  # else the first look read what this would
             sub = sub_pass(*arrs, min_dop, wmode, var_mode)
-        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k["block_px"]))
+        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k['block_px']))
         return acc, sub, min_dop
 
     def _too_few(self, n: int, nonfinite: int, min_dop: float) -> HeadingResult:
         k = self.knobs
-        why = f" (min_dop raised to {min_dop:.3f} by the noise)" if min_dop > k["min_dop"] else ""
-        return HeadingResult.failed(self.name, Status.TOO_FEW_PIXELS,
-                                    f"{n} usable pixel(s) < min_pixels {k['min_pixels']}{why}"
-                                    + (f" ({nonfinite} valid pixel(s) had non-finite values)"
-                                       if nonfinite else ""), pixels=n)
+        why = f' (min_dop raised to {min_dop:.3f} by the noise)' if min_dop > k['min_dop'] else ''
+        return HeadingResult.failed(
+            self.name,
+            Status.TOO_FEW_PIXELS,
+            f'{n} usable pixel(s) < min_pixels {k["min_pixels"]}{why}'
+            + (f' ({nonfinite} valid pixel(s) had non-finite values)' if nonfinite else ''),
+            pixels=n,
+        )
 
     def _solve(self, acc: dict, sub: dict, n: int):
-        """The (noise-debiased) eigen-solution: (M, lambdas ascending, U, sigma0^2), or a failed result when the
-        E-vectors do not single out a sun direction. Scales the subsample's bias matrices to the full pass
-        (into ``acc``: B, C, stats)."""
+        """
+        Solve the noise-debiased eigenproblem for the sun direction.
+
+        The (noise-debiased) eigen-solution: (M, lambdas ascending, U, sigma0^2), or a failed
+        result when the E-vectors do not single out a sun direction. Scales the subsample's bias
+        matrices to the full pass (into ``acc``: B, C, stats).
+        """
         k = self.knobs
-        M = acc["block_m"].sum(axis=0)
-        msub_tr = float(np.trace(sub["M"]))
+        M = acc['block_m'].sum(axis=0)
+        msub_tr = float(np.trace(sub['M']))
         scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
-        acc["B"], acc["C"], acc["stats"] = sub["B"] * scale, sub["C"] * scale, sub["stats"]
-        lam, U, sigma0_sq = solve_sun(M, acc["B"], acc["C"], k["bias_correction"])
+        acc['B'], acc['C'], acc['stats'] = sub['B'] * scale, sub['C'] * scale, sub['stats']
+        lam, U, sigma0_sq = solve_sun(M, acc['B'], acc['C'], k['bias_correction'])
         if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
+            return HeadingResult.failed(
+                self.name, Status.DEGENERATE, 'no usable E-vector weight', pixels=n
+            )
         gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k["min_eigen_gap"]:
-            return HeadingResult.failed(self.name, Status.DEGENERATE,
-                                        f"E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
-                                        pixels=n)
+        if gap <= k['min_eigen_gap']:
+            return HeadingResult.failed(
+                self.name,
+                Status.DEGENERATE,
+                f'E-vectors do not single out a sun direction (eigen gap {gap:.2e})',
+                pixels=n,
+            )
         return M, lam, U, sigma0_sq
 
     @staticmethod
-    def _sigmas(acc: dict, n: int, s, lam, U, R, s_h, rho: float, R_sign, s_sign, with_psi: bool) -> np.ndarray:
-        """Cluster-robust sigmas (rad) of the sun's elevation in the sign frame and (``with_psi``) of psi, from
-        first-order sensitivities: d psi / d s and d elevation / d s through the eigenvector perturbation
-        ``d s = -sum_k u_k (u_k . dM s) / d_k``, so ``d psi = -s^T dM c`` with ``c = sum_k (g . u_k) u_k / d_k``
-        (module doc)."""
+    def _sigmas(
+        acc: dict, n: int, s, lam, U, R, s_h, rho: float, R_sign, s_sign, with_psi: bool
+    ) -> np.ndarray:
+        """
+        Return the cluster-robust sigmas (rad) of the sun's elevation and of psi.
+
+        Cluster-robust sigmas (rad) of the sun's elevation in the sign frame and (``with_psi``) of
+        psi, from first-order sensitivities: d psi / d s and d elevation / d s through the
+        eigenvector perturbation ``d s = -sum_k u_k (u_k . dM s) / d_k``, so ``d psi = -s^T dM c``
+        with ``c = sum_k (g . u_k) u_k / d_k`` (module doc).
+        """
         g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
         rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
         g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
@@ -469,33 +639,52 @@ class _LSBase(KnobbedEstimator, Estimator):
         c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
         c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
         cs = np.stack([c_el, c_psi]) if with_psi else c_el[None, :]
-        return _block_sigmas(acc["block_m"], acc["block_w"], n, s, np.ascontiguousarray(cs))
+        return _block_sigmas(acc['block_m'], acc['block_w'], n, s, np.ascontiguousarray(cs))
 
     def _sign_rule(self, first: Candidate, s_sign, sigma_el: float, levelled: bool):
-        """The sun-elevation rule of :func:`._common.resolve_ambiguity`: ``first`` (the candidate with the sun
-        above the horizon of the sign frame) when its elevation exceeds the margin of ``sign_margin_sigma``
-        sigmas (plus ``max_tilt_deg`` when the frame is the camera's, not ``levelled``)."""
+        """
+        Apply the sun-elevation rule of :func:`._common.resolve_ambiguity`.
+
+        The sun-elevation rule of :func:`._common.resolve_ambiguity`: ``first`` (the candidate with
+        the sun above the horizon of the sign frame) when its elevation exceeds the margin of
+        ``sign_margin_sigma`` sigmas (plus ``max_tilt_deg`` when the frame is the camera's, not
+        ``levelled``).
+        """
         k = self.knobs
         el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
-        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
+        margin_deg = k['sign_margin_sigma'] * math.degrees(sigma_el)
 
         def sun_rule():
             if levelled:
                 if el_deg > margin_deg:
-                    return first, (f"sun side from the levelled sun elevation ({el_deg:.2f} deg > "
-                                   f"{margin_deg:.3f} deg margin)")
-                return None, f"levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg margin"
-            lim = k["max_tilt_deg"] + margin_deg
+                    return first, (
+                        f'sun side from the levelled sun elevation ({el_deg:.2f} deg > '
+                        f'{margin_deg:.3f} deg margin)'
+                    )
+                return (
+                    None,
+                    f'levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg '
+                    'margin',
+                )
+            lim = k['max_tilt_deg'] + margin_deg
             if el_deg > lim:
-                return first, (f"sun side from the camera-frame sun elevation ({el_deg:.2f} deg > max_tilt_deg "
-                               f"{k['max_tilt_deg']:g} + {margin_deg:.3f} deg margin)")
-            return None, (f"camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} "
-                          f"+ margin: the sun's side is unknown without the tilt")
+                return first, (
+                    f'sun side from the camera-frame sun elevation ({el_deg:.2f} deg > '
+                    'max_tilt_deg '
+                    f'{k["max_tilt_deg"]:g} + {margin_deg:.3f} deg margin)'
+                )
+            return None, (
+                f'camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg '
+                f'{k["max_tilt_deg"]:g} '
+                f"+ margin: the sun's side is unknown without the tilt"
+            )
+
         return sun_rule
 
 
 class LeastSquaresEstimator(_LSBase):
-    """Estimate the heading by the paper's least-squares approach (level-camera assumption).
+    """
+    Estimate the heading by the paper's least-squares approach (level-camera assumption).
 
     The camera-frame sun is the eigenvector of the smallest eigenvalue of ``sum w e e^T`` of the
     lifted E-vectors; ``psi = -atan2(s_x, s_y)`` assumes a level camera, so it reproduces the
@@ -521,22 +710,28 @@ class LeastSquaresEstimator(_LSBase):
        approach, after its refs [33-35]).
     .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
        vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+
     """
 
-    name = "least_squares"
-    label = "Least-squares"
-    style = ("tab:red", ":")
+    name = 'least_squares'
+    label = 'Least-squares'
+    style = ('tab:red', ':')
     paper_method = True
-    sweep_knobs = {"stride": 64}
+    sweep_knobs = {'stride': 64}
     relative_cost = 3.0
 
-    OWN_KNOBS = dict(_LSBase.OWN_KNOBS, max_tilt_deg=Knob(30.0, "float", 0.0, 89.0,
-                                                          doc="assumed bound on the tilt, for the sign rule"))
+    OWN_KNOBS = dict(
+        _LSBase.OWN_KNOBS,
+        max_tilt_deg=Knob(
+            30.0, 'float', 0.0, 89.0, doc='assumed bound on the tilt, for the sign rule'
+        ),
+    )
     level_with_tilt = False
 
 
 class TiltAwareEstimator(_LSBase):
-    """Estimate the heading by least squares after levelling with the known pitch and roll.
+    """
+    Estimate the heading by least squares after levelling with the known pitch and roll.
 
     ``s_lev = Rx(pitch) Ry(roll) s_cam`` (the transpose of eq 21's tilt part applied to the fitted
     sun) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact under the Rayleigh model at any tilt.
@@ -561,13 +756,14 @@ class TiltAwareEstimator(_LSBase):
        least-square approach, after its refs [33-35]).
     .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
        vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
+
     """
 
-    name = "tilt_aware"
-    label = "Tilt-aware LS"
-    style = ("tab:purple", "-")
+    name = 'tilt_aware'
+    label = 'Tilt-aware LS'
+    style = ('tab:purple', '-')
     needs_tilt = True
-    sweep_knobs = {"stride": 64}
+    sweep_knobs = {'stride': 64}
     relative_cost = 2.6
 
     level_with_tilt = True

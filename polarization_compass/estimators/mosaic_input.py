@@ -1,32 +1,57 @@
-"""From a raw division-of-focal-plane mosaic to an :class:`Observation`, demosaicing only what a method reads.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-An estimator's :meth:`pixels_needed` says which sensor pixels it uses; here that becomes the part of the
-mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a private demosaic):
-
-- ``superpixel``: one output per 2 x 2 block, at the block centre (``x = x0 + 2 l + 0.5``). A strided
-  selection keeps every ``max(1, stride // 2)``-th block row and column (block-aligned, so the polarizer
-  layout is unchanged; the kept blocks are centred on the image); a region keeps the blocks inside it.
-  The zenith method's 32 px window is 16 x 16 blocks: nothing else is demosaiced.
-- ``bilinear``: the region (plus a 2-pixel margin, so interpolation sees real neighbours) at full
-  resolution, then the stride.
-
-Rays come from the camera model and are cached per (camera, pixel grid). The result has 2-D arrays on
-a regular grid, as the estimators' compiled passes want.
 """
+From a raw division-of-focal-plane mosaic to an :class:`Observation`.
+
+From a raw division-of-focal-plane mosaic to an :class:`Observation`, demosaicing only what a
+method reads.
+
+An estimator's :meth:`pixels_needed` says which sensor pixels it uses; here that becomes the part
+of the mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a private demosaic):
+
+- ``superpixel``: one output per 2 x 2 block, at the block centre (``x = x0 + 2 l + 0.5``). A
+  strided selection keeps every ``max(1, stride // 2)``-th block row and column (block-aligned, so
+  the polarizer layout is unchanged; the kept blocks are centred on the image); a region keeps the
+  blocks inside it. The zenith method's 32 px window is 16 x 16 blocks: nothing else is demosaiced.
+- ``bilinear``: the region (plus a 2-pixel margin, so interpolation sees real neighbours) at full
+resolution, then the stride.
+
+Rays come from the camera model and are cached per (camera, pixel grid). The result has 2-D arrays
+on a regular grid, as the estimators' compiled passes want.
+"""
+
 from __future__ import annotations
 
-import math
 from functools import lru_cache
+import math
 
 import numpy as np
 
-from ..camera import CameraModel, PixelSelection
-from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, polarization_from_mosaic, stokes_from_mosaic, \
-    aop_dop_from_stokes
-from ..errors import CompassError
 from .base import Observation
+from ..camera import CameraModel, PixelSelection
+from ..demosaic import (
+    aop_dop_from_stokes,
+    IMX250MZR_LAYOUT,
+    IMX250MZR_POL45,
+    parse_layout,
+    polarization_from_mosaic,
+    stokes_from_mosaic,
+)
+from ..errors import CompassError
 
-__all__ = ["observation_from_mosaic", "MosaicInputError"]
+__all__ = ['observation_from_mosaic', 'MosaicInputError']
 
 
 class MosaicInputError(CompassError):
@@ -35,7 +60,12 @@ class MosaicInputError(CompassError):
 
 @lru_cache(maxsize=64)
 def _grid_rays(camera: CameraModel, x_key: tuple, y_key: tuple):
-    """(x_px, y_px, rays (3, N) float32, has_ray) of the grid x0 + dx * arange(nx), y0 + dy * arange(ny)."""
+    """
+    Return pixel coordinates, rays and ray mask of a regular grid.
+
+    (x_px, y_px, rays (3, N) float32, has_ray) of the grid x0 + dx * arange(nx), y0 + dy *
+    arange(ny).
+    """
     xs = x_key[0] + x_key[1] * np.arange(x_key[2])
     ys = y_key[0] + y_key[1] * np.arange(y_key[2])
     xg, yg = np.meshgrid(xs, ys)
@@ -53,28 +83,44 @@ def _centred(n: int, step: int) -> np.ndarray:
 
 
 def _wanted_rect(selection: PixelSelection | None, x0: int, y0: int, H: int, W: int):
-    """(x_lo, y_lo, x_hi, y_hi) sensor pixels (inclusive) and stride wanted, clipped to the mosaic."""
+    """
+    Return the sensor rectangle and stride wanted, clipped to the mosaic.
+
+    (x_lo, y_lo, x_hi, y_hi) sensor pixels (inclusive) and stride wanted, clipped to the mosaic.
+    """
     xl, yl, xh, yh, stride = x0, y0, x0 + W - 1, y0 + H - 1, 1
     if selection is not None:
-        if selection.mode == "region":
+        if selection.mode == 'region':
             rx, ry, rw, rh = selection.region
             xl, yl, xh, yh = max(xl, rx), max(yl, ry), min(xh, rx + rw - 1), min(yh, ry + rh - 1)
             stride = max(1, selection.stride)
-        elif selection.mode == "stride":
+        elif selection.mode == 'stride':
             stride = max(1, selection.stride)
     if xl > xh or yl > yh:
-        raise MosaicInputError(f"the pixels wanted ({selection.describe()}) are outside the mosaic "
-                               f"({W} x {H} at ({x0}, {y0}))")
+        raise MosaicInputError(
+            f'the pixels wanted ({selection.describe()}) are outside the mosaic '
+            f'({W} x {H} at ({x0}, {y0}))'
+        )
     return xl, yl, xh, yh, stride
 
 
-_PAIR = {1: np.uint16, 2: np.uint32, 4: np.uint64, 8: np.complex128}    # a dtype as wide as two samples
+_PAIR = {
+    1: np.uint16,
+    2: np.uint32,
+    4: np.uint64,
+    8: np.complex128,
+}  # a dtype as wide as two samples
 
 
 def _superpixel_blocks(m: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int) -> np.ndarray:
-    """The 2 x 2 blocks ``rows[0]::k`` x ``cols[0]::k`` (block indices) of mosaic ``m`` as one contiguous
-    mosaic. Each horizontal sample pair is copied as one wide element: numpy's strided copy with an inner
-    axis of 2 samples cost 4.8 ms for a stride-4 selection of a 2448 x 2048 frame, 0.27 ms this way."""
+    """
+    Copy the wanted 2 x 2 blocks of mosaic ``m`` into one contiguous mosaic.
+
+    The 2 x 2 blocks ``rows[0]::k`` x ``cols[0]::k`` (block indices) of mosaic ``m`` as one
+    contiguous mosaic. Each horizontal sample pair is copied as one wide element: numpy's strided
+    copy with an inner axis of 2 samples cost 4.8 ms for a stride-4 selection of a 2448 x 2048
+    frame, 0.27 ms this way.
+    """
     H, W = m.shape
     r = slice(int(rows[0]), int(rows[-1]) + 1, k)
     c = slice(int(cols[0]), int(cols[-1]) + 1, k)
@@ -82,17 +128,34 @@ def _superpixel_blocks(m: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int
     pair = _PAIR.get(m.dtype.itemsize)
     if k > 1 and pair is not None and even.flags.c_contiguous:
         pairs = even.view(pair).reshape(H // 2, 2, W // 2)
-        return np.ascontiguousarray(pairs[r, :, c]).view(m.dtype).reshape(2 * rows.size, 2 * cols.size)
+        return (
+            np.ascontiguousarray(pairs[r, :, c])
+            .view(m.dtype)
+            .reshape(2 * rows.size, 2 * cols.size)
+        )
     blocks = even.reshape(H // 2, 2, W // 2, 2)
     return np.ascontiguousarray(blocks[r, :, c, :]).reshape(2 * rows.size, 2 * cols.size)
 
 
-def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float, sun_altitude_deg: float, *,
-                            origin_px=(1, 1), method: str = "superpixel", layout=IMX250MZR_LAYOUT,
-                            pol45_toward: str = IMX250MZR_POL45, saturation_level=None,
-                            selection: PixelSelection | None = None, with_intensity: bool = False,
-                            pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> Observation:
-    """Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.
+def observation_from_mosaic(
+    mosaic,
+    camera: CameraModel,
+    sun_azimuth_deg: float,
+    sun_altitude_deg: float,
+    *,
+    origin_px=(1, 1),
+    method: str = 'superpixel',
+    layout=IMX250MZR_LAYOUT,
+    pol45_toward: str = IMX250MZR_POL45,
+    saturation_level=None,
+    selection: PixelSelection | None = None,
+    with_intensity: bool = False,
+    pitch_deg=None,
+    roll_deg=None,
+    prior_bearing_deg=None,
+) -> Observation:
+    """
+    Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.
 
     ``layout`` is the full sensor's (pixel (1, 1) first), so the mosaic's top-left polarizer is
     ``layout[(y-1) % 2][(x-1) % 2]`` for ``origin_px = (x, y)``. Grid and list selections read
@@ -144,33 +207,40 @@ def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float,
     ----------
     .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
        Polarized Skylight Orientation Determination" (the seed paper), eqs 20 and 28.
+
     """
     m = np.asarray(mosaic)
     if m.ndim != 2 or m.shape[0] < 2 or m.shape[1] < 2:
-        raise MosaicInputError(f"a mosaic must be a 2-D image of at least 2 x 2 pixels, got shape {m.shape}")
+        raise MosaicInputError(
+            f'a mosaic must be a 2-D image of at least 2 x 2 pixels, got shape {m.shape}'
+        )
     x0, y0 = int(origin_px[0]), int(origin_px[1])
     H, W = m.shape
     if x0 < 1 or y0 < 1 or x0 + W - 1 > camera.width_px or y0 + H - 1 > camera.height_px:
-        raise MosaicInputError(f"a {W} x {H} mosaic at ({x0}, {y0}) does not fit the {camera.width_px} x "
-                               f"{camera.height_px} camera")
-    lay = parse_layout(layout, pol45_toward).shifted((y0 - 1) % 2, (x0 - 1) % 2)   # the mosaic's own phase
+        raise MosaicInputError(
+            f'a {W} x {H} mosaic at ({x0}, {y0}) does not fit the {camera.width_px} x '
+            f'{camera.height_px} camera'
+        )
+    lay = parse_layout(layout, pol45_toward).shifted(
+        (y0 - 1) % 2, (x0 - 1) % 2
+    )  # the mosaic's own phase
     xl, yl, xh, yh, stride = _wanted_rect(selection, x0, y0, H, W)
-    if method == "superpixel":
+    if method == 'superpixel':
         # whole blocks of the mosaic's own 2 x 2 lattice inside the wanted rectangle
         bx0 = math.ceil((xl - x0) / 2)
         by0 = math.ceil((yl - y0) / 2)
-        bx1 = (xh - x0 + 1) // 2          # exclusive
+        bx1 = (xh - x0 + 1) // 2  # exclusive
         by1 = (yh - y0 + 1) // 2
         if bx1 <= bx0 or by1 <= by0:
-            raise MosaicInputError("the pixels wanted hold no complete 2 x 2 superpixel")
+            raise MosaicInputError('the pixels wanted hold no complete 2 x 2 superpixel')
         k = max(1, stride // 2)
         cols = bx0 + _centred(bx1 - bx0, k)
         rows = by0 + _centred(by1 - by0, k)
         sub = _superpixel_blocks(m, rows, cols, k)
-        lay_sub = lay                                # block-aligned: same phase as the mosaic
+        lay_sub = lay  # block-aligned: same phase as the mosaic
         gx = (x0 + 2.0 * cols[0] + 0.5, 2.0 * k, int(cols.size))
         gy = (y0 + 2.0 * rows[0] + 0.5, 2.0 * k, int(rows.size))
-    elif method == "bilinear":
+    elif method == 'bilinear':
         margin = 2
         cx0 = max(x0, xl - margin)
         cy0 = max(y0, yl - margin)
@@ -180,15 +250,19 @@ def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float,
         lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
         gx = gy = None
     else:
-        raise MosaicInputError(f"demosaic method must be superpixel or bilinear, got {method!r}")
+        raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
     if with_intensity:
-        s0, s1, s2 = stokes_from_mosaic(sub, lay_sub, lay_sub.pol45_toward, method, saturation_level)
+        s0, s1, s2 = stokes_from_mosaic(
+            sub, lay_sub, lay_sub.pol45_toward, method, saturation_level
+        )
         aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
         inten = s0
     else:
-        aop, dop, valid = polarization_from_mosaic(sub, lay_sub, lay_sub.pol45_toward, method, saturation_level)
+        aop, dop, valid = polarization_from_mosaic(
+            sub, lay_sub, lay_sub.pol45_toward, method, saturation_level
+        )
         inten = None
-    if method == "bilinear":
+    if method == 'bilinear':
         ys = np.arange(cy0, cy1 + 1)
         xs = np.arange(cx0, cx1 + 1)
         ri = np.nonzero((ys >= yl) & (ys <= yh))[0]
@@ -202,6 +276,18 @@ def observation_from_mosaic(mosaic, camera: CameraModel, sun_azimuth_deg: float,
         gy = (float(ys[ri[0]]), float(stride), int(ri.size))
     xg, yg, rays, has_ray = _grid_rays(camera, gx, gy)
     valid = np.ascontiguousarray(valid) & has_ray
-    return Observation(np.ascontiguousarray(aop), np.ascontiguousarray(dop), valid, rays, xg, yg, camera,
-                       float(sun_azimuth_deg), float(sun_altitude_deg),
-                       None if inten is None else np.ascontiguousarray(inten), pitch_deg, roll_deg, prior_bearing_deg)
+    return Observation(
+        np.ascontiguousarray(aop),
+        np.ascontiguousarray(dop),
+        valid,
+        rays,
+        xg,
+        yg,
+        camera,
+        float(sun_azimuth_deg),
+        float(sun_altitude_deg),
+        None if inten is None else np.ascontiguousarray(inten),
+        pitch_deg,
+        roll_deg,
+        prior_bearing_deg,
+    )

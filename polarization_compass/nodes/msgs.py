@@ -1,8 +1,24 @@
-"""rclpy message construction and validation shared by the nodes.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Rclpy message construction and validation shared by the nodes.
 
 Decoding is duck-typed and shared with the offline replay: :mod:`polarization_compass.bag` decodes
 mosaics (``mono8``/``mono16``), camera_info, orientations and NavSatFix; this module adds the ideal
-``32FC1`` mosaic, builds rclpy messages and applies robot_localization's conventions to the heading:
+``32FC1`` mosaic, builds rclpy messages and applies robot_localization's conventions to the
+heading:
 
 * ``orientation``: a pure REP-103 yaw quaternion (roll = pitch = 0), normalised;
 * ``orientation_covariance``: row-major about x, y, z: large roll and pitch variances, the yaw
@@ -11,26 +27,41 @@ mosaics (``mono8``/``mono16``), camera_info, orientations and NavSatFix; this mo
 * ``header.frame_id``: a z-up frame with a TF to base_link, never a camera optical frame;
 * ``header.stamp``: the image's stamp.
 """
+
 from __future__ import annotations
 
 import math
 import os
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import KeyValue
+import numpy as np
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix, NavSatStatus
 
 from ..bag import _ENCODINGS as _MOSAIC_DTYPES  # the encodings decode_mosaic accepts
-from ..bag import MessageError, decode_mosaic, decode_orientation, stamp_ns
+from ..bag import decode_mosaic, decode_orientation, MessageError, stamp_ns
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
 
-__all__ = ["MessageError", "stamp_ns", "time_msg", "heading_imu", "attitude_imu", "image_msg",
-           "decode_image", "camera_info_msg", "navsatfix_msg", "yaw_enu_from_quat", "bearing_from_imu",
-           "heading_from_imu", "kv", "IMAGE_ENCODINGS", "image_decoder"]
+__all__ = [
+    'MessageError',
+    'stamp_ns',
+    'time_msg',
+    'heading_imu',
+    'attitude_imu',
+    'image_msg',
+    'decode_image',
+    'camera_info_msg',
+    'navsatfix_msg',
+    'yaw_enu_from_quat',
+    'bearing_from_imu',
+    'heading_from_imu',
+    'kv',
+    'IMAGE_ENCODINGS',
+    'image_decoder',
+]
 
-IMAGE_ENCODINGS = ("mono8", "mono16", "32FC1")
+IMAGE_ENCODINGS = ('mono8', 'mono16', '32FC1')
 NOT_PROVIDED = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
 
@@ -39,11 +70,18 @@ def time_msg(t_ns: int) -> Time:
     return Time(sec=int(sec), nanosec=int(nsec))
 
 
-def heading_imu(t_ns: int, frame_id: str, yaw_enu_rad: float, yaw_variance_rad2: float,
-                roll_pitch_variance_rad2: float) -> Imu:
-    """The heading as robot_localization fuses it (see the module docstring)."""
-    if not (math.isfinite(yaw_enu_rad) and math.isfinite(yaw_variance_rad2) and yaw_variance_rad2 > 0):
-        raise ValueError("heading_imu: non-finite yaw or non-positive variance")
+def heading_imu(
+    t_ns: int,
+    frame_id: str,
+    yaw_enu_rad: float,
+    yaw_variance_rad2: float,
+    roll_pitch_variance_rad2: float,
+) -> Imu:
+    """Build the heading as robot_localization fuses it (see the module docstring)."""
+    if not (
+        math.isfinite(yaw_enu_rad) and math.isfinite(yaw_variance_rad2) and yaw_variance_rad2 > 0
+    ):
+        raise ValueError('heading_imu: non-finite yaw or non-positive variance')
     m = Imu()
     m.header.stamp = time_msg(t_ns)
     m.header.frame_id = frame_id
@@ -56,9 +94,18 @@ def heading_imu(t_ns: int, frame_id: str, yaw_enu_rad: float, yaw_variance_rad2:
     return m
 
 
-def attitude_imu(t_ns: int, frame_id: str, R_enu_body: np.ndarray, variances_rad2, angular_velocity_body=None,
-                 gravity_body=None) -> Imu:
-    """A full-attitude IMU message (the simulated IMU): orientation of ``frame_id`` in ENU.
+def attitude_imu(
+    t_ns: int,
+    frame_id: str,
+    R_enu_body: np.ndarray,
+    variances_rad2,
+    angular_velocity_body=None,
+    gravity_body=None,
+) -> Imu:
+    """
+    Build a full-attitude IMU message (the simulated IMU).
+
+    A full-attitude IMU message (the simulated IMU): orientation of ``frame_id`` in ENU.
 
     ``variances_rad2``: roll, pitch, yaw orientation variances. Angular velocity and linear
     acceleration are filled when given (rad/s, m/s^2, body frame) with a small covariance, else
@@ -93,29 +140,48 @@ def yaw_enu_from_quat(q_xyzw) -> float:
 
 
 def bearing_from_imu(msg) -> float:
-    """True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw."""
+    """
+    Return the true bearing (deg, [0, 360)) of body +x from an Imu orientation.
+
+    True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw.
+    """
     q = decode_orientation(msg)
     return float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
 
 
 def heading_from_imu(msg) -> tuple[float, float]:
-    """(bearing_deg, yaw variance rad^2) of a heading in the form :func:`heading_imu` publishes.
-    Raises :class:`MessageError` (``reason`` tag) for a bad orientation or a yaw variance that is not
-    finite and > 0."""
+    """
+    Decode a heading published by :func:`heading_imu` into bearing and yaw variance.
+
+    (bearing_deg, yaw variance rad^2) of a heading in the form :func:`heading_imu` publishes.
+    Raises :class:`MessageError` (``reason`` tag) for a bad orientation or a yaw variance that is
+    not finite and > 0.
+    """
     bearing = bearing_from_imu(msg)
     var = float(msg.orientation_covariance[8])
     if not (math.isfinite(var) and var > 0):
-        raise MessageError("bad_covariance", f"yaw variance {var!r} must be finite and > 0")
+        raise MessageError('bad_covariance', f'yaw variance {var!r} must be finite and > 0')
     return bearing, var
 
 
 def image_msg(array: np.ndarray, t_ns: int, frame_id: str) -> Image:
-    """sensor_msgs/Image of a 2-D uint8 (mono8), uint16 (mono16) or float32 (32FC1) array, little endian."""
+    """
+    Build a sensor_msgs/Image of a 2-D uint8, uint16 or float32 array.
+
+    sensor_msgs/Image of a 2-D uint8 (mono8), uint16 (mono16) or float32 (32FC1) array, little
+    endian.
+    """
     a = np.asarray(array)
-    enc = {np.dtype(np.uint8): "mono8", np.dtype(np.uint16): "mono16", np.dtype(np.float32): "32FC1"}.get(a.dtype)
+    enc = {
+        np.dtype(np.uint8): 'mono8',
+        np.dtype(np.uint16): 'mono16',
+        np.dtype(np.float32): '32FC1',
+    }.get(a.dtype)
     if a.ndim != 2 or enc is None:
-        raise ValueError(f"image_msg: need a 2-D uint8/uint16/float32 array, got {a.dtype} {a.shape}")
-    le = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
+        raise ValueError(
+            f'image_msg: need a 2-D uint8/uint16/float32 array, got {a.dtype} {a.shape}'
+        )
+    le = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder('<'))
     m = Image()
     m.header.stamp = time_msg(t_ns)
     m.header.frame_id = frame_id
@@ -128,54 +194,71 @@ def image_msg(array: np.ndarray, t_ns: int, frame_id: str) -> Image:
 
 
 def array_msg(intensities: np.ndarray):
-    """std_msgs/Float32MultiArray of one photodiode-array sample (units x channels, row-major; layout.dim
-    [units, channels]): the layout heading_estimator reads with ``input: array``."""
+    """
+    Build the std_msgs/Float32MultiArray of one photodiode-array sample.
+
+    std_msgs/Float32MultiArray of one photodiode-array sample (units x channels, row-major;
+    layout.dim [units, channels]): the layout heading_estimator reads with ``input: array``.
+    """
     from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+
     a = np.asarray(intensities, dtype=np.float32)
     if a.ndim != 2:
-        raise ValueError(f"array_msg: need (units, channels), got shape {a.shape}")
+        raise ValueError(f'array_msg: need (units, channels), got shape {a.shape}')
     m = Float32MultiArray()
-    m.layout.dim = [MultiArrayDimension(label="units", size=int(a.shape[0]), stride=int(a.size)),
-                    MultiArrayDimension(label="channels", size=int(a.shape[1]), stride=int(a.shape[1]))]
+    m.layout.dim = [
+        MultiArrayDimension(label='units', size=int(a.shape[0]), stride=int(a.size)),
+        MultiArrayDimension(label='channels', size=int(a.shape[1]), stride=int(a.shape[1])),
+    ]
     m.data = a.ravel().tolist()
     return m
 
 
-_BRIDGE: list = []          # [CvBridge instance or None], filled on first use
+_BRIDGE: list = []  # [CvBridge instance or None], filled on first use
 
 
 def image_decoder() -> str:
-    """Which decoder :func:`decode_image` uses in this process: ``"cv_bridge"`` where the ROS package
+    """
+    Return the decoder :func:`decode_image` uses in this process.
+
+    Which decoder :func:`decode_image` uses in this process: ``"cv_bridge"`` where the ROS package
     ``cv_bridge`` imports (a ROS install) and ``POLARIZATION_COMPASS_CV_BRIDGE`` is not ``0``, else
-    ``"decode_mosaic"`` (:func:`polarization_compass.bag.decode_mosaic`, the project's tested decoder)."""
-    return "cv_bridge" if _bridge() is not None else "decode_mosaic"
+    ``"decode_mosaic"`` (:func:`polarization_compass.bag.decode_mosaic`, the project's tested
+    decoder).
+    """
+    return 'cv_bridge' if _bridge() is not None else 'decode_mosaic'
 
 
 def _bridge():
     if not _BRIDGE:
         bridge = None
-        if os.environ.get("POLARIZATION_COMPASS_CV_BRIDGE", "1").strip() != "0":
+        if os.environ.get('POLARIZATION_COMPASS_CV_BRIDGE', '1').strip() != '0':
             try:
                 from cv_bridge import CvBridge
+
                 bridge = CvBridge()
-            except Exception:  # noqa: BLE001 - missing, or broken (PyPI's ROS 1 cv-bridge on numpy 2)
+            # missing, or broken (PyPI's ROS 1 cv-bridge on numpy 2)
+            except Exception:  # noqa: BLE001
                 bridge = None
         _BRIDGE.append(bridge)
     return _BRIDGE[0]
 
 
 def decode_image(msg) -> np.ndarray:
-    """The mosaic of a sensor_msgs/Image as a (height, width) array: uint8 (``mono8``/``8UC1``), uint16
-    (``mono16``/``16UC1``) or float32 (``32FC1``: ideal polarizer intensities, finite and >= 0). The one
-    function every node converts images with.
+    """
+    Decode the mosaic of a sensor_msgs/Image as a (height, width) array.
 
-    Through ``cv_bridge`` (``imgmsg_to_cv2``, passthrough encoding: row padding and byte order handled
-    by it) where it is importable, then held to the same contract as the project's decoder: the same
-    encodings, even dimensions, the array's shape and dtype as the message says, and for ``32FC1``
-    finite, non-negative values. Elsewhere (no ROS install: PyPI has no cv_bridge for ROS 2) through
-    :func:`polarization_compass.bag.decode_mosaic`, which the offline replay also uses.
-    Raises :class:`MessageError` with a ``reason`` tag (``bad_encoding``, ``bad_size``, ``non_finite``,
-    ``bad_value``, ``bad_image``).
+    The mosaic of a sensor_msgs/Image as a (height, width) array: uint8 (``mono8``/``8UC1``),
+    uint16 (``mono16``/``16UC1``) or float32 (``32FC1``: ideal polarizer intensities, finite and >=
+    0). The one function every node converts images with.
+
+    Through ``cv_bridge`` (``imgmsg_to_cv2``, passthrough encoding: row padding and byte order
+    handled by it) where it is importable, then held to the same contract as the project's decoder:
+    the same encodings, even dimensions, the array's shape and dtype as the message says, and for
+    ``32FC1`` finite, non-negative values. Elsewhere (no ROS install: PyPI has no cv_bridge for ROS
+    2) through :func:`polarization_compass.bag.decode_mosaic`, which the offline replay also uses.
+    Raises :class:`MessageError` with a ``reason`` tag (``bad_encoding``, ``bad_size``,
+    ``non_finite``, ``bad_value``, ``bad_image``).
     """
     bridge = _bridge()
     if bridge is None:
@@ -183,32 +266,48 @@ def decode_image(msg) -> np.ndarray:
     enc = str(msg.encoding)
     dtype = _MOSAIC_DTYPES.get(enc)
     if dtype is None:
-        raise MessageError("bad_encoding", f"image encoding {enc!r} is not a raw polarizer mosaic "
-                                           f"(expected one of {', '.join(_MOSAIC_DTYPES)})")
+        raise MessageError(
+            'bad_encoding',
+            f'image encoding {enc!r} is not a raw polarizer mosaic '
+            f'(expected one of {", ".join(_MOSAIC_DTYPES)})',
+        )
     h, w = int(msg.height), int(msg.width)
     if h < 2 or w < 2 or h % 2 or w % 2:
-        raise MessageError("bad_size", f"mosaic {w}x{h} must have even width and height >= 2")
+        raise MessageError('bad_size', f'mosaic {w}x{h} must have even width and height >= 2')
     try:
-        img = bridge.imgmsg_to_cv2(msg, desired_encoding="passthrough")
-    except Exception as exc:  # noqa: BLE001 - CvBridgeError, TypeError, ValueError for a short buffer
-        raise MessageError("bad_size" if isinstance(exc, (TypeError, ValueError)) else "bad_image",
-                           f"cv_bridge: {type(exc).__name__}: {exc}") from None
+        img = bridge.imgmsg_to_cv2(msg, desired_encoding='passthrough')
+    # CvBridgeError, TypeError, ValueError for a short buffer
+    except Exception as exc:  # noqa: BLE001
+        raise MessageError(
+            'bad_size' if isinstance(exc, (TypeError, ValueError)) else 'bad_image',
+            f'cv_bridge: {type(exc).__name__}: {exc}',
+        ) from None
     img = np.asarray(img)
-    if img.shape != (h, w) or img.dtype.kind != np.dtype(dtype).kind or img.dtype.itemsize != np.dtype(dtype).itemsize:
-        raise MessageError("bad_image", f"cv_bridge gave {img.dtype} {img.shape} for a {w}x{h} {enc} image")
+    if (
+        img.shape != (h, w)
+        or img.dtype.kind != np.dtype(dtype).kind
+        or img.dtype.itemsize != np.dtype(dtype).itemsize
+    ):
+        raise MessageError(
+            'bad_image', f'cv_bridge gave {img.dtype} {img.shape} for a {w}x{h} {enc} image'
+        )
     img = np.ascontiguousarray(img, dtype=dtype)
-    if img.dtype.kind == "f":
+    if img.dtype.kind == 'f':
         if not np.isfinite(img).all():
-            raise MessageError("non_finite", f"{enc} mosaic has NaN or inf pixels")
+            raise MessageError('non_finite', f'{enc} mosaic has NaN or inf pixels')
         if (img < 0).any():
-            raise MessageError("bad_value", f"{enc} mosaic has negative intensities")
+            raise MessageError('bad_value', f'{enc} mosaic has negative intensities')
     return img
 
 
-
 def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo:
-    """CameraInfo of the raw mosaic: K in pixels with a 0-based principal point, the camera's distortion
-    or none (``plumb_bob`` for the pinhole model, ``equidistant`` for the r = f theta fisheye)."""
+    """
+    Build the CameraInfo of the raw mosaic (0-based principal point).
+
+    CameraInfo of the raw mosaic: K in pixels with a 0-based principal point, the camera's
+    distortion or none (``plumb_bob`` for the pinhole model, ``equidistant`` for the r = f theta
+    fisheye).
+    """
     fx = camera.focal_length_mm / (camera.pixel_pitch_x_um * 1e-3)
     fy = camera.focal_length_mm / (camera.pixel_pitch_y_um * 1e-3)
     cx, cy = camera.cx_px - 1.0, camera.cy_px - 1.0
@@ -216,8 +315,8 @@ def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo
     m.header.stamp = time_msg(t_ns)
     m.header.frame_id = frame_id
     m.height, m.width = int(camera.height_px), int(camera.width_px)
-    fisheye = camera.model == "fisheye_equidistant"
-    m.distortion_model = camera.distortion_model or ("equidistant" if fisheye else "plumb_bob")
+    fisheye = camera.model == 'fisheye_equidistant'
+    m.distortion_model = camera.distortion_model or ('equidistant' if fisheye else 'plumb_bob')
     m.d = list(camera.distortion) if camera.distortion else [0.0] * (4 if fisheye else 5)
     m.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
     m.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
@@ -225,7 +324,9 @@ def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo
     return m
 
 
-def navsatfix_msg(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, frame_id: str) -> NavSatFix:
+def navsatfix_msg(
+    lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, frame_id: str
+) -> NavSatFix:
     m = NavSatFix()
     m.header.stamp = time_msg(t_ns)
     m.header.frame_id = frame_id
@@ -239,5 +340,5 @@ def navsatfix_msg(lat_deg: float, lon_deg: float, alt_m: float, t_ns: int, frame
 
 def kv(key: str, value) -> KeyValue:
     if isinstance(value, float):
-        value = f"{value:.6g}"
+        value = f'{value:.6g}'
     return KeyValue(key=str(key), value=str(value))

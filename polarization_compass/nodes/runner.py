@@ -1,38 +1,57 @@
-"""``main()`` of every node: start, spin, and stop cleanly.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-* A configuration error (bad parameter, missing error map, missing optional package) prints one line
-  ``<node>: error: ...`` on stderr and exits 2, as the CLI does.
-* SIGINT / SIGTERM (Ctrl-C, ``ros2 launch`` shutting down), once or repeatedly, end the spin and the
-  process exits 0 without a traceback (:class:`StopSignals`). rclpy's own signal handlers are not
-  installed (``SignalHandlerOptions.NO``): they shut the context down at once, so a callback already
-  running or queued then publishes on an invalid context (a FATAL traceback), and a second signal
-  raised ``KeyboardInterrupt`` inside the C++ executor (``pybind11::error_already_set``, abort).
-  Here a signal only records the request; the spin loop sees it within ``SPIN_PERIOD_S`` between two
-  callbacks, then the node's ``close()`` runs (the evaluator writes its report there), the executor and
-  the node are destroyed and only then is rclpy shut down: nothing is published after shutdown.
-  Further signals during that sequence are recorded and change nothing. A signal while the node is
-  being built (imports done, warm-up running) ends the start-up at once, also with exit 0.
-* The process then ends with ``os._exit`` once stdout/stderr are flushed and rclpy's context (its DDS
-  participant, the ROS log files) is shut down and destroyed: Python's own finalisation took 1.9 s
-  per node alone on this machine (5 s and more with ten nodes on two cores, past ``ros2 launch``'s
-  default SIGTERM timeout), and it restores the default signal handlers first, so a second Ctrl-C
-  during it killed the node (exit -2). Nothing is left for it to do: no atexit handler of ours exists.
-* A node may end itself (the simulator after its last frame) by setting ``node.exit_code`` (checked
-  after every spin; no exception crosses the executor, whose C++ implementation logs every callback
-  exception as FATAL with a traceback), or by raising :class:`ExitRequest` in a callback.
-* The executor is rclpy's C++ ``EventsExecutor`` where rclpy has it (Kilted and later): it dispatches
-  callbacks in arrival order at about a third of the CPU cost per callback of the Python executors
-  (measured here: 0.36 ms against 1.0 ms single-threaded and 1.8 ms multi-threaded per small message,
-  on a loaded machine), which matters with eleven nodes on two cores receiving /clock, IMU and
-  heading messages. Arrival order also keeps the IMU flowing between images. Where it is missing
-  (Jazzy), a node with ``executor_threads = N > 1`` spins on a MultiThreadedExecutor (the estimator:
-  small inputs such as the IMU keep flowing while an image is being processed), others on a
-  SingleThreadedExecutor. ``POLARIZATION_COMPASS_EXECUTOR=single|multi`` forces the Python executors.
-* Before ROS starts, glibc's allocator is told to keep large blocks in the heap
-  (:func:`keep_large_buffers_in_heap`): a 10 MB image otherwise costs every subscriber three fresh
-  ``mmap`` regions per message, zero-filled by the kernel page by page (measured: 21 ms of system
-  time and 7300 page faults per 2448x2048 mono16 image per subscriber; 0.2 ms and none with it).
 """
+``main()`` of every node: start, spin, and stop cleanly.
+
+* A configuration error (bad parameter, missing error map, missing optional package) prints one
+  line ``<node>: error: ...`` on stderr and exits 2, as the CLI does.
+* SIGINT / SIGTERM (Ctrl-C, ``ros2 launch`` shutting down), once or repeatedly, end the spin and
+  the process exits 0 without a traceback (:class:`StopSignals`). rclpy's own signal handlers are
+  not installed (``SignalHandlerOptions.NO``): they shut the context down at once, so a callback
+  already running or queued then publishes on an invalid context (a FATAL traceback), and a second
+  signal raised ``KeyboardInterrupt`` inside the C++ executor (``pybind11::error_already_set``,
+  abort). Here a signal only records the request; the spin loop sees it within ``SPIN_PERIOD_S``
+  between two callbacks, then the node's ``close()`` runs (the evaluator writes its report there),
+  the executor and the node are destroyed and only then is rclpy shut down: nothing is published
+  after shutdown. Further signals during that sequence are recorded and change nothing. A signal
+  while the node is being built (imports done, warm-up running) ends the start-up at once, also
+  with exit 0.
+* The process then ends with ``os._exit`` once stdout/stderr are flushed and rclpy's context (its
+  DDS participant, the ROS log files) is shut down and destroyed: Python's own finalisation took
+  1.9 s per node alone on this machine (5 s and more with ten nodes on two cores, past ``ros2
+  launch``'s default SIGTERM timeout), and it restores the default signal handlers first, so a
+  second Ctrl-C during it killed the node (exit -2). Nothing is left for it to do: no atexit
+  handler of ours exists.
+* A node may end itself (the simulator after its last frame) by setting ``node.exit_code`` (checked
+after every spin; no exception crosses the executor, whose C++ implementation logs every callback
+exception as FATAL with a traceback), or by raising :class:`ExitRequest` in a callback.
+* The executor is rclpy's C++ ``EventsExecutor`` where rclpy has it (Kilted and later): it
+  dispatches callbacks in arrival order at about a third of the CPU cost per callback of the Python
+  executors (measured here: 0.36 ms against 1.0 ms single-threaded and 1.8 ms multi-threaded per
+  small message, on a loaded machine), which matters with eleven nodes on two cores receiving
+  /clock, IMU and heading messages. Arrival order also keeps the IMU flowing between images. Where
+  it is missing (Jazzy), a node with ``executor_threads = N > 1`` spins on a MultiThreadedExecutor
+  (the estimator: small inputs such as the IMU keep flowing while an image is being processed),
+  others on a SingleThreadedExecutor. ``POLARIZATION_COMPASS_EXECUTOR=single|multi`` forces the
+  Python executors.
+* Before ROS starts, glibc's allocator is told to keep large blocks in the heap
+(:func:`keep_large_buffers_in_heap`): a 10 MB image otherwise costs every subscriber three fresh
+``mmap`` regions per message, zero-filled by the kernel page by page (measured: 21 ms of system
+time and 7300 page faults per 2448x2048 mono16 image per subscriber; 0.2 ms and none with it).
+"""
+
 from __future__ import annotations
 
 import os
@@ -42,8 +61,15 @@ import sys
 from ..errors import CompassError
 from ..runtime import keep_large_buffers_in_heap
 
-__all__ = ["run_node", "ExitRequest", "StopSignals", "keep_large_buffers_in_heap", "make_executor",
-           "SPIN_PERIOD_S"]
+__all__ = [
+    'run_node',
+    'ExitRequest',
+    'StopSignals',
+    'keep_large_buffers_in_heap',
+    'make_executor',
+    'SPIN_PERIOD_S',
+]
+
 
 class ExitRequest(Exception):
     """Raised inside a callback to end the node's spin with an exit code."""
@@ -54,33 +80,36 @@ class ExitRequest(Exception):
 
 
 def make_executor(node):
-    """The executor for ``node`` (see the module docstring)."""
+    """Return the executor for ``node`` (see the module docstring)."""
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
-    choice = os.environ.get("POLARIZATION_COMPASS_EXECUTOR", "events").strip().lower()
-    if choice == "events":
+    choice = os.environ.get('POLARIZATION_COMPASS_EXECUTOR', 'events').strip().lower()
+    if choice == 'events':
         try:
             from rclpy.experimental import EventsExecutor
         except ImportError:
-            choice = ""
+            choice = ''
         else:
             return EventsExecutor()
-    threads = int(getattr(node, "executor_threads", 1))
-    if choice != "single" and threads > 1:
+    threads = int(getattr(node, 'executor_threads', 1))
+    if choice != 'single' and threads > 1:
         return MultiThreadedExecutor(num_threads=threads)
     return SingleThreadedExecutor()
 
 
-#: Longest wait in one ``spin_once``: how late a stop request is seen at most (between two callbacks).
+#: Longest wait in one ``spin_once``: how late a stop request is seen at most (between two
+#: callbacks).
 SPIN_PERIOD_S = 0.1
 
 
 class StopSignals:
-    """SIGINT and SIGTERM handlers that record a stop request instead of raising.
+    """
+    SIGINT and SIGTERM handlers that record a stop request instead of raising.
 
-    ``received`` lists the signal numbers in arrival order. While ``interrupt_now`` is true (the node
-    is being built: pure Python and numba compilation, no executor calling back into Python), the first
-    signal raises :class:`KeyboardInterrupt` so that a long warm-up does not delay the stop.
+    ``received`` lists the signal numbers in arrival order. While ``interrupt_now`` is true (the
+    node is being built: pure Python and numba compilation, no executor calling back into Python),
+    the first signal raises :class:`KeyboardInterrupt` so that a long warm-up does not delay the
+    stop.
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -90,7 +119,7 @@ class StopSignals:
         self.interrupt_now = False
         self._previous: dict = {}
 
-    def install(self) -> "StopSignals":
+    def install(self) -> 'StopSignals':
         for s in self.SIGNALS:
             self._previous[s] = signal.signal(s, self._handler)
         return self
@@ -106,7 +135,7 @@ class StopSignals:
         return bool(self.received)
 
     def names(self) -> str:
-        return "+".join(signal.Signals(s).name for s in self.received)
+        return '+'.join(signal.Signals(s).name for s in self.received)
 
     def _handler(self, signum, frame):
         self.received.append(int(signum))
@@ -115,15 +144,22 @@ class StopSignals:
 
 
 def run_node(factory, name: str, argv=None, exit_process: bool | None = None) -> int:
-    """Start ROS, build the node with ``factory()``, spin it until a stop signal, ``node.exit_code`` or
-    :class:`ExitRequest`, then stop in order (``close()``, executor, node, rclpy context). The exit code
-    is 0 after a stop signal or a normal end, 2 for a configuration error (one line on stderr). With
-    ``exit_process`` (default: when ``argv`` is None, i.e. a console script's ``main()``) the process
-    ends here with that code (see the module docstring); otherwise it is returned and the signal
-    handlers that were there before are put back (a test calling ``main([...])`` in-process)."""
+    """
+    Run a node: start ROS, spin until a stop, then stop in order.
+
+    Start ROS, build the node with ``factory()``, spin it until a stop signal, ``node.exit_code``
+    or :class:`ExitRequest`, then stop in order (``close()``, executor, node, rclpy context). The
+    exit code is 0 after a stop signal or a normal end, 2 for a configuration error (one line on
+    stderr). With ``exit_process`` (default: when ``argv`` is None, i.e. a console script's
+    ``main()``) the process ends here with that code (see the module docstring); otherwise it is
+    returned and the signal handlers that were there before are put back (a test calling
+    ``main([...])`` in-process).
+    """
     if exit_process is None:
         exit_process = argv is None
-    stop = StopSignals().install()          # before anything slow: no signal is lost or raised from here on
+    stop = (
+        StopSignals().install()
+    )  # before anything slow: no signal is lost or raised from here on
     try:
         code = _run(factory, name, argv, stop)
     finally:
@@ -146,15 +182,18 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
 
     keep_large_buffers_in_heap()
     try:
-        rclpy.init(args=argv if argv is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(
+            args=argv if argv is not None else sys.argv,
+            signal_handler_options=SignalHandlerOptions.NO,
+        )
     except Exception as exc:  # noqa: BLE001 - e.g. malformed --ros-args
-        print(f"{name}: error: cannot start ROS: {exc}", file=sys.stderr)
+        print(f'{name}: error: cannot start ROS: {exc}', file=sys.stderr)
         return 2
     node = None
     executor = None
     code = 0
     try:
-        if stop.requested:                   # stopped while ROS started: do not build the node at all
+        if stop.requested:  # stopped while ROS started: do not build the node at all
             raise KeyboardInterrupt
         stop.interrupt_now = True
         try:
@@ -165,7 +204,7 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)
-            if getattr(node, "exit_code", None) is not None:
+            if getattr(node, 'exit_code', None) is not None:
                 code = int(node.exit_code)
                 break
     except ExitRequest as req:
@@ -173,24 +212,26 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     except CompassError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
+        print(f'{name}: error: {exc}', file=sys.stderr)
         code = 2
     finally:
         if node is not None and stop.requested:
             try:
-                node.get_logger().info(f"stopping ({stop.names()})")
+                node.get_logger().info(f'stopping ({stop.names()})')
             except Exception:  # noqa: BLE001 - logging must not stop the shutdown
                 pass
         if node is not None:
             try:
-                close = getattr(node, "close", None)
+                close = getattr(node, 'close', None)
                 if close is not None:
                     close()
             except CompassError as exc:
-                print(f"{name}: error while stopping: {exc}", file=sys.stderr)
+                print(f'{name}: error while stopping: {exc}', file=sys.stderr)
                 code = code or 2
             except Exception as exc:  # noqa: BLE001 - never a traceback at shutdown
-                print(f"{name}: error while stopping: {type(exc).__name__}: {exc}", file=sys.stderr)
+                print(
+                    f'{name}: error while stopping: {type(exc).__name__}: {exc}', file=sys.stderr
+                )
                 code = code or 1
         if executor is not None:
             try:
@@ -204,7 +245,7 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
                 pass
         rclpy.try_shutdown()
         try:
-            rclpy.get_default_context().destroy()      # the DDS participant leaves the graph now
+            rclpy.get_default_context().destroy()  # the DDS participant leaves the graph now
         except Exception:  # noqa: BLE001
             pass
     return code

@@ -1,4 +1,19 @@
-"""``sky_simulator``: a simulated polarization camera and IMU under a Rayleigh (or scene) sky.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``sky_simulator``: a simulated polarization camera and IMU under a Rayleigh (or scene) sky.
 
 Publishes (relative names):
   ``camera/image_raw``      sensor_msgs/Image: the raw 2x2 polarizer mosaic of the full sensor, as a camera
@@ -17,46 +32,59 @@ Publishes (relative names):
   ``/clock``                with clock_mode sim
   ``/diagnostics``
 
-Attitude: ``motion`` (built-in turn + tilt schedule), ``topic`` (``sim/attitude``: sensor_msgs/Imu or
-geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (tf2 lookup of
-``tf_world_frame`` -> ``tf_body_frame``; needs tf2_ros). The camera is mounted looking up with its +y
-axis along body +x (conventions.R_BODY_CAM_DEFAULT).
+Attitude: ``motion`` (built-in turn + tilt schedule), ``topic`` (``sim/attitude``: sensor_msgs/Imu
+or geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (tf2 lookup
+of ``tf_world_frame`` -> ``tf_body_frame``; needs tf2_ros). The camera is mounted looking up with
+its +y axis along body +x (conventions.R_BODY_CAM_DEFAULT).
 
-Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at ``time_scale``
-times the wall clock; frames are stamped ``start + k / rate_hz`` and never skipped: when rendering
-falls more than one frame behind, simulated time slows down (the real-time factor is in
-/diagnostics). ``lockstep`` waits for every estimator's status before the next frame. With
+Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at
+``time_scale`` times the wall clock; frames are stamped ``start + k / rate_hz`` and never skipped:
+when rendering falls more than one frame behind, simulated time slows down (the real-time factor is
+in /diagnostics). ``lockstep`` waits for every estimator's status before the next frame. With
 clock_mode ``system`` frames are stamped with this node's ROS time and the sun is rendered for it.
 """
+
 from __future__ import annotations
 
 import json
 import math
 import time
 
-import numpy as np
 from geometry_msgs.msg import QuaternionStamped
+import numpy as np
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, qos_profile_sensor_data, qos_profile_system_default
+from rclpy.qos import qos_profile_sensor_data, qos_profile_system_default, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float32MultiArray, Header, String
 
-from ..bag import decode_orientation, ns_from_utc, stamp_ns
-from ..camera import PixelSelection
-from ..conventions import (R_enu_body_from_camera_attitude, camera_attitude_from_body_quat, matrix_to_quat,
-                           quat_to_matrix)
-from ..errors import CompassError, MissingDependencyError
-from ..sensor import sensor_config_for_encoding
-from ..specs import topics
 from .diagnostics import Diagnostics
-from ..motion import MotionProfile, frame_times_ns, imu_reading
-from .msgs import array_msg, attitude_imu, camera_info_msg, heading_imu, image_msg, navsatfix_msg, time_msg
-from ..specs.params import SIMULATOR, SUN_PARAMS, parse_downstream, sun_source
+from .msgs import (
+    array_msg,
+    attitude_imu,
+    camera_info_msg,
+    heading_imu,
+    image_msg,
+    navsatfix_msg,
+    time_msg,
+)
 from .rosparams import ParameterSet
 from .runner import run_node
+from ..bag import decode_orientation, ns_from_utc, stamp_ns
+from ..camera import PixelSelection
+from ..conventions import (
+    camera_attitude_from_body_quat,
+    matrix_to_quat,
+    quat_to_matrix,
+    R_enu_body_from_camera_attitude,
+)
+from ..errors import CompassError, MissingDependencyError
+from ..motion import frame_times_ns, imu_reading, MotionProfile
+from ..sensor import sensor_config_for_encoding
+from ..specs import topics
+from ..specs.params import parse_downstream, SIMULATOR, SUN_PARAMS, sun_source
 
-__all__ = ["SkySimulatorNode", "main", "mosaic_config"]
+__all__ = ['SkySimulatorNode', 'main', 'mosaic_config']
 
 GRAVITY_M_S2 = 9.80665
 #: Wall-clock rate of the sim-mode scheduler (publishes every frame and IMU sample that is due);
@@ -70,97 +98,136 @@ mosaic_config = sensor_config_for_encoding
 
 class SkySimulatorNode(Node):
     def __init__(self, **kwargs):
-        super().__init__("sky_simulator", **kwargs)
+        super().__init__('sky_simulator', **kwargs)
         self.params = ParameterSet(self, SIMULATOR, on_change=self._on_change)
         p = self.params
         from ..render import Renderer
-        from ..scene import SceneError, load_scene, parse_time_utc
+        from ..scene import load_scene, parse_time_utc, SceneError
+
         try:
-            scene = load_scene(p["scene"] or None)
-            if p["array_geometry"]:           # also simulate a photodiode-array compass with this geometry
+            scene = load_scene(p['scene'] or None)
+            if p['array_geometry']:  # also simulate a photodiode-array compass with this geometry
                 from ..scene import scene_from_dict
-                scene = scene_from_dict({**scene.to_dict(), "photodiode_array": {
-                    **(scene.photodiode_array or {}), "geometry": p["array_geometry"]}})
+
+                scene = scene_from_dict(
+                    {
+                        **scene.to_dict(),
+                        'photodiode_array': {
+                            **(scene.photodiode_array or {}),
+                            'geometry': p['array_geometry'],
+                        },
+                    }
+                )
         except SceneError as exc:
             raise CompassError(str(exc)) from None
         self.camera = scene.camera
         self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
-        self.sensor_cfg = sensor_config_for_encoding(scene.sensor, p["encoding"])
+        self.sensor_cfg = sensor_config_for_encoding(scene.sensor, p['encoding'])
         self.sun = sun_source(p)
         self.profile = self._profile()
-        self.sim_mode = p["clock_mode"] == "sim"
-        self.start_ns = ns_from_utc(parse_time_utc(p["start_time_utc"]))
-        self.attitude_source = p["attitude_source"]
-        self.R_enu_body_input = None        # topic / tf attitude (sample and hold)
+        self.sim_mode = p['clock_mode'] == 'sim'
+        self.start_ns = ns_from_utc(parse_time_utc(p['start_time_utc']))
+        self.attitude_source = p['attitude_source']
+        self.R_enu_body_input = None  # topic / tf attitude (sample and hold)
         self._tf = None
-        if self.attitude_source == "tf":
+        if self.attitude_source == 'tf':
             self._setup_tf()
-        # compile (or load) the render and sensor kernels and build the ray cache now, not at frame 0
+        # compile (or load) the render and sensor kernels and build the ray cache now, not at frame
+        # 0
         self._render_frame(self.start_ns, 0, np.eye(3))
-        self.diag = Diagnostics(self, "sky simulator", stale_after_s=1e9)
+        self.diag = Diagnostics(self, 'sky simulator', stale_after_s=1e9)
         self.frames = 0
         self.imu_samples = 0
         self.late_frames = 0
         self.lockstep_timeouts = 0
         self.render_ms = []
-        self.prepared = None                # (stamp, k, image msg, attitude, sun altitude, ms) rendered ahead
+        self.prepared = None  # (stamp, k, image msg, attitude, sun altitude, ms) rendered ahead
         self.last_frame_wall = None
         self.frames_ahead = 0
 
         img_qos = qos_profile_system_default
         self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
-        self.pub_array = (self.create_publisher(Float32MultiArray, topics.ARRAY, img_qos)
-                          if self.renderer.array is not None else None)
-        self.pub_array_header = (self.create_publisher(Header, topics.ARRAY_HEADER, img_qos)
-                                 if self.renderer.array is not None else None)
+        self.pub_array = (
+            self.create_publisher(Float32MultiArray, topics.ARRAY, img_qos)
+            if self.renderer.array is not None
+            else None
+        )
+        self.pub_array_header = (
+            self.create_publisher(Header, topics.ARRAY_HEADER, img_qos)
+            if self.renderer.array is not None
+            else None
+        )
         self.pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, img_qos)
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
         self.pub_fix = self.create_publisher(NavSatFix, topics.FIX, qos_profile_system_default)
         self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
-        self.pub_clock = self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10)) if self.sim_mode else None
-        if self.attitude_source == "topic":
-            t = Imu if p["attitude_topic_type"] == "imu" else QuaternionStamped
-            self.create_subscription(t, topics.ATTITUDE_IN, self._on_attitude, qos_profile_sensor_data)
+        self.pub_clock = (
+            self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10))
+            if self.sim_mode
+            else None
+        )
+        if self.attitude_source == 'topic':
+            t = Imu if p['attitude_topic_type'] == 'imu' else QuaternionStamped
+            self.create_subscription(
+                t, topics.ATTITUDE_IN, self._on_attitude, qos_profile_sensor_data
+            )
 
-        self.lock_topics = [t for t in p["lockstep_topics"] if t] if p["lockstep"] else []
-        self.acks = {t: -1 for t in self.lock_topics}
+        self.lock_topics = [t for t in p['lockstep_topics'] if t] if p['lockstep'] else []
+        self.acks = dict.fromkeys(self.lock_topics, -1)
         for t in self.lock_topics:
-            self.create_subscription(String, t, lambda m, tt=t: self._on_ack(tt, m), QoSProfile(depth=50))
-        self.waiting_for = None             # (stamp, wall start) while waiting in lockstep
+            self.create_subscription(
+                String, t, lambda m, tt=t: self._on_ack(tt, m), QoSProfile(depth=50)
+            )
+        self.waiting_for = None  # (stamp, wall start) while waiting in lockstep
         self.k_frame = 0
         self.k_imu = 0
         self.done_wall = None
         self.started = False
         self.t_primed = None
         self.t_wait0 = time.monotonic()
-        self.rng_imu = np.random.default_rng([p["seed"], 7])
+        self.rng_imu = np.random.default_rng([p['seed'], 7])
         from .diagnostics import _wall_clock
+
         if self.sim_mode:
             self.sim_cursor = self.start_ns
-            self.base = None                # (sim ns, wall s)
+            self.base = None  # (sim ns, wall s)
             self.last_clock_wall = -math.inf
             self.create_timer(1.0 / SCHEDULER_HZ, self._tick_sim, clock=_wall_clock())
         else:
             self.t_first_ns = None
-            self.create_timer(1.0 / p["rate_hz"], self._frame_system)
-            self.create_timer(1.0 / p["imu_rate_hz"], self._imu_system)
-        total = self.profile.total_s() if self.attitude_source == "motion" else (p["duration_s"] or None)
+            self.create_timer(1.0 / p['rate_hz'], self._frame_system)
+            self.create_timer(1.0 / p['imu_rate_hz'], self._imu_system)
+        total = (
+            self.profile.total_s()
+            if self.attitude_source == 'motion'
+            else (p['duration_s'] or None)
+        )
         self.total_s = total
         self.get_logger().info(
-            f"{p['encoding']} {self.camera.width_px}x{self.camera.height_px} at {p['rate_hz']:g} Hz, "
-            f"attitude {self.attitude_source}, clock {p['clock_mode']}"
-            + (f", {total:g} s simulated" if total else ", until stopped"))
+            f'{p["encoding"]} {self.camera.width_px}x{self.camera.height_px} at {p["rate_hz"]:g} '
+            'Hz, '
+            f'attitude {self.attitude_source}, clock {p["clock_mode"]}'
+            + (f', {total:g} s simulated' if total else ', until stopped')
+        )
 
     # configuration ------------------------------------------------------------------------------
     def _profile(self) -> MotionProfile:
         p = self.params.values
-        return MotionProfile(p["start_bearing_deg"], p["turn_rate_deg_s"], p["pitch_deg"], p["roll_deg"],
-                             p["pitch_amplitude_deg"], p["roll_amplitude_deg"], p["tilt_period_s"], p["turns"],
-                             p["duration_s"])
+        return MotionProfile(
+            p['start_bearing_deg'],
+            p['turn_rate_deg_s'],
+            p['pitch_deg'],
+            p['roll_deg'],
+            p['pitch_amplitude_deg'],
+            p['roll_amplitude_deg'],
+            p['tilt_period_s'],
+            p['turns'],
+            p['duration_s'],
+        )
 
     def _on_change(self, changed: dict):
-        if not hasattr(self, "profile"):
+        if not hasattr(self, 'profile'):
             return None
         merged = {**self.params.values, **changed}
         if set(SUN_PARAMS) & set(changed):
@@ -168,8 +235,9 @@ class SkySimulatorNode(Node):
                 self.sun = sun_source(merged)
             except CompassError as exc:
                 return str(exc)
-        if "time_scale" in changed and getattr(self, "base", None) is not None:
-            # simulated time runs on from where it is at the new rate (no jump): restart the wall base now
+        if 'time_scale' in changed and getattr(self, 'base', None) is not None:
+            # simulated time runs on from where it is at the new rate (no jump): restart the wall
+            # base now
             self.base = (self.sim_cursor, time.monotonic())
         self.params.values.update(changed)
         self.profile = self._profile()
@@ -179,31 +247,35 @@ class SkySimulatorNode(Node):
         try:
             import tf2_ros  # noqa: F401
         except ImportError:
-            raise MissingDependencyError("attitude_source tf (tf2_ros)",
-                                         "ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use "
-                                         "attitude_source motion|topic") from None
+            raise MissingDependencyError(
+                'attitude_source tf (tf2_ros)',
+                'ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use '
+                'attitude_source motion|topic',
+            ) from None
         from tf2_ros import Buffer, TransformListener
+
         self._tf = Buffer()
         self._tf_listener = TransformListener(self._tf, self)
 
     # attitude inputs ----------------------------------------------------------------------------
     def _on_attitude(self, msg):
-        q = self.diag.decoded("attitude", decode_orientation, msg)
+        q = self.diag.decoded('attitude', decode_orientation, msg)
         if q is not None:
             self.R_enu_body_input = quat_to_matrix(q)
 
     def _attitude_at(self, t_ns: int, t_rel_s: float):
         """R_enu_body at a stamp, or None when the attitude source has nothing yet."""
-        if self.attitude_source == "motion":
+        if self.attitude_source == 'motion':
             return R_enu_body_from_camera_attitude(self.profile.attitude(t_rel_s))
-        if self.attitude_source == "topic":
+        if self.attitude_source == 'topic':
             return self.R_enu_body_input
         from rclpy.time import Time
+
         p = self.params
         try:
-            tr = self._tf.lookup_transform(p["tf_world_frame"], p["tf_body_frame"], Time())
+            tr = self._tf.lookup_transform(p['tf_world_frame'], p['tf_body_frame'], Time())
         except Exception as exc:  # noqa: BLE001 - tf2 raises several exception types
-            self.diag.reject("tf_lookup", str(exc))
+            self.diag.reject('tf_lookup', str(exc))
             return None
         r = tr.transform.rotation
         return quat_to_matrix([r.x, r.y, r.z, r.w])
@@ -211,44 +283,69 @@ class SkySimulatorNode(Node):
     # outputs ------------------------------------------------------------------------------------
     def _publish_imu(self, t_ns: int, R_enu_body) -> None:
         p = self.params
-        R, variances = imu_reading(R_enu_body, self.rng_imu.standard_normal(3), p["imu_attitude_noise_deg"],
-                                   p["imu_yaw_noise_deg"], p["imu_yaw_bias_deg"], p["imu_roll_bias_deg"],
-                                   p["imu_pitch_bias_deg"])
-        w_body = R_enu_body.T @ np.array([0.0, 0.0, self.profile.yaw_rate_enu_rad_s()]) \
-            if self.attitude_source == "motion" else None
+        R, variances = imu_reading(
+            R_enu_body,
+            self.rng_imu.standard_normal(3),
+            p['imu_attitude_noise_deg'],
+            p['imu_yaw_noise_deg'],
+            p['imu_yaw_bias_deg'],
+            p['imu_roll_bias_deg'],
+            p['imu_pitch_bias_deg'],
+        )
+        w_body = (
+            R_enu_body.T @ np.array([0.0, 0.0, self.profile.yaw_rate_enu_rad_s()])
+            if self.attitude_source == 'motion'
+            else None
+        )
         g_body = R_enu_body.T @ np.array([0.0, 0.0, GRAVITY_M_S2])
-        self.pub_imu.publish(attitude_imu(t_ns, p["imu_frame_id"], R, variances, w_body, g_body))
+        self.pub_imu.publish(attitude_imu(t_ns, p['imu_frame_id'], R, variances, w_body, g_body))
         self.imu_samples += 1
 
     def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
-        """The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude and
-        the sun's altitude, and the CPU-side wall time it took (ms)."""
+        """
+        Render frame ``k_frame`` into an image message and time it.
+
+        The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude
+        and the sun's altitude, and the CPU-side wall time it took (ms).
+        """
         from ..render import SunDirection
         from ..sensor import simulate_mosaic
+
         p = self.params
         t0 = time.perf_counter()
         att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body))
         az, alt = self.sun.at_ns(t_ns)
         frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
-        rng = np.random.default_rng([p["seed"], k_frame])
-        mosaic = simulate_mosaic(frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout,
-                                 rng)
-        if p["encoding"] == "32FC1":
+        rng = np.random.default_rng([p['seed'], k_frame])
+        mosaic = simulate_mosaic(
+            frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout, rng
+        )
+        if p['encoding'] == '32FC1':
             mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
-        msg = (image_msg(mosaic, t_ns, p["camera_frame_id"]),
-               None if frame.array_intensities is None else array_msg(frame.array_intensities))
+        msg = (
+            image_msg(mosaic, t_ns, p['camera_frame_id']),
+            None if frame.array_intensities is None else array_msg(frame.array_intensities),
+        )
         return msg, att, alt, (time.perf_counter() - t0) * 1e3
 
     def _prepare_next_frame(self, now: float) -> None:
-        """With the built-in motion the next frame's attitude is known: render it once half a period has
-        passed since the last frame went out, so that at its time only the publishing is left (a camera's
-        frame rate does not depend on what the computer receiving its images is doing)."""
-        if self.attitude_source != "motion" or self.prepared is not None or self.last_frame_wall is None:
+        """
+        Render the next frame ahead of its time when the motion is known.
+
+        With the built-in motion the next frame's attitude is known: render it once half a period
+        has passed since the last frame went out, so that at its time only the publishing is left
+        (a camera's frame rate does not depend on what the computer receiving its images is doing).
+        """
+        if (
+            self.attitude_source != 'motion'
+            or self.prepared is not None
+            or self.last_frame_wall is None
+        ):
             return
         p = self.params
-        if now - self.last_frame_wall < 0.5 / (p["rate_hz"] * p["time_scale"]):
+        if now - self.last_frame_wall < 0.5 / (p['rate_hz'] * p['time_scale']):
             return
-        t = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+        t = frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame)
         if t is None:
             return
         R = self._attitude_at(t, (t - self.start_ns) / 1e9)
@@ -263,47 +360,68 @@ class SkySimulatorNode(Node):
         else:
             img, att, alt, render_ms = self._render_frame(t_ns, self.k_frame, R_enu_body)
         self.prepared = None
-        if self.frames % max(1, int(round(p["rate_hz"]))) == 0:
-            self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t_ns, "gps"))
+        if self.frames % max(1, int(round(p['rate_hz']))) == 0:
+            self.pub_fix.publish(
+                navsatfix_msg(p['latitude_deg'], p['longitude_deg'], p['altitude_m'], t_ns, 'gps')
+            )
         yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
-        self.pub_truth.publish(heading_imu(t_ns, p["heading_frame_id"], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12))
-        self.pub_info.publish(camera_info_msg(self.camera, t_ns, p["camera_frame_id"]))
+        self.pub_truth.publish(
+            heading_imu(t_ns, p['heading_frame_id'], yaw_enu, TRUTH_YAW_VARIANCE_RAD2, 1e-12)
+        )
+        self.pub_info.publish(camera_info_msg(self.camera, t_ns, p['camera_frame_id']))
         self.pub_image.publish(img[0])
-        if img[1] is not None:          # the header first, then its sample (paired by publication time)
-            self.pub_array_header.publish(Header(stamp=time_msg(t_ns), frame_id=p["heading_frame_id"]))
+        if img[1] is not None:  # the header first, then its sample (paired by publication time)
+            self.pub_array_header.publish(
+                Header(stamp=time_msg(t_ns), frame_id=p['heading_frame_id'])
+            )
             self.pub_array.publish(img[1])
-        self.pub_frames.publish(String(data=json.dumps({"stamp_ns": int(t_ns), "wall_ns": time.time_ns()})))
+        self.pub_frames.publish(
+            String(data=json.dumps({'stamp_ns': int(t_ns), 'wall_ns': time.time_ns()}))
+        )
         self.frames += 1
         self.last_frame_wall = time.monotonic()
         self.frames_ahead += ahead
         # wall time to make and send the frame (its rendering too, when that was done ahead)
         self.render_ms.append((time.perf_counter() - t0) * 1e3 + (render_ms if ahead else 0.0))
-        self.diag.extra = {"frames": self.frames, "frames_rendered_ahead": self.frames_ahead,
-                           "imu_samples": self.imu_samples, "late_frames": self.late_frames,
-                           "lockstep_timeouts": self.lockstep_timeouts, "frame_ms_p95":
-                           float(np.percentile(self.render_ms[-200:], 95)), "true_bearing_deg": att.bearing_deg,
-                           "sun_altitude_deg": alt}
-        self.diag.last_status = f"frame {self.frames} bearing {att.bearing_deg:.2f} deg"
+        self.diag.extra = {
+            'frames': self.frames,
+            'frames_rendered_ahead': self.frames_ahead,
+            'imu_samples': self.imu_samples,
+            'late_frames': self.late_frames,
+            'lockstep_timeouts': self.lockstep_timeouts,
+            'frame_ms_p95': float(np.percentile(self.render_ms[-200:], 95)),
+            'true_bearing_deg': att.bearing_deg,
+            'sun_altitude_deg': alt,
+        }
+        self.diag.last_status = f'frame {self.frames} bearing {att.bearing_deg:.2f} deg'
         if self.frames % 25 == 0:
-            n = "" if self.total_s is None else f"/{int(math.ceil(self.total_s * p['rate_hz'] - 1e-9))}"
-            self.get_logger().info(f"frame {self.frames}{n}")
+            n = (
+                ''
+                if self.total_s is None
+                else f'/{int(math.ceil(self.total_s * p["rate_hz"] - 1e-9))}'
+            )
+            self.get_logger().info(f'frame {self.frames}{n}')
 
     def _publish_clock(self, t_ns: int, force: bool = False) -> None:
-        """/clock at most every 1 / clock_rate_hz wall seconds (every node of the graph receives each
-        one), always when ``force``d (the first stamp, before anything else is sent)."""
+        """
+        Publish /clock, at most every 1 / clock_rate_hz wall seconds unless forced.
+
+        /clock at most every 1 / clock_rate_hz wall seconds (every node of the graph receives each
+        one), always when ``force``d (the first stamp, before anything else is sent).
+        """
         if self.pub_clock is None:
             return
         now = time.monotonic()
-        if force or now - self.last_clock_wall >= 1.0 / self.params["clock_rate_hz"]:
+        if force or now - self.last_clock_wall >= 1.0 / self.params['clock_rate_hz']:
             self.pub_clock.publish(Clock(clock=time_msg(t_ns)))
             self.last_clock_wall = now
 
     # lockstep -----------------------------------------------------------------------------------
     def _on_ack(self, topic: str, msg):
         try:
-            st = int(json.loads(msg.data).get("stamp_ns", -1))
+            st = int(json.loads(msg.data).get('stamp_ns', -1))
         except (ValueError, TypeError, AttributeError):
-            self.diag.reject("lockstep_bad_status", topic)
+            self.diag.reject('lockstep_bad_status', topic)
             return
         self.acks[topic] = max(self.acks[topic], st)
 
@@ -312,48 +430,72 @@ class SkySimulatorNode(Node):
 
     # the sim clock ------------------------------------------------------------------------------
     def _missing_downstream(self) -> list[tuple[str, list]]:
-        """(topic, node names) of ``wait_for_downstream`` whose subscription this node has not seen yet."""
+        """
+        Return the expected downstream subscriptions not seen yet.
+
+        (topic, node names) of ``wait_for_downstream`` whose subscription this node has not seen
+        yet.
+        """
         out = []
-        for topic, names in parse_downstream(self.params["wait_for_downstream"]):
-            seen = {i.node_name for i in self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))}
+        for topic, names in parse_downstream(self.params['wait_for_downstream']):
+            seen = {
+                i.node_name
+                for i in self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))
+            }
             if not names <= seen:
                 out.append((topic, sorted(names - seen)))
         return out
 
     def _ready(self, now: float) -> bool:
-        """Before the first frame: wait for the expected subscribers (image and camera_info:
-        ``wait_for_subscribers``; IMU: ``wait_for_imu_subscribers``; truth: one when either is set), then
-        send camera_info, the fix and the first IMU sample, and give them ``wait_settle_s`` to arrive (and
-        discovery to settle between the other nodes), so that frame 0 is processed with the right
-        intrinsics, site and tilt and its results reach every reader."""
+        """
+        Wait for the expected subscribers, then send the set-up messages.
+
+        Before the first frame: wait for the expected subscribers (image and camera_info:
+        ``wait_for_subscribers``; IMU: ``wait_for_imu_subscribers``; truth: one when either is
+        set), then send camera_info, the fix and the first IMU sample, and give them
+        ``wait_settle_s`` to arrive (and discovery to settle between the other nodes), so that
+        frame 0 is processed with the right intrinsics, site and tilt and its results reach every
+        reader.
+        """
         if self.started:
             return True
         p = self.params
         if self.t_primed is None:
-            need, need_imu = p["wait_for_subscribers"], p["wait_for_imu_subscribers"]
-            ok = (self.pub_image.get_subscription_count() >= need and self.pub_info.get_subscription_count() >= need
-                  and self.pub_imu.get_subscription_count() >= need_imu
-                  and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1)
-                  and not self._missing_downstream())
-            if not ok and now - self.t_wait0 <= p["wait_timeout_s"]:
+            need, need_imu = p['wait_for_subscribers'], p['wait_for_imu_subscribers']
+            ok = (
+                self.pub_image.get_subscription_count() >= need
+                and self.pub_info.get_subscription_count() >= need
+                and self.pub_imu.get_subscription_count() >= need_imu
+                and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1)
+                and not self._missing_downstream()
+            )
+            if not ok and now - self.t_wait0 <= p['wait_timeout_s']:
                 return False
             if not ok:
                 self.get_logger().warning(
-                    f"starting after {p['wait_timeout_s']:g} s with {self.pub_image.get_subscription_count()} image, "
-                    f"{self.pub_imu.get_subscription_count()} IMU and {self.pub_truth.get_subscription_count()} truth "
-                    "subscriber(s)" + "".join(f"; {t} not read by {', '.join(sorted(n))} yet"
-                                              for t, n in self._missing_downstream()))
+                    f'starting after {p["wait_timeout_s"]:g} s with '
+                    f'{self.pub_image.get_subscription_count()} image, '
+                    f'{self.pub_imu.get_subscription_count()} IMU and '
+                    f'{self.pub_truth.get_subscription_count()} truth '
+                    'subscriber(s)'
+                    + ''.join(
+                        f'; {t} not read by {", ".join(sorted(n))} yet'
+                        for t, n in self._missing_downstream()
+                    )
+                )
             t0 = self.start_ns if self.sim_mode else self.get_clock().now().nanoseconds
             self._publish_clock(t0, force=True)
-            self.pub_info.publish(camera_info_msg(self.camera, t0, p["camera_frame_id"]))
-            self.pub_fix.publish(navsatfix_msg(p["latitude_deg"], p["longitude_deg"], p["altitude_m"], t0, "gps"))
+            self.pub_info.publish(camera_info_msg(self.camera, t0, p['camera_frame_id']))
+            self.pub_fix.publish(
+                navsatfix_msg(p['latitude_deg'], p['longitude_deg'], p['altitude_m'], t0, 'gps')
+            )
             R = self._attitude_at(t0, 0.0)
             if R is not None and self.sim_mode:
                 self._publish_imu(t0, R)
                 self.k_imu = 1
             self.t_primed = now
             return False
-        if now - self.t_primed < p["wait_settle_s"]:
+        if now - self.t_primed < p['wait_settle_s']:
             return False
         self.started = True
         return True
@@ -364,36 +506,47 @@ class SkySimulatorNode(Node):
             self._publish_clock(self.sim_cursor)
             return
         p = self.params
-        period_ns = int(round(1e9 / p["rate_hz"]))
-        imu_period_ns = int(round(1e9 / p["imu_rate_hz"]))
+        period_ns = int(round(1e9 / p['rate_hz']))
+        imu_period_ns = int(round(1e9 / p['imu_rate_hz']))
         if self.base is None:
             self.base = (self.sim_cursor, now)
         if self.waiting_for is not None:
             stamp, since = self.waiting_for
-            limit = max(p["lockstep_timeout_s"], 60.0) if self.frames <= 1 else p["lockstep_timeout_s"]
+            limit = (
+                max(p['lockstep_timeout_s'], 60.0) if self.frames <= 1 else p['lockstep_timeout_s']
+            )
             if self._acked(stamp) or now - since > limit:
                 if not self._acked(stamp):
                     self.lockstep_timeouts += 1
-                    self.get_logger().warning(f"lockstep: no answer for frame {stamp / 1e9:.3f} s after "
-                                              f"{limit:g} s", throttle_duration_sec=5.0)
+                    self.get_logger().warning(
+                        f'lockstep: no answer for frame {stamp / 1e9:.3f} s after {limit:g} s',
+                        throttle_duration_sec=5.0,
+                    )
                 self.waiting_for = None
                 self.base = (self.sim_cursor, now)
             else:
                 self._publish_clock(self.sim_cursor)
                 return
-        desired = self.base[0] + int((now - self.base[1]) * p["time_scale"] * 1e9)
-        next_frame = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+        desired = self.base[0] + int((now - self.base[1]) * p['time_scale'] * 1e9)
+        next_frame = frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame)
         if next_frame is not None and next_frame < desired - period_ns:
             self.late_frames += 1
             self.get_logger().warning(
-                f"frame {self.k_frame} is late: simulated time is {(desired - next_frame) / 1e6:.0f} ms past it "
-                f"(more than one frame period); time resumes from it", throttle_duration_sec=1.0)
+                f'frame {self.k_frame} is late: simulated time is '
+                f'{(desired - next_frame) / 1e6:.0f} ms past it '
+                f'(more than one frame period); time resumes from it',
+                throttle_duration_sec=1.0,
+            )
             self.base = (next_frame, now)
             desired = next_frame
         while True:
-            next_frame = frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame)
+            next_frame = frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame)
             next_imu = self.start_ns + self.k_imu * imu_period_ns
-            if next_frame is None and self.total_s is not None and next_imu - self.start_ns >= self.total_s * 1e9:
+            if (
+                next_frame is None
+                and self.total_s is not None
+                and next_imu - self.start_ns >= self.total_s * 1e9
+            ):
                 next_imu = None
             cands = [t for t in (next_imu, next_frame) if t is not None]
             if not cands or min(cands) > desired:
@@ -402,13 +555,13 @@ class SkySimulatorNode(Node):
             self.sim_cursor = max(self.sim_cursor, t)
             t_rel = (t - self.start_ns) / 1e9
             R = self._attitude_at(t, t_rel)
-            if next_imu is not None and next_imu == t:          # IMU first at equal stamps
+            if next_imu is not None and next_imu == t:  # IMU first at equal stamps
                 if R is not None:
                     self._publish_imu(t, R)
                 self.k_imu += 1
                 continue
             if R is None:
-                self.diag.reject("no_attitude", "no attitude received yet: frame skipped")
+                self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
             else:
                 self._publish_frame(t, R)
             self.k_frame += 1
@@ -419,20 +572,25 @@ class SkySimulatorNode(Node):
             self.sim_cursor = desired
         self._publish_clock(self.sim_cursor)
         self._prepare_next_frame(now)
-        if self.total_s is not None and self.waiting_for is None and \
-                frame_times_ns(self.start_ns, p["rate_hz"], self.total_s, self.k_frame) is None:
+        if (
+            self.total_s is not None
+            and self.waiting_for is None
+            and frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame) is None
+        ):
             self._maybe_finish(now)
 
     def _maybe_finish(self, now: float) -> None:
-        """The last frame is out: log once, and exit after linger_s when exit_when_done."""
+        """Handle the last frame: log once, and exit after linger_s when exit_when_done."""
         if self.done_wall is None:
             self.done_wall = now
-            self.get_logger().info(f"run complete: {self.frames} frames, {self.late_frames} late, "
-                                   f"{self.lockstep_timeouts} lockstep timeouts")
-            self.diag.last_status = f"done: {self.frames} frames"
-        if self.params["exit_when_done"] and now - self.done_wall >= self.params["linger_s"]:
+            self.get_logger().info(
+                f'run complete: {self.frames} frames, {self.late_frames} late, '
+                f'{self.lockstep_timeouts} lockstep timeouts'
+            )
+            self.diag.last_status = f'done: {self.frames} frames'
+        if self.params['exit_when_done'] and now - self.done_wall >= self.params['linger_s']:
             self.diag.publish()
-            self.exit_code = 0              # run_node ends the spin (nodes.runner)
+            self.exit_code = 0  # run_node ends the spin (nodes.runner)
 
     # clock_mode system --------------------------------------------------------------------------
     def _frame_system(self) -> None:
@@ -445,7 +603,7 @@ class SkySimulatorNode(Node):
             return
         R = self._attitude_at(t_ns, t_rel)
         if R is None:
-            self.diag.reject("no_attitude", "no attitude received yet: frame skipped")
+            self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
             return
         self._publish_frame(t_ns, R)
         self.k_frame += 1
@@ -459,8 +617,8 @@ class SkySimulatorNode(Node):
 
 
 def main(argv=None) -> int:
-    return run_node(SkySimulatorNode, "sky_simulator", argv)
+    return run_node(SkySimulatorNode, 'sky_simulator', argv)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     raise SystemExit(main())

@@ -1,4 +1,19 @@
-"""The photodiode-array sensor description (YAML) and its validation.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The photodiode-array sensor description (YAML) and its validation.
 
 Format (one YAML mapping)::
 
@@ -16,10 +31,11 @@ Format (one YAML mapping)::
 The frame conventions (body frame, angle zero and sense) are :mod:`..conventions`'.
 Every problem is a one-line :class:`ArrayGeometryError` naming the key.
 """
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
@@ -27,12 +43,21 @@ from ..conventions import ANGLE_SENSES, ANGLE_ZEROS, unit_axis_body, unit_evecto
 from ..errors import CompassError
 from ..safe_load import load_yaml, read_text
 
-__all__ = ["ArrayGeometry", "ArrayGeometryError", "UnitGeometry", "load_array_geometry", "geometry_from_dict",
-           "geometry_to_dict", "MAX_UNITS", "MIN_CHANNELS", "MAX_CHANNELS"]
+__all__ = [
+    'ArrayGeometry',
+    'ArrayGeometryError',
+    'UnitGeometry',
+    'load_array_geometry',
+    'geometry_from_dict',
+    'geometry_to_dict',
+    'MAX_UNITS',
+    'MIN_CHANNELS',
+    'MAX_CHANNELS',
+]
 
 MAX_UNITS = 64
 MIN_CHANNELS, MAX_CHANNELS = 2, 4
-_MAX_TEXT = 1_000_000          # characters of YAML
+_MAX_TEXT = 1_000_000  # characters of YAML
 
 
 class ArrayGeometryError(CompassError):
@@ -53,7 +78,7 @@ class UnitGeometry:
 
     @property
     def n_channels(self) -> int:
-        """Number of polarizer channels of this unit."""
+        """Return the number of polarizer channels of this unit."""
         return len(self.channels_deg)
 
 
@@ -62,13 +87,13 @@ class ArrayGeometry:
     """A photodiode-array sensor: its units and the polarizer angle convention they share."""
 
     units: tuple
-    angle_zero: str = "meridian"
-    angle_sense: str = "cw"
+    angle_zero: str = 'meridian'
+    angle_sense: str = 'cw'
     extra: dict = field(default_factory=dict)
 
     @property
     def n_units(self) -> int:
-        """Number of units."""
+        """Return the number of units."""
         return len(self.units)
 
     @property
@@ -77,34 +102,43 @@ class ArrayGeometry:
         return max(u.n_channels for u in self.units)
 
     def axes_body(self) -> np.ndarray:
-        """Viewing axes of the units in the REP-103 body frame.
+        """
+        View axes of the units in the REP-103 body frame.
 
         Returns
         -------
         numpy.ndarray
             (U, 3) unit vectors (:func:`~polarization_compass.conventions.unit_axis_body`).
+
         """
-        return unit_axis_body([u.azimuth_deg for u in self.units], [u.elevation_deg for u in self.units])
+        return unit_axis_body(
+            [u.azimuth_deg for u in self.units], [u.elevation_deg for u in self.units]
+        )
 
     def evectors_body(self, angle_rad) -> np.ndarray:
-        """Body-frame E-vectors of polarization angles measured by the units.
+        """
+        Body-frame E-vectors of polarization angles measured by the units.
 
         Parameters
         ----------
         angle_rad : array_like
-            (..., U) angles of polarization [rad] in the units' convention (``angle_zero``, ``angle_sense``).
+            (..., U) angles of polarization [rad] in the units' convention (``angle_zero``,
+            ``angle_sense``).
 
         Returns
         -------
         numpy.ndarray
-            (..., U, 3) unit E-vectors in the body frame (:func:`~polarization_compass.conventions.unit_evector_body`).
+            (..., U, 3) unit E-vectors in the body frame
+            (:func:`~polarization_compass.conventions.unit_evector_body`).
+
         """
         az = np.array([u.azimuth_deg for u in self.units])
         el = np.array([u.elevation_deg for u in self.units])
         return unit_evector_body(angle_rad, az, el, self.angle_zero, self.angle_sense)
 
-    def with_convention(self, angle_zero: str, angle_sense: str) -> "ArrayGeometry":
-        """Return a copy with another polarizer angle convention.
+    def with_convention(self, angle_zero: str, angle_sense: str) -> 'ArrayGeometry':
+        """
+        Return a copy with another polarizer angle convention.
 
         Parameters
         ----------
@@ -117,11 +151,13 @@ class ArrayGeometry:
         -------
         ArrayGeometry
             The same units with the given convention.
+
         """
         return ArrayGeometry(self.units, angle_zero, angle_sense, dict(self.extra))
 
-    def with_gains(self, gains, gains_sigma=None) -> "ArrayGeometry":
-        """Return a copy with new per-unit channel gains.
+    def with_gains(self, gains, gains_sigma=None) -> 'ArrayGeometry':
+        """
+        Return a copy with new per-unit channel gains.
 
         Parameters
         ----------
@@ -134,72 +170,105 @@ class ArrayGeometry:
         -------
         ArrayGeometry
             The same units and convention with these gains.
+
         """
         units = []
         for i, u in enumerate(self.units):
             g = tuple(float(v) for v in gains[i])
             gs = None if gains_sigma is None else tuple(float(v) for v in gains_sigma[i])
-            units.append(UnitGeometry(u.azimuth_deg, u.elevation_deg, u.channels_deg, u.acceptance_deg, g, gs,
-                                      u.enabled))
+            units.append(
+                UnitGeometry(
+                    u.azimuth_deg,
+                    u.elevation_deg,
+                    u.channels_deg,
+                    u.acceptance_deg,
+                    g,
+                    gs,
+                    u.enabled,
+                )
+            )
         return ArrayGeometry(tuple(units), self.angle_zero, self.angle_sense, dict(self.extra))
 
 
 def _number(where: str, v, lo: float, hi: float) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ArrayGeometryError(f"{where} must be a number, got {v!r}")
+        raise ArrayGeometryError(f'{where} must be a number, got {v!r}')
     v = float(v)
     if not math.isfinite(v) or not (lo <= v <= hi):
-        raise ArrayGeometryError(f"{where} must be finite and in [{lo:g}, {hi:g}], got {v:g}")
+        raise ArrayGeometryError(f'{where} must be finite and in [{lo:g}, {hi:g}], got {v:g}')
     return v
 
 
 def _numbers(where: str, v, n: int | None, lo: float, hi: float) -> tuple:
     if not isinstance(v, (list, tuple)):
-        raise ArrayGeometryError(f"{where} must be a list of numbers, got {type(v).__name__}")
+        raise ArrayGeometryError(f'{where} must be a list of numbers, got {type(v).__name__}')
     if n is not None and len(v) != n:
-        raise ArrayGeometryError(f"{where} must have {n} entries (one per channel), got {len(v)}")
-    return tuple(_number(f"{where}[{i}]", x, lo, hi) for i, x in enumerate(v))
+        raise ArrayGeometryError(f'{where} must have {n} entries (one per channel), got {len(v)}')
+    return tuple(_number(f'{where}[{i}]', x, lo, hi) for i, x in enumerate(v))
 
 
-_UNIT_KEYS = {"azimuth_deg", "elevation_deg", "channels_deg", "acceptance_deg", "gains", "gains_sigma", "enabled",
-              "name"}
-_TOP_KEYS = {"units", "angle_zero", "angle_sense", "name", "notes"}
+_UNIT_KEYS = {
+    'azimuth_deg',
+    'elevation_deg',
+    'channels_deg',
+    'acceptance_deg',
+    'gains',
+    'gains_sigma',
+    'enabled',
+    'name',
+}
+_TOP_KEYS = {'units', 'angle_zero', 'angle_sense', 'name', 'notes'}
 
 
 def _unit(i: int, d) -> UnitGeometry:
-    where = f"units[{i}]"
+    where = f'units[{i}]'
     if not isinstance(d, dict):
-        raise ArrayGeometryError(f"{where} must be a mapping with azimuth_deg, elevation_deg, channels_deg, "
-                                 f"acceptance_deg")
+        raise ArrayGeometryError(
+            f'{where} must be a mapping with azimuth_deg, elevation_deg, channels_deg, '
+            f'acceptance_deg'
+        )
     unknown = sorted(set(map(str, d)) - _UNIT_KEYS)
     if unknown:
-        raise ArrayGeometryError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(_UNIT_KEYS))}")
-    for k in ("azimuth_deg", "elevation_deg", "channels_deg", "acceptance_deg"):
+        raise ArrayGeometryError(
+            f'{where}: unknown key(s) {", ".join(unknown)}; known: {", ".join(sorted(_UNIT_KEYS))}'
+        )
+    for k in ('azimuth_deg', 'elevation_deg', 'channels_deg', 'acceptance_deg'):
         if k not in d:
-            raise ArrayGeometryError(f"{where}: missing {k}")
-    az = _number(f"{where}.azimuth_deg", d["azimuth_deg"], -360.0, 360.0)
-    el = _number(f"{where}.elevation_deg", d["elevation_deg"], -90.0, 90.0)
-    ch = d["channels_deg"]
+            raise ArrayGeometryError(f'{where}: missing {k}')
+    az = _number(f'{where}.azimuth_deg', d['azimuth_deg'], -360.0, 360.0)
+    el = _number(f'{where}.elevation_deg', d['elevation_deg'], -90.0, 90.0)
+    ch = d['channels_deg']
     if not isinstance(ch, (list, tuple)) or not (MIN_CHANNELS <= len(ch) <= MAX_CHANNELS):
-        raise ArrayGeometryError(f"{where}.channels_deg must list {MIN_CHANNELS}-{MAX_CHANNELS} polarizer angles, "
-                                 f"got {ch!r}"[:200])
-    chans = _numbers(f"{where}.channels_deg", ch, None, -360.0, 360.0)
+        raise ArrayGeometryError(
+            f'{where}.channels_deg must list {MIN_CHANNELS}-{MAX_CHANNELS} polarizer angles, '
+            f'got {ch!r}'[:200]
+        )
+    chans = _numbers(f'{where}.channels_deg', ch, None, -360.0, 360.0)
     folded = [round(c % 180.0, 6) % 180.0 for c in chans]
     if len(set(folded)) != len(folded):
-        raise ArrayGeometryError(f"{where}.channels_deg has two polarizers at the same angle (mod 180): {list(chans)}")
-    acc = _number(f"{where}.acceptance_deg", d["acceptance_deg"], 1e-3, 180.0)
-    gains = _numbers(f"{where}.gains", d["gains"], len(chans), 1e-6, 1e6) if d.get("gains") is not None \
+        raise ArrayGeometryError(
+            f'{where}.channels_deg has two polarizers at the same angle (mod 180): {list(chans)}'
+        )
+    acc = _number(f'{where}.acceptance_deg', d['acceptance_deg'], 1e-3, 180.0)
+    gains = (
+        _numbers(f'{where}.gains', d['gains'], len(chans), 1e-6, 1e6)
+        if d.get('gains') is not None
         else (1.0,) * len(chans)
-    gs = _numbers(f"{where}.gains_sigma", d["gains_sigma"], len(chans), 0.0, 1e6) if d.get("gains_sigma") is not None \
+    )
+    gs = (
+        _numbers(f'{where}.gains_sigma', d['gains_sigma'], len(chans), 0.0, 1e6)
+        if d.get('gains_sigma') is not None
         else None
-    enabled = d.get("enabled", True)
+    )
+    enabled = d.get('enabled', True)
     if not isinstance(enabled, bool):
-        raise ArrayGeometryError(f"{where}.enabled must be true or false, got {enabled!r}")
+        raise ArrayGeometryError(f'{where}.enabled must be true or false, got {enabled!r}')
     return UnitGeometry(az, el, chans, acc, gains, gs, enabled)
 
 
-def geometry_from_dict(d, where: str = "array geometry") -> ArrayGeometry:
-    """Validate a parsed sensor description and build the geometry.
+def geometry_from_dict(d, where: str = 'array geometry') -> ArrayGeometry:
+    """
+    Validate a parsed sensor description and build the geometry.
 
     Parameters
     ----------
@@ -217,31 +286,41 @@ def geometry_from_dict(d, where: str = "array geometry") -> ArrayGeometry:
     ------
     ArrayGeometryError
         One line naming the key that is missing, unknown or out of range.
+
     """
     if not isinstance(d, dict):
-        raise ArrayGeometryError(f"{where}: expected a mapping with 'units', 'angle_zero', 'angle_sense'")
+        raise ArrayGeometryError(
+            f"{where}: expected a mapping with 'units', 'angle_zero', 'angle_sense'"
+        )
     unknown = sorted(set(map(str, d)) - _TOP_KEYS)
     if unknown:
-        raise ArrayGeometryError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(_TOP_KEYS))}")
-    for k in ("units", "angle_zero", "angle_sense"):
+        raise ArrayGeometryError(
+            f'{where}: unknown key(s) {", ".join(unknown)}; known: {", ".join(sorted(_TOP_KEYS))}'
+        )
+    for k in ('units', 'angle_zero', 'angle_sense'):
         if k not in d:
-            raise ArrayGeometryError(f"{where}: missing {k}")
-    if d["angle_zero"] not in ANGLE_ZEROS:
-        raise ArrayGeometryError(f"{where}: angle_zero must be one of {', '.join(ANGLE_ZEROS)}, got {d['angle_zero']!r}")
-    if d["angle_sense"] not in ANGLE_SENSES:
-        raise ArrayGeometryError(f"{where}: angle_sense must be one of {', '.join(ANGLE_SENSES)}, "
-                                 f"got {d['angle_sense']!r}")
-    units = d["units"]
+            raise ArrayGeometryError(f'{where}: missing {k}')
+    if d['angle_zero'] not in ANGLE_ZEROS:
+        raise ArrayGeometryError(
+            f'{where}: angle_zero must be one of {", ".join(ANGLE_ZEROS)}, got {d["angle_zero"]!r}'
+        )
+    if d['angle_sense'] not in ANGLE_SENSES:
+        raise ArrayGeometryError(
+            f'{where}: angle_sense must be one of {", ".join(ANGLE_SENSES)}, '
+            f'got {d["angle_sense"]!r}'
+        )
+    units = d['units']
     if not isinstance(units, list) or not (1 <= len(units) <= MAX_UNITS):
         n = len(units) if isinstance(units, list) else type(units).__name__
-        raise ArrayGeometryError(f"{where}: units must be a list of 1-{MAX_UNITS} units, got {n}")
+        raise ArrayGeometryError(f'{where}: units must be a list of 1-{MAX_UNITS} units, got {n}')
     parsed = tuple(_unit(i, u) for i, u in enumerate(units))
-    extra = {k: d[k] for k in ("name", "notes") if k in d}
-    return ArrayGeometry(parsed, d["angle_zero"], d["angle_sense"], extra)
+    extra = {k: d[k] for k in ('name', 'notes') if k in d}
+    return ArrayGeometry(parsed, d['angle_zero'], d['angle_sense'], extra)
 
 
 def load_array_geometry(path) -> ArrayGeometry:
-    """Read and validate a sensor description YAML file.
+    """
+    Read and validate a sensor description YAML file.
 
     Parameters
     ----------
@@ -257,15 +336,19 @@ def load_array_geometry(path) -> ArrayGeometry:
     ------
     ArrayGeometryError
         Missing, unreadable, too large or invalid file (one line).
+
     """
-    text = read_text(path, ArrayGeometryError, "array geometry")
+    text = read_text(path, ArrayGeometryError, 'array geometry')
     if len(text) > _MAX_TEXT:
-        raise ArrayGeometryError(f"array geometry {str(path)!r}: {len(text)} characters, more than {_MAX_TEXT}")
+        raise ArrayGeometryError(
+            f'array geometry {str(path)!r}: {len(text)} characters, more than {_MAX_TEXT}'
+        )
     return geometry_from_dict(load_yaml(text, str(path), ArrayGeometryError), str(path))
 
 
 def geometry_to_dict(g: ArrayGeometry) -> dict:
-    """Return the YAML mapping of a geometry (round-trips through :func:`geometry_from_dict`).
+    """
+    Return the YAML mapping of a geometry (round-trips through :func:`geometry_from_dict`).
 
     Parameters
     ----------
@@ -275,17 +358,24 @@ def geometry_to_dict(g: ArrayGeometry) -> dict:
     Returns
     -------
     dict
-        ``angle_zero``, ``angle_sense``, ``units`` (with gains, and gains_sigma / enabled when set).
+        ``angle_zero``, ``angle_sense``, ``units`` (with gains, and gains_sigma / enabled when
+        set).
+
     """
     units = []
     for u in g.units:
-        d = {"azimuth_deg": u.azimuth_deg, "elevation_deg": u.elevation_deg, "channels_deg": list(u.channels_deg),
-             "acceptance_deg": u.acceptance_deg, "gains": [float(v) for v in u.gains]}
+        d = {
+            'azimuth_deg': u.azimuth_deg,
+            'elevation_deg': u.elevation_deg,
+            'channels_deg': list(u.channels_deg),
+            'acceptance_deg': u.acceptance_deg,
+            'gains': [float(v) for v in u.gains],
+        }
         if u.gains_sigma is not None:
-            d["gains_sigma"] = [float(v) for v in u.gains_sigma]
+            d['gains_sigma'] = [float(v) for v in u.gains_sigma]
         if not u.enabled:
-            d["enabled"] = False
+            d['enabled'] = False
         units.append(d)
     out = dict(g.extra)
-    out.update({"angle_zero": g.angle_zero, "angle_sense": g.angle_sense, "units": units})
+    out.update({'angle_zero': g.angle_zero, 'angle_sense': g.angle_sense, 'units': units})
     return out

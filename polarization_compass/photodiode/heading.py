@@ -1,78 +1,150 @@
-"""Heading from a photodiode array: the least-squares sun of the units' E-vectors (paper eqs 18, 25-27).
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
 
-Each usable unit gives one 3-D E-vector (its measured angle of polarization lifted into the body frame by
-:func:`~..conventions.unit_evector_body`); under single scattering every E-vector is perpendicular to the
-sun, so the sun is the smallest eigenvector of ``M = sum_u w_u e_u e_u^T`` -- the same solve as the
-camera's :class:`~..estimators.least_squares.LeastSquaresEstimator` (:func:`~..estimators.least_squares.solve_sun`),
-on a handful of units instead of thousands of pixels. The body frame is read as the default-mounted
-camera's (camera +y = body front, :data:`~..conventions.R_BODY_CAM_DEFAULT`), so psi, bearing and REP-103 yaw
-are those of the body's front, and pitch/roll are the paper's (about camera +x = body right, camera +y =
-body front). ``least_squares`` reads the heading in the body frame (level assumption); ``tilt_aware``
-levels the E-vectors with the known pitch and roll first (exact under Rayleigh at any tilt).
-
-Uncertainty: first-order eigenvector perturbation, as in the camera method. An angle error eps_u of unit u
-turns its E-vector about the unit's axis p_u, moving ``e_u . s`` by ``eps_u * l_u`` with ``l_u = (p_u x e_u) . s``,
-and psi by ``-w_u l_u (e_u . c) eps_u`` (c the sensitivity vector). The angle errors are taken as independent
-with variance ``sigma_eps^2 / w_u``; ``sigma_eps^2`` comes from the units' angle residuals against the fitted
-sun (so the misfit of a real sky to the model counts), pooled, because a few units pin it down poorly, with a
-prior angle noise (``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedom):
-``sigma_eps^2 = (sum w eps^2 + nu0 eps0^2) / (n - 2 + nu0)``, ``Var psi = sigma_eps^2 sum (w l (e . c))^2 / w``.
-
-Statuses besides the camera's: ``too_few_units`` (fewer usable units than ``min_units``) and ``poor_fit``
-(the rms angle residual exceeds ``max_misfit_deg``, or the fitted sun's elevation is more than
-``max_sun_elevation_diff_deg`` from the ephemeris). Which methods run on units is each estimator class's
-fact ``accepts_units`` (the registry); the others (zenith, sm_asm, symmetry) need an image, and
-:func:`make_array_estimator` refuses them with that reason.
 """
+Heading from a photodiode array: the least-squares sun of the units' E-vectors.
+
+Heading from a photodiode array: the least-squares sun of the units' E-vectors (paper eqs 18,
+25-27).
+
+Each usable unit gives one 3-D E-vector (its measured angle of polarization lifted into the body
+frame by :func:`~..conventions.unit_evector_body`); under single scattering every E-vector is
+perpendicular to the sun, so the sun is the smallest eigenvector of ``M = sum_u w_u e_u e_u^T`` --
+the same solve as the camera's :class:`~..estimators.least_squares.LeastSquaresEstimator`
+(:func:`~..estimators.least_squares.solve_sun`), on a handful of units instead of thousands of
+pixels. The body frame is read as the default-mounted camera's (camera +y = body front,
+:data:`~..conventions.R_BODY_CAM_DEFAULT`), so psi, bearing and REP-103 yaw are those of the body's
+front, and pitch/roll are the paper's (about camera +x = body right, camera +y = body front).
+``least_squares`` reads the heading in the body frame (level assumption); ``tilt_aware`` levels the
+E-vectors with the known pitch and roll first (exact under Rayleigh at any tilt).
+
+Uncertainty: first-order eigenvector perturbation, as in the camera method. An angle error eps_u of
+unit u turns its E-vector about the unit's axis p_u, moving ``e_u . s`` by ``eps_u * l_u`` with
+``l_u = (p_u x e_u) . s``, and psi by ``-w_u l_u (e_u . c) eps_u`` (c the sensitivity vector). The
+angle errors are taken as independent with variance ``sigma_eps^2 / w_u``; ``sigma_eps^2`` comes
+from the units' angle residuals against the fitted sun (so the misfit of a real sky to the model
+counts), pooled, because a few units pin it down poorly, with a prior angle noise
+(``aop_noise_prior_deg`` worth ``prior_dof`` degrees of freedom): ``sigma_eps^2 = (sum w eps^2 +
+nu0 eps0^2) / (n - 2 + nu0)``, ``Var psi = sigma_eps^2 sum (w l (e . c))^2 / w``.
+
+Statuses besides the camera's: ``too_few_units`` (fewer usable units than ``min_units``) and
+``poor_fit`` (the rms angle residual exceeds ``max_misfit_deg``, or the fitted sun's elevation is
+more than ``max_sun_elevation_diff_deg`` from the ephemeris). Which methods run on units is each
+estimator class's fact ``accepts_units`` (the registry); the others (zenith, sm_asm, symmetry) need
+an image, and :func:`make_array_estimator` refuses them with that reason.
+"""
+
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from ..conventions import R_BODY_CAM_DEFAULT, fold_axial_rad, rot_x, rot_y, unit_angle_from_evector_body_rad
-from ..errors import CompassError
-from ..estimators.base import HeadingResult, Status
-from ..estimators._common import Candidate, Knob, check_sun, psi_from_sun_rad, resolve_ambiguity, result_from
-from ..estimators import registry
-from ..estimators.least_squares import solve_sun
 from .stokes import fit_stokes
+from ..conventions import (
+    fold_axial_rad,
+    R_BODY_CAM_DEFAULT,
+    rot_x,
+    rot_y,
+    unit_angle_from_evector_body_rad,
+)
+from ..errors import CompassError
+from ..estimators import registry
+from ..estimators._common import (
+    Candidate,
+    check_sun,
+    Knob,
+    psi_from_sun_rad,
+    resolve_ambiguity,
+    result_from,
+)
+from ..estimators.base import HeadingResult, Status
+from ..estimators.least_squares import solve_sun
 
-__all__ = ["array_methods", "ArrayMethodError", "ArrayHeadingEstimator", "make_array_estimator", "ARRAY_KNOBS",
-           "estimate_recording"]
+__all__ = [
+    'array_methods',
+    'ArrayMethodError',
+    'ArrayHeadingEstimator',
+    'make_array_estimator',
+    'ARRAY_KNOBS',
+    'estimate_recording',
+]
 
 
 def array_methods() -> tuple[str, ...]:
-    """Name the registered methods that run on a photodiode array's units.
+    """
+    Name the registered methods that run on a photodiode array's units.
 
     Returns
     -------
     tuple of str
         The methods whose class fact ``accepts_units`` is true, in the registry's order.
+
     """
     return tuple(n for n in registry.names() if registry.get(n).accepts_units)
 
 
 ARRAY_KNOBS = {
-    "min_units": Knob(3, "int", 2, 64, doc="usable units needed (2 fix the sun exactly, with no misfit check)"),
-    "min_dop": Knob(0.02, "float", 0.0, 1.0, doc="units seeing a lower DoP are not used"),
-    "weighting": Knob("dop2", "choice", choices=("dop2", "uniform"),
-                      doc="unit weights: DoP^2 (AoP noise ~ 1/DoP) or equal"),
-    "max_misfit_deg": Knob(30.0, "float", 0.1, 90.0, doc="rms angle residual above this: status poor_fit"),
-    "max_sun_elevation_diff_deg": Knob(35.0, "float", 0.1, 180.0,
-                                       doc="fitted vs ephemeris sun elevation above this: status poor_fit"),
-    "aop_noise_prior_deg": Knob(10.0, "float", 0.0, 90.0,
-                                doc="prior AoP noise (model misfit) per unit, pooled into sigma"),
-    "prior_dof": Knob(4.0, "float", 0.0, 1e6, doc="degrees of freedom the prior AoP noise is worth"),
-    "sigma_floor_deg": Knob(0.0, "float", 0.0, 90.0, doc="added in quadrature to sigma"),
-    "max_sun_altitude_deg": Knob(85.0, "float", 1.0, 90.0, doc="ephemeris sun above this: sun_near_zenith"),
-    "min_sun_altitude_deg": Knob(0.0, "float", -10.0, 10.0, doc="ephemeris sun below this: sun_below_horizon"),
-    "min_eigen_gap": Knob(1e-9, "float", 0.0, 1.0, doc="(lambda2 - lambda1) / lambda3 below this: degenerate"),
-    "sign_margin_sigma": Knob(3.0, "float", 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"),
-    "max_tilt_deg": Knob(30.0, "float", 0.0, 89.0, doc="least_squares: assumed tilt bound for the sign rule"),
-    "brightness_min_t": Knob(4.0, "float", 1.0, 1e6, doc="|t| of the unit brightness gradient that fixes the side"),
-    "prior_max_diff_deg": Knob(60.0, "float", 1.0, 90.0, doc="a prior bearing within this picks the side"),
+    'min_units': Knob(
+        3, 'int', 2, 64, doc='usable units needed (2 fix the sun exactly, with no misfit check)'
+    ),
+    'min_dop': Knob(0.02, 'float', 0.0, 1.0, doc='units seeing a lower DoP are not used'),
+    'weighting': Knob(
+        'dop2',
+        'choice',
+        choices=('dop2', 'uniform'),
+        doc='unit weights: DoP^2 (AoP noise ~ 1/DoP) or equal',
+    ),
+    'max_misfit_deg': Knob(
+        30.0, 'float', 0.1, 90.0, doc='rms angle residual above this: status poor_fit'
+    ),
+    'max_sun_elevation_diff_deg': Knob(
+        35.0,
+        'float',
+        0.1,
+        180.0,
+        doc='fitted vs ephemeris sun elevation above this: status poor_fit',
+    ),
+    'aop_noise_prior_deg': Knob(
+        10.0, 'float', 0.0, 90.0, doc='prior AoP noise (model misfit) per unit, pooled into sigma'
+    ),
+    'prior_dof': Knob(
+        4.0, 'float', 0.0, 1e6, doc='degrees of freedom the prior AoP noise is worth'
+    ),
+    'sigma_floor_deg': Knob(0.0, 'float', 0.0, 90.0, doc='added in quadrature to sigma'),
+    'max_sun_altitude_deg': Knob(
+        85.0, 'float', 1.0, 90.0, doc='ephemeris sun above this: sun_near_zenith'
+    ),
+    'min_sun_altitude_deg': Knob(
+        0.0, 'float', -10.0, 10.0, doc='ephemeris sun below this: sun_below_horizon'
+    ),
+    'min_eigen_gap': Knob(
+        1e-9, 'float', 0.0, 1.0, doc='(lambda2 - lambda1) / lambda3 below this: degenerate'
+    ),
+    'sign_margin_sigma': Knob(
+        3.0, 'float', 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"
+    ),
+    'max_tilt_deg': Knob(
+        30.0, 'float', 0.0, 89.0, doc='least_squares: assumed tilt bound for the sign rule'
+    ),
+    'brightness_min_t': Knob(
+        4.0, 'float', 1.0, 1e6, doc='|t| of the unit brightness gradient that fixes the side'
+    ),
+    'prior_max_diff_deg': Knob(
+        60.0, 'float', 1.0, 90.0, doc='a prior bearing within this picks the side'
+    ),
 }
 
 
@@ -90,7 +162,12 @@ class _Sky:
 
 
 def _brightness_t(s0, p_cam, direction) -> float | None:
-    """t statistic of the slope of unit brightness S0 against ``p . direction`` (None: too few units / flat)."""
+    """
+    Return the T statistic of the brightness slope along ``direction``.
+
+    t statistic of the slope of unit brightness S0 against ``p . direction`` (None: too few units /
+    flat).
+    """
     x = p_cam @ direction
     n = x.size
     if n < 3:
@@ -109,10 +186,11 @@ def _brightness_t(s0, p_cam, direction) -> float | None:
 
 
 class ArrayHeadingEstimator:
-    """Heading of a photodiode array from one sample of per-unit angles of polarization.
+    """
+    Heading of a photodiode array from one sample of per-unit angles of polarization.
 
-    ``name`` one of :func:`array_methods` (``needs_tilt`` classes level with the known pitch and roll); ``geometry`` an :class:`~.geometry.ArrayGeometry`; knobs from
-    :data:`ARRAY_KNOBS`.
+    ``name`` one of :func:`array_methods` (``needs_tilt`` classes level with the known pitch and
+    roll); ``geometry`` an :class:`~.geometry.ArrayGeometry`; knobs from :data:`ARRAY_KNOBS`.
     """
 
     def __init__(self, name: str, geometry, **knobs):
@@ -124,21 +202,35 @@ class ArrayHeadingEstimator:
         self.geometry = geometry
         unknown = sorted(set(knobs) - set(ARRAY_KNOBS))
         if unknown:
-            raise ArrayMethodError(f"unknown array knob(s) {', '.join(unknown)}; known: {', '.join(ARRAY_KNOBS)}")
-        self.knobs = {k: spec.check(k, knobs.get(k, spec.default)) for k, spec in ARRAY_KNOBS.items()}
-        if self.knobs["min_sun_altitude_deg"] >= self.knobs["max_sun_altitude_deg"]:
-            raise ArrayMethodError("min_sun_altitude_deg must be below max_sun_altitude_deg")
+            raise ArrayMethodError(
+                f'unknown array knob(s) {", ".join(unknown)}; known: {", ".join(ARRAY_KNOBS)}'
+            )
+        self.knobs = {
+            k: spec.check(k, knobs.get(k, spec.default)) for k, spec in ARRAY_KNOBS.items()
+        }
+        if self.knobs['min_sun_altitude_deg'] >= self.knobs['max_sun_altitude_deg']:
+            raise ArrayMethodError('min_sun_altitude_deg must be below max_sun_altitude_deg')
         g = geometry
         self._az = np.array([u.azimuth_deg for u in g.units])
         self._el = np.array([u.elevation_deg for u in g.units])
         self._enabled = np.array([u.enabled for u in g.units])
-        self._axes_cam = g.axes_body() @ R_BODY_CAM_DEFAULT          # rows: R_BODY_CAM^T p_body
+        self._axes_cam = g.axes_body() @ R_BODY_CAM_DEFAULT  # rows: R_BODY_CAM^T p_body
 
     # ------------------------------------------------------------------------------------------
-    def estimate(self, aop_rad, dop, s0, valid, sun_azimuth_deg: float, sun_altitude_deg: float,
-                 pitch_deg: float | None = None, roll_deg: float | None = None,
-                 prior_bearing_deg: float | None = None) -> HeadingResult:
-        """Estimate one heading from one sample of per-unit angles of polarization.
+    def estimate(
+        self,
+        aop_rad,
+        dop,
+        s0,
+        valid,
+        sun_azimuth_deg: float,
+        sun_altitude_deg: float,
+        pitch_deg: float | None = None,
+        roll_deg: float | None = None,
+        prior_bearing_deg: float | None = None,
+    ) -> HeadingResult:
+        """
+        Estimate one heading from one sample of per-unit angles of polarization.
 
         Parameters
         ----------
@@ -155,23 +247,26 @@ class ArrayHeadingEstimator:
         sun_altitude_deg : float
             Sun altitude [deg] (ephemeris).
         pitch_deg : float, optional
-            Known pitch [deg] (paper's alpha, about body right); tilt_aware needs it, least_squares uses it for the
-            sign rule.
+            Known pitch [deg] (paper's alpha, about body right); tilt_aware needs it, least_squares
+            uses it for the sign rule.
         roll_deg : float, optional
             Known roll [deg] (paper's beta, about body front).
         prior_bearing_deg : float, optional
-            Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else does.
+            Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else
+            does.
 
         Returns
         -------
         HeadingResult
-            psi, bearing and REP-103 yaw of the body front, sigma [deg], status with the reason; ``pixels`` is the
-            number of units used. Never NaN: a case without an answer is a status.
+            psi, bearing and REP-103 yaw of the body front, sigma [deg], status with the reason;
+            ``pixels`` is the number of units used. Never NaN: a case without an answer is a
+            status.
 
         References
         ----------
-        The paper's eqs 18 and 25-27 (least-squares sun from E-vectors); Lambrinos et al. 2000, Robot. Auton.
-        Syst. 30 (POL-OP units).
+        The paper's eqs 18 and 25-27 (least-squares sun from E-vectors); Lambrinos et al. 2000,
+        Robot. Auton. Syst. 30 (POL-OP units).
+
         """
         k = self.knobs
         sky = _Sky(sun_azimuth_deg, sun_altitude_deg, prior_bearing_deg)
@@ -182,51 +277,81 @@ class ArrayHeadingEstimator:
         if pitch_deg is not None and roll_deg is not None:
             p, r = float(pitch_deg), float(roll_deg)
             if not (math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0):
-                return HeadingResult.failed(self.name, Status.BAD_INPUT,
-                                            f"pitch/roll must be finite, |pitch| < 90: got {p}, {r}")
+                return HeadingResult.failed(
+                    self.name,
+                    Status.BAD_INPUT,
+                    f'pitch/roll must be finite, |pitch| < 90: got {p}, {r}',
+                )
             R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
         if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(self.name, Status.BAD_INPUT, "tilt_aware needs the pitch and roll")
+            return HeadingResult.failed(
+                self.name, Status.BAD_INPUT, 'tilt_aware needs the pitch and roll'
+            )
         aop = np.asarray(aop_rad, dtype=float)
         dop = np.asarray(dop, dtype=float)
         s0 = np.asarray(s0, dtype=float)
-        use = (np.asarray(valid, dtype=bool) & self._enabled & np.isfinite(aop) & np.isfinite(dop)
-               & np.isfinite(s0) & (dop >= k["min_dop"]))
+        use = (
+            np.asarray(valid, dtype=bool)
+            & self._enabled
+            & np.isfinite(aop)
+            & np.isfinite(dop)
+            & np.isfinite(s0)
+            & (dop >= k['min_dop'])
+        )
         n = int(use.sum())
-        if n < k["min_units"]:
-            low = int(np.sum(np.asarray(valid, dtype=bool) & self._enabled & (dop < k["min_dop"])))
-            why = f" ({low} with DoP < min_dop {k['min_dop']:g})" if low else ""
-            return HeadingResult.failed(self.name, Status.TOO_FEW_UNITS,
-                                        f"{n} usable unit(s) < min_units {k['min_units']}{why}", pixels=n)
+        if n < k['min_units']:
+            low = int(np.sum(np.asarray(valid, dtype=bool) & self._enabled & (dop < k['min_dop'])))
+            why = f' ({low} with DoP < min_dop {k["min_dop"]:g})' if low else ''
+            return HeadingResult.failed(
+                self.name,
+                Status.TOO_FEW_UNITS,
+                f'{n} usable unit(s) < min_units {k["min_units"]}{why}',
+                pixels=n,
+            )
         e_body = self.geometry.evectors_body(aop)[use]
-        e = e_body @ R_BODY_CAM_DEFAULT                                 # camera-equivalent frame, rows
+        e = e_body @ R_BODY_CAM_DEFAULT  # camera-equivalent frame, rows
         pc = self._axes_cam[use]
-        w = dop[use] ** 2 if k["weighting"] == "dop2" else np.ones(n)
+        w = dop[use] ** 2 if k['weighting'] == 'dop2' else np.ones(n)
         w = w / w.mean()
-        M = np.einsum("u,ui,uj->ij", w, e, e)
+        M = np.einsum('u,ui,uj->ij', w, e, e)
         zero = np.zeros((3, 3))
         lam, U, _ = solve_sun(M, zero, zero, bias_correction=False)
         if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(self.name, Status.DEGENERATE, "no usable E-vector weight", pixels=n)
+            return HeadingResult.failed(
+                self.name, Status.DEGENERATE, 'no usable E-vector weight', pixels=n
+            )
         gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k["min_eigen_gap"]:
-            return HeadingResult.failed(self.name, Status.DEGENERATE,
-                                        f"the units' E-vectors do not single out a sun direction (eigen gap "
-                                        f"{gap:.2e})", pixels=n)
+        if gap <= k['min_eigen_gap']:
+            return HeadingResult.failed(
+                self.name,
+                Status.DEGENERATE,
+                f"the units' E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
+                pixels=n,
+            )
         s = U[:, 0].copy()
         R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
         s_h = R @ s
         rho = math.hypot(s_h[0], s_h[1])
-        if rho < math.cos(math.radians(k["max_sun_altitude_deg"])):
-            return HeadingResult.failed(self.name, Status.SUN_NEAR_ZENITH,
-                                        f"the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from "
-                                        "the zenith: the solar meridian is ill-conditioned", pixels=n)
-        # angle residuals of each unit against the fitted sun (E = s x p, eq 18), in its own convention
+        if rho < math.cos(math.radians(k['max_sun_altitude_deg'])):
+            return HeadingResult.failed(
+                self.name,
+                Status.SUN_NEAR_ZENITH,
+                f'the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from '
+                'the zenith: the solar meridian is ill-conditioned',
+                pixels=n,
+            )
+        # angle residuals of each unit against the fitted sun (E = s x p, eq 18), in its own
+        # convention
         s_body = R_BODY_CAM_DEFAULT @ s
-        pred = unit_angle_from_evector_body_rad(np.cross(s_body, self.geometry.axes_body()[use]), self._az[use],
-                                                self._el[use], self.geometry.angle_zero, self.geometry.angle_sense)
+        pred = unit_angle_from_evector_body_rad(
+            np.cross(s_body, self.geometry.axes_body()[use]),
+            self._az[use],
+            self._el[use],
+            self.geometry.angle_zero,
+            self.geometry.angle_sense,
+        )
         resid_rad = fold_axial_rad(aop[use] - pred)
-        misfit_deg = math.degrees(math.sqrt(float(np.sum(w * resid_rad ** 2)) / float(np.sum(w))))
+        misfit_deg = math.degrees(math.sqrt(float(np.sum(w * resid_rad**2)) / float(np.sum(w))))
         # sensitivities (as in the camera method): d psi / d s, d elevation / d s
         g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
         R_sign = R_lev if R_lev is not None else np.eye(3)
@@ -236,68 +361,110 @@ class ArrayHeadingEstimator:
         d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
         c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
         c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
-        # a unit's angle error eps turns e about its axis p: d e = eps (p x e), so d(e . s) = eps * lever
-        lever = np.einsum("ui,i->u", np.cross(pc, e), s)
-        nu0 = k["prior_dof"]
+        # a unit's angle error eps turns e about its axis p: d e = eps (p x e), so d(e . s) = eps *
+        # lever
+        lever = np.einsum('ui,i->u', np.cross(pc, e), s)
+        nu0 = k['prior_dof']
         dof = (n - 2) + nu0
-        eps0_sq = math.radians(k["aop_noise_prior_deg"]) ** 2
+        eps0_sq = math.radians(k['aop_noise_prior_deg']) ** 2
         # Var(eps_u) = sigma_eps^2 / w_u, sigma_eps^2 pooled from the angle residuals and the prior
-        sigma_eps_sq = (float(np.sum(w * resid_rad ** 2)) + nu0 * eps0_sq) / dof if dof > 0 else 0.0
-        infl_psi = w * lever * (e @ c_psi)              # d psi / d eps_u (up to sign)
+        sigma_eps_sq = (float(np.sum(w * resid_rad**2)) + nu0 * eps0_sq) / dof if dof > 0 else 0.0
+        infl_psi = w * lever * (e @ c_psi)  # d psi / d eps_u (up to sign)
         infl_el = w * lever * (e @ c_el)
-        sigma_psi = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_psi ** 2 / w)), 0.0))
-        sigma_el = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_el ** 2 / w)), 0.0))
-        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k["sigma_floor_deg"]), 1e-9)
+        sigma_psi = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_psi**2 / w)), 0.0))
+        sigma_el = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_el**2 / w)), 0.0))
+        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k['sigma_floor_deg']), 1e-9)
         el_fit = math.degrees(math.asin(min(1.0, abs(float(s_sign[2])))))
-        extras = {"units_used": n, "misfit_rms_deg": misfit_deg,
-                  "unit_residuals_deg": [float(v) for v in np.degrees(resid_rad)],
-                  "eigenvalues": [float(v) for v in lam / float(np.trace(M))],
-                  "sigma_sun_elevation_deg": math.degrees(sigma_el),
-                  "sun_altitude_ephemeris_deg": float(sun_altitude_deg)}
-        if misfit_deg > k["max_misfit_deg"]:
-            return HeadingResult.failed(self.name, Status.POOR_FIT,
-                                        f"rms angle residual {misfit_deg:.1f} deg > max_misfit_deg "
-                                        f"{k['max_misfit_deg']:g} over {n} unit(s)", pixels=n, **extras)
+        extras = {
+            'units_used': n,
+            'misfit_rms_deg': misfit_deg,
+            'unit_residuals_deg': [float(v) for v in np.degrees(resid_rad)],
+            'eigenvalues': [float(v) for v in lam / float(np.trace(M))],
+            'sigma_sun_elevation_deg': math.degrees(sigma_el),
+            'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
+        }
+        if misfit_deg > k['max_misfit_deg']:
+            return HeadingResult.failed(
+                self.name,
+                Status.POOR_FIT,
+                f'rms angle residual {misfit_deg:.1f} deg > max_misfit_deg '
+                f'{k["max_misfit_deg"]:g} over {n} unit(s)',
+                pixels=n,
+                **extras,
+            )
         el_ref = float(sun_altitude_deg)
-        if abs(el_fit - el_ref) > k["max_sun_elevation_diff_deg"]:
-            return HeadingResult.failed(self.name, Status.POOR_FIT,
-                                        f"fitted sun elevation {el_fit:.1f} deg vs ephemeris {el_ref:.1f} deg "
-                                        f"(> {k['max_sun_elevation_diff_deg']:g} apart)", pixels=n, **extras)
+        if abs(el_fit - el_ref) > k['max_sun_elevation_diff_deg']:
+            return HeadingResult.failed(
+                self.name,
+                Status.POOR_FIT,
+                f'fitted sun elevation {el_fit:.1f} deg vs ephemeris {el_ref:.1f} deg '
+                f'(> {k["max_sun_elevation_diff_deg"]:g} apart)',
+                pixels=n,
+                **extras,
+            )
         cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
         first, second = cands if s_sign[2] >= 0 else cands[::-1]
-        margin_deg = k["sign_margin_sigma"] * math.degrees(sigma_el)
+        margin_deg = k['sign_margin_sigma'] * math.degrees(sigma_el)
 
         def sun_rule():
             if R_lev is not None:
                 if el_fit > margin_deg:
-                    return first, f"sun side from the levelled sun elevation ({el_fit:.2f} > {margin_deg:.2f} deg)"
-                return None, f"levelled sun elevation {el_fit:.2f} deg within the {margin_deg:.2f} deg margin"
-            lim = k["max_tilt_deg"] + margin_deg
+                    return (
+                        first,
+                        f'sun side from the levelled sun elevation ({el_fit:.2f} > '
+                        f'{margin_deg:.2f} deg)',
+                    )
+                return (
+                    None,
+                    f'levelled sun elevation {el_fit:.2f} deg within the {margin_deg:.2f} deg '
+                    'margin',
+                )
+            lim = k['max_tilt_deg'] + margin_deg
             if el_fit > lim:
-                return first, (f"sun side from the body-frame sun elevation ({el_fit:.2f} deg > max_tilt_deg "
-                               f"{k['max_tilt_deg']:g} + {margin_deg:.2f} deg margin)")
-            return None, (f"body-frame sun elevation {el_fit:.2f} deg <= max_tilt_deg {k['max_tilt_deg']:g} + margin: "
-                          "the sun's side is unknown without the tilt")
+                return first, (
+                    f'sun side from the body-frame sun elevation ({el_fit:.2f} deg > max_tilt_deg '
+                    f'{k["max_tilt_deg"]:g} + {margin_deg:.2f} deg margin)'
+                )
+            return None, (
+                f'body-frame sun elevation {el_fit:.2f} deg <= max_tilt_deg {k["max_tilt_deg"]:g} '
+                '+ margin: '
+                "the sun's side is unknown without the tilt"
+            )
 
         bt = _brightness_t(s0[use], pc, first.sun_cam - second.sun_cam)
         pick, by, reason = resolve_ambiguity(self.name, first, second, bt, sky, k, sun_rule)
         alt = R_sign @ pick.sun_cam
         implied_alt = math.degrees(math.asin(float(np.clip(alt[2], -1.0, 1.0))))
         quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
-        extras["sun_body"] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
-        return result_from(self.name, pick, by, reason, sky, sigma_deg, n, 0, quality,
-                           sun_altitude_deg=implied_alt, extras=extras)
+        extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
+        return result_from(
+            self.name,
+            pick,
+            by,
+            reason,
+            sky,
+            sigma_deg,
+            n,
+            0,
+            quality,
+            sun_altitude_deg=implied_alt,
+            extras=extras,
+        )
 
 
 def _method_message(name: str) -> str:
-    ok = ", ".join(array_methods())
+    ok = ', '.join(array_methods())
     if registry.find(name) is not None:
-        return f"method {name} needs an image (a camera's sky pattern); a photodiode array supports {ok}"
-    return f"unknown method {name!r} for a photodiode array; supported: {ok}"
+        return (
+            f"method {name} needs an image (a camera's sky pattern); a photodiode array supports "
+            f'{ok}'
+        )
+    return f'unknown method {name!r} for a photodiode array; supported: {ok}'
 
 
 def make_array_estimator(name: str, geometry, **knobs) -> ArrayHeadingEstimator:
-    """Build an array estimator, refusing image-only or unknown methods.
+    """
+    Build an array estimator, refusing image-only or unknown methods.
 
     Parameters
     ----------
@@ -312,13 +479,22 @@ def make_array_estimator(name: str, geometry, **knobs) -> ArrayHeadingEstimator:
     -------
     ArrayHeadingEstimator
         The estimator.
+
     """
     return ArrayHeadingEstimator(name, geometry, **knobs)
 
 
-def estimate_recording(estimator: ArrayHeadingEstimator, intensities, sun_azimuth_deg, sun_altitude_deg,
-                       pitch_deg=None, roll_deg=None, prior_bearing_deg=None) -> list:
-    """Estimate a heading for every sample of a recording.
+def estimate_recording(
+    estimator: ArrayHeadingEstimator,
+    intensities,
+    sun_azimuth_deg,
+    sun_altitude_deg,
+    pitch_deg=None,
+    roll_deg=None,
+    prior_bearing_deg=None,
+) -> list:
+    """
+    Estimate a heading for every sample of a recording.
 
     Parameters
     ----------
@@ -341,6 +517,7 @@ def estimate_recording(estimator: ArrayHeadingEstimator, intensities, sun_azimut
     -------
     list of HeadingResult
         One per sample.
+
     """
     st = fit_stokes(intensities, estimator.geometry)
     S = st.aop_rad.shape[0]
@@ -351,6 +528,16 @@ def estimate_recording(estimator: ArrayHeadingEstimator, intensities, sun_azimut
         a = np.broadcast_to(np.asarray(v, dtype=float), (S,))
         return [float(x) for x in a]
 
-    az, alt, p, r, pr = per(sun_azimuth_deg), per(sun_altitude_deg), per(pitch_deg), per(roll_deg), per(prior_bearing_deg)
-    return [estimator.estimate(st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i])
-            for i in range(S)]
+    az, alt, p, r, pr = (
+        per(sun_azimuth_deg),
+        per(sun_altitude_deg),
+        per(pitch_deg),
+        per(roll_deg),
+        per(prior_bearing_deg),
+    )
+    return [
+        estimator.estimate(
+            st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i]
+        )
+        for i in range(S)
+    ]

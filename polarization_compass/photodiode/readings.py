@@ -1,31 +1,57 @@
-"""Photodiode-array recordings: ``intensities`` (samples x units x channels) and optional per-sample times.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Photodiode-array recordings: intensities and optional per-sample times.
+
+Photodiode-array recordings: ``intensities`` (samples x units x channels) and optional per-sample
+times.
 
 ``.npz``: ``intensities`` float array (S, U, C) and optional ``t_offset_s`` (S,) seconds after a
-reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>`` (0-based,
-channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Units with fewer
-channels than the widest one leave the extra columns out (they read as 0 and are never used).
-Readings are intensities (>= 0); negative values and NaN are kept for the estimator to reject per
-sample (a sample is never dropped silently), but inf is refused.
+reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>``
+(0-based, channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Units
+with fewer channels than the widest one leave the extra columns out (they read as 0 and are never
+used). Readings are intensities (>= 0); negative values and NaN are kept for the estimator to
+reject per sample (a sample is never dropped silently), but inf is refused.
 """
+
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 import io
 import math
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import CompassError
 from ..safe_load import open_npz, read_text
 
-__all__ = ["ArrayRecording", "ArrayRecordingError", "load_array_recording", "save_array_recording_npz",
-           "save_array_recording_csv", "array_sample_from_flat", "MAX_SAMPLES"]
+__all__ = [
+    'ArrayRecording',
+    'ArrayRecordingError',
+    'load_array_recording',
+    'save_array_recording_npz',
+    'save_array_recording_csv',
+    'array_sample_from_flat',
+    'MAX_SAMPLES',
+]
 
 MAX_SAMPLES = 1_000_000
 _MAX_CSV_CHARS = 200_000_000
-_COL = re.compile(r"^u(\d+)_c(\d+)$")
+_COL = re.compile(r'^u(\d+)_c(\d+)$')
 
 
 class ArrayRecordingError(CompassError):
@@ -41,11 +67,12 @@ class ArrayRecording:
 
     @property
     def n_samples(self) -> int:
-        """Number of samples."""
+        """Return the number of samples."""
         return int(self.intensities.shape[0])
 
     def check_against(self, geometry) -> None:
-        """Check that the recording's shape fits a geometry.
+        """
+        Check that the recording's shape fits a geometry.
 
         Parameters
         ----------
@@ -56,94 +83,114 @@ class ArrayRecording:
         ------
         ArrayRecordingError
             The numbers of units or channels do not match.
+
         """
         _, U, C = self.intensities.shape
         if U != geometry.n_units:
-            raise ArrayRecordingError(f"the recording has {U} unit(s), the geometry {geometry.n_units}")
+            raise ArrayRecordingError(
+                f'the recording has {U} unit(s), the geometry {geometry.n_units}'
+            )
         if C < geometry.n_channels:
-            raise ArrayRecordingError(f"the recording has {C} channel(s) per unit, the geometry needs "
-                                      f"{geometry.n_channels}")
+            raise ArrayRecordingError(
+                f'the recording has {C} channel(s) per unit, the geometry needs '
+                f'{geometry.n_channels}'
+            )
 
 
 def _validated(inten, t, where: str) -> ArrayRecording:
     inten = np.asarray(inten)
-    if inten.dtype.kind not in "fiu" or inten.ndim != 3:
-        raise ArrayRecordingError(f"{where}: intensities must be a numeric array (samples, units, channels), "
-                                  f"got {inten.dtype} with shape {inten.shape}")
+    if inten.dtype.kind not in 'fiu' or inten.ndim != 3:
+        raise ArrayRecordingError(
+            f'{where}: intensities must be a numeric array (samples, units, channels), '
+            f'got {inten.dtype} with shape {inten.shape}'
+        )
     S, U, C = inten.shape
     if not (1 <= S <= MAX_SAMPLES) or not (1 <= U <= 64) or not (2 <= C <= 4):
-        raise ArrayRecordingError(f"{where}: intensities shape {inten.shape} outside 1-{MAX_SAMPLES} samples, "
-                                  f"1-64 units, 2-4 channels")
+        raise ArrayRecordingError(
+            f'{where}: intensities shape {inten.shape} outside 1-{MAX_SAMPLES} samples, '
+            f'1-64 units, 2-4 channels'
+        )
     inten = inten.astype(np.float64)
     if np.any(np.isinf(inten)):
-        raise ArrayRecordingError(f"{where}: intensities contain inf")
+        raise ArrayRecordingError(f'{where}: intensities contain inf')
     if t is not None:
         t = np.asarray(t)
-        if t.dtype.kind not in "fiu" or t.shape != (S,):
-            raise ArrayRecordingError(f"{where}: t_offset_s must be numbers, one per sample ({S}), got shape {t.shape}")
+        if t.dtype.kind not in 'fiu' or t.shape != (S,):
+            raise ArrayRecordingError(
+                f'{where}: t_offset_s must be numbers, one per sample ({S}), got shape {t.shape}'
+            )
         t = t.astype(np.float64)
         if not np.all(np.isfinite(t)) or np.any(np.abs(t) > 1e9):
-            raise ArrayRecordingError(f"{where}: t_offset_s must be finite seconds within +-1e9")
+            raise ArrayRecordingError(f'{where}: t_offset_s must be finite seconds within +-1e9')
     return ArrayRecording(inten, t)
 
 
 def _load_csv(path) -> ArrayRecording:
-    text = read_text(path, ArrayRecordingError, "array recording")
+    text = read_text(path, ArrayRecordingError, 'array recording')
     if len(text) > _MAX_CSV_CHARS:
-        raise ArrayRecordingError(f"{path}: more than {_MAX_CSV_CHARS} characters")
+        raise ArrayRecordingError(f'{path}: more than {_MAX_CSV_CHARS} characters')
     reader = csv.reader(io.StringIO(text))
     try:
         header = [h.strip() for h in next(reader)]
     except StopIteration:
-        raise ArrayRecordingError(f"{path}: empty CSV (expected a header with u<unit>_c<channel> columns)") from None
+        raise ArrayRecordingError(
+            f'{path}: empty CSV (expected a header with u<unit>_c<channel> columns)'
+        ) from None
     cols = {}
     t_col = None
     for j, h in enumerate(header):
-        if h == "t_offset_s":
+        if h == 't_offset_s':
             t_col = j
             continue
         m = _COL.match(h)
         if not m:
-            raise ArrayRecordingError(f"{path}: unknown column {h!r} (expected u<unit>_c<channel> or t_offset_s)")
+            raise ArrayRecordingError(
+                f'{path}: unknown column {h!r} (expected u<unit>_c<channel> or t_offset_s)'
+            )
         key = (int(m.group(1)), int(m.group(2)))
         if key in cols:
-            raise ArrayRecordingError(f"{path}: column {h!r} appears twice")
+            raise ArrayRecordingError(f'{path}: column {h!r} appears twice')
         cols[key] = j
     if not cols:
-        raise ArrayRecordingError(f"{path}: no u<unit>_c<channel> columns")
+        raise ArrayRecordingError(f'{path}: no u<unit>_c<channel> columns')
     U = max(k[0] for k in cols) + 1
     C = max(k[1] for k in cols) + 1
     if U > 64 or C > 4:
-        raise ArrayRecordingError(f"{path}: columns name {U} units x {C} channels (at most 64 x 4)")
+        raise ArrayRecordingError(
+            f'{path}: columns name {U} units x {C} channels (at most 64 x 4)'
+        )
     missing = [u for u in range(U) if not any(k[0] == u for k in cols)]
     if missing:
-        raise ArrayRecordingError(f"{path}: no columns for unit(s) {missing}")
+        raise ArrayRecordingError(f'{path}: no columns for unit(s) {missing}')
     rows = []
     for line_no, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != len(header):
-            raise ArrayRecordingError(f"{path}: line {line_no} has {len(row)} fields, the header {len(header)}")
+            raise ArrayRecordingError(
+                f'{path}: line {line_no} has {len(row)} fields, the header {len(header)}'
+            )
         try:
             rows.append([float(c) if c.strip() else math.nan for c in row])
         except ValueError:
-            raise ArrayRecordingError(f"{path}: line {line_no}: not a number") from None
+            raise ArrayRecordingError(f'{path}: line {line_no}: not a number') from None
         if len(rows) > MAX_SAMPLES:
-            raise ArrayRecordingError(f"{path}: more than {MAX_SAMPLES} samples")
+            raise ArrayRecordingError(f'{path}: more than {MAX_SAMPLES} samples')
     if not rows:
-        raise ArrayRecordingError(f"{path}: no samples")
+        raise ArrayRecordingError(f'{path}: no samples')
     a = np.asarray(rows, dtype=np.float64)
     inten = np.zeros((a.shape[0], U, C))
     for (u, c), j in cols.items():
         inten[:, u, c] = a[:, j]
     t = a[:, t_col] if t_col is not None else None
     if t is not None and not np.all(np.isfinite(t)):
-        raise ArrayRecordingError(f"{path}: t_offset_s has empty or non-finite values")
+        raise ArrayRecordingError(f'{path}: t_offset_s has empty or non-finite values')
     return _validated(inten, t, str(path))
 
 
 def load_array_recording(path) -> ArrayRecording:
-    """Read a recording (``.npz`` or ``.csv`` by extension).
+    """
+    Read a recording (``.npz`` or ``.csv`` by extension).
 
     Parameters
     ----------
@@ -159,20 +206,24 @@ def load_array_recording(path) -> ArrayRecording:
     ------
     ArrayRecordingError
         Any problem with the file, in one line.
+
     """
     p = str(path)
-    if p.lower().endswith(".csv"):
+    if p.lower().endswith('.csv'):
         return _load_csv(path)
-    with open_npz(path, ArrayRecordingError, "array recording") as z:
-        if "intensities" not in z.files:
-            raise ArrayRecordingError(f"{p}: no 'intensities' array (has: {', '.join(sorted(z.files)) or 'nothing'})")
-        inten = z["intensities"]
-        t = z["t_offset_s"] if "t_offset_s" in z.files else None
+    with open_npz(path, ArrayRecordingError, 'array recording') as z:
+        if 'intensities' not in z.files:
+            raise ArrayRecordingError(
+                f"{p}: no 'intensities' array (has: {', '.join(sorted(z.files)) or 'nothing'})"
+            )
+        inten = z['intensities']
+        t = z['t_offset_s'] if 't_offset_s' in z.files else None
     return _validated(inten, t, p)
 
 
 def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
-    """Write the ``.npz`` layout :func:`load_array_recording` reads.
+    """
+    Write the ``.npz`` layout :func:`load_array_recording` reads.
 
     Parameters
     ----------
@@ -182,15 +233,17 @@ def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
         (S, U, C) readings.
     t_offset_s : array_like, optional
         (S,) seconds after the reference time.
+
     """
-    arrays = {"intensities": np.asarray(intensities, dtype=np.float64)}
+    arrays = {'intensities': np.asarray(intensities, dtype=np.float64)}
     if t_offset_s is not None:
-        arrays["t_offset_s"] = np.asarray(t_offset_s, dtype=np.float64)
+        arrays['t_offset_s'] = np.asarray(t_offset_s, dtype=np.float64)
     np.savez(path, **arrays)
 
 
 def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
-    """Write the CSV layout :func:`load_array_recording` reads.
+    """
+    Write the CSV layout :func:`load_array_recording` reads.
 
     Parameters
     ----------
@@ -200,24 +253,31 @@ def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
         (S, U, C) readings.
     t_offset_s : array_like, optional
         (S,) seconds after the reference time.
+
     """
     a = np.asarray(intensities, dtype=np.float64)
     S, U, C = a.shape
-    header = (["t_offset_s"] if t_offset_s is not None else []) + [f"u{u}_c{c}" for u in range(U) for c in range(C)]
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    header = (['t_offset_s'] if t_offset_s is not None else []) + [
+        f'u{u}_c{c}' for u in range(U) for c in range(C)
+    ]
+    with open(path, 'w', newline='', encoding='utf-8') as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i in range(S):
-            row = ([repr(float(t_offset_s[i]))] if t_offset_s is not None else []) + [repr(float(v)) for v in a[i].ravel()]
+            row = ([repr(float(t_offset_s[i]))] if t_offset_s is not None else []) + [
+                repr(float(v)) for v in a[i].ravel()
+            ]
             w.writerow(row)
 
 
 def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.ndarray:
-    """Decode one sample (U, C) from a flat message such as ``std_msgs/Float32MultiArray``.
+    """
+    Decode one sample (U, C) from a flat message such as ``std_msgs/Float32MultiArray``.
 
-    Layout: row-major units x channels, channels in each unit's ``channels_deg`` order; ``layout.dim`` either
-    empty (then ``data`` holds exactly units x channels values after the offset) or two dimensions of sizes
-    (units, channels) (labels are not read; the strides are the row-major ones the sizes imply).
+    Layout: row-major units x channels, channels in each unit's ``channels_deg`` order;
+    ``layout.dim`` either empty (then ``data`` holds exactly units x channels values after the
+    offset) or two dimensions of sizes (units, channels) (labels are not read; the strides are the
+    row-major ones the sizes imply).
 
     Parameters
     ----------
@@ -239,16 +299,21 @@ def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.nd
     ------
     ArrayRecordingError
         A layout that does not fit the geometry, or values that are not finite.
+
     """
     U, C = geometry.n_units, geometry.n_channels
     sizes = [int(s) for s in dim_sizes]
     if sizes and sizes != [U, C]:
-        raise ArrayRecordingError(f"layout {sizes} does not match the geometry's units x channels [{U}, {C}]")
+        raise ArrayRecordingError(
+            f"layout {sizes} does not match the geometry's units x channels [{U}, {C}]"
+        )
     off = int(data_offset)
     a = np.asarray(data, dtype=np.float64).reshape(-1)
     if off < 0 or a.size - off != U * C:
-        raise ArrayRecordingError(f"{a.size} value(s) after data_offset {off}: expected {U} units x {C} channels")
+        raise ArrayRecordingError(
+            f'{a.size} value(s) after data_offset {off}: expected {U} units x {C} channels'
+        )
     out = a[off:].reshape(U, C)
     if not np.all(np.isfinite(out)):
-        raise ArrayRecordingError("readings contain NaN or inf")
+        raise ArrayRecordingError('readings contain NaN or inf')
     return out

@@ -1,20 +1,40 @@
-"""Per-frame processing: the nodes' chain for several methods at once (:class:`FramePipeline`), one
-:class:`MethodRow` per method and frame, and the ``tilt_corrector``'s correction (:class:`_Corrector`)."""
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Per-frame processing: the nodes' chain for several methods at once.
+
+Per-frame processing: the nodes' chain for several methods at once (:class:`FramePipeline`), one
+:class:`MethodRow` per method and frame, and the ``tilt_corrector``'s correction
+(:class:`_Corrector`).
+"""
+
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
+import time
 
 import numpy as np
 
+from .sync import SyncedFrame
 from ..bag import TopicMap
 from ..errors import CompassError
 from ..estimators import registry
-from .sync import SyncedFrame
 
-__all__ = ["ReplayError", "ReplayConfig", "MethodRow", "FramePipeline", "default_error_map"]
+__all__ = ['ReplayError', 'ReplayConfig', 'MethodRow', 'FramePipeline', 'default_error_map']
 
 
 class ReplayError(CompassError):
@@ -23,32 +43,35 @@ class ReplayError(CompassError):
 
 @dataclass(frozen=True)
 class ReplayConfig:
-    """How frames are processed; defaults are the nodes' shipped parameters (config/*.yaml).
+    """
+    How frames are processed; defaults are the nodes' shipped parameters (config/*.yaml).
 
-    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method that has the knob; a
-    ``"*"`` knob none of the selected methods has is an error). ``default_knobs``: applied first to every
-    method that has them, never an error (the nodes ship ``stride: 8``; zenith has no stride, so
-    ``--methods zenith`` runs alone). ``prior_source``: imu | last | none (heading_estimator ``prior_source``).
-    ``error_map``: .npz from ``polarization-compass errormap`` for the tilt correction (None: no
-    corrected headings; see :func:`default_error_map`). ``direct_methods``: methods the corrector
-    does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
+    ``knobs``: per method estimator knobs (``{"*": {...}}`` applies to every method that has the
+    knob; a ``"*"`` knob none of the selected methods has is an error). ``default_knobs``: applied
+    first to every method that has them, never an error (the nodes ship ``stride: 8``; zenith has
+    no stride, so ``--methods zenith`` runs alone). ``prior_source``: imu | last | none
+    (heading_estimator ``prior_source``). ``error_map``: .npz from ``polarization-compass
+    errormap`` for the tilt correction (None: no corrected headings; see
+    :func:`default_error_map`). ``direct_methods``: methods the corrector does not touch (default:
+    those whose estimator class ``needs_tilt``, e.g. tilt_aware).
     """
 
     methods: tuple = ()
-    knobs: dict = field(default_factory=lambda: {"*": {}})
-    default_knobs: dict = field(default_factory=lambda: {"stride": 8})
-    demosaic: str = "superpixel"
+    knobs: dict = field(default_factory=lambda: {'*': {}})
+    default_knobs: dict = field(default_factory=lambda: {'stride': 8})
+    demosaic: str = 'superpixel'
     use_intensity: bool = False
     sky_check: bool = False
-    prior_source: str = "imu"
+    prior_source: str = 'imu'
     prior_max_age_s: float = 2.0
-    sun_model: str = "spa"
+    sun_model: str = 'spa'
     error_map: str | None = None
     correction_sigma_deg: float = 0.1
     direct_methods: tuple = field(default_factory=lambda: registry.tilt_methods())
 
     def method_list(self) -> list[str]:
-        """Return the methods to run: ``methods``, or every registered estimator when empty.
+        """
+        Return the methods to run: ``methods``, or every registered estimator when empty.
 
         Returns
         -------
@@ -59,17 +82,20 @@ class ReplayConfig:
         ------
         ReplayError
             A name that is not a registered estimator.
+
         """
         from ..estimators import estimator_names
+
         known = estimator_names()
         ms = list(self.methods) or known
         bad = [m for m in ms if m not in known]
         if bad:
-            raise ReplayError(f"unknown method(s) {', '.join(bad)}; known: {', '.join(known)}")
+            raise ReplayError(f'unknown method(s) {", ".join(bad)}; known: {", ".join(known)}')
         return ms
 
     def knobs_for(self, method: str) -> dict:
-        """Return the estimator knobs of ``method``.
+        """
+        Return the estimator knobs of ``method``.
 
         The ``default_knobs`` it has, then the ``"*"`` entries it has (zenith has no stride, for
         example), then its own entries (an unknown name there is an error of the estimator).
@@ -83,16 +109,19 @@ class ReplayConfig:
         -------
         dict
             ``{knob: value}`` for the estimator's constructor.
+
         """
         from ..estimators import estimator_knob_names
+
         names = estimator_knob_names(method)
         k = {n: v for n, v in self.default_knobs.items() if n in names}
-        k.update({n: v for n, v in self.knobs.get("*", {}).items() if n in names})
+        k.update({n: v for n, v in self.knobs.get('*', {}).items() if n in names})
         k.update(self.knobs.get(method, {}))
         return k
 
-    def for_methods(self, methods) -> "ReplayConfig":
-        """Return this configuration for a subset of its methods (a worker's group).
+    def for_methods(self, methods) -> 'ReplayConfig':
+        """
+        Return this configuration for a subset of its methods (a worker's group).
 
         ``"*"`` keeps the knobs one of them has, so that :meth:`check_knobs`, already passed by the
         whole set, passes again.
@@ -106,39 +135,47 @@ class ReplayConfig:
         -------
         ReplayConfig
             A copy with those methods and knobs.
+
         """
         from ..estimators import estimator_knob_names
+
         names = set().union(*(estimator_knob_names(m) for m in methods))
-        knobs = {k: v for k, v in self.knobs.items() if k != "*"}
-        knobs["*"] = {n: v for n, v in self.knobs.get("*", {}).items() if n in names}
+        knobs = {k: v for k, v in self.knobs.items() if k != '*'}
+        knobs['*'] = {n: v for n, v in self.knobs.get('*', {}).items() if n in names}
         return dataclasses.replace(self, methods=tuple(methods), knobs=knobs)
 
     def check_knobs(self) -> None:
-        """Check that every ``"*"`` knob belongs to a selected method (a typo, not a no-op).
+        """
+        Check that every ``"*"`` knob belongs to a selected method (a typo, not a no-op).
 
         Raises
         ------
         ReplayError
             An unknown method, or a ``"*"`` knob no selected method has.
+
         """
         from ..estimators import estimator_knob_names
+
         ms = self.method_list()
         known = set().union(*(estimator_knob_names(m) for m in ms))
-        bad = sorted(set(self.knobs.get("*", {})) - known)
+        bad = sorted(set(self.knobs.get('*', {})) - known)
         if bad:
-            raise ReplayError(f"unknown knob(s) {', '.join(bad)} for methods {', '.join(ms)}; "
-                              f"known: {', '.join(sorted(known))}")
+            raise ReplayError(
+                f'unknown knob(s) {", ".join(bad)} for methods {", ".join(ms)}; '
+                f'known: {", ".join(sorted(known))}'
+            )
 
 
 @dataclass(kw_only=True)
 class MethodRow:
-    """One method on one frame: the raw estimate, its tilt correction and the errors (deg).
+    """
+    One method on one frame: the raw estimate, its tilt correction and the errors (deg).
 
-    Built by keyword only; a row of a frame that was not estimated (``bad_input``) leaves the estimate,
-    correction and error fields at their defaults (None, ``""``, 0 pixels).
+    Built by keyword only; a row of a frame that was not estimated (``bad_input``) leaves the
+    estimate, correction and error fields at their defaults (None, ``""``, 0 pixels).
 
-    ``raw_error_deg``/``corrected_error_deg``: estimated minus reference bearing, wrapped to (-180, 180]
-    (None when not evaluated: no reference, an ambiguous or failed estimate, no correction).
+    ``raw_error_deg``/``corrected_error_deg``: estimated minus reference bearing, wrapped to (-180,
+    180] (None when not evaluated: no reference, an ambiguous or failed estimate, no correction).
     """
 
     stamp_ns: int
@@ -147,7 +184,7 @@ class MethodRow:
     reason: str
     raw_bearing_deg: float | None = None
     corrected_bearing_deg: float | None = None
-    correction_status: str = ""
+    correction_status: str = ''
     reference_bearing_deg: float | None = None
     raw_error_deg: float | None = None
     corrected_error_deg: float | None = None
@@ -159,10 +196,26 @@ class MethodRow:
     sun_altitude_deg: float = 0.0
     prior_bearing_deg: float | None = None
 
-    CSV_FIELDS = ("stamp_s", "time_s", "method", "status", "raw_bearing_deg", "corrected_bearing_deg",
-                  "reference_bearing_deg", "raw_error_deg", "corrected_error_deg", "correction_status",
-                  "sigma_deg", "pixels", "pitch_deg", "roll_deg", "sun_azimuth_deg", "sun_altitude_deg",
-                  "prior_bearing_deg", "reason")
+    CSV_FIELDS = (
+        'stamp_s',
+        'time_s',
+        'method',
+        'status',
+        'raw_bearing_deg',
+        'corrected_bearing_deg',
+        'reference_bearing_deg',
+        'raw_error_deg',
+        'corrected_error_deg',
+        'correction_status',
+        'sigma_deg',
+        'pixels',
+        'pitch_deg',
+        'roll_deg',
+        'sun_azimuth_deg',
+        'sun_altitude_deg',
+        'prior_bearing_deg',
+        'reason',
+    )
 
 
 class FramePipeline:
@@ -171,22 +224,35 @@ class FramePipeline:
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
         from ..demosaic import layout_from_mapping
         from ..pipeline import HeadingFrontEnd, TiltAndPrior
+
         layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
         config.check_knobs()
         self.methods = config.method_list()
-        self.fronts = {m: HeadingFrontEnd(m, config.knobs_for(m), layout, layout.pol45_toward, config.demosaic,
-                                          config.use_intensity) for m in self.methods}
-        self.tilt_prior = {m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s) for m in self.methods}
+        self.fronts = {
+            m: HeadingFrontEnd(
+                m,
+                config.knobs_for(m),
+                layout,
+                layout.pol45_toward,
+                config.demosaic,
+                config.use_intensity,
+            )
+            for m in self.methods
+        }
+        self.tilt_prior = {
+            m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s) for m in self.methods
+        }
         self.sun = None
         self.corrector = None
         if config.error_map:
             self.corrector = _make_corrector(config)
         self.timing_ms: dict = {m: [] for m in self.methods}
-        self.timing_ms["observation"] = []
+        self.timing_ms['observation'] = []
 
     def _sun(self, frame: SyncedFrame):
         from ..pipeline import SunSource
+
         if self.sun is None:
             self.sun = SunSource(*frame.site, model=self.config.sun_model)
         else:
@@ -194,7 +260,8 @@ class FramePipeline:
         return self.sun.at_ns(frame.stamp_ns)
 
     def process(self, frame: SyncedFrame) -> list[MethodRow]:
-        """Run every method on one synchronised frame, as the nodes would.
+        """
+        Run every method on one synchronised frame, as the nodes would.
 
         Sun position at the stamp, per-method prior and tilt, one observation per demosaic front
         (shared), the estimate, and the tilt correction (or ``pending`` when deferred).
@@ -209,26 +276,44 @@ class FramePipeline:
         list of MethodRow
             One row per method; a frame that cannot be estimated (no sun, no tilt for a method that
             needs it, bad input) gives rows with status ``bad_input`` and the reason.
+
         """
         from ..pipeline import PipelineError
+
         c = self.config
         t_ns = frame.stamp_ns
         rows = []
         try:
             sun_az, sun_alt = self._sun(frame)
         except PipelineError as exc:
-            return [MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
-                              reference_bearing_deg=frame.true_bearing_deg) for m in self.methods]
+            return [
+                MethodRow(
+                    stamp_ns=t_ns,
+                    method=m,
+                    status='bad_input',
+                    reason=str(exc),
+                    reference_bearing_deg=frame.true_bearing_deg,
+                )
+                for m in self.methods
+            ]
         tilt = frame.tilt
         obs_cache: dict = {}
         for m, front in self.fronts.items():
             inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
             pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
             if inp.tilt_missing:
-                rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input",
-                                      reason="no IMU sample near the image stamp (tilt unknown)",
-                                      reference_bearing_deg=frame.true_bearing_deg, sun_azimuth_deg=sun_az,
-                                      sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+                rows.append(
+                    MethodRow(
+                        stamp_ns=t_ns,
+                        method=m,
+                        status='bad_input',
+                        reason='no IMU sample near the image stamp (tilt unknown)',
+                        reference_bearing_deg=frame.true_bearing_deg,
+                        sun_azimuth_deg=sun_az,
+                        sun_altitude_deg=sun_alt,
+                        prior_bearing_deg=prior,
+                    )
+                )
                 continue
             key = front.observation_key(frame.camera)
             t0 = time.perf_counter()
@@ -237,87 +322,128 @@ class FramePipeline:
                 if obs is None:
                     obs = front.observation(frame.mosaic, frame.camera, sun_az, sun_alt)
                     obs_cache[key] = obs
-                    self.timing_ms["observation"].append((time.perf_counter() - t0) * 1e3)
+                    self.timing_ms['observation'].append((time.perf_counter() - t0) * 1e3)
                     t0 = time.perf_counter()
-                result = front.estimator.estimate(dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll,
-                                                                      prior_bearing_deg=prior))
-                if c.sky_check:          # the whole-sky check of real skies (skyfit), one sample per frame
+                result = front.estimator.estimate(
+                    dataclasses.replace(
+                        obs, pitch_deg=pitch, roll_deg=roll, prior_bearing_deg=prior
+                    )
+                )
+                if c.sky_check:  # the whole-sky check of real skies (skyfit), one sample per frame
                     from ..pipeline import whole_sky_sample
                     from ..skyfit import assess_result
-                    if "sky" not in obs_cache:
-                        obs_cache["sky"] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
-                    result = assess_result(result, obs_cache["sky"], sun_alt, pitch, roll, prior)
+
+                    if 'sky' not in obs_cache:
+                        obs_cache['sky'] = whole_sky_sample(
+                            frame.mosaic, frame.camera, front.layout
+                        )
+                    result = assess_result(result, obs_cache['sky'], sun_alt, pitch, roll, prior)
             except CompassError as exc:
-                rows.append(MethodRow(stamp_ns=t_ns, method=m, status="bad_input", reason=str(exc),
-                                      reference_bearing_deg=frame.true_bearing_deg, pitch_deg=pitch, roll_deg=roll,
-                                      sun_azimuth_deg=sun_az, sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+                rows.append(
+                    MethodRow(
+                        stamp_ns=t_ns,
+                        method=m,
+                        status='bad_input',
+                        reason=str(exc),
+                        reference_bearing_deg=frame.true_bearing_deg,
+                        pitch_deg=pitch,
+                        roll_deg=roll,
+                        sun_azimuth_deg=sun_az,
+                        sun_altitude_deg=sun_alt,
+                        prior_bearing_deg=prior,
+                    )
+                )
                 continue
             self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
             raw = result.bearing_deg if result.ok and not result.axial else None
             self.tilt_prior[m].remember(t_ns, result)
-            corrected, cstatus = None, ""
+            corrected, cstatus = None, ''
             if raw is not None and m not in c.direct_methods and self.corrector is not None:
                 corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
-            rows.append(MethodRow(stamp_ns=t_ns, method=m, status=result.status.value, reason=result.reason,
-                                  raw_bearing_deg=float(result.bearing_deg) if result.ok else None,
-                                  corrected_bearing_deg=corrected, correction_status=cstatus,
-                                  reference_bearing_deg=frame.true_bearing_deg, sigma_deg=result.sigma_deg,
-                                  pixels=result.pixels, pitch_deg=tilt.pitch_deg if tilt is not None else None,
-                                  roll_deg=tilt.roll_deg if tilt is not None else None, sun_azimuth_deg=sun_az,
-                                  sun_altitude_deg=sun_alt, prior_bearing_deg=prior))
+            rows.append(
+                MethodRow(
+                    stamp_ns=t_ns,
+                    method=m,
+                    status=result.status.value,
+                    reason=result.reason,
+                    raw_bearing_deg=float(result.bearing_deg) if result.ok else None,
+                    corrected_bearing_deg=corrected,
+                    correction_status=cstatus,
+                    reference_bearing_deg=frame.true_bearing_deg,
+                    sigma_deg=result.sigma_deg,
+                    pixels=result.pixels,
+                    pitch_deg=tilt.pitch_deg if tilt is not None else None,
+                    roll_deg=tilt.roll_deg if tilt is not None else None,
+                    sun_azimuth_deg=sun_az,
+                    sun_altitude_deg=sun_alt,
+                    prior_bearing_deg=prior,
+                )
+            )
         return rows
 
 
 def default_error_map() -> str | None:
-    """Return the error map shipped with the package (the ``tilt_corrector`` node's default).
+    """
+    Return the error map shipped with the package (the ``tilt_corrector`` node's default).
 
     Returns
     -------
     str or None
         Its path, or None when the package has none.
+
     """
     from ..correction import default_map_path
+
     p = default_map_path()
     return str(p) if p.is_file() else None
 
 
 def _make_corrector(config: ReplayConfig):
-    """The ``tilt_corrector`` node's correction as a :class:`_Corrector`."""
+    """Return the ``tilt_corrector`` node's correction as a :class:`_Corrector`."""
     path = Path(config.error_map)
     if not path.is_file():
-        raise ReplayError(f"error map {str(path)!r} does not exist: make one with `polarization-compass errormap "
-                          "--methods zenith,sm_asm,symmetry,least_squares --sun-altitude 0:50:5 --yaw -180:175:5 "
-                          "--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`")
+        raise ReplayError(
+            f'error map {str(path)!r} does not exist: make one with `polarization-compass '
+            'errormap '
+            '--methods zenith,sm_asm,symmetry,least_squares --sun-altitude 0:50:5 --yaw '
+            '-180:175:5 '
+            '--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`'
+        )
     return _Corrector(path)
 
 
 class _Corrector:
-    """``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg | None,
-    status)``: :meth:`TiltCorrector.correct_bearing` (the node's) at the IMU's pitch/roll; a heading without
-    an IMU tilt near its stamp is not corrected (``no_imu``).
+    """
+    The ``tilt_corrector`` node's correction of one heading.
 
-    With ``defer`` on, headings are queued (status ``pending``) and :meth:`resolve` corrects them all with
-    one vectorised inversion per method (:meth:`TiltCorrector.correct_bearings`, same numbers): an inversion
-    costs about 8 ms whether it holds one heading or a thousand, which made correction the largest cost of
-    an offline replay."""
+    ``(method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns) -> (corrected_bearing_deg |
+    None, status)``: :meth:`TiltCorrector.correct_bearing` (the node's) at the IMU's pitch/roll; a
+    heading without an IMU tilt near its stamp is not corrected (``no_imu``).
 
-    PENDING = "pending"
+    With ``defer`` on, headings are queued (status ``pending``) and :meth:`resolve` corrects them
+    all with one vectorised inversion per method (:meth:`TiltCorrector.correct_bearings`, same
+    numbers): an inversion costs about 8 ms whether it holds one heading or a thousand, which made
+    correction the largest cost of an offline replay.
+    """
+
+    PENDING = 'pending'
 
     def __init__(self, path: Path):
         self.path = path
         self._map = None
         self.correctors: dict = {}
         self.defer = False
-        self.queue: list = []              # (row, method, raw, sun_az, sun_alt, pitch, roll)
+        self.queue: list = []  # (row, method, raw, sun_az, sun_alt, pitch, roll)
 
     def _get(self, method):
         from ..correction import TiltCorrector
         from ..errormap import ErrorMapError
         from ..errormap_io import load_error_map
+
         if method not in self.correctors:
             try:
                 if self._map is None:
-                    self._map = load_error_map(self.path)          # once for every method's corrector
+                    self._map = load_error_map(self.path)  # once for every method's corrector
                 self.correctors[method] = TiltCorrector(self._map, method)
             except ErrorMapError as exc:
                 self.correctors[method] = str(exc)
@@ -325,13 +451,15 @@ class _Corrector:
 
     def __call__(self, method, raw_bearing_deg, result, tilt, sun_az, sun_alt, t_ns):
         if tilt is None:
-            return None, "no_imu"
+            return None, 'no_imu'
         if self.defer:
-            return None, self.PENDING          # the map is read when the queue is resolved
+            return None, self.PENDING  # the map is read when the queue is resolved
         cor = self._get(method)
         if isinstance(cor, str):
-            return None, "no_map"
-        corrected, c = cor.correct_bearing(raw_bearing_deg, sun_az, sun_alt, tilt.pitch_deg, tilt.roll_deg)
+            return None, 'no_map'
+        corrected, c = cor.correct_bearing(
+            raw_bearing_deg, sun_az, sun_alt, tilt.pitch_deg, tilt.roll_deg
+        )
         return corrected, c.status.value
 
     def enqueue(self, row) -> None:
@@ -345,12 +473,23 @@ class _Corrector:
             by_method.setdefault(row.method, []).append(row)
         for method, rows in by_method.items():
             cor = self._get(method)
-            if isinstance(cor, str):                 # the map has no layer for this method
+            if isinstance(cor, str):  # the map has no layer for this method
                 for r in rows:
-                    r.corrected_bearing_deg, r.correction_status = None, "no_map"
+                    r.corrected_bearing_deg, r.correction_status = None, 'no_map'
                 continue
-            cols = np.array([(r.raw_bearing_deg, r.sun_azimuth_deg, r.sun_altitude_deg, r.pitch_deg, r.roll_deg)
-                             for r in rows], dtype=float)
+            cols = np.array(
+                [
+                    (
+                        r.raw_bearing_deg,
+                        r.sun_azimuth_deg,
+                        r.sun_altitude_deg,
+                        r.pitch_deg,
+                        r.roll_deg,
+                    )
+                    for r in rows
+                ],
+                dtype=float,
+            )
             fixed = cor.correct_bearings(*cols.T)
             for r, b, ok, st in zip(rows, fixed.bearing_deg, fixed.ok, fixed.status):
                 r.corrected_bearing_deg = float(b) if ok else None

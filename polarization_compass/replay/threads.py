@@ -1,23 +1,43 @@
-"""Threads: the method groups of one replay share one read of the bag (:func:`method_groups`,
-:func:`_replay_threads`), and the whole bag (:func:`replay_bag`, :class:`ReplayResult`)."""
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Threads: the method groups of one replay share one read of the bag.
+
+Threads: the method groups of one replay share one read of the bag (:func:`method_groups`,
+:func:`_replay_threads`), and the whole bag (:func:`replay_bag`, :class:`ReplayResult`).
+"""
+
 from __future__ import annotations
 
-import time
-from contextlib import ExitStack, closing
+from contextlib import closing, ExitStack
 from dataclasses import dataclass
+import time
 
-from ..bag import BagError, BagReader, Tally, TopicMap, default_topic_map
+from .processing import _Corrector, _make_corrector, FramePipeline, MethodRow, ReplayConfig
+from .sync import BagPlan, iter_synced_frames, plan_bag, prefetched
+from ..bag import BagError, BagReader, default_topic_map, Tally, TopicMap
 from ..estimators import registry
 from ..runtime import keep_large_buffers_in_heap, single_threaded_kernels
-from .processing import FramePipeline, MethodRow, ReplayConfig, _Corrector, _make_corrector
-from .sync import BagPlan, iter_synced_frames, plan_bag, prefetched
 
-__all__ = ["ReplayResult", "method_groups", "default_workers", "replay_bag"]
+__all__ = ['ReplayResult', 'method_groups', 'default_workers', 'replay_bag']
 
 
 @dataclass
 class ReplayResult:
-    """Hold the result of an offline replay.
+    """
+    Hold the result of an offline replay.
 
     Parameters
     ----------
@@ -45,10 +65,11 @@ class ReplayResult:
         CPU time of the process (all threads) while replaying [s].
     workers : int, default 1
         Threads that shared the methods.
+
     """
 
     rows: list
-    summary: dict           # evaluator summary per stream
+    summary: dict  # evaluator summary per stream
     tally: Tally
     plan: BagPlan
     frames: int
@@ -57,22 +78,27 @@ class ReplayResult:
     matches: list
     timing_ms: dict
     error_map: str | None = None
-    cpu_s: float = 0.0          # CPU time of the process (all threads) while replaying
-    workers: int = 1            # threads that shared the methods
+    cpu_s: float = 0.0  # CPU time of the process (all threads) while replaying
+    workers: int = 1  # threads that shared the methods
 
     @property
     def speed_x_real_time(self) -> float:
-        """Recorded seconds per wall-clock second."""
+        """Return the recorded seconds per wall-clock second."""
         return self.bag_duration_s / self.wall_s if self.wall_s > 0 else 0.0
 
     @property
     def speed_x_real_time_cpu(self) -> float:
-        """Recorded seconds per CPU second: the speed on an otherwise idle core (load-independent)."""
+        """
+        Return the recorded seconds per CPU second (load-independent).
+
+        Recorded seconds per CPU second: the speed on an otherwise idle core (load-independent).
+        """
         return self.bag_duration_s / self.cpu_s if self.cpu_s > 0 else 0.0
 
 
 def method_groups(methods: list[str], workers: int) -> list[list[str]]:
-    """Split ``methods`` into at most ``workers`` groups of similar cost.
+    """
+    Split ``methods`` into at most ``workers`` groups of similar cost.
 
     Largest first onto the lightest group (cost: the estimator's ``relative_cost``), each group
     keeping the given method order.
@@ -88,11 +114,14 @@ def method_groups(methods: list[str], workers: int) -> list[list[str]]:
     -------
     list of list of str
         The non-empty groups.
+
     """
     workers = max(1, min(int(workers), len(methods)))
     groups: list[list[str]] = [[] for _ in range(workers)]
     load = [0.0] * workers
-    for m in sorted(methods, key=lambda m: -registry.relative_cost(m)):     # the estimator's relative_cost
+    for m in sorted(
+        methods, key=lambda m: -registry.relative_cost(m)
+    ):  # the estimator's relative_cost
         g = load.index(min(load))
         groups[g].append(m)
         load[g] += registry.relative_cost(m)
@@ -103,29 +132,35 @@ def method_groups(methods: list[str], workers: int) -> list[list[str]]:
 class _Read:
     """What the method groups made of one read of the bag (corrections still pending)."""
 
-    rows: list                   # every group's, in no particular order
-    truths: list                 # (stamp_ns, true bearing) per frame with a reference
+    rows: list  # every group's, in no particular order
+    truths: list  # (stamp_ns, true bearing) per frame with a reference
     tally: Tally
     plan: BagPlan
     frames: int
     first_stamp: int | None
     last_stamp: int | None
-    timing_ms: dict              # per method (and "observation"), every group's
-    cpu_s: float                 # the process, every thread
+    timing_ms: dict  # per method (and "observation"), every group's
+    cpu_s: float  # the process, every thread
 
 
-def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: list[list[str]],
-                    progress=None) -> _Read:
-    """Every method group in this process: the bag is read once, group 0 runs on this thread and each other
-    group on a thread of its own, fed the same frames through a bounded queue (a group never lags more than
-    ``_LAG`` frames). The compiled kernels release the GIL (``nogil``), so the groups' pixel work runs in
-    parallel; a group's frames stay in order on one thread, so its state (the ``last`` prior) is the node's.
-    Replaces one process per group, each reading the whole bag: on 2 cores reading a 10 MB image took
-    ~7 ms of each process's ~22 ms per frame."""
+def _replay_threads(
+    path, config: ReplayConfig, topic_map: TopicMap, groups: list[list[str]], progress=None
+) -> _Read:
+    """
+    Run every method group in this process, one thread per group.
+
+    Every method group in this process: the bag is read once, group 0 runs on this thread and each
+    other group on a thread of its own, fed the same frames through a bounded queue (a group never
+    lags more than ``_LAG`` frames). The compiled kernels release the GIL (``nogil``), so the
+    groups' pixel work runs in parallel; a group's frames stay in order on one thread, so its state
+    (the ``last`` prior) is the node's. Replaces one process per group, each reading the whole bag:
+    on 2 cores reading a 10 MB image took ~7 ms of each process's ~22 ms per frame.
+    """
     import queue
     import threading
 
-    keep_large_buffers_in_heap()      # each 10 MB image read from the bag: 9.1 -> 6.8 ms of CPU (page faults)
+    # each 10 MB image read from the bag: 9.1 -> 6.8 ms of CPU (page faults)
+    keep_large_buffers_in_heap()
     t_cpu = time.process_time()
     pipes = [FramePipeline(config.for_methods(g), topic_map) for g in groups]
     for pipe in pipes:
@@ -137,21 +172,24 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
 
     def work(k: int):
         import numba
-        numba.set_num_threads(1)                # numba's thread count is per calling thread
+
+        numba.set_num_threads(1)  # numba's thread count is per calling thread
         q = queues[k - 1]
         while True:
             frame = q.get()
             if frame is None:
                 return
             if failures:
-                continue                        # keep draining so that the reader never blocks
+                continue  # keep draining so that the reader never blocks
             try:
                 rows[k].extend(pipes[k].process(frame))
             except BaseException as exc:  # noqa: BLE001 - re-raised on the calling thread
                 failures.append(exc)
 
-    threads = [threading.Thread(target=work, args=(k,), name=f"replay-group-{k}", daemon=True)
-               for k in range(1, len(groups))]
+    threads = [
+        threading.Thread(target=work, args=(k,), name=f'replay-group-{k}', daemon=True)
+        for k in range(1, len(groups))
+    ]
     for th in threads:
         th.start()
     tally = Tally()
@@ -159,18 +197,33 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
     first_stamp = last_stamp = None
     frames = 0
     try:
-        with BagReader(path) as reader, single_threaded_kernels(), ExitStack() as stack:   # closing: the reader
-            plan = plan_bag(reader, topic_map)                                              # threads stop too
+        with (
+            BagReader(path) as reader,
+            single_threaded_kernels(),
+            ExitStack() as stack,
+        ):  # closing: the reader
+            plan = plan_bag(reader, topic_map)  # threads stop too
             if plan.fatal:
-                raise BagError(f"{reader.path}: " + "; ".join(plan.fatal))
-            # decoding and pairing run on the reading thread too: the calling thread only processes its group
-            # (3 interleaved runs each: 19.4-23.0 ms per frame against 21.6-22.5 with decoding on this thread)
-            frames_in = stack.enter_context(closing(prefetched(
-                iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s), 4)))
+                raise BagError(f'{reader.path}: ' + '; '.join(plan.fatal))
+            # decoding and pairing run on the reading thread too: the calling thread only processes
+            # its group (3 interleaved runs each: 19.4-23.0 ms per frame against 21.6-22.5 with
+            # decoding on this thread)
+            frames_in = stack.enter_context(
+                closing(
+                    prefetched(
+                        iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s),
+                        4,
+                    )
+                )
+            )
             for frame in frames_in:
                 frames += 1
-                first_stamp = frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
-                last_stamp = frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
+                first_stamp = (
+                    frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
+                )
+                last_stamp = (
+                    frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
+                )
                 if frame.true_bearing_deg is not None:
                     truths.append((frame.stamp_ns, frame.true_bearing_deg))
                 for q in queues:
@@ -180,7 +233,9 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
                     raise failures[0]
                 if progress is not None:
                     progress(frames)
-            plan.problems.extend(reader.damage_notes())      # a truncated bag: read up to the damage, counted
+            plan.problems.extend(
+                reader.damage_notes()
+            )  # a truncated bag: read up to the damage, counted
     finally:
         for q in queues:
             q.put(None)
@@ -188,35 +243,53 @@ def _replay_threads(path, config: ReplayConfig, topic_map: TopicMap, groups: lis
             th.join()
     if failures:
         raise failures[0]
-    timing: dict = {"observation": []}
+    timing: dict = {'observation': []}
     for pipe in pipes:
         for key, v in pipe.timing_ms.items():
             timing.setdefault(key, []).extend(v)
-    return _Read([r for group_rows in rows for r in group_rows], truths, tally, plan, frames, first_stamp,
-                 last_stamp, timing, time.process_time() - t_cpu)
+    return _Read(
+        [r for group_rows in rows for r in group_rows],
+        truths,
+        tally,
+        plan,
+        frames,
+        first_stamp,
+        last_stamp,
+        timing,
+        time.process_time() - t_cpu,
+    )
 
 
-_LAG = 8            # frames a method group may fall behind the reader (each holds a 10 MB mosaic)
+_LAG = 8  # frames a method group may fall behind the reader (each holds a 10 MB mosaic)
 
 
 def default_workers() -> int:
-    """Return the number of cores this process may run on.
+    """
+    Return the number of cores this process may run on.
 
     Returns
     -------
     int
         At least 1.
+
     """
     import os
+
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return max(1, os.cpu_count() or 1)
 
 
-def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | None = None, progress=None,
-               workers: int | None = None) -> ReplayResult:
-    """Process a bag offline, as the nodes would, and evaluate the headings.
+def replay_bag(
+    path,
+    config: ReplayConfig | None = None,
+    topic_map: TopicMap | None = None,
+    progress=None,
+    workers: int | None = None,
+) -> ReplayResult:
+    """
+    Process a bag offline, as the nodes would, and evaluate the headings.
 
     ``workers`` threads run the methods in groups of similar cost over one read of the bag (a
     method's frames stay in order on one thread, so its state, e.g. the ``last`` prior, is the
@@ -247,6 +320,7 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
         A path that is not a usable bag, or a bag with nothing to compute (one line).
     ReplayError
         Unknown method or knob, or a configured error map that does not exist.
+
     """
     from ..evaluation import StampMatcher
 
@@ -262,14 +336,14 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     rows = sorted(read.rows, key=lambda r: (r.stamp_ns, order[r.method]))
     matcher = StampMatcher(horizon_ns=10**18, max_pending=10**9)
     for m in methods:
-        matcher.add_stream(f"{m}/raw", False)
+        matcher.add_stream(f'{m}/raw', False)
         if m not in config.direct_methods and corrector is not None:
-            matcher.add_stream(f"{m}/corrected", False)
+            matcher.add_stream(f'{m}/corrected', False)
     for stamp, bearing in read.truths:
         matcher.add_truth(stamp, bearing)
     for r in rows:
-        if r.status == "ok" and r.raw_bearing_deg is not None:
-            mt = matcher.add_estimate(f"{r.method}/raw", r.stamp_ns, r.raw_bearing_deg)
+        if r.status == 'ok' and r.raw_bearing_deg is not None:
+            mt = matcher.add_estimate(f'{r.method}/raw', r.stamp_ns, r.raw_bearing_deg)
             if mt is not None:
                 r.raw_error_deg = mt.error_deg
         if corrector is not None and r.correction_status == _Corrector.PENDING:
@@ -277,15 +351,27 @@ def replay_bag(path, config: ReplayConfig | None = None, topic_map: TopicMap | N
     if corrector is not None:
         corrector.resolve()
     for r in rows:
-        if r.corrected_bearing_deg is not None and f"{r.method}/corrected" in matcher.streams:
-            mt = matcher.add_estimate(f"{r.method}/corrected", r.stamp_ns, r.corrected_bearing_deg)
+        if r.corrected_bearing_deg is not None and f'{r.method}/corrected' in matcher.streams:
+            mt = matcher.add_estimate(f'{r.method}/corrected', r.stamp_ns, r.corrected_bearing_deg)
             if mt is not None:
                 r.corrected_error_deg = mt.error_deg
     matcher.finish()
     frames = read.frames
     duration = (read.last_stamp - read.first_stamp) / 1e9 if frames > 1 else 0.0
     if frames > 1:
-        duration *= frames / (frames - 1)           # n frames cover n periods of recording
+        duration *= frames / (frames - 1)  # n frames cover n periods of recording
     wall = time.perf_counter() - t_wall
-    return ReplayResult(rows, matcher.summary(), read.tally, read.plan, frames, duration, wall, matcher.matches,
-                        read.timing_ms, config.error_map, read.cpu_s, len(groups))
+    return ReplayResult(
+        rows,
+        matcher.summary(),
+        read.tally,
+        read.plan,
+        frames,
+        duration,
+        wall,
+        matcher.matches,
+        read.timing_ms,
+        config.error_map,
+        read.cpu_s,
+        len(groups),
+    )

@@ -1,5 +1,22 @@
-"""Topic names and message types of every node: the single source used by the nodes themselves,
-by :mod:`polarization_compass.graphs` (launch files, ``polarization-compass sim``) and by the tests.
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Topic names and message types of every node, in one place.
+
+Topic names and message types of every node: the single source used by the nodes themselves, by
+:mod:`polarization_compass.graphs` (launch files, ``polarization-compass sim``) and by the tests.
 
 All names are relative, so a namespace moves a whole graph and ``--ros-args -r old:=new`` remaps
 any of them; ``/diagnostics`` and ``/clock`` are absolute by ROS convention. Per-method topics live
@@ -8,48 +25,80 @@ evaluator connect without remapping.
 
 ROS-free: no rclpy import here.
 """
+
 from __future__ import annotations
 
-__all__ = ["IMAGE", "ARRAY", "ARRAY_HEADER", "T_FLOAT32_MULTIARRAY", "T_HEADER", "CAMERA_INFO", "IMU", "TRUTH", "FIX", "CLOCK", "DIAGNOSTICS", "EVAL_SUMMARY", "FRAMES", "IMU_DEPTH",
-           "method_topics", "simulator_topics", "estimator_topics", "corrector_topics", "evaluator_topics",
-           "evaluator_streams",
-           "T_IMAGE", "T_CAMERA_INFO", "T_IMU", "T_FIX", "T_CLOCK", "T_DIAG", "T_STRING", "T_FLOAT64",
-           "T_QUAT_STAMPED"]
+__all__ = [
+    'IMAGE',
+    'ARRAY',
+    'ARRAY_HEADER',
+    'T_FLOAT32_MULTIARRAY',
+    'T_HEADER',
+    'CAMERA_INFO',
+    'IMU',
+    'TRUTH',
+    'FIX',
+    'CLOCK',
+    'DIAGNOSTICS',
+    'EVAL_SUMMARY',
+    'FRAMES',
+    'IMU_DEPTH',
+    'method_topics',
+    'simulator_topics',
+    'estimator_topics',
+    'corrector_topics',
+    'evaluator_topics',
+    'evaluator_streams',
+    'T_IMAGE',
+    'T_CAMERA_INFO',
+    'T_IMU',
+    'T_FIX',
+    'T_CLOCK',
+    'T_DIAG',
+    'T_STRING',
+    'T_FLOAT64',
+    'T_QUAT_STAMPED',
+]
 
 # message types (ROS interface names)
-T_IMAGE = "sensor_msgs/msg/Image"
-T_CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-T_IMU = "sensor_msgs/msg/Imu"
-T_FIX = "sensor_msgs/msg/NavSatFix"
-T_CLOCK = "rosgraph_msgs/msg/Clock"
-T_DIAG = "diagnostic_msgs/msg/DiagnosticArray"
-T_STRING = "std_msgs/msg/String"
-T_FLOAT64 = "std_msgs/msg/Float64"
-T_QUAT_STAMPED = "geometry_msgs/msg/QuaternionStamped"
-T_FLOAT32_MULTIARRAY = "std_msgs/msg/Float32MultiArray"
-T_HEADER = "std_msgs/msg/Header"
+T_IMAGE = 'sensor_msgs/msg/Image'
+T_CAMERA_INFO = 'sensor_msgs/msg/CameraInfo'
+T_IMU = 'sensor_msgs/msg/Imu'
+T_FIX = 'sensor_msgs/msg/NavSatFix'
+T_CLOCK = 'rosgraph_msgs/msg/Clock'
+T_DIAG = 'diagnostic_msgs/msg/DiagnosticArray'
+T_STRING = 'std_msgs/msg/String'
+T_FLOAT64 = 'std_msgs/msg/Float64'
+T_QUAT_STAMPED = 'geometry_msgs/msg/QuaternionStamped'
+T_FLOAT32_MULTIARRAY = 'std_msgs/msg/Float32MultiArray'
+T_HEADER = 'std_msgs/msg/Header'
 
-IMAGE = "camera/image_raw"              # the polarization mosaic, as a camera driver publishes it
-CAMERA_INFO = "camera/camera_info"
-ARRAY = "compass_array/intensities"     # photodiode-array readings, units x channels (docs/photodiode-arrays.md)
-ARRAY_HEADER = "compass_array/header"   # the stamp and frame of each array sample, published beside it
-IMU = "imu/data"                        # attitude of base_link in ENU (roll/pitch used)
-TRUTH = "ground_truth/heading"          # simulator only: true heading, same Imu form as the estimate
-FIX = "gps/fix"                         # site (latitude/longitude/altitude)
-ATTITUDE_IN = "sim/attitude"            # simulator input when attitude_source = topic
-CLOCK = "/clock"
-DIAGNOSTICS = "/diagnostics"
-EVAL_SUMMARY = "evaluation/summary"     # JSON running statistics per stream
-FRAMES = "sim/frames"                   # simulator: JSON {stamp_ns, wall_ns} per image (wall-clock latency)
+IMAGE = 'camera/image_raw'  # the polarization mosaic, as a camera driver publishes it
+CAMERA_INFO = 'camera/camera_info'
+# photodiode-array readings, units x channels (docs/photodiode-arrays.md)
+ARRAY = 'compass_array/intensities'
+ARRAY_HEADER = (
+    'compass_array/header'  # the stamp and frame of each array sample, published beside it
+)
+IMU = 'imu/data'  # attitude of base_link in ENU (roll/pitch used)
+TRUTH = 'ground_truth/heading'  # simulator only: true heading, same Imu form as the estimate
+FIX = 'gps/fix'  # site (latitude/longitude/altitude)
+ATTITUDE_IN = 'sim/attitude'  # simulator input when attitude_source = topic
+CLOCK = '/clock'
+DIAGNOSTICS = '/diagnostics'
+EVAL_SUMMARY = 'evaluation/summary'  # JSON running statistics per stream
+FRAMES = 'sim/frames'  # simulator: JSON {stamp_ns, wall_ns} per image (wall-clock latency)
 
-#: History depth of the IMU subscriptions. They are best effort (REP-2003 sensor-data QoS: a best-effort
-#: reader matches both reliable and best-effort writers, a reliable reader only reliable ones) and deep
-#: enough for 2 s of a 100 Hz IMU, so that samples arriving while a long callback runs are kept.
+#: History depth of the IMU subscriptions. They are best effort (REP-2003 sensor-data QoS: a
+#: best-effort reader matches both reliable and best-effort writers, a reliable reader only
+#: reliable ones) and deep enough for 2 s of a 100 Hz IMU, so that samples arriving while a long
+#: callback runs are kept.
 IMU_DEPTH = 200
 
 
 def method_topics(method: str) -> dict:
-    """Return the per-method topic names (relative, under ``compass/<method>/``).
+    """
+    Return the per-method topic names (relative, under ``compass/<method>/``).
 
     Parameters
     ----------
@@ -62,21 +111,27 @@ def method_topics(method: str) -> dict:
         ``heading_raw`` (Imu), ``bearing_raw`` (Float64 [deg]), ``status`` (String, JSON),
         ``heading`` (Imu, tilt-corrected), ``bearing`` (Float64 [deg]) and
         ``correction_status`` (String).
+
     """
-    base = f"compass/{method}"
+    base = f'compass/{method}'
     return {
-        "heading_raw": f"{base}/heading_raw",          # Imu, estimator output (not tilt-corrected)
-        "bearing_raw": f"{base}/bearing_raw_deg",      # Float64, same, true bearing in degrees
-        "status": f"{base}/status",                    # String (JSON), one per image, also failures
-        "heading": f"{base}/heading",                  # Imu, corrector output (what to fuse)
-        "bearing": f"{base}/bearing_deg",              # Float64
-        "correction_status": f"{base}/correction_status",
+        'heading_raw': f'{base}/heading_raw',  # Imu, estimator output (not tilt-corrected)
+        'bearing_raw': f'{base}/bearing_raw_deg',  # Float64, same, true bearing in degrees
+        'status': f'{base}/status',  # String (JSON), one per image, also failures
+        'heading': f'{base}/heading',  # Imu, corrector output (what to fuse)
+        'bearing': f'{base}/bearing_deg',  # Float64
+        'correction_status': f'{base}/correction_status',
     }
 
 
-def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True, attitude_input_type: str = "imu",
-                     array: bool = False):
-    """Return the topics the ``sky_simulator`` publishes and subscribes to.
+def simulator_topics(
+    attitude_source: str = 'motion',
+    publish_clock: bool = True,
+    attitude_input_type: str = 'imu',
+    array: bool = False,
+):
+    """
+    Return the topics the ``sky_simulator`` publishes and subscribes to.
 
     Parameters
     ----------
@@ -94,22 +149,37 @@ def simulator_topics(attitude_source: str = "motion", publish_clock: bool = True
     -------
     publishes, subscribes : list of tuple
         ``(topic, type)`` pairs.
+
     """
-    pubs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO), (IMU, T_IMU), (TRUTH, T_IMU), (FIX, T_FIX),
-            (FRAMES, T_STRING), (DIAGNOSTICS, T_DIAG)]
+    pubs = [
+        (IMAGE, T_IMAGE),
+        (CAMERA_INFO, T_CAMERA_INFO),
+        (IMU, T_IMU),
+        (TRUTH, T_IMU),
+        (FIX, T_FIX),
+        (FRAMES, T_STRING),
+        (DIAGNOSTICS, T_DIAG),
+    ]
     if array:
         pubs += [(ARRAY, T_FLOAT32_MULTIARRAY), (ARRAY_HEADER, T_HEADER)]
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
-    if attitude_source == "topic":
-        subs.append((ATTITUDE_IN, T_IMU if attitude_input_type == "imu" else T_QUAT_STAMPED))
+    if attitude_source == 'topic':
+        subs.append((ATTITUDE_IN, T_IMU if attitude_input_type == 'imu' else T_QUAT_STAMPED))
     return pubs, subs
 
 
-def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: bool = False,
-                     prior_source: str = "none", input_kind: str = "image", array_stamp: str = "header"):
-    """Return the topics a ``heading_estimator`` publishes and subscribes to.
+def estimator_topics(
+    method: str,
+    site_source: str = 'parameters',
+    needs_tilt: bool = False,
+    prior_source: str = 'none',
+    input_kind: str = 'image',
+    array_stamp: str = 'header',
+):
+    """
+    Return the topics a ``heading_estimator`` publishes and subscribes to.
 
     Parameters
     ----------
@@ -130,23 +200,31 @@ def estimator_topics(method: str, site_source: str = "parameters", needs_tilt: b
     -------
     publishes, subscribes : list of tuple
         ``(topic, type)`` pairs.
+
     """
     t = method_topics(method)
-    pubs = [(t["heading_raw"], T_IMU), (t["bearing_raw"], T_FLOAT64), (t["status"], T_STRING),
-            (DIAGNOSTICS, T_DIAG)]
-    if input_kind == "array":
-        subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] + ([(ARRAY_HEADER, T_HEADER)] if array_stamp == "header" else [])
+    pubs = [
+        (t['heading_raw'], T_IMU),
+        (t['bearing_raw'], T_FLOAT64),
+        (t['status'], T_STRING),
+        (DIAGNOSTICS, T_DIAG),
+    ]
+    if input_kind == 'array':
+        subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] + (
+            [(ARRAY_HEADER, T_HEADER)] if array_stamp == 'header' else []
+        )
     else:
         subs = [(IMAGE, T_IMAGE), (CAMERA_INFO, T_CAMERA_INFO)]
-    if site_source == "navsatfix":
+    if site_source == 'navsatfix':
         subs.append((FIX, T_FIX))
-    if needs_tilt or prior_source == "imu":
+    if needs_tilt or prior_source == 'imu':
         subs.append((IMU, T_IMU))
     return pubs, subs
 
 
-def corrector_topics(method: str, site_source: str = "parameters"):
-    """Return the topics a ``tilt_corrector`` publishes and subscribes to.
+def corrector_topics(method: str, site_source: str = 'parameters'):
+    """
+    Return the topics a ``tilt_corrector`` publishes and subscribes to.
 
     Parameters
     ----------
@@ -159,19 +237,26 @@ def corrector_topics(method: str, site_source: str = "parameters"):
     -------
     publishes, subscribes : list of tuple
         ``(topic, type)`` pairs.
+
     """
     t = method_topics(method)
-    pubs = [(t["heading"], T_IMU), (t["bearing"], T_FLOAT64), (t["correction_status"], T_STRING),
-            (DIAGNOSTICS, T_DIAG)]
-    subs = [(t["heading_raw"], T_IMU), (IMU, T_IMU)]
-    if site_source == "navsatfix":
+    pubs = [
+        (t['heading'], T_IMU),
+        (t['bearing'], T_FLOAT64),
+        (t['correction_status'], T_STRING),
+        (DIAGNOSTICS, T_DIAG),
+    ]
+    subs = [(t['heading_raw'], T_IMU), (IMU, T_IMU)]
+    if site_source == 'navsatfix':
         subs.append((FIX, T_FIX))
     return pubs, subs
 
 
-def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool = True,
-                      direct_methods=()) -> list[tuple[str, str]]:
-    """Return the evaluator's streams and the topics they come from.
+def evaluator_streams(
+    methods, include_raw: bool = True, include_corrected: bool = True, direct_methods=()
+) -> list[tuple[str, str]]:
+    """
+    Return the evaluator's streams and the topics they come from.
 
     ``<method>/raw`` and ``<method>/corrected`` for each method, and ``<method>/raw`` only for
     methods in ``direct_methods`` (no corrector, e.g. tilt_aware).
@@ -191,19 +276,21 @@ def evaluator_streams(methods, include_raw: bool = True, include_corrected: bool
     -------
     list of tuple of str
         ``(stream name, topic)`` pairs.
+
     """
     out = []
     for m in methods:
         t = method_topics(m)
         if include_raw or m in direct_methods:
-            out.append((f"{m}/raw", t["heading_raw"]))
+            out.append((f'{m}/raw', t['heading_raw']))
         if include_corrected and m not in direct_methods:
-            out.append((f"{m}/corrected", t["heading"]))
+            out.append((f'{m}/corrected', t['heading']))
     return out
 
 
-def evaluator_topics(streams, latency_source: str = "sim_frames"):
-    """Return the topics the ``error_evaluator`` publishes and subscribes to.
+def evaluator_topics(streams, latency_source: str = 'sim_frames'):
+    """
+    Return the topics the ``error_evaluator`` publishes and subscribes to.
 
     Parameters
     ----------
@@ -216,12 +303,15 @@ def evaluator_topics(streams, latency_source: str = "sim_frames"):
     -------
     publishes, subscribes : list of tuple
         ``(topic, type)`` pairs, with each stream's status topic.
+
     """
     pubs = [(EVAL_SUMMARY, T_STRING), (DIAGNOSTICS, T_DIAG)]
     subs = [(TRUTH, T_IMU), (DIAGNOSTICS, T_DIAG)] + [(topic, T_IMU) for _, topic in streams]
-    if latency_source == "sim_frames":
+    if latency_source == 'sim_frames':
         subs.append((FRAMES, T_STRING))
-    for name, _ in streams:                       # statuses: why a frame was not published
-        method, kind = name.split("/")
-        subs.append((method_topics(method)["status" if kind == "raw" else "correction_status"], T_STRING))
+    for name, _ in streams:  # statuses: why a frame was not published
+        method, kind = name.split('/')
+        subs.append(
+            (method_topics(method)['status' if kind == 'raw' else 'correction_status'], T_STRING)
+        )
     return pubs, subs
