@@ -28,7 +28,8 @@ contrast (ER - 1) / (ER + 1) for an extinction ratio ER). The sun's position com
 ephemeris and the tilt is known, so the heading psi is the only unknown. The measurements are
 independent, so the Fisher information is the sum over pixels::
 
-    I(psi) = sum_i w_i * (d AoP_i / d psi)^2 / sigma_i^2 = sum_i w_i * 8 N P_i^2 (d AoP_i / d psi)^2
+    I(psi) = sum_i w_i * (d AoP_i / d psi)^2 / sigma_i^2
+           = sum_i w_i * 8 N P_i^2 (d AoP_i / d psi)^2
 
 and any unbiased estimator has ``std(psi_hat) >= 1 / sqrt(I)``. ``w_i`` is the number of
 independent superpixels (4 raw pixels each) of raw data behind one sample: 1 on a superpixel image;

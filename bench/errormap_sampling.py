@@ -178,7 +178,7 @@ def run(cfg) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     ap.add_argument('--cells', type=int, default=24, help='random cells (default 24)')
     ap.add_argument('--seed', type=int, default=1)
     a = ap.parse_args(argv)

@@ -39,8 +39,6 @@ from __future__ import annotations
 from pathlib import Path
 import time
 
-import numpy as np
-
 from .common import optional_import, single_core, timing_stats, Unavailable
 
 #: ms per heading, one core, demosaic included (issue 3)

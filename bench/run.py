@@ -42,7 +42,9 @@ from .common import BenchConfig, load_average, machine_info, Skipped, Unavailabl
 
 
 def parse_args(argv=None):
-    p = argparse.ArgumentParser(prog='python -m bench.run', description=__doc__.split('\n\n')[0])
+    p = argparse.ArgumentParser(
+        prog='python -m bench.run', description=__doc__.strip().split('\n\n')[0]
+    )
     p.add_argument(
         '--quick', action='store_true', help='small configuration for checking (< 2 min)'
     )

@@ -290,6 +290,8 @@ def _paired_speedup(base: Scene, reps: int, threads) -> float:
 
 def _paired_ratio(base: Scene, changes: dict, reps: int, threads) -> float:
     """
+    Return the median paired ratio of effect-render time to ideal render time.
+
     Median over blocks of (render time with ``changes`` / ideal full-frame render time), both timed
     within the same second: each block is three ideal renders then three with the effects, after
     two untimed calls of each (issue 16's target: clouds and the optical effects within 2x of the

@@ -12,12 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""A real polarization camera and IMU: heading_estimator (method) and its tilt_corrector. The input
-topics are launch arguments (remappings); the output is compass/<method>/heading (sensor_msgs/Imu for
-robot_localization, see config/ekf_heading_example.yaml and docs/ros.md).
+r"""
+Launch a real polarization camera and IMU: heading_estimator (method) and its tilt_corrector.
+
+The input topics are launch arguments (remappings); the output is compass/<method>/heading
+(sensor_msgs/Imu for robot_localization, see config/ekf_heading_example.yaml and docs/ros.md)::
 
     ros2 launch polarization_compass compass.launch.py method:=least_squares \
-        image_topic:=/pol_camera/image_raw camera_info_topic:=/pol_camera/camera_info imu_topic:=/imu/data
+        image_topic:=/pol_camera/image_raw camera_info_topic:=/pol_camera/camera_info \
+        imu_topic:=/imu/data
 
 Full-resolution images: this launch points Fast DDS at the package's shared-memory profile
 (large_image_transport, default true; false when the camera is on another machine). The camera

@@ -23,8 +23,8 @@ constructed and costs nothing -- each stage that runs is counted in
       clouds:  {coverage: 0.5, scale_m: 800, height_m: 2000, optical_thickness: 3.0,
                 brightness: 1.5, softness: 0.08, wind_mps: [5.0, 0.0]}
       haze:    {turbidity: 4.0}
-      skyline: {elevation_deg: [8, 12, 3, 0, ...]}          # equally spaced azimuths from North, clockwise
-               | {max_elevation_deg: 15, features: 24}       # a seeded random skyline
+      skyline: {elevation_deg: [8, 12, 3, 0, ...]}   # equally spaced azimuths, clockwise from N
+               | {max_elevation_deg: 15, features: 24}  # a seeded random skyline
                (+ ground_radiance: 0.2)
 
 All stages act on the clear-sky arrays (AoP, DoP, valid, relative radiance) the sky and radiance
@@ -247,6 +247,8 @@ def _cloud_composite_grid_kernel(
     tg, rk, rk1, rf, cols, cf, bright, aop, dop, inten, min_dop, valid
 ):  # pragma: no cover - compiled
     """
+    Composite the clouds with the transmission interpolated bilinearly from the grid.
+
     Composite the clouds with T interpolated bilinearly from the grid ``tg``: pixel (i, j) lies
     between grid rows rk[i], rk1[i] at fraction rf[i], and between grid columns g and g + 1 at
     fraction cf[j] for cols[g] <= j < cols[g + 1] (``cols``: the grid's pixel columns, increasing,

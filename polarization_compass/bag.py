@@ -56,7 +56,6 @@ is skipped, and the rest of the bag is processed.
 from __future__ import annotations
 
 from collections import Counter
-import dataclasses
 from dataclasses import dataclass, field
 import datetime as _dt
 import math
@@ -175,7 +174,7 @@ class TopicSpec:
     """
 
     topic: str
-    type: str
+    type: str  # noqa: A003 - the ROS message type, as the topic-map YAML key ``type``
 
 
 @dataclass(frozen=True)
@@ -670,7 +669,7 @@ def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     D = np.asarray(msg.d, dtype=float).reshape(-1)
     if K.size != 9 or not np.all(np.isfinite(K)) or not np.all(np.isfinite(D)):
         raise MessageError('non_finite', 'camera_info K/D has NaN, inf or the wrong size')
-    fx, fy, cx, cy = K[0], K[4], K[2], K[5]
+    fx, fy = K[0], K[4]
     if not (fx > 0 and fy > 0):
         raise MessageError(
             'bad_camera_info', f'focal lengths must be positive, got fx={fx}, fy={fy}'
@@ -1319,6 +1318,8 @@ class BagReader:
 
 
 class _RecoveredConnection:
+    """A connection of a recovered storage file (what rosbags' readers expose)."""
+
     def __init__(self, cid, topic, msgtype, msgcount):
         self.id, self.topic, self.msgtype, self.msgcount = cid, topic, msgtype, msgcount
 
@@ -1337,7 +1338,6 @@ class _RecoveredMcap:
     _MAGIC = b'\x89MCAP0\r\n'
 
     def __init__(self, path: Path, why: str):
-        import io
         import struct
 
         from rosbags.rosbag2.storage_mcap import McapReader

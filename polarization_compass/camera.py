@@ -24,13 +24,15 @@ Models
 ``fisheye_equidistant``  r = f * theta (theta the angle from the optical axis); pixels with
                          theta > ``max_field_angle_deg`` have no ray (marked invalid).
 
-Lens distortion (a calibrated real lens) follows ROS ``camera_calibration`` / ``sensor_msgs/CameraInfo``:
-``distortion_model`` ``plumb_bob`` (k1 k2 p1 p2 k3) or ``rational_polynomial`` (k1 k2 p1 p2 k3 k4 k5 k6)
-on the pinhole model, ``equidistant`` (k1..k4, OpenCV's fisheye model theta_d = theta (1 + k1 theta^2 +
-... + k4 theta^8)) on the fisheye model. Rays of a distorted lens come from OpenCV's undistortion
-(``cv2.undistortPoints``, ``cv2.fisheye.undistortPoints``), the inverse from ``cv2.projectPoints`` /
-``cv2.fisheye.projectPoints``; all-zero coefficients are the ideal models above. :func:`camera_from_intrinsics`
-builds a model from ROS K/D, :func:`load_camera_yaml` from a ``camera_calibration`` YAML file.
+Lens distortion (a calibrated real lens) follows ROS ``camera_calibration`` /
+``sensor_msgs/CameraInfo``: ``distortion_model`` ``plumb_bob`` (k1 k2 p1 p2 k3) or
+``rational_polynomial`` (k1 k2 p1 p2 k3 k4 k5 k6) on the pinhole model, ``equidistant`` (k1..k4,
+OpenCV's fisheye model theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8)) on the fisheye model.
+Rays of a distorted lens come from OpenCV's undistortion (``cv2.undistortPoints``,
+``cv2.fisheye.undistortPoints``), the inverse from ``cv2.projectPoints`` /
+``cv2.fisheye.projectPoints``; all-zero coefficients are the ideal models above.
+:func:`camera_from_intrinsics` builds a model from ROS K/D, :func:`load_camera_yaml` from a
+``camera_calibration`` YAML file.
 
 Rays are returned as a (3, N) float32 array (structure of arrays, what the render kernels want)
 and cached per (camera, selection): a camera that does not change costs nothing per frame.
@@ -207,10 +209,14 @@ class CameraModel:
         f = self.focal_length_mm * 1e3
         hw = self.width_px * self.pixel_pitch_x_um / 2
         hh = self.height_px * self.pixel_pitch_y_um / 2
-        if self.model == 'pinhole':
-            fov = lambda r: 2 * math.degrees(math.atan2(r, f))  # noqa: E731
-        else:
-            fov = lambda r: min(2 * math.degrees(r / f), 2 * self.max_field_angle_deg)  # noqa: E731
+        pinhole = self.model == 'pinhole'
+        limit_deg = 2 * self.max_field_angle_deg
+
+        def fov(r):
+            if pinhole:
+                return 2 * math.degrees(math.atan2(r, f))
+            return min(2 * math.degrees(r / f), limit_deg)
+
         return fov(hw), fov(hh), fov(math.hypot(hw, hh))
 
     @property

@@ -318,9 +318,9 @@ def _superpixel_kernel(m, w, sat, aop, dop, valid):  # pragma: no cover - compil
     """One (aop, dop, valid) per 2 x 2 block."""
     H2, W2 = aop.shape
     for k in prange(H2):
-        for l in range(W2):
-            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * l, w, sat)
-            aop[k, l], dop[k, l], valid[k, l] = _finish(s0, s1, s2, ok)
+        for col in range(W2):
+            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            aop[k, col], dop[k, col], valid[k, col] = _finish(s0, s1, s2, ok)
 
 
 @njit(inline='always', fastmath=_FM, cache=True)
@@ -341,9 +341,9 @@ def _superpixel_stokes_kernel(m, w, sat, s0o, s1o, s2o):  # pragma: no cover - c
     """One Stokes vector per 2 x 2 block; zeros where invalid."""
     H2, W2 = s0o.shape
     for k in prange(H2):
-        for l in range(W2):
-            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * l, w, sat)
-            s0o[k, l], s1o[k, l], s2o[k, l] = _stokes_or_zero(s0, s1, s2, ok)
+        for col in range(W2):
+            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            s0o[k, col], s1o[k, col], s2o[k, col] = _stokes_or_zero(s0, s1, s2, ok)
 
 
 @njit(inline='always', fastmath=_FM, cache=True)

@@ -256,7 +256,9 @@ class SweepStore:
 
     # ---- opening -----------------------------------------------------------------------
     @classmethod
-    def open(cls, path, spec, restart: bool = False) -> 'SweepStore':
+    def open(  # noqa: A003 - the store's constructor, named like the files it opens
+        cls, path, spec, restart: bool = False
+    ) -> 'SweepStore':
         """
         Create the store for ``spec`` at ``path``, or reopen it to resume.
 

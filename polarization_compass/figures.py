@@ -159,12 +159,12 @@ def _surfaces(m: ErrorMap, tilt: str, opts, shift=False):
         ir = _zero(m.roll_deg, 'roll')
         _need(m.pitch_deg, 'pitch', 2)
         tilt_axis = m.pitch_deg
-        get = lambda i: _masked(m, i, (ia, slice(None), slice(None), ir))  # noqa: E731  (yaw, pitch)
+        index = (ia, slice(None), slice(None), ir)  # (yaw, pitch)
     else:
         ip = _zero(m.pitch_deg, 'pitch')
         _need(m.roll_deg, 'roll', 2)
         tilt_axis = m.roll_deg
-        get = lambda i: _masked(m, i, (ia, slice(None), ip, slice(None)))  # noqa: E731  (yaw, roll)
+        index = (ia, slice(None), ip, slice(None))  # (yaw, roll)
     yaw, order = _closed_yaw(m)
     if shift:  # show yaw over [-90, 270]: nodes <= -90 move up a turn
         up = np.nonzero(yaw <= -90 + 1e-9)[0]
@@ -177,7 +177,7 @@ def _surfaces(m: ErrorMap, tilt: str, opts, shift=False):
     cols = 2 if n > 1 else 1
     rows = int(math.ceil(n / cols))
     fig = plt.figure(figsize=(max(8.0, 6.2 * cols), 5.3 * rows + 0.6), dpi=110)
-    data = [get(m.method_index(x))[order] for x in methods]
+    data = [_masked(m, m.method_index(x), index)[order] for x in methods]
     lim = max(float(np.abs(d).max()) if d.count() else 0.0 for d in data) or 1.0
     Y, T = np.meshgrid(yaw, tilt_axis, indexing='ij')
     for k, (name, d) in enumerate(zip(methods, data)):

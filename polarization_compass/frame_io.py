@@ -22,10 +22,11 @@ Contents (all plain arrays; loading never unpickles: ``allow_pickle=False``):
 ``valid``     bool
 ``x_px``      float64, 1-based column of each pixel (eq 20), same shape as ``aop_rad``
 ``y_px``      float64, 1-based row
-``meta``      0-d unicode array holding a JSON object: sun azimuth/altitude and how they were obtained
-              (``sun_source`` ephemeris/scene/given, ``sun_fixed``; ``time_utc`` only for an ephemeris sun),
-              attitude, camera, effects and sensor parameters
-optional: ``intensity`` (float32), ``mosaic`` (uint8/uint16 raw DoFP image), ``aop_ideal_rad``, ``dop_ideal``
+``meta``      0-d unicode array holding a JSON object: sun azimuth/altitude and how they were
+              obtained (``sun_source`` ephemeris/scene/given, ``sun_fixed``; ``time_utc`` only for
+              an ephemeris sun), attitude, camera, effects and sensor parameters
+optional: ``intensity`` (float32), ``mosaic`` (uint8/uint16 raw DoFP image), ``aop_ideal_rad``,
+``dop_ideal``
 """
 
 from __future__ import annotations

@@ -108,6 +108,8 @@ def _keys(d, allowed, where):
 @njit(inline='always', fastmath=True, cache=True)
 def _glare_angle_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     """
+    Return the angle (rad, float32) between the unit ray p and the sun s, without acos.
+
     Angle (rad, float32) between the unit ray p and the unit sun direction s, branch-free and
     without acos: gamma = 2 asin(|p - s| / 2), the chord form (exact for unit vectors, and unlike
     acos(p.s) not losing the small angles near the sun to float32 rounding of a cosine near 1).
@@ -145,6 +147,8 @@ def _lens_pixel(
     px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
 ):  # pragma: no cover
     """
+    Return the vignetted sky radiance and the angle from the sun at one pixel.
+
     Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the angle from the sun
     (rad) at one pixel (float32). Every term is computed and selected: branches, even
     loop-invariant ones, kept these loops scalar (measured).
@@ -160,6 +164,8 @@ def _lens_pixel(
 @njit(inline='always', fastmath=True, cache=True)
 def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cover - compiled
     """
+    Return the sun's light (disk or glare) at angle ``gam`` (rad) from it.
+
     The sun's light at angle ``gam`` (rad) from it: ``disk`` inside the disk, else the glare
     ``glare_at_1deg (1 deg / gamma)^expo``. ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg
     (1 deg)^2`` and the glare is ``g1 / gamma^2``, divisions only; the callers keep that case in
@@ -199,6 +205,8 @@ def _optics_block_kernel(
     inten,
 ):  # pragma: no cover - compiled
     """
+    Apply vignetting and the sun over a block of pixels given by its columns and rows.
+
     Vignetting and the sun over a block of pixels whose coordinates are the product of the columns
     ``xcol`` and the rows ``yrow`` (full frame, region, stride, grid): no per-pixel coordinate
     arrays.
@@ -270,6 +278,8 @@ def _flare_box_kernel(
     boxes, xcol, yrow, gx, gy, r2, grad, dop, inten
 ):  # pragma: no cover - compiled
     """
+    Add each lens-flare ghost inside its disk, visiting only its bounding box.
+
     Add each ghost (unpolarized ``grad``) inside its disk, visiting only its bounding box
     ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I / (I + grad),
     which composes with the sun's light added before to the one-step ``DoP I_sky / (I_sky + G_sun +
@@ -317,6 +327,8 @@ def _optics_kernel(
     inten,
 ):  # pragma: no cover - compiled
     """
+    Apply all declared lens effects in one pass over scattered pixels (float32).
+
     All declared lens effects in one pass over scattered pixels (float32, flat x/y): vignetting,
     the sun disk and glare, the ghosts.
     """
@@ -354,6 +366,8 @@ def _optics_kernel(
 
 def _block_axes(x_px, y_px):
     """
+    Return the (columns, rows) whose product the pixel coordinates are, else None.
+
     (columns, rows) float32 when the pixel coordinates are their product (x_px[r, c] = columns[c],
     y_px[r, c] = rows[r], both increasing), else None.
     """
@@ -466,6 +480,8 @@ class Optics:
 
     def apply(self, sun_cam, rays_cam, x_px, y_px, aop, dop, intensity, instr) -> None:
         """
+        Apply the declared lens effects to the flat arrays in place.
+
         The declared lens effects on the flat arrays (in place; intensity float32 writable); each
         declared stage is counted. ``x_px``/``y_px``: the pixels' 1-based coordinates in the
         selection's shape. A block of pixels (the product of its columns and rows: full, region,
@@ -549,8 +565,9 @@ class Optics:
 
     def _axes(self, x_px, y_px):
         """
-        :func:`_block_axes` of the selection's coordinates, computed once per coordinate
-        array.
+        Return :func:`_block_axes` of the selection's coordinates, cached per array.
+
+        :func:`_block_axes` of the selection's coordinates, computed once per coordinate array.
         """
         key = (id(x_px), id(y_px), np.shape(x_px))
         if getattr(self, '_axes_key', None) != key:

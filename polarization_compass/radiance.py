@@ -23,9 +23,10 @@ as rays, sun and zenith are in the same one.
 CIE standard general sky (ISO 15469:2004 / CIE S 011/E:2003)
 ------------------------------------------------------------
     L / L_z = f(chi) phi(Z) / (f(Z_s) phi(0))
-    gradation   phi(Z)  = 1 + a exp(b / cos Z)                       (Z: zenith angle of the element)
+    gradation   phi(Z)  = 1 + a exp(b / cos Z)
+                          (Z: zenith angle of the element)
     indicatrix  f(chi)  = 1 + c (exp(d chi) - exp(d pi / 2)) + e cos^2 chi
-                                                              (chi: angle between element and sun)
+                          (chi: angle between element and sun)
 
 with Z_s the sun's zenith angle (chi at the zenith equals Z_s, hence L = 1 there). The 15 standard
 types (a, b, c, d, e) are in :data:`CIE_STANDARD_SKIES`; the default is type 12, "CIE standard

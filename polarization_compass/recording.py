@@ -49,7 +49,6 @@ from pathlib import Path
 import numpy as np
 
 from .bag import (
-    BagError,
     BagWriter,
     default_topic_map,
     encode_camera_info,

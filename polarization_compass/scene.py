@@ -26,17 +26,18 @@ Schema (every key optional; defaults are the paper's set-up, see ``data/default_
     site: {latitude_deg, longitude_deg, altitude_m}
     time_utc: ISO 8601 (UTC; 'Z' or an offset)
     sun: {model: spa|paper}  or  {azimuth_deg, altitude_deg}   # fixed sun, no ephemeris
-    attitude: {bearing_deg, pitch_deg, roll_deg}                 # bearing of camera +y, clockwise from N
+    attitude: {bearing_deg, pitch_deg, roll_deg}   # bearing of camera +y, clockwise from N
     camera: {model, width_px, height_px, focal_length_mm, pixel_pitch_x_um, pixel_pitch_y_um, ...}
     pixels: {mode: full} | {mode: stride, stride: N} | {mode: grid, nx, ny}
             | {mode: region, x0, y0, width, height[, stride]}
-    sky: {model: rayleigh, dop_max: 1.0} | {model: berry_dennis_lee, separation_deg: ..., dop_max: ...}
+    sky: {model: rayleigh, dop_max: 1.0}
+         | {model: berry_dennis_lee, separation_deg: ..., dop_max: ...}
     radiance: null | {model: cie_clear, ...}
     validity: {sun_exclusion_deg, min_altitude_deg, min_dop}
     sensor: {} | {mosaic: {...}, shot_noise: {...}, read_noise: {...}, quantization: {...},
                   extinction_ratio: {...}, demosaic: superpixel|bilinear}
     photodiode_array: null | {geometry: <mapping or YAML path>, brightness, noise_rel, integrate}
-                                     # a photodiode-array compass beside the camera (docs/photodiode-arrays.md)
+                       # a photodiode-array compass beside the camera (docs/photodiode-arrays.md)
     atmosphere: null | {clouds: {...}, haze: {turbidity}, skyline: {...}}   # see atmosphere.py
     optics: null | {sun: {...}, flare: {...}, vignetting: {...}}            # see optics.py
     seed: int
@@ -50,8 +51,6 @@ import datetime as _dt
 from importlib import resources
 import math
 from pathlib import Path
-
-import numpy as np
 
 from .camera import CameraError, CameraModel, PixelSelection
 from .conventions import CameraAttitude

@@ -29,8 +29,8 @@ Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX25
       read_noise: {sigma_e: 2.3}              # Gaussian read noise, electrons rms
       quantization: {bits: 12}                # 8, 10, 12, 14 or 16
       extinction_ratio: {value: 100}          # finite polarizer extinction ratio (> 1)
-      calibration: {angle_error_deg: 0.5, extinction_ratio_spread: 0.2, gain_rms: 0.01, crosstalk: 0.02,
-                    seed: 0}                  # per-pixel DoFP calibration errors (fixed pattern)
+      calibration: {angle_error_deg: 0.5, extinction_ratio_spread: 0.2, gain_rms: 0.01,
+                    crosstalk: 0.02, seed: 0}  # per-pixel DoFP calibration errors (fixed pattern)
       demosaic: bilinear                      # or superpixel
 
 ``{}`` or null parameters mean the defaults shown. Once any key is declared the mosaic and the
@@ -1099,15 +1099,15 @@ def _ideal_superpixel_kernel(
     for k in prange(H2):
         i = 2 * k
         if has_s0:
-            for l in range(W2):
-                j = 2 * l
-                out_aop[k, l], out_dop[k, l], out_valid[k, l], out_s0[k, l] = _ideal_block(
+            for col in range(W2):
+                j = 2 * col
+                out_aop[k, col], out_dop[k, col], out_valid[k, col], out_s0[k, col] = _ideal_block(
                     aop, dop, valid, i, j, s0[i, j], s0[i, j + 1], s0[i + 1, j], s0[i + 1, j + 1]
                 )
         else:
-            for l in range(W2):
-                out_aop[k, l], out_dop[k, l], out_valid[k, l], out_s0[k, l] = _ideal_block(
-                    aop, dop, valid, i, 2 * l, one, one, one, one
+            for col in range(W2):
+                out_aop[k, col], out_dop[k, col], out_valid[k, col], out_s0[k, col] = _ideal_block(
+                    aop, dop, valid, i, 2 * col, one, one, one, one
                 )
 
 

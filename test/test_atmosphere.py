@@ -200,9 +200,10 @@ def test_preetham_luminance_against_the_paper_formula_in_float64():
         0.1206 * T - 2.5771,
         -0.0670 * T + 0.3703,
     )
-    F = lambda th, g: (
-        (1 + A * np.exp(B / np.cos(th))) * (1 + C * np.exp(D * g) + E * np.cos(g) ** 2)
-    )
+
+    def F(th, g):
+        return (1 + A * np.exp(B / np.cos(th))) * (1 + C * np.exp(D * g) + E * np.cos(g) ** 2)
+
     sun_zen = math.radians(50.0)
     sun = np.array([math.sin(sun_zen), 0.0, math.cos(sun_zen)])
     rng = np.random.default_rng(0)

@@ -295,9 +295,9 @@ def test_nodes_without_estimates_fall_back_to_linear_or_refuse():
     def err(y, h, p, r):
         return 0.1 * h * (p * np.sin(np.radians(y)) + r * np.cos(np.radians(y))) / 30
 
-    hole = lambda y, h, p, r: (
-        ~((np.abs(p - 10) < 1e-9) & (np.abs(r - 5) < 1e-9) & (np.abs(h - 30) < 1e-9))
-    )  # noqa: E731
+    def hole(y, h, p, r):
+        return ~((np.abs(p - 10) < 1e-9) & (np.abs(r - 5) < 1e-9) & (np.abs(h - 30) < 1e-9))
+
     m = _synthetic(err, hole)
     c = TiltCorrector(m, 'm')
     psi = 33.0

@@ -30,9 +30,10 @@ pytest.importorskip(
     'xarray', reason="the 'sweep' extra (installed by make) is needed for Datasets/Zarr"
 )
 
-from polarization_compass.cli import main  # noqa: E402
+# after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
+from polarization_compass.cli import main  # noqa: E402, I100
 from polarization_compass.errormap import ErrorMap, ErrorMapError  # noqa: E402
-from polarization_compass.errormap_io import load_error_map
+from polarization_compass.errormap_io import load_error_map  # noqa: E402
 from polarization_compass.errormap_store import (  # noqa: E402
     chunk_checksum,
     DIMS,

@@ -78,16 +78,18 @@ def console_scripts() -> dict:
     name -> 'module:function' from setup.py's entry points, read as text (not by importing it).
     """
     text = (ROOT / 'setup.py').read_text()
-    return dict(re.findall(r'"([\w-]+)\s*=\s*([\w.]+:\w+)"', text))
+    return dict(re.findall(r'["\']([\w-]+)\s*=\s*([\w.]+:\w+)["\']', text))
 
 
 def data_file_globs() -> list[tuple[str, str]]:
     """(install dir, source glob) pairs of setup.py's data_files."""
     text = (ROOT / 'setup.py').read_text()
-    return re.findall(r'\("share/" \+ PACKAGE \+ "([^"]*)", (?:glob\("([^"]+)"\))', text) + [
+    # either quote style: the formatter writes single quotes
+    text = text.replace('"', "'")
+    return re.findall(r"\('share/' \+ PACKAGE \+ '([^']*)', (?:glob\('([^']+)'\))", text) + [
         (d, g)
         for d, g in re.findall(
-            r'\("share/" \+ PACKAGE \+ "([^"]*)", glob\("[^"]+"\) \+ glob\("([^"]+)"\)\)', text
+            r"\('share/' \+ PACKAGE \+ '([^']*)', glob\('[^']+'\) \+ glob\('([^']+)'\)\)", text
         )
     ]
 

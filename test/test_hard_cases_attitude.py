@@ -37,11 +37,15 @@ import pytest
 
 
 class _Q:
+    """A geometry_msgs/Quaternion stand-in."""
+
     def __init__(self, q):
         self.x, self.y, self.z, self.w = q
 
 
 class _QuatStamped:
+    """A geometry_msgs/QuaternionStamped stand-in."""
+
     def __init__(self, q):
         self.quaternion = _Q(q)
 

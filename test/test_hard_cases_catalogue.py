@@ -124,7 +124,9 @@ def test_open_bugs_are_strict_xfails_and_strict_xfails_are_listed():
     for f in xfail_files:
         src = f.read_text()
         assert 'xfail(strict=False' not in src and 'mark.skip' not in src, f.name
-        reasons += re.findall(r'xfail\(strict=True, reason=\(?\s*\"bug: ([^\"]+)', src)
+        reasons += [
+            m[1] for m in re.findall(r'xfail\(strict=True, reason=\(?\s*(["\'])bug: (.+?)\1', src)
+        ]
     assert (n_open == 0) == (not reasons), (
         n_open,
         reasons,

@@ -224,6 +224,8 @@ def test_unusable_maps_for_correction_are_error_map_errors(kwargs, words):
 # Map files: corrupt, inconsistent, malicious
 # --------------------------------------------------------------------------------------------
 class _Payload:
+    """A pickle payload that would create a file if unpickled."""
+
     def __init__(self, marker):
         self.marker = str(marker)
 

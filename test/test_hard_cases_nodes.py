@@ -41,7 +41,7 @@ from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer
 import pytest
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
+from sensor_msgs.msg import Image, Imu
 
 T0 = 1_573_797_600_000_000_000  # 2019-11-15T06:00:00Z, the paper's experiment (sun ~30 deg up)
 SITE = (32.026778, 118.853306, 30.0)
@@ -479,8 +479,8 @@ def test_a_python_tag_in_a_parameter_file_is_never_executed(ctx, tmp_path, capsy
 # --------------------------------------------------------------------------------------------
 # sky_simulator: its own inputs (attitude topic, lockstep acks)
 # --------------------------------------------------------------------------------------------
-TINY_SCENE = """camera: {model: pinhole, width_px: 48, height_px: 40, focal_length_mm: 0.12, pixel_pitch_x_um: 3.45,
-         pixel_pitch_y_um: 3.45}
+TINY_SCENE = """camera: {model: pinhole, width_px: 48, height_px: 40, focal_length_mm: 0.12,
+         pixel_pitch_x_um: 3.45, pixel_pitch_y_um: 3.45}
 """
 
 

@@ -41,7 +41,8 @@ import pytest
 launch_testing = pytest.importorskip('launch_testing')
 pytest.importorskip('launch_ros')
 
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
+# after the importorskip calls above, hence E402 (not at the top) and I100 (after pytest)
+from ament_index_python.packages import get_package_share_directory  # noqa: E402, I100
 import launch  # noqa: E402
 from launch.actions import IncludeLaunchDescription, SetEnvironmentVariable  # noqa: E402
 from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
@@ -81,12 +82,16 @@ def generate_test_description(graph):
 
 
 class TestGraphRuns(unittest.TestCase):
+    """Checks while the graph runs."""
+
     def test_nodes_come_up(self, proc_output, graph):
         proc_output.assertWaitFor(STARTED[graph], timeout=180, stream='stderr')
 
 
 @launch_testing.post_shutdown_test()
 class TestGraphStops(unittest.TestCase):
+    """Checks after the graph has shut down."""
+
     def test_every_node_exits_cleanly(self, proc_info, graph):
         launch_testing.asserts.assertExitCodes(proc_info, allowable_exit_codes=[0])
 

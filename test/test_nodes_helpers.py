@@ -69,6 +69,8 @@ def stop_process(p: subprocess.Popen, timeout: float, *logs) -> int:
 
 
 class Proc:
+    """A node executable running as a process, its output in log files."""
+
     def __init__(self, name: str, exe: str, ros_args: list, env: dict, log_dir: Path):
         self.name = name
         log_dir.mkdir(parents=True, exist_ok=True)

@@ -73,6 +73,8 @@ def heading_msg(t_ns, bearing):
 
 
 class _Sink:
+    """A publisher stand-in that keeps the messages."""
+
     def __init__(self):
         self.msgs = []
 
@@ -307,6 +309,8 @@ def fake_wall_clock(monkeypatch, start: float):
     wall = [start]
 
     class FakeTime:
+        """The ``time`` module with a monotonic clock the test sets."""
+
         @staticmethod
         def monotonic():
             return wall[0]

@@ -20,8 +20,6 @@ statuses, sigma coverage, gain calibration, convention self-check and the simula
 cone.
 """
 
-import math
-
 import numpy as np
 from polarization_compass.conventions import fold_axial_deg, wrap_180_deg
 from polarization_compass.estimators.base import Status

@@ -459,7 +459,8 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
                 '-p',
                 'pitch_deg:=0.0',
                 '-p',
-                "wait_for_downstream:=['compass_array/intensities=heading_estimator_array,test_recorder',"
+                'wait_for_downstream:=['
+                "'compass_array/intensities=heading_estimator_array,test_recorder',"
                 "'compass_array/header=heading_estimator_array,test_recorder']",
             ],
             env,

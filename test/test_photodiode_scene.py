@@ -20,7 +20,6 @@ sun.
 """
 
 import numpy as np
-from polarization_compass.camera import PixelSelection
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.estimators.base import Status
 from polarization_compass.photodiode.geometry import geometry_from_dict

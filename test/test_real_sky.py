@@ -47,7 +47,7 @@ def files(tmp_path_factory):
         (d / f'cam{pol}.yaml').write_text(R.camera_yaml_text(pol))
         out[pol] = d / f'cam{pol}.yaml'
     (d / 'cam_default.yaml').write_text(
-        '\n'.join(l for l in R.camera_yaml_text().splitlines() if not l.startswith('polarizer'))
+        '\n'.join(ln for ln in R.camera_yaml_text().splitlines() if not ln.startswith('polarizer'))
         + '\n'
     )
     out['default'] = d / 'cam_default.yaml'

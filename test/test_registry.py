@@ -26,7 +26,6 @@ fail if that consumer still read a hard-coded list of names, labels, costs or sw
 """
 
 import json
-import math
 
 import numpy as np
 from polarization_compass import conventions as cv

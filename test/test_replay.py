@@ -38,7 +38,6 @@ from polarization_compass.recording import record_sim, RecordSpec
 from polarization_compass.replay import (
     FramePipeline,
     iter_synced_frames,
-    plan_bag,
     replay_bag,
     ReplayConfig,
 )
@@ -386,9 +385,12 @@ def test_mcap_and_sqlite3_bags_give_identical_results(alt20):
     runs, _, _ = alt20
     a = _replay(runs['mcap']['bag'], methods=('least_squares',))
     b = _replay(runs['sqlite3']['bag'], methods=('least_squares',))
-    key = lambda res: [
-        (r.stamp_ns, r.method, r.status, r.raw_bearing_deg, r.raw_error_deg) for r in res.rows
-    ]  # noqa
+
+    def key(res):
+        return [
+            (r.stamp_ns, r.method, r.status, r.raw_bearing_deg, r.raw_error_deg) for r in res.rows
+        ]
+
     assert key(a) == key(b) and len(a.rows) == 36
 
 
@@ -766,6 +768,8 @@ def _cli(*args, cwd=None):
 
 
 class _Run:
+    """A subprocess.CompletedProcess stand-in."""
+
     def __init__(self, returncode, stdout, stderr):
         self.returncode, self.stdout, self.stderr = returncode, stdout, stderr
 

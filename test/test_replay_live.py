@@ -23,7 +23,6 @@ by frame and stream by stream.
 """
 
 import csv
-import os
 from pathlib import Path
 import subprocess
 import time
@@ -53,6 +52,8 @@ CAMERA = CameraModel(
 
 
 class _Node:
+    """A node of the replay graph running as a process."""
+
     def __init__(self, spec, share, extra, env, log_dir):
         self.name = spec.name
         self.log = open(log_dir / f'{spec.name}.log', 'w')

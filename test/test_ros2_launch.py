@@ -52,7 +52,8 @@ except ImportError:
         allow_module_level=True,
     )
 
-from polarization_compass.graphs import ARGUMENTS
+# after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
+from polarization_compass.graphs import ARGUMENTS  # noqa: E402, I100
 
 pytestmark = [pytest.mark.launch, pytest.mark.ros, pytest.mark.slow, pytest.mark.colcon]
 ROOT = Path(__file__).resolve().parent.parent

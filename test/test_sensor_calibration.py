@@ -21,8 +21,6 @@ declared statistics; undeclared it neither runs nor is counted; the fixed patter
 tied to the sensor's pixels.
 """
 
-import math
-
 import numpy as np
 from polarization_compass import instrumentation as instr
 from polarization_compass.camera import PixelSelection

@@ -13,6 +13,8 @@
 # limitations under the License.
 
 """
+The fused kernels of issue 16's effects against float64 numpy references.
+
 The fused, vectorised kernels of issue 16's effects against straightforward float64 numpy
 evaluations of each effect. Lens effects (polarization_compass.optics): the formulas of the module
 docstring written out per pixel with arccos-like angles and powers, as the first implementation
@@ -45,6 +47,8 @@ PINHOLE = CameraModel(width_px=320, height_px=240)
 
 def angle_between(s, rays):
     """
+    Return the angle (rad) between s and each ray, in float64 by atan2.
+
     Angle (rad) between s and each ray of (3, N), both normalised in float64, by atan2 of |s x p|
     and s.p (arccos of a float32 dot product, as the first implementation used, loses ~1 % near the
     sun).
@@ -158,6 +162,8 @@ def test_fused_optics_equal_the_per_pixel_formulas(case):
 
 def test_glare_angle_chord_form_matches_arccos_in_float64():
     """
+    The chord form of the glare angle matches arccos in float64.
+
     Gamma = 2 asin(|p - s| / 2) with the float32 Cephes polynomial, against arccos(p.s) in float64,
     from 0.0006 deg to 150 deg: relative error < 2e-6.
     """

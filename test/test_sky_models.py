@@ -396,8 +396,13 @@ def cie_by_hand(sky_type, Z_deg, az_deg, Zs_deg, azs_deg):
     chi = np.arccos(
         np.clip(np.cos(Zs) * np.cos(Z) + np.sin(Zs) * np.sin(Z) * np.cos(az - azs), -1, 1)
     )
-    f = lambda x: 1 + c * (np.exp(d * x) - np.exp(d * np.pi / 2)) + e * np.cos(x) ** 2  # noqa: E731
-    phi = lambda z: 1 + a * np.exp(b / np.cos(z))  # noqa: E731
+
+    def f(x):
+        return 1 + c * (np.exp(d * x) - np.exp(d * np.pi / 2)) + e * np.cos(x) ** 2
+
+    def phi(z):
+        return 1 + a * np.exp(b / np.cos(z))
+
     return f(chi) * phi(Z) / (f(Zs) * phi(0.0))
 
 
@@ -594,6 +599,8 @@ def test_a_registered_sky_model_is_built_by_name():
 
         @register_sky_model('toy_sky')
         class Toy:
+            """A sky model made up for the test."""
+
             def __init__(self, k=1):
                 self.k = k
 

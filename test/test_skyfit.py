@@ -150,7 +150,10 @@ def test_misfit_statistics_against_a_known_rotation(frame):
 
 
 def test_inconsistent_methods_are_marked():
-    mk = lambda name, psi, sig: HeadingResult.from_psi(name, psi, 0.0, sig, 100, 1.0, False)  # noqa: E731
+
+    def mk(name, psi, sig):
+        return HeadingResult.from_psi(name, psi, 0.0, sig, 100, 1.0, False)
+
     out = mark_inconsistent([mk('a', 10.0, 0.5), mk('b', 10.5, 0.5), mk('c', 30.0, 0.5)])
     assert [r.status for r in out] == [Status.OK, Status.OK, Status.INCONSISTENT]
     assert '3 sigma' in out[2].reason

@@ -41,7 +41,8 @@ pytest.importorskip(
     'distributed', reason="the 'sweep' extra (installed by make) is needed for Dask sweeps"
 )
 
-from polarization_compass.sweep import parse_range, run_sweep, SweepSpec  # noqa: E402
+# after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
+from polarization_compass.sweep import parse_range, run_sweep, SweepSpec  # noqa: E402, I100
 
 ROOT = Path(__file__).resolve().parents[1]
 # small, but a few seconds of work, in 8 chunks of a few tenths of a second each
@@ -79,6 +80,8 @@ def _env() -> dict:
 
 
 class LoopbackCluster:
+    """A Dask scheduler and two workers as processes on 127.0.0.1."""
+
     def __init__(self, tmp: Path):
         self.tmp = tmp
         self.file = tmp / 'scheduler.json'
@@ -326,9 +329,11 @@ def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
 
 def test_two_sigints_end_an_embedded_cluster_sweep_quietly(tmp_path):
     """
-    Ctrl-C twice (an impatient user, or a supervisor signalling the process group) while chunks
-    run on the embedded LocalCluster: exit 130 with the one resume hint, no traceback from the
-    client or its worker processes, no worker left behind, and the stored chunks are kept.
+    Two SIGINTs end an embedded-cluster sweep quietly.
+
+    Ctrl-C twice (an impatient user, or a supervisor signalling the process group) while chunks run
+    on the embedded LocalCluster: exit 130 with the one resume hint, no traceback from the client
+    or its worker processes, no worker left behind, and the stored chunks are kept.
     """
     out = tmp_path / 'q.npz'
     store = tmp_path / 'q.npz.partial.zarr'

@@ -47,7 +47,7 @@ def _measure(fn, repeats):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     ap.add_argument('--repeats', type=int, default=9)
     args = ap.parse_args(argv)
 

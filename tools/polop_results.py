@@ -38,7 +38,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from polarization_compass.conventions import fold_axial_deg, wrap_180_deg  # noqa: E402
 from polarization_compass.photodiode.calibrate import calibrate_gains  # noqa: E402
 from polarization_compass.photodiode.geometry import geometry_from_dict  # noqa: E402
-from polarization_compass.photodiode.heading import estimate_recording, make_array_estimator  # noqa: E402
+from polarization_compass.photodiode.heading import (  # noqa: E402
+    estimate_recording,
+    make_array_estimator,
+)
 from polarization_compass.solar import sun_position  # noqa: E402
 import polop_json as pj  # noqa: E402
 

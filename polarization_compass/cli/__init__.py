@@ -52,6 +52,8 @@ COMMANDS = [
 
 
 class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line and exit status 2."""
+
     def error(self, message):  # one line, exit 2, no usage dump
         self.exit(2, f'{self.prog}: error: {message}\n')
 

@@ -814,14 +814,14 @@ def brightness_stats(intensity, rays) -> np.ndarray:
     Sufficient statistics of the brightness regression: n, sum I, sum I^2, sum r (3), sum I r (3),
     sum r r^T (6: 00 01 02 11 12 22), for intensities (n,) and rays (3, n).
     """
-    I = np.asarray(intensity, dtype=float)
+    inten = np.asarray(intensity, dtype=float)
     r = np.asarray(rays, dtype=float)
     rr = r @ r.T
     return np.concatenate(
         [
-            [I.size, I.sum(), float(I @ I)],
+            [inten.size, inten.sum(), float(inten @ inten)],
             r.sum(axis=1),
-            r @ I,
+            r @ inten,
             [rr[0, 0], rr[0, 1], rr[0, 2], rr[1, 1], rr[1, 2], rr[2, 2]],
         ]
     )

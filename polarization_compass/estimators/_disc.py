@@ -247,9 +247,9 @@ def _brightness_pass(
         ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
             aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
         )
-        I = np.float64(inten[i])
-        if ok and abs(I) < 1e30:
-            acc_brightness(stats, 0, I, rx, ry, rz)
+        ival = np.float64(inten[i])
+        if ok and abs(ival) < 1e30:
+            acc_brightness(stats, 0, ival, rx, ry, rz)
 
 
 @njit(cache=True, nogil=True)

@@ -73,7 +73,7 @@ def acc_sym(tot, off, w, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(inline='always', cache=True)
-def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
+def acc_brightness(tot, off, ival, rx, ry, rz):  # pragma: no cover - compiled
     """
     Accumulate the brightness sufficient statistics of one pixel.
 
@@ -81,14 +81,14 @@ def acc_brightness(tot, off, I, rx, ry, rz):  # pragma: no cover - compiled
     sum r (3), sum I r (3), sum r r^T (6).
     """
     tot[off] += 1.0
-    tot[off + 1] += I
-    tot[off + 2] += I * I
+    tot[off + 1] += ival
+    tot[off + 2] += ival * ival
     tot[off + 3] += rx
     tot[off + 4] += ry
     tot[off + 5] += rz
-    tot[off + 6] += I * rx
-    tot[off + 7] += I * ry
-    tot[off + 8] += I * rz
+    tot[off + 6] += ival * rx
+    tot[off + 7] += ival * ry
+    tot[off + 8] += ival * rz
     acc_sym(tot, off + 9, 1.0, rx, ry, rz)
 
 

@@ -262,7 +262,6 @@ def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no co
     the vectorising ``sincos32_folded`` (a non-finite AoP compares false and is kept, as the fit's
     own pass decides about it). Returns how many valid pixels were dropped.
     """
-    f0 = np.float32(0.0)
     f2 = np.float32(2.0)
     t0, t1, t2 = np.float32(s0), np.float32(s1), np.float32(s2)
     lim = np.float32(cos_lim)

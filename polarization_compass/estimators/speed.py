@@ -124,7 +124,7 @@ def measure(repeat: int = 15, threads: int = 1, settings=SETTINGS) -> list[dict]
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     p.add_argument('--repeat', type=int, default=15)
     p.add_argument('--threads', type=int, default=1)
     p.add_argument('--json', action='store_true')

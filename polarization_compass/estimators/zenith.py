@@ -170,9 +170,9 @@ def _window_sums(
         trig[0] += ca * ca - sa * sa  # cos 2a
         trig[1] += 2.0 * sa * ca  # sin 2a
         if has_i:
-            I = np.float64(inten[i])
-            if math.isfinite(I):
-                acc_brightness(stats, 0, I, rx, ry, rz)
+            ival = np.float64(inten[i])
+            if math.isfinite(ival):
+                acc_brightness(stats, 0, ival, rx, ry, rz)
             else:
                 i_bad = 1
     cnt[0] = n

@@ -71,6 +71,8 @@ FIGURE_PERIOD_S = 30.0
 
 
 class ErrorEvaluatorNode(Node):
+    """The ``error_evaluator`` node (see the module docstring)."""
+
     def __init__(self, **kwargs):
         super().__init__('error_evaluator', **kwargs)
         self.params = ParameterSet(self, EVALUATOR, on_change=self._on_change)

@@ -16,20 +16,26 @@
 ``heading_estimator``: heading from a polarization camera, one node per method.
 
 Subscribes (relative names, remappable):
-  ``camera/image_raw``   sensor_msgs/Image, raw 2x2 mosaic (mono8/mono16, or 32FC1 ideal intensities),
-                         sensor-data QoS (REP-2003)
-  ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always: camera_info_source)
-  ``compass_array/intensities`` instead of the two above when ``input`` is ``array``: a photodiode-array
-                         compass, std_msgs/Float32MultiArray, units x channels row-major (layout.dim empty or
-                         [units, channels]). Geometry from ``array_geometry``.
-  ``compass_array/header`` std_msgs/Header published beside each array sample (``array_stamp: header``, the
-                         default): the sample takes its stamp and frame_id (stamp_pairing.py); with
-                         ``array_stamp: arrival`` a sample is stamped with this node's clock on arrival.
-  ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior (prior_source imu)
+  ``camera/image_raw``   sensor_msgs/Image, raw 2x2 mosaic (mono8/mono16, or 32FC1 ideal
+                         intensities), sensor-data QoS (REP-2003)
+  ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always:
+                         camera_info_source)
+  ``compass_array/intensities`` instead of the two above when ``input`` is ``array``: a
+                         photodiode-array compass, std_msgs/Float32MultiArray, units x channels
+                         row-major (layout.dim empty or [units, channels]). Geometry from
+                         ``array_geometry``.
+  ``compass_array/header`` std_msgs/Header published beside each array sample (``array_stamp:
+                         header``, the default): the sample takes its stamp and frame_id
+                         (stamp_pairing.py); with ``array_stamp: arrival`` a sample is stamped with
+                         this node's clock on arrival.
+  ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior
+                         (prior_source imu)
   ``gps/fix``            sensor_msgs/NavSatFix when site_source is navsatfix
 Publishes, stamped with the image's header.stamp:
-  ``compass/<method>/heading_raw``      sensor_msgs/Imu as robot_localization fuses it (see nodes.msgs)
-  ``compass/<method>/bearing_raw_deg``  std_msgs/Float64, true bearing of camera +y (= body +x), deg
+  ``compass/<method>/heading_raw``      sensor_msgs/Imu as robot_localization fuses it (see
+                                        nodes.msgs)
+  ``compass/<method>/bearing_raw_deg``  std_msgs/Float64, true bearing of camera +y (= body +x),
+                                        deg
   ``compass/<method>/status``           std_msgs/String, JSON, one per image, failures included
   ``/diagnostics``
 Headings known only modulo 180 deg are not published on the Imu/Float64 topics unless
@@ -91,6 +97,8 @@ MAX_PENDING_IMAGES = 8
 
 
 class HeadingEstimatorNode(Node):
+    """The ``heading_estimator`` node (see the module docstring)."""
+
     def __init__(self, **kwargs):
         super().__init__('heading_estimator', **kwargs)
         self.front = None

@@ -114,7 +114,7 @@ class ParameterSet:
     @staticmethod
     def _py(v):
         if isinstance(v, (list, tuple)) or type(v).__name__ == 'array':
-            return list(list(v))
+            return list(v)
         return v
 
     def _callback(self, params) -> SetParametersResult:

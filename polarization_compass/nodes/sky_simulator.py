@@ -16,19 +16,21 @@
 ``sky_simulator``: a simulated polarization camera and IMU under a Rayleigh (or scene) sky.
 
 Publishes (relative names):
-  ``camera/image_raw``      sensor_msgs/Image: the raw 2x2 polarizer mosaic of the full sensor, as a camera
-                            driver sends it: ``mono16`` (12-bit DN) / ``mono8``, or ``32FC1`` = ideal
-                            polarizer intensities in electrons (no noise, no quantisation). Layout from
-                            the scene's ``sensor.mosaic`` (default Sony IMX250MZR: 90 45 / 135 0).
+  ``camera/image_raw``      sensor_msgs/Image: the raw 2x2 polarizer mosaic of the full sensor,
+                            as a camera driver sends it: ``mono16`` (12-bit DN) / ``mono8``, or
+                            ``32FC1`` = ideal polarizer intensities in electrons (no noise, no
+                            quantisation). Layout from the scene's ``sensor.mosaic`` (default Sony
+                            IMX250MZR: 90 45 / 135 0).
   ``camera/camera_info``    intrinsics (same stamp)
-  ``imu/data``              sensor_msgs/Imu: body attitude in ENU with noise and bias, angular velocity
-                            of the turn, gravity; ``imu_rate_hz``
+  ``imu/data``              sensor_msgs/Imu: body attitude in ENU with noise and bias, angular
+                            velocity of the turn, gravity; ``imu_rate_hz``
   ``ground_truth/heading``  sensor_msgs/Imu, the true heading in the estimator's form (yaw only)
   ``gps/fix``               sensor_msgs/NavSatFix of the site, 1 Hz
   ``compass_array/intensities`` + ``compass_array/header``  with ``array_geometry`` (or a scene's
-                            ``photodiode_array``): each frame's photodiode-array sample (Float32MultiArray)
-                            and, published just before it, its std_msgs/Header (the frame's stamp,
-                            ``heading_frame_id``), as docs/photodiode-arrays.md asks of an array driver
+                            ``photodiode_array``): each frame's photodiode-array sample
+                            (Float32MultiArray) and, published just before it, its std_msgs/Header
+                            (the frame's stamp, ``heading_frame_id``), as docs/photodiode-arrays.md
+                            asks of an array driver
   ``/clock``                with clock_mode sim
   ``/diagnostics``
 
@@ -70,7 +72,7 @@ from .msgs import (
 )
 from .rosparams import ParameterSet
 from .runner import run_node
-from ..bag import decode_orientation, ns_from_utc, stamp_ns
+from ..bag import decode_orientation, ns_from_utc
 from ..camera import PixelSelection
 from ..conventions import (
     camera_attitude_from_body_quat,
@@ -97,6 +99,8 @@ mosaic_config = sensor_config_for_encoding
 
 
 class SkySimulatorNode(Node):
+    """The ``sky_simulator`` node (see the module docstring)."""
+
     def __init__(self, **kwargs):
         super().__init__('sky_simulator', **kwargs)
         self.params = ParameterSet(self, SIMULATOR, on_change=self._on_change)

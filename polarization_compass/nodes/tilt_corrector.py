@@ -106,6 +106,8 @@ def load_corrector(path: str, method: str):
 
 
 class TiltCorrectorNode(Node):
+    """The ``tilt_corrector`` node (see the module docstring)."""
+
     def __init__(self, **kwargs):
         super().__init__('tilt_corrector', **kwargs)
         self.corrector = None

@@ -18,11 +18,11 @@ The photodiode-array sensor description (YAML) and its validation.
 Format (one YAML mapping)::
 
     angle_zero: horizontal        # meridian | horizontal: what a 0 deg polarizer is parallel to
-    angle_sense: ccw              # cw | ccw: increasing angle as seen looking out along a unit's axis
+    angle_sense: ccw              # cw | ccw: increasing angle, looking out along a unit's axis
     units:                        # 1..64 units
       - azimuth_deg: 0            # clockwise from the body's front, seen from above
         elevation_deg: 45         # above the body's x-y plane (90 = zenith)
-        channels_deg: [135, 45, 90, 0]   # polarizer angle of each channel, in the recording's order
+        channels_deg: [135, 45, 90, 0]   # polarizer angle of each channel, recording's order
         acceptance_deg: 60        # full cone angle the unit integrates over (simulator; > 0)
         gains: [1, 1, 1, 1]       # optional relative channel gains (default 1)
         gains_sigma: [0, 0, 0, 0] # optional 1-sigma of the gains (written by calibrate-array)
