@@ -308,13 +308,14 @@ def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dic
         return None, 'no whole-sky side grid (side_grid 0)'
     sample = _side_sample(obs, side_grid)
     if sample is None:
-        return None, "too little usable sky outside the zenith window to decide the 180 deg side"
-    # a known tilt enters the pattern vote: with the sun low, a few degrees of unmodelled pitch turn
-    # the AoP pattern's small up/down asymmetry around and the vote would pick the wrong side
+        return None, 'too little usable sky outside the zenith window to decide the 180 deg side'
+    # a known tilt enters the pattern vote: with the sun low, a few degrees of unmodelled pitch
+    # turn the AoP pattern's small up/down asymmetry around and the vote would pick the wrong side
     pitch = 0.0 if obs.pitch_deg is None else float(obs.pitch_deg)
     roll = 0.0 if obs.roll_deg is None else float(obs.roll_deg)
-    votes, extras["side_votes"] = side_votes(sample, math.degrees(first.psi_rad), float(obs.sun_altitude_deg),
-                                             pitch, roll)
+    votes, extras['side_votes'] = side_votes(
+        sample, math.degrees(first.psi_rad), float(obs.sun_altitude_deg), pitch, roll
+    )
     if votes and all(v > 0 for v in votes):
         return first, 'sun side decided by the whole sky (AoP pattern and half-sky brightness)'
     if votes and all(v < 0 for v in votes):
