@@ -67,7 +67,16 @@ class Hypothesis:
     pol45_toward: str
 
     def describe(self) -> dict:
-        """Return the hypothesis as JSON: ``{"layout": [[...], [...]], "pol45_toward": ...}``."""
+        """
+        Return the hypothesis as JSON-ready data.
+
+        Returns
+        -------
+        dict
+            ``{"layout": [[a00, a01], [a10, a11]], "pol45_toward": "+x+y" or "+x-y"}`` with the
+            polarizer angles of the top-left 2 x 2 block [deg].
+
+        """
         return {'layout': [list(r) for r in self.layout], 'pol45_toward': self.pol45_toward}
 
 
@@ -75,8 +84,24 @@ def polarizer_hypotheses(layout, pol45_toward: str, raw: bool) -> list[Hypothesi
     """
     List the configured polarizer convention first, then the alternatives.
 
-    List the configured convention first, then the alternatives (both directions; all four phases
-    if raw).
+    Both 45 deg directions; for a raw mosaic also the four 2 x 2 phases of the layout (eight
+    hypotheses), for Stokes planes only the configured phase (two).
+
+    Parameters
+    ----------
+    layout : array_like of shape (2, 2) or MosaicLayout
+        Configured 2 x 2 polarizer angles of the top-left block [deg], in any form that
+        :func:`polarization_compass.demosaic.parse_layout` accepts.
+    pol45_toward : str
+        Configured direction of the +45 deg polarizer, ``"+x+y"`` or ``"+x-y"`` (image axes).
+    raw : bool
+        True when the inputs are raw mosaics (all four phases are hypotheses).
+
+    Returns
+    -------
+    list of Hypothesis
+        The configured convention first, then the alternatives.
+
     """
     base = parse_layout(layout, pol45_toward)
     other = '+x+y' if base.pol45_toward == '+x-y' else '+x-y'
@@ -92,8 +117,23 @@ def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
     """
     Mark where a raw sample is saturated, at the resolution ``shape``.
 
-    Mark where a raw sample is at or above ``saturation_level``, at the resolution ``shape`` (the
-    mosaic's own, or one value per 2 x 2 superpixel: any saturated sample saturates the block).
+    At the mosaic's own resolution each sample counts; at one value per 2 x 2 superpixel any
+    saturated sample saturates the block.
+
+    Parameters
+    ----------
+    mosaic : array_like, shape (H, W)
+        Raw polarization mosaic (sensor counts).
+    saturation_level : float or None
+        Count at and above which a sample is saturated; None: nothing is saturated.
+    shape : tuple of int
+        Output shape: ``(H, W)`` or the superpixel grid ``(H // 2, W // 2)``.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True where saturated, of shape ``shape``.
+
     """
     m = np.asarray(mosaic)
     if saturation_level is None:
@@ -137,15 +177,50 @@ def check_polarizer(
     masks=None,
 ) -> dict:
     """
-    Fit every hypothesis to every input and rank them.
+    Fit every polarizer hypothesis to every input and rank them.
 
-    ``inputs``: list of ``(kind, data, saturation_level)`` with kind ``mosaic`` (2-D raw image) or
-    ``stokes`` ((S0, S1, S2) in the SDK's convention); ``camera``: the lens (:class:`CameraModel`);
-    ``layout``/``pol45_toward``: the configured convention; ``rays_for_shape(shape) -> (rays (3,
-    N), has_ray)`` gives the pixel rays of an output grid; ``sun_altitude_deg``: per input (list)
-    or None (fitted); ``masks``: optional per-input bool arrays of the output grid (True = sky).
-    Returns a JSON-ready dict: ``verdict``, ``best``, ``configured``, ``margin``, ``hypotheses``
-    (each with total loss and per-frame psi, sun altitude, scatter), and ``fix`` when contradicted.
+    Each hypothesis gives each input an AoP image; :func:`~polarization_compass.skyfit.fit_sky`
+    fits the single-scattering pattern (seed paper eqs 18 and 28) to it and the mean robust loss
+    per frame ranks the hypotheses. The verdict is ``supported``, ``contradicted`` or
+    ``cannot_tell`` by :data:`DECISIVE_MARGIN` (module docstring).
+
+    Parameters
+    ----------
+    inputs : list of tuple
+        ``(kind, data, saturation_level)`` per frame: kind ``"mosaic"`` with a 2-D raw image, or
+        ``"stokes"`` with ``(S0, S1, S2)`` in the camera SDK's convention; saturation level in
+        sensor counts or None.
+    camera : CameraModel
+        The lens model of the frames (the pixel rays themselves come from ``rays_for_shape``).
+    layout : array_like of shape (2, 2) or MosaicLayout
+        Configured 2 x 2 polarizer angles [deg] (:func:`polarizer_hypotheses`).
+    pol45_toward : str
+        Configured direction of the +45 deg polarizer, ``"+x+y"`` or ``"+x-y"``.
+    rays_for_shape : callable
+        ``rays_for_shape(shape) -> (rays, has_ray)``: unit camera-frame rays (3, N) of an output
+        grid and a bool mask of the pixels inside the lens' field.
+    sun_altitude_deg : float or list of float, optional
+        Sun altitude [deg], one for all inputs or one per input; None fits it.
+    pitch_deg : float, default 0
+        Camera pitch [deg].
+    roll_deg : float, default 0
+        Camera roll [deg].
+    masks : list of (numpy.ndarray of bool or None), optional
+        Per-input masks of the output grid (True = sky).
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``verdict``, ``reason``, ``best``, ``configured``, ``margin`` (mean Cauchy
+        loss per frame), ``frames`` (count), ``hypotheses`` (each with its mean loss, None when a
+        frame had too few pixels, and per-frame psi [deg], sun altitude [deg], loss, scatter [deg],
+        inlier fraction), and ``fix`` (the setting to use) when contradicted.
+
+    Raises
+    ------
+    CompassError
+        When ``inputs`` is empty.
+
     """
     if not inputs:
         raise CompassError('check-polarizer needs at least one input')

@@ -120,12 +120,36 @@ def sample_sky(
     """
     Sample up to ``max_pixels`` usable pixels spread evenly over the image.
 
-    Sample up to ``max_pixels`` usable pixels spread evenly over the image (a fixed stride,
-    deterministic).
+    A fixed stride over the usable pixels, deterministic. A pixel is usable when ``valid``, finite,
+    with a DoP of at least ``min_dop`` and, if given, inside ``extra_mask``. Each pixel is weighted
+    by ``clip(dop / 0.3, 0, 1)``.
 
-    ``aop_rad`` eq 28 angles, ``dop`` in [0, 1], ``valid`` bool, ``rays_cam`` (3, N) unit rays in
-    the order of ``aop_rad.reshape(-1)``; ``extra_mask`` (same shape, True = usable) e.g. the
-    data-driven mask. Returns None when fewer than 30 pixels are usable.
+    Parameters
+    ----------
+    aop_rad : array_like of float
+        Angle of polarization of each pixel [rad], camera frame as in eq 28 (any shape).
+    dop : array_like of float
+        Degree of linear polarization, [0, 1], same shape as ``aop_rad``.
+    valid : array_like of bool
+        True where the pixel has a measurement, same shape as ``aop_rad``.
+    rays_cam : array_like of float, shape (3, N)
+        Unit viewing rays in the camera frame, in the order of ``aop_rad.reshape(-1)``.
+    intensity : array_like of float, optional
+        Intensity of each pixel (any linear unit), same shape as ``aop_rad``; used by
+        :func:`side_preference`.
+    max_pixels : int, default 4000
+        Most pixels kept.
+    min_dop : float, default 0.02
+        Smallest usable DoP [-].
+    extra_mask : array_like of bool, optional
+        Same shape as ``aop_rad``, True = usable (e.g. :func:`data_mask`).
+
+    Returns
+    -------
+    SkySample or None
+        The sampled rays, doubled-angle AoP, weights, intensities and ray azimuths [rad]; None when
+        fewer than 30 pixels are usable.
+
     """
     a = np.asarray(aop_rad, dtype=np.float32).reshape(-1)
     d = np.asarray(dop, dtype=np.float32).reshape(-1)
@@ -220,7 +244,35 @@ def misfit_at(
     """
     Return the residual statistics of the sky for one sun and known tilt.
 
-    Return the residual statistics of the sky for one sun (psi, altitude) and known tilt (deg).
+    The model is the single-scattering E-vector ``E = S x P`` (eq 18) projected to an AoP as in
+    eq 28, with the sun placed in the camera frame by eq 21; residuals are axial differences from
+    doubled angles.
+
+    Parameters
+    ----------
+    sample : SkySample
+        Sampled sky pixels (:func:`sample_sky`).
+    psi_deg : float
+        Camera-frame sun angle psi of eq 21 [deg].
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    pitch_deg : float, default 0
+        Camera pitch [deg] (conventions module).
+    roll_deg : float, default 0
+        Camera roll [deg] (conventions module).
+
+    Returns
+    -------
+    SkyFit
+        ``psi_deg`` wrapped to (-180, 180], the sun altitude, the mean Cauchy loss, the robust
+        scatter ``1.4826 * median |residual|`` [deg] (90 without weighted pixels), the inlier
+        fraction of weight within :data:`OUTLIER_DEG`, and the sample size.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 18, 21 and 28.
+
     """
     sun = _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg)
     c, s = _cos_sin_2res(sample, sun)
@@ -249,9 +301,36 @@ def fit_sky(
 
     Coarse grid on at most 600 of the pixels: psi every 2 deg over the circle (or ``psi_range_deg =
     (lo, hi)``), altitude every 4 deg in [0, 88]; then on all pixels two rounds of fine line
-    searches (psi +-3 deg by 0.1 deg, altitude +-6 deg by 0.5 deg) around the best. Tilt
-    (``pitch_deg``, ``roll_deg``) is taken as known. Returns the fit with its residual statistics
-    (:func:`misfit_at`).
+    searches (psi +-3 deg by 0.1 deg, altitude +-6 deg by 0.5 deg) around the best. The loss is the
+    mean weighted Cauchy loss (scale :data:`CAUCHY_SCALE_DEG`) of the axial residuals to the
+    single-scattering pattern of eqs 18 and 28. Tilt is taken as known.
+
+    Parameters
+    ----------
+    sample : SkySample
+        Sampled sky pixels (:func:`sample_sky`).
+    sun_altitude_deg : float, optional
+        Known sun altitude [deg]; None fits it as well.
+    pitch_deg : float, default 0
+        Known camera pitch [deg].
+    roll_deg : float, default 0
+        Known camera roll [deg].
+    psi_range_deg : tuple of float, optional
+        ``(lo, hi)`` range of psi searched by the coarse grid [deg]; default the whole circle
+        [-180, 180).
+    weight : array_like of float, optional
+        Per-pixel weights replacing ``sample.weight`` (shape (N,)).
+
+    Returns
+    -------
+    SkyFit
+        The best sun with its residual statistics (:func:`misfit_at`).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 18, 21 and 28.
+
     """
     lo, hi = (-180.0, 180.0) if psi_range_deg is None else psi_range_deg
     psis = np.arange(lo, hi, 2.0)
@@ -313,14 +392,36 @@ def jackknife_sigma_deg(
     sectors: int = 8,
 ) -> float:
     """
-    Estimate the delete-a-group jackknife standard error of psi (deg).
-
-    Estimate the delete-a-group jackknife standard error of psi (deg) over ``sectors`` azimuthal
-    sky sectors.
+    Estimate the delete-a-group jackknife standard error of psi over azimuthal sky sectors.
 
     Each sector (by the ray's azimuth about the optical axis) is left out in turn and psi refitted
-    near ``psi_deg`` at the given sun altitude; ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``.
-    Sectors with no pixels are skipped; fewer than 3 usable sectors give 180 (unknown).
+    on a 0.05 deg grid within +-6 deg of ``psi_deg`` at the given sun altitude;
+    ``sqrt((K - 1) / K * sum (psi_k - mean)^2)``. Sectors with no pixels are skipped.
+
+    Parameters
+    ----------
+    sample : SkySample
+        Sampled sky pixels (:func:`sample_sky`).
+    psi_deg : float
+        Camera-frame sun angle psi of eq 21 around which psi is refitted [deg].
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    pitch_deg : float, default 0
+        Camera pitch [deg].
+    roll_deg : float, default 0
+        Camera roll [deg].
+    sectors : int, default 8
+        Number K of equal azimuthal sectors.
+
+    Returns
+    -------
+    float
+        Jackknife standard error of psi [deg]; 180 (unknown) when fewer than 3 sectors are usable.
+
+    References
+    ----------
+    .. [1] B. Efron, "The Jackknife, the Bootstrap and Other Resampling Plans", SIAM, 1982, ch. 2.
+
     """
     edges = np.linspace(-math.pi, math.pi, sectors + 1)
     grid = psi_deg + np.arange(-6.0, 6.001, 0.05)
@@ -355,12 +456,32 @@ def side_preference(
     """
     Tell which end of the axial heading ``psi_deg`` / ``psi_deg + 180`` the whole sky supports.
 
-    ``pattern``: the Cauchy loss difference (other end minus this end; > 0 favours ``psi_deg``) of
-    the AoP pattern at the known sun altitude (the pattern of a sun at altitude h is not symmetric
-    under a 180 deg turn unless h is near 0 or 90 deg); ``brightness``: the mean intensity of the
-    half-sky towards the sun minus the half-sky away from it, over the mean (> 0 favours
-    ``psi_deg``; saturated sun and glare pixels count as bright, flare ghosts are small against a
-    half-sky), None without intensity.
+    The pattern measure is the Cauchy loss difference of the AoP pattern at the known sun altitude
+    (the pattern of a sun at altitude h is not symmetric under a 180 deg turn unless h is near 0 or
+    90 deg). The brightness measure compares the half-sky towards the sun with the half-sky away
+    from it (saturated sun and glare pixels count as bright, flare ghosts are small against a
+    half-sky).
+
+    Parameters
+    ----------
+    sample : SkySample
+        Sampled sky pixels (:func:`sample_sky`).
+    psi_deg : float
+        Camera-frame sun angle psi of eq 21 [deg].
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    pitch_deg : float, default 0
+        Camera pitch [deg].
+    roll_deg : float, default 0
+        Camera roll [deg].
+
+    Returns
+    -------
+    dict
+        ``"pattern"``: loss at ``psi_deg + 180`` minus loss at ``psi_deg`` (> 0 favours
+        ``psi_deg``); ``"brightness"``: (mean intensity towards the sun - mean away) / mean
+        intensity (> 0 favours ``psi_deg``), None without intensity or with an empty half-sky.
+
     """
     this = _loss(sample, _sun_cam([psi_deg], [sun_altitude_deg], pitch_deg, roll_deg))[0]
     other = _loss(sample, _sun_cam([psi_deg + 180.0], [sun_altitude_deg], pitch_deg, roll_deg))[0]
@@ -385,9 +506,30 @@ def side_votes(
     Return the whole sky's votes on the 180 deg side of ``psi_deg`` and their values.
 
     Each of :func:`side_preference`'s two measures votes +1 (``psi_deg``) or -1 (``psi_deg + 180``)
-    when it exceeds its threshold (:data:`PATTERN_VOTE`, :data:`BRIGHTNESS_VOTE`), else abstains.
-    Returns ``(votes, values)``: the list of votes and ``{"pattern": ..., "brightness": ...}``
-    rounded for reports.
+    when its magnitude exceeds its threshold (:data:`PATTERN_VOTE`, :data:`BRIGHTNESS_VOTE`), else
+    abstains.
+
+    Parameters
+    ----------
+    sample : SkySample
+        Sampled sky pixels (:func:`sample_sky`).
+    psi_deg : float
+        Camera-frame sun angle psi of eq 21 [deg].
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    pitch_deg : float, default 0
+        Camera pitch [deg].
+    roll_deg : float, default 0
+        Camera roll [deg].
+
+    Returns
+    -------
+    votes : list of int
+        Zero to two votes, each +1 or -1.
+    values : dict
+        ``{"pattern": ..., "brightness": ...}`` of :func:`side_preference` rounded to 4 decimals
+        for reports (``brightness`` may be None).
+
     """
     pref = side_preference(sample, psi_deg, sun_altitude_deg, pitch_deg, roll_deg)
     votes = []
@@ -428,14 +570,11 @@ def assess_result(
     """
     Check an estimator's result against the whole sky.
 
-    Check an estimator's :class:`~polarization_compass.estimators.HeadingResult` against the whole
-    sky.
-
     - sigma: ``hypot(method sigma, jackknife sigma)``; the jackknife over sky sectors measures the
       misfit of this frame to the model (:func:`jackknife_sigma_deg`), which on real skies
       dominates shot noise;
     - side: unless a prior decides it, the 180 deg side is re-decided by the whole sky
-      (:func:`side_preference`: AoP pattern at the known sun altitude, half-sky brightness); when
+      (:func:`side_votes`: AoP pattern at the known sun altitude, half-sky brightness); when
       every vote is against the method's side the heading is turned by 180 deg, when the votes
       disagree the result becomes axial (``ambiguous``);
     - status ``poor_fit`` when the sky at the estimate has a robust scatter above
@@ -445,9 +584,30 @@ def assess_result(
       within +-30 deg) is further from the heading than 3 combined sigmas +
       :data:`AGREE_FLOOR_DEG`.
 
-    Results without a heading are returned unchanged; so is everything when ``sample`` is None (too
-    little usable sky to judge: the method's own status stands). ``extras["sky_check"]`` says what
-    was measured. Tilt unknown (None) counts as level.
+    Parameters
+    ----------
+    result : HeadingResult
+        An estimator's result (:class:`~polarization_compass.estimators.HeadingResult`).
+    sample : SkySample or None
+        Sampled sky pixels of the same frame (:func:`sample_sky`); None when too little sky is
+        usable to judge.
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    pitch_deg : float, optional
+        Known camera pitch [deg]; None counts as level (0).
+    roll_deg : float, optional
+        Known camera roll [deg]; None counts as level (0).
+    prior_bearing_deg : float, optional
+        A prior heading [deg]; when given, the whole sky does not re-decide the 180 deg side.
+
+    Returns
+    -------
+    HeadingResult
+        A new result with the combined sigma, the side decision, possibly status ``poor_fit`` or
+        ``inconsistent`` with its reason, and ``extras["sky_check"]`` saying what was measured.
+        ``result`` itself when ``sample`` is None, the result has no heading, or its status is
+        neither ``ok`` nor ``ambiguous``.
+
     """
     from dataclasses import replace
 
@@ -541,9 +701,22 @@ def mark_inconsistent(results, min_sigma_deg: float = 0.5):
     """
     Mark results of several methods on one frame as inconsistent.
 
-    Mark results of several methods on one frame as inconsistent: each usable one that disagrees
-    with most of the others by more than 3 combined sigmas (axially when either is axial; sigma
-    floored at ``min_sigma_deg``) gets status ``inconsistent``. Returns a new list.
+    Each usable result (status ``ok`` or ``ambiguous`` with a heading) that disagrees with more
+    than half of the other usable ones by more than 3 combined sigmas (axially when either is
+    axial) gets status ``inconsistent`` with a reason naming the worst disagreement.
+
+    Parameters
+    ----------
+    results : sequence of HeadingResult
+        Results of several methods on the same frame.
+    min_sigma_deg : float, default 0.5
+        Floor on each result's sigma in the combined sigma [deg].
+
+    Returns
+    -------
+    list of HeadingResult
+        A new list in the order of ``results``; unchanged when fewer than two are usable.
+
     """
     from dataclasses import replace
 
@@ -589,12 +762,28 @@ def data_mask(intensity, has_ray, saturation_level=None, glare_fraction: float =
     """
     Return the pixels to keep: in the lens' field, away from saturation and glare.
 
-    Return the pixels to keep, from the data: inside the lens' field, not saturated and not next to
-    saturation (the sun and its glare: saturated areas grown by ``glare_fraction`` of the image
-    diagonal with OpenCV's dilation). ``saturation_level`` None: taken from the data when 0.05-50 %
-    of the in-field pixels sit at a maximum at least 10 % above the median (a clipped plateau),
-    else nothing counts as saturated. Lens-flare ghosts, clouds and obstacles are not masked here:
-    they are down-weighted by the robust loss (and show up as misfit).
+    Saturated areas (the sun and its glare) are grown by ``glare_fraction`` of the image diagonal
+    with OpenCV's elliptical dilation and removed. Lens-flare ghosts, clouds and obstacles are not
+    masked here: they are down-weighted by the robust loss (and show up as misfit).
+
+    Parameters
+    ----------
+    intensity : array_like of float, shape (H, W)
+        Intensity image (any linear unit).
+    has_ray : array_like of bool
+        True where the pixel is inside the lens' field (reshaped to ``intensity``'s shape).
+    saturation_level : float, optional
+        Intensity at and above which a pixel is saturated (unit of ``intensity``). None: taken from
+        the data when 0.05-50 % of the in-field pixels sit within 0.5 % of a maximum at least 10 %
+        above the median (a clipped plateau), else nothing counts as saturated.
+    glare_fraction : float, default 0.02
+        Dilation radius as a fraction of the image diagonal [-] (at least 1 pixel).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (H, W)
+        True = pixel to keep.
+
     """
     import cv2
 

@@ -88,6 +88,8 @@ COMPLETED = (
     'replay/sync.py',
     'replay/threads.py',
     'sweep.py',
+    'skyfit.py',
+    'polarizer_check.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
