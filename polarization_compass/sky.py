@@ -89,7 +89,28 @@ def validity_kernel(
     """
     Compute validity for models that do not fuse it.
 
-    Validity for models that do not fuse it: outside the sun disk, above the horizon, DoP >= min.
+    A pixel is valid when it is outside the sun-exclusion disk, above the minimum altitude and its
+    DoP is at least ``min_dop``. Compiled (numba, parallel); fills ``valid`` in place.
+
+    Parameters
+    ----------
+    rays : numpy.ndarray, shape (3, N), float32
+        Unit viewing rays in the camera frame.
+    sx, sy, sz : float
+        Unit sun vector in the camera frame.
+    zx, zy, zz : float
+        Unit zenith (ENU up) vector in the camera frame.
+    cos_sun_excl : float
+        Cosine of the sun-exclusion radius; rays with ``ray . sun`` above it are invalid.
+    sin_min_alt : float
+        Sine of the minimum altitude; rays with ``ray . zenith`` below it are invalid.
+    min_dop : float
+        Minimum degree of polarization [0, 1].
+    dop : numpy.ndarray, shape (N,), float32
+        Degree of polarization of each ray [0, 1].
+    valid : numpy.ndarray, shape (N,), bool
+        Output: validity of each ray, written in place.
+
     """
     n = rays.shape[1]
     for i in prange(n):
@@ -104,7 +125,28 @@ def validity_kernel(
 
 
 class RayleighSky:
-    """Single-scattering Rayleigh sky (eqs 11-19). ``dop_max`` in (0, 1]."""
+    """
+    Single-scattering Rayleigh sky (eqs 11-19).
+
+    The E-vector of a viewing ray P is ``S x P`` (S the sun direction), its DoP
+    ``dop_max sin^2(gamma) / (1 + cos^2(gamma))`` with gamma the scattering angle (eq 11).
+
+    Parameters
+    ----------
+    dop_max : float, default 1.0
+        Maximum degree of polarization, in (0, 1].
+
+    Raises
+    ------
+    SkyModelError
+        ``dop_max`` is not a finite number in (0, 1].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 11-19.
+
+    """
 
     name = 'rayleigh'
 
@@ -112,14 +154,51 @@ class RayleighSky:
         self.dop_max = _check_dop_max(dop_max)
 
     def params(self) -> dict:
+        """
+        Return the model's parameters, as a scene's ``sky`` mapping writes them.
+
+        Returns
+        -------
+        dict
+            ``{'model': 'rayleigh', 'dop_max': float}``; :func:`make_sky_model` rebuilds the model
+            from it.
+
+        """
         return {'model': self.name, 'dop_max': self.dop_max}
 
     def polarization(self, sun_cam, zenith_cam, rays_cam, limits=(1.0, -1.0, 0.0)):
         """
-        Return the AoP (rad, [-pi/2, pi/2)), DoP and validity for rays (3, N) float32.
+        Return the AoP, DoP and validity of viewing rays in the camera frame.
 
-        ``limits`` = (cos of the sun-exclusion radius, sin of the minimum altitude, minimum DoP);
-        the default accepts every pixel. Invalid pixels get aop = dop = 0.
+        Validity is fused into the same compiled pass as the polarization; invalid pixels get
+        aop = dop = 0.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Unit sun vector in the camera frame.
+        zenith_cam : array_like, shape (3,)
+            Unit zenith (ENU up) vector in the camera frame.
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays in the camera frame (converted to contiguous float32).
+        limits : tuple of float, default (1.0, -1.0, 0.0)
+            (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP); the
+            default accepts every pixel.
+
+        Returns
+        -------
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad] in [-pi/2, pi/2), eq 28 convention (camera frame).
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, dop_max] (eq 11).
+        valid : numpy.ndarray, shape (N,), bool
+            True where the pixel passes the limits.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 11, 19 and 28.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         n = rays.shape[1]
@@ -154,9 +233,34 @@ def rayleigh_reference(
     """
     Compute the paper's own formulas, eqs 11, 14, 16-18, in ENU (float64).
 
-    The paper's own formulas, eqs 11, 14, 16-18, in ENU (float64). For tests: an independent path.
+    An independent path for tests, written term by term from the paper rather than through the
+    cross product. Eq 18 divides by sin(gamma): undefined at the sun and the anti-sun.
 
-    Returns (E_enu (..., 3) unit, DoP). Eq 18 divides by sin(gamma): undefined at the sun/anti-sun.
+    Parameters
+    ----------
+    sun_azimuth_deg : float or array_like
+        Sun azimuth [deg], clockwise from North.
+    sun_altitude_deg : float or array_like
+        Sun altitude [deg].
+    view_azimuth_deg : float or array_like
+        Azimuth of the viewing direction [deg], clockwise from North.
+    view_altitude_deg : float or array_like
+        Altitude of the viewing direction [deg].
+    dop_max : float, default 1.0
+        Maximum degree of polarization (eq 11).
+
+    Returns
+    -------
+    e_enu : numpy.ndarray, shape (..., 3)
+        Unit E-vector in ENU (eq 18).
+    dop : numpy.ndarray
+        Degree of polarization (eq 11).
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 11, 14 and 16-18.
+
     """
     As, hs = np.radians(sun_azimuth_deg), np.radians(sun_altitude_deg)
     Ap, hp = np.radians(view_azimuth_deg), np.radians(view_altitude_deg)

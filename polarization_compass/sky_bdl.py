@@ -96,12 +96,32 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     """
     Return unit directions of the four neutral points.
 
-    Unit directions of the four neutral points, in whatever frame ``sun`` and ``zenith`` are given.
-
     Babinet and Brewster lie on the solar meridian ``separation_deg`` above and below the sun
     (towards / away from the zenith along the great circle through sun and zenith); Arago and the
-    fourth point are the antipodes of Brewster and Babinet (above / below the anti-sun).
-    Returns float64 arrays keyed ``babinet``, ``brewster``, ``arago``, ``fourth``.
+    fourth point are the antipodes of Brewster and Babinet (above / below the anti-sun). With the
+    sun at the zenith or nadir the meridian is undefined and the great circle through the sun and
+    the frame's +x (or +y) axis is used.
+
+    Parameters
+    ----------
+    sun : array_like, shape (3,)
+        Sun direction in any frame (normalised here).
+    zenith : array_like, shape (3,)
+        Zenith (up) direction in the same frame (normalised here).
+    separation_deg : float
+        Angular distance of each neutral point from the sun or anti-sun [deg].
+
+    Returns
+    -------
+    dict
+        float64 unit vectors, shape (3,), in the frame of ``sun``, keyed ``babinet``,
+        ``brewster``, ``arago``, ``fourth``.
+
+    References
+    ----------
+    .. [1] M. V. Berry, M. R. Dennis and R. L. Lee Jr, "Polarization singularities in the clear
+       sky", New J. Phys. 6 (2004) 162.
+
     """
     s = np.asarray(sun, dtype=np.float64).reshape(3)
     z = np.asarray(zenith, dtype=np.float64).reshape(3)
@@ -191,7 +211,28 @@ def _bdl_kernel(
 
 
 class BerryDennisLeeSky:
-    """Berry-Dennis-Lee neutral-point sky. ``separation_deg`` in [0, 40], ``dop_max`` in (0, 1]."""
+    """
+    Berry-Dennis-Lee neutral-point sky.
+
+    Parameters
+    ----------
+    separation_deg : float, default 18.0
+        Distance of each neutral point from the sun or anti-sun [deg], in
+        :data:`SEPARATION_RANGE_DEG` ([0, 40]); 0 is exactly the Rayleigh sky.
+    dop_max : float, default 0.75
+        Maximum degree of polarization, in (0, 1].
+
+    Raises
+    ------
+    SkyModelError
+        ``separation_deg`` or ``dop_max`` is not a number or out of range.
+
+    References
+    ----------
+    .. [1] M. V. Berry, M. R. Dennis and R. L. Lee Jr, "Polarization singularities in the clear
+       sky", New J. Phys. 6 (2004) 162.
+
+    """
 
     name = 'berry_dennis_lee'
 
@@ -216,22 +257,74 @@ class BerryDennisLeeSky:
             raise SkyModelError(f'dop_max must be a number in (0, 1], got {dop_max!r}') from None
 
     def params(self) -> dict:
+        """
+        Return the model's parameters, as a scene's ``sky`` mapping writes them.
+
+        Returns
+        -------
+        dict
+            ``{'model': 'berry_dennis_lee', 'separation_deg': float, 'dop_max': float}``;
+            :func:`~polarization_compass.sky_models.make_sky_model` rebuilds the model from it.
+
+        """
         return {'model': self.name, 'separation_deg': self.separation_deg, 'dop_max': self.dop_max}
 
     def neutral_points_cam(self, sun_cam, zenith_cam) -> dict:
         """
         Return the four neutral points as unit vectors in the camera frame.
 
-        The four neutral points as unit vectors in the camera frame (see :func:`neutral_points`).
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Sun direction in the camera frame.
+        zenith_cam : array_like, shape (3,)
+            Zenith (ENU up) direction in the camera frame.
+
+        Returns
+        -------
+        dict
+            float64 unit vectors, shape (3,), in the camera frame, keyed ``babinet``,
+            ``brewster``, ``arago``, ``fourth`` (see :func:`neutral_points`).
+
         """
         return neutral_points(sun_cam, zenith_cam, self.separation_deg)
 
     def polarization(self, sun_cam, zenith_cam, rays_cam, limits=(1.0, -1.0, 0.0)):
         """
-        Return the AoP (rad, eq 28, [-pi/2, pi/2)), DoP and validity for rays (3, N).
+        Return the AoP, DoP and validity of viewing rays in the camera frame.
 
-        ``sun_cam``, ``zenith_cam``: unit 3-vectors in the camera frame. ``limits`` = (cos of the
-        sun-exclusion radius, sin of the minimum altitude, minimum DoP); invalid pixels get 0, 0.
+        The E-vector is perpendicular to the bisector of the geodesic directions towards Babinet
+        and Brewster; DoP = dop_max |w| / (2 - |w|) with |w| the product of the sines of the
+        angular distances to those two points (module docstring). Invalid pixels get aop = dop = 0.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Unit sun vector in the camera frame.
+        zenith_cam : array_like, shape (3,)
+            Unit zenith (ENU up) vector in the camera frame.
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays in the camera frame (converted to contiguous float32).
+        limits : tuple of float, default (1.0, -1.0, 0.0)
+            (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP); the
+            default accepts every pixel.
+
+        Returns
+        -------
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad] in [-pi/2, pi/2), the seed paper's eq 28 convention.
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, dop_max].
+        valid : numpy.ndarray, shape (N,), bool
+            True where the pixel passes the limits.
+
+        References
+        ----------
+        .. [1] M. V. Berry, M. R. Dennis and R. L. Lee Jr, "Polarization singularities in the clear
+           sky", New J. Phys. 6 (2004) 162.
+        .. [2] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eq 28.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         n = rays.shape[1]

@@ -39,8 +39,19 @@ def register_sky_model(name: str):
     """
     Register ``factory(**params)`` as the sky model called ``name`` (class decorator).
 
-    Class decorator: make ``factory(**params)`` the sky model called ``name`` (e.g. a model defined
-    in a test or a plugin). Returns the factory unchanged.
+    For a model defined in a test or a plugin; a later registration under the same name replaces
+    the earlier one.
+
+    Parameters
+    ----------
+    name : str
+        Model name, as a scene's ``sky`` mapping writes it under ``model``.
+
+    Returns
+    -------
+    callable
+        Decorator that registers its argument (a class or factory) and returns it unchanged.
+
     """
 
     def deco(factory):
@@ -51,7 +62,15 @@ def register_sky_model(name: str):
 
 
 def sky_model_names() -> list[str]:
-    """Names of the registered sky models, sorted."""
+    """
+    Return the names of the registered sky models.
+
+    Returns
+    -------
+    list of str
+        Names, sorted.
+
+    """
     return sorted(_REGISTRY)
 
 
@@ -59,10 +78,24 @@ def make_sky_model(config: dict | None):
     """
     Build a sky model from a mapping like ``{"model": "rayleigh", "dop_max": 0.75}``.
 
-    ``config``: ``model`` (default ``rayleigh``) and the model's parameters; None means Rayleigh
-    with its defaults. Returns the model object; raises
-    :class:`~polarization_compass.sky.SkyModelError` (one line) for an unknown name or bad
-    parameters.
+    Parameters
+    ----------
+    config : dict or None
+        ``model`` (default ``rayleigh``) and the model's keyword parameters; None means Rayleigh
+        with its defaults. Not modified.
+
+    Returns
+    -------
+    object
+        The model, e.g. :class:`~polarization_compass.sky.RayleighSky` or
+        :class:`~polarization_compass.sky_bdl.BerryDennisLeeSky`.
+
+    Raises
+    ------
+    SkyModelError
+        Unknown model name, unknown parameter names (one line), or an out-of-range parameter
+        (raised by the model itself).
+
     """
     cfg = dict(config or {'model': 'rayleigh'})
     name = cfg.pop('model', 'rayleigh')

@@ -90,6 +90,9 @@ COMPLETED = (
     'sweep.py',
     'skyfit.py',
     'polarizer_check.py',
+    'sky.py',
+    'sky_models.py',
+    'sky_bdl.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
