@@ -95,10 +95,12 @@ class Frame:
 
     @property
     def x_px(self) -> np.ndarray:
+        """1-based pixel columns (eq 20) of the frame's pixels, shaped like ``aop_rad``."""
         return self.pixels.x_px
 
     @property
     def y_px(self) -> np.ndarray:
+        """1-based pixel rows (eq 20) of the frame's pixels, shaped like ``aop_rad``."""
         return self.pixels.y_px
 
     @property
@@ -112,6 +114,16 @@ class Frame:
         return float(bearing_to_psi_deg(self.attitude.bearing_deg, self.sun.azimuth_deg))
 
     def meta_json(self) -> str:
+        """
+        Return the frame's metadata as JSON text with sorted keys.
+
+        Returns
+        -------
+        str
+            ``json.dumps(self.meta, sort_keys=True)``: the scene, sun, attitude and stage
+            parameters :meth:`Renderer.render` recorded.
+
+        """
         return json.dumps(self.meta, sort_keys=True)
 
 
@@ -178,6 +190,32 @@ class Renderer:
 
         The sun for this scene: fixed if the scene says so, else the ephemeris (batched ephemeris,
         interpolated).
+
+        Parameters
+        ----------
+        time_utc : datetime or str, optional
+            Time (UTC; a naive datetime is taken as UTC, a string as ISO 8601); default the
+            scene's ``time_utc``. Ignored when the scene fixes the sun.
+
+        Returns
+        -------
+        SunDirection
+            Azimuth [deg, clockwise from North] and geometric altitude [deg] of the sun; the
+            apparent (refracted) altitude [deg] too when the ephemeris model gives one (None for a
+            fixed sun).
+
+        Raises
+        ------
+        SceneError
+            When ``time_utc`` cannot be read as a time (from :func:`scene.parse_time_utc`).
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 2-10 (the sun's
+           position; the ephemeris is chosen by the scene's ``sun_model``, see
+           :mod:`polarization_compass.solar`).
+
         """
         s = self.scene
         if s.sun_fixed is not None:
@@ -210,7 +248,41 @@ class Renderer:
         Render one frame.
 
         Defaults: the scene's attitude, and its sun at its time (or
-        ``time_utc``).
+        ``time_utc``). The sun is rotated into the camera frame with the eq 21 attitude, the
+        scene's sky model gives the AoP (eq 28 convention) and DoP at each selected pixel's ray,
+        then the declared radiance, atmosphere, optics, sensor and photodiode-array stages run.
+
+        Parameters
+        ----------
+        attitude : CameraAttitude, optional
+            Camera bearing, pitch and roll [deg] (eq 21); default the scene's attitude.
+        sun : SunDirection, optional
+            Sun azimuth [deg, clockwise from North] and altitude [deg]; default
+            :meth:`sun_at` ``(time_utc)``.
+        time_utc : datetime or str, optional
+            Time (UTC) of the frame: picks the ephemeris sun when ``sun`` is not given and moves
+            a declared atmosphere's clouds; default the scene's time.
+        seed : int, optional
+            Seed of this frame's sensor noise and photodiode readings; default the scene seed
+            combined with the frame index (reproducible, independent per frame).
+
+        Returns
+        -------
+        Frame
+            AoP [rad, eq 28, [-pi/2, pi/2)], DoP [0, 1] and validity per selected pixel, with the
+            intensity, raw mosaic and noise-free values when the scene declares those stages, and
+            the metadata of the frame in ``meta``.
+
+        Raises
+        ------
+        SceneError
+            When ``time_utc`` cannot be read as a time.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 18, 21 and 28.
+
         """
         att = attitude if attitude is not None else self.scene.attitude
         sun_meta = self._sun_meta(sun, time_utc)
@@ -374,6 +446,40 @@ class Renderer:
         :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
         sweeps, which render 1e5 frames and compute the rotations of a whole chunk at once. A scene
         with sensor effects is refused (its frames need :meth:`render`).
+
+        Parameters
+        ----------
+        sun_cam : numpy.ndarray
+            (3,) unit vector to the sun in the camera optical frame.
+        zenith_cam : numpy.ndarray
+            (3,) unit vector to the zenith (ENU Up) in the camera optical frame.
+
+        Returns
+        -------
+        aop : numpy.ndarray
+            (N,) float32 AoP [rad] in the eq 28 convention, [-pi/2, pi/2); 0 where invalid.
+        dop : numpy.ndarray
+            (N,) float32 DoP in [0, 1]; 0 where invalid.
+        valid : numpy.ndarray
+            (N,) bool: the pixel sees sky outside the scene's validity limits (sun exclusion,
+            minimum altitude and DoP).
+        intensity : numpy.ndarray or None
+            (N,) float32 relative radiance, None without a radiance model.
+
+        Raises
+        ------
+        SensorError
+            When the scene declares sensor effects.
+        OpticsError
+            When the scene declares lens optics.
+        AtmosphereError
+            When the scene declares an atmosphere.
+
+        References
+        ----------
+        .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+           Polarized Skylight Orientation Determination" (the seed paper), eqs 18 and 28.
+
         """
         if self.sensor is not None:
             from .sensor import SensorError
@@ -429,6 +535,26 @@ def render(scene: Scene | None = None, **kwargs) -> Frame:
     Render one frame of a scene in a single call.
 
     One-shot convenience: ``render(scene, attitude=..., sun=...)``.
+
+    Parameters
+    ----------
+    scene : Scene, optional
+        The scene; default :func:`scene.default_scene`.
+    **kwargs
+        ``attitude``, ``sun``, ``time_utc`` and ``seed``, passed to :meth:`Renderer.render`.
+
+    Returns
+    -------
+    Frame
+        The rendered frame (see :meth:`Renderer.render`).
+
+    Raises
+    ------
+    SceneError
+        When ``time_utc`` cannot be read as a time.
+    SensorError
+        When the scene's sensor effects need a contiguous pixel block it does not select.
+
     """
     from .scene import default_scene
 

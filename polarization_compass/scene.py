@@ -74,6 +74,25 @@ class SceneError(CompassError):
 
 @dataclass(frozen=True)
 class Site:
+    """
+    Hold the observer's geodetic position; the defaults are the paper's site in Nanjing.
+
+    Parameters
+    ----------
+    latitude_deg : float, default 32.026778
+        Geodetic latitude [deg, north positive], in [-90, 90].
+    longitude_deg : float, default 118.853306
+        Longitude [deg, east positive], in [-180, 180].
+    altitude_m : float, default 30
+        Height above sea level [m].
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4.
+
+    """
+
     latitude_deg: float = 32.026778  # 32 deg 01' 36.4" N (paper, section 4)
     longitude_deg: float = 118.853306  # 118 deg 51' 11.9" E
     altitude_m: float = 30.0
@@ -95,6 +114,52 @@ class Validity:
 
 @dataclass(frozen=True)
 class Scene:
+    """
+    Hold everything a render simulates; build one with :func:`scene_from_dict`.
+
+    Only declared stages are computed (see the module docstring for the YAML schema).
+
+    Parameters
+    ----------
+    name : str, default "paper_nanjing"
+        Name recorded in each frame's metadata.
+    site : Site
+        Observer's latitude, longitude [deg] and altitude [m].
+    time_utc : datetime.datetime
+        Aware UTC time of the scene (default 2019-11-15 06:00 UTC).
+    sun_model : {"spa", "paper"}, default "spa"
+        Ephemeris: NREL SPA (through pvlib) or the paper's eqs 2-10.
+    sun_fixed : tuple of float, optional
+        ``(azimuth_deg, altitude_deg)`` of a fixed sun [deg, azimuth clockwise from North]; no
+        ephemeris when given.
+    attitude : CameraAttitude
+        Camera bearing, pitch and roll [deg] (eq 21).
+    camera : CameraModel
+        Camera intrinsics (default the paper's imager, Table 1).
+    pixels : PixelSelection
+        Pixels to render.
+    sky : dict
+        Sky polarization model and its parameters, e.g. ``{'model': 'rayleigh', 'dop_max': 1}``.
+    radiance : dict, optional
+        Radiance model, None for none.
+    validity : Validity
+        Which rendered pixels are usable.
+    sensor : dict
+        Sensor effects by name (empty for an ideal sensor).
+    seed : int, default 0
+        Seed of the scene's noise, clouds and readings.
+    photodiode_array, atmosphere, optics : dict, optional
+        Photodiode-array compass, atmosphere (clouds, haze, skyline) and lens optics, each
+        rendered only when declared.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4, Table 1, eqs 2-10
+       and 21.
+
+    """
+
     name: str = 'paper_nanjing'
     site: Site = Site()
     time_utc: _dt.datetime = _dt.datetime(2019, 11, 15, 6, 0, 0, tzinfo=_dt.timezone.utc)
@@ -116,6 +181,20 @@ class Scene:
         return id(self)
 
     def replace(self, **changes) -> 'Scene':
+        """
+        Return a copy of the scene with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names of :class:`Scene` and their new values (not validated again).
+
+        Returns
+        -------
+        Scene
+            The new scene; this one is unchanged.
+
+        """
         return dataclasses.replace(self, **changes)
 
     @property
@@ -124,6 +203,17 @@ class Scene:
         return [k for k in self.sensor if k != 'demosaic']
 
     def to_dict(self) -> dict:
+        """
+        Return the scene as a mapping in the YAML schema of this module.
+
+        Returns
+        -------
+        dict
+            Plain values (time as ISO 8601 with ``Z``, angles [deg], altitude [m]) that
+            :func:`scene_from_dict` reads back into an equal scene; a pixel list is summarised by
+            its count only.
+
+        """
         d = {
             'name': self.name,
             'site': dataclasses.asdict(self.site),
@@ -156,7 +246,27 @@ class Scene:
 
 
 def parse_time_utc(value) -> _dt.datetime:
-    """ISO 8601 string or datetime to an aware UTC datetime. Naive input is taken as UTC."""
+    """
+    Convert an ISO 8601 string or datetime to an aware UTC datetime.
+
+    Naive input is taken as UTC; a ``Z`` suffix means UTC; a date is its midnight UTC.
+
+    Parameters
+    ----------
+    value : str or datetime.datetime or datetime.date
+        The time, e.g. ``'2019-11-15T06:00:00Z'``.
+
+    Returns
+    -------
+    datetime.datetime
+        The same instant, timezone-aware, in UTC.
+
+    Raises
+    ------
+    SceneError
+        When a string is not ISO 8601, or the value is of another type.
+
+    """
     if isinstance(value, _dt.datetime):
         t = value
     elif isinstance(value, _dt.date):
@@ -237,7 +347,26 @@ def scene_from_dict(d: dict) -> Scene:
     """
     Validate a scene mapping (as from YAML) and build a :class:`Scene`.
 
-    Raises :class:`SceneError`.
+    Every key is optional (the defaults are :class:`Scene`'s); numbers are checked for range,
+    and the sky, radiance, sensor, photodiode-array, atmosphere and optics declarations are built
+    once so that a bad parameter fails here, not at the first frame.
+
+    Parameters
+    ----------
+    d : dict or None
+        The mapping in the module's schema; None is the default scene.
+
+    Returns
+    -------
+    Scene
+        The validated scene.
+
+    Raises
+    ------
+    SceneError
+        Naming the key, for an unknown key, a value of the wrong type or out of range, or a
+        declaration its model refuses.
+
     """
     if d is None:
         d = {}
@@ -403,6 +532,23 @@ def load_scene(path: str | Path | None = None) -> Scene:
     Load a scene YAML file (safe loader).
 
     Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The YAML file; None for ``data/default_scene.yaml`` in the package.
+
+    Returns
+    -------
+    Scene
+        The validated scene (see :func:`scene_from_dict`).
+
+    Raises
+    ------
+    SceneError
+        Prefixed with the file name, when the file cannot be read or parsed, or its scene is
+        invalid.
+
     """
     if path is None:
         text = (
@@ -420,4 +566,18 @@ def load_scene(path: str | Path | None = None) -> Scene:
 
 
 def default_scene() -> Scene:
+    """
+    Return the embedded default scene: the paper's set-up in Nanjing.
+
+    Returns
+    -------
+    Scene
+        ``load_scene(None)``: site, time, camera and sky of the paper's section 4.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), section 4 and Table 1.
+
+    """
     return load_scene(None)

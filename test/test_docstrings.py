@@ -93,6 +93,8 @@ COMPLETED = (
     'sky.py',
     'sky_models.py',
     'sky_bdl.py',
+    'render.py',
+    'scene.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
