@@ -86,8 +86,23 @@ def require_sweep_extra(what: str = 'this'):
     """
     Import and return (xarray, zarr), naming the extra when they are missing.
 
-    Import and return (xarray, zarr); :class:`ErrorMapError` naming the extra when they are
-    missing.
+    Parameters
+    ----------
+    what : str, default "this"
+        What needs them, for the error message.
+
+    Returns
+    -------
+    xarray : module
+        The imported ``xarray``.
+    zarr : module
+        The imported ``zarr``.
+
+    Raises
+    ------
+    ErrorMapError
+        When either cannot be imported; the message names the optional extra ``sweep``.
+
     """
     try:
         import xarray
@@ -104,7 +119,21 @@ def chunk_checksum(err: np.ndarray, status: np.ndarray) -> int:
     """
     Return the uint64 checksum of one chunk's errors and statuses.
 
-    uint64 checksum (blake2b, never 0) of one chunk's float64 errors and int8 statuses, C order.
+    blake2b with an 8-byte digest over the little-endian float64 errors then the int8 statuses, in
+    C order; a digest of 0 is replaced by 1, so 0 can mean "not written".
+
+    Parameters
+    ----------
+    err : numpy.ndarray
+        The chunk's errors [deg] (converted to float64).
+    status : numpy.ndarray
+        The chunk's status codes (converted to int8).
+
+    Returns
+    -------
+    int
+        The checksum, in [1, 2**64 - 1].
+
     """
     h = hashlib.blake2b(digest_size=8)
     h.update(np.ascontiguousarray(err, dtype='<f8').tobytes())
@@ -136,8 +165,25 @@ def map_to_dataset(m: ErrorMap):
     """
     Return the map as an ``xarray.Dataset``.
 
-    The map as an ``xarray.Dataset`` (dims :data:`DIMS`, coordinates in deg, meta in the
-    attributes).
+    The map is validated first. Variables ``error_deg`` [deg] and ``status`` (int8) over the dims
+    :data:`DIMS`, coordinates ``method`` and the four axes [deg], and the map's meta in the
+    attributes (module docstring).
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map.
+
+    Returns
+    -------
+    xarray.Dataset
+        The labelled map.
+
+    Raises
+    ------
+    ErrorMapError
+        When xarray/zarr are missing (:func:`require_sweep_extra`) or the map does not validate.
+
     """
     xr, _ = require_sweep_extra('an xarray Dataset of a map')
     m.validate()
@@ -164,7 +210,31 @@ def map_to_dataset(m: ErrorMap):
 
 
 def export_netcdf(m: ErrorMap, path) -> Path:
-    """Write the map as one NetCDF 3 file (64-bit offset, xarray's scipy engine), atomically."""
+    """
+    Write the map as one NetCDF 3 file, atomically.
+
+    The Dataset of :func:`map_to_dataset`, written in the classic 64-bit offset format with
+    xarray's scipy engine to ``<path>.tmp`` and then renamed over ``path``; parent directories are
+    created.
+
+    Parameters
+    ----------
+    m : ErrorMap
+        The error map.
+    path : str or os.PathLike
+        The output file.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+
+    Raises
+    ------
+    ErrorMapError
+        When xarray/zarr are missing or the map does not validate (:func:`map_to_dataset`).
+
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + '.tmp')
@@ -185,9 +255,29 @@ def _char_rows(a: np.ndarray) -> list[str]:
 
 def read_netcdf_map(path) -> ErrorMap:
     """
-    Load and validate a map written by :func:`export_netcdf` (scipy's NetCDF 3 reader, no pickle).
+    Load and validate a map written by :func:`export_netcdf`.
 
-    Raises :class:`ErrorMapError` naming the file and the reason.
+    Read with ``scipy.io.netcdf_file`` only (no xarray, no pickle), after checking the NetCDF 3
+    magic bytes and that the header's shapes fit the file's size; then validated like the ``.npz``
+    loader (:meth:`ErrorMap.validate`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The NetCDF file.
+
+    Returns
+    -------
+    ErrorMap
+        The validated map with its meta.
+
+    Raises
+    ------
+    ErrorMapError
+        Naming the file and the reason: missing, not NetCDF 3, truncated, missing variables, wrong
+        dims, corrupt, ``meta_json`` not a JSON object, non-float errors, or a map that does not
+        validate.
+
     """
     from scipy.io import netcdf_file
 
@@ -262,8 +352,32 @@ class SweepStore:
         """
         Create the store for ``spec`` at ``path``, or reopen it to resume.
 
-        ``restart`` deletes an earlier store *of this package* first (never a foreign directory).
-        Raises :class:`ErrorMapError` for a foreign, corrupt or other-sweep store.
+        An existing store is reopened only when it carries this package's marker and format
+        version, the same sweep digest (:meth:`SweepSpec.digest`) and arrays of the right shapes
+        and types.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The Zarr directory.
+        spec : SweepSpec
+            The sweep the store holds.
+        restart : bool, default False
+            Delete an earlier store *of this package* (of any sweep) first and create a new one; a
+            foreign directory is never deleted.
+
+        Returns
+        -------
+        SweepStore
+            The open store.
+
+        Raises
+        ------
+        ErrorMapError
+            When xarray/zarr are missing, or ``path`` is a file, an unreadable or foreign Zarr
+            store, a store of another format version or (without ``restart``) another sweep, or a
+            corrupt store.
+
         """
         _, zarr = require_sweep_extra('a sweep store')
         p = Path(path)
@@ -374,7 +488,19 @@ class SweepStore:
         """
         Write one chunk's region, then its checksum.
 
-        Write one chunk's region, then its checksum (so a torn write is detected, never trusted).
+        The checksum is written last, so a write torn between the two is detected, never trusted.
+
+        Parameters
+        ----------
+        ia : int
+            Index of the chunk's sun altitude.
+        ip : int
+            Index of the chunk's pitch.
+        err : numpy.ndarray
+            Errors [deg], shape (methods, yaws, rolls).
+        status : numpy.ndarray
+            Status codes (int8), same shape as ``err``.
+
         """
         self.group['error_deg'][:, ia, :, ip, :] = err
         self.group['status'][:, ia, :, ip, :] = status
@@ -382,9 +508,26 @@ class SweepStore:
 
     def read_chunk(self, ia: int, ip: int):
         """
-        (err, status) of a stored chunk whose bytes match its checksum; None when not written.
+        Return a stored chunk whose bytes match its checksum.
 
-        Raises :class:`_DamagedChunk` when it was written but cannot be read or does not match.
+        Parameters
+        ----------
+        ia : int
+            Index of the chunk's sun altitude.
+        ip : int
+            Index of the chunk's pitch.
+
+        Returns
+        -------
+        tuple of numpy.ndarray or None
+            ``(err, status)``: errors [deg] and status codes, shape (methods, yaws, rolls); None
+            when the chunk was never written (checksum 0).
+
+        Raises
+        ------
+        _DamagedChunk
+            When the chunk was written but its checksum or data cannot be read or do not match.
+
         """
         try:
             want = int(self.group['chunk_checksum'][ia, ip])
@@ -403,6 +546,22 @@ class SweepStore:
         return err, status
 
     def chunk_name(self, ia: int, ip: int) -> str:
+        """
+        Return a readable name of one chunk for messages.
+
+        Parameters
+        ----------
+        ia : int
+            Index of the chunk's sun altitude.
+        ip : int
+            Index of the chunk's pitch.
+
+        Returns
+        -------
+        str
+            E.g. ``"chunk (sun altitude 30 deg, pitch 5 deg) [2, 1]"``.
+
+        """
         return (
             f'chunk (sun altitude {self.spec.sun_altitude_deg[ia]:g} deg, pitch '
             f'{self.spec.pitch_deg[ip]:g} deg)'
@@ -413,11 +572,24 @@ class SweepStore:
         """
         Copy every verified stored chunk into ``err``/``status``; return the ones to compute.
 
-        Copy every verified stored chunk of ``chunks`` into ``err``/``status``; return the ones to
-        compute.
+        A damaged chunk is named on ``log`` and returned for recomputation, never used.
 
-        A damaged chunk is named on ``log`` (default: the current ``sys.stderr``) and returned for
-        recomputation.
+        Parameters
+        ----------
+        chunks : iterable of tuple of int
+            ``(ia, ip)`` indices of the chunks to look at.
+        err : numpy.ndarray
+            The whole map's errors [deg], shape ``spec.shape``; filled in place.
+        status : numpy.ndarray
+            The whole map's status codes, shape ``spec.shape``; filled in place.
+        log : file-like, optional
+            Where damaged chunks are reported; default the current ``sys.stderr``.
+
+        Returns
+        -------
+        list of tuple of int
+            ``(ia, ip)`` of the chunks not written or damaged, in the order of ``chunks``.
+
         """
         log = sys.stderr if log is None else log
         todo = []
@@ -438,7 +610,15 @@ class SweepStore:
         return todo
 
     def finish(self, meta: dict) -> None:
-        """Record the final meta and mark the store complete."""
+        """
+        Record the final meta and mark the store complete.
+
+        Parameters
+        ----------
+        meta : dict
+            The finished map's meta (written to the store's attributes as in the module docstring).
+
+        """
         self.group.attrs.update({**_attrs_from_meta(meta), 'complete': True})
 
 
@@ -450,8 +630,25 @@ def read_store_map(path) -> ErrorMap:
     """
     Load and validate the map of a complete sweep store.
 
-    Load and validate the map of a *complete* sweep store: every written chunk must match its
-    checksum, every unwritten one must be all "not computed". Raises :class:`ErrorMapError`.
+    Every written chunk must match its checksum, every unwritten one must be all "not computed"
+    (status -1); the map is then validated (:meth:`ErrorMap.validate`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The Zarr directory of a sweep.
+
+    Returns
+    -------
+    ErrorMap
+        The validated map with its meta.
+
+    Raises
+    ------
+    ErrorMapError
+        When xarray/zarr are missing, or the store is unreadable, foreign, unfinished, corrupt,
+        damaged (a chunk not matching its checksum), or its map does not validate.
+
     """
     _, zarr = require_sweep_extra('reading a Zarr error map')
     p = Path(path)

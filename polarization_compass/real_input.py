@@ -139,7 +139,39 @@ def _read_images(p: Path) -> list:
 
 
 def load_polarization_input(path, bits: int | None = None) -> PolarizationInput:
-    """Read a raw mosaic, Stokes planes or a frame file (see the module docstring)."""
+    """
+    Read a raw mosaic, Stokes planes or a frame file.
+
+    The kind is decided by the suffix and content (module docstring): ``.npz`` with ``s0``, ``s1``,
+    ``s2`` (Stokes) or ``aop_rad`` and ``meta`` (this package's frame file, read later with
+    :mod:`frame_io`); ``.npy`` (mosaic); ``.png``/``.tif``/``.tiff``/``.pgm`` with one page
+    (mosaic) or three (Stokes, read with OpenCV unchanged). The file is size-checked before it is
+    decoded.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input file.
+    bits : int, optional
+        Significant bits of an integer mosaic in [1, 16]; saturation at ``2**bits - 1``. Default:
+        the maximum of the integer type (no saturation level for float data).
+
+    Returns
+    -------
+    PolarizationInput
+        ``kind`` ``"mosaic"`` (the 2-D raw array and its saturation level in counts), ``"stokes"``
+        (float32 planes S0, S1, S2 in the camera SDK's convention) or ``"frame"`` (path only).
+
+    Raises
+    ------
+    RealInputError
+        When the file is missing, not a regular file, too large, undecodable, of an unknown type, a
+        colour image, not a 2-D integer/float plane of at least 2 x 2 and at most
+        :data:`MAX_PIXELS`, has Stokes planes of different shapes or with NaN/inf, has a page count
+        other than 1 or 3, or has values above ``2**bits - 1`` (or ``bits`` is out of range or
+        given for float data).
+
+    """
     p = Path(path)
     _check_size(p)
     suf = p.suffix.lower()
@@ -202,9 +234,30 @@ def load_mask(path, shape, sensor_shape=None) -> np.ndarray:
     """
     Read a static obstruction mask: True (use) where non-zero.
 
-    Read a static obstruction mask: a grey PNG/TIFF (or 2-D .npy) of ``shape`` (or of
-    ``sensor_shape``, the full sensor, for half-resolution Stokes planes); True (use) where
-    non-zero, False (obstructed: mast, antenna, the robot) where zero (OpenCV's mask convention).
+    A grey PNG/TIFF (first page, read with OpenCV unchanged) or a 2-D ``.npy``; zero marks
+    obstructed pixels (mast, antenna, the robot), as in OpenCV's mask convention.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The mask file.
+    shape : tuple of int
+        ``(rows, cols)`` of the input image the mask applies to [pixels].
+    sensor_shape : tuple of int, optional
+        ``(rows, cols)`` of the full sensor, also accepted for half-resolution Stokes planes.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True where the sky is usable, of the mask file's own shape (``shape`` or
+        ``sensor_shape``).
+
+    Raises
+    ------
+    RealInputError
+        When the file cannot be read or decoded, is a colour image, or matches neither ``shape``
+        nor ``sensor_shape``.
+
     """
     p = Path(path)
     _check_size(p)

@@ -95,6 +95,8 @@ COMPLETED = (
     'sky_bdl.py',
     'render.py',
     'scene.py',
+    'real_input.py',
+    'errormap_store.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
