@@ -44,6 +44,14 @@ def keep_large_buffers_in_heap() -> bool:
     page by page and unmaps on free; with the threshold raised and trimming deferred, freed image
     buffers are reused. Returns True when applied; False (no change) where the C library is not
     glibc.
+
+    Returns
+    -------
+    bool
+        True when glibc's ``mallopt`` accepted all three settings (``M_MMAP_THRESHOLD`` 32 MiB,
+        ``M_TRIM_THRESHOLD`` 1 GiB, ``M_TOP_PAD`` 64 MiB);
+        False when the C library has no ``mallopt`` or refused one.
+
     """
     import ctypes
     import ctypes.util
@@ -66,7 +74,19 @@ def keep_large_buffers_in_heap() -> bool:
 
 
 def openblas_handles():
-    """(set, get) of every OpenBLAS loaded in this process (numpy's and scipy's), via ctypes."""
+    """
+    Return the thread-count setter and getter of every OpenBLAS loaded in this process.
+
+    The libraries are found in ``/proc/self/maps`` (numpy's and scipy's, each with its symbol
+    prefix and suffix) and opened with ctypes.
+
+    Returns
+    -------
+    list of tuple
+        ``(set_num_threads, get_num_threads)`` ctypes functions, one pair per library; empty
+        where ``/proc`` cannot be read or no OpenBLAS is loaded.
+
+    """
     import ctypes
 
     out = []

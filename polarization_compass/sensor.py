@@ -193,7 +193,37 @@ def _number(d, key, default, lo, hi, where, lo_open=False):
 
 @dataclass(frozen=True)
 class SensorConfig:
-    """Validated sensor parameters. ``None`` marks an effect the scene did not declare."""
+    """
+    Hold validated sensor parameters; ``None`` marks an effect the scene did not declare.
+
+    Built by :func:`parse_sensor_config` (the module docstring gives the schema and the physics).
+
+    Attributes
+    ----------
+    layout : MosaicLayout
+        Polarizer angles of the 2 x 2 mosaic and the direction of its 45 deg polarizer.
+    full_well_e : float
+        Full-well capacity [electrons]; also the ADC full scale when quantised.
+    fill : float
+        Mean signal of an unpolarized S0 = 1 pixel as a fraction of the full well.
+    extinction_ratio : float or None
+        Polarizer extinction ratio ER (> 1); None for ideal polarizers.
+    shot_gaussian_above_e : float or None
+        Mean [electrons] above which shot noise is drawn Gaussian, not Poisson; None: no shot
+        noise.
+    read_sigma_e : float or None
+        Read noise [electrons rms]; None: no read noise.
+    bits : int or None
+        ADC bits; None: no quantisation (float32 electrons).
+    demosaic : {"bilinear", "superpixel"}
+        Demosaic method.
+    saturates : bool
+        ``exposure`` declared: the well is finite and clips at ``full_well_e``.
+    calibration : dict or None
+        Per-pixel calibration errors (``angle_error_deg`` [deg], ``extinction_ratio_spread``,
+        ``gain_rms``, ``crosstalk`` and ``seed``); None if undeclared.
+
+    """
 
     layout: MosaicLayout
     full_well_e: float
@@ -221,6 +251,7 @@ class SensorConfig:
 
     @property
     def max_dn(self) -> int | None:
+        """ADC full scale 2^bits - 1 [DN], or None without quantisation."""
         return None if self.bits is None else (1 << self.bits) - 1
 
     @property
@@ -236,6 +267,18 @@ class SensorConfig:
         return self.full_well_e if self.saturates else None
 
     def describe(self) -> dict:
+        """
+        Return the parameters as plain values for a frame's metadata.
+
+        Returns
+        -------
+        dict
+            The mosaic layout, exposure (``full_well_e`` [electrons] or None for an unlimited
+            well, ``fill``, ``n0_e`` [electrons], saturation, ADC full scale [electrons]),
+            extinction ratio, noise parameters [electrons], quantisation bits, demosaic method and
+            calibration; None for an effect not declared.
+
+        """
         # exposure.full_well_e is the saturation level of an unquantised mosaic (None: unlimited
         # well); n0_e the electrons of an unpolarized S0 = 1 pixel, the scale of every
         # electron-domain stage
@@ -261,7 +304,25 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
     """
     Validate a scene's ``sensor:`` mapping (see the module docstring).
 
-    Raises :class:`SensorError`.
+    Missing keys take the defaults of a Sony IMX250MZR shown in the module docstring.
+
+    Parameters
+    ----------
+    cfg : dict or None
+        Effect name -> its parameters (``{}`` or None for the defaults); None is no effects.
+
+    Returns
+    -------
+    SensorConfig
+        The validated parameters.
+
+    Raises
+    ------
+    SensorError
+        Naming the key, for an unknown effect or parameter, a number out of range, unsupported
+        quantisation bits, an extinction-ratio spread without an extinction ratio, or an unknown
+        demosaic method.
+
     """
     if cfg is None:
         cfg = {}
@@ -365,6 +426,24 @@ def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
     quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or,
     if it declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding. Raises
     CompassError (one line, ``scene sensor: ...`` for a bad scene mapping).
+
+    Parameters
+    ----------
+    sensor_cfg : dict or None
+        The scene's ``sensor:`` mapping.
+    encoding : {"32FC1", "mono16", "mono8"}
+        ROS ``sensor_msgs/Image`` encoding of the raw mosaic.
+
+    Returns
+    -------
+    SensorConfig
+        The parameters the simulated camera applies.
+
+    Raises
+    ------
+    CompassError
+        When the scene's mapping is invalid, or its quantisation bits do not fit the encoding.
+
     """
     cfg = dict(sensor_cfg or {})
     if encoding == '32FC1':
@@ -547,6 +626,24 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 
     Standard normals (float32) of the counter-based stream ``key``: element n uses counters ``n *
     1024 ...``. Exposed for tests of the generator's distribution.
+
+    Parameters
+    ----------
+    key : int
+        64-bit key of the SplitMix64 stream.
+    shape : int or tuple of int
+        Shape of the output.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 draws from N(0, 1) of that shape; the same key gives the same values.
+
+    References
+    ----------
+    .. [1] G. Marsaglia and W. W. Tsang, "The ziggurat method for generating random variables",
+       Journal of Statistical Software 5(8), 2000.
+
     """
     out = np.empty(shape, np.float32)
     _normal_kernel(np.uint64(key), out)
@@ -790,6 +887,34 @@ def calibration_maps(
     Per-pixel (polarizer angle phi (rad), efficiency d, gain) float32 maps of the block of
     ``shape`` whose top-left pixel is (row0, col0) (0-based) of the full sensor, for
     ``cfg.calibration``; ``layout`` is the block's (already shifted) layout.
+
+    Parameters
+    ----------
+    cfg : SensorConfig
+        Parameters with a declared ``calibration`` (and the mean extinction ratio when its
+        spread is not zero).
+    layout : MosaicLayout
+        Layout shifted to the block's top-left pixel (its nominal polarizer angles).
+    shape : tuple of int
+        (rows, cols) of the block.
+    row0, col0 : int, default 0
+        0-based row and column of the block's top-left pixel on the full sensor.
+
+    Returns
+    -------
+    phi : numpy.ndarray
+        float32 polarizer angle per pixel [rad, camera frame, from +x towards +y]: the nominal
+        angle plus its error.
+    d : numpy.ndarray
+        float32 polarizer efficiency (ER - 1) / (ER + 1) per pixel.
+    gain : numpy.ndarray
+        float32 relative gain per pixel (1 + gain_rms z).
+
+    References
+    ----------
+    .. [1] S. B. Powell and V. Gruev, "Calibration methods for division-of-focal-plane
+       polarimeters", Opt. Express 21: 21039, 2013.
+
     """
     c = cfg.calibration
     H, W = shape
@@ -968,6 +1093,42 @@ def simulate_mosaic(
     ``layout`` already shifted to the block's top-left pixel, ``block_origin`` that pixel's 0-based
     (row, col) on the full sensor (where the calibration pattern is read). Only the kernels of
     declared effects run; each run is counted in ``instrumentation`` (see ``_IMPLEMENTS``).
+
+    Parameters
+    ----------
+    aop_rad : numpy.ndarray
+        2-D AoP [rad] of the block in the paper's eq 28 convention.
+    dop : numpy.ndarray
+        2-D DoP in [0, 1] of the block.
+    s0 : numpy.ndarray or None
+        2-D relative radiance S0 of the block; None for S0 = 1.
+    cfg : SensorConfig
+        Validated sensor parameters.
+    layout : MosaicLayout
+        Mosaic layout shifted to the block's top-left pixel.
+    rng : numpy.random.Generator
+        Source of the one 64-bit key of the frame's noise stream.
+    block_origin : tuple of int, default (0, 0)
+        0-based (row, col) of the block's top-left pixel on the full sensor.
+
+    Returns
+    -------
+    numpy.ndarray
+        The mosaic, the block's shape: float32 electrons without quantisation, else uint8 (8
+        bits) or uint16 DN.
+
+    Raises
+    ------
+    SensorError
+        When the AoP, DoP and S0 are not 2-D images of one shape.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 28 (AoP convention).
+    .. [2] S. B. Powell and V. Gruev, "Calibration methods for division-of-focal-plane
+       polarimeters", Opt. Express 21: 21039, 2013.
+
     """
     aop = np.ascontiguousarray(aop_rad, dtype=np.float32)
     dp = np.ascontiguousarray(dop, dtype=np.float32)
@@ -1040,6 +1201,21 @@ def superpixel_pixels(
 
     Centres of the 2 x 2 blocks of a ``rows`` x ``cols`` block whose top-left pixel is (x0, y0),
     1-based: ``x = x0 + 2l + 0.5``, ``y = y0 + 2k + 0.5``; rays from the camera model. Cached.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        Camera whose rays the centres get.
+    x0_px, y0_px : float
+        1-based column and row of the block's top-left pixel (eq 20 pixel coordinates).
+    rows, cols : int
+        Size of the block [pixels]; an odd trailing row or column is dropped.
+
+    Returns
+    -------
+    SelectedPixels
+        (rows // 2, cols // 2) read-only centres [px] and unit rays in the camera optical frame.
+
     """
     xs = float(x0_px) + 0.5 + 2.0 * np.arange(cols // 2)
     ys = float(y0_px) + 0.5 + 2.0 * np.arange(rows // 2)
@@ -1132,6 +1308,24 @@ class SensorPipeline:
         Validate a scene's ``sensor:`` mapping.
 
         Validate a scene's ``sensor:`` mapping (raises :class:`SensorError` naming the bad value).
+
+        Parameters
+        ----------
+        sensor_cfg : dict or None
+            The scene's ``sensor:`` mapping (see :func:`parse_sensor_config`).
+        camera : CameraModel
+            The camera whose pixel blocks the pipeline mosaics.
+
+        Returns
+        -------
+        SensorPipeline
+            The pipeline of the declared effects.
+
+        Raises
+        ------
+        SensorError
+            For an invalid mapping, or a camera smaller than 2 x 2 pixels.
+
         """
         cfg = parse_sensor_config(sensor_cfg)
         if camera.width_px < 2 or camera.height_px < 2:
@@ -1139,6 +1333,15 @@ class SensorPipeline:
         return SensorPipeline(cfg, camera)
 
     def params(self) -> dict:
+        """
+        Return the pipeline's parameters for a frame's metadata.
+
+        Returns
+        -------
+        dict
+            :meth:`SensorConfig.describe` of its configuration.
+
+        """
         return self.config.describe()
 
     def _block_origin(self, frame):
@@ -1162,6 +1365,24 @@ class SensorPipeline:
         Apply the mosaic, noise, quantisation and demosaic to a frame in place.
 
         Mosaic, declared noise/quantisation, demosaic: replaces the frame's AoP/DoP/valid in place.
+
+        The noise-free values move to ``aop_ideal_rad``/``dop_ideal`` and the raw image to
+        ``mosaic``; with the superpixel demosaic the frame's pixels become the 2 x 2 block
+        centres (see the module docstring).
+
+        Parameters
+        ----------
+        frame : Frame
+            A rendered frame of a contiguous, unit-stride block of at least 2 x 2 pixels; AoP
+            [rad, eq 28], DoP [0, 1], validity and optional relative radiance.
+        rng : numpy.random.Generator
+            Source of the frame's noise key.
+
+        Raises
+        ------
+        SensorError
+            When the frame's pixels are not a contiguous 2-D block of at least 2 x 2 pixels.
+
         """
         cfg = self.config
         x0, y0 = self._block_origin(frame)

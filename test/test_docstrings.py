@@ -97,6 +97,8 @@ COMPLETED = (
     'scene.py',
     'real_input.py',
     'errormap_store.py',
+    'sensor.py',
+    'runtime.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
