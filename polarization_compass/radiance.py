@@ -177,8 +177,31 @@ class CIEStandardSky:
     """
     CIE standard general sky (ISO 15469).
 
-    ``sky_type`` 1-15 (default 12) or explicit a, b, c, d,
-    e.
+    Relative luminance ``L / L_z = f(chi) phi(Z) / (f(Z_s) phi(0))`` (module docstring) with the
+    coefficients of one of the 15 standard types or custom ones.
+
+    Parameters
+    ----------
+    sky_type : int or None, default 12
+        Standard sky type 1-15 (:data:`CIE_STANDARD_SKIES`); ignored when a..e are given.
+    a, b : float, optional
+        Custom gradation coefficients (|value| <= 100, b <= 0); all of a..e or none.
+    c, d, e : float, optional
+        Custom indicatrix coefficients (|value| <= 100); all of a..e or none.
+    name : str, default 'cie_clear'
+        Model name reported by :meth:`params` (``cie_clear`` or ``cie_standard``).
+
+    Raises
+    ------
+    RadianceError
+        Only some of a..e given, a non-number or out-of-range coefficient, a sky type that is not
+        an integer 1-15, or coefficients that give a non-positive luminance somewhere on the sky.
+
+    References
+    ----------
+    .. [1] ISO 15469:2004 / CIE S 011/E:2003, "Spatial distribution of daylight -- CIE standard
+       general sky", Table 1.
+
     """
 
     def __init__(
@@ -236,6 +259,16 @@ class CIEStandardSky:
             )
 
     def params(self) -> dict:
+        """
+        Return the model's parameters and description.
+
+        Returns
+        -------
+        dict
+            ``model``, ``type`` (None for a custom sky), the coefficients ``a``..``e`` and the
+            sky type's ``description``.
+
+        """
         return {
             'model': self.name,
             'type': self.sky_type,
@@ -248,17 +281,56 @@ class CIEStandardSky:
         }
 
     def zenith_normaliser(self, sun_zenith_rad: float) -> float:
-        """f(Z_s) phi(0), the luminance at the zenith in the formula's units (float64)."""
+        """
+        Return f(Z_s) phi(0), the luminance at the zenith in the formula's units.
+
+        Parameters
+        ----------
+        sun_zenith_rad : float
+            Zenith angle of the sun Z_s [rad] (the angle chi between the zenith and the sun).
+
+        Returns
+        -------
+        float
+            Zenith luminance in the formula's (relative) units, float64; positive for every
+            accepted set of coefficients.
+
+        References
+        ----------
+        .. [1] ISO 15469:2004 / CIE S 011/E:2003, "Spatial distribution of daylight -- CIE standard
+           general sky", Table 1.
+
+        """
         return float(
             _indicatrix(sun_zenith_rad, self.c, self.d, self.e) * _gradation(1.0, self.a, self.b)
         )
 
     def radiance(self, sun_cam, zenith_cam, rays_cam):
         """
-        Return the relative luminance L/L_z (float32) of unit rays.
+        Return the relative luminance L/L_z of unit rays.
 
-        Relative luminance L/L_z (float32, (N,)) of unit rays (3, N) in the frame of
-        sun_cam/zenith_cam.
+        Any frame works as long as the rays, sun and zenith share it; below the horizon the
+        gradation keeps its horizon value.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Sun direction (normalised here), in the frame of ``rays_cam``.
+        zenith_cam : array_like, shape (3,)
+            Zenith (up) direction (normalised here), in the same frame.
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays (converted to contiguous float32).
+
+        Returns
+        -------
+        numpy.ndarray, shape (N,), float32
+            Luminance L/L_z relative to the zenith (1 at the zenith), dimensionless and positive.
+
+        References
+        ----------
+        .. [1] ISO 15469:2004 / CIE S 011/E:2003, "Spatial distribution of daylight -- CIE standard
+           general sky", Table 1.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
@@ -306,6 +378,24 @@ class PreethamSky:
     maintained PyPI package provides it. The Perez indicatrix is the CIE one without the
     ``exp(d pi / 2)`` offset, so the CIE kernel evaluates it with that offset set to 0.
     Scene YAML: ``radiance: {model: preetham, turbidity: 3}``.
+
+    Parameters
+    ----------
+    turbidity : float, default 3.0
+        Atmospheric turbidity T, in [2, 10].
+    name : str, default 'preetham'
+        Model name reported by :meth:`params`.
+
+    Raises
+    ------
+    RadianceError
+        ``turbidity`` is not a number in [2, 10].
+
+    References
+    ----------
+    .. [1] A. J. Preetham, P. Shirley and B. Smits, "A practical analytic model for daylight",
+       SIGGRAPH 1999, appendix A.2.
+
     """
 
     def __init__(self, turbidity=3.0, name='preetham'):
@@ -328,6 +418,15 @@ class PreethamSky:
         self.e = -0.0670 * t + 0.3703
 
     def params(self) -> dict:
+        """
+        Return the model's parameters and its Perez coefficients.
+
+        Returns
+        -------
+        dict
+            ``model``, ``turbidity`` and the Perez coefficients ``A``..``E`` derived from it.
+
+        """
         return {
             'model': self.name,
             'turbidity': self.turbidity,
@@ -339,7 +438,25 @@ class PreethamSky:
         }
 
     def zenith_normaliser(self, sun_zenith_rad: float) -> float:
-        """F(0, theta_s) in float64."""
+        """
+        Return F(0, theta_s), the Perez function at the zenith.
+
+        Parameters
+        ----------
+        sun_zenith_rad : float
+            Zenith angle of the sun theta_s [rad] (at the zenith gamma = theta_s).
+
+        Returns
+        -------
+        float
+            Zenith luminance in the formula's (relative) units, float64.
+
+        References
+        ----------
+        .. [1] A. J. Preetham, P. Shirley and B. Smits, "A practical analytic model for daylight",
+           SIGGRAPH 1999, appendix A.2.
+
+        """
         g = float(sun_zenith_rad)
         return float(
             (1.0 + self.c * math.exp(self.d * g) + self.e * math.cos(g) ** 2)
@@ -348,10 +465,30 @@ class PreethamSky:
 
     def radiance(self, sun_cam, zenith_cam, rays_cam):
         """
-        Return the relative luminance Y/Y_z (float32) of unit rays.
+        Return the relative luminance Y/Y_z of unit rays.
 
-        Relative luminance Y/Y_z (float32, (N,)) of unit rays (3, N) in the frame of
-        sun_cam/zenith_cam.
+        Any frame works as long as the rays, sun and zenith share it; below the horizon the
+        gradation keeps its horizon value.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Sun direction (normalised here), in the frame of ``rays_cam``.
+        zenith_cam : array_like, shape (3,)
+            Zenith (up) direction (normalised here), in the same frame.
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays (converted to contiguous float32).
+
+        Returns
+        -------
+        numpy.ndarray, shape (N,), float32
+            Luminance Y/Y_z relative to the zenith (1 at the zenith), dimensionless and positive.
+
+        References
+        ----------
+        .. [1] A. J. Preetham, P. Shirley and B. Smits, "A practical analytic model for daylight",
+           SIGGRAPH 1999, appendix A.2.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
@@ -382,7 +519,28 @@ class PreethamSky:
 
 
 def make_radiance_model(cfg: dict | None):
-    """Build a radiance model from a mapping like ``{"model": "cie_clear", "type": 12}``."""
+    """
+    Build a radiance model from a mapping like ``{"model": "cie_clear", "type": 12}``.
+
+    Parameters
+    ----------
+    cfg : dict or None
+        A scene's ``radiance`` mapping: ``model`` (one of :data:`MODEL_NAMES`, default
+        ``cie_clear``) and either ``type`` (1-15) or custom ``a``..``e`` for the CIE models, or
+        ``turbidity`` for ``preetham``. None means the CIE clear sky, type 12. Not modified.
+
+    Returns
+    -------
+    CIEStandardSky or PreethamSky
+        The model.
+
+    Raises
+    ------
+    RadianceError
+        ``cfg`` is not a mapping, the model name is unknown, a key is not allowed for the model,
+        both a type and custom coefficients are given, or the model rejects its parameters.
+
+    """
     if cfg is None:
         cfg = {'model': 'cie_clear'}
     if not isinstance(cfg, dict):
