@@ -325,11 +325,36 @@ class CloudLayer:
     """
     A procedural cloud layer (see the module docstring for the model and its references).
 
-    ``coverage`` [0, 1] fraction of the layer that is cloudy; ``scale_m`` feature size (m);
-    ``height_m`` cloud base above the camera (m); ``optical_thickness`` tau of a full-density
-    cloud; ``brightness`` radiance of an optically thick cloud relative to the clear zenith;
-    ``softness`` width of the cloud edge ramp (noise units, > 0); ``wind_mps`` (east, north) layer
-    velocity (m/s); ``seed`` the cloud field's seed (from the scene's).
+    Parameters
+    ----------
+    coverage : float, default 0.5
+        Fraction of the layer that is cloudy, [0, 1]; 1 is a uniform overcast layer.
+    scale_m : float, default 800.0
+        Feature size of the cloud field [m], [1, 1e6].
+    height_m : float, default 2000.0
+        Cloud base above the camera [m], [1, 2e4].
+    optical_thickness : float, default 3.0
+        Optical thickness tau of a full-density cloud, [0, 200].
+    brightness : float, default 1.5
+        Radiance of an optically thick cloud relative to the clear zenith, [1e-3, 1e3].
+    softness : float, default 0.08
+        Width of the cloud-edge ramp in noise units, [1e-4, 1].
+    wind_mps : sequence of 2 float, default (0.0, 0.0)
+        Layer velocity (east, north) [m/s], each |v| <= 200.
+    seed : int, default 0
+        Seed of the cloud field (derived from the scene's).
+
+    Raises
+    ------
+    AtmosphereError
+        A parameter is not a number, not finite or out of its range (the message names the key).
+
+    References
+    ----------
+    .. [1] I. Pomozi, G. Horvath and R. Wehner, "How the clear-sky angle of polarization pattern
+       continues underneath clouds", J. Exp. Biol. 204:2933-2942, 2001.
+    .. [2] R. Hegedus, S. Akesson and G. Horvath, J. Opt. Soc. Am. A 24:2347-2356, 2007.
+
     """
 
     def __init__(
@@ -392,6 +417,16 @@ class CloudLayer:
         return float(np.quantile(v, 1.0 - self.coverage))
 
     def params(self) -> dict:
+        """
+        Return the layer's parameters, as a scene's ``atmosphere.clouds`` mapping writes them.
+
+        Returns
+        -------
+        dict
+            ``coverage``, ``scale_m`` [m], ``height_m`` [m], ``optical_thickness``,
+            ``brightness``, ``softness`` and ``wind_mps`` [m/s] as a list (east, north).
+
+        """
         return {
             'coverage': self.coverage,
             'scale_m': self.scale_m,
@@ -406,8 +441,21 @@ class CloudLayer:
         """
         Return the cloud density in [0, 1] at horizontal points of the layer.
 
-        Cloud density d in [0, 1] at horizontal points of the layer (metres east/north of the
-        camera) at ``dt_s`` seconds after the scene's time.
+        The layer has moved by ``wind_mps * dt_s`` since the scene's time; the density is the
+        thresholded, edge-ramped noise field (module docstring).
+
+        Parameters
+        ----------
+        east_m, north_m : array_like
+            Horizontal position in the layer [m] east and north of the camera (flattened).
+        dt_s : float, default 0.0
+            Time since the scene's ``time_utc`` [s].
+
+        Returns
+        -------
+        numpy.ndarray, shape (N,), float64
+            Density d in [0, 1] (all ones for an overcast layer).
+
         """
         e = np.asarray(east_m, dtype=float).ravel()
         n = np.asarray(north_m, dtype=float).ravel()
@@ -434,14 +482,37 @@ class CloudLayer:
         """
         Apply the clouds to the flat clear-sky arrays, in place.
 
-        Clouds over the flat clear-sky arrays, in place (float32 aop, dop, intensity; bool valid).
+        Each ray is attenuated by T = exp(-tau) and gains the cloud's unpolarized radiance
+        ``brightness (1 - T)``; the AoP is kept (module docstring). With ``block_shape`` (H, W) of
+        a contiguous pixel block (full frame or a stride-1 region) the layer's transmission is
+        evaluated on every ``GRID_STEP``-th row and column (and the last ones) and interpolated
+        bilinearly, 64x fewer noise evaluations (the field changes over many pixels: cloud edges
+        are smoothed over a few pixels, and pixels just below the horizon next to a cloud get part
+        of it -- they are not sky anyway); any other selection is evaluated at every pixel.
 
-        ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region): the
-        layer's transmission is evaluated on every ``GRID_STEP``-th row and column (and the last
-        ones) and interpolated bilinearly, 64x fewer noise evaluations (the field changes over many
-        pixels: cloud edges are smoothed over a few pixels, and pixels just below the horizon next
-        to a cloud get part of it -- they are not sky anyway); any other selection is evaluated at
-        every pixel.
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU (``v_enu = R_enu_cam @ v_cam``), e.g.
+            :func:`~polarization_compass.conventions.R_enu_cam_from_attitude`.
+        rays_cam : numpy.ndarray, shape (3, N), float32
+            Unit viewing rays in the camera frame, contiguous.
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad]; set to 0 where a pixel becomes invalid.
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, 1]; modified in place.
+        intensity : numpy.ndarray, shape (N,), float32
+            Radiance relative to the clear zenith; modified in place.
+        valid : numpy.ndarray, shape (N,), bool
+            Pixel validity; cleared in place where a pixel becomes invalid.
+        min_dop : float
+            Minimum DoP; pixels whose DoP falls below it become invalid (aop = dop = 0).
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the layer with the wind).
+        block_shape : tuple of int or None, default None
+            (H, W) of a contiguous pixel block in row-major order, or None for any other
+            selection.
+
         """
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
         off_x = self.wind_mps[0] * dt_s / self.scale_m
@@ -520,9 +591,25 @@ def haze_dop_factor(turbidity: float) -> float:
     """
     Return the DoP factor ``2 / T`` for Preetham turbidity T.
 
-    The factor on the DoP for Preetham turbidity T relative to the clearest sky (T = 2): ``2 / T``,
-    the molecular share of the scattering optical thickness (Preetham et al. 1999's definition of
-    T; aerosol scattering taken as unpolarized). Returns a float in (0, 1].
+    The factor on the DoP relative to the clearest sky of the model (T = 2): the molecular share of
+    the scattering optical thickness under Preetham et al.'s definition of T, aerosol scattering
+    taken as unpolarized (this project's derivation, module docstring and physics notes 4).
+
+    Parameters
+    ----------
+    turbidity : float
+        Turbidity T (dimensionless, >= 2 for a factor <= 1; :class:`Haze` accepts [2, 10]).
+
+    Returns
+    -------
+    float
+        DoP factor 2 / T, in (0, 1] for T >= 2.
+
+    References
+    ----------
+    .. [1] A. J. Preetham, P. Shirley and B. Smits, "A practical analytic model for daylight",
+       SIGGRAPH 1999.
+
     """
     return 2.0 / float(turbidity)
 
@@ -531,8 +618,24 @@ class Haze:
     """
     Haze by turbidity: DoP scaled by :func:`haze_dop_factor`.
 
-    Haze by turbidity (module docstring): DoP scaled by :func:`haze_dop_factor`; the Preetham
-    radiance when the scene declares no radiance model.
+    Also supplies the Preetham radiance (:attr:`radiance_model`) when the scene declares no
+    radiance model.
+
+    Parameters
+    ----------
+    turbidity : float, default 3.0
+        Preetham turbidity T, in [2, 10].
+
+    Raises
+    ------
+    AtmosphereError
+        ``turbidity`` is not a finite number in [2, 10].
+
+    References
+    ----------
+    .. [1] A. J. Preetham, P. Shirley and B. Smits, "A practical analytic model for daylight",
+       SIGGRAPH 1999.
+
     """
 
     def __init__(self, turbidity=3.0):
@@ -542,6 +645,7 @@ class Haze:
 
     @property
     def radiance_model(self):
+        """Return the Preetham radiance model of this turbidity, built on first use."""
         if self._radiance is None:
             from .radiance import PreethamSky
 
@@ -549,9 +653,33 @@ class Haze:
         return self._radiance
 
     def params(self) -> dict:
+        """
+        Return the haze's parameters, with the DoP factor it implies.
+
+        Returns
+        -------
+        dict
+            ``turbidity`` and ``dop_factor`` (:func:`haze_dop_factor`).
+
+        """
         return {'turbidity': self.turbidity, 'dop_factor': self.factor}
 
     def apply(self, dop, valid, aop, min_dop: float) -> None:
+        """
+        Scale the DoP by the haze factor, in place, and invalidate pixels that fall below min_dop.
+
+        Parameters
+        ----------
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, 1]; multiplied by :func:`haze_dop_factor` in place.
+        valid : numpy.ndarray, shape (N,), bool
+            Pixel validity; cleared in place where the scaled DoP is below ``min_dop``.
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad]; set to 0 (with dop) where a pixel becomes invalid.
+        min_dop : float
+            Minimum DoP; 0 invalidates nothing.
+
+        """
         dop *= np.float32(self.factor)
         if min_dop > 0.0:
             low = valid & (dop < min_dop)
@@ -613,9 +741,28 @@ class Skyline:
     """
     Obstacles at the horizon: the skyline elevation per azimuth.
 
-    Obstacles at the horizon: skyline elevation (deg) at ``len(elevation_deg)`` equally spaced
-    azimuths from North clockwise, linearly interpolated in tan(elevation) (periodic); or a seeded
-    random one.
+    The elevation is given at ``len(elevation_deg)`` equally spaced azimuths from North clockwise
+    and linearly interpolated in tan(elevation) (periodic), or drawn at random from the seed.
+
+    Parameters
+    ----------
+    elevation_deg : float or sequence of float, optional
+        Skyline elevation [deg], 1-3600 values in [0, 80], the first at North.
+    max_elevation_deg : float, optional
+        For a random skyline: the largest elevation [deg], [0, 80].
+    features : int, default 24
+        For a random skyline: the number of equally spaced random heights, [2, 3600].
+    ground_radiance : float, default 0.2
+        Radiance of what lies below the skyline relative to the clear zenith, [0, 1e3].
+    seed : int, default 0
+        Seed of a random skyline (the scene's).
+
+    Raises
+    ------
+    AtmosphereError
+        Both or neither of ``elevation_deg`` and ``max_elevation_deg`` given, or a value that is
+        not a number or out of its range.
+
     """
 
     def __init__(
@@ -650,10 +797,18 @@ class Skyline:
 
     def elevation_at(self, azimuth_deg) -> np.ndarray:
         """
-        Return the skyline elevation (deg) at azimuths (deg, clockwise from North).
+        Return the skyline elevation at azimuths, as the kernel interpolates it.
 
-        Skyline elevation (deg) at azimuths (deg, clockwise from North), as the kernel interpolates
-        it.
+        Parameters
+        ----------
+        azimuth_deg : float or array_like
+            Azimuth [deg], clockwise from North (any value; taken modulo 360).
+
+        Returns
+        -------
+        numpy.ndarray
+            Skyline elevation [deg], the shape of ``azimuth_deg``.
+
         """
         a = np.mod(np.asarray(azimuth_deg, dtype=float), 360.0)
         m = self.tan_elev.size
@@ -664,6 +819,16 @@ class Skyline:
         return np.degrees(np.arctan(t))
 
     def params(self) -> dict:
+        """
+        Return the skyline's parameters, as a scene's ``atmosphere.skyline`` mapping writes them.
+
+        Returns
+        -------
+        dict
+            ``ground_radiance`` and either ``max_elevation_deg`` and ``features`` (random
+            skyline) or ``elevation_deg`` as a list [deg].
+
+        """
         p = {'ground_radiance': self.ground_radiance}
         if self.random:
             p.update(self.random)
@@ -672,7 +837,28 @@ class Skyline:
         return p
 
     def apply(self, R_enu_cam, rays_cam, aop, dop, intensity, valid) -> None:
-        """Mask what lies below the skyline in the flat arrays, in place (module docstring)."""
+        """
+        Mask what lies below the skyline in the flat arrays, in place.
+
+        Pixels below the skyline become invalid with aop = dop = 0 and the ground's radiance.
+
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU (``v_enu = R_enu_cam @ v_cam``), e.g.
+            :func:`~polarization_compass.conventions.R_enu_cam_from_attitude`.
+        rays_cam : numpy.ndarray, shape (3, N), float32
+            Unit viewing rays in the camera frame, contiguous.
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad]; set to 0 where a pixel becomes invalid.
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, 1]; modified in place.
+        intensity : numpy.ndarray, shape (N,), float32
+            Radiance relative to the clear zenith; modified in place.
+        valid : numpy.ndarray, shape (N,), bool
+            Pixel validity; cleared in place where a pixel becomes invalid.
+
+        """
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
         flag = np.empty(rays_cam.shape[1], np.bool_)
         _skyline_candidates_kernel(
@@ -693,7 +879,23 @@ class Skyline:
 # ----------------------------------------------------------------------------------------------
 # all
 class Atmosphere:
-    """The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline."""
+    """
+    The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline.
+
+    Parameters
+    ----------
+    cfg : dict
+        A scene's ``atmosphere`` mapping with optional ``clouds``, ``haze`` and ``skyline``
+        mappings (module docstring); a missing or None stage is not built.
+    seed : int, default 0
+        The scene's seed; the cloud field and a random skyline derive from it.
+
+    Raises
+    ------
+    AtmosphereError
+        ``cfg`` or a stage is not a mapping, has an unknown key, or a stage rejects a value.
+
+    """
 
     def __init__(self, cfg: dict, seed: int = 0):
         _keys(cfg, {'clouds', 'haze', 'skyline'}, '')
@@ -727,9 +929,19 @@ class Atmosphere:
 
     @property
     def stages(self) -> list[str]:
+        """Return the names of the declared stages in the order they are applied."""
         return [n for n in ('haze', 'clouds', 'skyline') if getattr(self, n) is not None]
 
     def params(self) -> dict:
+        """
+        Return the parameters of each declared stage.
+
+        Returns
+        -------
+        dict
+            Stage name -> that stage's ``params()``.
+
+        """
         return {n: getattr(self, n).params() for n in self.stages}
 
     def apply(
@@ -748,8 +960,43 @@ class Atmosphere:
         """
         Apply the declared stages to flat clear-sky arrays.
 
-        ``intensity`` (float32, writable) must be given
-        (the radiance model's or uniform 1). Returns (aop, dop, valid, intensity).
+        The arrays are modified in place and returned; each stage runs inside an instrumentation
+        stage named ``atmosphere.<stage>``.
+
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU (``v_enu = R_enu_cam @ v_cam``).
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays in the camera frame (converted to contiguous float32).
+        aop : numpy.ndarray, shape (N,), float32
+            Clear-sky angle of polarization [rad].
+        dop : numpy.ndarray, shape (N,), float32
+            Clear-sky degree of polarization [0, 1].
+        valid : numpy.ndarray, shape (N,), bool
+            Clear-sky pixel validity.
+        intensity : numpy.ndarray, shape (N,), float32
+            Writable radiance relative to the clear zenith (the radiance model's, or uniform 1).
+        min_dop : float
+            Minimum DoP; pixels that fall below it become invalid.
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the clouds).
+        instr : module or object
+            Instrumentation with a ``stage(name)`` context manager, normally
+            :mod:`polarization_compass.instrumentation`.
+        block_shape : tuple of int or None, default None
+            (H, W) when the pixels are a contiguous block in row-major order (see
+            :meth:`CloudLayer.apply`), else None.
+
+        Returns
+        -------
+        aop, dop : numpy.ndarray, shape (N,), float32
+            The same arrays, after the stages.
+        valid : numpy.ndarray, shape (N,), bool
+            The same array, after the stages.
+        intensity : numpy.ndarray, shape (N,), float32
+            The same array, after the stages.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         if self.haze is not None:

@@ -99,6 +99,8 @@ COMPLETED = (
     'errormap_store.py',
     'sensor.py',
     'runtime.py',
+    'radiance.py',
+    'atmosphere.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
