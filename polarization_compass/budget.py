@@ -80,6 +80,25 @@ class BudgetError(CompassError):
 
 @dataclass(frozen=True)
 class BudgetConfig:
+    """
+    What an error budget runs: a scene, the sampling and the IMU/mounting errors.
+
+    Attributes
+    ----------
+    scene : Scene
+        The scene (site, time/sun, camera, sky, atmosphere, optics, sensor); its seed seeds the
+        samples.
+    samples : int, default 50
+        Monte Carlo frames per condition.
+    tilt_max_deg : float, default 0
+        Largest ``|pitch| + |roll|`` of the sampled attitudes [deg]; 0 keeps the camera level.
+    imu : MountingErrors, default no errors
+        IMU and mounting errors applied to the pitch and roll that tilt-aware methods read.
+    methods : tuple of str, default ()
+        Method names of the estimator registry to run; empty runs every registered method.
+
+    """
+
     scene: Scene
     samples: int = 50
     tilt_max_deg: float = 0.0
@@ -91,8 +110,27 @@ def parse_imu(text: str | None) -> MountingErrors:
     """
     Parse ``key=value,...`` into :class:`MountingErrors`.
 
-    ``key=value,key=value`` (keys of :class:`MountingErrors`; ``bias_deg`` sets both tilt biases,
-    ``boresight_deg`` the roll and pitch boresight) to a :class:`MountingErrors`.
+    Keys are the fields of :class:`~polarization_compass.motion.MountingErrors` (angles [deg],
+    ``time_offset_s`` [s], ``tilt_rate_deg_s`` [deg/s]), plus ``bias_deg`` (sets both tilt biases)
+    and ``boresight_deg`` (sets the roll and pitch boresight). Empty parts are skipped.
+
+    Parameters
+    ----------
+    text : str or None
+        The ``--imu`` argument, e.g. ``"noise_deg=0.5,bias_deg=0.2"``; None or empty for no
+        errors.
+
+    Returns
+    -------
+    MountingErrors
+        The parsed errors.
+
+    Raises
+    ------
+    BudgetError
+        For a part without ``=``, a value that is not a number, an unknown key, or values that
+        :class:`MountingErrors` rejects.
+
     """
     if not text:
         return MountingErrors()
@@ -125,7 +163,22 @@ def parse_imu(text: str | None) -> MountingErrors:
 
 
 def declared_sources(cfg: BudgetConfig) -> list[str]:
-    """Return the sources of error the configuration declares, in :data:`SOURCES` order."""
+    """
+    Return the sources of error the configuration declares, in :data:`SOURCES` order.
+
+    Parameters
+    ----------
+    cfg : BudgetConfig
+        The budget configuration.
+
+    Returns
+    -------
+    list of str
+        The names of :data:`SOURCES` that are switched on: sensor noise keys, DoFP calibration,
+        clouds, haze, skyline, optics, a non-Rayleigh sky model, ``tilt_max_deg > 0``, IMU errors,
+        boresight errors.
+
+    """
     s = cfg.scene
     atm = s.atmosphere or {}
     on = {
@@ -144,7 +197,31 @@ def declared_sources(cfg: BudgetConfig) -> list[str]:
 
 
 def without(cfg: BudgetConfig, source: str) -> BudgetConfig:
-    """Return the configuration with ``source`` switched off."""
+    """
+    Return the configuration with ``source`` switched off.
+
+    ``sky_model`` is replaced by the Rayleigh sky of the same ``dop_max``; ``tilt`` sets
+    ``tilt_max_deg`` to 0; the others drop their sensor keys, atmosphere entry, optics or IMU
+    errors.
+
+    Parameters
+    ----------
+    cfg : BudgetConfig
+        The budget configuration.
+    source : str
+        One of :data:`SOURCES`.
+
+    Returns
+    -------
+    BudgetConfig
+        A new configuration; ``cfg`` is unchanged.
+
+    Raises
+    ------
+    BudgetError
+        When ``source`` is not one of :data:`SOURCES`.
+
+    """
     import dataclasses
 
     s = cfg.scene
@@ -301,14 +378,43 @@ def run_budget(
     cfg: BudgetConfig, progress=None, workers: int | None = 1, scheduler: str | None = None
 ) -> dict:
     """
-    Run the budget and return it as a JSON-able dict (module docstring).
+    Run the budget and return it as a JSON-able dict.
 
-    ``progress(text)`` is called per condition.
+    The Monte Carlo and the paired breakdown by source of the module docstring: one condition with
+    everything declared, then one per declared source without it, on the same samples.
+    ``workers=1`` without ``scheduler`` runs in this process; otherwise (condition, block of
+    samples) tasks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`), each with
+    numba on one thread, giving the same statistics as an in-process run on one numba thread.
 
-    ``workers=1`` without ``scheduler`` (default) runs in this process; otherwise (condition, block
-    of samples) tasks run on Dask distributed (:mod:`~polarization_compass.sweep_dask`: a
-    LocalCluster of ``workers`` processes, None = one per core, or the cluster at ``scheduler``),
-    each with numba on one thread; the same statistics as an in-process run on one numba thread.
+    Parameters
+    ----------
+    cfg : BudgetConfig
+        The budget configuration.
+    progress : callable, optional
+        ``progress(text)``, called with each condition's name (``"all"``, ``"without <source>"``).
+    workers : int or None, default 1
+        Worker processes; 1 (without ``scheduler``) runs in this process, None = one per core on a
+        Dask LocalCluster.
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``"tcp://HOST:PORT"``).
+
+    Returns
+    -------
+    dict
+        ``scene``, ``samples``, ``tilt_max_deg``, ``imu`` (the MountingErrors fields), ``methods``,
+        ``sources``, ``conditions`` (per condition and method: ``count``, ``ok``, ``share_not_ok``,
+        ``rms_deg``, ``p95_deg``, ``max_deg`` of the heading error [deg] over the ok results, None
+        without one; ``sigma_calibration`` = mean(err^2 / sigma^2), ``sigma_count``), ``breakdown``
+        (per method and source: ``rms_without_deg`` and ``contribution_deg`` = ``sqrt(max(0,
+        RMS_all^2 - RMS_without^2))`` [deg]) and ``sampling`` (how frames were drawn).
+
+    Raises
+    ------
+    BudgetError
+        When ``cfg.samples < 1`` or a method name is not registered.
+    ErrorMapError
+        When a Dask run cannot start (Dask missing, scheduler unreachable).
+
     """
     from .estimators import registry
 
@@ -363,8 +469,16 @@ def plot_budget(result: dict, path) -> None:
     """
     Plot one panel per method: total RMS and each source's contribution.
 
-    One panel per method (its own scale): the total RMS and each source's contribution, PNG at
-    ``path``.
+    Horizontal bars, each panel on its own scale, titled with the method's RMS, p95, share not ok
+    and sigma calibration; written as a PNG (matplotlib, Agg backend, 100 dpi).
+
+    Parameters
+    ----------
+    result : dict
+        The result of :func:`run_budget`.
+    path : str or os.PathLike
+        The PNG file to write.
+
     """
     import matplotlib
 

@@ -89,11 +89,33 @@ def _require_distributed():
 
 def start(scheduler: str | None, workers: int | None):
     """
-    Return (client, cluster or None) on a scheduler or a new LocalCluster.
+    Return a Dask client on a scheduler or on a new LocalCluster.
 
-    (client, cluster or None) on the scheduler, or on a new LocalCluster of ``workers``
-    single-threaded processes on 127.0.0.1 (default: one per core; no dashboard). The caller closes
-    both.
+    A new ``distributed.LocalCluster`` has ``workers`` single-threaded processes on 127.0.0.1 (no
+    dashboard); its processes start with one BLAS/OpenMP/numba thread and with SIGINT ignored, so
+    only this client reacts to Ctrl-C. The caller closes both client and cluster.
+
+    Parameters
+    ----------
+    scheduler : str or None
+        Address of an existing scheduler (``"tcp://HOST:PORT"``); None or empty starts a
+        LocalCluster.
+    workers : int or None
+        Worker processes of a new LocalCluster; None: one per core.
+
+    Returns
+    -------
+    client : distributed.Client
+        The client (not set as Dask's default).
+    cluster : distributed.LocalCluster or None
+        The cluster started here, None on an existing scheduler.
+
+    Raises
+    ------
+    ErrorMapError
+        When Dask's ``distributed`` is not installed (the ``sweep`` extra) or the scheduler cannot
+        be reached within 20 s.
+
     """
     import logging
 
@@ -154,8 +176,23 @@ def group_chunks(spec, run: list) -> list[list]:
     """
     Group the chunks ``run`` into tasks of at least :data:`MIN_TASK_ESTIMATES` estimates.
 
-    The chunks ``run`` in consecutive groups of at least :data:`MIN_TASK_ESTIMATES` estimates, at
-    least :data:`MIN_TASKS` groups when there are that many chunks.
+    Consecutive chunks are grouped so that each group holds at least
+    ``min(MIN_TASK_ESTIMATES, total // MIN_TASKS)`` estimates (a chunk holds methods x yaws x the
+    rolls computed at its pitch), which gives at least :data:`MIN_TASKS` groups when there are
+    that many chunks; the last group may be smaller.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep (its methods, yaw axis and tilt mask count the estimates of a chunk).
+    run : list of tuple of int
+        ``(ia, ip)`` indices (sun altitude, pitch) of the chunks to run, in order.
+
+    Returns
+    -------
+    list of list of tuple of int
+        The chunks of ``run`` in consecutive groups, order kept.
+
     """
     mask = spec.tilt_mask()
     per = [len(spec.methods) * spec.yaw_deg.size * int(mask[ip].sum()) for _, ip in run]
@@ -179,12 +216,37 @@ def run_chunks(
     """
     Run the chunks ``run`` of ``spec`` on Dask, accepting each result as it arrives.
 
-    Run the chunks ``run`` ([(ia, ip), ...]) of ``spec`` on Dask; ``accept(*result)`` for each as
-    it arrives.
+    Chunks travel in tasks of :func:`group_chunks`. Closes the client (and the LocalCluster it
+    started) on every exit; cancels the tasks left on an exception or interrupt.
 
-    Chunks travel in tasks of :func:`group_chunks`. ``on_start(n_workers, where, startup_s)`` is
-    called once the cluster is up. Closes the client (and the LocalCluster it started) on every
-    exit; cancels the tasks left on an exception or interrupt. Returns the number of Dask tasks.
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+    run : list of tuple of int
+        ``(ia, ip)`` indices (sun altitude, pitch) of the chunks to compute.
+    accept : callable
+        ``accept(ia, ip, err, status, errors, wall_s, cpu_s, build_cpu_s)``, called in this process
+        for each chunk as it arrives: errors [deg] and statuses of the chunk, the estimators'
+        exceptions, the compute wall and CPU time [s] and the CPU time of building the worker's
+        evaluator [s] (0 once built).
+    on_start : callable or None
+        ``on_start(n_workers, where, startup_s)``, called once the cluster is up.
+    scheduler : str, optional
+        Address of an existing Dask scheduler; default a new LocalCluster (:func:`start`).
+    workers : int, optional
+        Worker processes of a new LocalCluster; default one per core.
+
+    Returns
+    -------
+    int
+        The number of Dask tasks submitted.
+
+    Raises
+    ------
+    ErrorMapError
+        When Dask is missing or the scheduler cannot be reached (:func:`start`).
+
     """
     digest = spec.digest()
     calls = [
@@ -204,11 +266,31 @@ def run_tasks(
     calls: list, on_result, on_start=None, scheduler: str | None = None, workers: int | None = None
 ) -> None:
     """
-    Run ``calls`` ([(key, function, args), ...], the functions importable on the workers) on Dask.
+    Run ``calls`` on Dask, handing each result to ``on_result`` as it arrives.
 
-    ``on_result(key, result)`` is called in this process for each as it arrives (any order);
-    ``on_start(n_workers, where, startup_s)`` once the cluster is up. Closes the client (and the
-    LocalCluster it started) on every exit; cancels what is left on an exception or interrupt.
+    Closes the client (and the LocalCluster it started) on every exit; cancels what is left on an
+    exception or interrupt.
+
+    Parameters
+    ----------
+    calls : list of tuple
+        ``(key, function, args)`` per task; the functions must be importable on the workers and
+        the keys unique.
+    on_result : callable
+        ``on_result(key, result)``, called in this process for each task as it finishes (any
+        order).
+    on_start : callable, optional
+        ``on_start(n_workers, where, startup_s)``, called once the cluster is up.
+    scheduler : str, optional
+        Address of an existing Dask scheduler; default a new LocalCluster (:func:`start`).
+    workers : int, optional
+        Worker processes of a new LocalCluster; default one per core.
+
+    Raises
+    ------
+    ErrorMapError
+        When Dask is missing or the scheduler cannot be reached (:func:`start`).
+
     """
     t0 = time.perf_counter()
     client, cluster = start(scheduler, workers)

@@ -101,6 +101,8 @@ COMPLETED = (
     'runtime.py',
     'radiance.py',
     'atmosphere.py',
+    'sweep_dask.py',
+    'budget.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
