@@ -114,6 +114,12 @@ class StampPairer:
     paired : int
         Arrays paired so far.
 
+    Raises
+    ------
+    ValueError
+        On construction, when ``tolerance_s`` or ``timeout_s`` is negative (or NaN) or
+        ``max_pending`` is below 1.
+
     """
 
     def __init__(self, tolerance_s: float = 0.04, timeout_s: float = 0.5, max_pending: int = 100):

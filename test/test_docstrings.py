@@ -103,6 +103,8 @@ COMPLETED = (
     'atmosphere.py',
     'sweep_dask.py',
     'budget.py',
+    'stamp_pairing.py',
+    'estimators/speed.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
