@@ -389,8 +389,23 @@ def ghost_centres_px(sun_px, centre_px, positions):
     """
     Return the ghost centres (k, 2) px on the line through the sun's image and the centre.
 
-    Ghost centres (k, 2) px on the line through the sun's image point and the optical centre: ``c +
-    t_k (s - c)``.
+    Ghost k is centred on ``c + t_k (s - c)`` (module docstring, "Lens-flare ghosts").
+
+    Parameters
+    ----------
+    sun_px : array_like, shape (2,)
+        The sun's image point s (x, y) [px, 1-based, eq 20 convention].
+    centre_px : array_like, shape (2,)
+        The optical centre c (principal point) (x, y) [px, 1-based].
+    positions : array_like, shape (k,)
+        Ghost positions t_k along c -> s (dimensionless; negative: beyond the centre), e.g.
+        :data:`REAL_FRAME_GHOST_POSITIONS`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, 2), float64
+        Ghost centres (x, y) [px].
+
     """
     s = np.asarray(sun_px, dtype=float)
     c = np.asarray(centre_px, dtype=float)
@@ -402,7 +417,24 @@ class Optics:
     """
     The declared lens effects of a scene.
 
-    The declared lens effects of a scene, applied in the order vignetting (to the sky), sun, flare.
+    Applied in the order vignetting (to the sky), sun, flare (module docstring).
+
+    Parameters
+    ----------
+    cfg : dict
+        A scene's ``optics`` mapping with optional ``sun``, ``flare`` and ``vignetting`` mappings;
+        a missing or None stage is not built.
+    camera : CameraModel
+        The scene's :class:`~polarization_compass.camera.CameraModel` (projection, principal
+        point, image size).
+
+    Raises
+    ------
+    OpticsError
+        ``cfg`` or a stage is not a mapping, has an unknown key, a value is not a number or out of
+        its range, the vignetting gives neither or both of ``law`` and ``k``, or its polynomial is
+        not positive inside the image.
+
     """
 
     def __init__(self, cfg: dict, camera):
@@ -457,16 +489,39 @@ class Optics:
 
     @property
     def stages(self) -> list[str]:
+        """Return the names of the declared stages in the order they are applied."""
         return [n for n in ('vignetting', 'sun', 'flare') if getattr(self, n) is not None]
 
     def params(self) -> dict:
+        """
+        Return the parameters of each declared stage, defaults filled in.
+
+        Returns
+        -------
+        dict
+            Stage name -> a copy of that stage's parameter mapping.
+
+        """
         return {n: dict(getattr(self, n)) for n in self.stages}
 
     def sun_px(self, sun_cam):
         """
         Return the sun's image point (x, y) px, or None outside the lens' field.
 
-        The sun's image point (x, y) px, or None when it does not project into the lens' field.
+        The sun projects when its ray is in front of a pinhole camera (z > 1e-6) or inside a
+        fisheye's ``max_field_angle_deg``.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Unit sun vector in the camera frame.
+
+        Returns
+        -------
+        tuple of float or None
+            (x, y) [px, 1-based, eq 20 convention], possibly outside the image bounds; None when
+            the sun does not project into the lens' field.
+
         """
         s = np.asarray(sun_cam, dtype=float).reshape(3, 1)
         cam = self.camera
@@ -482,11 +537,36 @@ class Optics:
         """
         Apply the declared lens effects to the flat arrays in place.
 
-        The declared lens effects on the flat arrays (in place; intensity float32 writable); each
-        declared stage is counted. ``x_px``/``y_px``: the pixels' 1-based coordinates in the
-        selection's shape. A block of pixels (the product of its columns and rows: full, region,
-        stride, grid) runs one fused vignetting + sun pass and then the ghosts over their bounding
-        boxes only; scattered pixels run one fused pass with flat coordinates.
+        Vignetting multiplies the radiance; the sun, its glare and the ghosts add unpolarized light
+        G, so the DoP becomes ``DoP I / (I + G)`` and the AoP is unchanged (module docstring).
+        Each declared stage is counted. A block of pixels (the product of its columns and rows:
+        full, region, stride, grid) runs one fused vignetting + sun pass and then the ghosts over
+        their bounding boxes only; scattered pixels run one fused pass with flat coordinates.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Sun direction in the camera frame (normalised here).
+        rays_cam : array_like, shape (3, N)
+            Unit viewing rays of the pixels in the camera frame (converted to contiguous float32).
+        x_px, y_px : numpy.ndarray
+            The pixels' 1-based column and row coordinates [px] (eq 20), in the selection's shape.
+        aop : numpy.ndarray, shape (N,), float32
+            Angle of polarization [rad]; not changed (unpolarized light keeps the AoP).
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization [0, 1]; modified in place.
+        intensity : numpy.ndarray, shape (N,), float32
+            Writable radiance relative to the clear zenith; modified in place.
+        instr : module or object
+            Instrumentation with a ``count(name)`` function, normally
+            :mod:`polarization_compass.instrumentation`.
+
+        References
+        ----------
+        .. [1] CIE 135/1-1999 (Stiles-Holladay disability glare; Vos and van den Berg).
+        .. [2] D. B. Goldman, "Vignette and exposure calibration and compensation", IEEE TPAMI 32,
+           2010.
+
         """
         f32 = np.float32
         vig_mode, ks = 0, (0.0, 0.0, 0.0)

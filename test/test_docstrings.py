@@ -105,6 +105,7 @@ COMPLETED = (
     'budget.py',
     'stamp_pairing.py',
     'estimators/speed.py',
+    'optics.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
