@@ -135,7 +135,28 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def _parse_knobs(items) -> dict:
+def parse_knobs(items) -> dict:
+    """
+    Read ``--knob NAME=VALUE`` options (values as YAML scalars) into a dict.
+
+    Shared by ``estimate`` and ``estimate-array``; the estimator validates names and ranges.
+
+    Parameters
+    ----------
+    items : list of str
+        The option values as given.
+
+    Returns
+    -------
+    dict
+        Knob name to value.
+
+    Raises
+    ------
+    CompassError
+        An item without ``=`` or a value YAML cannot read.
+
+    """
     import yaml
 
     out = {}
@@ -256,7 +277,7 @@ def run(args) -> int:
     if args.stride is not None and not (1 <= args.stride <= 1024):
         raise CompassError(f'--stride must be in [1, 1024], got {args.stride}')
     methods = _methods(args.method)
-    knobs = _parse_knobs(args.knob)
+    knobs = parse_knobs(args.knob)
     from ..real_input import load_polarization_input
 
     inp = load_polarization_input(args.frame, args.bits)

@@ -26,7 +26,6 @@ import math
 import sys
 
 from ._checks import check_range, check_together
-from ..errors import CompassError
 
 
 def register(sub):
@@ -65,21 +64,6 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-def parse_knobs(items) -> dict:
-    import yaml
-
-    out = {}
-    for it in items:
-        if '=' not in it:
-            raise CompassError(f'--knob must be NAME=VALUE, got {it!r}')
-        k, v = it.split('=', 1)
-        try:
-            out[k.strip()] = yaml.safe_load(v)
-        except yaml.YAMLError:
-            raise CompassError(f'--knob {k}: cannot read value {v!r}') from None
-    return out
-
-
 def sun_per_sample(time_iso: str, t_offset_s, n: int, lat: float, lon: float):
     """
     Return the sun azimuth/altitude (deg) per sample.
@@ -102,6 +86,7 @@ def _fmt(v, digits=4):
 
 
 def run(args) -> int:
+    from .cmd_estimate import parse_knobs
     from ..photodiode.geometry import load_array_geometry
     from ..photodiode.heading import estimate_recording, make_array_estimator
     from ..photodiode.readings import load_array_recording
