@@ -471,9 +471,7 @@ def R_enu_cam_from_attitude(bearing_deg, pitch_deg, roll_deg):
        Polarized Skylight Orientation Determination" (the seed paper), eq 21.
 
     """
-    return (rot_z(-np.radians(bearing_deg)) @ rot_x(np.radians(pitch_deg))) @ rot_y(
-        np.radians(roll_deg)
-    )
+    return R_sun_cam_from_attitude(bearing_deg, pitch_deg, roll_deg)  # eq 21, yaw = bearing
 
 
 @dataclass(frozen=True)

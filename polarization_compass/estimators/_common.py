@@ -186,6 +186,10 @@ class KnobbedEstimator:
     KNOB_DEFAULTS: dict = {}  # overrides of common defaults
     NO_KNOBS: tuple = ()  # common knobs a method does not have
 
+    def __init__(self, **knobs):
+        super().__init__(**knobs)
+        self.knobs = self._validate_knobs(knobs)
+
     @classmethod
     def knob_specs(cls) -> dict:
         specs = {k: v for k, v in COMMON_KNOBS.items() if k not in cls.NO_KNOBS}

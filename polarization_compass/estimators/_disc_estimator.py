@@ -124,10 +124,6 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     axial = True
     KNOB_DEFAULTS = {'stride': 8, 'min_dop': 0.02}
 
-    def __init__(self, **knobs):
-        super().__init__(**knobs)
-        self.knobs = self._validate_knobs(knobs)
-
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
         """
         Tell a renderer which pixels the method reads, so sweeps render only those.

@@ -368,10 +368,6 @@ class _LSBase(KnobbedEstimator, Estimator):
     }
     level_with_tilt = False
 
-    def __init__(self, **knobs):
-        super().__init__(**knobs)
-        self.knobs = self._validate_knobs(knobs)
-
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
         """
         Tell a renderer which pixels the method reads, so sweeps render only those.

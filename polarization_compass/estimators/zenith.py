@@ -384,10 +384,6 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
     KNOB_DEFAULTS = {'min_pixels': 4, 'block_px': 4, 'min_dop': 0.0}
     NO_KNOBS = ('stride', 'region')  # it reads its window, every pixel
 
-    def __init__(self, **knobs):
-        super().__init__(**knobs)
-        self.knobs = self._validate_knobs(knobs)
-
     def pixels_needed(self, camera: CameraModel) -> PixelSelection:
         """
         Tell a renderer which pixels the method reads, so sweeps render only those.
