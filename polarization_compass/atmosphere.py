@@ -26,6 +26,7 @@ constructed and costs nothing -- each stage that runs is counted in
       skyline: {elevation_deg: [8, 12, 3, 0, ...]}   # equally spaced azimuths, clockwise from N
                | {max_elevation_deg: 15, features: 24}  # a seeded random skyline
                (+ ground_radiance: 0.2)
+      ground:  {albedo: 0.2, specular: {fraction: 0.5, refractive_index: 1.33}}
 
 All stages act on the clear-sky arrays (AoP, DoP, valid, relative radiance) the sky and radiance
 models produced, per pixel, in the selection's pixel order. Randomness (the cloud field, a random
@@ -74,6 +75,14 @@ periodic interpolation between equally spaced azimuths from North, clockwise), e
 seeded random one (``features`` random heights in [0, ``max_elevation_deg``]). Pixels looking below
 it see the obstacle or the ground: invalid, DoP 0, radiance ``ground_radiance`` (a diffuse,
 unpolarized reflector, relative to the clear zenith).
+
+Ground
+------
+Below the geometric horizon (ray elevation < 0) a declared ``ground`` replaces that: a Lambertian
+reflector of ``albedo`` lit by the sky dome plus an optional smooth dielectric's Fresnel reflection
+of the sky from the mirror direction (:mod:`polarization_compass.ground`, which has the model and
+its references). The pixels stay invalid (not sky) but show the reflection's radiance, DoP and AoP.
+The obstacles of the skyline stay opaque above the horizon, and are reflected like the sky.
 
 """
 
@@ -880,13 +889,13 @@ class Skyline:
 # all
 class Atmosphere:
     """
-    The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline.
+    The declared atmosphere stages of a scene, applied in the order haze, clouds, skyline, ground.
 
     Parameters
     ----------
     cfg : dict
-        A scene's ``atmosphere`` mapping with optional ``clouds``, ``haze`` and ``skyline``
-        mappings (module docstring); a missing or None stage is not built.
+        A scene's ``atmosphere`` mapping with optional ``clouds``, ``haze``, ``skyline`` and
+        ``ground`` mappings (module docstring); a missing or None stage is not built.
     seed : int, default 0
         The scene's seed; the cloud field and a random skyline derive from it.
 
@@ -898,8 +907,8 @@ class Atmosphere:
     """
 
     def __init__(self, cfg: dict, seed: int = 0):
-        _keys(cfg, {'clouds', 'haze', 'skyline'}, '')
-        self.clouds = self.haze = self.skyline = None
+        _keys(cfg, {'clouds', 'haze', 'skyline', 'ground'}, '')
+        self.clouds = self.haze = self.skyline = self.ground = None
         if cfg.get('haze') is not None:
             h = cfg['haze']
             _keys(h, {'turbidity'}, 'haze')
@@ -926,11 +935,22 @@ class Atmosphere:
                 s, {'elevation_deg', 'max_elevation_deg', 'features', 'ground_radiance'}, 'skyline'
             )
             self.skyline = Skyline(**s, seed=seed)
+        if cfg.get('ground') is not None:
+            from .ground import Ground, GroundError
+
+            g = cfg['ground']
+            _keys(g, {'albedo', 'specular'}, 'ground')
+            try:
+                self.ground = Ground(**g)
+            except GroundError as exc:
+                raise AtmosphereError(str(exc)) from None
 
     @property
     def stages(self) -> list[str]:
         """Return the names of the declared stages in the order they are applied."""
-        return [n for n in ('haze', 'clouds', 'skyline') if getattr(self, n) is not None]
+        return [
+            n for n in ('haze', 'clouds', 'skyline', 'ground') if getattr(self, n) is not None
+        ]
 
     def params(self) -> dict:
         """
@@ -956,6 +976,8 @@ class Atmosphere:
         dt_s: float,
         instr,
         block_shape=None,
+        sky_at=None,
+        has_ray=None,
     ):
         """
         Apply the declared stages to flat clear-sky arrays.
@@ -987,6 +1009,12 @@ class Atmosphere:
         block_shape : tuple of int or None, default None
             (H, W) when the pixels are a contiguous block in row-major order (see
             :meth:`CloudLayer.apply`), else None.
+        sky_at : callable or None, default None
+            ``sky_at(rays_cam) -> (aop, dop, radiance)``: the clear sky (and base radiance, as
+            ``intensity`` got it) along other (3, M) float32 camera-frame rays, every ray valid;
+            needed by a declared ``ground`` (the sky it reflects), unused otherwise.
+        has_ray : numpy.ndarray, shape (N,), bool, or None, default None
+            False for pixels the lens does not see through (the ground leaves them alone).
 
         Returns
         -------
@@ -1010,4 +1038,39 @@ class Atmosphere:
         if self.skyline is not None:
             with instr.stage('atmosphere.skyline'):
                 self.skyline.apply(R_enu_cam, rays, aop, dop, intensity, valid)
+        if self.ground is not None:
+            if sky_at is None:
+                raise AtmosphereError('atmosphere.ground needs the sky along the mirror rays')
+            with instr.stage('atmosphere.ground'):
+                self.ground.apply(
+                    R_enu_cam,
+                    rays,
+                    has_ray,
+                    aop,
+                    dop,
+                    intensity,
+                    valid,
+                    self._seen_sky(R_enu_cam, sky_at, dt_s),
+                )
         return aop, dop, valid, intensity
+
+    def _seen_sky(self, R_enu_cam, sky_at, dt_s):
+        """
+        Wrap ``sky_at`` with the declared haze, clouds and skyline (what the ground reflects).
+
+        The clouds are evaluated per ray (no grid) and nothing is invalidated (min_dop 0).
+        """
+
+        def seen(rays_cam):
+            r = np.ascontiguousarray(rays_cam, dtype=np.float32)
+            aop, dop, inten = sky_at(r)
+            ok = np.ones(r.shape[1], np.bool_)
+            if self.haze is not None:
+                self.haze.apply(dop, ok, aop, 0.0)
+            if self.clouds is not None:
+                self.clouds.apply(R_enu_cam, r, aop, dop, inten, ok, 0.0, dt_s, None)
+            if self.skyline is not None:
+                self.skyline.apply(R_enu_cam, r, aop, dop, inten, ok)
+            return aop, dop, inten
+
+        return seen

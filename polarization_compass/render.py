@@ -68,7 +68,8 @@ class SunDirection:
 @dataclass
 class Frame:
     """
-    One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0.
+    One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0, except
+    the ground of a declared ``atmosphere.ground`` (invalid, but showing its reflection).
 
     ``aop_rad``: eq 28 convention, [-pi/2, pi/2), float32. ``dop``: [0, 1], float32. ``valid``:
     bool. ``intensity``: relative radiance (float32) when the scene declares one. ``mosaic``: raw
@@ -422,6 +423,12 @@ class Renderer:
             if (sel.mode in ('full', 'region') and sel.stride == 1 and len(self.pixels.shape) == 2)
             else None
         )
+        ground = {}
+        if self.atmosphere.ground is not None:
+            ground = {
+                'sky_at': self._clear_sky_at(sun_cam, zenith_cam),
+                'has_ray': None if self._all_have_rays else self.pixels.has_ray.reshape(-1),
+            }
         return self.atmosphere.apply(
             R,
             self.pixels.rays_cam,
@@ -433,7 +440,28 @@ class Renderer:
             dt_s,
             instr,
             block,
+            **ground,
         )
+
+    def _clear_sky_at(self, sun_cam, zenith_cam):
+        """
+        Return ``sky_at(rays) -> (aop, dop, radiance)``: the clear sky along any camera-frame rays.
+
+        No validity limits; the radiance as :meth:`_atmosphere` starts from it (the radiance
+        model, else haze's Preetham sky, else 1). What a declared ground reflects.
+        """
+
+        def sky_at(rays):
+            aop, dop, _ = self.sky.polarization(sun_cam, zenith_cam, rays)
+            if self.radiance is not None:
+                inten = self.radiance.radiance(sun_cam, zenith_cam, rays)
+            elif self.atmosphere.haze is not None:
+                inten = self.atmosphere.haze.radiance_model.radiance(sun_cam, zenith_cam, rays)
+            else:
+                inten = np.ones(aop.shape, np.float32)
+            return aop, dop, np.array(inten, dtype=np.float32)
+
+        return sky_at
 
     def render_sky(self, sun_cam, zenith_cam):
         """
