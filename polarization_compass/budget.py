@@ -32,6 +32,7 @@ The breakdown by source repeats the run with one declared source switched off, o
 contribution ``sqrt(max(0, RMS_all^2 - RMS_without^2))`` (deg; sources are not independent, so
 contributions need not add up to the total). Sources: ``noise`` (sensor shot/read noise,
 quantisation), ``calibration`` (DoFP calibration errors), ``clouds``, ``haze``, ``skyline``,
+``ground`` (the reflection below the horizon, which only methods without validity masks see),
 ``optics`` (sun glare, flare, vignetting), ``sky_model`` (a non-Rayleigh sky against the Rayleigh
 one the estimators assume, same DoP_max), ``tilt`` (the camera level instead), ``imu`` (noise,
 bias, time offset) and ``boresight``.
@@ -66,6 +67,7 @@ SOURCES = (
     'clouds',
     'haze',
     'skyline',
+    'ground',
     'optics',
     'sky_model',
     'tilt',
@@ -175,8 +177,8 @@ def declared_sources(cfg: BudgetConfig) -> list[str]:
     -------
     list of str
         The names of :data:`SOURCES` that are switched on: sensor noise keys, DoFP calibration,
-        clouds, haze, skyline, optics, a non-Rayleigh sky model, ``tilt_max_deg > 0``, IMU errors,
-        boresight errors.
+        clouds, haze, skyline, ground, optics, a non-Rayleigh sky model, ``tilt_max_deg > 0``,
+        IMU errors, boresight errors.
 
     """
     s = cfg.scene
@@ -187,6 +189,7 @@ def declared_sources(cfg: BudgetConfig) -> list[str]:
         'clouds': atm.get('clouds') is not None,
         'haze': atm.get('haze') is not None,
         'skyline': atm.get('skyline') is not None,
+        'ground': atm.get('ground') is not None,
         'optics': bool(s.optics),
         'sky_model': (s.sky or {}).get('model', 'rayleigh') != 'rayleigh',
         'tilt': cfg.tilt_max_deg > 0,
@@ -234,7 +237,7 @@ def without(cfg: BudgetConfig, source: str) -> BudgetConfig:
         return dataclasses.replace(
             cfg, scene=s.replace(sensor={k: v for k, v in s.sensor.items() if k != 'calibration'})
         )
-    if source in ('clouds', 'haze', 'skyline'):
+    if source in ('clouds', 'haze', 'skyline', 'ground'):
         atm = {k: v for k, v in (s.atmosphere or {}).items() if k != source}
         return dataclasses.replace(cfg, scene=s.replace(atmosphere=atm or None))
     if source == 'optics':

@@ -106,6 +106,7 @@ COMPLETED = (
     'stamp_pairing.py',
     'estimators/speed.py',
     'optics.py',
+    'ground.py',
 )
 
 #: Private classes whose public methods are the documented ``estimate`` of public estimators
