@@ -1025,6 +1025,11 @@ class Atmosphere:
         intensity : numpy.ndarray, shape (N,), float32
             The same array, after the stages.
 
+        Raises
+        ------
+        AtmosphereError
+            A declared ``ground`` without ``sky_at``.
+
         """
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         if self.haze is not None:

@@ -68,8 +68,9 @@ class SunDirection:
 @dataclass
 class Frame:
     """
-    One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0, except
-    the ground of a declared ``atmosphere.ground`` (invalid, but showing its reflection).
+    One rendered frame. Images have ``pixels.shape``; invalid pixels hold aop = dop = 0.
+
+    Except the ground of a declared ``atmosphere.ground``: invalid, but showing its reflection.
 
     ``aop_rad``: eq 28 convention, [-pi/2, pi/2), float32. ``dop``: [0, 1], float32. ``valid``:
     bool. ``intensity``: relative radiance (float32) when the scene declares one. ``mosaic``: raw
