@@ -72,7 +72,7 @@ from numba import njit, prange
 import numpy as np
 
 from .errors import CompassError
-from .fastmath import axial_atan2_f32
+from .fastmath import axial_atan2_f32, FM, sincos_folded
 
 __all__ = [
     'GroundError',
@@ -215,15 +215,7 @@ def _hemisphere_enu() -> np.ndarray:
     return np.stack([e, n, u])
 
 
-@njit(cache=True)
-def _unit(x, y, z):  # pragma: no cover - compiled
-    r = math.sqrt(x * x + y * y + z * z)
-    if r <= 0.0:
-        return 0.0, 0.0, 0.0
-    return x / r, y / r, z / r
-
-
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, fastmath=FM)
 def _ground_kernel(
     idx,
     d_rays,
@@ -231,6 +223,9 @@ def _ground_kernel(
     zx,
     zy,
     zz,
+    fx,
+    fy,
+    fz,
     aop_m,
     dop_m,
     inten_m,
@@ -246,9 +241,11 @@ def _ground_kernel(
     Write the ground's Stokes vector as AoP/DoP/radiance at the pixels ``idx`` (float64 inside).
 
     The sky seen along m_rays[:, k] (AoP eq 28, DoP, radiance) is reflected by the Fresnel Mueller
-    matrix in the s/p basis of the plane of incidence (s = z x d) and added, weighted by frac, to
-    the unpolarized diffuse radiance.
+    matrix in the s/p basis of the plane of incidence (s = z x d; (fx, fy, fz), a horizontal unit
+    vector, at the nadir) and added, weighted by frac, to the unpolarized diffuse radiance.
+    Branch-free (selects) apart from the pixel loop.
     """
+    inv_n2 = 1.0 / (n * n)
     for k in prange(idx.size):
         i = idx[k]
         dx = float(d_rays[0, k])
@@ -257,58 +254,54 @@ def _ground_kernel(
         mx = float(m_rays[0, k])
         my = float(m_rays[1, k])
         mz = float(m_rays[2, k])
-        cos_i = -(zx * dx + zy * dy + zz * dz)
-        cos_i = min(max(cos_i, 0.0), 1.0)
-        # s: perpendicular to the plane of incidence (horizontal); at nadir any horizontal axis
-        sx, sy, sz = _unit(zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx)
-        if (sx == 0.0 and sy == 0.0 and sz == 0.0) or cos_i > 1.0 - 1e-12:
-            if abs(zx) < 0.9:
-                sx, sy, sz = _unit(0.0, zz, -zy)  # z x (1, 0, 0)
-            else:
-                sx, sy, sz = _unit(-zz, 0.0, zx)  # z x (0, 1, 0)
+        cos_i = min(max(-(zx * dx + zy * dy + zz * dz), 0.0), 1.0)
+        # s: perpendicular to the plane of incidence (horizontal); at the nadir any horizontal axis
+        ax = zy * dz - zz * dy
+        ay = zz * dx - zx * dz
+        az = zx * dy - zy * dx
+        l2 = ax * ax + ay * ay + az * az
+        ok = l2 > 1e-24
+        inv = 1.0 / math.sqrt(l2 if ok else 1.0)
+        sx = ax * inv if ok else fx
+        sy = ay * inv if ok else fy
+        sz = az * inv if ok else fz
         # p axes with the same component along the surface: p_m = s x m, p_d = d x s
-        pmx, pmy, pmz = _unit(sy * mz - sz * my, sz * mx - sx * mz, sx * my - sy * mx)
-        pdx, pdy, pdz = _unit(dy * sz - dz * sy, dz * sx - dx * sz, dx * sy - dy * sx)
+        pmx = sy * mz - sz * my
+        pmy = sz * mx - sx * mz
+        pmz = sx * my - sy * mx
+        pdx = dy * sz - dz * sy
+        pdy = dz * sx - dx * sz
+        # the sky's E-vector at m, lifted from its eq 28 AoP (conventions.evector_cam_from_aop;
+        # its sign and length do not matter)
+        sa, ca = sincos_folded(float(aop_m[k]))
+        ex = mz * sa
+        ey = mz * ca
+        ez = -(mx * sa + my * ca)
+        c = ex * sx + ey * sy + ez * sz
+        w = ex * pmx + ey * pmy + ez * pmz
+        nrm = c * c + w * w
         ii = float(inten_m[k])
-        spec_i = 0.0
-        spec_q = 0.0
-        spec_u = 0.0
-        if frac > 0.0:
-            # the sky's E-vector at m, lifted from its eq 28 AoP (conventions.evector_cam_from_aop)
-            a = float(aop_m[k])
-            sa = math.sin(a)
-            ca = math.cos(a)
-            ex, ey, ez = _unit(mz * sa, mz * ca, -(mx * sa + my * ca))
-            c = ex * sx + ey * sy + ez * sz
-            w = ex * pmx + ey * pmy + ez * pmz
-            nrm = c * c + w * w
-            p = float(dop_m[k]) * ii
-            q = p * (c * c - w * w) / nrm if nrm > 0.0 else 0.0
-            u = p * (2.0 * c * w) / nrm if nrm > 0.0 else 0.0
-            # Fresnel (fresnel_amplitudes), inlined
-            ct = math.sqrt(1.0 - (1.0 - cos_i * cos_i) / (n * n))
-            rs = (cos_i - n * ct) / (cos_i + n * ct)
-            rp = (ct - n * cos_i) / (n * cos_i + ct)
-            a0 = 0.5 * (rs * rs + rp * rp)
-            b0 = 0.5 * (rs * rs - rp * rp)
-            spec_i = frac * (a0 * ii + b0 * q)
-            spec_q = frac * (b0 * ii + a0 * q)
-            spec_u = frac * (rs * rp * u)
-        tot = diffuse + spec_i
-        pol = math.sqrt(spec_q * spec_q + spec_u * spec_u)
+        p = float(dop_m[k]) * ii / (nrm if nrm > 0.0 else 1.0)
+        q = p * (c * c - w * w)
+        u = p * (2.0 * c * w)
+        # Fresnel (fresnel_amplitudes), inlined
+        ct = math.sqrt(1.0 - (1.0 - cos_i * cos_i) * inv_n2)
+        rs = (cos_i - n * ct) / (cos_i + n * ct)
+        rp = (ct - n * cos_i) / (n * cos_i + ct)
+        a0 = 0.5 * (rs * rs + rp * rp)
+        b0 = 0.5 * (rs * rs - rp * rp)
+        tot = diffuse + frac * (a0 * ii + b0 * q)
+        sq = frac * (b0 * ii + a0 * q)
+        su = frac * (rs * rp * u)
+        pol = math.sqrt(sq * sq + su * su)
+        # E-vector at chi = atan2(U, Q)/2 from s towards p_d, by the half-angle formulas
+        hc = math.sqrt(max(pol + sq, 0.0))
+        hs = math.sqrt(max(pol - sq, 0.0))
+        hs = hs if su >= 0.0 else -hs
         valid[i] = False
         inten[i] = np.float32(tot)
-        if pol > 0.0 and tot > 0.0:
-            dop[i] = np.float32(min(pol / tot, 1.0))
-            chi = 0.5 * math.atan2(spec_u, spec_q)  # E-vector from s towards p_d
-            cc = math.cos(chi)
-            sc = math.sin(chi)
-            aop[i] = axial_atan2_f32(
-                np.float32(cc * sx + sc * pdx), np.float32(cc * sy + sc * pdy)
-            )
-        else:
-            dop[i] = np.float32(0.0)
-            aop[i] = np.float32(0.0)
+        dop[i] = np.float32(min(pol / tot, 1.0) if tot > 0.0 else 0.0)
+        aop[i] = axial_atan2_f32(np.float32(hc * sx + hs * pdx), np.float32(hc * sy + hs * pdy))
 
 
 class Ground:
@@ -447,10 +440,16 @@ class Ground:
         diffuse = (1.0 - self.fraction) * self.albedo
         if diffuse > 0.0:
             diffuse *= self.dome_radiance(R, sky_at)
-        if self.fraction > 0.0:
-            aop_m, dop_m, inten_m = sky_at(m)
-        else:
-            aop_m = dop_m = inten_m = np.zeros(idx.size, np.float32)
+        if self.fraction <= 0.0:  # unpolarized
+            valid[idx] = False
+            intensity[idx] = np.float32(diffuse)
+            aop[idx] = 0.0
+            dop[idx] = 0.0
+            return int(idx.size)
+        aop_m, dop_m, inten_m = sky_at(m)
+        # a horizontal axis for the nadir pixel: z x (1, 0, 0), or z x (0, 1, 0) if z is near x
+        f = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+        f /= np.linalg.norm(f)
         _ground_kernel(
             idx,
             d,
@@ -458,6 +457,9 @@ class Ground:
             float(z[0]),
             float(z[1]),
             float(z[2]),
+            float(f[0]),
+            float(f[1]),
+            float(f[2]),
             np.ascontiguousarray(aop_m, dtype=np.float32),
             np.ascontiguousarray(dop_m, dtype=np.float32),
             np.ascontiguousarray(inten_m, dtype=np.float32),

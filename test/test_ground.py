@@ -397,3 +397,16 @@ def test_a_camera_that_sees_no_ground_is_unchanged():
 def test_bad_ground_is_a_one_line_scene_error(ground, word):
     with pytest.raises(SceneError, match=word):
         scene_from_dict({'atmosphere': {'ground': ground}})
+
+
+def test_the_example_lake_scene_shows_polarized_water_below_the_tree_line():
+    from pathlib import Path
+
+    from polarization_compass.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / 'config/scenes/lake_fisheye.yaml')
+    f = Renderer(scene.replace(pixels=PixelSelection.grid(160, 128))).render()
+    r, R, g = geometry(f)
+    assert g.sum() > 500 and not f.valid.reshape(-1)[g].any()
+    assert np.median(f.dop.reshape(-1)[g]) > 0.05  # the water's reflection is polarized
+    assert declared_sources(BudgetConfig(scene=scene)) == ['skyline', 'ground']
