@@ -32,7 +32,7 @@ def register(sub):
         help='heading-error budget of a scene: per method RMS/p95/max, share not ok, '
         "sigma calibration, and each declared effect's contribution",
         description='Monte Carlo over the effects a scene declares (sensor noise and calibration, '
-        'clouds, haze, skyline, lens optics, sky model) plus tilt and IMU/mounting '
+        'clouds, haze, skyline, ground, lens optics, sky model) plus tilt and IMU/mounting '
         'errors; each source is switched off in turn on the same samples to give its '
         'contribution. Writes budget.json and budget.png to --out.',
     )
