@@ -110,7 +110,7 @@ def test_fresnel_amplitudes_are_born_and_wolf_sine_and_tangent_forms():
 
 
 def test_published_reflectances_of_glass():
-    """n = 1.5: 4 % at normal incidence; R_s = 9.2 %, R_p = 0.85 % at 45 deg (Hecht, Optics)."""
+    """Glass, n = 1.5: 4 % at normal incidence; R_s = 9.2 %, R_p = 0.85 % at 45 deg (Hecht)."""
     r_s, r_p = fresnel_amplitudes(1.0, 1.5)
     assert r_s**2 == pytest.approx(0.04, abs=1e-12) and r_p**2 == pytest.approx(0.04, abs=1e-12)
     r_s, r_p = fresnel_amplitudes(math.cos(math.radians(45.0)), 1.5)
