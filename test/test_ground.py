@@ -57,11 +57,11 @@ WATER = {'albedo': 0.0, 'specular': {'fraction': 1.0, 'refractive_index': 1.33}}
 OVERCAST = {'coverage': 1.0, 'optical_thickness': 25.0, 'brightness': 1.7}
 
 
-def render(atmosphere, camera=FISHEYE_180, att=(0, 0, 0), pixels=None, sun=SUN, **kw):
+def render(atmosphere, camera=FISHEYE_180, att=(0, 0, 0), pixels=None, sun=SUN, sky=None, **kw):
     scene = Scene(
         pixels=pixels or PixelSelection.full(),
         camera=camera,
-        sky={'model': 'rayleigh', 'dop_max': 0.8},
+        sky=sky or {'model': 'rayleigh', 'dop_max': 0.8},
         atmosphere=atmosphere,
         **kw,
     )
@@ -165,6 +165,34 @@ def test_unpolarized_sky_reflected_by_water_dop_vs_incidence_and_brewster():
     assert b.sum() > 50
     assert dop[b].min() > 0.999
     assert not f.valid.reshape(-1)[g].any()  # ground is never sky
+
+
+@pytest.mark.parametrize(
+    'sky',
+    [
+        {'model': 'rayleigh', 'dop_max': 0.8},
+        {'model': 'berry_dennis_lee', 'separation_deg': 18.0, 'dop_max': 0.75},
+    ],
+)
+def test_at_brewster_any_polarized_sky_is_reflected_fully_s_polarized(sky):
+    """
+    R_p = 0 at Brewster's angle: whatever the sky's polarization there, only E along s is left.
+
+    Off Brewster by x the sky's U leaks in through r_s r_p ~ x: the E-vector turns away from the
+    horizontal by O(x) (about 0.9 deg per deg here), so the bound grows with x.
+    """
+    f = render({'ground': WATER}, sky=sky)
+    r, R, g = geometry(f)
+    theta = np.degrees(np.arccos(np.clip(-r[:, 2], 0.0, 1.0)))
+    off = np.abs(theta - brewster_angle_deg(1.33))
+    b = g & (off < 0.2)
+    assert b.sum() > 50 and (off[b] < 0.02).sum() > 10
+    dop = f.dop.reshape(-1)[b]
+    assert dop.min() > 0.999 and dop.max() <= 1.0
+    d = cv.axial_difference_deg(
+        np.degrees(f.aop_rad.reshape(-1)[b]), np.degrees(horizontal_aop(r[b], R))
+    )
+    assert np.all(np.abs(d) < 0.02 + 1.2 * off[b])
 
 
 def test_a_mirror_at_normal_incidence_keeps_the_zenith_sky_e_vector():
