@@ -127,7 +127,7 @@ def test_shipped_map_is_small_and_documented(shipped):
 
 
 def test_a_regenerated_slice_matches_the_shipped_map(shipped):
-    """Recompute a coarse slice with the sampling recorded in the map's meta: same errors and statuses."""
+    """Recompute a coarse slice with the sampling recorded in the meta: same errors, statuses."""
     methods = list(PAPER_METHODS)
     knobs = {m: shipped.meta['sampling'][m]['knobs'] for m in methods}
     yaw = shipped.yaw_deg[::6]
