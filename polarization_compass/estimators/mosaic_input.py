@@ -27,9 +27,21 @@ of the mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a pr
   blocks inside it. The zenith method's 32 px window is 16 x 16 blocks: nothing else is demosaiced.
 - ``bilinear``: the region (plus a 2-pixel margin, so interpolation sees real neighbours) at full
 resolution, then the stride.
+- a ``list`` or ``grid`` selection (the zenith window plus its whole-sky side grid: ~2000 pixels
+  spread over the sensor) is demosaiced sparsely (:func:`_sparse_plan`): along each axis, the
+  outputs of the full-frame demosaic nearest each wanted coordinate on either side (the superpixel
+  centres, or the bilinear pixels themselves); the observation is their rows x columns. Only the
+  mosaic samples those outputs read are gathered (whole 2 x 2 blocks; for bilinear also the
+  neighbours of the 3 x 3 stencil, in even-aligned pairs so the polarizer phase and the frame-edge
+  mirroring are the full frame's) and go through the same demosaic kernels. Each output is
+  therefore the full-frame demosaic's value at the same pixel, and any nearest-output lookup on the
+  axes finds the pixel it would find in the full-frame observation; the cost scales with the pixels
+  read (zenith: 1.5 ms -> ~0.1 ms for a 2448 x 2048 frame), not with the frame.
 
 Rays come from the camera model and are cached per (camera, pixel grid). The result has 2-D arrays
-on a regular grid, as the estimators' compiled passes want.
+on a grid, as the estimators' compiled passes want: a regular grid, except for a sparse ``list`` /
+``grid`` selection, whose rows and columns are not evenly spaced (the regular parts, e.g. the zenith
+window, stay regular).
 """
 
 from __future__ import annotations
@@ -40,7 +52,7 @@ import math
 import numpy as np
 
 from .base import Observation
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraError, CameraModel, PixelSelection, select_pixels
 from ..demosaic import (
     aop_dop_from_stokes,
     IMX250MZR_LAYOUT,
@@ -104,6 +116,90 @@ def _wanted_rect(selection: PixelSelection | None, x0: int, y0: int, H: int, W: 
     return xl, yl, xh, yh, stride
 
 
+def _sparse_axis(wanted: np.ndarray, start: int, n_samples: int, method: str):
+    """
+    Plan one axis of a sparse demosaic.
+
+    ``wanted``: sensor coordinates (1-based) along the axis; ``start``: the sensor coordinate of the
+    mosaic's first sample; ``n_samples``: the mosaic's length along the axis. Returns (samples:
+    the sample indices to gather, sorted; pick: where the kept outputs sit in the demosaic of the
+    gathered samples, or None for all; coords: the kept outputs' sensor coordinates).
+
+    Kept: for each wanted coordinate, the full-frame demosaic's outputs nearest it on either side
+    (clipped to the mosaic). Superpixel: output ``l`` is samples ``2l, 2l + 1`` at ``start + 2l +
+    0.5``. Bilinear: output ``i`` is at ``start + i`` and reads samples ``i - 1 .. i + 1`` (mirrored
+    at the edges); they are gathered as whole even-aligned pairs, so that in the gathered mosaic
+    every kept output has its full-frame neighbours, the parity of every sample is its full-frame
+    parity, and a kept output at the frame's edge is at the gathered mosaic's edge.
+    """
+    superpixel = method == 'superpixel'
+    n_out = n_samples // 2 if superpixel else n_samples
+    first, step = (start + 0.5, 2.0) if superpixel else (float(start), 1.0)
+    u = (np.asarray(wanted, dtype=float) - first) / step
+    out = np.unique(
+        np.clip(np.concatenate([np.floor(u), np.ceil(u)]), 0, n_out - 1).astype(np.int64)
+    )
+    coords = first + step * out
+    if superpixel:
+        return (2 * out[:, None] + np.arange(2)).reshape(-1), None, coords
+    pairs = np.unique(np.clip(np.concatenate([out - 1, out, out + 1]), 0, n_samples - 1) // 2)
+    samples = (2 * pairs[:, None] + np.arange(2)).reshape(-1)
+    samples = samples[samples < n_samples]
+    return samples, np.searchsorted(samples, out), coords
+
+
+def _wanted_axes(selection: PixelSelection, camera: CameraModel):
+    """Return the sorted distinct sensor columns and rows of a ``list`` or ``grid`` selection."""
+    px = select_pixels(camera, selection)
+    return np.unique(px.x_px), np.unique(px.y_px)
+
+
+@lru_cache(maxsize=16)
+def _sparse_plan(
+    camera: CameraModel, selection: PixelSelection, x0: int, y0: int, H: int, W: int, method: str
+):
+    """
+    Plan the sparse demosaic of a ``list``/``grid`` selection (cached per camera and mosaic).
+
+    (rows, cols: sample indices to gather; pick: (row, column) indices of the kept outputs in the
+    demosaic of the gathered samples, or None for all; x_px, y_px, rays, has_ray of the kept
+    outputs' grid). See :func:`_sparse_axis`.
+    """
+    xs, ys = _wanted_axes(selection, camera)
+    cols, pick_c, gx = _sparse_axis(xs, x0, W, method)
+    rows, pick_r, gy = _sparse_axis(ys, y0, H, method)
+    xg, yg = np.meshgrid(gx, gy)
+    rays, ok = camera.rays_from_pixels(xg, yg)
+    pick = None if pick_r is None else np.ix_(pick_r, pick_c)
+    out = (
+        rows,
+        cols,
+        pick,
+        xg,
+        yg,
+        np.ascontiguousarray(rays.astype(np.float32)),
+        ok.reshape(xg.shape),
+    )
+    for a in (rows, cols, xg, yg, out[5], out[6]):
+        a.setflags(write=False)
+    return out
+
+
+def _gather(m: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """
+    Copy the samples ``rows`` x ``cols`` of mosaic ``m`` into one contiguous mosaic.
+
+    ``cols`` come in even-aligned pairs (except perhaps a last odd column): each pair is copied as
+    one wide element when the dtype allows.
+    """
+    pair = _PAIR.get(m.dtype.itemsize)
+    W = m.shape[1]
+    if pair is not None and W % 2 == 0 and cols.size % 2 == 0 and m.flags.c_contiguous:
+        wide = m.view(pair)  # (H, W // 2)
+        return np.ascontiguousarray(wide[np.ix_(rows, cols[0::2] // 2)]).view(m.dtype)
+    return np.ascontiguousarray(m[np.ix_(rows, cols)])
+
+
 _PAIR = {
     1: np.uint16,
     2: np.uint32,
@@ -158,8 +254,10 @@ def observation_from_mosaic(
     Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.
 
     ``layout`` is the full sensor's (pixel (1, 1) first), so the mosaic's top-left polarizer is
-    ``layout[(y-1) % 2][(x-1) % 2]`` for ``origin_px = (x, y)``. Grid and list selections read
-    everything.
+    ``layout[(y-1) % 2][(x-1) % 2]`` for ``origin_px = (x, y)``. Grid and list selections are
+    demosaiced sparsely: the full-frame demosaic's outputs nearest each wanted column and row, on a
+    grid that is not evenly spaced (see the module docstring); each value equals the full-frame
+    demosaic's at that pixel.
 
     Parameters
     ----------
@@ -224,6 +322,31 @@ def observation_from_mosaic(
     lay = parse_layout(layout, pol45_toward).shifted(
         (y0 - 1) % 2, (x0 - 1) % 2
     )  # the mosaic's own phase
+    if method not in ('superpixel', 'bilinear'):
+        raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
+    if selection is not None and selection.mode in ('list', 'grid'):
+        try:
+            rows, cols, pick, xg, yg, rays, has_ray = _sparse_plan(
+                camera, selection, x0, y0, H, W, method
+            )
+        except CameraError as exc:
+            raise MosaicInputError(f'the pixels wanted: {exc}') from None
+        out = _demosaic(_gather(m, rows, cols), lay, method, saturation_level, with_intensity)
+        if pick is not None:
+            out = tuple(None if a is None else a[pick] for a in out)
+        return _observation(
+            out,
+            xg,
+            yg,
+            rays,
+            has_ray,
+            camera,
+            sun_azimuth_deg,
+            sun_altitude_deg,
+            pitch_deg,
+            roll_deg,
+            prior_bearing_deg,
+        )
     xl, yl, xh, yh, stride = _wanted_rect(selection, x0, y0, H, W)
     if method == 'superpixel':
         # whole blocks of the mosaic's own 2 x 2 lattice inside the wanted rectangle
@@ -249,19 +372,7 @@ def observation_from_mosaic(
         sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
         lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
         gx = gy = None
-    else:
-        raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
-    if with_intensity:
-        s0, s1, s2 = stokes_from_mosaic(
-            sub, lay_sub, lay_sub.pol45_toward, method, saturation_level
-        )
-        aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
-        inten = s0
-    else:
-        aop, dop, valid = polarization_from_mosaic(
-            sub, lay_sub, lay_sub.pol45_toward, method, saturation_level
-        )
-        inten = None
+    aop, dop, valid, inten = _demosaic(sub, lay_sub, method, saturation_level, with_intensity)
     if method == 'bilinear':
         ys = np.arange(cy0, cy1 + 1)
         xs = np.arange(cx0, cx1 + 1)
@@ -275,17 +386,50 @@ def observation_from_mosaic(
         gx = (float(xs[ci[0]]), float(stride), int(ci.size))
         gy = (float(ys[ri[0]]), float(stride), int(ri.size))
     xg, yg, rays, has_ray = _grid_rays(camera, gx, gy)
-    valid = np.ascontiguousarray(valid) & has_ray
+    return _observation(
+        (aop, dop, valid, inten),
+        xg,
+        yg,
+        rays,
+        has_ray,
+        camera,
+        sun_azimuth_deg,
+        sun_altitude_deg,
+        pitch_deg,
+        roll_deg,
+        prior_bearing_deg,
+    )
+
+
+def _demosaic(sub, lay, method, saturation_level, with_intensity):
+    """
+    Demosaic a (sub-)mosaic whose top-left sample has the polarizer phase of ``lay``.
+
+    (aop, dop, valid, intensity or None) by :mod:`polarization_compass.demosaic`.
+    """
+    if with_intensity:
+        s0, s1, s2 = stokes_from_mosaic(sub, lay, lay.pol45_toward, method, saturation_level)
+        aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+        return aop, dop, valid, s0
+    aop, dop, valid = polarization_from_mosaic(sub, lay, lay.pol45_toward, method, saturation_level)
+    return aop, dop, valid, None
+
+
+def _observation(
+    planes, xg, yg, rays, has_ray, camera, sun_az, sun_alt, pitch_deg, roll_deg, prior_bearing_deg
+) -> Observation:
+    """Return the :class:`Observation` of demosaiced planes on the grid ``xg``, ``yg``."""
+    aop, dop, valid, inten = planes
     return Observation(
         np.ascontiguousarray(aop),
         np.ascontiguousarray(dop),
-        valid,
+        np.ascontiguousarray(valid) & has_ray,
         rays,
         xg,
         yg,
         camera,
-        float(sun_azimuth_deg),
-        float(sun_altitude_deg),
+        float(sun_az),
+        float(sun_alt),
         None if inten is None else np.ascontiguousarray(inten),
         pitch_deg,
         roll_deg,
