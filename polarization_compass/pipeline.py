@@ -906,8 +906,8 @@ class HeadingFrontEnd:
         Key this method's observation of a frame, so a replay demosaics once per distinct key.
 
         Equal keys give equal observations: the pixels are the estimator's ``pixels_needed`` (a
-        disc for sm_asm/symmetry, a strided frame for least squares, a window for zenith), plus the
-        demosaic, intensity and layout.
+        disc for sm_asm/symmetry, a strided frame for least squares, a window and side grid for
+        zenith), plus the demosaic, intensity and layout.
 
         Parameters
         ----------
@@ -936,8 +936,8 @@ class HeadingFrontEnd:
         """
         Build the estimator's observation of a full-sensor mosaic.
 
-        Only the pixels the method reads (its ``pixels_needed``: the zenith window, strided
-        superpixels, a region) are demosaiced, by
+        Only the pixels the method reads (its ``pixels_needed``: strided superpixels, a region, or
+        the zenith window and its whole-sky side grid, demosaiced sparsely) are demosaiced, by
         :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`.
 
         Parameters
