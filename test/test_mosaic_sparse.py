@@ -49,7 +49,7 @@ POL45 = '+x-y'
 def _dense(
     mosaic, cam, method, origin=(1, 1), with_intensity=False, sat=None, sun=(10.0, 30.0), **obs_kw
 ):
-    """Whole-frame demosaic as an Observation, built without mosaic_input."""
+    """Demosaic the whole frame into an Observation, without mosaic_input."""
     x0, y0 = origin
     lay = parse_layout(LAYOUT, POL45).shifted((y0 - 1) % 2, (x0 - 1) % 2)
     if with_intensity:
@@ -81,7 +81,7 @@ def _dense(
 
 
 def _nearest_either_side(axis, wanted):
-    """Indices into sorted ``axis`` of the last value <= w and the first >= w, for every w."""
+    """Return the indices into sorted ``axis`` of the last value <= w and the first >= w, all w."""
     keep = set()
     for w in np.unique(wanted):
         below = np.nonzero(axis <= w)[0]
@@ -92,7 +92,7 @@ def _nearest_either_side(axis, wanted):
 
 
 def _wanted(sel, cam):
-    """The wanted columns and rows of a selection, from its definition."""
+    """Return the wanted columns and rows of a selection, from its definition."""
     if sel.mode == 'list':
         x = np.frombuffer(sel.x_list, dtype=np.int32)
         y = np.frombuffer(sel.y_list, dtype=np.int32)
@@ -107,7 +107,7 @@ def _wanted(sel, cam):
 
 def _assert_same_pixels(sparse, dense, sel, cam, dop_ulp=0):
     """
-    The sparse observation holds exactly the dense outputs nearest the wanted pixels.
+    Check that the sparse observation holds exactly the dense outputs nearest the wanted pixels.
 
     ``dop_ulp``: the fused bilinear kernel's DoP of a float (non-integer) mosaic may differ by a
     few float32 ulp with the pixel's place in its row (its ``fastmath`` lets LLVM contract and
@@ -137,7 +137,7 @@ def _assert_same_pixels(sparse, dense, sel, cam, dop_ulp=0):
 
 
 def _same_result(a, b):
-    """Every field equal: floats compared by their shortest round-trip repr, i.e. bitwise."""
+    """Check every field equal: floats by their shortest round-trip repr, i.e. bitwise."""
     assert a.status == b.status and a.reason == b.reason, (a.reason, b.reason)
     assert (a.psi_deg, a.sigma_deg, a.bearing_deg, a.pixels) == (
         b.psi_deg,
@@ -217,7 +217,7 @@ SCENE = load_scene('config/scenes/imx250mzr_noisy.yaml')
 
 @pytest.fixture(scope='module')
 def full_frames():
-    """Full 2448 x 2048 mosaics: ideal (float, no noise), noisy level, noisy tilted."""
+    """Render full 2448 x 2048 mosaics: ideal (float, no noise), noisy level, tilted, low sun."""
     ideal = SCENE.replace(
         sensor={'mosaic': dict(SCENE.sensor['mosaic']), 'demosaic': 'superpixel'}
     )
@@ -237,7 +237,7 @@ def full_frames():
 
 
 def _real_mosaic(stem):
-    """A 12-bit mosaic of a real frame's Stokes planes (I_phi = (S0 + w . (S1, S2)) / 2)."""
+    """Make a 12-bit mosaic of a real frame's Stokes planes (I_phi = (S0 + w . (S1, S2)) / 2)."""
     i, q, u = R.read_quadrants(stem)
     w = parse_layout(LAYOUT, POL45).stokes_weights()
     wi = np.tile(w, (i.shape[0] // 2, i.shape[1] // 2, 1))  # (H, W, 2) per pixel
