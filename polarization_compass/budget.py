@@ -41,6 +41,7 @@ bias, time offset) and ``boresight``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -98,6 +99,16 @@ class BudgetConfig:
         IMU and mounting errors applied to the pitch and roll that tilt-aware methods read.
     methods : tuple of str, default ()
         Method names of the estimator registry to run; empty runs every registered method.
+    correction : {"error_map", "none"}, default "error_map"
+        What the graph's ``tilt_corrector`` does to methods that do not read the tilt: invert
+        their tilt error with the error map at the IMU's (erroneous) pitch and roll, or nothing
+        (their raw tilt error).
+    error_map : str, optional
+        The error map ``.npz``; None = the map shipped with the package.
+    correction_sigma_deg : float, default 0
+        1-sigma of the map's own error for this camera and sky [deg] (interpolation and a map made
+        for another camera), added in quadrature to corrected methods' sigmas, as the node's
+        ``correction_sigma_deg`` parameter.
 
     """
 
@@ -106,6 +117,9 @@ class BudgetConfig:
     tilt_max_deg: float = 0.0
     imu: MountingErrors = MountingErrors()
     methods: tuple = ()
+    correction: str = 'error_map'
+    error_map: str | None = None
+    correction_sigma_deg: float = 0.0
 
 
 def parse_imu(text: str | None) -> MountingErrors:
@@ -311,31 +325,114 @@ def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
         return _condition_part(cfg, samples, methods)
 
 
+@functools.lru_cache(maxsize=4)
+def _error_map(path: str | None):
+    """The error map at ``path`` (None = the shipped one), loaded once per process."""
+    from .correction import default_map_path
+    from .errormap import ErrorMapError
+    from .errormap_io import load_error_map
+
+    try:
+        return load_error_map(default_map_path() if path is None else path)
+    except (ErrorMapError, OSError) as exc:
+        raise BudgetError(f'error map {path or "(shipped)"}: {exc}') from None
+
+
+@functools.lru_cache(maxsize=16)
+def _corrector(path: str | None, method: str):
+    """The TiltCorrector of ``method`` from ``path`` (None = shipped map), once per process."""
+    from .correction import TiltCorrector
+    from .errormap import ErrorMapError
+
+    try:
+        return TiltCorrector(_error_map(path), method)
+    except ErrorMapError as exc:
+        raise BudgetError(f'error map {path or "(shipped)"}: {exc}') from None
+
+
+def corrected_methods(cfg: BudgetConfig, methods) -> list[str]:
+    """
+    Return the methods the budget tilt-corrects with the error map, as the graph's corrector does.
+
+    Parameters
+    ----------
+    cfg : BudgetConfig
+        The budget configuration.
+    methods : sequence of str
+        The methods run.
+
+    Returns
+    -------
+    list of str
+        The methods that do not read the tilt and have errors in the map (none with ``correction
+        "none"``).
+
+    Raises
+    ------
+    BudgetError
+        The map cannot be read or its yaw axis is unusable for correction.
+
+    """
+    from .estimators import registry
+
+    if cfg.correction == 'none':
+        return []
+    have = set(_error_map(cfg.error_map).methods)
+    out = [m for m in methods if not registry.get(m).needs_tilt and m in have]
+    for m in out:
+        _corrector(cfg.error_map, m)  # an unusable yaw axis raises here, not in a worker
+    return out
+
+
 def _condition_part(cfg: BudgetConfig, samples, methods) -> dict:
-    """Per method ([errors], [ok flags], [sigmas]) over ``samples``, in their order."""
+    """
+    Per method ([errors], [ok flags], [sigmas]) over ``samples``, in their order.
+
+    Tilt-aware methods read the IMU's pitch and roll with their stated 1-sigma
+    (:meth:`MountingErrors.tilt_sigma_deg`, propagated by the method); the others are corrected
+    with the error map at that pitch and roll (:meth:`TiltCorrector.correct`), their sigma grown
+    by the propagated attitude uncertainty and ``correction_sigma_deg``; a failed correction is a
+    result that is not ok.
+    """
     from .estimators import registry
     from .estimators.base import Observation
     from .render import Renderer
 
     estimators = {m: registry.make(m) for m in methods}
     needs_tilt = {m: bool(registry.get(m).needs_tilt) for m in methods}
+    fix = {m: _corrector(cfg.error_map, m) for m in corrected_methods(cfg, methods)}
     res = {m: ([], [], []) for m in methods}
     for bearing, p, r, seed, normals in samples:
         att = CameraAttitude(bearing, p * cfg.tilt_max_deg, r * cfg.tilt_max_deg)
         scene = cfg.scene.replace(seed=seed)
         frame = Renderer(scene).render(attitude=att)
         seen = cfg.imu.measured_attitude(att, normals)
+        att_sigma = cfg.imu.tilt_sigma_deg(math.hypot(seen.pitch_deg, seen.roll_deg))
         for m in methods:
             obs = Observation.from_frame(frame, camera=scene.camera)
             if needs_tilt[m]:
                 obs.pitch_deg, obs.roll_deg = seen.pitch_deg, seen.roll_deg
+                obs.attitude_sigma_deg = att_sigma
             out = estimators[m].estimate(obs)
+            psi, sigma, ok = out.psi_deg, out.sigma_deg, bool(out.ok)
+            if ok and m in fix:
+                h = float(frame.sun.altitude_deg)
+                c = fix[m].correct(psi, h, seen.pitch_deg, seen.roll_deg)
+                ok = c.ok
+                if ok:
+                    psi = c.psi_deg
+                    s_att, _ = fix[m].attitude_sigma_deg(
+                        psi, h, seen.pitch_deg, seen.roll_deg, *att_sigma
+                    )
+                    sigma = math.sqrt(
+                        sigma**2 + float(s_att[0]) ** 2 + cfg.correction_sigma_deg**2
+                    )
             errs, oks, sig = res[m]
-            oks.append(bool(out.ok))
-            if out.ok:
-                d = out.psi_deg - frame.psi_deg
+            oks.append(ok)
+            if ok:
+                d = psi - frame.psi_deg
                 errs.append(float(fold_axial_deg(d)) if out.axial else float(wrap_180_deg(d)))
-                sig.append(out.sigma_deg)
+                sig.append(sigma)
     return res
 
 
@@ -427,6 +524,11 @@ def run_budget(
     unknown = [m for m in methods if m not in registry.names()]
     if unknown:
         raise BudgetError(f'unknown method(s) {unknown}; known: {", ".join(registry.names())}')
+    if cfg.correction not in ('error_map', 'none'):
+        raise BudgetError(f"correction must be 'error_map' or 'none', got {cfg.correction!r}")
+    if not (math.isfinite(cfg.correction_sigma_deg) and cfg.correction_sigma_deg >= 0.0):
+        raise BudgetError(f'correction_sigma_deg must be >= 0, got {cfg.correction_sigma_deg}')
+    fixed = corrected_methods(cfg, methods)
     samples = _samples(cfg)
     sources = declared_sources(cfg)
     conds = [('all', cfg)] + [(f'without {s}', without(cfg, s)) for s in sources]
@@ -450,6 +552,18 @@ def run_budget(
             b[s] = {'rms_without_deg': w, 'contribution_deg': contrib}
         breakdown[m] = b
     imu = {k: getattr(cfg.imu, k) for k in MountingErrors.FIELDS}
+    correction = {'mode': cfg.correction, 'methods': fixed}
+    if fixed:
+        meta = _error_map(cfg.error_map).meta
+        map_cam = (meta.get('scene') or {}).get('camera') if isinstance(meta, dict) else None
+        correction.update(
+            error_map=cfg.error_map or 'shipped',
+            map_camera=map_cam,
+            map_camera_is_scene_camera=bool(map_cam)
+            and {k: map_cam.get(k) for k in map_cam}
+            == {k: getattr(cfg.scene.camera, k, None) for k in map_cam},
+            correction_sigma_deg=cfg.correction_sigma_deg,
+        )
     return {
         'scene': cfg.scene.name,
         'samples': cfg.samples,
@@ -459,6 +573,8 @@ def run_budget(
         'sources': sources,
         'conditions': conditions,
         'breakdown': breakdown,
+        'correction': correction,
+        'attitude_sigma_deg_level': list(cfg.imu.tilt_sigma_deg(0.0)),
         'sampling': {
             'bearing_deg': [0, 360],
             'tilt': f'|pitch| + |roll| <= {cfg.tilt_max_deg:g} deg',

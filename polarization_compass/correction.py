@@ -94,6 +94,9 @@ class CorrectionStatus(str, Enum):
 #: int8 codes of :meth:`TiltCorrector.correct_many`.
 #: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
 _MAX_ROOTS = 16
+#: Floor of |1 + de/dpsi| in :meth:`TiltCorrector.heading_sensitivity` (a slope that small means
+#: roots about to coalesce: the inversion's status already says ``multiple_solutions``).
+_MIN_SLOPE = 0.05
 
 STATUS_INT = {
     CorrectionStatus.OK: 0,
@@ -202,6 +205,20 @@ def _keys(t):
     )
 
 
+def _keys_dt(t):
+    """Derivatives d/dt of the Keys (a = -1/2) weights of :func:`_keys` at fraction t."""
+    t2 = t * t
+    return np.stack(
+        [
+            -1.5 * t2 + 2.0 * t - 0.5,
+            4.5 * t2 - 5.0 * t,
+            -4.5 * t2 + 4.0 * t + 0.5,
+            1.5 * t2 - t,
+        ],
+        -1,
+    )
+
+
 #: How the four Keys weights of stencil nodes i-1..i+2 land on the 4-node window
 #: ``start..start+3``: inside the axis the window is the stencil (identity); at the low end (window
 #: shifted up by one) the ghost node f(-1) = 3 f(0) - 3 f(1) + f(2) (Keys' cubic boundary rule);
@@ -225,12 +242,13 @@ _KEYS_BOUNDARY = np.array(
 )
 
 
-def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
+def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int, deriv: bool = False):
     """
     Return node indices and weights of points on a non-periodic axis.
 
     Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,)
-    bool.
+    bool. With ``deriv`` the weights are their derivatives d/dx [1/axis unit], so that the sum of
+    weights times node values is the interpolant's derivative (0 on a one-node axis).
 
     Outside the axis the indices are clipped and ``inside`` is False (the caller rejects the
     point).
@@ -240,28 +258,42 @@ def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int):
     tol = 1e-9 * max(1.0, float(np.max(np.abs(axis))))
     inside = (x >= axis[0] - tol) & (x <= axis[-1] + tol)
     if n == 1:
-        return np.zeros(x.shape + (1,), dtype=np.intp), np.ones(x.shape + (1,)), inside
+        w1 = np.zeros(x.shape + (1,)) if deriv else np.ones(x.shape + (1,))
+        return np.zeros(x.shape + (1,), dtype=np.intp), w1, inside
     xc = np.clip(x, axis[0], axis[-1])
     i = np.clip(np.searchsorted(axis, xc, side='right') - 1, 0, n - 2)
-    t = np.clip((xc - axis[i]) / (axis[i + 1] - axis[i]), 0.0, 1.0)
+    h = axis[i + 1] - axis[i]
+    t = np.clip((xc - axis[i]) / h, 0.0, 1.0)
     if order == 1 or n < 4 or not _is_uniform(axis):
+        if deriv:
+            return np.stack([i, i + 1], -1), np.stack([-1.0 / h, 1.0 / h], -1), inside
         return np.stack([i, i + 1], -1), np.stack([1.0 - t, t], -1), inside
-    w = _keys(t)
+    w = _keys_dt(t) / h[..., None] if deriv else _keys(t)
     start = np.clip(i - 1, 0, n - 4)
     off = (i - 1) - start  # -1 at the low end, +1 at the high end, else 0
     W = np.einsum('...k,...kj->...j', w, _KEYS_BOUNDARY[off + 1])
     return start[..., None] + np.arange(4), W, inside
 
 
-def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int):
-    """Periodic yaw axis ``y0 + step * k`` (k < n, n * step = 360): indices and weights."""
+def _yaw_weights(
+    y0: float, step: float, n: int, psi: np.ndarray, order: int, deriv: bool = False
+):
+    """
+    Return indices and weights on the periodic yaw axis ``y0 + step * k`` (n * step = 360).
+
+    With ``deriv`` the weights are their derivatives d/dpsi [1/deg].
+    """
     u = np.mod(np.asarray(psi, dtype=float) - y0, 360.0) / step
     i = np.floor(u).astype(np.intp)
     t = np.clip(u - i, 0.0, 1.0)
     i = np.mod(i, n)
     if order == 1 or n < 4:
+        if deriv:
+            d = np.full(t.shape, 1.0 / step)
+            return np.stack([i, (i + 1) % n], -1), np.stack([-d, d], -1)
         return np.stack([i, (i + 1) % n], -1), np.stack([1.0 - t, t], -1)
-    return np.mod(np.stack([i - 1, i, i + 1, i + 2], -1), n), _keys(t)
+    w = _keys_dt(t) / step if deriv else _keys(t)
+    return np.mod(np.stack([i - 1, i, i + 1, i + 2], -1), n), w
 
 
 # --------------------------------------------------------------------------------------------
@@ -535,9 +567,148 @@ class TiltCorrector:
                 ok[bad] = ok1
         return c, ok
 
-    def _eval_on_curve(self, curve, rows, psi):
-        idx, w = _yaw_weights(self.yaw0, self.yaw_step, self.n_yaw, psi, self.order)
+    def _eval_on_curve(self, curve, rows, psi, deriv: bool = False):
+        idx, w = _yaw_weights(self.yaw0, self.yaw_step, self.n_yaw, psi, self.order, deriv)
         return np.sum(curve[rows[..., None], idx] * w, axis=-1)
+
+    def _tilt_grad_curves(self, h, p, r, order):
+        """d(curve)/d(pitch) and d(curve)/d(roll) over the yaw nodes (N, Y) at ``order``."""
+        (ia, wa), (ip, wp), (ir, wr), inside = self._tilt_weights(h, p, r, order)
+        _, dwp, _ = _axis_weights(self.pitch, p, order, deriv=True)
+        _, dwr, _ = _axis_weights(self.roll, r, order, deriv=True)
+        ok = inside.copy()
+        c = np.ascontiguousarray
+        gp = _accumulate_curves(self.E, self.V, c(ia), c(wa), c(ip), c(dwp), c(ir), c(wr), ok)
+        gr = _accumulate_curves(self.E, self.V, c(ia), c(wa), c(ip), c(wp), c(ir), c(dwr), ok)
+        return gp, gr, ok, inside
+
+    def error_gradient(self, psi_deg, h_deg, pitch_deg, roll_deg):
+        """
+        Differentiate the interpolated error map at given yaws, as :meth:`predicted_error` reads it.
+
+        The derivatives of the interpolant itself (Keys' cubic convolution is C1; multilinear cells
+        have one-sided derivatives at nodes), with the same cubic/multilinear choice per point as
+        :meth:`curves`.
+
+        Parameters
+        ----------
+        psi_deg : float or array_like
+            Yaw psi [deg] (eq 21).
+        h_deg : float or array_like
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float or array_like
+            Camera pitch alpha and roll beta [deg] (eq 21), broadcast together.
+
+        Returns
+        -------
+        de_dpsi, de_dpitch, de_droll : numpy.ndarray
+            Partial derivatives of the error ``e(psi, h, pitch, roll)`` [deg/deg], shape (N,); 0
+            where not ok.
+        ok : numpy.ndarray
+            bool (N,), as :meth:`predicted_error`.
+
+        References
+        ----------
+        .. [1] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
+           Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
+
+        """
+        psi, h, p, r = (
+            np.atleast_1d(np.asarray(v, dtype=float))
+            for v in np.broadcast_arrays(psi_deg, h_deg, pitch_deg, roll_deg)
+        )
+        curve, ok = self.curves(h, p, r)
+        gp, gr, _, inside = self._tilt_grad_curves(h, p, r, self.order)
+        if self.order == 3:
+            _, ok3, _ = self._curves_order(h, p, r, 3)
+            bad = ~ok3 & inside
+            if bad.any():  # the points :meth:`curves` read multilinearly
+                gp1, gr1, _, _ = self._tilt_grad_curves(h[bad], p[bad], r[bad], 1)
+                gp[bad], gr[bad] = gp1, gr1
+        rows = np.arange(psi.size)
+        out = (
+            self._eval_on_curve(curve, rows, psi, deriv=True),
+            self._eval_on_curve(gp, rows, psi),
+            self._eval_on_curve(gr, rows, psi),
+        )
+        return tuple(np.where(ok, v, 0.0) for v in out) + (ok,)
+
+    def heading_sensitivity(self, psi_deg, h_deg, pitch_deg, roll_deg, mode: str = 'invert'):
+        """
+        Return how the corrected yaw moves with the pitch and roll the correction is given.
+
+        ``invert`` solves ``psi + e(psi, pitch, roll) = psi_meas``, so by the implicit function
+        theorem ``d psi / d pitch = -(de/dpitch) / (1 + de/dpsi)`` at the corrected ``psi`` (the
+        denominator's magnitude floored at 0.05: where it vanishes the inversion has coalescing
+        roots and the status is already ``multiple_solutions``); ``subtract`` computes ``psi =
+        psi_meas - e(psi_meas, pitch, roll)``, so ``-de/dpitch`` at the measured yaw. The attitude's
+        share of the corrected heading's variance is then ``J Sigma_att J^T``.
+
+        Parameters
+        ----------
+        psi_deg : float or array_like
+            The corrected yaw psi [deg] for ``invert``, the measured one for ``subtract``.
+        h_deg : float or array_like
+            Sun altitude [deg].
+        pitch_deg, roll_deg : float or array_like
+            Camera pitch alpha and roll beta [deg] (eq 21) the correction used, broadcast together.
+        mode : {"invert", "subtract"}, default "invert"
+            The correction's mode.
+
+        Returns
+        -------
+        dpsi_dpitch, dpsi_droll : numpy.ndarray
+            [deg/deg], shape (N,); 0 where not ok.
+        ok : numpy.ndarray
+            bool (N,), as :meth:`predicted_error`.
+
+        Raises
+        ------
+        ErrorMapError
+            Unknown ``mode``.
+
+        """
+        if mode not in ('invert', 'subtract'):
+            raise ErrorMapError(f"correction mode must be 'invert' or 'subtract', got {mode!r}")
+        e_psi, e_p, e_r, ok = self.error_gradient(psi_deg, h_deg, pitch_deg, roll_deg)
+        if mode == 'subtract':
+            return -e_p, -e_r, ok
+        den = 1.0 + e_psi
+        den = np.where(np.abs(den) < _MIN_SLOPE, np.copysign(_MIN_SLOPE, den), den)
+        return -e_p / den, -e_r / den, ok
+
+    def attitude_sigma_deg(
+        self, psi_deg, h_deg, pitch_deg, roll_deg, pitch_sigma_deg, roll_sigma_deg,
+        mode: str = 'invert',
+    ):
+        """
+        Propagate the attitude's uncertainty into the corrected yaw: ``sqrt(J Sigma_att J^T)``.
+
+        ``J`` is :meth:`heading_sensitivity`; ``Sigma_att = diag(pitch_sigma^2, roll_sigma^2)``
+        (pitch and roll errors taken as uncorrelated).
+
+        Parameters
+        ----------
+        psi_deg, h_deg, pitch_deg, roll_deg : float or array_like
+            As :meth:`heading_sensitivity` [deg].
+        pitch_sigma_deg, roll_sigma_deg : float or array_like
+            1-sigma uncertainty of the pitch and roll the correction was given [deg].
+        mode : {"invert", "subtract"}, default "invert"
+            The correction's mode.
+
+        Returns
+        -------
+        sigma_deg : numpy.ndarray
+            1-sigma of the corrected yaw due to the attitude [deg], shape (N,); 0 where not ok.
+        ok : numpy.ndarray
+            bool (N,).
+
+        """
+        jp, jr, ok = self.heading_sensitivity(psi_deg, h_deg, pitch_deg, roll_deg, mode)
+        sp, sr = np.broadcast_arrays(
+            np.asarray(pitch_sigma_deg, dtype=float), np.asarray(roll_sigma_deg, dtype=float)
+        )
+        return np.where(ok, np.hypot(jp * sp, jr * sr), 0.0), ok
 
     def predicted_error(self, psi_true_deg, h_deg, pitch_deg, roll_deg):
         """

@@ -300,6 +300,37 @@ class MountingErrors:
             getattr(self, k) != 0.0 for k in ('noise_deg', 'pitch_bias_deg', 'roll_bias_deg')
         ) or (self.time_offset_s != 0.0 and self.tilt_rate_deg_s != 0.0)
 
+    def tilt_sigma_deg(self, tilt_deg: float = 0.0) -> tuple:
+        """
+        Return the 1-sigma uncertainty of the measured pitch and roll these errors amount to.
+
+        What a user who states these errors knows about the tilt a method is given, per axis in
+        quadrature: the noise; the bias and the boresight angle of that axis, each taken as the
+        1-sigma of an error of unknown sign (so a bias of exactly the stated size contributes
+        ``err^2 / sigma^2 = 1``); the time-offset tilt ``tilt_rate * time_offset`` in a uniformly
+        random direction (variance ``a^2 / 2`` per axis); and the boresight yaw, which turns the
+        tilt vector of magnitude ``tilt_deg`` by that angle (``tilt * yaw [rad]``). Pitch and roll
+        errors are taken as uncorrelated.
+
+        Parameters
+        ----------
+        tilt_deg : float, default 0
+            Magnitude of the camera's tilt [deg] (e.g. ``hypot(pitch, roll)`` as measured).
+
+        Returns
+        -------
+        tuple of float
+            ``(pitch_sigma_deg, roll_sigma_deg)`` [deg].
+
+        """
+        a2 = 0.5 * (self.tilt_rate_deg_s * self.time_offset_s) ** 2
+        y2 = (abs(tilt_deg) * math.radians(self.boresight_yaw_deg)) ** 2
+        n2 = self.noise_deg**2
+        return (
+            math.sqrt(n2 + self.pitch_bias_deg**2 + self.boresight_pitch_deg**2 + a2 + y2),
+            math.sqrt(n2 + self.roll_bias_deg**2 + self.boresight_roll_deg**2 + a2 + y2),
+        )
+
     def without(self, *groups: str) -> 'MountingErrors':
         """
         Return a copy with the ``boresight`` and/or ``imu`` errors set to zero.

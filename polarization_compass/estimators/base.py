@@ -239,6 +239,10 @@ class Observation:
     clockwise from North, geometric altitude) comes from the ephemeris; it turns psi into a bearing
     and flags sun-at-zenith / below-horizon cases. ``pitch_deg``/``roll_deg`` are the known tilt
     (tilt_aware), ``prior_bearing_deg`` an optional prior that resolves the 180 deg ambiguity.
+    ``attitude_sigma_deg`` is the known tilt's 1-sigma uncertainty ``(pitch, roll)`` [deg] (IMU
+    noise and bias, boresight, time offset x tilt rate): a method that reads the tilt adds ``J
+    Sigma_att J^T`` (``J = d psi / d(pitch, roll)``) to its heading variance; None = the tilt is
+    taken as exact.
     """
 
     aop_rad: np.ndarray
@@ -254,10 +258,16 @@ class Observation:
     pitch_deg: float | None = None
     roll_deg: float | None = None
     prior_bearing_deg: float | None = None
+    attitude_sigma_deg: tuple | None = None
 
     @staticmethod
     def from_frame(
-        frame, pitch_deg=None, roll_deg=None, prior_bearing_deg=None, camera=None
+        frame,
+        pitch_deg=None,
+        roll_deg=None,
+        prior_bearing_deg=None,
+        camera=None,
+        attitude_sigma_deg=None,
     ) -> 'Observation':
         """
         Build an observation from a rendered frame (measured AoP/DoP when sensor effects ran).
@@ -274,6 +284,8 @@ class Observation:
             ambiguity.
         camera : CameraModel, optional
             The camera; by default the one in ``frame.meta["camera"]``, else the paper's imager.
+        attitude_sigma_deg : tuple of float, optional
+            1-sigma uncertainty ``(pitch, roll)`` of the known tilt [deg].
 
         Returns
         -------
@@ -304,6 +316,7 @@ class Observation:
             pitch_deg,
             roll_deg,
             prior_bearing_deg,
+            attitude_sigma_deg,
         )
 
 

@@ -75,7 +75,7 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y
 from ..fastmath import sincos32_folded as _sincos32
 
-__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator', 'solve_sun']
+__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator', 'solve_sun', 'tilt_sensitivity']
 
 
 @njit(cache=True, nogil=True)
@@ -500,6 +500,11 @@ class _LSBase(KnobbedEstimator, Estimator):
         if sigma:
             extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
             sigma_deg = finish_sigma_deg(float(sigmas[1]), k)
+            att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
+            if att is not None:
+                extras['sigma_fit_deg'] = sigma_deg
+                extras['sigma_attitude_deg'] = att
+                sigma_deg = math.hypot(sigma_deg, att)
         return result_from(
             self.name,
             pick,
@@ -675,6 +680,69 @@ class _LSBase(KnobbedEstimator, Estimator):
             )
 
         return sun_rule
+
+
+#: Generators of rot_x and rot_y: d/da rot_x(a) = rot_x(a) @ _KX (right-handed, active).
+_KX = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_KY = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def tilt_sensitivity(s_cam, pitch_deg: float, roll_deg: float):
+    """
+    Return how the levelled heading of a camera-frame sun moves with the pitch and roll.
+
+    ``psi = -atan2(s_x, s_y)`` of ``s_lev = Rx(pitch) Ry(roll) s_cam``, so ``d psi / d pitch = g .
+    (Rx(pitch) K_x Ry(roll) s_cam)`` and ``d psi / d roll = g . (Rx(pitch) Ry(roll) K_y s_cam)``
+    with ``g = (-s_lev_y, s_lev_x, 0) / rho^2`` (``rho`` the horizontal norm of ``s_lev``). The
+    fitted ``s_cam`` does not depend on the tilt (levelling is applied after the fit), so this is
+    the exact first-order sensitivity of a re-estimate at a perturbed tilt (the sign choice
+    aside).
+
+    Parameters
+    ----------
+    s_cam : array_like
+        Camera-frame sun direction (3,), unit.
+    pitch_deg, roll_deg : float
+        Camera pitch alpha and roll beta [deg] (eq 21) used for levelling.
+
+    Returns
+    -------
+    tuple of float
+        ``(d psi / d pitch, d psi / d roll)`` [deg/deg]; (0, 0) for a sun at the levelled zenith.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
+
+    """
+    s = np.asarray(s_cam, dtype=float)
+    Rx, Ry = rot_x(math.radians(pitch_deg)), rot_y(math.radians(roll_deg))
+    s_lev = Rx @ Ry @ s
+    rho2 = float(s_lev[0] ** 2 + s_lev[1] ** 2)
+    if rho2 < 1e-18:
+        return 0.0, 0.0
+    g = np.array([-s_lev[1], s_lev[0], 0.0]) / rho2
+    return float(g @ (Rx @ _KX @ Ry @ s)), float(g @ (Rx @ Ry @ _KY @ s))
+
+
+def _attitude_sigma_deg(obs: Observation, s_cam):
+    """
+    Return the heading's 1-sigma due to the known tilt's uncertainty [deg], or None.
+
+    ``sqrt(J diag(sigma_pitch^2, sigma_roll^2) J^T)`` with ``J`` of :func:`tilt_sensitivity`;
+    None when the observation states no attitude uncertainty.
+    """
+    a = obs.attitude_sigma_deg
+    if a is None:
+        return None
+    sp, sr = float(a[0]), float(a[1])
+    if not (math.isfinite(sp) and math.isfinite(sr) and sp >= 0.0 and sr >= 0.0):
+        return None  # not a usable uncertainty: the tilt is taken as exact
+    if sp == 0.0 and sr == 0.0:
+        return None
+    jp, jr = tilt_sensitivity(s_cam, float(obs.pitch_deg), float(obs.roll_deg))
+    return math.hypot(jp * sp, jr * sr)
 
 
 class LeastSquaresEstimator(_LSBase):
