@@ -402,6 +402,77 @@ def test_corrector_imu_older_than_the_heading_is_stale(corrector):
     assert corrector.statuses[-1]['status'] == 'stale_imu'
 
 
+@pytest.fixture(scope='module')
+def sloped_corrector(ctx, tmp_path_factory):
+    """A corrector whose map's error is 0.5 x pitch: d psi / d pitch = -0.5, d psi / d roll = 0."""
+    from polarization_compass.errormap import ErrorMap
+    from polarization_compass.nodes.tilt_corrector import TiltCorrectorNode
+
+    alt, yaw, tilt = (
+        np.arange(0.0, 55.0, 10.0),
+        np.arange(-180.0, 180.0, 10.0),
+        np.arange(-30.0, 31.0, 10.0),
+    )
+    err = np.broadcast_to(0.5 * tilt[:, None], (alt.size, yaw.size, tilt.size, tilt.size))
+    path = tmp_path_factory.mktemp('map') / 'sloped_map.npz'
+    ErrorMap(
+        np.array(err)[None],
+        np.zeros((1,) + err.shape, np.int8),
+        ('least_squares',),
+        alt,
+        yaw,
+        tilt,
+        tilt,
+        meta={'domain': {'tilt_limit_deg': 30.0}},
+    ).save(path)
+    node = TiltCorrectorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('error_map', value=str(path)),
+            Parameter('imu_max_wait_s', value=0.0),
+        ],
+    )
+    node.statuses = []
+    node._status = node.statuses.append
+    yield node
+    node.destroy_node()
+
+
+def test_corrector_propagates_the_imu_covariance_into_the_heading_sigma(sloped_corrector):
+    node = sloped_corrector
+    t = T0 + 40_000_000_000
+    node._on_imu(imu_msg(t, body_quat(30.0, 0.0, 0.0), cov0=4e-4))  # roll var > pitch var
+    node._on_heading(heading_msg(t, 30.0, var=1e-4))
+    st = node.statuses[-1]
+    s_tilt = math.degrees(math.sqrt(4e-4))  # the larger of roll/pitch variances, both axes
+    assert st['attitude_covariance'] == 'imu'
+    assert st['attitude_sigma_deg'] == pytest.approx(s_tilt)
+    assert st['sigma_attitude_deg'] == pytest.approx(0.5 * s_tilt, rel=1e-6)
+    expected_var = 1e-4 + math.radians(0.1) ** 2 + math.radians(0.5 * s_tilt) ** 2
+    assert st['sigma_deg'] == pytest.approx(math.degrees(math.sqrt(expected_var)), rel=1e-9)
+
+
+def test_corrector_unknown_covariance_propagates_only_the_stated_sigma(sloped_corrector):
+    from rclpy.parameter import Parameter as P
+
+    node = sloped_corrector
+    t = T0 + 50_000_000_000
+    m = imu_msg(t, body_quat(30.0, 0.0, 0.0))
+    m.orientation_covariance = [0.0] * 9  # sensor_msgs/Imu: covariance unknown
+    node._on_imu(m)
+    node._on_heading(heading_msg(t, 30.0, var=1e-4))
+    st = node.statuses[-1]
+    assert st['attitude_covariance'] == 'unknown' and st['sigma_attitude_deg'] == 0.0
+    assert st['sigma_deg'] == pytest.approx(
+        math.degrees(math.sqrt(1e-4 + math.radians(0.1) ** 2)), rel=1e-9
+    )
+    node.set_parameters([P('attitude_sigma_deg', value=2.0)])
+    node._on_imu(m)
+    node._on_heading(heading_msg(t, 30.0, var=1e-4))
+    st = node.statuses[-1]
+    assert st['status'] == 'ok' and st['sigma_attitude_deg'] == pytest.approx(1.0, rel=1e-6)
+
+
 # --------------------------------------------------------------------------------------------
 # error_evaluator
 # --------------------------------------------------------------------------------------------

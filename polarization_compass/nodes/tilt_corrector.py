@@ -32,8 +32,17 @@ pitch, roll)`` with :class:`polarization_compass.correction.TiltCorrector` (stat
 no_solution, multiple_solutions: reported, not published); ``none`` passes the heading through.
 
 Publishes ``compass/<method>/heading`` (Imu, robot_localization form, yaw variance = raw variance +
-``correction_sigma_deg``^2), ``compass/<method>/bearing_deg`` (Float64), ``.../correction_status``
-(String, JSON per heading) and /diagnostics.
+``correction_sigma_deg``^2 + the attitude's share ``J Sigma_att J^T``), ``compass/<method>/bearing_deg``
+(Float64), ``.../correction_status`` (String, JSON per heading) and /diagnostics.
+
+Attitude uncertainty: the corrected heading moves with the pitch and roll it was corrected at
+(``J = d psi / d(pitch, roll)``, :meth:`~polarization_compass.correction.TiltCorrector.
+heading_sensitivity`). ``Sigma_att`` is isotropic: the larger of the latest IMU message's roll and
+pitch variances (``orientation_covariance[0]`` and ``[4]``, body axes; the larger bounds the camera's
+pitch and roll whatever the mounting) plus ``attitude_sigma_deg``^2 (what the IMU cannot know:
+boresight, time offset). An all-zero covariance means "unknown" (sensor_msgs/Imu): then only
+``attitude_sigma_deg`` is propagated, and with it 0 nothing is (logged once, ``attitude_covariance:
+unknown`` in the status).
 """
 
 from __future__ import annotations
@@ -63,7 +72,7 @@ from ..pipeline import AttitudeBuffer
 from ..specs import topics
 from ..specs.params import apply_fix, CORRECTOR, SUN_PARAMS, sun_source
 
-__all__ = ['TiltCorrectorNode', 'main', 'load_corrector', 'MAP_HELP']
+__all__ = ['TiltCorrectorNode', 'main', 'load_corrector', 'MAP_HELP', 'imu_tilt_variance_deg2']
 
 MAP_HELP = (
     'generate one with: polarization-compass errormap --methods {method} --sun-altitude 0:50:5 '
@@ -105,6 +114,35 @@ def load_corrector(path: str, method: str):
         ) from None
 
 
+def imu_tilt_variance_deg2(cov) -> float | None:
+    """
+    Return the tilt variance [deg^2] a sensor_msgs/Imu orientation covariance states, or None.
+
+    The larger of the roll and pitch variances (elements 0 and 4, rad^2, body axes), so that it
+    bounds the camera's pitch and roll whatever the mounting; None for an all-zero matrix
+    ("covariance unknown", sensor_msgs/Imu) or unusable (non-finite, negative) diagonal elements.
+    (Element 0 = -1, "no orientation", is rejected before: ``decode_orientation``.)
+
+    Parameters
+    ----------
+    cov : sequence of float
+        The 9 row-major elements of ``orientation_covariance`` [rad^2].
+
+    Returns
+    -------
+    float or None
+        Variance [deg^2].
+
+    """
+    c = [float(x) for x in cov]
+    if len(c) != 9 or all(x == 0.0 for x in c):
+        return None
+    d = (c[0], c[4])
+    if not all(math.isfinite(x) and x >= 0.0 for x in d):
+        return None
+    return math.degrees(math.sqrt(max(d))) ** 2
+
+
 class TiltCorrectorNode(Node):
     """The ``tilt_corrector`` node (see the module docstring)."""
 
@@ -121,6 +159,9 @@ class TiltCorrectorNode(Node):
             None  # (lat, lon, alt) of the latest usable NavSatFix (site_source navsatfix)
         )
         self.imu = AttitudeBuffer(keep_ns=int(p['imu_buffer_s'] * 1e9))
+        # the latest IMU's tilt variance [deg^2] (None: all-zero covariance, i.e. unknown)
+        self.imu_tilt_var_deg2 = None
+        self._warned_unknown_cov = False
         self.pending: deque = (
             deque()
         )  # (stamp_ns, bearing, yaw var, frame_id, wall deadline, t_in, roll/pitch var)
@@ -179,6 +220,7 @@ class TiltCorrectorNode(Node):
         if q is None:
             return
         self.imu.add(stamp_ns(msg.header), q)
+        self.imu_tilt_var_deg2 = imu_tilt_variance_deg2(msg.orientation_covariance)
         self._drain(final=False)
 
     def _on_fix(self, msg):
@@ -299,8 +341,22 @@ class TiltCorrectorNode(Node):
                 self.diag.done(t_in, t_ns, f'{c.status.value}: {c.reason}', ok=False)
                 return
             out_bearing = corrected
-            out_var = var + math.radians(p['correction_sigma_deg']) ** 2
-            st['map_error_deg'] = c.error_deg
+            s_tilt, known = self._tilt_sigma_deg()
+            s_att = 0.0
+            if s_tilt > 0.0:
+                sa, sa_ok = self.corrector.attitude_sigma_deg(
+                    c.psi_deg, alt, tilt.pitch_deg, tilt.roll_deg, s_tilt, s_tilt
+                )
+                s_att = float(sa[0]) if sa_ok[0] else 0.0
+            out_var = (
+                var + math.radians(p['correction_sigma_deg']) ** 2 + math.radians(s_att) ** 2
+            )
+            st.update(
+                map_error_deg=c.error_deg,
+                attitude_sigma_deg=s_tilt,
+                attitude_covariance='imu' if known else 'unknown',
+                sigma_attitude_deg=s_att,
+            )
         else:
             st.update(status='ok', reason='pass-through')
         yaw = math.radians(90.0 - out_bearing)
@@ -322,6 +378,18 @@ class TiltCorrectorNode(Node):
         self.diag.done(
             t_in, t_ns, f'ok: bearing {out_bearing:.3f} deg (raw {bearing:.3f})', ok=True
         )
+
+    def _tilt_sigma_deg(self):
+        """Return (1-sigma of the camera pitch/roll [deg], whether the IMU's covariance is known)."""
+        extra = float(self.params['attitude_sigma_deg'])
+        v = self.imu_tilt_var_deg2
+        if v is None and extra == 0.0 and not self._warned_unknown_cov:
+            self._warned_unknown_cov = True
+            self.get_logger().warning(
+                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
+                'propagated into the heading sigma; set attitude_sigma_deg to state one'
+            )
+        return math.sqrt((v or 0.0) + extra * extra), v is not None
 
     def _status(self, st: dict) -> None:
         self.pub_status.publish(String(data=json.dumps(st, default=str)))

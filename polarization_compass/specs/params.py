@@ -907,6 +907,17 @@ CORRECTOR = (
         90.0,
         unit='deg',
     ),
+    Param(
+        'attitude_sigma_deg',
+        0.0,
+        "1-sigma camera pitch/roll error the IMU's orientation_covariance does not hold "
+        '(boresight, IMU-to-camera time offset x tilt rate), added in quadrature to it; with an '
+        'all-zero covariance (unknown, sensor_msgs/Imu) the whole of it. Propagated into the '
+        "heading sigma through the error map's gradient",
+        0.0,
+        30.0,
+        unit='deg',
+    ),
     SITE_SOURCE,
     *SITE,
     Param(
