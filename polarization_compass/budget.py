@@ -22,10 +22,16 @@ A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sk
 optics and sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| +
 |roll| <= tilt_max_deg``, as the accuracy benchmark samples it), the scene's seed varied per sample
 (a new cloud field, new sensor noise) and the IMU/mounting errors of
-:class:`~polarization_compass.motion.MountingErrors` applied to the pitch and roll that tilt-aware
-methods read. Every method of the registry estimates every frame; per method it reports the heading
-error's RMS, p95 and max over the ok results, the share of results that are not ok, and the sigma
-calibration ``mean(err^2 / sigma^2)`` (1 for an honest sigma).
+:class:`~polarization_compass.motion.MountingErrors` applied to the pitch and roll the pipeline is
+given. Every method of the registry estimates every frame, as the ROS graph does: tilt-aware methods
+read the IMU's pitch and roll; the others are tilt-corrected with the error map at those (erroneous)
+pitch and roll (:class:`~polarization_compass.correction.TiltCorrector`, inversion; ``correction
+"none"`` reports their raw tilt error instead), so ``tilt`` is the residual after correction. Both
+propagate the attitude's stated 1-sigma (:meth:`MountingErrors.tilt_sigma_deg`) into sigma: ``J
+Sigma_att J^T``, J = d psi / d(pitch, roll) (the map's gradient, or the method's own). Per method it
+reports the heading error's RMS, p95 and max over the ok results, the share of results that are not
+ok (a failed correction included), and the sigma calibration ``mean(err^2 / sigma^2)`` (1 for an
+honest sigma).
 
 The breakdown by source repeats the run with one declared source switched off, on the same samples
 (same bearings, tilts, seeds and IMU draws: paired), and reports the RMS without it and its
@@ -506,12 +512,16 @@ def run_budget(
         ``rms_deg``, ``p95_deg``, ``max_deg`` of the heading error [deg] over the ok results, None
         without one; ``sigma_calibration`` = mean(err^2 / sigma^2), ``sigma_count``), ``breakdown``
         (per method and source: ``rms_without_deg`` and ``contribution_deg`` = ``sqrt(max(0,
-        RMS_all^2 - RMS_without^2))`` [deg]) and ``sampling`` (how frames were drawn).
+        RMS_all^2 - RMS_without^2))`` [deg]), ``correction`` (``mode``, the corrected
+        ``methods``, the ``error_map``, the camera it was made for and whether that is the
+        scene's), ``attitude_sigma_deg_level`` (the stated pitch/roll 1-sigma of a level camera)
+        and ``sampling`` (how frames were drawn).
 
     Raises
     ------
     BudgetError
-        When ``cfg.samples < 1`` or a method name is not registered.
+        When ``cfg.samples < 1``, a method name is not registered, ``correction`` or
+        ``correction_sigma_deg`` is invalid, or the error map cannot be read.
     ErrorMapError
         When a Dask run cannot start (Dask missing, scheduler unreachable).
 

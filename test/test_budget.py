@@ -115,12 +115,13 @@ def test_budget_breakdown_structure_and_reproducibility():
         tilt_max_deg=0.0,
         imu=MountingErrors(boresight_pitch_deg=2.0),
         methods=('zenith', 'tilt_aware'),
+        correction='none',
     )
     assert declared_sources(cfg) == ['boresight']
     r = run_budget(cfg)
-    assert r['sources'] == ['boresight']
-    # zenith does not read the IMU: the boresight cannot cost it anything (identical errors with
-    # and without)
+    assert r['sources'] == ['boresight'] and r['correction']['methods'] == []
+    # uncorrected zenith does not read the IMU: the boresight cannot cost it anything (identical
+    # errors with and without)
     assert r['breakdown']['zenith']['boresight']['contribution_deg'] == 0.0
     assert r['conditions']['all']['zenith'] == r['conditions']['without boresight']['zenith']
     # tilt_aware on an ideal level sky: the boresight is the only error source, so it explains

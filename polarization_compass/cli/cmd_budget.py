@@ -50,6 +50,24 @@ def register(sub):
         'roll_bias_deg), boresight_deg (or boresight_roll_deg, boresight_pitch_deg, '
         'boresight_yaw_deg), time_offset_s, tilt_rate_deg_s',
     )
+    p.add_argument(
+        '--correction',
+        choices=('error_map', 'none'),
+        default='error_map',
+        help="what the graph's tilt_corrector does to methods that do not read the tilt: "
+        "invert their tilt error with the error map at the IMU's pitch/roll (default; the "
+        "attitude's stated uncertainty is propagated into sigma), or none (raw tilt error)",
+    )
+    p.add_argument(
+        '--error-map', default=None, help='error map .npz for the correction (default: shipped)'
+    )
+    p.add_argument(
+        '--correction-sigma',
+        type=float,
+        default=0.0,
+        help="1-sigma of the map's own error for this camera [deg], added in quadrature to "
+        "corrected methods' sigmas (the node's correction_sigma_deg; default 0)",
+    )
     p.add_argument('--samples', type=int, default=50, help='frames per condition (default 50)')
     p.add_argument(
         '--methods', default='', help='comma-separated methods (default: all registered)'
@@ -83,7 +101,18 @@ def run(args) -> int:
         )
     scene = load_scene(args.scene)
     methods = tuple(m.strip() for m in args.methods.split(',') if m.strip())
-    cfg = BudgetConfig(scene, int(args.samples), float(args.tilt), parse_imu(args.imu), methods)
+    if not (0.0 <= args.correction_sigma <= 90.0):
+        raise BudgetError(f'--correction-sigma must be in [0, 90] deg, got {args.correction_sigma}')
+    cfg = BudgetConfig(
+        scene,
+        int(args.samples),
+        float(args.tilt),
+        parse_imu(args.imu),
+        methods,
+        correction=args.correction,
+        error_map=args.error_map,
+        correction_sigma_deg=float(args.correction_sigma),
+    )
     result = run_budget(
         cfg,
         progress=lambda name: print(f'budget: {name} ...', file=sys.stderr, flush=True),
@@ -108,6 +137,13 @@ def run(args) -> int:
             f'{fmt(st["share_not_ok"], "{:.0%}"):>7s} '
             f'{fmt(st["sigma_calibration"], "{:.2f}"):>9s}  '
             + ', '.join(f'{s} {c:.3f}' for c, s in top)
+        )
+    corr = result['correction']
+    if corr['methods']:
+        same = corr['map_camera_is_scene_camera']
+        print(
+            f'tilt-corrected with the {corr["error_map"]} error map: {", ".join(corr["methods"])}'
+            + ('' if same else " (the map was made for another camera: see docs/real-skies.md)")
         )
     print(f'wrote {out / "budget.json"} and {out / "budget.png"}')
     return 0
