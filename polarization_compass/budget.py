@@ -22,16 +22,16 @@ A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sk
 optics and sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| +
 |roll| <= tilt_max_deg``, as the accuracy benchmark samples it), the scene's seed varied per sample
 (a new cloud field, new sensor noise) and the IMU/mounting errors of
-:class:`~polarization_compass.motion.MountingErrors` applied to the pitch and roll the pipeline is
-given. Every method of the registry estimates every frame, as the ROS graph does: tilt-aware methods
-read the IMU's pitch and roll; the others are tilt-corrected with the error map at those (erroneous)
-pitch and roll (:class:`~polarization_compass.correction.TiltCorrector`, inversion; ``correction
-"none"`` reports their raw tilt error instead), so ``tilt`` is the residual after correction. Both
-propagate the attitude's stated 1-sigma (:meth:`MountingErrors.tilt_sigma_deg`) into sigma: ``J
-Sigma_att J^T``, J = d psi / d(pitch, roll) (the map's gradient, or the method's own). Per method it
-reports the heading error's RMS, p95 and max over the ok results, the share of results that are not
-ok (a failed correction included), and the sigma calibration ``mean(err^2 / sigma^2)`` (1 for an
-honest sigma).
+:class:`~polarization_compass.motion.MountingErrors` applied to the pitch and roll the pipeline
+is given. Every method of the registry estimates every frame, as the ROS graph does: tilt-aware
+methods read the IMU's pitch and roll; the others are tilt-corrected with the error map at those
+(erroneous) pitch and roll (:class:`~polarization_compass.correction.TiltCorrector`, inversion;
+``correction "none"`` reports their raw tilt error instead), so ``tilt`` is the residual after
+correction. Both propagate the attitude's stated 1-sigma (:meth:`MountingErrors.tilt_sigma_deg`)
+into sigma: ``J Sigma_att J^T``, J = d psi / d(pitch, roll) (the map's gradient, or the method's
+own). Per method it reports the heading error's RMS, p95 and max over the ok results, the share of
+results that are not ok (a failed correction included), and the sigma calibration ``mean(err^2 /
+sigma^2)`` (1 for an honest sigma).
 
 The breakdown by source repeats the run with one declared source switched off, on the same samples
 (same bearings, tilts, seeds and IMU draws: paired), and reports the RMS without it and its
@@ -333,7 +333,7 @@ def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
 
 @functools.lru_cache(maxsize=4)
 def _error_map(path: str | None):
-    """The error map at ``path`` (None = the shipped one), loaded once per process."""
+    """Load the error map at ``path`` (None = the shipped one), once per process."""
     from .correction import default_map_path
     from .errormap import ErrorMapError
     from .errormap_io import load_error_map
@@ -346,7 +346,7 @@ def _error_map(path: str | None):
 
 @functools.lru_cache(maxsize=16)
 def _corrector(path: str | None, method: str):
-    """The TiltCorrector of ``method`` from ``path`` (None = shipped map), once per process."""
+    """Build the TiltCorrector of ``method`` from ``path`` (None = shipped map), once per process."""
     from .correction import TiltCorrector
     from .errormap import ErrorMapError
 

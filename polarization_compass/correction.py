@@ -206,7 +206,7 @@ def _keys(t):
 
 
 def _keys_dt(t):
-    """Derivatives d/dt of the Keys (a = -1/2) weights of :func:`_keys` at fraction t."""
+    """Return the derivatives d/dt of the Keys (a = -1/2) weights of :func:`_keys` at t."""
     t2 = t * t
     return np.stack(
         [
@@ -584,7 +584,7 @@ class TiltCorrector:
 
     def error_gradient(self, psi_deg, h_deg, pitch_deg, roll_deg):
         """
-        Differentiate the interpolated error map at given yaws, as :meth:`predicted_error` reads it.
+        Differentiate the interpolated error map at given yaws, as :meth:`predicted_error` reads.
 
         The derivatives of the interpolant itself (Keys' cubic convolution is C1; multilinear cells
         have one-sided derivatives at nodes), with the same cubic/multilinear choice per point as
@@ -641,8 +641,8 @@ class TiltCorrector:
         theorem ``d psi / d pitch = -(de/dpitch) / (1 + de/dpsi)`` at the corrected ``psi`` (the
         denominator's magnitude floored at 0.05: where it vanishes the inversion has coalescing
         roots and the status is already ``multiple_solutions``); ``subtract`` computes ``psi =
-        psi_meas - e(psi_meas, pitch, roll)``, so ``-de/dpitch`` at the measured yaw. The attitude's
-        share of the corrected heading's variance is then ``J Sigma_att J^T``.
+        psi_meas - e(psi_meas, pitch, roll)``, so ``-de/dpitch`` at the measured yaw. The
+        attitude's share of the corrected heading's variance is then ``J Sigma_att J^T``.
 
         Parameters
         ----------

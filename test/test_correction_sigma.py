@@ -43,7 +43,7 @@ TILT = np.arange(-30.0, 31.0, 5.0)
 
 
 def smooth_error(a, y, p, r):
-    """A smooth tilt error [deg] (periodic in yaw): its derivatives are written out below."""
+    """Return a smooth tilt error [deg] (periodic in yaw); its derivatives are written below."""
     return 0.02 * (60 - a) * (p * np.sin(np.radians(y)) + 0.5 * r * np.cos(np.radians(2 * y)))
 
 

@@ -404,7 +404,7 @@ def test_corrector_imu_older_than_the_heading_is_stale(corrector):
 
 @pytest.fixture(scope='module')
 def sloped_corrector(ctx, tmp_path_factory):
-    """A corrector whose map's error is 0.5 x pitch: d psi / d pitch = -0.5, d psi / d roll = 0."""
+    """Build a corrector whose map's error is 0.5 x pitch: d psi / d pitch = -0.5, d/droll 0."""
     from polarization_compass.errormap import ErrorMap
     from polarization_compass.nodes.tilt_corrector import TiltCorrectorNode
 

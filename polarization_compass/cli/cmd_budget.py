@@ -102,7 +102,9 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     methods = tuple(m.strip() for m in args.methods.split(',') if m.strip())
     if not (0.0 <= args.correction_sigma <= 90.0):
-        raise BudgetError(f'--correction-sigma must be in [0, 90] deg, got {args.correction_sigma}')
+        raise BudgetError(
+            f'--correction-sigma must be in [0, 90] deg, got {args.correction_sigma}'
+        )
     cfg = BudgetConfig(
         scene,
         int(args.samples),
@@ -143,7 +145,7 @@ def run(args) -> int:
         same = corr['map_camera_is_scene_camera']
         print(
             f'tilt-corrected with the {corr["error_map"]} error map: {", ".join(corr["methods"])}'
-            + ('' if same else " (the map was made for another camera: see docs/real-skies.md)")
+            + ('' if same else ' (the map was made for another camera: see docs/real-skies.md)')
         )
     print(f'wrote {out / "budget.json"} and {out / "budget.png"}')
     return 0

@@ -32,15 +32,17 @@ pitch, roll)`` with :class:`polarization_compass.correction.TiltCorrector` (stat
 no_solution, multiple_solutions: reported, not published); ``none`` passes the heading through.
 
 Publishes ``compass/<method>/heading`` (Imu, robot_localization form, yaw variance = raw variance +
-``correction_sigma_deg``^2 + the attitude's share ``J Sigma_att J^T``), ``compass/<method>/bearing_deg``
-(Float64), ``.../correction_status`` (String, JSON per heading) and /diagnostics.
+``correction_sigma_deg``^2 + the attitude's share ``J Sigma_att J^T``),
+``compass/<method>/bearing_deg`` (Float64), ``.../correction_status`` (String, JSON per heading)
+and /diagnostics.
 
-Attitude uncertainty: the corrected heading moves with the pitch and roll it was corrected at
-(``J = d psi / d(pitch, roll)``, :meth:`~polarization_compass.correction.TiltCorrector.
-heading_sensitivity`). ``Sigma_att`` is isotropic: the larger of the latest IMU message's roll and
-pitch variances (``orientation_covariance[0]`` and ``[4]``, body axes; the larger bounds the camera's
-pitch and roll whatever the mounting) plus ``attitude_sigma_deg``^2 (what the IMU cannot know:
-boresight, time offset). An all-zero covariance means "unknown" (sensor_msgs/Imu): then only
+Attitude uncertainty: the corrected heading moves with the pitch and roll it was corrected at,
+by ``J = d psi / d(pitch, roll)``
+(:meth:`~polarization_compass.correction.TiltCorrector.heading_sensitivity`). ``Sigma_att`` is
+isotropic: the larger of the latest IMU message's roll and pitch variances
+(``orientation_covariance[0]`` and ``[4]``, body axes; the larger bounds the camera's pitch and
+roll whatever the mounting) plus ``attitude_sigma_deg``^2 (what the IMU cannot know: boresight,
+time offset). An all-zero covariance means "unknown" (sensor_msgs/Imu): then only
 ``attitude_sigma_deg`` is propagated, and with it 0 nothing is (logged once, ``attitude_covariance:
 unknown`` in the status).
 """
@@ -380,7 +382,7 @@ class TiltCorrectorNode(Node):
         )
 
     def _tilt_sigma_deg(self):
-        """Return (1-sigma of the camera pitch/roll [deg], whether the IMU's covariance is known)."""
+        """Return (1-sigma of the camera pitch/roll [deg], whether the IMU covariance is known)."""
         extra = float(self.params['attitude_sigma_deg'])
         v = self.imu_tilt_var_deg2
         if v is None and extra == 0.0 and not self._warned_unknown_cov:
