@@ -346,7 +346,7 @@ def _error_map(path: str | None):
 
 @functools.lru_cache(maxsize=16)
 def _corrector(path: str | None, method: str):
-    """Build the TiltCorrector of ``method`` from ``path`` (None = shipped map), once per process."""
+    """Build the TiltCorrector of ``method`` from ``path`` (None = shipped map), once."""
     from .correction import TiltCorrector
     from .errormap import ErrorMapError
 
