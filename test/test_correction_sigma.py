@@ -177,6 +177,16 @@ def test_budget_sigma_calibration_is_one_under_a_known_imu_noise():
         # 40 draws of chi^2_1: the mean has sd sqrt(2/40) = 0.22; without the propagation it
         # was > 50
         assert 0.5 < st['sigma_calibration'] < 1.7, (m, st)
+        assert st['sigma_band'] == 'honest'
         assert st['rms_deg'] > 0.2  # the IMU noise dominates: the test is about its share
     # no IMU noise: the corrected zenith's error is the map's residual, a few hundredths
     assert r['conditions']['without imu']['zenith']['rms_deg'] < 0.1
+
+
+def test_budget_flags_an_uncorrected_tilt_error_as_overconfident():
+    cfg = BudgetConfig(
+        SMALL, samples=8, tilt_max_deg=8.0, methods=('zenith',), correction='none',
+    )
+    st = run_budget(cfg)['conditions']['all']['zenith']
+    # the raw tilt error (degrees) against a statistical sigma: flagged, not hidden
+    assert st['rms_deg'] > 1.0 and st['sigma_band'] == 'overconfident'

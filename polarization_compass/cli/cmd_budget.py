@@ -86,7 +86,14 @@ def register(sub):
 
 
 def run(args) -> int:
-    from ..budget import BudgetConfig, BudgetError, parse_imu, plot_budget, run_budget
+    from ..budget import (
+        BudgetConfig,
+        BudgetError,
+        parse_imu,
+        plot_budget,
+        run_budget,
+        SIGMA_BAND,
+    )
     from ..scene import load_scene
 
     if args.samples < 1 or args.samples > 100000:
@@ -140,6 +147,17 @@ def run(args) -> int:
             f'{fmt(st["sigma_calibration"], "{:.2f}"):>9s}  '
             + ', '.join(f'{s} {c:.3f}' for c, s in top)
         )
+    hi = SIGMA_BAND[1]
+    for cond, per in result['conditions'].items():
+        bad = [
+            f'{m} {st["sigma_calibration"]:.3g}'
+            for m, st in per.items()
+            if st['sigma_band'] == 'overconfident'
+        ]
+        if bad:
+            print(
+                f'sigma too small (mean err^2/sigma^2 > {hi:g}) on "{cond}": ' + ', '.join(bad)
+            )
     corr = result['correction']
     if corr['methods']:
         same = corr['map_camera_is_scene_camera']
