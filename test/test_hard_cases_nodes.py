@@ -312,6 +312,36 @@ def test_attitude_buffer_far_future_sample_does_not_evict_good_ones():
     assert b.at(T0 + 1_000_000, 50_000_000) is not None
 
 
+def test_estimator_adds_the_imu_tilt_uncertainty_to_tilt_aware_sigma(estimator):
+    """The IMU covariance grows tilt_aware's sigma by J Sigma_att J^T; all zeros: unknown."""
+    t = T0 + 300_000_000_000
+    known = feed_good_frame(estimator, t)  # imu_msg: roll and pitch variance 1e-4 rad^2
+    assert known['ok'] and known['attitude_covariance'] == 'imu'
+    assert known['attitude_sigma_deg'] == pytest.approx(math.degrees(0.01))
+    s_att = known['sigma_attitude_deg']
+    assert s_att > 0.05  # |J| ~ 0.1-1 deg/deg at 0.57 deg of tilt sigma: a real share
+
+    def zero_cov(m):
+        m.orientation_covariance = [0.0] * 9
+        return m
+
+    orig = estimator._on_imu
+    estimator._on_imu = lambda m: orig(zero_cov(m))
+    try:
+        unknown = feed_good_frame(estimator, t + 1_000_000_000)
+        estimator.set_parameters([Parameter('attitude_sigma_deg', value=2 * math.degrees(0.01))])
+        stated = feed_good_frame(estimator, t + 2_000_000_000)
+    finally:
+        estimator._on_imu = orig
+        estimator.set_parameters([Parameter('attitude_sigma_deg', value=0.0)])
+    assert unknown['attitude_covariance'] == 'unknown' and unknown['sigma_attitude_deg'] == 0.0
+    # same frame, same fit: the variances differ by exactly the attitude's share
+    assert known['sigma_deg'] ** 2 - unknown['sigma_deg'] ** 2 == pytest.approx(s_att**2)
+    # linear in the tilt sigma: twice the stated sigma, twice the share (the frames are 1 s apart:
+    # the sun, hence J, moves by ~1e-4 relative)
+    assert stated['sigma_attitude_deg'] == pytest.approx(2 * s_att, rel=1e-3)
+
+
 # --------------------------------------------------------------------------------------------
 # tilt_corrector
 # --------------------------------------------------------------------------------------------

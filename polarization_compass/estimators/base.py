@@ -433,3 +433,28 @@ class Estimator:
 
         """
         raise NotImplementedError
+
+    @classmethod
+    def tilt_sensitivity(cls, result: HeadingResult, pitch_deg: float, roll_deg: float):
+        """
+        Return how a result's psi moves with the known tilt it was estimated with.
+
+        For methods that read the tilt (``needs_tilt``), the first-order ``(d psi / d pitch, d psi
+        / d roll)`` [deg/deg] at the pitch and roll given, from which a caller that learns the
+        tilt's uncertainty after the fact (the ``heading_estimator`` node: the IMU covariance)
+        adds ``J Sigma_att J^T`` to the variance. Methods that do not read the tilt return None.
+
+        Parameters
+        ----------
+        result : HeadingResult
+            An ok result of this method.
+        pitch_deg, roll_deg : float
+            The camera pitch and roll [deg] (eq 21) it was estimated with.
+
+        Returns
+        -------
+        tuple of float or None
+            ``(d psi / d pitch, d psi / d roll)`` [deg/deg], or None.
+
+        """
+        return None

@@ -519,6 +519,33 @@ class _LSBase(KnobbedEstimator, Estimator):
             extras=extras,
         )
 
+    @classmethod
+    def tilt_sensitivity(cls, result: HeadingResult, pitch_deg: float, roll_deg: float):
+        """
+        Return ``(d psi / d pitch, d psi / d roll)`` [deg/deg] of a levelled result, else None.
+
+        :func:`tilt_sensitivity` of the result's camera-frame sun (``extras["sun_cam"]``) for the
+        tilt-aware variant; None for ``least_squares`` (it does not level) or a result without a
+        sun.
+
+        Parameters
+        ----------
+        result : HeadingResult
+            An ok result of this method.
+        pitch_deg, roll_deg : float
+            The camera pitch and roll [deg] (eq 21) it was levelled with.
+
+        Returns
+        -------
+        tuple of float or None
+            The sensitivities [deg/deg], or None.
+
+        """
+        sun = result.extras.get('sun_cam') if result.extras else None
+        if not cls.level_with_tilt or sun is None:
+            return None
+        return tilt_sensitivity(sun, pitch_deg, roll_deg)
+
     def _levelling(self, obs: Observation):
         """
         Return the levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt.

@@ -29,7 +29,9 @@ Subscribes (relative names, remappable):
                          (stamp_pairing.py); with ``array_stamp: arrival`` a sample is stamped with
                          this node's clock on arrival.
   ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior
-                         (prior_source imu)
+                         (prior_source imu); its orientation_covariance (plus
+                         ``attitude_sigma_deg``) grows tilt_aware's sigma by ``J Sigma_att J^T``
+                         (docs/ros.md, "Attitude uncertainty")
   ``gps/fix``            sensor_msgs/NavSatFix when site_source is navsatfix
 Publishes, stamped with the image's header.stamp:
   ``compass/<method>/heading_raw``      sensor_msgs/Imu as robot_localization fuses it (see
@@ -45,6 +47,7 @@ Headings known only modulo 180 deg are not published on the Imu/Float64 topics u
 from __future__ import annotations
 
 from collections import deque
+import dataclasses
 import json
 import math
 import threading
@@ -62,12 +65,13 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float32MultiArray, Float64, Header, String
 
 from .diagnostics import Diagnostics
-from .msgs import decode_image, heading_imu
+from .msgs import decode_image, heading_imu, imu_tilt_variance_deg2
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, decode_orientation, MessageError, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
+from ..estimators import registry
 from ..pipeline import (
     AttitudeBuffer,
     CameraInfoState,
@@ -154,6 +158,9 @@ class HeadingEstimatorNode(Node):
             self.method, p['prior_source'], p['prior_max_age_s'], p['prior_sigma_deg']
         )
         self.needs_tilt = self.tilt_prior.needs_tilt
+        # the latest IMU's tilt variance [deg^2] (None: all-zero covariance, i.e. unknown)
+        self.imu_tilt_var_deg2 = None
+        self._warned_unknown_cov = False
         self.pending: deque = (
             deque()
         )  # decoded images waiting to be processed (tilt_aware: for their IMU)
@@ -337,6 +344,7 @@ class HeadingEstimatorNode(Node):
         q = self.diag.decoded('imu', decode_orientation, msg)
         if q is not None:
             self.imu.add(stamp_ns(msg.header), q)
+            self.imu_tilt_var_deg2 = imu_tilt_variance_deg2(msg.orientation_covariance)
 
     def _on_fix(self, msg):
         site = apply_fix(self.sun, self.diag, msg)
@@ -610,6 +618,48 @@ class HeadingEstimatorNode(Node):
                 item = self.pending.popleft()
             self._process(*item[:5], frame_id=item[6])
 
+    def _with_attitude_sigma(self, result, pitch, roll, status: dict):
+        """
+        Add the IMU tilt's uncertainty to a tilt-reading method's sigma: ``J Sigma_att J^T``.
+
+        ``Sigma_att`` as the ``tilt_corrector``'s (docs/ros.md): the larger of the latest IMU
+        message's roll/pitch variances plus ``attitude_sigma_deg``^2, isotropic; ``J`` from the
+        method (:meth:`~polarization_compass.estimators.base.Estimator.tilt_sensitivity`).
+        """
+        if not (self.needs_tilt and result.ok and result.sigma_deg is not None):
+            return result
+        if pitch is None or roll is None:
+            return result
+        j = registry.get(self.method).tilt_sensitivity(result, pitch, roll)
+        if j is None:
+            return result
+        extra = float(self.params['attitude_sigma_deg'])
+        v = self.imu_tilt_var_deg2
+        if v is None and extra == 0.0 and not self._warned_unknown_cov:
+            self._warned_unknown_cov = True
+            self.get_logger().warning(
+                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
+                'propagated into the heading sigma; set attitude_sigma_deg to state one'
+            )
+        s_tilt = math.sqrt((v or 0.0) + extra * extra)
+        s_att = math.hypot(j[0] * s_tilt, j[1] * s_tilt)
+        status.update(
+            attitude_sigma_deg=s_tilt,
+            attitude_covariance='imu' if v is not None else 'unknown',
+            sigma_attitude_deg=s_att,
+        )
+        if s_att == 0.0:
+            return result
+        return dataclasses.replace(
+            result,
+            sigma_deg=math.hypot(result.sigma_deg, s_att),
+            extras={
+                **result.extras,
+                'sigma_fit_deg': result.sigma_deg,
+                'sigma_attitude_deg': s_att,
+            },
+        )
+
     def _process(
         self, t_ns: int, mosaic, width: int, height: int, t_in: float, frame_id: str | None = None
     ) -> None:
@@ -642,6 +692,7 @@ class HeadingEstimatorNode(Node):
                 result = self._estimate_array(mosaic, sun_az, sun_alt, pitch, roll, prior)
             else:
                 result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
+                result = self._with_attitude_sigma(result, pitch, roll, status)
             result = self.tilt_prior.checked(
                 result, inp
             )  # heading vs. the IMU prior (a named step)

@@ -59,6 +59,7 @@ __all__ = [
     'kv',
     'IMAGE_ENCODINGS',
     'image_decoder',
+    'imu_tilt_variance_deg2',
 ]
 
 IMAGE_ENCODINGS = ('mono8', 'mono16', '32FC1')
@@ -342,3 +343,32 @@ def kv(key: str, value) -> KeyValue:
     if isinstance(value, float):
         value = f'{value:.6g}'
     return KeyValue(key=str(key), value=str(value))
+
+
+def imu_tilt_variance_deg2(cov) -> float | None:
+    """
+    Return the tilt variance [deg^2] a sensor_msgs/Imu orientation covariance states, or None.
+
+    The larger of the roll and pitch variances (elements 0 and 4, rad^2, body axes), so that it
+    bounds the camera's pitch and roll whatever the mounting; None for an all-zero matrix
+    ("covariance unknown", sensor_msgs/Imu) or unusable (non-finite, negative) diagonal elements.
+    (Element 0 = -1, "no orientation", is rejected before: ``decode_orientation``.)
+
+    Parameters
+    ----------
+    cov : sequence of float
+        The 9 row-major elements of ``orientation_covariance`` [rad^2].
+
+    Returns
+    -------
+    float or None
+        Variance [deg^2].
+
+    """
+    c = [float(x) for x in cov]
+    if len(c) != 9 or all(x == 0.0 for x in c):
+        return None
+    d = (c[0], c[4])
+    if not all(math.isfinite(x) and x >= 0.0 for x in d):
+        return None
+    return math.degrees(math.sqrt(max(d))) ** 2

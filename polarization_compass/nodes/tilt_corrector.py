@@ -65,7 +65,7 @@ from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
 from .diagnostics import _wall_clock, Diagnostics
-from .msgs import heading_from_imu, heading_imu
+from .msgs import heading_from_imu, heading_imu, imu_tilt_variance_deg2
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_orientation, stamp_ns
@@ -74,7 +74,7 @@ from ..pipeline import AttitudeBuffer
 from ..specs import topics
 from ..specs.params import apply_fix, CORRECTOR, SUN_PARAMS, sun_source
 
-__all__ = ['TiltCorrectorNode', 'main', 'load_corrector', 'MAP_HELP', 'imu_tilt_variance_deg2']
+__all__ = ['TiltCorrectorNode', 'main', 'load_corrector', 'MAP_HELP']
 
 MAP_HELP = (
     'generate one with: polarization-compass errormap --methods {method} --sun-altitude 0:50:5 '
@@ -114,35 +114,6 @@ def load_corrector(path: str, method: str):
             f'error map {str(p)!r}: cannot be read ({type(exc).__name__}); '
             + MAP_HELP.format(method=method, path=p)
         ) from None
-
-
-def imu_tilt_variance_deg2(cov) -> float | None:
-    """
-    Return the tilt variance [deg^2] a sensor_msgs/Imu orientation covariance states, or None.
-
-    The larger of the roll and pitch variances (elements 0 and 4, rad^2, body axes), so that it
-    bounds the camera's pitch and roll whatever the mounting; None for an all-zero matrix
-    ("covariance unknown", sensor_msgs/Imu) or unusable (non-finite, negative) diagonal elements.
-    (Element 0 = -1, "no orientation", is rejected before: ``decode_orientation``.)
-
-    Parameters
-    ----------
-    cov : sequence of float
-        The 9 row-major elements of ``orientation_covariance`` [rad^2].
-
-    Returns
-    -------
-    float or None
-        Variance [deg^2].
-
-    """
-    c = [float(x) for x in cov]
-    if len(c) != 9 or all(x == 0.0 for x in c):
-        return None
-    d = (c[0], c[4])
-    if not all(math.isfinite(x) and x >= 0.0 for x in d):
-        return None
-    return math.degrees(math.sqrt(max(d))) ** 2
 
 
 class TiltCorrectorNode(Node):

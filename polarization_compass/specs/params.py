@@ -823,6 +823,17 @@ ESTIMATOR = (
         unit='s',
     ),
     Param(
+        'attitude_sigma_deg',
+        0.0,
+        "tilt_aware: 1-sigma camera pitch/roll error the IMU's orientation_covariance does not "
+        'hold (boresight, IMU-to-camera time offset x tilt rate), added in quadrature to it; with '
+        'an all-zero covariance (unknown, sensor_msgs/Imu) the whole of it. Propagated into the '
+        'heading sigma',
+        0.0,
+        30.0,
+        unit='deg',
+    ),
+    Param(
         'publish_ambiguous',
         False,
         'also publish headings known only modulo 180 deg on the Imu topics '
