@@ -70,6 +70,7 @@ from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wra
 from polarization_compass.estimators import registry
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
+from polarization_compass.specs.params import defaults as param_defaults, ESTIMATOR
 
 from . import crb as crb_mod
 from .common import (
@@ -82,6 +83,10 @@ from .common import (
 )
 from .simulator import ALL_EFFECTS as ALL_SENSOR_EFFECTS  # noqa: E402
 from .simulator import NOISE_ELECTRONS
+
+#: The smallest yaw sigma heading_estimator publishes (its ``sigma_floor_deg`` default): the sigma
+#: calibration below uses what a robot would receive, ``max(sigma, floor)``.
+SIGMA_FLOOR_DEG = float(param_defaults(ESTIMATOR)['sigma_floor_deg'])
 
 NOISE_DOP_MAX = 0.7
 TILT_LIMIT_DEG = 20.0
@@ -393,6 +398,7 @@ class _Cell:
         self.times: list[float] = []
         self.pixels: list[int] = []
         self.sigmas: list[float] = []
+        self.z2: list[float] = []  # (error / max(sigma, floor))^2 of ok results with a sigma
         self.crbs: list[float] = []
         self.memory = None
         self.status = 'ok'
@@ -418,6 +424,11 @@ class _Cell:
             'sigma_reported_rms_deg': float(np.sqrt(np.mean(np.square(self.sigmas))))
             if self.sigmas
             else None,
+            # issue 16: mean(err^2 / sigma^2), 1 for an honest sigma, and the share of results
+            # more than 5 sigma off (a "wrong ok"), with the published floor applied
+            'sigma_floor_deg': SIGMA_FLOOR_DEG,
+            'sigma_calibration': float(np.mean(self.z2)) if self.z2 else None,
+            'beyond_5_sigma': int(np.sum(np.asarray(self.z2) > 25.0)) if self.z2 else None,
             'crb_rms_deg': crb,
             'rms_over_crb': (e['rms_deg'] / crb) if (crb and e['rms_deg'] is not None) else None,
             'statuses': self.statuses,
@@ -677,6 +688,7 @@ def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg):
         c.pixels.append(int(res.pixels))
         if res.sigma_deg is not None:
             c.sigmas.append(float(res.sigma_deg))
+            c.z2.append((err / max(float(res.sigma_deg), SIGMA_FLOOR_DEG)) ** 2)
     if cond.sensor_bits is not None:
         eff = getattr(est, 'knobs', None)
         eff = eff if isinstance(eff, dict) else c.knobs  # the estimator's knobs incl. its defaults

@@ -329,6 +329,8 @@ def _accuracy_section(acc, crb) -> list[str]:
         'peak RSS MiB',
         'CRB (deg)',
         'RMS/CRB',
+        'err^2/sigma^2',
+        '> 5 sigma',
         'fails',
     ]
     for cond in list(dict.fromkeys(c['condition'] for c in cells)):
@@ -350,6 +352,8 @@ def _accuracy_section(acc, crb) -> list[str]:
                     _f(mem.get('resident_peak_mib')),
                     _f(c.get('crb_rms_deg')),
                     _f(c.get('rms_over_crb')),
+                    _f(c.get('sigma_calibration')),
+                    _f(c.get('beyond_5_sigma')),
                     c['error']['failures'],
                 ]
             )
@@ -450,6 +454,23 @@ def _headline(cells, r) -> list[str]:
         'others: '
         'stride 8, or 16 in quick mode; superpixel demosaic where there is a sensor; the `invert` '
         'correction):',
+        '',
+    ]
+    lines += _table(['method'] + conds, rows) + ['']
+    rows = []
+    for m in methods:
+        row = [m]
+        for cond in conds:
+            c = _reference_cell(cells, m, cond)
+            cal = None if c is None else c.get('sigma_calibration')
+            row.append(
+                '-' if cal is None else f'{_f(cal)} ({c.get("beyond_5_sigma")}/{c["error"]["n"]})'
+            )
+        rows.append(row)
+    lines += [
+        '**Sigma calibration by condition**, mean(err^2 / sigma^2) with the published floor '
+        'max(sigma, sigma_floor_deg) (1 for an honest sigma; near 0 where the error is far below '
+        'the floor), and (ok results more than 5 sigma off / ok results), same settings:',
         '',
     ]
     lines += _table(['method'] + conds, rows) + ['']
