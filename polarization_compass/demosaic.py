@@ -87,8 +87,14 @@ __all__ = [
     'aop_dop_from_stokes',
     'polarization_from_mosaic',
     'DEMOSAIC_METHODS',
+    'IFOV_K_DEFAULT',
+    'RedundancyNoise',
+    'redundancy_noise',
+    'check_ifov_k',
 ]
 
+#: Default threshold [sigmas] of the IFOV check in the front ends (module docstring); measured.
+IFOV_K_DEFAULT = 4.0
 #: Sony IMX250MZR, top-left 2 x 2 block, row by row.
 IMX250MZR_LAYOUT = ((90, 45), (135, 0))
 DEMOSAIC_METHODS = ('superpixel', 'bilinear')
@@ -296,6 +302,24 @@ def _good(v, sat):  # pragma: no cover - compiled
 
 
 @njit(inline='always', fastmath=_FM, cache=True)
+def _u(w, r, c):  # pragma: no cover - compiled
+    """Redundancy weight cos(4 phi) (+1 for 0/90, -1 for 45/135) from the Stokes weights."""
+    return w[r, c, 0] * w[r, c, 0] - w[r, c, 1] * w[r, c, 1]
+
+
+@njit(inline='always', fastmath=_FM, cache=True)
+def _consistent(ok, s0, r, lim):  # pragma: no cover - compiled
+    """
+    Apply the redundancy check ``(r - mu S0)^2 <= A S0 + B + C S0^2``, ``lim = (A, B, C, mu)``.
+
+    ``lim = (inf, inf, inf, 0)`` switches it off (a NaN ``r`` comes only from a sample already
+    invalid).
+    """
+    e = r - lim[3] * s0
+    return ok & (e * e <= (lim[0] * s0 + lim[1]) + lim[2] * (s0 * s0))
+
+
+@njit(inline='always', fastmath=_FM, cache=True)
 def _superpixel_pixel(m, i, j, w, sat):  # pragma: no cover - compiled
     """
     Compute the Stokes vector of the 2 x 2 block whose top-left sample is (i, j).
@@ -310,16 +334,19 @@ def _superpixel_pixel(m, i, j, w, sat):  # pragma: no cover - compiled
     s0 = np.float32(0.5) * ((a + b) + (c + d))
     s1 = (w[0, 0, 0] * a + w[0, 1, 0] * b) + (w[1, 0, 0] * c + w[1, 1, 0] * d)
     s2 = (w[0, 0, 1] * a + w[0, 1, 1] * b) + (w[1, 0, 1] * c + w[1, 1, 1] * d)
-    return s0, s1, s2, ok
+    # redundancy (I0 + I90) - (I45 + I135): weight cos(4 phi) = cos^2(2 phi) - sin^2(2 phi)
+    r = (_u(w, 0, 0) * a + _u(w, 0, 1) * b) + (_u(w, 1, 0) * c + _u(w, 1, 1) * d)
+    return s0, s1, s2, ok, r
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
-def _superpixel_kernel(m, w, sat, aop, dop, valid):  # pragma: no cover - compiled
+def _superpixel_kernel(m, w, sat, lim, aop, dop, valid):  # pragma: no cover - compiled
     """One (aop, dop, valid) per 2 x 2 block."""
     H2, W2 = aop.shape
     for k in prange(H2):
         for col in range(W2):
-            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            s0, s1, s2, ok, r = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            ok = _consistent(ok, s0, r, lim)
             aop[k, col], dop[k, col], valid[k, col] = _finish(s0, s1, s2, ok)
 
 
@@ -337,12 +364,13 @@ def _stokes_or_zero(s0, s1, s2, ok):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
-def _superpixel_stokes_kernel(m, w, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
+def _superpixel_stokes_kernel(m, w, sat, lim, s0o, s1o, s2o):  # pragma: no cover - compiled
     """One Stokes vector per 2 x 2 block; zeros where invalid."""
     H2, W2 = s0o.shape
     for k in prange(H2):
         for col in range(W2):
-            s0, s1, s2, ok = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            s0, s1, s2, ok, r = _superpixel_pixel(m, 2 * k, 2 * col, w, sat)
+            ok = _consistent(ok, s0, r, lim)
             s0o[k, col], s1o[k, col], s2o[k, col] = _stokes_or_zero(s0, s1, s2, ok)
 
 
@@ -371,6 +399,10 @@ def _bilinear_pixel(
     s0 = np.float32(0.5) * ((vc + ih) + (iv + idg))
     s1 = (w0 * vc + w1 * ih) + (w2 * iv + w3 * idg)
     s2 = (v0 * vc + v1 * ih) + (v2 * iv + v3 * idg)
+    # redundancy (I0 + I90) - (I45 + I135) of the interpolated channels, weights cos(4 phi)
+    r = ((w0 * w0 - v0 * v0) * vc + (w1 * w1 - v1 * v1) * ih) + (
+        (w2 * w2 - v2 * v2) * iv + (w3 * w3 - v3 * v3) * idg
+    )
     ok = (
         _good(vc, sat)
         & _good(a, sat)
@@ -382,7 +414,7 @@ def _bilinear_pixel(
         & _good(g, sat)
         & _good(h, sat)
     )
-    return s0, s1, s2, ok
+    return s0, s1, s2, ok, r
 
 
 @njit(inline='always', fastmath=_FM, cache=True)
@@ -412,7 +444,7 @@ def _bilinear_at(m, i, im, ip, j, W, r, rw, sat):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
-def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compiled
+def _bilinear_kernel(m, rw, sat, lim, aop, dop, valid):  # pragma: no cover - compiled
     """
     Full-resolution bilinear demosaic to (aop, dop, valid).
 
@@ -431,7 +463,7 @@ def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compile
         p0, p1, p2, p3 = rw[r, 1, 4], rw[r, 1, 5], rw[r, 1, 6], rw[r, 1, 7]
         for j in range(1, W - 1):
             odd = (j & 1) == 1
-            s0, s1, s2, ok = _bilinear_pixel(
+            s0, s1, s2, ok, rd = _bilinear_pixel(
                 m,
                 i,
                 im,
@@ -449,14 +481,16 @@ def _bilinear_kernel(m, rw, sat, aop, dop, valid):  # pragma: no cover - compile
                 p3 if odd else f3,
                 sat,
             )
+            ok = _consistent(ok, s0, rd, lim)
             aop[i, j], dop[i, j], valid[i, j] = _finish(s0, s1, s2, ok)
         for j in (0, W - 1):
-            s0, s1, s2, ok = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
+            s0, s1, s2, ok, rd = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
+            ok = _consistent(ok, s0, rd, lim)
             aop[i, j], dop[i, j], valid[i, j] = _finish(s0, s1, s2, ok)
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
-def _bilinear_stokes_kernel(m, rw, sat, s0o, s1o, s2o):  # pragma: no cover - compiled
+def _bilinear_stokes_kernel(m, rw, sat, lim, s0o, s1o, s2o):  # pragma: no cover - compiled
     """Full-resolution bilinear Stokes images; zeros where invalid."""
     H, W = m.shape
     for i in prange(H):
@@ -464,7 +498,8 @@ def _bilinear_stokes_kernel(m, rw, sat, s0o, s1o, s2o):  # pragma: no cover - co
         ip = i + 1 if i < H - 1 else H - 2
         r = i & 1
         for j in range(W):
-            s0, s1, s2, ok = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
+            s0, s1, s2, ok, rd = _bilinear_at(m, i, im, ip, j, W, r, rw, sat)
+            ok = _consistent(ok, s0, rd, lim)
             s0o[i, j], s1o[i, j], s2o[i, j] = _stokes_or_zero(s0, s1, s2, ok)
 
 
@@ -484,6 +519,21 @@ def _stokes_to_aop_kernel(s0, s1, s2, aop, dop, valid):  # pragma: no cover - co
         x1 = x1 if ok else np.float32(0.0)
         x2 = x2 if ok else np.float32(0.0)
         ao[n], do[n], vo[n] = _finish(x0, x1, x2, ok)
+
+
+@njit(fastmath=_FM, cache=True, nogil=True)
+def _redundancy_samples(m, w, rw, sat, superpixel, rows, cols, s0o, ro, oko):  # pragma: no cover
+    """(S0, redundancy, usable) of the method's outputs at ``rows`` x ``cols`` (output indices)."""
+    H, W = m.shape
+    for a in range(rows.size):
+        i = rows[a]
+        for b in range(cols.size):
+            j = cols[b]
+            if superpixel:
+                s0, s1, s2, ok, r = _superpixel_pixel(m, 2 * i, 2 * j, w, sat)
+            else:
+                s0, s1, s2, ok, r = _bilinear_at(m, i, i - 1, i + 1, j, W, i & 1, rw, sat)
+            s0o[a, b], ro[a, b], oko[a, b] = s0, r, ok & (s0 > np.float32(0.0))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -539,14 +589,168 @@ def _prepare(mosaic, saturation_level, read_once: bool = False):
     return np.ascontiguousarray(m), np.float32(sat)
 
 
-def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
+def check_ifov_k(k) -> float:
+    """
+    Validate the IFOV check's threshold.
+
+    Parameters
+    ----------
+    k : float
+        Threshold [noise sigmas] of the redundancy check (module docstring, "IFOV check"); 0 = off.
+
+    Returns
+    -------
+    float
+        ``k`` as a float.
+
+    Raises
+    ------
+    SensorError
+        ``k`` is not a number (or is a bool), is NaN or inf, negative, or in (0, 1) (a threshold
+        inside the noise would reject most of a clear sky).
+
+    """
+    if isinstance(k, bool) or not isinstance(k, (int, float, np.integer, np.floating)):
+        raise SensorError(f'ifov_check_k must be a number of sigmas (0 = off), got {k!r}')
+    k = float(k)
+    if not math.isfinite(k) or k < 0.0 or 0.0 < k < 1.0:
+        raise SensorError(
+            f'ifov_check_k must be 0 (off) or a finite number of sigmas >= 1, got {k!r}'
+        )
+    return k
+
+
+@dataclass(frozen=True)
+class RedundancyNoise:
+    """
+    Noise model of a frame's DoFP redundancy ``r = (I0 + I90) - (I45 + I135)``.
+
+    ``r ~ mu S0 + N(0, sigma^2 S0 + quant)``: ``mu`` a channel-gain offset (dimensionless),
+    ``sigma`` [sqrt(input units)] the shot-noise-like spread per sqrt(S0), ``quant``
+    [input units^2] the quantisation floor, ``count`` the outputs it was estimated from.
+    """
+
+    mu: float
+    sigma: float
+    quant: float
+    count: int
+
+
+#: outputs per axis sampled by :func:`redundancy_noise` (at most 64 x 64 = 4096)
+_NOISE_SAMPLES = 64
+#: relative float32 rounding floor of r / S0
+_REL_FLOOR = 1e-6
+
+
+def redundancy_noise(
+    mosaic,
+    layout=IMX250MZR_LAYOUT,
+    pol45_toward: str = IMX250MZR_POL45,
+    method: str = 'superpixel',
+    saturation_level=None,
+) -> RedundancyNoise:
+    """
+    Estimate the noise of the DoFP redundancy of a frame from the frame itself.
+
+    Every 2 x 2 superpixel (or bilinear 3 x 3 neighbourhood) measures the total intensity twice,
+    ``I0 + I90`` and ``I45 + I135``; their difference ``r`` is zero for an ideal sensor on a
+    uniform patch, Gaussian with variance ~ gain x S0 under shot noise (so ``r / sqrt(S0)`` has
+    one spread over the frame whatever the gain), and large where the channels see different
+    radiances (the IFOV error at an edge, Ratliff et al. 2009) or a pixel is defective. Estimated
+    robustly on a regular sample of at most 64 x 64 of the method's outputs (usable ones, S0 at
+    least a tenth of the sample's 90th percentile): ``mu`` the median of ``r / S0``, ``sigma``
+    1.4826 x the median absolute deviation of ``(r - mu S0) / sqrt(S0)`` (a Gaussian's sigma;
+    robust to the edges, which are a small fraction of a sky).
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        2-D raw image [counts or any intensity unit].
+    layout, pol45_toward, method, saturation_level
+        As :func:`polarization_from_mosaic`.
+
+    Returns
+    -------
+    RedundancyNoise
+        ``mu``, ``sigma`` [sqrt(input units)], ``quant`` (the variance of ``r`` from rounding
+        integer samples, ``sum(weights^2) / 12``; 0 for float input) and ``count``; mu = sigma = 0
+        when fewer than 16 outputs are usable.
+
+    Raises
+    ------
+    SensorError
+        As :func:`stokes_from_mosaic`.
+
+    References
+    ----------
+    .. [1] B. M. Ratliff, C. F. LaCasse and J. S. Tyo, "Interpolation strategies for reducing
+       IFOV artifacts in microgrid polarimeter imagery", Opt. Express 17, 9112 (2009).
+
+    """
     lay = parse_layout(layout, pol45_toward)
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f'demosaic method must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    m, sat = _prepare(mosaic, saturation_level, read_once=True)  # a sample: no float32 copy
+    if m.shape[0] < 2 or m.shape[1] < 2:
+        raise SensorError(f'a mosaic needs at least 2 x 2 pixels, got {m.shape[0]} x {m.shape[1]}')
+    return _noise_of(m, sat, lay, method, np.asarray(mosaic).dtype.kind in 'ui')
+
+
+def _noise_of(m, sat, lay, method, integer) -> RedundancyNoise:
+    """:func:`redundancy_noise` of a prepared mosaic (``integer``: the raw samples were)."""
+    H, W = m.shape
+    superpixel = method == 'superpixel'
+    if superpixel:
+        lo_r, hi_r, lo_c, hi_c = 0, H // 2 - 1, 0, W // 2 - 1
+    else:  # interior rows (the sampler reads rows i - 1 and i + 1 as they are)
+        lo_r, hi_r, lo_c, hi_c = 1, H - 2, 0, W - 1
+    quant = (4.0 if superpixel else 2.25) / 12.0 if integer else 0.0
+    if hi_r < lo_r:  # a 2-row mosaic has no interior row
+        return RedundancyNoise(0.0, 0.0, quant, 0)
+    rows = np.unique(np.linspace(lo_r, hi_r, _NOISE_SAMPLES).round().astype(np.int64))
+    cols = np.unique(np.linspace(lo_c, hi_c, _NOISE_SAMPLES).round().astype(np.int64))
+    s0 = np.empty((rows.size, cols.size), np.float32)
+    r = np.empty_like(s0)
+    ok = np.empty(s0.shape, np.bool_)
+    _redundancy_samples(
+        m, lay.stokes_weights(), _bilinear_weights(lay), sat, superpixel, rows, cols, s0, r, ok
+    )
+    s0, r = s0[ok].astype(np.float64), r[ok].astype(np.float64)
+    if s0.size >= 16:
+        keep = s0 >= 0.1 * np.percentile(s0, 90)
+        s0, r = s0[keep], r[keep]
+    if s0.size < 16:
+        return RedundancyNoise(0.0, 0.0, quant, int(s0.size))
+    mu = float(np.median(r / s0))
+    z = (r - mu * s0) / np.sqrt(s0)
+    sigma = 1.4826 * float(np.median(np.abs(z - np.median(z))))
+    return RedundancyNoise(mu, sigma, quant, int(s0.size))
+
+
+def _limits(k: float, noise) -> np.ndarray:
+    """The kernels' ``lim = (A, B, C, mu)`` for threshold ``k`` sigmas (all inf: off)."""
+    if k == 0.0:
+        return np.array([np.inf, np.inf, np.inf, 0.0], np.float32)
+    k2 = k * k
+    return np.array(
+        [k2 * noise.sigma**2, k2 * noise.quant, k2 * _REL_FLOOR**2, noise.mu], np.float32
+    )
+
+
+def _run(
+    mosaic, layout, pol45_toward, method, saturation_level, stokes_out, ifov_k=0.0, noise=None
+):
+    lay = parse_layout(layout, pol45_toward)
+    if method not in DEMOSAIC_METHODS:
+        raise SensorError(f'demosaic method must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    k = check_ifov_k(ifov_k)
     m, sat = _prepare(mosaic, saturation_level, read_once=method == 'superpixel')
     H, W = m.shape
     if H < 2 or W < 2:
         raise SensorError(f'a mosaic needs at least 2 x 2 pixels, got {H} x {W}')
+    if k > 0.0 and noise is None:
+        noise = _noise_of(m, sat, lay, method, np.asarray(mosaic).dtype.kind in 'ui')
+    lim = _limits(k, noise)
     shape = (H // 2, W // 2) if method == 'superpixel' else (H, W)
     out = (
         tuple(np.empty(shape, np.float32) for _ in range(2)) + (np.empty(shape, np.bool_),)
@@ -555,11 +759,11 @@ def _run(mosaic, layout, pol45_toward, method, saturation_level, stokes_out):
     )
     if method == 'superpixel':
         (_superpixel_stokes_kernel if stokes_out else _superpixel_kernel)(
-            m, lay.stokes_weights(), sat, *out
+            m, lay.stokes_weights(), sat, lim, *out
         )
     else:
         (_bilinear_stokes_kernel if stokes_out else _bilinear_kernel)(
-            m, _bilinear_weights(lay), sat, *out
+            m, _bilinear_weights(lay), sat, lim, *out
         )
     return out
 
@@ -570,6 +774,8 @@ def stokes_from_mosaic(
     pol45_toward: str = IMX250MZR_POL45,
     method: str = 'superpixel',
     saturation_level=None,
+    ifov_k: float = 0.0,
+    ifov_noise: 'RedundancyNoise | None' = None,
 ):
     """
     Compute the camera-frame Stokes images ``(S0, S1, S2)`` of a raw DoFP image.
@@ -592,6 +798,12 @@ def stokes_from_mosaic(
     saturation_level : float, optional
         Samples ``>=`` this are saturated [input units]; default the dtype's maximum for integer
         input, none for float input.
+    ifov_k : float, default 0
+        IFOV check (module docstring): an output whose redundancy ``(I0 + I90) - (I45 + I135)``
+        is more than ``ifov_k`` noise sigmas from its expectation is invalid; 0 = off.
+    ifov_noise : RedundancyNoise, optional
+        The redundancy's noise model; default :func:`redundancy_noise` of this mosaic (pass the
+        full frame's when demosaicing a part of it, so that every part is judged alike).
 
     Returns
     -------
@@ -602,10 +814,13 @@ def stokes_from_mosaic(
     ------
     SensorError
         A bad layout, ``pol45_toward`` or ``method``, a mosaic that is not 2-D, has an
-        unsupported dtype or fewer than 2 x 2 pixels, or a NaN ``saturation_level``.
+        unsupported dtype or fewer than 2 x 2 pixels, a NaN ``saturation_level`` or a bad
+        ``ifov_k`` (:func:`check_ifov_k`).
 
     """
-    return _run(mosaic, layout, pol45_toward, method, saturation_level, True)
+    return _run(
+        mosaic, layout, pol45_toward, method, saturation_level, True, ifov_k, ifov_noise
+    )
 
 
 def aop_dop_from_stokes(s0, s1, s2):
@@ -662,6 +877,8 @@ def polarization_from_mosaic(
     pol45_toward: str = IMX250MZR_POL45,
     method: str = 'superpixel',
     saturation_level=None,
+    ifov_k: float = 0.0,
+    ifov_noise: 'RedundancyNoise | None' = None,
 ):
     """
     Compute ``(aop_rad, dop, valid)`` straight from a raw DoFP image (no Stokes images).
@@ -682,6 +899,12 @@ def polarization_from_mosaic(
     saturation_level : float, optional
         Samples ``>=`` this are saturated [input units]; default the dtype's maximum for integer
         input, none for float input.
+    ifov_k : float, default 0
+        IFOV check (module docstring): an output whose redundancy ``(I0 + I90) - (I45 + I135)``
+        is more than ``ifov_k`` noise sigmas from its expectation is invalid; 0 = off.
+    ifov_noise : RedundancyNoise, optional
+        The redundancy's noise model; default :func:`redundancy_noise` of this mosaic (pass the
+        full frame's when demosaicing a part of it, so that every part is judged alike).
 
     Returns
     -------
@@ -703,4 +926,6 @@ def polarization_from_mosaic(
        Polarized Skylight Orientation Determination" (the seed paper), eq 28.
 
     """
-    return _run(mosaic, layout, pol45_toward, method, saturation_level, False)
+    return _run(
+        mosaic, layout, pol45_toward, method, saturation_level, False, ifov_k, ifov_noise
+    )

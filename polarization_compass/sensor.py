@@ -32,6 +32,7 @@ Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX25
       calibration: {angle_error_deg: 0.5, extinction_ratio_spread: 0.2, gain_rms: 0.01,
                     crosstalk: 0.02, seed: 0}  # per-pixel DoFP calibration errors (fixed pattern)
       demosaic: bilinear                      # or superpixel
+      ifov_check: {k_sigma: 4}                # 0 = off; see ``demosaic`` ("IFOV check")
 
 ``{}`` or null parameters mean the defaults shown. Once any key is declared the mosaic and the
 demosaic always run (IMX250MZR layout if ``mosaic`` is absent). Each other effect is a stage of its
@@ -127,7 +128,9 @@ from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
 from .demosaic import (
     _finish,
+    check_ifov_k,
     DEMOSAIC_METHODS,
+    IFOV_K_DEFAULT,
     layout_from_mapping,
     MosaicLayout,
     polarization_from_mosaic,
@@ -156,6 +159,7 @@ EFFECTS = (
     'read_noise',
     'quantization',
     'demosaic',
+    'ifov_check',
 )
 _BITS = (8, 10, 12, 14, 16)
 _FM = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
@@ -222,6 +226,8 @@ class SensorConfig:
     calibration : dict or None
         Per-pixel calibration errors (``angle_error_deg`` [deg], ``extinction_ratio_spread``,
         ``gain_rms``, ``crosstalk`` and ``seed``); None if undeclared.
+    ifov_check_k : float
+        Threshold [noise sigmas] of the demosaic's IFOV (redundancy) check; 0 = off.
 
     """
 
@@ -237,6 +243,7 @@ class SensorConfig:
     calibration: dict | None = (
         None  # per-pixel DoFP calibration errors (module docstring), None if undeclared
     )
+    ifov_check_k: float = IFOV_K_DEFAULT
 
     @property
     def d(self) -> float:
@@ -297,6 +304,7 @@ class SensorConfig:
             'quantization_bits': self.bits,
             'demosaic': self.demosaic,
             'calibration': None if self.calibration is None else dict(self.calibration),
+            'ifov_check_k': self.ifov_check_k,
         }
 
 
@@ -401,6 +409,13 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         method = 'bilinear'
     if method not in DEMOSAIC_METHODS:
         raise SensorError(f'sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    ifov_k = IFOV_K_DEFAULT
+    if 'ifov_check' in cfg:
+        ic = _params(cfg, 'ifov_check', ('k_sigma',))
+        try:
+            ifov_k = check_ifov_k(ic.get('k_sigma', IFOV_K_DEFAULT))
+        except SensorError as exc:
+            raise SensorError(f'sensor.ifov_check.k_sigma: {exc}') from None
     return SensorConfig(
         layout,
         full_well,
@@ -412,6 +427,7 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         method,
         saturates='exposure' in cfg,
         calibration=cal,
+        ifov_check_k=ifov_k,
     )
 
 
@@ -1402,7 +1418,12 @@ class SensorPipeline:
         sat = cfg.saturation_level
         with instr.stage('sensor.demosaic.' + cfg.demosaic):
             aop, dop, valid = polarization_from_mosaic(
-                frame.mosaic, layout, layout.pol45_toward, cfg.demosaic, saturation_level=sat
+                frame.mosaic,
+                layout,
+                layout.pol45_toward,
+                cfg.demosaic,
+                saturation_level=sat,
+                ifov_k=cfg.ifov_check_k,
             )
         ideal_valid = np.ascontiguousarray(frame.valid)
         if cfg.demosaic == 'bilinear':

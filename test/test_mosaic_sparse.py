@@ -31,8 +31,10 @@ from polarization_compass import conventions as cv
 from polarization_compass.camera import CameraModel, load_camera_yaml, PixelSelection
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
+    IFOV_K_DEFAULT,
     parse_layout,
     polarization_from_mosaic,
+    redundancy_noise,
     stokes_from_mosaic,
 )
 from polarization_compass.estimators import make_estimator, Observation
@@ -49,14 +51,17 @@ POL45 = '+x-y'
 def _dense(
     mosaic, cam, method, origin=(1, 1), with_intensity=False, sat=None, sun=(10.0, 30.0), **obs_kw
 ):
-    """Demosaic the whole frame into an Observation, without mosaic_input."""
+    """Demosaic the whole frame into an Observation, without mosaic_input (IFOV check on)."""
     x0, y0 = origin
     lay = parse_layout(LAYOUT, POL45).shifted((y0 - 1) % 2, (x0 - 1) % 2)
+    check = (IFOV_K_DEFAULT, redundancy_noise(mosaic, lay, lay.pol45_toward, method, sat))
     if with_intensity:
-        s0, s1, s2 = stokes_from_mosaic(mosaic, lay, lay.pol45_toward, method, sat)
+        s0, s1, s2 = stokes_from_mosaic(mosaic, lay, lay.pol45_toward, method, sat, *check)
         aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
     else:
-        aop, dop, valid = polarization_from_mosaic(mosaic, lay, lay.pol45_toward, method, sat)
+        aop, dop, valid = polarization_from_mosaic(
+            mosaic, lay, lay.pol45_toward, method, sat, *check
+        )
         s0 = None
     H, W = aop.shape
     if method == 'superpixel':

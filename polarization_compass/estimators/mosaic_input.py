@@ -59,10 +59,14 @@ from .base import Observation
 from ..camera import CameraError, CameraModel, PixelSelection, select_pixels
 from ..demosaic import (
     aop_dop_from_stokes,
+    check_ifov_k,
+    IFOV_K_DEFAULT,
     IMX250MZR_LAYOUT,
     IMX250MZR_POL45,
     parse_layout,
     polarization_from_mosaic,
+    redundancy_noise,
+    SensorError,
     stokes_from_mosaic,
 )
 from ..errors import CompassError
@@ -254,6 +258,7 @@ def observation_from_mosaic(
     pitch_deg=None,
     roll_deg=None,
     prior_bearing_deg=None,
+    ifov_k: float = IFOV_K_DEFAULT,
 ) -> Observation:
     """
     Demosaic the pixels a selection needs from a raw mosaic into an :class:`Observation`.
@@ -293,6 +298,11 @@ def observation_from_mosaic(
         Known camera pitch and roll [deg] (eq 21).
     prior_bearing_deg : float, optional
         Prior bearing of camera +y [deg, clockwise from North].
+    ifov_k : float, default IFOV_K_DEFAULT (4)
+        IFOV check (:mod:`polarization_compass.demosaic`, "IFOV check"): a pixel whose DoFP
+        redundancy ``(I0 + I90) - (I45 + I135)`` exceeds ``ifov_k`` noise sigmas is invalid; the
+        noise is estimated once from the whole mosaic (:func:`~polarization_compass.demosaic.
+        redundancy_noise`), so every selection judges a pixel as the full frame does. 0 = off.
 
     Returns
     -------
@@ -304,7 +314,7 @@ def observation_from_mosaic(
     ------
     MosaicInputError
         A mosaic that is not 2-D or does not fit the camera, wanted pixels outside it or holding no
-        complete superpixel, or an unknown demosaic method.
+        complete superpixel, an unknown demosaic method or a bad ``ifov_k``.
 
     References
     ----------
@@ -329,6 +339,17 @@ def observation_from_mosaic(
     )  # the mosaic's own phase
     if method not in ('superpixel', 'bilinear'):
         raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
+    try:
+        ifov_k = check_ifov_k(ifov_k)
+        # one noise model for the whole frame, whatever part of it is demosaiced
+        noise = (
+            redundancy_noise(m, lay, lay.pol45_toward, method, saturation_level)
+            if ifov_k > 0.0
+            else None
+        )
+    except SensorError as exc:
+        raise MosaicInputError(str(exc)) from None
+    check = (ifov_k, noise)
     if selection is not None and selection.mode in ('list', 'grid'):
         try:
             rows, cols, pick, xg, yg, rays, has_ray = _sparse_plan(
@@ -336,7 +357,9 @@ def observation_from_mosaic(
             )
         except CameraError as exc:
             raise MosaicInputError(f'the pixels wanted: {exc}') from None
-        out = _demosaic(_gather(m, rows, cols), lay, method, saturation_level, with_intensity)
+        out = _demosaic(
+            _gather(m, rows, cols), lay, method, saturation_level, with_intensity, check
+        )
         if pick is not None:
             out = tuple(None if a is None else a[pick] for a in out)
         return _observation(
@@ -377,7 +400,9 @@ def observation_from_mosaic(
         sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
         lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
         gx = gy = None
-    aop, dop, valid, inten = _demosaic(sub, lay_sub, method, saturation_level, with_intensity)
+    aop, dop, valid, inten = _demosaic(
+        sub, lay_sub, method, saturation_level, with_intensity, check
+    )
     if method == 'bilinear':
         ys = np.arange(cy0, cy1 + 1)
         xs = np.arange(cx0, cx1 + 1)
@@ -406,18 +431,21 @@ def observation_from_mosaic(
     )
 
 
-def _demosaic(sub, lay, method, saturation_level, with_intensity):
+def _demosaic(sub, lay, method, saturation_level, with_intensity, check):
     """
     Demosaic a (sub-)mosaic whose top-left sample has the polarizer phase of ``lay``.
 
-    (aop, dop, valid, intensity or None) by :mod:`polarization_compass.demosaic`.
+    (aop, dop, valid, intensity or None) by :mod:`polarization_compass.demosaic`; ``check``:
+    (ifov_k, the whole frame's redundancy noise).
     """
     if with_intensity:
-        s0, s1, s2 = stokes_from_mosaic(sub, lay, lay.pol45_toward, method, saturation_level)
+        s0, s1, s2 = stokes_from_mosaic(
+            sub, lay, lay.pol45_toward, method, saturation_level, *check
+        )
         aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
         return aop, dop, valid, s0
     aop, dop, valid = polarization_from_mosaic(
-        sub, lay, lay.pol45_toward, method, saturation_level
+        sub, lay, lay.pol45_toward, method, saturation_level, *check
     )
     return aop, dop, valid, None
 
