@@ -123,6 +123,9 @@ def test_prior_and_stride_and_knobs(capsys, ideal_frame):
         (['--pitch', '3'], 'go together'),
         (['--stride', '0'], 'stride'),
         (['--pitch', 'nan', '--roll', '0'], 'pitch'),
+        (['--ifov-k', '-1'], '--ifov-k'),
+        (['--ifov-k', '0.5'], '--ifov-k'),
+        (['--ifov-k', 'nan'], '--ifov-k'),
     ],
 )
 def test_bad_arguments_exit_2(capsys, ideal_frame, argv, msg):

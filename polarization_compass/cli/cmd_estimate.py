@@ -84,6 +84,14 @@ def register(sub):
         help='demosaic of a raw mosaic input (default superpixel)',
     )
     p.add_argument(
+        '--ifov-k',
+        type=float,
+        default=None,
+        metavar='K',
+        help='IFOV check of a raw mosaic: a pixel whose (I0+I90)-(I45+I135) exceeds K noise '
+        'sigmas is not used (default 4; 0 = off; docs/real-cameras.md)',
+    )
+    p.add_argument(
         '--sun-azimuth',
         type=float,
         help='given sun azimuth, deg clockwise from North (instead of --lat/--lon/--time)',
@@ -263,6 +271,19 @@ def _methods(text: str) -> list[str]:
     return wanted
 
 
+def _ifov_k(args):
+    """``--ifov-k`` validated (default ``demosaic.IFOV_K_DEFAULT``); CompassError if bad."""
+    from ..demosaic import check_ifov_k, IFOV_K_DEFAULT
+
+    k = getattr(args, 'ifov_k', None)
+    if k is None:
+        return IFOV_K_DEFAULT
+    try:
+        return check_ifov_k(k)
+    except CompassError as exc:
+        raise CompassError(f'--ifov-k: {exc}') from None
+
+
 def run(args) -> int:
     from ..conventions import fold_axial_deg, wrap_180_deg
     from ..estimators import Observation
@@ -276,6 +297,7 @@ def run(args) -> int:
     check_together('pitch', args.pitch, 'roll', args.roll)
     if args.stride is not None and not (1 <= args.stride <= 1024):
         raise CompassError(f'--stride must be in [1, 1024], got {args.stride}')
+    _ifov_k(args)
     methods = _methods(args.method)
     knobs = parse_knobs(args.knob)
     from ..real_input import load_polarization_input
@@ -359,6 +381,7 @@ def run(args) -> int:
                 pitch_deg=args.pitch,
                 roll_deg=args.roll,
                 prior_bearing_deg=args.prior_bearing,
+                ifov_k=_ifov_k(args),
             )
         else:
             if stored_obs is None:
@@ -431,6 +454,7 @@ def real_observation(
     pitch=None,
     roll=None,
     prior=None,
+    ifov_k=None,
 ):
     """
     Build the observation of a whole real image and its data mask.
@@ -438,12 +462,13 @@ def real_observation(
     Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into
     camera-frame Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see
     ``demosaic``), or a raw mosaic demosaiced with the camera file's layout. Invalid: outside the
-    lens, saturated (+ glare), masked.
+    lens, saturated (+ glare), masked, and for a raw mosaic the IFOV check's rejections (``ifov_k``
+    sigmas, default ``demosaic.IFOV_K_DEFAULT``; 0 = off).
     """
     import numpy as np
 
     from ..camera import PixelSelection, select_pixels
-    from ..demosaic import aop_dop_from_stokes, stokes_from_mosaic
+    from ..demosaic import aop_dop_from_stokes, IFOV_K_DEFAULT, stokes_from_mosaic
     from ..estimators import Observation
     from ..estimators.mosaic_input import _grid_rays
     from ..skyfit import data_mask
@@ -464,7 +489,12 @@ def real_observation(
                 f'{W} x {H}'
             )
         s0, s1, s2 = stokes_from_mosaic(
-            inp.mosaic, cam_file.layout, cam_file.pol45_toward, demosaic, inp.saturation_level
+            inp.mosaic,
+            cam_file.layout,
+            cam_file.pol45_toward,
+            demosaic,
+            inp.saturation_level,
+            IFOV_K_DEFAULT if ifov_k is None else ifov_k,
         )
         shp = s0.shape
         from ..polarizer_check import saturated_blocks
@@ -536,6 +566,7 @@ def _run_real(args, inp, methods, knobs) -> int:
         args.pitch,
         args.roll,
         args.prior_bearing,
+        _ifov_k(args),
     )
     sample = (
         None
