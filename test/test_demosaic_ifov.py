@@ -20,8 +20,8 @@ with numpy from the polarizer angles; the Gaussian false-alarm rate ``erfc(k / s
 heading error against the rendered truth.
 """
 
-from pathlib import Path
 import math
+from pathlib import Path
 
 import numpy as np
 from polarization_compass.demosaic import (
@@ -143,7 +143,8 @@ def test_clear_sky_false_alarm_rate_is_the_gaussian_tail(method, sigma_z):
 def test_the_stokes_path_rejects_the_same_pixels():
     rng = np.random.default_rng(3)
     y, x = np.mgrid[0:64, 0:64]
-    ideal = _malus(np.where((x - 30) ** 2 + (y - 34) ** 2 < 200, 2500.0, 900.0), 0.3, 0.1, (64, 64))
+    disc = (x - 30) ** 2 + (y - 34) ** 2 < 200
+    ideal = _malus(np.where(disc, 2500.0, 900.0), 0.3, 0.1, (64, 64))
     m = rng.poisson(ideal).astype(np.uint16)
     for method in ('superpixel', 'bilinear'):
         _, _, ok = polarization_from_mosaic(m, LAYOUT, POL45, method, ifov_k=3.0)
@@ -202,7 +203,8 @@ def test_a_cloudy_sky_least_squares_sigma_is_honest_with_the_check():
         ratios = []
         for i in range(6):
             scene = base.replace(sensor=dict(plain, ifov_check={'k_sigma': k}), seed=100 + i)
-            frame = Renderer(scene).render(attitude=CameraAttitude(float(rng.uniform(0, 360)), 0, 0))
+            att = CameraAttitude(float(rng.uniform(0, 360)), 0, 0)
+            frame = Renderer(scene).render(attitude=att)
             out = est.estimate(Observation.from_frame(frame, camera=scene.camera))
             assert out.ok
             d = out.psi_deg - frame.psi_deg
