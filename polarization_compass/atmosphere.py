@@ -95,7 +95,16 @@ import numpy as np
 
 from .errors import CompassError
 
-__all__ = ['AtmosphereError', 'Atmosphere', 'CloudLayer', 'Haze', 'Skyline', 'haze_dop_factor']
+__all__ = [
+    'AtmosphereError',
+    'Atmosphere',
+    'CloudLayer',
+    'Haze',
+    'Skyline',
+    'cloud_over',
+    'cloud_transmission',
+    'haze_dop_factor',
+]
 
 
 class AtmosphereError(CompassError):
@@ -230,58 +239,126 @@ def _cloud_kernel(
 def _cloud_transmission_kernel(
     rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max, out
 ):  # pragma: no cover - compiled
-    """T = exp(-tau) of the layer along each ray (1 below the horizon or between clouds)."""
+    """
+    Return T = exp(-tau) of the layer along each ray (1 below the horizon or between clouds).
+
+    Every ray is evaluated and the cases are selects (exp(-0) = 1 exactly between clouds): the
+    nested branches of a first version ran this loop 3x slower (measured, 6.3 vs 2 ms on the
+    2448 x 2048 frame's grid).
+    """
     for i in prange(rays.shape[1]):
         px = rays[0, i]
         py = rays[1, i]
         pz = rays[2, i]
         u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
-        t = 1.0
-        if u > 0.0:
-            if overcast:
-                d = 1.0
-            else:
-                e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
-                nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
-                k = height_over_scale / max(u, 0.02)
-                v = _fbm(e * k - off_x, nn * k - off_y, seed)
-                d = min(max((v - thr) * inv_soft, 0.0), 1.0)
-            if d > 0.0:
-                t = math.exp(-tau_max * d)
-        out[i] = t
+        e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
+        nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
+        k = height_over_scale / max(u, 0.02)
+        v = _fbm(e * k - off_x, nn * k - off_y, seed)
+        d = 1.0 if overcast else min(max((v - thr) * inv_soft, 0.0), 1.0)
+        t = math.exp(-tau_max * d)
+        out[i] = t if u > 0.0 else 1.0
+
+
+@njit(parallel=True, cache=True, fastmath=True)
+def _grid_rows_to_columns(tg, ck, ck1, cf, out):  # pragma: no cover - compiled
+    """
+    Interpolate each grid row of T linearly to every pixel column.
+
+    ``out[g, j] = tg[g, ck[j]] (1 - cf[j]) + tg[g, ck1[j]] cf[j]``: the horizontal half of the
+    bilinear interpolation, done once per grid row (8x fewer than per pixel row), so that a pixel
+    row's T is a blend of two rows of ``out`` (:func:`cloud_transmission`), a contiguous loop that
+    vectorises.
+    """
+    one = np.float32(1.0)
+    for g in prange(tg.shape[0]):
+        for j in range(cf.size):
+            out[g, j] = tg[g, ck[j]] * (one - cf[j]) + tg[g, ck1[j]] * cf[j]
+
+
+@njit(inline='always', cache=True, fastmath=True)
+def cloud_transmission(u0, u1, fy):  # pragma: no cover - compiled
+    """
+    Return a pixel's cloud transmission from the two grid rows around its row (float32).
+
+    The vertical half of the bilinear interpolation of the layer's T from its grid
+    (:meth:`CloudLayer.transmission_grid`): ``u0 (1 - fy) + u1 fy``, with ``u0``, ``u1`` the
+    pixel's column of the grid rows below and above, already interpolated along the row, and ``fy``
+    the row's fraction between them. Compiled, inlined into the composite loops.
+
+    Parameters
+    ----------
+    u0, u1 : float32
+        T of the grid rows below and above at the pixel's column.
+    fy : float32
+        Fraction of the way from the row below to the row above, [0, 1].
+
+    Returns
+    -------
+    float32
+        T at the pixel, (0, 1].
+
+    """
+    return u0 * (np.float32(1.0) - fy) + u1 * fy
+
+
+@njit(inline='always', cache=True, fastmath=True)
+def cloud_over(i_clear, t, dop, bright):  # pragma: no cover - compiled
+    """
+    Return the DoP and radiance of clear-sky light seen through the cloud layer (float32).
+
+    ``I = I_clear T + B (1 - T)`` and ``DoP = DoP_clear I_clear T / I`` (module docstring): the
+    transmitted clear-sky light keeps its polarization, the cloud's own light is unpolarized. T = 1
+    leaves the pixel as it is. Compiled, inlined into the composite loops.
+
+    Parameters
+    ----------
+    i_clear : float32
+        Clear-sky radiance relative to the clear zenith.
+    t : float32
+        Transmission exp(-tau) of the layer along the ray, (0, 1].
+    dop : float32
+        Clear-sky DoP [0, 1].
+    bright : float32
+        The cloud's own radiance B relative to the clear zenith.
+
+    Returns
+    -------
+    dop : float32
+        DoP under the cloud.
+    radiance : float32
+        Radiance under the cloud.
+
+    References
+    ----------
+    .. [1] I. Pomozi, G. Horvath and R. Wehner, "How the clear-sky angle of polarization pattern
+       continues underneath clouds", J. Exp. Biol. 204:2933-2942, 2001.
+
+    """
+    w = i_clear * t
+    i_tot = w + bright * (np.float32(1.0) - t)
+    return dop * w / i_tot, i_tot
 
 
 @njit(parallel=True, cache=True, fastmath=True)
 def _cloud_composite_grid_kernel(
-    tg, rk, rk1, rf, cols, cf, bright, aop, dop, inten, min_dop, valid
+    tu, rk, rk1, rf, bright, aop, dop, inten, min_dop, valid
 ):  # pragma: no cover - compiled
     """
     Composite the clouds with the transmission interpolated bilinearly from the grid.
 
-    Composite the clouds with T interpolated bilinearly from the grid ``tg``: pixel (i, j) lies
-    between grid rows rk[i], rk1[i] at fraction rf[i], and between grid columns g and g + 1 at
-    fraction cf[j] for cols[g] <= j < cols[g + 1] (``cols``: the grid's pixel columns, increasing,
-    the last one W - 1).
+    Pixel row i lies between grid rows rk[i] and rk1[i] at fraction rf[i]; ``tu`` holds T of the
+    grid rows at every pixel column (:meth:`CloudLayer.transmission_grid`).
     """
     H = rk.size
-    W = cf.size
-    one = np.float32(1.0)
+    W = tu.shape[1]
     zero = np.float32(0.0)
-    G = tg.shape[1]
     for i in prange(H):
-        # T along the row: the two grid rows blended, then spread over the columns (a gather loop),
-        # so that the composite below is a plain loop over row slices, which vectorises (the
-        # per-pixel gather and a flat index i * W + j kept it scalar, measured)
+        # per-row slices: the composite is a plain loop that vectorises (a per-pixel gather and a
+        # flat index i * W + j kept it scalar, measured)
+        u0 = tu[rk[i]]
+        u1 = tu[rk1[i]]
         fy = rf[i]
-        trow = np.empty(G, np.float32)
-        for g in range(G):
-            trow[g] = tg[rk[i], g] * (one - fy) + tg[rk1[i], g] * fy
-        t = np.empty(W, np.float32)
-        for g in range(G):
-            a = trow[g]
-            b = trow[min(g + 1, G - 1)]
-            for j in range(cols[g], cols[g + 1] if g + 1 < G else W):
-                t[j] = a * (one - cf[j]) + b * cf[j]
         o = i * W
         dp = dop[o:o + W]
         it = inten[o:o + W]
@@ -289,10 +366,7 @@ def _cloud_composite_grid_kernel(
             # no pixel can fall below the minimum DoP: AoP and validity are not touched (a third
             # less memory traffic; the DoP of a valid pixel stays >= 0)
             for j in range(W):
-                w = it[j] * t[j]
-                i_tot = w + bright * (one - t[j])
-                dp[j] = dp[j] * w / i_tot
-                it[j] = i_tot
+                dp[j], it[j] = cloud_over(it[j], cloud_transmission(u0[j], u1[j], fy), dp[j], bright)
             continue
         ap = aop[o:o + W]
         vd = valid[o:o + W]
@@ -300,14 +374,11 @@ def _cloud_composite_grid_kernel(
             # branch-free (t = 1 leaves the pixel as it is); invalid pixels hold DoP 0, so "drop"
             # leaves them as they are; valid = valid and not drop as a comparison of bools (2x
             # faster than & and ~, measured)
-            w = it[j] * t[j]
-            i_tot = w + bright * (one - t[j])
-            d = dp[j] * w / i_tot
+            d, it[j] = cloud_over(it[j], cloud_transmission(u0[j], u1[j], fy), dp[j], bright)
             drop = d < min_dop
             dp[j] = zero if drop else d
             ap[j] = zero if drop else ap[j]
             vd[j] = vd[j] > drop
-            it[j] = i_tot
 
 
 def _grid_axis(n: int, step: int):
@@ -476,6 +547,76 @@ class CloudLayer:
         _noise_at(x, y, self.seed, v)
         return np.clip((v - self.threshold) / self.softness, 0.0, 1.0)
 
+    def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
+        """
+        Return the layer's transmission on the interpolation grid of a pixel block, or None.
+
+        With ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region,
+        both sides longer than ``2 GRID_STEP``) T = exp(-tau) is evaluated on every
+        ``GRID_STEP``-th row and column (and the last ones) and interpolated along each of those
+        rows to every pixel column; a pixel row's T is then the blend of the two grid rows around
+        it (:func:`cloud_transmission`, see :meth:`apply`). Any other selection gives None.
+
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU.
+        rays_cam : numpy.ndarray, shape (3, H * W), float32
+            Unit viewing rays of the block in the camera frame, row-major, contiguous.
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the layer with the wind).
+        block_shape : tuple of int or None
+            (H, W) of the block, or None.
+
+        Returns
+        -------
+        tuple or None
+            (tu (Gy, W) float32 T of the grid rows at every pixel column, rk, rk1 (H,) int64 the
+            grid rows below and above each pixel row, rf (H,) float32 the fraction between them),
+            or None.
+
+        """
+        if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
+            return None
+        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        off_x = self.wind_mps[0] * dt_s / self.scale_m
+        off_y = self.wind_mps[1] * dt_s / self.scale_m
+        H, W = block_shape
+        key = (id(rays_cam), H, W)
+        if getattr(self, '_grid_key', None) != key:
+            rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
+            cols, ck, ck1, cf = _grid_axis(W, GRID_STEP)
+            self._grid = (
+                np.ascontiguousarray(rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)),
+                (rows.size, cols.size),
+                rk,
+                rk1,
+                rf,
+                ck,
+                ck1,
+                cf,
+            )
+            self._grid_key = key
+            self._grid_rays = rays_cam  # keep it alive so that its id stays its own
+        grays, gshape, rk, rk1, rf, ck, ck1, cf = self._grid
+        tg = np.empty(grays.shape[1], np.float32)
+        _cloud_transmission_kernel(
+            grays,
+            R,
+            self.height_m / self.scale_m,
+            off_x,
+            off_y,
+            self.seed,
+            self.threshold,
+            1.0 / self.softness,
+            self.overcast,
+            self.optical_thickness,
+            tg,
+        )
+        tu = np.empty((gshape[0], W), np.float32)
+        _grid_rows_to_columns(tg.reshape(gshape), ck, ck1, cf, tu)
+        return tu, rk, rk1, rf
+
     def apply(
         self,
         R_enu_cam,
@@ -523,49 +664,10 @@ class CloudLayer:
             selection.
 
         """
-        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        off_x = self.wind_mps[0] * dt_s / self.scale_m
-        off_y = self.wind_mps[1] * dt_s / self.scale_m
-        if block_shape is not None and min(block_shape) > 2 * GRID_STEP:
-            H, W = block_shape
-            key = (id(rays_cam), H, W)
-            if getattr(self, '_grid_key', None) != key:
-                rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
-                cols, _, _, cf = _grid_axis(W, GRID_STEP)
-                self._grid = (
-                    np.ascontiguousarray(
-                        rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
-                    ),
-                    (rows.size, cols.size),
-                    rk,
-                    rk1,
-                    rf,
-                    cols.astype(np.int64),
-                    cf,
-                )
-                self._grid_key = key
-            grays, gshape, rk, rk1, rf, gcols, cf = self._grid
-            tg = np.empty(grays.shape[1], np.float64)
-            _cloud_transmission_kernel(
-                grays,
-                R,
-                self.height_m / self.scale_m,
-                off_x,
-                off_y,
-                self.seed,
-                self.threshold,
-                1.0 / self.softness,
-                self.overcast,
-                self.optical_thickness,
-                tg,
-            )
+        grid = self.transmission_grid(R_enu_cam, rays_cam, dt_s, block_shape)
+        if grid is not None:
             _cloud_composite_grid_kernel(
-                tg.reshape(gshape).astype(np.float32),
-                rk,
-                rk1,
-                rf,
-                gcols,
-                cf,
+                *grid,
                 np.float32(self.brightness),
                 aop,
                 dop,
@@ -574,6 +676,9 @@ class CloudLayer:
                 valid,
             )
             return
+        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        off_x = self.wind_mps[0] * dt_s / self.scale_m
+        off_y = self.wind_mps[1] * dt_s / self.scale_m
         _cloud_kernel(
             rays_cam,
             R,

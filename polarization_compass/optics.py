@@ -72,6 +72,7 @@ __all__ = [
     'SUN_SEMIDIAMETER_DEG',
     'REAL_FRAME_GHOST_POSITIONS',
     'ghost_centres_px',
+    'lens_over',
 ]
 
 SUN_SEMIDIAMETER_DEG = 0.2666
@@ -180,6 +181,87 @@ def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cov
     return g if do_sun else np.float32(0.0)
 
 
+@njit(inline='always', fastmath=True, cache=True, error_model='numpy')
+def lens_over(
+    i_sky,
+    dop,
+    px,
+    py,
+    pz,
+    xi,
+    yi,
+    vig_mode,
+    cx,
+    cy,
+    inv_hd2,
+    k1,
+    k2,
+    k3,
+    do_sun,
+    sx,
+    sy,
+    sz,
+    disk_rad,
+    disk,
+    g1,
+    expo,
+    square,
+):  # pragma: no cover - compiled
+    """
+    Return the DoP and radiance of one pixel after vignetting and the sun's light (float32).
+
+    The vignetted sky radiance ``I V`` plus the sun's unpolarized light G (disk or glare), and the
+    DoP ``DoP I V / (I V + G)`` (module docstring). The per-pixel body of the block kernel and of
+    the fused sky-and-effects pass (:mod:`polarization_compass.sky_effects`); compiled, inlined.
+    ``square`` must be a constant at the call site (the exponent-2 glare is divisions only and
+    vectorises; see :func:`_sun_light`).
+
+    Parameters
+    ----------
+    i_sky : float32
+        Radiance of the sky at the pixel, relative to the clear zenith.
+    dop : float32
+        DoP of the sky at the pixel.
+    px, py, pz : float32
+        Unit viewing ray in the camera frame.
+    xi, yi : float32
+        Pixel column and row [px, 1-based].
+    vig_mode : int
+        0 no vignetting, 1 cos^4, 2 radial polynomial.
+    cx, cy, inv_hd2, k1, k2, k3 : float32
+        Principal point [px], 1 / half-diagonal^2 [px^-2] and the polynomial's coefficients.
+    do_sun : bool
+        Whether the sun is declared.
+    sx, sy, sz : float32
+        Unit sun vector in the camera frame.
+    disk_rad, disk, g1, expo : float32
+        Solar disk radius [rad], its radiance, the glare factor and exponent (see
+        :meth:`Optics.frame_params`).
+    square : bool
+        Whether the glare exponent is 2.
+
+    Returns
+    -------
+    dop : float32
+        DoP after the lens.
+    radiance : float32
+        Radiance after the lens, relative to the clear zenith.
+
+    References
+    ----------
+    .. [1] CIE 135/1-1999 (Stiles-Holladay disability glare; Vos and van den Berg).
+    .. [2] D. B. Goldman, "Vignette and exposure calibration and compensation", IEEE TPAMI 32,
+       2010.
+
+    """
+    base, gam = _lens_pixel(
+        px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
+    )
+    g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+    tot = base + g
+    return (dop * (base / tot) if g > np.float32(0.0) else dop), tot
+
+
 @njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
 def _optics_block_kernel(
     rays,
@@ -212,7 +294,6 @@ def _optics_block_kernel(
     arrays.
     """
     W = xcol.size
-    zero = np.float32(0.0)
     for r in prange(yrow.size):
         # per-row slices: with a flat index r * W + c LLVM kept this loop scalar (14x slower,
         # measured)
@@ -225,13 +306,14 @@ def _optics_block_kernel(
         yi = yrow[r]
         if square:
             for c in range(W):
-                base, gam = _lens_pixel(
+                dp[c], it[c] = lens_over(
+                    it[c],
+                    dp[c],
                     rx[c],
                     ry[c],
                     rz[c],
                     xcol[c],
                     yi,
-                    it[c],
                     vig_mode,
                     cx,
                     cy,
@@ -239,23 +321,26 @@ def _optics_block_kernel(
                     k1,
                     k2,
                     k3,
+                    do_sun,
                     sx,
                     sy,
                     sz,
+                    disk_rad,
+                    disk,
+                    g1,
+                    expo,
+                    True,
                 )
-                g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, True)
-                tot = base + g
-                dp[c] = dp[c] * (base / tot) if g > zero else dp[c]
-                it[c] = tot
         else:
             for c in range(W):
-                base, gam = _lens_pixel(
+                dp[c], it[c] = lens_over(
+                    it[c],
+                    dp[c],
                     rx[c],
                     ry[c],
                     rz[c],
                     xcol[c],
                     yi,
-                    it[c],
                     vig_mode,
                     cx,
                     cy,
@@ -263,14 +348,16 @@ def _optics_block_kernel(
                     k1,
                     k2,
                     k3,
+                    do_sun,
                     sx,
                     sy,
                     sz,
+                    disk_rad,
+                    disk,
+                    g1,
+                    expo,
+                    False,
                 )
-                g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, False)
-                tot = base + g
-                dp[c] = dp[c] * (base / tot) if g > zero else dp[c]
-                it[c] = tot
 
 
 @njit(cache=True)
@@ -568,6 +655,41 @@ class Optics:
            2010.
 
         """
+        common, ghosts = self.frame_params(sun_cam, instr)
+        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        axes = self.block_axes(x_px, y_px)
+        if axes is not None:
+            xc, yr = axes
+            if common[0] or self.sun is not None:
+                _optics_block_kernel(rays, xc, yr, *common, dop, intensity)
+            self.add_ghosts(ghosts, xc, yr, dop, intensity)
+            return
+        x = np.ascontiguousarray(np.asarray(x_px, np.float32).reshape(-1))
+        y = np.ascontiguousarray(np.asarray(y_px, np.float32).reshape(-1))
+        _optics_kernel(rays, x, y, *common, *ghosts, dop, intensity)
+
+    def frame_params(self, sun_cam, instr):
+        """
+        Count the declared stages and return the frame's lens parameters and ghosts.
+
+        Parameters
+        ----------
+        sun_cam : array_like, shape (3,)
+            Sun direction in the camera frame (normalised here).
+        instr : module or object
+            Instrumentation with a ``count(name)`` function; each declared stage is counted once.
+
+        Returns
+        -------
+        common : tuple
+            The arguments of :func:`lens_over` after the pixel's coordinates (vig_mode, cx, cy,
+            inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad, disk, g1, expo, square; float32
+            numbers, an int and two bools).
+        ghosts : tuple
+            (gx, gy) float32 ghost centres [px] (empty without flare or when the sun does not
+            project), the squared radius [px^2] and the radiance, as float32.
+
+        """
         f32 = np.float32
         vig_mode, ks = 0, (0.0, 0.0, 0.0)
         if self.vignetting is not None:
@@ -599,7 +721,6 @@ class Optics:
                 )
                 r2, grad = self.flare['radius_px'] ** 2, self.flare['radiance']
         cam = self.camera
-        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         common = (
             vig_mode,
             f32(cam.cx_px),
@@ -618,36 +739,58 @@ class Optics:
             f32(p['glare_exponent']),
             square,
         )
-        axes = self._axes(x_px, y_px)
-        if axes is not None:
-            xc, yr = axes
-            if vig_mode or self.sun is not None:
-                _optics_block_kernel(rays, xc, yr, *common, dop, intensity)
-            if gx.size:
-                rad = math.sqrt(r2)
-                boxes = np.array(
-                    [
-                        [
-                            np.searchsorted(yr, gy[k] - rad, 'left'),
-                            np.searchsorted(yr, gy[k] + rad, 'right'),
-                            np.searchsorted(xc, gx[k] - rad, 'left'),
-                            np.searchsorted(xc, gx[k] + rad, 'right'),
-                        ]
-                        for k in range(gx.size)
-                    ],
-                    dtype=np.int64,
-                )
-                _flare_box_kernel(boxes, xc, yr, gx, gy, f32(r2), f32(grad), dop, intensity)
-            return
-        x = np.ascontiguousarray(np.asarray(x_px, np.float32).reshape(-1))
-        y = np.ascontiguousarray(np.asarray(y_px, np.float32).reshape(-1))
-        _optics_kernel(rays, x, y, *common, gx, gy, f32(r2), f32(grad), dop, intensity)
+        return common, (gx, gy, f32(r2), f32(grad))
 
-    def _axes(self, x_px, y_px):
+    def add_ghosts(self, ghosts, xc, yr, dop, intensity) -> None:
         """
-        Return :func:`_block_axes` of the selection's coordinates, cached per array.
+        Add the lens-flare ghosts to a block of pixels, visiting only their bounding boxes.
 
-        :func:`_block_axes` of the selection's coordinates, computed once per coordinate array.
+        Parameters
+        ----------
+        ghosts : tuple
+            (gx, gy, r2, grad) from :meth:`frame_params`.
+        xc, yr : numpy.ndarray, float32
+            The block's columns and rows [px, 1-based] (:meth:`block_axes`).
+        dop : numpy.ndarray, shape (N,), float32
+            Degree of polarization, row-major over the block; scaled in place by I / (I + grad).
+        intensity : numpy.ndarray, shape (N,), float32
+            Radiance; the ghosts' radiance is added in place.
+
+        """
+        gx, gy, r2, grad = ghosts
+        if not gx.size:
+            return
+        rad = math.sqrt(r2)
+        boxes = np.array(
+            [
+                [
+                    np.searchsorted(yr, gy[k] - rad, 'left'),
+                    np.searchsorted(yr, gy[k] + rad, 'right'),
+                    np.searchsorted(xc, gx[k] - rad, 'left'),
+                    np.searchsorted(xc, gx[k] + rad, 'right'),
+                ]
+                for k in range(gx.size)
+            ],
+            dtype=np.int64,
+        )
+        _flare_box_kernel(boxes, xc, yr, gx, gy, r2, grad, dop, intensity)
+
+    def block_axes(self, x_px, y_px):
+        """
+        Return the (columns, rows) whose product the pixel coordinates are, else None.
+
+        Computed once per coordinate array (:func:`_block_axes`).
+
+        Parameters
+        ----------
+        x_px, y_px : numpy.ndarray
+            The pixels' 1-based column and row coordinates [px], in the selection's shape.
+
+        Returns
+        -------
+        tuple of numpy.ndarray or None
+            (columns, rows) float32, increasing, or None when the pixels are not such a block.
+
         """
         key = (id(x_px), id(y_px), np.shape(x_px))
         if getattr(self, '_axes_key', None) != key:

@@ -184,6 +184,12 @@ class Renderer:
             from .optics import Optics
 
             self.optics = Optics(scene.optics, scene.camera)
+        self.sky_effects = None
+        if self.atmosphere is not None or self.optics is not None:
+            # clouds and lens effects over a pixel block: one pass instead of three stages
+            from .sky_effects import SkyEffects
+
+            self.sky_effects = SkyEffects.for_renderer(self)
 
     # ------------------------------------------------------------------------------------------
     def sun_at(self, time_utc=None) -> SunDirection:
@@ -295,12 +301,18 @@ class Renderer:
             sun_cam = R.T @ s_enu
             zenith_cam = R[2, :].copy()  # R^T (0, 0, 1)
         shape = self.pixels.shape
-        aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
-        if self.atmosphere is not None:
+        if self.sky_effects is not None:
+            aop, dop, valid, intensity = self.sky_effects.render(
+                R, sun_cam, zenith_cam, self._limits, self._dt_s(time_utc), instr
+            )
+            self._mask_no_ray(aop, dop, valid)
+        else:
+            aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
+        if self.atmosphere is not None and self.sky_effects is None:
             aop, dop, valid, intensity = self._atmosphere(
                 R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc
             )
-        if self.optics is not None:
+        if self.optics is not None and self.sky_effects is None:
             if intensity is None:
                 intensity = np.ones(aop.shape, np.float32)
             self.optics.apply(
@@ -387,16 +399,28 @@ class Renderer:
             aop, dop, valid = self.sky.polarization(
                 sun_cam, zenith_cam, self.pixels.rays_cam, self._limits
             )
-        if not self._all_have_rays:  # fisheye pixels beyond the lens' field: no sky, 0/0
-            no_ray = ~self.pixels.has_ray.reshape(-1)
-            valid[no_ray] = False
-            aop[no_ray] = 0.0
-            dop[no_ray] = 0.0
+        self._mask_no_ray(aop, dop, valid)
         intensity = None
         if self.radiance is not None:
             with instr.stage('radiance.' + self.radiance.name):
                 intensity = self.radiance.radiance(sun_cam, zenith_cam, self.pixels.rays_cam)
         return aop, dop, valid, intensity
+
+    def _mask_no_ray(self, aop, dop, valid):
+        """Mark fisheye pixels beyond the lens' field as no sky (invalid, 0/0), in place."""
+        if not self._all_have_rays:
+            no_ray = ~self.pixels.has_ray.reshape(-1)
+            valid[no_ray] = False
+            aop[no_ray] = 0.0
+            dop[no_ray] = 0.0
+
+    def _dt_s(self, time_utc) -> float:
+        """Return the time since the scene's ``time_utc`` [s] (0 without a time)."""
+        if time_utc is None:
+            return 0.0
+        from .scene import parse_time_utc
+
+        return (parse_time_utc(time_utc) - self.scene.time_utc).total_seconds()
 
     def _atmosphere(self, R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc):
         """
@@ -413,11 +437,7 @@ class Renderer:
                     )
             else:
                 intensity = np.ones(aop.shape, np.float32)
-        dt_s = 0.0
-        if time_utc is not None:
-            from .scene import parse_time_utc
-
-            dt_s = (parse_time_utc(time_utc) - self.scene.time_utc).total_seconds()
+        dt_s = self._dt_s(time_utc)
         sel = self.selection
         block = (
             self.pixels.shape

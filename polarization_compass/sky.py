@@ -43,7 +43,7 @@ import numpy as np
 from .errors import CompassError
 from .fastmath import axial_atan2_f32
 
-__all__ = ['RayleighSky', 'SkyModelError', 'rayleigh_reference', 'validity_kernel']
+__all__ = ['RayleighSky', 'SkyModelError', 'rayleigh_pixel', 'rayleigh_reference', 'validity_kernel']
 
 
 class SkyModelError(CompassError):
@@ -57,29 +57,80 @@ def _check_dop_max(dop_max) -> float:
     return d
 
 
+@njit(inline='always', cache=True, fastmath=True)
+def rayleigh_pixel(
+    rx, ry, rz, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop
+):  # pragma: no cover - compiled
+    """
+    Return the Rayleigh AoP, DoP and validity of one unit ray (float32, compiled, inlined).
+
+    The per-pixel body of :class:`RayleighSky`'s kernel and of the fused sky-and-effects pass
+    (:mod:`polarization_compass.sky_effects`): E = S x P in the camera frame, DoP ``dop_max (1 -
+    c^2) / (1 + c^2)`` with c = S . P (eq 11), valid outside the sun-exclusion disk, above the
+    minimum altitude and at or above the minimum DoP. Branch-free (bitwise &, selects) so that the
+    caller's loop vectorises.
+
+    Parameters
+    ----------
+    rx, ry, rz : float32
+        Unit viewing ray in the camera frame.
+    sx, sy, sz, zx, zy, zz : float32
+        Unit sun and zenith (ENU up) vectors in the camera frame.
+    dop_max, cos_sun_excl, sin_min_alt, min_dop : float32
+        Maximum DoP and the validity limits (see :meth:`RayleighSky.polarization`).
+
+    Returns
+    -------
+    aop : float32
+        AoP [rad] in [-pi/2, pi/2) (eq 28), 0 where invalid.
+    dop : float32
+        DoP, 0 where invalid.
+    valid : bool
+        Whether the pixel passes the limits.
+
+    References
+    ----------
+    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
+       Polarized Skylight Orientation Determination" (the seed paper), eqs 11, 19 and 28.
+
+    """
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    ex = sy * rz - sz * ry  # E = S x P (camera frame)
+    ey = sz * rx - sx * rz
+    c = sx * rx + sy * ry + sz * rz  # cos(scattering angle)
+    c2 = c * c
+    d = dop_max * (one - c2) / (one + c2)
+    ok = (c <= cos_sun_excl) & (zx * rx + zy * ry + zz * rz >= sin_min_alt) & (d >= min_dop)
+    a = axial_atan2_f32(ex, ey)
+    return (a if ok else zero), (d if ok else zero), ok
+
+
 @njit(parallel=True, cache=True, fastmath=True)
 def _rayleigh_kernel(
     rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop, aop, dop, valid
 ):  # pragma: no cover - compiled
     """Fused Rayleigh AoP/DoP and validity. Invalid pixels get aop = dop = 0."""
     n = rays.shape[1]
-    one = np.float32(1.0)
-    zero = np.float32(0.0)
     for i in prange(n):
-        rx = rays[0, i]
-        ry = rays[1, i]
-        rz = rays[2, i]
-        ex = sy * rz - sz * ry  # E = S x P (camera frame)
-        ey = sz * rx - sx * rz
-        c = sx * rx + sy * ry + sz * rz  # cos(scattering angle)
-        c2 = c * c
-        d = dop_max * (one - c2) / (one + c2)
-        # branch-free (bitwise &, selects) so that LLVM vectorises the loop
-        ok = (c <= cos_sun_excl) & (zx * rx + zy * ry + zz * rz >= sin_min_alt) & (d >= min_dop)
-        a = axial_atan2_f32(ex, ey)
+        a, d, ok = rayleigh_pixel(
+            rays[0, i],
+            rays[1, i],
+            rays[2, i],
+            sx,
+            sy,
+            sz,
+            zx,
+            zy,
+            zz,
+            dop_max,
+            cos_sun_excl,
+            sin_min_alt,
+            min_dop,
+        )
         valid[i] = ok
-        aop[i] = a if ok else zero
-        dop[i] = d if ok else zero
+        aop[i] = a
+        dop[i] = d
 
 
 @njit(parallel=True, cache=True, fastmath=True)
@@ -205,11 +256,30 @@ class RayleighSky:
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)
         valid = np.empty(n, np.bool_)
-        s = np.asarray(sun_cam, dtype=np.float64)
-        z = np.asarray(zenith_cam, dtype=np.float64)
+        _rayleigh_kernel(rays, *self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
+        return aop, dop, valid
+
+    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> tuple:
+        """
+        Return the float32 parameters of :func:`rayleigh_pixel` after the ray, for one frame.
+
+        Parameters
+        ----------
+        sun_cam, zenith_cam : array_like, shape (3,)
+            Unit sun and zenith (ENU up) vectors in the camera frame.
+        limits : tuple of float, default (1.0, -1.0, 0.0)
+            (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP).
+
+        Returns
+        -------
+        tuple of numpy.float32
+            (sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop).
+
+        """
+        s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
+        z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         f32 = np.float32
-        _rayleigh_kernel(
-            rays,
+        return (
             f32(s[0]),
             f32(s[1]),
             f32(s[2]),
@@ -220,11 +290,7 @@ class RayleighSky:
             f32(limits[0]),
             f32(limits[1]),
             f32(limits[2]),
-            aop,
-            dop,
-            valid,
         )
-        return aop, dop, valid
 
 
 def rayleigh_reference(

@@ -86,7 +86,7 @@ import numpy as np
 from .fastmath import axial_atan2_f32
 from .sky import _check_dop_max, SkyModelError
 
-__all__ = ['BerryDennisLeeSky', 'neutral_points', 'SEPARATION_RANGE_DEG']
+__all__ = ['BerryDennisLeeSky', 'bdl_pixel', 'neutral_points', 'SEPARATION_RANGE_DEG']
 
 #: Allowed neutral-point separation (deg from the sun / anti-sun).
 SEPARATION_RANGE_DEG = (0.0, 40.0)
@@ -140,6 +140,94 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     return {'babinet': babinet, 'brewster': brewster, 'arago': -brewster, 'fourth': -babinet}
 
 
+@njit(inline='always', cache=True, fastmath=True)
+def bdl_pixel(
+    px,
+    py,
+    pz,
+    bx,
+    by,
+    bz,
+    rx_,
+    ry_,
+    rz_,
+    sx,
+    sy,
+    sz,
+    zx,
+    zy,
+    zz,
+    dop_max,
+    cos_sun_excl,
+    sin_min_alt,
+    min_dop,
+):  # pragma: no cover - compiled
+    """
+    Return the BDL AoP, DoP and validity of one unit ray (float32, compiled, inlined).
+
+    The per-pixel body of :class:`BerryDennisLeeSky`'s kernel and of the fused sky-and-effects
+    pass (:mod:`polarization_compass.sky_effects`); module docstring, steps 3-4.
+
+    Parameters
+    ----------
+    px, py, pz : float32
+        Unit viewing ray in the camera frame.
+    bx, by, bz, rx_, ry_, rz_ : float32
+        Unit Babinet and Brewster neutral points in the camera frame.
+    sx, sy, sz, zx, zy, zz : float32
+        Unit sun and zenith (ENU up) vectors in the camera frame.
+    dop_max, cos_sun_excl, sin_min_alt, min_dop : float32
+        Maximum DoP and the validity limits (see :meth:`BerryDennisLeeSky.polarization`).
+
+    Returns
+    -------
+    aop : float32
+        AoP [rad] in [-pi/2, pi/2) (eq 28), 0 where invalid.
+    dop : float32
+        DoP, 0 where invalid.
+    valid : bool
+        Whether the pixel passes the limits.
+
+    References
+    ----------
+    .. [1] M. V. Berry, M. R. Dennis and R. L. Lee Jr, "Polarization singularities in the clear
+       sky", New J. Phys. 6 (2004) 162.
+
+    """
+    one = np.float32(1.0)
+    two = np.float32(2.0)
+    zero = np.float32(0.0)
+    # tangent-plane components of Babinet (a) and Brewster (b) at P
+    pb = bx * px + by * py + bz * pz
+    ax = bx - pb * px
+    ay = by - pb * py
+    az = bz - pb * pz
+    pr = rx_ * px + ry_ * py + rz_ * pz
+    cx = rx_ - pr * px
+    cy = ry_ - pr * py
+    cz = rz_ - pr * pz
+    la = math.sqrt(ax * ax + ay * ay + az * az)
+    lb = math.sqrt(cx * cx + cy * cy + cz * cz)
+    # bisector s and its perpendicular d (both scaled by la * lb)
+    s0 = lb * ax + la * cx
+    s1 = lb * ay + la * cy
+    s2 = lb * az + la * cz
+    d0 = lb * ax - la * cx
+    d1 = lb * ay - la * cy
+    d2 = lb * az - la * cz
+    use_s = (s0 * s0 + s1 * s1 + s2 * s2) >= (d0 * d0 + d1 * d1 + d2 * d2)
+    ex = (py * s2 - pz * s1) if use_s else d0  # E = P x s  or  E = d
+    ey = (pz * s0 - px * s2) if use_s else d1
+    w = la * lb
+    if w > one:
+        w = one
+    dv = dop_max * w / (two - w)
+    c = sx * px + sy * py + sz * pz
+    ok = (c <= cos_sun_excl) & (zx * px + zy * py + zz * pz >= sin_min_alt) & (dv >= min_dop)
+    a = axial_atan2_f32(ex, ey)
+    return (a if ok else zero), (dv if ok else zero), ok
+
+
 @njit(parallel=True, cache=True, fastmath=True)
 def _bdl_kernel(
     rays,
@@ -170,44 +258,31 @@ def _bdl_kernel(
     0.
     """
     n = rays.shape[1]
-    one = np.float32(1.0)
-    two = np.float32(2.0)
-    zero = np.float32(0.0)
     for i in prange(n):
-        px = rays[0, i]
-        py = rays[1, i]
-        pz = rays[2, i]
-        # tangent-plane components of Babinet (a) and Brewster (b) at P
-        pb = bx * px + by * py + bz * pz
-        ax = bx - pb * px
-        ay = by - pb * py
-        az = bz - pb * pz
-        pr = rx_ * px + ry_ * py + rz_ * pz
-        cx = rx_ - pr * px
-        cy = ry_ - pr * py
-        cz = rz_ - pr * pz
-        la = math.sqrt(ax * ax + ay * ay + az * az)
-        lb = math.sqrt(cx * cx + cy * cy + cz * cz)
-        # bisector s and its perpendicular d (both scaled by la * lb)
-        s0 = lb * ax + la * cx
-        s1 = lb * ay + la * cy
-        s2 = lb * az + la * cz
-        d0 = lb * ax - la * cx
-        d1 = lb * ay - la * cy
-        d2 = lb * az - la * cz
-        use_s = (s0 * s0 + s1 * s1 + s2 * s2) >= (d0 * d0 + d1 * d1 + d2 * d2)
-        ex = (py * s2 - pz * s1) if use_s else d0  # E = P x s  or  E = d
-        ey = (pz * s0 - px * s2) if use_s else d1
-        w = la * lb
-        if w > one:
-            w = one
-        dv = dop_max * w / (two - w)
-        c = sx * px + sy * py + sz * pz
-        ok = (c <= cos_sun_excl) & (zx * px + zy * py + zz * pz >= sin_min_alt) & (dv >= min_dop)
-        a = axial_atan2_f32(ex, ey)
+        a, d, ok = bdl_pixel(
+            rays[0, i],
+            rays[1, i],
+            rays[2, i],
+            bx,
+            by,
+            bz,
+            rx_,
+            ry_,
+            rz_,
+            sx,
+            sy,
+            sz,
+            zx,
+            zy,
+            zz,
+            dop_max,
+            cos_sun_excl,
+            sin_min_alt,
+            min_dop,
+        )
         valid[i] = ok
-        aop[i] = a if ok else zero
-        dop[i] = dv if ok else zero
+        aop[i] = a
+        dop[i] = d
 
 
 class BerryDennisLeeSky:
@@ -331,13 +406,33 @@ class BerryDennisLeeSky:
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)
         valid = np.empty(n, np.bool_)
+        _bdl_kernel(rays, *self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
+        return aop, dop, valid
+
+    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> tuple:
+        """
+        Return the float32 parameters of :func:`bdl_pixel` after the ray, for one frame.
+
+        Parameters
+        ----------
+        sun_cam, zenith_cam : array_like, shape (3,)
+            Unit sun and zenith (ENU up) vectors in the camera frame.
+        limits : tuple of float, default (1.0, -1.0, 0.0)
+            (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP).
+
+        Returns
+        -------
+        tuple of numpy.float32
+            (Babinet xyz, Brewster xyz, sun xyz, zenith xyz, dop_max, cos_sun_excl, sin_min_alt,
+            min_dop).
+
+        """
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
         z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         npts = neutral_points(s, z, self.separation_deg)
         b, r = npts['babinet'], npts['brewster']
         f32 = np.float32
-        _bdl_kernel(
-            rays,
+        return (
             f32(b[0]),
             f32(b[1]),
             f32(b[2]),
@@ -354,8 +449,4 @@ class BerryDennisLeeSky:
             f32(limits[0]),
             f32(limits[1]),
             f32(limits[2]),
-            aop,
-            dop,
-            valid,
         )
-        return aop, dop, valid

@@ -1,0 +1,328 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The sky, its clouds and the lens effects in one pass over a pixel block (issue 16, "Speed").
+
+Rendered stage by stage, a frame with clouds and lens effects moves the image through memory three
+times: the sky model writes AoP, DoP and validity, the cloud layer reads and rewrites the DoP and
+the radiance, the lens reads the rays and rewrites them again (~80 MB per stage on a 2448 x 2048
+frame, where the arithmetic is cheap). For a contiguous pixel block (the full frame or a stride-1
+region) :class:`SkyEffects` evaluates, row by row, the sky model, the cloud composite (the layer's
+transmission interpolated from its grid, :meth:`~polarization_compass.atmosphere.CloudLayer.
+transmission_grid`) and vignetting with the sun's disk and glare, and writes AoP, DoP, validity and
+radiance once; the lens-flare ghosts are then added over their bounding boxes only.
+
+The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
+rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
+atmosphere.cloud_transmission`, :func:`~polarization_compass.atmosphere.cloud_over`,
+:func:`~polarization_compass.optics.lens_over`), applied in the stages' order (sky, clouds with the
+minimum-DoP cut, lens), so a frame equals the staged one up to float32 rounding; the float64
+references of ``test/test_sky_effects_reference.py`` check both. The renderer uses the pass when
+the scene declares clouds or lens effects and nothing the pass does not evaluate (a radiance model,
+haze, a skyline, another sky model, a scattered or strided selection): those scenes run stage by
+stage. A scene without clouds and lens effects never builds it (its ideal sky kernel is
+unchanged).
+"""
+
+from __future__ import annotations
+
+from numba import njit, prange
+import numpy as np
+
+from .atmosphere import cloud_over, cloud_transmission
+from .optics import lens_over
+from .sky import rayleigh_pixel, RayleighSky
+from .sky_bdl import bdl_pixel, BerryDennisLeeSky
+
+__all__ = ['SkyEffects']
+
+#: Sky models the pass evaluates, by class: the ``model`` number of :func:`_sky_effects_row`.
+_MODELS = {RayleighSky: 0, BerryDennisLeeSky: 1}
+#: Length of the float32 sky-parameter tuple (the longest model's; shorter ones are padded).
+_SKY_PARAMS = 16
+
+
+@njit(inline='always', cache=True, fastmath=True, error_model='numpy')
+def _sky_effects_row(
+    model, square, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp, vd, it
+):  # pragma: no cover - compiled
+    """
+    Evaluate the sky, the clouds and the lens over one pixel row, writing each output once.
+
+    ``model`` (0 Rayleigh, 1 BDL) and ``square`` (glare exponent 2) must be constants at the call
+    site, so that each variant is a plain loop that vectorises. Without clouds the transmission
+    rows ``u0``, ``u1`` are 1 (the composite with radiance 1 and T = 1 leaves the DoP as it is,
+    exactly); without lens effects the lens parameters switch vignetting and the sun off (radiance
+    and DoP unchanged, exactly).
+    """
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    for c in range(rx.size):
+        if model == 0:
+            a, d, ok = rayleigh_pixel(
+                rx[c], ry[c], rz[c], sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6], sp[7],
+                sp[8], sp[9],
+            )  # fmt: skip
+        else:
+            a, d, ok = bdl_pixel(
+                rx[c], ry[c], rz[c], sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6], sp[7],
+                sp[8], sp[9], sp[10], sp[11], sp[12], sp[13], sp[14], sp[15],
+            )  # fmt: skip
+        # clouds over a clear sky of radiance 1, then the minimum DoP (invalid pixels hold DoP 0,
+        # so the cut leaves them as they are; valid = valid and not drop as a comparison of bools)
+        d, i = cloud_over(one, cloud_transmission(u0[c], u1[c], fy), d, bright)
+        drop = d < min_dop
+        d = zero if drop else d
+        a = zero if drop else a
+        ok = ok > drop
+        d, i = lens_over(
+            i, d, rx[c], ry[c], rz[c], xcol[c], yi, lp[0], lp[1], lp[2], lp[3], lp[4], lp[5],
+            lp[6], lp[7], lp[8], lp[9], lp[10], lp[11], lp[12], lp[13], lp[14], square,
+        )  # fmt: skip
+        ap[c] = a
+        dp[c] = d
+        vd[c] = ok
+        it[c] = i
+
+
+@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+def _sky_effects_kernel(
+    model,
+    sp,
+    rays,
+    tu,
+    rk,
+    rk1,
+    rf,
+    bright,
+    min_dop,
+    xcol,
+    yrow,
+    lp,
+    square,
+    aop,
+    dop,
+    valid,
+    inten,
+):  # pragma: no cover - compiled
+    """
+    Render a row-major pixel block: sky, clouds and lens per row slice, outputs written once.
+
+    Pixel row r blends the cloud transmission rows ``tu[rk[r]]`` and ``tu[rk1[r]]`` (they stay in
+    the cache over the rows between two grid rows; without clouds ``tu`` is one row of ones), then
+    :func:`_sky_effects_row` runs over the row's slices of the rays and the outputs (per-row
+    slices: a flat index r * W + c kept such loops scalar, measured).
+    """
+    W = xcol.size
+    for r in prange(yrow.size):
+        u0 = tu[rk[r]]
+        u1 = tu[rk1[r]]
+        fy = rf[r]
+        o = r * W
+        rx = rays[0, o:o + W]
+        ry = rays[1, o:o + W]
+        rz = rays[2, o:o + W]
+        ap = aop[o:o + W]
+        dp = dop[o:o + W]
+        vd = valid[o:o + W]
+        it = inten[o:o + W]
+        yi = yrow[r]
+        if model == 0:
+            if square:
+                _sky_effects_row(
+                    0, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
+                    vd, it,
+                )  # fmt: skip
+            else:
+                _sky_effects_row(
+                    0, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
+                    vd, it,
+                )  # fmt: skip
+        else:
+            if square:
+                _sky_effects_row(
+                    1, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
+                    vd, it,
+                )  # fmt: skip
+            else:
+                _sky_effects_row(
+                    1, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
+                    vd, it,
+                )  # fmt: skip
+
+
+class SkyEffects:
+    """
+    The one-pass render of a scene's sky, clouds and lens effects over a pixel block.
+
+    Build it with :meth:`for_renderer`, which answers None for a scene the pass does not cover
+    (module docstring); :meth:`render` then replaces the renderer's sky, atmosphere and optics
+    stages for a frame. Each declared stage is still counted in
+    :mod:`polarization_compass.instrumentation` (``sky.<model>``, ``atmosphere.clouds``,
+    ``optics.<effect>``), and the pass itself as ``sky_effects``.
+
+    Parameters
+    ----------
+    sky : RayleighSky or BerryDennisLeeSky
+        The scene's sky model.
+    clouds : CloudLayer or None
+        The scene's cloud layer.
+    optics : Optics or None
+        The scene's lens effects.
+    pixels : SelectedPixels
+        The selected pixels: a 2-D row-major block (full frame or a stride-1 region).
+
+    """
+
+    def __init__(self, sky, clouds, optics, pixels):
+        self.sky = sky
+        self.model = _MODELS[type(sky)]
+        self.clouds = clouds
+        self.optics = optics
+        self.pixels = pixels
+        self.rays = np.ascontiguousarray(pixels.rays_cam, dtype=np.float32)
+        self.xcol = np.ascontiguousarray(pixels.x_px[0], np.float32)
+        self.yrow = np.ascontiguousarray(pixels.y_px[:, 0], np.float32)
+        f32 = np.float32
+        # a lens that adds nothing: no vignetting (mode 0), no sun (do_sun False), exponent 2
+        self._no_lens = (
+            0,
+            f32(0.0),
+            f32(0.0),
+            f32(0.0),
+            f32(0.0),
+            f32(0.0),
+            f32(0.0),
+            False,
+            f32(0.0),
+            f32(0.0),
+            f32(1.0),
+            f32(0.0),
+            f32(0.0),
+            f32(0.0),
+            f32(2.0),
+        )
+        # no clouds: T = 1 everywhere (one row of ones, every pixel row on it)
+        H, W = pixels.shape
+        zi = np.zeros(H, np.int64)
+        self._no_clouds = (np.ones((1, W), np.float32), zi, zi, np.zeros(H, np.float32))
+
+    @classmethod
+    def for_renderer(cls, renderer) -> 'SkyEffects | None':
+        """
+        Return the one-pass render of a renderer's scene, or None when the pass does not cover it.
+
+        Covered: a Rayleigh or Berry-Dennis-Lee sky, no radiance model, an atmosphere with clouds
+        only (or none), any lens effects, at least one of clouds and lens effects, and a full frame
+        or stride-1 region (larger than the cloud grid's step in both directions when clouds are
+        declared).
+
+        Parameters
+        ----------
+        renderer : Renderer
+            A renderer, after its stages are built.
+
+        Returns
+        -------
+        SkyEffects or None
+            The pass, or None (the renderer then runs stage by stage).
+
+        """
+        atm, opt, sel, px = renderer.atmosphere, renderer.optics, renderer.selection, renderer.pixels
+        clouds = None if atm is None else atm.clouds
+        if atm is not None and atm.stages != ['clouds']:
+            return None
+        if (clouds is None and opt is None) or renderer.radiance is not None:
+            return None
+        if type(renderer.sky) not in _MODELS:
+            return None
+        if sel.mode not in ('full', 'region') or sel.stride != 1 or len(px.shape) != 2:
+            return None
+        if clouds is not None:
+            from .atmosphere import GRID_STEP
+
+            if min(px.shape) <= 2 * GRID_STEP:
+                return None
+        return cls(renderer.sky, clouds, opt, px)
+
+    def render(self, R_enu_cam, sun_cam, zenith_cam, limits, dt_s: float, instr):
+        """
+        Render the block's AoP, DoP, validity and radiance in one pass.
+
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU (the frame's attitude, eq 21).
+        sun_cam, zenith_cam : array_like, shape (3,)
+            Unit sun and zenith (ENU up) vectors in the camera frame.
+        limits : tuple of float
+            (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP).
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the clouds).
+        instr : module or object
+            Instrumentation with ``stage(name)`` and ``count(name)``, normally
+            :mod:`polarization_compass.instrumentation`.
+
+        Returns
+        -------
+        aop : numpy.ndarray, shape (N,), float32
+            AoP [rad], eq 28 convention, [-pi/2, pi/2); 0 where invalid.
+        dop : numpy.ndarray, shape (N,), float32
+            DoP [0, 1]; 0 where invalid.
+        valid : numpy.ndarray, shape (N,), bool
+            Validity (the scene's limits, the minimum DoP after the clouds).
+        intensity : numpy.ndarray, shape (N,), float32
+            Radiance relative to the clear zenith, after clouds and lens.
+
+        """
+        f32 = np.float32
+        instr.count('sky.' + self.sky.name)
+        sp = self.sky.pixel_params(sun_cam, zenith_cam, limits)
+        sp = sp + (f32(0.0),) * (_SKY_PARAMS - len(sp))
+        grid = self._no_clouds
+        bright = f32(1.0)
+        if self.clouds is not None:
+            instr.count('atmosphere.clouds')
+            grid = self.clouds.transmission_grid(R_enu_cam, self.rays, dt_s, self.pixels.shape)
+            bright = f32(self.clouds.brightness)
+        lp, square, ghosts = self._no_lens, True, None
+        if self.optics is not None:
+            common, ghosts = self.optics.frame_params(sun_cam, instr)
+            lp, square = common[:-1], common[-1]
+        n = self.rays.shape[1]
+        aop = np.empty(n, np.float32)
+        dop = np.empty(n, np.float32)
+        valid = np.empty(n, np.bool_)
+        inten = np.empty(n, np.float32)
+        with instr.stage('sky_effects'):
+            _sky_effects_kernel(
+                self.model,
+                sp,
+                self.rays,
+                *grid,
+                bright,
+                f32(limits[2]),
+                self.xcol,
+                self.yrow,
+                lp,
+                square,
+                aop,
+                dop,
+                valid,
+                inten,
+            )
+        if ghosts is not None:
+            self.optics.add_ghosts(ghosts, self.xcol, self.yrow, dop, inten)
+        return aop, dop, valid, inten
