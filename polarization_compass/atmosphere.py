@@ -94,6 +94,7 @@ from numba import njit, prange
 import numpy as np
 
 from .errors import CompassError
+from .fastmath import exp_nonpos
 
 __all__ = [
     'AtmosphereError',
@@ -101,6 +102,7 @@ __all__ = [
     'CloudLayer',
     'Haze',
     'Skyline',
+    'cloud_light',
     'cloud_over',
     'cloud_transmission',
     'haze_dop_factor',
@@ -138,7 +140,7 @@ def _keys(d, allowed, where):
 
 # ----------------------------------------------------------------------------------------------
 # noise
-_OCTAVES = 4
+_OCTAVES = 4  # written out in _fbm
 
 
 @njit(inline='always', cache=True)
@@ -169,16 +171,24 @@ def _value_noise(x, y, seed):  # pragma: no cover - compiled
 
 @njit(inline='always', cache=True)
 def _fbm(x, y, seed):  # pragma: no cover - compiled
-    s = 0.0
-    amp = 0.5
-    norm = 0.0
-    for o in range(_OCTAVES):
-        s += amp * _value_noise(x, y, seed + 7919 * o)
-        norm += amp
-        x = 2.0 * x + 17.3
-        y = 2.0 * y - 5.1
-        amp *= 0.5
-    return s / norm
+    """
+    Return the fBm of 4 octaves of value noise at (x, y): sum of 2^-(o+1) noise_o over 0.9375.
+
+    Written out octave by octave (amplitudes 0.5, 0.25, 0.125, 0.0625, their sum 0.9375, all
+    exact): as a loop over the octaves the caller's loop over points stayed scalar; unrolled it
+    vectorises (6x faster, measured), with the same values bit for bit.
+    """
+    s = 0.5 * _value_noise(x, y, seed)
+    x = 2.0 * x + 17.3
+    y = 2.0 * y - 5.1
+    s += 0.25 * _value_noise(x, y, seed + 7919)
+    x = 2.0 * x + 17.3
+    y = 2.0 * y - 5.1
+    s += 0.125 * _value_noise(x, y, seed + 2 * 7919)
+    x = 2.0 * x + 17.3
+    y = 2.0 * y - 5.1
+    s += 0.0625 * _value_noise(x, y, seed + 3 * 7919)
+    return s / 0.9375
 
 
 @njit(parallel=True, cache=True)
@@ -235,16 +245,16 @@ def _cloud_kernel(
             dop[i] = np.float32(0.0)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model='numpy')
 def _cloud_transmission_kernel(
     rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max, out
 ):  # pragma: no cover - compiled
     """
     Return T = exp(-tau) of the layer along each ray (1 below the horizon or between clouds).
 
-    Every ray is evaluated and the cases are selects (exp(-0) = 1 exactly between clouds): the
-    nested branches of a first version ran this loop 3x slower (measured, 6.3 vs 2 ms on the
-    2448 x 2048 frame's grid).
+    Every ray is evaluated and the cases are selects (exp(-0) = 1 between clouds), with the
+    branch-free :func:`~polarization_compass.fastmath.exp_nonpos`: the loop vectorises (the
+    nested branches and the libm exp of a first version ran it ~10x slower, measured).
     """
     for i in prange(rays.shape[1]):
         px = rays[0, i]
@@ -256,7 +266,7 @@ def _cloud_transmission_kernel(
         k = height_over_scale / max(u, 0.02)
         v = _fbm(e * k - off_x, nn * k - off_y, seed)
         d = 1.0 if overcast else min(max((v - thr) * inv_soft, 0.0), 1.0)
-        t = math.exp(-tau_max * d)
+        t = exp_nonpos(-tau_max * d)
         out[i] = t if u > 0.0 else 1.0
 
 
@@ -303,13 +313,47 @@ def cloud_transmission(u0, u1, fy):  # pragma: no cover - compiled
 
 
 @njit(inline='always', cache=True, fastmath=True)
+def cloud_light(i_clear, t, bright):  # pragma: no cover - compiled
+    """
+    Return the transmitted clear-sky light and the total radiance under the cloud layer (float32).
+
+    ``W = I_clear T`` (polarized as the clear sky) and ``I = W + B (1 - T)`` (the cloud's own light
+    is unpolarized), so the DoP under the cloud is ``DoP_clear W / I`` (module docstring;
+    :func:`cloud_over`). Compiled, inlined.
+
+    Parameters
+    ----------
+    i_clear : float32
+        Clear-sky radiance relative to the clear zenith.
+    t : float32
+        Transmission exp(-tau) of the layer along the ray, (0, 1].
+    bright : float32
+        The cloud's own radiance B relative to the clear zenith.
+
+    Returns
+    -------
+    w : float32
+        Transmitted clear-sky radiance.
+    radiance : float32
+        Radiance under the cloud.
+
+    References
+    ----------
+    .. [1] I. Pomozi, G. Horvath and R. Wehner, "How the clear-sky angle of polarization pattern
+       continues underneath clouds", J. Exp. Biol. 204:2933-2942, 2001.
+
+    """
+    w = i_clear * t
+    return w, w + bright * (np.float32(1.0) - t)
+
+
+@njit(inline='always', cache=True, fastmath=True)
 def cloud_over(i_clear, t, dop, bright):  # pragma: no cover - compiled
     """
     Return the DoP and radiance of clear-sky light seen through the cloud layer (float32).
 
-    ``I = I_clear T + B (1 - T)`` and ``DoP = DoP_clear I_clear T / I`` (module docstring): the
-    transmitted clear-sky light keeps its polarization, the cloud's own light is unpolarized. T = 1
-    leaves the pixel as it is. Compiled, inlined into the composite loops.
+    ``I = I_clear T + B (1 - T)`` and ``DoP = DoP_clear I_clear T / I`` (:func:`cloud_light`).
+    T = 1 leaves the pixel as it is. Compiled, inlined into the composite loops.
 
     Parameters
     ----------
@@ -329,14 +373,8 @@ def cloud_over(i_clear, t, dop, bright):  # pragma: no cover - compiled
     radiance : float32
         Radiance under the cloud.
 
-    References
-    ----------
-    .. [1] I. Pomozi, G. Horvath and R. Wehner, "How the clear-sky angle of polarization pattern
-       continues underneath clouds", J. Exp. Biol. 204:2933-2942, 2001.
-
     """
-    w = i_clear * t
-    i_tot = w + bright * (np.float32(1.0) - t)
+    w, i_tot = cloud_light(i_clear, t, bright)
     return dop * w / i_tot, i_tot
 
 

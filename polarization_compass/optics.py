@@ -72,6 +72,7 @@ __all__ = [
     'SUN_SEMIDIAMETER_DEG',
     'REAL_FRAME_GHOST_POSITIONS',
     'ghost_centres_px',
+    'lens_light',
     'lens_over',
 ]
 
@@ -165,20 +166,26 @@ def _lens_pixel(
 @njit(inline='always', fastmath=True, cache=True)
 def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cover - compiled
     """
-    Return the sun's light (disk or glare) at angle ``gam`` (rad) from it.
+    Return the sun's light (disk or glare) at angle ``gam`` (rad) from it as a ratio (num, den).
 
-    The sun's light at angle ``gam`` (rad) from it: ``disk`` inside the disk, else the glare
-    ``glare_at_1deg (1 deg / gamma)^expo``. ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg
-    (1 deg)^2`` and the glare is ``g1 / gamma^2``, divisions only; the callers keep that case in
-    its own loop, which vectorises (exp/log are libm calls).
+    The sun's light at angle ``gam`` (rad) from it is ``num / den``: ``disk`` inside the disk, else
+    the glare ``glare_at_1deg (1 deg / gamma)^expo``; 0 without the sun (den > 0 always).
+    ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg (1 deg)^2`` and the glare is ``g1 /
+    gamma^2``, no libm call; the callers keep that case in its own loop, which vectorises (exp/log
+    are libm calls). The ratio lets the fused pass fold this division into its DoP division.
     """
+    one = np.float32(1.0)
     ga = max(gam, disk_rad)
     if square:
-        glare = g1 / (ga * ga)
+        num = g1
+        den = ga * ga
     else:
-        glare = g1 * math.exp(expo * math.log(np.float32(math.pi / 180.0) / ga))
-    g = disk if gam <= disk_rad else glare
-    return g if do_sun else np.float32(0.0)
+        num = g1 * math.exp(expo * math.log(np.float32(math.pi / 180.0) / ga))
+        den = one
+    inside = gam <= disk_rad
+    num = disk if inside else num
+    den = one if inside else den
+    return (num if do_sun else np.float32(0.0)), den
 
 
 @njit(inline='always', fastmath=True, cache=True, error_model='numpy')
@@ -254,12 +261,71 @@ def lens_over(
        2010.
 
     """
-    base, gam = _lens_pixel(
-        px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
-    )
-    g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+    v, g_num, g_den = lens_light(
+        px, py, pz, xi, yi, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad,
+        disk, g1, expo, square,
+    )  # fmt: skip
+    g = g_num / g_den
+    base = i_sky * v
     tot = base + g
     return (dop * (base / tot) if g > np.float32(0.0) else dop), tot
+
+
+@njit(inline='always', fastmath=True, cache=True, error_model='numpy')
+def lens_light(
+    px,
+    py,
+    pz,
+    xi,
+    yi,
+    vig_mode,
+    cx,
+    cy,
+    inv_hd2,
+    k1,
+    k2,
+    k3,
+    do_sun,
+    sx,
+    sy,
+    sz,
+    disk_rad,
+    disk,
+    g1,
+    expo,
+    square,
+):  # pragma: no cover - compiled
+    """
+    Return a pixel's vignetting factor V and the sun's light G there as a ratio (float32).
+
+    The lens turns sky radiance I into ``I V + G`` (module docstring); :func:`lens_over` applies it
+    to a pixel, the fused pass (:mod:`polarization_compass.sky_effects`) combines it with the cloud
+    composite into one division. Parameters as :func:`lens_over`'s after the DoP. Compiled,
+    inlined.
+
+    Parameters
+    ----------
+    px, py, pz : float32
+        Unit viewing ray in the camera frame.
+    xi, yi : float32
+        Pixel column and row [px, 1-based].
+    vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad, disk, g1, expo, square
+        As for :func:`lens_over`.
+
+    Returns
+    -------
+    v : float32
+        Vignetting factor (1 without vignetting).
+    g_num, g_den : float32
+        The sun's disk or glare radiance, relative to the clear zenith, is ``g_num / g_den`` (0
+        without the sun; ``g_den`` > 0).
+
+    """
+    v, gam = _lens_pixel(
+        px, py, pz, xi, yi, np.float32(1.0), vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
+    )
+    g_num, g_den = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+    return v, g_num, g_den
 
 
 @njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
@@ -441,7 +507,8 @@ def _optics_kernel(
             sy,
             sz,
         )
-        g = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+        g_num, g_den = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+        g = g_num / g_den
         for k in range(gx.size):
             dx = xi - gx[k]
             dy = yi - gy[k]

@@ -41,7 +41,7 @@ from numba import njit, prange
 import numpy as np
 
 from .errors import CompassError
-from .fastmath import axial_atan2_f32
+from .fastmath import axial_atan2_f32, FM
 
 __all__ = ['RayleighSky', 'SkyModelError', 'rayleigh_pixel', 'rayleigh_reference', 'validity_kernel']
 
@@ -57,7 +57,7 @@ def _check_dop_max(dop_max) -> float:
     return d
 
 
-@njit(inline='always', cache=True, fastmath=True)
+@njit(inline='always', cache=True, fastmath=FM)
 def rayleigh_pixel(
     rx, ry, rz, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop
 ):  # pragma: no cover - compiled
@@ -106,7 +106,7 @@ def rayleigh_pixel(
     return (a if ok else zero), (d if ok else zero), ok
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+@njit(parallel=True, cache=True, fastmath=FM)
 def _rayleigh_kernel(
     rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop, aop, dop, valid
 ):  # pragma: no cover - compiled

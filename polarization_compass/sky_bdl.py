@@ -83,7 +83,7 @@ import math
 from numba import njit, prange
 import numpy as np
 
-from .fastmath import axial_atan2_f32
+from .fastmath import axial_atan2_f32, FM
 from .sky import _check_dop_max, SkyModelError
 
 __all__ = ['BerryDennisLeeSky', 'bdl_pixel', 'neutral_points', 'SEPARATION_RANGE_DEG']
@@ -140,7 +140,7 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     return {'babinet': babinet, 'brewster': brewster, 'arago': -brewster, 'fourth': -babinet}
 
 
-@njit(inline='always', cache=True, fastmath=True)
+@njit(inline='always', cache=True, fastmath=FM)
 def bdl_pixel(
     px,
     py,
@@ -228,7 +228,7 @@ def bdl_pixel(
     return (a if ok else zero), (dv if ok else zero), ok
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+@njit(parallel=True, cache=True, fastmath=FM)
 def _bdl_kernel(
     rays,
     bx,

@@ -41,8 +41,9 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .atmosphere import cloud_over, cloud_transmission
-from .optics import lens_over
+from .atmosphere import cloud_light, cloud_transmission
+from .fastmath import FM
+from .optics import lens_light
 from .sky import rayleigh_pixel, RayleighSky
 from .sky_bdl import bdl_pixel, BerryDennisLeeSky
 
@@ -54,7 +55,7 @@ _MODELS = {RayleighSky: 0, BerryDennisLeeSky: 1}
 _SKY_PARAMS = 16
 
 
-@njit(inline='always', cache=True, fastmath=True, error_model='numpy')
+@njit(inline='always', cache=True, fastmath=FM, error_model='numpy')
 def _sky_effects_row(
     model, square, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp, vd, it
 ):  # pragma: no cover - compiled
@@ -80,24 +81,35 @@ def _sky_effects_row(
                 rx[c], ry[c], rz[c], sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6], sp[7],
                 sp[8], sp[9], sp[10], sp[11], sp[12], sp[13], sp[14], sp[15],
             )  # fmt: skip
-        # clouds over a clear sky of radiance 1, then the minimum DoP (invalid pixels hold DoP 0,
-        # so the cut leaves them as they are; valid = valid and not drop as a comparison of bools)
-        d, i = cloud_over(one, cloud_transmission(u0[c], u1[c], fy), d, bright)
-        drop = d < min_dop
-        d = zero if drop else d
+        # clouds over a clear sky of radiance 1 (W transmitted, I1 in all), the minimum DoP on the
+        # DoP under the clouds, d W / I1 (as a product: invalid pixels hold DoP 0, so the cut
+        # leaves them as they are; valid = valid and not drop as a comparison of bools)
+        w, i1 = cloud_light(one, cloud_transmission(u0[c], u1[c], fy), bright)
+        drop = d * w < min_dop * i1
         a = zero if drop else a
         ok = ok > drop
-        d, i = lens_over(
-            i, d, rx[c], ry[c], rz[c], xcol[c], yi, lp[0], lp[1], lp[2], lp[3], lp[4], lp[5],
-            lp[6], lp[7], lp[8], lp[9], lp[10], lp[11], lp[12], lp[13], lp[14], square,
+        # the lens: I = I1 V + G with G = gn / gd, DoP d (W / I1) (I1 V / I) = d W V / I. One
+        # division for both: with den = I1 V gd + gn = I gd and r = 1 / (gd den), G = gn den r and
+        # d W V / I = d W V gd^2 r. A pixel that gets no light at all (V = 0, no sun) keeps its
+        # DoP d W / I1, as the lens stage leaves it (V taken as 1 in the DoP factor only).
+        v, gn, gd = lens_light(
+            rx[c], ry[c], rz[c], xcol[c], yi, lp[0], lp[1], lp[2], lp[3], lp[4], lp[5], lp[6],
+            lp[7], lp[8], lp[9], lp[10], lp[11], lp[12], lp[13], lp[14], square,
         )  # fmt: skip
+        i1v = i1 * v
+        dark = i1v * gd + gn <= zero
+        vd_ = one if dark else v
+        den = i1 * vd_ * gd + gn
+        r = one / (gd * den)
+        i = i1v + gn * den * r
+        d = zero if drop else d * w * (vd_ * gd * gd * r)
         ap[c] = a
         dp[c] = d
         vd[c] = ok
         it[c] = i
 
 
-@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
 def _sky_effects_kernel(
     model,
     sp,
