@@ -108,27 +108,37 @@ def _keys(d, allowed, where):
 
 
 @njit(inline='always', fastmath=True, cache=True)
-def _glare_angle_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
+def _glare_angle_sq_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     """
-    Return the angle (rad, float32) between the unit ray p and the sun s, without acos.
+    Return the squared angle (rad^2, float32) between the unit ray p and the sun s, one sqrt.
 
-    Angle (rad, float32) between the unit ray p and the unit sun direction s, branch-free and
-    without acos: gamma = 2 asin(|p - s| / 2), the chord form (exact for unit vectors, and unlike
-    acos(p.s) not losing the small angles near the sun to float32 rounding of a cosine near 1).
-    asin is the Cephes ``asinf`` polynomial (relative error ~2.5e-7 on [0, 1]), with its two ranges
-    as selects.
+    Branch-free, without acos, in three ranges of the angle gamma, each through the Cephes
+    ``asinf`` polynomial ``asin(x) = x (1 + z P(z))``, z = x^2, |x| <= 1/2 (relative error ~2.5e-7):
+
+    - gamma <= 60 deg: gamma = 2 asin(|p - s| / 2) (the chord form: exact for unit vectors and,
+      unlike acos(p.s), not losing the small angles near the sun to float32 rounding of a cosine
+      near 1); squared directly from z = |p - s|^2 / 4, no sqrt;
+    - 60 < gamma < 120 deg: gamma = pi/2 - asin(p.s), no sqrt;
+    - gamma >= 120 deg: gamma = pi - 2 asin(|p + s| / 2), one sqrt.
+
+    The exponent-2 glare needs only gamma^2: one sqrt per pixel instead of two (the division-free
+    asin of a first version took the chord's length, then sqrt((1 - a) / 2) beyond 60 deg).
     """
-    half = np.float32(0.5)
+    quarter = np.float32(0.25)
     one = np.float32(1.0)
     dx = px - sx
     dy = py - sy
     dz = pz - sz
-    a = min(half * math.sqrt(dx * dx + dy * dy + dz * dz), one)
-    big = a > half
-    zb = half * (one - a)
-    z = zb if big else a * a
-    x = math.sqrt(zb) if big else a
-    r = (
+    a2 = quarter * (dx * dx + dy * dy + dz * dz)  # sin^2(gamma / 2)
+    ex = px + sx
+    ey = py + sy
+    ez = pz + sz
+    b2 = quarter * (ex * ex + ey * ey + ez * ez)  # cos^2(gamma / 2)
+    c = px * sx + py * sy + pz * sz  # cos(gamma)
+    near = a2 <= quarter
+    far = b2 <= quarter
+    z = a2 if near else (b2 if far else c * c)
+    poly = (
         (
             (
                 (np.float32(4.2163199048e-2) * z + np.float32(2.4181311049e-2)) * z
@@ -139,9 +149,12 @@ def _glare_angle_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
         )
         * z
         + np.float32(1.6666752422e-1)
-    ) * z * x + x
-    r = np.float32(math.pi / 2) - (r + r) if big else r
-    return r + r
+    )
+    f = one + z * poly  # asin(x) / x
+    g_far = np.float32(math.pi) - np.float32(2.0) * math.sqrt(b2) * f
+    g_mid = np.float32(math.pi / 2) - c * f
+    g = g_far if far else g_mid
+    return np.float32(4.0) * a2 * f * f if near else g * g
 
 
 @njit(inline='always', fastmath=True, cache=True)
@@ -149,10 +162,10 @@ def _lens_pixel(
     px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
 ):  # pragma: no cover
     """
-    Return the vignetted sky radiance and the angle from the sun at one pixel.
+    Return the vignetted sky radiance and the squared angle from the sun at one pixel.
 
-    Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the angle from the sun
-    (rad) at one pixel (float32). Every term is computed and selected: branches, even
+    Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the squared angle from
+    the sun (rad^2) at one pixel (float32). Every term is computed and selected: branches, even
     loop-invariant ones, kept these loops scalar (measured).
     """
     one = np.float32(1.0)
@@ -160,29 +173,32 @@ def _lens_pixel(
     q = ((xi - cx) * (xi - cx) + (yi - cy) * (yi - cy)) * inv_hd2
     v = z * z * z * z if vig_mode == 1 else one + q * (k1 + q * (k2 + q * k3))
     v = v if vig_mode != 0 else one
-    return i_sky * v, _glare_angle_f32(px, py, pz, sx, sy, sz)
+    return i_sky * v, _glare_angle_sq_f32(px, py, pz, sx, sy, sz)
 
 
 @njit(inline='always', fastmath=True, cache=True)
-def _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square):  # pragma: no cover - compiled
+def _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square):  # pragma: no cover - compiled
     """
-    Return the sun's light (disk or glare) at angle ``gam`` (rad) from it as a ratio (num, den).
+    Return the sun's light (disk or glare) at squared angle ``gam2`` (rad^2) as a ratio (num, den).
 
-    The sun's light at angle ``gam`` (rad) from it is ``num / den``: ``disk`` inside the disk, else
-    the glare ``glare_at_1deg (1 deg / gamma)^expo``; 0 without the sun (den > 0 always).
-    ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg (1 deg)^2`` and the glare is ``g1 /
-    gamma^2``, no libm call; the callers keep that case in its own loop, which vectorises (exp/log
-    are libm calls). The ratio lets the fused pass fold this division into its DoP division.
+    The sun's light at angle gamma from it is ``num / den``: ``disk`` inside the disk (gamma^2 <=
+    ``disk_rad2``), else the glare ``glare_at_1deg (1 deg / gamma)^expo``; 0 without the sun (den >
+    0 always). ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg (1 deg)^2`` and the glare is
+    ``g1 / gamma^2``, no libm call; the callers keep that case in its own loop, which vectorises
+    (exp/log are libm calls). The ratio lets the fused pass fold this division into its DoP
+    division.
     """
     one = np.float32(1.0)
-    ga = max(gam, disk_rad)
+    ga2 = max(gam2, disk_rad2)
     if square:
         num = g1
-        den = ga * ga
+        den = ga2
     else:
-        num = g1 * math.exp(expo * math.log(np.float32(math.pi / 180.0) / ga))
+        num = g1 * math.exp(
+            np.float32(0.5) * expo * math.log(np.float32((math.pi / 180.0) ** 2) / ga2)
+        )
         den = one
-    inside = gam <= disk_rad
+    inside = gam2 <= disk_rad2
     num = disk if inside else num
     den = one if inside else den
     return (num if do_sun else np.float32(0.0)), den
@@ -208,7 +224,7 @@ def lens_over(
     sx,
     sy,
     sz,
-    disk_rad,
+    disk_rad2,
     disk,
     g1,
     expo,
@@ -241,8 +257,8 @@ def lens_over(
         Whether the sun is declared.
     sx, sy, sz : float32
         Unit sun vector in the camera frame.
-    disk_rad, disk, g1, expo : float32
-        Solar disk radius [rad], its radiance, the glare factor and exponent (see
+    disk_rad2, disk, g1, expo : float32
+        Squared solar disk radius [rad^2], its radiance, the glare factor and exponent (see
         :meth:`Optics.frame_params`).
     square : bool
         Whether the glare exponent is 2.
@@ -262,7 +278,7 @@ def lens_over(
 
     """
     v, g_num, g_den = lens_light(
-        px, py, pz, xi, yi, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad,
+        px, py, pz, xi, yi, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2,
         disk, g1, expo, square,
     )  # fmt: skip
     g = g_num / g_den
@@ -289,7 +305,7 @@ def lens_light(
     sx,
     sy,
     sz,
-    disk_rad,
+    disk_rad2,
     disk,
     g1,
     expo,
@@ -309,7 +325,7 @@ def lens_light(
         Unit viewing ray in the camera frame.
     xi, yi : float32
         Pixel column and row [px, 1-based].
-    vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad, disk, g1, expo, square
+    vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2, disk, g1, expo, square
         As for :func:`lens_over`.
 
     Returns
@@ -321,10 +337,10 @@ def lens_light(
         without the sun; ``g_den`` > 0).
 
     """
-    v, gam = _lens_pixel(
+    v, gam2 = _lens_pixel(
         px, py, pz, xi, yi, np.float32(1.0), vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
     )
-    g_num, g_den = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+    g_num, g_den = _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square)
     return v, g_num, g_den
 
 
@@ -344,7 +360,7 @@ def _optics_block_kernel(
     sx,
     sy,
     sz,
-    disk_rad,
+    disk_rad2,
     disk,
     g1,
     expo,
@@ -391,7 +407,7 @@ def _optics_block_kernel(
                     sx,
                     sy,
                     sz,
-                    disk_rad,
+                    disk_rad2,
                     disk,
                     g1,
                     expo,
@@ -418,7 +434,7 @@ def _optics_block_kernel(
                     sx,
                     sy,
                     sz,
-                    disk_rad,
+                    disk_rad2,
                     disk,
                     g1,
                     expo,
@@ -467,7 +483,7 @@ def _optics_kernel(
     sx,
     sy,
     sz,
-    disk_rad,
+    disk_rad2,
     disk,
     g1,
     expo,
@@ -489,7 +505,7 @@ def _optics_kernel(
     for i in prange(rays.shape[1]):
         xi = x[i]
         yi = y[i]
-        base, gam = _lens_pixel(
+        base, gam2 = _lens_pixel(
             rays[0, i],
             rays[1, i],
             rays[2, i],
@@ -507,7 +523,7 @@ def _optics_kernel(
             sy,
             sz,
         )
-        g_num, g_den = _sun_light(gam, do_sun, disk_rad, disk, g1, expo, square)
+        g_num, g_den = _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square)
         g = g_num / g_den
         for k in range(gx.size):
             dx = xi - gx[k]
@@ -750,7 +766,7 @@ class Optics:
         -------
         common : tuple
             The arguments of :func:`lens_over` after the pixel's coordinates (vig_mode, cx, cy,
-            inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad, disk, g1, expo, square; float32
+            inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2, disk, g1, expo, square; float32
             numbers, an int and two bools).
         ghosts : tuple
             (gx, gy) float32 ghost centres [px] (empty without flare or when the sun does not
@@ -800,7 +816,7 @@ class Optics:
             f32(s[0]),
             f32(s[1]),
             f32(s[2]),
-            f32(math.radians(SUN_SEMIDIAMETER_DEG)),
+            f32(math.radians(SUN_SEMIDIAMETER_DEG) ** 2),
             f32(p['disk_radiance']),
             f32(g1),
             f32(p['glare_exponent']),

@@ -16,7 +16,9 @@
 The fused kernels of issue 16's effects against float64 numpy references.
 
 The fused, vectorised kernels of issue 16's effects against straightforward float64 numpy
-evaluations of each effect. Lens effects (polarization_compass.optics): the formulas of the module
+evaluations of each effect, on both paths of the renderer (the one-pass
+polarization_compass.sky_effects over a pixel block, and the stage kernels). Lens effects
+(polarization_compass.optics): the formulas of the module
 docstring written out per pixel with arccos-like angles and powers, as the first implementation
 computed them, on full frames, regions, strided and scattered selections, a pinhole and a fisheye,
 glare exponent 2 (the divisions-only path) and another one. Clouds
@@ -29,7 +31,7 @@ import math
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass.camera import CameraModel, PixelSelection
-from polarization_compass.optics import _glare_angle_f32, ghost_centres_px, SUN_SEMIDIAMETER_DEG
+from polarization_compass.optics import _glare_angle_sq_f32, ghost_centres_px, SUN_SEMIDIAMETER_DEG
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, Validity
 import pytest
@@ -105,12 +107,26 @@ def reference(frame, clear, camera, optics):
     return tot, np.where(g > 0, dop * base / np.where(tot > 0, tot, 1.0), dop), gam
 
 
-def _render(camera, pixels, optics, sun, att):
+def _renderer(scene, path):
+    """
+    Return a renderer of ``scene`` on the given path: 'fused' (one pass) or 'staged'.
+
+    The renderer takes the one-pass :class:`~polarization_compass.sky_effects.SkyEffects` for a
+    pixel block; 'staged' drops it, so that the stage kernels (sky, then clouds, then lens) run and
+    are checked against the same references.
+    """
+    r = Renderer(scene)
+    if path == 'staged':
+        r.sky_effects = None
+    return r
+
+
+def _render(camera, pixels, optics, sun, att, path='fused'):
     scene = Scene(
         pixels=pixels, camera=camera, sky={'model': 'rayleigh', 'dop_max': 0.8}, optics=optics
     )
     clear = Renderer(scene.replace(optics=None)).render(attitude=att, sun=sun)
-    return Renderer(scene).render(attitude=att, sun=sun), clear
+    return _renderer(scene, path).render(attitude=att, sun=sun), clear
 
 
 ALL = {'sun': {}, 'flare': {'radius_px': 9}, 'vignetting': {'law': 'cos4'}}
@@ -140,10 +156,11 @@ CASES = [
 ]
 
 
+@pytest.mark.parametrize('path', ['fused', 'staged'])
 @pytest.mark.parametrize('case', range(len(CASES)))
-def test_fused_optics_equal_the_per_pixel_formulas(case):
+def test_fused_optics_equal_the_per_pixel_formulas(case, path):
     camera, pixels, optics, sun, att = CASES[case]
-    frame, clear = _render(camera, pixels, optics, sun, cv.CameraAttitude(*att))
+    frame, clear = _render(camera, pixels, optics, sun, cv.CameraAttitude(*att), path)
     inten, dop, gam = reference(frame, clear, camera, optics)
     disk_rad = math.radians(SUN_SEMIDIAMETER_DEG)
     # pixels within 1e-5 rad of the disk edge may fall on either side in float32 (radiance 2e5 vs
@@ -162,17 +179,18 @@ def test_fused_optics_equal_the_per_pixel_formulas(case):
 
 def test_glare_angle_chord_form_matches_arccos_in_float64():
     """
-    The chord form of the glare angle matches arccos in float64.
+    The float32 glare angle matches the angle in float64.
 
-    Gamma = 2 asin(|p - s| / 2) with the float32 Cephes polynomial, against arccos(p.s) in float64,
-    from 0.0006 deg to 150 deg: relative error < 2e-6.
+    Gamma^2 from the float32 Cephes asin polynomial in three ranges (2 asin(|p - s| / 2) up to 60
+    deg, pi/2 - asin(p.s) to 120 deg, pi - 2 asin(|p + s| / 2) beyond), its square root against
+    atan2(|s x p|, s.p) in float64, from 0.0006 deg to 150 deg: relative error < 2e-6.
     """
     from numba import njit
 
     @njit(cache=False)
     def angles(p, s, out):
         for i in range(p.shape[1]):
-            out[i] = _glare_angle_f32(p[0, i], p[1, i], p[2, i], s[0], s[1], s[2])
+            out[i] = math.sqrt(_glare_angle_sq_f32(p[0, i], p[1, i], p[2, i], s[0], s[1], s[2]))
 
     rng = np.random.default_rng(3)
     gam = np.concatenate(
@@ -203,8 +221,9 @@ def _grid(n, step=8):
     return np.unique(np.r_[np.arange(0, n, step), n - 1])
 
 
+@pytest.mark.parametrize('path', ['fused', 'staged'])
 @pytest.mark.parametrize('min_dop', [0.0, 0.12])
-def test_cloud_composite_equals_the_numpy_reference(min_dop):
+def test_cloud_composite_equals_the_numpy_reference(min_dop, path):
     from polarization_compass.atmosphere import CloudLayer
 
     clouds = {'coverage': 0.5, 'scale_m': 300.0, 'optical_thickness': 2.0, 'brightness': 1.5}
@@ -217,7 +236,7 @@ def test_cloud_composite_equals_the_numpy_reference(min_dop):
         atmosphere={'clouds': clouds},
         seed=5,
     )
-    frame = Renderer(scene).render(attitude=att, sun=sun)
+    frame = _renderer(scene, path).render(attitude=att, sun=sun)
     clear = Renderer(scene.replace(atmosphere=None)).render(attitude=att, sun=sun)
     H, W = frame.pixels.shape
     R = cv.R_enu_cam_from_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg)
