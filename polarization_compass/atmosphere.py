@@ -404,7 +404,8 @@ def _cloud_composite_grid_kernel(
             # no pixel can fall below the minimum DoP: AoP and validity are not touched (a third
             # less memory traffic; the DoP of a valid pixel stays >= 0)
             for j in range(W):
-                dp[j], it[j] = cloud_over(it[j], cloud_transmission(u0[j], u1[j], fy), dp[j], bright)
+                t = cloud_transmission(u0[j], u1[j], fy)
+                dp[j], it[j] = cloud_over(it[j], t, dp[j], bright)
             continue
         ap = aop[o:o + W]
         vd = valid[o:o + W]
@@ -625,7 +626,9 @@ class CloudLayer:
             rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
             cols, ck, ck1, cf = _grid_axis(W, GRID_STEP)
             self._grid = (
-                np.ascontiguousarray(rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)),
+                np.ascontiguousarray(
+                    rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
+                ),
                 (rows.size, cols.size),
                 rk,
                 rk1,

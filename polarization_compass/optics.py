@@ -113,7 +113,8 @@ def _glare_angle_sq_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     Return the squared angle (rad^2, float32) between the unit ray p and the sun s, one sqrt.
 
     Branch-free, without acos, in three ranges of the angle gamma, each through the Cephes
-    ``asinf`` polynomial ``asin(x) = x (1 + z P(z))``, z = x^2, |x| <= 1/2 (relative error ~2.5e-7):
+    ``asinf`` polynomial ``asin(x) = x (1 + z P(z))``, z = x^2, |x| <= 1/2 (relative error
+    ~2.5e-7):
 
     - gamma <= 60 deg: gamma = 2 asin(|p - s| / 2) (the chord form: exact for unit vectors and,
       unlike acos(p.s), not losing the small angles near the sun to float32 rounding of a cosine

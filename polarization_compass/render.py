@@ -29,9 +29,9 @@ ghosts
 4. sensor (only if ``scene.sensor`` declares effects): mosaic, noise, quantisation and demosaic,
 giving the *measured* AoP/DoP and the raw mosaic.
 
-Over a pixel block (full frame or stride-1 region), clouds and lens effects run in one pass with the
-sky model (:mod:`polarization_compass.sky_effects`): the same formulas in the same order, the image
-written to memory once instead of three times; other scenes run the stages one after the other.
+Over a pixel block (full frame or stride-1 region), clouds and lens effects run in one pass with
+the sky model (:mod:`polarization_compass.sky_effects`): the same formulas in the same order, the
+image written to memory once instead of three times; other scenes run the stages one by one.
 
 Stages that a scene does not declare are never constructed, so they cost nothing; each stage
 that runs is counted in :mod:`polarization_compass.instrumentation` (tests use that, not timing).

@@ -43,7 +43,13 @@ import numpy as np
 from .errors import CompassError
 from .fastmath import axial_atan2_f32, FM
 
-__all__ = ['RayleighSky', 'SkyModelError', 'rayleigh_pixel', 'rayleigh_reference', 'validity_kernel']
+__all__ = [
+    'RayleighSky',
+    'SkyModelError',
+    'rayleigh_pixel',
+    'rayleigh_reference',
+    'validity_kernel',
+]
 
 
 class SkyModelError(CompassError):

@@ -27,20 +27,20 @@ radiance once; the lens-flare ghosts are then added over their bounding boxes on
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
 atmosphere.cloud_transmission`, :func:`~polarization_compass.atmosphere.cloud_light`,
-:func:`~polarization_compass.optics.lens_light`), applied in the stages' order (sky, clouds with the
-minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own ratio) share
-one division. A frame equals the staged one up to float32 rounding (a few 1e-7, relative), and its
-AoP equals the ideal render's bit for bit: the sky kernels and this pass are compiled with the
-project's fast-math flags :data:`~polarization_compass.fastmath.FM` (no reciprocal estimates), so a
-pixel gets the same bits in a vectorised loop body and in a scalar remainder. The float64
+:func:`~polarization_compass.optics.lens_light`), applied in the stages' order (sky, clouds with
+the minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own ratio)
+share one division. A frame equals the staged one up to float32 rounding (a few 1e-7, relative),
+and its AoP equals the ideal render's bit for bit: the sky kernels and this pass are compiled with
+the project's fast-math flags :data:`~polarization_compass.fastmath.FM` (no reciprocal estimates),
+so a pixel gets the same bits in a vectorised loop body and in a scalar remainder. The float64
 references of ``test/test_sky_effects_reference.py`` check both paths.
 
 The renderer uses the pass when the scene declares clouds or lens effects and nothing the pass
 does not evaluate (a radiance model, haze, a skyline, another sky model, a scattered or strided
 selection): those scenes run stage by stage. A scene without clouds and lens effects never builds
 it (its ideal sky kernel is unchanged). Measured on the 2448 x 2048 frame (docs/real-skies.md,
-"Speed"): clouds, sun glare, flare and vignetting cost about 2x the ideal frame on one thread, where
-the three stages cost 4.5x.
+"Speed"): clouds, sun glare, flare and vignetting cost about 2x the ideal frame, where the three
+stages cost 4.5x.
 """
 
 from __future__ import annotations
@@ -258,7 +258,8 @@ class SkyEffects:
             The pass, or None (the renderer then runs stage by stage).
 
         """
-        atm, opt, sel, px = renderer.atmosphere, renderer.optics, renderer.selection, renderer.pixels
+        atm, opt = renderer.atmosphere, renderer.optics
+        sel, px = renderer.selection, renderer.pixels
         clouds = None if atm is None else atm.clouds
         if atm is not None and atm.stages != ['clouds']:
             return None

@@ -41,8 +41,8 @@ SUN = SunDirection(200.0, 55.0)
 ATT = cv.CameraAttitude(10.0, 5.0, -3.0)
 CLOUDS = {'clouds': {'coverage': 0.5, 'scale_m': 300.0}}
 LENS = {'sun': {}, 'flare': {'radius_px': 9}, 'vignetting': {'law': 'cos4'}}
-# a region whose width (180) and size (27000) are not multiples of the 16-lane vectors: row ends and
-# the end of each thread's share of the frame fall into the loops' scalar remainders
+# a region whose width (180) and size (27000) are not multiples of the 16-lane vectors: row ends
+# and the end of each thread's share of the frame fall into the loops' scalar remainders
 REGION = PixelSelection.rect(150, 40, 180, 150)
 BDL = {'model': 'berry_dennis_lee', 'separation_deg': 18.0, 'dop_max': 0.75}
 
