@@ -103,8 +103,10 @@ __all__ = [
     'Haze',
     'Skyline',
     'cloud_light',
+    'cloud_transmission_at',
     'cloud_over',
     'cloud_transmission',
+    'grid_row_to_columns',
     'haze_dop_factor',
 ]
 
@@ -245,45 +247,79 @@ def _cloud_kernel(
             dop[i] = np.float32(0.0)
 
 
-@njit(parallel=True, cache=True, error_model='numpy')
-def _cloud_transmission_kernel(
-    rays, R, height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max, out
-):  # pragma: no cover - compiled
+@njit(inline='always', cache=True, error_model='numpy')
+def cloud_transmission_at(px, py, pz, R, cp):  # pragma: no cover - compiled
     """
-    Return T = exp(-tau) of the layer along each ray (1 below the horizon or between clouds).
+    Return T = exp(-tau) of the cloud layer along one ray (1 below the horizon or between clouds).
 
-    Every ray is evaluated and the cases are selects (exp(-0) = 1 between clouds), with the
-    branch-free :func:`~polarization_compass.fastmath.exp_nonpos`: the loop vectorises (the
-    nested branches and the libm exp of a first version ran it ~10x slower, measured).
+    The cases are selects (exp(-0) = 1 between clouds), with the branch-free
+    :func:`~polarization_compass.fastmath.exp_nonpos`, so that a loop over rays vectorises (the
+    nested branches and the libm exp of a first version ran it ~10x slower, measured). Compiled,
+    inlined.
+
+    Parameters
+    ----------
+    px, py, pz : float
+        Unit viewing ray in the camera frame.
+    R : numpy.ndarray, shape (3, 3), float64
+        Rotation from the camera frame to ENU.
+    cp : tuple
+        (height / scale, wind offset x and y [feature sizes], seed, noise threshold,
+        1 / softness, overcast, optical thickness) from :meth:`CloudLayer.grid`.
+
+    Returns
+    -------
+    float
+        T in (0, 1].
+
     """
-    for i in prange(rays.shape[1]):
-        px = rays[0, i]
-        py = rays[1, i]
-        pz = rays[2, i]
-        u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
-        e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
-        nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
-        k = height_over_scale / max(u, 0.02)
-        v = _fbm(e * k - off_x, nn * k - off_y, seed)
-        d = 1.0 if overcast else min(max((v - thr) * inv_soft, 0.0), 1.0)
-        t = exp_nonpos(-tau_max * d)
-        out[i] = t if u > 0.0 else 1.0
+    height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max = cp
+    u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
+    e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
+    nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
+    k = height_over_scale / max(u, 0.02)
+    v = _fbm(e * k - off_x, nn * k - off_y, seed)
+    d = 1.0 if overcast else min(max((v - thr) * inv_soft, 0.0), 1.0)
+    t = exp_nonpos(-tau_max * d)
+    return t if u > 0.0 else 1.0
 
 
-@njit(parallel=True, cache=True, fastmath=True)
-def _grid_rows_to_columns(tg, ck, ck1, cf, out):  # pragma: no cover - compiled
+@njit(inline='always', cache=True, fastmath=True)
+def grid_row_to_columns(tg, ck, ck1, cf, out):  # pragma: no cover - compiled
     """
-    Interpolate each grid row of T linearly to every pixel column.
+    Interpolate one grid row of T linearly to every pixel column (compiled, inlined).
 
-    ``out[g, j] = tg[g, ck[j]] (1 - cf[j]) + tg[g, ck1[j]] cf[j]``: the horizontal half of the
-    bilinear interpolation, done once per grid row (8x fewer than per pixel row), so that a pixel
-    row's T is a blend of two rows of ``out`` (:func:`cloud_transmission`), a contiguous loop that
-    vectorises.
+    ``out[j] = tg[ck[j]] (1 - cf[j]) + tg[ck1[j]] cf[j]``: the horizontal half of the bilinear
+    interpolation, done once per grid row (8x fewer than per pixel row), so that a pixel row's T is
+    a blend of two such rows (:func:`cloud_transmission`), a contiguous loop that vectorises.
+
+    Parameters
+    ----------
+    tg : numpy.ndarray, shape (Gx,), float32
+        T at the grid row's points.
+    ck, ck1 : numpy.ndarray, shape (W,), int64
+        Each pixel column's grid columns left and right.
+    cf : numpy.ndarray, shape (W,), float32
+        Each pixel column's fraction between them.
+    out : numpy.ndarray, shape (W,), float32
+        Output: T of the grid row at every pixel column.
+
     """
     one = np.float32(1.0)
-    for g in prange(tg.shape[0]):
-        for j in range(cf.size):
-            out[g, j] = tg[g, ck[j]] * (one - cf[j]) + tg[g, ck1[j]] * cf[j]
+    for j in range(cf.size):
+        out[j] = tg[ck[j]] * (one - cf[j]) + tg[ck1[j]] * cf[j]
+
+
+@njit(parallel=True, cache=True, error_model='numpy')
+def _cloud_transmission_grid_kernel(grays, R, cp, ck, ck1, cf, out):  # pragma: no cover
+    """T of the layer on each grid row, interpolated to every pixel column (out: (Gy, W))."""
+    gx = grays.shape[1] // out.shape[0]
+    for g in prange(out.shape[0]):
+        tg = np.empty(gx, np.float32)
+        for j in range(gx):
+            i = g * gx + j
+            tg[j] = cloud_transmission_at(grays[0, i], grays[1, i], grays[2, i], R, cp)
+        grid_row_to_columns(tg, ck, ck1, cf, out[g])
 
 
 @njit(inline='always', cache=True, fastmath=True)
@@ -586,15 +622,69 @@ class CloudLayer:
         _noise_at(x, y, self.seed, v)
         return np.clip((v - self.threshold) / self.softness, 0.0, 1.0)
 
-    def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
+    def grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
         """
-        Return the layer's transmission on the interpolation grid of a pixel block, or None.
+        Return the interpolation grid of a pixel block and the layer's parameters, or None.
 
         With ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region,
         both sides longer than ``2 GRID_STEP``) T = exp(-tau) is evaluated on every
-        ``GRID_STEP``-th row and column (and the last ones) and interpolated along each of those
-        rows to every pixel column; a pixel row's T is then the blend of the two grid rows around
-        it (:func:`cloud_transmission`, see :meth:`apply`). Any other selection gives None.
+        ``GRID_STEP``-th row and column (and the last ones) and interpolated bilinearly: along
+        each grid row to every pixel column (:func:`grid_row_to_columns`), then between the two
+        grid rows around a pixel row (:func:`cloud_transmission`). Any other selection gives None.
+
+        Parameters
+        ----------
+        R_enu_cam : array_like, shape (3, 3)
+            Rotation from the camera frame to ENU.
+        rays_cam : numpy.ndarray, shape (3, H * W), float32
+            Unit viewing rays of the block in the camera frame, row-major, contiguous.
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the layer with the wind).
+        block_shape : tuple of int or None
+            (H, W) of the block, or None.
+
+        Returns
+        -------
+        tuple or None
+            (grays (3, Gy * Gx) float32 rays of the grid points, row-major; R (3, 3) float64; cp,
+            the parameters of :func:`cloud_transmission_at`; rk, rk1 (H,) int64 the grid rows
+            below and above each pixel row; rf (H,) float32 the fraction between them; ck, ck1
+            (W,) int64 the grid columns left and right of each pixel column; cf (W,) float32 the
+            fraction between them), or None.
+
+        """
+        if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
+            return None
+        H, W = block_shape
+        key = (id(rays_cam), H, W)
+        if getattr(self, '_grid_key', None) != key:
+            rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
+            cols, ck, ck1, cf = _grid_axis(W, GRID_STEP)
+            grays = np.ascontiguousarray(
+                rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
+            )
+            self._grid = (grays, rk, rk1, rf, ck, ck1, cf)
+            self._grid_key = key
+            self._grid_rays = rays_cam  # keep it alive so that its id stays its own
+        grays, rk, rk1, rf, ck, ck1, cf = self._grid
+        cp = (
+            self.height_m / self.scale_m,
+            self.wind_mps[0] * dt_s / self.scale_m,
+            self.wind_mps[1] * dt_s / self.scale_m,
+            self.seed,
+            self.threshold,
+            1.0 / self.softness,
+            self.overcast,
+            self.optical_thickness,
+        )
+        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        return grays, R, cp, rk, rk1, rf, ck, ck1, cf
+
+    def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
+        """
+        Return the layer's transmission on the grid rows of a pixel block, or None.
+
+        T on the grid rows of :meth:`grid`, interpolated to every pixel column.
 
         Parameters
         ----------
@@ -612,50 +702,15 @@ class CloudLayer:
         tuple or None
             (tu (Gy, W) float32 T of the grid rows at every pixel column, rk, rk1 (H,) int64 the
             grid rows below and above each pixel row, rf (H,) float32 the fraction between them),
-            or None.
+            or None (see :meth:`grid`).
 
         """
-        if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
+        g = self.grid(R_enu_cam, rays_cam, dt_s, block_shape)
+        if g is None:
             return None
-        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        off_x = self.wind_mps[0] * dt_s / self.scale_m
-        off_y = self.wind_mps[1] * dt_s / self.scale_m
-        H, W = block_shape
-        key = (id(rays_cam), H, W)
-        if getattr(self, '_grid_key', None) != key:
-            rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
-            cols, ck, ck1, cf = _grid_axis(W, GRID_STEP)
-            self._grid = (
-                np.ascontiguousarray(
-                    rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
-                ),
-                (rows.size, cols.size),
-                rk,
-                rk1,
-                rf,
-                ck,
-                ck1,
-                cf,
-            )
-            self._grid_key = key
-            self._grid_rays = rays_cam  # keep it alive so that its id stays its own
-        grays, gshape, rk, rk1, rf, ck, ck1, cf = self._grid
-        tg = np.empty(grays.shape[1], np.float32)
-        _cloud_transmission_kernel(
-            grays,
-            R,
-            self.height_m / self.scale_m,
-            off_x,
-            off_y,
-            self.seed,
-            self.threshold,
-            1.0 / self.softness,
-            self.overcast,
-            self.optical_thickness,
-            tg,
-        )
-        tu = np.empty((gshape[0], W), np.float32)
-        _grid_rows_to_columns(tg.reshape(gshape), ck, ck1, cf, tu)
+        grays, R, cp, rk, rk1, rf, ck, ck1, cf = g
+        tu = np.empty((int(rk1[-1]) + 1, block_shape[1]), np.float32)
+        _cloud_transmission_grid_kernel(grays, R, cp, ck, ck1, cf, tu)
         return tu, rk, rk1, rf
 
     def apply(

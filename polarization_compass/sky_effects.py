@@ -19,10 +19,10 @@ Rendered stage by stage, a frame with clouds and lens effects moves the image th
 times: the sky model writes AoP, DoP and validity, the cloud layer reads and rewrites the DoP and
 the radiance, the lens reads the rays and rewrites them again (~80 MB per stage on a 2448 x 2048
 frame, where the arithmetic is cheap). For a contiguous pixel block (the full frame or a stride-1
-region) :class:`SkyEffects` evaluates, row by row, the sky model, the cloud composite (the layer's
-transmission interpolated from its grid, :meth:`~polarization_compass.atmosphere.CloudLayer.
-transmission_grid`) and vignetting with the sun's disk and glare, and writes AoP, DoP, validity and
-radiance once; the lens-flare ghosts are then added over their bounding boxes only.
+region) :class:`SkyEffects` evaluates, band by band of rows, the cloud layer on its grid
+(:meth:`~polarization_compass.atmosphere.CloudLayer.grid`), then row by row the sky model, the cloud
+composite and vignetting with the sun's disk and glare, in one parallel region, and writes AoP, DoP,
+validity and radiance once; the lens-flare ghosts are then added over their bounding boxes only.
 
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
@@ -48,7 +48,12 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .atmosphere import cloud_light, cloud_transmission
+from .atmosphere import (
+    cloud_light,
+    cloud_transmission,
+    cloud_transmission_at,
+    grid_row_to_columns,
+)
 from .fastmath import FM
 from .optics import lens_light
 from .sky import rayleigh_pixel, RayleighSky
@@ -60,6 +65,9 @@ __all__ = ['SkyEffects']
 _MODELS = {RayleighSky: 0, BerryDennisLeeSky: 1}
 #: Length of the float32 sky-parameter tuple (the longest model's; shorter ones are padded).
 _SKY_PARAMS = 16
+#: Pixel rows per band of the pass (8 cloud-grid intervals: 9 grid rows, one shared with the next
+#: band, evaluated by both).
+_BAND = 64
 
 
 @njit(inline='always', cache=True, fastmath=FM, error_model='numpy')
@@ -120,10 +128,16 @@ def _sky_effects_kernel(
     model,
     sp,
     rays,
-    tu,
+    clouds,
+    grays,
+    R,
+    cp,
     rk,
     rk1,
     rf,
+    ck,
+    ck1,
+    cf,
     bright,
     min_dop,
     xcol,
@@ -136,49 +150,72 @@ def _sky_effects_kernel(
     inten,
 ):  # pragma: no cover - compiled
     """
-    Render a row-major pixel block: sky, clouds and lens per row slice, outputs written once.
+    Render a row-major pixel block: cloud grid, sky, clouds and lens per band of rows, one launch.
 
-    Pixel row r blends the cloud transmission rows ``tu[rk[r]]`` and ``tu[rk1[r]]`` (they stay in
-    the cache over the rows between two grid rows; without clouds ``tu`` is one row of ones), then
-    :func:`_sky_effects_row` runs over the row's slices of the rays and the outputs (per-row
-    slices: a flat index r * W + c kept such loops scalar, measured).
+    Each band of ``_BAND`` pixel rows first evaluates the cloud layer on the grid rows it lies
+    between (:func:`~polarization_compass.atmosphere.cloud_transmission_at`, the grid row shared
+    by two bands evaluated by both) and interpolates them to every pixel column, into a buffer
+    that stays in the cache; then :func:`_sky_effects_row` runs over each row's slices of the rays
+    and the outputs (per-row slices: a flat index r * W + c kept such loops scalar, measured). One
+    parallel region for the whole frame: on a shared machine each extra one waits for its slowest
+    thread. Without clouds the band's T rows are 1.
     """
     W = xcol.size
-    for r in prange(yrow.size):
-        u0 = tu[rk[r]]
-        u1 = tu[rk1[r]]
-        fy = rf[r]
-        o = r * W
-        rx = rays[0, o:o + W]
-        ry = rays[1, o:o + W]
-        rz = rays[2, o:o + W]
-        ap = aop[o:o + W]
-        dp = dop[o:o + W]
-        vd = valid[o:o + W]
-        it = inten[o:o + W]
-        yi = yrow[r]
-        if model == 0:
-            if square:
-                _sky_effects_row(
-                    0, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
-                    vd, it,
-                )  # fmt: skip
-            else:
-                _sky_effects_row(
-                    0, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
-                    vd, it,
-                )  # fmt: skip
+    H = yrow.size
+    one = np.float32(1.0)
+    gx = grays.shape[1] // (rk1[H - 1] + 1) if clouds else 1
+    for b in prange((H + _BAND - 1) // _BAND):
+        r0 = b * _BAND
+        r1 = min(r0 + _BAND, H)
+        k0 = rk[r0] if clouds else 0
+        nk = rk1[r1 - 1] - k0 + 1 if clouds else 1
+        tu = np.empty((nk, W), np.float32)
+        if clouds:
+            tg = np.empty(gx, np.float32)
+            for k in range(nk):
+                g0 = (k0 + k) * gx
+                for j in range(gx):
+                    tg[j] = cloud_transmission_at(
+                        grays[0, g0 + j], grays[1, g0 + j], grays[2, g0 + j], R, cp
+                    )
+                grid_row_to_columns(tg, ck, ck1, cf, tu[k])
         else:
-            if square:
-                _sky_effects_row(
-                    1, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
-                    vd, it,
-                )  # fmt: skip
+            tu[:] = one
+        for r in range(r0, r1):
+            u0 = tu[rk[r] - k0] if clouds else tu[0]
+            u1 = tu[rk1[r] - k0] if clouds else tu[0]
+            fy = rf[r] if clouds else np.float32(0.0)
+            o = r * W
+            rx = rays[0, o:o + W]
+            ry = rays[1, o:o + W]
+            rz = rays[2, o:o + W]
+            ap = aop[o:o + W]
+            dp = dop[o:o + W]
+            vd = valid[o:o + W]
+            it = inten[o:o + W]
+            yi = yrow[r]
+            if model == 0:
+                if square:
+                    _sky_effects_row(
+                        0, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
+                        dp, vd, it,
+                    )  # fmt: skip
+                else:
+                    _sky_effects_row(
+                        0, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
+                        dp, vd, it,
+                    )  # fmt: skip
             else:
-                _sky_effects_row(
-                    1, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp,
-                    vd, it,
-                )  # fmt: skip
+                if square:
+                    _sky_effects_row(
+                        1, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
+                        dp, vd, it,
+                    )  # fmt: skip
+                else:
+                    _sky_effects_row(
+                        1, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
+                        dp, vd, it,
+                    )  # fmt: skip
 
 
 class SkyEffects:
@@ -232,10 +269,20 @@ class SkyEffects:
             f32(0.0),
             f32(2.0),
         )
-        # no clouds: T = 1 everywhere (one row of ones, every pixel row on it)
-        H, W = pixels.shape
-        zi = np.zeros(H, np.int64)
-        self._no_clouds = (np.ones((1, W), np.float32), zi, zi, np.zeros(H, np.float32))
+        # no clouds: placeholders (the kernel does not read them), T = 1
+        z64 = np.zeros(1, np.int64)
+        z32 = np.zeros(1, np.float32)
+        self._no_clouds = (
+            np.zeros((3, 1), np.float32),
+            np.eye(3),
+            (1.0, 0.0, 0.0, 0, 0.0, 1.0, False, 0.0),
+            z64,
+            z64,
+            z32,
+            z64,
+            z64,
+            z32,
+        )
 
     @classmethod
     def for_renderer(cls, renderer) -> 'SkyEffects | None':
@@ -314,7 +361,7 @@ class SkyEffects:
         bright = f32(1.0)
         if self.clouds is not None:
             instr.count('atmosphere.clouds')
-            grid = self.clouds.transmission_grid(R_enu_cam, self.rays, dt_s, self.pixels.shape)
+            grid = self.clouds.grid(R_enu_cam, self.rays, dt_s, self.pixels.shape)
             bright = f32(self.clouds.brightness)
         lp, square, ghosts = self._no_lens, True, None
         if self.optics is not None:
@@ -330,6 +377,7 @@ class SkyEffects:
                 self.model,
                 sp,
                 self.rays,
+                self.clouds is not None,
                 *grid,
                 bright,
                 f32(limits[2]),
