@@ -20,9 +20,10 @@ times: the sky model writes AoP, DoP and validity, the cloud layer reads and rew
 the radiance, the lens reads the rays and rewrites them again (~80 MB per stage on a 2448 x 2048
 frame, where the arithmetic is cheap). For a contiguous pixel block (the full frame or a stride-1
 region) :class:`SkyEffects` evaluates, band by band of rows, the cloud layer on its grid
-(:meth:`~polarization_compass.atmosphere.CloudLayer.grid`), then row by row the sky model, the cloud
-composite and vignetting with the sun's disk and glare, in one parallel region, and writes AoP, DoP,
-validity and radiance once; the lens-flare ghosts are then added over their bounding boxes only.
+(:meth:`~polarization_compass.atmosphere.CloudLayer.grid`), then row by row the sky model, the
+cloud composite and vignetting with the sun's disk and glare, in one parallel region, and writes
+AoP, DoP, validity and radiance once; the lens-flare ghosts are then added over their bounding
+boxes only.
 
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
