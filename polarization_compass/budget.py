@@ -46,7 +46,7 @@ bias, time offset) and ``boresight``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import functools
 import math
 
@@ -94,6 +94,13 @@ class BudgetError(CompassError):
     """Unusable budget input (no method, bad --imu, no samples)."""
 
 
+def published_sigma_floor_deg() -> float:
+    """Return heading_estimator's default ``sigma_floor_deg`` [deg] (specs/params.py)."""
+    from .specs.params import defaults, ESTIMATOR
+
+    return float(defaults(ESTIMATOR)['sigma_floor_deg'])
+
+
 @dataclass(frozen=True)
 class BudgetConfig:
     """
@@ -122,6 +129,10 @@ class BudgetConfig:
         1-sigma of the map's own error for this camera and sky [deg] (interpolation and a map made
         for another camera), added in quadrature to corrected methods' sigmas, as the node's
         ``correction_sigma_deg`` parameter.
+    sigma_floor_deg : float, default: heading_estimator's ``sigma_floor_deg`` (0.01)
+        The smallest sigma a node publishes (the model error of real skies); the sigma
+        calibration is computed with ``max(sigma, floor)``, what a robot receives
+        (``sigma_calibration_raw`` without it).
 
     """
 
@@ -133,6 +144,7 @@ class BudgetConfig:
     correction: str = 'error_map'
     error_map: str | None = None
     correction_sigma_deg: float = 0.0
+    sigma_floor_deg: float = field(default_factory=published_sigma_floor_deg)
 
 
 def parse_imu(text: str | None) -> MountingErrors:
@@ -302,7 +314,7 @@ def _samples(cfg: BudgetConfig):
     return out
 
 
-def _stats(errs, statuses_ok, sigmas) -> dict:
+def _stats(errs, statuses_ok, sigmas, floor_deg: float = 0.0) -> dict:
     n = len(statuses_ok)
     e = np.abs(np.asarray(errs, dtype=float))
     d = {'count': n, 'ok': int(e.size), 'share_not_ok': (n - e.size) / n if n else None}
@@ -315,8 +327,10 @@ def _stats(errs, statuses_ok, sigmas) -> dict:
     else:
         d.update(rms_deg=None, p95_deg=None, max_deg=None)
     pairs = [(x, s) for x, s in zip(errs, sigmas) if s is not None and s > 0]
-    cal = float(np.mean([(x / s) ** 2 for x, s in pairs])) if pairs else None
+    cal = float(np.mean([(x / max(s, floor_deg)) ** 2 for x, s in pairs])) if pairs else None
     d['sigma_calibration'] = cal
+    d['sigma_calibration_raw'] = float(np.mean([(x / s) ** 2 for x, s in pairs])) if pairs else None
+    d['sigma_floor_deg'] = floor_deg
     d['sigma_count'] = len(pairs)
     d['sigma_band'] = (
         None
@@ -332,7 +346,7 @@ def _stats(errs, statuses_ok, sigmas) -> dict:
 
 def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
     raw = _condition_part(cfg, samples, methods)
-    return {m: _stats(*raw[m]) for m in methods}
+    return {m: _stats(*raw[m], floor_deg=cfg.sigma_floor_deg) for m in methods}
 
 
 def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
@@ -489,10 +503,14 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
 
     run_tasks(calls, on_result, scheduler=scheduler, workers=workers)
     out = {}
-    for ci, (name, _) in enumerate(conds):
+    for ci, (name, c) in enumerate(conds):
         blocks = [parts[(ci, b)] for b in range(math.ceil(len(samples) / block))]
         out[name] = {
-            m: _stats(*[sum((bl[m][k] for bl in blocks), []) for k in range(3)]) for m in methods
+            m: _stats(
+                *[sum((bl[m][k] for bl in blocks), []) for k in range(3)],
+                floor_deg=c.sigma_floor_deg,
+            )
+            for m in methods
         }
     return out
 
@@ -557,6 +575,8 @@ def run_budget(
         raise BudgetError(f"correction must be 'error_map' or 'none', got {cfg.correction!r}")
     if not (math.isfinite(cfg.correction_sigma_deg) and cfg.correction_sigma_deg >= 0.0):
         raise BudgetError(f'correction_sigma_deg must be >= 0, got {cfg.correction_sigma_deg}')
+    if not (math.isfinite(cfg.sigma_floor_deg) and cfg.sigma_floor_deg >= 0.0):
+        raise BudgetError(f'sigma_floor_deg must be >= 0, got {cfg.sigma_floor_deg}')
     fixed = corrected_methods(cfg, methods)
     samples = _samples(cfg)
     sources = declared_sources(cfg)
@@ -596,6 +616,7 @@ def run_budget(
     return {
         'scene': cfg.scene.name,
         'samples': cfg.samples,
+        'sigma_floor_deg': cfg.sigma_floor_deg,
         'tilt_max_deg': cfg.tilt_max_deg,
         'imu': imu,
         'methods': methods,

@@ -183,7 +183,30 @@ def test_cli_budget_writes_json_and_png_and_refuses_bad_input(tmp_path, capsys):
     assert r['sources'] == ['clouds'] and (out / 'budget.png').stat().st_size > 1000
     assert main(['budget', '--scene', str(scene), '--imu', 'bogus=1', '--out', str(out)]) == 2
     assert main(['budget', '--scene', str(scene), '--samples', '0', '--out', str(out)]) == 2
+    assert main(['budget', '--scene', str(scene), '--sigma-floor', '-1', '--out', str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert all(
         line.startswith('polarization-compass budget: error:') for line in err if 'error' in line
+    )
+
+
+def test_sigma_calibration_uses_the_published_floor_and_keeps_the_raw_figure():
+    """
+    The calibration counts max(sigma, floor), what the node publishes; the raw one is kept.
+
+    Hand-computed: errors 0.002 and 0.03 deg with sigmas 1e-4 and 0.02 deg give a raw
+    mean((e/s)^2) = (20^2 + 1.5^2) / 2 and, with the 0.01 deg floor, (0.2^2 + 1.5^2) / 2.
+    """
+    from polarization_compass.budget import _stats, BudgetConfig, published_sigma_floor_deg
+    from polarization_compass.specs.params import defaults, ESTIMATOR
+
+    assert published_sigma_floor_deg() == defaults(ESTIMATOR)['sigma_floor_deg'] == 0.01
+    assert BudgetConfig(Scene()).sigma_floor_deg == 0.01
+    d = _stats([0.002, -0.03], [True, True, False], [1e-4, 0.02], floor_deg=0.01)
+    assert d['sigma_calibration_raw'] == pytest.approx((20.0**2 + 1.5**2) / 2)
+    assert d['sigma_calibration'] == pytest.approx((0.2**2 + 1.5**2) / 2)
+    assert d['sigma_band'] == 'honest' and d['share_not_ok'] == pytest.approx(1 / 3)
+    raw = _stats([0.002, -0.03], [True, True], [1e-4, 0.02])
+    assert raw['sigma_calibration'] == raw['sigma_calibration_raw'] and raw['sigma_band'] == (
+        'overconfident'
     )

@@ -68,6 +68,13 @@ def register(sub):
         help="1-sigma of the map's own error for this camera [deg], added in quadrature to "
         "corrected methods' sigmas (the node's correction_sigma_deg; default 0)",
     )
+    p.add_argument(
+        '--sigma-floor',
+        type=float,
+        default=None,
+        help='smallest sigma counted in the sigma calibration [deg] (default: the nodes\' '
+        'sigma_floor_deg, 0.01: what a robot receives; 0 = the raw sigma)',
+    )
     p.add_argument('--samples', type=int, default=50, help='frames per condition (default 50)')
     p.add_argument(
         '--methods', default='', help='comma-separated methods (default: all registered)'
@@ -112,6 +119,11 @@ def run(args) -> int:
         raise BudgetError(
             f'--correction-sigma must be in [0, 90] deg, got {args.correction_sigma}'
         )
+    extra = {}
+    if args.sigma_floor is not None:
+        if not (0.0 <= args.sigma_floor <= 90.0):
+            raise BudgetError(f'--sigma-floor must be in [0, 90] deg, got {args.sigma_floor}')
+        extra['sigma_floor_deg'] = float(args.sigma_floor)
     cfg = BudgetConfig(
         scene,
         int(args.samples),
@@ -121,6 +133,7 @@ def run(args) -> int:
         correction=args.correction,
         error_map=args.error_map,
         correction_sigma_deg=float(args.correction_sigma),
+        **extra,
     )
     result = run_budget(
         cfg,
