@@ -49,7 +49,7 @@ from ._mirror import (
     MIN_CONDITIONING,
     mirror_map,
     MirrorMap,
-    NO_MIRROR,
+    refine_axis,
     solve_axes,
     view_covers_disc,
 )
@@ -88,11 +88,21 @@ SCAN_STEP = 8
 #: factor times the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian
 #: (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
 MAX_MIRROR_RESIDUAL_RATIO = 1.5
+#: A root of the occlusion-only scan is refined on the DoP-symmetric pair weights to a fixed point
+#: at most this far (deg; clouds moved the occlusion-only roots by up to ~20 deg at 70 % cover),
+#: else it is dropped.
+MAX_REFINE_MOVE_DEG = 30.0
+#: Pixel subsampling of the coarse fit whose difference from the full one measures the lattice
+#: error (:meth:`DiscEstimator._lattice_rad`).
+LATTICE_STEP = 4
+#: How many times the full fit's lattice error the sub-lattice fits differ from it: 3 for an error
+#: in proportion to the cell area (Richardson); measured noise-free under bench clouds (coverage 0.3,
+#: stride 16, 12 scenes) about 6-9 (the sub-lattices are 4x coarser along the rows only and cloud
+#: edges are not smooth), so 6: noise-free err^2 / sigma^2 then averages ~1, and with noise this
+#: adds ~ 1/12 of the statistical variance.
+LATTICE_RATIO = 6.0
 #: Pixel subsampling of the residual passes that compare self-consistent axes.
 RESIDUAL_STEP = 3
-#: The plain fit is kept when the fit on the mirror pairs about its own axis (with at least half
-#: the disc paired) moves it by less than this (deg): the unusable pixels do not bias it.
-MIRROR_AGREEMENT_DEG = 0.02
 
 
 def cr1_sigma(block_sum, n: int) -> float:
@@ -158,7 +168,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         raise NotImplementedError
 
     def _mirror_fit(
-        self, g: dict, mirror, near: float, plain: AxisFit
+        self, g: dict, mirror, near: float, plain: AxisFit, step: int = 1, start: int = 0
     ) -> AxisFit | None:  # pragma: no cover
         raise NotImplementedError
 
@@ -195,6 +205,29 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     ) -> str:  # pragma: no cover - only with a _root_ok that can say no
         return ''
 
+    def _lattice_rad(self, fit_at, fit: AxisFit) -> float:
+        """
+        Return the estimated error (rad) of the axis from summing over the pixel lattice.
+
+        The fits are lattice sums standing in for integrals over the disc; where the weights have
+        sharp edges (cloud edges, the min_dop cut) the sum's error grows with the cell area. The
+        fixed point on every ``LATTICE_STEP``-th pixel (cell area x LATTICE_STEP) differs from the
+        full one by about (LATTICE_STEP - 1) times the full fit's lattice error (Richardson); the
+        rms of that difference over the ``LATTICE_STEP`` interleaved sub-lattices, / ``LATTICE_RATIO``,
+        goes into sigma in quadrature. Noise-free it is the only error term the residuals cannot
+        show (they are those of the fitted axis itself: a systematic error of the axis is ~ sqrt(#
+        blocks) times the cluster-robust sigma); with noise it adds about a third of the
+        statistical variance. Sub-lattices without a fixed point (too few pixels) are left out.
+        """
+        d2 = []
+        for start in range(LATTICE_STEP):
+            coarse, _, _ = refine_axis(
+                lambda t: fit_at(t, LATTICE_STEP, start), fit.theta, tol_rad=1e-7
+            )
+            if coarse is not None:
+                d2.append(fold_axial_rad_float(coarse.theta - fit.theta) ** 2)
+        return math.sqrt(sum(d2) / len(d2)) / LATTICE_RATIO if d2 else 0.0
+
     def _level_ms(self, data, rho_lo, rho_max, theta, obs, step=RESIDUAL_STEP) -> float:
         """
         Return the mean square AoP residual (rad^2) against the level pattern of axis theta.
@@ -223,43 +256,74 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Solve for the axis on mirror-pair weights.
 
-        The axis on mirror-pair weights: (fit, mirror arguments, sigma inflation) or a failed
-        result.
+        The axis on the DoP-symmetric mirror-pair weights Q(p) Q(p') (:mod:`._mirror`): the fixed
+        point next to the plain fit; failing that (an incomplete disc, the plain fit far off), the
+        global scan on the occlusion-only pair weights DoP(p)^2 S(p) S(p') (smoother in the trial
+        axis, the search the occlusion handling was built on) with each root refined on Q(p)
+        Q(p'). Returns ((fit, mirror arguments, sigma inflation) list, the fit function of the
+        Q(p) Q(p') pairs) or a failed result.
         """
         k = self.knobs
-        mm = mirror_map(view, obs.camera, rho_max)
+        mm = mirror_map(view, obs.camera, rho_max, k['min_dop'])
         g = self._gather(data, rho_lo, rho_max, mm)
         gate = k['min_mirror_coverage']
+        covers = view_covers_disc(view, obs.camera, rho_max)
+        complete = plain.holes == 0 and covers
 
-        def fit_at(theta, step=1):
-            f = self._mirror_fit(g, mm.at(theta), theta, plain, step)
+        def fit_at(theta, step=1, start=0):
+            f = self._mirror_fit(g, mm.at(theta), theta, plain, step, start)
             return f if f is not None and f.n_paired * step >= k['min_pixels'] else None
 
-        f0 = fit_at(plain.theta)
+        # the fixed point next to the plain fit: the plain fit's DoP^2 weights are not symmetric
+        # about the meridian under clouds, the pair weights are (module doc of ._mirror)
+        f0, sl0, used0 = refine_axis(fit_at, plain.theta)
         if (
             f0 is not None
             and f0.coverage >= 0.5
+            and abs(sl0) >= MIN_CONDITIONING
             and self._root_ok(f0)
-            and abs(fold_axial_rad_float(f0.theta - plain.theta))
-            <= math.radians(MIRROR_AGREEMENT_DEG)
         ):
-            extras['mirror_coverage'] = (
-                f0.coverage
-            )  # the unusable pixels do not bias the plain fit
-            return [(plain, NO_MIRROR, 1.0)]
-        roots, failed, used = solve_axes(
-            fit_at,
-            lambda t: fit_at(t, SCAN_STEP),
+            extras['mirror_fits'] = used0
+            extras['mirror_coverage'] = f0.coverage
+            if not complete:  # the residual test of estimate() for axes with unusable pixels
+                extras['mirror_axes'] = 1
+            return [(f0, mm.at(f0.theta), 1.0 / abs(sl0))], fit_at
+        g_occ = self._gather(data, rho_lo, rho_max, mm, own_dop2=True)
+
+        def occ_at(theta, step=1):
+            f = self._mirror_fit(g_occ, mm.occlusion_at(theta), theta, plain, step)
+            return f if f is not None and f.n_paired * step >= k['min_pixels'] else None
+
+        found, failed, used = solve_axes(
+            occ_at,
+            lambda t: occ_at(t, SCAN_STEP),
             lambda f: f.coverage >= 0.8 * gate and self._root_ok(f, lenient=True),
             gate,
         )
-        extras['mirror_fits'] = used + 1
-        why = f'part of the sky disc is unusable ({plain.holes} pixel(s)'
-        why += (
-            ')'
-            if view_covers_disc(view, obs.camera, rho_max)
-            else ' and the view does not cover the disc)'
-        )
+        roots = []
+        for f, sl in found:
+            if not (f.coverage >= gate and self._root_ok(f)):
+                roots.append((f, sl))  # not sound on the occlusion-only weights: reported below
+                continue
+            fr, slr, u = refine_axis(fit_at, f.theta)
+            used += u
+            if fr is None or abs(fold_axial_rad_float(fr.theta - f.theta)) > math.radians(
+                MAX_REFINE_MOVE_DEG
+            ):
+                failed.append(
+                    f'the axis near {math.degrees(f.theta) % 180:.1f} deg has no fixed point on '
+                    'DoP-symmetric pair weights'
+                )
+                continue
+            roots.append((fr, slr))
+        extras['mirror_fits'] = used + used0
+        if complete:
+            why = 'no self-consistent axis next to the plain fit on DoP-symmetric pair weights'
+        else:
+            why = f'part of the sky disc is unusable ({plain.holes} pixel(s)'
+            why += ')' if covers else ' and the view does not cover the disc)'
+        # a complete disc without a symmetric axis: the sky is not mirror-symmetric (model)
+        status = Status.POOR_FIT if complete else Status.INSUFFICIENT_COVERAGE
         good = [(f, sl) for f, sl in roots if f.coverage >= gate and abs(sl) >= MIN_CONDITIONING]
         sound = [(f, sl) for f, sl in good if self._root_ok(f)]
         if good and not sound:
@@ -267,7 +331,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             extras['mirror_coverage'] = f.coverage
             return HeadingResult.failed(
                 self.name,
-                Status.INSUFFICIENT_COVERAGE,
+                status,
                 f'{why}: no axis about which the usable mirror pairs are symmetric '
                 f'({self._root_why(f)})',
                 pixels=plain.n,
@@ -286,13 +350,13 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                 detail = failed[0] if failed else 'no self-consistent axis'
             return HeadingResult.failed(
                 self.name,
-                Status.INSUFFICIENT_COVERAGE,
+                status,
                 f'{why}: {detail}',
                 pixels=plain.n,
                 **extras,
             )
         extras['mirror_axes'] = len(sound)
-        return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound]
+        return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound], fit_at
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
         """
@@ -347,11 +411,10 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         if isinstance(fit, HeadingResult):
             return fit
         extras: dict = {}
-        candidates = [(fit, NO_MIRROR, 1.0)]
-        if fit.holes > 0 or not view_covers_disc(view, obs.camera, rho_max):
-            candidates = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
-            if isinstance(candidates, HeadingResult):
-                return candidates
+        solved = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
+        if isinstance(solved, HeadingResult):
+            return solved
+        candidates, fit_at = solved
         if len(candidates) > 1:  # several self-consistent axes: the best Rayleigh fit
             candidates = [
                 min(
@@ -368,9 +431,9 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             )
             j = int(np.argmin(rss))  # the end of the meridian the Rayleigh residuals prefer
             rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
+        extras['mirror_sigma_inflation'] = inflation
         if 'mirror_axes' in extras:
             extras['mirror_coverage'] = fit.coverage
-            extras['mirror_sigma_inflation'] = inflation
             limit = (
                 MAX_MIRROR_RESIDUAL_RATIO
                 * math.degrees(math.sqrt(self._level_ms(data, rho_lo, rho_max, plain.theta, obs)))
@@ -379,7 +442,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             if rms_deg > limit:
                 return HeadingResult.failed(
                     self.name,
-                    Status.INSUFFICIENT_COVERAGE,
+                    Status.INSUFFICIENT_COVERAGE if fit.holes else Status.POOR_FIT,
                     f'part of the sky disc is unusable ({fit.holes} pixel(s)): the '
                     'self-consistent axes on the '
                     f'usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg '
@@ -391,7 +454,13 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                     **extras,
                 )
         n = fit.n_paired
-        sigma_deg = finish_sigma_deg(cr1_sigma(block_sum[j], n) * inflation, k) if sigma else None
+        sigma_deg = None
+        if sigma:
+            lattice = self._lattice_rad(fit_at, fit)
+            extras['lattice_sigma_deg'] = math.degrees(lattice)
+            sigma_deg = finish_sigma_deg(
+                math.hypot(cr1_sigma(block_sum[j], n) * inflation, lattice), k
+            )
         if j == 1:
             first, second = second, first
         has_i = data[6] is not None

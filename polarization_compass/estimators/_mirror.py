@@ -76,6 +76,7 @@ __all__ = [
     'NO_MIRROR',
     'view_covers_disc',
     'solve_axes',
+    'refine_axis',
     'AxisFit',
     'MIRROR_BLUR_CELLS',
     'MIRROR_LEVELS',
@@ -89,14 +90,16 @@ MIRROR_BLUR_CELLS = 2.0
 MIRROR_LEVELS = (0.5, 0.9)
 #: Secant steps of the refinement of one fixed point before giving up.
 MAX_SOLVE_STEPS = 25
+#: Plain fixed-point iterations of :func:`refine_axis` when the secant from the start fails.
+PICARD_STEPS = 30
 #: Trial axes of the coarse scan for fixed points (over 180 deg).
 SCAN_AXES = 18
 #: A sign change of h between neighbouring scan axes larger than this (rad) is a jump, not a root.
 MAX_BRACKET_JUMP = 0.75
 #: |1 - f'| below this: the usable pairs do not determine the axis (insufficient_coverage).
 MIN_CONDITIONING = 1e-3
-#: No mirror weighting (m = 1): an empty S map and unused parameters.
-NO_MIRROR = (np.zeros((0, 0)), np.zeros(10))
+#: No mirror weighting (m = 1, the pixel's own DoP^2): empty S and Q maps and unused parameters.
+NO_MIRROR = (np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(10))
 
 
 # --------------------------------------------------------------------------------------------
@@ -112,36 +115,50 @@ class MirrorMap:
     """
 
     grid: np.ndarray
+    weight: np.ndarray  # Q = DoP * smooth usability (DoP >= min_dop), same grid: Q(p) Q(p')
     params: np.ndarray  # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
     lattice: tuple  # x0, dx, y0, dy of the view's own pixels
     camera: CameraModel
 
     def at(self, theta_rad: float) -> tuple:
         """
-        Return the kernel arguments (mg, mp) for the reflection about the axis ``theta``.
+        Return the kernel arguments (mg, mq, mp) for the reflection about the axis ``theta``.
 
-        Kernel arguments (mg, mp) for the reflection about the axis ``theta`` (from +y_cam towards
-        +x_cam).
+        Kernel arguments (S grid, Q grid, parameters) for the reflection about the axis ``theta``
+        (from +y_cam towards +x_cam).
         """
         p = self.params.copy()
         p[4] = math.sin(theta_rad)
         p[5] = math.cos(theta_rad)
-        return self.grid, p
+        return self.grid, self.weight, p
+
+    def occlusion_at(self, theta_rad: float) -> tuple:
+        """
+        Return the kernel arguments (mg, mg, mp) of the occlusion-only pair weights S(p) S(p').
+
+        For a gather with ``own_dop2`` (weights DoP(p)^2 S(p) S(p')): the global search for axes
+        of an incomplete disc, whose roots are then refined on Q(p) Q(p').
+        """
+        mg, _, p = self.at(theta_rad)
+        return mg, mg, p
 
 
-def _usable_grid(view, camera: CameraModel):
+def _usable_grid(view, camera: CameraModel, min_dop: float = 0.0):
     """
-    Return the view's usable pixels on a regular grid, with its origin and steps.
+    Return the view's usable pixels and their DoP weights on a regular grid, with its geometry.
 
-    (usable (ny, nx) bool, x0, dx, y0, dy) of the view's pixels on a regular grid: the view's own
-    grid, or a pixel list scattered onto the grid of its smallest coordinate steps (cells without a
-    pixel are unusable).
+    (usable (ny, nx) bool, DoP (ny, nx) float64, x0, dx, y0, dy) of the view's pixels on a regular
+    grid: the view's own grid, or a pixel list scattered onto the grid of its smallest coordinate
+    steps (cells without a pixel are unusable). The DoP grid is 0 where a pixel is unusable or its
+    DoP is below ``min_dop`` (the pixels the fits give no weight).
     """
     fin = np.isfinite(view.aop) & np.isfinite(view.dop) & np.isfinite(view.rays).all(axis=0)
     usable = np.asarray(view.valid, dtype=bool) & fin
+    dop = np.where(usable, np.asarray(view.dop, dtype=np.float64), 0.0)
+    dop = np.where(dop >= min_dop, dop, 0.0)
     if view.grid is not None:
         (x0, dx, nx), (y0, dy, ny) = view.grid
-        return usable.reshape(ny, nx), x0, dx, y0, dy
+        return usable.reshape(ny, nx), dop.reshape(ny, nx), x0, dx, y0, dy
     x = np.asarray(view.x_px, dtype=float)
     y = np.asarray(view.y_px, dtype=float)
 
@@ -156,10 +173,12 @@ def _usable_grid(view, camera: CameraModel):
     x0, dx, nx = axis(x)
     y0, dy, ny = axis(y)
     grid = np.zeros((ny, nx), dtype=bool)
+    dgrid = np.zeros((ny, nx))
     col = np.clip(np.rint((x - x0) / dx).astype(np.int64), 0, nx - 1)
     row = np.clip(np.rint((y - y0) / dy).astype(np.int64), 0, ny - 1)
     grid[row[usable], col[usable]] = True
-    return grid, x0, dx, y0, dy
+    dgrid[row[usable], col[usable]] = dop[usable]
+    return grid, dgrid, x0, dx, y0, dy
 
 
 @lru_cache(maxsize=16)
@@ -188,14 +207,16 @@ def _outside_disc(
     return out
 
 
-def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
+def mirror_map(view, camera: CameraModel, rho_max: float, min_dop: float = 0.0) -> MirrorMap:
     """
-    Return the smooth usability map S of a view (see the module doc).
+    Return the smooth usability map S and the pair-weight map Q of a view (see the module doc).
 
     Outside the view, positions beyond the disc count as usable (nothing is missing there) and
-    positions inside it as unusable.
+    positions inside it as unusable. ``Q`` is the pixels' DoP (0 where unusable or below ``min_dop``)
+    times the smooth usability of the pixels at or above ``min_dop``: the pair weight is ``Q(p)
+    Q(p')``.
     """
-    usable, x0, dx, y0, dy = _usable_grid(view, camera)
+    usable, dgrid, x0, dx, y0, dy = _usable_grid(view, camera, min_dop)
     ny, nx = usable.shape
     S, params = _smooth_usability(
         camera,
@@ -208,12 +229,31 @@ def mirror_map(view, camera: CameraModel, rho_max: float) -> MirrorMap:
         float(rho_max),
         np.packbits(usable).tobytes(),
     )
-    return MirrorMap(S, params, (float(x0), float(dx), float(y0), float(dy)), camera)
+    # the weights' usability: also 0 below min_dop (those pixels get no weight, nor their pairs)
+    weighted = dgrid > 0.0
+    Sw = S
+    if not np.array_equal(weighted, usable):
+        Sw, _ = _smooth_usability(
+            camera,
+            float(x0),
+            float(dx),
+            float(y0),
+            float(dy),
+            int(ny),
+            int(nx),
+            float(rho_max),
+            np.packbits(weighted).tobytes(),
+        )
+    pad = (S.shape[0] - ny) // 2
+    Q = np.zeros(S.shape)
+    Q[pad:pad + ny, pad:pad + nx] = dgrid
+    Q *= Sw
+    return MirrorMap(S, Q, params, (float(x0), float(dx), float(y0), float(dy)), camera)
 
 
 @lru_cache(
-    maxsize=2
-)  # the last frame's, for both disc methods (a full-resolution S is tens of MB)
+    maxsize=4
+)  # the last frame's S and S of the weights, for both disc methods (full resolution: tens of MB)
 def _smooth_usability(
     camera: CameraModel,
     x0: float,
@@ -357,31 +397,31 @@ def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compil
 
 
 @njit(inline='always', cache=True)
-def _mirror_weight(mg, mp, x, y):  # pragma: no cover - compiled
+def _mirror_weight(mg, mq, mp, x, y):  # pragma: no cover - compiled
     """
-    Return the pair weight S(p) S(p') of the pixel at sensor position (x, y).
+    Return the pair weight Q(p) Q(p') of the pixel at sensor position (x, y).
 
     ``mp``: cx, cy, pitch_x, pitch_y (mm), sin theta, cos theta (the trial axis, from +y_cam
-    towards +x_cam), x0, dx, y0, dy of the S grid; the reflection acts on the offset from the
-    principal point in millimetres.
+    towards +x_cam), x0, dx, y0, dy of the Q grid; the reflection acts on the offset from the
+    principal point in millimetres. One field at p and at p': mirror-symmetric about the axis.
     """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
-    own = _bilinear0(mg, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
-    return own * _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
+    own = _bilinear0(mq, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
+    return own * _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
 
 
 @njit(cache=True, nogil=True)
-def _pair_weights(mg, mp, xs, ys):  # pragma: no cover - compiled
+def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
     """
-    Return the pair weights S(p) S(p') of every pixel, or ones without a mirror map.
+    Return the pair weights Q(p) Q(p') of every pixel, or ones without a mirror map.
 
-    S(p) S(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg``
-    empty).
+    Q(p) Q(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg``
+    empty; the passes then weight a pixel by its own DoP^2).
     """
     out = np.ones(xs.size)
     if mg.shape[0]:
         for i in range(xs.size):
-            out[i] = _mirror_weight(mg, mp, xs[i], ys[i])
+            out[i] = _mirror_weight(mg, mq, mp, xs[i], ys[i])
     return out
 
 
@@ -461,6 +501,57 @@ def _refine(fit_at, t0: float, slope: float, tol_rad: float, max_steps: int):
         return None, slope, 0.0, steps
     fb.theta = tb + hb
     return fb, slope, abs(tb - ta), steps
+
+
+def refine_axis(fit_at, t0: float, tol_rad: float = 1e-8, max_steps: int = MAX_SOLVE_STEPS):
+    """
+    The self-consistent axis ``theta = fit_at(theta).theta`` nearest ``t0`` by the secant method.
+
+    Parameters
+    ----------
+    fit_at : callable
+        Trial axis [rad] -> the fit on pair weights about it (``.theta`` rad), or None.
+    t0 : float
+        Start [rad], e.g. the plain fit's axis (the pair-weighted fit moves little from it: h'
+        starts at -1).
+    tol_rad, max_steps
+        Convergence |h| [rad] and the most fits.
+
+    Returns
+    -------
+    tuple
+        (fit at the fixed point, h' = f' - 1 there, fits used); fit None when the iteration does
+        not converge. ``h'`` is the last secant slope, or a finite difference over 2e-3 rad when
+        the last step was too short (as :func:`solve_axes`).
+
+    Where h is nearly flat at ``t0`` (f' ~ 1: under broken clouds the pairs that survive change
+    with the trial axis) the secant steps overshoot; then up to ``PICARD_STEPS`` plain iterations
+    ``t <- f(t)`` (they converge where 0 < f' < 1, as at the meridian under clouds: f' ~ 0.7) bring
+    the start closer, and the secant runs again from there.
+    """
+    fit, slope, last, used = _refine(fit_at, t0, -1.0, tol_rad, max_steps)
+    if fit is None:
+        t, f = t0, fit_at(t0)
+        used += 1
+        for _ in range(PICARD_STEPS):
+            if f is None or abs(fold_axial_rad_float(f.theta - t)) < 1e-3:
+                break
+            t = t + fold_axial_rad_float(f.theta - t)
+            f = fit_at(t)
+            used += 1
+        if f is None:
+            return None, slope, used
+        fit, slope, last, n = _refine(fit_at, t, -1.0, tol_rad, max_steps)
+        used += n
+    if fit is None:
+        return None, slope, used
+    if not last >= 1e-6:
+        fd = fit_at(fit.theta + 2e-3)
+        used += 1
+        if fd is None:
+            return None, slope, used
+        slope = fold_axial_rad_float(fd.theta - fit.theta - 2e-3) / 2e-3
+    return fit, slope, used
 
 
 def solve_axes(

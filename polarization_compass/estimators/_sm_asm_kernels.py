@@ -29,7 +29,7 @@ from numba import njit
 import numpy as np
 
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
-from ._mirror import _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ._mirror import _bilinear0, _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
@@ -86,14 +86,32 @@ def band_pass1(
 
 @njit(cache=True, nogil=True)
 def band_gather(
-    aop, dop, valid, rays, xs, ys, min_dop, rho_max, taper_frac, inv4tol2, mg, mp, g_uv, g_val
+    aop,
+    dop,
+    valid,
+    rays,
+    xs,
+    ys,
+    min_dop,
+    rho_max,
+    taper_frac,
+    inv4tol2,
+    mg,
+    mq,
+    mp,
+    own_dop2,
+    g_uv,
+    g_val,
 ):  # pragma: no cover - compiled
     """
     Gather the disc's valid pixels for SM-ASM with mirror pairs (step 1).
 
     SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0,
     compacted: g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p)
-    z^2 (re, im), W S(p) rho^2) (W = 0 below min_dop). Returns the count.
+    z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4 tol^2)) taper Q(p) / S(p):
+    the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the mirror image's Q(p') in
+    :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2`` the own factor is DoP(p)^2
+    S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
     """
     n = 0
     for i in range(aop.size):
@@ -105,7 +123,10 @@ def band_gather(
         W = 0.0
         if ok:
             cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-            W = math.exp((-cr - 1.0) * inv4tol2) * p * p * tp * s
+            q = p * p * s
+            if not own_dop2:
+                q = _bilinear0(mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+            W = math.exp((-cr - 1.0) * inv4tol2) * tp * q
         g_val[0, n] = tp * s
         g_val[1, n] = W * (ry * ry - rx * rx)
         g_val[2, n] = W * 2.0 * rx * ry
@@ -115,26 +136,28 @@ def band_gather(
 
 
 @njit(cache=True, nogil=True)
-def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
+def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover - compiled
     """
     Fit one trial axis for SM-ASM with mirror pairs (step 2).
 
-    SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2, coverage
-    numerator sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every ``step``-th
-    gathered pixel.
+    SM-ASM with mirror pairs, step 2 (per trial axis): out = (Re Z, Im Z, sum W rho^2 (each
+    gathered term times Q(p'), so the weights Q(p) Q(p') are symmetric about the axis),
+    coverage numerator sum taper S(p) S(p'), usable pixels with a pair weight > 0) over every
+    ``step``-th gathered pixel from ``start``.
     """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     Zr = Zi = nrm = cov = 0.0
     n_pair = 0
-    for j in range(0, n, step):
+    for j in range(start, n, step):
         m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
         if not m > 0.0:
             continue
         cov += g_val[0, j] * m
-        Zr += g_val[1, j] * m
-        Zi += g_val[2, j] * m
-        nrm += g_val[3, j] * m
-        n_pair += 1 if g_val[3, j] > 0.0 else 0
+        q = _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
+        Zr += g_val[1, j] * q
+        Zi += g_val[2, j] * q
+        nrm += g_val[3, j] * q
+        n_pair += 1 if g_val[3, j] * q > 0.0 else 0
     out[0] = Zr
     out[1] = Zi
     out[2] = nrm
@@ -144,13 +167,30 @@ def band_fit(g_uv, g_val, n, step, mg, mp, out):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
 def _band_terms(
-    aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, Zr, Zi, s1, s2, wm, t0, t1, rss
+    aop,
+    dop,
+    valid,
+    rays,
+    min_dop,
+    rho_max,
+    taper_frac,
+    inv4tol2,
+    Zr,
+    Zi,
+    s1,
+    s2,
+    wm,
+    paired,
+    t0,
+    t1,
+    rss,
 ):  # pragma: no cover - compiled
     """
     Compute the per-pixel SM-ASM influence terms and residual sums (vectorised).
 
     Per pixel (vectorised): t_j = (d theta / d a) * residual_j (0 if unusable); rss[j] +=
-    residual_j^2.
+    residual_j^2. The weight's DoP factors: DoP(p)^2, or with ``paired`` the pair weight wm = Q(p)
+    Q(p') (:func:`._mirror._pair_weights`).
     """
     modZ2 = Zr * Zr + Zi * Zi
     a0, a1, a2 = s1[0], s1[1], s1[2]
@@ -161,7 +201,8 @@ def _band_terms(
             aop, dop, valid, rays, i, min_dop, 0.0, rho_max
         )
         cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-        W = exp_nonpos((-cr - 1.0) * inv4tol2) * p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
+        m = (wm[i] if ok else 0.0) if paired else p * p
+        W = exp_nonpos((-cr - 1.0) * inv4tol2) * _taper1(rho, rho_max, taper_frac) * m
         dW = W * ci * 2.0 * inv4tol2  # dW/da: d(cos 2 delta)/da = -2 sin 2 delta = 2 ci
         z2r = ry * ry - rx * rx
         z2i = 2.0 * rx * ry
@@ -194,6 +235,7 @@ def band_pass2(
     taper_frac,
     inv4tol2,
     mg,
+    mq,
     mp,
     Zr,
     Zi,
@@ -206,7 +248,8 @@ def band_pass2(
     Run the SM-ASM influence pass: block sums of the influence for both candidate suns.
 
     SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate
-    suns; rss[j] += residual_j^2 (pair weights m = S(p) S(p') when ``mg`` is not empty). The
+    suns; rss[j] += residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else
+    DoP(p)^2). The
     per-pixel terms are one vectorised loop (:mod:`polarization_compass.fastmath`), the block sums
     a second.
     """
@@ -225,7 +268,8 @@ def band_pass2(
         Zi,
         s1,
         s2,
-        _pair_weights(mg, mp, xs, ys),
+        _pair_weights(mg, mq, mp, xs, ys),
+        mg.shape[0] > 0,
         t0,
         t1,
         rss,

@@ -28,7 +28,7 @@ from numba import njit
 import numpy as np
 
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
-from ._mirror import _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ._mirror import _bilinear0, _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
@@ -204,7 +204,9 @@ def ring_gather(
     n_rings,
     K,
     mg,
+    mq,
     mp,
+    own_dop2,
     g_uv,
     g_tp,
     g_v,
@@ -214,8 +216,10 @@ def ring_gather(
     Gather the disc's pixels for Symmetry with mirror pairs (step 1).
 
     Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w
-    S(p) c exp(-i k phi) for k = -K..K (0 below min_dop), g_ring = ring position (:func:`_ring_t`).
-    Returns the count.
+    S(p) c exp(-i k phi) for k = -K..K with w = taper Q(p) / S(p) (the pair weight's own factor,
+    the mirror image's Q(p') in :func:`ring_fit`; 0 below min_dop), g_ring = ring position
+    (:func:`_ring_t`); with ``own_dop2`` the own factor is DoP(p)^2 S(p) instead (the
+    occlusion-only pair weights, fitted with Q = S). Returns the count.
     """
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
@@ -228,7 +232,10 @@ def ring_gather(
         e = complex(ry / rho, -rx / rho)
         c = complex(0.0, 0.0)
         if ok:
-            c = complex(c2a, s2a) * e * e * (p * p * tp * s)
+            q = p * p * s
+            if not own_dop2:
+                q = _bilinear0(mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+            c = complex(c2a, s2a) * e * e * (tp * q)
         g_v[K, n] = c
         ep = c
         em = c
@@ -246,29 +253,31 @@ def ring_gather(
 
 @njit(cache=True, nogil=True)
 def ring_fit(
-    g_uv, g_tp, g_v, g_ring, n, step, n_rings, K, mg, mp, a_out, out
+    g_uv, g_tp, g_v, g_ring, n, start, step, n_rings, K, mg, mq, mp, a_out, out
 ):  # pragma: no cover - compiled
     """
     Fit one trial axis for Symmetry with mirror pairs (step 2).
 
     Symmetry with mirror pairs, step 2 (per trial axis): the ring coefficients a_out of the
-    gathered pixels weighted by S(p'); out = (coverage numerator, usable pixels with a pair weight
-    > 0); every ``step``-th gathered pixel.
+    gathered pixels weighted by Q(p') (pair weights Q(p) Q(p') symmetric about the axis); out
+    = (coverage numerator sum taper S(p) S(p'), usable pixels with a pair weight > 0); every
+    ``step``-th gathered pixel from ``start``.
     """
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     cov = 0.0
     n_pair = 0
-    for q in range(0, n, step):
+    for q in range(start, n, step):
         m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
         if not m > 0.0:
             continue
         cov += g_tp[q] * m
-        if g_v[K, q].real == 0.0 and g_v[K, q].imag == 0.0:
+        w = _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
+        if (g_v[K, q].real == 0.0 and g_v[K, q].imag == 0.0) or not w > 0.0:
             continue
         n_pair += 1
         j, f = _ring_split(g_ring[q], n_rings)
-        w0 = (1.0 - f) * m
-        w1 = f * m
+        w0 = (1.0 - f) * w
+        w1 = f * w
         for k in range(2 * K + 1):
             v = g_v[k, q]
             a_out[k, j] += w0 * v
@@ -294,6 +303,7 @@ def _ring_terms(
     s1,
     s2,
     wm,
+    paired,
     cr,
     ci,
     xi,
@@ -305,7 +315,8 @@ def _ring_terms(
     """
     Compute the per-pixel Symmetry influence terms and residuals (vectorised).
 
-    Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper S S'; 0 if unusable) into cr,
+    Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper, or with ``paired`` taper
+    Q(p) Q(p'); 0 if unusable) into cr,
     ci; xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if
     unusable); rss[j] += r_j^2.
     """
@@ -319,7 +330,8 @@ def _ring_terms(
             aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
         )
         c_r, c_i = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-        w = p * p * _taper1(rho, rho_max, taper_frac) * wm[i]
+        m = (wm[i] if ok else 0.0) if paired else p * p
+        w = _taper1(rho, rho_max, taper_frac) * m
         cr[q] = c_r * w
         ci[q] = c_i * w
         xi[q] = atan2(rx, ry)
@@ -380,6 +392,7 @@ def ring_pass2(
     n_rings,
     K,
     mg,
+    mq,
     mp,
     a_in,
     rot,
@@ -398,7 +411,8 @@ def ring_pass2(
     per-pixel terms (vectorised), one loop per harmonic, then the block sums.
     """
     N = aop.size
-    wm = _pair_weights(mg, mp, xs, ys)
+    wm = _pair_weights(mg, mq, mp, xs, ys)
+    paired = mg.shape[0] > 0
     Bpr = np.zeros((K + 1, n_rings + 1))
     Bpi = np.zeros((K + 1, n_rings + 1))
     Bmr = np.zeros((K + 1, n_rings + 1))
@@ -438,6 +452,7 @@ def ring_pass2(
             s1,
             s2,
             wm,
+            paired,
             cr,
             ci,
             xi,

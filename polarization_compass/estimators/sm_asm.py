@@ -154,7 +154,7 @@ class SmAsmEstimator(DiscEstimator):
             return ax
         return self._plain_fit(cnt, stats, ax[0], ax[1], {'Z': (Zr, Zi)})
 
-    def _gather(self, data, rho_lo, rho_max, mm):
+    def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
         aop, dop, valid, rays, xs, ys, _ = data
         g_uv = np.empty((2, aop.size))
@@ -171,16 +171,18 @@ class SmAsmEstimator(DiscEstimator):
             k['taper_fraction'],
             self._inv4tol2(),
             mm.grid,
+            mm.weight,
             mm.params,
+            own_dop2,
             g_uv,
             g_val,
         )
         disc = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
         return {'uv': g_uv, 'val': g_val, 'n': n, 'disc': disc}
 
-    def _mirror_fit(self, g, mirror, near, plain, step=1):
+    def _mirror_fit(self, g, mirror, near, plain, step=1, start=0):
         out = np.zeros(5)
-        band_fit(g['uv'], g['val'], g['n'], step, mirror[0], mirror[1], out)
+        band_fit(g['uv'], g['val'], g['n'], start, step, mirror[0], mirror[1], mirror[2], out)
         Zr, Zi, norm, cov, n_pair = out
         ax = self._axis(Zr, Zi, norm, plain.n)
         if isinstance(ax, HeadingResult):
@@ -219,6 +221,7 @@ class SmAsmEstimator(DiscEstimator):
             self._inv4tol2(),
             mirror[0],
             mirror[1],
+            mirror[2],
             Zr,
             Zi,
             s1,

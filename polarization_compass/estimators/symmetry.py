@@ -359,7 +359,7 @@ class SymmetryEstimator(DiscEstimator):
             return few
         return self._axis(a, int(cnt[0]), None, None, cnt, stats)
 
-    def _gather(self, data, rho_lo, rho_max, mm):
+    def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
         aop, dop, valid, rays, xs, ys, _ = data
         N = aop.size
@@ -384,7 +384,9 @@ class SymmetryEstimator(DiscEstimator):
             k['rings'],
             K,
             mm.grid,
+            mm.weight,
             mm.params,
+            own_dop2,
             g['uv'],
             g['tp'],
             g['v'],
@@ -393,13 +395,26 @@ class SymmetryEstimator(DiscEstimator):
         g['disc'] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
         return g
 
-    def _mirror_fit(self, g, mirror, near, plain, step=1):
+    def _mirror_fit(self, g, mirror, near, plain, step=1, start=0):
         k = self.knobs
         K, NR = k['harmonics'], k['rings']
         a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
         out = np.zeros(2)
         ring_fit(
-            g['uv'], g['tp'], g['v'], g['ring'], g['n'], step, NR, K, mirror[0], mirror[1], a, out
+            g['uv'],
+            g['tp'],
+            g['v'],
+            g['ring'],
+            g['n'],
+            start,
+            step,
+            NR,
+            K,
+            mirror[0],
+            mirror[1],
+            mirror[2],
+            a,
+            out,
         )
         f = self._axis(
             a,
@@ -438,6 +453,7 @@ class SymmetryEstimator(DiscEstimator):
                 K,
                 mirror[0],
                 mirror[1],
+                mirror[2],
                 fit.state['a'],
                 rot,
                 F2,
