@@ -94,6 +94,7 @@ STATUS_CODES = {
     'bad_input': 6,
     'degenerate': 7,
     'insufficient_coverage': 9,
+    'poor_fit': 10,  # sm_asm/symmetry: no mirror-symmetric axis next to the plain fit
 }
 STATUS_NOT_COMPUTED = -1
 STATUS_ESTIMATOR_ERROR = -2

@@ -85,9 +85,14 @@ DISC_KNOBS = {
 #: :func:`._mirror.solve_axes`).
 SCAN_STEP = 8
 #: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this
-#: factor times the plain (occlusion-biased) fit's rms residual, plus 0.01 deg, is not the meridian
-#: (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against a few degrees).
+#: factor times the plain (occlusion-biased) fit's rms residual, plus MIRROR_RESIDUAL_SLACK_DEG, is
+#: not the meridian (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against a
+#: few degrees).
 MAX_MIRROR_RESIDUAL_RATIO = 1.5
+#: ... plus this (deg): a fixed point on the DoP-symmetric pair weights may miss the level pattern
+#: by a few hundredths of a degree more than the plain fit on a coarse lattice with holes (stride
+#: 32, every 7th pixel NaN: 0.012 against 0.0007), far below the false axes' misses.
+MIRROR_RESIDUAL_SLACK_DEG = 0.1
 #: A root of the occlusion-only scan is refined on the DoP-symmetric pair weights to a fixed point
 #: at most this far (deg; clouds moved the occlusion-only roots by up to ~20 deg at 70 % cover),
 #: else it is dropped.
@@ -423,6 +428,20 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                 )
             ]
         fit, mirror, inflation = candidates[0]
+        ms_axis = self._level_ms(data, rho_lo, rho_max, fit.theta, obs)
+        ms_perp = self._level_ms(data, rho_lo, rho_max, fit.theta + 0.5 * math.pi, obs)
+        if not ms_axis < ms_perp:
+            # both axes are mirror axes of a Rayleigh sky's AOPLM map when the sun is low; with
+            # most of the disc depolarised (70 % cloud, sensor noise) the fit can take the wrong one
+            return HeadingResult.failed(
+                self.name,
+                Status.POOR_FIT,
+                'the axis found fits the level Rayleigh pattern no better than its perpendicular '
+                f'({math.degrees(math.sqrt(ms_axis)):.3g} against '
+                f'{math.degrees(math.sqrt(ms_perp)):.3g} deg rms): not the solar meridian',
+                pixels=fit.n,
+                **extras,
+            )
         first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
         j, rms_deg = 0, None
         if sigma or 'mirror_axes' in extras:
@@ -437,7 +456,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             limit = (
                 MAX_MIRROR_RESIDUAL_RATIO
                 * math.degrees(math.sqrt(self._level_ms(data, rho_lo, rho_max, plain.theta, obs)))
-                + 0.01
+                + MIRROR_RESIDUAL_SLACK_DEG
             )
             if rms_deg > limit:
                 return HeadingResult.failed(
@@ -447,7 +466,8 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                     'self-consistent axes on the '
                     f'usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg '
                     'rms or more '
-                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + 0.01): "
+                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + "
+                    f'{MIRROR_RESIDUAL_SLACK_DEG:g}): '
                     'none is the solar '
                     'meridian',
                     pixels=fit.n,
