@@ -104,6 +104,11 @@ MAX_REFINE_MOVE_DEG = 30.0
 #: and the fine blocks gave sigma about half the error (mean err^2/sigma^2 3.1-3.6, 12 scenes).
 COARSE_CLUSTER_FACTOR = 8
 MIN_COARSE_CLUSTERS = 12
+#: ... and only where this share of the disc is paired (clouds with an IMX250-like sensor: 0.83-0.85;
+#: half the disc occluded: at most 0.5): on a wedge of pairs the influence has large lobes of both
+#: signs, and coarse blocks would count the residual of the fitted axis itself many times over
+#: (3.7x sigma under independent noise).
+COARSE_MIN_COVERAGE = 0.6
 #: Pixel subsampling of the coarse fit whose difference from the full one measures the lattice
 #: error (:meth:`DiscEstimator._lattice_rad`).
 LATTICE_STEP = 4
@@ -488,7 +493,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             stat = cr1_sigma(block_sum[j], n)
             coarse_px = COARSE_CLUSTER_FACTOR * k['block_px']
             data_c, segs_c = view_segments(view, coarse_px)
-            if segs_c[3] >= MIN_COARSE_CLUSTERS:
+            if fit.coverage >= COARSE_MIN_COVERAGE and segs_c[3] >= MIN_COARSE_CLUSTERS:
                 # errors correlated over more than block_px (cloud edges through a superpixel
                 # demosaic): the cluster-robust sigma over coarse blocks sees them
                 coarse, _ = self._influence(
