@@ -100,9 +100,12 @@ MAX_REFINE_MOVE_DEG = 30.0
 #: The cluster-robust sigma is also taken over blocks this many times ``block_px`` a side (if the
 #: view has at least ``MIN_COARSE_CLUSTERS`` of them), and the larger of the two is used: under
 #: broken clouds seen by an IMX250MZR-like sensor (superpixel demosaic) the AoP errors are
-#: correlated over cloud edges, far more than the default 32 px blocks (2 x 2 pixels at stride 16),
-#: and the fine blocks gave sigma about half the error (mean err^2/sigma^2 3.1-3.6, 12 scenes).
-COARSE_CLUSTER_FACTOR = 8
+#: correlated across cloud edges, beyond the default 32 px blocks (2 x 2 pixels at stride 16): mean
+#: err^2/sigma^2 3.6 / 3.1 (sm_asm / symmetry, clouds 30 %, 12 scenes) with the fine blocks alone,
+#: 2.5 / 2.3 with 2x, 1.9 with 4x, 1.3 / 1.9 with 8x coarser blocks; but coarse blocks also sum
+#: smooth residual structure whose effects cancel (uniform overcast, sm_asm: 0.46 fine, 0.22 at 2x,
+#: 0.04 at 8x), so 2x.
+COARSE_CLUSTER_FACTOR = 2
 MIN_COARSE_CLUSTERS = 12
 #: ... and only where this share of the disc is paired (clouds with an IMX250-like sensor: 0.83-0.85;
 #: half the disc occluded: at most 0.5): on a wedge of pairs the influence has large lobes of both
