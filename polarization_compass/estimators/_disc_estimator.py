@@ -382,10 +382,14 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Estimate one heading from the axis of mirror symmetry through the zenith pixel.
 
-        Pass 1 fits the axis theta (``psi = -theta``, axial); an incomplete disc is re-fitted on
-        mirror-pair weights or reported as ``insufficient_coverage``; pass 2 (the influence kernel)
-        gives the uncertainty and the Rayleigh residuals of the two ends of the meridian, which may
-        resolve the 180 deg ambiguity together with the brightness gradient or a prior.
+        Pass 1 fits the axis theta (``psi = -theta``, axial); the axis is then re-fitted on
+        mirror-symmetric pair weights (the DoP of a pixel and of its mirror image, zero where either
+        is unusable) as a fixed point, or reported as ``insufficient_coverage`` / ``poor_fit``; an
+        axis that fits the level Rayleigh pattern no better than its perpendicular is ``poor_fit``.
+        Pass 2 (the influence kernel) gives the uncertainty (cluster-robust at two block sizes,
+        divided by ``|1 - f'|``, and the lattice term of :meth:`_lattice_rad` in quadrature) and
+        the Rayleigh residuals of the two ends of the meridian, which may resolve the 180 deg
+        ambiguity together with the brightness gradient or a prior.
         ``sigma=False`` skips pass 2: ``sigma_deg`` is None, ``extras`` has no
         ``rms_residual_deg``, and an unresolved (axial) result names the end ``psi = -theta``
         rather than the one the Rayleigh residuals prefer. On the mirror-pair path with re-fitted

@@ -44,9 +44,19 @@ subsample and refines every sign change by the secant method (the true axis may 
 plain iteration). Kept are axes with mirror coverage ``>= min_mirror_coverage``, ``|1 - f'| >=
 MIN_CONDITIONING``, the method's own test (symmetry: the paired map is symmetric, ``F / sum |a_k|^2
 >= 0.95``) and a level-Rayleigh residual at most ``MAX_MIRROR_RESIDUAL_RATIO`` times the plain
-fit's; of these the one with the smallest residual wins. When the pair fit about the plain axis
-agrees with the plain fit within ``MIRROR_AGREEMENT_DEG`` and pairs at least half the disc (a few
-or scattered unusable pixels), the plain result stands.
+fit's; of these the one with the smallest residual wins.
+
+Broken clouds (every disc, complete or not)
+-------------------------------------------
+Clouds keep the clear-sky AoP beneath them but lower the DoP unevenly, so weighting each pixel by
+its own DoP^2 (a set of weights not symmetric about the meridian) pulled both fits off the meridian
+by degrees. The weights are therefore pair weights ``Q(p) Q(p')`` with ``Q`` the DoP map (0 where
+unusable or below ``min_dop``) times the smooth usability of the pixels at or above ``min_dop``:
+one field at p and at p', symmetric about the trial axis by construction (``Q(p) Q(p') = DoP^2``
+on a clear sky). The axis is the fixed point next to the plain fit (:func:`refine_axis`); for an
+incomplete disc where that fails, the scan above runs on the occlusion-only weights ``DoP(p)^2
+S(p) S(p')`` (kernels' ``own_dop2``; :meth:`MirrorMap.occlusion_at`) and each root is refined on
+``Q(p) Q(p')``.
 
 Uncertainty of the fixed point: ``d theta* = d f / (1 - f'(theta*))``: the statistical sigma of the
 weighted fit is divided by ``|1 - f'|`` (``f'`` from the last secant step or a finite difference).

@@ -29,7 +29,9 @@ the disc is symmetric, so in the continuum the principal axis *is* the meridian 
 quantisation (a Hough accumulator would need 18000 bins for 0.01 deg), no threshold to alias on the
 pixel grid, and an analytic first-order sensitivity for the uncertainty. A Hough transform is more
 robust to gross outliers (clouds, buildings); the Gaussian band already down-weights pixels far
-from 90 deg, and DoP^2 down-weights unpolarized cloud.
+from 90 deg, and the DoP weights down-weight unpolarized cloud. That plain fit (``DoP_i^2``) is the
+start: under broken clouds the DoP is not symmetric about the meridian, so the heading is the
+fixed point of the fit on mirror-symmetric pair weights ``DoP(p) DoP(p')`` (:mod:`._mirror`).
 
 The heading: the meridian's image direction ``theta`` (from +y_cam towards +x_cam) points at the
 sun's azimuth for a level camera, ``(-sin psi, cos psi)``, so ``psi = -theta`` (mod 180 deg:
@@ -37,8 +39,8 @@ axial). Uncertainty: ``d theta = Im(dZ / Z) / 2`` with ``dZ = sum W_i' z_i^2 da_
 the residual against the level Rayleigh pattern of the fitted heading; cluster-robust sum over
 blocks.
 
-An incomplete disc (occluders, invalid pixels) breaks the symmetry the fit relies on; the fit is
-then run on mirror-pair weights about its own axis (a fixed point), or reports
+An incomplete disc (occluders, invalid pixels) breaks the symmetry the fit relies on; the pair
+weights also vanish where a pixel or its mirror image is unusable, or the status is
 ``insufficient_coverage``: see :mod:`._mirror`.
 """
 

@@ -44,9 +44,11 @@ is kept. ``extras['second_axis_score']`` reports how close the best other axis c
 Uncertainty: implicit-function sensitivity ``d theta / d a_i = -(d F'/d a_i) / F''``, times the
 residual against the level Rayleigh pattern, cluster-robust over blocks.
 
-An incomplete disc (occluders, invalid pixels) breaks the symmetry; the correlation is then
-computed on mirror-pair weights about its own axis (a fixed point; in that iteration the peak of F
-is followed locally from the trial axis, so the map stays continuous), or the status is
+The plain correlation (weights ``DoP_i^2``) is the start; the heading is the axis computed on
+mirror-pair weights ``DoP(p) DoP(p')`` about itself (a fixed point; in that iteration the peak of F
+is followed locally from the trial axis, so the map stays continuous): broken clouds make the DoP
+asymmetric about the meridian while the AoP stays symmetric. An incomplete disc (occluders, invalid
+pixels) gets zero pair weights where a pixel or its image is unusable, or the status is
 ``insufficient_coverage``: see :mod:`._mirror`.
 """
 
