@@ -59,10 +59,10 @@ def _run(est, scene, bearing_deg, sun=SunDirection(160.0, 35.0)):
 @pytest.mark.parametrize('name', METHODS)
 def test_broken_clouds_heading_within_sigma_or_refused(name):
     """
-    Broken clouds (30 % and 70 %, noise-free): within 3 sigma of the truth, or not ok with a reason.
+    Broken clouds: within 3 sigma of the truth, or not ok with a reason.
 
-    Most of them must still give a heading (a method that refuses every cloudy sky would pass the
-    first half trivially).
+    30 and 70 % cover, noise-free. Most of them must still give a heading (a method that refuses
+    every cloudy sky would pass the first half trivially).
     """
     est = make_estimator(name, stride=32)
     n_ok = 0

@@ -86,8 +86,8 @@ DISC_KNOBS = {
 SCAN_STEP = 8
 #: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this
 #: factor times the plain (occlusion-biased) fit's rms residual, plus MIRROR_RESIDUAL_SLACK_DEG, is
-#: not the meridian (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against a
-#: few degrees).
+#: not the meridian (the false ones we met were 30-80 deg away, with residuals of 20-40 deg against
+#: a few degrees).
 MAX_MIRROR_RESIDUAL_RATIO = 1.5
 #: ... plus this (deg): a fixed point on the DoP-symmetric pair weights may miss the level pattern
 #: by a few hundredths of a degree more than the plain fit on a coarse lattice with holes (stride
@@ -107,19 +107,19 @@ MAX_REFINE_MOVE_DEG = 30.0
 #: 0.04 at 8x), so 2x.
 COARSE_CLUSTER_FACTOR = 2
 MIN_COARSE_CLUSTERS = 12
-#: ... and only where this share of the disc is paired (clouds with an IMX250-like sensor: 0.83-0.85;
-#: half the disc occluded: at most 0.5): on a wedge of pairs the influence has large lobes of both
-#: signs, and coarse blocks would count the residual of the fitted axis itself many times over
-#: (3.7x sigma under independent noise).
+#: ... and only where this share of the disc is paired (clouds with an IMX250-like sensor:
+#: 0.83-0.85; half the disc occluded: at most 0.5): on a wedge of pairs the influence has large
+#: lobes of both signs, and coarse blocks would count the residual of the fitted axis itself many
+#: times over (3.7x sigma under independent noise).
 COARSE_MIN_COVERAGE = 0.6
 #: Pixel subsampling of the coarse fit whose difference from the full one measures the lattice
 #: error (:meth:`DiscEstimator._lattice_rad`).
 LATTICE_STEP = 4
 #: How many times the full fit's lattice error the sub-lattice fits differ from it: 3 for an error
-#: in proportion to the cell area (Richardson); measured noise-free under bench clouds (coverage 0.3,
-#: stride 16, 12 scenes) about 6-9 (the sub-lattices are 4x coarser along the rows only and cloud
-#: edges are not smooth), so 6: noise-free err^2 / sigma^2 then averages ~1, and with noise this
-#: adds ~ 1/12 of the statistical variance.
+#: in proportion to the cell area (Richardson); measured noise-free under bench clouds (coverage
+#: 0.3, stride 16, 12 scenes) about 6-9 (the sub-lattices are 4x coarser along the rows only and
+#: cloud edges are not smooth), so 6: noise-free err^2 / sigma^2 then averages ~1, and with noise
+#: this adds ~ 1/12 of the statistical variance.
 LATTICE_RATIO = 6.0
 #: Pixel subsampling of the residual passes that compare self-consistent axes.
 RESIDUAL_STEP = 3
@@ -233,11 +233,12 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         sharp edges (cloud edges, the min_dop cut) the sum's error grows with the cell area. The
         fixed point on every ``LATTICE_STEP``-th pixel (cell area x LATTICE_STEP) differs from the
         full one by about (LATTICE_STEP - 1) times the full fit's lattice error (Richardson); the
-        rms of that difference over the ``LATTICE_STEP`` interleaved sub-lattices, / ``LATTICE_RATIO``,
-        goes into sigma in quadrature. Noise-free it is the only error term the residuals cannot
-        show (they are those of the fitted axis itself: a systematic error of the axis is ~ sqrt(#
-        blocks) times the cluster-robust sigma); with noise it adds about a third of the
-        statistical variance. Sub-lattices without a fixed point (too few pixels) are left out.
+        rms of that difference over the ``LATTICE_STEP`` interleaved sub-lattices, /
+        ``LATTICE_RATIO``, goes into sigma in quadrature. Noise-free it is the only error term the
+        residuals cannot show (they are those of the fitted axis itself: a systematic error of the
+        axis is ~ sqrt(# blocks) times the cluster-robust sigma); with noise it adds about 1/12 of
+        the statistical variance. Sub-lattices without a fixed point (too few pixels) are left
+        out.
         """
         d2 = []
         for start in range(LATTICE_STEP):
@@ -383,13 +384,13 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         Estimate one heading from the axis of mirror symmetry through the zenith pixel.
 
         Pass 1 fits the axis theta (``psi = -theta``, axial); the axis is then re-fitted on
-        mirror-symmetric pair weights (the DoP of a pixel and of its mirror image, zero where either
-        is unusable) as a fixed point, or reported as ``insufficient_coverage`` / ``poor_fit``; an
-        axis that fits the level Rayleigh pattern no better than its perpendicular is ``poor_fit``.
-        Pass 2 (the influence kernel) gives the uncertainty (cluster-robust at two block sizes,
-        divided by ``|1 - f'|``, and the lattice term of :meth:`_lattice_rad` in quadrature) and
-        the Rayleigh residuals of the two ends of the meridian, which may resolve the 180 deg
-        ambiguity together with the brightness gradient or a prior.
+        mirror-symmetric pair weights (the DoP of a pixel and of its mirror image, zero where
+        either is unusable) as a fixed point, or reported as ``insufficient_coverage`` /
+        ``poor_fit``; an axis that fits the level Rayleigh pattern no better than its perpendicular
+        is ``poor_fit``. Pass 2 (the influence kernel) gives the uncertainty (cluster-robust at two
+        block sizes, divided by ``|1 - f'|``, and the lattice term of :meth:`_lattice_rad` in
+        quadrature) and the Rayleigh residuals of the two ends of the meridian, which may resolve
+        the 180 deg ambiguity together with the brightness gradient or a prior.
         ``sigma=False`` skips pass 2: ``sigma_deg`` is None, ``extras`` has no
         ``rms_residual_deg``, and an unresolved (axial) result names the end ``psi = -theta``
         rather than the one the Rayleigh residuals prefer. On the mirror-pair path with re-fitted
@@ -451,7 +452,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         ms_perp = self._level_ms(data, rho_lo, rho_max, fit.theta + 0.5 * math.pi, obs)
         if not ms_axis < ms_perp:
             # both axes are mirror axes of a Rayleigh sky's AOPLM map when the sun is low; with
-            # most of the disc depolarised (70 % cloud, sensor noise) the fit can take the wrong one
+            # most of the disc depolarised (70 % cloud, sensor noise) the fit takes the wrong one
             return HeadingResult.failed(
                 self.name,
                 Status.POOR_FIT,

@@ -222,9 +222,9 @@ def mirror_map(view, camera: CameraModel, rho_max: float, min_dop: float = 0.0) 
     Return the smooth usability map S and the pair-weight map Q of a view (see the module doc).
 
     Outside the view, positions beyond the disc count as usable (nothing is missing there) and
-    positions inside it as unusable. ``Q`` is the pixels' DoP (0 where unusable or below ``min_dop``)
-    times the smooth usability of the pixels at or above ``min_dop``: the pair weight is ``Q(p)
-    Q(p')``.
+    positions inside it as unusable. ``Q`` is the pixels' DoP (0 where unusable or below
+    ``min_dop``) times the smooth usability of the pixels at or above ``min_dop``: the pair weight
+    is ``Q(p) Q(p')``.
     """
     usable, dgrid, x0, dx, y0, dy = _usable_grid(view, camera, min_dop)
     ny, nx = usable.shape

@@ -110,8 +110,8 @@ def band_gather(
     compacted: g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p)
     z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4 tol^2)) taper Q(p) / S(p):
     the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the mirror image's Q(p') in
-    :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2`` the own factor is DoP(p)^2
-    S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
+    :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2`` the own factor is
+    DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
     """
     n = 0
     for i in range(aop.size):
