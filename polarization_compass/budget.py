@@ -95,7 +95,15 @@ class BudgetError(CompassError):
 
 
 def published_sigma_floor_deg() -> float:
-    """Return heading_estimator's default ``sigma_floor_deg`` [deg] (specs/params.py)."""
+    """
+    Return heading_estimator's default ``sigma_floor_deg`` (specs/params.py).
+
+    Returns
+    -------
+    float
+        The smallest yaw sigma the node publishes [deg]: the model error of real skies.
+
+    """
     from .specs.params import defaults, ESTIMATOR
 
     return float(defaults(ESTIMATOR)['sigma_floor_deg'])
