@@ -285,33 +285,48 @@ def cloud_transmission_at(px, py, pz, R, cp):  # pragma: no cover - compiled
 
 
 @njit(inline='always', cache=True, fastmath=True)
-def grid_row_to_columns(tg, ck, ck1, cf, out):  # pragma: no cover - compiled
+def grid_row_to_columns(tg, cols, cf, out):  # pragma: no cover - compiled
     """
     Interpolate one grid row of T linearly to every pixel column (compiled, inlined).
 
-    ``out[j] = tg[ck[j]] (1 - cf[j]) + tg[ck1[j]] cf[j]``: the horizontal half of the bilinear
-    interpolation, done once per grid row (8x fewer than per pixel row), so that a pixel row's T is
-    a blend of two such rows (:func:`cloud_transmission`), a contiguous loop that vectorises.
+    ``out[j] = tg[g] (1 - cf[j]) + tg[g + 1] cf[j]`` for ``cols[g] <= j < cols[g + 1]``: the
+    horizontal half of the bilinear interpolation, done once per grid row (8x fewer than per pixel
+    row), so that a pixel row's T is a blend of two such rows (:func:`cloud_transmission`), a
+    contiguous loop that vectorises. A segment of ``GRID_STEP`` pixels uses its fractions k / 8 as
+    constants (exact in float32, the values of ``cf``): a fixed 8-wide loop, 2x faster than a
+    gather per pixel (measured).
 
     Parameters
     ----------
     tg : numpy.ndarray, shape (Gx,), float32
         T at the grid row's points.
-    ck, ck1 : numpy.ndarray, shape (W,), int64
-        Each pixel column's grid columns left and right.
+    cols : numpy.ndarray, shape (Gx,), int64
+        The grid's pixel columns, increasing, the last one W - 1.
     cf : numpy.ndarray, shape (W,), float32
-        Each pixel column's fraction between them.
+        Each pixel column's fraction between its two grid columns.
     out : numpy.ndarray, shape (W,), float32
         Output: T of the grid row at every pixel column.
 
     """
     one = np.float32(1.0)
-    for j in range(cf.size):
-        out[j] = tg[ck[j]] * (one - cf[j]) + tg[ck1[j]] * cf[j]
+    step = np.float32(1.0 / GRID_STEP)
+    G = tg.size
+    for g in range(G - 1):
+        a = tg[g]
+        b = tg[g + 1]
+        c0 = cols[g]
+        if cols[g + 1] - c0 == GRID_STEP:
+            for k in range(GRID_STEP):
+                f = np.float32(k) * step
+                out[c0 + k] = a * (one - f) + b * f
+        else:
+            for j in range(c0, cols[g + 1]):
+                out[j] = a * (one - cf[j]) + b * cf[j]
+    out[out.size - 1] = tg[G - 1]
 
 
 @njit(parallel=True, cache=True, error_model='numpy')
-def _cloud_transmission_grid_kernel(grays, R, cp, ck, ck1, cf, out):  # pragma: no cover
+def _cloud_transmission_grid_kernel(grays, R, cp, cols, cf, out):  # pragma: no cover
     """T of the layer on each grid row, interpolated to every pixel column (out: (Gy, W))."""
     gx = grays.shape[1] // out.shape[0]
     for g in prange(out.shape[0]):
@@ -319,7 +334,7 @@ def _cloud_transmission_grid_kernel(grays, R, cp, ck, ck1, cf, out):  # pragma: 
         for j in range(gx):
             i = g * gx + j
             tg[j] = cloud_transmission_at(grays[0, i], grays[1, i], grays[2, i], R, cp)
-        grid_row_to_columns(tg, ck, ck1, cf, out[g])
+        grid_row_to_columns(tg, cols, cf, out[g])
 
 
 @njit(inline='always', cache=True, fastmath=True)
@@ -648,9 +663,9 @@ class CloudLayer:
         tuple or None
             (grays (3, Gy * Gx) float32 rays of the grid points, row-major; R (3, 3) float64; cp,
             the parameters of :func:`cloud_transmission_at`; rk, rk1 (H,) int64 the grid rows
-            below and above each pixel row; rf (H,) float32 the fraction between them; ck, ck1
-            (W,) int64 the grid columns left and right of each pixel column; cf (W,) float32 the
-            fraction between them), or None.
+            below and above each pixel row; rf (H,) float32 the fraction between them; cols
+            (Gx,) int64 the grid's pixel columns; cf (W,) float32 each pixel column's fraction
+            between its two grid columns), or None.
 
         """
         if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
@@ -659,14 +674,14 @@ class CloudLayer:
         key = (id(rays_cam), H, W)
         if getattr(self, '_grid_key', None) != key:
             rows, rk, rk1, rf = _grid_axis(H, GRID_STEP)
-            cols, ck, ck1, cf = _grid_axis(W, GRID_STEP)
+            cols, _, _, cf = _grid_axis(W, GRID_STEP)
             grays = np.ascontiguousarray(
                 rays_cam.reshape(3, H, W)[:, rows][:, :, cols].reshape(3, -1)
             )
-            self._grid = (grays, rk, rk1, rf, ck, ck1, cf)
+            self._grid = (grays, rk, rk1, rf, cols.astype(np.int64), cf)
             self._grid_key = key
             self._grid_rays = rays_cam  # keep it alive so that its id stays its own
-        grays, rk, rk1, rf, ck, ck1, cf = self._grid
+        grays, rk, rk1, rf, cols, cf = self._grid
         cp = (
             self.height_m / self.scale_m,
             self.wind_mps[0] * dt_s / self.scale_m,
@@ -678,7 +693,7 @@ class CloudLayer:
             self.optical_thickness,
         )
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        return grays, R, cp, rk, rk1, rf, ck, ck1, cf
+        return grays, R, cp, rk, rk1, rf, cols, cf
 
     def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
         """
@@ -708,9 +723,9 @@ class CloudLayer:
         g = self.grid(R_enu_cam, rays_cam, dt_s, block_shape)
         if g is None:
             return None
-        grays, R, cp, rk, rk1, rf, ck, ck1, cf = g
+        grays, R, cp, rk, rk1, rf, cols, cf = g
         tu = np.empty((int(rk1[-1]) + 1, block_shape[1]), np.float32)
-        _cloud_transmission_grid_kernel(grays, R, cp, ck, ck1, cf, tu)
+        _cloud_transmission_grid_kernel(grays, R, cp, cols, cf, tu)
         return tu, rk, rk1, rf
 
     def apply(

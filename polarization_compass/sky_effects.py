@@ -136,8 +136,7 @@ def _sky_effects_kernel(
     rk,
     rk1,
     rf,
-    ck,
-    ck1,
+    cols,
     cf,
     bright,
     min_dop,
@@ -179,7 +178,7 @@ def _sky_effects_kernel(
                     tg[j] = cloud_transmission_at(
                         grays[0, g0 + j], grays[1, g0 + j], grays[2, g0 + j], R, cp
                     )
-                grid_row_to_columns(tg, ck, ck1, cf, tu[k])
+                grid_row_to_columns(tg, cols, cf, tu[k])
         else:
             tu[:] = one
         for r in range(r0, r1):
@@ -280,7 +279,6 @@ class SkyEffects:
             z64,
             z64,
             z32,
-            z64,
             z64,
             z32,
         )
