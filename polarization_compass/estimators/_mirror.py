@@ -378,6 +378,45 @@ def _bilinear0(g, r, c):  # pragma: no cover - compiled
 
 
 @njit(inline='always', cache=True)
+def _bilinear0_pair(g, h, r, c):  # pragma: no cover - compiled
+    """
+    Return (G, H) at fractional (row r, column c): :func:`_bilinear0` of two grids of one shape.
+
+    The position's floor and fractions are found once; each value is the same arithmetic as
+    :func:`_bilinear0` (bit-identical).
+    """
+    ny, nx = g.shape
+    if not (r > -1.0 and c > -1.0 and r < ny and c < nx):
+        return 0.0, 0.0
+    i0 = int(math.floor(r))
+    j0 = int(math.floor(c))
+    fr = r - i0
+    fc = c - j0
+    if i0 >= 0 and j0 >= 0 and i0 + 1 < ny and j0 + 1 < nx:  # inside: no per-corner test
+        a = (1.0 - fr) * ((1.0 - fc) * g[i0, j0] + fc * g[i0, j0 + 1]) + fr * (
+            (1.0 - fc) * g[i0 + 1, j0] + fc * g[i0 + 1, j0 + 1]
+        )
+        b = (1.0 - fr) * ((1.0 - fc) * h[i0, j0] + fc * h[i0, j0 + 1]) + fr * (
+            (1.0 - fc) * h[i0 + 1, j0] + fc * h[i0 + 1, j0 + 1]
+        )
+        return a, b
+    acc = 0.0
+    acc2 = 0.0
+    for di in range(2):
+        i = i0 + di
+        if i < 0 or i >= ny:
+            continue
+        wr = fr if di else 1.0 - fr
+        for dj in range(2):
+            j = j0 + dj
+            if j < 0 or j >= nx:
+                continue
+            acc += wr * (fc if dj else 1.0 - fc) * g[i, j]
+            acc2 += wr * (fc if dj else 1.0 - fc) * h[i, j]
+    return acc, acc2
+
+
+@njit(inline='always', cache=True)
 def _mirror_consts(mp):  # pragma: no cover - compiled
     """
     Return the mirror constants of mp (angle, pixel scales, principal point).
@@ -407,6 +446,17 @@ def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compil
 
 
 @njit(inline='always', cache=True)
+def _mirror_pos(st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
+    """
+    Return the grid position (row, column) of the mirror image of the sensor offset (u, v) mm.
+
+    The position :func:`_mirror_s_mm` reads its grid at (the same arithmetic).
+    """
+    d = 2.0 * (u * st + v * ct)
+    return r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc
+
+
+@njit(inline='always', cache=True)
 def _mirror_weight(mg, mq, mp, x, y):  # pragma: no cover - compiled
     """
     Return the pair weight Q(p) Q(p') of the pixel at sensor position (x, y).
@@ -430,35 +480,43 @@ def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
     """
     out = np.ones(xs.size)
     if mg.shape[0]:
+        # :func:`_mirror_weight` with the constants read once (the same arithmetic per pixel)
+        st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
+        cx, cy, px, py, x0, dx, y0, dy = mp[0], mp[1], mp[2], mp[3], mp[6], mp[7], mp[8], mp[9]
         for i in range(xs.size):
-            out[i] = _mirror_weight(mg, mq, mp, xs[i], ys[i])
+            x = xs[i]
+            y = ys[i]
+            own = _bilinear0(mq, (y - y0) / dy, (x - x0) / dx)
+            r, c = _mirror_pos(st, ct, kc, kr, c0, r0, (x - cx) * px, (y - cy) * py)
+            out[i] = own * _bilinear0(mq, r, c)
     return out
 
 
 @njit(inline='always', cache=True)
 def _gather_pixel(
-    aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp, g_uv, n
+    aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mq, mp, g_uv, n
 ):  # pragma: no cover - compiled
     """
     Load pixel i for a gather and store a kept pixel's sensor offset.
 
-    Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p); p,
-    rx, ry, rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes to
-    g_uv[:, n].
+    Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p);
+    Q(p); p, rx, ry, rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes
+    to g_uv[:, n]. S and Q are read at the pixel's grid position found once.
     """
     ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
         aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
     )
     tp = 0.0
     s = 0.0
+    q = 0.0
     if inr and valid[i] and fin:
         tp = _taper1(rho, rho_max, taper_frac)
-        s = _bilinear0(mg, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+        s, q = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
     keep = s > 0.0
     if keep:
         g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
         g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
-    return keep, ok, tp, s, p, rx, ry, rho, c2a, s2a
+    return keep, ok, tp, s, q, p, rx, ry, rho, c2a, s2a
 
 
 # --------------------------------------------------------------------------------------------

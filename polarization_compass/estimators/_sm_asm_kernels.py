@@ -29,7 +29,7 @@ from numba import njit
 import numpy as np
 
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
-from ._mirror import _bilinear0, _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ._mirror import _bilinear0_pair, _gather_pixel, _mirror_consts, _mirror_pos, _pair_weights
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
@@ -115,17 +115,16 @@ def band_gather(
     """
     n = 0
     for i in range(aop.size):
-        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(
-            aop, dop, valid, rays, xs, ys, i, min_dop, 0.0, rho_max, taper_frac, mg, mp, g_uv, n
+        keep, ok, tp, s, q_own, p, rx, ry, rho, c2a, s2a = _gather_pixel(
+            aop, dop, valid, rays, xs, ys, i, min_dop, 0.0, rho_max, taper_frac, mg, mq, mp, g_uv,
+            n
         )
         if not keep:
             continue
         W = 0.0
         if ok:
             cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-            q = p * p * s
-            if not own_dop2:
-                q = _bilinear0(mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+            q = q_own if not own_dop2 else p * p * s
             W = math.exp((-cr - 1.0) * inv4tol2) * tp * q
         g_val[0, n] = tp * s
         g_val[1, n] = W * (ry * ry - rx * rx)
@@ -149,11 +148,12 @@ def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover 
     Zr = Zi = nrm = cov = 0.0
     n_pair = 0
     for j in range(start, n, step):
-        m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
+        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
+        m, q = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
             continue
         cov += g_val[0, j] * m
-        q = _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
         Zr += g_val[1, j] * q
         Zi += g_val[2, j] * q
         nrm += g_val[3, j] * q

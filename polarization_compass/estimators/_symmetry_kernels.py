@@ -28,7 +28,7 @@ from numba import njit
 import numpy as np
 
 from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
-from ._mirror import _bilinear0, _gather_pixel, _mirror_consts, _mirror_s_mm, _pair_weights
+from ._mirror import _bilinear0_pair, _gather_pixel, _mirror_consts, _mirror_pos, _pair_weights
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
@@ -224,17 +224,16 @@ def ring_gather(
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
-        keep, ok, tp, s, p, rx, ry, rho, c2a, s2a = _gather_pixel(
-            aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mp, g_uv, n
+        keep, ok, tp, s, q_own, p, rx, ry, rho, c2a, s2a = _gather_pixel(
+            aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mq, mp,
+            g_uv, n
         )
         if not keep:
             continue
         e = complex(ry / rho, -rx / rho)
         c = complex(0.0, 0.0)
         if ok:
-            q = p * p * s
-            if not own_dop2:
-                q = _bilinear0(mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+            q = q_own if not own_dop2 else p * p * s
             c = complex(c2a, s2a) * e * e * (tp * q)
         g_v[K, n] = c
         ep = c
@@ -267,11 +266,12 @@ def ring_fit(
     cov = 0.0
     n_pair = 0
     for q in range(start, n, step):
-        m = _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
+        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
+        m, w = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
             continue
         cov += g_tp[q] * m
-        w = _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
         if (g_v[K, q].real == 0.0 and g_v[K, q].imag == 0.0) or not w > 0.0:
             continue
         n_pair += 1
