@@ -43,7 +43,7 @@ from ._common import (
     selection_for,
     view_segments,
 )
-from ._disc import disc_radius, disc_selection, level_rss
+from ._disc import _block_sums, disc_radius, disc_selection, level_rss
 from ._mirror import (
     AxisFit,
     MIN_CONDITIONING,
@@ -141,14 +141,22 @@ def cr1_sigma(block_sum, n: int) -> float:
     return math.sqrt(float(np.dot(b, b)) * cr1_factor(G, n, 2))
 
 
+def _blocks(t0, t1, segs) -> np.ndarray:
+    """Return the block sums (2, n_blocks) of the per-pixel terms t0, t1 over the segments."""
+    block_sum = np.zeros((2, segs[3]))
+    _block_sums(t0, t1, segs[0], segs[1], segs[2], block_sum)
+    return block_sum
+
+
 class DiscEstimator(KnobbedEstimator, Estimator):
     """
     An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (level camera).
 
     Subclasses implement :meth:`_fit` (pass 1 and the plain axis), :meth:`_gather` and
     :meth:`_mirror_fit` (the axis on mirror-pair weights about a trial axis ``near``; None when
-    there is no fit) and :meth:`_influence` (pass 2: block sums of the sensitivity times the
-    residual against each candidate sun, and the residual sums of squares).
+    there is no fit) and :meth:`_influence_terms` (pass 2: per pixel the sensitivity times the
+    residual against each candidate sun, and the residual sums of squares; :meth:`_influence` sums
+    them over blocks).
     """
 
     axial = True
@@ -192,10 +200,20 @@ class DiscEstimator(KnobbedEstimator, Estimator):
     ) -> AxisFit | None:  # pragma: no cover
         raise NotImplementedError
 
-    def _influence(
-        self, data, segs, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2
-    ):  # pragma: no cover
+    def _influence_terms(
+        self, data, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2
+    ):  # pragma: no cover - interface
         raise NotImplementedError
+
+    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit: AxisFit, s1, s2):
+        """
+        Run pass 2: block sums of the influence against both candidate suns, residual sums.
+
+        (block sums (2, n_blocks) over the segments ``segs`` of :func:`._common.view_segments`,
+        rss (2,)) from the per-pixel terms of :meth:`_influence_terms`.
+        """
+        t0, t1, rss = self._influence_terms(data, rho_lo, rho_max, mirror, fit, s1, s2)
+        return _blocks(t0, t1, segs), rss
 
     def _plain_fit(self, cnt, stats, theta: float, quality: float, state: dict) -> AxisFit:
         n = int(cnt[0])
@@ -465,9 +483,10 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
         j, rms_deg = 0, None
         if sigma or 'mirror_axes' in extras:
-            block_sum, rss = self._influence(
-                data, segs, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
+            terms = self._influence_terms(
+                data, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
             )
+            rss = terms[2]
             j = int(np.argmin(rss))  # the end of the meridian the Rayleigh residuals prefer
             rms_deg = math.degrees(math.sqrt(rss[j] / fit.n))
         extras['mirror_sigma_inflation'] = inflation
@@ -498,15 +517,19 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         if sigma:
             lattice = self._lattice_rad(fit_at, fit)
             extras['lattice_sigma_deg'] = math.degrees(lattice)
-            stat = cr1_sigma(block_sum[j], n)
+            stat = cr1_sigma(_blocks(terms[0], terms[1], segs)[j], n)
             coarse_px = COARSE_CLUSTER_FACTOR * k['block_px']
             data_c, segs_c = view_segments(view, coarse_px)
             if fit.coverage >= COARSE_MIN_COVERAGE and segs_c[3] >= MIN_COARSE_CLUSTERS:
                 # errors correlated over more than block_px (cloud edges through a superpixel
                 # demosaic): the cluster-robust sigma over coarse blocks sees them
-                coarse, _ = self._influence(
-                    data_c, segs_c, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
-                )
+                if view.grid is not None or view.subgrids is not None:
+                    # the same pixel order at both block sizes: the same terms, other blocks
+                    coarse = _blocks(terms[0], terms[1], segs_c)
+                else:  # a pixel list is reordered per block size: a second pass
+                    coarse, _ = self._influence(
+                        data_c, segs_c, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
+                    )
                 stat_c = cr1_sigma(coarse[j], n)
                 extras['coarse_cluster_ratio'] = stat_c / stat if stat > 0.0 else 1.0
                 stat = max(stat, stat_c)

@@ -33,7 +33,7 @@ from ._mirror import _bilinear0_pair, _gather_pixel, _mirror_consts, _mirror_pos
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
-__all__ = ['band_pass1', 'band_gather', 'band_fit', 'band_pass2']
+__all__ = ['band_pass1', 'band_gather', 'band_fit', 'band_terms2', 'band_pass2']
 
 
 @njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
@@ -220,6 +220,58 @@ def _band_terms(
 
 
 @njit(cache=True, nogil=True)
+def band_terms2(
+    aop,
+    dop,
+    valid,
+    rays,
+    xs,
+    ys,
+    min_dop,
+    rho_max,
+    taper_frac,
+    inv4tol2,
+    mg,
+    mq,
+    mp,
+    Zr,
+    Zi,
+    s1,
+    s2,
+    t0,
+    t1,
+    rss,
+):  # pragma: no cover - compiled
+    """
+    Compute the per-pixel terms of the SM-ASM influence pass (before the block sums).
+
+    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns; rss[j] +=
+    residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else DoP(p)^2); one vectorised
+    loop (:mod:`polarization_compass.fastmath`). The block sums (:func:`band_pass2`) can then be
+    taken over any blocks of the same pixel order.
+    """
+    _band_terms(
+        aop,
+        dop,
+        valid,
+        rays,
+        min_dop,
+        rho_max,
+        taper_frac,
+        inv4tol2,
+        Zr,
+        Zi,
+        s1,
+        s2,
+        _pair_weights(mg, mq, mp, xs, ys),
+        mg.shape[0] > 0,
+        t0,
+        t1,
+        rss,
+    )
+
+
+@njit(cache=True, nogil=True)
 def band_pass2(
     aop,
     dop,
@@ -249,27 +301,29 @@ def band_pass2(
 
     SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate
     suns; rss[j] += residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else
-    DoP(p)^2). The
-    per-pixel terms are one vectorised loop (:mod:`polarization_compass.fastmath`), the block sums
-    a second.
+    DoP(p)^2). The per-pixel terms are one vectorised loop (:func:`band_terms2`), the block sums a
+    second.
     """
     t0 = np.empty(aop.size)
     t1 = np.empty(aop.size)
-    _band_terms(
+    band_terms2(
         aop,
         dop,
         valid,
         rays,
+        xs,
+        ys,
         min_dop,
         rho_max,
         taper_frac,
         inv4tol2,
+        mg,
+        mq,
+        mp,
         Zr,
         Zi,
         s1,
         s2,
-        _pair_weights(mg, mq, mp, xs, ys),
-        mg.shape[0] > 0,
         t0,
         t1,
         rss,

@@ -55,7 +55,7 @@ from ._disc import disc_cells
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._mirror import AxisFit
-from ._sm_asm_kernels import band_fit, band_gather, band_pass1, band_pass2
+from ._sm_asm_kernels import band_fit, band_gather, band_pass1, band_terms2
 from .base import HeadingResult, Status
 
 __all__ = ['SmAsmEstimator']
@@ -201,22 +201,20 @@ class SmAsmEstimator(DiscEstimator):
             {'Z': (Zr, Zi)},
         )
 
-    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit, s1, s2):
+    def _influence_terms(self, data, rho_lo, rho_max, mirror, fit, s1, s2):
         k = self.knobs
         aop, dop, valid, rays, xs, ys, _ = data
-        block_sum = np.zeros((2, segs[3]))
+        t0 = np.empty(aop.size)
+        t1 = np.empty(aop.size)
         rss = np.zeros(2)
         Zr, Zi = fit.state['Z']
-        band_pass2(
+        band_terms2(
             aop,
             dop,
             valid,
             rays,
             xs,
             ys,
-            segs[0],
-            segs[1],
-            segs[2],
             k['min_dop'],
             rho_max,
             k['taper_fraction'],
@@ -228,7 +226,8 @@ class SmAsmEstimator(DiscEstimator):
             Zi,
             s1,
             s2,
-            block_sum,
+            t0,
+            t1,
             rss,
         )
-        return block_sum, rss
+        return t0, t1, rss

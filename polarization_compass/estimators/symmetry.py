@@ -65,7 +65,7 @@ from ._disc import disc_cells
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._mirror import AxisFit
-from ._symmetry_kernels import ring_fit, ring_gather, ring_pass1, ring_pass2
+from ._symmetry_kernels import ring_fit, ring_gather, ring_pass1, ring_terms2
 from .base import HeadingResult, Status
 
 __all__ = ['SymmetryEstimator', 'MIN_MIRROR_SYMMETRY']
@@ -428,25 +428,23 @@ class SymmetryEstimator(DiscEstimator):
         )
         return None if isinstance(f, HeadingResult) else f
 
-    def _influence(self, data, segs, rho_lo, rho_max, mirror, fit, s1, s2):
+    def _influence_terms(self, data, rho_lo, rho_max, mirror, fit, s1, s2):
         k = self.knobs
         aop, dop, valid, rays, xs, ys, _ = data
         K, NR = k['harmonics'], k['rings']
-        block_sum = np.zeros((2, segs[3]))
+        t0 = np.zeros(aop.size)
+        t1 = np.zeros(aop.size)
         rss = np.zeros(2)
         F2 = fit.state['F2']
         if F2 < 0.0:
             rot = np.exp(2j * np.arange(-K, K + 1) * fit.theta)
-            ring_pass2(
+            ring_terms2(
                 aop,
                 dop,
                 valid,
                 rays,
                 xs,
                 ys,
-                segs[0],
-                segs[1],
-                segs[2],
                 k['min_dop'],
                 rho_lo,
                 rho_max,
@@ -461,7 +459,8 @@ class SymmetryEstimator(DiscEstimator):
                 F2,
                 s1,
                 s2,
-                block_sum,
+                t0,
+                t1,
                 rss,
             )
-        return block_sum, rss
+        return t0, t1, rss
