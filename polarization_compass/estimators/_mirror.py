@@ -76,7 +76,7 @@ import math
 from numba import njit
 import numpy as np
 
-from ._disc import _pixel, _taper1, disc_radius_mm
+from ._disc import disc_radius_mm
 from ..camera import CameraModel
 from ..conventions import fold_axial_rad_float
 
@@ -490,33 +490,6 @@ def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
             r, c = _mirror_pos(st, ct, kc, kr, c0, r0, (x - cx) * px, (y - cy) * py)
             out[i] = own * _bilinear0(mq, r, c)
     return out
-
-
-@njit(inline='always', cache=True)
-def _gather_pixel(
-    aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mq, mp, g_uv, n
-):  # pragma: no cover - compiled
-    """
-    Load pixel i for a gather and store a kept pixel's sensor offset.
-
-    Pixel i for a gather: (kept: valid, finite, in the disc and S(p) > 0; usable; taper; S(p);
-    Q(p); p, rx, ry, rho, cos 2a, sin 2a); a kept pixel's offset from the principal point (mm) goes
-    to g_uv[:, n]. S and Q are read at the pixel's grid position found once.
-    """
-    ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
-        aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
-    )
-    tp = 0.0
-    s = 0.0
-    q = 0.0
-    if inr and valid[i] and fin:
-        tp = _taper1(rho, rho_max, taper_frac)
-        s, q = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
-    keep = s > 0.0
-    if keep:
-        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
-    return keep, ok, tp, s, q, p, rx, ry, rho, c2a, s2a
 
 
 # --------------------------------------------------------------------------------------------

@@ -27,8 +27,16 @@ from __future__ import annotations
 from numba import njit
 import numpy as np
 
-from ._disc import _block_sums, _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
-from ._mirror import _bilinear0_pair, _gather_pixel, _mirror_consts, _mirror_pos, _pair_weights
+from ._disc import (
+    _block_sums,
+    _brightness_pass,
+    _exp2i_aoplm,
+    _lane_pixel,
+    _level_resid,
+    _pixel,
+    _taper1,
+)
+from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
@@ -224,12 +232,21 @@ def ring_gather(
     span = max(rho_max - rho_lo, 1e-12)
     n = 0
     for i in range(aop.size):
-        keep, ok, tp, s, q_own, p, rx, ry, rho, c2a, s2a = _gather_pixel(
-            aop, dop, valid, rays, xs, ys, i, min_dop, rho_lo, rho_max, taper_frac, mg, mq, mp,
-            g_uv, n
+        # kept: valid, finite, in the disc and S(p) > 0; S(p) and Q(p) from one grid position
+        # (written out here: the same steps in an inlined helper made this loop 3x slower)
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
         )
-        if not keep:
+        tp = 0.0
+        s = 0.0
+        q_own = 0.0
+        if inr and valid[i] and fin:
+            tp = _taper1(rho, rho_max, taper_frac)
+            s, q_own = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
+        if not s > 0.0:
             continue
+        g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
+        g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
         e = complex(ry / rho, -rx / rho)
         c = complex(0.0, 0.0)
         if ok:
