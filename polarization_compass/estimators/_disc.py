@@ -55,6 +55,7 @@ __all__ = [
     'aoplm_rad',
     'disc_cells',
     'level_rss',
+    'level_rss_many',
 ]
 
 
@@ -285,3 +286,27 @@ def level_rss(
         rss[0] += r1 * r1
         rss[1] += r2 * r2
         rss[2] += 1.0
+
+
+@njit(cache=True, nogil=True)
+def level_rss_many(
+    aop, dop, valid, rays, min_dop, rho_lo, rho_max, suns, step, rss
+):  # pragma: no cover - compiled
+    """
+    Accumulate the squared AoP residuals against several level Rayleigh patterns in one pass.
+
+    :func:`level_rss` for every sun of ``suns`` (m, 3) at once: rss[j] += squared AoP residual
+    against sun j over every ``step``-th usable pixel, rss[m] += 1 for each (each sum in the same
+    pixel order as :func:`level_rss`: the same values).
+    """
+    m = suns.shape[0]
+    for i in range(0, aop.size, step):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+        )
+        if not ok:
+            continue
+        for j in range(m):
+            r = _level_resid(c2a, s2a, rx, ry, rz, suns[j, 0], suns[j, 1], suns[j, 2])
+            rss[j] += r * r
+        rss[m] += 1.0

@@ -43,7 +43,7 @@ from ._common import (
     selection_for,
     view_segments,
 )
-from ._disc import _block_sums, disc_radius, disc_selection, level_rss
+from ._disc import _block_sums, disc_radius, disc_selection, level_rss_many
 from ._mirror import (
     AxisFit,
     MIN_CONDITIONING,
@@ -260,23 +260,28 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         d2 = []
         for start in range(LATTICE_STEP):
-            coarse, _, _ = refine_axis(
-                lambda t: fit_at(t, LATTICE_STEP, start), fit.theta, tol_rad=1e-7
+            coarse, _, _ = refine_axis(  # only the axis: no finite-difference slope
+                lambda t: fit_at(t, LATTICE_STEP, start), fit.theta, tol_rad=1e-7, need_slope=False
             )
             if coarse is not None:
                 d2.append(fold_axial_rad_float(coarse.theta - fit.theta) ** 2)
         return math.sqrt(sum(d2) / len(d2)) / LATTICE_RATIO if d2 else 0.0
 
-    def _level_ms(self, data, rho_lo, rho_max, theta, obs, step=RESIDUAL_STEP) -> float:
+    def _level_ms_many(self, data, rho_lo, rho_max, thetas, obs, step=RESIDUAL_STEP) -> list:
         """
-        Return the mean square AoP residual (rad^2) against the level pattern of axis theta.
+        Return the mean square AoP residual (rad^2) against the level pattern of each axis.
 
-        Mean square AoP residual (rad^2) against the level Rayleigh pattern of axis theta (its
-        better end), over every ``step``-th usable pixel.
+        Mean square AoP residual (rad^2) against the level Rayleigh pattern of each axis of
+        ``thetas`` (its better end), over every ``step``-th usable pixel: one pixel pass
+        (:func:`._disc.level_rss_many`).
         """
-        s1, s2 = level_sun_candidates(-theta, float(obs.sun_altitude_deg))
-        rss = np.zeros(3)
-        level_rss(
+        suns = []
+        for theta in thetas:
+            s1, s2 = level_sun_candidates(-theta, float(obs.sun_altitude_deg))
+            suns += [s1.sun_cam, s2.sun_cam]
+        m = len(suns)
+        rss = np.zeros(m + 1)
+        level_rss_many(
             data[0],
             data[1],
             data[2],
@@ -284,12 +289,13 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             self.knobs['min_dop'],
             rho_lo,
             rho_max,
-            s1.sun_cam,
-            s2.sun_cam,
+            np.array(suns, dtype=np.float64).reshape(m, 3),
             step,
             rss,
         )
-        return float(min(rss[0], rss[1]) / max(rss[2], 1.0))
+        return [
+            float(min(rss[2 * i], rss[2 * i + 1]) / max(rss[m], 1.0)) for i in range(m // 2)
+        ]
 
     def _solve_mirror(self, obs, view, data, rho_lo, rho_max, plain: AxisFit, extras: dict):
         """
@@ -458,16 +464,17 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         if isinstance(solved, HeadingResult):
             return solved
         candidates, fit_at = solved
-        if len(candidates) > 1:  # several self-consistent axes: the best Rayleigh fit
-            candidates = [
-                min(
-                    candidates,
-                    key=lambda c: self._level_ms(data, rho_lo, rho_max, c[0].theta, obs),
-                )
-            ]
-        fit, mirror, inflation = candidates[0]
-        ms_axis = self._level_ms(data, rho_lo, rho_max, fit.theta, obs)
-        ms_perp = self._level_ms(data, rho_lo, rho_max, fit.theta + 0.5 * math.pi, obs)
+        # the level-Rayleigh residuals this needs, in one pass: of each candidate axis, of its
+        # perpendicular, and of the plain fit (the test of re-fitted axes below)
+        thetas = [c[0].theta for c in candidates]
+        thetas += [t + 0.5 * math.pi for t in thetas]
+        if 'mirror_axes' in extras:
+            thetas.append(plain.theta)
+        ms = self._level_ms_many(data, rho_lo, rho_max, thetas, obs)
+        nc = len(candidates)
+        best = min(range(nc), key=lambda i: ms[i])  # several self-consistent axes: the best fit
+        fit, mirror, inflation = candidates[best]
+        ms_axis, ms_perp = ms[best], ms[nc + best]
         if not ms_axis < ms_perp:
             # both axes are mirror axes of a Rayleigh sky's AOPLM map when the sun is low; with
             # most of the disc depolarised (70 % cloud, sensor noise) the fit takes the wrong one
@@ -494,7 +501,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             extras['mirror_coverage'] = fit.coverage
             limit = (
                 MAX_MIRROR_RESIDUAL_RATIO
-                * math.degrees(math.sqrt(self._level_ms(data, rho_lo, rho_max, plain.theta, obs)))
+                * math.degrees(math.sqrt(ms[2 * nc]))
                 + MIRROR_RESIDUAL_SLACK_DEG
             )
             if rms_deg > limit:

@@ -544,7 +544,13 @@ def _refine(fit_at, t0: float, slope: float, tol_rad: float, max_steps: int):
     return fb, slope, abs(tb - ta), steps
 
 
-def refine_axis(fit_at, t0: float, tol_rad: float = 1e-8, max_steps: int = MAX_SOLVE_STEPS):
+def refine_axis(
+    fit_at,
+    t0: float,
+    tol_rad: float = 1e-8,
+    max_steps: int = MAX_SOLVE_STEPS,
+    need_slope: bool = True,
+):
     """
     The self-consistent axis ``theta = fit_at(theta).theta`` nearest ``t0`` by the secant method.
 
@@ -557,6 +563,9 @@ def refine_axis(fit_at, t0: float, tol_rad: float = 1e-8, max_steps: int = MAX_S
         starts at -1).
     tol_rad, max_steps
         Convergence |h| [rad] and the most fits.
+    need_slope : bool, default True
+        False: skip the extra fit of the finite difference (the fit is the same; the returned
+        ``h'`` is then the last secant slope, whatever its step length).
 
     Returns
     -------
@@ -586,7 +595,7 @@ def refine_axis(fit_at, t0: float, tol_rad: float = 1e-8, max_steps: int = MAX_S
         used += n
     if fit is None:
         return None, slope, used
-    if not last >= 1e-6:
+    if need_slope and not last >= 1e-6:
         fd = fit_at(fit.theta + 2e-3)
         used += 1
         if fd is None:
