@@ -46,6 +46,7 @@ from ._common import axial_residual_rad
 from ._kernels import acc_brightness
 from ..camera import CameraModel, PixelSelection
 from ..fastmath import atan2, sincos_folded
+from ..fastmath import FM as _FMV
 
 __all__ = [
     'disc_radius',
@@ -288,25 +289,66 @@ def level_rss(
         rss[2] += 1.0
 
 
+@njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
+def _level_rss2(
+    aop, dop, valid, rays, min_dop, rho_lo, rho_max, a0, a1, a2, b0, b1, b2, step, out
+):  # pragma: no cover - compiled
+    """
+    Accumulate :func:`level_rss` for two suns a, b (vectorised; unusable pixels add zero).
+
+    out[0|1] += squared AoP residual against sun a|b, out[2] += 1, over every ``step``-th usable
+    pixel; the same residuals as :func:`level_rss` up to the rounding of fast-math sums.
+    """
+    q0 = q1 = cnt = 0.0
+    for i in range(0, aop.size, step):
+        ok, _, _, _, p, rx, ry, rz, rho, c2a, s2a = _lane_pixel(
+            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+        )
+        r1 = _level_resid(c2a, s2a, rx, ry, rz, a0, a1, a2)
+        r2 = _level_resid(c2a, s2a, rx, ry, rz, b0, b1, b2)
+        r1 = r1 if ok else 0.0
+        r2 = r2 if ok else 0.0
+        q0 += r1 * r1
+        q1 += r2 * r2
+        cnt += 1.0 if ok else 0.0
+    out[0] += q0
+    out[1] += q1
+    out[2] += cnt
+
+
 @njit(cache=True, nogil=True)
 def level_rss_many(
     aop, dop, valid, rays, min_dop, rho_lo, rho_max, suns, step, rss
 ):  # pragma: no cover - compiled
     """
-    Accumulate the squared AoP residuals against several level Rayleigh patterns in one pass.
+    Accumulate the squared AoP residuals against several level Rayleigh patterns.
 
-    :func:`level_rss` for every sun of ``suns`` (m, 3) at once: rss[j] += squared AoP residual
-    against sun j over every ``step``-th usable pixel, rss[m] += 1 for each (each sum in the same
-    pixel order as :func:`level_rss`: the same values).
+    :func:`level_rss` for every pair of suns of ``suns`` (m, 3), m even: rss[j] += squared AoP
+    residual against sun j over every ``step``-th usable pixel, rss[m] += 1 for each; one
+    vectorised pass per pair (:func:`_level_rss2`).
     """
     m = suns.shape[0]
-    for i in range(0, aop.size, step):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
-            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
+    out = np.zeros(3)
+    for j in range(0, m, 2):
+        out[:] = 0.0
+        _level_rss2(
+            aop,
+            dop,
+            valid,
+            rays,
+            min_dop,
+            rho_lo,
+            rho_max,
+            suns[j, 0],
+            suns[j, 1],
+            suns[j, 2],
+            suns[j + 1, 0],
+            suns[j + 1, 1],
+            suns[j + 1, 2],
+            step,
+            out,
         )
-        if not ok:
-            continue
-        for j in range(m):
-            r = _level_resid(c2a, s2a, rx, ry, rz, suns[j, 0], suns[j, 1], suns[j, 2])
-            rss[j] += r * r
-        rss[m] += 1.0
+        rss[j] += out[0]
+        rss[j + 1] += out[1]
+        if j == 0:
+            rss[m] += out[2]
