@@ -267,6 +267,115 @@ def ring_gather(
     return n
 
 
+@njit(inline='always', cache=True)
+def _k2_load(a, j):  # pragma: no cover - compiled
+    """The 2K+1 = 5 coefficients of ring j as (re, im) scalars."""
+    return (
+        a[0, j].real,
+        a[0, j].imag,
+        a[1, j].real,
+        a[1, j].imag,
+        a[2, j].real,
+        a[2, j].imag,
+        a[3, j].real,
+        a[3, j].imag,
+        a[4, j].real,
+        a[4, j].imag,
+    )
+
+
+@njit(cache=True, nogil=True)
+def _ring_fit_k2(
+    g_uv, g_tp, g_v, g_ring, n, start, step, n_rings, mg, mq, mp, a_out, out
+):  # pragma: no cover - compiled
+    """
+    Run :func:`ring_fit` for K = 2 with the two rings a pixel adds to held in registers.
+
+    Consecutive pixels mostly fall between the same two rings: their coefficients stay in scalars
+    and go back to ``a_out`` when the ring changes, so each coefficient receives the same additions
+    in the same order as :func:`ring_fit`'s scatter (the same values), without a load and store
+    per addition. ``w * v`` for real w and complex v is written out as its two products (complex
+    multiplication by w + 0i gives exactly these).
+    """
+    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
+    cov = 0.0
+    n_pair = 0
+    cur = -1
+    has1 = False
+    a0r = a0i = a1r = a1i = a2r = a2i = a3r = a3i = a4r = a4i = 0.0
+    b0r = b0i = b1r = b1i = b2r = b2i = b3r = b3i = b4r = b4i = 0.0
+    for q in range(start, n, step):
+        r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
+        m, w = _bilinear0_pair(mg, mq, r, c)
+        if not m > 0.0:
+            continue
+        cov += g_tp[q] * m
+        if (g_v[2, q].real == 0.0 and g_v[2, q].imag == 0.0) or not w > 0.0:
+            continue
+        n_pair += 1
+        j, f = _ring_split(g_ring[q], n_rings)
+        if j != cur:
+            if cur >= 0:
+                a_out[0, cur] = complex(a0r, a0i)
+                a_out[1, cur] = complex(a1r, a1i)
+                a_out[2, cur] = complex(a2r, a2i)
+                a_out[3, cur] = complex(a3r, a3i)
+                a_out[4, cur] = complex(a4r, a4i)
+                if has1:
+                    a_out[0, cur + 1] = complex(b0r, b0i)
+                    a_out[1, cur + 1] = complex(b1r, b1i)
+                    a_out[2, cur + 1] = complex(b2r, b2i)
+                    a_out[3, cur + 1] = complex(b3r, b3i)
+                    a_out[4, cur + 1] = complex(b4r, b4i)
+            cur = j
+            has1 = j + 1 < n_rings
+            a0r, a0i, a1r, a1i, a2r, a2i, a3r, a3i, a4r, a4i = _k2_load(a_out, j)
+            if has1:
+                b0r, b0i, b1r, b1i, b2r, b2i, b3r, b3i, b4r, b4i = _k2_load(a_out, j + 1)
+        w0 = (1.0 - f) * w
+        v0 = g_v[0, q]
+        v1 = g_v[1, q]
+        v2 = g_v[2, q]
+        v3 = g_v[3, q]
+        v4 = g_v[4, q]
+        a0r += w0 * v0.real
+        a0i += w0 * v0.imag
+        a1r += w0 * v1.real
+        a1i += w0 * v1.imag
+        a2r += w0 * v2.real
+        a2i += w0 * v2.imag
+        a3r += w0 * v3.real
+        a3i += w0 * v3.imag
+        a4r += w0 * v4.real
+        a4i += w0 * v4.imag
+        if has1:
+            w1 = f * w
+            b0r += w1 * v0.real
+            b0i += w1 * v0.imag
+            b1r += w1 * v1.real
+            b1i += w1 * v1.imag
+            b2r += w1 * v2.real
+            b2i += w1 * v2.imag
+            b3r += w1 * v3.real
+            b3i += w1 * v3.imag
+            b4r += w1 * v4.real
+            b4i += w1 * v4.imag
+    if cur >= 0:
+        a_out[0, cur] = complex(a0r, a0i)
+        a_out[1, cur] = complex(a1r, a1i)
+        a_out[2, cur] = complex(a2r, a2i)
+        a_out[3, cur] = complex(a3r, a3i)
+        a_out[4, cur] = complex(a4r, a4i)
+        if has1:
+            a_out[0, cur + 1] = complex(b0r, b0i)
+            a_out[1, cur + 1] = complex(b1r, b1i)
+            a_out[2, cur + 1] = complex(b2r, b2i)
+            a_out[3, cur + 1] = complex(b3r, b3i)
+            a_out[4, cur + 1] = complex(b4r, b4i)
+    out[0] = cov
+    out[1] = n_pair
+
+
 @njit(cache=True, nogil=True)
 def ring_fit(
     g_uv, g_tp, g_v, g_ring, n, start, step, n_rings, K, mg, mq, mp, a_out, out
@@ -279,6 +388,9 @@ def ring_fit(
     = (coverage numerator sum taper S(p) S(p'), usable pixels with a pair weight > 0); every
     ``step``-th gathered pixel from ``start``.
     """
+    if K == 2:  # the default: the same sums with the coefficients in registers
+        _ring_fit_k2(g_uv, g_tp, g_v, g_ring, n, start, step, n_rings, mg, mq, mp, a_out, out)
+        return
     st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
     cov = 0.0
     n_pair = 0
