@@ -21,9 +21,9 @@ without sigma, on every case of :func:`cases`. It was run once on main at 9edd6d
 DoP-symmetric pair weights, before their passes were made faster); ``test_disc_golden.py`` checks
 that the faster code gives the same answers (an optimisation must not change behaviour).
 
-Cases: ideal (level and tilted), Gaussian AoP noise, broken clouds 30 / 70 % and overcast (with and
-without noise), a half-occluded disc, the same as a pixel list, a region that cuts the disc, a noisy
-IMX250MZR mosaic through the superpixel front end (tilted) and the three real frames of
+Cases: ideal (level and tilted), Gaussian AoP noise, broken clouds 30 / 70 % and overcast (with
+and without noise), a half-occluded disc, the same as a pixel list, a region that cuts the disc, a
+noisy IMX250MZR mosaic through the superpixel front end (tilted) and the three real frames of
 ``test/data/real-sky``.
 """
 
@@ -55,7 +55,9 @@ def _render_obs(est, scene, bearing, pitch=0.0, roll=0.0, sun=(160.0, 35.0)):
 def _scene(coverage=None, thickness=3.0, seed=0):
     from polarization_compass.scene import default_scene
 
-    atm = {} if coverage is None else {'clouds': {'coverage': coverage, 'optical_thickness': thickness}}
+    atm = {}
+    if coverage is not None:
+        atm = {'clouds': {'coverage': coverage, 'optical_thickness': thickness}}
     return (
         default_scene()
         .replace(
@@ -79,7 +81,8 @@ def _half_plane(obs, angle_rad):
     cam = obs.camera
     u = np.asarray(obs.x_px, dtype=float) - cam.cx_px
     v = np.asarray(obs.y_px, dtype=float) - cam.cy_px
-    obs.valid = np.asarray(obs.valid) & ((u * math.cos(angle_rad) + v * math.sin(angle_rad)) >= 0.0)
+    keep = (u * math.cos(angle_rad) + v * math.sin(angle_rad)) >= 0.0
+    obs.valid = np.asarray(obs.valid) & keep
     return obs
 
 
@@ -161,7 +164,8 @@ def cases():
         yield f'ideal_s{stride}', kn, _render_obs(est, sc, 30.0)[1]
         yield f'tilted_s{stride}', kn, _render_obs(est, sc, 110.0, 8.0, -4.0)[1]
         yield f'noisy_s{stride}', kn, _noisy(_render_obs(est, sc, 250.0)[1], stride)
-        for cov, th, tag in ((0.3, 3.0, 'clouds30'), (0.7, 3.0, 'clouds70'), (1.0, 2.0, 'overcast')):
+        clouds = ((0.3, 3.0, 'clouds30'), (0.7, 3.0, 'clouds70'), (1.0, 2.0, 'overcast'))
+        for cov, th, tag in clouds:
             for seed in range(2):
                 scc = _scene(cov, th, seed)
                 obs = _render_obs(est, scc, 30.0 + 70.0 * seed, sun=(160.0, 20.0 + 25.0 * seed))[1]

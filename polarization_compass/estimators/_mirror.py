@@ -552,7 +552,7 @@ def refine_axis(
     need_slope: bool = True,
 ):
     """
-    The self-consistent axis ``theta = fit_at(theta).theta`` nearest ``t0`` by the secant method.
+    Return the self-consistent axis ``theta = fit_at(theta).theta`` nearest ``t0`` (secant).
 
     Parameters
     ----------

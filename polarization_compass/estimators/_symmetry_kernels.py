@@ -269,7 +269,7 @@ def ring_gather(
 
 @njit(inline='always', cache=True)
 def _k2_load(a, j):  # pragma: no cover - compiled
-    """The 2K+1 = 5 coefficients of ring j as (re, im) scalars."""
+    """Return the 2K+1 = 5 coefficients of ring j as (re, im) scalars."""
     return (
         a[0, j].real,
         a[0, j].imag,
