@@ -72,7 +72,7 @@ def test_jackknife_sigma_equals_brute_force_leave_one_group_out(n_groups, monkey
     # uniform noise model and no bias correction: the refits' pixel set and matrices are exactly
     # those of the full fit minus the group (no data-dependent min_dop, no pro-rata bias matrices)
     monkeypatch.setattr(ls.jackknife_groups, '__defaults__', (n_groups,))
-    knobs = dict(noise_model='uniform', bias_correction=False)
+    knobs = {'noise_model': 'uniform', 'bias_correction': False}
     est = make_estimator('tilt_aware', **knobs)
     obs, _ = _frames(1)[0]
     res = est.estimate(obs)
@@ -154,3 +154,40 @@ def test_cloudy_noisy_calibration_improves():
         replaced += r.sigma_deg > r.extras['sigma_cluster_deg']
     assert replaced >= 3
     assert np.mean(after) < 0.85 * np.mean(before), (np.mean(before), np.mean(after))
+
+
+@pytest.mark.parametrize('stride', [1, 2])
+def test_pixel_list_gives_the_same_jackknife_as_the_grid(stride):
+    # the same pixels as a 1-D list: the blocks are numbered another way (sorted keys, not the
+    # grid's rows and columns) and must form the same sectors; stride 2 is the phase-balanced
+    # view of four sub-grids. Uniform noise model, no bias correction: the noise scale of a
+    # subsample (which depends on the pixel order) plays no part
+    from polarization_compass.estimators._common import select_view
+
+    knobs = {'noise_model': 'uniform', 'bias_correction': False}
+    est = make_estimator('tilt_aware', stride=stride, **knobs)
+    obs, _ = _frames(1)[0]
+    res = est.estimate(obs)
+    v = select_view(obs, est.knobs, balance_phases=True)
+    assert (v.subgrids is not None) == (stride == 2)
+    flat = Observation(
+        aop_rad=np.ravel(v.aop),
+        dop=np.ravel(v.dop),
+        valid=np.ravel(v.valid),
+        rays_cam=np.asarray(v.rays).reshape(3, -1),
+        x_px=np.ravel(v.x_px),
+        y_px=np.ravel(v.y_px),
+        camera=obs.camera,
+        sun_azimuth_deg=obs.sun_azimuth_deg,
+        sun_altitude_deg=obs.sun_altitude_deg,
+        intensity=None if v.intensity is None else np.ravel(v.intensity),
+        pitch_deg=0.0,
+        roll_deg=0.0,
+    )
+    res_list = make_estimator('tilt_aware', **knobs).estimate(flat)
+    assert res_list.extras['jackknife_groups'] == res.extras['jackknife_groups'] >= 8
+    # float32 block sums accumulate in another order: 1e-5 relative
+    assert res_list.extras['sigma_jackknife_deg'] == pytest.approx(
+        res.extras['sigma_jackknife_deg'], rel=1e-4
+    )
+    assert res_list.psi_deg == pytest.approx(res.psi_deg, abs=1e-6)

@@ -274,7 +274,7 @@ def jackknife_exceeds(sigma_jk: float, sigma_cr: float, n_groups: int, z: float 
 @lru_cache(maxsize=64)
 def _grid_block_centres_px(keys: tuple, block_px: int, n_blocks: int):
     """
-    Return the centres (x, y) [sensor px] of the blocks of regular grids, numbered as the pass does.
+    Return the centres (x, y) [sensor px] of regular grids' blocks, numbered as the pass does.
 
     Blocks are numbered ``row * K + col`` from the first occupied block (``block_indices``); None
     when the pass numbered them otherwise (``n_blocks != R * K``). Cached per camera geometry.
@@ -312,7 +312,8 @@ def _block_centres_px(view, block_px: int, n_blocks: int):
     uniq = np.unique((by - by0) * width + (bx - bx0))
     if uniq.size != n_blocks:
         return None
-    return (bx0 + uniq % width + 0.5) * block_px + 0.5, (by0 + uniq // width + 0.5) * block_px + 0.5
+    xc = (bx0 + uniq % width + 0.5) * block_px + 0.5
+    return xc, (by0 + uniq // width + 0.5) * block_px + 0.5
 
 
 def jackknife_groups(xc_px, yc_px, block_w, n_groups: int = JACKKNIFE_GROUPS) -> np.ndarray:
