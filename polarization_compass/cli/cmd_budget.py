@@ -72,8 +72,8 @@ def register(sub):
         '--sigma-floor',
         type=float,
         default=None,
-        help='smallest sigma counted in the sigma calibration [deg] (default: the nodes\' '
-        'sigma_floor_deg, 0.01: what a robot receives; 0 = the raw sigma)',
+        help='smallest sigma counted in the sigma calibration [deg] (default: sigma_floor_deg of '
+        'the nodes, 0.01: what a robot receives; 0 = the raw sigma)',
     )
     p.add_argument('--samples', type=int, default=50, help='frames per condition (default 50)')
     p.add_argument(
