@@ -236,6 +236,37 @@ def _exp2i_aoplm(c2a, s2a, rx, ry, rho):  # pragma: no cover - compiled
     return c2a * x2r - s2a * x2i, c2a * x2i + s2a * x2r
 
 
+#: Pixels per chunk of the gathers' vectorised first step (:func:`_gather_lanes`).
+GATHER_CHUNK = 256
+
+
+@njit(cache=True, nogil=True, error_model='numpy')
+def _gather_lanes(
+    aop, dop, valid, rays, o, n, min_dop, rho_lo, rho_hi, taper_frac, fl, tp, px
+):  # pragma: no cover - compiled
+    """
+    Load pixels o..o+n for a gather (a loop LLVM vectorises: no branch, no fast-math).
+
+    fl[q] = 1 if the pixel is valid, finite and in the disc ring, + 2 if usable (:func:`_pixel`);
+    tp[q] its taper (0 unless fl & 1); px[:, q] = (p, rx, ry, rho, cos 2a, sin 2a) as
+    :func:`_pixel` gives them (the same values a scalar loop computes).
+    """
+    for q in range(n):
+        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
+            aop, dop, valid, rays, o + q, min_dop, rho_lo, rho_hi
+        )
+        use = inr & valid[o + q] & fin
+        fl[q] = np.int8(use) + np.int8(2) * np.int8(ok)
+        t = _taper1(rho, rho_hi, taper_frac)
+        tp[q] = t if use else 0.0
+        px[0, q] = p
+        px[1, q] = rx
+        px[2, q] = ry
+        px[3, q] = rho
+        px[4, q] = c2a
+        px[5, q] = s2a
+
+
 @njit(cache=True, nogil=True)
 def _brightness_pass(
     aop, dop, valid, rays, inten, min_dop, rho_lo, rho_max, stats
