@@ -203,3 +203,44 @@ def test_disc_pass_loops_are_vectorised(name):
         re.findall(r'call [^\n(]*@((?:llvm\.)?(?:exp|atan2|atan|cos|sin|pow|log)\b[.\w]*)\(', ir)
     )
     assert not libm, f'{name}: libm calls (one scalar call per lane) {sorted(libm)}'
+
+
+@pytest.mark.parametrize('name', ['_gather_lanes', '_level_rss2'])
+def test_disc_helper_loops_are_vectorised(name):
+    """
+    The gathers' pixel loader and the level-residual pass compile to vector code.
+
+    The gathers' pixel loader (no fast-math: the same values as a scalar loop) and the
+    level-residual pass of sm_asm and symmetry compile to vector code (compiled afresh with the
+    kernel's own options, as above).
+    """
+    from polarization_compass.estimators import _disc
+
+    disp = getattr(_disc, name)
+    fresh = njit(
+        **{k: v for k, v in disp.targetoptions.items() if k not in ('cache', 'nopython')}
+    )(disp.py_func)
+    f32, b = np.zeros(64, np.float32), np.ones(64, bool)
+    rays = np.zeros((3, 64), np.float32)
+    if name == '_gather_lanes':
+        fresh(
+            f32,
+            f32,
+            b,
+            rays,
+            0,
+            64,
+            0.0,
+            0.0,
+            1.0,
+            0.2,
+            np.empty(64, np.int8),
+            np.empty(64),
+            np.empty((6, 64)),
+        )
+    else:
+        fresh(f32, f32, b, rays, 0.0, 0.0, 1.0, 0.0, 0.5, 0.8, 0.1, 0.2, 0.9, 3, np.zeros(3))
+    ir = ''.join(fresh.inspect_llvm().values())
+    assert '"llvm.loop.isvectorized"' in ir and re.search(r'<\d+ x double>', ir), (
+        f'{name}: not vectorised'
+    )
