@@ -17,14 +17,22 @@ Frames and stored answers of sm_asm and symmetry before their speed-up (a golden
 
 ``python test/disc_golden.py`` (from the repository root, with the package on PYTHONPATH) writes
 ``test/data/disc_golden.npz``: psi, sigma, status and reason of sm_asm and symmetry, with and
-without sigma, on every case of :func:`cases`. It was run once on main at 9edd6dd (the
-DoP-symmetric pair weights, before their passes were made faster); ``test_disc_golden.py`` checks
-that the faster code gives the same answers (an optimisation must not change behaviour).
+without sigma, on every case of :func:`cases`. It was run on main at 9edd6dd (the DoP-symmetric
+pair weights, before their passes were made faster), with BLAS on one thread (``source
+/work/wt/env.sh``; the Makefile sets the same); the case of a complete disc as a pixel list was
+added later, stored from the estimators of 9edd6dd on main at e4f3955 (the other answers came out
+bit-identical); ``test_disc_golden.py`` checks
+that the faster code gives the same answers (an optimisation must not change behaviour). The
+frames are rendered when the test runs, and they are bit-reproducible only with BLAS on one thread
+(a threaded BLAS moved sigma by up to 1.6e-9 deg); if the renderer changes them, the test fails
+without an estimator change: then regenerate from the estimators at 9edd6dd over current main
+(``git archive 9edd6dd polarization_compass/estimators`` unpacked over an archive of main, on
+PYTHONPATH).
 
 Cases: ideal (level and tilted), Gaussian AoP noise, broken clouds 30 / 70 % and overcast (with
-and without noise), a half-occluded disc, the same as a pixel list, a region that cuts the disc, a
-noisy IMX250MZR mosaic through the superpixel front end (tilted) and the three real frames of
-``test/data/real-sky``.
+and without noise), a half-occluded disc, the same as a pixel list, a complete cloudy disc as a
+pixel list, a region that cuts the disc, a noisy IMX250MZR mosaic through the superpixel front end
+(tilted) and the three real frames of ``test/data/real-sky``.
 """
 
 from __future__ import annotations
@@ -177,6 +185,9 @@ def cases():
             yield f'occluded{k}_s{stride}', kn, obs
             if stride == 16:
                 yield f'occluded{k}_list_s{stride}', kn, _as_list(obs)
+        if stride == 16:  # a complete disc as a pixel list: its coarse blocks take a second pass
+            obs = _render_obs(est, _scene(0.3, 3.0, 1), 320.0)[1]
+            yield f'clouds30_list_s{stride}', kn, _as_list(_noisy(obs, 11))
         obs = _half_plane(_render_obs(est, _scene(0.3, 3.0, 2), 75.0)[1], 2.5)
         yield f'occluded_cloudy_s{stride}', kn, _noisy(obs, 7)
         cam = sc.camera

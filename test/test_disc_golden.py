@@ -23,13 +23,18 @@ region, a noisy mosaic, three real frames) are rebuilt here from the same script
 """
 
 import math
+import os
 
 import disc_golden as G
 import numpy as np
 import pytest
 
-#: psi and sigma must agree to this (deg): the same fits up to the rounding of reordered sums
-TOL_DEG = 1e-9
+#: psi and sigma must agree to this (deg): the same fits up to the rounding of reordered sums; the
+#: frames themselves are bit-reproducible only with BLAS on one thread (the Makefile's and
+#: env.sh's OMP_NUM_THREADS / OPENBLAS_NUM_THREADS = 1): a threaded BLAS moves the cloudy renders'
+#: sigma by up to 1.6e-9 deg, so there the bound is 1e-7
+ONE_BLAS_THREAD = all(os.environ.get(v) == '1' for v in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS'))
+TOL_DEG = 1e-9 if ONE_BLAS_THREAD else 1e-7
 
 
 @pytest.fixture(scope='module')
