@@ -33,7 +33,9 @@ import pytest
 #: frames themselves are bit-reproducible only with BLAS on one thread (the Makefile's and
 #: env.sh's OMP_NUM_THREADS / OPENBLAS_NUM_THREADS = 1): a threaded BLAS moves the cloudy renders'
 #: sigma by up to 1.6e-9 deg, so there the bound is 1e-7
-ONE_BLAS_THREAD = all(os.environ.get(v) == '1' for v in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS'))
+ONE_BLAS_THREAD = all(
+    os.environ.get(v) == '1' for v in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS')
+)
 TOL_DEG = 1e-9 if ONE_BLAS_THREAD else 1e-7
 
 
