@@ -74,7 +74,7 @@ from ._common import (
     view_grid_layout,
     view_segments,
 )
-from ._kernels import _FM, block_indices, full_pass, sub_pass
+from ._kernels import _FM, block_indices, full_pass, grid_parities, sub_pass
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import rot_x, rot_y, wrap_180_deg_float
@@ -482,6 +482,50 @@ def jackknife_sigma_rad(M, B, block_m, groups, s, R, sigma0_sq: float):
     return math.radians(math.sqrt(max(var, 0.0))), G
 
 
+def phase_jackknife_sigma_rad(M, B, phase_m, s, R, sigma0_sq: float):
+    """
+    Return the delete-a-phase jackknife sigma of psi [rad] and the number of phases, or None.
+
+    :func:`jackknife_sigma_rad` with the four mosaic phases of a DoFP sensor as the groups (every
+    pixel of one place ``(row mod 2, column mod 2)`` in the 2 x 2 polarizer mosaic): the refits
+    leave out one phase's ``sum w e e^T`` (``phase_m``, summed in the pixel pass). The IFOV error
+    at soft cloud edges differs between the phases and cancels only partly in their average,
+    which no spatial grouping sees. Phases without weight are not groups (a superpixel grid has
+    one phase: None).
+
+    Parameters
+    ----------
+    M, B : numpy.ndarray
+        The full fit's ``sum w e e^T`` and its noise-bias matrix (:func:`solve_sun`), (3, 3).
+    phase_m : numpy.ndarray or None
+        Per-phase sums of ``w e e^T``, (4, 3, 3) (``full_pass``); None: no phases (a pixel list).
+    s : array_like
+        The full fit's camera-frame sun, unit (3,).
+    R : numpy.ndarray
+        Rotation into the frame the heading is read in, (3, 3).
+    sigma0_sq : float
+        The full fit's AoP noise scale [rad^2].
+
+    Returns
+    -------
+    tuple of (float, int) or None
+        ``(sigma_psi_rad, G)`` over the ``G`` phases with weight, or None (fewer than 2, or a
+        refit without a sun).
+
+    References
+    ----------
+    .. [1] B. Efron and C. Stein, "The jackknife estimate of variance", Ann. Statist. 9(3),
+       586-596 (1981).
+
+    """
+    if phase_m is None:
+        return None
+    pm = np.asarray(phase_m, dtype=np.float64)
+    tr = pm[:, 0, 0] + pm[:, 1, 1] + pm[:, 2, 2]
+    groups = np.where(tr > 0.0, np.arange(pm.shape[0]), -1).astype(np.int64)
+    return jackknife_sigma_rad(M, B, pm, groups, s, R, sigma0_sq)
+
+
 def _consensus_sun(view, obs):
     """
     Return the camera-frame sun of the robust whole-view fit, or None.
@@ -772,8 +816,13 @@ class _LSBase(KnobbedEstimator, Estimator):
                 jk = jackknife_sigma_rad(M, acc['B'], acc['block_m'], groups, s, R, sigma0_sq)
             extras['sigma_jackknife_deg'] = None if jk is None else math.degrees(jk[0])
             extras['jackknife_groups'] = 0 if jk is None else jk[1]
-            if jk is not None and jackknife_exceeds(jk[0], sigma_fit, jk[1]):
-                sigma_fit = jk[0]
+            jp = phase_jackknife_sigma_rad(M, acc['B'], acc['phase_m'], s, R, sigma0_sq)
+            extras['sigma_phase_jackknife_deg'] = None if jp is None else math.degrees(jp[0])
+            extras['phase_jackknife_groups'] = 0 if jp is None else jp[1]
+            sigma_cr = sigma_fit
+            for j in (jk, jp):  # each its own 5 % test against the cluster-robust sigma
+                if j is not None and jackknife_exceeds(j[0], sigma_cr, j[1]):
+                    sigma_fit = max(sigma_fit, j[0])
             sigma_deg = finish_sigma_deg(sigma_fit, k)
             att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
             if att is not None:
@@ -880,7 +929,15 @@ class _LSBase(KnobbedEstimator, Estimator):
             min_dop == k['min_dop'] and sub['every_pixel']
         ):  # else the first look read what this would
             sub = sub_pass(*arrs, min_dop, wmode, var_mode)
-        acc = full_pass(*arrs[:4], segs, min_dop, wmode, view_grid_layout(view, k['block_px']))
+        keys = (view.grid,) if view.grid is not None else view.subgrids
+        acc = full_pass(
+            *arrs[:4],
+            segs,
+            min_dop,
+            wmode,
+            view_grid_layout(view, k['block_px']),
+            None if keys is None else grid_parities(tuple(keys)),
+        )
         return acc, sub, min_dop
 
     def _too_few(self, n: int, nonfinite: int, min_dop: float) -> HeadingResult:
