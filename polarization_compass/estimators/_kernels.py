@@ -193,6 +193,20 @@ def _m_pass(
         block_m[bk, 5] += m5
 
 
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
+def _column_sums(acc, cpf, nx, out):  # pragma: no cover - compiled
+    """``out[c] = (sum of acc[c] over parity-0 columns, over parity-1 columns)`` (float32 sums)."""
+    for c in range(6):
+        ac = acc[c]
+        t = np.float32(0.0)
+        t1 = np.float32(0.0)
+        for j in range(nx):
+            t += ac[j]
+            t1 += ac[j] * cpf[j]
+        out[c, 0] = np.float64(t) - np.float64(t1)
+        out[c, 1] = np.float64(t1)
+
+
 @njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
 def _m_pass_grid(
     aop,
@@ -230,27 +244,31 @@ def _m_pass_grid(
 
     Mosaic phases: ``phase_m[2 * row_par[r] + col_par[j]]`` += the pixel's ``w e e^T`` (the
     sensor row and column parities, 0 or 1, of the 2 x 2 polarizer mosaic). The pixel loop is
-    untouched (psi does not change: ``block_m`` gets the same bits); a row of parity 1 adds the
-    change of the columns' sums over that row into six more per-column rows, and the parity-0 part
-    of a column is its total minus those, once per block row (float32 differences: relative errors
-    ~1e-7, for the sigma only).
+    untouched (psi does not change: ``block_m`` gets the same bits); the per-column float32 sums
+    are reduced (float64, by column parity) before and after each row of parity 1, whose share is
+    the difference, and at the end of the block row (the parity-0 rows' share is the rest). The
+    float32 rounding of the column sums (relative ~1e-7) reaches only the sigma.
     """
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
     md = np.float32(min_dop)
-    acc = np.zeros((14, nx), np.float32)
-    snap = np.zeros((6, nx), np.float32)
+    acc = np.zeros((8, nx), np.float32)
+    cpf = np.zeros(nx, np.float32)  # column parity as a 0/1 factor
+    for j in range(nx):
+        cpf[j] = f1 if col_par[j] == 1 else f0
+    prev = np.zeros((6, 2))  # column sums so far in the block row, by column parity
+    cur = np.zeros((6, 2))
+    odd_m = np.zeros((6, 2))  # the block row's parity-1 rows, by column parity
     n_ok = 0.0
     n_fin = 0.0
     r = 0
     while r < ny:
         br = row_block[r]
         acc[:] = f0
+        prev[:] = 0.0
+        odd_m[:] = 0.0
         while r < ny and row_block[r] == br:
             odd = row_par[r] == 1
-            if odd:  # the row's share of the columns' sums, from their values before and after
-                for c in range(6):
-                    snap[c, :] = acc[c, :]
             base = off + r * nx
             a0 = acc[0]
             a1 = acc[1]
@@ -288,17 +306,22 @@ def _m_pass_grid(
                 a5[j] += w * ez * ez
                 a6[j] += f1 if use else f0
                 a7[j] += f1 if (v_in & fin) else f0
-            if odd:
-                for c in range(6):
-                    for j in range(nx):
-                        acc[8 + c, j] += acc[c, j] - snap[c, j]
             r += 1
+            last = r >= ny or row_block[r] != br
+            if odd or last or row_par[r] == 1:  # the sums before or after a parity-1 row
+                _column_sums(acc, cpf, nx, cur)
+                if odd:
+                    for c in range(6):
+                        for q in range(2):
+                            odd_m[c, q] += cur[c, q] - prev[c, q]
+                for c in range(6):
+                    for q in range(2):
+                        prev[c, q] = cur[c, q]
+        for c in range(6):  # prev: the block row's totals
+            for q in range(2):
+                phase_m[2 + q, c] += odd_m[c, q]
+                phase_m[q, c] += prev[c, q] - odd_m[c, q]
         b0 = br * n_block_cols
-        for j in range(nx):
-            cp = col_par[j]
-            for c in range(6):
-                phase_m[2 + cp, c] += acc[8 + c, j]
-                phase_m[cp, c] += acc[c, j] - acc[8 + c, j]
         for j in range(nx):  # as without the phases: the same reduction order into block_m
             bk = b0 + col_block[j]
             for c in range(6):

@@ -522,7 +522,8 @@ def phase_jackknife_sigma_rad(M, B, phase_m, s, R, sigma0_sq: float):
         return None
     pm = np.asarray(phase_m, dtype=np.float64)
     tr = pm[:, 0, 0] + pm[:, 1, 1] + pm[:, 2, 2]
-    groups = np.where(tr > 0.0, np.arange(pm.shape[0]), -1).astype(np.int64)
+    # a share below 1e-6 of the weight is float32 rounding of the pass, not a phase
+    groups = np.where(tr > 1e-6 * tr.sum(), np.arange(pm.shape[0]), -1).astype(np.int64)
     return jackknife_sigma_rad(M, B, pm, groups, s, R, sigma0_sq)
 
 
