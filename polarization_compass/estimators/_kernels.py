@@ -195,16 +195,22 @@ def _m_pass(
 
 @njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
 def _column_sums(acc, cpf, nx, out):  # pragma: no cover - compiled
-    """``out[c] = (sum of acc[c] over parity-0 columns, over parity-1 columns)`` (float32 sums)."""
+    """
+    Sum each of the first six rows of ``acc`` over parity-0 and parity-1 columns.
+
+    ``out[c] = (sum over parity-0 columns, over parity-1 columns)`` in float64, exact enough that a
+    row's share (the difference of two) keeps what the float32 column sums gained.
+    """
     for c in range(6):
         ac = acc[c]
-        t = np.float32(0.0)
-        t1 = np.float32(0.0)
+        t = 0.0
+        t1 = 0.0
         for j in range(nx):
-            t += ac[j]
-            t1 += ac[j] * cpf[j]
-        out[c, 0] = np.float64(t) - np.float64(t1)
-        out[c, 1] = np.float64(t1)
+            v = np.float64(ac[j])
+            t += v
+            t1 += v * np.float64(cpf[j])
+        out[c, 0] = t - t1
+        out[c, 1] = t1
 
 
 @njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
@@ -246,8 +252,8 @@ def _m_pass_grid(
     sensor row and column parities, 0 or 1, of the 2 x 2 polarizer mosaic). The pixel loop is
     untouched (psi does not change: ``block_m`` gets the same bits); the per-column float32 sums
     are reduced (float64, by column parity) before and after each row of parity 1, whose share is
-    the difference, and at the end of the block row (the parity-0 rows' share is the rest). The
-    float32 rounding of the column sums (relative ~1e-7) reaches only the sigma.
+    the difference, and at the end of the block row (the parity-0 rows' share is the rest): the
+    phase sums add up to the block sums to float64 rounding.
     """
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
