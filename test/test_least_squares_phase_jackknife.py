@@ -26,9 +26,9 @@ import math
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass.budget import _samples, BudgetConfig, without
+from polarization_compass.estimators import _kernels as kern
 from polarization_compass.estimators import least_squares as ls
 from polarization_compass.estimators import make_estimator, Observation
-from polarization_compass.estimators import _kernels as kern
 from polarization_compass.estimators._common import select_view, view_grid_layout, view_segments
 from polarization_compass.render import Renderer
 from polarization_compass.scene import load_scene
@@ -62,7 +62,9 @@ def _masked(obs, keep):
     )
 
 
-@pytest.mark.parametrize('name,stride', [('tilt_aware', 1), ('least_squares', 1), ('tilt_aware', 2)])
+@pytest.mark.parametrize(
+    'name,stride', [('tilt_aware', 1), ('least_squares', 1), ('tilt_aware', 2)]
+)
 def test_phase_jackknife_equals_brute_force_leave_one_phase_out(name, stride):
     # uniform noise model, no bias correction: a refit's pixels and matrix are exactly the full
     # fit's minus the phase; stride 2 is the phase-balanced view (four single-phase sub-grids)
@@ -148,4 +150,5 @@ def test_superpixel_grid_has_no_phase_jackknife():
     r = make_estimator('least_squares').estimate(obs)
     assert r.ok and r.extras['phase_jackknife_groups'] == 0
     assert r.extras['sigma_phase_jackknife_deg'] is None
-    assert ls.phase_jackknife_sigma_rad(np.eye(3), np.eye(3), None, np.ones(3), np.eye(3), 0) is None
+    eye = np.eye(3)
+    assert ls.phase_jackknife_sigma_rad(eye, eye, None, np.ones(3), eye, 0.0) is None

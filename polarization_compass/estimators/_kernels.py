@@ -252,8 +252,9 @@ def _m_pass_grid(
     sensor row and column parities, 0 or 1, of the 2 x 2 polarizer mosaic). The pixel loop is
     untouched (psi does not change: ``block_m`` gets the same bits); the per-column float32 sums
     are reduced (float64, by column parity) before and after each row of parity 1, whose share is
-    the difference, and at the end of the block row (the parity-0 rows' share is the rest): the
-    phase sums add up to the block sums to float64 rounding.
+    the difference, and at the end of the block row (the parity-0 rows' share is the rest; a block
+    row of one parity, e.g. a superpixel grid's, is reduced only there): the phase sums add up to
+    the block sums to float64 rounding.
     """
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
@@ -273,6 +274,12 @@ def _m_pass_grid(
         acc[:] = f0
         prev[:] = 0.0
         odd_m[:] = 0.0
+        n_odd = 0  # parity-1 rows of the block row: none or all need no per-row sums
+        r_end = r
+        while r_end < ny and row_block[r_end] == br:
+            n_odd += row_par[r_end]
+            r_end += 1
+        mixed = 0 < n_odd < r_end - r
         while r < ny and row_block[r] == br:
             odd = row_par[r] == 1
             base = off + r * nx
@@ -314,7 +321,7 @@ def _m_pass_grid(
                 a7[j] += f1 if (v_in & fin) else f0
             r += 1
             last = r >= ny or row_block[r] != br
-            if odd or last or row_par[r] == 1:  # the sums before or after a parity-1 row
+            if last or (mixed and (odd or row_par[r] == 1)):  # before or after a parity-1 row
                 _column_sums(acc, cpf, nx, cur)
                 if odd:
                     for c in range(6):

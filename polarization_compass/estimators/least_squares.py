@@ -45,8 +45,10 @@ sum_i w_i e_i r_i``, so pixel i moves psi by ``phi_i = -sum_k (g . u_k)(u_k . e_
 ``phi_i`` over blocks (see ``_common``). Errors correlated beyond a block (the IFOV error of a DoFP
 sensor at soft cloud edges) are invisible to it; a delete-a-group jackknife over 16 angular
 sectors of blocks (:func:`jackknife_sigma_rad`: 16 refits of 3 x 3 matrices from the same block
-sums, no pixel read again) replaces it when significantly larger (:func:`jackknife_exceeds`, a 5 %
-chi-square test). psi and status never depend on sigma.
+sums, no pixel read again) and one over the four mosaic phases of a DoFP sensor
+(:func:`phase_jackknife_sigma_rad`, from per-phase sums of the same pass: the IFOV error differs
+between the phases) each replace it when significantly larger (:func:`jackknife_exceeds`, a 5 %
+chi-square test each; the largest that passes). psi and status never depend on sigma.
 """
 
 from __future__ import annotations
