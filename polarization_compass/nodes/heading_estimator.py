@@ -65,7 +65,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
 from std_msgs.msg import Float32MultiArray, Float64, Header, String
 
 from .diagnostics import Diagnostics
-from .msgs import decode_image, heading_imu, imu_tilt_variance_deg2
+from .msgs import AttitudeUncertainty, decode_image, heading_imu
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, decode_orientation, MessageError, stamp_ns
@@ -158,9 +158,7 @@ class HeadingEstimatorNode(Node):
             self.method, p['prior_source'], p['prior_max_age_s'], p['prior_sigma_deg']
         )
         self.needs_tilt = self.tilt_prior.needs_tilt
-        # the latest IMU's tilt variance [deg^2] (None: all-zero covariance, i.e. unknown)
-        self.imu_tilt_var_deg2 = None
-        self._warned_unknown_cov = False
+        self.attitude_uncertainty = AttitudeUncertainty()  # the latest IMU's tilt variance
         self.pending: deque = (
             deque()
         )  # decoded images waiting to be processed (tilt_aware: for their IMU)
@@ -344,7 +342,7 @@ class HeadingEstimatorNode(Node):
         q = self.diag.decoded('imu', decode_orientation, msg)
         if q is not None:
             self.imu.add(stamp_ns(msg.header), q)
-            self.imu_tilt_var_deg2 = imu_tilt_variance_deg2(msg.orientation_covariance)
+            self.attitude_uncertainty.update(msg.orientation_covariance)
 
     def _on_fix(self, msg):
         site = apply_fix(self.sun, self.diag, msg)
@@ -633,19 +631,13 @@ class HeadingEstimatorNode(Node):
         j = registry.get(self.method).tilt_sensitivity(result, pitch, roll)
         if j is None:
             return result
-        extra = float(self.params['attitude_sigma_deg'])
-        v = self.imu_tilt_var_deg2
-        if v is None and extra == 0.0 and not self._warned_unknown_cov:
-            self._warned_unknown_cov = True
-            self.get_logger().warning(
-                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
-                'propagated into the heading sigma; set attitude_sigma_deg to state one'
-            )
-        s_tilt = math.sqrt((v or 0.0) + extra * extra)
+        s_tilt, known = self.attitude_uncertainty.sigma_deg(
+            float(self.params['attitude_sigma_deg']), self.get_logger()
+        )
         s_att = math.hypot(j[0] * s_tilt, j[1] * s_tilt)
         status.update(
             attitude_sigma_deg=s_tilt,
-            attitude_covariance='imu' if v is not None else 'unknown',
+            attitude_covariance='imu' if known else 'unknown',
             sigma_attitude_deg=s_att,
         )
         if s_att == 0.0:

@@ -372,3 +372,39 @@ def imu_tilt_variance_deg2(cov) -> float | None:
     if not all(math.isfinite(x) and x >= 0.0 for x in d):
         return None
     return math.degrees(math.sqrt(max(d))) ** 2
+
+
+class AttitudeUncertainty:
+    """
+    The latest IMU's tilt uncertainty and a stated extra, as both tilt-reading nodes propagate it.
+
+    ``heading_estimator`` (tilt_aware) and ``tilt_corrector`` grow the heading sigma by
+    ``J Sigma_att J^T`` (docs/ros.md); this holds ``Sigma_att``'s source: the latest IMU message's
+    tilt variance (:func:`imu_tilt_variance_deg2`; None for an all-zero, i.e. unknown, covariance)
+    and warns once when nothing states an uncertainty.
+    """
+
+    def __init__(self):
+        self.var_deg2 = None
+        self._warned_unknown = False
+
+    def update(self, cov) -> None:
+        """Take the tilt variance of an Imu message's ``orientation_covariance``."""
+        self.var_deg2 = imu_tilt_variance_deg2(cov)
+
+    def sigma_deg(self, extra_deg: float, logger) -> tuple[float, bool]:
+        """
+        Return the camera pitch/roll 1-sigma [deg] and whether the IMU covariance is known.
+
+        ``sqrt(var + extra^2)`` with ``extra_deg`` the node's ``attitude_sigma_deg`` (what the
+        covariance does not hold: boresight, time offset x tilt rate); the first call with neither
+        logs a warning through ``logger``.
+        """
+        v = self.var_deg2
+        if v is None and extra_deg == 0.0 and not self._warned_unknown:
+            self._warned_unknown = True
+            logger.warning(
+                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
+                'propagated into the heading sigma; set attitude_sigma_deg to state one'
+            )
+        return math.sqrt((v or 0.0) + extra_deg * extra_deg), v is not None

@@ -65,7 +65,7 @@ from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
 from .diagnostics import _wall_clock, Diagnostics
-from .msgs import heading_from_imu, heading_imu, imu_tilt_variance_deg2
+from .msgs import AttitudeUncertainty, heading_from_imu, heading_imu
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_orientation, stamp_ns
@@ -132,9 +132,7 @@ class TiltCorrectorNode(Node):
             None  # (lat, lon, alt) of the latest usable NavSatFix (site_source navsatfix)
         )
         self.imu = AttitudeBuffer(keep_ns=int(p['imu_buffer_s'] * 1e9))
-        # the latest IMU's tilt variance [deg^2] (None: all-zero covariance, i.e. unknown)
-        self.imu_tilt_var_deg2 = None
-        self._warned_unknown_cov = False
+        self.attitude_uncertainty = AttitudeUncertainty()  # the latest IMU's tilt variance
         self.pending: deque = (
             deque()
         )  # (stamp_ns, bearing, yaw var, frame_id, wall deadline, t_in, roll/pitch var)
@@ -193,7 +191,7 @@ class TiltCorrectorNode(Node):
         if q is None:
             return
         self.imu.add(stamp_ns(msg.header), q)
-        self.imu_tilt_var_deg2 = imu_tilt_variance_deg2(msg.orientation_covariance)
+        self.attitude_uncertainty.update(msg.orientation_covariance)
         self._drain(final=False)
 
     def _on_fix(self, msg):
@@ -314,7 +312,9 @@ class TiltCorrectorNode(Node):
                 self.diag.done(t_in, t_ns, f'{c.status.value}: {c.reason}', ok=False)
                 return
             out_bearing = corrected
-            s_tilt, known = self._tilt_sigma_deg()
+            s_tilt, known = self.attitude_uncertainty.sigma_deg(
+                float(self.params['attitude_sigma_deg']), self.get_logger()
+            )
             s_att = 0.0
             if s_tilt > 0.0:
                 sa, sa_ok = self.corrector.attitude_sigma_deg(
@@ -351,18 +351,6 @@ class TiltCorrectorNode(Node):
         self.diag.done(
             t_in, t_ns, f'ok: bearing {out_bearing:.3f} deg (raw {bearing:.3f})', ok=True
         )
-
-    def _tilt_sigma_deg(self):
-        """Return (1-sigma of the camera pitch/roll [deg], whether the IMU covariance is known)."""
-        extra = float(self.params['attitude_sigma_deg'])
-        v = self.imu_tilt_var_deg2
-        if v is None and extra == 0.0 and not self._warned_unknown_cov:
-            self._warned_unknown_cov = True
-            self.get_logger().warning(
-                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
-                'propagated into the heading sigma; set attitude_sigma_deg to state one'
-            )
-        return math.sqrt((v or 0.0) + extra * extra), v is not None
 
     def _status(self, st: dict) -> None:
         self.pub_status.publish(String(data=json.dumps(st, default=str)))
