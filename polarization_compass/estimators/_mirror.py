@@ -574,10 +574,13 @@ def refine_axis(
         not converge. ``h'`` is the last secant slope, or a finite difference over 2e-3 rad when
         the last step was too short (as :func:`solve_axes`).
 
+    Notes
+    -----
     Where h is nearly flat at ``t0`` (f' ~ 1: under broken clouds the pairs that survive change
     with the trial axis) the secant steps overshoot; then up to ``PICARD_STEPS`` plain iterations
     ``t <- f(t)`` (they converge where 0 < f' < 1, as at the meridian under clouds: f' ~ 0.7) bring
     the start closer, and the secant runs again from there.
+
     """
     fit, slope, last, used = _refine(fit_at, t0, -1.0, tol_rad, max_steps)
     if fit is None:
