@@ -212,5 +212,7 @@ def test_a_cloudy_sky_least_squares_sigma_is_honest_with_the_check():
             ratios.append((err / out.sigma_deg) ** 2)
         rng = np.random.default_rng(11)  # the same bearings with the check on
         cal[k] = float(np.mean(ratios))
-    assert cal[0] > 4.0  # over-confident without the check
-    assert 0.3 < cal[IFOV_K_DEFAULT] < 3.0
+    # without the check these edges are what the jackknife checks of least squares have to catch
+    # (13.8 before them, 2.9 here with them); the IFOV check removes the cause
+    assert cal[0] > 2.0 * cal[IFOV_K_DEFAULT], cal
+    assert 0.3 < cal[IFOV_K_DEFAULT] < 3.0, cal
