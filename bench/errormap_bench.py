@@ -272,8 +272,22 @@ def run_backends(cfg, sweep, methods, scene) -> dict:
     identical = True
     for r in rows[1:]:
         m = r.pop('_map')
-        identical &= bool(
+        same = bool(
             np.array_equal(m.error_deg, ref.error_deg) and np.array_equal(m.status, ref.status)
+        )
+        identical &= same
+        # where a backend differs from the in-process map: per method, the largest error
+        # difference and the number of cells whose status differs
+        r['differs_from_in_process'] = (
+            None
+            if same
+            else {
+                str(name): {
+                    'max_abs_error_diff_deg': float(np.abs(m.error_deg[i] - ref.error_deg[i]).max()),
+                    'status_diffs': int(np.count_nonzero(m.status[i] != ref.status[i])),
+                }
+                for i, name in enumerate(ref.methods)
+            }
         )
     one = next((r for r in rows[1:] if r['workers'] == 1), None)
     two = next((r for r in rows[1:] if r['workers'] == 2 and r['backend'] == 'LocalCluster'), None)
