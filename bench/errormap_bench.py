@@ -283,7 +283,9 @@ def run_backends(cfg, sweep, methods, scene) -> dict:
             if same
             else {
                 str(name): {
-                    'max_abs_error_diff_deg': float(np.abs(m.error_deg[i] - ref.error_deg[i]).max()),
+                    'max_abs_error_diff_deg': float(
+                        np.abs(m.error_deg[i] - ref.error_deg[i]).max()
+                    ),
                     'status_diffs': int(np.count_nonzero(m.status[i] != ref.status[i])),
                 }
                 for i, name in enumerate(ref.methods)
