@@ -23,20 +23,17 @@ region, a noisy mosaic, three real frames) are rebuilt here from the same script
 """
 
 import math
-import os
 
 import disc_golden as G
 import numpy as np
 import pytest
 
-#: psi and sigma must agree to this (deg): the same fits up to the rounding of reordered sums; the
-#: frames themselves are bit-reproducible only with BLAS on one thread (the Makefile's and
-#: env.sh's OMP_NUM_THREADS / OPENBLAS_NUM_THREADS = 1): a threaded BLAS moves the cloudy renders'
-#: sigma by up to 1.6e-9 deg, so there the bound is 1e-7
-ONE_BLAS_THREAD = all(
-    os.environ.get(v) == '1' for v in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS')
-)
-TOL_DEG = 1e-9 if ONE_BLAS_THREAD else 1e-7
+#: psi and sigma must agree to this (deg): the same fits up to the rounding of reordered sums. The
+#: frames are not bit-reproducible across numba compilations: a fresh cache (CI's clean clone) and
+#: the cache the golden answers were written with differ in the noisy cloudy renders by up to
+#: 1.5e-8 deg of psi (measured 2026-11-25: 32 of 272 answers above 1e-9), and a threaded BLAS moves
+#: sigma by 1.6e-9 deg; a changed fit moves them by far more (LATTICE_RATIO off by 1e-5 fails)
+TOL_DEG = 1e-7
 
 
 @pytest.fixture(scope='module')
