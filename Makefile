@@ -7,7 +7,10 @@ PY := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export ROS_DOMAIN_ID ?= 73
 export PYTHONHASHSEED := 0
-export NUMBA_CACHE_DIR := $(CURDIR)/.venv/numba-cache
+# numba's cache checks only a kernel's own file, not the inlined helpers it compiled in from other
+# files: after a pull a cached kernel could run old code. One cache per state of the sources.
+SRC_HASH := $(shell cat $(sort $(wildcard polarization_compass/*.py polarization_compass/*/*.py)) | sha1sum | cut -c1-12)
+export NUMBA_CACHE_DIR := $(CURDIR)/.venv/numba-cache/$(SRC_HASH)
 # Two cores: keep BLAS from oversubscribing when we parallelise ourselves.
 export OMP_NUM_THREADS ?= 1
 export OPENBLAS_NUM_THREADS ?= 1
