@@ -27,8 +27,9 @@ import math
 import numpy as np
 from polarization_compass.estimators._common import axial_residual_rad, rayleigh_aop_rad
 from polarization_compass.estimators._disc import taper
-from polarization_compass.estimators._sm_asm_kernels import band_pass2
-from polarization_compass.estimators._symmetry_kernels import ring_pass1, ring_pass2
+from polarization_compass.estimators._disc_estimator import _blocks
+from polarization_compass.estimators._sm_asm_kernels import band_terms2
+from polarization_compass.estimators._symmetry_kernels import ring_pass1, ring_terms2
 import pytest
 
 N = 160
@@ -80,6 +81,13 @@ def _own_blocks():
     return idx, idx + 1, idx
 
 
+def _pass2(terms2, args, segs, n_blocks):
+    """Run pass 2 as the estimators do: the per-pixel terms, then the block sums over ``segs``."""
+    t0, t1, rss = np.empty(args[0].size), np.empty(args[0].size), np.zeros(2)
+    terms2(*args, t0, t1, rss)
+    return _blocks(t0, t1, (*segs, n_blocks)), rss
+
+
 def _residuals(aop, rays, use):
     out = np.zeros((2, N))
     for j, s in enumerate(SUNS):
@@ -105,7 +113,7 @@ def _fd(f, aop, use, h=1e-4):
 
 
 @pytest.mark.parametrize('seed', [0, 1])
-def test_band_pass2_is_the_derivative_of_the_sm_asm_axis(seed):
+def test_sm_asm_pass2_is_the_derivative_of_the_sm_asm_axis(seed):
     (
         aop,
         dop,
@@ -131,27 +139,28 @@ def test_band_pass2_is_the_derivative_of_the_sm_asm_axis(seed):
         return 0.5 * np.angle(Z(a))
 
     z0 = Z(aop)
-    block_sum, rss = np.zeros((2, N)), np.zeros(2)
-    band_pass2(
-        aop,
-        dop,
-        valid,
-        rays,
-        r[0].copy(),
-        r[1].copy(),
-        *_own_blocks(),
-        MIN_DOP,
-        RHO_MAX,
-        TAPER,
-        inv4tol2,
-        np.zeros((0, 0)),
-        np.zeros((0, 0)),
-        np.zeros(10),
-        z0.real,
-        z0.imag,
-        *SUNS,
-        block_sum,
-        rss,
+    block_sum, rss = _pass2(
+        band_terms2,
+        (
+            aop,
+            dop,
+            valid,
+            rays,
+            r[0].copy(),
+            r[1].copy(),
+            MIN_DOP,
+            RHO_MAX,
+            TAPER,
+            inv4tol2,
+            np.zeros((0, 0)),
+            np.zeros((0, 0)),
+            np.zeros(10),
+            z0.real,
+            z0.imag,
+            *SUNS,
+        ),
+        _own_blocks(),
+        N,
     )
     res = _residuals(aop, rays, use)
     want = _fd(theta, aop, use) * res
@@ -161,7 +170,7 @@ def test_band_pass2_is_the_derivative_of_the_sm_asm_axis(seed):
 
 
 @pytest.mark.parametrize('K', [1, 2, 3])
-def test_ring_pass2_is_the_derivative_of_the_symmetry_axis(K):
+def test_symmetry_pass2_is_the_derivative_of_the_symmetry_axis(K):
     aop, dop, valid, rays = _pixels(10 + K)
     rho_lo = 0.05 * RHO_MAX
     use = _usable(aop, dop, valid, rays, rho_lo)
@@ -201,30 +210,31 @@ def test_ring_pass2_is_the_derivative_of_the_symmetry_axis(K):
         return t[ks != 0].real.sum()
 
     F2 = dF(aop, 2)
-    block_sum, rss = np.zeros((2, N)), np.zeros(2)
-    ring_pass2(
-        aop,
-        dop,
-        valid,
-        rays,
-        np.zeros(N),
-        np.zeros(N),
-        *_own_blocks(),
-        MIN_DOP,
-        rho_lo,
-        RHO_MAX,
-        TAPER,
-        n_rings,
-        K,
-        np.zeros((0, 0)),
-        np.zeros((0, 0)),
-        np.zeros(10),
-        coeffs(aop),
-        np.exp(2j * ks * theta),
-        F2,
-        *SUNS,
-        block_sum,
-        rss,
+    block_sum, rss = _pass2(
+        ring_terms2,
+        (
+            aop,
+            dop,
+            valid,
+            rays,
+            np.zeros(N),
+            np.zeros(N),
+            MIN_DOP,
+            rho_lo,
+            RHO_MAX,
+            TAPER,
+            n_rings,
+            K,
+            np.zeros((0, 0)),
+            np.zeros((0, 0)),
+            np.zeros(10),
+            coeffs(aop),
+            np.exp(2j * ks * theta),
+            F2,
+            *SUNS,
+        ),
+        _own_blocks(),
+        N,
     )
     res = _residuals(aop, rays, use)
     want = -_fd(lambda a: dF(a, 1), aop, use) / F2 * res
@@ -258,32 +268,32 @@ def test_pass2_chunks_and_blocks_add_up():
     ends = np.minimum(starts + 10, n)
 
     def run(seg):
-        bs, rss = np.zeros((2, n)), np.zeros(2)
-        ring_pass2(
-            aop,
-            dop,
-            valid,
-            rays,
-            np.zeros(n),
-            np.zeros(n),
-            *seg,
-            0.05,
-            0.03,
-            0.6,
-            0.2,
-            6,
-            2,
-            np.zeros((0, 0)),
-            np.zeros((0, 0)),
-            np.zeros(10),
-            a,
-            np.exp(2j * np.arange(-2, 3) * 0.3),
-            -5.0,
-            *SUNS,
-            bs,
-            rss,
+        return _pass2(
+            ring_terms2,
+            (
+                aop,
+                dop,
+                valid,
+                rays,
+                np.zeros(n),
+                np.zeros(n),
+                0.05,
+                0.03,
+                0.6,
+                0.2,
+                6,
+                2,
+                np.zeros((0, 0)),
+                np.zeros((0, 0)),
+                np.zeros(10),
+                a,
+                np.exp(2j * np.arange(-2, 3) * 0.3),
+                -5.0,
+                *SUNS,
+            ),
+            seg,
+            n,
         )
-        return bs, rss
 
     per_px, rss1 = run(
         (np.arange(n, dtype=np.int64), np.arange(1, n + 1, dtype=np.int64), np.arange(n))

@@ -29,7 +29,6 @@ from numba import njit
 import numpy as np
 
 from ._disc import (
-    _block_sums,
     _brightness_pass,
     _exp2i_aoplm,
     _gather_lanes,
@@ -42,7 +41,7 @@ from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
-__all__ = ['band_pass1', 'band_gather', 'band_fit', 'band_terms2', 'band_pass2']
+__all__ = ['band_pass1', 'band_gather', 'band_fit', 'band_terms2']
 
 
 @njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
@@ -268,8 +267,8 @@ def band_terms2(
 
     t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns; rss[j] +=
     residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else DoP(p)^2); one vectorised
-    loop (:mod:`polarization_compass.fastmath`). The block sums (:func:`band_pass2`) can then be
-    taken over any blocks of the same pixel order.
+    loop (:mod:`polarization_compass.fastmath`). The block sums (:func:`._disc._block_sums`) can
+    then be taken over any blocks of the same pixel order.
     """
     _band_terms(
         aop,
@@ -290,63 +289,3 @@ def band_terms2(
         t1,
         rss,
     )
-
-
-@njit(cache=True, nogil=True)
-def band_pass2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    seg_start,
-    seg_end,
-    seg_block,
-    min_dop,
-    rho_max,
-    taper_frac,
-    inv4tol2,
-    mg,
-    mq,
-    mp,
-    Zr,
-    Zi,
-    s1,
-    s2,
-    block_sum,
-    rss,
-):  # pragma: no cover - compiled
-    """
-    Run the SM-ASM influence pass: block sums of the influence for both candidate suns.
-
-    SM-ASM influence: block_sum[j, b] += (d theta / d a_i) * residual_j(i) for the two candidate
-    suns; rss[j] += residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else
-    DoP(p)^2). The per-pixel terms are one vectorised loop (:func:`band_terms2`), the block sums a
-    second.
-    """
-    t0 = np.empty(aop.size)
-    t1 = np.empty(aop.size)
-    band_terms2(
-        aop,
-        dop,
-        valid,
-        rays,
-        xs,
-        ys,
-        min_dop,
-        rho_max,
-        taper_frac,
-        inv4tol2,
-        mg,
-        mq,
-        mp,
-        Zr,
-        Zi,
-        s1,
-        s2,
-        t0,
-        t1,
-        rss,
-    )
-    _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum)

@@ -28,7 +28,6 @@ from numba import njit
 import numpy as np
 
 from ._disc import (
-    _block_sums,
     _brightness_pass,
     _exp2i_aoplm,
     _gather_lanes,
@@ -41,7 +40,7 @@ from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
-__all__ = ['ring_pass1', 'ring_gather', 'ring_fit', 'ring_terms2', 'ring_pass2']
+__all__ = ['ring_pass1', 'ring_gather', 'ring_fit', 'ring_terms2']
 
 #: Pixels per chunk of the vectorised Symmetry passes (their scratch arrays stay in L1/L2).
 _RING_CHUNK = 512
@@ -541,8 +540,9 @@ def ring_terms2(
     t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns, d theta / d a_i =
     -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k:
     a_k interpolated at the pixel's ring); rss[j] += residual_j^2 (pair weights as
-    :func:`band_pass2`). In chunks: the per-pixel terms (vectorised), one loop per harmonic. The
-    block sums (:func:`ring_pass2`) can then be taken over any blocks of the same pixel order.
+    :func:`._sm_asm_kernels.band_terms2`). In chunks: the per-pixel terms (vectorised), one loop
+    per harmonic. The block sums (:func:`._disc._block_sums`) can then be taken over any blocks of
+    the same pixel order.
     """
     N = aop.size
     wm = _pair_weights(mg, mq, mp, xs, ys)
@@ -600,69 +600,3 @@ def ring_terms2(
             sens = -acc[q] / F2
             t0[o + q] = sens * r1[q]
             t1[o + q] = sens * r2[q]
-
-
-@njit(cache=True, nogil=True)
-def ring_pass2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    seg_start,
-    seg_end,
-    seg_block,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    mg,
-    mq,
-    mp,
-    a_in,
-    rot,
-    F2,
-    s1,
-    s2,
-    block_sum,
-    rss,
-):  # pragma: no cover - compiled
-    """
-    Run the Symmetry influence pass: the influence against each candidate sun.
-
-    Symmetry influence: d theta / d a_i = -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k)
-    e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's ring), times the
-    residual against each candidate sun (pair weights as :func:`band_pass2`): the per-pixel terms
-    (:func:`ring_terms2`), then the block sums.
-    """
-    t0 = np.empty(aop.size)
-    t1 = np.empty(aop.size)
-    ring_terms2(
-        aop,
-        dop,
-        valid,
-        rays,
-        xs,
-        ys,
-        min_dop,
-        rho_lo,
-        rho_max,
-        taper_frac,
-        n_rings,
-        K,
-        mg,
-        mq,
-        mp,
-        a_in,
-        rot,
-        F2,
-        s1,
-        s2,
-        t0,
-        t1,
-        rss,
-    )
-    _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum)
