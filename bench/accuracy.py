@@ -65,12 +65,12 @@ import time
 import traceback
 
 import numpy as np
+from polarization_compass.budget import published_sigma_floor_deg
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
 from polarization_compass.estimators import registry
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
-from polarization_compass.specs.params import defaults as param_defaults, ESTIMATOR
 
 from . import crb as crb_mod
 from .common import (
@@ -86,7 +86,7 @@ from .simulator import NOISE_ELECTRONS
 
 #: The smallest yaw sigma heading_estimator publishes (its ``sigma_floor_deg`` default): the sigma
 #: calibration below uses what a robot would receive, ``max(sigma, floor)``.
-SIGMA_FLOOR_DEG = float(param_defaults(ESTIMATOR)['sigma_floor_deg'])
+SIGMA_FLOOR_DEG = published_sigma_floor_deg()
 
 NOISE_DOP_MAX = 0.7
 TILT_LIMIT_DEG = 20.0
