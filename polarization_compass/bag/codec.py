@@ -63,9 +63,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import camera_from_intrinsics, CameraError, CameraModel, check_intrinsics
-from .conventions import QuaternionError, R_BODY_CAM_DEFAULT, validate_quaternion
-from .errors import CompassError
+from ..camera import camera_from_intrinsics, CameraError, CameraModel, check_intrinsics
+from ..conventions import QuaternionError, R_BODY_CAM_DEFAULT, validate_quaternion
+from ..errors import CompassError
 
 __all__ = [
     'BagError',
@@ -458,7 +458,7 @@ def load_topic_map(path: str | Path | None = None) -> TopicMap:
         rotation, camera, site or tolerance is invalid (one-line message naming it).
 
     """
-    from .safe_load import load_yaml, read_text
+    from ..safe_load import load_yaml, read_text
 
     if path is None:
         return _topic_map_from_dict(_builtin_defaults(), 'default topic mapping')
@@ -1146,7 +1146,7 @@ class BagReader:
         self._read_counts: Counter = Counter()  # messages yielded per topic
         storage = sorted(x for x in p.iterdir() if x.suffix in ('.mcap', '.db3') and x.is_file())
         if (p / 'metadata.yaml').exists() or (p / 'metadata.yaml').is_symlink():
-            from .safe_load import (
+            from ..safe_load import (
                 regular_file,  # not a FIFO or /dev/zero (rosbags would read it forever)
             )
 
@@ -1510,7 +1510,7 @@ class _RecoveredSqlite:
 
 def _announced_counts(directory: Path) -> dict | None:
     """{topic: message count} from a rosbag2 metadata.yaml, or None when absent or unreadable."""
-    from .safe_load import load_yaml, read_text
+    from ..safe_load import load_yaml, read_text
 
     try:
         d = load_yaml(

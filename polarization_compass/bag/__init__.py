@@ -1,0 +1,19 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""rosbag2 field runs (being split into modules: the codec holds everything for now)."""
+
+from .codec import *  # noqa: F401,F403
+from .codec import __all__  # noqa: F401
+from .codec import _ENCODINGS, BUILTIN_TOPIC_MAP, deserialize, ns_from_utc  # noqa: F401
