@@ -15,8 +15,9 @@
 """
 rosbag2 field runs: topic mapping, reading, writing and message conversions.
 
-rosbag2 field runs: the topic mapping, reading with per-topic skip accounting, writing, and the
-ROS-free conversions between the rosbags message classes and numpy.
+The topic mapping (:mod:`.topic_map`), reading with per-topic skip accounting (:mod:`.reader`,
+with :mod:`.recovery` for a truncated bag), writing (:mod:`.writer`), and the ROS-free
+conversions between the rosbags message classes and numpy (:mod:`.codec`, :mod:`.image`).
 
 Bags are read and written with the `rosbags` library (pure Python; both rosbag2 storage formats:
 MCAP, the default of ``ros2 bag record`` since Jazzy, and sqlite3). Nothing here imports rclpy.

@@ -25,11 +25,7 @@ __all__ = [
 
 
 class BagError(CompassError):
-    """
-    A bag error: unreadable rosbag2, bad topic mapping or a bag that cannot be written.
-
-    A path that is not a readable rosbag2, a bad topic mapping, or a bag that cannot be written.
-    """
+    """An unreadable rosbag2, a bad topic mapping, or a bag that cannot be written."""
 
 
 class MessageError(CompassError):

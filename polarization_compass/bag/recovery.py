@@ -40,11 +40,10 @@ class _RecoveredMcap:
     """
     An MCAP file cut short, read up to its last complete record.
 
-    An MCAP file cut short (a killed recorder, a copy that stopped) read with rosbags' own MCAP
-    reader up to the last complete record: the reader gets the intact prefix followed by a footer
-    that announces no summary, so it scans the records (``McapReader.meta_scan``/``messages_scan``,
-    as for an unindexed file) instead of refusing the missing footer (``File end magic is
-    invalid``).
+    The file (a killed recorder, a copy that stopped) is read with rosbags' own MCAP reader: the
+    reader gets the intact prefix followed by a footer that announces no summary, so it scans the
+    records (``McapReader.meta_scan``/``messages_scan``, as for an unindexed file) instead of
+    refusing the missing footer (``File end magic is invalid``).
     """
 
     _MAGIC = b'\x89MCAP0\r\n'
@@ -114,12 +113,7 @@ class _RecoveredMcap:
 
 
 class _PrefixWithTail:
-    """
-    A read-only file object: the first ``n`` bytes of ``path`` followed by ``tail``.
-
-    A read-only file object: the first ``n`` bytes of ``path`` followed by ``tail`` (a synthetic
-    footer).
-    """
+    """A read-only file object: the first ``n`` bytes of ``path`` followed by ``tail`` (footer)."""
 
     def __init__(self, path: Path, n: int, tail: bytes):
         self._fh = open(path, 'rb')
@@ -155,10 +149,9 @@ class _RecoveredSqlite:
     """
     A truncated rosbag2 sqlite3 file read with Python's sqlite3.
 
-    A truncated rosbag2 sqlite3 file read with Python's sqlite3 (rosbags' reader counts every
-    topic's messages when it opens, which fails on the first missing page): a temporary copy whose
-    header page count is set to the pages present, read in insertion order (rowid) until the first
-    missing page.
+    Not with rosbags' reader: it counts every topic's messages when it opens, which fails on the
+    first missing page. What is read is a temporary copy whose header page count is set to the
+    pages present, in insertion order (rowid) until the first missing page.
     """
 
     def __init__(self, path: Path, why: str):
@@ -241,7 +234,6 @@ def _recovered_storage(path: Path, why: str):
     """
     Open a damaged bag's single storage file up to the damage.
 
-    A damaged bag's single storage file opened up to the damage (:class:`_RecoveredMcap` or
-    :class:`_RecoveredSqlite`); raises when that is not possible either.
+    Through :class:`_RecoveredMcap` or :class:`_RecoveredSqlite`; raises when that fails too.
     """
     return (_RecoveredMcap if path.suffix == '.mcap' else _RecoveredSqlite)(path, why)

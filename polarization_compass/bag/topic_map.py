@@ -184,6 +184,24 @@ class TopicMap:
 
 
 def _topic_map_from_dict(d, where: str) -> TopicMap:
+    """Return the :class:`TopicMap` of a mapping's YAML form, validated; absent keys: defaults."""
+    _check_keys(d, where)
+    base = _builtin_defaults()
+    topics = _topics_from_dict(d.get('topics') or {}, base, where)
+    mosaic = d.get('mosaic', base['mosaic']) or {}
+    if not isinstance(mosaic, dict):
+        raise BagError(f"{where}: 'mosaic' must be a mapping (the scene's sensor.mosaic form)")
+    pitch = _pos(d.get('pixel_pitch_um', base['pixel_pitch_um']), f'{where}: pixel_pitch_um')
+    R = _mounting_from_dict(d.get('mounting') or {}, where)
+    camera = _checked_camera(d.get('camera'), where)
+    site = _checked_site(d.get('site'), where)
+    gaps = _gaps_from_dict(d.get('max_gap_s') or {}, base, where)
+    look = _pos(d.get('lookahead_s', base['lookahead_s']), f'{where}: lookahead_s')
+    return TopicMap(topics, dict(mosaic), pitch, tuple(map(tuple, R)), camera, site, gaps, look)
+
+
+def _check_keys(d, where: str) -> None:
+    """Refuse a mapping that is not a dict or has keys other than the mapping's sections."""
     if not isinstance(d, dict):
         raise BagError(f"{where}: a topic mapping must be a YAML mapping with a 'topics' section")
     allowed = {
@@ -199,8 +217,10 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
     unknown = set(d) - allowed
     if unknown:
         raise BagError(f'{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(allowed)}')
-    base = _builtin_defaults()
-    topics_d = d.get('topics') or {}
+
+
+def _topics_from_dict(topics_d, base: dict, where: str) -> dict:
+    """Return ``{role: TopicSpec}`` of the ``topics`` section (defaults for roles not given)."""
     if not isinstance(topics_d, dict):
         raise BagError(f"{where}: 'topics' must map roles ({', '.join(ROLES)}) to {{topic, type}}")
     bad = set(topics_d) - set(ROLES)
@@ -232,11 +252,11 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
     dup = {n for n in names if names.count(n) > 1}
     if dup:
         raise BagError(f'{where}: topic(s) {sorted(dup)} mapped to more than one role')
-    mosaic = d.get('mosaic', base['mosaic']) or {}
-    if not isinstance(mosaic, dict):
-        raise BagError(f"{where}: 'mosaic' must be a mapping (the scene's sensor.mosaic form)")
-    pitch = _pos(d.get('pixel_pitch_um', base['pixel_pitch_um']), f'{where}: pixel_pitch_um')
-    mounting = d.get('mounting') or {}
+    return topics
+
+
+def _mounting_from_dict(mounting, where: str) -> np.ndarray:
+    """Return the mounting ``R_body_cam`` of the ``mounting`` section, checked to be a rotation."""
     if not isinstance(mounting, dict) or set(mounting) - {'R_body_cam'}:
         raise BagError(
             f"{where}: 'mounting' must be {{R_body_cam: 3x3 rotation (columns = camera axes in "
@@ -256,7 +276,11 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
         raise BagError(
             f'{where}: mounting.R_body_cam must be a 3x3 rotation matrix (orthonormal, det +1)'
         )
-    camera = d.get('camera')
+    return R
+
+
+def _checked_camera(camera, where: str):
+    """Return the fallback ``camera`` section (None or CameraModel fields the model accepts)."""
     if camera is not None:
         if not isinstance(camera, dict):
             raise BagError(
@@ -266,7 +290,11 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
             CameraModel(**camera)
         except (CameraError, TypeError) as exc:
             raise BagError(f'{where}: camera: {exc}') from None
-    site = d.get('site')
+    return camera
+
+
+def _checked_site(site, where: str):
+    """Return the fallback ``site`` section (None or latitude, longitude[, altitude] in range)."""
     if site is not None:
         if (
             not isinstance(site, dict)
@@ -279,14 +307,17 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
         _finite_in(site['latitude_deg'], -90, 90, f'{where}: site.latitude_deg')
         _finite_in(site['longitude_deg'], -180, 180, f'{where}: site.longitude_deg')
         _finite_in(site.get('altitude_m', 0.0), -500, 10000, f'{where}: site.altitude_m')
+    return site
+
+
+def _gaps_from_dict(g, base: dict, where: str) -> dict:
+    """Return the ``max_gap_s`` tolerances [s]: the defaults updated by the section's entries."""
     gaps = dict(base['max_gap_s'])
-    g = d.get('max_gap_s') or {}
     if not isinstance(g, dict) or set(g) - set(gaps):
         raise BagError(f"{where}: 'max_gap_s' must map {sorted(gaps)} to seconds")
     for k, v in g.items():
         gaps[k] = _pos(v, f'{where}: max_gap_s.{k}')
-    look = _pos(d.get('lookahead_s', base['lookahead_s']), f'{where}: lookahead_s')
-    return TopicMap(topics, dict(mosaic), pitch, tuple(map(tuple, R)), camera, site, gaps, look)
+    return gaps
 
 
 def _pos(v, what) -> float:
