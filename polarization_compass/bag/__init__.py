@@ -56,7 +56,6 @@ is skipped, and the rest of the bag is processed.
 
 from .codec import (
     decode_camera_info,
-    decode_mosaic,
     decode_navsatfix,
     decode_orientation,
     deserialize,
@@ -72,6 +71,7 @@ from .codec import (
     utc_from_ns,
 )
 from .errors import BagError, MessageError
+from .image import decode_mosaic
 from .reader import BagReader, Tally
 from .topic_map import (
     BUILTIN_TOPIC_MAP,

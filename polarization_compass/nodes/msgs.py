@@ -39,7 +39,7 @@ import numpy as np
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix, NavSatStatus
 
 from ..bag import decode_mosaic, decode_orientation, MessageError, stamp_ns
-from ..bag.codec import _ENCODINGS as _MOSAIC_DTYPES  # the encodings decode_mosaic accepts
+from ..bag.image import _ENCODINGS as _MOSAIC_DTYPES  # the encodings decode_mosaic accepts
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
 
