@@ -160,7 +160,6 @@ def ns_from_utc(t: _dt.datetime) -> int:
 # --------------------------------------------------------------------------------------------
 # Decoding (message -> numpy). Duck-typed: works on rosbags classes and on rclpy messages alike.
 # --------------------------------------------------------------------------------------------
-
 def decode_camera_info(msg, pixel_pitch_um: float) -> CameraModel:
     """
     Return a :class:`CameraModel` from the sensor_msgs/CameraInfo of the raw mosaic.
