@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from .sync import SyncedFrame
-from ..bag import TopicMap
+from ..bag.topic_map import TopicMap
 from ..errors import CompassError
 from ..estimators import registry
 

@@ -26,18 +26,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bag import (
-    BagReader,
+from ..bag.codec import (
     decode_camera_info,
-    decode_mosaic,
     decode_navsatfix,
     decode_orientation,
     deserialize,
-    MessageError,
     stamp_ns,
-    Tally,
-    TopicMap,
 )
+from ..bag.errors import MessageError
+from ..bag.image import decode_mosaic
+from ..bag.reader import BagReader, Tally
+from ..bag.topic_map import TopicMap
 from ..conventions import camera_attitude_from_body_quat, wrap_360_deg
 
 __all__ = ['BagPlan', 'plan_bag', 'SyncedFrame', 'prefetched', 'iter_synced_frames']

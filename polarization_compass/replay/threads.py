@@ -27,7 +27,9 @@ import time
 
 from .processing import _Corrector, _make_corrector, FramePipeline, MethodRow, ReplayConfig
 from .sync import BagPlan, iter_synced_frames, plan_bag, prefetched
-from ..bag import BagError, BagReader, default_topic_map, Tally, TopicMap
+from ..bag.errors import BagError
+from ..bag.reader import BagReader, Tally
+from ..bag.topic_map import default_topic_map, TopicMap
 from ..estimators import registry
 from ..runtime import keep_large_buffers_in_heap, single_threaded_kernels
 
