@@ -35,10 +35,10 @@ import math
 
 import numpy as np
 
-from .camera import CameraModel
-from .conventions import camera_attitude_from_body_quat, R_BODY_CAM_DEFAULT
-from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
-from .errors import CompassError
+from ..camera import CameraModel
+from ..conventions import camera_attitude_from_body_quat, R_BODY_CAM_DEFAULT
+from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+from ..errors import CompassError
 
 __all__ = [
     'AttitudeBuffer',
@@ -356,7 +356,7 @@ class TiltAndPrior:
         prior_max_age_s: float = 2.0,
         prior_sigma_deg: float = 15.0,
     ):
-        from .estimators import registry
+        from ..estimators import registry
 
         cls = registry.find(method)
         self.needs_tilt = bool(cls is not None and cls.needs_tilt)
@@ -526,8 +526,8 @@ def check_prior_agreement(
     from dataclasses import replace
     import math
 
-    from .conventions import fold_axial_deg, wrap_180_deg
-    from .estimators.base import HeadingResult, Status
+    from ..conventions import fold_axial_deg, wrap_180_deg
+    from ..estimators.base import HeadingResult, Status
 
     if not math.isfinite(float(prior_bearing_deg)):
         return result
@@ -766,7 +766,7 @@ class SunSource:
                 and abs(site[2] - self._site[2]) < 100.0
             ):
                 return
-        from .solar import SunCache
+        from ..solar import SunCache
 
         self._cache = SunCache(*site, model=self.model)
         self._site = site
@@ -798,7 +798,7 @@ class SunSource:
             The sun model refuses the stamp (the message says why).
 
         """
-        from .solar import SolarError
+        from ..solar import SolarError
 
         t_us = np.datetime64(int(t_ns) // 1000, 'us')
         try:
@@ -855,8 +855,8 @@ class HeadingFrontEnd:
         intensity: bool = False,
         sky_check: bool = False,
     ):
-        from .demosaic import parse_layout
-        from .estimators import make_estimator
+        from ..demosaic import parse_layout
+        from ..estimators import make_estimator
 
         self.method = method
         self.estimator = make_estimator(method, **(knobs or {}))
@@ -880,7 +880,7 @@ class HeadingFrontEnd:
             A knob is unknown or out of range (the message says which).
 
         """
-        from .estimators import make_estimator
+        from ..estimators import make_estimator
 
         self.estimator = make_estimator(self.method, **knobs)
 
@@ -897,7 +897,7 @@ class HeadingFrontEnd:
             Image direction of the 45 deg polarizer.
 
         """
-        from .demosaic import parse_layout
+        from ..demosaic import parse_layout
 
         self.layout = parse_layout(layout, pol45_toward)
 
@@ -968,7 +968,7 @@ class HeadingFrontEnd:
             The mosaic does not match the camera or cannot be demosaiced.
 
         """
-        from .estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+        from ..estimators.mosaic_input import MosaicInputError, observation_from_mosaic
 
         # one consistent configuration for the whole frame (a node may change knobs from another
         # thread)
@@ -1054,7 +1054,7 @@ class HeadingFrontEnd:
         )
         res = est.estimate(obs)
         if self.sky_check:
-            from .skyfit import assess_result
+            from ..skyfit import assess_result
 
             sample = whole_sky_sample(mosaic, camera, layout)
             res = assess_result(
@@ -1091,10 +1091,10 @@ def warm_up(
     """
     import time
 
-    from .conventions import CameraAttitude
-    from .render import Renderer, SunDirection
-    from .scene import default_scene
-    from .sensor import sensor_config_for_encoding, simulate_mosaic
+    from ..conventions import CameraAttitude
+    from ..render import Renderer, SunDirection
+    from ..scene import default_scene
+    from ..sensor import sensor_config_for_encoding, simulate_mosaic
 
     t0 = time.perf_counter()
     cam = camera or CameraModel('pinhole', 96, 80, 4.0, 3.45 * 2448 / 96, 3.45 * 2448 / 96)
@@ -1174,8 +1174,8 @@ class PolarizerMonitor:
         self.count += 1
         if self.count % self.every_n:  # the every_n-th frame, not the first: start-up stays fast
             return None
-        from .estimators.mosaic_input import _grid_rays
-        from .polarizer_check import check_polarizer
+        from ..estimators.mosaic_input import _grid_rays
+        from ..polarizer_check import check_polarizer
 
         m = np.asarray(mosaic)
         small, k, nx, ny = decimated_blocks(m, self.max_blocks)
@@ -1256,10 +1256,10 @@ def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000
         The :class:`~polarization_compass.skyfit.SkySample`, None when too little sky is usable.
 
     """
-    from .demosaic import aop_dop_from_stokes, stokes_from_mosaic
-    from .estimators.mosaic_input import _grid_rays
-    from .polarizer_check import saturated_blocks
-    from .skyfit import data_mask, sample_sky
+    from ..demosaic import aop_dop_from_stokes, stokes_from_mosaic
+    from ..estimators.mosaic_input import _grid_rays
+    from ..polarizer_check import saturated_blocks
+    from ..skyfit import data_mask, sample_sky
 
     m = np.asarray(mosaic)
     small, k, nx, ny = decimated_blocks(m, max_blocks)

@@ -1,0 +1,19 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Per-frame processing behind the nodes, ROS-free (being split: front_end holds all for now)."""
+
+from .front_end import *  # noqa: F401,F403
+from .front_end import __all__  # noqa: F401
+from .front_end import decimated_blocks, PolarizerMonitor, whole_sky_sample  # noqa: F401
