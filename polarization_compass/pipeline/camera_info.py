@@ -27,8 +27,7 @@ class CameraInfoState:
     """
     The intrinsics in use from a camera_info stream, and why none are.
 
-    The intrinsics in use from a camera_info stream, and why none are (ROS-free; the node and the
-    replay).
+    ROS-free: the node and the replay hold one each.
 
     :meth:`accept` a decoded, validated camera; :meth:`reject` a message that failed decoding or
     :func:`~polarization_compass.camera.check_intrinsics`. A rejection also withdraws the camera

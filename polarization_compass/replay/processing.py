@@ -223,7 +223,8 @@ class FramePipeline:
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
         from ..demosaic import layout_from_mapping
-        from ..pipeline import HeadingFrontEnd, TiltAndPrior
+        from ..pipeline.front_end import HeadingFrontEnd
+        from ..pipeline.prior import TiltAndPrior
 
         layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
@@ -251,7 +252,7 @@ class FramePipeline:
         self.timing_ms['observation'] = []
 
     def _sun(self, frame: SyncedFrame):
-        from ..pipeline import SunSource
+        from ..pipeline.sun import SunSource
 
         if self.sun is None:
             self.sun = SunSource(*frame.site, model=self.config.sun_model)
@@ -278,7 +279,7 @@ class FramePipeline:
             needs it, bad input) gives rows with status ``bad_input`` and the reason.
 
         """
-        from ..pipeline import PipelineError
+        from ..pipeline.errors import PipelineError
 
         c = self.config
         t_ns = frame.stamp_ns
@@ -330,7 +331,7 @@ class FramePipeline:
                     )
                 )
                 if c.sky_check:  # the whole-sky check of real skies (skyfit), one sample per frame
-                    from ..pipeline import whole_sky_sample
+                    from ..pipeline.sampling import whole_sky_sample
                     from ..skyfit import assess_result
 
                     if 'sky' not in obs_cache:

@@ -254,7 +254,7 @@ class _FrameSync:
 
     def __init__(self, topic_map: TopicMap, tally: Tally, plan: BagPlan, prior_max_age_s: float):
         from ..camera import CameraModel
-        from ..pipeline import AttitudeBuffer
+        from ..pipeline.attitude import AttitudeBuffer
 
         self.topic_map, self.tally, self.plan = topic_map, tally, plan
         self.wanted = {
