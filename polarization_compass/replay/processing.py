@@ -15,9 +15,8 @@
 """
 Per-frame processing: the nodes' chain for several methods at once.
 
-Per-frame processing: the nodes' chain for several methods at once (:class:`FramePipeline`), one
-:class:`MethodRow` per method and frame, and the ``tilt_corrector``'s correction
-(:class:`_Corrector`).
+The chain (:class:`FramePipeline`), one :class:`MethodRow` per method and frame, and the
+``tilt_corrector``'s correction (:class:`_Corrector`).
 """
 
 from __future__ import annotations

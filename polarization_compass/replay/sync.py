@@ -15,8 +15,8 @@
 """
 Reading a bag: its plan and its images paired with the auxiliary streams.
 
-Reading a bag: what it holds (:func:`plan_bag`) and its images paired with the auxiliary streams at
-their stamps (:func:`iter_synced_frames`; see :mod:`polarization_compass.replay`, "Reading").
+What the bag holds (:func:`plan_bag`), and its images paired with the auxiliary streams at their
+stamps (:func:`iter_synced_frames`; see :mod:`polarization_compass.replay`, "Reading").
 """
 
 from __future__ import annotations
@@ -286,8 +286,7 @@ class _FrameSync:
         """
         Decode one message into (stamp_ns, value), or None when it is skipped.
 
-        (stamp_ns, decoded value) of one message, or None when it is skipped (counted with a
-        reason).
+        A skipped message is counted with a reason.
         """
         self.tally.read[topic] += 1
         if mtype != self.topic_map.spec(role).type:  # a connection of another type on this topic
@@ -372,11 +371,7 @@ class _FrameSync:
                 yield f
 
     def release(self, item) -> SyncedFrame | None:
-        """
-        Return the :class:`SyncedFrame` of a queued image, or None when it cannot be processed.
-
-        The :class:`SyncedFrame` of a queued image, or None when it cannot be processed (counted).
-        """
+        """Return the :class:`SyncedFrame` of a queued image, None (counted) when it cannot be."""
         tally, imu, ref, R_body_cam = self.tally, self.imu, self.ref, self.R_body_cam
         t, log_ns, mosaic, cam, fix = item
         cam = cam if cam is not None else self.camera

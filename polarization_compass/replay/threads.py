@@ -15,8 +15,8 @@
 """
 Threads: the method groups of one replay share one read of the bag.
 
-Threads: the method groups of one replay share one read of the bag (:func:`method_groups`,
-:func:`_replay_threads`), and the whole bag (:func:`replay_bag`, :class:`ReplayResult`).
+The groups and their threads (:func:`method_groups`, :func:`_replay_threads`), and the whole bag
+(:func:`replay_bag`, :class:`ReplayResult`).
 """
 
 from __future__ import annotations
