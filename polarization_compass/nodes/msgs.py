@@ -211,6 +211,9 @@ def array_msg(intensities: np.ndarray):
 #: The one image decoder (:func:`polarization_compass.bag.image.decode_mosaic`): cv_bridge where
 #: it is installed, else numpy, with the same checks; the offline replay uses it too.
 decode_image = decode_mosaic
+# Choose the decoder as a node starts, not in its first image callback: importing cv_bridge takes
+# ~1 s, during which a burst of images overflows the image queue (test_nodes_robustness's burst).
+image_decoder()
 
 
 def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo:
