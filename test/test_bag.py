@@ -13,10 +13,10 @@
 # limitations under the License.
 
 """
-Tests of bag.py: topic mapping, message conversions, rosbag2 I/O and errors.
+Tests of the bag package: topic mapping, message conversions, rosbag2 I/O and errors.
 
-bag.py: topic mapping, message conversions (checked against hand-built bytes and closed forms),
-rosbag2 reading/writing in both storage formats, and one-line errors for paths that are not bags.
+Message conversions are checked against hand-built bytes and closed forms, rosbag2 reading and
+writing in both storage formats, and one-line errors for paths that are not bags.
 """
 
 import math

@@ -16,9 +16,9 @@
 Rclpy message construction and validation shared by the nodes.
 
 Decoding is duck-typed and shared with the offline replay: :mod:`polarization_compass.bag` decodes
-mosaics (``mono8``/``mono16``), camera_info, orientations and NavSatFix; this module adds the ideal
-``32FC1`` mosaic, builds rclpy messages and applies robot_localization's conventions to the
-heading:
+mosaics (:func:`decode_image`, the one image decoder: cv_bridge where installed), camera_info,
+orientations and NavSatFix; this module builds rclpy messages and applies robot_localization's
+conventions to the heading:
 
 * ``orientation``: a pure REP-103 yaw quaternion (roll = pitch = 0), normalised;
 * ``orientation_covariance``: row-major about x, y, z: large roll and pitch variances, the yaw
@@ -31,15 +31,15 @@ heading:
 from __future__ import annotations
 
 import math
-import os
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import KeyValue
 import numpy as np
 from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix, NavSatStatus
 
-from ..bag import _ENCODINGS as _MOSAIC_DTYPES  # the encodings decode_mosaic accepts
-from ..bag import decode_mosaic, decode_orientation, MessageError, stamp_ns
+from ..bag.codec import decode_orientation, stamp_ns
+from ..bag.errors import MessageError
+from ..bag.image import decode_mosaic, image_decoder
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
 
@@ -104,9 +104,7 @@ def attitude_imu(
     gravity_body=None,
 ) -> Imu:
     """
-    Build a full-attitude IMU message (the simulated IMU).
-
-    A full-attitude IMU message (the simulated IMU): orientation of ``frame_id`` in ENU.
+    Build a full-attitude IMU message (the simulated IMU): orientation of ``frame_id`` in ENU.
 
     ``variances_rad2``: roll, pitch, yaw orientation variances. Angular velocity and linear
     acceleration are filled when given (rad/s, m/s^2, body frame) with a small covariance, else
@@ -141,11 +139,7 @@ def yaw_enu_from_quat(q_xyzw) -> float:
 
 
 def bearing_from_imu(msg) -> float:
-    """
-    Return the true bearing (deg, [0, 360)) of body +x from an Imu orientation.
-
-    True bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 deg - REP-103 yaw.
-    """
+    """Return the true bearing (deg, [0, 360)) of body +x from an Imu orientation: 90 - yaw."""
     q = decode_orientation(msg)
     return float(wrap_360_deg(90.0 - math.degrees(yaw_enu_from_quat(q))))
 
@@ -169,8 +163,7 @@ def image_msg(array: np.ndarray, t_ns: int, frame_id: str) -> Image:
     """
     Build a sensor_msgs/Image of a 2-D uint8, uint16 or float32 array.
 
-    sensor_msgs/Image of a 2-D uint8 (mono8), uint16 (mono16) or float32 (32FC1) array, little
-    endian.
+    Encoded ``mono8``, ``mono16`` or ``32FC1``, little endian, unpadded.
     """
     a = np.asarray(array)
     enc = {
@@ -198,8 +191,8 @@ def array_msg(intensities: np.ndarray):
     """
     Build the std_msgs/Float32MultiArray of one photodiode-array sample.
 
-    std_msgs/Float32MultiArray of one photodiode-array sample (units x channels, row-major;
-    layout.dim [units, channels]): the layout heading_estimator reads with ``input: array``.
+    Units x channels, row-major (``layout.dim`` [units, channels]): the layout heading_estimator
+    reads with ``input: array``.
     """
     from std_msgs.msg import Float32MultiArray, MultiArrayDimension
 
@@ -215,90 +208,12 @@ def array_msg(intensities: np.ndarray):
     return m
 
 
-_BRIDGE: list = []  # [CvBridge instance or None], filled on first use
-
-
-def image_decoder() -> str:
-    """
-    Return the decoder :func:`decode_image` uses in this process.
-
-    Which decoder :func:`decode_image` uses in this process: ``"cv_bridge"`` where the ROS package
-    ``cv_bridge`` imports (a ROS install) and ``POLARIZATION_COMPASS_CV_BRIDGE`` is not ``0``, else
-    ``"decode_mosaic"`` (:func:`polarization_compass.bag.decode_mosaic`, the project's tested
-    decoder).
-    """
-    return 'cv_bridge' if _bridge() is not None else 'decode_mosaic'
-
-
-def _bridge():
-    if not _BRIDGE:
-        bridge = None
-        if os.environ.get('POLARIZATION_COMPASS_CV_BRIDGE', '1').strip() != '0':
-            try:
-                from cv_bridge import CvBridge
-
-                bridge = CvBridge()
-            # missing, or broken (PyPI's ROS 1 cv-bridge on numpy 2)
-            except Exception:  # noqa: BLE001
-                bridge = None
-        _BRIDGE.append(bridge)
-    return _BRIDGE[0]
-
-
-def decode_image(msg) -> np.ndarray:
-    """
-    Decode the mosaic of a sensor_msgs/Image as a (height, width) array.
-
-    The mosaic of a sensor_msgs/Image as a (height, width) array: uint8 (``mono8``/``8UC1``),
-    uint16 (``mono16``/``16UC1``) or float32 (``32FC1``: ideal polarizer intensities, finite and >=
-    0). The one function every node converts images with.
-
-    Through ``cv_bridge`` (``imgmsg_to_cv2``, passthrough encoding: row padding and byte order
-    handled by it) where it is importable, then held to the same contract as the project's decoder:
-    the same encodings, even dimensions, the array's shape and dtype as the message says, and for
-    ``32FC1`` finite, non-negative values. Elsewhere (no ROS install: PyPI has no cv_bridge for ROS
-    2) through :func:`polarization_compass.bag.decode_mosaic`, which the offline replay also uses.
-    Raises :class:`MessageError` with a ``reason`` tag (``bad_encoding``, ``bad_size``,
-    ``non_finite``, ``bad_value``, ``bad_image``).
-    """
-    bridge = _bridge()
-    if bridge is None:
-        return decode_mosaic(msg)
-    enc = str(msg.encoding)
-    dtype = _MOSAIC_DTYPES.get(enc)
-    if dtype is None:
-        raise MessageError(
-            'bad_encoding',
-            f'image encoding {enc!r} is not a raw polarizer mosaic '
-            f'(expected one of {", ".join(_MOSAIC_DTYPES)})',
-        )
-    h, w = int(msg.height), int(msg.width)
-    if h < 2 or w < 2 or h % 2 or w % 2:
-        raise MessageError('bad_size', f'mosaic {w}x{h} must have even width and height >= 2')
-    try:
-        img = bridge.imgmsg_to_cv2(msg, desired_encoding='passthrough')
-    # CvBridgeError, TypeError, ValueError for a short buffer
-    except Exception as exc:  # noqa: BLE001
-        raise MessageError(
-            'bad_size' if isinstance(exc, (TypeError, ValueError)) else 'bad_image',
-            f'cv_bridge: {type(exc).__name__}: {exc}',
-        ) from None
-    img = np.asarray(img)
-    if (
-        img.shape != (h, w)
-        or img.dtype.kind != np.dtype(dtype).kind
-        or img.dtype.itemsize != np.dtype(dtype).itemsize
-    ):
-        raise MessageError(
-            'bad_image', f'cv_bridge gave {img.dtype} {img.shape} for a {w}x{h} {enc} image'
-        )
-    img = np.ascontiguousarray(img, dtype=dtype)
-    if img.dtype.kind == 'f':
-        if not np.isfinite(img).all():
-            raise MessageError('non_finite', f'{enc} mosaic has NaN or inf pixels')
-        if (img < 0).any():
-            raise MessageError('bad_value', f'{enc} mosaic has negative intensities')
-    return img
+#: The one image decoder (:func:`polarization_compass.bag.image.decode_mosaic`): cv_bridge where
+#: it is installed, else numpy, with the same checks; the offline replay uses it too.
+decode_image = decode_mosaic
+# Choose the decoder as a node starts, not in its first image callback: importing cv_bridge takes
+# ~1 s, during which a burst of images overflows the image queue (test_nodes_robustness's burst).
+image_decoder()
 
 
 def camera_info_msg(camera: CameraModel, t_ns: int, frame_id: str) -> CameraInfo:

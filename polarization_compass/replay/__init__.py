@@ -15,8 +15,8 @@
 """
 Offline replay of a recorded field run (rosbag2), faster than real time.
 
-Offline replay of a recorded field run (rosbag2): every method's heading, raw and tilt-corrected,
-against the reference heading, faster than real time. ROS-free (reads bags with `rosbags`).
+Every method's heading, raw and tilt-corrected, against the reference heading. ROS-free (reads bags
+with `rosbags`).
 
 Same code as the nodes
 ----------------------

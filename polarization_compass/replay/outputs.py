@@ -174,6 +174,26 @@ def plot_replay(result: ReplayResult, out_dir) -> dict:
     rows = result.rows
     if not rows:
         return paths
+    methods, series = _error_series(rows)
+    tilt_txt = _tilt_text(rows)
+    if not any(series[m]['raw'] for m in methods):
+        return paths
+    paths['plot_raw'] = _plot_raw(plt, series, methods, tilt_txt, out / 'errors_raw.png')
+    corrected = [m for m in methods if series[m]['cor']]
+    if corrected:
+        paths['plot_corrected'] = _plot_corrected(
+            plt, series, corrected, tilt_txt, out / 'errors_corrected.png'
+        )
+    p = plot_report(
+        out / 'errors_vs_bearing.png', result.matches, title='error against reference bearing'
+    )
+    if p is not None:
+        paths['plot_vs_bearing'] = p
+    return paths
+
+
+def _error_series(rows) -> tuple[list, dict]:
+    """Return the methods in row order and their raw and corrected errors [deg] by time [s]."""
     t0 = rows[0].stamp_ns
     methods = list(dict.fromkeys(r.method for r in rows))
     series = {}
@@ -185,18 +205,24 @@ def plot_replay(result: ReplayResult, out_dir) -> dict:
         if r.corrected_error_deg is not None:
             s['tc'].append((r.stamp_ns - t0) / 1e9)
             s['cor'].append(r.corrected_error_deg)
+    return methods, series
+
+
+def _tilt_text(rows) -> str:
+    """Return the figures' note on the IMU tilt: mean pitch and roll [deg], or unknown."""
     pitch = [r.pitch_deg for r in rows if r.pitch_deg is not None]
     roll = [r.roll_deg for r in rows if r.roll_deg is not None]
-    tilt_txt = (
+    return (
         f'IMU pitch {round(float(np.mean(pitch)), 1) + 0.0:.1f} deg, roll '
         f'{round(float(np.mean(roll)), 1) + 0.0:.1f}'
         ' deg (mean)'
         if pitch
         else 'tilt unknown'
     )
-    if not any(series[m]['raw'] for m in methods):
-        return paths
 
+
+def _plot_raw(plt, series: dict, methods: list, tilt_txt: str, p: Path) -> Path:
+    """Draw every method's raw error against time into ``p`` (Figs 17-19); return ``p``."""
     fig, ax = plt.subplots(figsize=(8.0, 4.2), dpi=110)
     for m in methods:
         s = series[m]
@@ -217,52 +243,45 @@ def plot_replay(result: ReplayResult, out_dir) -> dict:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc='best')
     fig.tight_layout()
-    p = out / 'errors_raw.png'
     fig.savefig(p)
     plt.close(fig)
-    paths['plot_raw'] = p
+    return p
 
-    corrected = [m for m in methods if series[m]['cor']]
-    if corrected:
-        n = len(corrected)
-        fig, axes = plt.subplots(
-            n, 1, figsize=(8.0, 2.3 * n + 0.8), dpi=110, sharex=True, squeeze=False
-        )
-        for ax, m in zip(axes[:, 0], corrected):
-            s = series[m]
-            ax.plot(
-                s['t'],
-                s['raw'],
-                '-',
-                lw=1.0,
-                color='tab:red',
-                label=f'raw (rms {_rms(s["raw"]):.2f})',
-            )
-            ax.plot(
-                s['tc'],
-                s['cor'],
-                '-',
-                lw=1.0,
-                color='tab:blue',
-                label=f'corrected (rms {_rms(s["cor"]):.2f})',
-            )
-            ax.axhline(0.0, color='0.5', lw=0.6)
-            ax.set_ylabel(f'{m}\nerror, deg')
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=7, loc='best')
-        axes[-1, 0].set_xlabel('time since first image, s')
-        fig.suptitle(f'Tilt correction with the error map; {tilt_txt}', fontsize=9)
-        fig.tight_layout()
-        p = out / 'errors_corrected.png'
-        fig.savefig(p)
-        plt.close(fig)
-        paths['plot_corrected'] = p
-    p = plot_report(
-        out / 'errors_vs_bearing.png', result.matches, title='error against reference bearing'
+
+def _plot_corrected(plt, series: dict, corrected: list, tilt_txt: str, p: Path) -> Path:
+    """Draw raw against corrected error, one panel per method, into ``p`` (Figs 20-22)."""
+    n = len(corrected)
+    fig, axes = plt.subplots(
+        n, 1, figsize=(8.0, 2.3 * n + 0.8), dpi=110, sharex=True, squeeze=False
     )
-    if p is not None:
-        paths['plot_vs_bearing'] = p
-    return paths
+    for ax, m in zip(axes[:, 0], corrected):
+        s = series[m]
+        ax.plot(
+            s['t'],
+            s['raw'],
+            '-',
+            lw=1.0,
+            color='tab:red',
+            label=f'raw (rms {_rms(s["raw"]):.2f})',
+        )
+        ax.plot(
+            s['tc'],
+            s['cor'],
+            '-',
+            lw=1.0,
+            color='tab:blue',
+            label=f'corrected (rms {_rms(s["cor"]):.2f})',
+        )
+        ax.axhline(0.0, color='0.5', lw=0.6)
+        ax.set_ylabel(f'{m}\nerror, deg')
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc='best')
+    axes[-1, 0].set_xlabel('time since first image, s')
+    fig.suptitle(f'Tilt correction with the error map; {tilt_txt}', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(p)
+    plt.close(fig)
+    return p
 
 
 def _rms(v) -> float:

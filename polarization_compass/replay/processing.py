@@ -15,9 +15,8 @@
 """
 Per-frame processing: the nodes' chain for several methods at once.
 
-Per-frame processing: the nodes' chain for several methods at once (:class:`FramePipeline`), one
-:class:`MethodRow` per method and frame, and the ``tilt_corrector``'s correction
-(:class:`_Corrector`).
+The chain (:class:`FramePipeline`), one :class:`MethodRow` per method and frame, and the
+``tilt_corrector``'s correction (:class:`_Corrector`).
 """
 
 from __future__ import annotations
@@ -30,7 +29,7 @@ import time
 import numpy as np
 
 from .sync import SyncedFrame
-from ..bag import TopicMap
+from ..bag.topic_map import TopicMap
 from ..errors import CompassError
 from ..estimators import registry
 
@@ -223,7 +222,8 @@ class FramePipeline:
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
         from ..demosaic import layout_from_mapping
-        from ..pipeline import HeadingFrontEnd, TiltAndPrior
+        from ..pipeline.front_end import HeadingFrontEnd
+        from ..pipeline.prior import TiltAndPrior
 
         layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
@@ -251,7 +251,7 @@ class FramePipeline:
         self.timing_ms['observation'] = []
 
     def _sun(self, frame: SyncedFrame):
-        from ..pipeline import SunSource
+        from ..pipeline.sun import SunSource
 
         if self.sun is None:
             self.sun = SunSource(*frame.site, model=self.config.sun_model)
@@ -278,17 +278,14 @@ class FramePipeline:
             needs it, bad input) gives rows with status ``bad_input`` and the reason.
 
         """
-        from ..pipeline import PipelineError
+        from ..pipeline.errors import PipelineError
 
-        c = self.config
-        t_ns = frame.stamp_ns
-        rows = []
         try:
             sun_az, sun_alt = self._sun(frame)
         except PipelineError as exc:
             return [
                 MethodRow(
-                    stamp_ns=t_ns,
+                    stamp_ns=frame.stamp_ns,
                     method=m,
                     status='bad_input',
                     reason=str(exc),
@@ -296,90 +293,85 @@ class FramePipeline:
                 )
                 for m in self.methods
             ]
-        tilt = frame.tilt
-        obs_cache: dict = {}
-        for m, front in self.fronts.items():
-            inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
-            pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
-            if inp.tilt_missing:
-                rows.append(
-                    MethodRow(
-                        stamp_ns=t_ns,
-                        method=m,
-                        status='bad_input',
-                        reason='no IMU sample near the image stamp (tilt unknown)',
-                        reference_bearing_deg=frame.true_bearing_deg,
-                        sun_azimuth_deg=sun_az,
-                        sun_altitude_deg=sun_alt,
-                        prior_bearing_deg=prior,
-                    )
-                )
-                continue
-            key = front.observation_key(frame.camera)
-            t0 = time.perf_counter()
-            try:
-                obs = obs_cache.get(key)
-                if obs is None:
-                    obs = front.observation(frame.mosaic, frame.camera, sun_az, sun_alt)
-                    obs_cache[key] = obs
-                    self.timing_ms['observation'].append((time.perf_counter() - t0) * 1e3)
-                    t0 = time.perf_counter()
-                result = front.estimator.estimate(
-                    dataclasses.replace(
-                        obs, pitch_deg=pitch, roll_deg=roll, prior_bearing_deg=prior
-                    )
-                )
-                if c.sky_check:  # the whole-sky check of real skies (skyfit), one sample per frame
-                    from ..pipeline import whole_sky_sample
-                    from ..skyfit import assess_result
+        obs_cache: dict = {}  # one observation per demosaic front, one whole-sky sample
+        return [
+            self._method_row(m, front, frame, sun_az, sun_alt, obs_cache)
+            for m, front in self.fronts.items()
+        ]
 
-                    if 'sky' not in obs_cache:
-                        obs_cache['sky'] = whole_sky_sample(
-                            frame.mosaic, frame.camera, front.layout
-                        )
-                    result = assess_result(result, obs_cache['sky'], sun_alt, pitch, roll, prior)
-            except CompassError as exc:
-                rows.append(
-                    MethodRow(
-                        stamp_ns=t_ns,
-                        method=m,
-                        status='bad_input',
-                        reason=str(exc),
-                        reference_bearing_deg=frame.true_bearing_deg,
-                        pitch_deg=pitch,
-                        roll_deg=roll,
-                        sun_azimuth_deg=sun_az,
-                        sun_altitude_deg=sun_alt,
-                        prior_bearing_deg=prior,
-                    )
-                )
-                continue
-            self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
-            raw = result.bearing_deg if result.ok and not result.axial else None
-            self.tilt_prior[m].remember(t_ns, result)
-            corrected, cstatus = None, ''
-            if raw is not None and m not in c.direct_methods and self.corrector is not None:
-                corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
-            rows.append(
-                MethodRow(
-                    stamp_ns=t_ns,
-                    method=m,
-                    status=result.status.value,
-                    reason=result.reason,
-                    raw_bearing_deg=float(result.bearing_deg) if result.ok else None,
-                    corrected_bearing_deg=corrected,
-                    correction_status=cstatus,
-                    reference_bearing_deg=frame.true_bearing_deg,
-                    sigma_deg=result.sigma_deg,
-                    pixels=result.pixels,
-                    pitch_deg=tilt.pitch_deg if tilt is not None else None,
-                    roll_deg=tilt.roll_deg if tilt is not None else None,
-                    sun_azimuth_deg=sun_az,
-                    sun_altitude_deg=sun_alt,
-                    prior_bearing_deg=prior,
-                )
+    def _method_row(self, m, front, frame, sun_az, sun_alt, obs_cache: dict) -> MethodRow:
+        """Run method ``m`` on the frame: its prior and tilt, the estimate, the tilt correction."""
+        c = self.config
+        t_ns, tilt = frame.stamp_ns, frame.tilt
+        inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
+        pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
+        common = {
+            'stamp_ns': t_ns,
+            'method': m,
+            'reference_bearing_deg': frame.true_bearing_deg,
+            'sun_azimuth_deg': sun_az,
+            'sun_altitude_deg': sun_alt,
+            'prior_bearing_deg': prior,
+        }
+        if inp.tilt_missing:
+            return MethodRow(
+                status='bad_input',
+                reason='no IMU sample near the image stamp (tilt unknown)',
+                **common,
             )
-        return rows
+        key = front.observation_key(frame.camera)
+        t0 = time.perf_counter()
+        try:
+            result, t0 = self._estimate(front, frame, inp, key, sun_az, sun_alt, obs_cache, t0)
+        except CompassError as exc:
+            return MethodRow(
+                status='bad_input', reason=str(exc), pitch_deg=pitch, roll_deg=roll, **common
+            )
+        self.timing_ms[m].append((time.perf_counter() - t0) * 1e3)
+        raw = result.bearing_deg if result.ok and not result.axial else None
+        self.tilt_prior[m].remember(t_ns, result)
+        corrected, cstatus = None, ''
+        if raw is not None and m not in c.direct_methods and self.corrector is not None:
+            corrected, cstatus = self.corrector(m, raw, result, tilt, sun_az, sun_alt, t_ns)
+        return MethodRow(
+            status=result.status.value,
+            reason=result.reason,
+            raw_bearing_deg=float(result.bearing_deg) if result.ok else None,
+            corrected_bearing_deg=corrected,
+            correction_status=cstatus,
+            sigma_deg=result.sigma_deg,
+            pixels=result.pixels,
+            pitch_deg=tilt.pitch_deg if tilt is not None else None,
+            roll_deg=tilt.roll_deg if tilt is not None else None,
+            **common,
+        )
+
+    def _estimate(self, front, frame, inp, key, sun_az, sun_alt, obs_cache: dict, t0: float):
+        """
+        Return a method's result on the frame, and when its own time [perf_counter s] started.
+
+        The observation is computed once per demosaic front (``key``) and shared, its time counted
+        as ``observation``; with ``sky_check`` the result is assessed on one whole-sky sample per
+        frame (skyfit). Raises :class:`~polarization_compass.errors.CompassError` for bad input.
+        """
+        obs = obs_cache.get(key)
+        if obs is None:
+            obs = front.observation(frame.mosaic, frame.camera, sun_az, sun_alt)
+            obs_cache[key] = obs
+            self.timing_ms['observation'].append((time.perf_counter() - t0) * 1e3)
+            t0 = time.perf_counter()
+        pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
+        result = front.estimator.estimate(
+            dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll, prior_bearing_deg=prior)
+        )
+        if self.config.sky_check:  # the whole-sky check of real skies (skyfit), one per frame
+            from ..pipeline.sampling import whole_sky_sample
+            from ..skyfit import assess_result
+
+            if 'sky' not in obs_cache:
+                obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
+            result = assess_result(result, obs_cache['sky'], sun_alt, pitch, roll, prior)
+        return result, t0
 
 
 def default_error_map() -> str | None:

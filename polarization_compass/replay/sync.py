@@ -15,8 +15,8 @@
 """
 Reading a bag: its plan and its images paired with the auxiliary streams.
 
-Reading a bag: what it holds (:func:`plan_bag`) and its images paired with the auxiliary streams at
-their stamps (:func:`iter_synced_frames`; see :mod:`polarization_compass.replay`, "Reading").
+What the bag holds (:func:`plan_bag`), and its images paired with the auxiliary streams at their
+stamps (:func:`iter_synced_frames`; see :mod:`polarization_compass.replay`, "Reading").
 """
 
 from __future__ import annotations
@@ -26,18 +26,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bag import (
-    BagReader,
+from ..bag.codec import (
     decode_camera_info,
-    decode_mosaic,
     decode_navsatfix,
     decode_orientation,
     deserialize,
-    MessageError,
     stamp_ns,
-    Tally,
-    TopicMap,
 )
+from ..bag.errors import MessageError
+from ..bag.image import decode_mosaic
+from ..bag.reader import BagReader, Tally
+from ..bag.topic_map import TopicMap
 from ..conventions import camera_attitude_from_body_quat, wrap_360_deg
 
 __all__ = ['BagPlan', 'plan_bag', 'SyncedFrame', 'prefetched', 'iter_synced_frames']
@@ -255,7 +254,7 @@ class _FrameSync:
 
     def __init__(self, topic_map: TopicMap, tally: Tally, plan: BagPlan, prior_max_age_s: float):
         from ..camera import CameraModel
-        from ..pipeline import AttitudeBuffer
+        from ..pipeline.attitude import AttitudeBuffer
 
         self.topic_map, self.tally, self.plan = topic_map, tally, plan
         self.wanted = {
@@ -287,8 +286,7 @@ class _FrameSync:
         """
         Decode one message into (stamp_ns, value), or None when it is skipped.
 
-        (stamp_ns, decoded value) of one message, or None when it is skipped (counted with a
-        reason).
+        A skipped message is counted with a reason.
         """
         self.tally.read[topic] += 1
         if mtype != self.topic_map.spec(role).type:  # a connection of another type on this topic
@@ -373,11 +371,7 @@ class _FrameSync:
                 yield f
 
     def release(self, item) -> SyncedFrame | None:
-        """
-        Return the :class:`SyncedFrame` of a queued image, or None when it cannot be processed.
-
-        The :class:`SyncedFrame` of a queued image, or None when it cannot be processed (counted).
-        """
+        """Return the :class:`SyncedFrame` of a queued image, None (counted) when it cannot be."""
         tally, imu, ref, R_body_cam = self.tally, self.imu, self.ref, self.R_body_cam
         t, log_ns, mosaic, cam, fix = item
         cam = cam if cam is not None else self.camera

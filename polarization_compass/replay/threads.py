@@ -15,8 +15,8 @@
 """
 Threads: the method groups of one replay share one read of the bag.
 
-Threads: the method groups of one replay share one read of the bag (:func:`method_groups`,
-:func:`_replay_threads`), and the whole bag (:func:`replay_bag`, :class:`ReplayResult`).
+The groups and their threads (:func:`method_groups`, :func:`_replay_threads`), and the whole bag
+(:func:`replay_bag`, :class:`ReplayResult`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,9 @@ import time
 
 from .processing import _Corrector, _make_corrector, FramePipeline, MethodRow, ReplayConfig
 from .sync import BagPlan, iter_synced_frames, plan_bag, prefetched
-from ..bag import BagError, BagReader, default_topic_map, Tally, TopicMap
+from ..bag.errors import BagError
+from ..bag.reader import BagReader, Tally
+from ..bag.topic_map import default_topic_map, TopicMap
 from ..estimators import registry
 from ..runtime import keep_large_buffers_in_heap, single_threaded_kernels
 
@@ -157,7 +159,6 @@ def _replay_threads(
     on 2 cores reading a 10 MB image took ~7 ms of each process's ~22 ms per frame.
     """
     import queue
-    import threading
 
     # each 10 MB image read from the bag: 9.1 -> 6.8 ms of CPU (page faults)
     keep_large_buffers_in_heap()
@@ -169,6 +170,35 @@ def _replay_threads(
     rows: list[list[MethodRow]] = [[] for _ in groups]
     queues = [queue.Queue(maxsize=_LAG) for _ in groups[1:]]
     failures: list[BaseException] = []
+    threads = _start_group_threads(pipes, rows, queues, failures)
+    tally = Tally()
+    try:
+        plan, frames, first_stamp, last_stamp, truths = _read_and_feed(
+            path, config, topic_map, tally, (pipes[0], rows[0]), queues, failures, progress
+        )
+    finally:
+        for q in queues:
+            q.put(None)
+        for th in threads:
+            th.join()
+    if failures:
+        raise failures[0]
+    return _Read(
+        [r for group_rows in rows for r in group_rows],
+        truths,
+        tally,
+        plan,
+        frames,
+        first_stamp,
+        last_stamp,
+        _merged_timing(pipes),
+        time.process_time() - t_cpu,
+    )
+
+
+def _start_group_threads(pipes: list, rows: list, queues: list, failures: list) -> list:
+    """Start one thread per method group but the first, each processing the frames of its queue."""
+    import threading
 
     def work(k: int):
         import numba
@@ -188,76 +218,70 @@ def _replay_threads(
 
     threads = [
         threading.Thread(target=work, args=(k,), name=f'replay-group-{k}', daemon=True)
-        for k in range(1, len(groups))
+        for k in range(1, len(pipes))
     ]
     for th in threads:
         th.start()
-    tally = Tally()
+    return threads
+
+
+def _read_and_feed(path, config, topic_map, tally, first_group, queues, failures, progress):
+    """
+    Read the bag once, feed every frame to the other groups' queues, process group 0 here.
+
+    Returns the plan, the number of frames, the first and last image stamps [ns] and the
+    ``(stamp_ns, true bearing)`` of the frames with a reference.
+    """
+    pipe0, rows0 = first_group
     truths: list = []
     first_stamp = last_stamp = None
     frames = 0
-    try:
-        with (
-            BagReader(path) as reader,
-            single_threaded_kernels(),
-            ExitStack() as stack,
-        ):  # closing: the reader
-            plan = plan_bag(reader, topic_map)  # threads stop too
-            if plan.fatal:
-                raise BagError(f'{reader.path}: ' + '; '.join(plan.fatal))
-            # decoding and pairing run on the reading thread too: the calling thread only processes
-            # its group (3 interleaved runs each: 19.4-23.0 ms per frame against 21.6-22.5 with
-            # decoding on this thread)
-            frames_in = stack.enter_context(
-                closing(
-                    prefetched(
-                        iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s),
-                        4,
-                    )
+    with (
+        BagReader(path) as reader,
+        single_threaded_kernels(),
+        ExitStack() as stack,
+    ):  # closing: the reader
+        plan = plan_bag(reader, topic_map)  # threads stop too
+        if plan.fatal:
+            raise BagError(f'{reader.path}: ' + '; '.join(plan.fatal))
+        # decoding and pairing run on the reading thread too: the calling thread only processes
+        # its group (3 interleaved runs each: 19.4-23.0 ms per frame against 21.6-22.5 with
+        # decoding on this thread)
+        frames_in = stack.enter_context(
+            closing(
+                prefetched(
+                    iter_synced_frames(reader, topic_map, tally, plan, config.prior_max_age_s),
+                    4,
                 )
             )
-            for frame in frames_in:
-                frames += 1
-                first_stamp = (
-                    frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
-                )
-                last_stamp = (
-                    frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
-                )
-                if frame.true_bearing_deg is not None:
-                    truths.append((frame.stamp_ns, frame.true_bearing_deg))
-                for q in queues:
-                    q.put(frame)
-                rows[0].extend(pipes[0].process(frame))
-                if failures:
-                    raise failures[0]
-                if progress is not None:
-                    progress(frames)
-            plan.problems.extend(
-                reader.damage_notes()
-            )  # a truncated bag: read up to the damage, counted
-    finally:
-        for q in queues:
-            q.put(None)
-        for th in threads:
-            th.join()
-    if failures:
-        raise failures[0]
+        )
+        for frame in frames_in:
+            frames += 1
+            first_stamp = (
+                frame.stamp_ns if first_stamp is None else min(first_stamp, frame.stamp_ns)
+            )
+            last_stamp = frame.stamp_ns if last_stamp is None else max(last_stamp, frame.stamp_ns)
+            if frame.true_bearing_deg is not None:
+                truths.append((frame.stamp_ns, frame.true_bearing_deg))
+            for q in queues:
+                q.put(frame)
+            rows0.extend(pipe0.process(frame))
+            if failures:
+                raise failures[0]
+            if progress is not None:
+                progress(frames)
+        # a truncated bag: read up to the damage, counted
+        plan.problems.extend(reader.damage_notes())
+    return plan, frames, first_stamp, last_stamp, truths
+
+
+def _merged_timing(pipes: list) -> dict:
+    """Return every group's per-method times [ms] (and ``observation``'s) in one dict."""
     timing: dict = {'observation': []}
     for pipe in pipes:
         for key, v in pipe.timing_ms.items():
             timing.setdefault(key, []).extend(v)
-    return _Read(
-        [r for group_rows in rows for r in group_rows],
-        truths,
-        tally,
-        plan,
-        frames,
-        first_stamp,
-        last_stamp,
-        timing,
-        time.process_time() - t_cpu,
-    )
+    return timing
 
 
 _LAG = 8  # frames a method group may fall behind the reader (each holds a 10 MB mosaic)

@@ -1,0 +1,96 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Sparse samples of a mosaic for the whole-sky checks: every k-th 2 x 2 block and its sky rays."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..camera import CameraModel
+
+__all__ = [
+    'decimated_blocks',
+    'whole_sky_sample',
+]
+
+
+def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
+    """
+    Keep every k-th 2 x 2 block of a mosaic, as one smaller mosaic with the same 2 x 2 phase.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (H, W).
+    max_blocks : int
+        At most this many blocks are kept (k the smallest step that achieves it).
+
+    Returns
+    -------
+    tuple
+        ``(small, k, nx, ny)``: the (2 ny, 2 nx) mosaic whose block (j, i) is centred at 1-based
+        sensor pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``, the step k and the block counts.
+
+    """
+    H, W = mosaic.shape
+    by, bx = H // 2, W // 2
+    k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
+    ny, nx = (by + k - 1) // k, (bx + k - 1) // k
+    blocks = mosaic[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
+    return np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx), k, nx, ny
+
+
+def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000):
+    """
+    Sample the whole usable sky of a full-sensor mosaic, whatever pixels a method reads.
+
+    Superpixels of a block decimation; saturated blocks and their glare removed; intensity kept for
+    the whole-sky side vote.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw full-sensor DoFP image.
+    camera : CameraModel
+        The camera (rays cached per intrinsics and grid).
+    layout : MosaicLayout
+        The polarizer layout.
+    max_blocks : int, default 8000
+        Blocks demosaiced at most.
+
+    Returns
+    -------
+    SkySample or None
+        The :class:`~polarization_compass.skyfit.SkySample`, None when too little sky is usable.
+
+    """
+    from ..demosaic import aop_dop_from_stokes, stokes_from_mosaic
+    from ..estimators.mosaic_input import _grid_rays
+    from ..polarizer_check import saturated_blocks
+    from ..skyfit import data_mask, sample_sky
+
+    m = np.asarray(mosaic)
+    small, k, nx, ny = decimated_blocks(m, max_blocks)
+    sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
+    s0, s1, s2 = stokes_from_mosaic(
+        small, layout.angles_deg, layout.pol45_toward, 'superpixel', sat
+    )
+    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+    _, _, rays, has_ray = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
+    bright = np.where(saturated_blocks(small, sat, s0.shape), np.float32(np.inf), s0)
+    keep = data_mask(bright, has_ray, float('inf'))
+    return sample_sky(aop, dop, valid & keep, rays, s0)
