@@ -21,8 +21,8 @@
 from __future__ import annotations
 
 import json
-import sys
 
+from ._progress import advance_to, progress_bar
 from ..errors import CompassError
 
 
@@ -127,12 +127,8 @@ def run(args) -> int:
         seed=args.seed,
     )
     tm = load_topic_map(args.topics)
-
-    def progress(k, n):
-        if sys.stderr.isatty():
-            print(f'\rrecord-sim: frame {k}/{n}', end='' if k < n else '\n', file=sys.stderr)
-
-    summary = record_sim(scene, spec, args.out, tm, progress)
+    with progress_bar('record-sim', ' frames') as bar:
+        summary = record_sim(scene, spec, args.out, tm, lambda k, n: advance_to(bar, k, n))
     summary.pop('truth')
     print(json.dumps(summary, indent=1))
     return 0
