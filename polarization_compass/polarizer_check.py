@@ -59,8 +59,7 @@ class Hypothesis:
     """
     A polarizer convention: ``layout`` and ``pol45_toward``.
 
-    A polarizer convention: ``layout`` (2 x 2 angles of the image's top-left block),
-    ``pol45_toward``.
+    ``layout`` holds the 2 x 2 angles of the image's top-left block.
     """
 
     layout: tuple
@@ -149,8 +148,7 @@ def _aop_for(kind: str, data, hyp: Hypothesis, saturation_level):
     """
     Return (aop, dop, valid, s0) of one input under one hypothesis.
 
-    Return (aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a
-    mosaic.
+    A mosaic is read at superpixel resolution.
     """
     if kind == 'mosaic':
         s0, s1, s2 = stokes_from_mosaic(

@@ -15,8 +15,8 @@
 """
 `polarization-compass errormap`: sweep heading errors to a map.
 
-`polarization-compass errormap`: sweep heading errors over sun altitude x yaw x pitch x roll to a
-map (.npz, NetCDF 3 or a Zarr store), in this process or on Dask distributed.
+The sweep runs over sun altitude x yaw x pitch x roll, in this process or on Dask distributed; the
+map is an .npz, NetCDF 3 or a Zarr store.
 """
 
 from __future__ import annotations

@@ -12,11 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-`polarization-compass record-sim`: a synthetic field run written to a rosbag2.
-
-`polarization-compass record-sim`: a synthetic field run written to a rosbag2 (MCAP or sqlite3).
-"""
+"""`polarization-compass record-sim`: a synthetic field run written to a rosbag2 (MCAP/sqlite3)."""
 
 from __future__ import annotations
 
