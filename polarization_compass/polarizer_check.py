@@ -229,42 +229,48 @@ def check_polarizer(
         if isinstance(sun_altitude_deg, (list, tuple))
         else [sun_altitude_deg] * len(inputs)
     )
-    rows = []
-    for h in hyps:
-        total, frames, usable = 0.0, [], True
-        for n, (kind, data, sat) in enumerate(inputs):
-            a, d, v, s0 = _aop_for(kind, data, h, sat)
-            rays, has_ray = rays_for_shape(a.shape)
-            keep = data_mask(
-                s0, has_ray.reshape(a.shape), float('inf') if kind == 'mosaic' else None
-            )
-            if masks is not None and masks[n] is not None:
-                keep &= masks[n]
-            sample = sample_sky(a, d, v & keep, rays)
-            if sample is None:
-                usable = False
-                frames.append({'status': 'too_few_pixels'})
-                continue
-            f = fit_sky(sample, alts[n], pitch_deg, roll_deg)
-            total += f.loss
-            frames.append(
-                {
-                    'psi_deg': round(f.psi_deg, 2),
-                    'sun_altitude_deg': round(f.sun_altitude_deg, 1),
-                    'loss': round(f.loss, 4),
-                    'scatter_deg': round(f.scatter_deg, 2),
-                    'inlier_fraction': round(f.inlier_fraction, 3),
-                }
-            )
-        rows.append(
+    rows = [
+        _fit_hypothesis(h, inputs, alts, rays_for_shape, masks, pitch_deg, roll_deg) for h in hyps
+    ]
+    return _rank(rows, hyps[0], len(inputs))
+
+
+def _fit_hypothesis(h, inputs, alts, rays_for_shape, masks, pitch_deg, roll_deg) -> dict:
+    """Fit the sky to every input under hypothesis ``h``: its row (mean loss, per-frame fits)."""
+    total, frames, usable = 0.0, [], True
+    for n, (kind, data, sat) in enumerate(inputs):
+        a, d, v, s0 = _aop_for(kind, data, h, sat)
+        rays, has_ray = rays_for_shape(a.shape)
+        keep = data_mask(s0, has_ray.reshape(a.shape), float('inf') if kind == 'mosaic' else None)
+        if masks is not None and masks[n] is not None:
+            keep &= masks[n]
+        sample = sample_sky(a, d, v & keep, rays)
+        if sample is None:
+            usable = False
+            frames.append({'status': 'too_few_pixels'})
+            continue
+        f = fit_sky(sample, alts[n], pitch_deg, roll_deg)
+        total += f.loss
+        frames.append(
             {
-                'hypothesis': h.describe(),
-                'loss': round(total / len(inputs), 4) if usable else None,
-                'frames': frames,
+                'psi_deg': round(f.psi_deg, 2),
+                'sun_altitude_deg': round(f.sun_altitude_deg, 1),
+                'loss': round(f.loss, 4),
+                'scatter_deg': round(f.scatter_deg, 2),
+                'inlier_fraction': round(f.inlier_fraction, 3),
             }
         )
+    return {
+        'hypothesis': h.describe(),
+        'loss': round(total / len(inputs), 4) if usable else None,
+        'frames': frames,
+    }
+
+
+def _rank(rows: list, configured: Hypothesis, n_inputs: int) -> dict:
+    """Rank the hypotheses' rows (the configured one first) into the verdict, reason and fix."""
     scored = [r for r in rows if r['loss'] is not None]
-    out = {'configured': hyps[0].describe(), 'hypotheses': rows, 'frames': len(inputs)}
+    out = {'configured': configured.describe(), 'hypotheses': rows, 'frames': n_inputs}
     if len(scored) < 2:
         out.update(
             verdict='cannot_tell',
@@ -291,18 +297,24 @@ def check_polarizer(
         out['reason'] = f'the configured convention fits best, by {margin:.3f} over the runner-up'
     else:
         out['verdict'] = 'contradicted'
-        b = best['hypothesis']
-        out['reason'] = (
-            f'the sky fits {b} better than the configured convention by '
-            f'{(conf["loss"] or 0) - best["loss"]:.3f}'
-            if conf['loss'] is not None
-            else f'the sky fits {b} and the configured convention leaves too few usable pixels'
-        )
-        out['fix'] = (
-            f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in "
-            'CAMERA.yaml '
-            '(node parameters polarizer_layout: '
-            f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
-            f'pol45_toward: "{b["pol45_toward"]}")'
-        )
+        out['reason'], out['fix'] = _contradiction(best, conf)
     return out
+
+
+def _contradiction(best: dict, conf: dict) -> tuple:
+    """Say why the configured convention lost to ``best``, and the setting that fixes it."""
+    b = best['hypothesis']
+    reason = (
+        f'the sky fits {b} better than the configured convention by '
+        f'{(conf["loss"] or 0) - best["loss"]:.3f}'
+        if conf['loss'] is not None
+        else f'the sky fits {b} and the configured convention leaves too few usable pixels'
+    )
+    fix = (
+        f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in "
+        'CAMERA.yaml '
+        '(node parameters polarizer_layout: '
+        f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
+        f'pol45_toward: "{b["pol45_toward"]}")'
+    )
+    return reason, fix
