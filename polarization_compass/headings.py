@@ -48,6 +48,7 @@ __all__ = [
     'Sun',
     'estimate_file',
     'frame_headings',
+    'check_stride',
     'make_estimators',
     'method_list',
     'real_headings',
@@ -298,7 +299,7 @@ def make_estimators(methods, knobs: dict, stride: int | None = None, defaults=No
     from .estimators import make_estimator, registry
 
     if stride is not None:
-        _check_stride(stride, methods)
+        check_stride(stride, methods)
     estimators, used = [], set()
     for name in methods:
         specs = registry.get(name).knob_specs()
@@ -317,8 +318,26 @@ def make_estimators(methods, knobs: dict, stride: int | None = None, defaults=No
     return estimators
 
 
-def _check_stride(stride, methods) -> None:
-    """``stride`` against the declared ``stride`` knob of the selected methods, else of any."""
+def check_stride(stride, methods) -> None:
+    """
+    Check a stride against the ``stride`` knob as the methods declare it.
+
+    The declarations of the selected methods that have the knob, else that of any registered
+    method (so a bad value is refused even when no selected method reads it).
+
+    Parameters
+    ----------
+    stride : int
+        Every N-th sensor pixel.
+    methods : sequence of str
+        The selected methods.
+
+    Raises
+    ------
+    EstimatorError
+        The value is outside the declared range or not an integer.
+
+    """
     from .estimators import registry
 
     def holders(names):

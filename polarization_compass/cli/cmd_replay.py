@@ -121,8 +121,10 @@ def run(args) -> int:
     from ..bag import load_topic_map
     from ..replay import default_error_map, replay_bag, ReplayConfig, write_outputs
 
-    if args.stride is not None and args.stride < 1:
-        raise CompassError(f'--stride must be >= 1, got {args.stride}')
+    if args.stride is not None:  # as the knob declares it, before the bag is read
+        from ..headings import check_stride
+
+        check_stride(args.stride, ())
     if args.workers is not None and not 1 <= args.workers <= 64:
         raise CompassError(f'--workers must be in [1, 64], got {args.workers}')
     methods = (
