@@ -718,10 +718,11 @@ def real_observation(
     """
     from .demosaic import aop_dop_from_stokes
     from .estimators import Observation
+    from .polarizer_check import plane_rays
 
     cam = cam_file.camera
     s0, s1, s2, saturated = _camera_stokes(inp, cam_file, demosaic, ifov_k)
-    xg, yg, rays, has_ray = _plane_rays(cam, s0.shape)
+    xg, yg, rays, has_ray = plane_rays(cam, s0.shape)
     aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
     keep = _sky_mask(s0, has_ray, saturated, mask, xg, yg, cam.shape)
     valid = valid & keep
@@ -756,23 +757,6 @@ def _camera_stokes(inp, cam_file, demosaic, ifov_k):
     from .polarizer_check import saturated_blocks
 
     return s0, s1, s2, saturated_blocks(inp.mosaic, inp.saturation_level, s0.shape)
-
-
-def _plane_rays(cam, shp):
-    """(x, y, rays, has_ray) of planes of shape ``shp``: full resolution or superpixel."""
-    from .camera import PixelSelection, select_pixels
-    from .estimators.mosaic_input import _grid_rays
-
-    H, W = cam.shape
-    if shp == (H, W):
-        sp = select_pixels(cam, PixelSelection.full())
-        return sp.x_px, sp.y_px, sp.rays_cam, sp.has_ray
-    if shp == (H // 2, W // 2):
-        return _grid_rays(cam, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
-    raise CompassError(
-        f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
-        f'{W} x {H} or {W // 2} x {H // 2} (superpixel)'
-    )
 
 
 def _sky_mask(s0, has_ray, saturated, mask, xg, yg, sensor_shape):
