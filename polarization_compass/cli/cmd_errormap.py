@@ -53,6 +53,15 @@ def register(sub):
         'are kept in the Zarr store OUT.partial.zarr (or OUT itself for .zarr) and the same '
         'command resumes.',
     )
+    _add_grid_options(p)
+    _add_run_options(p)
+    _add_domain_and_output_options(p)
+    allow_negative_ranges(p)
+    p.set_defaults(func=run)
+
+
+def _add_grid_options(p) -> None:
+    """Add what is swept: scene or array, methods, and the four axes."""
     p.add_argument(
         '--scene', help="scene YAML: sky model, noise, lens (default: the paper's set-up)"
     )
@@ -73,6 +82,10 @@ def register(sub):
         '--pitch', required=True, metavar='A:B:STEP', help='pitch (about camera x), deg'
     )
     p.add_argument('--roll', required=True, metavar='A:B:STEP', help='roll (about camera y), deg')
+
+
+def _add_run_options(p) -> None:
+    """Add how the cells are computed: stride, workers, Dask scheduler."""
     p.add_argument(
         '--stride',
         type=int,
@@ -91,6 +104,10 @@ def register(sub):
         help='run on this existing Dask cluster (dask scheduler / dask worker) instead of a '
         'LocalCluster',
     )
+
+
+def _add_domain_and_output_options(p) -> None:
+    """Add the tilt domain, the storage and the output map."""
     p.add_argument(
         '--full-domain', action='store_true', help='also compute cells with |pitch|+|roll| > 30'
     )
@@ -118,8 +135,6 @@ def register(sub):
         help='output map: .npz (what the nodes ship), .nc (one NetCDF 3 '
         'file) or .zarr (the labelled Zarr store itself)',
     )
-    allow_negative_ranges(p)
-    p.set_defaults(func=run)
 
 
 def parse_methods(text: str) -> list[str]:

@@ -31,6 +31,13 @@ def register(sub):
         'camera_info, IMU, reference heading (dual-antenna GNSS form) and NavSatFix. '
         'Topic names: config/replay_topics.yaml (or --topics).',
     )
+    _add_run_options(p)
+    _add_sensor_options(p)
+    p.set_defaults(func=run)
+
+
+def _add_run_options(p) -> None:
+    """Add the run: scene, length, output bag, frame rate and encoding, tilt and turns."""
     p.add_argument(
         '--scene',
         help='scene YAML: site, start time, camera, sky, sensor effects; its attitude gives '
@@ -68,6 +75,10 @@ def register(sub):
         default=1.0,
         help='turns over the run, clockwise positive (default 1)',
     )
+
+
+def _add_sensor_options(p) -> None:
+    """Add the other sensors (IMU, reference heading), the topic names and the noise seed."""
     p.add_argument(
         '--imu-rate', type=float, default=50.0, metavar='HZ', help='IMU rate (default 50)'
     )
@@ -97,7 +108,6 @@ def register(sub):
         help='topic names to write (default: the replay defaults)',
     )
     p.add_argument('--seed', type=int, default=0, help='noise seed')
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
