@@ -270,7 +270,7 @@ def run(cfg) -> dict:
             '`python -m bench.run --quick --only graph` runs 15 frames'
         )
     optional_import('rclpy')
-    optional_import('polarization_compass.cli.cmd_sim')
+    optional_import('polarization_compass.graphs')  # what `sim` runs the graph with
     turns, turn_rate = float(cfg.graph_turns), float(cfg.graph_turn_rate)
     runs = []
     for label, extra in VARIANTS:

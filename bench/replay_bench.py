@@ -25,7 +25,7 @@ as it.
    BAG`` into a temporary directory (full: 20 s = 200 frames, ~1.9 GB; quick: 3 s). Its wall time
    is recorded too (not a target).
 2. ``polarization-compass replay BAG --methods ... --out DIR`` in a child process
-   (:mod:`bench.replay_worker`: the command line's own ``main`` with a clock on the replay's
+   (:mod:`bench.replay_worker`: the command's replay run through the core, clock on the replay's
    per-frame progress callback). Whole command = wall time of that child process, interpreter start
    to exit (imports, numba caches, the sun table, reading, every method, the deferred tilt
    correction, CSV and figures). Per frame after start-up = mean wall time between frames, from the

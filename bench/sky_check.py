@@ -23,9 +23,9 @@ side vote; plus one shared ``sample_sky`` per frame); and the polarizer check
 (:class:`polarization_compass.pipeline.PolarizerMonitor`, what the node runs every
 ``polarizer_check_every``-th image) on a full-size raw mosaic.
 
-Frames: the real ``sunny.jpg`` (test/data/real-sky, 2048 x 2048 Stokes planes, fisheye) through the
-``estimate`` CLI's own observation builder, and a simulated ``imx250mzr_noisy`` mosaic for the
-monitor.
+Frames: the real ``sunny.jpg`` (test/data/real-sky, 2048 x 2048 Stokes planes, fisheye) through
+``estimate``'s own observation builder (:func:`polarization_compass.headings.real_observation`),
+and a simulated ``imx250mzr_noisy`` mosaic for the monitor.
 """
 
 from __future__ import annotations
@@ -52,13 +52,10 @@ def _real_sky():
 
 def run(cfg) -> dict:
     optional_import('polarization_compass.skyfit')
-    import tempfile
-
-    from polarization_compass.camera import load_camera_yaml
-    from polarization_compass.cli.cmd_estimate import real_observation
-    from polarization_compass.estimators import estimator_names, make_estimator
+    from polarization_compass.estimators import estimator_names
+    from polarization_compass.headings import real_observation
     from polarization_compass.real_input import PolarizationInput
-    from polarization_compass.skyfit import assess_result, sample_sky
+    from polarization_compass.skyfit import sample_sky
 
     R = _real_sky()
     i, q, u = R.read_quadrants('sunny')
@@ -66,6 +63,44 @@ def run(cfg) -> dict:
     inp = PolarizationInput(
         'stokes', 'sunny.jpg', stokes=(i[::step, ::step], q[::step, ::step], u[::step, ::step])
     )
+    cf = _camera_file(R, step)
+    alt = R.sun_altitude_deg('sunny')
+    repeats = max(1, int(cfg.repeats))
+    obs, _ = real_observation(inp, cf, 0.0, alt, pitch=0.0, roll=0.0)
+    with single_core():
+        t_sample = []
+        for _ in range(repeats + 1):
+            t0 = time.perf_counter()
+            sample = sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
+            t_sample.append(time.perf_counter() - t0)
+        rows = [
+            _method_row(m, obs, sample, alt, repeats)
+            for m in METHODS
+            if m in estimator_names() and (not cfg.methods or m in cfg.methods)
+        ]
+        monitor = _monitor(cfg, repeats)
+    return {
+        'frame': 'sunny.jpg (real, 2048 x 2048 Stokes)'
+        if step == 1
+        else 'sunny.jpg decimated (tiny)',
+        'pixels': int(obs.valid.size),
+        'sample_sky': timing_stats(t_sample[1:]),
+        'rows': rows,
+        'polarizer_monitor': monitor,
+        'threads': 1,
+        'note': 'sky_check = assess_result per method (misfit, jackknife sigma, side vote) after '
+        'one shared '
+        'sample_sky per frame; polarizer_monitor = one check on a full-size mosaic (node, every '
+        'N-th image)',
+    }
+
+
+def _camera_file(R, step: int):
+    """Read the frames' camera file, for planes decimated by ``step`` (the same lens, scaled)."""
+    import tempfile
+
+    from polarization_compass.camera import load_camera_yaml
+
     with tempfile.TemporaryDirectory() as d:
         y = Path(d) / 'cam.yaml'
         text = R.camera_yaml_text()
@@ -82,63 +117,43 @@ def run(cfg) -> dict:
                 f'1]}}\n' + 'distortion_model' + text.split('distortion_model', 1)[1]
             )
         y.write_text(text)
-        cf = load_camera_yaml(y)
-    alt = R.sun_altitude_deg('sunny')
-    repeats = max(1, int(cfg.repeats))
-    obs, _ = real_observation(inp, cf, 0.0, alt, pitch=0.0, roll=0.0)
-    rows = []
-    with single_core():
-        t_sample = []
-        for _ in range(repeats + 1):
-            t0 = time.perf_counter()
-            sample = sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
-            t_sample.append(time.perf_counter() - t0)
-        for m in (
-            x for x in METHODS if x in estimator_names() and (not cfg.methods or x in cfg.methods)
-        ):
-            est = make_estimator(m)
-            assess_result(est.estimate(obs), sample, alt, 0.0, 0.0)  # warm-up
-            t_est, t_chk, statuses = [], [], {}
-            for _ in range(repeats):
-                t0 = time.perf_counter()
-                res = est.estimate(obs)
-                t1 = time.perf_counter()
-                out = assess_result(res, sample, alt, 0.0, 0.0)
-                t2 = time.perf_counter()
-                t_est.append(t1 - t0)
-                t_chk.append(t2 - t1)
-                statuses[out.status.value] = statuses.get(out.status.value, 0) + 1
-            row = {
-                'method': m,
-                'estimate': timing_stats(t_est),
-                'sky_check': timing_stats(t_chk),
-                'statuses': statuses,
-            }
-            if 'outlier_deg' in est.knobs:  # the robust refit estimate turns on for real images
-                rob = make_estimator(m, outlier_deg=15.0, max_aop_noise_deg=90.0)
-                rob.estimate(obs)
-                t_rob = []
-                for _ in range(repeats):
-                    t0 = time.perf_counter()
-                    rob.estimate(obs)
-                    t_rob.append(time.perf_counter() - t0)
-                row['estimate_robust_refit'] = timing_stats(t_rob)
-            rows.append(row)
-        monitor = _monitor(cfg, repeats)
-    return {
-        'frame': 'sunny.jpg (real, 2048 x 2048 Stokes)'
-        if step == 1
-        else 'sunny.jpg decimated (tiny)',
-        'pixels': int(obs.valid.size),
-        'sample_sky': timing_stats(t_sample[1:]),
-        'rows': rows,
-        'polarizer_monitor': monitor,
-        'threads': 1,
-        'note': 'sky_check = assess_result per method (misfit, jackknife sigma, side vote) after '
-        'one shared '
-        'sample_sky per frame; polarizer_monitor = one check on a full-size mosaic (node, every '
-        'N-th image)',
+        return load_camera_yaml(y)
+
+
+def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
+    """Time one method: its estimate, its whole-sky check and, if it has one, its robust refit."""
+    from polarization_compass.estimators import make_estimator
+    from polarization_compass.headings import REAL_SKY_KNOBS
+    from polarization_compass.skyfit import assess_result
+
+    est = make_estimator(m)
+    assess_result(est.estimate(obs), sample, alt, 0.0, 0.0)  # warm-up
+    t_est, t_chk, statuses = [], [], {}
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = est.estimate(obs)
+        t1 = time.perf_counter()
+        out = assess_result(res, sample, alt, 0.0, 0.0)
+        t2 = time.perf_counter()
+        t_est.append(t1 - t0)
+        t_chk.append(t2 - t1)
+        statuses[out.status.value] = statuses.get(out.status.value, 0) + 1
+    row = {
+        'method': m,
+        'estimate': timing_stats(t_est),
+        'sky_check': timing_stats(t_chk),
+        'statuses': statuses,
     }
+    if 'outlier_deg' in est.knobs:  # the robust refit estimate turns on for real images
+        rob = make_estimator(m, **REAL_SKY_KNOBS)
+        rob.estimate(obs)
+        t_rob = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            rob.estimate(obs)
+            t_rob.append(time.perf_counter() - t0)
+        row['estimate_robust_refit'] = timing_stats(t_rob)
+    return row
 
 
 def _monitor(cfg, repeats) -> dict:

@@ -171,9 +171,9 @@ def _check_declared_shapes(name: str, headers: dict) -> None:
     """
     Check the shapes a frame file declares before anything is decompressed.
 
-    The shapes a frame file declares, before anything is decompressed: the required arrays present,
-    the per-pixel arrays of one 2-D (or 1-D pixel list) shape of at most :data:`MAX_FRAME_PIXELS`,
-    the mosaic at most 4x that, meta a 0-d string of at most :data:`MAX_META_CHARS`.
+    The required arrays must be present, the per-pixel arrays of one 2-D (or 1-D pixel list) shape
+    of at most :data:`MAX_FRAME_PIXELS`, the mosaic at most 4x that, meta a 0-d string of at most
+    :data:`MAX_META_CHARS`.
     """
     missing = [k for k in REQUIRED if k not in headers]
     if missing:

@@ -44,6 +44,8 @@ __all__ = [
     'Hypothesis',
     'polarizer_hypotheses',
     'check_polarizer',
+    'check_polarizer_files',
+    'plane_rays',
     'saturated_blocks',
     'DECISIVE_MARGIN',
 ]
@@ -59,8 +61,7 @@ class Hypothesis:
     """
     A polarizer convention: ``layout`` and ``pol45_toward``.
 
-    A polarizer convention: ``layout`` (2 x 2 angles of the image's top-left block),
-    ``pol45_toward``.
+    ``layout`` holds the 2 x 2 angles of the image's top-left block.
     """
 
     layout: tuple
@@ -149,8 +150,7 @@ def _aop_for(kind: str, data, hyp: Hypothesis, saturation_level):
     """
     Return (aop, dop, valid, s0) of one input under one hypothesis.
 
-    Return (aop, dop, valid, s0) of one input under one hypothesis, at superpixel resolution for a
-    mosaic.
+    A mosaic is read at superpixel resolution.
     """
     if kind == 'mosaic':
         s0, s1, s2 = stokes_from_mosaic(
@@ -231,42 +231,48 @@ def check_polarizer(
         if isinstance(sun_altitude_deg, (list, tuple))
         else [sun_altitude_deg] * len(inputs)
     )
-    rows = []
-    for h in hyps:
-        total, frames, usable = 0.0, [], True
-        for n, (kind, data, sat) in enumerate(inputs):
-            a, d, v, s0 = _aop_for(kind, data, h, sat)
-            rays, has_ray = rays_for_shape(a.shape)
-            keep = data_mask(
-                s0, has_ray.reshape(a.shape), float('inf') if kind == 'mosaic' else None
-            )
-            if masks is not None and masks[n] is not None:
-                keep &= masks[n]
-            sample = sample_sky(a, d, v & keep, rays)
-            if sample is None:
-                usable = False
-                frames.append({'status': 'too_few_pixels'})
-                continue
-            f = fit_sky(sample, alts[n], pitch_deg, roll_deg)
-            total += f.loss
-            frames.append(
-                {
-                    'psi_deg': round(f.psi_deg, 2),
-                    'sun_altitude_deg': round(f.sun_altitude_deg, 1),
-                    'loss': round(f.loss, 4),
-                    'scatter_deg': round(f.scatter_deg, 2),
-                    'inlier_fraction': round(f.inlier_fraction, 3),
-                }
-            )
-        rows.append(
+    rows = [
+        _fit_hypothesis(h, inputs, alts, rays_for_shape, masks, pitch_deg, roll_deg) for h in hyps
+    ]
+    return _rank(rows, hyps[0], len(inputs))
+
+
+def _fit_hypothesis(h, inputs, alts, rays_for_shape, masks, pitch_deg, roll_deg) -> dict:
+    """Fit the sky to every input under hypothesis ``h``: its row (mean loss, per-frame fits)."""
+    total, frames, usable = 0.0, [], True
+    for n, (kind, data, sat) in enumerate(inputs):
+        a, d, v, s0 = _aop_for(kind, data, h, sat)
+        rays, has_ray = rays_for_shape(a.shape)
+        keep = data_mask(s0, has_ray.reshape(a.shape), float('inf') if kind == 'mosaic' else None)
+        if masks is not None and masks[n] is not None:
+            keep &= masks[n]
+        sample = sample_sky(a, d, v & keep, rays)
+        if sample is None:
+            usable = False
+            frames.append({'status': 'too_few_pixels'})
+            continue
+        f = fit_sky(sample, alts[n], pitch_deg, roll_deg)
+        total += f.loss
+        frames.append(
             {
-                'hypothesis': h.describe(),
-                'loss': round(total / len(inputs), 4) if usable else None,
-                'frames': frames,
+                'psi_deg': round(f.psi_deg, 2),
+                'sun_altitude_deg': round(f.sun_altitude_deg, 1),
+                'loss': round(f.loss, 4),
+                'scatter_deg': round(f.scatter_deg, 2),
+                'inlier_fraction': round(f.inlier_fraction, 3),
             }
         )
+    return {
+        'hypothesis': h.describe(),
+        'loss': round(total / len(inputs), 4) if usable else None,
+        'frames': frames,
+    }
+
+
+def _rank(rows: list, configured: Hypothesis, n_inputs: int) -> dict:
+    """Rank the hypotheses' rows (the configured one first) into the verdict, reason and fix."""
     scored = [r for r in rows if r['loss'] is not None]
-    out = {'configured': hyps[0].describe(), 'hypotheses': rows, 'frames': len(inputs)}
+    out = {'configured': configured.describe(), 'hypotheses': rows, 'frames': n_inputs}
     if len(scored) < 2:
         out.update(
             verdict='cannot_tell',
@@ -293,18 +299,175 @@ def check_polarizer(
         out['reason'] = f'the configured convention fits best, by {margin:.3f} over the runner-up'
     else:
         out['verdict'] = 'contradicted'
-        b = best['hypothesis']
-        out['reason'] = (
-            f'the sky fits {b} better than the configured convention by '
-            f'{(conf["loss"] or 0) - best["loss"]:.3f}'
-            if conf['loss'] is not None
-            else f'the sky fits {b} and the configured convention leaves too few usable pixels'
-        )
-        out['fix'] = (
-            f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in "
-            'CAMERA.yaml '
-            '(node parameters polarizer_layout: '
-            f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
-            f'pol45_toward: "{b["pol45_toward"]}")'
-        )
+        out['reason'], out['fix'] = _contradiction(best, conf)
     return out
+
+
+def _contradiction(best: dict, conf: dict) -> tuple:
+    """Say why the configured convention lost to ``best``, and the setting that fixes it."""
+    b = best['hypothesis']
+    reason = (
+        f'the sky fits {b} better than the configured convention by '
+        f'{(conf["loss"] or 0) - best["loss"]:.3f}'
+        if conf['loss'] is not None
+        else f'the sky fits {b} and the configured convention leaves too few usable pixels'
+    )
+    fix = (
+        f"set polarizer: {{layout: {b['layout']}, pol45_toward: '{b['pol45_toward']}'}} in "
+        'CAMERA.yaml '
+        '(node parameters polarizer_layout: '
+        f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
+        f'pol45_toward: "{b["pol45_toward"]}")'
+    )
+    return reason, fix
+
+
+def plane_rays(camera, shape):
+    """
+    Give the pixel coordinates and rays of image planes: the sensor's size or its superpixels'.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera.
+    shape : tuple of int
+        (rows, columns) of the planes: the sensor's (H, W) or (H // 2, W // 2).
+
+    Returns
+    -------
+    tuple
+        (x [px], y [px], camera-frame unit rays (3, N), bool mask of the pixels inside the field).
+
+    Raises
+    ------
+    CompassError
+        Planes of any other size.
+
+    """
+    from .camera import PixelSelection, select_pixels
+    from .estimators.mosaic_input import _grid_rays
+
+    H, W = camera.shape
+    shp = tuple(shape)
+    if shp == (H, W):
+        sp = select_pixels(camera, PixelSelection.full())
+        return sp.x_px, sp.y_px, sp.rays_cam, sp.has_ray
+    if shp == (H // 2, W // 2):
+        return _grid_rays(camera, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
+    raise CompassError(
+        f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
+        f'{W} x {H} or {W // 2} x {H // 2} (superpixel)'
+    )
+
+
+def check_polarizer_files(
+    paths,
+    camera_yaml,
+    bits=None,
+    mask_path=None,
+    sun_altitude_deg=None,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+) -> dict:
+    """
+    Check a camera file's polarizer convention against the sky in image files.
+
+    Reads the inputs (raw mosaics or Stokes planes, not both) and the mask, and runs
+    :func:`check_polarizer` (what ``polarization-compass check-polarizer`` prints).
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Raw mosaics (.png/.tif/.npy) or Stokes planes (.npz, 3-page .tif).
+    camera_yaml : str
+        ROS camera_calibration file plus ``polarizer:``.
+    bits : int, optional
+        Significant bits of a raw mosaic in a 16-bit container.
+    mask_path : str, optional
+        Static mask of the inputs' size (non-zero = sky).
+    sun_altitude_deg : float, optional
+        Sun altitude [deg]; None fits it per frame.
+    pitch_deg, roll_deg : float, default 0
+        Known camera pitch and roll [deg].
+
+    Returns
+    -------
+    dict
+        :func:`check_polarizer`'s report plus ``camera_file`` and ``configured_in_file``.
+
+    Raises
+    ------
+    CompassError
+        A frame file, an input that does not fit the camera, or mosaics and Stokes planes mixed.
+
+    """
+    from .camera import load_camera_yaml
+
+    cf = load_camera_yaml(camera_yaml)
+    cam = cf.camera
+    inputs, shapes = _read_inputs(paths, bits, cam.shape)
+    masks = None if not mask_path else _masks(mask_path, inputs, shapes, cam.shape)
+    rep = check_polarizer(
+        inputs,
+        cam,
+        cf.layout,
+        cf.pol45_toward,
+        lambda shape: plane_rays(cam, shape)[2:],
+        sun_altitude_deg,
+        pitch_deg,
+        roll_deg,
+        masks,
+    )
+    rep['camera_file'] = camera_yaml
+    rep['configured_in_file'] = cf.layout_given
+    return rep
+
+
+def _read_inputs(paths, bits, sensor_shape):
+    """Read the inputs as ``check_polarizer`` takes them, and their shapes; all of one kind."""
+    from .real_input import load_polarization_input
+
+    H, W = sensor_shape
+    inputs, shapes = [], []
+    for path in paths:
+        inp = load_polarization_input(path, bits)
+        if inp.kind == 'frame':
+            raise CompassError(
+                f'{path}: check-polarizer reads raw mosaics or Stokes planes, not frame files'
+            )
+        if inp.kind == 'mosaic':
+            if inp.mosaic.shape != (H, W):
+                raise CompassError(
+                    f'{path}: the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]}, the '
+                    'camera '
+                    f'file says {W} x {H}'
+                )
+            inputs.append(('mosaic', inp.mosaic, inp.saturation_level))
+            shapes.append(inp.mosaic.shape)
+        else:
+            shp = inp.stokes[0].shape
+            if shp not in ((H, W), (H // 2, W // 2)):
+                raise CompassError(
+                    f'{path}: Stokes planes of {shp[1]} x {shp[0]} fit neither the {W} x {H} '
+                    'sensor '
+                    'nor its superpixels'
+                )
+            inputs.append(('stokes', inp.stokes, None))
+            shapes.append(shp)
+    if len({k for k, _, _ in inputs}) > 1:
+        raise CompassError('check-polarizer: give either raw mosaics or Stokes planes, not both')
+    return inputs, shapes
+
+
+def _masks(mask_path, inputs, shapes, sensor_shape):
+    """Read the mask per input; on the superpixel grid for a mosaic (a block is sky if all is)."""
+    from .real_input import load_mask
+
+    H, W = sensor_shape
+    masks = []
+    for shp, (kind, _, _) in zip(shapes, inputs):
+        m = load_mask(mask_path, shp)
+        if kind == 'mosaic':  # to the superpixel grid: a block is sky when all of it is
+            m = m[: 2 * (H // 2), : 2 * (W // 2)].reshape(H // 2, 2, W // 2, 2).all(axis=(1, 3))
+        masks.append(m)
+    return masks

@@ -209,12 +209,6 @@ def record_sim(
         A bad ``spec`` (see :meth:`RecordSpec.check`), or a scene with a fixed sun.
 
     """
-    from .camera import PixelSelection
-    from .motion import frame_times_ns, imu_reading, MotionProfile
-    from .pipeline import SunSource
-    from .render import Renderer, SunDirection
-    from .sensor import sensor_config_for_encoding, simulate_mosaic
-
     spec.check()
     if scene.sun_fixed is not None:
         raise CompassError(
@@ -223,6 +217,38 @@ def record_sim(
         )
     tm = topic_map or default_topic_map()
     out = Path(out)
+    profile = _motion_profile(scene, spec)
+    start_ns = ns_from_utc(scene.time_utc)
+    rng = np.random.default_rng([spec.seed, 1])  # latencies, IMU and reference noise
+    events, frame_stamps = _schedule(spec, start_ns, profile.total_s(), rng)
+    rec = _Recorder(scene, spec, profile, start_ns, rng)
+    with BagWriter(out, tm, storage=spec.storage) as w:
+        for log_ns, _, role, t, k in events:
+            rec.write(w, role, t, k, log_ns)
+            if role == 'image' and progress is not None:
+                progress(len(rec.truth), len(frame_stamps))
+        counts = dict(w.counts)
+    return {
+        'bag': str(out),
+        'storage': spec.storage,
+        'frames': len(frame_stamps),
+        'start_ns': start_ns,
+        'duration_s': spec.duration_s,
+        'pitch_deg': profile.pitch_deg,
+        'roll_deg': profile.roll_deg,
+        'turn_rate_deg_s': profile.turn_rate_deg_s,
+        'messages': {tm.spec(r).topic: n for r, n in counts.items()},
+        'truth': rec.truth,
+        'camera': f'{scene.camera.width_px}x{scene.camera.height_px}',
+        'encoding': spec.encoding,
+        'sensor': rec.sensor_cfg.describe(),
+    }
+
+
+def _motion_profile(scene, spec: RecordSpec):
+    """Return the run's motion: the scene's bearing, turning, at the spec's or scene's tilt."""
+    from .motion import MotionProfile
+
     a = scene.attitude
     tilted = abs(a.pitch_deg) > 0 or abs(a.roll_deg) > 0
     pitch = (
@@ -231,24 +257,25 @@ def record_sim(
         else (a.pitch_deg if tilted else FIG17_PITCH_DEG)
     )
     roll = spec.roll_deg if spec.roll_deg is not None else (a.roll_deg if tilted else 0.0)
-    turn_rate = 360.0 * spec.turns / spec.duration_s
-    profile = MotionProfile(
+    return MotionProfile(
         start_bearing_deg=a.bearing_deg,
-        turn_rate_deg_s=turn_rate,
+        turn_rate_deg_s=360.0 * spec.turns / spec.duration_s,
         pitch_deg=pitch,
         roll_deg=roll,
         turns=0.0,
         duration_s=spec.duration_s,
     )
-    sensor_cfg = sensor_config_for_encoding(scene.sensor, spec.encoding)
-    renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
-    site = scene.site
-    sun = SunSource(site.latitude_deg, site.longitude_deg, site.altitude_m, scene.sun_model)
-    start_ns = ns_from_utc(scene.time_utc)
-    total_s = profile.total_s()
-    rng = np.random.default_rng([spec.seed, 1])  # latencies, IMU and reference noise
 
-    # every event with its receive time; images are rendered when their turn comes
+
+def _schedule(spec: RecordSpec, start_ns: int, total_s: float, rng):
+    """
+    List every message with its receive time, sorted; images are rendered when their turn comes.
+
+    Returns (events, frame stamps [ns]); an event is (receive ns, order, role, stamp ns, index).
+    Draws the latencies from ``rng`` in a fixed order (frames, then each receiver).
+    """
+    from .motion import frame_times_ns
+
     events = []
     k = 0
     frame_stamps = []
@@ -280,75 +307,89 @@ def record_sim(
             t = int(round(j * period))
             events.append((t + _latency_ns(rng, mean_ms, jit_ms), 3, role, t, j))
     events.sort()
+    return events, frame_stamps
 
-    truth = {}
-    ts_ref = []
-    with BagWriter(out, tm, storage=spec.storage) as w:
-        for n, (log_ns, _, role, t, k) in enumerate(events):
-            t_rel_s = (t - start_ns) / 1e9
-            att = profile.attitude(t_rel_s)
-            R_enu_body = R_enu_body_from_camera_attitude(att)
-            if role == 'camera_info':
-                w.write(
-                    'camera_info',
-                    encode_camera_info(scene.camera, t, 'camera_optical_frame'),
-                    log_ns,
-                )
-            elif role == 'image':
-                az, alt = sun.at_ns(t)
-                frame = renderer.render(attitude=att, sun=SunDirection(az, alt))
-                mosaic = simulate_mosaic(
-                    frame.aop_rad,
-                    frame.dop,
-                    frame.intensity,
-                    sensor_cfg,
-                    sensor_cfg.layout,
-                    np.random.default_rng([spec.seed, 2, k]),
-                )
-                w.write('image', encode_mosaic(mosaic, t, 'camera_optical_frame'), log_ns)
-                truth[t] = float(att.bearing_deg)
-                if progress is not None:
-                    progress(len(truth), len(frame_stamps))
-            elif role == 'imu':
-                R, variances = imu_reading(
-                    R_enu_body,
-                    rng.standard_normal(3),
-                    spec.imu_attitude_noise_deg,
-                    spec.imu_yaw_noise_deg,
-                    spec.imu_yaw_bias_deg,
-                )
-                w.write('imu', encode_imu(matrix_to_quat(R), t, 'base_link', variances), log_ns)
-            elif role == 'reference':
-                yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
-                yaw_enu += math.radians(spec.reference_noise_deg * float(rng.standard_normal()))
-                var_y = max(math.radians(spec.reference_noise_deg) ** 2, 1e-12)
-                w.write(
-                    'reference',
-                    encode_imu(yaw_enu_quaternion(yaw_enu), t, 'base_link', (1e3, 1e3, var_y)),
-                    log_ns,
-                )
-                ts_ref.append(t)
-            elif role == 'navsatfix':
-                w.write(
-                    'navsatfix',
-                    encode_navsatfix(
-                        site.latitude_deg, site.longitude_deg, site.altitude_m, t, 'gps'
-                    ),
-                    log_ns,
-                )
-        counts = dict(w.counts)
-    return {
-        'bag': str(out),
-        'storage': spec.storage,
-        'frames': len(frame_stamps),
-        'start_ns': start_ns,
-        'duration_s': spec.duration_s,
-        'pitch_deg': pitch,
-        'roll_deg': roll,
-        'turn_rate_deg_s': turn_rate,
-        'messages': {tm.spec(r).topic: n for r, n in counts.items()},
-        'truth': truth,
-        'camera': f'{scene.camera.width_px}x{scene.camera.height_px}',
-        'encoding': spec.encoding,
-        'sensor': sensor_cfg.describe(),
-    }
+
+class _Recorder:
+    """Encode each scheduled message of the run; images rendered with their own noise stream."""
+
+    def __init__(self, scene, spec: RecordSpec, profile, start_ns: int, rng):
+        from .camera import PixelSelection
+        from .pipeline import SunSource
+        from .render import Renderer
+        from .sensor import sensor_config_for_encoding
+
+        self.scene, self.spec, self.profile, self.start_ns, self.rng = (
+            scene,
+            spec,
+            profile,
+            start_ns,
+            rng,
+        )
+        self.sensor_cfg = sensor_config_for_encoding(scene.sensor, spec.encoding)
+        self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
+        site = scene.site
+        self.sun = SunSource(
+            site.latitude_deg, site.longitude_deg, site.altitude_m, scene.sun_model
+        )
+        self.truth = {}  # image stamp_ns: true bearing_deg
+
+    def write(self, w, role: str, t: int, k: int, log_ns: int) -> None:
+        """Write the ``role`` message stamped ``t`` (the ``k``-th of its stream) at ``log_ns``."""
+        att = self.profile.attitude((t - self.start_ns) / 1e9)
+        R_enu_body = R_enu_body_from_camera_attitude(att)
+        if role == 'camera_info':
+            msg = encode_camera_info(self.scene.camera, t, 'camera_optical_frame')
+        elif role == 'image':
+            msg = self._image(att, t, k)
+        elif role == 'imu':
+            msg = self._imu(R_enu_body, t)
+        elif role == 'reference':
+            msg = self._reference(R_enu_body, t)
+        else:  # navsatfix
+            site = self.scene.site
+            msg = encode_navsatfix(
+                site.latitude_deg, site.longitude_deg, site.altitude_m, t, 'gps'
+            )
+        w.write(role, msg, log_ns)
+
+    def _image(self, att, t: int, k: int):
+        """Render and encode the raw mosaic of image ``k`` (noise seeded by the spec and ``k``)."""
+        from .render import SunDirection
+        from .sensor import simulate_mosaic
+
+        az, alt = self.sun.at_ns(t)
+        frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
+        cfg = self.sensor_cfg
+        mosaic = simulate_mosaic(
+            frame.aop_rad,
+            frame.dop,
+            frame.intensity,
+            cfg,
+            cfg.layout,
+            np.random.default_rng([self.spec.seed, 2, k]),
+        )
+        self.truth[t] = float(att.bearing_deg)
+        return encode_mosaic(mosaic, t, 'camera_optical_frame')
+
+    def _imu(self, R_enu_body, t: int):
+        """Encode an IMU reading: the attitude with roll/pitch and yaw noise and bias."""
+        from .motion import imu_reading
+
+        spec = self.spec
+        R, variances = imu_reading(
+            R_enu_body,
+            self.rng.standard_normal(3),
+            spec.imu_attitude_noise_deg,
+            spec.imu_yaw_noise_deg,
+            spec.imu_yaw_bias_deg,
+        )
+        return encode_imu(matrix_to_quat(R), t, 'base_link', variances)
+
+    def _reference(self, R_enu_body, t: int):
+        """Encode the reference heading (dual-antenna GNSS form): the true yaw plus noise."""
+        noise_deg = self.spec.reference_noise_deg
+        yaw_enu = math.atan2(R_enu_body[1, 0], R_enu_body[0, 0])
+        yaw_enu += math.radians(noise_deg * float(self.rng.standard_normal()))
+        var_y = max(math.radians(noise_deg) ** 2, 1e-12)
+        return encode_imu(yaw_enu_quaternion(yaw_enu), t, 'base_link', (1e3, 1e3, var_y))

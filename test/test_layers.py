@@ -20,6 +20,11 @@ import the adapters; ``nodes`` (rclpy) and ``cli`` do not import each other; and
 import each other, directly or through others, counting imports inside functions too (a lazy
 import that closes a cycle is still a cycle in the design).
 
+Nothing outside ``cli/`` imports ``cli/`` (issue 23, one road): the bench and the tests' helper
+modules use the core (:mod:`polarization_compass.headings` turns an input into headings); only the
+tests of the command line (``test/test_*.py``) import it, and running the command as a program
+(``python -m polarization_compass.cli`` in a subprocess) is not an import.
+
 The graph is read from the source with :mod:`ast`, not by importing, so a module that is never
 imported in the test run is checked too.
 """
@@ -30,8 +35,11 @@ from pathlib import Path
 import pytest
 
 PKG = 'polarization_compass'
-ROOT = Path(__file__).resolve().parents[1] / PKG
+REPO = Path(__file__).resolve().parents[1]
+ROOT = REPO / PKG
 ADAPTERS = ('nodes', 'cli')
+#: calls that import the module their first argument names
+IMPORT_CALLS = ('import_module', 'optional_import', '__import__')
 
 
 def _module_name(path: Path, root: Path = ROOT) -> str:
@@ -157,6 +165,86 @@ def test_the_checks_see_an_upward_import_and_a_cycle(tmp_path):
         f'{PKG}.core -> {PKG}.nodes.n',
     ]
     assert cycles(graph) == [[f'{PKG}.a', f'{PKG}.b']]
+
+
+def imported_names(path: Path) -> set[str]:
+    """
+    List the absolute module names a file outside the package imports, anywhere in its body.
+
+    ``import a.b``, ``from a.b import c`` (as ``a.b`` and ``a.b.c``) and calls such as
+    ``importlib.import_module('a.b')`` with a literal name (:data:`IMPORT_CALLS`).
+
+    Parameters
+    ----------
+    path : Path
+        A Python file (not in the package: relative imports are not resolved).
+
+    Returns
+    -------
+    set of str
+        The imported names.
+
+    """
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module)
+            names.update(f'{node.module}.{a.name}' for a in node.names)
+        elif isinstance(node, ast.Call) and node.args:
+            f = node.func
+            fname = f.attr if isinstance(f, ast.Attribute) else getattr(f, 'id', '')
+            arg = node.args[0]
+            if fname in IMPORT_CALLS and isinstance(arg, ast.Constant):
+                names.add(str(arg.value))
+    return names
+
+
+def cli_importers(files) -> list[str]:
+    """Files (outside the package) that import ``polarization_compass.cli`` or a module of it."""
+    cli = f'{PKG}.cli'
+    return sorted(
+        str(f)
+        for f in files
+        if any(n == cli or n.startswith(cli + '.') for n in imported_names(f))
+    )
+
+
+def users_of_the_core(repo: Path = REPO) -> list[Path]:
+    """Files outside the package that must not import the CLI: ``bench/`` and the test helpers."""
+    helpers = [p for p in (repo / 'test').glob('*.py') if not p.name.startswith('test_')]
+    return sorted(repo.glob('bench/**/*.py')) + sorted(helpers)
+
+
+def test_nothing_outside_the_cli_imports_it():
+    files = users_of_the_core()
+    assert any(f.name == 'disc_golden.py' for f in files)  # the checked set is not empty
+    assert any(f.parent.name == 'bench' for f in files)
+    assert cli_importers(files) == []
+
+
+def test_the_cli_check_sees_every_form_of_import(tmp_path):
+    """The checker itself: planted imports of the CLI in each form are reported, a run is not."""
+    (tmp_path / 'test').mkdir()
+    (tmp_path / 'bench').mkdir()
+    planted = {
+        'bench/a.py': f'def f():\n    from {PKG}.cli.cmd_estimate import run\n',
+        'bench/b.py': f'import {PKG}.cli\n',
+        'bench/c.py': f'from {PKG} import cli\n',
+        'bench/d.py': f"import importlib\nimportlib.import_module('{PKG}.cli.cmd_sim')\n",
+        'test/helper.py': f"optional_import('{PKG}.cli')\n",
+    }
+    allowed = {
+        'bench/run.py': f"import subprocess\nsubprocess.run(['python', '-m', '{PKG}.cli'])\n",
+        'bench/core.py': f'from {PKG}.headings import estimate_file\nfrom {PKG} import climate\n',
+        'test/test_cli.py': f'from {PKG}.cli import main\n',
+    }
+    for rel, text in {**planted, **allowed}.items():
+        (tmp_path / rel).write_text(text)
+    files = users_of_the_core(tmp_path)
+    assert str(tmp_path / 'test' / 'test_cli.py') not in map(str, files)
+    assert cli_importers(files) == sorted(str(tmp_path / rel) for rel in planted)
 
 
 @pytest.mark.parametrize('adapter', ADAPTERS)

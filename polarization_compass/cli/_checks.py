@@ -15,8 +15,8 @@
 """
 Argument checks shared by the subcommands.
 
-Argument checks shared by the subcommands: one-line
-:class:`~polarization_compass.errors.CompassError` messages naming the option as the user typed it.
+Each failure is a one-line :class:`~polarization_compass.errors.CompassError` naming the option as
+the user typed it.
 """
 
 from __future__ import annotations

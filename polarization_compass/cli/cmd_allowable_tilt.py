@@ -15,8 +15,7 @@
 """
 `polarization-compass allowable-tilt`: the tilt envelope from an error map.
 
-`polarization-compass allowable-tilt`: the tilt envelope keeping every method under an error bound,
-from an error map, beside the paper's eq 33.
+The envelope keeps every method under an error bound; it is shown beside the paper's eq 33.
 """
 
 from __future__ import annotations

@@ -15,8 +15,7 @@
 """
 `polarization-compass budget`: Monte Carlo heading-error budget of a scene.
 
-`polarization-compass budget`: Monte Carlo heading-error budget of a scene, per method and by
-source.
+The budget is given per method and by source.
 """
 
 from __future__ import annotations

@@ -15,8 +15,7 @@
 """
 `polarization-compass calibrate-array`: channel gains of a photodiode array.
 
-`polarization-compass calibrate-array`: relative channel gains of a photodiode array from full
-turns.
+The gains are relative, and come from full turns.
 """
 
 from __future__ import annotations

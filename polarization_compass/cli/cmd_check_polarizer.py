@@ -27,7 +27,6 @@ import json
 import sys
 
 from ._checks import check_range, check_together
-from ..errors import CompassError
 
 
 def register(sub):
@@ -68,81 +67,21 @@ def register(sub):
 def run(args) -> int:
     import numpy as np
 
-    from ..camera import load_camera_yaml, PixelSelection, select_pixels
-    from ..estimators.mosaic_input import _grid_rays
-    from ..polarizer_check import check_polarizer
-    from ..real_input import load_mask, load_polarization_input
+    from ..polarizer_check import check_polarizer_files
 
     check_range('sun-altitude', args.sun_altitude, -90, 90)
     check_range('pitch', args.pitch, -89.999, 89.999)
     check_range('roll', args.roll, -180, 180)
     check_together('pitch', args.pitch, 'roll', args.roll)
-    cf = load_camera_yaml(args.camera)
-    cam = cf.camera
-    H, W = cam.shape
-    inputs, shapes = [], []
-    for path in args.inputs:
-        inp = load_polarization_input(path, args.bits)
-        if inp.kind == 'frame':
-            raise CompassError(
-                f'{path}: check-polarizer reads raw mosaics or Stokes planes, not frame files'
-            )
-        if inp.kind == 'mosaic':
-            if inp.mosaic.shape != (H, W):
-                raise CompassError(
-                    f'{path}: the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]}, the '
-                    'camera '
-                    f'file says {W} x {H}'
-                )
-            inputs.append(('mosaic', inp.mosaic, inp.saturation_level))
-            shapes.append(inp.mosaic.shape)
-        else:
-            shp = inp.stokes[0].shape
-            if shp not in ((H, W), (H // 2, W // 2)):
-                raise CompassError(
-                    f'{path}: Stokes planes of {shp[1]} x {shp[0]} fit neither the {W} x {H} '
-                    'sensor '
-                    'nor its superpixels'
-                )
-            inputs.append(('stokes', inp.stokes, None))
-            shapes.append(shp)
-    if len({k for k, _, _ in inputs}) > 1:
-        raise CompassError('check-polarizer: give either raw mosaics or Stokes planes, not both')
-
-    def rays_for_shape(shape):
-        if tuple(shape) == (H, W):
-            sp = select_pixels(cam, PixelSelection.full())
-            return sp.rays_cam, sp.has_ray
-        if tuple(shape) == (H // 2, W // 2):
-            _, _, rays, ok = _grid_rays(cam, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
-            return rays, ok
-        raise CompassError(f'no rays for a {shape} grid')
-
-    masks = None
-    if args.mask:
-        masks = []
-        for shp, (kind, _, _) in zip(shapes, inputs):
-            m = load_mask(args.mask, shp)
-            if kind == 'mosaic':  # to the superpixel grid: a block is sky when all of it is
-                m = (
-                    m[: 2 * (H // 2), : 2 * (W // 2)]
-                    .reshape(H // 2, 2, W // 2, 2)
-                    .all(axis=(1, 3))
-                )
-            masks.append(m)
-    rep = check_polarizer(
-        inputs,
-        cam,
-        cf.layout,
-        cf.pol45_toward,
-        rays_for_shape,
+    rep = check_polarizer_files(
+        args.inputs,
+        args.camera,
+        args.bits,
+        args.mask,
         args.sun_altitude,
         args.pitch or 0.0,
         args.roll or 0.0,
-        masks,
     )
-    rep['camera_file'] = args.camera
-    rep['configured_in_file'] = cf.layout_given
     json.dump(
         rep,
         sys.stdout,

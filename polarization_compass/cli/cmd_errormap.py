@@ -15,8 +15,8 @@
 """
 `polarization-compass errormap`: sweep heading errors to a map.
 
-`polarization-compass errormap`: sweep heading errors over sun altitude x yaw x pitch x roll to a
-map (.npz, NetCDF 3 or a Zarr store), in this process or on Dask distributed.
+The sweep runs over sun altitude x yaw x pitch x roll, in this process or on Dask distributed; the
+map is an .npz, NetCDF 3 or a Zarr store.
 """
 
 from __future__ import annotations
@@ -53,6 +53,15 @@ def register(sub):
         'are kept in the Zarr store OUT.partial.zarr (or OUT itself for .zarr) and the same '
         'command resumes.',
     )
+    _add_grid_options(p)
+    _add_run_options(p)
+    _add_domain_and_output_options(p)
+    allow_negative_ranges(p)
+    p.set_defaults(func=run)
+
+
+def _add_grid_options(p) -> None:
+    """Add what is swept: scene or array, methods, and the four axes."""
     p.add_argument(
         '--scene', help="scene YAML: sky model, noise, lens (default: the paper's set-up)"
     )
@@ -73,6 +82,10 @@ def register(sub):
         '--pitch', required=True, metavar='A:B:STEP', help='pitch (about camera x), deg'
     )
     p.add_argument('--roll', required=True, metavar='A:B:STEP', help='roll (about camera y), deg')
+
+
+def _add_run_options(p) -> None:
+    """Add how the cells are computed: stride, workers, Dask scheduler."""
     p.add_argument(
         '--stride',
         type=int,
@@ -91,6 +104,10 @@ def register(sub):
         help='run on this existing Dask cluster (dask scheduler / dask worker) instead of a '
         'LocalCluster',
     )
+
+
+def _add_domain_and_output_options(p) -> None:
+    """Add the tilt domain, the storage and the output map."""
     p.add_argument(
         '--full-domain', action='store_true', help='also compute cells with |pitch|+|roll| > 30'
     )
@@ -118,8 +135,6 @@ def register(sub):
         help='output map: .npz (what the nodes ship), .nc (one NetCDF 3 '
         'file) or .zarr (the labelled Zarr store itself)',
     )
-    allow_negative_ranges(p)
-    p.set_defaults(func=run)
 
 
 def parse_methods(text: str) -> list[str]:
@@ -140,71 +155,20 @@ def parse_methods(text: str) -> list[str]:
 
 
 def run(args) -> int:
-    import math
+    from ..sweep import parse_range, run_sweep, SweepSpec
 
-    import numpy as np
-
-    from ..scene import load_scene
-    from ..sweep import OUTPUT_SUFFIXES, parse_range, run_sweep, SweepSpec
-
-    if args.array_geometry:
-        from ..photodiode.heading import array_methods
-
-        methods = (
-            list(array_methods()) if args.methods.strip() == 'all' else parse_methods(args.methods)
-        )
-    else:
-        methods = parse_methods(args.methods)
+    methods = _selected_methods(args)
     axes = {
         'sun_altitude_deg': parse_range(args.sun_altitude, 'sun-altitude', -90, 90),
         'yaw_deg': parse_range(args.yaw, 'yaw', -360, 720),
         'pitch_deg': parse_range(args.pitch, 'pitch', -89, 89),
         'roll_deg': parse_range(args.roll, 'roll', -180, 180),
     }
-    if args.stride is not None and not (1 <= args.stride <= 1024):
-        raise CompassError(f'--stride must be in [1, 1024], got {args.stride}')
-    if args.workers is not None and not (1 <= args.workers <= 256):
-        raise CompassError(f'--workers must be in [1, 256], got {args.workers}')
-    if not (math.isfinite(args.tilt_limit) and 0 <= args.tilt_limit <= 180):
-        raise CompassError(f'--tilt-limit must be in [0, 180], got {args.tilt_limit}')
-    if not str(args.out).endswith(OUTPUT_SUFFIXES):
-        raise CompassError(f'--out must name a {", ".join(OUTPUT_SUFFIXES)} map, got {args.out!r}')
-    if args.scheduler is not None and not re.match(
-        r'^(tcp|tls|inproc|ucx|ws|wss)://\S+$', args.scheduler
-    ):
-        raise CompassError(
-            f'--scheduler must be an address like tcp://HOST:PORT, got {args.scheduler!r}'
-        )
-    scene = load_scene(args.scene)
-    if args.array_geometry:
-        from ..scene import scene_from_dict
-
-        if args.stride:
-            raise CompassError('--stride has no meaning for a photodiode array')
-        scene = scene_from_dict(
-            {
-                **scene.to_dict(),
-                'photodiode_array': {
-                    **(scene.photodiode_array or {}),
-                    'geometry': args.array_geometry,
-                },
-            }
-        )
-    knobs = {}
-    if args.stride:  # only for methods that have a stride knob (zenith reads its window)
-        from ..estimators import EstimatorError, make_estimator, registry
-
-        for m in methods:
-            want = {**registry.sweep_knobs(m), 'stride': args.stride}
-            try:
-                make_estimator(m, **want)
-            except EstimatorError:
-                continue
-            knobs[m] = want
+    _check_options(args, methods)
     spec = SweepSpec(
         methods,
-        scene=scene,
-        knobs=knobs,
+        scene=_scene(args),
+        knobs=_stride_knobs(methods, args.stride),
         full_domain=args.full_domain,
         tilt_limit_deg=args.tilt_limit,
         support=args.support,
@@ -224,9 +188,90 @@ def run(args) -> int:
         float32=args.float32,
         scheduler=args.scheduler,
     )
+    json.dump(_summary(m, args.out), sys.stdout)
+    sys.stdout.write('\n')
+    return 0
+
+
+def _selected_methods(args) -> list[str]:
+    """Read ``--methods``: camera methods, or a photodiode array's with ``--array-geometry``."""
+    if args.array_geometry:
+        from ..photodiode.heading import array_methods
+
+        if args.methods.strip() == 'all':
+            return list(array_methods())
+    return parse_methods(args.methods)
+
+
+def _check_options(args, methods) -> None:
+    """Check the options that are not sweep axes (the stride by its knob declaration)."""
+    import math
+
+    from ..sweep import OUTPUT_SUFFIXES
+
+    if args.stride is not None:
+        from ..headings import check_stride
+
+        check_stride(args.stride, () if args.array_geometry else methods)
+    if args.workers is not None and not (1 <= args.workers <= 256):
+        raise CompassError(f'--workers must be in [1, 256], got {args.workers}')
+    if not (math.isfinite(args.tilt_limit) and 0 <= args.tilt_limit <= 180):
+        raise CompassError(f'--tilt-limit must be in [0, 180], got {args.tilt_limit}')
+    if not str(args.out).endswith(OUTPUT_SUFFIXES):
+        raise CompassError(f'--out must name a {", ".join(OUTPUT_SUFFIXES)} map, got {args.out!r}')
+    if args.scheduler is not None and not re.match(
+        r'^(tcp|tls|inproc|ucx|ws|wss)://\S+$', args.scheduler
+    ):
+        raise CompassError(
+            f'--scheduler must be an address like tcp://HOST:PORT, got {args.scheduler!r}'
+        )
+
+
+def _scene(args):
+    """Load the scene; with ``--array-geometry`` its photodiode array takes that geometry."""
+    from ..scene import load_scene
+
+    scene = load_scene(args.scene)
+    if not args.array_geometry:
+        return scene
+    from ..scene import scene_from_dict
+
+    if args.stride:
+        raise CompassError('--stride has no meaning for a photodiode array')
+    return scene_from_dict(
+        {
+            **scene.to_dict(),
+            'photodiode_array': {
+                **(scene.photodiode_array or {}),
+                'geometry': args.array_geometry,
+            },
+        }
+    )
+
+
+def _stride_knobs(methods, stride) -> dict:
+    """Give the methods that have a stride knob their sweep knobs with ``stride`` (zenith none)."""
+    knobs = {}
+    if stride:
+        from ..estimators import EstimatorError, make_estimator, registry
+
+        for m in methods:
+            want = {**registry.sweep_knobs(m), 'stride': stride}
+            try:
+                make_estimator(m, **want)
+            except EstimatorError:
+                continue
+            knobs[m] = want
+    return knobs
+
+
+def _summary(m, out) -> dict:
+    """Summarise the written map: shape, methods, cells, time and each method's largest error."""
+    import numpy as np
+
     v = m.valid
-    summary = {
-        'out': str(args.out),
+    return {
+        'out': str(out),
         'shape': list(m.shape),
         'methods': list(m.methods),
         'cells_estimated': m.meta['cells_estimated'],
@@ -238,6 +283,3 @@ def run(args) -> int:
             for i, name in enumerate(m.methods)
         },
     }
-    json.dump(summary, sys.stdout)
-    sys.stdout.write('\n')
-    return 0

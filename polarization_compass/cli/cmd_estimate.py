@@ -13,10 +13,10 @@
 # limitations under the License.
 
 """
-`polarization-compass estimate`: heading estimates from a frame or a real image.
+`polarization-compass estimate`: headings from a frame file or a real camera image, as JSON.
 
-`polarization-compass estimate`: heading estimates from a frame file or a real camera image, as
-JSON.
+The command parses its options and prints; the road from the input to the headings is
+:func:`polarization_compass.headings.estimate_file`.
 
 Real images (:mod:`polarization_compass.real_input`: a raw mosaic PNG/TIFF/.npy, Stokes planes .npz
 or 3-page TIFF) need ``--camera CAMERA.yaml`` (ROS camera_calibration plus ``polarizer:``) and the
@@ -35,17 +35,13 @@ otherwise the stored AoP/DoP are used. The sun comes from the frame's meta; with
 from __future__ import annotations
 
 import json
-import math
 import sys
-import time
 
 from ._checks import check_range, check_together
 from ..errors import CompassError
 
 
 def register(sub):
-    from ..estimators import registry
-
     p = sub.add_parser(
         'estimate',
         help='heading from a frame file (JSON, one object per method)',
@@ -56,6 +52,15 @@ def register(sub):
         'is checked against the whole sky: status poor_fit / inconsistent when it '
         'does not hold.',
     )
+    _add_input_options(p)
+    _add_sun_options(p)
+    _add_method_options(p)
+    p.add_argument('--indent', type=int, default=None, help='pretty-print the JSON')
+    p.set_defaults(func=run)
+
+
+def _add_input_options(p) -> None:
+    """Add the input and how to read it: frame file or real image, camera, mask, demosaic."""
     p.add_argument(
         'frame',
         metavar='INPUT',
@@ -92,11 +97,29 @@ def register(sub):
         'sigmas is not used (default 4; 0 = off; docs/real-cameras.md)',
     )
     p.add_argument(
+        '--use-stored',
+        action='store_true',
+        help='use the stored AoP/DoP even when the frame holds a mosaic',
+    )
+
+
+def _add_sun_options(p) -> None:
+    """Add where the sun was: given, or the site and time for the ephemeris."""
+    p.add_argument(
         '--sun-azimuth',
         type=float,
         help='given sun azimuth, deg clockwise from North (instead of --lat/--lon/--time)',
     )
     p.add_argument('--sun-altitude', type=float, help='given sun altitude, deg')
+    p.add_argument('--lat', type=float, help='site latitude, deg (only when the frame has no sun)')
+    p.add_argument('--lon', type=float, help='site longitude, deg')
+    p.add_argument('--time', help='UTC time, ISO 8601 (only when the frame has no sun)')
+
+
+def _add_method_options(p) -> None:
+    """Add the methods, their knobs, the known tilt and prior, and the whole-sky check."""
+    from ..estimators import registry
+
     p.add_argument(
         '--no-sky-check',
         action='store_true',
@@ -131,16 +154,6 @@ def register(sub):
         help='estimator knob, e.g. --knob min_dop=0.1 (repeatable; applied to every method that '
         'has it)',
     )
-    p.add_argument(
-        '--use-stored',
-        action='store_true',
-        help='use the stored AoP/DoP even when the frame holds a mosaic',
-    )
-    p.add_argument('--lat', type=float, help='site latitude, deg (only when the frame has no sun)')
-    p.add_argument('--lon', type=float, help='site longitude, deg')
-    p.add_argument('--time', help='UTC time, ISO 8601 (only when the frame has no sun)')
-    p.add_argument('--indent', type=int, default=None, help='pretty-print the JSON')
-    p.set_defaults(func=run)
 
 
 def parse_knobs(items) -> dict:
@@ -179,98 +192,6 @@ def parse_knobs(items) -> dict:
     return out
 
 
-def _sun(meta: dict, args):
-    if args.sun_azimuth is not None or args.sun_altitude is not None:
-        check_together('sun-azimuth', args.sun_azimuth, 'sun-altitude', args.sun_altitude)
-        check_range('sun-azimuth', args.sun_azimuth, -360, 360)
-        check_range('sun-altitude', args.sun_altitude, -90, 90)
-        return (
-            float(args.sun_azimuth),
-            float(args.sun_altitude),
-            'given (--sun-azimuth/--sun-altitude)',
-        )
-    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
-    ok = all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        for v in (az, alt)
-    )
-    if ok:
-        return float(az), float(alt), 'frame meta'
-    if args.lat is None or args.lon is None or args.time is None:
-        raise CompassError(
-            'the input does not say where the sun was: give --lat, --lon and --time, or '
-            '--sun-azimuth and --sun-altitude'
-        )
-    from ..solar import sun_position
-
-    pos = sun_position(args.time, args.lat, args.lon, 0.0)
-    return (
-        float(pos.azimuth_deg),
-        float(pos.altitude_deg),
-        'ephemeris (SPA) for --lat/--lon/--time',
-    )
-
-
-def _sensor_meta(meta: dict):
-    """
-    Read the sensor settings from a frame's meta, types checked.
-
-    (sensor, mosaic, demosaic, quantization_bits, full_well_e) from a frame's meta, types checked:
-    a frame file is user input, so a wrong type is a :class:`FrameFileError` (one line, exit 2),
-    not a crash.
-    """
-    from ..frame_io import FrameFileError
-
-    def section(d, key):
-        v = d.get(key)
-        if v is None:
-            return {}
-        if not isinstance(v, dict):
-            raise FrameFileError(f'frame meta: {key} must be a mapping, got {type(v).__name__}')
-        return v
-
-    sensor = section(meta, 'sensor')
-    mos = section(sensor, 'mosaic')
-    method = sensor.get('demosaic')
-    if method is not None and method not in ('superpixel', 'bilinear'):
-        raise FrameFileError(
-            f'frame meta: sensor.demosaic must be superpixel or bilinear, got {method!r}'
-        )
-    bits = sensor.get('quantization_bits')
-    if bits is not None and (
-        isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 32
-    ):
-        raise FrameFileError(
-            f'frame meta: sensor.quantization_bits must be an integer in [1, 32], got {bits!r}'
-        )
-    full_well = section(sensor, 'exposure').get('full_well_e')
-    if full_well is not None and (
-        isinstance(full_well, bool)
-        or not isinstance(full_well, (int, float))
-        or not math.isfinite(full_well)
-        or full_well <= 0
-    ):
-        raise FrameFileError(
-            f'frame meta: sensor.exposure.full_well_e must be a positive number, got {full_well!r}'
-        )
-    return sensor, mos, method, bits, None if full_well is None else float(full_well)
-
-
-def _methods(text: str) -> list[str]:
-    from ..estimators import estimator_names
-
-    names = estimator_names()
-    if text == 'all':
-        return names
-    wanted = [t.strip() for t in text.split(',') if t.strip()]
-    bad = [w for w in wanted if w not in names]
-    if bad or not wanted:
-        raise CompassError(
-            f'--method: unknown {", ".join(bad) or repr(text)}; known: {", ".join(names)} or all'
-        )
-    return wanted
-
-
 def _ifov_k(args):
     """``--ifov-k`` validated (default ``demosaic.IFOV_K_DEFAULT``); CompassError if bad."""
     from ..demosaic import check_ifov_k, IFOV_K_DEFAULT
@@ -285,326 +206,47 @@ def _ifov_k(args):
 
 
 def run(args) -> int:
-    from ..conventions import fold_axial_deg, wrap_180_deg
-    from ..estimators import Observation
-    from ..frame_io import load_frame_npz
+    from ..headings import estimate_file, EstimateOptions, method_list
 
+    _check_ranges(args)
+    options = EstimateOptions(
+        methods=method_list(args.method),
+        knobs=parse_knobs(args.knob),
+        stride=args.stride,
+        camera_yaml=args.camera,
+        mask_path=args.mask,
+        bits=args.bits,
+        demosaic=args.demosaic,
+        ifov_k=_ifov_k(args),
+        sun_azimuth_deg=args.sun_azimuth,
+        sun_altitude_deg=args.sun_altitude,
+        lat_deg=args.lat,
+        lon_deg=args.lon,
+        time_utc=args.time,
+        pitch_deg=args.pitch,
+        roll_deg=args.roll,
+        prior_bearing_deg=args.prior_bearing,
+        sky_check=not args.no_sky_check,
+        use_stored=args.use_stored,
+    )
+    out = estimate_file(args.frame, options)
+    json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
+    sys.stdout.write('\n')
+    return 0
+
+
+def _check_ranges(args) -> None:
+    """Check the options that are not estimator knobs (those check themselves)."""
     check_range('pitch', args.pitch, -89.999, 89.999)
     check_range('roll', args.roll, -180, 180)
     check_range('prior-bearing', args.prior_bearing, -360, 720)
     check_range('lat', args.lat, -90, 90)
     check_range('lon', args.lon, -180, 180)
     check_together('pitch', args.pitch, 'roll', args.roll)
-    if args.stride is not None and not (1 <= args.stride <= 1024):
-        raise CompassError(f'--stride must be in [1, 1024], got {args.stride}')
-    _ifov_k(args)
-    methods = _methods(args.method)
-    knobs = parse_knobs(args.knob)
-    from ..real_input import load_polarization_input
-
-    inp = load_polarization_input(args.frame, args.bits)
-    if inp.kind != 'frame':
-        return _run_real(args, inp, methods, knobs)
-    if args.mask or args.camera:
-        raise CompassError(
-            '--camera and --mask apply to real images; a frame file carries its camera'
-        )
-    frame = load_frame_npz(args.frame)
-    camera = frame.camera
-    sun_az, sun_alt, sun_src = _sun(frame.meta, args)
-    estimators = _make_estimators(methods, knobs, args.stride)
-
-    source = {'sun': sun_src}
-    use_mosaic = frame.mosaic is not None and not args.use_stored
-    stored_obs = None
-    if use_mosaic:
-        sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
-        layout = mos.get('layout')
-        pol45 = mos.get('pol45_toward')
-        assumed = []
-        if layout is None:
-            from ..demosaic import IMX250MZR_LAYOUT
-
-            layout = [list(r) for r in IMX250MZR_LAYOUT]
-            assumed.append('layout')
-        if pol45 is None:
-            from ..demosaic import IMX250MZR_POL45
-
-            pol45 = IMX250MZR_POL45
-            assumed.append('pol45_toward')
-        shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
-        if method is None:
-            method = 'bilinear' if mshp == shp else 'superpixel'
-            assumed.append('demosaic')
-        if method == 'bilinear' and mshp == shp:
-            origin = (frame.x_px.flat[0], frame.y_px.flat[0])
-        elif method == 'superpixel' and len(shp) == 2 and mshp == (2 * shp[0], 2 * shp[1]):
-            origin = (frame.x_px.flat[0] - 0.5, frame.y_px.flat[0] - 0.5)
-        else:
-            raise CompassError(
-                f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
-                'demosaic; use --use-stored'
-            )
-        sat = float((1 << bits) - 1) if bits else full_well
-        source['input'] = {
-            'mosaic': list(mshp),
-            'demosaic': method,
-            'layout': layout,
-            'pol45_toward': pol45,
-            'assumed': assumed,
-            'saturation_level': sat,
-        }
-        origin = (int(round(origin[0])), int(round(origin[1])))
-    else:
-        source['input'] = 'stored AoP/DoP' + (
-            ' (--use-stored)' if frame.mosaic is not None else ''
-        )
-
-    out = []
-    for name, est, kn in estimators:
-        t0 = time.perf_counter()
-        if use_mosaic:
-            from ..estimators.mosaic_input import observation_from_mosaic
-
-            obs = observation_from_mosaic(
-                frame.mosaic,
-                camera,
-                sun_az,
-                sun_alt,
-                origin_px=origin,
-                method=method,
-                layout=layout,
-                pol45_toward=pol45,
-                saturation_level=sat,
-                selection=est.pixels_needed(camera),
-                with_intensity=frame.intensity is not None,
-                pitch_deg=args.pitch,
-                roll_deg=args.roll,
-                prior_bearing_deg=args.prior_bearing,
-                ifov_k=_ifov_k(args),
-            )
-        else:
-            if stored_obs is None:
-                stored_obs = Observation(
-                    frame.aop_rad,
-                    frame.dop,
-                    frame.valid,
-                    frame.rays_cam(),
-                    frame.x_px,
-                    frame.y_px,
-                    camera,
-                    sun_az,
-                    sun_alt,
-                    frame.intensity,
-                    args.pitch,
-                    args.roll,
-                    args.prior_bearing,
-                )
-            obs = stored_obs
-        res = est.estimate(obs)
-        dt = (time.perf_counter() - t0) * 1e3
-        d = res.to_json_dict()
-        d['time_ms'] = round(dt, 3)
-        d['knobs'] = kn
-        truth = frame.meta.get('psi_deg')
-        if res.psi_deg is not None and isinstance(truth, (int, float)) and math.isfinite(truth):
-            err = res.psi_deg - float(truth)
-            d['truth_psi_deg'] = float(truth)
-            d['error_deg'] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
-        d['source'] = source
-        out.append(d)
-    json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
-    sys.stdout.write('\n')
-    return 0
-
-
-#: real images: the robust refit's outlier threshold for the methods that have the knob
-#: (``outlier_deg``)
-REAL_SKY_OUTLIER_DEG = 15.0
-
-
-def _make_estimators(methods, knobs, stride, defaults=None):
-    from ..estimators import make_estimator, registry
-
-    estimators, used = [], set()
-    for name in methods:
-        specs = registry.get(name).knob_specs()
-        kn = {k: v for k, v in knobs.items() if k in specs}
-        if defaults and 'outlier_deg' in specs and 'outlier_deg' not in knobs:
-            for k, v in defaults.items():
-                if k in specs and k not in knobs:
-                    kn[k] = v
-        used.update(kn)
-        if stride is not None and 'stride' in specs:
-            kn['stride'] = stride
-        estimators.append((name, make_estimator(name, **kn), kn))
-    unused = sorted(set(knobs) - used)
-    if unused:
-        raise CompassError(f'--knob {", ".join(unused)}: no selected method has that knob')
-    return estimators
-
-
-def real_observation(
-    inp,
-    cam_file,
-    sun_az,
-    sun_alt,
-    mask=None,
-    demosaic='superpixel',
-    pitch=None,
-    roll=None,
-    prior=None,
-    ifov_k=None,
-):
-    """
-    Build the observation of a whole real image and its data mask.
-
-    Build (Observation of the whole image, data mask) from a real input: Stokes planes turned into
-    camera-frame Stokes (S2 changes sign when the 45 deg polarizer points towards +x-y, see
-    ``demosaic``), or a raw mosaic demosaiced with the camera file's layout. Invalid: outside the
-    lens, saturated (+ glare), masked, and for a raw mosaic the IFOV check's rejections (``ifov_k``
-    sigmas, default ``demosaic.IFOV_K_DEFAULT``; 0 = off).
-    """
-    import numpy as np
-
-    from ..camera import PixelSelection, select_pixels
-    from ..demosaic import aop_dop_from_stokes, IFOV_K_DEFAULT, stokes_from_mosaic
-    from ..estimators import Observation
-    from ..estimators.mosaic_input import _grid_rays
-    from ..skyfit import data_mask
-
-    cam = cam_file.camera
-    H, W = cam.shape
-    sat = None
-    if inp.kind == 'stokes':
-        s0, s1, s2 = inp.stokes
-        if cam_file.pol45_toward == '+x-y':
-            s2 = -s2
-        shp = s0.shape
-    else:
-        if inp.mosaic.shape != (H, W):
-            raise CompassError(
-                f'the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file '
-                'says '
-                f'{W} x {H}'
-            )
-        s0, s1, s2 = stokes_from_mosaic(
-            inp.mosaic,
-            cam_file.layout,
-            cam_file.pol45_toward,
-            demosaic,
-            inp.saturation_level,
-            IFOV_K_DEFAULT if ifov_k is None else ifov_k,
-        )
-        shp = s0.shape
-        from ..polarizer_check import saturated_blocks
-
-        sat = saturated_blocks(inp.mosaic, inp.saturation_level, shp)
-    if shp == (H, W):
-        sp = select_pixels(cam, PixelSelection.full())
-        xg, yg, rays, has_ray = sp.x_px, sp.y_px, sp.rays_cam, sp.has_ray
-    elif shp == (H // 2, W // 2):
-        xg, yg, rays, has_ray = _grid_rays(cam, (1.5, 2.0, W // 2), (1.5, 2.0, H // 2))
-    else:
-        raise CompassError(
-            f"the input planes are {shp[1]} x {shp[0]}; the camera file's {W} x {H} sensor needs "
-            f'{W} x {H} or {W // 2} x {H // 2} (superpixel)'
-        )
-    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
-    if sat is None:
-        keep = data_mask(s0, has_ray)
-    else:  # saturated raw samples: grow those into the glare mask
-        keep = data_mask(np.where(sat, np.float32(np.inf), s0), has_ray, float('inf'))
-    if mask is not None:
-        if mask.shape == shp:
-            keep &= mask
-        elif mask.shape == (H, W):
-            keep &= mask[
-                np.clip(np.rint(yg).astype(int) - 1, 0, H - 1),
-                np.clip(np.rint(xg).astype(int) - 1, 0, W - 1),
-            ]
-        else:
-            raise CompassError(
-                f'--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}'
-            )
-    valid = valid & keep
-    obs = Observation(aop, dop, valid, rays, xg, yg, cam, sun_az, sun_alt, s0, pitch, roll, prior)
-    return obs, keep
-
-
-def _run_real(args, inp, methods, knobs) -> int:
-    from ..camera import load_camera_yaml
-    from ..real_input import load_mask
-    from ..skyfit import assess_result, mark_inconsistent, sample_sky
-
-    if not args.camera:
-        raise CompassError(
-            f'{args.frame}: a real image needs --camera CAMERA.yaml (ROS camera_calibration '
-            'format)'
-        )
-    if args.use_stored:
-        raise CompassError('--use-stored applies to frame files')
-    cam_file = load_camera_yaml(args.camera)
-    sun_az, sun_alt, sun_src = _sun({}, args)
-    # real skies: least_squares/tilt_aware refit robustly (consensus, outliers beyond 15 deg
-    # dropped) unless the user set outlier_deg
-    estimators = _make_estimators(
-        methods,
-        knobs,
-        args.stride,
-        {'outlier_deg': REAL_SKY_OUTLIER_DEG, 'max_aop_noise_deg': 90.0},
-    )
-    shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
-    mask = load_mask(args.mask, shape, cam_file.camera.shape) if args.mask else None
-    obs, _ = real_observation(
-        inp,
-        cam_file,
-        sun_az,
-        sun_alt,
-        mask,
-        args.demosaic,
-        args.pitch,
-        args.roll,
-        args.prior_bearing,
-        _ifov_k(args),
-    )
-    sample = (
-        None
-        if args.no_sky_check
-        else sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
-    )
-    source = {
-        'sun': sun_src,
-        'input': {
-            'kind': inp.kind,
-            'path': inp.path,
-            'layout': [list(r) for r in cam_file.layout],
-            'pol45_toward': cam_file.pol45_toward,
-            'assumed': [] if cam_file.layout_given else ['layout', 'pol45_toward'],
-            'usable_pixels': int(obs.valid.sum()),
-        },
-    }
-    results, times = [], []
-    for name, est, kn in estimators:
-        t0 = time.perf_counter()
-        res = est.estimate(obs)
-        if not args.no_sky_check:
-            res = assess_result(res, sample, sun_alt, args.pitch, args.roll, args.prior_bearing)
-        times.append((time.perf_counter() - t0) * 1e3)
-        results.append((res, kn))
-    final = [r for r, _ in results]
-    if not args.no_sky_check and len(final) > 1:
-        final = mark_inconsistent(final)
-    out = []
-    for res, (_, kn), dt in zip(final, results, times):
-        d = res.to_json_dict()
-        d['time_ms'] = round(dt, 3)
-        d['knobs'] = kn
-        d['source'] = source
-        out.append(d)
-    json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
-    sys.stdout.write('\n')
-    return 0
+    if args.sun_azimuth is not None or args.sun_altitude is not None:
+        check_together('sun-azimuth', args.sun_azimuth, 'sun-altitude', args.sun_altitude)
+        check_range('sun-azimuth', args.sun_azimuth, -360, 360)
+        check_range('sun-altitude', args.sun_altitude, -90, 90)
 
 
 def _jsonable(v):

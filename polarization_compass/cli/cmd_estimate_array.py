@@ -15,8 +15,7 @@
 """
 `polarization-compass estimate-array`: headings from a photodiode-array recording.
 
-`polarization-compass estimate-array`: headings from a photodiode-array recording, one CSV row per
-sample.
+One CSV row per sample.
 """
 
 from __future__ import annotations
@@ -68,7 +67,7 @@ def sun_per_sample(time_iso: str, t_offset_s, n: int, lat: float, lon: float):
     """
     Return the sun azimuth/altitude (deg) per sample.
 
-    Sun azimuth/altitude (deg) per sample: arrays (n,) from --time plus the recording's offsets.
+    Arrays (n,), for --time plus the recording's offsets.
     """
     import numpy as np
 

@@ -12,17 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-`polarization-compass record-sim`: a synthetic field run written to a rosbag2.
-
-`polarization-compass record-sim`: a synthetic field run written to a rosbag2 (MCAP or sqlite3).
-"""
+"""`polarization-compass record-sim`: a synthetic field run written to a rosbag2 (MCAP/sqlite3)."""
 
 from __future__ import annotations
 
 import json
-import sys
 
+from ._progress import advance_to, progress_bar
 from ..errors import CompassError
 
 
@@ -35,6 +31,13 @@ def register(sub):
         'camera_info, IMU, reference heading (dual-antenna GNSS form) and NavSatFix. '
         'Topic names: config/replay_topics.yaml (or --topics).',
     )
+    _add_run_options(p)
+    _add_sensor_options(p)
+    p.set_defaults(func=run)
+
+
+def _add_run_options(p) -> None:
+    """Add the run: scene, length, output bag, frame rate and encoding, tilt and turns."""
     p.add_argument(
         '--scene',
         help='scene YAML: site, start time, camera, sky, sensor effects; its attitude gives '
@@ -72,6 +75,10 @@ def register(sub):
         default=1.0,
         help='turns over the run, clockwise positive (default 1)',
     )
+
+
+def _add_sensor_options(p) -> None:
+    """Add the other sensors (IMU, reference heading), the topic names and the noise seed."""
     p.add_argument(
         '--imu-rate', type=float, default=50.0, metavar='HZ', help='IMU rate (default 50)'
     )
@@ -101,7 +108,6 @@ def register(sub):
         help='topic names to write (default: the replay defaults)',
     )
     p.add_argument('--seed', type=int, default=0, help='noise seed')
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
@@ -127,12 +133,8 @@ def run(args) -> int:
         seed=args.seed,
     )
     tm = load_topic_map(args.topics)
-
-    def progress(k, n):
-        if sys.stderr.isatty():
-            print(f'\rrecord-sim: frame {k}/{n}', end='' if k < n else '\n', file=sys.stderr)
-
-    summary = record_sim(scene, spec, args.out, tm, progress)
+    with progress_bar('record-sim', ' frames') as bar:
+        summary = record_sim(scene, spec, args.out, tm, lambda k, n: advance_to(bar, k, n))
     summary.pop('truth')
     print(json.dumps(summary, indent=1))
     return 0

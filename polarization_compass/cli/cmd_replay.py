@@ -16,8 +16,7 @@
 
 from __future__ import annotations
 
-import sys
-
+from ._progress import advance_to, progress_bar
 from ..errors import CompassError
 
 
@@ -122,8 +121,10 @@ def run(args) -> int:
     from ..bag import load_topic_map
     from ..replay import default_error_map, replay_bag, ReplayConfig, write_outputs
 
-    if args.stride is not None and args.stride < 1:
-        raise CompassError(f'--stride must be >= 1, got {args.stride}')
+    if args.stride is not None:  # as the knob declares it, before the bag is read
+        from ..headings import check_stride
+
+        check_stride(args.stride, ())
     if args.workers is not None and not 1 <= args.workers <= 64:
         raise CompassError(f'--workers must be in [1, 64], got {args.workers}')
     methods = (
@@ -149,14 +150,10 @@ def run(args) -> int:
         sky_check=args.sky_check,
     )
     tm = load_topic_map(args.topics)
-
-    def progress(k):
-        if sys.stderr.isatty() and k % 10 == 0:
-            print(f'\rreplay: {k} frames', end='', file=sys.stderr)
-
-    result = replay_bag(args.bag, config, tm, progress, workers=args.workers)
-    if sys.stderr.isatty():
-        print(file=sys.stderr)
+    with progress_bar('replay', ' frames') as bar:
+        result = replay_bag(
+            args.bag, config, tm, lambda k: advance_to(bar, k), workers=args.workers
+        )
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
     print(
         f'{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in '

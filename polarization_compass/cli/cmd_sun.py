@@ -12,11 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-`polarization-compass sun`: the sun's azimuth and altitude as JSON.
-
-`polarization-compass sun`: the sun's azimuth and altitude for a site and a UTC time, as JSON.
-"""
+"""`polarization-compass sun`: the sun's azimuth and altitude at a site and UTC time, as JSON."""
 
 from __future__ import annotations
 

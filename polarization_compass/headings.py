@@ -1,0 +1,786 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The one road from an input file to headings: frame file, Stokes planes or raw mosaic.
+
+``polarization-compass estimate``, the bench and the tests turn an input file into headings here
+(the nodes and the replay feed a live mosaic to
+:class:`polarization_compass.pipeline.HeadingFrontEnd` instead). The steps, in order:
+
+1. :func:`estimate_file` reads the input
+   (:func:`polarization_compass.real_input.load_polarization_input`): a frame file written by
+   ``render`` goes to :func:`frame_headings`, a real image (raw mosaic or Stokes planes, with a
+   camera file) to :func:`real_headings`.
+2. :func:`resolve_sun` says where the sun was: given, from the frame's meta, or from the ephemeris.
+3. :func:`make_estimators` makes one estimator per method with the knobs each method declares
+   (``knob_specs``: names and ranges are checked there, nowhere else).
+4. The observation: a frame's raw mosaic demosaiced for each method's pixels
+   (:func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`) or its stored
+   AoP/DoP; a real image's whole sky by :func:`real_observation`.
+5. Each result as a JSON-ready dict (:func:`result_row`); on real images checked against the whole
+   sky first (:func:`polarization_compass.skyfit.assess_result`, ``inconsistent`` across methods).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import time
+
+from .errors import CompassError
+
+__all__ = [
+    'EstimateOptions',
+    'REAL_SKY_KNOBS',
+    'REAL_SKY_OUTLIER_DEG',
+    'Sun',
+    'estimate_file',
+    'frame_headings',
+    'check_stride',
+    'make_estimators',
+    'method_list',
+    'real_headings',
+    'real_observation',
+    'resolve_sun',
+    'result_row',
+]
+
+#: real images: the robust refit's outlier threshold for the methods that have the knob
+#: (``outlier_deg``)
+REAL_SKY_OUTLIER_DEG = 15.0
+
+#: real images: knob defaults for the methods with the robust refit (``outlier_deg``), unless the
+#: user sets ``outlier_deg``: consensus over candidate suns, outliers beyond 15 deg dropped
+REAL_SKY_KNOBS = {'outlier_deg': REAL_SKY_OUTLIER_DEG, 'max_aop_noise_deg': 90.0}
+
+
+@dataclass(frozen=True)
+class Sun:
+    """Where the sun was: azimuth [deg, clockwise from North], altitude [deg] and whence."""
+
+    azimuth_deg: float
+    altitude_deg: float
+    source: str
+
+
+@dataclass
+class EstimateOptions:
+    """
+    Everything :func:`estimate_file` needs besides the input path (``estimate``'s options).
+
+    ``methods`` names registered methods; ``knobs`` apply to every selected method that declares
+    them; ``stride`` overrides each method's default. ``camera_yaml``, ``mask_path``, ``bits`` and
+    ``demosaic`` concern real images; ``use_stored`` frame files. The sun: ``sun_azimuth_deg`` and
+    ``sun_altitude_deg`` if given, else a frame's meta, else the ephemeris for ``lat_deg``,
+    ``lon_deg`` and ``time_utc`` (ISO 8601). ``ifov_k`` None is the IFOV check's default.
+    """
+
+    methods: list = field(default_factory=list)
+    knobs: dict = field(default_factory=dict)
+    stride: int | None = None
+    camera_yaml: str | None = None
+    mask_path: str | None = None
+    bits: int | None = None
+    demosaic: str = 'superpixel'
+    ifov_k: float | None = None
+    sun_azimuth_deg: float | None = None
+    sun_altitude_deg: float | None = None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    time_utc: str | None = None
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+    prior_bearing_deg: float | None = None
+    sky_check: bool = True
+    use_stored: bool = False
+
+
+def estimate_file(path, options: EstimateOptions) -> list[dict]:
+    """
+    Turn an input file into one result dict per method: THE road from a file to headings.
+
+    Parameters
+    ----------
+    path : str or Path
+        A frame file written by ``render`` (.npz) or a real image: raw mosaic (.png/.tif/.npy) or
+        Stokes planes (.npz with s0, s1, s2, or a 3-page .tif).
+    options : EstimateOptions
+        Methods, knobs, the sun, the tilt and the input's settings.
+
+    Returns
+    -------
+    list of dict
+        One JSON-ready dict per method (:func:`result_row`), in the order of ``options.methods``.
+
+    Raises
+    ------
+    CompassError
+        A frame file with ``camera_yaml`` or ``mask_path``; a real image without ``camera_yaml``
+        or with ``use_stored``; and every user error of the steps (bad file, knob, sun).
+
+    """
+    from .real_input import load_polarization_input
+
+    inp = load_polarization_input(path, options.bits)
+    if inp.kind == 'frame':
+        if options.mask_path or options.camera_yaml:
+            raise CompassError(
+                '--camera and --mask apply to real images; a frame file carries its camera'
+            )
+        from .frame_io import load_frame_npz
+
+        frame = load_frame_npz(path)
+        return frame_headings(frame, options, _options_sun(frame.meta, options))
+    if not options.camera_yaml:
+        raise CompassError(
+            f'{path}: a real image needs --camera CAMERA.yaml (ROS camera_calibration format)'
+        )
+    if options.use_stored:
+        raise CompassError('--use-stored applies to frame files')
+    from .camera import load_camera_yaml
+    from .real_input import load_mask
+
+    cam_file = load_camera_yaml(options.camera_yaml)
+    sun = _options_sun({}, options)
+    mask = None
+    if options.mask_path:
+        shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
+        mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
+    return real_headings(inp, cam_file, options, sun, mask)
+
+
+def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
+    return resolve_sun(
+        meta,
+        options.sun_azimuth_deg,
+        options.sun_altitude_deg,
+        options.lat_deg,
+        options.lon_deg,
+        options.time_utc,
+    )
+
+
+def resolve_sun(
+    meta: dict,
+    azimuth_deg: float | None = None,
+    altitude_deg: float | None = None,
+    lat_deg: float | None = None,
+    lon_deg: float | None = None,
+    time_utc: str | None = None,
+) -> Sun:
+    """
+    Say where the sun was: given, else from a frame's meta, else from the ephemeris.
+
+    Parameters
+    ----------
+    meta : dict
+        A frame's meta (``sun_azimuth_deg``, ``sun_altitude_deg``); ``{}`` for a real image.
+    azimuth_deg, altitude_deg : float, optional
+        The given sun [deg]; both or neither (the caller checks their ranges).
+    lat_deg, lon_deg : float, optional
+        The site [deg], for the ephemeris.
+    time_utc : str, optional
+        UTC time, ISO 8601, for the ephemeris.
+
+    Returns
+    -------
+    Sun
+        Azimuth, altitude and where they came from.
+
+    Raises
+    ------
+    CompassError
+        Nothing says where the sun was.
+
+    """
+    if azimuth_deg is not None or altitude_deg is not None:
+        return Sun(float(azimuth_deg), float(altitude_deg), 'given (--sun-azimuth/--sun-altitude)')
+    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
+    ok = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        for v in (az, alt)
+    )
+    if ok:
+        return Sun(float(az), float(alt), 'frame meta')
+    if lat_deg is None or lon_deg is None or time_utc is None:
+        raise CompassError(
+            'the input does not say where the sun was: give --lat, --lon and --time, or '
+            '--sun-azimuth and --sun-altitude'
+        )
+    from .solar import sun_position
+
+    pos = sun_position(time_utc, lat_deg, lon_deg, 0.0)
+    return Sun(
+        float(pos.azimuth_deg),
+        float(pos.altitude_deg),
+        'ephemeris (SPA) for --lat/--lon/--time',
+    )
+
+
+def method_list(text: str) -> list[str]:
+    """
+    Read a method selection: ``all`` or a comma-separated list of registered methods.
+
+    Parameters
+    ----------
+    text : str
+        ``all`` or e.g. ``zenith,sm_asm``.
+
+    Returns
+    -------
+    list of str
+        The method names, in the registry's order for ``all``, else as given.
+
+    Raises
+    ------
+    CompassError
+        An unknown method or an empty list.
+
+    """
+    from .estimators import estimator_names
+
+    names = estimator_names()
+    if text == 'all':
+        return names
+    wanted = [t.strip() for t in text.split(',') if t.strip()]
+    bad = [w for w in wanted if w not in names]
+    if bad or not wanted:
+        raise CompassError(
+            f'--method: unknown {", ".join(bad) or repr(text)}; known: {", ".join(names)} or all'
+        )
+    return wanted
+
+
+def make_estimators(methods, knobs: dict, stride: int | None = None, defaults=None) -> list:
+    """
+    Make one estimator per method, each with the knobs it declares.
+
+    Names and ranges are checked by the knobs' own declarations (``knob_specs``, through
+    :func:`polarization_compass.estimators.make_estimator`).
+
+    Parameters
+    ----------
+    methods : sequence of str
+        Registered method names.
+    knobs : dict
+        Knob name to value, applied to every method that has the knob; each must be some
+        selected method's.
+    stride : int, optional
+        Every N-th sensor pixel, for the methods with a ``stride`` knob (checked against the
+        declared range even when none of the selected methods has one).
+    defaults : dict, optional
+        Knob defaults for the methods with the robust refit (``outlier_deg``) unless ``knobs``
+        sets ``outlier_deg`` (:data:`REAL_SKY_KNOBS` on real images).
+
+    Returns
+    -------
+    list of tuple
+        (name, estimator, the knobs it was given) per method.
+
+    Raises
+    ------
+    CompassError
+        A knob no selected method has; a bad knob value (an
+        :class:`~polarization_compass.estimators.EstimatorError`).
+
+    """
+    from .estimators import make_estimator, registry
+
+    if stride is not None:
+        check_stride(stride, methods)
+    estimators, used = [], set()
+    for name in methods:
+        specs = registry.get(name).knob_specs()
+        kn = {k: v for k, v in knobs.items() if k in specs}
+        if defaults and 'outlier_deg' in specs and 'outlier_deg' not in knobs:
+            for k, v in defaults.items():
+                if k in specs and k not in knobs:
+                    kn[k] = v
+        used.update(kn)
+        if stride is not None and 'stride' in specs:
+            kn['stride'] = stride
+        estimators.append((name, make_estimator(name, **kn), kn))
+    unused = sorted(set(knobs) - used)
+    if unused:
+        raise CompassError(f'--knob {", ".join(unused)}: no selected method has that knob')
+    return estimators
+
+
+def check_stride(stride, methods) -> None:
+    """
+    Check a stride against the ``stride`` knob as the methods declare it.
+
+    The declarations of the selected methods that have the knob, else that of any registered
+    method (so a bad value is refused even when no selected method reads it).
+
+    Parameters
+    ----------
+    stride : int
+        Every N-th sensor pixel.
+    methods : sequence of str
+        The selected methods.
+
+    Raises
+    ------
+    EstimatorError
+        The value is outside the declared range or not an integer.
+
+    """
+    from .estimators import registry
+
+    def holders(names):
+        specs = (registry.get(n).knob_specs() for n in names)
+        return [s['stride'] for s in specs if 'stride' in s]
+
+    for spec in holders(methods) or holders(registry.names())[:1]:
+        spec.check('stride', stride)
+
+
+def result_row(res, time_ms: float, knobs: dict, source: dict, truth_psi_deg=None) -> dict:
+    """
+    Give one method's result as the JSON-ready dict ``estimate`` prints.
+
+    Parameters
+    ----------
+    res : HeadingResult
+        The result.
+    time_ms : float
+        Time it took [ms] (rounded to microseconds here).
+    knobs : dict
+        The knobs the method was given.
+    source : dict
+        Where the sun and the input came from.
+    truth_psi_deg : float, optional
+        The true psi [deg] of a simulated frame: adds ``truth_psi_deg`` and ``error_deg``
+        (axially folded for an axial result) when the result has a psi.
+
+    Returns
+    -------
+    dict
+        ``res.to_json_dict()`` plus ``time_ms``, ``knobs``, the truth and error, and ``source``.
+
+    """
+    from .conventions import fold_axial_deg, wrap_180_deg
+
+    d = res.to_json_dict()
+    d['time_ms'] = round(time_ms, 3)
+    d['knobs'] = knobs
+    if res.psi_deg is not None and truth_psi_deg is not None:
+        err = res.psi_deg - truth_psi_deg
+        d['truth_psi_deg'] = truth_psi_deg
+        d['error_deg'] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
+    d['source'] = source
+    return d
+
+
+# --------------------------------------------------------------------------------------------
+# Frame files (written by ``render``)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _MosaicPlan:
+    """How a frame's raw mosaic is demosaiced: where it starts, how, and what was assumed."""
+
+    origin_px: tuple
+    method: str
+    layout: list
+    pol45_toward: str
+    saturation_level: float | None
+    source: dict
+
+
+def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
+    """
+    Estimate the heading of a frame file with every selected method.
+
+    The raw mosaic, when the frame holds one and ``options.use_stored`` is off, is demosaiced for
+    each method's own pixels (the scene's demosaic and layout from the frame's meta, else
+    superpixel and the IMX250MZR layout, recorded as ``assumed``); otherwise the stored AoP/DoP
+    make one observation shared by all methods. A frame whose meta has ``psi_deg`` gets the error.
+
+    Parameters
+    ----------
+    frame : FrameFile
+        The frame (:func:`polarization_compass.frame_io.load_frame_npz`).
+    options : EstimateOptions
+        Methods, knobs, stride, tilt, prior, ``use_stored`` and ``ifov_k``.
+    sun : Sun
+        Where the sun was (:func:`resolve_sun`).
+
+    Returns
+    -------
+    list of dict
+        One dict per method (:func:`result_row`).
+
+    Raises
+    ------
+    CompassError
+        A bad knob or stride; the mosaic does not match the AoP image.
+
+    """
+    estimators = make_estimators(options.methods, options.knobs, options.stride)
+    source = {'sun': sun.source}
+    plan = None
+    if frame.mosaic is not None and not options.use_stored:
+        plan = _mosaic_plan(frame)
+        source['input'] = plan.source
+    else:
+        source['input'] = 'stored AoP/DoP' + (
+            ' (--use-stored)' if frame.mosaic is not None else ''
+        )
+    truth = frame.meta.get('psi_deg')
+    if not (isinstance(truth, (int, float)) and math.isfinite(truth)):
+        truth = None
+    out, stored_obs = [], None
+    for _name, est, kn in estimators:
+        t0 = time.perf_counter()
+        if plan is not None:
+            obs = _mosaic_observation(frame, plan, est, sun, options)
+        else:
+            if stored_obs is None:
+                stored_obs = _stored_observation(frame, sun, options)
+            obs = stored_obs
+        res = est.estimate(obs)
+        dt = (time.perf_counter() - t0) * 1e3
+        out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
+    return out
+
+
+def _mosaic_plan(frame) -> _MosaicPlan:
+    """Read from a frame's meta how to demosaic its mosaic; CompassError if it cannot be."""
+    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+
+    _sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
+    layout, pol45 = mos.get('layout'), mos.get('pol45_toward')
+    assumed = []
+    if layout is None:
+        layout = [list(r) for r in IMX250MZR_LAYOUT]
+        assumed.append('layout')
+    if pol45 is None:
+        pol45 = IMX250MZR_POL45
+        assumed.append('pol45_toward')
+    shp, mshp = frame.aop_rad.shape, frame.mosaic.shape
+    if method is None:
+        method = 'bilinear' if mshp == shp else 'superpixel'
+        assumed.append('demosaic')
+    if method == 'bilinear' and mshp == shp:
+        origin = (frame.x_px.flat[0], frame.y_px.flat[0])
+    elif method == 'superpixel' and len(shp) == 2 and mshp == (2 * shp[0], 2 * shp[1]):
+        origin = (frame.x_px.flat[0] - 0.5, frame.y_px.flat[0] - 0.5)
+    else:
+        raise CompassError(
+            f"the frame's mosaic {mshp} does not match its {shp} AoP image for a {method} "
+            'demosaic; use --use-stored'
+        )
+    sat = float((1 << bits) - 1) if bits else full_well
+    source = {
+        'mosaic': list(mshp),
+        'demosaic': method,
+        'layout': layout,
+        'pol45_toward': pol45,
+        'assumed': assumed,
+        'saturation_level': sat,
+    }
+    origin = (int(round(origin[0])), int(round(origin[1])))
+    return _MosaicPlan(origin, method, layout, pol45, sat, source)
+
+
+def _mosaic_observation(frame, plan: _MosaicPlan, est, sun: Sun, options: EstimateOptions):
+    """Demosaic, from the frame's mosaic, the observation of the pixels ``est`` reads."""
+    from .demosaic import IFOV_K_DEFAULT
+    from .estimators.mosaic_input import observation_from_mosaic
+
+    return observation_from_mosaic(
+        frame.mosaic,
+        frame.camera,
+        sun.azimuth_deg,
+        sun.altitude_deg,
+        origin_px=plan.origin_px,
+        method=plan.method,
+        layout=plan.layout,
+        pol45_toward=plan.pol45_toward,
+        saturation_level=plan.saturation_level,
+        selection=est.pixels_needed(frame.camera),
+        with_intensity=frame.intensity is not None,
+        pitch_deg=options.pitch_deg,
+        roll_deg=options.roll_deg,
+        prior_bearing_deg=options.prior_bearing_deg,
+        ifov_k=IFOV_K_DEFAULT if options.ifov_k is None else options.ifov_k,
+    )
+
+
+def _stored_observation(frame, sun: Sun, options: EstimateOptions):
+    """Build the observation of the frame's stored AoP/DoP (every method reads the same one)."""
+    from .estimators import Observation
+
+    return Observation(
+        frame.aop_rad,
+        frame.dop,
+        frame.valid,
+        frame.rays_cam(),
+        frame.x_px,
+        frame.y_px,
+        frame.camera,
+        sun.azimuth_deg,
+        sun.altitude_deg,
+        frame.intensity,
+        options.pitch_deg,
+        options.roll_deg,
+        options.prior_bearing_deg,
+    )
+
+
+def _sensor_meta(meta: dict):
+    """
+    Read the sensor settings from a frame's meta, types checked.
+
+    Returns (sensor, mosaic, demosaic, quantization_bits, full_well_e). A frame file is user input,
+    so a wrong type is a :class:`FrameFileError` (one line, exit 2), not a crash.
+    """
+    from .frame_io import FrameFileError
+
+    def section(d, key):
+        v = d.get(key)
+        if v is None:
+            return {}
+        if not isinstance(v, dict):
+            raise FrameFileError(f'frame meta: {key} must be a mapping, got {type(v).__name__}')
+        return v
+
+    sensor = section(meta, 'sensor')
+    mos = section(sensor, 'mosaic')
+    method = sensor.get('demosaic')
+    if method is not None and method not in ('superpixel', 'bilinear'):
+        raise FrameFileError(
+            f'frame meta: sensor.demosaic must be superpixel or bilinear, got {method!r}'
+        )
+    bits = sensor.get('quantization_bits')
+    if bits is not None and (
+        isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 32
+    ):
+        raise FrameFileError(
+            f'frame meta: sensor.quantization_bits must be an integer in [1, 32], got {bits!r}'
+        )
+    full_well = section(sensor, 'exposure').get('full_well_e')
+    if full_well is not None and (
+        isinstance(full_well, bool)
+        or not isinstance(full_well, (int, float))
+        or not math.isfinite(full_well)
+        or full_well <= 0
+    ):
+        raise FrameFileError(
+            f'frame meta: sensor.exposure.full_well_e must be a positive number, got {full_well!r}'
+        )
+    return sensor, mos, method, bits, None if full_well is None else float(full_well)
+
+
+# --------------------------------------------------------------------------------------------
+# Real images (raw mosaic or Stokes planes, with a camera file)
+# --------------------------------------------------------------------------------------------
+def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) -> list[dict]:
+    """
+    Estimate the heading of a real image with every selected method, checked against the sky.
+
+    The methods with the robust refit get :data:`REAL_SKY_KNOBS` unless the user set
+    ``outlier_deg``. With ``options.sky_check`` every result is checked against the whole sky
+    (:func:`polarization_compass.skyfit.assess_result`: misfit sigma, 180 deg side,
+    ``poor_fit``) and, with several methods, against each other (``inconsistent``).
+
+    Parameters
+    ----------
+    inp : PolarizationInput
+        The image (:func:`polarization_compass.real_input.load_polarization_input`).
+    cam_file : CameraFile
+        The camera and its polarizer (:func:`polarization_compass.camera.load_camera_yaml`).
+    options : EstimateOptions
+        Methods, knobs, stride, demosaic, IFOV check, tilt, prior and ``sky_check``.
+    sun : Sun
+        Where the sun was.
+    mask : numpy.ndarray of bool, optional
+        True = sky (:func:`polarization_compass.real_input.load_mask`).
+
+    Returns
+    -------
+    list of dict
+        One dict per method (:func:`result_row`).
+
+    """
+    from .skyfit import assess_result, mark_inconsistent, sample_sky
+
+    estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
+    obs, _ = real_observation(
+        inp,
+        cam_file,
+        sun.azimuth_deg,
+        sun.altitude_deg,
+        mask,
+        options.demosaic,
+        options.pitch_deg,
+        options.roll_deg,
+        options.prior_bearing_deg,
+        options.ifov_k,
+    )
+    check = options.sky_check
+    sample = (
+        sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity) if check else None
+    )
+    source = {
+        'sun': sun.source,
+        'input': {
+            'kind': inp.kind,
+            'path': inp.path,
+            'layout': [list(r) for r in cam_file.layout],
+            'pol45_toward': cam_file.pol45_toward,
+            'assumed': [] if cam_file.layout_given else ['layout', 'pol45_toward'],
+            'usable_pixels': int(obs.valid.sum()),
+        },
+    }
+    results, times = [], []
+    for _name, est, _kn in estimators:
+        t0 = time.perf_counter()
+        res = est.estimate(obs)
+        if check:
+            res = assess_result(
+                res,
+                sample,
+                sun.altitude_deg,
+                options.pitch_deg,
+                options.roll_deg,
+                options.prior_bearing_deg,
+            )
+        times.append((time.perf_counter() - t0) * 1e3)
+        results.append(res)
+    if check and len(results) > 1:
+        results = mark_inconsistent(results)
+    return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
+
+
+def real_observation(
+    inp,
+    cam_file,
+    sun_az,
+    sun_alt,
+    mask=None,
+    demosaic='superpixel',
+    pitch=None,
+    roll=None,
+    prior=None,
+    ifov_k=None,
+):
+    """
+    Build the observation of a whole real image and its data mask.
+
+    Stokes planes are turned into camera-frame Stokes (S2 changes sign when the 45 deg polarizer
+    points towards +x-y, see :mod:`polarization_compass.demosaic`); a raw mosaic is demosaiced with
+    the camera file's layout. Invalid: outside the lens, saturated (+ glare), masked, and for a raw
+    mosaic the IFOV check's rejections.
+
+    Parameters
+    ----------
+    inp : PolarizationInput
+        The image (:func:`polarization_compass.real_input.load_polarization_input`).
+    cam_file : CameraFile
+        The camera and its polarizer.
+    sun_az, sun_alt : float
+        Sun azimuth [deg, clockwise from North] and altitude [deg].
+    mask : numpy.ndarray of bool, optional
+        True = sky; the input's size or the sensor's.
+    demosaic : {"superpixel", "bilinear"}, default "superpixel"
+        Demosaic of a raw mosaic.
+    pitch, roll : float, optional
+        Known camera pitch and roll [deg].
+    prior : float, optional
+        Prior bearing of camera +y [deg].
+    ifov_k : float, optional
+        IFOV check threshold [noise sigmas] (default ``demosaic.IFOV_K_DEFAULT``; 0 = off).
+
+    Returns
+    -------
+    tuple
+        (Observation of the whole image, data mask as bool array of the planes' shape).
+
+    Raises
+    ------
+    CompassError
+        The input, the camera file and the mask do not agree in size.
+
+    """
+    from .demosaic import aop_dop_from_stokes
+    from .estimators import Observation
+    from .polarizer_check import plane_rays
+
+    cam = cam_file.camera
+    s0, s1, s2, saturated = _camera_stokes(inp, cam_file, demosaic, ifov_k)
+    xg, yg, rays, has_ray = plane_rays(cam, s0.shape)
+    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
+    keep = _sky_mask(s0, has_ray, saturated, mask, xg, yg, cam.shape)
+    valid = valid & keep
+    obs = Observation(aop, dop, valid, rays, xg, yg, cam, sun_az, sun_alt, s0, pitch, roll, prior)
+    return obs, keep
+
+
+def _camera_stokes(inp, cam_file, demosaic, ifov_k):
+    """Camera-frame (S0, S1, S2) of a real input and, for a raw mosaic, its saturated blocks."""
+    from .demosaic import IFOV_K_DEFAULT, stokes_from_mosaic
+
+    H, W = cam_file.camera.shape
+    if inp.kind == 'stokes':
+        s0, s1, s2 = inp.stokes
+        if cam_file.pol45_toward == '+x-y':
+            s2 = -s2
+        return s0, s1, s2, None
+    if inp.mosaic.shape != (H, W):
+        raise CompassError(
+            f'the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file '
+            'says '
+            f'{W} x {H}'
+        )
+    s0, s1, s2 = stokes_from_mosaic(
+        inp.mosaic,
+        cam_file.layout,
+        cam_file.pol45_toward,
+        demosaic,
+        inp.saturation_level,
+        IFOV_K_DEFAULT if ifov_k is None else ifov_k,
+    )
+    from .polarizer_check import saturated_blocks
+
+    return s0, s1, s2, saturated_blocks(inp.mosaic, inp.saturation_level, s0.shape)
+
+
+def _sky_mask(s0, has_ray, saturated, mask, xg, yg, sensor_shape):
+    """Pixels to use: in the lens, not glare (saturated samples grown), not masked."""
+    import numpy as np
+
+    from .skyfit import data_mask
+
+    H, W = sensor_shape
+    shp = s0.shape
+    if saturated is None:
+        keep = data_mask(s0, has_ray)
+    else:  # saturated raw samples: grow those into the glare mask
+        keep = data_mask(np.where(saturated, np.float32(np.inf), s0), has_ray, float('inf'))
+    if mask is not None:
+        if mask.shape == shp:
+            keep &= mask
+        elif mask.shape == (H, W):
+            keep &= mask[
+                np.clip(np.rint(yg).astype(int) - 1, 0, H - 1),
+                np.clip(np.rint(xg).astype(int) - 1, 0, W - 1),
+            ]
+        else:
+            raise CompassError(
+                f'--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}'
+            )
+    return keep
