@@ -16,15 +16,40 @@
 
 
 def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
+    """
+    Inside the context numba and every loaded OpenBLAS run one thread; outside, what was set before.
+
+    BLAS is first set to 2 threads (the suite runs with OPENBLAS_NUM_THREADS=1, which alone could
+    not tell a restore from a no-op); the counts are read with threadpoolctl's own report and each
+    library's ``openblas_get_num_threads`` through ctypes, independently of the code under test.
+    """
+    import ctypes
+
     import numba
-    from polarization_compass.runtime import openblas_handles as _openblas_handles
     from polarization_compass.runtime import single_threaded_kernels
+    import scipy.linalg  # noqa: F401 - loads scipy's OpenBLAS beside numpy's
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        """Return (threadpoolctl's count, the library's own) for each loaded OpenBLAS."""
+        out = []
+        for lib in threadpool_info():
+            if lib['internal_api'] == 'openblas':
+                so = ctypes.CDLL(lib['filepath'])
+                name = next(
+                    f'{prefix}_get_num_threads{suffix}'
+                    for prefix in ('scipy_openblas', 'openblas')
+                    for suffix in ('64_', '')
+                    if hasattr(so, f'{prefix}_get_num_threads{suffix}')
+                )
+                out.append((lib['num_threads'], getattr(so, name)()))
+        return out
 
     before = numba.get_num_threads()
-    assert _openblas_handles(), "numpy's OpenBLAS not found"
-    blas_before = [g() for _, g in _openblas_handles()]
-    with single_threaded_kernels():
-        assert numba.get_num_threads() == 1
-        assert all(g() == 1 for _, g in _openblas_handles())
-    assert numba.get_num_threads() == before
-    assert [g() for _, g in _openblas_handles()] == blas_before
+    with threadpool_limits(limits=2, user_api='blas'):
+        assert blas_threads() and all(t == (2, 2) for t in blas_threads()), blas_threads()
+        with single_threaded_kernels():
+            assert numba.get_num_threads() == 1
+            assert all(t == (1, 1) for t in blas_threads()), blas_threads()
+        assert numba.get_num_threads() == before
+        assert all(t == (2, 2) for t in blas_threads()), blas_threads()
