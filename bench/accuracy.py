@@ -227,11 +227,7 @@ CONDITIONS = {
 # Knob sets: (label, estimator knobs, demosaic for sensor conditions)
 # ------------------------------------------------------------------------------------------------
 def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, str | None]]:
-    """
-    Return the accuracy knobs swept for a method; ``level``: quick | full | tiny.
-
-    The accuracy knobs swept for a method. ``level``: quick | full | tiny.
-    """
+    """Return the accuracy knobs swept for a method; ``level``: quick | full | tiny."""
     strides = {'tiny': (4,), 'quick': (4, 16), 'full': (2, 4, 8, 16)}[level]
     out: list[tuple[str, dict, str | None]] = []
     demosaics = (

@@ -15,8 +15,8 @@
 """
 Error maps: what the default sweep sampling costs in accuracy.
 
-Error maps: what the default sweep sampling costs in accuracy (issue 4: "the default sampling
-changes the errors by < 0.05 deg compared with full resolution").
+Issue 4 asks that "the default sampling changes the errors by < 0.05 deg compared with full
+resolution".
 
 For random cells of the tilt domain (sun altitude 0-50 deg, any yaw, |pitch| + |roll| <= 30 deg;
 every other cell pitch only, the target sweep's case), each of the paper's four methods is run

@@ -381,8 +381,7 @@ def _reference_cell(cells, method, condition):
     """
     Return the cell with a method's reference knobs in a condition.
 
-    The cell with a method's reference knobs in a condition (superpixel demosaic if there is a
-    sensor).
+    With a sensor, the cell with the superpixel demosaic; None when there is no such cell.
     """
     labels = REFERENCE_KNOBS.get(method, REFERENCE_KNOBS['default'])
     for lab in labels:
@@ -481,8 +480,7 @@ def _section(title: str, group) -> tuple[list[str], dict | None]:
     """
     Return a section's heading and its group's results.
 
-    A section's heading and its group's results; results None (and the lines say why) when the
-    group did not run or did not end ok.
+    The results are None (and the lines say why) when the group did not run or did not end ok.
     """
     lines = [f'## {title}', '']
     if not group or group.get('status') != 'ok':

@@ -15,9 +15,9 @@
 """
 Corrupt-.npz checks shared by the hard-case tests of every .npz loader.
 
-Corrupt-.npz checks shared by the hard-case tests of every loader that reads .npz files (frame
-files, error maps): a truncated archive, a .npy saved under an .npz name, and no file handle leaked
-on the error path. Each check takes the loader and the error class it must raise.
+For the loaders of frame files and error maps: a truncated archive, a .npy saved under an .npz
+name, and no file handle leaked on the error path. Each check takes the loader and the error class
+it must raise.
 """
 
 from __future__ import annotations

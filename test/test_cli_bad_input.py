@@ -208,8 +208,7 @@ def test_render_edge_values_are_accepted_and_give_finite_frames(argv, tmp_path, 
     """
     The edges of every documented range are valid input.
 
-    The edges of every documented range are valid input: exit 0, a finite frame, psi in (-180,
-    180].
+    Each gives exit 0, a finite frame and psi in (-180, 180].
     """
     from polarization_compass.frame_io import load_frame_npz
 

@@ -15,10 +15,10 @@
 """
 Map-based tilt correction against the truth.
 
-Map-based tilt correction against the truth: true yaws are drawn off the grid, the measured heading
-comes from rendering and running the real estimator (or from the closed-form level-assumption
-heading, which the four methods reproduce to ~0.002 deg under an ideal Rayleigh sky), and the
-corrected heading is compared with the drawn truth -- never with the corrector's own output.
+True yaws are drawn off the grid, the measured heading comes from rendering and running the real
+estimator (or from the closed-form level-assumption heading, which the four methods reproduce to
+~0.002 deg under an ideal Rayleigh sky), and the corrected heading is compared with the drawn truth
+-- never with the corrector's own output.
 """
 
 import math

@@ -15,9 +15,9 @@
 """
 Error-map sweeps against independent computations.
 
-Error-map sweeps against independent computations: the closed-form level-assumption heading, the
-physics notes' published curve, the paper's three similarities and eq 32's 90-degree shift, plus
-the engine's bookkeeping (domain, status codes, resume, workers, corrupt files).
+The references: the closed-form level-assumption heading, the physics notes' published curve, the
+paper's three similarities and eq 32's 90-degree shift, plus the engine's bookkeeping (domain,
+status codes, resume, workers, corrupt files).
 """
 
 import json

@@ -15,8 +15,8 @@
 """
 Heading estimators against independent references.
 
-Heading estimators against independent references: the paper's own Rayleigh formulas, closed-form
-camera-frame sun azimuths, the physics notes' tilt curve, symmetry, and a calibrated noise model.
+The references: the paper's own Rayleigh formulas, closed-form camera-frame sun azimuths, the
+physics notes' tilt curve, symmetry, and a calibrated noise model.
 
 Every reference here is computed without the estimators' code: the truth psi of a render, the
 camera- frame sun ``R^T s_enu`` from conventions, the notes' published numbers, or a numpy lift.
@@ -193,9 +193,9 @@ def test_row_wise_pass_matches_numpy_per_block(keys):
     """
     The row-wise grid kernel matches a plain numpy computation per block.
 
-    The row-wise grid kernel against a plain numpy computation: each block's M_b (block of 8 sensor
-    pixels from the pixel coordinates), the usable, valid and non-finite counts, with NaN/inf
-    planted in valid and invalid pixels and a min_dop cut.
+    Compared: each block's M_b (block of 8 sensor pixels from the pixel coordinates), the usable,
+    valid and non-finite counts, with NaN/inf planted in valid and invalid pixels and a min_dop
+    cut.
     """
     from polarization_compass.estimators._kernels import full_pass, grid_layout
 

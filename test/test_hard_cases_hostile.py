@@ -15,8 +15,8 @@
 """
 Hostile input to the ROS-free layer (issue 18).
 
-Hostile input to the ROS-free layer (issue 18): loaders bound what they read, implausible camera
-intrinsics are refused, and a heading contradicting an independent IMU prior is not ``ok``.
+Loaders bound what they read, implausible camera intrinsics are refused, and a heading
+contradicting an independent IMU prior is not ``ok``.
 
 Bombs are built small: a compressed ``.npz`` whose ``.npy`` header *declares* a huge shape is
 refused from its header, before anything is decompressed or allocated (``tracemalloc`` checks the

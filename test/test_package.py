@@ -15,8 +15,7 @@
 """
 The package builds with colcon as an ament_python package.
 
-The package builds with colcon as an ament_python package and installs what `ros2 run`/`ros2
-launch` need.
+It installs what `ros2 run`/`ros2 launch` need.
 """
 
 import os

@@ -15,8 +15,8 @@
 """
 Property-based and hard-case tests of every heading estimator.
 
-Property-based and hard-case tests of every heading estimator over random suns, attitudes, pixel
-masks, priors and AoP noise (numpy warnings are errors, pytest.ini).
+Inputs are random suns, attitudes, pixel masks, priors and AoP noise (numpy warnings are errors,
+pytest.ini).
 
 Promises checked (estimators/base.py): a HeadingResult never carries NaN/inf; a usable result has
 psi in (-180, 180], bearing in [0, 360), REP-103 yaw = 90 - bearing, bearing = psi + sun azimuth, a

@@ -79,7 +79,7 @@ def rays(x0, y0):
     """
     Return equidistant rays of 0-based pixel coordinates.
 
-    Equidistant rays of 0-based pixel coordinates (camera x right, y down, z the optical axis).
+    Camera frame: x right, y down, z the optical axis.
     """
     r = np.hypot(x0 - CX, y0 - CY)
     t, p = r / F_PX, np.arctan2(y0 - CY, x0 - CX)

@@ -15,11 +15,10 @@
 """
 Live replay: a recorded bag published through the real nodes of the replay graph.
 
-Live replay: a recorded bag's messages published through the real nodes of the replay graph
-(graphs.build("replay"): heading_estimator per method, tilt_corrector, error_evaluator) on DDS
-(loopback, the test's own domain id), with use_sim_time and /clock from the bag, as `ros2 bag play
---clock` would. The nodes' errors (the evaluator's report) must equal the offline replay's, frame
-by frame and stream by stream.
+The graph is graphs.build("replay") (heading_estimator per method, tilt_corrector, error_evaluator)
+on DDS (loopback, the test's own domain id), with use_sim_time and /clock from the bag, as `ros2
+bag play --clock` would. The nodes' errors (the evaluator's report) must equal the offline
+replay's, frame by frame and stream by stream.
 """
 
 import csv

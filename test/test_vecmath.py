@@ -112,10 +112,9 @@ def test_disc_pass_loops_are_vectorised(name):
     """
     The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code.
 
-    The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code: a libm call, a
-    select inside a reduction or a Python-model division check would each make LLVM keep them
-    scalar (2-3x slower). Compiled afresh from the Python source with the kernel's own options
-    (cached code has no IR).
+    A libm call, a select inside a reduction or a Python-model division check would each make LLVM
+    keep the loops scalar (2-3x slower). Compiled afresh from the Python source with the kernel's
+    own options (cached code has no IR).
     """
     from polarization_compass.estimators import _sm_asm_kernels, _symmetry_kernels
 
