@@ -74,8 +74,8 @@ def full_resolution_knobs(method: str) -> dict:
     """
     Return the estimator's own knob defaults at stride 1 (every sensor pixel).
 
-    The estimator's own defaults at stride 1 (every sensor pixel; symmetry's fine 0.25 deg axis
-    search too); zenith has no stride: it reads its window at full resolution either way.
+    Symmetry keeps its fine 0.25 deg axis search; zenith has no stride: it reads its window at full
+    resolution either way.
     """
     from polarization_compass.estimators import make_estimator
 

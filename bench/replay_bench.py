@@ -69,7 +69,7 @@ def per_frame_figures(
     """
     Compute the per-frame time after start-up and the real-time factors.
 
-    Per-frame time after start-up and the real-time factors, from the wall clock after each frame.
+    From the wall clock after each frame.
     """
     t = np.asarray(frame_done_s, dtype=float)
     out = {
@@ -106,8 +106,7 @@ def summarize(summary: dict, times: dict, whole_wall_s: float) -> dict:
     """
     Return the replay's speed figures.
 
-    The replay's speed figures from its ``summary.json``, the worker's clock and the whole wall
-    time.
+    Read from its ``summary.json``, the worker's clock and the whole wall time.
     """
     frames = int(summary.get('frames', 0))
     dur = float(summary.get('bag_duration_s', 0.0))

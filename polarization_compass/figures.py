@@ -81,7 +81,7 @@ def _node(axis, value, name, default=None):
     """
     Return the index of the node nearest ``value`` (or the ``default`` picker's).
 
-    Index of the node nearest ``value`` (or ``default`` picker); must be within 1e-6 of a node.
+    The value must be within 1e-6 of a node.
     """
     if value is None:
         value = default(axis) if default else axis[-1]

@@ -51,8 +51,7 @@ def assert_refused(load, path, error, match=None):
     """
     Assert that ``load(path)`` raises ``error``.
 
-    ``load(path)`` raises ``error`` (a leaked handle is ignored here:
-    :func:`assert_no_leaked_handle` is that check).
+    A leaked handle is ignored here: :func:`assert_no_leaked_handle` is that check.
     """
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', ResourceWarning)
@@ -65,8 +64,7 @@ def assert_no_leaked_handle(load, path, error):
     """
     Assert that ``load(path)`` fails with ``error`` and leaves no open file behind.
 
-    ``load(path)`` fails with ``error`` and leaves no open file behind (no ResourceWarning once
-    collected).
+    No ResourceWarning is raised once it is collected.
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always')

@@ -85,8 +85,7 @@ def sun_altitude_deg(stem: str) -> float:
     """
     Return the sun altitude implied by its pixel for the equidistant lens.
 
-    Sun altitude implied by its pixel for the equidistant lens (a guess: the lens model is not
-    documented).
+    A guess: the lens model is not documented.
     """
     (x, y), _ = FRAMES[stem]
     theta = math.hypot(x - CENTRE_PX[0], y - CENTRE_PX[1]) / RADIUS_90_PX * 90.0

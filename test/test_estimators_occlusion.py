@@ -51,8 +51,7 @@ def half_plane(x_px, y_px, angle_rad):
     """
     Return the pixels kept on one side of a line through the image centre.
 
-    Pixels kept: one side of the line through the image centre whose normal has image angle
-    angle_rad (the bench's half_occluded condition).
+    The line's normal has image angle angle_rad (the bench's half_occluded condition).
     """
     u = np.asarray(x_px, dtype=float) - CAMERA.cx_px
     v = np.asarray(y_px, dtype=float) - CAMERA.cy_px

@@ -40,7 +40,7 @@ def _project_files():
     """
     Return the files git tracks plus untracked, non-ignored ones.
 
-    Files git tracks plus untracked, non-ignored ones (what a clean clone plus the work tree has).
+    What a clean clone plus the work tree has.
     """
     out = subprocess.run(
         ['git', 'ls-files', '--cached', '--others', '--exclude-standard'],

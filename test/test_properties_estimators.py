@@ -116,10 +116,9 @@ def tilt_bound_deg(pitch, roll, sun_alt):
     """
     Return the largest |tilt error| of a level-camera method.
 
-    Largest |tilt error| of a level-camera method: the notes' section 3 curve peaks at 25.9 deg for
-    pitch -20 and sun altitude 50 and grows with tilt and sun altitude; for |pitch| + |roll| <= 30
-    and the sun below 60 deg, 60 deg is a safe bound that still separates any error from a 180 deg
-    flip.
+    The notes' section 3 curve peaks at 25.9 deg for pitch -20 and sun altitude 50 and grows with
+    tilt and sun altitude; for |pitch| + |roll| <= 30 and the sun below 60 deg, 60 deg is a safe
+    bound that still separates any error from a 180 deg flip.
     """
     return 1e-3 if pitch == 0.0 and roll == 0.0 else 60.0
 
