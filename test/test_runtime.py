@@ -17,7 +17,7 @@
 
 def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
     """
-    Numba and every loaded OpenBLAS run one thread inside the context, as set before after it.
+    Numba and every loaded OpenBLAS run one thread in the context; their counts come back after.
 
     BLAS is first set to 2 threads (the suite runs with OPENBLAS_NUM_THREADS=1, which alone could
     not tell a restore from a no-op); the counts are read with threadpoolctl's own report and each
