@@ -500,7 +500,7 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
                 (
                     f'budget-{ci}-{bi}-{id(calls)}',
                     _budget_task,
-                    (c, samples[i:i + block], methods),
+                    (c, samples[i : i + block], methods),
                 )
             )
 
