@@ -35,7 +35,7 @@ from polarization_compass.correction import (
 )
 from polarization_compass.errormap import ErrorMap, ErrorMapError
 from polarization_compass.errormap_io import load_error_map
-from polarization_compass.estimators import make_estimator
+from polarization_compass.estimators import make_estimator, registry
 from polarization_compass.estimators.base import Observation
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import default_scene
@@ -43,7 +43,7 @@ from polarization_compass.sweep import run_sweep, SweepSpec
 import pytest
 from test_errormap import level_assumption_error_deg
 
-PAPER_METHODS = ('zenith', 'sm_asm', 'symmetry', 'least_squares')
+PAPER_METHODS = registry.paper_methods()
 
 
 @pytest.fixture(scope='module')
