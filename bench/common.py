@@ -343,7 +343,7 @@ def peak_memory(fn) -> dict:
        minus its resident set just before it. Before the call: ``gc.collect()``, glibc
        ``malloc_trim(0)`` (freed heap pages go back to the kernel, so a call reusing them counts:
        glibc keeps freed blocks up to 32 MiB resident, and everything once
-       :func:`polarization_compass.heap.keep_large_buffers_in_heap` applied) and a reset of the
+       :func:`polarization_compass.runtime.keep_large_buffers_in_heap` applied) and a reset of the
        kernel's high-water mark (``/proc/self/clear_refs`` = 5); after it: ``VmHWM`` from
        ``/proc/self/status``. Counted: every page the call touches that was not resident, whoever
        allocated it: arrays that numba kernels allocate internally, numpy and Python objects,
