@@ -189,8 +189,7 @@ def _backend_row(sweep, spec, probe, label: str, **kw) -> dict:
     """
     Measure one backend: an untimed probe sweep, then the timed sweep.
 
-    One backend: an untimed probe sweep (one chunk per worker: imports, numba's cache, the
-    evaluators), then the timed sweep.
+    The probe runs one chunk per worker (imports, numba's cache, the evaluators).
     """
     sweep.run_sweep(probe, out=None, progress=False, **kw)
     st: dict = {}

@@ -15,11 +15,10 @@
 """
 Issue 6's target, measured: offline replay at >= 5x real time.
 
-Issue 6's target, measured: offline replay of a full-resolution 10 Hz run at >= 5x real time with
-all four methods (``--methods zenith,sm_asm,symmetry,least_squares``: the issue's configuration),
-each corrected with the shipped map, at the command's default knobs. The command's default method
-set adds ``tilt_aware``; it is replayed too and reported beside the target (``all_methods``), not
-as it.
+A full-resolution 10 Hz run, all four methods (``--methods zenith,sm_asm,symmetry,least_squares``:
+the issue's configuration), each corrected with the shipped map, at the command's default knobs.
+The command's default method set adds ``tilt_aware``; it is replayed too and reported beside the
+target (``all_methods``), not as it.
 
 1. ``polarization-compass record-sim --scene config/scenes/imx250mzr_noisy.yaml --duration S --out
    BAG`` into a temporary directory (full: 20 s = 200 frames, ~1.9 GB; quick: 3 s). Its wall time
@@ -146,8 +145,8 @@ def median_run(runs: list[dict]) -> dict:
     """
     Return the run with the median per-frame time, plus every run's speed figures.
 
-    The run with the median per-frame time (this host's speed drifts by up to 2x over an hour, so
-    one run can land in a slow spell), plus every run's speed figures under ``runs``.
+    This host's speed drifts by up to 2x over an hour, so one run can land in a slow spell; every
+    run's figures are under ``runs``.
     """
     by_time = sorted(
         runs, key=lambda r: math.inf if r.get('per_frame_ms') is None else r['per_frame_ms']

@@ -411,8 +411,8 @@ def _headline(cells, r) -> list[str]:
     """
     Return two compact tables for the README: Pareto front and error by condition.
 
-    Two compact tables for the README: the Pareto front in the noisy condition, and each method's
-    error by condition at fixed reference knobs.
+    The Pareto front in the noisy condition, and each method's error by condition at fixed
+    reference knobs.
     """
     lines = []
     noisy = [c for c in cells if c['condition'] == 'noise_imx250']

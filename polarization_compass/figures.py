@@ -122,8 +122,8 @@ def _closed_yaw(m: ErrorMap):
     """
     Return yaw values and node indices that close a full-turn axis for plotting.
 
-    Yaw values and node indices to plot: a full-turn axis without its end node gets it back (-180
-    repeated at +180), so curves and surfaces close.
+    A full-turn axis without its end node gets it back (-180 repeated at +180), so curves and
+    surfaces close.
     """
     y = m.yaw_deg
     idx = np.arange(y.size)

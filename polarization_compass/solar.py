@@ -212,8 +212,7 @@ def _checked_number(name, v, lo, hi) -> float:
     """
     Return ``float(v)`` when finite and in [lo, hi], else raise a SolarError.
 
-    ``float(v)`` when it is a finite number in [lo, hi]; otherwise a one-line SolarError naming
-    ``name``.
+    The SolarError is one line naming ``name``.
     """
     try:
         f = float(v)

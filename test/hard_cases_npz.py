@@ -33,7 +33,7 @@ def truncate_half(path):
     """
     Cut the file at ``path`` to its first half and return the path.
 
-    Cut the file at ``path`` to its first half (a download or copy that stopped); returns the path.
+    As a download or copy that stopped would leave it.
     """
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])

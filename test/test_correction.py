@@ -55,8 +55,8 @@ def domain_points(n, seed, corner_fraction=0.3):
     """
     Draw random (psi, h, pitch, roll) inside the map's domain, many in the hardest corner.
 
-    Random (psi, h, pitch, roll) inside the map's domain (sun 0-50, |pitch|+|roll| <= 30), a share
-    of them in the hardest corner (sun 45-50 deg, tilt 25-30 deg mostly along one axis).
+    The domain: sun 0-50 deg, |pitch|+|roll| <= 30 deg; the hardest corner: sun 45-50 deg, tilt
+    25-30 deg mostly along one axis.
     """
     rng = np.random.default_rng(seed)
     k = int(n * corner_fraction)

@@ -488,6 +488,7 @@ def test_checker_fails_a_completed_module_with_a_planted_function():
 #: each must still show damage here (a repaired one fails the test until it leaves this list).
 PENDING_REPAIR = (
     'bench/estimator_speed.py',
+    'bench/replay_worker.py',
     'bench/simulator.py',
     'polarization_compass/atmosphere.py',
     'polarization_compass/bag.py',
@@ -510,6 +511,7 @@ PENDING_REPAIR = (
     'polarization_compass/estimators/_mirror.py',
     'polarization_compass/estimators/_sm_asm_kernels.py',
     'polarization_compass/estimators/_symmetry_kernels.py',
+    'polarization_compass/estimators/base.py',
     'polarization_compass/estimators/least_squares.py',
     'polarization_compass/estimators/mosaic_input.py',
     'polarization_compass/estimators/speed.py',
@@ -517,22 +519,31 @@ PENDING_REPAIR = (
     'polarization_compass/estimators/zenith.py',
     'polarization_compass/frame_io.py',
     'polarization_compass/graphs.py',
+    'polarization_compass/motion.py',
+    'polarization_compass/nodes/error_evaluator.py',
     'polarization_compass/nodes/heading_estimator.py',
     'polarization_compass/nodes/msgs.py',
     'polarization_compass/nodes/rosparams.py',
+    'polarization_compass/nodes/sky_simulator.py',
     'polarization_compass/nodes/tilt_corrector.py',
     'polarization_compass/optics.py',
     'polarization_compass/photodiode/__init__.py',
     'polarization_compass/photodiode/heading.py',
+    'polarization_compass/photodiode/selfcheck.py',
     'polarization_compass/pipeline.py',
     'polarization_compass/polarizer_check.py',
+    'polarization_compass/radiance.py',
+    'polarization_compass/render.py',
+    'polarization_compass/replay/__init__.py',
     'polarization_compass/replay/processing.py',
     'polarization_compass/replay/sync.py',
     'polarization_compass/replay/threads.py',
     'polarization_compass/scene.py',
     'polarization_compass/sensor.py',
     'polarization_compass/skyfit.py',
+    'polarization_compass/specs/topics.py',
     'test/test_replay.py',
+    'test/test_ros2_launch.py',
 )
 _WIDTH = 99
 _TABLE_RE = re.compile(r'\S {2,}\S')
@@ -593,17 +604,20 @@ def _repeats(summary_para, para) -> bool:
         head = text[: len(s)]
         if len(s) > 15 and (head == s or difflib.SequenceMatcher(None, s, head).ratio() > 0.85):
             return True
-    return False
+    # or restated: the same first four words, with or without the summary's verb
+    words = re.findall(r"[\w'`-]+", summary)
+    first = re.findall(r"[\w'`-]+", text)[:4]
+    return len(words) >= 4 and first in (words[:4], words[1:5])
 
 
 def damaged_docstrings(source: str) -> list[tuple[int, str]]:
     """
     Return (line, what) for each damaged docstring of a Python source.
 
-    Damage: the second paragraph starts with the summary again (equal, or nearly: 85 % alike, with
-    or without the summary's first word, its verb), or a prose line holds one word that either
-    starts a paragraph that goes on (a cut sentence) or fits on the line above. Tables, doctests,
-    directives and numpydoc section lines are not prose.
+    Damage: the second paragraph starts with the summary again (equal, or nearly: 85 % alike, or
+    with the same first four words; with or without the summary's first word, its verb), or a
+    prose line holds one word that either starts a paragraph that goes on (a cut sentence) or fits
+    on the line above. Tables, doctests, directives and numpydoc section lines are not prose.
     """
     out = []
     for node in ast.walk(ast.parse(source)):

@@ -380,8 +380,8 @@ def test_four_methods_agree_under_tilt(pitch, roll):
     """
     Uncorrected, the four classical methods agree under tilt.
 
-    Uncorrected, the four classical methods all measure the camera-frame solar meridian: they agree
-    with each other (paper: < 0.77 deg; here far closer) and with -atan2(s_x, s_y) of R^T s_enu.
+    They all measure the camera-frame solar meridian: they agree with each other (paper: < 0.77
+    deg; here far closer) and with -atan2(s_x, s_y) of R^T s_enu.
     """
     ests = {n: estimator(n) for n in ['zenith', 'sm_asm', 'symmetry', 'least_squares']}
     for alt in (5.0, 25.0, 50.0):

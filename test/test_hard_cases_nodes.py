@@ -15,8 +15,8 @@
 """
 Every node fed bad messages counts a rejection and never raises.
 
-Every node fed bad messages: a counted rejection (``/diagnostics`` ``rejected`` counter, by reason)
-or a status message with the reason, and never an exception out of a callback.
+A counted rejection (``/diagnostics`` ``rejected`` counter, by reason) or a status message with the
+reason, and never an exception out of a callback.
 
 Why calling the callbacks directly is the right test: rclpy's executor re-raises an exception from
 a callback out of ``spin_once``, and ``nodes.runner.run_node`` then ends the process (exit 2 for a

@@ -556,8 +556,8 @@ def _imported_modules(path: Path) -> set[str]:
     """
     Return every module a source file imports, read with ast.
 
-    Every module a source file imports, at module level or inside a function (relative names
-    resolved against the package), read with ast: the import graph, not what happens to be loaded.
+    At module level or inside a function, relative names resolved against the package: the import
+    graph, not what happens to be loaded.
     """
     import ast
 
