@@ -30,12 +30,16 @@ test: venv
 	$(PY) -m pytest -p no:launch_testing -p no:launch_ros
 	VENV=$(VENV) ./tools/launch_tests.sh
 
-# Style (docs/contributing.md): `make format` rewrites the code to what the linters accept
-# (ruff + tools/lint_fix.py, idempotent); `make lint` runs only the linter tests of `make test`.
+# Style (docs/contributing.md): `make format` rewrites the code with ruff (ruff.toml: ament's 99
+# columns, single quotes, import order and docstring rules; safe fixes, idempotent; what it cannot
+# fix it prints); `make lint` runs ruff's checks and the linter tests of `make test`
+# (ament_flake8, ament_pep257, the licence header).
 format: venv
-	$(PY) tools/lint_fix.py
+	$(VENV)/bin/ruff check --fix --exit-zero .
+	$(VENV)/bin/ruff format .
 
 lint: venv
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -m linter
 
 bench: venv

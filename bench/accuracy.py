@@ -94,6 +94,13 @@ TILT_LIMIT_DEG = 20.0
 SLOW_ESTIMATE_S = 0.25
 
 
+def condition_methods(cond: Condition, methods) -> list[str]:
+    """Return those of ``methods`` that run in a condition (``cond.methods``: all, level, tilt)."""
+    tilt = set(registry.tilt_methods())
+    keep = {'all': lambda m: True, 'level': lambda m: m not in tilt, 'tilt': lambda m: m in tilt}
+    return [m for m in methods if keep[cond.methods](m)]
+
+
 @dataclass
 class Condition:
     name: str
@@ -104,8 +111,9 @@ class Condition:
     give_tilt: bool = False  # pass the true pitch/roll in the observation
     correct: bool = False  # correct with an error map
     occlude: bool = False
-    only_methods: tuple = ()  # empty: every method
-    exclude_methods: tuple = ()
+    # which methods run: 'all'; 'level', those that do not read the tilt; 'tilt', those that do
+    # (registry.tilt_methods(): the estimator classes' needs_tilt)
+    methods: str = 'all'
     scene: dict = field(default_factory=dict)  # issue 16: scene changes (atmosphere, optics)
     calibration: dict | None = None  # issue 16: sensor.calibration (sensor conditions)
     mounting: dict | None = None  # issue 16: motion.MountingErrors of the tilt given
@@ -127,21 +135,21 @@ CONDITIONS = {
             f'Rayleigh, ideal sensor, tilted |pitch|+|roll| <= {TILT_LIMIT_DEG:g} deg, '
             'uncorrected',
             tilted=True,
-            exclude_methods=('tilt_aware',),
+            methods='level',
         ),
         Condition(
             'tilted_corrected',
             "as 'tilted', headings corrected with an error map",
             tilted=True,
             correct=True,
-            exclude_methods=('tilt_aware',),
+            methods='level',
         ),
         Condition(
             'tilted_tilt_aware',
             "as 'tilted', tilt_aware given the true pitch and roll",
             tilted=True,
             give_tilt=True,
-            only_methods=('tilt_aware',),
+            methods='tilt',
         ),
         Condition(
             'bdl_sky',
@@ -216,7 +224,7 @@ CONDITIONS = {
             'roll)',
             tilted=True,
             give_tilt=True,
-            only_methods=('tilt_aware',),
+            methods='tilt',
             mounting={'boresight_pitch_deg': 1.0, 'boresight_roll_deg': 1.0},
         ),
     )
@@ -230,8 +238,13 @@ def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, st
     """
     Return the accuracy knobs swept for a method; ``level``: quick | full | tiny.
 
-    The accuracy knobs swept for a method. ``level``: quick | full | tiny.
+    The sets follow the knobs the method declares (:func:`registry.knob_names`), not its name, so a
+    new method gets its sets without an edit here: a ``window_px`` method sweeps its window; a
+    ``stride`` method its stride (and its defaults at ``full``), plus centred regions when it has
+    ``region`` and no ``disc_fraction`` (a disc method needs the whole sky disc) and half the disc
+    when it has ``disc_fraction``; a method with neither window nor stride runs its defaults.
     """
+    knobs_of = registry.knob_names(method)
     strides = {'tiny': (4,), 'quick': (4, 16), 'full': (2, 4, 8, 16)}[level]
     out: list[tuple[str, dict, str | None]] = []
     demosaics = (
@@ -245,9 +258,12 @@ def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, st
             if dm is None
             else (', superpixel demosaic' if dm == 'superpixel' else ', full-res demosaic')
         )
-        if method == 'zenith':
+        if 'window_px' in knobs_of:
             windows = {'tiny': (9,), 'quick': (9, 33), 'full': (5, 9, 17, 33, 65, 129)}[level]
             out += [(f'window {w} px{tag}', {'window_px': w}, dm) for w in windows]
+            continue
+        if 'stride' not in knobs_of:
+            out.append((f'default{tag}', {}, dm))
             continue
         if level == 'full':  # the method's defaults (often every pixel: slow, so full mode only)
             out.append((f'default{tag}', {}, dm))
@@ -256,7 +272,8 @@ def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, st
             for s in strides
             if not (s == 2 and dm == 'superpixel')
         ]
-        if method in ('least_squares', 'tilt_aware') and level != 'tiny':
+        disc = 'disc_fraction' in knobs_of
+        if 'region' in knobs_of and not disc and level != 'tiny':
             regions = {'quick': (512,), 'full': (256, 512, 1024)}[level]
             out += [
                 (
@@ -266,7 +283,7 @@ def knob_sets(method: str, level: str, sensor: bool) -> list[tuple[str, dict, st
                 )
                 for r in regions
             ]
-        if method in ('sm_asm', 'symmetry') and level == 'full':
+        if disc and level == 'full':
             out.append((f'disc_fraction 0.5{tag}', {'disc_fraction': 0.5}, dm))
     return out
 
@@ -516,11 +533,7 @@ def run(cfg) -> dict:
     t_start = time.perf_counter()
     for cond in conds:
         sensor = cond.sensor_bits is not None
-        cond_methods = [
-            m
-            for m in methods
-            if (not cond.only_methods or m in cond.only_methods) and m not in cond.exclude_methods
-        ]
+        cond_methods = condition_methods(cond, methods)
         if cond.correct:
             try:
                 optional_import('polarization_compass.correction')

@@ -15,8 +15,8 @@
 """
 Shared machinery of the benchmarks.
 
-Shared machinery of the benchmarks: machine description, single-core timing, memory, error
-statistics, JSON output and the quick/full configuration.
+Machine description, single-core timing, memory, error statistics, JSON output and the quick/full
+configuration.
 
 Timings are wall-clock (``time.perf_counter``) of one call each, reported as median and 95th
 percentile in milliseconds. "Single core" means numba's thread pool set to 1 thread and BLAS/OpenMP
@@ -72,8 +72,7 @@ class BenchConfig:
     """
     How much to measure.
 
-    ``quick`` is for checking the suite (< 2 min in all); ``full`` for
-    numbers.
+    ``quick`` is for checking the suite (< 2 min in all); ``full`` for numbers.
     """
 
     mode: str = 'quick'
@@ -293,8 +292,8 @@ def _reset_rss_peak() -> bool:
     """
     Reset the kernel's resident high-water mark (VmHWM) to the current resident size.
 
-    Reset the kernel's resident high-water mark (VmHWM) to the current resident size (Linux >= 4.0:
-    ``echo 5 > /proc/self/clear_refs``). False where that is not possible.
+    Works on Linux >= 4.0 (``echo 5 > /proc/self/clear_refs``); returns False where that is not
+    possible.
     """
     try:
         _CLEAR_REFS.write_text('5')
@@ -310,10 +309,10 @@ def _release_free_heap() -> None:
     """
     Give the C heap's free pages back to the kernel (glibc ``malloc_trim(0)``).
 
-    Give the C heap's free pages back to the kernel (glibc ``malloc_trim(0)``), so that a call that
-    reuses them has to fault them in again and shows in the resident set. glibc keeps freed blocks
-    resident: those below its (dynamic) mmap threshold, up to 32 MiB, and everything when
-    :func:`polarization_compass.heap.keep_large_buffers_in_heap` applies (the replay does).
+    A call that reuses them then has to fault them in again and shows in the resident set. glibc
+    keeps freed blocks resident: those below its (dynamic) mmap threshold, up to 32 MiB, and
+    everything when :func:`polarization_compass.runtime.keep_large_buffers_in_heap` applies (the
+    replay does).
     """
     global _libc_trim
     if _libc_trim is None:
@@ -344,7 +343,7 @@ def peak_memory(fn) -> dict:
        minus its resident set just before it. Before the call: ``gc.collect()``, glibc
        ``malloc_trim(0)`` (freed heap pages go back to the kernel, so a call reusing them counts:
        glibc keeps freed blocks up to 32 MiB resident, and everything once
-       :func:`polarization_compass.heap.keep_large_buffers_in_heap` applied) and a reset of the
+       :func:`polarization_compass.runtime.keep_large_buffers_in_heap` applied) and a reset of the
        kernel's high-water mark (``/proc/self/clear_refs`` = 5); after it: ``VmHWM`` from
        ``/proc/self/status``. Counted: every page the call touches that was not resident, whoever
        allocated it: arrays that numba kernels allocate internally, numpy and Python objects,

@@ -87,8 +87,8 @@ def reference_fisheye_camera() -> CameraModel:
     """
     Return the paper's sensor behind an equidistant fisheye covering the sky circle.
 
-    The paper's sensor behind an equidistant fisheye whose 90 deg field angle reaches the top and
-    bottom edges (a full 180 deg sky circle of 2048 px diameter).
+    Its 90 deg field angle reaches the top and bottom edges (a full 180 deg sky circle of 2048 px
+    diameter).
     """
     radius_mm = 1024 * 3.45e-3
     return CameraModel(

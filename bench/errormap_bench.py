@@ -15,9 +15,8 @@
 """
 Error-map throughput against issue 4's target.
 
-Error-map throughput against issue 4's target: a pitch-only sweep of 1.4e5 cells for the paper's
-four methods (zenith, sm_asm, symmetry, least squares: 5.6e5 estimates) in <= 2 minutes on all
-cores, at the default sampling.
+The target is a pitch-only sweep of 1.4e5 cells for the paper's four methods (zenith, sm_asm,
+symmetry, least squares: 5.6e5 estimates) in <= 2 minutes on all cores, at the default sampling.
 
 The paper's "1.4e5 sets of simulation experiments" are scenes each evaluated by the four
 approaches, so the target counts cells, not estimates. The target sweep here is sun altitude 0:50:1
@@ -190,8 +189,7 @@ def _backend_row(sweep, spec, probe, label: str, **kw) -> dict:
     """
     Measure one backend: an untimed probe sweep, then the timed sweep.
 
-    One backend: an untimed probe sweep (one chunk per worker: imports, numba's cache, the
-    evaluators), then the timed sweep.
+    The probe runs one chunk per worker (imports, numba's cache, the evaluators).
     """
     sweep.run_sweep(probe, out=None, progress=False, **kw)
     st: dict = {}

@@ -15,8 +15,8 @@
 """
 Error maps: what the default sweep sampling costs in accuracy.
 
-Error maps: what the default sweep sampling costs in accuracy (issue 4: "the default sampling
-changes the errors by < 0.05 deg compared with full resolution").
+Issue 4 asks that "the default sampling changes the errors by < 0.05 deg compared with full
+resolution".
 
 For random cells of the tilt domain (sun altitude 0-50 deg, any yaw, |pitch| + |roll| <= 30 deg;
 every other cell pitch only, the target sweep's case), each of the paper's four methods is run
@@ -74,8 +74,8 @@ def full_resolution_knobs(method: str) -> dict:
     """
     Return the estimator's own knob defaults at stride 1 (every sensor pixel).
 
-    The estimator's own defaults at stride 1 (every sensor pixel; symmetry's fine 0.25 deg axis
-    search too); zenith has no stride: it reads its window at full resolution either way.
+    Symmetry keeps its fine 0.25 deg axis search; zenith has no stride: it reads its window at full
+    resolution either way.
     """
     from polarization_compass.estimators import make_estimator
 

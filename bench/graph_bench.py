@@ -15,9 +15,9 @@
 """
 Issue 5's target, measured: the default simulation graph at 10 Hz.
 
-Issue 5's target, measured: the default simulation graph at 10 Hz, full resolution, all four
-methods (plus ``tilt_aware``), each corrected: does it sustain 10 Hz, drop no frame, and deliver
-the ``least_squares`` corrected heading within 100 ms (p95) of the image?
+At full resolution, all four methods (plus ``tilt_aware``), each corrected: does it sustain 10 Hz,
+drop no frame, and deliver the ``least_squares`` corrected heading within 100 ms (p95) of the
+image?
 
 Runs ``polarization-compass sim --realtime`` (:mod:`polarization_compass.cli.cmd_sim`: every node
 its own process, no lockstep, frames at the camera rate) in a child process for a fixed number of
@@ -111,7 +111,7 @@ def parse_run(out_dir, expected: int, rate_hz: float = RATE_HZ) -> dict:
     """
     Return the speed figures of one ``sim --realtime`` run.
 
-    The speed figures of one ``sim --realtime`` run from the files in its ``--out`` directory.
+    The figures are read from the files in the run's ``--out`` directory.
     """
     out = Path(out_dir)
     s = json.loads((out / 'evaluation_summary.json').read_text())

@@ -15,11 +15,10 @@
 """
 Issue 6's target, measured: offline replay at >= 5x real time.
 
-Issue 6's target, measured: offline replay of a full-resolution 10 Hz run at >= 5x real time with
-all four methods (``--methods zenith,sm_asm,symmetry,least_squares``: the issue's configuration),
-each corrected with the shipped map, at the command's default knobs. The command's default method
-set adds ``tilt_aware``; it is replayed too and reported beside the target (``all_methods``), not
-as it.
+A full-resolution 10 Hz run, all four methods (``--methods zenith,sm_asm,symmetry,least_squares``:
+the issue's configuration), each corrected with the shipped map, at the command's default knobs.
+The command's default method set adds ``tilt_aware``; it is replayed too and reported beside the
+target (``all_methods``), not as it.
 
 1. ``polarization-compass record-sim --scene config/scenes/imx250mzr_noisy.yaml --duration S --out
    BAG`` into a temporary directory (full: 20 s = 200 frames, ~1.9 GB; quick: 3 s). Its wall time
@@ -69,7 +68,7 @@ def per_frame_figures(
     """
     Compute the per-frame time after start-up and the real-time factors.
 
-    Per-frame time after start-up and the real-time factors, from the wall clock after each frame.
+    From the wall clock after each frame.
     """
     t = np.asarray(frame_done_s, dtype=float)
     out = {
@@ -106,8 +105,7 @@ def summarize(summary: dict, times: dict, whole_wall_s: float) -> dict:
     """
     Return the replay's speed figures.
 
-    The replay's speed figures from its ``summary.json``, the worker's clock and the whole wall
-    time.
+    Read from its ``summary.json``, the worker's clock and the whole wall time.
     """
     frames = int(summary.get('frames', 0))
     dur = float(summary.get('bag_duration_s', 0.0))
@@ -147,8 +145,8 @@ def median_run(runs: list[dict]) -> dict:
     """
     Return the run with the median per-frame time, plus every run's speed figures.
 
-    The run with the median per-frame time (this host's speed drifts by up to 2x over an hour, so
-    one run can land in a slow spell), plus every run's speed figures under ``runs``.
+    This host's speed drifts by up to 2x over an hour, so one run can land in a slow spell; every
+    run's figures are under ``runs``.
     """
     by_time = sorted(
         runs, key=lambda r: math.inf if r.get('per_frame_ms') is None else r['per_frame_ms']

@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from polarization_compass.estimators import registry
+
 from .common import read_json
 
 PRIMARY_CONDITIONS = ('noise_imx250', 'ideal_level')
@@ -46,13 +48,21 @@ def _log_axes(ax, ys=()):
             ax.set_ylim(mid / 10**0.6, mid * 10**0.6)
 
 
-METHOD_COLOURS = {
-    'zenith': '#1f77b4',
-    'sm_asm': '#ff7f0e',
-    'symmetry': '#2ca02c',
-    'least_squares': '#d62728',
-    'tilt_aware': '#9467bd',
-}
+def method_colour(method: str) -> str:
+    """Return a method's colour in the plots: its registry style's, black when unknown or unset."""
+    style = registry.style(method)
+    return style[0] if style else 'k'
+
+
+def _method_rank(method: str) -> int:
+    """Return a method's place in the plots: the registry's order, unknown methods last."""
+    names = registry.names()
+    return names.index(method) if method in names else len(names)
+
+
+def _windowed(method: str) -> bool:
+    """Tell whether a method reads a window (``window_px``) instead of a strided pixel set."""
+    return registry.find(method) is not None and 'window_px' in registry.knob_names(method)
 
 
 def _load(d: Path) -> dict:
@@ -122,11 +132,11 @@ def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), dpi=110)
     methods = sorted(
         {c['method'] for c in cells},
-        key=lambda m: list(METHOD_COLOURS).index(m) if m in METHOD_COLOURS else 99,
+        key=_method_rank,
     )
     crb_drawn = False
     for m in methods:
-        col = METHOD_COLOURS.get(m, 'k')
+        col = method_colour(m)
         mc = [c for c in cells if c['method'] == m]
         for c in mc:
             mk = 's' if c.get('demosaic') == 'bilinear' else 'o'
@@ -185,7 +195,7 @@ def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
                     label=f'Cramer-Rao bound, sun {alt} deg (5000 e-, DoP 0.7)',
                 )
     for m in methods:
-        ax2.scatter([], [], color=METHOD_COLOURS.get(m, 'k'), marker='o', label=m)
+        ax2.scatter([], [], color=method_colour(m), marker='o', label=m)
     ax2.scatter([], [], color='w', edgecolor='k', marker='o', label='superpixel demosaic')
     ax2.scatter([], [], color='w', edgecolor='k', marker='s', label='full-resolution demosaic')
     ys = [max(c['error']['rms_deg'], floor) for c in cells] + [
@@ -225,7 +235,7 @@ def plot_conditions(acc_cells, out_path: Path):
         ys = []
         for m in dict.fromkeys(c['method'] for c in cc):
             mc = [c for c in cc if c['method'] == m]
-            col = METHOD_COLOURS.get(m, 'k')
+            col = method_colour(m)
             pts = [
                 (c['time']['median_ms'], max(c['error']['rms_deg'], ERROR_FLOOR_DEG)) for c in mc
             ]
@@ -374,17 +384,17 @@ def _accuracy_section(acc, crb) -> list[str]:
     return lines + ['']
 
 
-REFERENCE_KNOBS = {'zenith': ('window 33 px',), 'default': ('stride 8', 'stride 16')}
+#: The knob labels of the cells the README's tables quote, for windowed and strided methods.
+REFERENCE_KNOBS = {'window': ('window 33 px',), 'stride': ('stride 8', 'stride 16')}
 
 
 def _reference_cell(cells, method, condition):
     """
     Return the cell with a method's reference knobs in a condition.
 
-    The cell with a method's reference knobs in a condition (superpixel demosaic if there is a
-    sensor).
+    With a sensor, the cell with the superpixel demosaic; None when there is no such cell.
     """
-    labels = REFERENCE_KNOBS.get(method, REFERENCE_KNOBS['default'])
+    labels = REFERENCE_KNOBS['window' if _windowed(method) else 'stride']
     for lab in labels:
         for c in cells:
             if (
@@ -401,8 +411,8 @@ def _headline(cells, r) -> list[str]:
     """
     Return two compact tables for the README: Pareto front and error by condition.
 
-    Two compact tables for the README: the Pareto front in the noisy condition, and each method's
-    error by condition at fixed reference knobs.
+    The Pareto front in the noisy condition, and each method's error by condition at fixed
+    reference knobs.
     """
     lines = []
     noisy = [c for c in cells if c['condition'] == 'noise_imx250']
@@ -481,8 +491,7 @@ def _section(title: str, group) -> tuple[list[str], dict | None]:
     """
     Return a section's heading and its group's results.
 
-    A section's heading and its group's results; results None (and the lines say why) when the
-    group did not run or did not end ok.
+    The results are None (and the lines say why) when the group did not run or did not end ok.
     """
     lines = [f'## {title}', '']
     if not group or group.get('status') != 'ok':
@@ -826,7 +835,7 @@ def _pass(flag) -> str:
 
 
 def _knobs_label(method: str, knobs: dict) -> str:
-    if method == 'zenith':
+    if _windowed(method):
         return f'window {knobs.get("window_px")} px'
     st = knobs.get('stride')
     label = 'all superpixels' if st in (None, 1) else f'stride {st}'

@@ -15,9 +15,8 @@
 """
 End-to-end latency of the heading_estimator node through rclpy.
 
-End-to-end latency of the heading_estimator node through rclpy (run as a child process by
-:mod:`bench.pipeline`, with loopback-only discovery, a domain id of its own and the project's
-shared-memory Fast DDS profile for 10 MB images).
+Run as a child process by :mod:`bench.pipeline`, with loopback-only discovery, a domain id of its
+own and the project's shared-memory Fast DDS profile for 10 MB images.
 
 One process holds three nodes on one executor: a probe that publishes a rendered 12-bit mosaic
 (``camera/image_raw``, mono16, system-default QoS as a driver would), the ``heading_estimator``

@@ -15,8 +15,8 @@
 """
 Solar position throughput: ``spa`` against ``paper``, batch, per call and cached.
 
-Solar position throughput: ``spa`` against ``paper``, batch against per-call against the per-frame
-cache (:class:`polarization_compass.solar.SunCache`). Single core.
+Batch against per-call against the per-frame cache (:class:`polarization_compass.solar.SunCache`).
+Single core.
 
 Also records how far ``paper`` is from ``spa`` over the batch (great-circle, sun above the
 horizon), so the speed of each model sits beside what it costs in accuracy.

@@ -15,8 +15,8 @@
 """
 Allowable tilt: the largest pitch/roll envelope keeping the heading error bounded.
 
-Allowable tilt: the largest pitch/roll envelope that keeps every method's heading error under a
-bound (paper, section 3.4), read from an error map, beside the paper's rule of thumb, eq 33.
+The bound holds for every method (paper, section 3.4); the envelope is read from an error map,
+beside the paper's rule of thumb, eq 33.
 
 Eq 33, ``h_s * sqrt(alpha^2 + beta^2) <= ME^2``, is homogeneous of degree 2 in angle on both sides,
 so it gives the same answer in degrees or radians as long as all four quantities use the same unit

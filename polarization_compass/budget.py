@@ -486,8 +486,7 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
     """
     Run every (condition, block of samples) as a Dask task, joined in sample order.
 
-    Every (condition, block of samples) a Dask task; the blocks joined in sample order, so the
-    statistics equal the in-process ones (each block runs numba on one thread).
+    The statistics equal the in-process ones (each block runs numba on one thread).
     """
     from .sweep_dask import run_tasks
 
@@ -500,7 +499,7 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
                 (
                     f'budget-{ci}-{bi}-{id(calls)}',
                     _budget_task,
-                    (c, samples[i:i + block], methods),
+                    (c, samples[i : i + block], methods),
                 )
             )
 

@@ -407,10 +407,9 @@ def _check_map_headers(name: str, h: dict) -> None:
     """
     Check the shapes a map file declares before anything is decompressed.
 
-    The shapes a map file declares, before anything is decompressed: the axes and methods 1-D and
-    of bounded length, error_deg and status exactly (methods, altitudes, yaws, pitches, rolls) of
-    at most :data:`MAX_MAP_CELLS`, meta one JSON string of at most :data:`MAX_MAP_META_CHARS`
-    characters.
+    The axes and methods must be 1-D and of bounded length, error_deg and status exactly (methods,
+    altitudes, yaws, pitches, rolls) of at most :data:`MAX_MAP_CELLS`, meta one JSON string of at
+    most :data:`MAX_MAP_META_CHARS` characters.
     """
     missing = [k for k in _MAP_KEYS if k not in h]
     if missing:

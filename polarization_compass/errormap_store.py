@@ -15,8 +15,7 @@
 """
 Error maps as labelled arrays: xarray Dataset, Zarr sweep store, NetCDF export.
 
-Error maps as labelled arrays: the xarray Dataset, the Zarr store a sweep writes into, NetCDF
-export.
+The xarray Dataset, the Zarr store a sweep writes into, and the NetCDF export.
 
 The Dataset of a map (:func:`map_to_dataset`) has
 

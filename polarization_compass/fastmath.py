@@ -15,8 +15,7 @@
 """
 Fast elementary functions for compiled (numba) loops.
 
-Fast elementary functions for compiled (numba) loops: the one home of the project's fast float
-math.
+This module is the one home of the project's fast float math.
 
 float64, branch-free (:func:`sincos_folded`, :func:`sincos`, :func:`atan2`, :func:`exp_nonpos`; the
 fast-math flags :data:`FM` for loops built from them). numba lowers ``math.exp``, ``math.atan2``

@@ -81,7 +81,7 @@ def _node(axis, value, name, default=None):
     """
     Return the index of the node nearest ``value`` (or the ``default`` picker's).
 
-    Index of the node nearest ``value`` (or ``default`` picker); must be within 1e-6 of a node.
+    The value must be within 1e-6 of a node.
     """
     if value is None:
         value = default(axis) if default else axis[-1]
@@ -122,8 +122,8 @@ def _closed_yaw(m: ErrorMap):
     """
     Return yaw values and node indices that close a full-turn axis for plotting.
 
-    Yaw values and node indices to plot: a full-turn axis without its end node gets it back (-180
-    repeated at +180), so curves and surfaces close.
+    A full-turn axis without its end node gets it back (-180 repeated at +180), so curves and
+    surfaces close.
     """
     y = m.yaw_deg
     idx = np.arange(y.size)

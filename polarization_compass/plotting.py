@@ -15,7 +15,7 @@
 """
 Viewable images of frames (matplotlib, Agg backend).
 
-Viewable images of frames (matplotlib, Agg backend; imported only when a picture is asked for).
+The module is imported only when a picture is asked for.
 """
 
 from __future__ import annotations

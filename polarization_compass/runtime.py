@@ -18,13 +18,13 @@ Performance plumbing of the process (ROS-free), kept out of the physics modules.
 - :func:`keep_large_buffers_in_heap`: glibc heap settings (``mallopt``) for processes that handle
   full-resolution images: every node (:func:`polarization_compass.nodes.runner.run_node`) and the
   offline replay (:func:`polarization_compass.replay.replay_bag`), which read 10 MB image messages.
-- :func:`openblas_handles` and :class:`single_threaded_kernels`: numba and OpenBLAS on the calling
-  thread only, for the replay's method threads.
+- :class:`single_threaded_kernels`: numba and BLAS on the calling thread only, for the replay's
+  method threads and the error-map sweep's workers (BLAS through ``threadpoolctl``).
 """
 
 from __future__ import annotations
 
-__all__ = ['keep_large_buffers_in_heap', 'openblas_handles', 'single_threaded_kernels']
+__all__ = ['keep_large_buffers_in_heap', 'single_threaded_kernels']
 
 #: glibc ``mallopt`` parameters (malloc.h) and the values the nodes use.
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
@@ -73,48 +73,6 @@ def keep_large_buffers_in_heap() -> bool:
     )
 
 
-def openblas_handles():
-    """
-    Return the thread-count setter and getter of every OpenBLAS loaded in this process.
-
-    The libraries are found in ``/proc/self/maps`` (numpy's and scipy's, each with its symbol
-    prefix and suffix) and opened with ctypes.
-
-    Returns
-    -------
-    list of tuple
-        ``(set_num_threads, get_num_threads)`` ctypes functions, one pair per library; empty
-        where ``/proc`` cannot be read or no OpenBLAS is loaded.
-
-    """
-    import ctypes
-
-    out = []
-    try:
-        with open('/proc/self/maps') as f:
-            paths = {line.split()[-1] for line in f if 'openblas' in line and '.so' in line}
-    except OSError:
-        return out
-    for path in sorted(paths):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for prefix in ('scipy_openblas', 'openblas'):
-            for suffix in ('64_', '_64_', ''):
-                try:
-                    setter = getattr(lib, f'{prefix}_set_num_threads{suffix}')
-                    getter = getattr(lib, f'{prefix}_get_num_threads{suffix}')
-                except AttributeError:
-                    continue
-                out.append((setter, getter))
-                break
-            else:
-                continue
-            break
-    return out
-
-
 class single_threaded_kernels:
     """
     Run numba kernels and BLAS on the calling thread only while replaying.
@@ -122,25 +80,24 @@ class single_threaded_kernels:
     After subsampling, a frame's kernels take 0.1-3 ms; waking a pool of threads for them costs
     more than it saves on a 2-core machine, and under load a parallel call waits ~20 ms for its
     threads (measured: a 0.1 ms demosaic took 20 ms with 2 numba threads while other work ran).
-    numba's thread count is per calling thread; OpenBLAS's is process-wide and restored afterwards.
+    numba's thread count is per calling thread; BLAS's (every BLAS loaded, numpy's and scipy's
+    OpenBLAS, found by ``threadpoolctl`` when entering) is process-wide and restored afterwards.
     """
 
     def __enter__(self):
         import numba
+        from threadpoolctl import threadpool_limits
 
         self._numba = numba.get_num_threads()
         numba.set_num_threads(1)
-        self._blas = [(s, int(g())) for s, g in openblas_handles()]
-        for s, _ in self._blas:
-            s(1)
+        self._blas = threadpool_limits(limits=1, user_api='blas')
         return self
 
     def __exit__(self, *exc):
         import numba
 
         numba.set_num_threads(self._numba)
-        for s, n in self._blas:
-            s(n)
+        self._blas.restore_original_limits()
 
 
 # ------------------------------------------------------------------------------------------------

@@ -122,23 +122,6 @@ class SunPosition:
     apparent_altitude_deg: object = None
     model: str = 'spa'
 
-    @property
-    def zenith_deg(self):
-        """Geometric zenith angle, deg."""
-        return 90.0 - self.altitude_deg
-
-    def direction_enu(self):
-        """
-        Compute the unit vector(s) to the sun in ENU (geometric altitude).
-
-        Returns
-        -------
-        numpy.ndarray
-            Shape (..., 3): ``(cos h sin A, cos h cos A, sin h)``.
-
-        """
-        return enu_direction(self.azimuth_deg, self.altitude_deg)
-
 
 # --------------------------------------------------------------------------------------------
 # Input handling
@@ -229,8 +212,7 @@ def _checked_number(name, v, lo, hi) -> float:
     """
     Return ``float(v)`` when finite and in [lo, hi], else raise a SolarError.
 
-    ``float(v)`` when it is a finite number in [lo, hi]; otherwise a one-line SolarError naming
-    ``name``.
+    The SolarError is one line naming ``name``.
     """
     try:
         f = float(v)

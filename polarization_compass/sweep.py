@@ -15,9 +15,9 @@
 """
 The sweep engine that computes tilt error maps (paper, section 3).
 
-The sweep engine that computes tilt error maps (:class:`~polarization_compass.errormap.ErrorMap`;
-paper, section 3): what to compute (:class:`SweepSpec`, :func:`parse_range` for its axes),
-per-process evaluators, checkpoints and the driver (:func:`run_sweep`).
+The maps are :class:`~polarization_compass.errormap.ErrorMap`. Here: what to compute
+(:class:`SweepSpec`, :func:`parse_range` for its axes), per-process evaluators, checkpoints and the
+driver (:func:`run_sweep`).
 
 Sweeps run in chunks of one (sun altitude, pitch) pair each: in this process, or on Dask
 distributed (an embedded LocalCluster on all cores, or an existing cluster;

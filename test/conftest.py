@@ -60,7 +60,7 @@ def ctx():
     """
     Return a private rclpy context per test module, for nodes built in-process.
 
-    A private rclpy context per test module, for nodes built in-process (no DDS traffic needed).
+    No DDS traffic is needed.
     """
     import warnings
 

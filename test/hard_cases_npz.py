@@ -15,9 +15,9 @@
 """
 Corrupt-.npz checks shared by the hard-case tests of every .npz loader.
 
-Corrupt-.npz checks shared by the hard-case tests of every loader that reads .npz files (frame
-files, error maps): a truncated archive, a .npy saved under an .npz name, and no file handle leaked
-on the error path. Each check takes the loader and the error class it must raise.
+For the loaders of frame files and error maps: a truncated archive, a .npy saved under an .npz
+name, and no file handle leaked on the error path. Each check takes the loader and the error class
+it must raise.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def truncate_half(path):
     """
     Cut the file at ``path`` to its first half and return the path.
 
-    Cut the file at ``path`` to its first half (a download or copy that stopped); returns the path.
+    As a download or copy that stopped would leave it.
     """
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
@@ -51,8 +51,7 @@ def assert_refused(load, path, error, match=None):
     """
     Assert that ``load(path)`` raises ``error``.
 
-    ``load(path)`` raises ``error`` (a leaked handle is ignored here:
-    :func:`assert_no_leaked_handle` is that check).
+    A leaked handle is ignored here: :func:`assert_no_leaked_handle` is that check.
     """
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', ResourceWarning)
@@ -65,8 +64,7 @@ def assert_no_leaked_handle(load, path, error):
     """
     Assert that ``load(path)`` fails with ``error`` and leaves no open file behind.
 
-    ``load(path)`` fails with ``error`` and leaves no open file behind (no ResourceWarning once
-    collected).
+    No ResourceWarning is raised once it is collected.
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always')

@@ -15,9 +15,8 @@
 """
 Test-side converter for the real POL-OP recordings' JSON layout.
 
-Test-side converter for the real POL-OP recordings' JSON layout (../shared/data/real-polop,
-GPL-3.0: read from there at test time, never copied into the repository). See that folder's
-README.md.
+The recordings are in ../shared/data/real-polop (GPL-3.0: read from there at test time, never
+copied into the repository). See that folder's README.md.
 
 Each ``<session>/N.json`` (one full turn) holds ``pol_op_0`` .. ``pol_op_7`` (samples of ``[I135,
 I045, I090, I000]``, raw signed: absolute values used), ``azimuths`` (rad, the units' viewing

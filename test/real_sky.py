@@ -52,7 +52,7 @@ def read_quadrants(stem: str):
     """
     Read (I, Q, U) float32 2048 x 2048 of one frame.
 
-    (I, Q, U) float32 2048 x 2048 of one frame (SDK units; Q, U as the camera's Stokes S1, S2).
+    SDK units; Q, U are the camera's Stokes S1, S2.
     """
     im = cv2.imread(str(DATA / f'{stem}.jpg'), cv2.IMREAD_GRAYSCALE)
     assert im is not None and im.shape == (4096, 4096), stem
@@ -67,7 +67,7 @@ def camera_yaml_text(pol45_toward: str = '+x-y') -> str:
     """
     Return a ROS camera_calibration file for the frames.
 
-    A ROS camera_calibration file for the frames: equidistant fisheye, 90 deg at the lens circle.
+    An equidistant fisheye, 90 deg at the lens circle.
     """
     f = RADIUS_90_PX / (math.pi / 2)
     cx, cy = CENTRE_PX
@@ -85,8 +85,7 @@ def sun_altitude_deg(stem: str) -> float:
     """
     Return the sun altitude implied by its pixel for the equidistant lens.
 
-    Sun altitude implied by its pixel for the equidistant lens (a guess: the lens model is not
-    documented).
+    A guess: the lens model is not documented.
     """
     (x, y), _ = FRAMES[stem]
     theta = math.hypot(x - CENTRE_PX[0], y - CENTRE_PX[1]) / RADIUS_90_PX * 90.0

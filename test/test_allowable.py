@@ -15,8 +15,8 @@
 """
 Allowable tilt against closed forms.
 
-Allowable tilt against closed forms: on a synthetic map whose worst error is exactly c * h *
-radius, the envelope is ME / (c h); eq 33's radius is ME^2 / h in any angle unit.
+On a synthetic map whose worst error is exactly c * h * radius, the envelope is ME / (c h); eq 33's
+radius is ME^2 / h in any angle unit.
 """
 
 import json

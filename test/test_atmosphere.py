@@ -15,10 +15,9 @@
 """
 Clouds, haze and skyline against independent expectations.
 
-Clouds, haze and skyline (atmosphere.py) against independent expectations: the cloud transmission
-law, Pomozi et al. (2001) (clear-sky AoP under thin clouds), depolarization under thick clouds,
-Preetham's luminance formula in float64, the skyline geometry from the rays, zero cost when
-undeclared.
+The module is atmosphere.py; the expectations: the cloud transmission law, Pomozi et al. (2001)
+(clear-sky AoP under thin clouds), depolarization under thick clouds, Preetham's luminance formula
+in float64, the skyline geometry from the rays, zero cost when undeclared.
 """
 
 import datetime as dt

@@ -178,7 +178,7 @@ def test_aop_derivative_matches_finite_difference_of_renders(pitch, roll, sun_al
     """
     Analytic d AoP / d psi matches two renders 0.1 deg of bearing apart.
 
-    Analytic d AoP / d psi (float64 cross products) against two renders 0.1 deg of bearing apart.
+    The analytic derivative uses float64 cross products.
     """
     sel = PixelSelection.grid(48, 40)
     cam = CameraModel()
@@ -330,7 +330,7 @@ def _kernel_scratch_sum(n_bytes):
     """
     Compile a numba kernel that allocates ``n_bytes`` of scratch and returns a scalar.
 
-    A numba kernel that allocates (and writes) ``n_bytes`` of scratch and returns only a scalar.
+    It writes the scratch (so its pages are resident) and returns only a scalar.
     """
     a = np.zeros(n_bytes // 8)
     a[::1000] = 1.0

@@ -15,10 +15,9 @@
 """
 Lens distortion through OpenCV against its own forward projection.
 
-Lens distortion through OpenCV: rays of plumb_bob / rational_polynomial / equidistant lenses,
-checked against OpenCV's own forward projection (cv2.projectPoints / cv2.fisheye.projectPoints) of
-known rays, and the ideal models as the zero-coefficient special cases; CAMERA.yaml (ROS
-camera_calibration).
+Rays of plumb_bob / rational_polynomial / equidistant lenses, checked against OpenCV's own forward
+projection (cv2.projectPoints / cv2.fisheye.projectPoints) of known rays, and the ideal models as
+the zero-coefficient special cases; CAMERA.yaml (ROS camera_calibration).
 """
 
 import math

@@ -15,8 +15,8 @@
 """
 Every `polarization-compass` command fed bad input exits 2 with one clear line.
 
-Every `polarization-compass` command fed bad input: one clear line on stderr, nothing on stdout,
-exit status 2 (user error), never a traceback and never the "internal error" path (exit 70).
+The line goes to stderr, nothing to stdout, exit status 2 means a user error; never a traceback and
+never the "internal error" path (exit 70).
 
 Most cases run in-process through ``polarization_compass.cli.main``; a few run the real console
 entry point in a subprocess to see exactly what a user sees. Cases of the ``sun`` command already
@@ -208,8 +208,7 @@ def test_render_edge_values_are_accepted_and_give_finite_frames(argv, tmp_path, 
     """
     The edges of every documented range are valid input.
 
-    The edges of every documented range are valid input: exit 0, a finite frame, psi in (-180,
-    180].
+    Each gives exit 0, a finite frame and psi in (-180, 180].
     """
     from polarization_compass.frame_io import load_frame_npz
 

@@ -12,11 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Frames and angle conventions, checked against the paper and first principles.
-
-Frames and angle conventions, checked against the paper's printed formulas and first principles.
-"""
+"""Frames and angle conventions against the paper's printed formulas and first principles."""
 
 import math
 
@@ -117,8 +113,7 @@ def test_eq31_optical_axis_and_eq32_roll_pitch_shift():
     """
     Eq 31 gives the optical axis in the sun frame; eq 32 shifts roll and pitch.
 
-    Eq 31 gives the optical axis in the sun frame; eq 32: (psi, alpha, 0) and (psi+90, 0, alpha)
-    share it.
+    Eq 32: (psi, alpha, 0) and (psi+90, 0, alpha) share the optical axis.
     """
     for psi, alpha in [(10.0, -20.0), (-130.0, 25.0), (75.0, 5.0)]:
         axis1 = cv.R_sun_cam_from_attitude(psi, alpha, 0.0) @ [0, 0, 1]

@@ -16,15 +16,16 @@
 The Apache-2.0 licence header (package.xml's licence) on every Python file.
 
 On a ROS machine ``ament_copyright`` (package.xml's test_depend) checks it, as in ROS packages; it
-is not on PyPI, so elsewhere the project's checker of the same rule does
-(``tools/lint_fix.header_problem``: after an optional shebang, the first comment block holds
-``Copyright <year> <holder>`` and the Apache-2.0 notice). ``make format`` adds missing headers.
+is not on PyPI, so elsewhere this file's checker of the same rule does (:func:`header_problem`:
+after an optional shebang, the first comment block holds ``Copyright <year> <holder>`` and the
+Apache-2.0 notice). A new file starts with :data:`HEADER` (docs/contributing.md).
 """
 
-import importlib.util
 import os
+import re
 
 import ament_flake8.main
+from lint_paths import python_files, python_paths
 import pytest
 
 try:
@@ -33,30 +34,88 @@ except ImportError:  # not on PyPI: only on a ROS installation
     ament_copyright_main = None
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HEADER_LICENSE = """\
+Licensed under the Apache License, Version 2.0 (the "License");
+you may not use this file except in compliance with the License.
+You may obtain a copy of the License at
 
+    http://www.apache.org/licenses/LICENSE-2.0
 
-def lint_fix():
-    """Import tools/lint_fix.py (the header, the checker and the list of paths)."""
-    spec = importlib.util.spec_from_file_location(
-        'lint_fix', os.path.join(ROOT, 'tools', 'lint_fix.py')
+Unless required by applicable law or agreed to in writing, software
+distributed under the License is distributed on an "AS IS" BASIS,
+WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+See the License for the specific language governing permissions and
+limitations under the License.
+"""
+# The header every file of the package starts with (the year is the project's first).
+HEADER = (
+    '\n'.join(
+        ('# ' + line if line else '#')
+        for line in ['Copyright 2026 polarization_compass developers', '']
+        + HEADER_LICENSE.splitlines()
     )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    + '\n'
+)
+_COPYRIGHT_RE = re.compile(
+    r'^\s*copyright(?:\s+\(c\))?\s+(\d{4}(?:-\d{4})?(?:,\s*\d{4}(?:-\d{4})?)*),?\s+(\S.*)$',
+    re.IGNORECASE,
+)
+
+
+def _skip_shebang_and_coding(lines):
+    i = 0
+    while (
+        i < len(lines)
+        and lines[i].startswith('#')
+        and (lines[i].startswith('#!') or 'coding:' in lines[i] or 'coding=' in lines[i])
+    ):
+        i += 1
+    return i
+
+
+def header_problem(text):
+    """
+    Say what is wrong with the licence header of a Python source, or None when it is right.
+
+    The rule is ``ament_copyright``'s for a Python file: after an optional shebang / coding line
+    and blank lines, the first ``#`` comment block holds a ``Copyright <year> <holder>`` line
+    followed by the Apache-2.0 notice (compared with whitespace collapsed). An empty file passes.
+
+    :param text: file content (str)
+    :returns: None, or a one-line reason (str)
+    """
+    if not text.strip():
+        return None
+    lines = text.splitlines()
+    i = _skip_shebang_and_coding(lines)
+    while i < len(lines) and not lines[i].strip():
+        i += 1
+    block = []
+    while i < len(lines) and lines[i].startswith('#'):
+        block.append(lines[i][2:] if lines[i].startswith('# ') else lines[i][1:])
+        i += 1
+    if not block:
+        return 'could not find copyright notice'
+    for k, line in enumerate(block):
+        if _COPYRIGHT_RE.match(line):
+            rest = ' '.join(' '.join(block[k + 1 :]).split())
+            if ' '.join(HEADER_LICENSE.split()) not in rest:
+                return 'copyright notice found, but not the Apache-2.0 licence text'
+            return None
+    return 'could not find copyright notice'
 
 
 @pytest.mark.copyright
 @pytest.mark.linter
 def test_copyright(monkeypatch):
-    lf = lint_fix()
     monkeypatch.chdir(ROOT)
-    paths = lf.python_paths(ROOT)
+    paths = python_paths(ROOT)
     if ament_copyright_main is not None:
         assert ament_copyright_main(argv=paths) == 0, 'Found errors'
     problems = []
-    for path in lf.python_files(paths):
+    for path in python_files(paths):
         with open(path, encoding='utf-8') as f:
-            why = lf.header_problem(f.read())
+            why = header_problem(f.read())
         if why:
             problems.append(f'{path}: {why}')
     assert not problems, '\n'.join(problems)
@@ -72,15 +131,14 @@ def test_header_checker_follows_ament_copyright(tmp_path):
     linters check in their own repository. Refused: no header, a copyright line without the
     licence, and another licence's text.
     """
-    lf = lint_fix()
     with open(ament_flake8.main.__file__, encoding='utf-8') as f:
         osrf = f.read()
     body = '"""Module."""\n\nx = 1\n'
     cases = {
         'osrf.py': (osrf, True),
-        'ours.py': (lf.HEADER + '\n' + body, True),
-        'script.py': ('#!/usr/bin/env python3\n' + lf.HEADER + '\n' + body, True),
-        'years.py': (lf.HEADER.replace(' 2026 ', ' 2024-2026 ') + body, True),
+        'ours.py': (HEADER + '\n' + body, True),
+        'script.py': ('#!/usr/bin/env python3\n' + HEADER + '\n' + body, True),
+        'years.py': (HEADER.replace(' 2026 ', ' 2024-2026 ') + body, True),
         'none.py': (body, False),
         'no_licence.py': ('# Copyright 2026 polarization_compass developers\n\n' + body, False),
         'mit.py': (
@@ -90,12 +148,15 @@ def test_header_checker_follows_ament_copyright(tmp_path):
         ),
     }
     for name, (text, ok) in cases.items():
-        assert (lf.header_problem(text) is None) == ok, name
+        assert (header_problem(text) is None) == ok, name
         (tmp_path / name).write_text(text)
         if ament_copyright_main is not None:
             assert (ament_copyright_main(argv=[str(tmp_path / name)]) == 0) == ok, name
-    # add_header repairs a file without one and leaves a correct one alone
-    fixed = lf.add_header('#!/usr/bin/env python3\n' + body)
-    assert fixed.startswith('#!/usr/bin/env python3\n\n# Copyright ')
-    assert lf.header_problem(fixed) is None and fixed.endswith(body)
-    assert lf.add_header(fixed) == fixed
+
+
+@pytest.mark.copyright
+@pytest.mark.linter
+def test_this_file_starts_with_the_header():
+    """The header written here is the one the package's files carry (this file's own top)."""
+    with open(__file__, encoding='utf-8') as f:
+        assert f.read().startswith(HEADER)

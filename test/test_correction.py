@@ -15,10 +15,10 @@
 """
 Map-based tilt correction against the truth.
 
-Map-based tilt correction against the truth: true yaws are drawn off the grid, the measured heading
-comes from rendering and running the real estimator (or from the closed-form level-assumption
-heading, which the four methods reproduce to ~0.002 deg under an ideal Rayleigh sky), and the
-corrected heading is compared with the drawn truth -- never with the corrector's own output.
+True yaws are drawn off the grid, the measured heading comes from rendering and running the real
+estimator (or from the closed-form level-assumption heading, which the four methods reproduce to
+~0.002 deg under an ideal Rayleigh sky), and the corrected heading is compared with the drawn truth
+-- never with the corrector's own output.
 """
 
 import math
@@ -35,7 +35,7 @@ from polarization_compass.correction import (
 )
 from polarization_compass.errormap import ErrorMap, ErrorMapError
 from polarization_compass.errormap_io import load_error_map
-from polarization_compass.estimators import make_estimator
+from polarization_compass.estimators import make_estimator, registry
 from polarization_compass.estimators.base import Observation
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import default_scene
@@ -43,7 +43,7 @@ from polarization_compass.sweep import run_sweep, SweepSpec
 import pytest
 from test_errormap import level_assumption_error_deg
 
-PAPER_METHODS = ('zenith', 'sm_asm', 'symmetry', 'least_squares')
+PAPER_METHODS = registry.paper_methods()
 
 
 @pytest.fixture(scope='module')
@@ -55,8 +55,8 @@ def domain_points(n, seed, corner_fraction=0.3):
     """
     Draw random (psi, h, pitch, roll) inside the map's domain, many in the hardest corner.
 
-    Random (psi, h, pitch, roll) inside the map's domain (sun 0-50, |pitch|+|roll| <= 30), a share
-    of them in the hardest corner (sun 45-50 deg, tilt 25-30 deg mostly along one axis).
+    The domain: sun 0-50 deg, |pitch|+|roll| <= 30 deg; the hardest corner: sun 45-50 deg, tilt
+    25-30 deg mostly along one axis.
     """
     rng = np.random.default_rng(seed)
     k = int(n * corner_fraction)

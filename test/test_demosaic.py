@@ -15,9 +15,9 @@
 """
 Demosaicing against closed forms and an OpenCV reference.
 
-Demosaicing against closed forms: Malus's law on uniform patches (written with dot products, not
-Stokes), numpy's arctan2, an OpenCV per-channel bilinear reference, exactness on linear fields, and
-the awkward inputs (odd sizes, integer/float, NaN, all-zero, saturated).
+The closed forms: Malus's law on uniform patches (written with dot products, not Stokes), numpy's
+arctan2, an OpenCV per-channel bilinear reference, exactness on linear fields, and the awkward
+inputs (odd sizes, integer/float, NaN, all-zero, saturated).
 """
 
 import itertools

@@ -15,9 +15,9 @@
 """
 Error-map sweeps against independent computations.
 
-Error-map sweeps against independent computations: the closed-form level-assumption heading, the
-physics notes' published curve, the paper's three similarities and eq 32's 90-degree shift, plus
-the engine's bookkeeping (domain, status codes, resume, workers, corrupt files).
+The references: the closed-form level-assumption heading, the physics notes' published curve, the
+paper's three similarities and eq 32's 90-degree shift, plus the engine's bookkeeping (domain,
+status codes, resume, workers, corrupt files).
 """
 
 import json
@@ -34,11 +34,11 @@ from polarization_compass.errormap import (
     tilt_domain_mask,
 )
 from polarization_compass.errormap_io import load_error_map
-from polarization_compass.estimators import estimator_names
+from polarization_compass.estimators import estimator_names, registry
 from polarization_compass.sweep import parse_range, run_sweep, SweepSpec
 import pytest
 
-PAPER_METHODS = ('zenith', 'sm_asm', 'symmetry', 'least_squares')
+PAPER_METHODS = registry.paper_methods()  # the class facts, as the sweep reads them
 YAW = np.arange(-180.0, 180.1, 15.0)
 
 
@@ -359,7 +359,7 @@ def test_sweep_equals_each_method_on_its_own_render_with_its_uncertainty(scene_n
     from polarization_compass.estimators import make_estimator
 
     scene = _scene(scene_name)
-    methods = available(PAPER_METHODS + ('tilt_aware',))
+    methods = available(registry.names())
     spec = SweepSpec(
         methods,
         [4.0, 35.0, 50.0],
@@ -442,7 +442,7 @@ def _noisy_scene():
     return scene.replace(camera=CameraModel(width_px=256, height_px=200, focal_length_mm=0.5))
 
 
-@pytest.mark.parametrize('method', ['zenith', 'sm_asm', 'symmetry', 'least_squares', 'tilt_aware'])
+@pytest.mark.parametrize('method', registry.names())
 def test_estimate_without_uncertainty_changes_nothing_but_the_uncertainty(method):
     """
     Estimating without uncertainty changes nothing but the uncertainty.

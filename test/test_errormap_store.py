@@ -15,8 +15,8 @@
 """
 Maps as labelled arrays (issue 17): xarray, NetCDF 3 and the Zarr store.
 
-Maps as labelled arrays (issue 17): the xarray Dataset, the NetCDF 3 export and its scipy-only
-reader, the Zarr sweep store refusing foreign, corrupt and other-sweep directories.
+The NetCDF 3 export has a scipy-only reader; the Zarr sweep store refuses foreign, corrupt and
+other-sweep directories.
 """
 
 from __future__ import annotations

@@ -15,8 +15,8 @@
 """
 Heading estimators against independent references.
 
-Heading estimators against independent references: the paper's own Rayleigh formulas, closed-form
-camera-frame sun azimuths, the physics notes' tilt curve, symmetry, and a calibrated noise model.
+The references: the paper's own Rayleigh formulas, closed-form camera-frame sun azimuths, the
+physics notes' tilt curve, symmetry, and a calibrated noise model.
 
 Every reference here is computed without the estimators' code: the truth psi of a render, the
 camera- frame sun ``R^T s_enu`` from conventions, the notes' published numbers, or a numpy lift.
@@ -193,9 +193,9 @@ def test_row_wise_pass_matches_numpy_per_block(keys):
     """
     The row-wise grid kernel matches a plain numpy computation per block.
 
-    The row-wise grid kernel against a plain numpy computation: each block's M_b (block of 8 sensor
-    pixels from the pixel coordinates), the usable, valid and non-finite counts, with NaN/inf
-    planted in valid and invalid pixels and a min_dop cut.
+    Compared: each block's M_b (block of 8 sensor pixels from the pixel coordinates), the usable,
+    valid and non-finite counts, with NaN/inf planted in valid and invalid pixels and a min_dop
+    cut.
     """
     from polarization_compass.estimators._kernels import full_pass, grid_layout
 
@@ -380,8 +380,8 @@ def test_four_methods_agree_under_tilt(pitch, roll):
     """
     Uncorrected, the four classical methods agree under tilt.
 
-    Uncorrected, the four classical methods all measure the camera-frame solar meridian: they agree
-    with each other (paper: < 0.77 deg; here far closer) and with -atan2(s_x, s_y) of R^T s_enu.
+    They all measure the camera-frame solar meridian: they agree with each other (paper: < 0.77
+    deg; here far closer) and with -atan2(s_x, s_y) of R^T s_enu.
     """
     ests = {n: estimator(n) for n in ['zenith', 'sm_asm', 'symmetry', 'least_squares']}
     for alt in (5.0, 25.0, 50.0):

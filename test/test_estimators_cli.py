@@ -290,12 +290,7 @@ def test_mosaic_front_end_reads_the_same_pixels(noisy_full, demo):
 @pytest.mark.parametrize('shape', [(12, 16), (13, 17)])
 @pytest.mark.parametrize('k', [1, 2, 3])
 def test_superpixel_block_gather_matches_indexing(dtype, shape, k):
-    """
-    The wide-element gather of strided 2 x 2 blocks equals indexing.
-
-    The wide-element gather of strided 2 x 2 blocks equals picking each block's four samples by
-    index.
-    """
+    """The wide-element gather of strided 2 x 2 blocks equals indexing their four samples."""
     from polarization_compass.estimators.mosaic_input import _superpixel_blocks
 
     m = (np.arange(shape[0] * shape[1]) * 7 % 251).reshape(shape).astype(dtype)

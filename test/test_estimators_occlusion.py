@@ -15,10 +15,9 @@
 """
 sm_asm and symmetry with part of the sky disc unusable.
 
-sm_asm and symmetry with part of the sky disc unusable (occluders, invalid pixels, a region that
-cuts the disc): either a heading close to the truth with an honest sigma, or a non-ok status with a
-reason -- never status ok/ambiguous with an error of degrees (they were off by 10-20 deg RMS on
-half-occluded skies).
+The unusable part: occluders, invalid pixels, a region that cuts the disc. Either a heading close
+to the truth with an honest sigma, or a non-ok status with a reason -- never status ok/ambiguous
+with an error of degrees (they were off by 10-20 deg RMS on half-occluded skies).
 
 References are independent of the estimators: the true psi of each render, the geometry of the
 occluder (the angle between the solar meridian and the occluder's edge decides how much of the disc
@@ -52,8 +51,7 @@ def half_plane(x_px, y_px, angle_rad):
     """
     Return the pixels kept on one side of a line through the image centre.
 
-    Pixels kept: one side of the line through the image centre whose normal has image angle
-    angle_rad (the bench's half_occluded condition).
+    The line's normal has image angle angle_rad (the bench's half_occluded condition).
     """
     u = np.asarray(x_px, dtype=float) - CAMERA.cx_px
     v = np.asarray(y_px, dtype=float) - CAMERA.cy_px
@@ -183,11 +181,7 @@ def test_scattered_invalid_pixels_cost_nothing(name):
 
 @pytest.mark.parametrize('name', METHODS)
 def test_pixels_outside_the_disc_do_not_matter(name):
-    """
-    Invalid corners outside the sky disc leave the result unchanged.
-
-    Invalid corners (outside the sky disc) leave the result exactly as with every pixel valid.
-    """
+    """Invalid corners outside the sky disc leave the result exactly as with every pixel valid."""
     est = make_estimator(name, stride=16)
     f, obs = _scene_obs(est, Scene(), 25.0, 200.0, 40.0, 0.0)
     obs.valid = np.asarray(f.valid).copy()

@@ -101,7 +101,7 @@ def _fd(f, aop, use, h=1e-4):
     """
     Return central differences of f(aop) in each usable pixel's AoP.
 
-    Central differences of f(aop) in each usable pixel's AoP (the float32 steps actually taken).
+    Each difference is divided by the float32 step actually taken.
     """
     d = np.zeros(N)
     for i in np.nonzero(use)[0]:

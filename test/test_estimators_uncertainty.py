@@ -15,11 +15,10 @@
 """
 The 1-sigma heading uncertainty of least_squares and tilt_aware is calibrated.
 
-The 1-sigma heading uncertainty of least_squares and tilt_aware is calibrated: over many noisy
-scenes mean(error^2 / sigma^2) lies in [0.7, 1.4] (issue 3), with independent per-pixel AoP noise
-from the shot-noise formula sigma_AoP = 1 / (P sqrt(8 N)), with the sensor noise of the IMX250MZR
-scene, with spatially correlated noise (as after bilinear demosaicing), and on full frames through
-the sensor and both demosaics at 12 and 8 bit, level and tilted (slow).
+Over many noisy scenes mean(error^2 / sigma^2) lies in [0.7, 1.4] (issue 3), with independent
+per-pixel AoP noise from the shot-noise formula sigma_AoP = 1 / (P sqrt(8 N)), with the sensor
+noise of the IMX250MZR scene, with spatially correlated noise (as after bilinear demosaicing), and
+on full frames through the sensor and both demosaics at 12 and 8 bit, level and tilted (slow).
 """
 
 import math

@@ -12,11 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Running error statistics and stamp matching against independent numpy computations.
-
-Running error statistics and stamp matching (ROS-free), against independent numpy computations.
-"""
+"""ROS-free running error statistics and stamp matching against independent numpy computations."""
 
 import csv
 import math

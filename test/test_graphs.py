@@ -75,7 +75,7 @@ def console_scripts() -> dict:
     """
     Return name -> 'module:function' from setup.py's entry points, read as text.
 
-    name -> 'module:function' from setup.py's entry points, read as text (not by importing it).
+    It is read as text, not by importing setup.py.
     """
     text = (ROOT / 'setup.py').read_text()
     return dict(re.findall(r'["\']([\w-]+)\s*=\s*([\w.]+:\w+)["\']', text))

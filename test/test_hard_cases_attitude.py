@@ -15,9 +15,8 @@
 """
 Hard cases of attitudes and quaternions (docs/hard-cases.md).
 
-Hard cases of attitudes and quaternions (docs/hard-cases.md): quaternions that are not unit, zero,
-NaN or inf; q and -q; gimbal lock at pitch +-90 deg; yaw wrap at +-180 deg in the REP-103
-conversions.
+Quaternions that are not unit, zero, NaN or inf; q and -q; gimbal lock at pitch +-90 deg; yaw wrap
+at +-180 deg in the REP-103 conversions.
 
 Covered elsewhere and not repeated:
 test_conventions.py::test_bad_quaternions_are_rejected_with_reason (zero, NaN, norm 2, 3

@@ -13,11 +13,10 @@
 # limitations under the License.
 
 """
-Docs/hard-cases.md stays true.
+The catalogue docs/hard-cases.md stays true.
 
-docs/hard-cases.md stays true: every test it cites exists, every case issue 8 lists has a row, and
-every open bug it names is a strict xfail somewhere (and every strict xfail of the hard-case files
-is named in it).
+Every test it cites exists, every case issue 8 lists has a row, and every open bug it names is a
+strict xfail somewhere (and every strict xfail of the hard-case files is named in it).
 """
 
 from pathlib import Path

@@ -15,9 +15,8 @@
 """
 Hard cases of error maps and the map-based tilt correction (docs/hard-cases.md).
 
-Hard cases of error maps and the map-based tilt correction (docs/hard-cases.md): tilt or sun
-outside the map, non-finite inputs, nodes without a valid estimate, the yaw wrap at +-180 deg, and
-corrupt or malicious map files.
+Tilt or sun outside the map, non-finite inputs, nodes without a valid estimate, the yaw wrap at
++-180 deg, and corrupt or malicious map files.
 
 The maps here are synthetic: an analytic error e(psi, h, pitch, roll) written out below is sampled
 on the grid, so the correction can be checked against the exact inverse (psi_meas = psi + e(psi) is
@@ -47,7 +46,7 @@ def analytic_error_deg(psi, h, p, r):
     """
     Return a smooth tilt error, small enough that psi + e(psi) is monotonic.
 
-    A smooth tilt error, small enough that psi + e(psi) is monotonic in psi (|de/dpsi| < 0.3).
+    Its slope is bounded: |de/dpsi| < 0.3.
     """
     s = 0.5 + h / 100.0
     return s * (

@@ -15,8 +15,8 @@
 """
 Hostile input to the ROS-free layer (issue 18).
 
-Hostile input to the ROS-free layer (issue 18): loaders bound what they read, implausible camera
-intrinsics are refused, and a heading contradicting an independent IMU prior is not ``ok``.
+Loaders bound what they read, implausible camera intrinsics are refused, and a heading
+contradicting an independent IMU prior is not ``ok``.
 
 Bombs are built small: a compressed ``.npz`` whose ``.npy`` header *declares* a huge shape is
 refused from its header, before anything is decompressed or allocated (``tracemalloc`` checks the
@@ -43,8 +43,8 @@ def npy_bytes_declaring(shape, dtype='<f8', payload_bytes=1 << 20) -> bytes:
     """
     Return an .npy stream whose header declares ``shape`` but whose body is short.
 
-    An .npy stream whose header declares ``shape`` followed by ``payload_bytes`` of zeros (a
-    truncated body: numpy would allocate the declared array before noticing).
+    The body is ``payload_bytes`` of zeros: numpy would allocate the declared array before
+    noticing.
     """
     header = {'descr': dtype, 'fortran_order': False, 'shape': tuple(shape)}
     buf = io.BytesIO()

@@ -15,8 +15,8 @@
 """
 Every node fed bad messages counts a rejection and never raises.
 
-Every node fed bad messages: a counted rejection (``/diagnostics`` ``rejected`` counter, by reason)
-or a status message with the reason, and never an exception out of a callback.
+A counted rejection (``/diagnostics`` ``rejected`` counter, by reason) or a status message with the
+reason, and never an exception out of a callback.
 
 Why calling the callbacks directly is the right test: rclpy's executor re-raises an exception from
 a callback out of ``spin_once``, and ``nodes.runner.run_node`` then ends the process (exit 2 for a
@@ -55,9 +55,8 @@ def ideal_mosaic(bearing, pitch, roll, sun_az, sun_alt, cam=CAM):
     """
     Build 32FC1 polarizer intensities by Malus's law.
 
-    32FC1 polarizer intensities by Malus's law, written out here: I(phi) = (1 + DoP cos 2(phi -
-    AoLP_x)) / 2 with AoLP_x = 90 deg - AoP (physics notes section 1), phi of the IMX250MZR 2 x 2
-    layout.
+    Written out here: I(phi) = (1 + DoP cos 2(phi - AoLP_x)) / 2 with AoLP_x = 90 deg - AoP
+    (physics notes section 1), phi of the IMX250MZR 2 x 2 layout.
     """
     from polarization_compass.render import Renderer, SunDirection
     from polarization_compass.scene import Scene
@@ -747,8 +746,7 @@ def test_corrector_survives_an_error_map_parameter_with_deeply_nested_meta(corre
     """
     Issue 18: the RecursionError of such a map ended tilt_corrector.
 
-    Refused with a reason, map
-    kept.
+    Refused with a reason, map kept.
     """
     old = corrector.corrector
     res = corrector.set_parameters(

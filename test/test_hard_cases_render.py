@@ -15,9 +15,9 @@
 """
 Hard cases of the rendered sky (docs/hard-cases.md).
 
-Hard cases of the rendered sky (docs/hard-cases.md): sun at and near the zenith, on and around the
-horizon, pixels at the sun and the anti-sun, a camera looking at the sun, pitch/roll of +-90 deg,
-yaw wrap at +-180 deg, AoP wrap at +-90 deg and DoP of 0.
+Sun at and near the zenith, on and around the horizon, pixels at the sun and the anti-sun, a camera
+looking at the sun, pitch/roll of +-90 deg, yaw wrap at +-180 deg, AoP wrap at +-90 deg and a DoP
+of 0.
 
 Reference values are derived by hand in each docstring (closed forms for special geometries) or
 computed here with a float64 cross product; never with the renderer's own kernel.
@@ -190,8 +190,7 @@ def test_dop_zero_ring_and_min_dop_mask_around_the_sun():
     """
     The min_dop mask removes exactly the pixels near the sun and anti-sun.
 
-    min_dop > 0 removes exactly the pixels near the sun and anti-sun: DoP < m <=> |cos g| >
-    sqrt((1-m)/(1+m)).
+    With min_dop = m > 0: DoP < m <=> |cos g| > sqrt((1-m)/(1+m)).
     """
     m = 0.05
     f = render(validity=Validity(0.0, -90.0, m), att=(0.0, -60.0, 0.0), sun=(0.0, 30.0))

@@ -15,11 +15,10 @@
 """
 Hard cases of the solar position (docs/hard-cases.md).
 
-Hard cases of the solar position (docs/hard-cases.md) not already covered by test/test_solar.py:
-the sun on, just above and just below the horizon (refraction and SPA's switch), within 0.5 deg of
-the zenith, solar noon from SPA, the poles and the date line as physical identities, century leap
-years, and dates that do not exist. Each check uses a second formula or a physical fact, not the
-module's own output.
+Those not already covered by test/test_solar.py: the sun on, just above and just below the horizon
+(refraction and SPA's switch), within 0.5 deg of the zenith, solar noon from SPA, the poles and the
+date line as physical identities, century leap years, and dates that do not exist. Each check uses
+a second formula or a physical fact, not the module's own output.
 """
 
 import datetime as dt

@@ -15,9 +15,8 @@
 """
 The sim graph on real DDS (loopback only), started as `make sim` does.
 
-The sim graph on real DDS (loopback only), started by `polarization-compass sim` exactly as `make
-sim` does (graphs.py -> console scripts with the shipped parameter files), with a recording node in
-this process on the same domain.
+Started by `polarization-compass sim` (graphs.py -> console scripts with the shipped parameter
+files), with a recording node in this process on the same domain.
 
 Checks: each node's actual topics equal graphs.py's declaration; the heading's form (ENU yaw = 90
 deg

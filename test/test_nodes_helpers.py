@@ -15,8 +15,8 @@
 """
 Helpers for the DDS integration tests.
 
-Helpers for the DDS integration tests: start node executables as processes with a test's
-environment, and a recording rclpy node in the test process on the same (loopback) domain.
+Node executables started as processes with a test's environment, and a recording rclpy node in the
+test process on the same (loopback) domain.
 """
 
 from __future__ import annotations

@@ -15,10 +15,10 @@
 """
 Nodes on real DDS under bad input.
 
-Nodes on real DDS under bad input: a burst of malformed messages between good ones, parameter
-changes with bad values, a stale IMU, a missing optional package and a bad parameter file. A node
-must log, count and drop what it cannot use, keep processing good messages, and stop on SIGINT with
-exit code 0 and no traceback. Also: a best-effort IMU driver reaches every IMU reader.
+The input: a burst of malformed messages between good ones, parameter changes with bad values, a
+stale IMU, a missing optional package and a bad parameter file. A node must log, count and drop
+what it cannot use, keep processing good messages, and stop on SIGINT with exit code 0 and no
+traceback. Also: a best-effort IMU driver reaches every IMU reader.
 
 The missing-tf2_ros check runs only where tf2_ros is not installed (here); on a ROS install it does
 not run and is not coverage there (the rest of its test runs everywhere).
@@ -51,7 +51,7 @@ def _good_frame(bearing: float, t_ns: int) -> np.ndarray:
     """
     Return an ideal 32FC1 mosaic of a level camera at ``bearing``.
 
-    An ideal 32FC1 mosaic of a level camera at ``bearing`` with the sun of the stamp (ephemeris).
+    The sun is that of the stamp (ephemeris).
     """
     from polarization_compass.conventions import CameraAttitude
     from polarization_compass.nodes.sky_simulator import mosaic_config

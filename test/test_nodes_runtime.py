@@ -96,8 +96,7 @@ def sloped_map(tmp_path_factory):
     """
     Return an error map depending on the sun's altitude and psi.
 
-    An error map depending on the sun's altitude and psi (linear in altitude: interpolated
-    exactly).
+    Linear in altitude, so interpolated exactly.
     """
     from polarization_compass.errormap import ErrorMap
 
@@ -301,8 +300,8 @@ def fake_wall_clock(monkeypatch, start: float):
     """
     Replace the simulator module's ``time`` with a fake monotonic clock.
 
-    Replace the simulator module's ``time`` with one whose monotonic() is ``wall[0]`` (returned:
-    the caller advances it); perf_counter and time_ns stay real.
+    Its monotonic() is ``wall[0]`` (returned: the caller advances it); perf_counter and time_ns
+    stay real.
     """
     from polarization_compass.nodes import sky_simulator as S
 

@@ -15,9 +15,8 @@
 """
 Clean stop of every node (issue 15), without ros2 launch.
 
-Clean stop of every node (issue 15), without ros2 launch: SIGINT and SIGTERM, once or repeatedly,
-while data flows, end each node with exit 0, no traceback, no abort; the evaluator keeps a current
-report on disk while it runs and replaces it atomically.
+SIGINT and SIGTERM, once or repeatedly, while data flows, end each node with exit 0, no traceback,
+no abort; the evaluator keeps a current report on disk while it runs and replaces it atomically.
 
 The same stops under the real ``ros2 launch`` (process group, launch's own SIGINT, its SIGTERM
 escalation) are in test_ros2_launch.py, which needs the launch packages.

@@ -15,9 +15,9 @@
 """
 The nodes' building blocks without DDS.
 
-The nodes' building blocks without DDS: message forms, the IMU history, the front end, parameters.
-Each is checked against an independent computation (closed form, another module's decoder, a slow
-reference loop), never against its own output.
+Message forms, the IMU history, the front end, parameters. Each is checked against an independent
+computation (closed form, another module's decoder, a slow reference loop), never against its own
+output.
 """
 
 import math

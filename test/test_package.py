@@ -15,8 +15,7 @@
 """
 The package builds with colcon as an ament_python package.
 
-The package builds with colcon as an ament_python package and installs what `ros2 run`/`ros2
-launch` need.
+It installs what `ros2 run`/`ros2 launch` need.
 """
 
 import os
@@ -41,7 +40,7 @@ def _project_files():
     """
     Return the files git tracks plus untracked, non-ignored ones.
 
-    Files git tracks plus untracked, non-ignored ones (what a clean clone plus the work tree has).
+    What a clean clone plus the work tree has.
     """
     out = subprocess.run(
         ['git', 'ls-files', '--cached', '--others', '--exclude-standard'],

@@ -14,30 +14,20 @@
 
 """ament_pep257 (pydocstyle, ament's ignore list) over every Python file, as in ROS packages."""
 
-import importlib.util
 import os
 
 from ament_pep257.main import main
+from lint_paths import python_paths
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def lint_paths():
-    """Return the top-level files and directories that hold Python code (tools/lint_fix.py)."""
-    spec = importlib.util.spec_from_file_location(
-        'lint_fix', os.path.join(ROOT, 'tools', 'lint_fix.py')
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.python_paths(ROOT)
 
 
 @pytest.mark.linter
 @pytest.mark.pep257
 def test_pep257(monkeypatch):
     monkeypatch.chdir(ROOT)
-    rc = main(argv=lint_paths())
+    rc = main(argv=python_paths(ROOT))
     assert rc == 0, 'Found code style errors / warnings'
 
 

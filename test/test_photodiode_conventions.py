@@ -15,8 +15,8 @@
 """
 Unit viewing axes and polarizer angles to body-frame E-vectors.
 
-Unit viewing axes and polarizer angles -> body-frame E-vectors (conventions), against hand-derived
-geometry, the camera's eq 28 convention and the paper's own Rayleigh formulas.
+The conventions module's conversion against hand-derived geometry, the camera's eq 28 convention
+and the paper's own Rayleigh formulas.
 """
 
 import math

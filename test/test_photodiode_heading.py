@@ -15,9 +15,8 @@
 """
 Heading from simulated photodiode arrays with known truth.
 
-Heading from simulated photodiode arrays with known truth: exactness, tilt, the 180 deg ambiguity,
-statuses, sigma coverage, gain calibration, convention self-check and the simulator's acceptance
-cone.
+What is checked: exactness, tilt, the 180 deg ambiguity, statuses, sigma coverage, gain
+calibration, convention self-check and the simulator's acceptance cone.
 """
 
 import numpy as np

@@ -15,9 +15,9 @@
 """
 The real 8-unit POL-OP recordings: convention and heading error.
 
-The real 8-unit POL-OP recordings (../shared/data/real-polop, GPL-3.0, read from there; skipped
-when absent): the polarizer convention the data show, and heading error against the reference on
-the clear sessions.
+The recordings are ../shared/data/real-polop (GPL-3.0, read from there; skipped when absent).
+Checked: the polarizer convention the data show, and heading error against the reference on the
+clear sessions.
 """
 
 import numpy as np

@@ -15,8 +15,7 @@
 """
 A photodiode array declared in a scene.
 
-A photodiode array declared in a scene: rendered only when declared, with the scene's attitude and
-sun.
+It is rendered only when declared, with the scene's attitude and sun.
 """
 
 import numpy as np

@@ -13,12 +13,11 @@
 # limitations under the License.
 
 """
-Check-polarizer on simulated skies with known truth.
+The check-polarizer command on simulated skies with known truth.
 
-check-polarizer on simulated skies with known truth: whatever 2 x 2 phase and 45 deg direction the
-simulated sensor has, the check names it (and calls the configured one supported or contradicted),
-and a sun on an image axis -- where the mirrored pattern is itself a valid sky -- is never
-mis-decided.
+Whatever 2 x 2 phase and 45 deg direction the simulated sensor has, the check names it (and calls
+the configured one supported or contradicted), and a sun on an image axis -- where the mirrored
+pattern is itself a valid sky -- is never mis-decided.
 """
 
 import math

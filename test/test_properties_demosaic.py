@@ -15,9 +15,9 @@
 """
 Property-based and hard-case tests of demosaicking raw DoFP images.
 
-Property-based and hard-case tests of demosaicking raw DoFP images: any 2-D input, of any size,
-dtype and content (zeros, saturation, NaN, inf, negative, huge), gives finite AoP/DoP in range with
-invalid pixels at 0/0, or one SensorError. numpy warnings are errors (pytest.ini).
+Any 2-D input, of any size, dtype and content (zeros, saturation, NaN, inf, negative, huge), gives
+finite AoP/DoP in range with invalid pixels at 0/0, or one SensorError. numpy warnings are errors
+(pytest.ini).
 
 Covered in test/test_demosaic.py and not repeated: all-zero and saturated images
 (test_all_zero_and_saturated_images_are_invalid_without_nan), one NaN/inf sample

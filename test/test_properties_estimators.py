@@ -15,8 +15,8 @@
 """
 Property-based and hard-case tests of every heading estimator.
 
-Property-based and hard-case tests of every heading estimator over random suns, attitudes, pixel
-masks, priors and AoP noise (numpy warnings are errors, pytest.ini).
+Inputs are random suns, attitudes, pixel masks, priors and AoP noise (numpy warnings are errors,
+pytest.ini).
 
 Promises checked (estimators/base.py): a HeadingResult never carries NaN/inf; a usable result has
 psi in (-180, 180], bearing in [0, 360), REP-103 yaw = 90 - bearing, bearing = psi + sun azimuth, a
@@ -116,10 +116,9 @@ def tilt_bound_deg(pitch, roll, sun_alt):
     """
     Return the largest |tilt error| of a level-camera method.
 
-    Largest |tilt error| of a level-camera method: the notes' section 3 curve peaks at 25.9 deg for
-    pitch -20 and sun altitude 50 and grows with tilt and sun altitude; for |pitch| + |roll| <= 30
-    and the sun below 60 deg, 60 deg is a safe bound that still separates any error from a 180 deg
-    flip.
+    The notes' section 3 curve peaks at 25.9 deg for pitch -20 and sun altitude 50 and grows with
+    tilt and sun altitude; for |pitch| + |roll| <= 30 and the sun below 60 deg, 60 deg is a safe
+    bound that still separates any error from a 180 deg flip.
     """
     return 1e-3 if pitch == 0.0 and roll == 0.0 else 60.0
 

@@ -15,8 +15,7 @@
 """
 Property-based tests of the renderer.
 
-Property-based tests of the renderer over random suns, attitudes, cameras, pixel sets and sky
-models.
+Inputs are random suns, attitudes, cameras, pixel sets and sky models.
 
 Every output must be finite, in its documented range ([-pi/2, pi/2) for AoP, [0, 1] for DoP,
 invalid pixels 0/0), agree with an independent float64 cross-product computation written here, and

@@ -15,11 +15,10 @@
 """
 `estimate` on real-camera file formats, end to end against simulated truth.
 
-`estimate` on real-camera file formats, end to end against simulated truth: a raw 12-bit mosaic in
-a 16-bit PNG (--bits 12) and as .npy, the SDK's Stokes planes as a 3-page TIFF and an .npz, with
-the sun, its glare and lens-flare ghosts in the field (optics), a static mask, and a distorted lens
-described by a ROS camera_calibration file. Every result is right within 3 sigma (+ 0.5 deg) or not
-ok.
+The formats: a raw 12-bit mosaic in a 16-bit PNG (--bits 12) and as .npy, the SDK's Stokes planes
+as a 3-page TIFF and an .npz, with the sun, its glare and lens-flare ghosts in the field (optics),
+a static mask, and a distorted lens described by a ROS camera_calibration file. Every result is
+right within 3 sigma (+ 0.5 deg) or not ok.
 """
 
 import json

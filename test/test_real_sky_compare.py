@@ -15,10 +15,10 @@
 """
 The simulator set up like the real frames produces skies of the same kind.
 
-The simulator set up like the real frames (test/data/real-sky/ once copied there with
-LICENSE.ccompass, else ../shared/data/real-sky beside the checkout; skipped with the reason when
-neither exists) produces skies of the same kind: DoP median and the fraction of the sky within 5
-deg of the Rayleigh AoP, within stated tolerances.
+The real frames are in test/data/real-sky/ once copied there with LICENSE.ccompass, else in
+../shared/data/real-sky beside the checkout; the test is skipped with the reason when neither
+exists. Compared: DoP median and the fraction of the sky within 5 deg of the Rayleigh AoP, within
+stated tolerances.
 
 Real frames (README of the data): a Lucid IMX250MZR camera with a fisheye looking up, as Stokes I,
 Q, U quadrants of an 8-bit JPEG; image circle centre (1076.3, 1000.9) px (0-based), 90 deg at 1382
@@ -79,7 +79,7 @@ def rays(x0, y0):
     """
     Return equidistant rays of 0-based pixel coordinates.
 
-    Equidistant rays of 0-based pixel coordinates (camera x right, y down, z the optical axis).
+    Camera frame: x right, y down, z the optical axis.
     """
     r = np.hypot(x0 - CX, y0 - CY)
     t, p = r / F_PX, np.arctan2(y0 - CY, x0 - CX)

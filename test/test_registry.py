@@ -329,3 +329,48 @@ def test_toy_in_the_replay(toys, tmp_path):
         )
         assert abs(cv.wrap_180_deg(r.raw_bearing_deg - (3.0 + az))) < 1e-3
     assert TOY_TILT in ReplayConfig().direct_methods
+
+
+def test_toy_in_the_bench(toys):
+    """The benchmark sweeps a new method's declared knobs and draws it in its registry colour."""
+    from bench import report
+    from bench.accuracy import condition_methods, CONDITIONS, knob_sets
+
+    # the toy declares one knob, stride: strided sets only (no window, region or disc sets)
+    assert knob_sets(TOY, 'quick', False) == [
+        ('stride 4', {'stride': 4}, None),
+        ('stride 16', {'stride': 16}, None),
+    ]
+    full = knob_sets(TOY, 'full', True)
+    assert [label for label, _, _ in full] == [
+        'default, superpixel demosaic',
+        'stride 4, superpixel demosaic',
+        'stride 8, superpixel demosaic',
+        'stride 16, superpixel demosaic',
+        'default, full-res demosaic',
+        'stride 2, full-res demosaic',
+        'stride 4, full-res demosaic',
+        'stride 8, full-res demosaic',
+        'stride 16, full-res demosaic',
+    ]
+    for _, knobs, _ in full:
+        assert make_estimator(TOY, **knobs).knobs['stride'] == knobs.get('stride', 1)
+    # the tilt toy reads the tilt: it runs where tilt_aware runs, the toy where the others do
+    everyone = registry.names()
+    level = [m for m in BUILTIN if m != 'tilt_aware'] + [TOY]
+    assert condition_methods(CONDITIONS['tilted'], everyone) == level
+    assert condition_methods(CONDITIONS['tilted_tilt_aware'], everyone) == ['tilt_aware', TOY_TILT]
+    assert condition_methods(CONDITIONS['ideal_level'], everyone) == [*BUILTIN, TOY, TOY_TILT]
+    # colours and order of the plots, labels of the tables: from the class facts
+    assert report.method_colour(TOY) == 'tab:brown'
+    assert report.method_colour(TOY_TILT) == 'tab:olive'
+    assert report.method_colour('zenith') == 'tab:blue' and report.method_colour('gone') == 'k'
+    ranked = sorted([TOY, 'gone', 'zenith', TOY_TILT, 'tilt_aware'], key=report._method_rank)
+    assert ranked == ['zenith', 'tilt_aware', TOY, TOY_TILT, 'gone']
+    assert report._knobs_label(TOY, {'stride': 8}) == 'stride 8'
+    assert report._knobs_label('zenith', {'window_px': 33}) == 'window 33 px'
+    cells = [
+        {'method': TOY, 'condition': 'ideal_level', 'knobs_label': label}
+        for label in ('stride 4', 'stride 8')
+    ]
+    assert report._reference_cell(cells, TOY, 'ideal_level') is cells[1]

@@ -15,7 +15,7 @@
 """
 The renderer against the paper's own formulas, and its invariants.
 
-The renderer against the paper's own formulas (eq 18 in ENU, then eq 27/28), and its invariants.
+The formulas: eq 18 in ENU, then eq 27/28.
 """
 
 import math

@@ -15,9 +15,8 @@
 """
 `polarization-compass render` on success: the .npz contract of issue 2.
 
-`polarization-compass render` on success: the .npz contract of issue 2, checked against
-computations written here from the physics notes (eq 20 rays, eq 21 attitude, eq 18 E = S x P, eq
-28 AoP), not against the renderer's own output.
+It is checked against computations written here from the physics notes (eq 20 rays, eq 21 attitude,
+eq 18 E = S x P, eq 28 AoP), not against the renderer's own output.
 
 Contract: ``aop_rad`` (eq 28, folded to [-pi/2, pi/2)), ``dop``, ``valid`` (bool),
 ``x_px``/``y_px`` (1-based pixel coordinates of eq 20, same shape as ``aop_rad``), ``meta`` (a JSON

@@ -942,21 +942,6 @@ def test_prefetch_keeps_order_reraises_in_place_and_stops_when_closed():
     assert not any(t.name == 'bag-prefetch' and t.is_alive() for t in threading.enumerate())
 
 
-def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
-    import numba
-    from polarization_compass.runtime import openblas_handles as _openblas_handles
-    from polarization_compass.runtime import single_threaded_kernels
-
-    before = numba.get_num_threads()
-    assert _openblas_handles(), "numpy's OpenBLAS not found"
-    blas_before = [g() for _, g in _openblas_handles()]
-    with single_threaded_kernels():
-        assert numba.get_num_threads() == 1
-        assert all(g() == 1 for _, g in _openblas_handles())
-    assert numba.get_num_threads() == before
-    assert [g() for _, g in _openblas_handles()] == blas_before
-
-
 def test_every_method_can_be_replayed_alone(clean, tmp_path, capsys):
     """
     Every method can be replayed alone.

@@ -15,11 +15,10 @@
 """
 Live replay: a recorded bag published through the real nodes of the replay graph.
 
-Live replay: a recorded bag's messages published through the real nodes of the replay graph
-(graphs.build("replay"): heading_estimator per method, tilt_corrector, error_evaluator) on DDS
-(loopback, the test's own domain id), with use_sim_time and /clock from the bag, as `ros2 bag play
---clock` would. The nodes' errors (the evaluator's report) must equal the offline replay's, frame
-by frame and stream by stream.
+The graph is graphs.build("replay") (heading_estimator per method, tilt_corrector, error_evaluator)
+on DDS (loopback, the test's own domain id), with use_sim_time and /clock from the bag, as `ros2
+bag play --clock` would. The nodes' errors (the evaluator's report) must equal the offline
+replay's, frame by frame and stream by stream.
 """
 
 import csv
@@ -92,7 +91,7 @@ def run_and_map(tmp_path_factory):
     """
     Record a 2 s turn at pitch -20 and a least-squares error map around it.
 
-    A 2 s turn at pitch -20 (sun ~30 deg high) and a least-squares error map around it.
+    The sun is ~30 deg high.
     """
     from polarization_compass.sweep import run_sweep, SweepSpec
 
@@ -161,7 +160,7 @@ def _play(nodes, bag_path, env, methods) -> dict:
     """
     Publish the bag through the running nodes, stop them and return their exit codes.
 
-    Publish the bag through the running nodes (lockstep per image); stop them; their exit codes.
+    The nodes run in lockstep per image.
     """
     import json
     import warnings

@@ -60,8 +60,8 @@ def malus_electrons(aop, dop, n0, layout, pol45, x0=1, y0=1, d=1.0, s0=None):
     """
     Return the mean electrons per pixel from Malus's law with vectors.
 
-    Mean electrons per pixel from Malus's law with vectors: unpolarized part (1 - dP) / 2 plus dP
-    cos^2 of the angle between E = (sin a, cos a) and the polarizer axis, times 2 N0 S0.
+    The unpolarized part (1 - dP) / 2 plus dP cos^2 of the angle between E = (sin a, cos a) and the
+    polarizer axis, times 2 N0 S0.
     """
     h, w = aop.shape
     rows = (np.arange(h) + y0 - 1) % 2

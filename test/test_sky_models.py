@@ -410,7 +410,7 @@ def _cie_enu(model, Z_deg, az_deg, Zs_deg, azs_deg):
     """
     Evaluate a radiance model with ENU as its frame.
 
-    Evaluate a radiance model with ENU as its frame (any frame works: only sun and zenith matter).
+    Any frame works: only sun and zenith matter.
     """
     rays = enu_direction(np.atleast_1d(az_deg), 90.0 - np.atleast_1d(Z_deg)).T.astype(np.float32)
     return model.radiance(enu_direction(azs_deg, 90.0 - Zs_deg), ZENITH, rays)
@@ -556,8 +556,8 @@ def _imported_modules(path: Path) -> set[str]:
     """
     Return every module a source file imports, read with ast.
 
-    Every module a source file imports, at module level or inside a function (relative names
-    resolved against the package), read with ast: the import graph, not what happens to be loaded.
+    At module level or inside a function, relative names resolved against the package: the import
+    graph, not what happens to be loaded.
     """
     import ast
 

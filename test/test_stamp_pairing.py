@@ -76,7 +76,7 @@ def _arrivals(samples, delay_key, lost_key):
     """
     Return the arrival times of one topic (FIFO per topic).
 
-    Arrival times of one topic: FIFO per topic (one writer), so a stall delays what follows it too.
+    One writer per topic, so a stall delays what follows it too.
     """
     out, last = {}, -math.inf
     for s in samples:

@@ -15,9 +15,8 @@
 """
 The branch-free float64 math of the vectorised kernels, and their vectorisation.
 
-The branch-free float64 math of the vectorised kernels (polarization_compass.fastmath) against
-numpy's libm, and the SM-ASM and Symmetry pass loops that use it stay vectorised (LLVM emits vector
-instructions for them).
+The math (polarization_compass.fastmath) is checked against numpy's libm; the SM-ASM and Symmetry
+pass loops that use it stay vectorised (LLVM emits vector instructions for them).
 """
 
 import math
@@ -112,10 +111,9 @@ def test_disc_pass_loops_are_vectorised(name):
     """
     The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code.
 
-    The per-pixel loops of the SM-ASM and Symmetry passes compile to vector code: a libm call, a
-    select inside a reduction or a Python-model division check would each make LLVM keep them
-    scalar (2-3x slower). Compiled afresh from the Python source with the kernel's own options
-    (cached code has no IR).
+    A libm call, a select inside a reduction or a Python-model division check would each make LLVM
+    keep the loops scalar (2-3x slower). Compiled afresh from the Python source with the kernel's
+    own options (cached code has no IR).
     """
     from polarization_compass.estimators import _sm_asm_kernels, _symmetry_kernels
 
@@ -210,9 +208,8 @@ def test_disc_helper_loops_are_vectorised(name):
     """
     The gathers' pixel loader and the level-residual pass compile to vector code.
 
-    The gathers' pixel loader (no fast-math: the same values as a scalar loop) and the
-    level-residual pass of sm_asm and symmetry compile to vector code (compiled afresh with the
-    kernel's own options, as above).
+    The loader uses no fast-math (the same values as a scalar loop); the level-residual pass is
+    that of sm_asm and symmetry. Compiled afresh with the kernel's own options, as above.
     """
     from polarization_compass.estimators import _disc
 

@@ -15,8 +15,7 @@
 """
 The zenith method's 180 deg side comes from the whole sky or a prior.
 
-The zenith method's 180 deg side comes from the whole sky (or a prior), never from its small
-window.
+It never comes from the method's small window.
 
 On the real ``sunny`` frame the 32 px zenith window is brighter on the side away from the sun
 (lens-flare ghosts): a side taken from the window's brightness gradient was 177 deg wrong with

@@ -17,9 +17,9 @@
 """
 Real-data results for docs/photodiode-arrays.md.
 
-Real-data results for docs/photodiode-arrays.md: the 36 turns of ../shared/data/real-polop
-(GPL-3.0, read in place) through the photodiode-array estimators; per session heading error against
-the reference, sigma coverage, statuses; a figure of the error through one turn.
+The 36 turns of ../shared/data/real-polop (GPL-3.0, read in place) through the photodiode-array
+estimators; per session heading error against the reference, sigma coverage, statuses; a figure of
+the error through one turn.
 
 Usage: python tools/polop_results.py [--plot docs/figures/photodiode_turn_error.png] [--json
 out.json]
