@@ -26,6 +26,8 @@ launch packages (../shared/ros-launch); skipped otherwise with the reason, and t
   replay``'s error (to the 1e-6 deg of the evaluator's CSV), every truth frame is scored or counted
   as missed, and at least half of the offline replay's frames are scored (the player at
   ``--rate 0.5``: best-effort transport loses images on a loaded machine).
+* A ``ros2 bag record`` of the live sim graph (camera, IMU, reference, fix) is read by the offline
+  replay: every recorded image is scored, with the sim evaluator's own errors.
 
 Every process runs on loopback discovery with a domain id of its own and the package's
 shared-memory Fast DDS profile (every local participant discovers every other through it).
@@ -263,3 +265,57 @@ def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
     # samples to best-effort transport: counted as missed, never scored against stale data)
     offline_ls = sum(1 for k in want if k[0] == 'least_squares/raw')
     assert s['streams']['least_squares/raw']['count'] >= offline_ls // 2, s['streams']
+
+
+def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws, tmp_path):
+    """
+    Record the sim graph's camera, IMU, reference and fix with ros2 bag record; replay it offline.
+
+    The small fisheye scene (budget_small.yaml, 160 x 160), 18 frames of a 10 deg/s turn: every
+    recorded image is scored offline, with the sim evaluator's own errors for its frames.
+    """
+    from polarization_compass.replay import default_error_map, replay_bag, ReplayConfig
+
+    env = ws['env']
+    out = tmp_path / 'rec'
+    rec_log = open(tmp_path / 'record.log', 'w')
+    recorder = subprocess.Popen(
+        ['ros2', 'bag', 'record', '-s', 'mcap', '-o', str(out), '--topics', '/camera/image_raw',
+         '/camera/camera_info', '/imu/data', '/ground_truth/heading', '/gps/fix'],
+        env=env, stdout=rec_log, stderr=subprocess.STDOUT, start_new_session=True,
+    )
+    report = tmp_path / 'report'
+    log = tmp_path / 'launch.log'
+    try:
+        with open(log, 'w') as f:
+            sim = subprocess.run(
+                ['ros2', 'launch', 'polarization_compass', 'sim.launch.py',
+                 f'scene:={ROOT / "config" / "scenes" / "budget_small.yaml"}', 'turns:=0.05',
+                 'turn_rate_deg_s:=10.0', 'methods:=least_squares', 'tilt_aware:=false',
+                 f'report_dir:={report}'],
+                env=env, stdout=f, stderr=subprocess.STDOUT, timeout=420,
+            )
+        assert sim.returncode == 0, log.read_text(errors='replace')[-3000:]
+    finally:
+        os.killpg(recorder.pid, signal.SIGINT)  # Ctrl-C closes the bag
+        try:
+            recorder.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(recorder.pid, signal.SIGKILL)
+            recorder.wait()
+        rec_log.close()
+    assert recorder.returncode == 0, (tmp_path / 'record.log').read_text()[-2000:]
+    sim_errors = _live_errors(report)
+    frames = json.loads((report / 'evaluation_summary.json').read_text())['truth_frames']
+    assert frames == 18 and len(sim_errors) == 2 * frames
+    counts = _bag_counts(out)
+    n_images = counts['/camera/image_raw'][1]
+    assert counts['/camera/image_raw'][0] == 'sensor_msgs/msg/Image'
+    assert n_images >= frames - 2, counts  # the recorder subscribes once it sees the publishers
+    offline = replay_bag(out, ReplayConfig(methods=('least_squares',),
+                                           error_map=default_error_map()))
+    want = _offline_errors(offline)
+    assert len(want) == 2 * n_images  # every recorded image scored, raw and corrected
+    assert set(want) <= set(sim_errors)
+    worst = max(abs(want[k] - sim_errors[k]) for k in want)
+    assert worst < 2e-6, worst
