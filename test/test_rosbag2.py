@@ -26,6 +26,8 @@ launch packages (../shared/ros-launch); skipped otherwise with the reason, and t
   replay``'s error (to the 1e-6 deg of the evaluator's CSV), every truth frame is scored or counted
   as missed, and at least half of the offline replay's frames are scored (the player at
   ``--rate 0.5``: best-effort transport loses images on a loaded machine).
+* The same with the camera at 10 Hz, the IMU at 100 Hz and the player at 1x, paused for 3 s half a
+  second after the launch resumed it and resumed again (the player's services).
 * A ``ros2 bag record`` of the live sim graph (camera, IMU, reference, fix) is read by the offline
   replay: every recorded image is scored, with the sim evaluator's own errors.
 
@@ -135,9 +137,7 @@ def ws(tmp_path_factory):
     return {'env': env, 'share': share, 'dir': ws}
 
 
-@pytest.fixture(scope='module')
-def small_bag(tmp_path_factory):
-    """Record a bag of 3 s at 10 Hz from the small camera; return it and what record_sim wrote."""
+def _record_small(d: Path, imu_rate_hz: float = 50.0):
     from polarization_compass.camera import CameraModel
     from polarization_compass.recording import record_sim, RecordSpec
     from polarization_compass.scene import load_scene
@@ -146,11 +146,15 @@ def small_bag(tmp_path_factory):
         width_px=WIDTH_PX, height_px=HEIGHT_PX, focal_length_mm=4.0,
         pixel_pitch_x_um=2448 * 3.45 / WIDTH_PX, pixel_pitch_y_um=2048 * 3.45 / HEIGHT_PX,
     )
-    d = tmp_path_factory.mktemp('bag')
     scene = load_scene(None).replace(camera=camera)
-    info = record_sim(scene, RecordSpec(duration_s=DURATION_S, rate_hz=RATE_HZ, turns=0.25),
-                      d / 'run')
-    return d / 'run', info
+    spec = RecordSpec(duration_s=DURATION_S, rate_hz=RATE_HZ, turns=0.25, imu_rate_hz=imu_rate_hz)
+    return d / 'run', record_sim(scene, spec, d / 'run')
+
+
+@pytest.fixture(scope='module')
+def small_bag(tmp_path_factory):
+    """Record a bag of 3 s at 10 Hz from the small camera; return it and what record_sim wrote."""
+    return _record_small(tmp_path_factory.mktemp('bag'))
 
 
 def _bag_counts(path: Path) -> dict:
@@ -244,6 +248,11 @@ def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
         ws, tmp_path, f'bag:={bag}', 'methods:=least_squares', 'tilt_aware:=true',
         f'report_dir:={report}', f'rate:={PLAYER_RATE}', 'drain_s:=3.0',
     )
+    _check_live_run(rc, text, report, want, n_images)
+
+
+def _check_live_run(rc, text, report, want, n_images) -> dict:
+    """Check a replay.launch.py run against the offline replay's errors; return its summary."""
     assert rc == 0, text[-4000:]
     assert 'all 4 nodes ready' in text and 'the bag has played' in text, text[-4000:]
     started = set(re.findall(r'\[INFO\] \[([\w-]+)\]: process started', text))
@@ -265,6 +274,70 @@ def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
     # samples to best-effort transport: counted as missed, never scored against stale data)
     offline_ls = sum(1 for k in want if k[0] == 'least_squares/raw')
     assert s['streams']['least_squares/raw']['count'] >= offline_ls // 2, s['streams']
+    return s
+
+
+#: Waits until the launch has resumed the player, pauses it after 0.5 s of play, checks that it is
+#: paused and resumes it after argv[1] s (the player's rosbag2_interfaces services).
+PAUSE_SCRIPT = """
+import sys
+import time
+import rclpy
+from rosbag2_interfaces.srv import IsPaused, Pause, Resume
+rclpy.init()
+node = rclpy.create_node('test_pause_player')
+clients = {}
+for srv, name in ((IsPaused, 'is_paused'), (Pause, 'pause'), (Resume, 'resume')):
+    clients[name] = node.create_client(srv, '/rosbag2_player/' + name)
+    assert clients[name].wait_for_service(timeout_sec=300.0), name
+
+
+def call(srv, name):
+    future = clients[name].call_async(srv.Request())
+    rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+    return future.result()
+
+
+t0 = time.monotonic()
+while call(IsPaused, 'is_paused').paused and time.monotonic() - t0 < 300.0:
+    time.sleep(0.05)
+time.sleep(0.5)
+call(Pause, 'pause')
+paused = call(IsPaused, 'is_paused').paused
+time.sleep(float(sys.argv[1]))
+call(Resume, 'resume')
+print('paused:', paused, flush=True)
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+
+def test_a_paused_and_resumed_player_with_a_100_hz_imu_scores_like_the_offline_replay(
+        ws, tmp_path):
+    """Camera at 10 Hz, IMU at 100 Hz, the player at 1x paused for 3 s mid-bag, then resumed."""
+    bag, _ = _record_small(tmp_path, imu_rate_hz=100.0)
+    assert _bag_counts(bag)['/imu/data'][1] > 90 * DURATION_S  # twice the default 50 Hz
+    want = _offline_errors(_offline(bag))
+    report = tmp_path / 'report'
+    log = tmp_path / 'launch.log'
+    with open(log, 'w') as f:
+        p = subprocess.Popen(
+            ['ros2', 'launch', 'polarization_compass', 'replay.launch.py', f'bag:={bag}',
+             'methods:=least_squares', 'tilt_aware:=true', f'report_dir:={report}', 'rate:=1.0',
+             'drain_s:=3.0'],
+            env=ws['env'], stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
+        )
+    try:
+        r = subprocess.run([sys.executable, '-c', PAUSE_SCRIPT, '3.0'], env=ws['env'],
+                           capture_output=True, text=True, timeout=420)
+        assert r.returncode == 0 and 'paused: True' in r.stdout, r.stdout + r.stderr
+        rc = p.wait(timeout=300)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    _check_live_run(rc, log.read_text(errors='replace'), report, want,
+                    round(DURATION_S * RATE_HZ))
 
 
 def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws, tmp_path):
