@@ -15,8 +15,24 @@
 """
 Live replay of a recorded run: every estimator, corrector and the evaluator on sim time.
 
+    ros2 launch polarization_compass replay.launch.py bag:=RUN_BAG report_dir:=out/replay
+
+starts the graph and the real ``ros2 bag play RUN_BAG --clock`` (paused), resumes the player once
+every node of the graph has said it is ready (a node's last start-up log line: kernels compiled,
+subscriptions made), and ends the launch ``drain_s`` seconds after the bag has played; the
+evaluator then writes its report (``evaluation_summary.json`` & co) into ``report_dir``. The
+player gets the launch's environment, so the shared-memory Fast DDS profile of
+``large_image_transport`` (full-resolution images are lost in fragments without it, and every
+local participant discovers every other through it). ``rate:=0.5`` plays slower (a machine that
+cannot keep up at 1x loses frames: they are counted as missed in the report).
+
+Without ``bag`` the graph waits for a player started by hand, with the same profile, bag path
+first (``--clock`` takes an optional rate and would swallow a path after it):
+
     ros2 launch polarization_compass replay.launch.py report_dir:=out/replay
-    ros2 bag play RUN_BAG --clock      # in a second terminal
+    SHARE=$(ros2 pkg prefix polarization_compass)/share/polarization_compass
+    export FASTDDS_DEFAULT_PROFILES_FILE=$SHARE/config/fastdds_large_images.xml
+    ros2 bag play RUN_BAG --clock        # in a second terminal, once the nodes are up
 
 The offline equivalent (no ROS install needed): `polarization-compass replay RUN_BAG`.
 
@@ -38,8 +54,148 @@ The nodes, parameter files and remappings come from polarization_compass.graphs 
 description of each graph); launch and launch_ros are imported only when the launch runs.
 """
 
+import re
+import sys
+
+#: The last line each node logs at start-up (its subscriptions exist, its kernels are compiled):
+#: ``[<node name>]: <text>``. The player is resumed when every node of the graph has logged it.
+READY_LINES = {
+    'heading_estimator': r'method \w+: \S+ from ',
+    'tilt_corrector': r'\S+ \+ \S+ -> \S+ \(.*site from ',
+    'error_evaluator': r'evaluating \d+ stream\(s\)',
+}
+PLAYER_NODE = '/rosbag2_player'
+#: Resumes the paused player through its service (rosbag2_interfaces/srv/Resume) once it is
+#: discovered; ``ros2 service call`` does the same where ros2cli has the ``service`` verb.
+RESUME_SCRIPT = """
+import sys
+import rclpy
+from rosbag2_interfaces.srv import Resume
+rclpy.init()
+node = rclpy.create_node('replay_resume_player')
+client = node.create_client(Resume, sys.argv[1])
+while not client.wait_for_service(timeout_sec=2.0):
+    node.get_logger().info('waiting for ' + sys.argv[1])
+future = client.call_async(Resume.Request())
+rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+node.get_logger().info('player resumed' if future.done() else 'no answer from ' + sys.argv[1])
+code = 0 if future.done() else 1
+node.destroy_node()
+rclpy.shutdown()
+sys.exit(code)
+"""
+#: Launch arguments of the player (added to the replay graph's own, polarization_compass.graphs).
+PLAYER_ARGUMENTS = (
+    ('bag', '', "rosbag2 to play with 'ros2 bag play BAG --clock' ('' = none: play it by hand)"),
+    ('rate', '1.0', "the player's --rate (0.5 = half speed: for a machine that loses frames)"),
+    ('settle_s', '1.0', 'wall seconds between the last node ready and resuming the player'),
+    ('drain_s', '10.0', 'wall seconds after the last message before the launch ends (report)'),
+)
+
+
+def _positive(name: str, text: str, allow_zero: bool = False) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float('nan')
+    if not (v > 0 or (allow_zero and v == 0)) or v == float('inf'):
+        from polarization_compass.graphs import GraphError
+
+        raise GraphError(f'launch argument {name}: expected a positive number, got {text!r}')
+    return v
+
+
+def _player(context):
+    """Return the player and the handlers that resume it and end the launch (bag given)."""
+    from pathlib import Path
+
+    from launch.actions import (
+        EmitEvent,
+        ExecuteProcess,
+        LogInfo,
+        RegisterEventHandler,
+        TimerAction,
+    )
+    from launch.event_handlers import OnProcessExit, OnProcessIO
+    from launch.events import Shutdown
+    from launch.substitutions import LaunchConfiguration
+    from polarization_compass.graphs import ARGUMENTS, build, GraphError
+
+    def arg(name):
+        return LaunchConfiguration(name).perform(context)
+
+    bag = arg('bag').strip()
+    if not bag:
+        return []
+    if not (Path(bag) / 'metadata.yaml').is_file() and not Path(bag).is_file():
+        raise GraphError(f'launch argument bag: {bag!r} is not a rosbag2 (no metadata.yaml)')
+    rate = _positive('rate', arg('rate'))
+    settle_s = _positive('settle_s', arg('settle_s'), allow_zero=True)
+    drain_s = _positive('drain_s', arg('drain_s'), allow_zero=True)
+    graph = build('replay', {a.name: arg(a.name) for a in ARGUMENTS['replay']})
+    patterns = {
+        n.name: re.compile(rf'\[{n.name}\]: {READY_LINES[n.executable]}') for n in graph.nodes
+    }
+    player = ExecuteProcess(
+        cmd=['ros2', 'bag', 'play', bag, '--clock', '--rate', str(rate), '--start-paused',
+             '--disable-keyboard-controls'],
+        name='ros2_bag_play',
+        output='screen',
+        sigterm_timeout='5',
+    )
+    resume = ExecuteProcess(
+        cmd=[sys.executable, '-c', RESUME_SCRIPT, f'{PLAYER_NODE}/resume'],
+        name='resume_player',
+        output='screen',
+    )
+    ready: set = set()
+    tails: dict = {}
+
+    def on_output(event):
+        if len(ready) == len(patterns):
+            return None
+        key = id(event.action)  # a line may arrive in two pieces: search a short tail
+        text = (tails.get(key, '') + event.text.decode(errors='replace'))[-4096:]
+        tails[key] = text
+        for name, pat in patterns.items():
+            if name not in ready and pat.search(text):
+                ready.add(name)
+        if len(ready) < len(patterns):
+            return None
+        return [
+            LogInfo(msg=f'replay: all {len(patterns)} nodes ready; resuming the player in '
+                    f'{settle_s:g} s'),
+            TimerAction(period=settle_s, actions=[resume]),
+        ]
+
+    def on_player_exit(event, _context):
+        if event.returncode != 0:
+            return [EmitEvent(event=Shutdown(reason=f'ros2 bag play failed ({event.returncode})'))]
+        return [
+            LogInfo(msg=f'replay: the bag has played; stopping in {drain_s:g} s (drain_s)'),
+            TimerAction(period=drain_s, actions=[EmitEvent(event=Shutdown(reason='bag played'))]),
+        ]
+
+    def on_resume_exit(event, _context):
+        if event.returncode != 0:
+            return [EmitEvent(event=Shutdown(reason='the player could not be resumed'))]
+        return None
+
+    return [
+        RegisterEventHandler(OnProcessIO(on_stdout=on_output, on_stderr=on_output)),
+        RegisterEventHandler(OnProcessExit(target_action=resume, on_exit=on_resume_exit)),
+        RegisterEventHandler(OnProcessExit(target_action=player, on_exit=on_player_exit)),
+        player,
+    ]
+
 
 def generate_launch_description():
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
     from polarization_compass.graphs import launch_description
 
-    return launch_description('replay')
+    ld = launch_description('replay')
+    for name, default, description in PLAYER_ARGUMENTS:
+        ld.add_action(DeclareLaunchArgument(name, default_value=default, description=description))
+    # after the graph's actions: the player inherits FASTDDS_DEFAULT_PROFILES_FILE set there
+    ld.add_action(OpaqueFunction(function=lambda context: _player(context)))
+    return ld
