@@ -24,6 +24,9 @@ eigenvalue of ``M = sum_i w_i e_i e_i^T`` (a total least-squares fit), defined u
 the paper's tilt error. ``tilt_aware`` levels the solution with the known pitch and roll first:
 ``s_lev = Rx(pitch) Ry(roll) s_cam`` (the same eigenvector: levelling is a rotation, so M need not
 be rebuilt) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact at any tilt under the Rayleigh model.
+The solve and the steps after it (levelling, eigen-gap check, the sun's side) are those of
+:mod:`.sun_from_evectors`, shared with the photodiode arrays; the jackknife sigmas are in
+:mod:`.jackknife`.
 
 Sign: the sun is above the horizon. ``tilt_aware`` (and ``least_squares`` when the observation
 carries pitch/roll) choose the sign whose *levelled* elevation is positive, if it exceeds
@@ -44,15 +47,17 @@ sum_i w_i e_i r_i``, so pixel i moves psi by ``phi_i = -sum_k (g . u_k)(u_k . e_
 (lambda_k - lambda_1)`` with ``g = d psi / d s``; the variance is the cluster-robust sum of
 ``phi_i`` over blocks (see ``_common``). Errors correlated beyond a block (the IFOV error of a DoFP
 sensor at soft cloud edges) are invisible to it; a delete-a-group jackknife over 16 angular
-sectors of blocks (:func:`jackknife_sigma_rad`: 16 refits of 3 x 3 matrices from the same block
-sums, no pixel read again) and one over the four mosaic phases of a DoFP sensor
-(:func:`phase_jackknife_sigma_rad`, from per-phase sums of the same pass: the IFOV error differs
-between the phases) each replace it when significantly larger (:func:`jackknife_exceeds`, a 5 %
-chi-square test each; the largest that passes). psi and status never depend on sigma.
+sectors of blocks (:func:`.jackknife.jackknife_sigma_rad`: 16 refits of 3 x 3 matrices from the
+same block sums, no pixel read again) and one over the four mosaic phases of a DoFP sensor
+(:func:`.jackknife.phase_jackknife_sigma_rad`, from per-phase sums of the same pass: the IFOV error
+differs between the phases) each replace it when significantly larger
+(:func:`.jackknife.jackknife_exceeds`, a 5 % chi-square test each; the largest that passes). psi
+and status never depend on sigma.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 
 from numba import njit
@@ -60,15 +65,11 @@ import numpy as np
 
 from ._common import (
     _BadInput,
-    brightness_t_from_stats,
-    Candidate,
     check_sun,
     cr1_factor,
     finish_sigma_deg,
     Knob,
     KnobbedEstimator,
-    psi_from_sun_rad,
-    resolve_ambiguity,
     result_from,
     select_view,
     selection_for,
@@ -84,12 +85,23 @@ from .jackknife import (
     jackknife_sigma_rad,
     phase_jackknife_sigma_rad,
 )
-from .sun_from_evectors import solve_sun, tilt_sensitivity
+from .sun_from_evectors import (
+    fit_quality,
+    levelling_rotation,
+    pick_side,
+    sensitivity_vectors,
+    solve_checked,
+    solve_sun,
+    sun_frames,
+    SunFrames,
+    tilt_sensitivity,
+)
 from ..camera import CameraModel, PixelSelection
-from ..conventions import rot_x, rot_y
 from ..fastmath import sincos32_folded as _sincos32
 
-__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator', 'solve_sun', 'tilt_sensitivity']
+__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']
+
+_NEEDS_TILT = 'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)'
 
 
 #: :func:`._common.cr1_factor` compiled for :func:`_block_sigmas`.
@@ -329,11 +341,12 @@ class _LSBase(KnobbedEstimator, Estimator):
         Estimate one heading from the smallest eigenvector of ``M = sum w e e^T`` (the sun).
 
         Each AoP is lifted to its 3-D E-vector, the sun is fitted by total least squares
-        (optionally noise-debiased, :func:`solve_sun`), levelled with the known pitch and roll when
-        the method does so (``tilt_aware``), and its sign is chosen by the elevation rule, the
-        brightness gradient or a prior. ``sigma=False`` (error-map sweeps): ``sigma_deg`` None and
-        no ``rms_residual_deg``; the sun-elevation sigma of the sign rule is computed either way,
-        so psi and status are the same.
+        (optionally noise-debiased, :func:`.sun_from_evectors.solve_sun`; optionally refitted on
+        the pixels that agree with it, ``outlier_deg``), levelled with the known pitch and roll
+        when the method does so (``tilt_aware``), and its sign is chosen by the elevation rule, the
+        brightness gradient or a prior (:func:`.sun_from_evectors.pick_side`). ``sigma=False``
+        (error-map sweeps): ``sigma_deg`` None and no ``rms_residual_deg``; the sun-elevation sigma
+        of the sign rule is computed either way, so psi and status are the same.
 
         Parameters
         ----------
@@ -366,101 +379,40 @@ class _LSBase(KnobbedEstimator, Estimator):
         bad = check_sun(self.name, obs, k)
         if bad is not None:
             return bad
-        R_lev = self._levelling(obs)
+        R_lev = levelling_rotation(
+            self.name, obs.pitch_deg, obs.roll_deg, self.level_with_tilt, _NEEDS_TILT
+        )
         if isinstance(R_lev, HeadingResult):
             return R_lev
         try:
             view = select_view(obs, k, balance_phases=True)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        acc, sub, min_dop = self._accumulate(view)
-        n = acc['n']
-        if n < k['min_pixels']:
-            return self._too_few(n, acc['nonfinite'], min_dop)
-        sol = self._solve(acc, sub, n)
-        if isinstance(sol, HeadingResult):
-            return sol
-        trimmed = 0
-        fitted_view = view
-        for it in range(2 if k['outlier_deg'] > 0 else 0):
-            # consensus: first against the robust whole-view sun (candidate suns over the circle,
-            # Cauchy loss: a fit pulled by clouds or flare cannot seed it), then against the
-            # refitted sun
-            sun0 = _consensus_sun(view, obs) if it == 0 else sol[2][:, 0]
-            if sun0 is None:
-                break
-            view2, dropped = _trim_outliers(view, sun0, k['outlier_deg'])
-            if dropped == trimmed:
-                break
-            acc2, sub2, min_dop2 = self._accumulate(view2)
-            if acc2['n'] < k['min_pixels']:
-                break
-            sol2 = self._solve(acc2, sub2, acc2['n'])
-            if isinstance(sol2, HeadingResult):
-                break
-            acc, sub, min_dop, n, sol, trimmed = acc2, sub2, min_dop2, acc2['n'], sol2, dropped
-            fitted_view = view2
-        M, lam, U, sigma0_sq = sol
-        s = U[:, 0].copy()
-        R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
-        s_h = R @ s  # the frame the heading is read in
-        rho = math.hypot(s_h[0], s_h[1])
-        if rho < math.cos(math.radians(k['max_sun_altitude_deg'])):
-            return HeadingResult.failed(
-                self.name,
-                Status.SUN_NEAR_ZENITH,
-                f'the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from '
-                'the zenith: the solar meridian is ill-conditioned',
-                pixels=n,
-            )
-        R_sign = R_lev if R_lev is not None else np.eye(3)
-        s_sign = R_sign @ s  # the frame the sun's side is decided in
-        sigmas = self._sigmas(acc, n, s, lam, U, R, s_h, rho, R_sign, s_sign, sigma)
+        fit = self._fit(view)
+        if isinstance(fit, HeadingResult):
+            return fit
+        if k['outlier_deg'] > 0:
+            fit = self._robust_refit(fit, obs)
+        f = sun_frames(
+            self.name, fit.U, R_lev, self.level_with_tilt, k['max_sun_altitude_deg'], fit.n
+        )
+        if isinstance(f, HeadingResult):
+            return f
+        sigmas = self._sigmas(fit, f, sigma)
         sigma_el = float(sigmas[0])
-        cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-        first, second = cands if s_sign[2] >= 0 else cands[::-1]
-        sun_rule = self._sign_rule(first, s_sign, sigma_el, R_lev is not None)
-        bt = brightness_t_from_stats(acc['stats'], first.sun_cam - second.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k, sun_rule)
-        s_pick = pick.sun_cam
-        alt_frame = R_sign @ s_pick
-        implied_alt = math.degrees(math.asin(float(np.clip(alt_frame[2], -1.0, 1.0))))
-        wsum = float(np.trace(M))
-        quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
+        pick, by, reason = pick_side(
+            self.name, f, sigma_el, fit.acc['stats'], obs, k, 'camera-frame'
+        )
         extras = {
-            'eigenvalues': [float(v / wsum) for v in lam],
+            'eigenvalues': [float(v / fit.wsum) for v in fit.lam],
             'sigma_sun_elevation_deg': math.degrees(sigma_el),
             'sun_altitude_ephemeris_deg': float(obs.sun_altitude_deg),
-            'noise_scale_deg': math.degrees(math.sqrt(sigma0_sq)),
-            'min_dop_used': min_dop,
-            'sun_cam': [float(v) for v in s_pick],
-            'outliers_dropped': int(trimmed),
+            'noise_scale_deg': math.degrees(math.sqrt(fit.sigma0_sq)),
+            'min_dop_used': fit.min_dop,
+            'sun_cam': [float(v) for v in pick.sun_cam],
+            'outliers_dropped': int(fit.trimmed),
         }
-        sigma_deg = None
-        if sigma:
-            extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
-            sigma_fit = float(sigmas[1])
-            extras['sigma_cluster_deg'] = math.degrees(sigma_fit)
-            jk = None
-            centres = _block_centres_px(fitted_view, k['block_px'], acc['block_m'].shape[0])
-            if centres is not None:
-                groups = jackknife_groups(centres[0], centres[1], acc['block_w'])
-                jk = jackknife_sigma_rad(M, acc['B'], acc['block_m'], groups, s, R, sigma0_sq)
-            extras['sigma_jackknife_deg'] = None if jk is None else math.degrees(jk[0])
-            extras['jackknife_groups'] = 0 if jk is None else jk[1]
-            jp = phase_jackknife_sigma_rad(M, acc['B'], acc['phase_m'], s, R, sigma0_sq)
-            extras['sigma_phase_jackknife_deg'] = None if jp is None else math.degrees(jp[0])
-            extras['phase_jackknife_groups'] = 0 if jp is None else jp[1]
-            sigma_cr = sigma_fit
-            for j in (jk, jp):  # each its own 5 % test against the cluster-robust sigma
-                if j is not None and jackknife_exceeds(j[0], sigma_cr, j[1]):
-                    sigma_fit = max(sigma_fit, j[0])
-            sigma_deg = finish_sigma_deg(sigma_fit, k)
-            att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
-            if att is not None:
-                extras['sigma_fit_deg'] = sigma_deg
-                extras['sigma_attitude_deg'] = att
-                sigma_deg = math.hypot(sigma_deg, att)
+        sigma_deg = self._sigma_deg(fit, f, float(sigmas[1]), obs, extras) if sigma else None
         return result_from(
             self.name,
             pick,
@@ -468,12 +420,95 @@ class _LSBase(KnobbedEstimator, Estimator):
             reason,
             obs,
             sigma_deg,
-            n,
-            acc['nonfinite'],
-            quality,
-            sun_altitude_deg=implied_alt,
+            fit.n,
+            fit.acc['nonfinite'],
+            fit_quality(fit.lam),
+            sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
             extras=extras,
         )
+
+    def _fit(self, view, trimmed: int = 0):
+        """
+        Fit the sun to a view: the compiled passes, then the checked eigen-solve.
+
+        Returns a :class:`_Fit`, or a failed result (too few pixels, degenerate E-vectors);
+        ``trimmed`` is how many outliers the view already lacks (:meth:`_robust_refit`).
+        """
+        acc, sub, min_dop = self._accumulate(view)
+        n = acc['n']
+        if n < self.knobs['min_pixels']:
+            return self._too_few(n, acc['nonfinite'], min_dop)
+        sol = self._solve(acc, sub, n)
+        if isinstance(sol, HeadingResult):
+            return sol
+        return _Fit(view, acc, min_dop, n, *sol, trimmed=trimmed)
+
+    def _robust_refit(self, fit: '_Fit', obs: Observation) -> '_Fit':
+        """
+        Refit on the pixels that agree with the sky (the ``outlier_deg`` consensus), twice.
+
+        First against the robust whole-view sun (candidate suns over the circle, Cauchy loss: a
+        fit pulled by clouds or flare cannot seed it, :func:`_consensus_sun`), then against the
+        refitted sun; each round trims the full view. Keeps the last fit that succeeded.
+        """
+        view = fit.view
+        for it in range(2):
+            sun0 = _consensus_sun(view, obs) if it == 0 else fit.U[:, 0]
+            if sun0 is None:
+                break
+            view2, dropped = _trim_outliers(view, sun0, self.knobs['outlier_deg'])
+            if dropped == fit.trimmed:
+                break
+            fit2 = self._fit(view2, dropped)
+            if isinstance(fit2, HeadingResult):
+                break
+            fit = fit2
+        return fit
+
+    def _sigma_deg(self, fit: '_Fit', f: SunFrames, sigma_fit: float, obs, extras: dict):
+        """
+        Return the heading's 1-sigma [deg]; its parts go into ``extras``.
+
+        The cluster-robust sigma, replaced by a jackknife's when that is significantly larger
+        (:meth:`_jackknife`), the ``sigma_floor_deg`` in quadrature and, for ``tilt_aware``, the
+        known tilt's uncertainty (:func:`_attitude_sigma_deg`).
+        """
+        s, M = f.s, fit.M
+        extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / fit.wsum, 0.0)))
+        extras['sigma_cluster_deg'] = math.degrees(sigma_fit)
+        sigma_deg = finish_sigma_deg(self._jackknife(fit, f, sigma_fit, extras), self.knobs)
+        att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
+        if att is not None:
+            extras['sigma_fit_deg'] = sigma_deg
+            extras['sigma_attitude_deg'] = att
+            sigma_deg = math.hypot(sigma_deg, att)
+        return sigma_deg
+
+    def _jackknife(self, fit: '_Fit', f: SunFrames, sigma_cr: float, extras: dict) -> float:
+        """
+        Return the fit's sigma of psi [rad]: the cluster-robust one or a larger jackknife's.
+
+        The delete-a-sector jackknife (:func:`.jackknife.jackknife_sigma_rad`) and the
+        delete-a-phase one (:func:`.jackknife.phase_jackknife_sigma_rad`) each replace
+        ``sigma_cr`` when significantly larger (:func:`.jackknife.jackknife_exceeds`, its own 5 %
+        test each); their values go into ``extras``.
+        """
+        acc, M, s, R = fit.acc, fit.M, f.s, f.R
+        jk = None
+        centres = _block_centres_px(fit.view, self.knobs['block_px'], acc['block_m'].shape[0])
+        if centres is not None:
+            groups = jackknife_groups(centres[0], centres[1], acc['block_w'])
+            jk = jackknife_sigma_rad(M, acc['B'], acc['block_m'], groups, s, R, fit.sigma0_sq)
+        extras['sigma_jackknife_deg'] = None if jk is None else math.degrees(jk[0])
+        extras['jackknife_groups'] = 0 if jk is None else jk[1]
+        jp = phase_jackknife_sigma_rad(M, acc['B'], acc['phase_m'], s, R, fit.sigma0_sq)
+        extras['sigma_phase_jackknife_deg'] = None if jp is None else math.degrees(jp[0])
+        extras['phase_jackknife_groups'] = 0 if jp is None else jp[1]
+        sigma_fit = sigma_cr
+        for j in (jk, jp):  # each its own 5 % test against the cluster-robust sigma
+            if j is not None and jackknife_exceeds(j[0], sigma_cr, j[1]):
+                sigma_fit = max(sigma_fit, j[0])
+        return sigma_fit
 
     @classmethod
     def tilt_sensitivity(cls, result: HeadingResult, pitch_deg: float, roll_deg: float):
@@ -501,35 +536,6 @@ class _LSBase(KnobbedEstimator, Estimator):
         if not cls.level_with_tilt or sun is None:
             return None
         return tilt_sensitivity(sun, pitch_deg, roll_deg)
-
-    def _levelling(self, obs: Observation):
-        """
-        Return the levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt.
-
-        The levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt, None without a
-        usable tilt (``least_squares``), or a failed result (``tilt_aware`` needs it).
-        """
-        if obs.pitch_deg is None or obs.roll_deg is None:
-            R_lev = None
-        else:
-            p, r = float(obs.pitch_deg), float(obs.roll_deg)
-            if math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0:
-                R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
-            elif self.level_with_tilt:
-                return HeadingResult.failed(
-                    self.name,
-                    Status.BAD_INPUT,
-                    f'pitch/roll must be finite, |pitch| < 90: got {p}, {r}',
-                )
-            else:
-                R_lev = None
-        if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(
-                self.name,
-                Status.BAD_INPUT,
-                'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)',
-            )
-        return R_lev
 
     def _accumulate(self, view):
         """
@@ -596,81 +602,45 @@ class _LSBase(KnobbedEstimator, Estimator):
         msub_tr = float(np.trace(sub['M']))
         scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
         acc['B'], acc['C'], acc['stats'] = sub['B'] * scale, sub['C'] * scale, sub['stats']
-        lam, U, sigma0_sq = solve_sun(M, acc['B'], acc['C'], k['bias_correction'])
-        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(
-                self.name, Status.DEGENERATE, 'no usable E-vector weight', pixels=n
-            )
-        gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k['min_eigen_gap']:
-            return HeadingResult.failed(
-                self.name,
-                Status.DEGENERATE,
-                f'E-vectors do not single out a sun direction (eigen gap {gap:.2e})',
-                pixels=n,
-            )
-        return M, lam, U, sigma0_sq
+        sol = solve_checked(
+            self.name, M, acc['B'], acc['C'], k['bias_correction'], k['min_eigen_gap'], n
+        )
+        if isinstance(sol, HeadingResult):
+            return sol
+        return (M, *sol)
 
     @staticmethod
-    def _sigmas(
-        acc: dict, n: int, s, lam, U, R, s_h, rho: float, R_sign, s_sign, with_psi: bool
-    ) -> np.ndarray:
+    def _sigmas(fit: '_Fit', f: SunFrames, with_psi: bool) -> np.ndarray:
         """
-        Return the cluster-robust sigmas (rad) of the sun's elevation and of psi.
+        Return the cluster-robust sigmas (rad) of the sun's elevation and (``with_psi``) of psi.
 
-        Cluster-robust sigmas (rad) of the sun's elevation in the sign frame and (``with_psi``) of
-        psi, from first-order sensitivities: d psi / d s and d elevation / d s through the
-        eigenvector perturbation ``d s = -sum_k u_k (u_k . dM s) / d_k``, so ``d psi = -s^T dM c``
-        with ``c = sum_k (g . u_k) u_k / d_k`` (module doc).
+        The first-order sensitivities of :func:`.sun_from_evectors.sensitivity_vectors`
+        propagated over the pass's blocks (module doc).
         """
-        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
-        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
-        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
-        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
-        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
-        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
+        c_el, c_psi = sensitivity_vectors(f, fit.lam, fit.U)
         cs = np.stack([c_el, c_psi]) if with_psi else c_el[None, :]
-        return _block_sigmas(acc['block_m'], acc['block_w'], n, s, np.ascontiguousarray(cs))
+        acc = fit.acc
+        return _block_sigmas(acc['block_m'], acc['block_w'], fit.n, f.s, np.ascontiguousarray(cs))
 
-    def _sign_rule(self, first: Candidate, s_sign, sigma_el: float, levelled: bool):
-        """
-        Apply the sun-elevation rule of :func:`._common.resolve_ambiguity`.
 
-        The sun-elevation rule of :func:`._common.resolve_ambiguity`: ``first`` (the candidate with
-        the sun above the horizon of the sign frame) when its elevation exceeds the margin of
-        ``sign_margin_sigma`` sigmas (plus ``max_tilt_deg`` when the frame is the camera's, not
-        ``levelled``).
-        """
-        k = self.knobs
-        el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
-        margin_deg = k['sign_margin_sigma'] * math.degrees(sigma_el)
+@dataclass
+class _Fit:
+    """One least-squares fit of the sun to a view (:meth:`_LSBase._fit`)."""
 
-        def sun_rule():
-            if levelled:
-                if el_deg > margin_deg:
-                    return first, (
-                        f'sun side from the levelled sun elevation ({el_deg:.2f} deg > '
-                        f'{margin_deg:.3f} deg margin)'
-                    )
-                return (
-                    None,
-                    f'levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg '
-                    'margin',
-                )
-            lim = k['max_tilt_deg'] + margin_deg
-            if el_deg > lim:
-                return first, (
-                    f'sun side from the camera-frame sun elevation ({el_deg:.2f} deg > '
-                    'max_tilt_deg '
-                    f'{k["max_tilt_deg"]:g} + {margin_deg:.3f} deg margin)'
-                )
-            return None, (
-                f'camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg '
-                f'{k["max_tilt_deg"]:g} '
-                f"+ margin: the sun's side is unknown without the tilt"
-            )
+    view: object  # the PixelView fitted
+    acc: dict  # the pass's sums (block_m, block_w, phase_m, stats, n, nonfinite; B, C scaled)
+    min_dop: float  # the min_dop used (raised by the noise)
+    n: int  # pixels used
+    M: np.ndarray  # sum w e e^T (3, 3)
+    lam: np.ndarray  # eigenvalues, ascending (3,)
+    U: np.ndarray  # eigenvectors as columns (3, 3)
+    sigma0_sq: float  # AoP noise scale [rad^2]
+    trimmed: int = 0  # outliers dropped by the robust refit
 
-        return sun_rule
+    @property
+    def wsum(self) -> float:
+        """Return the total weight, the trace of ``M``."""
+        return float(np.trace(self.M))
 
 
 def _attitude_sigma_deg(obs: Observation, s_cam):
