@@ -114,7 +114,7 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
     """
     Return sigma0^2 (rad^2), the AoP noise variance at DoP 1, from subsample sums.
 
-    sigma0^2 (rad^2, the AoP noise variance at DoP 1 under the 1/DoP^2 model) from subsample sums.
+    Under the 1/DoP^2 noise model; 0 when the subsample has no weight or no solution.
     """
     if not np.trace(sub['M']) > 0.0:
         return 0.0
@@ -134,8 +134,7 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     """
     Return the cluster-robust sigma for each row c of ``cs`` (CR1 factor).
 
-    Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums
-    centred by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1
+    The sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` over the blocks: block sums centred by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1
     small-sample factor (:func:`._common.cr1_factor`).
     """
     K = cs.shape[0]
@@ -172,11 +171,10 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
 
 def _consensus_sun(view, obs):
     """
-    Return the camera-frame sun of the robust whole-view fit, or None.
+    Return the camera-frame sun of the robust whole-view fit, or None with too few pixels.
 
-    Return the camera-frame sun of the robust whole-view fit
-    (:func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known tilt,
-    level when unknown), or None with too few pixels.
+    The fit is :func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known
+    tilt (level when unknown).
 
     The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about
     20000 first (a regular step through its pixels) so that picking them does not scan a
@@ -235,12 +233,9 @@ def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no co
 
 def _trim_outliers(view, sun_cam, outlier_deg: float):
     """
-    Drop the view's pixels whose AoP is more than ``outlier_deg`` from Rayleigh's.
+    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of a sun.
 
-    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of
-    ``sun_cam``.
-
-    The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial
+    The sun is ``sun_cam`` (camera frame); the model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial
     difference, computed from doubled angles. Returns the view with those pixels invalid and how
     many were dropped (of the valid ones). This is the consensus step of the robust refit
     (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle pulled is refitted on
@@ -539,10 +534,7 @@ class _LSBase(KnobbedEstimator, Estimator):
 
     def _accumulate(self, view):
         """
-        Run the compiled passes over a view.
-
-        The compiled passes over a view: (block sums of the full pass, subsample sums, min_dop
-        used).
+        Run the compiled passes over a view: (full-pass block sums, subsample sums, min_dop used).
 
         Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
         max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model
@@ -593,9 +585,9 @@ class _LSBase(KnobbedEstimator, Estimator):
         """
         Solve the noise-debiased eigenproblem for the sun direction.
 
-        The (noise-debiased) eigen-solution: (M, lambdas ascending, U, sigma0^2), or a failed
-        result when the E-vectors do not single out a sun direction. Scales the subsample's bias
-        matrices to the full pass (into ``acc``: B, C, stats).
+        Returns (M, lambdas ascending, U, sigma0^2), or a failed result when the E-vectors do not
+        single out a sun direction (:func:`.sun_from_evectors.solve_checked`). Scales the
+        subsample's bias matrices to the full pass first (into ``acc``: B, C, stats).
         """
         k = self.knobs
         M = acc['block_m'].sum(axis=0)
