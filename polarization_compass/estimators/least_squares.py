@@ -134,8 +134,9 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     """
     Return the cluster-robust sigma for each row c of ``cs`` (CR1 factor).
 
-    The sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` over the blocks: block sums centred by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1
-    small-sample factor (:func:`._common.cr1_factor`).
+    The sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` over the blocks: block sums centred by weight
+    share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor
+    (:func:`._common.cr1_factor`).
     """
     K = cs.shape[0]
     G = block_m.shape[0]
@@ -235,12 +236,12 @@ def _trim_outliers(view, sun_cam, outlier_deg: float):
     """
     Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of a sun.
 
-    The sun is ``sun_cam`` (camera frame); the model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial
-    difference, computed from doubled angles. Returns the view with those pixels invalid and how
-    many were dropped (of the valid ones). This is the consensus step of the robust refit
-    (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle pulled is refitted on
-    the pixels that agree with it. One compiled pass over the pixels the estimator already reads,
-    no temporaries (:func:`_outlier_pass`).
+    The sun is ``sun_cam`` (camera frame); the model AoP of a pixel is eq 28 of ``E = S x P`` (eq
+    18); the residual is the axial difference, computed from doubled angles. Returns the view with
+    those pixels invalid and how many were dropped (of the valid ones). This is the consensus step
+    of the robust refit (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle
+    pulled is refitted on the pixels that agree with it. One compiled pass over the pixels the
+    estimator already reads, no temporaries (:func:`_outlier_pass`).
     """
     from dataclasses import replace
 

@@ -18,11 +18,11 @@ The sun from E-vectors: the core shared by the camera methods and the photodiode
 
 Every E-vector ``e_i`` (a camera pixel's or a photodiode unit's, lifted to 3-D) is perpendicular to
 the sun under the Rayleigh model, so the sun is the eigenvector of the smallest eigenvalue of ``M =
-sum_i w_i e_i e_i^T`` (:func:`solve_sun`), up to sign. The steps after the pass over the data are the
-same for a camera (``least_squares``, ``tilt_aware``) and a photodiode array
+sum_i w_i e_i e_i^T`` (:func:`solve_sun`), up to sign. The steps after the pass over the data are
+the same for a camera (``least_squares``, ``tilt_aware``) and a photodiode array
 (:mod:`polarization_compass.photodiode.heading`), and live here once:
 
-1. :func:`levelling_rotation`: ``Rx(pitch) Ry(roll)`` of the known tilt (required by ``tilt_aware``).
+1. :func:`levelling_rotation`: ``Rx(pitch) Ry(roll)`` of the known tilt (``tilt_aware`` needs it).
 2. :func:`solve_checked`: the eigen-solve and its eigen-gap check (status ``degenerate``).
 3. :func:`sun_frames`: the fitted sun in the frame the heading is read in (levelled or not) and in
    the frame its side is decided in (levelled whenever the tilt is known); a sun near the zenith is
@@ -346,7 +346,20 @@ class SunFrames:
         return math.degrees(math.asin(min(1.0, abs(self.s_sign[2]))))
 
     def implied_altitude_deg(self, sun_cam) -> float:
-        """Return the altitude [deg] of the camera-frame sun ``sun_cam`` in the side frame."""
+        """
+        Return the altitude of a camera-frame sun above the side frame's horizon.
+
+        Parameters
+        ----------
+        sun_cam : numpy.ndarray
+            The chosen candidate's camera-frame sun, unit (3,).
+
+        Returns
+        -------
+        float
+            Its altitude [deg] in the side frame (levelled when the tilt is known).
+
+        """
         alt_frame = self.R_sign @ sun_cam
         return math.degrees(math.asin(float(np.clip(alt_frame[2], -1.0, 1.0))))
 

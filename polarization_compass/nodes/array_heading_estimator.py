@@ -237,6 +237,20 @@ class ArrayHeadingEstimatorNode(HeadingNodeBase):
 
 
 def main(argv=None) -> int:
+    """
+    Run the node (the ``array_heading_estimator`` console script).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        ROS arguments; None: the process's.
+
+    Returns
+    -------
+    int
+        The exit code (:func:`~.runner.run_node`).
+
+    """
     return run_node(ArrayHeadingEstimatorNode, 'array_heading_estimator', argv)
 
 
