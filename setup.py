@@ -56,6 +56,7 @@ setup(
             'polarization-compass = polarization_compass.cli:main',
             'sky_simulator = polarization_compass.nodes.sky_simulator:main',
             'heading_estimator = polarization_compass.nodes.heading_estimator:main',
+            'array_heading_estimator = polarization_compass.nodes.array_heading_estimator:main',
             'tilt_corrector = polarization_compass.nodes.tilt_corrector:main',
             'error_evaluator = polarization_compass.nodes.error_evaluator:main',
         ],

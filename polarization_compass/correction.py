@@ -306,8 +306,8 @@ def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - 
     """
     Tensor-product interpolation of the error curves: out[q, y] = sum w_a w_p w_r E[a, y, p, r].
 
-    A
-    node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in place).
+    A node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in
+    place).
     """
     N = ia.shape[0]
     Y = E.shape[1]
@@ -339,8 +339,7 @@ def _curve_at(curve, q, psi, yaw0, step, n, cubic):  # pragma: no cover - compil
     """
     Return the error curve of query q at yaw psi (periodic).
 
-    The error curve of query q at yaw psi (periodic; Keys cubic or linear), as
-    :func:`_yaw_weights`.
+    Keys cubic or linear interpolation, as :func:`_yaw_weights`.
     """
     u = np.mod(psi - yaw0, 360.0) / step
     i = int(np.floor(u))

@@ -706,27 +706,39 @@ def _downstream(nodes) -> list[str]:
 
 
 def _estimator(method: str, params: dict, remappings=(), namespace='') -> NodeSpec:
-    image_knobs = (
-        {}
-        if params.get('input') == 'array'
-        else {k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}
-    )  # an array has its own knobs
-    params = {**image_knobs, **params}
+    params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
     site_source = params.get('site_source', 'parameters')
     prior = params.get('prior_source', 'imu')
     pubs, subs = T.estimator_topics(
-        method,
-        site_source,
-        needs_tilt=registry.get(method).needs_tilt,
-        prior_source=prior,
-        input_kind=params.get('input', 'image'),
-        array_stamp=params.get('array_stamp', 'header'),
+        method, site_source, needs_tilt=registry.get(method).needs_tilt, prior_source=prior
     )
     return NodeSpec(
         'heading_estimator',
         f'heading_estimator_{method}',
         namespace,
         ('config/heading_estimator.yaml',),
+        {'method': method, **params},
+        _used(remappings, pubs, subs),
+        tuple(pubs),
+        tuple(subs),
+    )
+
+
+def _array_estimator(method: str, params: dict, remappings=(), namespace='') -> NodeSpec:
+    """Return a photodiode array's ``array_heading_estimator`` (its own knobs: the defaults)."""
+    pubs, subs = T.estimator_topics(
+        method,
+        params.get('site_source', 'parameters'),
+        needs_tilt=registry.get(method).needs_tilt,
+        prior_source=params.get('prior_source', 'imu'),
+        input_kind='array',
+        array_stamp=params.get('array_stamp', 'header'),
+    )
+    return NodeSpec(
+        'array_heading_estimator',
+        f'heading_estimator_array_{method}',
+        namespace,
+        (),
         {'method': method, **params},
         _used(remappings, pubs, subs),
         tuple(pubs),
@@ -886,17 +898,8 @@ def sim_graph(
     if array_geometry:  # the array's estimators in namespace array, reading the simulator's topics
         to_root = tuple((t, '/' + t) for t in (T.ARRAY, T.ARRAY_HEADER, T.IMU, T.FIX))
         nodes += [
-            dataclasses.replace(
-                _estimator(
-                    m,
-                    {**sim_time, 'input': 'array', 'array_geometry': array_geometry},
-                    to_root,
-                    'array',
-                ),
-                name=f'heading_estimator_array_{m}',
-            )
-            for m in registry.names()
-            if registry.get(m).accepts_units
+            _array_estimator(m, {**sim_time, 'array_geometry': array_geometry}, to_root, 'array')
+            for m in registry.names(accepts_units=True)
         ]
     nodes.append(
         _evaluator(

@@ -184,8 +184,7 @@ def _sun_cam(psi_deg, alt_deg, pitch_deg=0.0, roll_deg=0.0) -> np.ndarray:
     """
     Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs.
 
-    Return (K, 3) sun directions in the camera frame for K (psi, altitude) pairs (eq 21
-    transposed).
+    Eq 21 transposed, at the given pitch and roll.
     """
     psi = np.asarray(psi_deg, dtype=float).reshape(-1)
     alt = np.radians(np.asarray(alt_deg, dtype=float).reshape(-1))
@@ -200,8 +199,7 @@ def _cos_sin_2res(sample: SkySample, sun_cam: np.ndarray):
     """
     Return cos and sin of twice the residual (measured - model), shape (K, N).
 
-    Return cos and sin of twice the residual (measured - model), shape (K, N); model E = S x P (eq
-    18, 28).
+    The model is E = S x P (eqs 18, 28) for each of the K suns.
     """
     P = sample.rays
     S = sun_cam.astype(np.float32)

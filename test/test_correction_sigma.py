@@ -31,7 +31,7 @@ from polarization_compass.correction import TiltCorrector
 from polarization_compass.errormap import ErrorMap
 from polarization_compass.estimators import registry
 from polarization_compass.estimators.base import Observation
-from polarization_compass.estimators.least_squares import tilt_sensitivity
+from polarization_compass.estimators.sun_from_evectors import tilt_sensitivity
 from polarization_compass.motion import MountingErrors
 from polarization_compass.render import Renderer
 from polarization_compass.scene import Scene

@@ -88,7 +88,7 @@ def test_correlated_noise_is_accounted_for():
 
     Noise smoothed over 3 x 3 pixels (like bilinear demosaicing): the cluster-robust sigma stays
     calibrated, while treating pixels as independent (block_px = 1) underestimates it; the
-    delete-a-group jackknife (least_squares.jackknife_sigma_rad) then takes over. A small
+    delete-a-group jackknife (jackknife.jackknife_sigma_rad) then takes over. A small
     wide-angle camera (256 x 200 px, 82 deg across) keeps every pixel contiguous and the geometry
     well-conditioned.
     """

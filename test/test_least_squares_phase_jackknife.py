@@ -27,7 +27,7 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass.budget import _samples, BudgetConfig, without
 from polarization_compass.estimators import _kernels as kern
-from polarization_compass.estimators import least_squares as ls
+from polarization_compass.estimators import jackknife as jk
 from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators._common import select_view, view_grid_layout, view_segments
 from polarization_compass.render import Renderer
@@ -151,4 +151,4 @@ def test_superpixel_grid_has_no_phase_jackknife():
     assert r.ok and r.extras['phase_jackknife_groups'] == 0
     assert r.extras['sigma_phase_jackknife_deg'] is None
     eye = np.eye(3)
-    assert ls.phase_jackknife_sigma_rad(eye, eye, None, np.ones(3), eye, 0.0) is None
+    assert jk.phase_jackknife_sigma_rad(eye, eye, None, np.ones(3), eye, 0.0) is None

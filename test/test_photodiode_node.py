@@ -13,10 +13,10 @@
 # limitations under the License.
 
 """
-heading_estimator with a photodiode-array input and its companion header.
+array_heading_estimator: a photodiode-array compass and its companion header.
 
-heading_estimator with input array: a photodiode-array compass on compass_array/intensities
-(std_msgs/Float32MultiArray) with its companion std_msgs/Header on compass_array/header, callbacks
+A photodiode-array compass on compass_array/intensities (std_msgs/Float32MultiArray) with its
+companion std_msgs/Header on compass_array/header, callbacks
 called in-process on a private rclpy context (see test_hard_cases_nodes.py for why that is the
 right test of 'never crashes'). The DDS test at the end runs the simulator and the estimator as
 processes.
@@ -78,13 +78,12 @@ def _stamp(m) -> int:
 
 @pytest.fixture(scope='module', params=['least_squares', 'tilt_aware'])
 def node(ctx, request):
-    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    from polarization_compass.nodes.array_heading_estimator import ArrayHeadingEstimatorNode
 
-    n = HeadingEstimatorNode(
+    n = ArrayHeadingEstimatorNode(
         context=ctx,
         parameter_overrides=[
             Parameter('method', value=request.param),
-            Parameter('input', value='array'),
             Parameter('array_geometry', value=GEOMETRY),
             Parameter('time_source', value='parameter'),
             Parameter('time_utc', value=TIME),
@@ -229,12 +228,11 @@ def test_arrival_stamping_without_a_header(ctx):
     array_stamp arrival: no header topic, each sample stamped with the node's clock when it
     arrives.
     """
-    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    from polarization_compass.nodes.array_heading_estimator import ArrayHeadingEstimatorNode
 
-    n = HeadingEstimatorNode(
+    n = ArrayHeadingEstimatorNode(
         context=ctx,
         parameter_overrides=[
-            Parameter('input', value='array'),
             Parameter('array_geometry', value=GEOMETRY),
             Parameter('array_stamp', value='arrival'),
             Parameter('time_source', value='parameter'),
@@ -272,17 +270,16 @@ def test_dark_sample_is_a_status(node):
     assert st['ok'] is False and st['status'] == 'too_few_units' and not st['published']
 
 
-def test_array_input_needs_a_geometry(ctx):
-    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+def test_array_node_needs_a_geometry_and_a_unit_method(ctx):
+    from polarization_compass.nodes.array_heading_estimator import ArrayHeadingEstimatorNode
 
     with pytest.raises(CompassError, match='array_geometry'):
-        HeadingEstimatorNode(context=ctx, parameter_overrides=[Parameter('input', value='array')])
+        ArrayHeadingEstimatorNode(context=ctx)
     with pytest.raises(CompassError, match='needs an image'):
-        HeadingEstimatorNode(
+        ArrayHeadingEstimatorNode(
             context=ctx,
             parameter_overrides=[
                 Parameter('method', value='zenith'),
-                Parameter('input', value='array'),
                 Parameter('array_geometry', value=GEOMETRY),
             ],
         )
@@ -300,7 +297,7 @@ def test_sim_graph_with_an_array():
     arr = [n for n in g.nodes if n.namespace == 'array']
     assert sorted(n.parameters['method'] for n in arr) == ['least_squares', 'tilt_aware']
     for n in arr:
-        assert n.parameters['input'] == 'array'
+        assert n.executable == 'array_heading_estimator'
         subs = dict(n.resolved_subscribes())
         assert (
             '/' + topics.ARRAY in subs and '/imu/data' in subs and '/camera/image_raw' not in subs
@@ -347,12 +344,11 @@ def test_simulator_publishes_the_array(ctx):
 
 
 def test_array_knobs_are_node_parameters(ctx):
-    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    from polarization_compass.nodes.array_heading_estimator import ArrayHeadingEstimatorNode
 
-    n = HeadingEstimatorNode(
+    n = ArrayHeadingEstimatorNode(
         context=ctx,
         parameter_overrides=[
-            Parameter('input', value='array'),
             Parameter('array_geometry', value=GEOMETRY),
             Parameter('time_source', value='parameter'),
             Parameter('time_utc', value=TIME),
@@ -396,7 +392,7 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
     """
     A heading on DDS carries the simulated header's stamp.
 
-    sky_simulator and an array heading_estimator as processes on DDS (loopback): every published
+    sky_simulator and an array_heading_estimator as processes on DDS (loopback): every published
     heading has the stamp and frame_id of the std_msgs/Header the simulator published for its
     sample, on the simulator's frame grid (start + k / rate), and the estimator drops nothing.
     """
@@ -413,12 +409,10 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
     t = T.method_topics('least_squares')
     est = Proc(
         'heading_estimator_array',
-        'heading_estimator',
+        'array_heading_estimator',
         [
             '-p',
             'method:=least_squares',
-            '-p',
-            'input:=array',
             '-p',
             f'array_geometry:={GEOMETRY}',
             '-p',
@@ -426,7 +420,7 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
             '-p',
             'use_sim_time:=true',
             '-p',
-            'image_qos:=reliable',
+            'array_qos:=reliable',
         ],
         env,
         logs,

@@ -831,14 +831,15 @@ def brightness_stats(intensity, rays) -> np.ndarray:
     )
 
 
-def brightness_t_from_stats(stats, direction_cam) -> float | None:
+def brightness_t_from_stats(stats, direction_cam, min_samples: int = 10) -> float | None:
     """
     T statistic of the least-squares slope of intensity against ``r . direction``.
 
     Positive: the sky is brighter towards ``direction``. The residual standard error includes the
-    sky's non-linear brightness profile, so the test is conservative. None without data.
+    sky's non-linear brightness profile, so the test is conservative. None without data or with
+    fewer than ``min_samples`` samples (pixels; a photodiode array's units).
     """
-    if stats is None or stats[0] < 10:
+    if stats is None or stats[0] < min_samples:
         return None
     n, sI, sII = float(stats[0]), float(stats[1]), float(stats[2])
     sr, sIr = np.asarray(stats[3:6]), np.asarray(stats[6:9])

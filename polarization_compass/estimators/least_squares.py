@@ -24,6 +24,9 @@ eigenvalue of ``M = sum_i w_i e_i e_i^T`` (a total least-squares fit), defined u
 the paper's tilt error. ``tilt_aware`` levels the solution with the known pitch and roll first:
 ``s_lev = Rx(pitch) Ry(roll) s_cam`` (the same eigenvector: levelling is a rotation, so M need not
 be rebuilt) and ``psi = -atan2(s_lev_x, s_lev_y)``: exact at any tilt under the Rayleigh model.
+The solve and the steps after it (levelling, eigen-gap check, the sun's side) are those of
+:mod:`.sun_from_evectors`, shared with the photodiode arrays; the jackknife sigmas are in
+:mod:`.jackknife`.
 
 Sign: the sun is above the horizon. ``tilt_aware`` (and ``least_squares`` when the observation
 carries pitch/roll) choose the sign whose *levelled* elevation is positive, if it exceeds
@@ -44,16 +47,17 @@ sum_i w_i e_i r_i``, so pixel i moves psi by ``phi_i = -sum_k (g . u_k)(u_k . e_
 (lambda_k - lambda_1)`` with ``g = d psi / d s``; the variance is the cluster-robust sum of
 ``phi_i`` over blocks (see ``_common``). Errors correlated beyond a block (the IFOV error of a DoFP
 sensor at soft cloud edges) are invisible to it; a delete-a-group jackknife over 16 angular
-sectors of blocks (:func:`jackknife_sigma_rad`: 16 refits of 3 x 3 matrices from the same block
-sums, no pixel read again) and one over the four mosaic phases of a DoFP sensor
-(:func:`phase_jackknife_sigma_rad`, from per-phase sums of the same pass: the IFOV error differs
-between the phases) each replace it when significantly larger (:func:`jackknife_exceeds`, a 5 %
-chi-square test each; the largest that passes). psi and status never depend on sigma.
+sectors of blocks (:func:`.jackknife.jackknife_sigma_rad`: 16 refits of 3 x 3 matrices from the
+same block sums, no pixel read again) and one over the four mosaic phases of a DoFP sensor
+(:func:`.jackknife.phase_jackknife_sigma_rad`, from per-phase sums of the same pass: the IFOV error
+differs between the phases) each replace it when significantly larger
+(:func:`.jackknife.jackknife_exceeds`, a 5 % chi-square test each; the largest that passes). psi
+and status never depend on sigma.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+from dataclasses import dataclass
 import math
 
 from numba import njit
@@ -61,104 +65,43 @@ import numpy as np
 
 from ._common import (
     _BadInput,
-    brightness_t_from_stats,
-    Candidate,
     check_sun,
     cr1_factor,
     finish_sigma_deg,
     Knob,
     KnobbedEstimator,
-    psi_from_sun_rad,
-    resolve_ambiguity,
     result_from,
     select_view,
     selection_for,
     view_grid_layout,
     view_segments,
 )
-from ._kernels import _FM, block_indices, full_pass, grid_parities, sub_pass
+from ._kernels import _FM, full_pass, grid_parities, sub_pass
 from .base import Estimator, HeadingResult, Observation, Status
+from .jackknife import (
+    _block_centres_px,
+    jackknife_exceeds,
+    jackknife_groups,
+    jackknife_sigma_rad,
+    phase_jackknife_sigma_rad,
+)
+from .sun_from_evectors import (
+    fit_quality,
+    levelling_rotation,
+    pick_side,
+    sensitivity_vectors,
+    solve_checked,
+    solve_sun,
+    sun_frames,
+    SunFrames,
+    tilt_sensitivity,
+)
 from ..camera import CameraModel, PixelSelection
-from ..conventions import rot_x, rot_y, wrap_180_deg_float
 from ..fastmath import sincos32_folded as _sincos32
 
-__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator', 'solve_sun', 'tilt_sensitivity']
+__all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']
 
-
-@njit(cache=True, nogil=True)
-def _solve_sun_kernel(M, B, C, bias_correction, iterations):  # pragma: no cover - compiled
-    lam, U = np.linalg.eigh(M)
-    sigma0_sq = 0.0
-    if bias_correction:
-        for _ in range(iterations):
-            s = U[:, 0].copy()
-            den = s @ (C @ s)
-            if not den > 0.0:
-                break
-            sigma0_sq = max((s @ (M @ s)) / den, 0.0)
-            lam, U = np.linalg.eigh(M - sigma0_sq * B)
-    return lam, U, sigma0_sq
-
-
-def solve_sun(M, B, C, bias_correction=True, iterations=3):
-    """
-    Find the smallest eigenvector of ``sum w e e^T`` of lifted E-vectors, optionally debiased.
-
-    AoP noise makes ``E[M] = M_true + sigma0^2 B``: a pixel's E-vector turns about its ray, adding
-    ``g^2 (t t^T - e e^T)`` per unit AoP variance, which tilts the smallest eigenvector by
-    O(sigma^2) -- a bias that does not average out with more pixels. The noise scale is estimated
-    from the data, ``sigma0^2 = s^T M s / s^T C s`` (the weighted residual sum over its expectation
-    per unit variance), and ``sigma0^2 B`` subtracted; fixed-point iterations (Kanatani-style
-    renormalisation: the debiased matrix M - sigma0^2 B ends with a zero smallest eigenvalue; it
-    converges in two). Compiled (LAPACK's symmetric eigensolver through numba): numpy's per-call
-    overhead made the four 3 x 3 solves cost more than the whole pass over 5 000 pixels.
-
-    Parameters
-    ----------
-    M : numpy.ndarray
-        ``sum_i w_i e_i e_i^T`` of the unit camera-frame E-vectors, (3, 3) float64, symmetric.
-    B : array_like
-        Expected increase of M per unit AoP variance [1/rad^2], (3, 3).
-    C : array_like
-        Expected residual ``s^T M s`` per unit AoP variance as a quadratic form, (3, 3).
-    bias_correction : bool, default True
-        Subtract the estimated noise term ``sigma0^2 B``.
-    iterations : int, default 3
-        Number of fixed-point iterations of the noise scale.
-
-    Returns
-    -------
-    lambdas : numpy.ndarray
-        Eigenvalues, ascending, (3,).
-    U : numpy.ndarray
-        Eigenvectors as columns, (3, 3); ``U[:, 0]`` is the camera-frame sun up to sign.
-    sigma0_sq : float
-        Estimated AoP noise scale sigma0^2 [rad^2]; 0 without bias correction.
-
-    Raises
-    ------
-    LinAlgError
-        ``M`` has non-finite entries (``numpy.linalg.LinAlgError``).
-
-    References
-    ----------
-    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
-       Polarized Skylight Orientation Determination" (the seed paper), Sec. 3 (the least-square
-       approach, after its refs [33-35]).
-    .. [2] Y. Wang, J. Chu, R. Zhang et al., "Orthogonal vector algorithm to obtain the solar
-       vector using the single-scattering Rayleigh model", Appl Opt 57(4): 594-601, 2018.
-
-    """
-    M = np.ascontiguousarray(M, dtype=np.float64)
-    if not np.all(np.isfinite(M)):
-        raise np.linalg.LinAlgError('the E-vector matrix has non-finite entries')
-    return _solve_sun_kernel(
-        M,
-        np.ascontiguousarray(B, dtype=np.float64),
-        np.ascontiguousarray(C, dtype=np.float64),
-        bool(bias_correction),
-        int(iterations),
-    )
+_NEEDS_TILT = 'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)'
 
 
 #: :func:`._common.cr1_factor` compiled for :func:`_block_sigmas`.
@@ -171,7 +114,7 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
     """
     Return sigma0^2 (rad^2), the AoP noise variance at DoP 1, from subsample sums.
 
-    sigma0^2 (rad^2, the AoP noise variance at DoP 1 under the 1/DoP^2 model) from subsample sums.
+    Under the 1/DoP^2 noise model; 0 when the subsample has no weight or no solution.
     """
     if not np.trace(sub['M']) > 0.0:
         return 0.0
@@ -191,9 +134,9 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     """
     Return the cluster-robust sigma for each row c of ``cs`` (CR1 factor).
 
-    Cluster-robust sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` for each row c of ``cs``: block sums
-    centred by weight share (the debiased solution leaves a small O(sigma^2) mean), CR1
-    small-sample factor (:func:`._common.cr1_factor`).
+    The sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` over the blocks: block sums centred by weight
+    share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor
+    (:func:`._common.cr1_factor`).
     """
     K = cs.shape[0]
     G = block_m.shape[0]
@@ -227,315 +170,12 @@ def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
     return out
 
 
-#: Angular sectors of the delete-a-group jackknife sigma (:func:`jackknife_sigma_rad`).
-JACKKNIFE_GROUPS = 16
-#: One-sided normal quantile of the test that replaces the cluster-robust sigma by the jackknife's
-#: (:func:`jackknife_exceeds`): 1.645, a 5 % test.
-JACKKNIFE_Z = 1.645
-
-
-def jackknife_exceeds(sigma_jk: float, sigma_cr: float, n_groups: int, z: float = JACKKNIFE_Z):
-    """
-    Tell whether a jackknife sigma is significantly larger than the cluster-robust sigma.
-
-    With ``G`` groups, ``(G - 1) sigma_jk^2 / sigma^2`` is about chi-square with ``G - 1`` degrees
-    of freedom when the groups are independent; the cluster-robust sigma over many small blocks is
-    taken as ``sigma``. True when ``sigma_jk^2 / sigma_cr^2`` exceeds the chi-square quantile over
-    its degrees of freedom, by the Wilson-Hilferty cube-root approximation ``(1 - 2 / (9 nu) + z
-    sqrt(2 / (9 nu)))^3`` (``nu = G - 1``; 1.666 at ``G = 16`` and z = 1.645, the exact 95 %
-    quantile 1.666). Then the blocks miss an error correlated at the groups' scale and the
-    jackknife is the sigma; otherwise the cluster-robust sigma (the larger of the two always would
-    over-state an honest sigma by the jackknife's own scatter: mean err^2 / sigma^2 0.64-0.8
-    instead of 1 on independent noise).
-
-    Parameters
-    ----------
-    sigma_jk, sigma_cr : float
-        The jackknife and the cluster-robust sigma (same unit).
-    n_groups : int
-        Groups of the jackknife (>= 2).
-    z : float
-        One-sided standard-normal quantile of the test.
-
-    Returns
-    -------
-    bool
-        True when the jackknife sigma is significantly larger.
-
-    References
-    ----------
-    .. [1] E. B. Wilson and M. M. Hilferty, "The distribution of chi-square", Proc. Natl. Acad.
-       Sci. USA 17(12), 684-688 (1931).
-
-    """
-    nu = float(n_groups - 1)
-    q = (1.0 - 2.0 / (9.0 * nu) + z * math.sqrt(2.0 / (9.0 * nu))) ** 3
-    return sigma_jk * sigma_jk > q * sigma_cr * sigma_cr
-
-
-@lru_cache(maxsize=64)
-def _grid_block_centres_px(keys: tuple, block_px: int, n_blocks: int):
-    """
-    Return the centres (x, y) [sensor px] of regular grids' blocks, numbered as the pass does.
-
-    Blocks are numbered ``row * K + col`` from the first occupied block (``block_indices``); None
-    when the pass numbered them otherwise (``n_blocks != R * K``). Cached per camera geometry.
-    """
-    _, _, K, R = block_indices(keys, block_px)
-    if n_blocks != R * K:
-        return None
-    c0 = min(math.floor((k[0][0] - 0.5) / block_px) for k in keys)
-    r0 = min(math.floor((k[1][0] - 0.5) / block_px) for k in keys)
-    b = np.arange(n_blocks)
-    xc = (c0 + b % K + 0.5) * block_px + 0.5
-    yc = (r0 + b // K + 0.5) * block_px + 0.5
-    xc.setflags(write=False)
-    yc.setflags(write=False)
-    return xc, yc
-
-
-def _block_centres_px(view, block_px: int, n_blocks: int):
-    """
-    Return the centres (x, y) [sensor px] of the view's cluster-robust blocks, or None.
-
-    The blocks of :func:`._common.view_segments` (``block_px`` sensor pixels square) in the pass's
-    numbering: regular grids from their keys (cached), a pixel list from its coordinates (the
-    sorted occupied block keys of ``list_segments``).
-    """
-    keys = (view.grid,) if view.grid is not None else view.subgrids
-    if keys is not None:
-        return _grid_block_centres_px(tuple(keys), int(block_px), int(n_blocks))
-    bx = np.floor((np.asarray(view.x_px, dtype=float) - 0.5) / block_px).astype(np.int64)
-    by = np.floor((np.asarray(view.y_px, dtype=float) - 0.5) / block_px).astype(np.int64)
-    if bx.size == 0:
-        return None
-    bx0, by0 = int(bx.min()), int(by.min())
-    width = int(bx.max()) - bx0 + 1
-    uniq = np.unique((by - by0) * width + (bx - bx0))
-    if uniq.size != n_blocks:
-        return None
-    xc = (bx0 + uniq % width + 0.5) * block_px + 0.5
-    return xc, (by0 + uniq // width + 0.5) * block_px + 0.5
-
-
-def jackknife_groups(xc_px, yc_px, block_w, n_groups: int = JACKKNIFE_GROUPS) -> np.ndarray:
-    """
-    Assign blocks to the angular sectors of the delete-a-group jackknife.
-
-    ``n_groups`` equal angular sectors around the weight centroid of the used blocks (a sky disc
-    or a rectangle about the principal point: roughly equal shares of the weight); -1 for a block
-    without weight.
-
-    Parameters
-    ----------
-    xc_px, yc_px : array_like
-        Block centres [sensor px], (G,).
-    block_w : array_like
-        Block weights (traces of the block sums of ``w e e^T``), (G,).
-    n_groups : int
-        Number of sectors.
-
-    Returns
-    -------
-    numpy.ndarray
-        Sector of each block, int64 (G,), in ``[0, n_groups)`` or -1.
-
-    """
-    w = np.ascontiguousarray(block_w, dtype=np.float64)
-    out = np.full(w.size, -1, dtype=np.int64)
-    _sectors(
-        np.ascontiguousarray(xc_px, dtype=np.float64),
-        np.ascontiguousarray(yc_px, dtype=np.float64),
-        w,
-        int(n_groups),
-        out,
-    )
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _sectors(xc, yc, w, n_groups, out):  # pragma: no cover - compiled
-    """Fill ``out`` with the sector of each weighted block (:func:`jackknife_groups`)."""
-    sw = sx = sy = 0.0
-    for b in range(w.size):
-        if w[b] > 0:
-            sw += w[b]
-            sx += w[b] * xc[b]
-            sy += w[b] * yc[b]
-    if not sw > 0:
-        return
-    cx, cy = sx / sw, sy / sw
-    for b in range(w.size):
-        if w[b] > 0:
-            ang = math.atan2(yc[b] - cy, xc[b] - cx)  # [-pi, pi]
-            sec = int(math.floor((ang + math.pi) / (2.0 * math.pi) * n_groups))
-            out[b] = min(max(sec, 0), n_groups - 1)
-
-
-@njit(cache=True, nogil=True)
-def _leave_group_out_psi(
-    M, B, block_m, groups, n_groups, s, R, sigma0_sq
-):  # pragma: no cover - compiled
-    """
-    Return the leave-one-group-out headings [rad] and each group's state (0 empty, 1 ok, 2 failed).
-
-    One sweep over the blocks sums each group, then one eigen-solve per group of ``M`` minus that
-    group, debiased by ``sigma0_sq`` times ``B`` scaled by its weight share; the sun's sign along
-    ``s``, psi = -atan2 of the first two components of ``R s_(-g)``.
-    """
-    gsum = np.zeros((n_groups, 3, 3))
-    present = np.zeros(n_groups, np.int64)
-    for b in range(block_m.shape[0]):
-        g = groups[b]
-        if g >= 0:
-            present[g] = 1
-            for i in range(3):
-                for j in range(3):
-                    gsum[g, i, j] += block_m[b, i, j]
-    tr = M[0, 0] + M[1, 1] + M[2, 2]
-    psi = np.zeros(n_groups)
-    for g in range(n_groups):
-        if present[g] == 0:
-            continue
-        Mg = M - gsum[g]
-        share = (Mg[0, 0] + Mg[1, 1] + Mg[2, 2]) / tr if tr > 0 else 0.0
-        lam, U = np.linalg.eigh(Mg - (sigma0_sq * share) * B)
-        ok = True
-        for v in lam:
-            if not np.isfinite(v):
-                ok = False
-        if not ok or not lam[2] > 0.0 or not lam[1] - lam[0] > 1e-12 * lam[2]:
-            present[g] = 2
-            continue
-        sg = U[:, 0].copy()
-        if sg @ s < 0.0:
-            sg = -sg
-        h = R @ sg
-        psi[g] = -math.atan2(h[0], h[1])
-    return psi, present
-
-
-def jackknife_sigma_rad(M, B, block_m, groups, s, R, sigma0_sq: float):
-    """
-    Return the delete-a-group jackknife sigma of psi [rad] and the number of groups, or None.
-
-    Each group's block sums are removed from ``M`` and the sun refitted: ``theta_(-g)`` is the
-    heading of that fit in the frame of ``R``, its sign taken along the full fit's sun ``s``;
-    ``var = (G - 1) / G * sum_g (theta_(-g) - mean)^2``, angle differences wrapped (Efron & Stein
-    1981; Shao & Tu 1995, the delete-d / grouped jackknife). A refit is debiased at the full fit's
-    noise scale (:func:`solve_sun`: ``M_(-g) - sigma0^2 B_(-g)``, ``B_(-g)`` = ``B`` times the
-    refit's share of the weight, the trace of M): one 3 x 3 eigen-solve per group. No pixel is
-    read: the groups are unions of the pass's blocks.
-
-    Parameters
-    ----------
-    M, B : numpy.ndarray
-        The full fit's ``sum w e e^T`` and its noise-bias matrix (:func:`solve_sun`), (3, 3).
-    block_m : numpy.ndarray
-        Per-block sums of ``w e e^T``, (n_blocks, 3, 3).
-    groups : numpy.ndarray
-        Group of each block (:func:`jackknife_groups`), -1 for none.
-    s : array_like
-        The full fit's camera-frame sun, unit (3,).
-    R : numpy.ndarray
-        Rotation into the frame the heading is read in (levelling or identity), (3, 3).
-    sigma0_sq : float
-        The full fit's AoP noise scale [rad^2] (:func:`solve_sun`; 0 without bias correction).
-
-    Returns
-    -------
-    tuple of (float, int) or None
-        ``(sigma_psi_rad, G)`` over the ``G`` non-empty groups; None with fewer than 2 groups or
-        when a refit does not single out a sun (the cluster-robust sigma alone is then used).
-
-    References
-    ----------
-    .. [1] B. Efron and C. Stein, "The jackknife estimate of variance", Ann. Statist. 9(3),
-       586-596 (1981).
-    .. [2] J. Shao and D. Tu, "The Jackknife and Bootstrap", Springer (1995).
-
-    """
-    M = np.ascontiguousarray(M, dtype=np.float64)
-    if not np.all(np.isfinite(M)):
-        return None
-    groups = np.ascontiguousarray(groups, dtype=np.int64)
-    n_groups = int(groups.max()) + 1 if groups.size else 0
-    if n_groups < 2:
-        return None
-    psi, present = _leave_group_out_psi(
-        M,
-        np.ascontiguousarray(B, dtype=np.float64),
-        np.ascontiguousarray(block_m, dtype=np.float64),
-        groups,
-        n_groups,
-        np.ascontiguousarray(s, dtype=np.float64),
-        np.ascontiguousarray(R, dtype=np.float64),
-        float(sigma0_sq),
-    )
-    if np.any(present == 2):  # a refit without a sun direction
-        return None
-    psi = psi[present == 1]
-    G = psi.size
-    if G < 2:
-        return None
-    ref = math.degrees(float(psi[0]))
-    d = np.array([wrap_180_deg_float(math.degrees(float(t)) - ref) for t in psi])
-    var = (G - 1.0) / G * float(np.sum((d - d.mean()) ** 2))
-    return math.radians(math.sqrt(max(var, 0.0))), G
-
-
-def phase_jackknife_sigma_rad(M, B, phase_m, s, R, sigma0_sq: float):
-    """
-    Return the delete-a-phase jackknife sigma of psi [rad] and the number of phases, or None.
-
-    :func:`jackknife_sigma_rad` with the four mosaic phases of a DoFP sensor as the groups (every
-    pixel of one place ``(row mod 2, column mod 2)`` in the 2 x 2 polarizer mosaic): the refits
-    leave out one phase's ``sum w e e^T`` (``phase_m``, summed in the pixel pass). The IFOV error
-    at soft cloud edges differs between the phases and cancels only partly in their average,
-    which no spatial grouping sees. Phases without weight are not groups (a superpixel grid has
-    one phase: None).
-
-    Parameters
-    ----------
-    M, B : numpy.ndarray
-        The full fit's ``sum w e e^T`` and its noise-bias matrix (:func:`solve_sun`), (3, 3).
-    phase_m : numpy.ndarray or None
-        Per-phase sums of ``w e e^T``, (4, 3, 3) (``full_pass``); None: no phases (a pixel list).
-    s : array_like
-        The full fit's camera-frame sun, unit (3,).
-    R : numpy.ndarray
-        Rotation into the frame the heading is read in, (3, 3).
-    sigma0_sq : float
-        The full fit's AoP noise scale [rad^2].
-
-    Returns
-    -------
-    tuple of (float, int) or None
-        ``(sigma_psi_rad, G)`` over the ``G`` phases with weight, or None (fewer than 2, or a
-        refit without a sun).
-
-    References
-    ----------
-    .. [1] B. Efron and C. Stein, "The jackknife estimate of variance", Ann. Statist. 9(3),
-       586-596 (1981).
-
-    """
-    if phase_m is None:
-        return None
-    pm = np.asarray(phase_m, dtype=np.float64)
-    tr = pm[:, 0, 0] + pm[:, 1, 1] + pm[:, 2, 2]
-    # a share below 1e-6 of the weight is float32 rounding of the pass, not a phase
-    groups = np.where(tr > 1e-6 * tr.sum(), np.arange(pm.shape[0]), -1).astype(np.int64)
-    return jackknife_sigma_rad(M, B, pm, groups, s, R, sigma0_sq)
-
-
 def _consensus_sun(view, obs):
     """
-    Return the camera-frame sun of the robust whole-view fit, or None.
+    Return the camera-frame sun of the robust whole-view fit, or None with too few pixels.
 
-    Return the camera-frame sun of the robust whole-view fit
-    (:func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known tilt,
-    level when unknown), or None with too few pixels.
+    The fit is :func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known
+    tilt (level when unknown).
 
     The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about
     20000 first (a regular step through its pixels) so that picking them does not scan a
@@ -594,17 +234,14 @@ def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no co
 
 def _trim_outliers(view, sun_cam, outlier_deg: float):
     """
-    Drop the view's pixels whose AoP is more than ``outlier_deg`` from Rayleigh's.
+    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of a sun.
 
-    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of
-    ``sun_cam``.
-
-    The model AoP of a pixel is eq 28 of ``E = S x P`` (eq 18); the residual is the axial
-    difference, computed from doubled angles. Returns the view with those pixels invalid and how
-    many were dropped (of the valid ones). This is the consensus step of the robust refit
-    (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle pulled is refitted on
-    the pixels that agree with it. One compiled pass over the pixels the estimator already reads,
-    no temporaries (:func:`_outlier_pass`).
+    The sun is ``sun_cam`` (camera frame); the model AoP of a pixel is eq 28 of ``E = S x P`` (eq
+    18); the residual is the axial difference, computed from doubled angles. Returns the view with
+    those pixels invalid and how many were dropped (of the valid ones). This is the consensus step
+    of the robust refit (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle
+    pulled is refitted on the pixels that agree with it. One compiled pass over the pixels the
+    estimator already reads, no temporaries (:func:`_outlier_pass`).
     """
     from dataclasses import replace
 
@@ -700,11 +337,12 @@ class _LSBase(KnobbedEstimator, Estimator):
         Estimate one heading from the smallest eigenvector of ``M = sum w e e^T`` (the sun).
 
         Each AoP is lifted to its 3-D E-vector, the sun is fitted by total least squares
-        (optionally noise-debiased, :func:`solve_sun`), levelled with the known pitch and roll when
-        the method does so (``tilt_aware``), and its sign is chosen by the elevation rule, the
-        brightness gradient or a prior. ``sigma=False`` (error-map sweeps): ``sigma_deg`` None and
-        no ``rms_residual_deg``; the sun-elevation sigma of the sign rule is computed either way,
-        so psi and status are the same.
+        (optionally noise-debiased, :func:`.sun_from_evectors.solve_sun`; optionally refitted on
+        the pixels that agree with it, ``outlier_deg``), levelled with the known pitch and roll
+        when the method does so (``tilt_aware``), and its sign is chosen by the elevation rule, the
+        brightness gradient or a prior (:func:`.sun_from_evectors.pick_side`). ``sigma=False``
+        (error-map sweeps): ``sigma_deg`` None and no ``rms_residual_deg``; the sun-elevation sigma
+        of the sign rule is computed either way, so psi and status are the same.
 
         Parameters
         ----------
@@ -737,101 +375,40 @@ class _LSBase(KnobbedEstimator, Estimator):
         bad = check_sun(self.name, obs, k)
         if bad is not None:
             return bad
-        R_lev = self._levelling(obs)
+        R_lev = levelling_rotation(
+            self.name, obs.pitch_deg, obs.roll_deg, self.level_with_tilt, _NEEDS_TILT
+        )
         if isinstance(R_lev, HeadingResult):
             return R_lev
         try:
             view = select_view(obs, k, balance_phases=True)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        acc, sub, min_dop = self._accumulate(view)
-        n = acc['n']
-        if n < k['min_pixels']:
-            return self._too_few(n, acc['nonfinite'], min_dop)
-        sol = self._solve(acc, sub, n)
-        if isinstance(sol, HeadingResult):
-            return sol
-        trimmed = 0
-        fitted_view = view
-        for it in range(2 if k['outlier_deg'] > 0 else 0):
-            # consensus: first against the robust whole-view sun (candidate suns over the circle,
-            # Cauchy loss: a fit pulled by clouds or flare cannot seed it), then against the
-            # refitted sun
-            sun0 = _consensus_sun(view, obs) if it == 0 else sol[2][:, 0]
-            if sun0 is None:
-                break
-            view2, dropped = _trim_outliers(view, sun0, k['outlier_deg'])
-            if dropped == trimmed:
-                break
-            acc2, sub2, min_dop2 = self._accumulate(view2)
-            if acc2['n'] < k['min_pixels']:
-                break
-            sol2 = self._solve(acc2, sub2, acc2['n'])
-            if isinstance(sol2, HeadingResult):
-                break
-            acc, sub, min_dop, n, sol, trimmed = acc2, sub2, min_dop2, acc2['n'], sol2, dropped
-            fitted_view = view2
-        M, lam, U, sigma0_sq = sol
-        s = U[:, 0].copy()
-        R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
-        s_h = R @ s  # the frame the heading is read in
-        rho = math.hypot(s_h[0], s_h[1])
-        if rho < math.cos(math.radians(k['max_sun_altitude_deg'])):
-            return HeadingResult.failed(
-                self.name,
-                Status.SUN_NEAR_ZENITH,
-                f'the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from '
-                'the zenith: the solar meridian is ill-conditioned',
-                pixels=n,
-            )
-        R_sign = R_lev if R_lev is not None else np.eye(3)
-        s_sign = R_sign @ s  # the frame the sun's side is decided in
-        sigmas = self._sigmas(acc, n, s, lam, U, R, s_h, rho, R_sign, s_sign, sigma)
+        fit = self._fit(view)
+        if isinstance(fit, HeadingResult):
+            return fit
+        if k['outlier_deg'] > 0:
+            fit = self._robust_refit(fit, obs)
+        f = sun_frames(
+            self.name, fit.U, R_lev, self.level_with_tilt, k['max_sun_altitude_deg'], fit.n
+        )
+        if isinstance(f, HeadingResult):
+            return f
+        sigmas = self._sigmas(fit, f, sigma)
         sigma_el = float(sigmas[0])
-        cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-        first, second = cands if s_sign[2] >= 0 else cands[::-1]
-        sun_rule = self._sign_rule(first, s_sign, sigma_el, R_lev is not None)
-        bt = brightness_t_from_stats(acc['stats'], first.sun_cam - second.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, obs, k, sun_rule)
-        s_pick = pick.sun_cam
-        alt_frame = R_sign @ s_pick
-        implied_alt = math.degrees(math.asin(float(np.clip(alt_frame[2], -1.0, 1.0))))
-        wsum = float(np.trace(M))
-        quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
+        pick, by, reason = pick_side(
+            self.name, f, sigma_el, fit.acc['stats'], obs, k, 'camera-frame'
+        )
         extras = {
-            'eigenvalues': [float(v / wsum) for v in lam],
+            'eigenvalues': [float(v / fit.wsum) for v in fit.lam],
             'sigma_sun_elevation_deg': math.degrees(sigma_el),
             'sun_altitude_ephemeris_deg': float(obs.sun_altitude_deg),
-            'noise_scale_deg': math.degrees(math.sqrt(sigma0_sq)),
-            'min_dop_used': min_dop,
-            'sun_cam': [float(v) for v in s_pick],
-            'outliers_dropped': int(trimmed),
+            'noise_scale_deg': math.degrees(math.sqrt(fit.sigma0_sq)),
+            'min_dop_used': fit.min_dop,
+            'sun_cam': [float(v) for v in pick.sun_cam],
+            'outliers_dropped': int(fit.trimmed),
         }
-        sigma_deg = None
-        if sigma:
-            extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / wsum, 0.0)))
-            sigma_fit = float(sigmas[1])
-            extras['sigma_cluster_deg'] = math.degrees(sigma_fit)
-            jk = None
-            centres = _block_centres_px(fitted_view, k['block_px'], acc['block_m'].shape[0])
-            if centres is not None:
-                groups = jackknife_groups(centres[0], centres[1], acc['block_w'])
-                jk = jackknife_sigma_rad(M, acc['B'], acc['block_m'], groups, s, R, sigma0_sq)
-            extras['sigma_jackknife_deg'] = None if jk is None else math.degrees(jk[0])
-            extras['jackknife_groups'] = 0 if jk is None else jk[1]
-            jp = phase_jackknife_sigma_rad(M, acc['B'], acc['phase_m'], s, R, sigma0_sq)
-            extras['sigma_phase_jackknife_deg'] = None if jp is None else math.degrees(jp[0])
-            extras['phase_jackknife_groups'] = 0 if jp is None else jp[1]
-            sigma_cr = sigma_fit
-            for j in (jk, jp):  # each its own 5 % test against the cluster-robust sigma
-                if j is not None and jackknife_exceeds(j[0], sigma_cr, j[1]):
-                    sigma_fit = max(sigma_fit, j[0])
-            sigma_deg = finish_sigma_deg(sigma_fit, k)
-            att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
-            if att is not None:
-                extras['sigma_fit_deg'] = sigma_deg
-                extras['sigma_attitude_deg'] = att
-                sigma_deg = math.hypot(sigma_deg, att)
+        sigma_deg = self._sigma_deg(fit, f, float(sigmas[1]), obs, extras) if sigma else None
         return result_from(
             self.name,
             pick,
@@ -839,12 +416,95 @@ class _LSBase(KnobbedEstimator, Estimator):
             reason,
             obs,
             sigma_deg,
-            n,
-            acc['nonfinite'],
-            quality,
-            sun_altitude_deg=implied_alt,
+            fit.n,
+            fit.acc['nonfinite'],
+            fit_quality(fit.lam),
+            sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
             extras=extras,
         )
+
+    def _fit(self, view, trimmed: int = 0):
+        """
+        Fit the sun to a view: the compiled passes, then the checked eigen-solve.
+
+        Returns a :class:`_Fit`, or a failed result (too few pixels, degenerate E-vectors);
+        ``trimmed`` is how many outliers the view already lacks (:meth:`_robust_refit`).
+        """
+        acc, sub, min_dop = self._accumulate(view)
+        n = acc['n']
+        if n < self.knobs['min_pixels']:
+            return self._too_few(n, acc['nonfinite'], min_dop)
+        sol = self._solve(acc, sub, n)
+        if isinstance(sol, HeadingResult):
+            return sol
+        return _Fit(view, acc, min_dop, n, *sol, trimmed=trimmed)
+
+    def _robust_refit(self, fit: '_Fit', obs: Observation) -> '_Fit':
+        """
+        Refit on the pixels that agree with the sky (the ``outlier_deg`` consensus), twice.
+
+        First against the robust whole-view sun (candidate suns over the circle, Cauchy loss: a
+        fit pulled by clouds or flare cannot seed it, :func:`_consensus_sun`), then against the
+        refitted sun; each round trims the full view. Keeps the last fit that succeeded.
+        """
+        view = fit.view
+        for it in range(2):
+            sun0 = _consensus_sun(view, obs) if it == 0 else fit.U[:, 0]
+            if sun0 is None:
+                break
+            view2, dropped = _trim_outliers(view, sun0, self.knobs['outlier_deg'])
+            if dropped == fit.trimmed:
+                break
+            fit2 = self._fit(view2, dropped)
+            if isinstance(fit2, HeadingResult):
+                break
+            fit = fit2
+        return fit
+
+    def _sigma_deg(self, fit: '_Fit', f: SunFrames, sigma_fit: float, obs, extras: dict):
+        """
+        Return the heading's 1-sigma [deg]; its parts go into ``extras``.
+
+        The cluster-robust sigma, replaced by a jackknife's when that is significantly larger
+        (:meth:`_jackknife`), the ``sigma_floor_deg`` in quadrature and, for ``tilt_aware``, the
+        known tilt's uncertainty (:func:`_attitude_sigma_deg`).
+        """
+        s, M = f.s, fit.M
+        extras['rms_residual_deg'] = math.degrees(math.sqrt(max(float(s @ M @ s) / fit.wsum, 0.0)))
+        extras['sigma_cluster_deg'] = math.degrees(sigma_fit)
+        sigma_deg = finish_sigma_deg(self._jackknife(fit, f, sigma_fit, extras), self.knobs)
+        att = _attitude_sigma_deg(obs, s) if self.level_with_tilt else None
+        if att is not None:
+            extras['sigma_fit_deg'] = sigma_deg
+            extras['sigma_attitude_deg'] = att
+            sigma_deg = math.hypot(sigma_deg, att)
+        return sigma_deg
+
+    def _jackknife(self, fit: '_Fit', f: SunFrames, sigma_cr: float, extras: dict) -> float:
+        """
+        Return the fit's sigma of psi [rad]: the cluster-robust one or a larger jackknife's.
+
+        The delete-a-sector jackknife (:func:`.jackknife.jackknife_sigma_rad`) and the
+        delete-a-phase one (:func:`.jackknife.phase_jackknife_sigma_rad`) each replace
+        ``sigma_cr`` when significantly larger (:func:`.jackknife.jackknife_exceeds`, its own 5 %
+        test each); their values go into ``extras``.
+        """
+        acc, M, s, R = fit.acc, fit.M, f.s, f.R
+        jk = None
+        centres = _block_centres_px(fit.view, self.knobs['block_px'], acc['block_m'].shape[0])
+        if centres is not None:
+            groups = jackknife_groups(centres[0], centres[1], acc['block_w'])
+            jk = jackknife_sigma_rad(M, acc['B'], acc['block_m'], groups, s, R, fit.sigma0_sq)
+        extras['sigma_jackknife_deg'] = None if jk is None else math.degrees(jk[0])
+        extras['jackknife_groups'] = 0 if jk is None else jk[1]
+        jp = phase_jackknife_sigma_rad(M, acc['B'], acc['phase_m'], s, R, fit.sigma0_sq)
+        extras['sigma_phase_jackknife_deg'] = None if jp is None else math.degrees(jp[0])
+        extras['phase_jackknife_groups'] = 0 if jp is None else jp[1]
+        sigma_fit = sigma_cr
+        for j in (jk, jp):  # each its own 5 % test against the cluster-robust sigma
+            if j is not None and jackknife_exceeds(j[0], sigma_cr, j[1]):
+                sigma_fit = max(sigma_fit, j[0])
+        return sigma_fit
 
     @classmethod
     def tilt_sensitivity(cls, result: HeadingResult, pitch_deg: float, roll_deg: float):
@@ -873,41 +533,9 @@ class _LSBase(KnobbedEstimator, Estimator):
             return None
         return tilt_sensitivity(sun, pitch_deg, roll_deg)
 
-    def _levelling(self, obs: Observation):
-        """
-        Return the levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt.
-
-        The levelling rotation ``Rx(pitch) Ry(roll)`` of the observation's tilt, None without a
-        usable tilt (``least_squares``), or a failed result (``tilt_aware`` needs it).
-        """
-        if obs.pitch_deg is None or obs.roll_deg is None:
-            R_lev = None
-        else:
-            p, r = float(obs.pitch_deg), float(obs.roll_deg)
-            if math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0:
-                R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
-            elif self.level_with_tilt:
-                return HeadingResult.failed(
-                    self.name,
-                    Status.BAD_INPUT,
-                    f'pitch/roll must be finite, |pitch| < 90: got {p}, {r}',
-                )
-            else:
-                R_lev = None
-        if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(
-                self.name,
-                Status.BAD_INPUT,
-                'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)',
-            )
-        return R_lev
-
     def _accumulate(self, view):
         """
-        Run the compiled passes over a view.
-
-        The compiled passes over a view: (block sums of the full pass, subsample sums, min_dop
-        used).
+        Run the compiled passes over a view: (full-pass block sums, subsample sums, min_dop used).
 
         Noise scale first, on a sparse subsample: pixels whose AoP noise sigma0 / DoP exceeds
         max_aop_noise_deg are dropped (raised min_dop), because there the second-order bias model
@@ -958,134 +586,54 @@ class _LSBase(KnobbedEstimator, Estimator):
         """
         Solve the noise-debiased eigenproblem for the sun direction.
 
-        The (noise-debiased) eigen-solution: (M, lambdas ascending, U, sigma0^2), or a failed
-        result when the E-vectors do not single out a sun direction. Scales the subsample's bias
-        matrices to the full pass (into ``acc``: B, C, stats).
+        Returns (M, lambdas ascending, U, sigma0^2), or a failed result when the E-vectors do not
+        single out a sun direction (:func:`.sun_from_evectors.solve_checked`). Scales the
+        subsample's bias matrices to the full pass first (into ``acc``: B, C, stats).
         """
         k = self.knobs
         M = acc['block_m'].sum(axis=0)
         msub_tr = float(np.trace(sub['M']))
         scale = float(np.trace(M)) / msub_tr if msub_tr > 0 else 0.0
         acc['B'], acc['C'], acc['stats'] = sub['B'] * scale, sub['C'] * scale, sub['stats']
-        lam, U, sigma0_sq = solve_sun(M, acc['B'], acc['C'], k['bias_correction'])
-        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(
-                self.name, Status.DEGENERATE, 'no usable E-vector weight', pixels=n
-            )
-        gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k['min_eigen_gap']:
-            return HeadingResult.failed(
-                self.name,
-                Status.DEGENERATE,
-                f'E-vectors do not single out a sun direction (eigen gap {gap:.2e})',
-                pixels=n,
-            )
-        return M, lam, U, sigma0_sq
+        sol = solve_checked(
+            self.name, M, acc['B'], acc['C'], k['bias_correction'], k['min_eigen_gap'], n
+        )
+        if isinstance(sol, HeadingResult):
+            return sol
+        return (M, *sol)
 
     @staticmethod
-    def _sigmas(
-        acc: dict, n: int, s, lam, U, R, s_h, rho: float, R_sign, s_sign, with_psi: bool
-    ) -> np.ndarray:
+    def _sigmas(fit: '_Fit', f: SunFrames, with_psi: bool) -> np.ndarray:
         """
-        Return the cluster-robust sigmas (rad) of the sun's elevation and of psi.
+        Return the cluster-robust sigmas (rad) of the sun's elevation and (``with_psi``) of psi.
 
-        Cluster-robust sigmas (rad) of the sun's elevation in the sign frame and (``with_psi``) of
-        psi, from first-order sensitivities: d psi / d s and d elevation / d s through the
-        eigenvector perturbation ``d s = -sum_k u_k (u_k . dM s) / d_k``, so ``d psi = -s^T dM c``
-        with ``c = sum_k (g . u_k) u_k / d_k`` (module doc).
+        The first-order sensitivities of :func:`.sun_from_evectors.sensitivity_vectors`
+        propagated over the pass's blocks (module doc).
         """
-        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
-        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
-        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
-        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
-        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
-        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
+        c_el, c_psi = sensitivity_vectors(f, fit.lam, fit.U)
         cs = np.stack([c_el, c_psi]) if with_psi else c_el[None, :]
-        return _block_sigmas(acc['block_m'], acc['block_w'], n, s, np.ascontiguousarray(cs))
-
-    def _sign_rule(self, first: Candidate, s_sign, sigma_el: float, levelled: bool):
-        """
-        Apply the sun-elevation rule of :func:`._common.resolve_ambiguity`.
-
-        The sun-elevation rule of :func:`._common.resolve_ambiguity`: ``first`` (the candidate with
-        the sun above the horizon of the sign frame) when its elevation exceeds the margin of
-        ``sign_margin_sigma`` sigmas (plus ``max_tilt_deg`` when the frame is the camera's, not
-        ``levelled``).
-        """
-        k = self.knobs
-        el_deg = math.degrees(math.asin(min(1.0, abs(s_sign[2]))))
-        margin_deg = k['sign_margin_sigma'] * math.degrees(sigma_el)
-
-        def sun_rule():
-            if levelled:
-                if el_deg > margin_deg:
-                    return first, (
-                        f'sun side from the levelled sun elevation ({el_deg:.2f} deg > '
-                        f'{margin_deg:.3f} deg margin)'
-                    )
-                return (
-                    None,
-                    f'levelled sun elevation {el_deg:.2f} deg within the {margin_deg:.3f} deg '
-                    'margin',
-                )
-            lim = k['max_tilt_deg'] + margin_deg
-            if el_deg > lim:
-                return first, (
-                    f'sun side from the camera-frame sun elevation ({el_deg:.2f} deg > '
-                    'max_tilt_deg '
-                    f'{k["max_tilt_deg"]:g} + {margin_deg:.3f} deg margin)'
-                )
-            return None, (
-                f'camera-frame sun elevation {el_deg:.2f} deg <= max_tilt_deg '
-                f'{k["max_tilt_deg"]:g} '
-                f"+ margin: the sun's side is unknown without the tilt"
-            )
-
-        return sun_rule
+        acc = fit.acc
+        return _block_sigmas(acc['block_m'], acc['block_w'], fit.n, f.s, np.ascontiguousarray(cs))
 
 
-#: Generators of rot_x and rot_y: d/da rot_x(a) = rot_x(a) @ _KX (right-handed, active).
-_KX = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-_KY = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+@dataclass
+class _Fit:
+    """One least-squares fit of the sun to a view (:meth:`_LSBase._fit`)."""
 
+    view: object  # the PixelView fitted
+    acc: dict  # the pass's sums (block_m, block_w, phase_m, stats, n, nonfinite; B, C scaled)
+    min_dop: float  # the min_dop used (raised by the noise)
+    n: int  # pixels used
+    M: np.ndarray  # sum w e e^T (3, 3)
+    lam: np.ndarray  # eigenvalues, ascending (3,)
+    U: np.ndarray  # eigenvectors as columns (3, 3)
+    sigma0_sq: float  # AoP noise scale [rad^2]
+    trimmed: int = 0  # outliers dropped by the robust refit
 
-def tilt_sensitivity(s_cam, pitch_deg: float, roll_deg: float):
-    """
-    Return how the levelled heading of a camera-frame sun moves with the pitch and roll.
-
-    ``psi = -atan2(s_x, s_y)`` of ``s_lev = Rx(pitch) Ry(roll) s_cam``, so ``d psi / d pitch = g .
-    (Rx(pitch) K_x Ry(roll) s_cam)`` and ``d psi / d roll = g . (Rx(pitch) Ry(roll) K_y s_cam)``
-    with ``g = (-s_lev_y, s_lev_x, 0) / rho^2`` (``rho`` the horizontal norm of ``s_lev``). The
-    fitted ``s_cam`` does not depend on the tilt (levelling is applied after the fit), so this is
-    the exact first-order sensitivity of a re-estimate at a perturbed tilt (the sign choice
-    aside).
-
-    Parameters
-    ----------
-    s_cam : array_like
-        Camera-frame sun direction (3,), unit.
-    pitch_deg, roll_deg : float
-        Camera pitch alpha and roll beta [deg] (eq 21) used for levelling.
-
-    Returns
-    -------
-    tuple of float
-        ``(d psi / d pitch, d psi / d roll)`` [deg/deg]; (0, 0) for a sun at the levelled zenith.
-
-    References
-    ----------
-    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
-       Polarized Skylight Orientation Determination" (the seed paper), eq 21.
-
-    """
-    s = np.asarray(s_cam, dtype=float)
-    Rx, Ry = rot_x(math.radians(pitch_deg)), rot_y(math.radians(roll_deg))
-    s_lev = Rx @ Ry @ s
-    rho2 = float(s_lev[0] ** 2 + s_lev[1] ** 2)
-    if rho2 < 1e-18:
-        return 0.0, 0.0
-    g = np.array([-s_lev[1], s_lev[0], 0.0]) / rho2
-    return float(g @ (Rx @ _KX @ Ry @ s)), float(g @ (Rx @ Ry @ _KY @ s))
+    @property
+    def wsum(self) -> float:
+        """Return the total weight, the trace of ``M``."""
+        return float(np.trace(self.M))
 
 
 def _attitude_sigma_deg(obs: Observation, s_cam):

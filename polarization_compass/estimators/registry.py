@@ -132,7 +132,11 @@ def unregister(name: str) -> None:
     del _CLASSES[name]
 
 
-def names(paper: bool | None = None, needs_tilt: bool | None = None) -> tuple[str, ...]:
+def names(
+    paper: bool | None = None,
+    needs_tilt: bool | None = None,
+    accepts_units: bool | None = None,
+) -> tuple[str, ...]:
     """
     List the registered method names in their stable order, optionally filtered.
 
@@ -144,6 +148,9 @@ def names(paper: bool | None = None, needs_tilt: bool | None = None) -> tuple[st
         Keep only methods whose ``paper_method`` equals this; None keeps all.
     needs_tilt : bool, optional
         Keep only methods whose ``needs_tilt`` equals this; None keeps all.
+    accepts_units : bool, optional
+        Keep only methods whose ``accepts_units`` (runs on a photodiode array) equals this; None
+        keeps all.
 
     Returns
     -------
@@ -156,6 +163,7 @@ def names(paper: bool | None = None, needs_tilt: bool | None = None) -> tuple[st
         for n, c in _load().items()
         if (paper is None or bool(c.paper_method) == paper)
         and (needs_tilt is None or bool(c.needs_tilt) == needs_tilt)
+        and (accepts_units is None or bool(c.accepts_units) == accepts_units)
     )
 
 
@@ -372,11 +380,18 @@ class MethodNames(Sequence):
         Keep only methods whose ``paper_method`` equals this; None keeps all.
     needs_tilt : bool, optional
         Keep only methods whose ``needs_tilt`` equals this; None keeps all.
+    accepts_units : bool, optional
+        Keep only methods that run on a photodiode array's units (or not); None keeps all.
 
     """
 
-    def __init__(self, paper: bool | None = None, needs_tilt: bool | None = None):
-        self._filter = {'paper': paper, 'needs_tilt': needs_tilt}
+    def __init__(
+        self,
+        paper: bool | None = None,
+        needs_tilt: bool | None = None,
+        accepts_units: bool | None = None,
+    ):
+        self._filter = {'paper': paper, 'needs_tilt': needs_tilt, 'accepts_units': accepts_units}
 
     def _names(self) -> tuple[str, ...]:
         return names(**self._filter)

@@ -20,14 +20,6 @@ Subscribes (relative names, remappable):
                          intensities), sensor-data QoS (REP-2003)
   ``camera/camera_info`` intrinsics (parameters until the first one arrives, or always:
                          camera_info_source)
-  ``compass_array/intensities`` instead of the two above when ``input`` is ``array``: a
-                         photodiode-array compass, std_msgs/Float32MultiArray, units x channels
-                         row-major (layout.dim empty or [units, channels]). Geometry from
-                         ``array_geometry``.
-  ``compass_array/header`` std_msgs/Header published beside each array sample (``array_stamp:
-                         header``, the default): the sample takes its stamp and frame_id
-                         (stamp_pairing.py); with ``array_stamp: arrival`` a sample is stamped with
-                         this node's clock on arrival.
   ``imu/data``           sensor_msgs/Imu: the tilt for tilt_aware and the ambiguity prior
                          (prior_source imu); its orientation_covariance (plus
                          ``attitude_sigma_deg``) grows tilt_aware's sigma by ``J Sigma_att J^T``
@@ -41,57 +33,40 @@ Publishes, stamped with the image's header.stamp:
   ``compass/<method>/status``           std_msgs/String, JSON, one per image, failures included
   ``/diagnostics``
 Headings known only modulo 180 deg are not published on the Imu/Float64 topics unless
-``publish_ambiguous`` is true; their status says so.
+``publish_ambiguous`` is true; their status says so. A photodiode-array compass has its own node,
+``array_heading_estimator``; the sun, IMU, queue and outputs both share are
+:class:`~.heading_node.HeadingNodeBase`'s.
 """
 
 from __future__ import annotations
 
-from collections import deque
 import dataclasses
-import json
 import math
 import threading
 import time
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.node import Node
-from rclpy.qos import (
-    qos_profile_sensor_data,
-    qos_profile_system_default,
-    QoSProfile,
-    ReliabilityPolicy,
-)
-from sensor_msgs.msg import CameraInfo, Image, Imu, NavSatFix
-from std_msgs.msg import Float32MultiArray, Float64, Header, String
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from sensor_msgs.msg import CameraInfo, Image
 
-from .diagnostics import Diagnostics
-from .msgs import AttitudeUncertainty, decode_image, heading_imu
+from .heading_node import HeadingNodeBase
+from .msgs import AttitudeUncertainty, decode_image
 from .rosparams import ParameterSet
 from .runner import run_node
-from ..bag import decode_camera_info, decode_orientation, MessageError, stamp_ns
+from ..bag import decode_camera_info, MessageError, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..estimators import registry
 from ..pipeline import (
-    AttitudeBuffer,
     CameraInfoState,
     HeadingFrontEnd,
     ImageLossWatch,
     PipelineError,
     PolarizerMonitor,
-    TiltAndPrior,
     warm_up,
 )
 from ..specs import topics
-from ..specs.params import (
-    apply_fix,
-    ESTIMATOR,
-    knob_params,
-    knob_values,
-    layout_from_text,
-    SUN_PARAMS,
-    sun_source,
-)
+from ..specs.params import ESTIMATOR, knob_params, knob_values, layout_from_text
 
 __all__ = ['HeadingEstimatorNode', 'main', 'MAX_PENDING_IMAGES']
 
@@ -100,8 +75,10 @@ __all__ = ['HeadingEstimatorNode', 'main', 'MAX_PENDING_IMAGES']
 MAX_PENDING_IMAGES = 8
 
 
-class HeadingEstimatorNode(Node):
+class HeadingEstimatorNode(HeadingNodeBase):
     """The ``heading_estimator`` node (see the module docstring)."""
+
+    INPUT_NAME = 'image'
 
     def __init__(self, **kwargs):
         super().__init__('heading_estimator', **kwargs)
@@ -109,69 +86,12 @@ class HeadingEstimatorNode(Node):
         self.params = ParameterSet(self, ESTIMATOR, on_change=self._on_change)
         self.method = self.params['method']
         p = self.params
-        self.array = None
-        self._array_geometry = None
-        self.pairer = None  # array_stamp header: pairs each array sample with its header
-        self._knob_specs = None  # None: the image method's knobs; a photodiode array's otherwise
-        if p['input'] == 'array':
-            from ..photodiode.geometry import load_array_geometry
-            from ..photodiode.heading import ARRAY_KNOBS
-
-            if not p['array_geometry']:
-                raise CompassError('input array needs array_geometry (a sensor description YAML)')
-            self._array_geometry = load_array_geometry(p['array_geometry'])
-            self._knob_specs = ARRAY_KNOBS
-        try:
-            knobs = knob_params(self.method, self._knob_specs)
-        except CompassError as exc:
-            raise CompassError(f'method {self.method!r}: {exc}') from None
-        self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
-        self.front = HeadingFrontEnd(
-            self.method,
-            {} if self.array_input else knob_values(self.method, self.knob_set.values),
-            layout_from_text(p['polarizer_layout']),
-            p['pol45_toward'],
-            p['demosaic'],
-            p['use_intensity'],
-            p['sky_check'],
-        )
-        if self.array_input:
-            self.array = self._make_array(self.knob_set.values)
-        else:
-            try:
-                dt = warm_up(self.front, camera=self._fallback_camera_or_none())
-                self.get_logger().info(
-                    f'warm-up (kernel compilation or cache load) took {dt:.2f} s'
-                )
-            except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
-                self.get_logger().warning(
-                    f'warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow'
-                )
-        self.sun = sun_source(p)
-        self.imu = AttitudeBuffer(keep_ns=int(max(10.0, 2 * p['prior_max_age_s']) * 1e9))
-        self.camera_info = (
-            CameraInfoState()
-        )  # validated intrinsics from camera_info, or why there are none
+        self._make_front_end()
+        self.camera_info = CameraInfoState()  # validated intrinsics from camera_info, or why not
         self.loss = ImageLossWatch()  # images that never arrived (camera_info without its image)
-        self.site_from_fix = None
-        self.tilt_prior = TiltAndPrior(
-            self.method, p['prior_source'], p['prior_max_age_s'], p['prior_sigma_deg']
-        )
-        self.needs_tilt = self.tilt_prior.needs_tilt
         self.attitude_uncertainty = AttitudeUncertainty()  # the latest IMU's tilt variance
-        self.pending: deque = (
-            deque()
-        )  # decoded images waiting to be processed (tilt_aware: for their IMU)
-        self._pending_lock = threading.Lock()
-        self.diag = Diagnostics(self, f'heading estimator ({self.method})')
+        self._make_diagnostics(f'heading estimator ({self.method})')
         self.polarizer = PolarizerMonitor(p['polarizer_check_every'])
-
-        t = topics.method_topics(self.method)
-        self.pub_heading = self.create_publisher(Imu, t['heading_raw'], qos_profile_system_default)
-        self.pub_bearing = self.create_publisher(
-            Float64, t['bearing_raw'], qos_profile_system_default
-        )
-        self.pub_status = self.create_publisher(String, t['status'], QoSProfile(depth=50))
         # Images are received (decoded and queued) in the executor and processed in this node's own
         # worker thread (:meth:`_work`), whatever the executor (the default EventsExecutor is
         # single-threaded): a long estimate never blocks reception, so the middleware's 5-deep
@@ -184,64 +104,53 @@ class HeadingEstimatorNode(Node):
         self._work_cv = threading.Condition()
         self._worker = None
         self._stop = False
-        if self.tilt_prior.needs_imu:
-            # best effort (REP-2003 sensor data): matches reliable and best-effort IMU drivers and
-            # bag players alike (a reliable reader never connects to a best-effort writer); deep
-            # for fast IMUs
-            imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
-            self.create_subscription(Imu, topics.IMU, self._on_imu, imu_qos, callback_group=small)
-        if p['site_source'] == 'navsatfix':
-            self.create_subscription(
-                NavSatFix, topics.FIX, self._on_fix, qos_profile_sensor_data, callback_group=small
+        self._start_common(p, small)
+        self._subscribe_camera(small, images)
+        self.get_logger().info(
+            f'method {self.method}: {topics.method_topics(self.method)["heading_raw"]} from '
+            f'{topics.IMAGE}'
+        )
+
+    def _make_front_end(self) -> None:
+        """Declare the method's knobs and build the front end; warm its kernels up."""
+        p = self.params
+        try:
+            knobs = knob_params(self.method)
+        except CompassError as exc:
+            raise CompassError(f'method {self.method!r}: {exc}') from None
+        self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
+        self.front = HeadingFrontEnd(
+            self.method,
+            knob_values(self.method, self.knob_set.values),
+            layout_from_text(p['polarizer_layout']),
+            p['pol45_toward'],
+            p['demosaic'],
+            p['use_intensity'],
+            p['sky_check'],
+        )
+        try:
+            dt = warm_up(self.front, camera=self._fallback_camera_or_none())
+            self.get_logger().info(f'warm-up (kernel compilation or cache load) took {dt:.2f} s')
+        except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
+            self.get_logger().warning(
+                f'warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow'
             )
+
+    def _subscribe_camera(self, small, images) -> None:
+        """Subscribe to camera_info (small inputs) and the images."""
+        p = self.params
         image_qos = (
             qos_profile_sensor_data if p['image_qos'] == 'sensor_data' else QoSProfile(depth=5)
         )
-        if self.array is not None:
-            self.create_subscription(
-                Float32MultiArray, topics.ARRAY, self._on_array, image_qos, callback_group=images
-            )
-            if p['array_stamp'] == 'header':
-                from .diagnostics import _wall_clock
-                from ..stamp_pairing import StampPairer
-
-                self.pairer = StampPairer(
-                    p['array_header_tolerance_s'], p['array_header_timeout_s']
-                )
-                self._pair_drops_seen: dict = {}
-                # same callback group as the arrays: the pairer is used from one thread only, and a
-                # header and its sample reach their callbacks one after the other (the arrival
-                # times the pairing compares)
-                self.create_subscription(
-                    Header,
-                    topics.ARRAY_HEADER,
-                    self._on_array_header,
-                    image_qos,
-                    callback_group=images,
-                )
-                self.create_timer(
-                    0.05, self._expire_array_pairs, callback_group=images, clock=_wall_clock()
-                )
-            if self.needs_tilt:
-                from .diagnostics import _wall_clock
-
-                self.create_timer(
-                    0.02, self._drain, callback_group=images, clock=_wall_clock()
-                )  # IMU 50+ Hz
-        else:
-            self.create_subscription(
-                CameraInfo,
-                topics.CAMERA_INFO,
-                self._on_camera_info,
-                qos_profile_sensor_data,
-                callback_group=small,
-            )
-            self.create_subscription(
-                Image, topics.IMAGE, self._on_image_msg, image_qos, callback_group=images
-            )
-        self.get_logger().info(
-            f'method {self.method}: {t["heading_raw"]} from '
-            f'{topics.ARRAY if self.array is not None else topics.IMAGE}'
+        self.create_subscription(
+            CameraInfo,
+            topics.CAMERA_INFO,
+            self._on_camera_info,
+            qos_profile_sensor_data,
+            callback_group=small,
+        )
+        self.create_subscription(
+            Image, topics.IMAGE, self._on_image_msg, image_qos, callback_group=images
         )
 
     # parameters ---------------------------------------------------------------------------------
@@ -264,37 +173,15 @@ class HeadingEstimatorNode(Node):
                 self.polarizer.count = 0
             if 'use_intensity' in changed:
                 self.front.intensity = bool(merged['use_intensity'])
-            if {'prior_source', 'prior_max_age_s', 'prior_sigma_deg'} & set(changed):
-                self.tilt_prior.prior_source = merged['prior_source']
-                self.tilt_prior.prior_max_age_s = float(merged['prior_max_age_s'])
-                self.tilt_prior.prior_sigma_deg = float(merged['prior_sigma_deg'])
-            if set(SUN_PARAMS) & set(changed):
-                self.sun = sun_source(merged)
+            self._update_common(changed, merged)
         except CompassError as exc:
             return str(exc)
         return None
-
-    @property
-    def array_input(self) -> bool:
-        return self._array_geometry is not None
-
-    def _make_array(self, values: dict):
-        from ..photodiode.heading import make_array_estimator
-
-        return make_array_estimator(
-            self.method, self._array_geometry, **knob_values(self.method, values, self._knob_specs)
-        )
 
     def _on_knob_change(self, changed: dict):
         if self.front is None:
             return None
         merged = {**self.knob_set.values, **changed}
-        if self.array_input:
-            try:
-                self.array = self._make_array(merged)
-            except (CompassError, ValueError) as exc:
-                return str(exc)
-            return None
         try:
             self.front.set_knobs(knob_values(self.method, merged))
         except (CompassError, ValueError) as exc:
@@ -306,8 +193,8 @@ class HeadingEstimatorNode(Node):
         """
         Validate camera_info intrinsics; a rejected message withdraws the camera in use.
 
-        Validate intrinsics (:func:`~polarization_compass.bag.decode_camera_info`); a rejected
-        message is counted and withdraws the camera in use
+        The intrinsics are checked by :func:`~polarization_compass.bag.decode_camera_info`; a
+        rejected message is counted and withdraws the camera in use
         (:class:`~polarization_compass.pipeline.CameraInfoState`). Its stamp also tells of images
         lost on the way (``image_lost``, :class:`ImageLossWatch`).
         """
@@ -330,32 +217,16 @@ class HeadingEstimatorNode(Node):
             return
         self.camera_info.accept(cam)
 
-    @property
-    def camera_from_info(self) -> CameraModel | None:
-        """Return the accepted camera_info camera, or None (none yet, or rejected)."""
-        try:
-            return self.camera_info.camera()
-        except PipelineError:
-            return None
-
-    def _on_imu(self, msg):
-        q = self.diag.decoded('imu', decode_orientation, msg)
-        if q is not None:
-            self.imu.add(stamp_ns(msg.header), q)
-            self.attitude_uncertainty.update(msg.orientation_covariance)
-
-    def _on_fix(self, msg):
-        site = apply_fix(self.sun, self.diag, msg)
-        if site is not None:
-            self.site_from_fix = site
+    def _on_imu_extra(self, msg) -> None:
+        """Keep the latest IMU's tilt variance (tilt_aware's attitude sigma)."""
+        self.attitude_uncertainty.update(msg.orientation_covariance)
 
     def _fallback_camera_or_none(self) -> CameraModel | None:
         """
         Return the fallback intrinsics at the paper's sensor size for the warm-up.
 
-        For the warm-up: the fallback intrinsics at the paper's sensor size (2448 x 2048, the
-        IMX250MZR's and the simulator's), so that the first image of such a camera finds its caches
-        built.
+        The size is 2448 x 2048 (the IMX250MZR's and the simulator's), so that the first image of
+        such a camera finds its caches built.
         """
         from ..scene import default_scene
 
@@ -455,9 +326,8 @@ class HeadingEstimatorNode(Node):
         """
         Run the worker thread: process queued images.
 
-        The worker thread: process queued images; tilt_aware re-checks waiting ones every 20 ms
-        (the IMU is 50+ Hz). Any exception is counted, never ends the thread (``_process`` already
-        catches them).
+        tilt_aware re-checks waiting ones every 20 ms (the IMU is 50+ Hz). Any exception is
+        counted, never ends the thread (``_process`` already catches them).
         """
         while not self._stop:
             with self._work_cv:
@@ -487,134 +357,6 @@ class HeadingEstimatorNode(Node):
         """Receive and process at once (the synchronous path: tests, direct calls)."""
         if self._receive_image(msg):
             self._drain()
-
-    def _on_array(self, msg):
-        """
-        Decode a photodiode-array sample, stamp it and queue it like an image.
-
-        A photodiode-array sample: decoded against the geometry, stamped by its paired header (or
-        on arrival with array_stamp arrival), then queued like an image.
-        """
-        arrived_ns = time.monotonic_ns()
-        from ..photodiode.readings import array_sample_from_flat, ArrayRecordingError
-
-        t_in = self.diag.input()
-        geometry = self.array.geometry
-
-        def decode(m):
-            try:
-                return array_sample_from_flat(
-                    m.data, [d.size for d in m.layout.dim], m.layout.data_offset, geometry
-                )
-            except ArrayRecordingError as exc:
-                raise MessageError('array_layout', str(exc)) from None
-
-        sample = self.diag.decoded('', decode, msg)
-        if sample is None:
-            if (
-                self.pairer is not None
-            ):  # it still takes its header with it (never the next sample's)
-                self._enqueue_paired(self.pairer.add_array(arrived_ns, arrived_ns / 1e9, None))
-            return
-        if self.pairer is None:
-            t_ns = self.get_clock().now().nanoseconds
-            self.pending.append(
-                (
-                    t_ns,
-                    sample,
-                    None,
-                    None,
-                    t_in,
-                    time.monotonic() + self.params['imu_max_wait_s'],
-                    None,
-                )
-            )
-        else:
-            self._enqueue_paired(
-                self.pairer.add_array(arrived_ns, arrived_ns / 1e9, (sample, t_in))
-            )
-        self._drain()
-
-    def _on_array_header(self, msg):
-        """Keep the companion header of an array sample (array_stamp header)."""
-        arrived_ns = time.monotonic_ns()
-        self._enqueue_paired(
-            self.pairer.add_header(arrived_ns, arrived_ns / 1e9, stamp_ns(msg.stamp), msg.frame_id)
-        )
-        self._drain()
-
-    def _expire_array_pairs(self) -> None:
-        self.pairer.expire(time.monotonic())
-        self._count_pair_drops()
-
-    def _enqueue_paired(self, paired) -> None:
-        """
-        Queue array samples that found their header; count the pairer's drops.
-
-        Queue array samples that found their header; count the pairer's drops in /diagnostics.
-        """
-        for s in paired:
-            if s.payload is None:  # a sample rejected when decoded: already counted
-                continue
-            sample, t_in = s.payload
-            frame_id = s.frame_id or self.params['frame_id']
-            if frame_id.endswith(('_optical_frame', '_optical')):
-                self.diag.reject(
-                    'array_header_optical_frame',
-                    f'header frame_id {frame_id!r} is an optical '
-                    'frame (z forward); the heading needs a z-up frame',
-                )
-                continue
-            self.pending.append(
-                (
-                    s.stamp_ns,
-                    sample,
-                    None,
-                    None,
-                    t_in,
-                    time.monotonic() + self.params['imu_max_wait_s'],
-                    frame_id,
-                )
-            )
-        self._count_pair_drops()
-
-    def _count_pair_drops(self) -> None:
-        for reason, n in self.pairer.drops.items():
-            for _ in range(n - self._pair_drops_seen.get(reason, 0)):
-                self.diag.reject(
-                    f'array_{reason}',
-                    'array sample without its header'
-                    if reason != 'header_without_array'
-                    else 'header without its array sample',
-                )
-            self._pair_drops_seen[reason] = n
-
-    def _drain(self) -> None:
-        """
-        Process waiting images.
-
-        Process waiting images. tilt_aware needs the IMU at the image's stamp: an image newer than
-        the newest IMU sample waits up to imu_max_wait_s (wall) for it, if the IMU stream is live
-        (its newest sample within imu_max_wait_s of the image stamp) and fewer than three images
-        queue.
-        """
-        wait_ns = self.params['imu_max_wait_s'] * 1e9
-        while True:
-            with self._pending_lock:
-                if not self.pending:
-                    return
-                t_ns, _, _, _, _, deadline, _ = self.pending[0]
-                newest = self.imu.newest_ns
-                lagging = newest is not None and t_ns - wait_ns <= newest < t_ns
-                if (
-                    self.needs_tilt
-                    and lagging
-                    and time.monotonic() < deadline
-                    and len(self.pending) <= 2
-                ):
-                    return
-                item = self.pending.popleft()
-            self._process(*item[:5], frame_id=item[6])
 
     def _with_attitude_sigma(self, result, pitch, roll, status: dict):
         """
@@ -652,124 +394,22 @@ class HeadingEstimatorNode(Node):
             },
         )
 
-    def _process(
-        self, t_ns: int, mosaic, width: int, height: int, t_in: float, frame_id: str | None = None
-    ) -> None:
-        p = self.params
-        status = {'stamp_ns': t_ns, 'method': self.method}
-        try:
-            camera = self._camera_for(width, height) if self.array is None else None
-            if p['site_source'] == 'navsatfix' and self.site_from_fix is None:
-                raise PipelineError('no NavSatFix received yet (site_source navsatfix)')
-            if p['time_source'] == 'stamp':
-                sun_az, sun_alt = self.sun.at_ns(t_ns)
-            else:
-                if not p['time_utc']:
-                    raise PipelineError('time_source is parameter but time_utc is empty')
-                from ..bag import ns_from_utc
-                from ..scene import parse_time_utc
+    def _prepare(self, mosaic, width, height) -> CameraModel:
+        """Return the camera of an image of this size (camera_info or the fallback parameters)."""
+        return self._camera_for(width, height)
 
-                sun_az, sun_alt = self.sun.at_ns(ns_from_utc(parse_time_utc(p['time_utc'])))
-            inp = self.tilt_prior.inputs(
-                t_ns, *self.tilt_prior.lookups(self.imu, t_ns, int(p['imu_tolerance_s'] * 1e9))
-            )
-            if inp.tilt_missing:
-                raise PipelineError(
-                    f'no IMU sample within {p["imu_tolerance_s"]:g} s of the image stamp '
-                    f'(newest IMU stamp: {self._newest_imu_text()})'
-                )
-            pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
-            t0 = time.perf_counter()
-            if self.array is not None:
-                result = self._estimate_array(mosaic, sun_az, sun_alt, pitch, roll, prior)
-            else:
-                result = self.front.estimate(mosaic, camera, sun_az, sun_alt, pitch, roll, prior)
-                result = self._with_attitude_sigma(result, pitch, roll, status)
-            result = self.tilt_prior.checked(
-                result, inp
-            )  # heading vs. the IMU prior (a named step)
-            status['estimate_ms'] = round((time.perf_counter() - t0) * 1e3, 3)
-            if self.array is None:
-                self._check_polarizer(mosaic, camera, sun_alt, pitch, roll, status)
-        except (PipelineError, CompassError) as exc:
-            self.get_logger().warning(
-                f'frame {t_ns / 1e9:.3f} s: {exc}', throttle_duration_sec=5.0
-            )
-            status.update(status='bad_input', reason=str(exc), ok=False, published=False)
-            self._publish_status(status)
-            self.diag.done(t_in, t_ns, f'bad_input: {exc}', ok=False)
-            return
-        except Exception as exc:  # noqa: BLE001 - one bad frame must not stop the node
-            self.diag.reject('estimator_exception', f'{type(exc).__name__}: {exc}')
-            status.update(
-                status='estimator_exception',
-                reason=f'{type(exc).__name__}: {exc}',
-                ok=False,
-                published=False,
-            )
-            self._publish_status(status)
-            return
-        status.update(
-            status=result.status.value,
-            reason=result.reason,
-            ok=result.ok,
-            axial=result.axial,
-            bearing_deg=result.bearing_deg,
-            yaw_enu_deg=result.yaw_enu_deg,
-            psi_deg=result.psi_deg,
-            sigma_deg=result.sigma_deg,
-            pixels=result.pixels,
-            quality=result.quality,
-            sun_azimuth_deg=sun_az,
-            sun_altitude_deg=sun_alt,
-            prior_bearing_deg=prior,
-            resolved_by=result.extras.get('ambiguity_resolved_by'),
+    def _estimate(self, camera, mosaic, sun_az, sun_alt, inp, status: dict):
+        """Return the heading of one image: the front end, then the IMU tilt's uncertainty."""
+        pitch, roll = inp.pitch_deg, inp.roll_deg
+        result = self.front.estimate(
+            mosaic, camera, sun_az, sun_alt, pitch, roll, inp.prior_bearing_deg
         )
-        published = False
-        if result.ok and (not result.axial or p['publish_ambiguous']):
-            values = (result.yaw_enu_deg, result.sigma_deg, result.bearing_deg)
-            if all(v is not None and math.isfinite(v) for v in values):
-                sigma = max(float(result.sigma_deg), p['sigma_floor_deg'], 1e-9)
-                self.pub_heading.publish(
-                    heading_imu(
-                        t_ns,
-                        frame_id or p['frame_id'],
-                        math.radians(result.yaw_enu_deg),
-                        math.radians(sigma) ** 2,
-                        p['roll_pitch_variance_rad2'],
-                    )
-                )
-                self.pub_bearing.publish(Float64(data=float(result.bearing_deg)))
-                published = True
-                self.tilt_prior.remember(t_ns, result)
-            else:
-                self.diag.reject(
-                    'non_finite_result', 'the estimator returned a non-finite heading'
-                )
-        status['published'] = published
-        if not published:
-            self.get_logger().warning(
-                f'frame {t_ns / 1e9:.3f} s not published: {result.status.value}: {result.reason}',
-                throttle_duration_sec=5.0,
-            )
-        self._publish_status(status)
-        text = (
-            f'{result.status.value}: bearing {result.bearing_deg:.3f} deg, sigma '
-            f'{result.sigma_deg:.3g} deg'
-            if result.ok
-            else f'{result.status.value}: {result.reason}'
-        )
-        self.diag.extra = {
-            'last_bearing_deg': result.bearing_deg if result.ok else '',
-            'last_sigma_deg': result.sigma_deg if result.ok else '',
-            'sun_altitude_deg': sun_alt,
-        }
-        self.diag.done(t_in, t_ns, text, ok=published)
+        result = self._with_attitude_sigma(result, pitch, roll, status)
+        return self.tilt_prior.checked(result, inp)  # heading vs. the IMU prior (a named step)
 
-    def _estimate_array(self, sample, sun_az, sun_alt, pitch, roll, prior):
-        from ..photodiode.heading import estimate_recording
-
-        return estimate_recording(self.array, sample[None], sun_az, sun_alt, pitch, roll, prior)[0]
+    def _after_estimate(self, camera, mosaic, sun_alt, inp, status: dict) -> None:
+        """Check the polarizer convention every ``polarizer_check_every``-th image."""
+        self._check_polarizer(mosaic, camera, sun_alt, inp.pitch_deg, inp.roll_deg, status)
 
     def _check_polarizer(self, mosaic, camera, sun_alt, pitch, roll, status: dict) -> None:
         """
@@ -800,22 +440,6 @@ class HeadingEstimatorNode(Node):
             self.diag.set_error(self.polarizer.error)
         elif had_error and self.diag.error == had_error:
             self.diag.set_error(None)
-
-    def _newest_imu_text(self) -> str:
-        n = self.imu.newest_ns
-        return 'none' if n is None else f'{n / 1e9:.3f} s'
-
-    def _publish_status(self, status: dict) -> None:
-        self.pub_status.publish(
-            String(data=json.dumps(status, default=_json_default, allow_nan=False))
-        )
-
-
-def _json_default(o):
-    try:
-        return float(o)
-    except (TypeError, ValueError):
-        return str(o)
 
 
 def main(argv=None) -> int:

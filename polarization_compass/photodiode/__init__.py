@@ -15,8 +15,7 @@
 """
 Photodiode-array polarization compasses (POL-OP units).
 
-Photodiode-array polarization compasses (POL-OP units): a few units, each behind 2-4 linear
-polarizers, looking at a known direction of the sky.
+A few units, each behind 2-4 linear polarizers, looking at a known direction of the sky.
 
 - :mod:`.geometry`  the sensor description (YAML) and its validation;
 - :mod:`.readings`  recordings (``.npz`` / CSV: samples x units x channels);

@@ -13,17 +13,16 @@
 # limitations under the License.
 
 """
-Heading from a photodiode array: the least-squares sun of the units' E-vectors.
-
-Heading from a photodiode array: the least-squares sun of the units' E-vectors (paper eqs 18,
-25-27).
+Heading from a photodiode array: the least-squares sun of the units' E-vectors (eqs 18, 25-27).
 
 Each usable unit gives one 3-D E-vector (its measured angle of polarization lifted into the body
 frame by :func:`~..conventions.unit_evector_body`); under single scattering every E-vector is
 perpendicular to the sun, so the sun is the smallest eigenvector of ``M = sum_u w_u e_u e_u^T`` --
-the same solve as the camera's :class:`~..estimators.least_squares.LeastSquaresEstimator`
-(:func:`~..estimators.least_squares.solve_sun`), on a handful of units instead of thousands of
-pixels. The body frame is read as the default-mounted camera's (camera +y = body front,
+the same solve as the camera's :class:`~..estimators.least_squares.LeastSquaresEstimator`, on a
+handful of units instead of thousands of pixels. The steps after the solve (levelling, eigen-gap
+check, the fitted sun near the zenith, the sun's side by its elevation, the brightness gradient's t
+statistic or a prior) are the camera's too: :mod:`~..estimators.sun_from_evectors`. The body frame
+is read as the default-mounted camera's (camera +y = body front,
 :data:`~..conventions.R_BODY_CAM_DEFAULT`), so psi, bearing and REP-103 yaw are those of the body's
 front, and pitch/roll are the paper's (about camera +x = body right, camera +y = body front).
 ``least_squares`` reads the heading in the body frame (level assumption); ``tilt_aware`` levels the
@@ -53,25 +52,20 @@ import math
 import numpy as np
 
 from .stokes import fit_stokes
-from ..conventions import (
-    fold_axial_rad,
-    R_BODY_CAM_DEFAULT,
-    rot_x,
-    rot_y,
-    unit_angle_from_evector_body_rad,
-)
+from ..conventions import fold_axial_rad, R_BODY_CAM_DEFAULT, unit_angle_from_evector_body_rad
 from ..errors import CompassError
 from ..estimators import registry
-from ..estimators._common import (
-    Candidate,
-    check_sun,
-    Knob,
-    psi_from_sun_rad,
-    resolve_ambiguity,
-    result_from,
-)
+from ..estimators._common import check_sun, Knob, result_from
 from ..estimators.base import HeadingResult, Status
-from ..estimators.least_squares import solve_sun
+from ..estimators.sun_from_evectors import (
+    fit_quality,
+    levelling_rotation,
+    pick_side,
+    sensitivity_vectors,
+    solve_checked,
+    sun_frames,
+    unit_brightness_stats,
+)
 
 __all__ = [
     'array_methods',
@@ -148,6 +142,9 @@ ARRAY_KNOBS = {
 }
 
 
+_NEEDS_TILT = 'tilt_aware needs the pitch and roll'
+
+
 class ArrayMethodError(CompassError):
     """A method or knob a photodiode array cannot use."""
 
@@ -159,30 +156,6 @@ class _Sky:
     sun_azimuth_deg: float
     sun_altitude_deg: float
     prior_bearing_deg: float | None = None
-
-
-def _brightness_t(s0, p_cam, direction) -> float | None:
-    """
-    Return the T statistic of the brightness slope along ``direction``.
-
-    t statistic of the slope of unit brightness S0 against ``p . direction`` (None: too few units /
-    flat).
-    """
-    x = p_cam @ direction
-    n = x.size
-    if n < 3:
-        return None
-    xc, yc = x - x.mean(), s0 - s0.mean()
-    sxx = float(xc @ xc)
-    if not sxx > 1e-12:
-        return None
-    slope = float(xc @ yc) / sxx
-    res = yc - slope * xc
-    var = float(res @ res) / (n - 2)
-    se = math.sqrt(var / sxx) if var > 0 else 0.0
-    if se <= abs(slope) * 1e-9:
-        return math.copysign(1e6, slope) if slope != 0 else None
-    return slope / se
 
 
 class ArrayHeadingEstimator:
@@ -273,20 +246,73 @@ class ArrayHeadingEstimator:
         bad = check_sun(self.name, sky, k)
         if bad is not None:
             return bad
-        R_lev = None
-        if pitch_deg is not None and roll_deg is not None:
-            p, r = float(pitch_deg), float(roll_deg)
-            if not (math.isfinite(p) and math.isfinite(r) and abs(p) < 90.0 and abs(r) <= 180.0):
-                return HeadingResult.failed(
-                    self.name,
-                    Status.BAD_INPUT,
-                    f'pitch/roll must be finite, |pitch| < 90: got {p}, {r}',
-                )
-            R_lev = rot_x(math.radians(p)) @ rot_y(math.radians(r))
-        if self.level_with_tilt and R_lev is None:
-            return HeadingResult.failed(
-                self.name, Status.BAD_INPUT, 'tilt_aware needs the pitch and roll'
-            )
+        R_lev = levelling_rotation(
+            self.name, pitch_deg, roll_deg, self.level_with_tilt, _NEEDS_TILT, True
+        )
+        if isinstance(R_lev, HeadingResult):
+            return R_lev
+        u = self._usable_units(aop_rad, dop, s0, valid)
+        if isinstance(u, HeadingResult):
+            return u
+        zero = np.zeros((3, 3))
+        sol = solve_checked(
+            self.name, u.M, zero, zero, False, k['min_eigen_gap'], u.n, "the units' E-vectors"
+        )
+        if isinstance(sol, HeadingResult):
+            return sol
+        lam, U, _ = sol
+        f = sun_frames(self.name, U, R_lev, self.level_with_tilt, k['max_sun_altitude_deg'], u.n)
+        if isinstance(f, HeadingResult):
+            return f
+        resid_rad = self._residuals_rad(u, f.s)
+        misfit_deg = math.degrees(
+            math.sqrt(float(np.sum(u.w * resid_rad**2)) / float(np.sum(u.w)))
+        )
+        sigma_psi, sigma_el = self._sigmas_rad(u, f, lam, U, resid_rad)
+        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k['sigma_floor_deg']), 1e-9)
+        extras = {
+            'units_used': u.n,
+            'misfit_rms_deg': misfit_deg,
+            'unit_residuals_deg': [float(v) for v in np.degrees(resid_rad)],
+            'eigenvalues': [float(v) for v in lam / float(np.trace(u.M))],
+            'sigma_sun_elevation_deg': math.degrees(sigma_el),
+            'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
+        }
+        poor = self._poor_fit(misfit_deg, f.elevation_deg, float(sun_altitude_deg), u.n, extras)
+        if poor is not None:
+            return poor
+        pick, by, reason = pick_side(
+            self.name,
+            f,
+            sigma_el,
+            unit_brightness_stats(u.s0, u.axes_cam),
+            sky,
+            k,
+            'body-frame',
+            min_brightness_samples=3,
+        )
+        extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
+        return result_from(
+            self.name,
+            pick,
+            by,
+            reason,
+            sky,
+            sigma_deg,
+            u.n,
+            0,
+            fit_quality(lam),
+            sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
+            extras=extras,
+        )
+
+    def _usable_units(self, aop_rad, dop, s0, valid):
+        """
+        Select the usable units and build ``M = sum w e e^T`` of their E-vectors.
+
+        Returns the :class:`_Units`, or a ``too_few_units`` result.
+        """
+        k = self.knobs
         aop = np.asarray(aop_rad, dtype=float)
         dop = np.asarray(dop, dtype=float)
         s0 = np.asarray(s0, dtype=float)
@@ -310,79 +336,58 @@ class ArrayHeadingEstimator:
             )
         e_body = self.geometry.evectors_body(aop)[use]
         e = e_body @ R_BODY_CAM_DEFAULT  # camera-equivalent frame, rows
-        pc = self._axes_cam[use]
         w = dop[use] ** 2 if k['weighting'] == 'dop2' else np.ones(n)
         w = w / w.mean()
         M = np.einsum('u,ui,uj->ij', w, e, e)
-        zero = np.zeros((3, 3))
-        lam, U, _ = solve_sun(M, zero, zero, bias_correction=False)
-        if not np.all(np.isfinite(lam)) or lam[2] <= 0.0:
-            return HeadingResult.failed(
-                self.name, Status.DEGENERATE, 'no usable E-vector weight', pixels=n
-            )
-        gap = (lam[1] - lam[0]) / lam[2]
-        if gap <= k['min_eigen_gap']:
-            return HeadingResult.failed(
-                self.name,
-                Status.DEGENERATE,
-                f"the units' E-vectors do not single out a sun direction (eigen gap {gap:.2e})",
-                pixels=n,
-            )
-        s = U[:, 0].copy()
-        R = R_lev if (self.level_with_tilt and R_lev is not None) else np.eye(3)
-        s_h = R @ s
-        rho = math.hypot(s_h[0], s_h[1])
-        if rho < math.cos(math.radians(k['max_sun_altitude_deg'])):
-            return HeadingResult.failed(
-                self.name,
-                Status.SUN_NEAR_ZENITH,
-                f'the fitted sun is {math.degrees(math.acos(min(rho, 1.0))):.2f} deg from '
-                'the zenith: the solar meridian is ill-conditioned',
-                pixels=n,
-            )
-        # angle residuals of each unit against the fitted sun (E = s x p, eq 18), in its own
-        # convention
+        return _Units(use, n, aop[use], s0[use], e, self._axes_cam[use], w, M)
+
+    def _residuals_rad(self, u: '_Units', s) -> np.ndarray:
+        """
+        Return each unit's angle residual [rad] against the fitted sun, in its own convention.
+
+        The model angle is that of ``E = s x p`` (eq 18) for the unit's axis ``p``.
+        """
         s_body = R_BODY_CAM_DEFAULT @ s
         pred = unit_angle_from_evector_body_rad(
-            np.cross(s_body, self.geometry.axes_body()[use]),
-            self._az[use],
-            self._el[use],
+            np.cross(s_body, self.geometry.axes_body()[u.use]),
+            self._az[u.use],
+            self._el[u.use],
             self.geometry.angle_zero,
             self.geometry.angle_sense,
         )
-        resid_rad = fold_axial_rad(aop[use] - pred)
-        misfit_deg = math.degrees(math.sqrt(float(np.sum(w * resid_rad**2)) / float(np.sum(w))))
-        # sensitivities (as in the camera method): d psi / d s, d elevation / d s
-        g_psi = R.T @ (np.array([-s_h[1], s_h[0], 0.0]) / (rho * rho))
-        R_sign = R_lev if R_lev is not None else np.eye(3)
-        s_sign = R_sign @ s
-        rho_s = max(math.hypot(s_sign[0], s_sign[1]), 1e-12)
-        g_el = R_sign.T @ ((np.array([0.0, 0.0, 1.0]) - s_sign[2] * s_sign) / rho_s)
-        d2, d3 = lam[1] - lam[0], lam[2] - lam[0]
-        c_psi = (g_psi @ U[:, 1]) / d2 * U[:, 1] + (g_psi @ U[:, 2]) / d3 * U[:, 2]
-        c_el = (g_el @ U[:, 1]) / d2 * U[:, 1] + (g_el @ U[:, 2]) / d3 * U[:, 2]
-        # a unit's angle error eps turns e about its axis p: d e = eps (p x e), so d(e . s) = eps *
-        # lever
-        lever = np.einsum('ui,i->u', np.cross(pc, e), s)
+        return fold_axial_rad(u.aop - pred)
+
+    def _sigmas_rad(self, u: '_Units', f, lam, U, resid_rad):
+        """
+        Return the 1-sigmas [rad] of psi and of the sun's elevation (module doc).
+
+        A unit's angle error eps turns its E-vector about its axis p: ``d e = eps (p x e)``, so
+        ``d(e . s) = eps * lever``; ``Var(eps_u) = sigma_eps^2 / w_u`` with ``sigma_eps^2`` pooled
+        from the angle residuals and the prior; the sensitivities of
+        :func:`~..estimators.sun_from_evectors.sensitivity_vectors`.
+        """
+        k = self.knobs
+        c_el, c_psi = sensitivity_vectors(f, lam, U)
+        w, e = u.w, u.e
+        lever = np.einsum('ui,i->u', np.cross(u.axes_cam, e), f.s)
         nu0 = k['prior_dof']
-        dof = (n - 2) + nu0
+        dof = (u.n - 2) + nu0
         eps0_sq = math.radians(k['aop_noise_prior_deg']) ** 2
-        # Var(eps_u) = sigma_eps^2 / w_u, sigma_eps^2 pooled from the angle residuals and the prior
         sigma_eps_sq = (float(np.sum(w * resid_rad**2)) + nu0 * eps0_sq) / dof if dof > 0 else 0.0
         infl_psi = w * lever * (e @ c_psi)  # d psi / d eps_u (up to sign)
         infl_el = w * lever * (e @ c_el)
         sigma_psi = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_psi**2 / w)), 0.0))
         sigma_el = math.sqrt(max(sigma_eps_sq * float(np.sum(infl_el**2 / w)), 0.0))
-        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k['sigma_floor_deg']), 1e-9)
-        el_fit = math.degrees(math.asin(min(1.0, abs(float(s_sign[2])))))
-        extras = {
-            'units_used': n,
-            'misfit_rms_deg': misfit_deg,
-            'unit_residuals_deg': [float(v) for v in np.degrees(resid_rad)],
-            'eigenvalues': [float(v) for v in lam / float(np.trace(M))],
-            'sigma_sun_elevation_deg': math.degrees(sigma_el),
-            'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
-        }
+        return sigma_psi, sigma_el
+
+    def _poor_fit(self, misfit_deg: float, el_fit: float, el_ref: float, n: int, extras: dict):
+        """
+        Return a ``poor_fit`` result when the units do not fit one sun at the ephemeris, else None.
+
+        The rms angle residual above ``max_misfit_deg``, or the fitted sun's elevation more than
+        ``max_sun_elevation_diff_deg`` from the ephemeris.
+        """
+        k = self.knobs
         if misfit_deg > k['max_misfit_deg']:
             return HeadingResult.failed(
                 self.name,
@@ -392,7 +397,6 @@ class ArrayHeadingEstimator:
                 pixels=n,
                 **extras,
             )
-        el_ref = float(sun_altitude_deg)
         if abs(el_fit - el_ref) > k['max_sun_elevation_diff_deg']:
             return HeadingResult.failed(
                 self.name,
@@ -402,54 +406,21 @@ class ArrayHeadingEstimator:
                 pixels=n,
                 **extras,
             )
-        cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-        first, second = cands if s_sign[2] >= 0 else cands[::-1]
-        margin_deg = k['sign_margin_sigma'] * math.degrees(sigma_el)
+        return None
 
-        def sun_rule():
-            if R_lev is not None:
-                if el_fit > margin_deg:
-                    return (
-                        first,
-                        f'sun side from the levelled sun elevation ({el_fit:.2f} > '
-                        f'{margin_deg:.2f} deg)',
-                    )
-                return (
-                    None,
-                    f'levelled sun elevation {el_fit:.2f} deg within the {margin_deg:.2f} deg '
-                    'margin',
-                )
-            lim = k['max_tilt_deg'] + margin_deg
-            if el_fit > lim:
-                return first, (
-                    f'sun side from the body-frame sun elevation ({el_fit:.2f} deg > max_tilt_deg '
-                    f'{k["max_tilt_deg"]:g} + {margin_deg:.2f} deg margin)'
-                )
-            return None, (
-                f'body-frame sun elevation {el_fit:.2f} deg <= max_tilt_deg {k["max_tilt_deg"]:g} '
-                '+ margin: '
-                "the sun's side is unknown without the tilt"
-            )
 
-        bt = _brightness_t(s0[use], pc, first.sun_cam - second.sun_cam)
-        pick, by, reason = resolve_ambiguity(self.name, first, second, bt, sky, k, sun_rule)
-        alt = R_sign @ pick.sun_cam
-        implied_alt = math.degrees(math.asin(float(np.clip(alt[2], -1.0, 1.0))))
-        quality = 1.0 - lam[0] / lam[1] if lam[1] > 0 else 0.0
-        extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
-        return result_from(
-            self.name,
-            pick,
-            by,
-            reason,
-            sky,
-            sigma_deg,
-            n,
-            0,
-            quality,
-            sun_altitude_deg=implied_alt,
-            extras=extras,
-        )
+@dataclass
+class _Units:
+    """The usable units of one sample (:meth:`ArrayHeadingEstimator._usable_units`)."""
+
+    use: np.ndarray  # bool (U,): the units used
+    n: int  # how many
+    aop: np.ndarray  # their angles [rad], in the units' convention (n,)
+    s0: np.ndarray  # their brightness (n,)
+    e: np.ndarray  # their E-vectors, camera-equivalent frame, rows (n, 3)
+    axes_cam: np.ndarray  # their viewing axes, camera-equivalent frame, rows (n, 3)
+    w: np.ndarray  # their weights, mean 1 (n,)
+    M: np.ndarray  # sum w e e^T (3, 3)
 
 
 def _method_message(name: str) -> str:

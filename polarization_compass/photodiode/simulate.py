@@ -237,13 +237,11 @@ class ArraySensor:
         brightness: float = 1000.0,
         noise_rel: float = 0.0,
         integrate: bool = True,
-        source=None,
     ):
         self.geometry = geometry
         self.brightness = float(brightness)
         self.noise_rel = float(noise_rel)
         self.integrate = bool(integrate)
-        self._source = source
 
     @staticmethod
     def from_config(cfg) -> 'ArraySensor':
@@ -308,7 +306,7 @@ class ArraySensor:
                 f'photodiode_array.integrate must be true or false, got {integrate!r}'
             )
         b = num('brightness', 1000.0, 1e-9, 1e12)
-        return ArraySensor(geometry, b, num('noise_rel', 0.0, 0.0, 1.0), integrate, source=g)
+        return ArraySensor(geometry, b, num('noise_rel', 0.0, 0.0, 1.0), integrate)
 
     def params(self) -> dict:
         """
@@ -324,27 +322,6 @@ class ArraySensor:
             'units': self.geometry.n_units,
             'angle_zero': self.geometry.angle_zero,
             'angle_sense': self.geometry.angle_sense,
-            'brightness': self.brightness,
-            'noise_rel': self.noise_rel,
-            'integrate': self.integrate,
-        }
-
-    def to_config(self) -> dict:
-        """
-        Return the scene mapping that rebuilds this sensor.
-
-        Returns
-        -------
-        dict
-            ``geometry`` (the path given, or the mapping), ``brightness``, ``noise_rel``,
-            ``integrate``.
-
-        """
-        from .geometry import geometry_to_dict
-
-        src = self._source if isinstance(self._source, str) else geometry_to_dict(self.geometry)
-        return {
-            'geometry': src,
             'brightness': self.brightness,
             'noise_rel': self.noise_rel,
             'integrate': self.integrate,

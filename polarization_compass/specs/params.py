@@ -638,53 +638,6 @@ ESTIMATOR = (
         read_only=True,
     ),
     Param(
-        'input',
-        'image',
-        'image: a polarization camera on camera/image_raw; array: a photodiode-array '
-        'compass on compass_array/intensities (std_msgs/Float32MultiArray, units x channels; '
-        'stamped as array_stamp says; docs/photodiode-arrays.md)',
-        choices=('image', 'array'),
-        read_only=True,
-    ),
-    Param(
-        'array_stamp',
-        'header',
-        'input array: header = each sample takes the stamp and frame_id of the '
-        'std_msgs/Header its driver publishes beside it on compass_array/header '
-        '(paired by arrival time; unpaired samples are dropped and counted); '
-        "arrival = this node's clock when the sample arrives (drivers without a "
-        'header; latency becomes heading lag)',
-        choices=('header', 'arrival'),
-        read_only=True,
-    ),
-    Param(
-        'array_header_tolerance_s',
-        0.04,
-        'array_stamp header: largest difference of the arrival times of '
-        'a sample and its header (keep below half the sample interval)',
-        0.0,
-        1.0,
-        unit='s',
-        read_only=True,
-    ),
-    Param(
-        'array_header_timeout_s',
-        0.5,
-        'array_stamp header: how long a sample waits for its header before '
-        'it is dropped (wall clock)',
-        0.001,
-        60.0,
-        unit='s',
-        read_only=True,
-    ),
-    Param(
-        'array_geometry',
-        '',
-        'input array: the sensor description YAML (units, channels_deg, angle_zero, '
-        'angle_sense, gains)',
-        read_only=True,
-    ),
-    Param(
         'demosaic',
         'superpixel',
         'how the 2x2 mosaic becomes AoP/DoP',
@@ -864,6 +817,81 @@ ESTIMATOR = (
     ),
 )
 
+
+#: Parameters ``array_heading_estimator`` shares with ``heading_estimator`` (same meaning).
+_ARRAY_SHARED = (
+    'frame_id',
+    'site_source',
+    *(p.name for p in SITE),
+    'time_source',
+    'time_utc',
+    'sun_model',
+    'prior_source',
+    'prior_max_age_s',
+    'prior_sigma_deg',
+    'imu_tolerance_s',
+    'imu_max_wait_s',
+    'publish_ambiguous',
+    'sigma_floor_deg',
+    'roll_pitch_variance_rad2',
+)
+
+ARRAY_ESTIMATOR = (
+    Param(
+        'method',
+        'least_squares',
+        "heading method (one node per method; only those that run on a photodiode array's units: "
+        'least_squares, tilt_aware)',
+        choices=ALL_METHODS,
+        read_only=True,
+    ),
+    Param(
+        'array_stamp',
+        'header',
+        'header = each sample takes the stamp and frame_id of the '
+        'std_msgs/Header its driver publishes beside it on compass_array/header '
+        '(paired by arrival time; unpaired samples are dropped and counted); '
+        "arrival = this node's clock when the sample arrives (drivers without a "
+        'header; latency becomes heading lag)',
+        choices=('header', 'arrival'),
+        read_only=True,
+    ),
+    Param(
+        'array_header_tolerance_s',
+        0.04,
+        'array_stamp header: largest difference of the arrival times of '
+        'a sample and its header (keep below half the sample interval)',
+        0.0,
+        1.0,
+        unit='s',
+        read_only=True,
+    ),
+    Param(
+        'array_header_timeout_s',
+        0.5,
+        'array_stamp header: how long a sample waits for its header before '
+        'it is dropped (wall clock)',
+        0.001,
+        60.0,
+        unit='s',
+        read_only=True,
+    ),
+    Param(
+        'array_geometry',
+        '',
+        'the sensor description YAML (units, channels_deg, angle_zero, angle_sense, gains)',
+        read_only=True,
+    ),
+    Param(
+        'array_qos',
+        'sensor_data',
+        'subscription QoS of the samples: sensor_data (REP-2003, best effort) or reliable',
+        choices=('sensor_data', 'reliable'),
+        read_only=True,
+    ),
+    *(p for p in ESTIMATOR if p.name in _ARRAY_SHARED),
+)
+
 CORRECTOR = (
     Param(
         'method',
@@ -1001,6 +1029,7 @@ EVALUATOR = (
 SPECS = {
     'sky_simulator': SIMULATOR,
     'heading_estimator': ESTIMATOR,
+    'array_heading_estimator': ARRAY_ESTIMATOR,
     'tilt_corrector': CORRECTOR,
     'error_evaluator': EVALUATOR,
 }
