@@ -55,7 +55,6 @@ from ..camera import CameraModel, PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg
 
 __all__ = [
-    'brightness_stats',
     'brightness_t_from_stats',
     'view_segments',
     'view_grid_layout',
@@ -809,26 +808,6 @@ class Candidate:
 
     psi_rad: float
     sun_cam: np.ndarray
-
-
-def brightness_stats(intensity, rays) -> np.ndarray:
-    """
-    Return the sufficient statistics of the brightness regression.
-
-    Sufficient statistics of the brightness regression: n, sum I, sum I^2, sum r (3), sum I r (3),
-    sum r r^T (6: 00 01 02 11 12 22), for intensities (n,) and rays (3, n).
-    """
-    inten = np.asarray(intensity, dtype=float)
-    r = np.asarray(rays, dtype=float)
-    rr = r @ r.T
-    return np.concatenate(
-        [
-            [inten.size, inten.sum(), float(inten @ inten)],
-            r.sum(axis=1),
-            r @ inten,
-            [rr[0, 0], rr[0, 1], rr[0, 2], rr[1, 1], rr[1, 2], rr[2, 2]],
-        ]
-    )
 
 
 def brightness_t_from_stats(stats, direction_cam) -> float | None:

@@ -435,39 +435,15 @@ def _mirror_consts(mp):  # pragma: no cover - compiled
 
 
 @njit(inline='always', cache=True)
-def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
-    """
-    Return S at the mirror image of the sensor offset (u, v) mm.
-
-    S at the mirror image of the sensor offset (u, v) mm (constants from :func:`_mirror_consts`).
-    """
-    d = 2.0 * (u * st + v * ct)
-    return _bilinear0(mg, r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc)
-
-
-@njit(inline='always', cache=True)
 def _mirror_pos(st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
     """
     Return the grid position (row, column) of the mirror image of the sensor offset (u, v) mm.
 
-    The position :func:`_mirror_s_mm` reads its grid at (the same arithmetic).
+    The mirror image p' = 2 (p . a) a - p about the axis a = (sin theta, cos theta); constants
+    from :func:`_mirror_consts`.
     """
     d = 2.0 * (u * st + v * ct)
     return r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc
-
-
-@njit(inline='always', cache=True)
-def _mirror_weight(mg, mq, mp, x, y):  # pragma: no cover - compiled
-    """
-    Return the pair weight Q(p) Q(p') of the pixel at sensor position (x, y).
-
-    ``mp``: cx, cy, pitch_x, pitch_y (mm), sin theta, cos theta (the trial axis, from +y_cam
-    towards +x_cam), x0, dx, y0, dy of the Q grid; the reflection acts on the offset from the
-    principal point in millimetres. One field at p and at p': mirror-symmetric about the axis.
-    """
-    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
-    own = _bilinear0(mq, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
-    return own * _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
 
 
 @njit(cache=True, nogil=True)
@@ -475,12 +451,12 @@ def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
     """
     Return the pair weights Q(p) Q(p') of every pixel, or ones without a mirror map.
 
-    Q(p) Q(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg``
-    empty; the passes then weight a pixel by its own DoP^2).
+    Q(p) Q(p') of every pixel, Q bilinear at the pixel and at its mirror image
+    (:func:`_mirror_pos`), or ones without a mirror map (``mg`` empty; the passes then weight a
+    pixel by its own DoP^2).
     """
     out = np.ones(xs.size)
     if mg.shape[0]:
-        # :func:`_mirror_weight` with the constants read once (the same arithmetic per pixel)
         st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
         cx, cy, px, py, x0, dx, y0, dy = mp[0], mp[1], mp[2], mp[3], mp[6], mp[7], mp[8], mp[9]
         for i in range(xs.size):

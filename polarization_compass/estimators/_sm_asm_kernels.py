@@ -168,7 +168,7 @@ def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover 
     Zr = Zi = nrm = cov = 0.0
     n_pair = 0
     for j in range(start, n, step):
-        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        # S(p') and Q(p') at the mirror image (:func:`._mirror._mirror_pos`), one position
         r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
         m, q = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:

@@ -400,7 +400,7 @@ def ring_fit(
     cov = 0.0
     n_pair = 0
     for q in range(start, n, step):
-        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        # S(p') and Q(p') at the mirror image (:func:`._mirror._mirror_pos`), one position
         r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
         m, w = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
