@@ -38,6 +38,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 import math
+from typing import NamedTuple
 
 from numba import njit
 import numpy as np
@@ -55,6 +56,7 @@ __all__ = [
     'taper',
     'aoplm_rad',
     'disc_cells',
+    'DiscRing',
     'level_rss_many',
 ]
 
@@ -141,6 +143,15 @@ def disc_cells(
     rho = np.hypot(r[0], r[1])
     inr = ok & (rho >= rho_lo) & (rho <= rho_max) & (rho > 0.0)
     return float(taper(rho[inr], rho_max, taper_frac).sum())
+
+
+class DiscRing(NamedTuple):
+    """The pixels a disc pass reads: DoP at least ``min_dop``, ray radius in [rho_lo, rho_max]."""
+
+    min_dop: float
+    rho_lo: float  # hypot(r_x, r_y) of the ring's inner edge (0: the whole disc)
+    rho_max: float  # ... of its outer edge, where the taper reaches 0
+    taper_frac: float  # outer part of the disc over which the taper falls to 0
 
 
 # --------------------------------------------------------------------------------------------

@@ -28,16 +28,9 @@ import math
 from numba import njit
 import numpy as np
 
-from ._disc import (
-    _brightness_pass,
-    _exp2i_aoplm,
-    _gather_lanes,
-    _lane_pixel,
-    _level_resid,
-    _taper1,
-    GATHER_CHUNK,
-)
+from ._disc import _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
+from ._pair_gather import gather_chunk, gather_scratch, GATHER_CHUNK, kept_pixel
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
@@ -94,68 +87,38 @@ def band_pass1(
 
 @njit(cache=True, nogil=True)
 def band_gather(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_max,
-    taper_frac,
-    inv4tol2,
-    mg,
-    mq,
-    mp,
-    own_dop2,
-    g_uv,
-    g_val,
+    view, ring, inv4tol2, mirror, own_dop2, g_uv, g_ts, g_val
 ):  # pragma: no cover - compiled
     """
     Gather the disc's valid pixels for SM-ASM with mirror pairs (step 1).
 
-    SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0,
-    compacted: g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p)
-    z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4 tol^2)) taper Q(p) / S(p):
-    the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the mirror image's Q(p') in
-    :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2`` the own factor is
-    DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
+    SM-ASM with mirror pairs, step 1 (:mod:`._pair_gather`): every valid finite pixel of the disc
+    with S(p) > 0, compacted: g_uv[:, j] = offset from the principal point (mm), g_ts[j] = taper
+    S(p), g_val[:, j] = (W S(p) z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4
+    tol^2)) taper Q(p) / S(p): the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the
+    mirror image's Q(p') in :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2``
+    the own factor is DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S).
+    Returns the count.
     """
-    CH = GATHER_CHUNK
-    fl = np.empty(CH, np.int8)
-    tps = np.empty(CH)
-    px = np.empty((6, CH))
+    scratch = gather_scratch()
     n = 0
-    for o in range(0, aop.size, CH):
-        m = min(CH, aop.size - o)
-        _gather_lanes(aop, dop, valid, rays, o, m, min_dop, 0.0, rho_max, taper_frac, fl, tps, px)
-        for u in range(m):
-            # kept: valid, finite, in the disc and S(p) > 0; S(p) and Q(p) from one position
-            if not fl[u] & 1:
-                continue
-            i = o + u
-            s, q_own = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
-            if not s > 0.0:
-                continue
-            tp = tps[u]
-            p, rx, ry, rho, c2a, s2a = px[0, u], px[1, u], px[2, u], px[3, u], px[4, u], px[5, u]
-            g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-            g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+    for o in range(0, view[0].size, GATHER_CHUNK):
+        kept = gather_chunk(view, ring, mirror, own_dop2, o, scratch, g_uv, g_ts, n)
+        for k in range(kept):
+            usable, tp, q, rx, ry, rho, c2a, s2a = kept_pixel(scratch, k)
             W = 0.0
-            if fl[u] & 2:
+            if usable:
                 cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-                q = q_own if not own_dop2 else p * p * s
                 W = math.exp((-cr - 1.0) * inv4tol2) * tp * q
-            g_val[0, n] = tp * s
-            g_val[1, n] = W * (ry * ry - rx * rx)
-            g_val[2, n] = W * 2.0 * rx * ry
-            g_val[3, n] = W * rho * rho
+            g_val[0, n] = W * (ry * ry - rx * rx)
+            g_val[1, n] = W * 2.0 * rx * ry
+            g_val[2, n] = W * rho * rho
             n += 1
     return n
 
 
 @njit(cache=True, nogil=True)
-def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover - compiled
+def band_fit(g_uv, g_ts, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover - compiled
     """
     Fit one trial axis for SM-ASM with mirror pairs (step 2).
 
@@ -173,11 +136,11 @@ def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover 
         m, q = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
             continue
-        cov += g_val[0, j] * m
-        Zr += g_val[1, j] * q
-        Zi += g_val[2, j] * q
-        nrm += g_val[3, j] * q
-        n_pair += 1 if g_val[3, j] * q > 0.0 else 0
+        cov += g_ts[j] * m
+        Zr += g_val[0, j] * q
+        Zi += g_val[1, j] * q
+        nrm += g_val[2, j] * q
+        n_pair += 1 if g_val[2, j] * q > 0.0 else 0
     out[0] = Zr
     out[1] = Zi
     out[2] = nrm

@@ -27,16 +27,9 @@ from __future__ import annotations
 from numba import njit
 import numpy as np
 
-from ._disc import (
-    _brightness_pass,
-    _exp2i_aoplm,
-    _gather_lanes,
-    _lane_pixel,
-    _level_resid,
-    _taper1,
-    GATHER_CHUNK,
-)
+from ._disc import _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
+from ._pair_gather import gather_chunk, gather_scratch, GATHER_CHUNK, kept_pixel
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
@@ -199,63 +192,27 @@ def ring_pass1(
 
 @njit(cache=True, nogil=True)
 def ring_gather(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    mg,
-    mq,
-    mp,
-    own_dop2,
-    g_uv,
-    g_tp,
-    g_v,
-    g_ring,
+    view, ring, n_rings, K, mirror, own_dop2, g_uv, g_tp, g_v, g_ring
 ):  # pragma: no cover - compiled
     """
     Gather the disc's pixels for Symmetry with mirror pairs (step 1).
 
-    Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w
-    S(p) c exp(-i k phi) for k = -K..K with w = taper Q(p) / S(p) (the pair weight's own factor,
-    the mirror image's Q(p') in :func:`ring_fit`; 0 below min_dop), g_ring = ring position
-    (:func:`_ring_t`); with ``own_dop2`` the own factor is DoP(p)^2 S(p) instead (the
-    occlusion-only pair weights, fitted with Q = S). Returns the count.
+    Symmetry with mirror pairs, step 1 (:mod:`._pair_gather`): g_uv = offset from the principal
+    point (mm), g_tp = taper S(p), g_v[k + K] = w S(p) c exp(-i k phi) for k = -K..K with w =
+    taper Q(p) / S(p) (the pair weight's own factor, the mirror image's Q(p') in :func:`ring_fit`;
+    0 below min_dop), g_ring = ring position (:func:`_ring_t`); with ``own_dop2`` the own factor is
+    DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
     """
-    span = max(rho_max - rho_lo, 1e-12)
-    CH = GATHER_CHUNK
-    fl = np.empty(CH, np.int8)
-    tps = np.empty(CH)
-    px = np.empty((6, CH))
+    span = max(ring.rho_max - ring.rho_lo, 1e-12)
+    scratch = gather_scratch()
     n = 0
-    for o in range(0, aop.size, CH):
-        m = min(CH, aop.size - o)
-        _gather_lanes(
-            aop, dop, valid, rays, o, m, min_dop, rho_lo, rho_max, taper_frac, fl, tps, px
-        )
-        for u in range(m):
-            # kept: valid, finite, in the disc and S(p) > 0; S(p) and Q(p) from one position
-            if not fl[u] & 1:
-                continue
-            i = o + u
-            s, q_own = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
-            if not s > 0.0:
-                continue
-            tp = tps[u]
-            p, rx, ry, rho, c2a, s2a = px[0, u], px[1, u], px[2, u], px[3, u], px[4, u], px[5, u]
-            g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-            g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+    for o in range(0, view[0].size, GATHER_CHUNK):
+        kept = gather_chunk(view, ring, mirror, own_dop2, o, scratch, g_uv, g_tp, n)
+        for k in range(kept):
+            usable, tp, q, rx, ry, rho, c2a, s2a = kept_pixel(scratch, k)
             e = complex(ry / rho, -rx / rho)
             c = complex(0.0, 0.0)
-            if fl[u] & 2:
-                q = q_own if not own_dop2 else p * p * s
+            if usable:
                 c = complex(c2a, s2a) * e * e * (tp * q)
             g_v[K, n] = c
             ep = c
@@ -266,8 +223,7 @@ def ring_gather(
                 em = em * ec
                 g_v[K + kk, n] = ep
                 g_v[K - kk, n] = em
-            g_tp[n] = tp * s
-            g_ring[n] = _ring_t(rho, rho_lo, span, n_rings)
+            g_ring[n] = _ring_t(rho, ring.rho_lo, span, n_rings)
             n += 1
     return n
 

@@ -51,7 +51,7 @@ import math
 import numpy as np
 
 from ._common import Knob
-from ._disc import disc_cells
+from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._mirror import AxisFit
@@ -158,33 +158,19 @@ class SmAsmEstimator(DiscEstimator):
 
     def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
-        g_uv = np.empty((2, aop.size))
-        g_val = np.empty((4, aop.size))
-        n = band_gather(
-            aop,
-            dop,
-            valid,
-            rays,
-            xs,
-            ys,
-            k['min_dop'],
-            rho_max,
-            k['taper_fraction'],
-            self._inv4tol2(),
-            mm.grid,
-            mm.weight,
-            mm.params,
-            own_dop2,
-            g_uv,
-            g_val,
-        )
+        N = data[0].size
+        g_uv = np.empty((2, N))
+        g_ts = np.empty(N)
+        g_val = np.empty((3, N))
+        ring = DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+        mirror = (mm.grid, mm.weight, mm.params)
+        n = band_gather(data[:6], ring, self._inv4tol2(), mirror, own_dop2, g_uv, g_ts, g_val)
         disc = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
-        return {'uv': g_uv, 'val': g_val, 'n': n, 'disc': disc}
+        return {'uv': g_uv, 'ts': g_ts, 'val': g_val, 'n': n, 'disc': disc}
 
     def _mirror_fit(self, g, mirror, near, plain, step=1, start=0):
         out = np.zeros(5)
-        band_fit(g['uv'], g['val'], g['n'], start, step, mirror[0], mirror[1], mirror[2], out)
+        band_fit(g['uv'], g['ts'], g['val'], g['n'], start, step, *mirror, out)
         Zr, Zi, norm, cov, n_pair = out
         ax = self._axis(Zr, Zi, norm, plain.n)
         if isinstance(ax, HeadingResult):

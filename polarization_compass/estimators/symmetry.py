@@ -61,7 +61,7 @@ from numba import njit
 import numpy as np
 
 from ._common import Knob
-from ._disc import disc_cells
+from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._mirror import AxisFit
@@ -363,8 +363,7 @@ class SymmetryEstimator(DiscEstimator):
 
     def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
-        N = aop.size
+        N = data[0].size
         K = k['harmonics']
         g = {
             'uv': np.empty((2, N)),
@@ -372,27 +371,10 @@ class SymmetryEstimator(DiscEstimator):
             'v': np.empty((2 * K + 1, N), np.complex128),
             'ring': np.empty(N),
         }
+        ring = DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+        mirror = (mm.grid, mm.weight, mm.params)
         g['n'] = ring_gather(
-            aop,
-            dop,
-            valid,
-            rays,
-            xs,
-            ys,
-            k['min_dop'],
-            rho_lo,
-            rho_max,
-            k['taper_fraction'],
-            k['rings'],
-            K,
-            mm.grid,
-            mm.weight,
-            mm.params,
-            own_dop2,
-            g['uv'],
-            g['tp'],
-            g['v'],
-            g['ring'],
+            data[:6], ring, k['rings'], K, mirror, own_dop2, g['uv'], g['tp'], g['v'], g['ring']
         )
         g['disc'] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
         return g
