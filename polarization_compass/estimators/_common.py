@@ -15,8 +15,8 @@
 """
 Machinery shared by the heading estimators.
 
-Machinery shared by the heading estimators: knob validation, pixel sampling, input checks, the 180
-deg ambiguity resolvers and the data-driven (cluster-robust sandwich) uncertainty.
+Knob validation, pixel sampling, input checks, the 180 deg ambiguity resolvers and the data-driven
+(cluster-robust sandwich) uncertainty.
 
 Nothing here re-derives a convention: frames and angles come from :mod:`..conventions`.
 
@@ -245,11 +245,7 @@ class Samples:
 
 
 def _centred_indices(n: int, step: int) -> np.ndarray:
-    """
-    Return indices every ``step`` along an axis, placed symmetrically about its centre.
-
-    Indices every ``step`` along an axis of length n, placed symmetrically about its centre.
-    """
+    """Return indices every ``step`` along an axis of length n, symmetric about its centre."""
     count = (n - 1) // step + 1
     start = (n - 1 - (count - 1) * step) // 2
     return start + step * np.arange(count)
@@ -279,7 +275,7 @@ def grid_spacing_px(obs: Observation) -> float:
     """
     Return the spacing in sensor pixels between neighbouring columns of an observation.
 
-    Spacing in sensor pixels between neighbouring columns of a 2-D observation (1 for a list).
+    1 for a pixel list.
     """
     x = np.asarray(obs.x_px)
     if x.ndim != 2 or x.shape[1] < 2:
@@ -635,8 +631,8 @@ def view_grid_layout(view: PixelView, block_px: int):
     """
     Return the view's pixels as regular grids for the row-wise compiled pass.
 
-    The view's pixels as regular grids for the row-wise compiled pass
-    (:func:`polarization_compass.estimators._kernels.grid_layout`), or None for a pixel list.
+    :func:`polarization_compass.estimators._kernels.grid_layout` of the view, or None for a pixel
+    list.
     """
     from ._kernels import grid_layout
 
@@ -719,8 +715,7 @@ def psi_from_sun_rad(s_lev) -> float:
     """
     Return psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``.
 
-    psi (rad) of a camera whose levelled frame sees the sun at ``s_lev``: s_lev = Rz(psi) s_sun, so
-    psi = -atan2(s_x, s_y).
+    s_lev = Rz(psi) s_sun, so psi = -atan2(s_x, s_y).
     """
     return -math.atan2(float(s_lev[0]), float(s_lev[1]))
 
@@ -752,7 +747,7 @@ def cr1_factor(n_clusters: int, n: int, n_params: int) -> float:
     """
     Return the CR1 small-sample factor of a cluster-robust variance.
 
-    The CR1 small-sample factor of a cluster-robust variance: ``G / (G - 1) * (n - 1) / (n - k)``
+    ``G / (G - 1) * (n - 1) / (n - k)``
     for ``G = n_clusters`` clusters (blocks), ``n`` observations (pixels) and ``k = n_params``
     parameters; each part is 1 where it is undefined (``G <= 1``, ``n <= k``). Reference: A. C.
     Cameron and D. L. Miller, "A Practitioner's Guide to Cluster-Robust Inference", J. Human

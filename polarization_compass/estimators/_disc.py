@@ -15,12 +15,11 @@
 """
 The sky disc both disc methods (SM-ASM, Symmetry) fit on.
 
-The sky disc both disc methods (SM-ASM, Symmetry) fit on: the AoP relative to the local meridian
-(AOPLM, eqs 29-30) on a disc of sky centred on the zenith pixel, with a smooth radial taper; its
-geometry (:func:`disc_radius`, :func:`disc_selection`, :func:`taper`, :func:`disc_cells`) and the
-compiled per-pixel steps the methods' passes share (:mod:`._sm_asm_kernels`,
-:mod:`._symmetry_kernels`). Mirror pairs for an incomplete disc: :mod:`._mirror`; the estimator
-skeleton: :mod:`._disc_estimator`.
+The AoP relative to the local meridian (AOPLM, eqs 29-30) on a disc of sky centred on the zenith
+pixel, with a smooth radial taper: its geometry (:func:`disc_radius`, :func:`disc_selection`,
+:func:`taper`, :func:`disc_cells`) and the compiled per-pixel steps the methods' passes share
+(:mod:`._sm_asm_kernels`, :mod:`._symmetry_kernels`). Mirror pairs for an incomplete disc:
+:mod:`._mirror`; the estimator skeleton: :mod:`._disc_estimator`.
 
 ``xi`` (eq 30, the angle between +y_cam and the local meridian at a pixel) is computed from the
 pixel's ray, ``xi = atan2(r_x, r_y)``: for the paper's pinhole with square pixels this is eq 30

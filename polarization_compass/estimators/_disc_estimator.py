@@ -15,10 +15,9 @@
 """
 The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`).
 
-The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`): an axis of mirror
-symmetry through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on mirror-pair weights
-about its own axis when part of the disc is unusable (:mod:`._mirror`); the 180 deg ambiguity and
-the cluster-robust uncertainty from the methods' influence passes.
+An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on
+mirror-pair weights about its own axis when part of the disc is unusable (:mod:`._mirror`); the 180
+deg ambiguity and the cluster-robust uncertainty from the methods' influence passes.
 """
 
 from __future__ import annotations
@@ -129,8 +128,8 @@ def cr1_sigma(block_sum, n: int) -> float:
     """
     Return the cluster-robust sigma (rad) from the block sums of the influence.
 
-    Cluster-robust sigma (rad) from the block sums of the influence (rad) over ``n`` pixels: the
-    blocks with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
+    ``block_sum``: the influence (rad) summed over each block, ``n`` pixels in all; the blocks
+    with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
     with two parameters (as the other methods).
     """
     b = np.asarray(block_sum, dtype=float)
@@ -233,8 +232,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Tell whether a self-consistent axis is acceptable beyond coverage and conditioning.
 
-        Whether a self-consistent axis is acceptable beyond coverage and conditioning (default:
-        yes); ``lenient`` for a fit on the scan's subsample.
+        Default: yes. ``lenient`` for a fit on the scan's subsample.
         """
         return True
 
@@ -271,9 +269,8 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Return the mean square AoP residual (rad^2) against the level pattern of each axis.
 
-        Mean square AoP residual (rad^2) against the level Rayleigh pattern of each axis of
-        ``thetas`` (its better end), over every ``step``-th usable pixel: one pixel pass
-        (:func:`._disc.level_rss_many`).
+        For each axis of ``thetas`` the level Rayleigh pattern of its better end, over every
+        ``step``-th usable pixel: one pixel pass (:func:`._disc.level_rss_many`).
         """
         suns = []
         for theta in thetas:

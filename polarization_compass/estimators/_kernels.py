@@ -15,11 +15,8 @@
 """
 Compiled single pass of the least-squares estimators and its pixel-block segments.
 
-Compiled single pass of the least-squares estimators (numba, cached), and the pixel-block segments
-it runs over.
-
-The pass reads the observation as it is (float32 AoP/DoP/rays, bool validity), skips unusable
-pixels without copying, lifts each AoP to its unit E-vector (the lift of
+The pass (numba, cached) reads the observation as it is (float32 AoP/DoP/rays, bool validity),
+skips unusable pixels without copying, lifts each AoP to its unit E-vector (the lift of
 :func:`polarization_compass.conventions.evector_cam_from_aop`, written out inline; tests check both
 agree) and accumulates, per block of pixels, ``M_b = sum w e e^T``, plus frame totals of the
 noise-bias matrices ``B``, ``C`` and the sufficient statistics of the brightness regression.
@@ -130,7 +127,7 @@ def _lift_pixel(a, p, rx, ry, rz, v_in, md, dop_weight):  # pragma: no cover - c
     """
     Lift one pixel of the full pass, branch-free.
 
-    One pixel of the full pass, branch-free: (w, ex, ey, ez, usable, finite) with ``w e e^T`` its
+    Returns (w, ex, ey, ez, usable, finite) with ``w e e^T`` its
     share of M (``e`` unnormalised, ``w`` = DoP^2 or 1 over |e|^2; 0 for an unusable pixel). A
     non-finite value zeroes the pixel's numbers (0 * inf would poison the block sum with NaN).
     """
@@ -158,10 +155,10 @@ def _m_pass(
     aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight, block_m
 ):  # pragma: no cover - compiled
     """
-    Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across).
+    Accumulate per block ``M_b = sum w e e^T`` (float32 within a segment, float64 across).
 
-    Branch-free inner
-    loop without counters (selects; error_model numpy so division is not guarded): it vectorises.
+    Branch-free inner loop without counters (selects; error_model numpy so division is not
+    guarded): it vectorises.
     """
     f0 = np.float32(0.0)
     md = np.float32(min_dop)
@@ -236,12 +233,11 @@ def _m_pass_grid(
     """
     Run :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major grid.
 
-    :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major ``ny`` x ``nx`` grid
-    stored from flat index ``off``: column j is in block column ``col_block[j]``, row r in block
-    row ``row_block[r]`` (non-decreasing). Each pixel's ``w e e^T`` goes into a per-column float32
-    accumulator over the rows of one block row, reduced into ``block_m`` (float64) once per block
-    row: the inner loop runs along a whole row with no per-block reduction, so it vectorises
-    (per-block runs of a few pixels did not).
+    The grid is ``ny`` x ``nx``, stored from flat index ``off``: column j is in block column
+    ``col_block[j]``, row r in block row ``row_block[r]`` (non-decreasing). Each pixel's ``w e
+    e^T`` goes into a per-column float32 accumulator over the rows of one block row, reduced into
+    ``block_m`` (float64) once per block row: the inner loop runs along a whole row with no
+    per-block reduction, so it vectorises (per-block runs of a few pixels did not).
 
     Counts: ``counts[0]`` += usable pixels, ``counts[1]`` += valid pixels whose values are all
     finite (the caller gets the non-finite ones from the valid count). They are per-column float32
@@ -430,8 +426,7 @@ def _reads_every_pixel(n: int, sub_pixels: int) -> bool:
     """
     Tell whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them.
 
-    Whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them
-    (:func:`_run_starts`).
+    The subsample of :func:`_run_starts`.
     """
     return n <= 2 * sub_pixels
 

@@ -15,9 +15,8 @@
 """
 Mirror pairs for an incomplete sky disc and the axis fixed-point solver.
 
-Mirror pairs for an incomplete sky disc, and the fixed-point solver for the axis of symmetry that
-SM-ASM and Symmetry share (see :mod:`._disc` for the disc and :mod:`._disc_estimator` for how the
-methods use it).
+Both belong to the axis fit that SM-ASM and Symmetry share (see :mod:`._disc` for the disc and
+:mod:`._disc_estimator` for how the methods use it).
 
 Incomplete sky (occluders, invalid pixels, a region that cuts the disc)
 -----------------------------------------------------------------------
@@ -350,8 +349,7 @@ def view_covers_disc(view, camera: CameraModel, rho_max: float) -> bool:
     """
     Tell whether a grid view reaches the disc's edge on every side.
 
-    Whether a grid view reaches the disc's edge on every side (pixel lists: only their holes are
-    seen).
+    Always true for a pixel list (only its holes are seen).
     """
     if view.grid is None:
         return True
@@ -499,8 +497,7 @@ class AxisFit:
     """
     One axis fit on (possibly mirror-weighted) pixels.
 
-    ``theta`` rad from +y_cam towards +x_cam
-    (axial).
+    ``theta`` rad from +y_cam towards +x_cam (axial).
     """
 
     theta: float

@@ -15,9 +15,9 @@
 """
 The compiled passes of SM-ASM (:mod:`.sm_asm`).
 
-The compiled passes of SM-ASM (:mod:`.sm_asm`): the band sums of the plain fit (pass 1), the gather
-and per-axis fit on mirror pairs, and the influence pass (pass 2). Shared per-pixel steps:
-:mod:`._disc`; pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and
+The band sums of the plain fit (pass 1), the gather and per-axis fit on mirror pairs, and the
+influence pass (pass 2). Shared per-pixel steps: :mod:`._disc`; the gather's shared part:
+:mod:`._pair_gather`; pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and
 ``_band_terms`` vectorise (``test/test_vecmath.py`` checks their LLVM IR).
 """
 

@@ -15,9 +15,9 @@
 """
 The compiled passes of Symmetry (:mod:`.symmetry`).
 
-The compiled passes of Symmetry (:mod:`.symmetry`): the ring coefficients of the plain fit (pass
-1), the gather and per-axis fit on mirror pairs, and the influence pass (pass 2), in chunks of
-``_RING_CHUNK`` pixels. Shared per-pixel steps: :mod:`._disc`; pair weights: :mod:`._mirror`. The
+The ring coefficients of the plain fit (pass 1), the gather and per-axis fit on mirror pairs, and
+the influence pass (pass 2), in chunks of ``_RING_CHUNK`` pixels. Shared per-pixel steps:
+:mod:`._disc`; the gather's shared part: :mod:`._pair_gather`; pair weights: :mod:`._mirror`. The
 per-pixel loops ``_ring1_terms`` and ``_ring_terms`` vectorise (``test/test_vecmath.py`` checks
 their LLVM IR).
 """
@@ -406,9 +406,8 @@ def _ring_terms(
     Compute the per-pixel Symmetry influence terms and residuals (vectorised).
 
     Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper, or with ``paired`` taper
-    Q(p) Q(p'); 0 if unusable) into cr,
-    ci; xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if
-    unusable); rss[j] += r_j^2.
+    Q(p) Q(p'); 0 if unusable) into cr, ci; xi = atan2(r_x, r_y); tr = ring position in [0,
+    n_rings - 1]; the residuals r_j (0 if unusable); rss[j] += r_j^2.
     """
     span = max(rho_max - rho_lo, 1e-12)
     a0, a1, a2 = s1[0], s1[1], s1[2]

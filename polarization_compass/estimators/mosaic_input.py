@@ -15,11 +15,9 @@
 """
 From a raw division-of-focal-plane mosaic to an :class:`Observation`.
 
-From a raw division-of-focal-plane mosaic to an :class:`Observation`, demosaicing only what a
-method reads.
-
-An estimator's :meth:`pixels_needed` says which sensor pixels it uses; here that becomes the part
-of the mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a private demosaic):
+Only what a method reads is demosaiced: an estimator's :meth:`pixels_needed` says which sensor
+pixels it uses; here that becomes the part of the mosaic to demosaic (with
+:mod:`polarization_compass.demosaic`, never a private demosaic):
 
 - ``superpixel``: one output per 2 x 2 block, at the block centre (``x = x0 + 2 l + 0.5``). A
   strided selection keeps every ``max(1, stride // 2)``-th block row and column (block-aligned, so

@@ -105,11 +105,7 @@ def _newton(b, K, theta, step):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def _climb(Fg, i):  # pragma: no cover - compiled
-    """
-    Return the local maximum of the periodic grid function Fg uphill from index i.
-
-    The local maximum of the periodic grid function Fg reached by walking uphill from index i.
-    """
+    """Return the local maximum of the periodic grid function Fg reached uphill from index i."""
     n = Fg.size
     for _ in range(n):
         up, down = Fg[(i + 1) % n], Fg[(i - 1) % n]
@@ -226,7 +222,7 @@ def _axis_search(a, K, steps, near=None):
     """
     Return the axis from the ring coefficients a (2K+1, rings).
 
-    The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, energy).
+    Returns (theta, F, F2, second-axis score, energy).
 
     Coarse search of F on ``steps`` points over [0, pi), then Newton on F' = 0. ``near`` None: the
     best near-best peak on the meridian side: the meridian carries |AOPLM| = 90 deg along itself (E
