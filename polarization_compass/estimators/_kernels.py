@@ -210,6 +210,41 @@ def _column_sums(acc, cpf, nx, out):  # pragma: no cover - compiled
         out[c, 1] = t1
 
 
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
+def _phase_rows(acc, cpf, nx, odd, cur, prev, odd_m):  # pragma: no cover - compiled
+    """
+    Take the share of the rows since the last reduction of :func:`_m_pass_grid`'s column sums.
+
+    ``cur`` = the column sums so far (:func:`_column_sums`); when those rows were of parity 1
+    (``odd``) their share ``cur - prev`` goes into ``odd_m``; ``prev`` becomes ``cur``.
+    """
+    _column_sums(acc, cpf, nx, cur)
+    if odd:
+        for c in range(6):
+            for q in range(2):
+                odd_m[c, q] += cur[c, q] - prev[c, q]
+    for c in range(6):
+        for q in range(2):
+            prev[c, q] = cur[c, q]
+
+
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
+def _block_row_sums(acc, nx, col_block, b0, block_m, n_ok, n_fin):  # pragma: no cover - compiled
+    """
+    Add one block row's per-column sums into ``block_m`` (from block ``b0``) and the counts.
+
+    The same reduction order into ``block_m`` as without the phases; returns (n_ok, n_fin) plus
+    the block row's usable and finite counts.
+    """
+    for j in range(nx):
+        bk = b0 + col_block[j]
+        for c in range(6):
+            block_m[bk, c] += acc[c, j]
+        n_ok += acc[6, j]
+        n_fin += acc[7, j]
+    return n_ok, n_fin
+
+
 @njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
 def _m_pass_grid(
     aop,
@@ -318,25 +353,12 @@ def _m_pass_grid(
             r += 1
             last = r >= ny or row_block[r] != br
             if last or (mixed and (odd or row_par[r] == 1)):  # before or after a parity-1 row
-                _column_sums(acc, cpf, nx, cur)
-                if odd:
-                    for c in range(6):
-                        for q in range(2):
-                            odd_m[c, q] += cur[c, q] - prev[c, q]
-                for c in range(6):
-                    for q in range(2):
-                        prev[c, q] = cur[c, q]
+                _phase_rows(acc, cpf, nx, odd, cur, prev, odd_m)
         for c in range(6):  # prev: the block row's totals
             for q in range(2):
                 phase_m[2 + q, c] += odd_m[c, q]
                 phase_m[q, c] += prev[c, q] - odd_m[c, q]
-        b0 = br * n_block_cols
-        for j in range(nx):  # as without the phases: the same reduction order into block_m
-            bk = b0 + col_block[j]
-            for c in range(6):
-                block_m[bk, c] += acc[c, j]
-            n_ok += acc[6, j]
-            n_fin += acc[7, j]
+        n_ok, n_fin = _block_row_sums(acc, nx, col_block, br * n_block_cols, block_m, n_ok, n_fin)
     counts[0] += np.int64(n_ok)
     counts[1] += np.int64(n_fin)
 
