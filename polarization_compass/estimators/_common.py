@@ -15,8 +15,9 @@
 """
 Machinery shared by the heading estimators.
 
-Knob validation, pixel sampling, input checks, the 180 deg ambiguity resolvers and the data-driven
-(cluster-robust sandwich) uncertainty.
+The Rayleigh geometry helpers, the data-driven (cluster-robust sandwich) uncertainty, the 180 deg
+ambiguity resolvers and the result. The knobs (:mod:`._knobs`) and the pixel views and input checks
+(:mod:`._views`) have modules of their own; their names are importable from here too.
 
 Nothing here re-derives a convention: frames and angles come from :mod:`..conventions`.
 

@@ -155,7 +155,7 @@ class DiscRing(NamedTuple):
 
 # --------------------------------------------------------------------------------------------
 # Compiled per-pixel steps (one loop over the view's pixels per pass; blocks via segments, see
-# _common.view_segments)
+# _views.view_segments)
 #
 # Pass 1 (the plain fit) also counts: cnt = (usable, valid, valid non-finite, unusable pixels
 # inside the disc). With unusable pixels, a gather pass compacts the invariant per-pixel terms of

@@ -27,22 +27,16 @@ import math
 import numpy as np
 
 from ._common import (
-    _BadInput,
     brightness_t_from_stats,
     Candidate,
-    check_sun,
     cr1_factor,
     finish_sigma_deg,
-    Knob,
-    KnobbedEstimator,
     level_sun_candidates,
     resolve_ambiguity,
     result_from,
-    select_view,
-    selection_for,
-    view_segments,
 )
 from ._disc import _block_sums, disc_radius, disc_selection, level_rss_many
+from ._knobs import Knob, KnobbedEstimator
 from ._mirror import (
     AxisFit,
     MIN_CONDITIONING,
@@ -52,6 +46,7 @@ from ._mirror import (
     solve_axes,
     view_covers_disc,
 )
+from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import fold_axial_rad_float
@@ -208,7 +203,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Run pass 2: block sums of the influence against both candidate suns, residual sums.
 
-        (block sums (2, n_blocks) over the segments ``segs`` of :func:`._common.view_segments`,
+        (block sums (2, n_blocks) over the segments ``segs`` of :func:`._views.view_segments`,
         rss (2,)) from the per-pixel terms of :meth:`_influence_terms`.
         """
         t0, t1, rss = self._influence_terms(data, rho_lo, rho_max, mirror, fit, s1, s2)

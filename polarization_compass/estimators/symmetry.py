@@ -60,7 +60,7 @@ import math
 from numba import njit
 import numpy as np
 
-from ._common import Knob
+from ._knobs import Knob
 from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS

@@ -58,22 +58,18 @@ from numba import njit
 import numpy as np
 
 from ._common import (
-    _BadInput,
     axial_residual_rad,
-    check_sun,
     cluster_sigma_rad,
     finish_sigma_deg,
-    Knob,
-    KnobbedEstimator,
     level_sun_candidates,
     psi_from_sun_rad,
     rayleigh_aop_rad,
     resolve_ambiguity,
     result_from,
-    samples_from_view,
-    select_view,
 )
 from ._kernels import acc_brightness, acc_sym, N_STATS
+from ._knobs import Knob, KnobbedEstimator
+from ._views import _BadInput, check_sun, samples_from_view, select_view
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 
@@ -128,7 +124,7 @@ def _window_sums(
     Accumulate the window's usable pixels into the lifted E-vector matrix.
 
     Usable: valid, every value finite, DoP >= min_dop (the mask of
-    :func:`._common.samples_from_view`). m += upper triangle of sum e e^T of the unit lifted
+    :func:`._views.samples_from_view`). m += upper triangle of sum e e^T of the unit lifted
     E-vectors (:func:`polarization_compass.conventions.evector_cam_from_aop`, float64), cnt =
     (usable, valid with a non-finite value, valid), trig += (sum cos 2a, sum sin 2a), brightness
     statistics into ``stats`` (``cnt[3]`` = 1 when a usable pixel's intensity is not finite: then
