@@ -30,7 +30,7 @@ import numpy as np
 
 from ._disc import _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
-from ._pair_gather import gather_chunk, gather_scratch, GATHER_CHUNK, kept_pixel
+from ._pair_gather import GATHER_CHUNK, gather_chunk, gather_scratch, kept_pixel
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
