@@ -70,7 +70,7 @@ def _band_sums(
 
 @njit(cache=True, nogil=True)
 def band_pass1(
-    aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt, stats
+    view, inten, has_i, ring, inv4tol2, out, cnt, stats
 ):  # pragma: no cover - compiled
     """
     Run the SM-ASM first pass: the weighted sum Z of the pixels' z^2 and the counts.
@@ -78,11 +78,14 @@ def band_pass1(
     SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4
     tol^2)) DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc); with
     ``has_i`` the brightness statistics of the usable pixels into ``stats`` (a second, scalar
-    loop).
+    loop). ``view``: (aop, dop, valid, rays, xs, ys); ``ring``: :class:`._disc.DiscRing` (the
+    whole disc: its ``rho_lo`` is not read).
     """
-    _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt)
+    aop, dop, valid, rays, _, _ = view
+    md, rho_max = ring.min_dop, ring.rho_max
+    _band_sums(aop, dop, valid, rays, md, rho_max, ring.taper_frac, inv4tol2, out, cnt)
     if has_i:
-        _brightness_pass(aop, dop, valid, rays, inten, min_dop, 0.0, rho_max, stats)
+        _brightness_pass(aop, dop, valid, rays, inten, md, 0.0, rho_max, stats)
 
 
 @njit(cache=True, nogil=True)
@@ -204,48 +207,32 @@ def _band_terms(
 
 @njit(cache=True, nogil=True)
 def band_terms2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_max,
-    taper_frac,
-    inv4tol2,
-    mg,
-    mq,
-    mp,
-    Zr,
-    Zi,
-    s1,
-    s2,
-    t0,
-    t1,
-    rss,
+    view, ring, inv4tol2, mirror, Z, suns, t0, t1, rss
 ):  # pragma: no cover - compiled
     """
     Compute the per-pixel terms of the SM-ASM influence pass (before the block sums).
 
-    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns; rss[j] +=
-    residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else DoP(p)^2); one vectorised
-    loop (:mod:`polarization_compass.fastmath`). The block sums (:func:`._disc._block_sums`) can
-    then be taken over any blocks of the same pixel order.
+    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns ``suns`` = (s1,
+    s2); rss[j] += residual_j^2 (pair weights Q(p) Q(p') from ``mirror`` = (mg, mq, mp) when
+    ``mg`` is not empty, else DoP(p)^2); ``Z`` = (Re Z, Im Z) of the fit. One vectorised loop
+    (:mod:`polarization_compass.fastmath`). The block sums (:func:`._disc._block_sums`) can then
+    be taken over any blocks of the same pixel order.
     """
+    aop, dop, valid, rays, xs, ys = view
+    mg, mq, mp = mirror
     _band_terms(
         aop,
         dop,
         valid,
         rays,
-        min_dop,
-        rho_max,
-        taper_frac,
+        ring.min_dop,
+        ring.rho_max,
+        ring.taper_frac,
         inv4tol2,
-        Zr,
-        Zi,
-        s1,
-        s2,
+        Z[0],
+        Z[1],
+        suns[0],
+        suns[1],
         _pair_weights(mg, mq, mp, xs, ys),
         mg.shape[0] > 0,
         t0,

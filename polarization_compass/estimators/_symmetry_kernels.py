@@ -131,29 +131,19 @@ def _ring1_terms(
 
 @njit(cache=True, nogil=True, error_model='numpy')
 def ring_pass1(
-    aop,
-    dop,
-    valid,
-    rays,
-    inten,
-    has_i,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    a_out,
-    cnt,
-    stats,
+    view, inten, has_i, ring, n_rings, K, a_out, cnt, stats
 ):  # pragma: no cover - compiled
     """
     Run the Symmetry first pass: the ring coefficients of the AoP harmonics.
 
     Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM), w =
-    DoP^2 taper, linear split between neighbouring rings; cnt and stats as :func:`band_pass1`. In
-    chunks: the per-pixel terms (vectorised), then the scatter into the rings (scalar).
+    DoP^2 taper, linear split between neighbouring rings; cnt and stats as
+    :func:`._sm_asm_kernels.band_pass1`. In chunks: the per-pixel terms (vectorised), then the
+    scatter into the rings (scalar). ``view``: (aop, dop, valid, rays, xs, ys); ``ring``:
+    :class:`._disc.DiscRing`.
     """
+    aop, dop, valid, rays, _, _ = view
+    min_dop, rho_lo, rho_max, taper_frac = ring
     CH = _RING_CHUNK
     cr = np.empty(CH)
     ci = np.empty(CH)
@@ -465,40 +455,22 @@ def _ring_harmonic(
 
 @njit(cache=True, nogil=True, error_model='numpy')
 def ring_terms2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    mg,
-    mq,
-    mp,
-    a_in,
-    rot,
-    F2,
-    s1,
-    s2,
-    t0,
-    t1,
-    rss,
+    view, ring, n_rings, K, mirror, a_in, rot, F2, suns, t0, t1, rss
 ):  # pragma: no cover - compiled
     """
     Compute the per-pixel terms of the Symmetry influence pass (before the block sums).
 
-    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns, d theta / d a_i =
-    -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k:
-    a_k interpolated at the pixel's ring); rss[j] += residual_j^2 (pair weights as
-    :func:`._sm_asm_kernels.band_terms2`). In chunks: the per-pixel terms (vectorised), one loop
-    per harmonic. The block sums (:func:`._disc._block_sums`) can then be taken over any blocks of
-    the same pixel order.
+    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns ``suns`` = (s1,
+    s2), d theta / d a_i = -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i
+    c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's ring); rss[j] += residual_j^2 (pair
+    weights as :func:`._sm_asm_kernels.band_terms2`). In chunks: the per-pixel terms
+    (vectorised), one loop per harmonic. The block sums (:func:`._disc._block_sums`) can then be
+    taken over any blocks of the same pixel order.
     """
+    aop, dop, valid, rays, xs, ys = view
+    min_dop, rho_lo, rho_max, taper_frac = ring
+    mg, mq, mp = mirror
+    s1, s2 = suns
     N = aop.size
     wm = _pair_weights(mg, mq, mp, xs, ys)
     paired = mg.shape[0] > 0

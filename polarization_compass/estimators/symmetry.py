@@ -327,25 +327,23 @@ class SymmetryEstimator(DiscEstimator):
             theta, base.n, n_pair, base.nonfinite, base.holes, coverage, base.stats, quality, state
         )
 
+    def _ring(self, rho_lo, rho_max):
+        k = self.knobs
+        return DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+
     def _fit(self, data, rho_lo, rho_max):
         k = self.knobs
-        aop, dop, valid, rays, _, _, inten = data
+        inten = data[6]
         has_i = inten is not None
         K, NR = k['harmonics'], k['rings']
         a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
         cnt = np.zeros(4, np.int64)
         stats = np.zeros(N_STATS)
         ring_pass1(
-            aop,
-            dop,
-            valid,
-            rays,
+            data[:6],
             inten if has_i else np.zeros(1, np.float32),
             has_i,
-            k['min_dop'],
-            rho_lo,
-            rho_max,
-            k['taper_fraction'],
+            self._ring(rho_lo, rho_max),
             NR,
             K,
             a,
@@ -367,7 +365,7 @@ class SymmetryEstimator(DiscEstimator):
             'v': np.empty((2 * K + 1, N), np.complex128),
             'ring': np.empty(N),
         }
-        ring = DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+        ring = self._ring(rho_lo, rho_max)
         mirror = (mm.grid, mm.weight, mm.params)
         g['n'] = ring_gather(
             data[:6], ring, k['rings'], K, mirror, own_dop2, g['uv'], g['tp'], g['v'], g['ring']
@@ -408,35 +406,24 @@ class SymmetryEstimator(DiscEstimator):
 
     def _influence_terms(self, data, rho_lo, rho_max, mirror, fit, s1, s2):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
+        N = data[0].size
         K, NR = k['harmonics'], k['rings']
-        t0 = np.zeros(aop.size)
-        t1 = np.zeros(aop.size)
+        t0 = np.zeros(N)
+        t1 = np.zeros(N)
         rss = np.zeros(2)
         F2 = fit.state['F2']
         if F2 < 0.0:
             rot = np.exp(2j * np.arange(-K, K + 1) * fit.theta)
             ring_terms2(
-                aop,
-                dop,
-                valid,
-                rays,
-                xs,
-                ys,
-                k['min_dop'],
-                rho_lo,
-                rho_max,
-                k['taper_fraction'],
+                data[:6],
+                self._ring(rho_lo, rho_max),
                 NR,
                 K,
-                mirror[0],
-                mirror[1],
-                mirror[2],
+                tuple(mirror),
                 fit.state['a'],
                 rot,
                 F2,
-                s1,
-                s2,
+                (s1, s2),
                 t0,
                 t1,
                 rss,
