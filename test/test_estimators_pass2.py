@@ -26,8 +26,9 @@ import math
 
 import numpy as np
 from polarization_compass.estimators._common import axial_residual_rad, rayleigh_aop_rad
-from polarization_compass.estimators._disc import taper
+from polarization_compass.estimators._disc import DiscRing, taper
 from polarization_compass.estimators._disc_estimator import _blocks
+from polarization_compass.estimators._mirror import NO_MIRROR
 from polarization_compass.estimators._sm_asm_kernels import band_terms2
 from polarization_compass.estimators._symmetry_kernels import ring_pass1, ring_terms2
 import pytest
@@ -83,7 +84,8 @@ def _own_blocks():
 
 def _pass2(terms2, args, segs, n_blocks):
     """Run pass 2 as the estimators do: the per-pixel terms, then the block sums over ``segs``."""
-    t0, t1, rss = np.empty(args[0].size), np.empty(args[0].size), np.zeros(2)
+    n = args[0][0].size  # args[0]: the view (aop, dop, valid, rays, xs, ys)
+    t0, t1, rss = np.empty(n), np.empty(n), np.zeros(2)
     terms2(*args, t0, t1, rss)
     return _blocks(t0, t1, (*segs, n_blocks)), rss
 
@@ -142,22 +144,12 @@ def test_sm_asm_pass2_is_the_derivative_of_the_sm_asm_axis(seed):
     block_sum, rss = _pass2(
         band_terms2,
         (
-            aop,
-            dop,
-            valid,
-            rays,
-            r[0].copy(),
-            r[1].copy(),
-            MIN_DOP,
-            RHO_MAX,
-            TAPER,
+            (aop, dop, valid, rays, r[0].copy(), r[1].copy()),
+            DiscRing(MIN_DOP, 0.0, RHO_MAX, TAPER),
             inv4tol2,
-            np.zeros((0, 0)),
-            np.zeros((0, 0)),
-            np.zeros(10),
-            z0.real,
-            z0.imag,
-            *SUNS,
+            NO_MIRROR,
+            (z0.real, z0.imag),
+            SUNS,
         ),
         _own_blocks(),
         N,
@@ -181,16 +173,10 @@ def test_symmetry_pass2_is_the_derivative_of_the_symmetry_axis(K):
     def coeffs(a):
         out = np.zeros((2 * K + 1, n_rings), np.complex128)
         ring_pass1(
-            a,
-            dop,
-            valid,
-            rays,
+            (a, dop, valid, rays, np.zeros(N), np.zeros(N)),
             np.zeros(1, np.float32),
             False,
-            MIN_DOP,
-            rho_lo,
-            RHO_MAX,
-            TAPER,
+            DiscRing(MIN_DOP, rho_lo, RHO_MAX, TAPER),
             n_rings,
             K,
             out,
@@ -213,25 +199,15 @@ def test_symmetry_pass2_is_the_derivative_of_the_symmetry_axis(K):
     block_sum, rss = _pass2(
         ring_terms2,
         (
-            aop,
-            dop,
-            valid,
-            rays,
-            np.zeros(N),
-            np.zeros(N),
-            MIN_DOP,
-            rho_lo,
-            RHO_MAX,
-            TAPER,
+            (aop, dop, valid, rays, np.zeros(N), np.zeros(N)),
+            DiscRing(MIN_DOP, rho_lo, RHO_MAX, TAPER),
             n_rings,
             K,
-            np.zeros((0, 0)),
-            np.zeros((0, 0)),
-            np.zeros(10),
+            NO_MIRROR,
             coeffs(aop),
             np.exp(2j * ks * theta),
             F2,
-            *SUNS,
+            SUNS,
         ),
         _own_blocks(),
         N,
@@ -271,25 +247,15 @@ def test_pass2_chunks_and_blocks_add_up():
         return _pass2(
             ring_terms2,
             (
-                aop,
-                dop,
-                valid,
-                rays,
-                np.zeros(n),
-                np.zeros(n),
-                0.05,
-                0.03,
-                0.6,
-                0.2,
+                (aop, dop, valid, rays, np.zeros(n), np.zeros(n)),
+                DiscRing(0.05, 0.03, 0.6, 0.2),
                 6,
                 2,
-                np.zeros((0, 0)),
-                np.zeros((0, 0)),
-                np.zeros(10),
+                NO_MIRROR,
                 a,
                 np.exp(2j * np.arange(-2, 3) * 0.3),
                 -5.0,
-                *SUNS,
+                SUNS,
             ),
             seg,
             n,

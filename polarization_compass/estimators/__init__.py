@@ -21,7 +21,7 @@ The methods are listed by :mod:`.registry`;
 """
 
 from . import registry  # noqa: F401
-from ._common import Knob  # noqa: F401  (a plug-in method describes its knobs with it)
+from ._knobs import Knob  # noqa: F401  (a plug-in method describes its knobs with it)
 from .base import EstimatorError, HeadingResult, Observation, Status  # noqa: F401
 from .registry import knob_names as estimator_knob_names  # noqa: F401
 from .registry import make as make_estimator  # noqa: F401

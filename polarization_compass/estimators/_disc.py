@@ -15,12 +15,11 @@
 """
 The sky disc both disc methods (SM-ASM, Symmetry) fit on.
 
-The sky disc both disc methods (SM-ASM, Symmetry) fit on: the AoP relative to the local meridian
-(AOPLM, eqs 29-30) on a disc of sky centred on the zenith pixel, with a smooth radial taper; its
-geometry (:func:`disc_radius`, :func:`disc_selection`, :func:`taper`, :func:`disc_cells`) and the
-compiled per-pixel steps the methods' passes share (:mod:`._sm_asm_kernels`,
-:mod:`._symmetry_kernels`). Mirror pairs for an incomplete disc: :mod:`._mirror`; the estimator
-skeleton: :mod:`._disc_estimator`.
+The AoP relative to the local meridian (AOPLM, eqs 29-30) on a disc of sky centred on the zenith
+pixel, with a smooth radial taper: its geometry (:func:`disc_radius`, :func:`disc_selection`,
+:func:`taper`, :func:`disc_cells`) and the compiled per-pixel steps the methods' passes share
+(:mod:`._sm_asm_kernels`, :mod:`._symmetry_kernels`). Mirror pairs for an incomplete disc:
+:mod:`._mirror`; the estimator skeleton: :mod:`._disc_estimator`.
 
 ``xi`` (eq 30, the angle between +y_cam and the local meridian at a pixel) is computed from the
 pixel's ray, ``xi = atan2(r_x, r_y)``: for the paper's pinhole with square pixels this is eq 30
@@ -38,6 +37,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 import math
+from typing import NamedTuple
 
 from numba import njit
 import numpy as np
@@ -55,7 +55,7 @@ __all__ = [
     'taper',
     'aoplm_rad',
     'disc_cells',
-    'level_rss',
+    'DiscRing',
     'level_rss_many',
 ]
 
@@ -144,9 +144,18 @@ def disc_cells(
     return float(taper(rho[inr], rho_max, taper_frac).sum())
 
 
+class DiscRing(NamedTuple):
+    """The pixels a disc pass reads: DoP at least ``min_dop``, ray radius in [rho_lo, rho_max]."""
+
+    min_dop: float
+    rho_lo: float  # hypot(r_x, r_y) of the ring's inner edge (0: the whole disc)
+    rho_max: float  # ... of its outer edge, where the taper reaches 0
+    taper_frac: float  # outer part of the disc over which the taper falls to 0
+
+
 # --------------------------------------------------------------------------------------------
 # Compiled per-pixel steps (one loop over the view's pixels per pass; blocks via segments, see
-# _common.view_segments)
+# _views.view_segments)
 #
 # Pass 1 (the plain fit) also counts: cnt = (usable, valid, valid non-finite, unusable pixels
 # inside the disc). With unusable pixels, a gather pass compacts the invariant per-pixel terms of
@@ -297,38 +306,15 @@ def _block_sums(t0, t1, seg_start, seg_end, seg_block, block_sum):  # pragma: no
         block_sum[1, seg_block[k]] += v
 
 
-@njit(cache=True, nogil=True)
-def level_rss(
-    aop, dop, valid, rays, min_dop, rho_lo, rho_max, s1, s2, step, rss
-):  # pragma: no cover - compiled
-    """
-    Accumulate the squared AoP residuals against the level Rayleigh pattern.
-
-    rss[j] += squared AoP residual against the level Rayleigh pattern of sun s_j over every
-    ``step``-th pixel (rss[2] += 1 for each usable one).
-    """
-    for i in range(0, aop.size, step):
-        ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
-            aop, dop, valid, rays, i, min_dop, rho_lo, rho_max
-        )
-        if not ok:
-            continue
-        r1 = _level_resid(c2a, s2a, rx, ry, rz, s1[0], s1[1], s1[2])
-        r2 = _level_resid(c2a, s2a, rx, ry, rz, s2[0], s2[1], s2[2])
-        rss[0] += r1 * r1
-        rss[1] += r2 * r2
-        rss[2] += 1.0
-
-
 @njit(cache=True, nogil=True, fastmath=_FMV, error_model='numpy')
 def _level_rss2(
     aop, dop, valid, rays, min_dop, rho_lo, rho_max, a0, a1, a2, b0, b1, b2, step, out
 ):  # pragma: no cover - compiled
     """
-    Accumulate :func:`level_rss` for two suns a, b (vectorised; unusable pixels add zero).
+    Accumulate the squared AoP residuals against the level Rayleigh patterns of two suns a, b.
 
-    out[0|1] += squared AoP residual against sun a|b, out[2] += 1, over every ``step``-th usable
-    pixel; the same residuals as :func:`level_rss` up to the rounding of fast-math sums.
+    out[0|1] += squared AoP residual (:func:`_level_resid`) against sun a|b, out[2] += 1, over
+    every ``step``-th usable pixel; vectorised (fast-math sums), an unusable pixel adds zero.
     """
     q0 = q1 = cnt = 0.0
     for i in range(0, aop.size, step):
@@ -354,9 +340,9 @@ def level_rss_many(
     """
     Accumulate the squared AoP residuals against several level Rayleigh patterns.
 
-    :func:`level_rss` for every pair of suns of ``suns`` (m, 3), m even: rss[j] += squared AoP
-    residual against sun j over every ``step``-th usable pixel, rss[m] += 1 for each; one
-    vectorised pass per pair (:func:`_level_rss2`).
+    For ``suns`` (m, 3), m even: rss[j] += squared AoP residual against sun j over every
+    ``step``-th usable pixel, rss[m] += 1 for each; one vectorised pass per pair of suns
+    (:func:`_level_rss2`).
     """
     m = suns.shape[0]
     out = np.zeros(3)

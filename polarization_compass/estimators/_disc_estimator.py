@@ -15,10 +15,9 @@
 """
 The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`).
 
-The estimator skeleton SM-ASM and Symmetry run on (:class:`DiscEstimator`): an axis of mirror
-symmetry through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on mirror-pair weights
-about its own axis when part of the disc is unusable (:mod:`._mirror`); the 180 deg ambiguity and
-the cluster-robust uncertainty from the methods' influence passes.
+An axis of mirror symmetry through the zenith pixel, fitted on the sky disc (:mod:`._disc`); on
+mirror-pair weights about its own axis when part of the disc is unusable (:mod:`._mirror`); the 180
+deg ambiguity and the cluster-robust uncertainty from the methods' influence passes.
 """
 
 from __future__ import annotations
@@ -28,22 +27,16 @@ import math
 import numpy as np
 
 from ._common import (
-    _BadInput,
     brightness_t_from_stats,
     Candidate,
-    check_sun,
     cr1_factor,
     finish_sigma_deg,
-    Knob,
-    KnobbedEstimator,
     level_sun_candidates,
     resolve_ambiguity,
     result_from,
-    select_view,
-    selection_for,
-    view_segments,
 )
 from ._disc import _block_sums, disc_radius, disc_selection, level_rss_many
+from ._knobs import Knob, KnobbedEstimator
 from ._mirror import (
     AxisFit,
     MIN_CONDITIONING,
@@ -53,6 +46,7 @@ from ._mirror import (
     solve_axes,
     view_covers_disc,
 )
+from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import fold_axial_rad_float
@@ -129,8 +123,8 @@ def cr1_sigma(block_sum, n: int) -> float:
     """
     Return the cluster-robust sigma (rad) from the block sums of the influence.
 
-    Cluster-robust sigma (rad) from the block sums of the influence (rad) over ``n`` pixels: the
-    blocks with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
+    ``block_sum``: the influence (rad) summed over each block, ``n`` pixels in all; the blocks
+    with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
     with two parameters (as the other methods).
     """
     b = np.asarray(block_sum, dtype=float)
@@ -209,7 +203,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Run pass 2: block sums of the influence against both candidate suns, residual sums.
 
-        (block sums (2, n_blocks) over the segments ``segs`` of :func:`._common.view_segments`,
+        (block sums (2, n_blocks) over the segments ``segs`` of :func:`._views.view_segments`,
         rss (2,)) from the per-pixel terms of :meth:`_influence_terms`.
         """
         t0, t1, rss = self._influence_terms(data, rho_lo, rho_max, mirror, fit, s1, s2)
@@ -233,8 +227,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Tell whether a self-consistent axis is acceptable beyond coverage and conditioning.
 
-        Whether a self-consistent axis is acceptable beyond coverage and conditioning (default:
-        yes); ``lenient`` for a fit on the scan's subsample.
+        Default: yes. ``lenient`` for a fit on the scan's subsample.
         """
         return True
 
@@ -271,9 +264,8 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         """
         Return the mean square AoP residual (rad^2) against the level pattern of each axis.
 
-        Mean square AoP residual (rad^2) against the level Rayleigh pattern of each axis of
-        ``thetas`` (its better end), over every ``step``-th usable pixel: one pixel pass
-        (:func:`._disc.level_rss_many`).
+        For each axis of ``thetas`` the level Rayleigh pattern of its better end, over every
+        ``step``-th usable pixel: one pixel pass (:func:`._disc.level_rss_many`).
         """
         suns = []
         for theta in thetas:
@@ -311,7 +303,6 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         k = self.knobs
         mm = mirror_map(view, obs.camera, rho_max, k['min_dop'])
         g = self._gather(data, rho_lo, rho_max, mm)
-        gate = k['min_mirror_coverage']
         covers = view_covers_disc(view, obs.camera, rho_max)
         complete = plain.holes == 0 and covers
 
@@ -333,6 +324,24 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             if not complete:  # the residual test of estimate() for axes with unusable pixels
                 extras['mirror_axes'] = 1
             return [(f0, mm.at(f0.theta), 1.0 / abs(sl0))], fit_at
+        roots, failed, used = self._scan_axes(data, rho_lo, rho_max, mm, plain, fit_at)
+        extras['mirror_fits'] = used + used0
+        sound = self._sound_roots(roots, failed, plain, covers, complete, extras)
+        if isinstance(sound, HeadingResult):
+            return sound
+        extras['mirror_axes'] = len(sound)
+        return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound], fit_at
+
+    def _scan_axes(self, data, rho_lo, rho_max, mm: MirrorMap, plain: AxisFit, fit_at):
+        """
+        Find the self-consistent axes by the global scan on the occlusion-only pair weights.
+
+        Each root that is sound on the occlusion-only weights is refined on the DoP-symmetric
+        pairs (``fit_at``) and kept when it moves at most ``MAX_REFINE_MOVE_DEG``. Returns (roots
+        as (fit, h') pairs, reasons why an axis was dropped, fits used).
+        """
+        k = self.knobs
+        gate = k['min_mirror_coverage']
         g_occ = self._gather(data, rho_lo, rho_max, mm, own_dop2=True)
 
         def occ_at(theta, step=1):
@@ -361,7 +370,16 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                 )
                 continue
             roots.append((fr, slr))
-        extras['mirror_fits'] = used + used0
+        return roots, failed, used
+
+    def _sound_roots(self, roots, failed, plain: AxisFit, covers, complete, extras: dict):
+        """
+        Return the roots with enough coverage, conditioning and the method's own test.
+
+        Or, when there is none, the failed result that says why (``insufficient_coverage``, or
+        ``poor_fit`` for a complete disc: then the sky is not mirror-symmetric).
+        """
+        gate = self.knobs['min_mirror_coverage']
         if complete:
             why = 'no self-consistent axis next to the plain fit on DoP-symmetric pair weights'
         else:
@@ -400,8 +418,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
                 pixels=plain.n,
                 **extras,
             )
-        extras['mirror_axes'] = len(sound)
-        return [(f, mm.at(f.theta), 1.0 / abs(sl)) for f, sl in sound], fit_at
+        return sound
 
     def estimate(self, obs: Observation, sigma: bool = True) -> HeadingResult:
         """
@@ -456,39 +473,20 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
         data, segs = view_segments(view, k['block_px'])
-        fit = plain = self._fit(data, rho_lo, rho_max)
-        if isinstance(fit, HeadingResult):
-            return fit
+        plain = self._fit(data, rho_lo, rho_max)
+        if isinstance(plain, HeadingResult):
+            return plain
         extras: dict = {}
-        solved = self._solve_mirror(obs, view, data, rho_lo, rho_max, fit, extras)
+        solved = self._solve_mirror(obs, view, data, rho_lo, rho_max, plain, extras)
         if isinstance(solved, HeadingResult):
             return solved
         candidates, fit_at = solved
-        # the level-Rayleigh residuals this needs, in one pass: of each candidate axis, of its
-        # perpendicular, and of the plain fit (the test of re-fitted axes below)
-        thetas = [c[0].theta for c in candidates]
-        thetas += [t + 0.5 * math.pi for t in thetas]
-        if 'mirror_axes' in extras:
-            thetas.append(plain.theta)
-        ms = self._level_ms_many(data, rho_lo, rho_max, thetas, obs)
-        nc = len(candidates)
-        best = min(range(nc), key=lambda i: ms[i])  # several self-consistent axes: the best fit
-        fit, mirror, inflation = candidates[best]
-        ms_axis, ms_perp = ms[best], ms[nc + best]
-        if not ms_axis < ms_perp:
-            # both axes are mirror axes of a Rayleigh sky's AOPLM map when the sun is low; with
-            # most of the disc depolarised (70 % cloud, sensor noise) the fit takes the wrong one
-            return HeadingResult.failed(
-                self.name,
-                Status.POOR_FIT,
-                'the axis found fits the level Rayleigh pattern no better than its perpendicular '
-                f'({math.degrees(math.sqrt(ms_axis)):.3g} against '
-                f'{math.degrees(math.sqrt(ms_perp)):.3g} deg rms): not the solar meridian',
-                pixels=fit.n,
-                **extras,
-            )
+        best = self._best_axis(data, rho_lo, rho_max, candidates, plain, obs, extras)
+        if isinstance(best, HeadingResult):
+            return best
+        fit, mirror, inflation, ms_plain = best
         first, second = level_sun_candidates(-fit.theta, float(obs.sun_altitude_deg))
-        j, rms_deg = 0, None
+        j, rms_deg, terms = 0, None, None
         if sigma or 'mirror_axes' in extras:
             terms = self._influence_terms(
                 data, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
@@ -499,47 +497,18 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         extras['mirror_sigma_inflation'] = inflation
         if 'mirror_axes' in extras:
             extras['mirror_coverage'] = fit.coverage
-            limit = (
-                MAX_MIRROR_RESIDUAL_RATIO
-                * math.degrees(math.sqrt(ms[2 * nc]))
-                + MIRROR_RESIDUAL_SLACK_DEG
-            )
-            if rms_deg > limit:
-                return HeadingResult.failed(
-                    self.name,
-                    Status.INSUFFICIENT_COVERAGE if fit.holes else Status.POOR_FIT,
-                    f'part of the sky disc is unusable ({fit.holes} pixel(s)): the '
-                    'self-consistent axes on the '
-                    f'usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg '
-                    'rms or more '
-                    f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + "
-                    f'{MIRROR_RESIDUAL_SLACK_DEG:g}): '
-                    'none is the solar '
-                    'meridian',
-                    pixels=fit.n,
-                    **extras,
-                )
+            bad = self._mirror_residual_test(fit, rms_deg, ms_plain, extras)
+            if bad is not None:
+                return bad
         n = fit.n_paired
         sigma_deg = None
         if sigma:
             lattice = self._lattice_rad(fit_at, fit)
             extras['lattice_sigma_deg'] = math.degrees(lattice)
-            stat = cr1_sigma(_blocks(terms[0], terms[1], segs)[j], n)
-            coarse_px = COARSE_CLUSTER_FACTOR * k['block_px']
-            data_c, segs_c = view_segments(view, coarse_px)
-            if fit.coverage >= COARSE_MIN_COVERAGE and segs_c[3] >= MIN_COARSE_CLUSTERS:
-                # errors correlated over more than block_px (cloud edges through a superpixel
-                # demosaic): the cluster-robust sigma over coarse blocks sees them
-                if view.grid is not None or view.subgrids is not None:
-                    # the same pixel order at both block sizes: the same terms, other blocks
-                    coarse = _blocks(terms[0], terms[1], segs_c)
-                else:  # a pixel list is reordered per block size: a second pass
-                    coarse, _ = self._influence(
-                        data_c, segs_c, rho_lo, rho_max, mirror, fit, first.sun_cam, second.sun_cam
-                    )
-                stat_c = cr1_sigma(coarse[j], n)
-                extras['coarse_cluster_ratio'] = stat_c / stat if stat > 0.0 else 1.0
-                stat = max(stat, stat_c)
+            suns = (first.sun_cam, second.sun_cam)
+            stat = self._cluster_sigma_rad(
+                view, segs, terms, j, rho_lo, rho_max, mirror, fit, suns, extras
+            )
             sigma_deg = finish_sigma_deg(math.hypot(stat * inflation, lattice), k)
         if j == 1:
             first, second = second, first
@@ -561,3 +530,94 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             fit.quality,
             extras=extras,
         )
+
+    def _best_axis(self, data, rho_lo, rho_max, candidates, plain: AxisFit, obs, extras: dict):
+        """
+        Return the candidate axis that fits the level Rayleigh pattern best, if it is the meridian.
+
+        The level-Rayleigh residuals this needs come from one pass: of each candidate axis, of its
+        perpendicular, and of the plain fit (for :meth:`_mirror_residual_test`). Returns (fit,
+        mirror arguments, sigma inflation, the plain fit's mean square residual or None), or a
+        ``poor_fit`` result when the axis fits no better than its perpendicular.
+        """
+        thetas = [c[0].theta for c in candidates]
+        thetas += [t + 0.5 * math.pi for t in thetas]
+        if 'mirror_axes' in extras:
+            thetas.append(plain.theta)
+        ms = self._level_ms_many(data, rho_lo, rho_max, thetas, obs)
+        nc = len(candidates)
+        best = min(range(nc), key=lambda i: ms[i])  # several self-consistent axes: the best fit
+        fit, mirror, inflation = candidates[best]
+        ms_axis, ms_perp = ms[best], ms[nc + best]
+        if not ms_axis < ms_perp:
+            # both axes are mirror axes of a Rayleigh sky's AOPLM map when the sun is low; with
+            # most of the disc depolarised (70 % cloud, sensor noise) the fit takes the wrong one
+            return HeadingResult.failed(
+                self.name,
+                Status.POOR_FIT,
+                'the axis found fits the level Rayleigh pattern no better than its perpendicular '
+                f'({math.degrees(math.sqrt(ms_axis)):.3g} against '
+                f'{math.degrees(math.sqrt(ms_perp)):.3g} deg rms): not the solar meridian',
+                pixels=fit.n,
+                **extras,
+            )
+        return fit, mirror, inflation, (ms[2 * nc] if 'mirror_axes' in extras else None)
+
+    def _mirror_residual_test(self, fit: AxisFit, rms_deg, ms_plain, extras: dict):
+        """
+        Refuse a re-fitted axis that misses the level Rayleigh pattern far more than the plain fit.
+
+        The limit is ``MAX_MIRROR_RESIDUAL_RATIO`` times the plain fit's rms residual plus
+        ``MIRROR_RESIDUAL_SLACK_DEG``. Returns the failed result, or None when the axis passes.
+        """
+        limit = (
+            MAX_MIRROR_RESIDUAL_RATIO
+            * math.degrees(math.sqrt(ms_plain))
+            + MIRROR_RESIDUAL_SLACK_DEG
+        )
+        if rms_deg > limit:
+            return HeadingResult.failed(
+                self.name,
+                Status.INSUFFICIENT_COVERAGE if fit.holes else Status.POOR_FIT,
+                f'part of the sky disc is unusable ({fit.holes} pixel(s)): the '
+                'self-consistent axes on the '
+                f'usable mirror pairs miss the level Rayleigh pattern by {rms_deg:.2g} deg '
+                'rms or more '
+                f"(> {limit:.2g}, {MAX_MIRROR_RESIDUAL_RATIO:g} x the plain fit's + "
+                f'{MIRROR_RESIDUAL_SLACK_DEG:g}): '
+                'none is the solar '
+                'meridian',
+                pixels=fit.n,
+                **extras,
+            )
+        return None
+
+    def _cluster_sigma_rad(
+        self, view, segs, terms, j, rho_lo, rho_max, mirror, fit: AxisFit, suns, extras: dict
+    ) -> float:
+        """
+        Return the cluster-robust sigma (rad) of the axis against sun ``j`` of ``suns``.
+
+        Over blocks of ``block_px`` and, where the disc is paired enough and there are enough of
+        them, over blocks ``COARSE_CLUSTER_FACTOR`` times larger (the larger of the two; their
+        ratio into ``extras``). ``terms``: the influence pass over ``segs``.
+        """
+        k = self.knobs
+        n = fit.n_paired
+        stat = cr1_sigma(_blocks(terms[0], terms[1], segs)[j], n)
+        coarse_px = COARSE_CLUSTER_FACTOR * k['block_px']
+        data_c, segs_c = view_segments(view, coarse_px)
+        if fit.coverage >= COARSE_MIN_COVERAGE and segs_c[3] >= MIN_COARSE_CLUSTERS:
+            # errors correlated over more than block_px (cloud edges through a superpixel
+            # demosaic): the cluster-robust sigma over coarse blocks sees them
+            if view.grid is not None or view.subgrids is not None:
+                # the same pixel order at both block sizes: the same terms, other blocks
+                coarse = _blocks(terms[0], terms[1], segs_c)
+            else:  # a pixel list is reordered per block size: a second pass
+                coarse, _ = self._influence(
+                    data_c, segs_c, rho_lo, rho_max, mirror, fit, suns[0], suns[1]
+                )
+            stat_c = cr1_sigma(coarse[j], n)
+            extras['coarse_cluster_ratio'] = stat_c / stat if stat > 0.0 else 1.0
+            stat = max(stat, stat_c)
+        return stat

@@ -15,11 +15,8 @@
 """
 Compiled single pass of the least-squares estimators and its pixel-block segments.
 
-Compiled single pass of the least-squares estimators (numba, cached), and the pixel-block segments
-it runs over.
-
-The pass reads the observation as it is (float32 AoP/DoP/rays, bool validity), skips unusable
-pixels without copying, lifts each AoP to its unit E-vector (the lift of
+The pass (numba, cached) reads the observation as it is (float32 AoP/DoP/rays, bool validity),
+skips unusable pixels without copying, lifts each AoP to its unit E-vector (the lift of
 :func:`polarization_compass.conventions.evector_cam_from_aop`, written out inline; tests check both
 agree) and accumulates, per block of pixels, ``M_b = sum w e e^T``, plus frame totals of the
 noise-bias matrices ``B``, ``C`` and the sufficient statistics of the brightness regression.
@@ -130,7 +127,7 @@ def _lift_pixel(a, p, rx, ry, rz, v_in, md, dop_weight):  # pragma: no cover - c
     """
     Lift one pixel of the full pass, branch-free.
 
-    One pixel of the full pass, branch-free: (w, ex, ey, ez, usable, finite) with ``w e e^T`` its
+    Returns (w, ex, ey, ez, usable, finite) with ``w e e^T`` its
     share of M (``e`` unnormalised, ``w`` = DoP^2 or 1 over |e|^2; 0 for an unusable pixel). A
     non-finite value zeroes the pixel's numbers (0 * inf would poison the block sum with NaN).
     """
@@ -158,10 +155,10 @@ def _m_pass(
     aop, dop, valid, rays, seg_start, seg_end, seg_block, min_dop, dop_weight, block_m
 ):  # pragma: no cover - compiled
     """
-    Per-block ``M_b = sum w e e^T`` (float32 within a segment, float64 across).
+    Accumulate per block ``M_b = sum w e e^T`` (float32 within a segment, float64 across).
 
-    Branch-free inner
-    loop without counters (selects; error_model numpy so division is not guarded): it vectorises.
+    Branch-free inner loop without counters (selects; error_model numpy so division is not
+    guarded): it vectorises.
     """
     f0 = np.float32(0.0)
     md = np.float32(min_dop)
@@ -213,6 +210,41 @@ def _column_sums(acc, cpf, nx, out):  # pragma: no cover - compiled
         out[c, 1] = t1
 
 
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
+def _phase_rows(acc, cpf, nx, odd, cur, prev, odd_m):  # pragma: no cover - compiled
+    """
+    Take the share of the rows since the last reduction of :func:`_m_pass_grid`'s column sums.
+
+    ``cur`` = the column sums so far (:func:`_column_sums`); when those rows were of parity 1
+    (``odd``) their share ``cur - prev`` goes into ``odd_m``; ``prev`` becomes ``cur``.
+    """
+    _column_sums(acc, cpf, nx, cur)
+    if odd:
+        for c in range(6):
+            for q in range(2):
+                odd_m[c, q] += cur[c, q] - prev[c, q]
+    for c in range(6):
+        for q in range(2):
+            prev[c, q] = cur[c, q]
+
+
+@njit(inline='always', fastmath=_FM, cache=True, error_model='numpy')
+def _block_row_sums(acc, nx, col_block, b0, block_m, n_ok, n_fin):  # pragma: no cover - compiled
+    """
+    Add one block row's per-column sums into ``block_m`` (from block ``b0``) and the counts.
+
+    The same reduction order into ``block_m`` as without the phases; returns (n_ok, n_fin) plus
+    the block row's usable and finite counts.
+    """
+    for j in range(nx):
+        bk = b0 + col_block[j]
+        for c in range(6):
+            block_m[bk, c] += acc[c, j]
+        n_ok += acc[6, j]
+        n_fin += acc[7, j]
+    return n_ok, n_fin
+
+
 @njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
 def _m_pass_grid(
     aop,
@@ -236,12 +268,11 @@ def _m_pass_grid(
     """
     Run :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major grid.
 
-    :func:`_m_pass` and :func:`_count_pass` in one sweep over a row-major ``ny`` x ``nx`` grid
-    stored from flat index ``off``: column j is in block column ``col_block[j]``, row r in block
-    row ``row_block[r]`` (non-decreasing). Each pixel's ``w e e^T`` goes into a per-column float32
-    accumulator over the rows of one block row, reduced into ``block_m`` (float64) once per block
-    row: the inner loop runs along a whole row with no per-block reduction, so it vectorises
-    (per-block runs of a few pixels did not).
+    The grid is ``ny`` x ``nx``, stored from flat index ``off``: column j is in block column
+    ``col_block[j]``, row r in block row ``row_block[r]`` (non-decreasing). Each pixel's ``w e
+    e^T`` goes into a per-column float32 accumulator over the rows of one block row, reduced into
+    ``block_m`` (float64) once per block row: the inner loop runs along a whole row with no
+    per-block reduction, so it vectorises (per-block runs of a few pixels did not).
 
     Counts: ``counts[0]`` += usable pixels, ``counts[1]`` += valid pixels whose values are all
     finite (the caller gets the non-finite ones from the valid count). They are per-column float32
@@ -322,25 +353,12 @@ def _m_pass_grid(
             r += 1
             last = r >= ny or row_block[r] != br
             if last or (mixed and (odd or row_par[r] == 1)):  # before or after a parity-1 row
-                _column_sums(acc, cpf, nx, cur)
-                if odd:
-                    for c in range(6):
-                        for q in range(2):
-                            odd_m[c, q] += cur[c, q] - prev[c, q]
-                for c in range(6):
-                    for q in range(2):
-                        prev[c, q] = cur[c, q]
+                _phase_rows(acc, cpf, nx, odd, cur, prev, odd_m)
         for c in range(6):  # prev: the block row's totals
             for q in range(2):
                 phase_m[2 + q, c] += odd_m[c, q]
                 phase_m[q, c] += prev[c, q] - odd_m[c, q]
-        b0 = br * n_block_cols
-        for j in range(nx):  # as without the phases: the same reduction order into block_m
-            bk = b0 + col_block[j]
-            for c in range(6):
-                block_m[bk, c] += acc[c, j]
-            n_ok += acc[6, j]
-            n_fin += acc[7, j]
+        n_ok, n_fin = _block_row_sums(acc, nx, col_block, br * n_block_cols, block_m, n_ok, n_fin)
     counts[0] += np.int64(n_ok)
     counts[1] += np.int64(n_fin)
 
@@ -430,8 +448,7 @@ def _reads_every_pixel(n: int, sub_pixels: int) -> bool:
     """
     Tell whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them.
 
-    Whether a subsample of about ``sub_pixels`` from ``n`` pixels is all of them
-    (:func:`_run_starts`).
+    The subsample of :func:`_run_starts`.
     """
     return n <= 2 * sub_pixels
 

@@ -15,9 +15,8 @@
 """
 Mirror pairs for an incomplete sky disc and the axis fixed-point solver.
 
-Mirror pairs for an incomplete sky disc, and the fixed-point solver for the axis of symmetry that
-SM-ASM and Symmetry share (see :mod:`._disc` for the disc and :mod:`._disc_estimator` for how the
-methods use it).
+Both belong to the axis fit that SM-ASM and Symmetry share (see :mod:`._disc` for the disc and
+:mod:`._disc_estimator` for how the methods use it).
 
 Incomplete sky (occluders, invalid pixels, a region that cuts the disc)
 -----------------------------------------------------------------------
@@ -84,6 +83,7 @@ __all__ = [
     'MirrorMap',
     'mirror_map',
     'NO_MIRROR',
+    'MP_SIZE',
     'view_covers_disc',
     'solve_axes',
     'refine_axis',
@@ -108,8 +108,17 @@ SCAN_AXES = 18
 MAX_BRACKET_JUMP = 0.75
 #: |1 - f'| below this: the usable pairs do not determine the axis (insufficient_coverage).
 MIN_CONDITIONING = 1e-3
+#: The reflection parameters ``mp`` (:attr:`MirrorMap.params`, float64 (MP_SIZE,)) the kernels
+#: read, by index: the principal point (sensor px), the pixel pitch (mm), sin and cos of the trial
+#: axis theta (from +y_cam towards +x_cam), the first grid point and the grid step (sensor px) of
+#: the S and Q grids. The reflection acts on the offset from the principal point in millimetres.
+MP_CX, MP_CY = 0, 1
+MP_PITCH_X_MM, MP_PITCH_Y_MM = 2, 3
+MP_SIN, MP_COS = 4, 5
+MP_X0, MP_DX, MP_Y0, MP_DY = 6, 7, 8, 9
+MP_SIZE = 10
 #: No mirror weighting (m = 1, the pixel's own DoP^2): empty S and Q maps and unused parameters.
-NO_MIRROR = (np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(10))
+NO_MIRROR = (np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(MP_SIZE))
 
 
 # --------------------------------------------------------------------------------------------
@@ -126,7 +135,7 @@ class MirrorMap:
 
     grid: np.ndarray
     weight: np.ndarray  # Q = DoP * smooth usability (DoP >= min_dop), same grid: Q(p) Q(p')
-    params: np.ndarray  # cx, cy, pitch_x, pitch_y, 0, 0, x0, dx, y0, dy
+    params: np.ndarray  # mp (MP_* indices) with sin theta = cos theta = 0
     lattice: tuple  # x0, dx, y0, dy of the view's own pixels
     camera: CameraModel
 
@@ -138,8 +147,8 @@ class MirrorMap:
         (from +y_cam towards +x_cam).
         """
         p = self.params.copy()
-        p[4] = math.sin(theta_rad)
-        p[5] = math.cos(theta_rad)
+        p[MP_SIN] = math.sin(theta_rad)
+        p[MP_COS] = math.cos(theta_rad)
         return self.grid, self.weight, p
 
     def occlusion_at(self, theta_rad: float) -> tuple:
@@ -311,9 +320,11 @@ def _smooth_usability(
     rise = (t > 0.0) & (t < 1.0)
     S[rise] = np.sin(0.5 * math.pi * t[rise]) ** 2
     S *= full  # exactly 0 on every unusable grid point
-    params = np.array(
-        [camera.cx_px, camera.cy_px, px, py, 0.0, 0.0, x0 - pad * dx, dx, y0 - pad * dy, dy]
-    )
+    params = np.zeros(MP_SIZE)
+    params[MP_CX], params[MP_CY] = camera.cx_px, camera.cy_px
+    params[MP_PITCH_X_MM], params[MP_PITCH_Y_MM] = px, py
+    params[MP_X0], params[MP_DX] = x0 - pad * dx, dx
+    params[MP_Y0], params[MP_DY] = y0 - pad * dy, dy
     for a in (S, params):
         a.setflags(write=False)
     return S, params
@@ -338,8 +349,7 @@ def view_covers_disc(view, camera: CameraModel, rho_max: float) -> bool:
     """
     Tell whether a grid view reaches the disc's edge on every side.
 
-    Whether a grid view reaches the disc's edge on every side (pixel lists: only their holes are
-    seen).
+    Always true for a pixel list (only its holes are seen).
     """
     if view.grid is None:
         return True
@@ -421,28 +431,29 @@ def _mirror_consts(mp):  # pragma: no cover - compiled
     """
     Return the mirror constants of mp (angle, pixel scales, principal point).
 
-    (sin theta, cos theta, columns per mm, rows per mm, column and row of the principal point) of
-    mp.
+    (sin theta, cos theta, grid columns per mm, grid rows per mm, grid column and row of the
+    principal point) of mp.
     """
     return (
-        mp[4],
-        mp[5],
-        1.0 / (mp[2] * mp[7]),
-        1.0 / (mp[3] * mp[9]),
-        (mp[0] - mp[6]) / mp[7],
-        (mp[1] - mp[8]) / mp[9],
+        mp[MP_SIN],
+        mp[MP_COS],
+        1.0 / (mp[MP_PITCH_X_MM] * mp[MP_DX]),
+        1.0 / (mp[MP_PITCH_Y_MM] * mp[MP_DY]),
+        (mp[MP_CX] - mp[MP_X0]) / mp[MP_DX],
+        (mp[MP_CY] - mp[MP_Y0]) / mp[MP_DY],
     )
 
 
 @njit(inline='always', cache=True)
-def _mirror_s_mm(mg, st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
-    """
-    Return S at the mirror image of the sensor offset (u, v) mm.
+def _grid_pos(mp, x, y):  # pragma: no cover - compiled
+    """Return the grid position (row, column) of sensor pixel (x, y) in the S and Q grids."""
+    return (y - mp[MP_Y0]) / mp[MP_DY], (x - mp[MP_X0]) / mp[MP_DX]
 
-    S at the mirror image of the sensor offset (u, v) mm (constants from :func:`_mirror_consts`).
-    """
-    d = 2.0 * (u * st + v * ct)
-    return _bilinear0(mg, r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc)
+
+@njit(inline='always', cache=True)
+def _offset_mm(mp, x, y):  # pragma: no cover - compiled
+    """Return the sensor-plane offset (u, v) mm of sensor pixel (x, y) from the principal point."""
+    return (x - mp[MP_CX]) * mp[MP_PITCH_X_MM], (y - mp[MP_CY]) * mp[MP_PITCH_Y_MM]
 
 
 @njit(inline='always', cache=True)
@@ -450,24 +461,11 @@ def _mirror_pos(st, ct, kc, kr, c0, r0, u, v):  # pragma: no cover - compiled
     """
     Return the grid position (row, column) of the mirror image of the sensor offset (u, v) mm.
 
-    The position :func:`_mirror_s_mm` reads its grid at (the same arithmetic).
+    The mirror image p' = 2 (p . a) a - p about the axis a = (sin theta, cos theta); constants
+    from :func:`_mirror_consts`.
     """
     d = 2.0 * (u * st + v * ct)
     return r0 + (d * ct - v) * kr, c0 + (d * st - u) * kc
-
-
-@njit(inline='always', cache=True)
-def _mirror_weight(mg, mq, mp, x, y):  # pragma: no cover - compiled
-    """
-    Return the pair weight Q(p) Q(p') of the pixel at sensor position (x, y).
-
-    ``mp``: cx, cy, pitch_x, pitch_y (mm), sin theta, cos theta (the trial axis, from +y_cam
-    towards +x_cam), x0, dx, y0, dy of the Q grid; the reflection acts on the offset from the
-    principal point in millimetres. One field at p and at p': mirror-symmetric about the axis.
-    """
-    st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
-    own = _bilinear0(mq, (y - mp[8]) / mp[9], (x - mp[6]) / mp[7])
-    return own * _mirror_s_mm(mq, st, ct, kc, kr, c0, r0, (x - mp[0]) * mp[2], (y - mp[1]) * mp[3])
 
 
 @njit(cache=True, nogil=True)
@@ -475,19 +473,18 @@ def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
     """
     Return the pair weights Q(p) Q(p') of every pixel, or ones without a mirror map.
 
-    Q(p) Q(p') of every pixel (:func:`_mirror_weight`), or ones without a mirror map (``mg``
-    empty; the passes then weight a pixel by its own DoP^2).
+    Q(p) Q(p') of every pixel, Q bilinear at the pixel and at its mirror image
+    (:func:`_mirror_pos`), or ones without a mirror map (``mg`` empty; the passes then weight a
+    pixel by its own DoP^2).
     """
     out = np.ones(xs.size)
     if mg.shape[0]:
-        # :func:`_mirror_weight` with the constants read once (the same arithmetic per pixel)
         st, ct, kc, kr, c0, r0 = _mirror_consts(mp)
-        cx, cy, px, py, x0, dx, y0, dy = mp[0], mp[1], mp[2], mp[3], mp[6], mp[7], mp[8], mp[9]
         for i in range(xs.size):
-            x = xs[i]
-            y = ys[i]
-            own = _bilinear0(mq, (y - y0) / dy, (x - x0) / dx)
-            r, c = _mirror_pos(st, ct, kc, kr, c0, r0, (x - cx) * px, (y - cy) * py)
+            r, c = _grid_pos(mp, xs[i], ys[i])
+            own = _bilinear0(mq, r, c)
+            u, v = _offset_mm(mp, xs[i], ys[i])
+            r, c = _mirror_pos(st, ct, kc, kr, c0, r0, u, v)
             out[i] = own * _bilinear0(mq, r, c)
     return out
 
@@ -500,8 +497,7 @@ class AxisFit:
     """
     One axis fit on (possibly mirror-weighted) pixels.
 
-    ``theta`` rad from +y_cam towards +x_cam
-    (axial).
+    ``theta`` rad from +y_cam towards +x_cam (axial).
     """
 
     theta: float

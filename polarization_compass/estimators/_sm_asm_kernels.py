@@ -15,9 +15,9 @@
 """
 The compiled passes of SM-ASM (:mod:`.sm_asm`).
 
-The compiled passes of SM-ASM (:mod:`.sm_asm`): the band sums of the plain fit (pass 1), the gather
-and per-axis fit on mirror pairs, and the influence pass (pass 2). Shared per-pixel steps:
-:mod:`._disc`; pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and
+The band sums of the plain fit (pass 1), the gather and per-axis fit on mirror pairs, and the
+influence pass (pass 2). Shared per-pixel steps: :mod:`._disc`; the gather's shared part:
+:mod:`._pair_gather`; pair weights: :mod:`._mirror`. The per-pixel loops ``_band_sums`` and
 ``_band_terms`` vectorise (``test/test_vecmath.py`` checks their LLVM IR).
 """
 
@@ -28,16 +28,9 @@ import math
 from numba import njit
 import numpy as np
 
-from ._disc import (
-    _brightness_pass,
-    _exp2i_aoplm,
-    _gather_lanes,
-    _lane_pixel,
-    _level_resid,
-    _taper1,
-    GATHER_CHUNK,
-)
+from ._disc import _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
+from ._pair_gather import GATHER_CHUNK, gather_chunk, gather_scratch, kept_pixel
 from ..fastmath import exp_nonpos
 from ..fastmath import FM as _FMV
 
@@ -77,7 +70,7 @@ def _band_sums(
 
 @njit(cache=True, nogil=True)
 def band_pass1(
-    aop, dop, valid, rays, inten, has_i, min_dop, rho_max, taper_frac, inv4tol2, out, cnt, stats
+    view, inten, has_i, ring, inv4tol2, out, cnt, stats
 ):  # pragma: no cover - compiled
     """
     Run the SM-ASM first pass: the weighted sum Z of the pixels' z^2 and the counts.
@@ -85,77 +78,50 @@ def band_pass1(
     SM-ASM: out = (Re Z, Im Z, sum W rho^2) with Z = sum W z^2, W = exp((cos 2 delta - 1) / (4
     tol^2)) DoP^2 taper; cnt = (usable, valid, valid non-finite, unusable inside the disc); with
     ``has_i`` the brightness statistics of the usable pixels into ``stats`` (a second, scalar
-    loop).
+    loop). ``view``: (aop, dop, valid, rays, xs, ys); ``ring``: :class:`._disc.DiscRing` (the
+    whole disc: its ``rho_lo`` is not read).
     """
-    _band_sums(aop, dop, valid, rays, min_dop, rho_max, taper_frac, inv4tol2, out, cnt)
+    aop, dop, valid, rays, _, _ = view
+    md, rho_max = ring.min_dop, ring.rho_max
+    _band_sums(aop, dop, valid, rays, md, rho_max, ring.taper_frac, inv4tol2, out, cnt)
     if has_i:
-        _brightness_pass(aop, dop, valid, rays, inten, min_dop, 0.0, rho_max, stats)
+        _brightness_pass(aop, dop, valid, rays, inten, md, 0.0, rho_max, stats)
 
 
 @njit(cache=True, nogil=True)
 def band_gather(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_max,
-    taper_frac,
-    inv4tol2,
-    mg,
-    mq,
-    mp,
-    own_dop2,
-    g_uv,
-    g_val,
+    view, ring, inv4tol2, mirror, own_dop2, g_uv, g_ts, g_val
 ):  # pragma: no cover - compiled
     """
     Gather the disc's valid pixels for SM-ASM with mirror pairs (step 1).
 
-    SM-ASM with mirror pairs, step 1: every valid finite pixel of the disc with S(p) > 0,
-    compacted: g_uv[:, j] = offset from the principal point (mm), g_val[:, j] = (taper S(p), W S(p)
-    z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4 tol^2)) taper Q(p) / S(p):
-    the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the mirror image's Q(p') in
-    :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2`` the own factor is
-    DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
+    SM-ASM with mirror pairs, step 1 (:mod:`._pair_gather`): every valid finite pixel of the disc
+    with S(p) > 0, compacted: g_uv[:, j] = offset from the principal point (mm), g_ts[j] = taper
+    S(p), g_val[:, j] = (W S(p) z^2 (re, im), W S(p) rho^2) with W = exp((cos 2 delta - 1) / (4
+    tol^2)) taper Q(p) / S(p): the pair weight's own factor (Q: :func:`._mirror.mirror_map`), the
+    mirror image's Q(p') in :func:`band_fit` (W = 0 for a pixel below min_dop); with ``own_dop2``
+    the own factor is DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S).
+    Returns the count.
     """
-    CH = GATHER_CHUNK
-    fl = np.empty(CH, np.int8)
-    tps = np.empty(CH)
-    px = np.empty((6, CH))
+    scratch = gather_scratch()
     n = 0
-    for o in range(0, aop.size, CH):
-        m = min(CH, aop.size - o)
-        _gather_lanes(aop, dop, valid, rays, o, m, min_dop, 0.0, rho_max, taper_frac, fl, tps, px)
-        for u in range(m):
-            # kept: valid, finite, in the disc and S(p) > 0; S(p) and Q(p) from one position
-            if not fl[u] & 1:
-                continue
-            i = o + u
-            s, q_own = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
-            if not s > 0.0:
-                continue
-            tp = tps[u]
-            p, rx, ry, rho, c2a, s2a = px[0, u], px[1, u], px[2, u], px[3, u], px[4, u], px[5, u]
-            g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-            g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+    for o in range(0, view[0].size, GATHER_CHUNK):
+        kept = gather_chunk(view, ring, mirror, own_dop2, o, scratch, g_uv, g_ts, n)
+        for k in range(kept):
+            usable, tp, q, rx, ry, rho, c2a, s2a = kept_pixel(scratch, k)
             W = 0.0
-            if fl[u] & 2:
+            if usable:
                 cr, ci = _exp2i_aoplm(c2a, s2a, rx, ry, rho)
-                q = q_own if not own_dop2 else p * p * s
                 W = math.exp((-cr - 1.0) * inv4tol2) * tp * q
-            g_val[0, n] = tp * s
-            g_val[1, n] = W * (ry * ry - rx * rx)
-            g_val[2, n] = W * 2.0 * rx * ry
-            g_val[3, n] = W * rho * rho
+            g_val[0, n] = W * (ry * ry - rx * rx)
+            g_val[1, n] = W * 2.0 * rx * ry
+            g_val[2, n] = W * rho * rho
             n += 1
     return n
 
 
 @njit(cache=True, nogil=True)
-def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover - compiled
+def band_fit(g_uv, g_ts, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover - compiled
     """
     Fit one trial axis for SM-ASM with mirror pairs (step 2).
 
@@ -168,16 +134,16 @@ def band_fit(g_uv, g_val, n, start, step, mg, mq, mp, out):  # pragma: no cover 
     Zr = Zi = nrm = cov = 0.0
     n_pair = 0
     for j in range(start, n, step):
-        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        # S(p') and Q(p') at the mirror image (:func:`._mirror._mirror_pos`), one position
         r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, j], g_uv[1, j])
         m, q = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
             continue
-        cov += g_val[0, j] * m
-        Zr += g_val[1, j] * q
-        Zi += g_val[2, j] * q
-        nrm += g_val[3, j] * q
-        n_pair += 1 if g_val[3, j] * q > 0.0 else 0
+        cov += g_ts[j] * m
+        Zr += g_val[0, j] * q
+        Zi += g_val[1, j] * q
+        nrm += g_val[2, j] * q
+        n_pair += 1 if g_val[2, j] * q > 0.0 else 0
     out[0] = Zr
     out[1] = Zi
     out[2] = nrm
@@ -241,48 +207,32 @@ def _band_terms(
 
 @njit(cache=True, nogil=True)
 def band_terms2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_max,
-    taper_frac,
-    inv4tol2,
-    mg,
-    mq,
-    mp,
-    Zr,
-    Zi,
-    s1,
-    s2,
-    t0,
-    t1,
-    rss,
+    view, ring, inv4tol2, mirror, Z, suns, t0, t1, rss
 ):  # pragma: no cover - compiled
     """
     Compute the per-pixel terms of the SM-ASM influence pass (before the block sums).
 
-    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns; rss[j] +=
-    residual_j^2 (pair weights Q(p) Q(p') when ``mg`` is not empty, else DoP(p)^2); one vectorised
-    loop (:mod:`polarization_compass.fastmath`). The block sums (:func:`._disc._block_sums`) can
-    then be taken over any blocks of the same pixel order.
+    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns ``suns`` = (s1,
+    s2); rss[j] += residual_j^2 (pair weights Q(p) Q(p') from ``mirror`` = (mg, mq, mp) when
+    ``mg`` is not empty, else DoP(p)^2); ``Z`` = (Re Z, Im Z) of the fit. One vectorised loop
+    (:mod:`polarization_compass.fastmath`). The block sums (:func:`._disc._block_sums`) can then
+    be taken over any blocks of the same pixel order.
     """
+    aop, dop, valid, rays, xs, ys = view
+    mg, mq, mp = mirror
     _band_terms(
         aop,
         dop,
         valid,
         rays,
-        min_dop,
-        rho_max,
-        taper_frac,
+        ring.min_dop,
+        ring.rho_max,
+        ring.taper_frac,
         inv4tol2,
-        Zr,
-        Zi,
-        s1,
-        s2,
+        Z[0],
+        Z[1],
+        suns[0],
+        suns[1],
         _pair_weights(mg, mq, mp, xs, ys),
         mg.shape[0] > 0,
         t0,

@@ -15,9 +15,9 @@
 """
 The compiled passes of Symmetry (:mod:`.symmetry`).
 
-The compiled passes of Symmetry (:mod:`.symmetry`): the ring coefficients of the plain fit (pass
-1), the gather and per-axis fit on mirror pairs, and the influence pass (pass 2), in chunks of
-``_RING_CHUNK`` pixels. Shared per-pixel steps: :mod:`._disc`; pair weights: :mod:`._mirror`. The
+The ring coefficients of the plain fit (pass 1), the gather and per-axis fit on mirror pairs, and
+the influence pass (pass 2), in chunks of ``_RING_CHUNK`` pixels. Shared per-pixel steps:
+:mod:`._disc`; the gather's shared part: :mod:`._pair_gather`; pair weights: :mod:`._mirror`. The
 per-pixel loops ``_ring1_terms`` and ``_ring_terms`` vectorise (``test/test_vecmath.py`` checks
 their LLVM IR).
 """
@@ -27,16 +27,9 @@ from __future__ import annotations
 from numba import njit
 import numpy as np
 
-from ._disc import (
-    _brightness_pass,
-    _exp2i_aoplm,
-    _gather_lanes,
-    _lane_pixel,
-    _level_resid,
-    _taper1,
-    GATHER_CHUNK,
-)
+from ._disc import _brightness_pass, _exp2i_aoplm, _lane_pixel, _level_resid, _taper1
 from ._mirror import _bilinear0_pair, _mirror_consts, _mirror_pos, _pair_weights
+from ._pair_gather import GATHER_CHUNK, gather_chunk, gather_scratch, kept_pixel
 from ..fastmath import atan2, sincos
 from ..fastmath import FM as _FMV
 
@@ -138,29 +131,19 @@ def _ring1_terms(
 
 @njit(cache=True, nogil=True, error_model='numpy')
 def ring_pass1(
-    aop,
-    dop,
-    valid,
-    rays,
-    inten,
-    has_i,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    a_out,
-    cnt,
-    stats,
+    view, inten, has_i, ring, n_rings, K, a_out, cnt, stats
 ):  # pragma: no cover - compiled
     """
     Run the Symmetry first pass: the ring coefficients of the AoP harmonics.
 
     Symmetry: a_out[k + K, ring] += hat * w * c * exp(-i k phi), k = -K..K, c = exp(2i AOPLM), w =
-    DoP^2 taper, linear split between neighbouring rings; cnt and stats as :func:`band_pass1`. In
-    chunks: the per-pixel terms (vectorised), then the scatter into the rings (scalar).
+    DoP^2 taper, linear split between neighbouring rings; cnt and stats as
+    :func:`._sm_asm_kernels.band_pass1`. In chunks: the per-pixel terms (vectorised), then the
+    scatter into the rings (scalar). ``view``: (aop, dop, valid, rays, xs, ys); ``ring``:
+    :class:`._disc.DiscRing`.
     """
+    aop, dop, valid, rays, _, _ = view
+    min_dop, rho_lo, rho_max, taper_frac = ring
     CH = _RING_CHUNK
     cr = np.empty(CH)
     ci = np.empty(CH)
@@ -199,63 +182,27 @@ def ring_pass1(
 
 @njit(cache=True, nogil=True)
 def ring_gather(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    mg,
-    mq,
-    mp,
-    own_dop2,
-    g_uv,
-    g_tp,
-    g_v,
-    g_ring,
+    view, ring, n_rings, K, mirror, own_dop2, g_uv, g_tp, g_v, g_ring
 ):  # pragma: no cover - compiled
     """
     Gather the disc's pixels for Symmetry with mirror pairs (step 1).
 
-    Symmetry with mirror pairs, step 1 (see :func:`band_gather`): g_tp = taper S(p), g_v[k + K] = w
-    S(p) c exp(-i k phi) for k = -K..K with w = taper Q(p) / S(p) (the pair weight's own factor,
-    the mirror image's Q(p') in :func:`ring_fit`; 0 below min_dop), g_ring = ring position
-    (:func:`_ring_t`); with ``own_dop2`` the own factor is DoP(p)^2 S(p) instead (the
-    occlusion-only pair weights, fitted with Q = S). Returns the count.
+    Symmetry with mirror pairs, step 1 (:mod:`._pair_gather`): g_uv = offset from the principal
+    point (mm), g_tp = taper S(p), g_v[k + K] = w S(p) c exp(-i k phi) for k = -K..K with w =
+    taper Q(p) / S(p) (the pair weight's own factor, the mirror image's Q(p') in :func:`ring_fit`;
+    0 below min_dop), g_ring = ring position (:func:`_ring_t`); with ``own_dop2`` the own factor is
+    DoP(p)^2 S(p) instead (the occlusion-only pair weights, fitted with Q = S). Returns the count.
     """
-    span = max(rho_max - rho_lo, 1e-12)
-    CH = GATHER_CHUNK
-    fl = np.empty(CH, np.int8)
-    tps = np.empty(CH)
-    px = np.empty((6, CH))
+    span = max(ring.rho_max - ring.rho_lo, 1e-12)
+    scratch = gather_scratch()
     n = 0
-    for o in range(0, aop.size, CH):
-        m = min(CH, aop.size - o)
-        _gather_lanes(
-            aop, dop, valid, rays, o, m, min_dop, rho_lo, rho_max, taper_frac, fl, tps, px
-        )
-        for u in range(m):
-            # kept: valid, finite, in the disc and S(p) > 0; S(p) and Q(p) from one position
-            if not fl[u] & 1:
-                continue
-            i = o + u
-            s, q_own = _bilinear0_pair(mg, mq, (ys[i] - mp[8]) / mp[9], (xs[i] - mp[6]) / mp[7])
-            if not s > 0.0:
-                continue
-            tp = tps[u]
-            p, rx, ry, rho, c2a, s2a = px[0, u], px[1, u], px[2, u], px[3, u], px[4, u], px[5, u]
-            g_uv[0, n] = (xs[i] - mp[0]) * mp[2]
-            g_uv[1, n] = (ys[i] - mp[1]) * mp[3]
+    for o in range(0, view[0].size, GATHER_CHUNK):
+        kept = gather_chunk(view, ring, mirror, own_dop2, o, scratch, g_uv, g_tp, n)
+        for k in range(kept):
+            usable, tp, q, rx, ry, rho, c2a, s2a = kept_pixel(scratch, k)
             e = complex(ry / rho, -rx / rho)
             c = complex(0.0, 0.0)
-            if fl[u] & 2:
-                q = q_own if not own_dop2 else p * p * s
+            if usable:
                 c = complex(c2a, s2a) * e * e * (tp * q)
             g_v[K, n] = c
             ep = c
@@ -266,8 +213,7 @@ def ring_gather(
                 em = em * ec
                 g_v[K + kk, n] = ep
                 g_v[K - kk, n] = em
-            g_tp[n] = tp * s
-            g_ring[n] = _ring_t(rho, rho_lo, span, n_rings)
+            g_ring[n] = _ring_t(rho, ring.rho_lo, span, n_rings)
             n += 1
     return n
 
@@ -400,7 +346,7 @@ def ring_fit(
     cov = 0.0
     n_pair = 0
     for q in range(start, n, step):
-        # S(p') and Q(p') (:func:`._mirror._mirror_s_mm` of each) from one position
+        # S(p') and Q(p') at the mirror image (:func:`._mirror._mirror_pos`), one position
         r, c = _mirror_pos(st, ct, kc, kr, c0, r0, g_uv[0, q], g_uv[1, q])
         m, w = _bilinear0_pair(mg, mq, r, c)
         if not m > 0.0:
@@ -450,9 +396,8 @@ def _ring_terms(
     Compute the per-pixel Symmetry influence terms and residuals (vectorised).
 
     Pixels o..o+n (vectorised): c = w exp(2i AOPLM) (w = DoP^2 taper, or with ``paired`` taper
-    Q(p) Q(p'); 0 if unusable) into cr,
-    ci; xi = atan2(r_x, r_y); tr = ring position in [0, n_rings - 1]; the residuals r_j (0 if
-    unusable); rss[j] += r_j^2.
+    Q(p) Q(p'); 0 if unusable) into cr, ci; xi = atan2(r_x, r_y); tr = ring position in [0,
+    n_rings - 1]; the residuals r_j (0 if unusable); rss[j] += r_j^2.
     """
     span = max(rho_max - rho_lo, 1e-12)
     a0, a1, a2 = s1[0], s1[1], s1[2]
@@ -510,40 +455,22 @@ def _ring_harmonic(
 
 @njit(cache=True, nogil=True, error_model='numpy')
 def ring_terms2(
-    aop,
-    dop,
-    valid,
-    rays,
-    xs,
-    ys,
-    min_dop,
-    rho_lo,
-    rho_max,
-    taper_frac,
-    n_rings,
-    K,
-    mg,
-    mq,
-    mp,
-    a_in,
-    rot,
-    F2,
-    s1,
-    s2,
-    t0,
-    t1,
-    rss,
+    view, ring, n_rings, K, mirror, a_in, rot, F2, suns, t0, t1, rss
 ):  # pragma: no cover - compiled
     """
     Compute the per-pixel terms of the Symmetry influence pass (before the block sums).
 
-    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns, d theta / d a_i =
-    -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i c_i e_i^k A_k(i) (A_k:
-    a_k interpolated at the pixel's ring); rss[j] += residual_j^2 (pair weights as
-    :func:`._sm_asm_kernels.band_terms2`). In chunks: the per-pixel terms (vectorised), one loop
-    per harmonic. The block sums (:func:`._disc._block_sums`) can then be taken over any blocks of
-    the same pixel order.
+    t0[i], t1[i] = (d theta / d a_i) * residual_j(i) for the two candidate suns ``suns`` = (s1,
+    s2), d theta / d a_i = -(d F'/d a_i) / F'' with d F'/d a_i = Re sum_k (-8k) e^{2ik theta} w_i
+    c_i e_i^k A_k(i) (A_k: a_k interpolated at the pixel's ring); rss[j] += residual_j^2 (pair
+    weights as :func:`._sm_asm_kernels.band_terms2`). In chunks: the per-pixel terms
+    (vectorised), one loop per harmonic. The block sums (:func:`._disc._block_sums`) can then be
+    taken over any blocks of the same pixel order.
     """
+    aop, dop, valid, rays, xs, ys = view
+    min_dop, rho_lo, rho_max, taper_frac = ring
+    mg, mq, mp = mirror
+    s1, s2 = suns
     N = aop.size
     wm = _pair_weights(mg, mq, mp, xs, ys)
     paired = mg.shape[0] > 0

@@ -15,11 +15,9 @@
 """
 From a raw division-of-focal-plane mosaic to an :class:`Observation`.
 
-From a raw division-of-focal-plane mosaic to an :class:`Observation`, demosaicing only what a
-method reads.
-
-An estimator's :meth:`pixels_needed` says which sensor pixels it uses; here that becomes the part
-of the mosaic to demosaic (with :mod:`polarization_compass.demosaic`, never a private demosaic):
+Only what a method reads is demosaiced: an estimator's :meth:`pixels_needed` says which sensor
+pixels it uses; here that becomes the part of the mosaic to demosaic (with
+:mod:`polarization_compass.demosaic`, never a private demosaic):
 
 - ``superpixel``: one output per 2 x 2 block, at the block centre (``x = x0 + 2 l + 0.5``). A
   strided selection keeps every ``max(1, stride // 2)``-th block row and column (block-aligned, so
@@ -322,6 +320,40 @@ def observation_from_mosaic(
        Polarized Skylight Orientation Determination" (the seed paper), eqs 20 and 28.
 
     """
+    m, x0, y0 = _placed_mosaic(mosaic, camera, origin_px)
+    lay = parse_layout(layout, pol45_toward).shifted(
+        (y0 - 1) % 2, (x0 - 1) % 2
+    )  # the mosaic's own phase
+    if method not in ('superpixel', 'bilinear'):
+        raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
+    check = _ifov_check(m, lay, method, saturation_level, ifov_k)
+    how = (method, saturation_level, with_intensity, check)  # the arguments of _demosaic
+    if selection is not None and selection.mode in ('list', 'grid'):
+        planes, xg, yg, rays, has_ray = _sparse_planes(m, camera, selection, x0, y0, lay, how)
+    else:
+        rect = _wanted_rect(selection, x0, y0, *m.shape)
+        if method == 'superpixel':
+            planes, gx, gy = _superpixel_planes(m, x0, y0, rect, lay, how)
+        else:
+            planes, gx, gy = _bilinear_planes(m, x0, y0, rect, lay, how)
+        xg, yg, rays, has_ray = _grid_rays(camera, gx, gy)
+    return _observation(
+        planes,
+        xg,
+        yg,
+        rays,
+        has_ray,
+        camera,
+        sun_azimuth_deg,
+        sun_altitude_deg,
+        pitch_deg,
+        roll_deg,
+        prior_bearing_deg,
+    )
+
+
+def _placed_mosaic(mosaic, camera: CameraModel, origin_px):
+    """Return the mosaic as an array and its 1-based sensor origin (x0, y0), checked to fit."""
     m = np.asarray(mosaic)
     if m.ndim != 2 or m.shape[0] < 2 or m.shape[1] < 2:
         raise MosaicInputError(
@@ -334,14 +366,17 @@ def observation_from_mosaic(
             f'a {W} x {H} mosaic at ({x0}, {y0}) does not fit the {camera.width_px} x '
             f'{camera.height_px} camera'
         )
-    lay = parse_layout(layout, pol45_toward).shifted(
-        (y0 - 1) % 2, (x0 - 1) % 2
-    )  # the mosaic's own phase
-    if method not in ('superpixel', 'bilinear'):
-        raise MosaicInputError(f'demosaic method must be superpixel or bilinear, got {method!r}')
+    return m, x0, y0
+
+
+def _ifov_check(m, lay, method: str, saturation_level, ifov_k):
+    """
+    Return the IFOV check (ifov_k, the whole frame's redundancy noise or None) of a mosaic.
+
+    One noise model for the whole frame, whatever part of it is demosaiced.
+    """
     try:
         ifov_k = check_ifov_k(ifov_k)
-        # one noise model for the whole frame, whatever part of it is demosaiced
         noise = (
             redundancy_noise(m, lay, lay.pol45_toward, method, saturation_level)
             if ifov_k > 0.0
@@ -349,86 +384,82 @@ def observation_from_mosaic(
         )
     except SensorError as exc:
         raise MosaicInputError(str(exc)) from None
-    check = (ifov_k, noise)
-    if selection is not None and selection.mode in ('list', 'grid'):
-        try:
-            rows, cols, pick, xg, yg, rays, has_ray = _sparse_plan(
-                camera, selection, x0, y0, H, W, method
-            )
-        except CameraError as exc:
-            raise MosaicInputError(f'the pixels wanted: {exc}') from None
-        out = _demosaic(
-            _gather(m, rows, cols), lay, method, saturation_level, with_intensity, check
+    return ifov_k, noise
+
+
+def _sparse_planes(m, camera: CameraModel, selection: PixelSelection, x0, y0, lay, how):
+    """
+    Demosaic the outputs nearest a grid or list selection's pixels (module doc).
+
+    Returns (planes, x, y, rays, has_ray) for :func:`_observation`; ``how``: the arguments of
+    :func:`_demosaic` after the layout.
+    """
+    H, W = m.shape
+    try:
+        rows, cols, pick, xg, yg, rays, has_ray = _sparse_plan(
+            camera, selection, x0, y0, H, W, how[0]
         )
-        if pick is not None:
-            out = tuple(None if a is None else a[pick] for a in out)
-        return _observation(
-            out,
-            xg,
-            yg,
-            rays,
-            has_ray,
-            camera,
-            sun_azimuth_deg,
-            sun_altitude_deg,
-            pitch_deg,
-            roll_deg,
-            prior_bearing_deg,
-        )
-    xl, yl, xh, yh, stride = _wanted_rect(selection, x0, y0, H, W)
-    if method == 'superpixel':
-        # whole blocks of the mosaic's own 2 x 2 lattice inside the wanted rectangle
-        bx0 = math.ceil((xl - x0) / 2)
-        by0 = math.ceil((yl - y0) / 2)
-        bx1 = (xh - x0 + 1) // 2  # exclusive
-        by1 = (yh - y0 + 1) // 2
-        if bx1 <= bx0 or by1 <= by0:
-            raise MosaicInputError('the pixels wanted hold no complete 2 x 2 superpixel')
-        k = max(1, stride // 2)
-        cols = bx0 + _centred(bx1 - bx0, k)
-        rows = by0 + _centred(by1 - by0, k)
-        sub = _superpixel_blocks(m, rows, cols, k)
-        lay_sub = lay  # block-aligned: same phase as the mosaic
-        gx = (x0 + 2.0 * cols[0] + 0.5, 2.0 * k, int(cols.size))
-        gy = (y0 + 2.0 * rows[0] + 0.5, 2.0 * k, int(rows.size))
-    elif method == 'bilinear':
-        margin = 2
-        cx0 = max(x0, xl - margin)
-        cy0 = max(y0, yl - margin)
-        cx1 = min(x0 + W - 1, xh + margin)
-        cy1 = min(y0 + H - 1, yh + margin)
-        sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
-        lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
-        gx = gy = None
-    aop, dop, valid, inten = _demosaic(
-        sub, lay_sub, method, saturation_level, with_intensity, check
-    )
-    if method == 'bilinear':
-        ys = np.arange(cy0, cy1 + 1)
-        xs = np.arange(cx0, cx1 + 1)
-        ri = np.nonzero((ys >= yl) & (ys <= yh))[0]
-        ci = np.nonzero((xs >= xl) & (xs <= xh))[0]
-        ri = ri[_centred(ri.size, stride)]
-        ci = ci[_centred(ci.size, stride)]
-        sl = (slice(ri[0], ri[-1] + 1, stride), slice(ci[0], ci[-1] + 1, stride))
-        aop, dop, valid = aop[sl], dop[sl], valid[sl]
-        inten = None if inten is None else inten[sl]
-        gx = (float(xs[ci[0]]), float(stride), int(ci.size))
-        gy = (float(ys[ri[0]]), float(stride), int(ri.size))
-    xg, yg, rays, has_ray = _grid_rays(camera, gx, gy)
-    return _observation(
-        (aop, dop, valid, inten),
-        xg,
-        yg,
-        rays,
-        has_ray,
-        camera,
-        sun_azimuth_deg,
-        sun_altitude_deg,
-        pitch_deg,
-        roll_deg,
-        prior_bearing_deg,
-    )
+    except CameraError as exc:
+        raise MosaicInputError(f'the pixels wanted: {exc}') from None
+    out = _demosaic(_gather(m, rows, cols), lay, *how)
+    if pick is not None:
+        out = tuple(None if a is None else a[pick] for a in out)
+    return out, xg, yg, rays, has_ray
+
+
+def _superpixel_planes(m, x0, y0, rect, lay, how):
+    """
+    Superpixel-demosaic the whole 2 x 2 blocks inside the wanted rectangle, strided.
+
+    ``rect``: :func:`_wanted_rect`. Returns (planes, x grid key, y grid key); ``how``: the
+    arguments of :func:`_demosaic` after the layout.
+    """
+    xl, yl, xh, yh, stride = rect
+    # whole blocks of the mosaic's own 2 x 2 lattice inside the wanted rectangle
+    bx0 = math.ceil((xl - x0) / 2)
+    by0 = math.ceil((yl - y0) / 2)
+    bx1 = (xh - x0 + 1) // 2  # exclusive
+    by1 = (yh - y0 + 1) // 2
+    if bx1 <= bx0 or by1 <= by0:
+        raise MosaicInputError('the pixels wanted hold no complete 2 x 2 superpixel')
+    k = max(1, stride // 2)
+    cols = bx0 + _centred(bx1 - bx0, k)
+    rows = by0 + _centred(by1 - by0, k)
+    sub = _superpixel_blocks(m, rows, cols, k)
+    gx = (x0 + 2.0 * cols[0] + 0.5, 2.0 * k, int(cols.size))
+    gy = (y0 + 2.0 * rows[0] + 0.5, 2.0 * k, int(rows.size))
+    return _demosaic(sub, lay, *how), gx, gy  # block-aligned: same phase as the mosaic
+
+
+def _bilinear_planes(m, x0, y0, rect, lay, how):
+    """
+    Bilinear-demosaic the wanted rectangle (with a margin), then keep every ``stride``-th pixel.
+
+    ``rect``: :func:`_wanted_rect`. Returns (planes, x grid key, y grid key); ``how``: the
+    arguments of :func:`_demosaic` after the layout.
+    """
+    xl, yl, xh, yh, stride = rect
+    H, W = m.shape
+    margin = 2
+    cx0 = max(x0, xl - margin)
+    cy0 = max(y0, yl - margin)
+    cx1 = min(x0 + W - 1, xh + margin)
+    cy1 = min(y0 + H - 1, yh + margin)
+    sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
+    lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
+    aop, dop, valid, inten = _demosaic(sub, lay_sub, *how)
+    ys = np.arange(cy0, cy1 + 1)
+    xs = np.arange(cx0, cx1 + 1)
+    ri = np.nonzero((ys >= yl) & (ys <= yh))[0]
+    ci = np.nonzero((xs >= xl) & (xs <= xh))[0]
+    ri = ri[_centred(ri.size, stride)]
+    ci = ci[_centred(ci.size, stride)]
+    sl = (slice(ri[0], ri[-1] + 1, stride), slice(ci[0], ci[-1] + 1, stride))
+    aop, dop, valid = aop[sl], dop[sl], valid[sl]
+    inten = None if inten is None else inten[sl]
+    gx = (float(xs[ci[0]]), float(stride), int(ci.size))
+    gy = (float(ys[ri[0]]), float(stride), int(ri.size))
+    return (aop, dop, valid, inten), gx, gy
 
 
 def _demosaic(sub, lay, method, saturation_level, with_intensity, check):

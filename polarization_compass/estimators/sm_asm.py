@@ -50,10 +50,10 @@ import math
 
 import numpy as np
 
-from ._common import Knob
-from ._disc import disc_cells
+from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
+from ._knobs import Knob
 from ._mirror import AxisFit
 from ._sm_asm_kernels import band_fit, band_gather, band_pass1, band_terms2
 from .base import HeadingResult, Status
@@ -124,23 +124,21 @@ class SmAsmEstimator(DiscEstimator):
             )
         return 0.5 * math.atan2(Zi, Zr), math.sqrt(modZ2) / norm
 
-    def _fit(self, data, rho_lo, rho_max):
+    def _ring(self, rho_lo, rho_max):
         k = self.knobs
-        aop, dop, valid, rays, _, _, inten = data
+        return DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+
+    def _fit(self, data, rho_lo, rho_max):
+        inten = data[6]
         has_i = inten is not None
         out = np.zeros(3)
         cnt = np.zeros(4, np.int64)
         stats = np.zeros(N_STATS)
         band_pass1(
-            aop,
-            dop,
-            valid,
-            rays,
+            data[:6],
             inten if has_i else np.zeros(1, np.float32),
             has_i,
-            k['min_dop'],
-            rho_max,
-            k['taper_fraction'],
+            self._ring(rho_lo, rho_max),
             self._inv4tol2(),
             out,
             cnt,
@@ -158,33 +156,19 @@ class SmAsmEstimator(DiscEstimator):
 
     def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
-        g_uv = np.empty((2, aop.size))
-        g_val = np.empty((4, aop.size))
-        n = band_gather(
-            aop,
-            dop,
-            valid,
-            rays,
-            xs,
-            ys,
-            k['min_dop'],
-            rho_max,
-            k['taper_fraction'],
-            self._inv4tol2(),
-            mm.grid,
-            mm.weight,
-            mm.params,
-            own_dop2,
-            g_uv,
-            g_val,
-        )
+        N = data[0].size
+        g_uv = np.empty((2, N))
+        g_ts = np.empty(N)
+        g_val = np.empty((3, N))
+        ring = self._ring(rho_lo, rho_max)
+        mirror = (mm.grid, mm.weight, mm.params)
+        n = band_gather(data[:6], ring, self._inv4tol2(), mirror, own_dop2, g_uv, g_ts, g_val)
         disc = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
-        return {'uv': g_uv, 'val': g_val, 'n': n, 'disc': disc}
+        return {'uv': g_uv, 'ts': g_ts, 'val': g_val, 'n': n, 'disc': disc}
 
     def _mirror_fit(self, g, mirror, near, plain, step=1, start=0):
         out = np.zeros(5)
-        band_fit(g['uv'], g['val'], g['n'], start, step, mirror[0], mirror[1], mirror[2], out)
+        band_fit(g['uv'], g['ts'], g['val'], g['n'], start, step, *mirror, out)
         Zr, Zi, norm, cov, n_pair = out
         ax = self._axis(Zr, Zi, norm, plain.n)
         if isinstance(ax, HeadingResult):
@@ -202,30 +186,17 @@ class SmAsmEstimator(DiscEstimator):
         )
 
     def _influence_terms(self, data, rho_lo, rho_max, mirror, fit, s1, s2):
-        k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
-        t0 = np.empty(aop.size)
-        t1 = np.empty(aop.size)
+        N = data[0].size
+        t0 = np.empty(N)
+        t1 = np.empty(N)
         rss = np.zeros(2)
-        Zr, Zi = fit.state['Z']
         band_terms2(
-            aop,
-            dop,
-            valid,
-            rays,
-            xs,
-            ys,
-            k['min_dop'],
-            rho_max,
-            k['taper_fraction'],
+            data[:6],
+            self._ring(rho_lo, rho_max),
             self._inv4tol2(),
-            mirror[0],
-            mirror[1],
-            mirror[2],
-            Zr,
-            Zi,
-            s1,
-            s2,
+            tuple(mirror),
+            fit.state['Z'],
+            (s1, s2),
             t0,
             t1,
             rss,

@@ -15,9 +15,8 @@
 """
 Time each estimator from a raw 2448 x 2048 12-bit mosaic on one core.
 
-Time each estimator from a raw 2448 x 2048 12-bit mosaic on one core: demosaic (only the pixels the
-method reads) + estimate. ``python -m polarization_compass.estimators.speed [--repeat N]
-[--json]``.
+The time is demosaic (only the pixels the method reads) + estimate. ``python -m
+polarization_compass.estimators.speed [--repeat N] [--json]``.
 
 Reports, per method and setting, the minimum and median wall time and the minimum CPU time of the
 process (``time.process_time``, less sensitive to other load on a shared machine) over ``--repeat``

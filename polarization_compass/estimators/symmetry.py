@@ -60,10 +60,10 @@ import math
 from numba import njit
 import numpy as np
 
-from ._common import Knob
-from ._disc import disc_cells
+from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
+from ._knobs import Knob
 from ._mirror import AxisFit
 from ._symmetry_kernels import ring_fit, ring_gather, ring_pass1, ring_terms2
 from .base import HeadingResult, Status
@@ -105,11 +105,7 @@ def _newton(b, K, theta, step):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def _climb(Fg, i):  # pragma: no cover - compiled
-    """
-    Return the local maximum of the periodic grid function Fg uphill from index i.
-
-    The local maximum of the periodic grid function Fg reached by walking uphill from index i.
-    """
+    """Return the local maximum of the periodic grid function Fg reached uphill from index i."""
     n = Fg.size
     for _ in range(n):
         up, down = Fg[(i + 1) % n], Fg[(i - 1) % n]
@@ -226,7 +222,7 @@ def _axis_search(a, K, steps, near=None):
     """
     Return the axis from the ring coefficients a (2K+1, rings).
 
-    The axis from the ring coefficients a (2K+1, rings): (theta, F, F2, second-axis score, energy).
+    Returns (theta, F, F2, second-axis score, energy).
 
     Coarse search of F on ``steps`` points over [0, pi), then Newton on F' = 0. ``near`` None: the
     best near-best peak on the meridian side: the meridian carries |AOPLM| = 90 deg along itself (E
@@ -331,25 +327,23 @@ class SymmetryEstimator(DiscEstimator):
             theta, base.n, n_pair, base.nonfinite, base.holes, coverage, base.stats, quality, state
         )
 
+    def _ring(self, rho_lo, rho_max):
+        k = self.knobs
+        return DiscRing(k['min_dop'], rho_lo, rho_max, k['taper_fraction'])
+
     def _fit(self, data, rho_lo, rho_max):
         k = self.knobs
-        aop, dop, valid, rays, _, _, inten = data
+        inten = data[6]
         has_i = inten is not None
         K, NR = k['harmonics'], k['rings']
         a = np.zeros((2 * K + 1, NR), dtype=np.complex128)
         cnt = np.zeros(4, np.int64)
         stats = np.zeros(N_STATS)
         ring_pass1(
-            aop,
-            dop,
-            valid,
-            rays,
+            data[:6],
             inten if has_i else np.zeros(1, np.float32),
             has_i,
-            k['min_dop'],
-            rho_lo,
-            rho_max,
-            k['taper_fraction'],
+            self._ring(rho_lo, rho_max),
             NR,
             K,
             a,
@@ -363,8 +357,7 @@ class SymmetryEstimator(DiscEstimator):
 
     def _gather(self, data, rho_lo, rho_max, mm, own_dop2=False):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
-        N = aop.size
+        N = data[0].size
         K = k['harmonics']
         g = {
             'uv': np.empty((2, N)),
@@ -372,27 +365,10 @@ class SymmetryEstimator(DiscEstimator):
             'v': np.empty((2 * K + 1, N), np.complex128),
             'ring': np.empty(N),
         }
+        ring = self._ring(rho_lo, rho_max)
+        mirror = (mm.grid, mm.weight, mm.params)
         g['n'] = ring_gather(
-            aop,
-            dop,
-            valid,
-            rays,
-            xs,
-            ys,
-            k['min_dop'],
-            rho_lo,
-            rho_max,
-            k['taper_fraction'],
-            k['rings'],
-            K,
-            mm.grid,
-            mm.weight,
-            mm.params,
-            own_dop2,
-            g['uv'],
-            g['tp'],
-            g['v'],
-            g['ring'],
+            data[:6], ring, k['rings'], K, mirror, own_dop2, g['uv'], g['tp'], g['v'], g['ring']
         )
         g['disc'] = disc_cells(mm.camera, *mm.lattice, rho_lo, rho_max, k['taper_fraction'])
         return g
@@ -430,35 +406,24 @@ class SymmetryEstimator(DiscEstimator):
 
     def _influence_terms(self, data, rho_lo, rho_max, mirror, fit, s1, s2):
         k = self.knobs
-        aop, dop, valid, rays, xs, ys, _ = data
+        N = data[0].size
         K, NR = k['harmonics'], k['rings']
-        t0 = np.zeros(aop.size)
-        t1 = np.zeros(aop.size)
+        t0 = np.zeros(N)
+        t1 = np.zeros(N)
         rss = np.zeros(2)
         F2 = fit.state['F2']
         if F2 < 0.0:
             rot = np.exp(2j * np.arange(-K, K + 1) * fit.theta)
             ring_terms2(
-                aop,
-                dop,
-                valid,
-                rays,
-                xs,
-                ys,
-                k['min_dop'],
-                rho_lo,
-                rho_max,
-                k['taper_fraction'],
+                data[:6],
+                self._ring(rho_lo, rho_max),
                 NR,
                 K,
-                mirror[0],
-                mirror[1],
-                mirror[2],
+                tuple(mirror),
                 fit.state['a'],
                 rot,
                 F2,
-                s1,
-                s2,
+                (s1, s2),
                 t0,
                 t1,
                 rss,

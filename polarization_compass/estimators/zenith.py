@@ -23,8 +23,8 @@ implementation does the same thing exactly:
 
 1. lift every window pixel's AoP to its 3-D E-vector ``e_i`` (perpendicular to its ray);
 2. the dominant eigenvector ``u`` of ``sum e_i e_i^T`` is the window's E-vector axis: for a window
-shrinking to the zenith it is the zenith E-vector, and for any window the Rayleigh sun is
-perpendicular to it (every ``e_i`` is perpendicular to the sun);
+   shrinking to the zenith it is the zenith E-vector, and for any window the Rayleigh sun is
+   perpendicular to it (every ``e_i`` is perpendicular to the sun);
 3. under the level-camera assumption the sun lies on the cone of elevation ``h`` (the ephemeris
    altitude, which every compass needs anyway for the sun's azimuth): the two intersections of the
    plane ``u . s = 0`` with that cone are ``psi`` and (nearly) ``psi + 180 deg``; the one that fits
@@ -58,22 +58,18 @@ from numba import njit
 import numpy as np
 
 from ._common import (
-    _BadInput,
     axial_residual_rad,
-    check_sun,
     cluster_sigma_rad,
     finish_sigma_deg,
-    Knob,
-    KnobbedEstimator,
     level_sun_candidates,
     psi_from_sun_rad,
     rayleigh_aop_rad,
     resolve_ambiguity,
     result_from,
-    samples_from_view,
-    select_view,
 )
 from ._kernels import acc_brightness, acc_sym, N_STATS
+from ._knobs import Knob, KnobbedEstimator
+from ._views import _BadInput, check_sun, samples_from_view, select_view
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 
@@ -127,8 +123,8 @@ def _window_sums(
     """
     Accumulate the window's usable pixels into the lifted E-vector matrix.
 
-    The window's usable pixels (valid, every value finite, DoP >= min_dop; the mask of
-    :func:`._common.samples_from_view`): m += upper triangle of sum e e^T of the unit lifted
+    Usable: valid, every value finite, DoP >= min_dop (the mask of
+    :func:`._views.samples_from_view`). m += upper triangle of sum e e^T of the unit lifted
     E-vectors (:func:`polarization_compass.conventions.evector_cam_from_aop`, float64), cnt =
     (usable, valid with a non-finite value, valid), trig += (sum cos 2a, sum sin 2a), brightness
     statistics into ``stats`` (``cnt[3]`` = 1 when a usable pixel's intensity is not finite: then
@@ -184,10 +180,10 @@ def _window_sums(
 @njit(cache=True, nogil=True)
 def _eigh3(m):  # pragma: no cover - compiled
     """
-    np.linalg.eigh of the symmetric 3x3 matrix with upper triangle m (00 01 02 11 12 22): (lam, U).
+    Return np.linalg.eigh (lam, U) of the symmetric 3x3 matrix with upper triangle m.
 
-    The
-    same LAPACK routine as numpy's (the same bits here), without numpy's ~10 us of Python per call.
+    ``m`` = (00 01 02 11 12 22). The same LAPACK routine as numpy's (the same bits here), without
+    numpy's ~10 us of Python per call.
     """
     M = np.empty((3, 3))
     M[0, 0], M[0, 1], M[0, 2] = m[0], m[1], m[2]
@@ -230,11 +226,7 @@ def side_grid_px(camera: CameraModel, n: int):
 
 @lru_cache(maxsize=64)
 def _pixels_needed(camera: CameraModel, window_px: int, side_grid: int) -> PixelSelection:
-    """
-    Return the zenith window plus the whole-sky side grid as one pixel list (cached).
-
-    The zenith window plus the whole-sky side grid as one explicit pixel list (cached per camera).
-    """
+    """Return the zenith window plus the whole-sky side grid as one pixel list (cached)."""
     (x_lo, x_hi, y_lo, y_hi), sel = zenith_window(camera, window_px)
     if side_grid <= 0:
         return sel
@@ -250,8 +242,8 @@ def _side_sample(obs: Observation, side_grid: int):
     """
     Return the observation's pixels nearest the side grid as a sky sample, or None.
 
-    The observation's pixels nearest the whole-sky side grid (:func:`side_grid_px`) as a
-    :class:`~polarization_compass.skyfit.SkySample`, or None when fewer than 30 are usable.
+    The whole-sky side grid is :func:`side_grid_px`; the sample a
+    :class:`~polarization_compass.skyfit.SkySample`, None when fewer than 30 are usable.
 
     A 2-D observation is read at the nearest row and column to each grid pixel; a 1-D pixel list at
     the grid pixels it contains. Either way a frame and a sweep that renders
@@ -326,6 +318,85 @@ def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dic
         else 'the whole sky does not tell the side '
         '(sun altitude near 0 or 90 deg and no brightness contrast)'
     )
+
+
+def _window_matrix(view, min_dop: float):
+    """
+    Return the window's ``sum e e^T`` (upper triangle), counts and AoP trig sums.
+
+    (m (6,), cnt = (usable, valid non-finite, valid, intensity not finite), trig = (sum cos 2a,
+    sum sin 2a)) from one compiled pass (:func:`_window_sums`), with the brightness statistics
+    when the view has intensities.
+    """
+    has_i = view.intensity is not None
+    m = np.zeros(6)
+    cnt = np.zeros(4, np.int64)
+    trig = np.zeros(2)
+    stats = np.zeros(N_STATS)
+    _window_sums(
+        view.aop,
+        view.dop,
+        view.valid,
+        view.rays,
+        view.intensity if has_i else np.zeros(1, np.float32),
+        has_i,
+        float(min_dop),
+        m,
+        cnt,
+        trig,
+        stats,
+    )
+    return m, cnt, trig
+
+
+def _sun_on_altitude_cone(m, altitude_deg: float):
+    """
+    Return the camera-frame sun on the plane perpendicular to the window's E-vector axis.
+
+    Step 3 of the module doc: of the two intersections of the plane ``u . s = 0`` (``u`` the
+    dominant eigenvector of ``m``, upper triangle of ``sum e e^T``) with the cone of elevation
+    ``altitude_deg``, the one that fits the window's E-vectors better (smaller ``s^T M s``); None
+    when ``u`` lies along the optical axis.
+    """
+    lam, U = _eigh3(m)
+    u = U[:, 2]
+    h = math.radians(altitude_deg)
+    rho_u = math.hypot(u[0], u[1])
+    if rho_u <= 1e-12:
+        return None
+    phi = math.atan2(u[0], u[1])  # azimuth of u (from +y towards +x)
+    num = -u[2] * math.sin(h)
+    den = rho_u * math.cos(h)
+    kappa = max(-1.0, min(1.0, num / den)) if den > abs(num) else math.copysign(1.0, num)
+    off = math.acos(kappa)
+    best = None
+    ch, sh = math.cos(h), math.sin(h)
+    for mu in (phi + off, phi - off):
+        x, y, z = ch * math.sin(mu), ch * math.cos(mu), sh
+        cost = (
+            m[0] * x * x
+            + m[3] * y * y
+            + m[5] * z * z
+            + 2.0 * (m[1] * x * y + m[2] * x * z + m[4] * y * z)
+        )  # s^T M s
+        if best is None or cost < best[0]:
+            best = (cost, (x, y, z))
+    return np.array(best[1])
+
+
+def _window_sigma_deg(view, sun_cam, k: dict):
+    """
+    Return (sigma_deg, rms residual deg) of the window fit.
+
+    To first order ``d psi = -sum_i w_i da_i / sum w`` with ``da_i`` the residual against the
+    Rayleigh AoP of ``sun_cam``; cluster-robust over blocks of ``block_px``.
+    """
+    smp = samples_from_view(view, k['min_dop'])
+    resid = axial_residual_rad(smp.aop_rad, rayleigh_aop_rad(sun_cam, smp.rays))
+    w = np.ones(smp.n)
+    infl = w * resid / w.sum()
+    sigma_deg = finish_sigma_deg(cluster_sigma_rad(infl, smp, k['block_px'], n_params=1), k)
+    return sigma_deg, math.degrees(math.sqrt(float(np.mean(resid**2))))
 
 
 class ZenithEstimator(KnobbedEstimator, Estimator):
@@ -444,24 +515,7 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
             view = select_view(obs, k, window=win)
         except _BadInput as exc:
             return HeadingResult.failed(self.name, Status.BAD_INPUT, str(exc))
-        has_i = view.intensity is not None
-        m = np.zeros(6)
-        cnt = np.zeros(4, np.int64)
-        trig = np.zeros(2)
-        stats = np.zeros(N_STATS)
-        _window_sums(
-            view.aop,
-            view.dop,
-            view.valid,
-            view.rays,
-            view.intensity if has_i else np.zeros(1, np.float32),
-            has_i,
-            float(k['min_dop']),
-            m,
-            cnt,
-            trig,
-            stats,
-        )
+        m, cnt, trig = _window_matrix(view, k['min_dop'])
         n, nonfinite = int(cnt[0]), int(cnt[1])
         if n < k['min_pixels']:
             return HeadingResult.failed(
@@ -471,35 +525,14 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
                 f'min_pixels {k["min_pixels"]}',
                 pixels=n,
             )
-        lam, U = _eigh3(m)
-        u = U[:, 2]
-        h = math.radians(float(obs.sun_altitude_deg))
-        rho_u = math.hypot(u[0], u[1])
-        if rho_u <= 1e-12:
+        s = _sun_on_altitude_cone(m, float(obs.sun_altitude_deg))
+        if s is None:
             return HeadingResult.failed(
                 self.name,
                 Status.DEGENERATE,
                 "the window's E-vector points along the optical axis",
                 pixels=n,
             )
-        phi = math.atan2(u[0], u[1])  # azimuth of u (from +y towards +x)
-        num = -u[2] * math.sin(h)
-        den = rho_u * math.cos(h)
-        kappa = max(-1.0, min(1.0, num / den)) if den > abs(num) else math.copysign(1.0, num)
-        off = math.acos(kappa)
-        best = None
-        ch, sh = math.cos(h), math.sin(h)
-        for mu in (phi + off, phi - off):
-            x, y, z = ch * math.sin(mu), ch * math.cos(mu), sh
-            cost = (
-                m[0] * x * x
-                + m[3] * y * y
-                + m[5] * z * z
-                + 2.0 * (m[1] * x * y + m[2] * x * z + m[4] * y * z)
-            )  # s^T M s
-            if best is None or cost < best[0]:
-                best = (cost, (x, y, z))
-        s = np.array(best[1])
         psi = psi_from_sun_rad(s)
         first, second = level_sun_candidates(psi, float(obs.sun_altitude_deg))
         first.sun_cam = s  # the exact fit (the other end is the level mirror)
@@ -518,14 +551,7 @@ class ZenithEstimator(KnobbedEstimator, Estimator):
                 reason = f'{reason}; {why}'
         sigma_deg = None
         if sigma:
-            smp = samples_from_view(view, k['min_dop'])
-            resid = axial_residual_rad(smp.aop_rad, rayleigh_aop_rad(s, smp.rays))
-            w = np.ones(smp.n)
-            infl = w * resid / w.sum()
-            sigma_deg = finish_sigma_deg(
-                cluster_sigma_rad(infl, smp, k['block_px'], n_params=1), k
-            )
-            extras['rms_residual_deg'] = math.degrees(math.sqrt(float(np.mean(resid**2))))
+            sigma_deg, extras['rms_residual_deg'] = _window_sigma_deg(view, s, k)
         R = math.hypot(trig[0], trig[1]) / n  # axial resultant length of the window's AoP
         return result_from(
             self.name, pick, by, reason, obs, sigma_deg, n, nonfinite, R, extras=extras
