@@ -20,14 +20,14 @@ times: the sky model writes AoP, DoP and validity, the cloud layer reads and rew
 the radiance, the lens reads the rays and rewrites them again (~80 MB per stage on a 2448 x 2048
 frame, where the arithmetic is cheap). For a contiguous pixel block (the full frame or a stride-1
 region) :class:`SkyEffects` evaluates, band by band of rows, the cloud layer on its grid
-(:meth:`~polarization_compass.atmosphere.CloudLayer.grid`), then row by row the sky model, the
+(:meth:`~polarization_compass.clouds.CloudLayer.grid`), then row by row the sky model, the
 cloud composite and vignetting with the sun's disk and glare, in one parallel region, and writes
 AoP, DoP, validity and radiance once; the lens-flare ghosts are then added over their bounding
 boxes only.
 
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
-atmosphere.cloud_transmission`, :func:`~polarization_compass.atmosphere.cloud_light`,
+clouds.cloud_transmission`, :func:`~polarization_compass.clouds.cloud_light`,
 :func:`~polarization_compass.optics.lens_light`), applied in the stages' order (sky, clouds with
 the minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own ratio)
 share one division. A frame equals the staged one up to float32 rounding (a few 1e-7, relative),
@@ -49,7 +49,7 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .atmosphere import (
+from .clouds import (
     cloud_light,
     cloud_transmission,
     cloud_transmission_at,
@@ -153,7 +153,7 @@ def _sky_effects_kernel(
     Render a row-major pixel block: cloud grid, sky, clouds and lens per band of rows, one launch.
 
     Each band of ``_BAND`` pixel rows first evaluates the cloud layer on the grid rows it lies
-    between (:func:`~polarization_compass.atmosphere.cloud_transmission_at`, the grid row shared
+    between (:func:`~polarization_compass.clouds.cloud_transmission_at`, the grid row shared
     by two bands evaluated by both) and interpolates them to every pixel column, into a buffer
     that stays in the cache; then :func:`_sky_effects_row` runs over each row's slices of the rays
     and the outputs (per-row slices: a flat index r * W + c kept such loops scalar, measured). One
@@ -316,7 +316,7 @@ class SkyEffects:
         if sel.mode not in ('full', 'region') or sel.stride != 1 or len(px.shape) != 2:
             return None
         if clouds is not None:
-            from .atmosphere import GRID_STEP
+            from .clouds import GRID_STEP
 
             if min(px.shape) <= 2 * GRID_STEP:
                 return None
