@@ -237,22 +237,51 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         raise SensorError(
             f'unknown sensor effect(s) {sorted(map(str, unknown))}; known: {", ".join(EFFECTS)}'
         )
-    mos = _params(cfg, 'mosaic', ('layout', 'pol45_toward'))
-    layout = layout_from_mapping(mos)
+    layout = layout_from_mapping(_params(cfg, 'mosaic', ('layout', 'pol45_toward')))
     exp = _params(cfg, 'exposure', ('full_well_e', 'fill'))
     full_well = _number(exp, 'full_well_e', 10500.0, 1.0, 1e8, 'exposure')
     fill = _number(exp, 'fill', 0.5, 0.0, 1000.0, 'exposure', lo_open=True)
-    er = None
-    if 'extinction_ratio' in cfg:
-        er = _number(
-            _params(cfg, 'extinction_ratio', ('value',)),
-            'value',
-            100.0,
-            1.0,
-            1e12,
-            'extinction_ratio',
-            lo_open=True,
-        )
+    er = _extinction_ratio(cfg)
+    shot, read = _noise(cfg)
+    bits = _quantization_bits(cfg)
+    cal = _calibration(cfg, er)
+    method = cfg.get('demosaic', 'bilinear')
+    if method is None:
+        method = 'bilinear'
+    if method not in DEMOSAIC_METHODS:
+        raise SensorError(f'sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}')
+    return SensorConfig(
+        layout,
+        full_well,
+        fill,
+        er,
+        shot,
+        read,
+        bits,
+        method,
+        saturates='exposure' in cfg,
+        calibration=cal,
+        ifov_check_k=_ifov_check_k(cfg),
+    )
+
+
+def _extinction_ratio(cfg: dict) -> float | None:
+    """Return ``extinction_ratio.value``, or None when the effect is not declared."""
+    if 'extinction_ratio' not in cfg:
+        return None
+    return _number(
+        _params(cfg, 'extinction_ratio', ('value',)),
+        'value',
+        100.0,
+        1.0,
+        1e12,
+        'extinction_ratio',
+        lo_open=True,
+    )
+
+
+def _noise(cfg: dict) -> tuple:
+    """Return (shot noise's Gaussian threshold [e-], read noise [e- rms]); None if undeclared."""
     shot = None
     if 'shot_noise' in cfg:
         # Knuth's Poisson method multiplies uniforms down to exp(-lambda): keep lambda where that
@@ -270,59 +299,55 @@ def parse_sensor_config(cfg: dict) -> SensorConfig:
         read = _number(
             _params(cfg, 'read_noise', ('sigma_e',)), 'sigma_e', 2.3, 0.0, 1e6, 'read_noise'
         )
-    bits = None
-    if 'quantization' in cfg:
-        q = _params(cfg, 'quantization', ('bits',))
-        b = q.get('bits', 12)
-        if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in _BITS:
-            raise SensorError(f'sensor.quantization.bits must be one of {_BITS}, got {b!r}')
-        bits = int(b)
-    cal = None
-    if 'calibration' in cfg:
-        c = _params(
-            cfg,
-            'calibration',
-            ('angle_error_deg', 'extinction_ratio_spread', 'gain_rms', 'crosstalk', 'seed'),
-        )
-        cal = {
-            'angle_error_deg': _number(c, 'angle_error_deg', 0.0, 0.0, 45.0, 'calibration'),
-            'extinction_ratio_spread': _number(
-                c, 'extinction_ratio_spread', 0.0, 0.0, 3.0, 'calibration'
-            ),
-            'gain_rms': _number(c, 'gain_rms', 0.0, 0.0, 0.3, 'calibration'),
-            'crosstalk': _number(c, 'crosstalk', 0.0, 0.0, 0.2, 'calibration'),
-            'seed': int(_number(c, 'seed', 0, 0, 2**32 - 1, 'calibration')),
-        }
-        if cal['extinction_ratio_spread'] > 0 and er is None:
-            raise SensorError(
-                'sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the '
-                'mean ratio the spread is around)'
-            )
-    method = cfg.get('demosaic', 'bilinear')
-    if method is None:
-        method = 'bilinear'
-    if method not in DEMOSAIC_METHODS:
-        raise SensorError(f'sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}')
-    ifov_k = IFOV_K_DEFAULT
-    if 'ifov_check' in cfg:
-        ic = _params(cfg, 'ifov_check', ('k_sigma',))
-        try:
-            ifov_k = check_ifov_k(ic.get('k_sigma', IFOV_K_DEFAULT))
-        except SensorError as exc:
-            raise SensorError(f'sensor.ifov_check.k_sigma: {exc}') from None
-    return SensorConfig(
-        layout,
-        full_well,
-        fill,
-        er,
-        shot,
-        read,
-        bits,
-        method,
-        saturates='exposure' in cfg,
-        calibration=cal,
-        ifov_check_k=ifov_k,
+    return shot, read
+
+
+def _quantization_bits(cfg: dict) -> int | None:
+    """Return ``quantization.bits`` (one of ``_BITS``), or None when the effect is not declared."""
+    if 'quantization' not in cfg:
+        return None
+    q = _params(cfg, 'quantization', ('bits',))
+    b = q.get('bits', 12)
+    if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in _BITS:
+        raise SensorError(f'sensor.quantization.bits must be one of {_BITS}, got {b!r}')
+    return int(b)
+
+
+def _calibration(cfg: dict, er: float | None) -> dict | None:
+    """Return the ``calibration`` parameters, or None; a ratio spread needs ``er``."""
+    if 'calibration' not in cfg:
+        return None
+    c = _params(
+        cfg,
+        'calibration',
+        ('angle_error_deg', 'extinction_ratio_spread', 'gain_rms', 'crosstalk', 'seed'),
     )
+    cal = {
+        'angle_error_deg': _number(c, 'angle_error_deg', 0.0, 0.0, 45.0, 'calibration'),
+        'extinction_ratio_spread': _number(
+            c, 'extinction_ratio_spread', 0.0, 0.0, 3.0, 'calibration'
+        ),
+        'gain_rms': _number(c, 'gain_rms', 0.0, 0.0, 0.3, 'calibration'),
+        'crosstalk': _number(c, 'crosstalk', 0.0, 0.0, 0.2, 'calibration'),
+        'seed': int(_number(c, 'seed', 0, 0, 2**32 - 1, 'calibration')),
+    }
+    if cal['extinction_ratio_spread'] > 0 and er is None:
+        raise SensorError(
+            'sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the '
+            'mean ratio the spread is around)'
+        )
+    return cal
+
+
+def _ifov_check_k(cfg: dict) -> float:
+    """Return ``ifov_check.k_sigma`` (the demosaic's default when undeclared)."""
+    if 'ifov_check' not in cfg:
+        return IFOV_K_DEFAULT
+    ic = _params(cfg, 'ifov_check', ('k_sigma',))
+    try:
+        return check_ifov_k(ic.get('k_sigma', IFOV_K_DEFAULT))
+    except SensorError as exc:
+        raise SensorError(f'sensor.ifov_check.k_sigma: {exc}') from None
 
 
 def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
