@@ -40,6 +40,7 @@ the scene's ``validity.min_dop`` become invalid.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit, prange
 import numpy as np
@@ -48,6 +49,7 @@ from .atmosphere_checks import _num, AtmosphereError
 from .fastmath import exp_nonpos
 
 __all__ = [
+    'CloudGrid',
     'CloudLayer',
     'cloud_light',
     'cloud_transmission_at',
@@ -403,6 +405,41 @@ def _grid_axis(n: int, step: int):
     return idx, k.astype(np.int64), k1.astype(np.int64), f.astype(np.float32)
 
 
+class CloudGrid(NamedTuple):
+    """
+    The cloud layer's grid over a pixel block for one frame, as the kernels read it.
+
+    Built by :meth:`CloudLayer.grid`.
+
+    Attributes
+    ----------
+    grays : numpy.ndarray, shape (3, Gy * Gx), float32
+        Camera-frame rays of the grid points, row-major.
+    R : numpy.ndarray, shape (3, 3), float64
+        Rotation from the camera frame to ENU.
+    cp : tuple
+        The layer's parameters for :func:`cloud_transmission_at`.
+    rk, rk1 : numpy.ndarray, shape (H,), int64
+        The grid rows below and above each pixel row.
+    rf : numpy.ndarray, shape (H,), float32
+        Each pixel row's fraction between them.
+    cols : numpy.ndarray, shape (Gx,), int64
+        The grid's pixel columns.
+    cf : numpy.ndarray, shape (W,), float32
+        Each pixel column's fraction between its two grid columns.
+
+    """
+
+    grays: np.ndarray
+    R: np.ndarray
+    cp: tuple
+    rk: np.ndarray
+    rk1: np.ndarray
+    rf: np.ndarray
+    cols: np.ndarray
+    cf: np.ndarray
+
+
 #: A contiguous block is clouded from T on every GRID_STEP-th pixel, interpolated (see
 #: CloudLayer.apply).
 GRID_STEP = 8
@@ -577,12 +614,9 @@ class CloudLayer:
 
         Returns
         -------
-        tuple or None
-            (grays (3, Gy * Gx) float32 rays of the grid points, row-major; R (3, 3) float64; cp,
-            the parameters of :func:`cloud_transmission_at`; rk, rk1 (H,) int64 the grid rows
-            below and above each pixel row; rf (H,) float32 the fraction between them; cols
-            (Gx,) int64 the grid's pixel columns; cf (W,) float32 each pixel column's fraction
-            between its two grid columns), or None.
+        CloudGrid or None
+            The grid's rays, the rotation, the layer's parameters and the interpolation indices
+            and fractions, or None.
 
         """
         if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
@@ -610,7 +644,7 @@ class CloudLayer:
             self.optical_thickness,
         )
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        return grays, R, cp, rk, rk1, rf, cols, cf
+        return CloudGrid(grays, R, cp, rk, rk1, rf, cols, cf)
 
     def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
         """
