@@ -320,7 +320,7 @@ def stage_rows(cam, base: Scene, reps: int) -> list[dict]:
     """
     Time ``simulate_mosaic`` and the two demosaics alone on a full frame.
 
-    ``simulate_mosaic`` alone and the two demosaics alone on a full frame (one thread and all).
+    Each runs on one thread and on all threads.
     """
     import numpy as np
     from polarization_compass.demosaic import polarization_from_mosaic

@@ -526,8 +526,8 @@ class CloudLayer:
         """
         Return the noise level above which a fraction ``coverage`` of the layer is cloudy.
 
-        The noise level above which a fraction ``coverage`` of the layer is cloudy: the (1 -
-        coverage) quantile of the field sampled at 40 000 seeded points over 200 x 200 features.
+        It is the (1 - coverage) quantile of the field sampled at 40 000 seeded points over 200 x
+        200 features.
         """
         if self.overcast:
             return -1.0

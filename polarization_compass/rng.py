@@ -97,7 +97,7 @@ def _splitmix(key, counter):  # pragma: no cover - compiled
     """
     Return the ``counter``-th output of SplitMix64 started at ``key``.
 
-    The ``counter``-th output of SplitMix64 started at ``key`` (state = key + counter * gamma).
+    The state is key + counter * gamma.
     """
     z = key + counter * _GAMMA
     z = (z ^ (z >> np.uint64(30))) * _M1
@@ -147,8 +147,8 @@ def _normal(key, base):  # pragma: no cover - compiled
     """
     Draw a standard normal from the counter stream starting at ``base``.
 
-    A standard normal from the counter stream starting at ``base``: one draw on the fast path (98.5
-    %), ~1.02 on average. Bits: 0-7 layer, 8 sign, 11-63 the uniform.
+    One draw on the fast path (98.5 %), ~1.02 on average. Bits: 0-7 layer, 8 sign, 11-63 the
+    uniform.
     """
     z = _splitmix(key, base)
     k = np.int64(z & np.uint64(0xFF))
@@ -164,7 +164,7 @@ def _poisson_small(key, base, lam):  # pragma: no cover - compiled
     """
     Draw an exact Poisson(lam) by Knuth's product of uniforms; lam <= 200.
 
-    Exact Poisson(lam) by Knuth's product of uniforms; lam <= 200 (exp(-200) is a normal double).
+    The bound keeps exp(-lam) a normal double.
     """
     limit = math.exp(-lam)
     p = 1.0
@@ -190,8 +190,7 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
     """
     Return standard normals (float32) of the counter-based stream ``key``.
 
-    Standard normals (float32) of the counter-based stream ``key``: element n uses counters ``n *
-    1024 ...``. Exposed for tests of the generator's distribution.
+    Element n uses counters ``n * 1024 ...``. Exposed for tests of the generator's distribution.
 
     Parameters
     ----------

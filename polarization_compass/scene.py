@@ -103,8 +103,8 @@ class Validity:
     """
     Which rendered pixels are usable.
 
-    Which rendered pixels are usable: not within ``sun_exclusion_deg`` of the sun, at or above
-    ``min_altitude_deg``, and with DoP >= ``min_dop``.
+    Those not within ``sun_exclusion_deg`` of the sun, at or above ``min_altitude_deg``, and with
+    DoP >= ``min_dop``.
     """
 
     sun_exclusion_deg: float = 3.0
@@ -568,7 +568,7 @@ def load_scene(path: str | Path | None = None) -> Scene:
     """
     Load a scene YAML file (safe loader).
 
-    Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up).
+    ``None`` gives the embedded default (the paper's set-up).
 
     Parameters
     ----------

@@ -481,8 +481,7 @@ def _shot_noise_kernel(e, key, gauss_above):  # pragma: no cover - compiled
     """
     Add photon shot noise to the mean electrons ``e`` in place.
 
-    Photon shot noise on the mean electrons ``e`` (in place): Gaussian of variance lambda where
-    lambda >= gauss_above, exact Poisson below.
+    Gaussian of variance lambda where lambda >= gauss_above, exact Poisson below.
     """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
@@ -517,9 +516,8 @@ def _shot_read_noise_kernel(e, key, gauss_above, read_sigma):  # pragma: no cove
     """
     Add shot and read noise to ``e`` in place.
 
-    Shot and read noise on ``e`` (in place): one Gaussian draw of variance lambda + sigma^2 where
-    lambda >= gauss_above (independent Gaussians add), else exact Poisson plus a Gaussian read
-    draw.
+    One Gaussian draw of variance lambda + sigma^2 where lambda >= gauss_above (independent
+    Gaussians add), else exact Poisson plus a Gaussian read draw.
     """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
@@ -773,8 +771,8 @@ def _ideal_superpixel_kernel(
     """
     Compute block means of the ideal Stokes vectors and their AoP/DoP.
 
-    Block means of the ideal Stokes vectors and the AoP/DoP of the mean (float32); valid if all
-    four pixels are; ``out_s0`` the block mean of S0 (1 without a radiance model).
+    The AoP/DoP are those of the mean (float32); a block is valid if all four pixels are;
+    ``out_s0`` is the block mean of S0 (1 without a radiance model).
     """
     H2, W2 = out_aop.shape
     one = np.float32(1.0)
@@ -800,8 +798,7 @@ class SensorPipeline:
     """
     Declared sensor effects for one camera.
 
-    Build with :meth:`from_config`; call
-    :meth:`apply`.
+    Build with :meth:`from_config`; call :meth:`apply`.
     """
 
     def __init__(self, config: SensorConfig, camera: CameraModel):
@@ -813,7 +810,7 @@ class SensorPipeline:
         """
         Validate a scene's ``sensor:`` mapping.
 
-        Validate a scene's ``sensor:`` mapping (raises :class:`SensorError` naming the bad value).
+        Raises :class:`SensorError` naming the bad value.
 
         Parameters
         ----------

@@ -160,8 +160,8 @@ class SensorConfig:
         """
         Return the raw value at which a sample is saturated, or None.
 
-        The raw value at which a sample is saturated: the ADC's full scale when quantised, the full
-        well when ``exposure`` is declared, else None (an unlimited well never saturates).
+        The ADC's full scale when quantised, the full well when ``exposure`` is declared, else None
+        (an unlimited well never saturates).
         """
         if self.bits is not None:
             return float(self.max_dn)
@@ -354,8 +354,7 @@ def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
     """
     Return the SensorConfig a simulated camera applies for a raw image encoding.
 
-    The SensorConfig a simulated camera applies for a raw image encoding (the ``sky_simulator``
-    node and ``record-sim`` both use it).
+    The ``sky_simulator`` node and ``record-sim`` both use it.
 
     ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
     quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or,
