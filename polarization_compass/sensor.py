@@ -20,7 +20,8 @@ contiguous pixel block into the raw mosaic a polarization camera would record, t
 back into the *measured* AoP/DoP that estimators see. It runs only when a scene declares sensor
 effects, and each effect runs only if declared.
 
-Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX250MZR)::
+Scene schema (``sensor:`` mapping, validated by :mod:`polarization_compass.sensor_config`; every
+key optional, defaults are a Sony IMX250MZR)::
 
     sensor:
       mosaic: {layout: [[90, 45], [135, 0]], pol45_toward: "+x-y"}   # or "+x+y"; see ``demosaic``
@@ -42,7 +43,7 @@ own that runs only if declared; its arithmetic exists only in the kernels of tha
 - ``mosaic``: Malus's law per pixel behind ideal polarizers (``_mean_electrons_kernel``);
 - ``extinction_ratio``: the same with leaky polarizers (``_mean_electrons_er_kernel`` replaces it);
 - ``shot_noise`` / ``read_noise``: ``_shot_noise_kernel``, ``_read_noise_kernel``, or both fused in
-``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
+  ``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
 - ``exposure``: the finite well, saturation at ``full_well_e`` (``_saturate_kernel``, fused into
   the DN pass as ``_saturate_quantize_kernel`` when quantised). Without it the well is unlimited:
   nothing saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every
@@ -88,8 +89,9 @@ camera): measured DoP = d * DoP.
 
 Random numbers: a counter-based SplitMix64 stream (pixel (i, j) of a W-wide block owns counters
 ``(i W + j) * 1024 ...``, keyed by one 64-bit draw from the frame's ``numpy.random.Generator``)
-feeding a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals, in a
-numba kernel parallel over rows whose fast path (98.5 % of draws) is branch-free and vectorises.
+feeding a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals
+(:mod:`polarization_compass.rng`), in a numba kernel parallel over rows whose fast path (98.5 % of
+draws) is branch-free and vectorises.
 The same seed gives the same mosaic bit for bit, whatever the thread count. Measured single-core
 for 5 Mpixels: shot + read noise ~24 ms, against 50-67 ms for
 ``Generator.standard_normal(dtype=float32)`` alone; the whole mosaic + shot + read noise + 12-bit
@@ -103,8 +105,8 @@ whose pixel (1, 1) carries ``layout[0][0]``); ``aop_rad``/``dop``/``valid`` beco
 values.
 
 - ``bilinear`` (default): same shape and pixels. A measured pixel is valid only if its whole 3 x 3
-neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
-says so (no saturation, S0 > 0, AoP defined).
+  neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
+  says so (no saturation, S0 > 0, AoP defined).
 - ``superpixel``: half resolution. ``frame.pixels`` is replaced by the 2 x 2 block centres
   (x_px/y_px at half-pixel positions, rays from the camera model, cached); ``intensity`` becomes
   the block mean; the ideal AoP/DoP become those of the block's mean ideal Stokes vector (what a
