@@ -796,6 +796,17 @@ def _ideal_superpixel_kernel(
 # ------------------------------------------------------------------------------------------------
 # The pipeline
 # ------------------------------------------------------------------------------------------------
+def _eroded_3x3(valid):
+    """Return ``valid`` eroded by a 3 x 3 square (edges reflected): whole neighbourhoods valid."""
+    import cv2
+
+    return cv2.erode(
+        valid.view(np.uint8),
+        np.ones((3, 3), np.uint8),
+        borderType=cv2.BORDER_REFLECT_101,
+    ).view(np.bool_)
+
+
 class SensorPipeline:
     """
     Declared sensor effects for one camera.
@@ -916,47 +927,49 @@ class SensorPipeline:
             )
         ideal_valid = np.ascontiguousarray(frame.valid)
         if cfg.demosaic == 'bilinear':
-            import cv2
-
-            eroded = cv2.erode(
-                ideal_valid.view(np.uint8),
-                np.ones((3, 3), np.uint8),
-                borderType=cv2.BORDER_REFLECT_101,
-            ).view(np.bool_)
-            valid &= eroded
+            valid &= _eroded_3x3(ideal_valid)
         else:
-            rows, cols = frame.aop_rad.shape
-            shape = (rows // 2, cols // 2)
-            ia, idp, iv, is0 = (
-                np.empty(shape, np.float32),
-                np.empty(shape, np.float32),
-                np.empty(shape, np.bool_),
-                np.empty(shape, np.float32),
-            )
-            has_s0 = frame.intensity is not None
-            s0 = (
-                np.ascontiguousarray(frame.intensity, dtype=np.float32)
-                if has_s0
-                else np.empty((1, 1), np.float32)
-            )
-            _ideal_superpixel_kernel(
-                np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
-                np.ascontiguousarray(frame.dop, dtype=np.float32),
-                ideal_valid,
-                s0,
-                has_s0,
-                ia,
-                idp,
-                iv,
-                is0,
-            )
-            frame.pixels = superpixel_pixels(self.camera, x0, y0, rows, cols)
-            iv &= frame.pixels.has_ray
-            valid &= iv
-            frame.aop_ideal_rad, frame.dop_ideal = ia, idp
-            if has_s0:
-                frame.intensity = is0
+            valid &= self._to_superpixels(frame, ideal_valid, x0, y0)
         invalid = ~valid
         np.copyto(aop, np.float32(0.0), where=invalid)
         np.copyto(dop, np.float32(0.0), where=invalid)
         frame.aop_rad, frame.dop, frame.valid = aop, dop, valid
+
+    def _to_superpixels(self, frame, ideal_valid, x0, y0):
+        """
+        Replace a frame's pixels and ideal values by those of its 2 x 2 superpixels.
+
+        Returns the superpixels' ideal validity (all four pixels valid, and a ray through the
+        block centre); the frame's pixels, ideal AoP/DoP and radiance become the blocks'.
+        """
+        rows, cols = frame.aop_rad.shape
+        shape = (rows // 2, cols // 2)
+        ia, idp, iv, is0 = (
+            np.empty(shape, np.float32),
+            np.empty(shape, np.float32),
+            np.empty(shape, np.bool_),
+            np.empty(shape, np.float32),
+        )
+        has_s0 = frame.intensity is not None
+        s0 = (
+            np.ascontiguousarray(frame.intensity, dtype=np.float32)
+            if has_s0
+            else np.empty((1, 1), np.float32)
+        )
+        _ideal_superpixel_kernel(
+            np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
+            np.ascontiguousarray(frame.dop, dtype=np.float32),
+            ideal_valid,
+            s0,
+            has_s0,
+            ia,
+            idp,
+            iv,
+            is0,
+        )
+        frame.pixels = superpixel_pixels(self.camera, x0, y0, rows, cols)
+        iv &= frame.pixels.has_ray
+        frame.aop_ideal_rad, frame.dop_ideal = ia, idp
+        if has_s0:
+            frame.intensity = is0
+        return iv
