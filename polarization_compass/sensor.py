@@ -645,6 +645,13 @@ def simulate_mosaic(
             f'aop, dop and intensity must be 2-D images of one shape, got {aop.shape}, {dp.shape}'
             + (f', {s0a.shape}' if has_s0 else '')
         )
+    e = _mean_electrons(aop, dp, s0a, has_s0, cfg, layout, block_origin)
+    _add_noise(e, cfg, rng)
+    return _raw(e, cfg)
+
+
+def _mean_electrons(aop, dp, s0a, has_s0, cfg, layout, block_origin):
+    """Return the mean photo-electrons behind the polarizers (Malus; calibration, crosstalk)."""
     phi = np.radians(layout.camera_angles_deg)
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
@@ -667,6 +674,11 @@ def simulate_mosaic(
     else:
         _count('_mean_electrons_er_kernel')
         _mean_electrons_er_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
+    return e
+
+
+def _add_noise(e, cfg, rng) -> None:
+    """Add the declared shot and/or read noise to ``e`` in place, keyed by one draw of ``rng``."""
     shot, read = cfg.shot_gaussian_above_e, cfg.read_sigma_e
     if shot is not None or read is not None:
         key = np.uint64(int(rng.integers(0, 2**63, dtype=np.int64)))
@@ -679,6 +691,10 @@ def simulate_mosaic(
         else:
             _count('_shot_read_noise_kernel')
             _shot_read_noise_kernel(e, key, shot, read)
+
+
+def _raw(e, cfg):
+    """Return the raw mosaic: ``e`` saturated if declared, quantised to DN if declared."""
     if cfg.bits is None:
         if cfg.saturates:
             _count('_saturate_kernel')
