@@ -108,7 +108,29 @@ def _configs(tiny: bool):
     """(name, scene changes, pixel selection, group)."""
     cam = bench_camera(tiny)
     full = PixelSelection.full()
-    rows = [('full', {}, full, 'density')]
+    rows = _density_rows(cam)
+    rows.append(
+        (
+            'sky berry_dennis_lee',
+            {'sky': {'model': 'berry_dennis_lee', 'separation_deg': 18.0, 'dop_max': 0.75}},
+            full,
+            'sky',
+        )
+    )
+    rows.append(
+        ('radiance cie_clear', {'radiance': {'model': 'cie_clear', 'type': 12}}, full, 'radiance')
+    )
+    rows += _sensor_rows(full)
+    # issue 16: real skies and optics, each alone and all together (the 2x-of-"full" target is the
+    # last row)
+    for name, ch in REAL_SKY_ROWS:
+        rows.append((name, ch, full, 'real sky'))
+    return cam, rows
+
+
+def _density_rows(cam) -> list:
+    """Return the ideal-sky rows: the full frame, strides, a grid and a central region."""
+    rows = [('full', {}, PixelSelection.full(), 'density')]
     for s in (2, 4, 8, 16):
         rows.append((f'stride {s}', {}, PixelSelection.strided(s), 'density'))
     rows.append(
@@ -132,18 +154,12 @@ def _configs(tiny: bool):
             'density',
         )
     )
-    rows.append(
-        (
-            'sky berry_dennis_lee',
-            {'sky': {'model': 'berry_dennis_lee', 'separation_deg': 18.0, 'dop_max': 0.75}},
-            full,
-            'sky',
-        )
-    )
-    rows.append(
-        ('radiance cie_clear', {'radiance': {'model': 'cie_clear', 'type': 12}}, full, 'radiance')
-    )
-    rows.append(('sensor: mosaic only', {'sensor': sensor_config(['mosaic'])}, full, 'sensor'))
+    return rows
+
+
+def _sensor_rows(full) -> list:
+    """Return the mosaic rows: alone, with each effect, and with all of them (three settings)."""
+    rows = [('sensor: mosaic only', {'sensor': sensor_config(['mosaic'])}, full, 'sensor')]
     for eff in ('exposure', 'shot_noise', 'read_noise', 'quantization', 'extinction_ratio'):
         rows.append(
             (f'sensor: mosaic + {eff}', {'sensor': sensor_config(['mosaic', eff])}, full, 'sensor')
@@ -173,42 +189,14 @@ def _configs(tiny: bool):
             'sensor',
         )
     )
-    # issue 16: real skies and optics, each alone and all together (the 2x-of-"full" target is the
-    # last row)
-    for name, ch in REAL_SKY_ROWS:
-        rows.append((name, ch, full, 'real sky'))
-    return cam, rows
+    return rows
 
 
 def run(cfg) -> dict:
     cam, rows = _configs(cfg.tiny)
     base = Scene(camera=cam, sky={'model': 'rayleigh', 'dop_max': 0.7})
     reps = 2 if cfg.tiny else int(cfg.render_repeats)
-    results = []
-    for name, changes, sel, group in rows:
-        row = {'name': name, 'group': group, 'selection': sel.describe()}
-        try:
-            scene = base.replace(**changes)
-            renderer = Renderer(scene, pixels=sel)
-            renderer.render(attitude=ATTITUDE, sun=SUN, seed=1)  # compile / warm caches
-        except Exception as exc:  # noqa: BLE001 - a stage still being written: recorded, not fatal
-            row['status'] = f'unavailable: {type(exc).__name__}: {exc}'
-            results.append(row)
-            continue
-        row['pixels'] = int(renderer.pixels.count)
-        instr.reset()
-        renderer.render(attitude=ATTITUDE, sun=SUN, seed=2)
-        row['stages'] = sorted(instr.counts())
-        for label, threads in (('single_thread', 1), ('all_threads', None)):
-            with numba_threads(threads):
-                seeds = iter(range(100, 100 + reps + 2))
-                t = time_calls(
-                    lambda: renderer.render(attitude=ATTITUDE, sun=SUN, seed=next(seeds)), reps
-                )
-            row[label] = timing_stats(t)
-        row['memory'] = peak_memory(lambda: renderer.render(attitude=ATTITUDE, sun=SUN, seed=3))
-        row['status'] = 'ok'
-        results.append(row)
+    results = [_timed_row(base, *row, reps) for row in rows]
     results += stage_rows(cam, base, reps)
     by = {r['name']: r for r in results if r.get('status') == 'ok'}
     summary = {}
@@ -257,6 +245,32 @@ def run(cfg) -> dict:
         'summary': summary,
         'timestamp': time.time(),
     }
+
+
+def _timed_row(base: Scene, name: str, changes: dict, sel, group: str, reps: int) -> dict:
+    """Render one configuration: its pixels, stages, timings (one thread and all) and memory."""
+    row = {'name': name, 'group': group, 'selection': sel.describe()}
+    try:
+        scene = base.replace(**changes)
+        renderer = Renderer(scene, pixels=sel)
+        renderer.render(attitude=ATTITUDE, sun=SUN, seed=1)  # compile / warm caches
+    except Exception as exc:  # noqa: BLE001 - a stage still being written: recorded, not fatal
+        row['status'] = f'unavailable: {type(exc).__name__}: {exc}'
+        return row
+    row['pixels'] = int(renderer.pixels.count)
+    instr.reset()
+    renderer.render(attitude=ATTITUDE, sun=SUN, seed=2)
+    row['stages'] = sorted(instr.counts())
+    for label, threads in (('single_thread', 1), ('all_threads', None)):
+        with numba_threads(threads):
+            seeds = iter(range(100, 100 + reps + 2))
+            t = time_calls(
+                lambda: renderer.render(attitude=ATTITUDE, sun=SUN, seed=next(seeds)), reps
+            )
+        row[label] = timing_stats(t)
+    row['memory'] = peak_memory(lambda: renderer.render(attitude=ATTITUDE, sun=SUN, seed=3))
+    row['status'] = 'ok'
+    return row
 
 
 def _paired_speedup(base: Scene, reps: int, threads) -> float:
@@ -320,7 +334,7 @@ def stage_rows(cam, base: Scene, reps: int) -> list[dict]:
     """
     Time ``simulate_mosaic`` and the two demosaics alone on a full frame.
 
-    ``simulate_mosaic`` alone and the two demosaics alone on a full frame (one thread and all).
+    Each runs on one thread and on all threads.
     """
     import numpy as np
     from polarization_compass.demosaic import polarization_from_mosaic

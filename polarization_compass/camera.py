@@ -245,8 +245,7 @@ class CameraModel:
         """
         Compute the rays of a distorted lens through OpenCV's undistortion.
 
-        Compute rays of a distorted lens through OpenCV's undistortion (pixels 1-based in, OpenCV
-        0-based).
+        Pixels come in 1-based; OpenCV's are 0-based.
         """
         import cv2
 
@@ -735,8 +734,7 @@ def camera_from_intrinsics(
     """
     Build a :class:`CameraModel` from ROS/OpenCV intrinsics.
 
-    Build a :class:`CameraModel` from ROS/OpenCV intrinsics (``CameraInfo``,
-    ``camera_calibration``).
+    The intrinsics are those of a ROS ``CameraInfo`` or of ``camera_calibration``.
 
     Parameters
     ----------

@@ -164,7 +164,7 @@ class MosaicLayout:
         """
         Return the (2, 2) polarizer angles from +x_cam towards +y_cam (deg).
 
-        (2, 2) polarizer angles from +x_cam towards +y_cam (deg): the physical angle, or minus it.
+        Each is the physical angle, or minus it, as ``pol45_toward`` says.
         """
         a = np.asarray(self.angles_deg, dtype=float)
         return a if self.pol45_toward == '+x+y' else -a

@@ -216,35 +216,22 @@ def _hemisphere_enu() -> np.ndarray:
 
 
 @njit(parallel=True, cache=True, fastmath=FM)
-def _ground_kernel(
-    idx,
-    d_rays,
-    m_rays,
-    zx,
-    zy,
-    zz,
-    fx,
-    fy,
-    fz,
-    aop_m,
-    dop_m,
-    inten_m,
-    diffuse,
-    frac,
-    n,
-    aop,
-    dop,
-    inten,
-    valid,
-):  # pragma: no cover - compiled
+def _ground_kernel(idx, d_rays, m_rays, z, f, sky_m, surface, out):  # pragma: no cover - compiled
     """
     Write the ground's Stokes vector as AoP/DoP/radiance at the pixels ``idx`` (float64 inside).
 
-    The sky seen along m_rays[:, k] (AoP eq 28, DoP, radiance) is reflected by the Fresnel Mueller
-    matrix in the s/p basis of the plane of incidence (s = z x d; (fx, fy, fz), a horizontal unit
-    vector, at the nadir) and added, weighted by frac, to the unpolarized diffuse radiance.
-    Branch-free (selects) apart from the pixel loop.
+    The sky seen along m_rays[:, k] (``sky_m``: AoP eq 28, DoP, radiance) is reflected by the
+    Fresnel Mueller matrix in the s/p basis of the plane of incidence (s = z x d, with ``z`` the
+    zenith in the camera frame; ``f``, a horizontal unit vector, at the nadir) and added, weighted
+    by the specular fraction, to the unpolarized diffuse radiance (``surface``: diffuse radiance,
+    specular fraction, refractive index). ``out`` is (aop, dop, intensity, valid), written at
+    ``idx``. Branch-free (selects) apart from the pixel loop.
     """
+    zx, zy, zz = z
+    fx, fy, fz = f
+    aop_m, dop_m, inten_m = sky_m
+    diffuse, frac, n = surface
+    aop, dop, inten, valid = out
     inv_n2 = 1.0 / (n * n)
     for k in prange(idx.size):
         i = idx[k]
@@ -454,21 +441,14 @@ class Ground:
             idx,
             d,
             m,
-            float(z[0]),
-            float(z[1]),
-            float(z[2]),
-            float(f[0]),
-            float(f[1]),
-            float(f[2]),
-            np.ascontiguousarray(aop_m, dtype=np.float32),
-            np.ascontiguousarray(dop_m, dtype=np.float32),
-            np.ascontiguousarray(inten_m, dtype=np.float32),
-            float(diffuse),
-            float(self.fraction),
-            float(self.refractive_index),
-            aop,
-            dop,
-            intensity,
-            valid,
+            (float(z[0]), float(z[1]), float(z[2])),
+            (float(f[0]), float(f[1]), float(f[2])),
+            (
+                np.ascontiguousarray(aop_m, dtype=np.float32),
+                np.ascontiguousarray(dop_m, dtype=np.float32),
+                np.ascontiguousarray(inten_m, dtype=np.float32),
+            ),
+            (float(diffuse), float(self.fraction), float(self.refractive_index)),
+            (aop, dop, intensity, valid),
         )
         return int(idx.size)

@@ -60,6 +60,7 @@ The radiance is multiplied by V; the DoP and AoP are unchanged.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit, prange
 import numpy as np
@@ -69,6 +70,8 @@ from .errors import CompassError
 __all__ = [
     'OpticsError',
     'Optics',
+    'LensParams',
+    'Ghosts',
     'SUN_SEMIDIAMETER_DEG',
     'REAL_FRAME_GHOST_POSITIONS',
     'ghost_centres_px',
@@ -158,87 +161,130 @@ def _glare_angle_sq_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     return np.float32(4.0) * a2 * f * f if near else g * g
 
 
+class LensParams(NamedTuple):
+    """
+    One frame's lens parameters, as the compiled kernels read them (:meth:`Optics.frame_params`).
+
+    A named tuple of float32 numbers, an int and a bool (numba compiles attribute access to a
+    field read). The glare's exponent-2 flag is not a field: the block kernel specialises on it.
+
+    Attributes
+    ----------
+    vig_mode : int
+        0 no vignetting, 1 cos^4, 2 radial polynomial.
+    cx, cy : numpy.float32
+        Principal point [px, 1-based].
+    inv_hd2 : numpy.float32
+        1 / half-diagonal^2 [px^-2].
+    k1, k2, k3 : numpy.float32
+        Coefficients of the radial polynomial (0 when unused).
+    do_sun : bool
+        Whether the sun is declared.
+    sx, sy, sz : numpy.float32
+        Unit sun vector in the camera frame.
+    disk_rad2 : numpy.float32
+        Squared solar disk radius [rad^2].
+    disk : numpy.float32
+        Radiance of the solar disk, relative to the clear zenith.
+    g1 : numpy.float32
+        Glare factor: ``glare_at_1deg``, times (1 deg in rad)^2 when the exponent is 2.
+    expo : numpy.float32
+        Glare exponent.
+
+    """
+
+    vig_mode: int
+    cx: np.float32
+    cy: np.float32
+    inv_hd2: np.float32
+    k1: np.float32
+    k2: np.float32
+    k3: np.float32
+    do_sun: bool
+    sx: np.float32
+    sy: np.float32
+    sz: np.float32
+    disk_rad2: np.float32
+    disk: np.float32
+    g1: np.float32
+    expo: np.float32
+
+
+class Ghosts(NamedTuple):
+    """
+    One frame's lens-flare ghosts, as the compiled kernels read them (:meth:`Optics.frame_params`).
+
+    Attributes
+    ----------
+    gx, gy : numpy.ndarray, shape (k,), float32
+        Ghost centres [px, 1-based]; empty without flare or when the sun does not project.
+    r2 : numpy.float32
+        Squared ghost radius [px^2].
+    radiance : numpy.float32
+        Radiance of a ghost, relative to the clear zenith.
+
+    """
+
+    gx: np.ndarray
+    gy: np.ndarray
+    r2: np.float32
+    radiance: np.float32
+
+
 @njit(inline='always', fastmath=True, cache=True)
-def _lens_pixel(
-    px, py, pz, xi, yi, i_sky, vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
-):  # pragma: no cover
+def _lens_pixel(px, py, pz, xi, yi, i_sky, lens):  # pragma: no cover - compiled
     """
     Return the vignetted sky radiance and the squared angle from the sun at one pixel.
 
-    Vignetted sky radiance (mode 0 none, 1 cos^4, 2 radial polynomial) and the squared angle from
-    the sun (rad^2) at one pixel (float32). Every term is computed and selected: branches, even
-    loop-invariant ones, kept these loops scalar (measured).
+    Vignetting by ``lens.vig_mode`` (0 none, 1 cos^4, 2 radial polynomial); the angle in rad^2;
+    float32. Every term is computed and selected: branches, even loop-invariant ones, kept these
+    loops scalar (measured).
     """
     one = np.float32(1.0)
     z = max(pz, np.float32(0.0))
-    q = ((xi - cx) * (xi - cx) + (yi - cy) * (yi - cy)) * inv_hd2
-    v = z * z * z * z if vig_mode == 1 else one + q * (k1 + q * (k2 + q * k3))
-    v = v if vig_mode != 0 else one
-    return i_sky * v, _glare_angle_sq_f32(px, py, pz, sx, sy, sz)
+    q = ((xi - lens.cx) * (xi - lens.cx) + (yi - lens.cy) * (yi - lens.cy)) * lens.inv_hd2
+    v = z * z * z * z if lens.vig_mode == 1 else one + q * (lens.k1 + q * (lens.k2 + q * lens.k3))
+    v = v if lens.vig_mode != 0 else one
+    return i_sky * v, _glare_angle_sq_f32(px, py, pz, lens.sx, lens.sy, lens.sz)
 
 
 @njit(inline='always', fastmath=True, cache=True)
-def _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square):  # pragma: no cover - compiled
+def _sun_light(gam2, lens, square):  # pragma: no cover - compiled
     """
     Return the sun's light (disk or glare) at squared angle ``gam2`` (rad^2) as a ratio (num, den).
 
-    The sun's light at angle gamma from it is ``num / den``: ``disk`` inside the disk (gamma^2 <=
-    ``disk_rad2``), else the glare ``glare_at_1deg (1 deg / gamma)^expo``; 0 without the sun (den >
-    0 always). ``square`` (exponent 2): ``g1`` holds ``glare_at_1deg (1 deg)^2`` and the glare is
-    ``g1 / gamma^2``, no libm call; the callers keep that case in its own loop, which vectorises
-    (exp/log are libm calls). The ratio lets the fused pass fold this division into its DoP
-    division.
+    The sun's light at angle gamma from it is ``num / den``: ``lens.disk`` inside the disk (gamma^2
+    <= ``lens.disk_rad2``), else the glare ``glare_at_1deg (1 deg / gamma)^expo``; 0 without the
+    sun (den > 0 always). ``square`` (exponent 2): ``lens.g1`` holds ``glare_at_1deg (1 deg)^2``
+    and the glare is ``g1 / gamma^2``, no libm call; the callers keep that case in its own loop,
+    which vectorises (exp/log are libm calls). The ratio lets the fused pass fold this division
+    into its DoP division.
     """
     one = np.float32(1.0)
-    ga2 = max(gam2, disk_rad2)
+    ga2 = max(gam2, lens.disk_rad2)
     if square:
-        num = g1
+        num = lens.g1
         den = ga2
     else:
-        num = g1 * math.exp(
-            np.float32(0.5) * expo * math.log(np.float32((math.pi / 180.0) ** 2) / ga2)
+        num = lens.g1 * math.exp(
+            np.float32(0.5) * lens.expo * math.log(np.float32((math.pi / 180.0) ** 2) / ga2)
         )
         den = one
-    inside = gam2 <= disk_rad2
-    num = disk if inside else num
+    inside = gam2 <= lens.disk_rad2
+    num = lens.disk if inside else num
     den = one if inside else den
-    return (num if do_sun else np.float32(0.0)), den
+    return (num if lens.do_sun else np.float32(0.0)), den
 
 
 @njit(inline='always', fastmath=True, cache=True, error_model='numpy')
-def lens_over(
-    i_sky,
-    dop,
-    px,
-    py,
-    pz,
-    xi,
-    yi,
-    vig_mode,
-    cx,
-    cy,
-    inv_hd2,
-    k1,
-    k2,
-    k3,
-    do_sun,
-    sx,
-    sy,
-    sz,
-    disk_rad2,
-    disk,
-    g1,
-    expo,
-    square,
-):  # pragma: no cover - compiled
+def lens_over(i_sky, dop, px, py, pz, xi, yi, lens, square):  # pragma: no cover - compiled
     """
     Return the DoP and radiance of one pixel after vignetting and the sun's light (float32).
 
     The vignetted sky radiance ``I V`` plus the sun's unpolarized light G (disk or glare), and the
-    DoP ``DoP I V / (I V + G)`` (module docstring). The per-pixel body of the block kernel and of
-    the fused sky-and-effects pass (:mod:`polarization_compass.sky_effects`); compiled, inlined.
-    ``square`` must be a constant at the call site (the exponent-2 glare is divisions only and
-    vectorises; see :func:`_sun_light`).
+    DoP ``DoP I V / (I V + G)`` (module docstring). The per-pixel body of the block kernel;
+    compiled, inlined. ``square`` should be a constant at the call site (the exponent-2 glare is
+    divisions only and vectorises; see :func:`_sun_light`).
 
     Parameters
     ----------
@@ -250,17 +296,8 @@ def lens_over(
         Unit viewing ray in the camera frame.
     xi, yi : float32
         Pixel column and row [px, 1-based].
-    vig_mode : int
-        0 no vignetting, 1 cos^4, 2 radial polynomial.
-    cx, cy, inv_hd2, k1, k2, k3 : float32
-        Principal point [px], 1 / half-diagonal^2 [px^-2] and the polynomial's coefficients.
-    do_sun : bool
-        Whether the sun is declared.
-    sx, sy, sz : float32
-        Unit sun vector in the camera frame.
-    disk_rad2, disk, g1, expo : float32
-        Squared solar disk radius [rad^2], its radiance, the glare factor and exponent (see
-        :meth:`Optics.frame_params`).
+    lens : LensParams
+        The frame's lens parameters.
     square : bool
         Whether the glare exponent is 2.
 
@@ -278,10 +315,7 @@ def lens_over(
        2010.
 
     """
-    v, g_num, g_den = lens_light(
-        px, py, pz, xi, yi, vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2,
-        disk, g1, expo, square,
-    )  # fmt: skip
+    v, g_num, g_den = lens_light(px, py, pz, xi, yi, lens, square)
     g = g_num / g_den
     base = i_sky * v
     tot = base + g
@@ -289,36 +323,13 @@ def lens_over(
 
 
 @njit(inline='always', fastmath=True, cache=True, error_model='numpy')
-def lens_light(
-    px,
-    py,
-    pz,
-    xi,
-    yi,
-    vig_mode,
-    cx,
-    cy,
-    inv_hd2,
-    k1,
-    k2,
-    k3,
-    do_sun,
-    sx,
-    sy,
-    sz,
-    disk_rad2,
-    disk,
-    g1,
-    expo,
-    square,
-):  # pragma: no cover - compiled
+def lens_light(px, py, pz, xi, yi, lens, square):  # pragma: no cover - compiled
     """
     Return a pixel's vignetting factor V and the sun's light G there as a ratio (float32).
 
     The lens turns sky radiance I into ``I V + G`` (module docstring); :func:`lens_over` applies it
     to a pixel, the fused pass (:mod:`polarization_compass.sky_effects`) combines it with the cloud
-    composite into one division. Parameters as :func:`lens_over`'s after the DoP. Compiled,
-    inlined.
+    composite into one division. Compiled, inlined.
 
     Parameters
     ----------
@@ -326,8 +337,10 @@ def lens_light(
         Unit viewing ray in the camera frame.
     xi, yi : float32
         Pixel column and row [px, 1-based].
-    vig_mode, cx, cy, inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2, disk, g1, expo, square
-        As for :func:`lens_over`.
+    lens : LensParams
+        The frame's lens parameters.
+    square : bool
+        Whether the glare exponent is 2 (best a constant at the call site).
 
     Returns
     -------
@@ -338,43 +351,19 @@ def lens_light(
         without the sun; ``g_den`` > 0).
 
     """
-    v, gam2 = _lens_pixel(
-        px, py, pz, xi, yi, np.float32(1.0), vig_mode, cx, cy, inv_hd2, k1, k2, k3, sx, sy, sz
-    )
-    g_num, g_den = _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square)
+    v, gam2 = _lens_pixel(px, py, pz, xi, yi, np.float32(1.0), lens)
+    g_num, g_den = _sun_light(gam2, lens, square)
     return v, g_num, g_den
 
 
-@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
-def _optics_block_kernel(
-    rays,
-    xcol,
-    yrow,
-    vig_mode,
-    cx,
-    cy,
-    inv_hd2,
-    k1,
-    k2,
-    k3,
-    do_sun,
-    sx,
-    sy,
-    sz,
-    disk_rad2,
-    disk,
-    g1,
-    expo,
-    square,
-    dop,
-    inten,
-):  # pragma: no cover - compiled
+@njit(inline='always', cache=True, fastmath=True, error_model='numpy')
+def _optics_block(rays, xcol, yrow, lens, square, dop, inten):  # pragma: no cover - compiled
     """
     Apply vignetting and the sun over a block of pixels given by its columns and rows.
 
-    Vignetting and the sun over a block of pixels whose coordinates are the product of the columns
-    ``xcol`` and the rows ``yrow`` (full frame, region, stride, grid): no per-pixel coordinate
-    arrays.
+    The block's pixel coordinates are the product of the columns ``xcol`` and the rows ``yrow``
+    (full frame, region, stride, grid): no per-pixel coordinate arrays. ``square`` is a constant:
+    each of :data:`_OPTICS_BLOCK_KERNELS` inlines this body with its own value.
     """
     W = xcol.size
     for r in prange(yrow.size):
@@ -387,75 +376,41 @@ def _optics_block_kernel(
         dp = dop[o:o + W]
         it = inten[o:o + W]
         yi = yrow[r]
-        if square:
-            for c in range(W):
-                dp[c], it[c] = lens_over(
-                    it[c],
-                    dp[c],
-                    rx[c],
-                    ry[c],
-                    rz[c],
-                    xcol[c],
-                    yi,
-                    vig_mode,
-                    cx,
-                    cy,
-                    inv_hd2,
-                    k1,
-                    k2,
-                    k3,
-                    do_sun,
-                    sx,
-                    sy,
-                    sz,
-                    disk_rad2,
-                    disk,
-                    g1,
-                    expo,
-                    True,
-                )
-        else:
-            for c in range(W):
-                dp[c], it[c] = lens_over(
-                    it[c],
-                    dp[c],
-                    rx[c],
-                    ry[c],
-                    rz[c],
-                    xcol[c],
-                    yi,
-                    vig_mode,
-                    cx,
-                    cy,
-                    inv_hd2,
-                    k1,
-                    k2,
-                    k3,
-                    do_sun,
-                    sx,
-                    sy,
-                    sz,
-                    disk_rad2,
-                    disk,
-                    g1,
-                    expo,
-                    False,
-                )
+        for c in range(W):
+            dp[c], it[c] = lens_over(it[c], dp[c], rx[c], ry[c], rz[c], xcol[c], yi, lens, square)
+
+
+# One kernel per glare law: numba.literally would specialise one kernel on ``square`` but
+# re-dispatches every call (~0.1 s, measured); a run-time flag changed the other law's float32
+# results (the constant lets LLVM vectorise exp/log) and ran a toy exponent-2 loop 2x slower.
+@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+def _optics_block_square_kernel(rays, xcol, yrow, lens, dop, inten):  # pragma: no cover
+    """Run :func:`_optics_block` for the exponent-2 glare (divisions only: vectorises)."""
+    _optics_block(rays, xcol, yrow, lens, True, dop, inten)
+
+
+@njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
+def _optics_block_power_kernel(rays, xcol, yrow, lens, dop, inten):  # pragma: no cover
+    """Run :func:`_optics_block` for another glare exponent (exp and log per pixel)."""
+    _optics_block(rays, xcol, yrow, lens, False, dop, inten)
+
+
+#: The block kernel by "the glare exponent is 2".
+_OPTICS_BLOCK_KERNELS = {True: _optics_block_square_kernel, False: _optics_block_power_kernel}
 
 
 @njit(cache=True)
-def _flare_box_kernel(
-    boxes, xcol, yrow, gx, gy, r2, grad, dop, inten
-):  # pragma: no cover - compiled
+def _flare_box_kernel(boxes, xcol, yrow, ghosts, dop, inten):  # pragma: no cover - compiled
     """
     Add each lens-flare ghost inside its disk, visiting only its bounding box.
 
-    Add each ghost (unpolarized ``grad``) inside its disk, visiting only its bounding box
-    ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I / (I + grad),
-    which composes with the sun's light added before to the one-step ``DoP I_sky / (I_sky + G_sun +
-    G_ghosts)``.
+    Each ghost (unpolarized ``ghosts.radiance``) is added inside its disk, visiting only its
+    bounding box ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I
+    / (I + radiance), which composes with the sun's light added before to the one-step ``DoP I_sky
+    / (I_sky + G_sun + G_ghosts)``.
     """
     W = xcol.size
+    gx, gy, r2, grad = ghosts.gx, ghosts.gy, ghosts.r2, ghosts.radiance
     for k in range(gx.size):
         for r in range(boxes[k, 0], boxes[k, 1]):
             dy = yrow[r] - gy[k]
@@ -469,62 +424,19 @@ def _flare_box_kernel(
 
 
 @njit(parallel=True, cache=True, fastmath=True, error_model='numpy')
-def _optics_kernel(
-    rays,
-    x,
-    y,
-    vig_mode,
-    cx,
-    cy,
-    inv_hd2,
-    k1,
-    k2,
-    k3,
-    do_sun,
-    sx,
-    sy,
-    sz,
-    disk_rad2,
-    disk,
-    g1,
-    expo,
-    square,
-    gx,
-    gy,
-    r2,
-    grad,
-    dop,
-    inten,
-):  # pragma: no cover - compiled
+def _optics_kernel(rays, x, y, lens, square, ghosts, dop, inten):  # pragma: no cover - compiled
     """
-    Apply all declared lens effects in one pass over scattered pixels (float32).
+    Apply all declared lens effects in one pass over scattered pixels (float32, flat x/y).
 
-    All declared lens effects in one pass over scattered pixels (float32, flat x/y): vignetting,
-    the sun disk and glare, the ghosts.
+    Vignetting, the sun disk and glare, the ghosts.
     """
     zero = np.float32(0.0)
+    gx, gy, r2, grad = ghosts.gx, ghosts.gy, ghosts.r2, ghosts.radiance
     for i in prange(rays.shape[1]):
         xi = x[i]
         yi = y[i]
-        base, gam2 = _lens_pixel(
-            rays[0, i],
-            rays[1, i],
-            rays[2, i],
-            xi,
-            yi,
-            inten[i],
-            vig_mode,
-            cx,
-            cy,
-            inv_hd2,
-            k1,
-            k2,
-            k3,
-            sx,
-            sy,
-            sz,
-        )
-        g_num, g_den = _sun_light(gam2, do_sun, disk_rad2, disk, g1, expo, square)
+        base, gam2 = _lens_pixel(rays[0, i], rays[1, i], rays[2, i], xi, yi, inten[i], lens)
+        g_num, g_den = _sun_light(gam2, lens, square)
         g = g_num / g_den
         for k in range(gx.size):
             dx = xi - gx[k]
@@ -739,18 +651,18 @@ class Optics:
            2010.
 
         """
-        common, ghosts = self.frame_params(sun_cam, instr)
+        lens, square, ghosts = self.frame_params(sun_cam, instr)
         rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
         axes = self.block_axes(x_px, y_px)
         if axes is not None:
             xc, yr = axes
-            if common[0] or self.sun is not None:
-                _optics_block_kernel(rays, xc, yr, *common, dop, intensity)
+            if lens.vig_mode or self.sun is not None:
+                _OPTICS_BLOCK_KERNELS[square](rays, xc, yr, lens, dop, intensity)
             self.add_ghosts(ghosts, xc, yr, dop, intensity)
             return
         x = np.ascontiguousarray(np.asarray(x_px, np.float32).reshape(-1))
         y = np.ascontiguousarray(np.asarray(y_px, np.float32).reshape(-1))
-        _optics_kernel(rays, x, y, *common, *ghosts, dop, intensity)
+        _optics_kernel(rays, x, y, lens, square, ghosts, dop, intensity)
 
     def frame_params(self, sun_cam, instr):
         """
@@ -765,13 +677,13 @@ class Optics:
 
         Returns
         -------
-        common : tuple
-            The arguments of :func:`lens_over` after the pixel's coordinates (vig_mode, cx, cy,
-            inv_hd2, k1, k2, k3, do_sun, sx, sy, sz, disk_rad2, disk, g1, expo, square; float32
-            numbers, an int and two bools).
-        ghosts : tuple
-            (gx, gy) float32 ghost centres [px] (empty without flare or when the sun does not
-            project), the squared radius [px^2] and the radiance, as float32.
+        lens : LensParams
+            The lens parameters of :func:`lens_over` and :func:`lens_light`.
+        square : bool
+            Whether the glare exponent is 2 (the kernels' fast glare law).
+        ghosts : Ghosts
+            The ghost centres (empty without flare or when the sun does not project), their
+            squared radius and radiance.
 
         """
         f32 = np.float32
@@ -805,7 +717,7 @@ class Optics:
                 )
                 r2, grad = self.flare['radius_px'] ** 2, self.flare['radiance']
         cam = self.camera
-        common = (
+        lens = LensParams(
             vig_mode,
             f32(cam.cx_px),
             f32(cam.cy_px),
@@ -821,9 +733,8 @@ class Optics:
             f32(p['disk_radiance']),
             f32(g1),
             f32(p['glare_exponent']),
-            square,
         )
-        return common, (gx, gy, f32(r2), f32(grad))
+        return lens, square, Ghosts(gx, gy, f32(r2), f32(grad))
 
     def add_ghosts(self, ghosts, xc, yr, dop, intensity) -> None:
         """
@@ -831,8 +742,8 @@ class Optics:
 
         Parameters
         ----------
-        ghosts : tuple
-            (gx, gy, r2, grad) from :meth:`frame_params`.
+        ghosts : Ghosts
+            The frame's ghosts, from :meth:`frame_params`.
         xc, yr : numpy.ndarray, float32
             The block's columns and rows [px, 1-based] (:meth:`block_axes`).
         dop : numpy.ndarray, shape (N,), float32
@@ -841,10 +752,10 @@ class Optics:
             Radiance; the ghosts' radiance is added in place.
 
         """
-        gx, gy, r2, grad = ghosts
+        gx, gy = ghosts.gx, ghosts.gy
         if not gx.size:
             return
-        rad = math.sqrt(r2)
+        rad = math.sqrt(ghosts.r2)
         boxes = np.array(
             [
                 [
@@ -857,7 +768,7 @@ class Optics:
             ],
             dtype=np.int64,
         )
-        _flare_box_kernel(boxes, xc, yr, gx, gy, r2, grad, dop, intensity)
+        _flare_box_kernel(boxes, xc, yr, ghosts, dop, intensity)
 
     def block_axes(self, x_px, y_px):
         """

@@ -259,10 +259,10 @@ class Renderer:
         """
         Render one frame.
 
-        Defaults: the scene's attitude, and its sun at its time (or
-        ``time_utc``). The sun is rotated into the camera frame with the eq 21 attitude, the
-        scene's sky model gives the AoP (eq 28 convention) and DoP at each selected pixel's ray,
-        then the declared radiance, atmosphere, optics, sensor and photodiode-array stages run.
+        Defaults: the scene's attitude, and its sun at its time (or ``time_utc``). The sun is
+        rotated into the camera frame with the eq 21 attitude, the scene's sky model gives the AoP
+        (eq 28 convention) and DoP at each selected pixel's ray, then the declared radiance,
+        atmosphere, optics, sensor and photodiode-array stages run.
 
         Parameters
         ----------
@@ -305,30 +305,7 @@ class Renderer:
             sun_cam = R.T @ s_enu
             zenith_cam = R[2, :].copy()  # R^T (0, 0, 1)
         shape = self.pixels.shape
-        if self.sky_effects is not None:
-            aop, dop, valid, intensity = self.sky_effects.render(
-                R, sun_cam, zenith_cam, self._limits, self._dt_s(time_utc), instr
-            )
-            self._mask_no_ray(aop, dop, valid)
-        else:
-            aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
-        if self.atmosphere is not None and self.sky_effects is None:
-            aop, dop, valid, intensity = self._atmosphere(
-                R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc
-            )
-        if self.optics is not None and self.sky_effects is None:
-            if intensity is None:
-                intensity = np.ones(aop.shape, np.float32)
-            self.optics.apply(
-                sun_cam,
-                self.pixels.rays_cam,
-                self.pixels.x_px,
-                self.pixels.y_px,
-                aop,
-                dop,
-                intensity,
-                instr,
-            )
+        aop, dop, valid, intensity = self._sky_atmosphere_optics(R, sun_cam, zenith_cam, time_utc)
         if intensity is not None:
             intensity = intensity.reshape(shape)
         frame = Frame(
@@ -342,6 +319,45 @@ class Renderer:
             zenith_cam,
             intensity=intensity,
         )
+        self._sensor_and_array(frame, sun_cam, seed)
+        self._frames += 1
+        frame.meta = {**self._frame_meta(frame, sun, att), **sun_meta}
+        return frame
+
+    def _sky_atmosphere_optics(self, R, sun_cam, zenith_cam, time_utc):
+        """
+        Run the sky, radiance, atmosphere and optics stages (or the one-pass render of them).
+
+        Returns flat (aop, dop, valid, intensity or None) at the selected pixels.
+        """
+        if self.sky_effects is not None:
+            aop, dop, valid, intensity = self.sky_effects.render(
+                R, sun_cam, zenith_cam, self._limits, self._dt_s(time_utc), instr
+            )
+            self._mask_no_ray(aop, dop, valid)
+            return aop, dop, valid, intensity
+        aop, dop, valid, intensity = self._sky(sun_cam, zenith_cam)
+        if self.atmosphere is not None:
+            aop, dop, valid, intensity = self._atmosphere(
+                R, sun_cam, zenith_cam, aop, dop, valid, intensity, time_utc
+            )
+        if self.optics is not None:
+            if intensity is None:
+                intensity = np.ones(aop.shape, np.float32)
+            self.optics.apply(
+                sun_cam,
+                self.pixels.rays_cam,
+                self.pixels.x_px,
+                self.pixels.y_px,
+                aop,
+                dop,
+                intensity,
+                instr,
+            )
+        return aop, dop, valid, intensity
+
+    def _sensor_and_array(self, frame, sun_cam, seed):
+        """Run the declared sensor and photodiode-array stages on ``frame``, in place."""
         if self.sensor is not None:
             # reproducible and independent per frame: (scene seed, frame index) unless a seed is
             # given
@@ -362,8 +378,10 @@ class Renderer:
                     float(self.sky.params().get('dop_max', 1.0)),
                     np.random.default_rng(ss),
                 )
-        self._frames += 1
-        frame.meta = {
+
+    def _frame_meta(self, frame, sun, att) -> dict:
+        """Return a frame's metadata: scene, sun, attitude and every stage's parameters."""
+        return {
             'scene': self.scene.name,
             'sun_azimuth_deg': float(sun.azimuth_deg),
             'sun_altitude_deg': float(sun.altitude_deg),
@@ -388,9 +406,7 @@ class Renderer:
                 'pixel_pitch_x_um': self.scene.camera.pixel_pitch_x_um,
                 'pixel_pitch_y_um': self.scene.camera.pixel_pitch_y_um,
             },
-            **sun_meta,
         }
-        return frame
 
     def _sky(self, sun_cam, zenith_cam):
         """

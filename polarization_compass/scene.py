@@ -103,8 +103,8 @@ class Validity:
     """
     Which rendered pixels are usable.
 
-    Which rendered pixels are usable: not within ``sun_exclusion_deg`` of the sun, at or above
-    ``min_altitude_deg``, and with DoP >= ``min_dop``.
+    Those not within ``sun_exclusion_deg`` of the sun, at or above ``min_altitude_deg``, and with
+    DoP >= ``min_dop``.
     """
 
     sun_exclusion_deg: float = 3.0
@@ -370,88 +370,16 @@ def scene_from_dict(d: dict) -> Scene:
     """
     if d is None:
         d = {}
-    _check_keys(
-        d,
-        {
-            'name',
-            'site',
-            'time_utc',
-            'sun',
-            'attitude',
-            'camera',
-            'pixels',
-            'sky',
-            'radiance',
-            'validity',
-            'sensor',
-            'seed',
-            'photodiode_array',
-            'atmosphere',
-            'optics',
-        },
-        '',
-    )
+    _check_keys(d, _SCENE_KEYS, '')
     base = Scene()
-    site_d = d.get('site', {}) or {}
-    _check_keys(site_d, {'latitude_deg', 'longitude_deg', 'altitude_m'}, 'site.')
-    site = Site(
-        _num(site_d, 'latitude_deg', base.site.latitude_deg, -90, 90, 'site.'),
-        _num(site_d, 'longitude_deg', base.site.longitude_deg, -180, 180, 'site.'),
-        _num(site_d, 'altitude_m', base.site.altitude_m, -500, 10000, 'site.'),
-    )
+    site = _site_from_dict(d.get('site', {}) or {}, base.site)
     t = parse_time_utc(d['time_utc']) if 'time_utc' in d else base.time_utc
-    sun_d = d.get('sun', {}) or {}
-    _check_keys(sun_d, {'model', 'azimuth_deg', 'altitude_deg'}, 'sun.')
-    sun_fixed = None
-    sun_model = sun_d.get('model', 'spa')
-    if sun_model not in ('spa', 'paper'):
-        raise SceneError(f"sun.model must be 'spa' or 'paper', got {sun_model!r}")
-    if 'azimuth_deg' in sun_d or 'altitude_deg' in sun_d:
-        if not ('azimuth_deg' in sun_d and 'altitude_deg' in sun_d):
-            raise SceneError('a fixed sun needs both sun.azimuth_deg and sun.altitude_deg')
-        sun_fixed = (
-            _num(sun_d, 'azimuth_deg', 0, -360, 720, 'sun.'),
-            _num(sun_d, 'altitude_deg', 0, -90, 90, 'sun.'),
-        )
-    att_d = d.get('attitude', {}) or {}
-    _check_keys(att_d, {'bearing_deg', 'pitch_deg', 'roll_deg'}, 'attitude.')
-    att = CameraAttitude(
-        _num(att_d, 'bearing_deg', 0.0, -360, 720, 'attitude.'),
-        _num(att_d, 'pitch_deg', 0.0, -90, 90, 'attitude.'),
-        _num(att_d, 'roll_deg', 0.0, -180, 180, 'attitude.'),
-    )
-    cam_d = d.get('camera', {}) or {}
-    allowed = {f.name for f in dataclasses.fields(CameraModel)}
-    _check_keys(cam_d, allowed, 'camera.')
-    try:
-        # 2448.0 is a whole number of pixels; true, "2448" or 2448.5 are not (CameraModel says
-        # which field)
-        cam = CameraModel(
-            **{
-                k: (
-                    int(v)
-                    if k in ('width_px', 'height_px') and isinstance(v, float) and v.is_integer()
-                    else v
-                )
-                for k, v in cam_d.items()
-            }
-        )
-    except (CameraError, TypeError, ValueError) as exc:
-        raise SceneError(f'camera: {exc}') from None
+    sun_model, sun_fixed = _sun_from_dict(d.get('sun', {}) or {})
+    att = _attitude_from_dict(d.get('attitude', {}) or {})
+    cam = _camera_from_dict(d.get('camera', {}) or {})
     pixels = _pixels_from_dict(d.get('pixels', {}) or {})
-    sky = d.get('sky') or {'model': 'rayleigh', 'dop_max': 1.0}
-    if not isinstance(sky, dict):
-        raise SceneError('sky must be a mapping such as {model: rayleigh, dop_max: 1.0}')
-    radiance = d.get('radiance')
-    if radiance is not None and not isinstance(radiance, dict):
-        raise SceneError('radiance must be null or a mapping such as {model: cie_clear}')
-    val_d = d.get('validity', {}) or {}
-    _check_keys(val_d, {'sun_exclusion_deg', 'min_altitude_deg', 'min_dop'}, 'validity.')
-    validity = Validity(
-        _num(val_d, 'sun_exclusion_deg', base.validity.sun_exclusion_deg, 0, 90, 'validity.'),
-        _num(val_d, 'min_altitude_deg', base.validity.min_altitude_deg, -90, 90, 'validity.'),
-        _num(val_d, 'min_dop', base.validity.min_dop, 0, 1, 'validity.'),
-    )
+    sky, radiance = _sky_and_radiance(d)
+    validity = _validity_from_dict(d.get('validity', {}) or {}, base.validity)
     sensor = d.get('sensor') or {}
     if not isinstance(sensor, dict):
         raise SceneError('sensor must be a mapping of effect name to its parameters')
@@ -465,12 +393,118 @@ def scene_from_dict(d: dict) -> Scene:
         att,
         cam,
         pixels,
-        dict(sky),
-        dict(radiance) if radiance else None,
+        sky,
+        radiance,
         validity,
         dict(sensor),
         seed,
     )
+    scene = _with_stages(scene, d, seed, cam)
+    _check_models(scene, pixels)
+    return scene
+
+
+#: The keys a scene mapping may hold.
+_SCENE_KEYS = {
+    'name',
+    'site',
+    'time_utc',
+    'sun',
+    'attitude',
+    'camera',
+    'pixels',
+    'sky',
+    'radiance',
+    'validity',
+    'sensor',
+    'seed',
+    'photodiode_array',
+    'atmosphere',
+    'optics',
+}
+
+
+def _site_from_dict(site_d: dict, default: Site) -> Site:
+    """Return the ``site`` mapping's :class:`Site`, missing keys from ``default``."""
+    _check_keys(site_d, {'latitude_deg', 'longitude_deg', 'altitude_m'}, 'site.')
+    return Site(
+        _num(site_d, 'latitude_deg', default.latitude_deg, -90, 90, 'site.'),
+        _num(site_d, 'longitude_deg', default.longitude_deg, -180, 180, 'site.'),
+        _num(site_d, 'altitude_m', default.altitude_m, -500, 10000, 'site.'),
+    )
+
+
+def _sun_from_dict(sun_d: dict) -> tuple:
+    """Return the ``sun`` mapping's (model, fixed (azimuth_deg, altitude_deg) or None)."""
+    _check_keys(sun_d, {'model', 'azimuth_deg', 'altitude_deg'}, 'sun.')
+    sun_fixed = None
+    sun_model = sun_d.get('model', 'spa')
+    if sun_model not in ('spa', 'paper'):
+        raise SceneError(f"sun.model must be 'spa' or 'paper', got {sun_model!r}")
+    if 'azimuth_deg' in sun_d or 'altitude_deg' in sun_d:
+        if not ('azimuth_deg' in sun_d and 'altitude_deg' in sun_d):
+            raise SceneError('a fixed sun needs both sun.azimuth_deg and sun.altitude_deg')
+        sun_fixed = (
+            _num(sun_d, 'azimuth_deg', 0, -360, 720, 'sun.'),
+            _num(sun_d, 'altitude_deg', 0, -90, 90, 'sun.'),
+        )
+    return sun_model, sun_fixed
+
+
+def _attitude_from_dict(att_d: dict) -> CameraAttitude:
+    """Return the ``attitude`` mapping's :class:`CameraAttitude` (0 for a missing angle)."""
+    _check_keys(att_d, {'bearing_deg', 'pitch_deg', 'roll_deg'}, 'attitude.')
+    return CameraAttitude(
+        _num(att_d, 'bearing_deg', 0.0, -360, 720, 'attitude.'),
+        _num(att_d, 'pitch_deg', 0.0, -90, 90, 'attitude.'),
+        _num(att_d, 'roll_deg', 0.0, -180, 180, 'attitude.'),
+    )
+
+
+def _camera_from_dict(cam_d: dict) -> CameraModel:
+    """Return the ``camera`` mapping's :class:`CameraModel`; its own errors become SceneError."""
+    allowed = {f.name for f in dataclasses.fields(CameraModel)}
+    _check_keys(cam_d, allowed, 'camera.')
+    try:
+        # 2448.0 is a whole number of pixels; true, "2448" or 2448.5 are not (CameraModel says
+        # which field)
+        return CameraModel(
+            **{
+                k: (
+                    int(v)
+                    if k in ('width_px', 'height_px') and isinstance(v, float) and v.is_integer()
+                    else v
+                )
+                for k, v in cam_d.items()
+            }
+        )
+    except (CameraError, TypeError, ValueError) as exc:
+        raise SceneError(f'camera: {exc}') from None
+
+
+def _sky_and_radiance(d: dict) -> tuple:
+    """Return copies of the ``sky`` and ``radiance`` (or None) mappings, type-checked."""
+    sky = d.get('sky') or {'model': 'rayleigh', 'dop_max': 1.0}
+    if not isinstance(sky, dict):
+        raise SceneError('sky must be a mapping such as {model: rayleigh, dop_max: 1.0}')
+    radiance = d.get('radiance')
+    if radiance is not None and not isinstance(radiance, dict):
+        raise SceneError('radiance must be null or a mapping such as {model: cie_clear}')
+    return dict(sky), (dict(radiance) if radiance else None)
+
+
+def _validity_from_dict(val_d: dict, default: Validity) -> Validity:
+    """Return the ``validity`` mapping's :class:`Validity`, missing keys from ``default``."""
+    _check_keys(val_d, {'sun_exclusion_deg', 'min_altitude_deg', 'min_dop'}, 'validity.')
+    return Validity(
+        _num(val_d, 'sun_exclusion_deg', default.sun_exclusion_deg, 0, 90, 'validity.'),
+        _num(val_d, 'min_altitude_deg', default.min_altitude_deg, -90, 90, 'validity.'),
+        _num(val_d, 'min_dop', default.min_dop, 0, 1, 'validity.'),
+    )
+
+
+def _with_stages(scene: Scene, d: dict, seed: int, cam: CameraModel) -> Scene:
+    """Return ``scene`` with its declared photodiode array, atmosphere and optics, built once."""
     if d.get('photodiode_array') is not None:
         from .photodiode.geometry import ArrayGeometryError
         from .photodiode.simulate import ArraySensor
@@ -496,7 +530,11 @@ def scene_from_dict(d: dict) -> Scene:
         except (OpticsError, TypeError) as exc:
             raise SceneError(str(exc)) from None
         scene = scene.replace(optics=dict(d['optics']))
-    # fail early on bad model parameters, not at the first frame
+    return scene
+
+
+def _check_models(scene: Scene, pixels: PixelSelection) -> None:
+    """Build the sky, sensor and radiance models once: bad parameters fail here, not at a frame."""
     from .sky import SkyModelError
     from .sky_models import make_sky_model
 
@@ -524,14 +562,13 @@ def scene_from_dict(d: dict) -> Scene:
             make_radiance_model(scene.radiance)
         except RadianceError as exc:
             raise SceneError(f'radiance: {exc}') from None
-    return scene
 
 
 def load_scene(path: str | Path | None = None) -> Scene:
     """
     Load a scene YAML file (safe loader).
 
-    Load a scene YAML file (safe loader); ``None`` gives the embedded default (the paper's set-up).
+    ``None`` gives the embedded default (the paper's set-up).
 
     Parameters
     ----------

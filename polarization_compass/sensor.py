@@ -20,7 +20,8 @@ contiguous pixel block into the raw mosaic a polarization camera would record, t
 back into the *measured* AoP/DoP that estimators see. It runs only when a scene declares sensor
 effects, and each effect runs only if declared.
 
-Scene schema (``sensor:`` mapping; every key optional, defaults are a Sony IMX250MZR)::
+Scene schema (``sensor:`` mapping, validated by :mod:`polarization_compass.sensor_config`; every
+key optional, defaults are a Sony IMX250MZR)::
 
     sensor:
       mosaic: {layout: [[90, 45], [135, 0]], pol45_toward: "+x-y"}   # or "+x+y"; see ``demosaic``
@@ -42,7 +43,7 @@ own that runs only if declared; its arithmetic exists only in the kernels of tha
 - ``mosaic``: Malus's law per pixel behind ideal polarizers (``_mean_electrons_kernel``);
 - ``extinction_ratio``: the same with leaky polarizers (``_mean_electrons_er_kernel`` replaces it);
 - ``shot_noise`` / ``read_noise``: ``_shot_noise_kernel``, ``_read_noise_kernel``, or both fused in
-``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
+  ``_shot_read_noise_kernel`` (one Gaussian draw of the summed variance);
 - ``exposure``: the finite well, saturation at ``full_well_e`` (``_saturate_kernel``, fused into
   the DN pass as ``_saturate_quantize_kernel`` when quantised). Without it the well is unlimited:
   nothing saturates. The electron scale ``N0 = fill * full_well_e`` is a parameter of every
@@ -88,8 +89,9 @@ camera): measured DoP = d * DoP.
 
 Random numbers: a counter-based SplitMix64 stream (pixel (i, j) of a W-wide block owns counters
 ``(i W + j) * 1024 ...``, keyed by one 64-bit draw from the frame's ``numpy.random.Generator``)
-feeding a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals, in a
-numba kernel parallel over rows whose fast path (98.5 % of draws) is branch-free and vectorises.
+feeding a 256-layer ziggurat (Marsaglia & Tsang 2000; tables solved at import) for normals
+(:mod:`polarization_compass.rng`), in a numba kernel parallel over rows whose fast path (98.5 % of
+draws) is branch-free and vectorises.
 The same seed gives the same mosaic bit for bit, whatever the thread count. Measured single-core
 for 5 Mpixels: shot + read noise ~24 ms, against 50-67 ms for
 ``Generator.standard_normal(dtype=float32)`` alone; the whole mosaic + shot + read noise + 12-bit
@@ -103,8 +105,8 @@ whose pixel (1, 1) carries ``layout[0][0]``); ``aop_rad``/``dop``/``valid`` beco
 values.
 
 - ``bilinear`` (default): same shape and pixels. A measured pixel is valid only if its whole 3 x 3
-neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
-says so (no saturation, S0 > 0, AoP defined).
+  neighbourhood was valid in the ideal render (sun disk, horizon, fisheye edge) and the demosaic
+  says so (no saturation, S0 > 0, AoP defined).
 - ``superpixel``: half resolution. ``frame.pixels`` is replaced by the 2 x 2 block centres
   (x_px/y_px at half-pixel positions, rays from the camera model, cached); ``intensity`` becomes
   the block mean; the ideal AoP/DoP become those of the block's mean ideal Stokes vector (what a
@@ -117,7 +119,6 @@ Sensor effects need a contiguous block of pixels (``pixels.mode`` full or region
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 import math
 
@@ -126,18 +127,23 @@ import numpy as np
 
 from . import instrumentation as instr
 from .camera import CameraModel, SelectedPixels
-from .demosaic import (
-    _finish,
-    check_ifov_k,
-    DEMOSAIC_METHODS,
-    IFOV_K_DEFAULT,
-    layout_from_mapping,
-    MosaicLayout,
-    polarization_from_mosaic,
-    SensorError,
-)
-from .errors import CompassError
+from .demosaic import _finish, MosaicLayout, polarization_from_mosaic, SensorError
 from .fastmath import sincos32
+from .rng import (
+    _DRAWS_PER_ELEMENT,
+    _normal,
+    _poisson_small,
+    _splitmix,
+    _ZW,
+    _ZX,
+    standard_normal_f32,
+)
+from .sensor_config import (
+    EFFECTS,
+    parse_sensor_config,
+    sensor_config_for_encoding,
+    SensorConfig,
+)
 
 __all__ = [
     'SensorError',
@@ -149,521 +155,7 @@ __all__ = [
     'sensor_config_for_encoding',
 ]
 
-#: Every key a ``sensor:`` mapping may hold, in pipeline order.
-EFFECTS = (
-    'mosaic',
-    'exposure',
-    'extinction_ratio',
-    'calibration',
-    'shot_noise',
-    'read_noise',
-    'quantization',
-    'demosaic',
-    'ifov_check',
-)
-_BITS = (8, 10, 12, 14, 16)
 _FM = {'nsz', 'arcp', 'contract', 'afn', 'reassoc'}
-
-
-# ------------------------------------------------------------------------------------------------
-# Configuration
-# ------------------------------------------------------------------------------------------------
-def _params(cfg, name, allowed):
-    d = cfg.get(name)
-    if d is None:
-        return {}
-    if not isinstance(d, dict):
-        raise SensorError(f'sensor.{name} must be a mapping (e.g. {{}}), got {type(d).__name__}')
-    unknown = set(d) - set(allowed)
-    if unknown:
-        raise SensorError(
-            f'unknown key(s) {sorted(unknown)} in sensor.{name}; allowed: {sorted(allowed)}'
-        )
-    return d
-
-
-def _number(d, key, default, lo, hi, where, lo_open=False):
-    v = d.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise SensorError(f'sensor.{where}.{key} must be a number, got {v!r}')
-    f = float(v)
-    if not math.isfinite(f) or not ((lo < f) if lo_open else (lo <= f)) or f > hi:
-        raise SensorError(
-            f'sensor.{where}.{key} must be finite and in {"(" if lo_open else "["}{lo}, {hi}], '
-            f'got {v!r}'
-        )
-    return f
-
-
-@dataclass(frozen=True)
-class SensorConfig:
-    """
-    Hold validated sensor parameters; ``None`` marks an effect the scene did not declare.
-
-    Built by :func:`parse_sensor_config` (the module docstring gives the schema and the physics).
-
-    Attributes
-    ----------
-    layout : MosaicLayout
-        Polarizer angles of the 2 x 2 mosaic and the direction of its 45 deg polarizer.
-    full_well_e : float
-        Full-well capacity [electrons]; also the ADC full scale when quantised.
-    fill : float
-        Mean signal of an unpolarized S0 = 1 pixel as a fraction of the full well.
-    extinction_ratio : float or None
-        Polarizer extinction ratio ER (> 1); None for ideal polarizers.
-    shot_gaussian_above_e : float or None
-        Mean [electrons] above which shot noise is drawn Gaussian, not Poisson; None: no shot
-        noise.
-    read_sigma_e : float or None
-        Read noise [electrons rms]; None: no read noise.
-    bits : int or None
-        ADC bits; None: no quantisation (float32 electrons).
-    demosaic : {"bilinear", "superpixel"}
-        Demosaic method.
-    saturates : bool
-        ``exposure`` declared: the well is finite and clips at ``full_well_e``.
-    calibration : dict or None
-        Per-pixel calibration errors (``angle_error_deg`` [deg], ``extinction_ratio_spread``,
-        ``gain_rms``, ``crosstalk`` and ``seed``); None if undeclared.
-    ifov_check_k : float
-        Threshold [noise sigmas] of the demosaic's IFOV (redundancy) check; 0 = off.
-
-    """
-
-    layout: MosaicLayout
-    full_well_e: float
-    fill: float
-    extinction_ratio: float | None
-    shot_gaussian_above_e: float | None
-    read_sigma_e: float | None
-    bits: int | None
-    demosaic: str
-    saturates: bool = False  # ``exposure`` declared: the well is finite (clip at full_well_e)
-    calibration: dict | None = (
-        None  # per-pixel DoFP calibration errors (module docstring), None if undeclared
-    )
-    ifov_check_k: float = IFOV_K_DEFAULT
-
-    @property
-    def d(self) -> float:
-        """Polarizer efficiency (ER - 1) / (ER + 1); 1 for an ideal polarizer."""
-        er = self.extinction_ratio
-        return 1.0 if er is None else (er - 1.0) / (er + 1.0)
-
-    @property
-    def n0_e(self) -> float:
-        """Mean electrons of an unpolarized pixel at S0 = 1."""
-        return self.fill * self.full_well_e
-
-    @property
-    def max_dn(self) -> int | None:
-        """ADC full scale 2^bits - 1 [DN], or None without quantisation."""
-        return None if self.bits is None else (1 << self.bits) - 1
-
-    @property
-    def saturation_level(self) -> float | None:
-        """
-        Return the raw value at which a sample is saturated, or None.
-
-        The raw value at which a sample is saturated: the ADC's full scale when quantised, the full
-        well when ``exposure`` is declared, else None (an unlimited well never saturates).
-        """
-        if self.bits is not None:
-            return float(self.max_dn)
-        return self.full_well_e if self.saturates else None
-
-    def describe(self) -> dict:
-        """
-        Return the parameters as plain values for a frame's metadata.
-
-        Returns
-        -------
-        dict
-            The mosaic layout, exposure (``full_well_e`` [electrons] or None for an unlimited
-            well, ``fill``, ``n0_e`` [electrons], saturation, ADC full scale [electrons]),
-            extinction ratio, noise parameters [electrons], quantisation bits, demosaic method and
-            calibration; None for an effect not declared.
-
-        """
-        # exposure.full_well_e is the saturation level of an unquantised mosaic (None: unlimited
-        # well); n0_e the electrons of an unpolarized S0 = 1 pixel, the scale of every
-        # electron-domain stage
-        return {
-            'mosaic': self.layout.describe(),
-            'exposure': {
-                'full_well_e': self.full_well_e if self.saturates else None,
-                'fill': self.fill,
-                'n0_e': self.n0_e,
-                'saturation': self.saturates,
-                'adc_full_scale_e': None if self.bits is None else self.full_well_e,
-            },
-            'extinction_ratio': self.extinction_ratio,
-            'shot_noise_gaussian_above_e': self.shot_gaussian_above_e,
-            'read_noise_sigma_e': self.read_sigma_e,
-            'quantization_bits': self.bits,
-            'demosaic': self.demosaic,
-            'calibration': None if self.calibration is None else dict(self.calibration),
-            'ifov_check_k': self.ifov_check_k,
-        }
-
-
-def parse_sensor_config(cfg: dict) -> SensorConfig:
-    """
-    Validate a scene's ``sensor:`` mapping (see the module docstring).
-
-    Missing keys take the defaults of a Sony IMX250MZR shown in the module docstring.
-
-    Parameters
-    ----------
-    cfg : dict or None
-        Effect name -> its parameters (``{}`` or None for the defaults); None is no effects.
-
-    Returns
-    -------
-    SensorConfig
-        The validated parameters.
-
-    Raises
-    ------
-    SensorError
-        Naming the key, for an unknown effect or parameter, a number out of range, unsupported
-        quantisation bits, an extinction-ratio spread without an extinction ratio, or an unknown
-        demosaic method.
-
-    """
-    if cfg is None:
-        cfg = {}
-    if not isinstance(cfg, dict):
-        raise SensorError(
-            f'sensor must be a mapping of effect name to parameters, got {type(cfg).__name__}'
-        )
-    unknown = [k for k in cfg if k not in EFFECTS]
-    if unknown:
-        raise SensorError(
-            f'unknown sensor effect(s) {sorted(map(str, unknown))}; known: {", ".join(EFFECTS)}'
-        )
-    mos = _params(cfg, 'mosaic', ('layout', 'pol45_toward'))
-    layout = layout_from_mapping(mos)
-    exp = _params(cfg, 'exposure', ('full_well_e', 'fill'))
-    full_well = _number(exp, 'full_well_e', 10500.0, 1.0, 1e8, 'exposure')
-    fill = _number(exp, 'fill', 0.5, 0.0, 1000.0, 'exposure', lo_open=True)
-    er = None
-    if 'extinction_ratio' in cfg:
-        er = _number(
-            _params(cfg, 'extinction_ratio', ('value',)),
-            'value',
-            100.0,
-            1.0,
-            1e12,
-            'extinction_ratio',
-            lo_open=True,
-        )
-    shot = None
-    if 'shot_noise' in cfg:
-        # Knuth's Poisson method multiplies uniforms down to exp(-lambda): keep lambda where that
-        # is exact
-        shot = _number(
-            _params(cfg, 'shot_noise', ('gaussian_above_e',)),
-            'gaussian_above_e',
-            20.0,
-            0.0,
-            200.0,
-            'shot_noise',
-        )
-    read = None
-    if 'read_noise' in cfg:
-        read = _number(
-            _params(cfg, 'read_noise', ('sigma_e',)), 'sigma_e', 2.3, 0.0, 1e6, 'read_noise'
-        )
-    bits = None
-    if 'quantization' in cfg:
-        q = _params(cfg, 'quantization', ('bits',))
-        b = q.get('bits', 12)
-        if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in _BITS:
-            raise SensorError(f'sensor.quantization.bits must be one of {_BITS}, got {b!r}')
-        bits = int(b)
-    cal = None
-    if 'calibration' in cfg:
-        c = _params(
-            cfg,
-            'calibration',
-            ('angle_error_deg', 'extinction_ratio_spread', 'gain_rms', 'crosstalk', 'seed'),
-        )
-        cal = {
-            'angle_error_deg': _number(c, 'angle_error_deg', 0.0, 0.0, 45.0, 'calibration'),
-            'extinction_ratio_spread': _number(
-                c, 'extinction_ratio_spread', 0.0, 0.0, 3.0, 'calibration'
-            ),
-            'gain_rms': _number(c, 'gain_rms', 0.0, 0.0, 0.3, 'calibration'),
-            'crosstalk': _number(c, 'crosstalk', 0.0, 0.0, 0.2, 'calibration'),
-            'seed': int(_number(c, 'seed', 0, 0, 2**32 - 1, 'calibration')),
-        }
-        if cal['extinction_ratio_spread'] > 0 and er is None:
-            raise SensorError(
-                'sensor.calibration.extinction_ratio_spread needs sensor.extinction_ratio (the '
-                'mean ratio the spread is around)'
-            )
-    method = cfg.get('demosaic', 'bilinear')
-    if method is None:
-        method = 'bilinear'
-    if method not in DEMOSAIC_METHODS:
-        raise SensorError(f'sensor.demosaic must be one of {DEMOSAIC_METHODS}, got {method!r}')
-    ifov_k = IFOV_K_DEFAULT
-    if 'ifov_check' in cfg:
-        ic = _params(cfg, 'ifov_check', ('k_sigma',))
-        try:
-            ifov_k = check_ifov_k(ic.get('k_sigma', IFOV_K_DEFAULT))
-        except SensorError as exc:
-            raise SensorError(f'sensor.ifov_check.k_sigma: {exc}') from None
-    return SensorConfig(
-        layout,
-        full_well,
-        fill,
-        er,
-        shot,
-        read,
-        bits,
-        method,
-        saturates='exposure' in cfg,
-        calibration=cal,
-        ifov_check_k=ifov_k,
-    )
-
-
-def sensor_config_for_encoding(sensor_cfg: dict, encoding: str) -> SensorConfig:
-    """
-    Return the SensorConfig a simulated camera applies for a raw image encoding.
-
-    The SensorConfig a simulated camera applies for a raw image encoding (the ``sky_simulator``
-    node and ``record-sim`` both use it).
-
-    ``32FC1``: the scene's mosaic layout, exposure and extinction ratio only (ideal: no noise, no
-    quantisation). ``mono16``/``mono8``: the scene's effects, quantised with the scene's bits or,
-    if it declares none, 12 (mono16) / 8 (mono8) bits; bits must fit the encoding. Raises
-    CompassError (one line, ``scene sensor: ...`` for a bad scene mapping).
-
-    Parameters
-    ----------
-    sensor_cfg : dict or None
-        The scene's ``sensor:`` mapping.
-    encoding : {"32FC1", "mono16", "mono8"}
-        ROS ``sensor_msgs/Image`` encoding of the raw mosaic.
-
-    Returns
-    -------
-    SensorConfig
-        The parameters the simulated camera applies.
-
-    Raises
-    ------
-    CompassError
-        When the scene's mapping is invalid, or its quantisation bits do not fit the encoding.
-
-    """
-    cfg = dict(sensor_cfg or {})
-    if encoding == '32FC1':
-        cfg = {k: v for k, v in cfg.items() if k in ('mosaic', 'exposure', 'extinction_ratio')}
-    else:
-        cfg.setdefault('quantization', {'bits': 12 if encoding == 'mono16' else 8})
-    try:
-        parsed = parse_sensor_config(cfg)
-    except SensorError as exc:
-        raise CompassError(f'scene sensor: {exc}') from None
-    if encoding == 'mono8' and parsed.bits > 8:
-        raise CompassError(
-            f"encoding mono8 cannot carry the scene's {parsed.bits}-bit samples: use mono16"
-        )
-    if encoding == 'mono16' and parsed.bits <= 8:
-        raise CompassError(f'the scene quantises to {parsed.bits} bits: use encoding mono8')
-    return parsed
-
-
-# ------------------------------------------------------------------------------------------------
-# Random numbers: counter-based SplitMix64 + ziggurat (Marsaglia & Tsang 2000), 256 layers
-# ------------------------------------------------------------------------------------------------
-_ZIG_N = 256
-
-
-def _ziggurat_tables(n: int = _ZIG_N):
-    """
-    Compute the ziggurat layer edges for the standard normal density.
-
-    Layer edges for f(x) = exp(-x^2 / 2): ``x[0] = r`` (base layer, tail beyond it), x decreasing
-    to ``x[n-1] = 0`` at the top, every layer of area ``v``. ``r`` solved by bisection so the top
-    closes.
-
-    Returns (width (n,), inner (n,), f_edge (n + 1,), r, v): a layer k draws ``x = u * width[k]``
-    and accepts at once when ``x < inner[k]``; ``f_edge[k]`` / ``f_edge[k + 1]`` are f at its
-    bottom / top.
-    """
-    f = lambda x: math.exp(-0.5 * x * x)  # noqa: E731
-    tail = lambda r: math.sqrt(math.pi / 2) * math.erfc(r / math.sqrt(2))  # noqa: E731
-
-    def close(r):
-        v = r * f(r) + tail(r)
-        x = r
-        xs = [r]
-        for _ in range(n - 2):
-            fx = f(x) + v / x
-            if fx >= 1.0:
-                return 1.0, v, xs
-            x = math.sqrt(-2.0 * math.log(fx))
-            xs.append(x)
-        return f(x) + v / x - 1.0, v, xs
-
-    lo, hi = 2.0, 6.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if close(mid)[0] > 0.0:
-            lo = mid
-        else:
-            hi = mid
-    _, v, xs = close(hi)
-    r = hi
-    xs.append(0.0)  # x[n-1] = 0: the top layer has no inner box
-    x = np.array(xs)
-    width = np.empty(n)
-    width[0] = v / f(r)  # base strip: box [0, r] x [0, f(r)] plus the tail
-    width[1:] = x[:-1]
-    inner = x.copy()
-    f_edge = np.empty(n + 1)
-    f_edge[0] = 0.0
-    f_edge[1:] = np.exp(-0.5 * x * x)
-    return width, inner, f_edge, r, v
-
-
-_ZW, _ZX, _ZF, _ZR, _ZV = _ziggurat_tables()
-_GAMMA = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_DRAWS_PER_ELEMENT = (
-    1024  # counter space reserved per element (a normal needs ~1.01 draws on average)
-)
-
-
-@njit(inline='always', cache=True)
-def _splitmix(key, counter):  # pragma: no cover - compiled
-    """
-    Return the ``counter``-th output of SplitMix64 started at ``key``.
-
-    The ``counter``-th output of SplitMix64 started at ``key`` (state = key + counter * gamma).
-    """
-    z = key + counter * _GAMMA
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
-    return z ^ (z >> np.uint64(31))
-
-
-@njit(inline='always', cache=True)
-def _uniform(key, counter):  # pragma: no cover - compiled
-    """Uniform in (0, 1) from the top 53 bits (never exactly 0, so log() is safe)."""
-    return (np.float64(np.int64(_splitmix(key, counter) >> np.uint64(11))) + 0.5) * (
-        1.0 / 9007199254740992.0
-    )
-
-
-@njit(cache=True)
-def _normal_slow(key, base, j, k, x, neg):  # pragma: no cover - compiled
-    """
-    Draw on the ziggurat's rare paths (~1.5 % of draws): tail, wedge, and restarts.
-
-    ``j`` counters used.
-    """
-    zw, zx, zf, r = _ZW, _ZX, _ZF, _ZR  # global arrays: compile-time constants, no call overhead
-    while True:
-        if k == 0:  # tail beyond r (Marsaglia 1964)
-            while True:
-                a = -math.log(_uniform(key, base + j)) / r
-                b = -math.log(_uniform(key, base + j + np.uint64(1)))
-                j += np.uint64(2)
-                if 2.0 * b > a * a:
-                    return -(r + a) if neg else r + a
-        y = zf[k] + _uniform(key, base + j) * (zf[k + 1] - zf[k])
-        j += np.uint64(1)
-        if y < math.exp(-0.5 * x * x):
-            return -x if neg else x
-        z = _splitmix(key, base + j)  # rejected: a fresh draw
-        j += np.uint64(1)
-        k = np.int64(z & np.uint64(0xFF))
-        neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
-        x = np.float64(np.int64(z >> np.uint64(11))) * (1.0 / 9007199254740992.0) * zw[k]
-        if x < zx[k]:
-            return -x if neg else x
-
-
-@njit(inline='always', cache=True)
-def _normal(key, base):  # pragma: no cover - compiled
-    """
-    Draw a standard normal from the counter stream starting at ``base``.
-
-    A standard normal from the counter stream starting at ``base``: one draw on the fast path (98.5
-    %), ~1.02 on average. Bits: 0-7 layer, 8 sign, 11-63 the uniform.
-    """
-    z = _splitmix(key, base)
-    k = np.int64(z & np.uint64(0xFF))
-    neg = ((z >> np.uint64(8)) & np.uint64(1)) == np.uint64(1)
-    x = np.float64(np.int64(z >> np.uint64(11))) * (1.0 / 9007199254740992.0) * _ZW[k]
-    if x < _ZX[k]:
-        return -x if neg else x
-    return _normal_slow(key, base, np.uint64(1), k, x, neg)
-
-
-@njit(cache=True)
-def _poisson_small(key, base, lam):  # pragma: no cover - compiled
-    """
-    Draw an exact Poisson(lam) by Knuth's product of uniforms; lam <= 200.
-
-    Exact Poisson(lam) by Knuth's product of uniforms; lam <= 200 (exp(-200) is a normal double).
-    """
-    limit = math.exp(-lam)
-    p = 1.0
-    k = -1
-    j = np.uint64(0)
-    while True:
-        k += 1
-        p *= _uniform(key, base + j)
-        j += np.uint64(1)
-        if p <= limit:
-            return k
-
-
-@njit(parallel=True, cache=True)
-def _normal_kernel(key, out):  # pragma: no cover - compiled
-    o = out.reshape(-1)
-    stride = np.uint64(_DRAWS_PER_ELEMENT)
-    for n in prange(o.size):
-        o[n] = np.float32(_normal(key, np.uint64(n) * stride))
-
-
-def standard_normal_f32(key: int, shape) -> np.ndarray:
-    """
-    Return standard normals (float32) of the counter-based stream ``key``.
-
-    Standard normals (float32) of the counter-based stream ``key``: element n uses counters ``n *
-    1024 ...``. Exposed for tests of the generator's distribution.
-
-    Parameters
-    ----------
-    key : int
-        64-bit key of the SplitMix64 stream.
-    shape : int or tuple of int
-        Shape of the output.
-
-    Returns
-    -------
-    numpy.ndarray
-        float32 draws from N(0, 1) of that shape; the same key gives the same values.
-
-    References
-    ----------
-    .. [1] G. Marsaglia and W. W. Tsang, "The ziggurat method for generating random variables",
-       Journal of Statistical Software 5(8), 2000.
-
-    """
-    out = np.empty(shape, np.float32)
-    _normal_kernel(np.uint64(key), out)
-    return out
 
 
 # ------------------------------------------------------------------------------------------------
@@ -991,8 +483,7 @@ def _shot_noise_kernel(e, key, gauss_above):  # pragma: no cover - compiled
     """
     Add photon shot noise to the mean electrons ``e`` in place.
 
-    Photon shot noise on the mean electrons ``e`` (in place): Gaussian of variance lambda where
-    lambda >= gauss_above, exact Poisson below.
+    Gaussian of variance lambda where lambda >= gauss_above, exact Poisson below.
     """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
@@ -1027,9 +518,8 @@ def _shot_read_noise_kernel(e, key, gauss_above, read_sigma):  # pragma: no cove
     """
     Add shot and read noise to ``e`` in place.
 
-    Shot and read noise on ``e`` (in place): one Gaussian draw of variance lambda + sigma^2 where
-    lambda >= gauss_above (independent Gaussians add), else exact Poisson plus a Gaussian read
-    draw.
+    One Gaussian draw of variance lambda + sigma^2 where lambda >= gauss_above (independent
+    Gaussians add), else exact Poisson plus a Gaussian read draw.
     """
     H, W = e.shape
     stride = np.uint64(_DRAWS_PER_ELEMENT)
@@ -1155,6 +645,13 @@ def simulate_mosaic(
             f'aop, dop and intensity must be 2-D images of one shape, got {aop.shape}, {dp.shape}'
             + (f', {s0a.shape}' if has_s0 else '')
         )
+    e = _mean_electrons(aop, dp, s0a, has_s0, cfg, layout, block_origin)
+    _add_noise(e, cfg, rng)
+    return _raw(e, cfg)
+
+
+def _mean_electrons(aop, dp, s0a, has_s0, cfg, layout, block_origin):
+    """Return the mean photo-electrons behind the polarizers (Malus; calibration, crosstalk)."""
     phi = np.radians(layout.camera_angles_deg)
     pq = np.rint(np.stack([np.cos(2 * phi), np.sin(2 * phi)], axis=-1)).reshape(2, 2, 2)
     e = np.empty(aop.shape, np.float32)
@@ -1177,6 +674,11 @@ def simulate_mosaic(
     else:
         _count('_mean_electrons_er_kernel')
         _mean_electrons_er_kernel(aop, dp, s0a, has_s0, pq, cfg.n0_e, cfg.d, e)
+    return e
+
+
+def _add_noise(e, cfg, rng) -> None:
+    """Add the declared shot and/or read noise to ``e`` in place, keyed by one draw of ``rng``."""
     shot, read = cfg.shot_gaussian_above_e, cfg.read_sigma_e
     if shot is not None or read is not None:
         key = np.uint64(int(rng.integers(0, 2**63, dtype=np.int64)))
@@ -1189,6 +691,10 @@ def simulate_mosaic(
         else:
             _count('_shot_read_noise_kernel')
             _shot_read_noise_kernel(e, key, shot, read)
+
+
+def _raw(e, cfg):
+    """Return the raw mosaic: ``e`` saturated if declared, quantised to DN if declared."""
     if cfg.bits is None:
         if cfg.saturates:
             _count('_saturate_kernel')
@@ -1283,8 +789,8 @@ def _ideal_superpixel_kernel(
     """
     Compute block means of the ideal Stokes vectors and their AoP/DoP.
 
-    Block means of the ideal Stokes vectors and the AoP/DoP of the mean (float32); valid if all
-    four pixels are; ``out_s0`` the block mean of S0 (1 without a radiance model).
+    The AoP/DoP are those of the mean (float32); a block is valid if all four pixels are;
+    ``out_s0`` is the block mean of S0 (1 without a radiance model).
     """
     H2, W2 = out_aop.shape
     one = np.float32(1.0)
@@ -1306,12 +812,22 @@ def _ideal_superpixel_kernel(
 # ------------------------------------------------------------------------------------------------
 # The pipeline
 # ------------------------------------------------------------------------------------------------
+def _eroded_3x3(valid):
+    """Return ``valid`` eroded by a 3 x 3 square (edges reflected): whole neighbourhoods valid."""
+    import cv2
+
+    return cv2.erode(
+        valid.view(np.uint8),
+        np.ones((3, 3), np.uint8),
+        borderType=cv2.BORDER_REFLECT_101,
+    ).view(np.bool_)
+
+
 class SensorPipeline:
     """
     Declared sensor effects for one camera.
 
-    Build with :meth:`from_config`; call
-    :meth:`apply`.
+    Build with :meth:`from_config`; call :meth:`apply`.
     """
 
     def __init__(self, config: SensorConfig, camera: CameraModel):
@@ -1323,7 +839,7 @@ class SensorPipeline:
         """
         Validate a scene's ``sensor:`` mapping.
 
-        Validate a scene's ``sensor:`` mapping (raises :class:`SensorError` naming the bad value).
+        Raises :class:`SensorError` naming the bad value.
 
         Parameters
         ----------
@@ -1427,47 +943,49 @@ class SensorPipeline:
             )
         ideal_valid = np.ascontiguousarray(frame.valid)
         if cfg.demosaic == 'bilinear':
-            import cv2
-
-            eroded = cv2.erode(
-                ideal_valid.view(np.uint8),
-                np.ones((3, 3), np.uint8),
-                borderType=cv2.BORDER_REFLECT_101,
-            ).view(np.bool_)
-            valid &= eroded
+            valid &= _eroded_3x3(ideal_valid)
         else:
-            rows, cols = frame.aop_rad.shape
-            shape = (rows // 2, cols // 2)
-            ia, idp, iv, is0 = (
-                np.empty(shape, np.float32),
-                np.empty(shape, np.float32),
-                np.empty(shape, np.bool_),
-                np.empty(shape, np.float32),
-            )
-            has_s0 = frame.intensity is not None
-            s0 = (
-                np.ascontiguousarray(frame.intensity, dtype=np.float32)
-                if has_s0
-                else np.empty((1, 1), np.float32)
-            )
-            _ideal_superpixel_kernel(
-                np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
-                np.ascontiguousarray(frame.dop, dtype=np.float32),
-                ideal_valid,
-                s0,
-                has_s0,
-                ia,
-                idp,
-                iv,
-                is0,
-            )
-            frame.pixels = superpixel_pixels(self.camera, x0, y0, rows, cols)
-            iv &= frame.pixels.has_ray
-            valid &= iv
-            frame.aop_ideal_rad, frame.dop_ideal = ia, idp
-            if has_s0:
-                frame.intensity = is0
+            valid &= self._to_superpixels(frame, ideal_valid, x0, y0)
         invalid = ~valid
         np.copyto(aop, np.float32(0.0), where=invalid)
         np.copyto(dop, np.float32(0.0), where=invalid)
         frame.aop_rad, frame.dop, frame.valid = aop, dop, valid
+
+    def _to_superpixels(self, frame, ideal_valid, x0, y0):
+        """
+        Replace a frame's pixels and ideal values by those of its 2 x 2 superpixels.
+
+        Returns the superpixels' ideal validity (all four pixels valid, and a ray through the
+        block centre); the frame's pixels, ideal AoP/DoP and radiance become the blocks'.
+        """
+        rows, cols = frame.aop_rad.shape
+        shape = (rows // 2, cols // 2)
+        ia, idp, iv, is0 = (
+            np.empty(shape, np.float32),
+            np.empty(shape, np.float32),
+            np.empty(shape, np.bool_),
+            np.empty(shape, np.float32),
+        )
+        has_s0 = frame.intensity is not None
+        s0 = (
+            np.ascontiguousarray(frame.intensity, dtype=np.float32)
+            if has_s0
+            else np.empty((1, 1), np.float32)
+        )
+        _ideal_superpixel_kernel(
+            np.ascontiguousarray(frame.aop_rad, dtype=np.float32),
+            np.ascontiguousarray(frame.dop, dtype=np.float32),
+            ideal_valid,
+            s0,
+            has_s0,
+            ia,
+            idp,
+            iv,
+            is0,
+        )
+        frame.pixels = superpixel_pixels(self.camera, x0, y0, rows, cols)
+        iv &= frame.pixels.has_ray
+        frame.aop_ideal_rad, frame.dop_ideal = ia, idp
+        if has_s0:
+            frame.intensity = is0
+        return iv

@@ -18,10 +18,10 @@ Sky polarization models, evaluated in the camera frame.
 Every model answers, for unit viewing rays in the camera frame, the angle of polarization in the
 paper's eq 28 convention (folded to [-pi/2, pi/2)), the degree of polarization and which pixels are
 valid: ``model.polarization(sun_cam, zenith_cam, rays_cam, limits) -> (aop, dop, valid)`` with
-``limits = (cos sun-exclusion radius, sin minimum altitude, minimum DoP)``; invalid pixels hold aop
-= dop = 0 (models that do not fuse validity use :func:`validity_kernel`). Working in the camera
-frame is exact and cheap: a rotation commutes with the cross product, so ``R^T (S x P) = (R^T S) x
-(R^T P)`` and only the sun and zenith vectors are rotated per frame, never the millions of rays.
+``limits = (cos sun-exclusion radius, sin minimum altitude, minimum DoP)``; invalid pixels hold
+``aop = dop = 0``. Working in the camera frame is exact and cheap: a rotation commutes with the
+cross product, so ``R^T (S x P) = (R^T S) x (R^T P)`` and only the sun and zenith vectors are
+rotated per frame, never the millions of rays.
 
 Models
 ------
@@ -48,7 +48,6 @@ __all__ = [
     'SkyModelError',
     'rayleigh_pixel',
     'rayleigh_reference',
-    'validity_kernel',
 ]
 
 
@@ -137,48 +136,6 @@ def _rayleigh_kernel(
         valid[i] = ok
         aop[i] = a
         dop[i] = d
-
-
-@njit(parallel=True, cache=True, fastmath=True)
-def validity_kernel(
-    rays, sx, sy, sz, zx, zy, zz, cos_sun_excl, sin_min_alt, min_dop, dop, valid
-):  # pragma: no cover
-    """
-    Compute validity for models that do not fuse it.
-
-    A pixel is valid when it is outside the sun-exclusion disk, above the minimum altitude and its
-    DoP is at least ``min_dop``. Compiled (numba, parallel); fills ``valid`` in place.
-
-    Parameters
-    ----------
-    rays : numpy.ndarray, shape (3, N), float32
-        Unit viewing rays in the camera frame.
-    sx, sy, sz : float
-        Unit sun vector in the camera frame.
-    zx, zy, zz : float
-        Unit zenith (ENU up) vector in the camera frame.
-    cos_sun_excl : float
-        Cosine of the sun-exclusion radius; rays with ``ray . sun`` above it are invalid.
-    sin_min_alt : float
-        Sine of the minimum altitude; rays with ``ray . zenith`` below it are invalid.
-    min_dop : float
-        Minimum degree of polarization [0, 1].
-    dop : numpy.ndarray, shape (N,), float32
-        Degree of polarization of each ray [0, 1].
-    valid : numpy.ndarray, shape (N,), bool
-        Output: validity of each ray, written in place.
-
-    """
-    n = rays.shape[1]
-    for i in prange(n):
-        rx = rays[0, i]
-        ry = rays[1, i]
-        rz = rays[2, i]
-        valid[i] = (
-            (sx * rx + sy * ry + sz * rz <= cos_sun_excl)
-            & (zx * rx + zy * ry + zz * rz >= sin_min_alt)
-            & (dop[i] >= min_dop)
-        )
 
 
 class RayleighSky:

@@ -20,14 +20,14 @@ times: the sky model writes AoP, DoP and validity, the cloud layer reads and rew
 the radiance, the lens reads the rays and rewrites them again (~80 MB per stage on a 2448 x 2048
 frame, where the arithmetic is cheap). For a contiguous pixel block (the full frame or a stride-1
 region) :class:`SkyEffects` evaluates, band by band of rows, the cloud layer on its grid
-(:meth:`~polarization_compass.atmosphere.CloudLayer.grid`), then row by row the sky model, the
+(:meth:`~polarization_compass.clouds.CloudLayer.grid`), then row by row the sky model, the
 cloud composite and vignetting with the sun's disk and glare, in one parallel region, and writes
 AoP, DoP, validity and radiance once; the lens-flare ghosts are then added over their bounding
 boxes only.
 
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
-atmosphere.cloud_transmission`, :func:`~polarization_compass.atmosphere.cloud_light`,
+clouds.cloud_transmission`, :func:`~polarization_compass.clouds.cloud_light`,
 :func:`~polarization_compass.optics.lens_light`), applied in the stages' order (sky, clouds with
 the minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own ratio)
 share one division. A frame equals the staged one up to float32 rounding (a few 1e-7, relative),
@@ -49,14 +49,15 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .atmosphere import (
+from .clouds import (
     cloud_light,
     cloud_transmission,
     cloud_transmission_at,
+    CloudGrid,
     grid_row_to_columns,
 )
 from .fastmath import FM
-from .optics import lens_light
+from .optics import lens_light, LensParams
 from .sky import rayleigh_pixel, RayleighSky
 from .sky_bdl import bdl_pixel, BerryDennisLeeSky
 
@@ -73,7 +74,7 @@ _BAND = 64
 
 @njit(inline='always', cache=True, fastmath=FM, error_model='numpy')
 def _sky_effects_row(
-    model, square, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp, vd, it
+    model, square, sp, lens, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap, dp, vd, it
 ):  # pragma: no cover - compiled
     """
     Evaluate the sky, the clouds and the lens over one pixel row, writing each output once.
@@ -107,10 +108,7 @@ def _sky_effects_row(
         # division for both: with den = I1 V gd + gn = I gd and r = 1 / (gd den), G = gn den r and
         # d W V / I = d W V gd^2 r. A pixel that gets no light at all (V = 0, no sun) keeps its
         # DoP d W / I1, as the lens stage leaves it (V taken as 1 in the DoP factor only).
-        v, gn, gd = lens_light(
-            rx[c], ry[c], rz[c], xcol[c], yi, lp[0], lp[1], lp[2], lp[3], lp[4], lp[5], lp[6],
-            lp[7], lp[8], lp[9], lp[10], lp[11], lp[12], lp[13], lp[14], square,
-        )  # fmt: skip
+        v, gn, gd = lens_light(rx[c], ry[c], rz[c], xcol[c], yi, lens, square)
         i1v = i1 * v
         dark = i1v * gd + gn <= zero
         vd_ = one if dark else v
@@ -124,42 +122,27 @@ def _sky_effects_row(
         it[c] = i
 
 
-@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
-def _sky_effects_kernel(
-    model,
-    sp,
-    rays,
-    clouds,
-    grays,
-    R,
-    cp,
-    rk,
-    rk1,
-    rf,
-    cols,
-    cf,
-    bright,
-    min_dop,
-    xcol,
-    yrow,
-    lp,
-    square,
-    aop,
-    dop,
-    valid,
-    inten,
+@njit(inline='always', cache=True, fastmath=FM, error_model='numpy')
+def _sky_effects_pass(
+    model, square, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """
     Render a row-major pixel block: cloud grid, sky, clouds and lens per band of rows, one launch.
 
     Each band of ``_BAND`` pixel rows first evaluates the cloud layer on the grid rows it lies
-    between (:func:`~polarization_compass.atmosphere.cloud_transmission_at`, the grid row shared
+    between (:func:`~polarization_compass.clouds.cloud_transmission_at`, the grid row shared
     by two bands evaluated by both) and interpolates them to every pixel column, into a buffer
     that stays in the cache; then :func:`_sky_effects_row` runs over each row's slices of the rays
     and the outputs (per-row slices: a flat index r * W + c kept such loops scalar, measured). One
     parallel region for the whole frame: on a shared machine each extra one waits for its slowest
-    thread. Without clouds the band's T rows are 1.
+    thread. Without clouds the band's T rows are 1. ``model`` and ``square`` are constants: each
+    of :data:`_KERNELS` inlines this body with its own pair, so that the row loops vectorise.
+    ``grid`` is a :class:`~polarization_compass.clouds.CloudGrid`, ``lens`` a
+    :class:`~polarization_compass.optics.LensParams` and ``out`` the (aop, dop, valid, intensity)
+    arrays, written.
     """
+    aop, dop, valid, inten = out
+    grays, R, cp, rk, rk1, rf, cols, cf = grid
     W = xcol.size
     H = yrow.size
     one = np.float32(1.0)
@@ -194,28 +177,54 @@ def _sky_effects_kernel(
             vd = valid[o:o + W]
             it = inten[o:o + W]
             yi = yrow[r]
-            if model == 0:
-                if square:
-                    _sky_effects_row(
-                        0, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
-                        dp, vd, it,
-                    )  # fmt: skip
-                else:
-                    _sky_effects_row(
-                        0, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
-                        dp, vd, it,
-                    )  # fmt: skip
-            else:
-                if square:
-                    _sky_effects_row(
-                        1, True, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
-                        dp, vd, it,
-                    )  # fmt: skip
-                else:
-                    _sky_effects_row(
-                        1, False, sp, lp, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
-                        dp, vd, it,
-                    )  # fmt: skip
+            _sky_effects_row(
+                model, square, sp, lens, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,
+                dp, vd, it,
+            )  # fmt: skip
+
+
+# The pass compiled for each (sky model, glare exponent 2) pair, as optics' block kernel per glare
+# law: numba.literally would specialise one kernel on its arguments but re-dispatches every call
+# (~0.1 s, measured); run-time flags leave branches in the row loops.
+@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
+def _rayleigh_square_kernel(
+    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+):  # pragma: no cover - compiled
+    """Run :func:`_sky_effects_pass` for a Rayleigh sky and the exponent-2 glare."""
+    _sky_effects_pass(0, True, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+
+
+@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
+def _rayleigh_power_kernel(
+    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+):  # pragma: no cover - compiled
+    """Run :func:`_sky_effects_pass` for a Rayleigh sky and another glare exponent."""
+    _sky_effects_pass(0, False, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+
+
+@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
+def _bdl_square_kernel(
+    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+):  # pragma: no cover - compiled
+    """Run :func:`_sky_effects_pass` for a Berry-Dennis-Lee sky and the exponent-2 glare."""
+    _sky_effects_pass(1, True, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+
+
+@njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
+def _bdl_power_kernel(
+    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+):  # pragma: no cover - compiled
+    """Run :func:`_sky_effects_pass` for a Berry-Dennis-Lee sky and another glare exponent."""
+    _sky_effects_pass(1, False, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+
+
+#: The pass's kernel by (sky ``model`` number, glare exponent is 2).
+_KERNELS = {
+    (0, True): _rayleigh_square_kernel,
+    (0, False): _rayleigh_power_kernel,
+    (1, True): _bdl_square_kernel,
+    (1, False): _bdl_power_kernel,
+}
 
 
 class SkyEffects:
@@ -252,7 +261,7 @@ class SkyEffects:
         self.yrow = np.ascontiguousarray(pixels.y_px[:, 0], np.float32)
         f32 = np.float32
         # a lens that adds nothing: no vignetting (mode 0), no sun (do_sun False), exponent 2
-        self._no_lens = (
+        self._no_lens = LensParams(
             0,
             f32(0.0),
             f32(0.0),
@@ -272,7 +281,7 @@ class SkyEffects:
         # no clouds: placeholders (the kernel does not read them), T = 1
         z64 = np.zeros(1, np.int64)
         z32 = np.zeros(1, np.float32)
-        self._no_clouds = (
+        self._no_clouds = CloudGrid(
             np.zeros((3, 1), np.float32),
             np.eye(3),
             (1.0, 0.0, 0.0, 0, 0.0, 1.0, False, 0.0),
@@ -316,7 +325,7 @@ class SkyEffects:
         if sel.mode not in ('full', 'region') or sel.stride != 1 or len(px.shape) != 2:
             return None
         if clouds is not None:
-            from .atmosphere import GRID_STEP
+            from .clouds import GRID_STEP
 
             if min(px.shape) <= 2 * GRID_STEP:
                 return None
@@ -362,32 +371,26 @@ class SkyEffects:
             instr.count('atmosphere.clouds')
             grid = self.clouds.grid(R_enu_cam, self.rays, dt_s, self.pixels.shape)
             bright = f32(self.clouds.brightness)
-        lp, square, ghosts = self._no_lens, True, None
+        lens, square, ghosts = self._no_lens, True, None
         if self.optics is not None:
-            common, ghosts = self.optics.frame_params(sun_cam, instr)
-            lp, square = common[:-1], common[-1]
+            lens, square, ghosts = self.optics.frame_params(sun_cam, instr)
         n = self.rays.shape[1]
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)
         valid = np.empty(n, np.bool_)
         inten = np.empty(n, np.float32)
         with instr.stage('sky_effects'):
-            _sky_effects_kernel(
-                self.model,
+            _KERNELS[self.model, bool(square)](
                 sp,
                 self.rays,
                 self.clouds is not None,
-                *grid,
+                grid,
                 bright,
                 f32(limits[2]),
                 self.xcol,
                 self.yrow,
-                lp,
-                square,
-                aop,
-                dop,
-                valid,
-                inten,
+                lens,
+                (aop, dop, valid, inten),
             )
         if ghosts is not None:
             self.optics.add_ghosts(ghosts, self.xcol, self.yrow, dop, inten)
