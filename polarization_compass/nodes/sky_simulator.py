@@ -26,6 +26,13 @@ Publishes (relative names):
                             velocity of the turn, gravity; ``imu_rate_hz``
   ``ground_truth/heading``  sensor_msgs/Imu, the true heading in the estimator's form (yaw only)
   ``gps/fix``               sensor_msgs/NavSatFix of the site, 1 Hz
+  ``odometry/wheel``        nav_msgs/Odometry (attitude_source ``motion``), with every IMU sample:
+                            a wheel-odometry-like twist in ``imu_frame_id`` (yaw rate of the turn
+                            plus ``odom_yaw_rate_bias_deg_s`` and white noise
+                            ``odom_yaw_rate_noise_deg_s``, whose variance is the covariance
+                            reported; zero linear velocity) and its dead reckoning in ``odom``
+                            (starts at yaw 0, drifts with the bias); with ``odom_tf`` also the
+                            same ``odom -> imu_frame_id`` transform on ``/tf`` (tf2_ros)
   ``compass_array/intensities`` + ``compass_array/header``  with ``array_geometry`` (or a scene's
                             ``photodiode_array``): each frame's photodiode-array sample
                             (Float32MultiArray) and, published just before it, its std_msgs/Header
@@ -53,6 +60,7 @@ import math
 import time
 
 from geometry_msgs.msg import QuaternionStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, qos_profile_system_default, QoSProfile
@@ -93,6 +101,10 @@ GRAVITY_M_S2 = 9.80665
 #: /clock goes out at clock_rate_hz, independently.
 SCHEDULER_HZ = 100.0
 TRUTH_YAW_VARIANCE_RAD2 = 1e-12
+#: frame_id of the simulated wheel odometry's dead reckoning (REP-105)
+ODOM_FRAME_ID = 'odom'
+#: reported variance of the odometry's zero linear velocity [(m/s)^2]: the turn is on the spot
+ODOM_LINEAR_VARIANCE_M2_S2 = 1e-4
 
 #: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
 mosaic_config = sensor_config_for_encoding
@@ -165,6 +177,15 @@ class SkySimulatorNode(Node):
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
         self.pub_fix = self.create_publisher(NavSatFix, topics.FIX, qos_profile_system_default)
+        self.pub_odom = (
+            self.create_publisher(Odometry, topics.ODOM, qos_profile_system_default)
+            if self.attitude_source == 'motion'
+            else None
+        )
+        self.odom_yaw_rad = 0.0  # dead reckoning of the odometry's yaw rate, in odom
+        self.odom_last_ns = None
+        self.rng_odom = np.random.default_rng([p['seed'], 11])
+        self.odom_tf = self._odom_tf_broadcaster() if self.pub_odom is not None else None
         self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
         self.pub_clock = (
             self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10))
@@ -261,6 +282,16 @@ class SkySimulatorNode(Node):
         self._tf = Buffer()
         self._tf_listener = TransformListener(self._tf, self)
 
+    def _odom_tf_broadcaster(self):
+        if not self.params['odom_tf']:
+            return None
+        try:
+            from tf2_ros import TransformBroadcaster
+        except ImportError:
+            self.get_logger().info('odom_tf: tf2_ros is not installed: odometry/wheel only')
+            return None
+        return TransformBroadcaster(self)
+
     # attitude inputs ----------------------------------------------------------------------------
     def _on_attitude(self, msg):
         q = self.diag.decoded('attitude', decode_orientation, msg)
@@ -304,6 +335,43 @@ class SkySimulatorNode(Node):
         g_body = R_enu_body.T @ np.array([0.0, 0.0, GRAVITY_M_S2])
         self.pub_imu.publish(attitude_imu(t_ns, p['imu_frame_id'], R, variances, w_body, g_body))
         self.imu_samples += 1
+        if self.pub_odom is not None:
+            self._publish_odometry(t_ns)
+
+    def _publish_odometry(self, t_ns: int) -> None:
+        """Publish the wheel odometry of the turn at ``t_ns`` (and its odom TF, see the module)."""
+        p = self.params
+        sigma = math.radians(p['odom_yaw_rate_noise_deg_s'])
+        w = (
+            self.profile.yaw_rate_enu_rad_s()
+            + math.radians(p['odom_yaw_rate_bias_deg_s'])
+            + sigma * float(self.rng_odom.standard_normal())
+        )
+        if self.odom_last_ns is not None:
+            self.odom_yaw_rad += w * (t_ns - self.odom_last_ns) * 1e-9
+        self.odom_last_ns = t_ns
+        m = Odometry()
+        m.header.stamp = time_msg(t_ns)
+        m.header.frame_id = ODOM_FRAME_ID
+        m.child_frame_id = p['imu_frame_id']
+        q = m.pose.pose.orientation
+        q.z, q.w = math.sin(self.odom_yaw_rad / 2.0), math.cos(self.odom_yaw_rad / 2.0)
+        m.pose.covariance = [1e3 if i % 7 == 0 else 0.0 for i in range(36)]  # not to be fused
+        m.twist.twist.angular.z = w
+        cov = [0.0] * 36
+        cov[0] = cov[7] = cov[14] = ODOM_LINEAR_VARIANCE_M2_S2
+        cov[21] = cov[28] = 1e3  # roll and pitch rates: not measured
+        cov[35] = max(sigma * sigma, 1e-12)
+        m.twist.covariance = cov
+        self.pub_odom.publish(m)
+        if self.odom_tf is not None:
+            from geometry_msgs.msg import TransformStamped
+
+            tf = TransformStamped()
+            tf.header = m.header
+            tf.child_frame_id = m.child_frame_id
+            tf.transform.rotation = m.pose.pose.orientation
+            self.odom_tf.sendTransform(tf)
 
     def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
         """
