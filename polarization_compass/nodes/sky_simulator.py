@@ -42,8 +42,13 @@ Publishes (relative names):
   ``/diagnostics``
 
 Attitude: ``motion`` (built-in turn + tilt schedule), ``topic`` (``sim/attitude``: sensor_msgs/Imu
-or geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (tf2 lookup
-of ``tf_world_frame`` -> ``tf_body_frame``; needs tf2_ros). The camera is mounted looking up with
+or geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (needs
+tf2_ros): every frame and IMU sample looks up ``tf_world_frame`` -> ``tf_body_frame`` and
+``tf_world_frame`` -> ``camera_frame_id`` at its own stamp through a ``tf2_ros.Buffer`` (waiting up
+to ``tf_timeout_s``), so the camera's mounting comes from TF too (e.g. a static_transform_publisher
+``base_link`` -> ``camera_optical_frame``); a missing or stale transform skips that frame or sample
+(``rejected.tf_missing`` / ``rejected.tf_stale`` in /diagnostics, a throttled warning): nothing is
+rendered at another attitude. With ``motion`` and ``topic`` the camera is mounted looking up with
 its +y axis along body +x (conventions.R_BODY_CAM_DEFAULT).
 
 Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at
@@ -86,6 +91,7 @@ from ..conventions import (
     camera_attitude_from_body_quat,
     matrix_to_quat,
     quat_to_matrix,
+    R_BODY_CAM_DEFAULT,
     R_enu_body_from_camera_attitude,
 )
 from ..errors import CompassError, MissingDependencyError
@@ -145,6 +151,7 @@ class SkySimulatorNode(Node):
         self.start_ns = ns_from_utc(parse_time_utc(p['start_time_utc']))
         self.attitude_source = p['attitude_source']
         self.R_enu_body_input = None  # topic / tf attitude (sample and hold)
+        self.R_body_cam = R_BODY_CAM_DEFAULT  # the mounting (from TF with attitude_source tf)
         self._tf = None
         if self.attitude_source == 'tf':
             self._setup_tf()
@@ -153,6 +160,7 @@ class SkySimulatorNode(Node):
         self._render_frame(self.start_ns, 0, np.eye(3))
         self.diag = Diagnostics(self, 'sky simulator', stale_after_s=1e9)
         self.frames = 0
+        self.frames_skipped = 0
         self.imu_samples = 0
         self.late_frames = 0
         self.lockstep_timeouts = 0
@@ -277,10 +285,29 @@ class SkySimulatorNode(Node):
                 'ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use '
                 'attitude_source motion|topic',
             ) from None
+        import rclpy
         from tf2_ros import Buffer, TransformListener
 
         self._tf = Buffer()
-        self._tf_listener = TransformListener(self._tf, self)
+        # a node and a thread of its own: a lookup waits for transforms while this node's callback
+        # runs (tf2_ros spins the node it is given in its thread: not this one)
+        self._tf_node = rclpy.create_node(
+            f'{self.get_name()}_tf_listener',
+            context=self.context,
+            start_parameter_services=False,
+            use_global_arguments=False,  # not renamed by the process's -r __node:=...
+        )
+        self._tf_listener = TransformListener(self._tf, self._tf_node, spin_thread=True)
+
+    def close(self) -> None:
+        """Stop the TF listener's thread and node (called once when the node stops)."""
+        listener = getattr(self, '_tf_listener', None)
+        if listener is None:
+            return
+        self._tf_listener = None
+        listener.executor.shutdown(timeout_sec=2.0)
+        listener.dedicated_listener_thread.join(timeout=5.0)
+        self._tf_node.destroy_node()
 
     def _odom_tf_broadcaster(self):
         if not self.params['odom_tf']:
@@ -304,16 +331,43 @@ class SkySimulatorNode(Node):
             return R_enu_body_from_camera_attitude(self.profile.attitude(t_rel_s))
         if self.attitude_source == 'topic':
             return self.R_enu_body_input
+        return self._tf_attitude(t_ns)
+
+    def _tf_attitude(self, t_ns: int):
+        """
+        Return R_enu_body at ``t_ns`` from TF and set the camera mounting, or None (counted).
+
+        Looks up ``tf_world_frame`` -> ``tf_body_frame`` and -> ``camera_frame_id`` at the stamp
+        itself (tf2 interpolates between samples, never extrapolates), waiting up to
+        ``tf_timeout_s``: a missing frame is ``tf_missing``, a transform not (yet, or no longer)
+        known at the stamp ``tf_stale``.
+        """
+        from rclpy.duration import Duration
         from rclpy.time import Time
+        from tf2_ros import ExtrapolationException
 
         p = self.params
+        when = Time(nanoseconds=int(t_ns), clock_type=self.get_clock().clock_type)
         try:
-            tr = self._tf.lookup_transform(p['tf_world_frame'], p['tf_body_frame'], Time())
-        except Exception as exc:  # noqa: BLE001 - tf2 raises several exception types
-            self.diag.reject('tf_lookup', str(exc))
+            body = self._tf.lookup_transform(
+                p['tf_world_frame'], p['tf_body_frame'], when, Duration(seconds=p['tf_timeout_s'])
+            )
+            cam = self._tf.lookup_transform(p['tf_world_frame'], p['camera_frame_id'], when)
+        except ExtrapolationException as exc:
+            self.diag.reject('tf_stale', f'no transform at {t_ns / 1e9:.3f} s: {exc}')
             return None
-        r = tr.transform.rotation
-        return quat_to_matrix([r.x, r.y, r.z, r.w])
+        except Exception as exc:  # noqa: BLE001 - tf2 raises several lookup exception types
+            reason = 'tf_stale' if 'extrapolat' in str(exc).lower() else 'tf_missing'
+            self.diag.reject(reason, f'at {t_ns / 1e9:.3f} s: {type(exc).__name__}: {exc}')
+            return None
+
+        def R(tr):
+            r = tr.transform.rotation
+            return quat_to_matrix([r.x, r.y, r.z, r.w])
+
+        R_enu_body = R(body)
+        self.R_body_cam = R_enu_body.T @ R(cam)
+        return R_enu_body
 
     # outputs ------------------------------------------------------------------------------------
     def _publish_imu(self, t_ns: int, R_enu_body) -> None:
@@ -385,7 +439,7 @@ class SkySimulatorNode(Node):
 
         p = self.params
         t0 = time.perf_counter()
-        att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body))
+        att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body), self.R_body_cam)
         az, alt = self.sun.at_ns(t_ns)
         frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
         rng = np.random.default_rng([p['seed'], k_frame])
@@ -458,6 +512,7 @@ class SkySimulatorNode(Node):
         self.diag.extra = {
             'frames': self.frames,
             'frames_rendered_ahead': self.frames_ahead,
+            'frames_skipped': self.frames_skipped,
             'imu_samples': self.imu_samples,
             'late_frames': self.late_frames,
             'lockstep_timeouts': self.lockstep_timeouts,
@@ -473,6 +528,13 @@ class SkySimulatorNode(Node):
                 else f'/{int(math.ceil(self.total_s * p["rate_hz"] - 1e-9))}'
             )
             self.get_logger().info(f'frame {self.frames}{n}')
+
+    def _skip_frame(self) -> None:
+        """Count a frame without an attitude (tf: the lookup counted why)."""
+        if self.attitude_source != 'tf':
+            self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+        self.frames_skipped += 1
+        self.diag.extra = {**self.diag.extra, 'frames_skipped': self.frames_skipped}
 
     def _publish_clock(self, t_ns: int, force: bool = False) -> None:
         """
@@ -633,7 +695,7 @@ class SkySimulatorNode(Node):
                 self.k_imu += 1
                 continue
             if R is None:
-                self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+                self._skip_frame()
             else:
                 self._publish_frame(t, R)
             self.k_frame += 1
@@ -675,7 +737,7 @@ class SkySimulatorNode(Node):
             return
         R = self._attitude_at(t_ns, t_rel)
         if R is None:
-            self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+            self._skip_frame()
             return
         self._publish_frame(t_ns, R)
         self.k_frame += 1

@@ -456,6 +456,17 @@ SIMULATOR = (
     Param('tf_world_frame', 'map', 'ENU world frame for attitude_source tf'),
     Param('tf_body_frame', 'base_link', 'body frame (REP-103, z up) for attitude_source tf'),
     Param(
+        'tf_timeout_s',
+        0.2,
+        'attitude_source tf: how long (wall clock) a frame or IMU sample waits for the transforms '
+        'at its stamp; none by then (missing or stale TF): skipped, counted and logged, never '
+        'rendered at another attitude',
+        0.0,
+        10.0,
+        unit='s',
+        read_only=True,
+    ),
+    Param(
         'start_bearing_deg',
         0.0,
         'motion: initial true bearing of the camera +y axis (= body +x)',
