@@ -503,8 +503,9 @@ ARGUMENTS = {
         LaunchArg(
             'fuse',
             'least_squares',
-            'headings robot_localization fuses, one ekf_node each (config/ekf_heading_example.yaml '
-            "with imu0 = that method's corrected heading, tilt_aware's own): the first is "
+            'headings robot_localization fuses, one ekf_node each '
+            "(config/ekf_heading_example.yaml with imu0 = that method's corrected heading, "
+            "tilt_aware's own): the first is "
             'ekf_filter_node on /odometry/filtered, the others ekf_filter_node_<method> on '
             "/odometry/filtered_<method>; 'none' = one fusing the wheel odometry alone",
             'list',
@@ -1118,6 +1119,8 @@ def replay_graph(
 EKF_CONFIG = 'config/ekf_heading_example.yaml'
 #: ekf_node's name in EKF_CONFIG (the node the file's parameters are for)
 EKF_NODE = 'ekf_filter_node'
+#: How long the fusion graph's simulator waits for all its readers before the first frame [s]
+FUSION_WAIT_TIMEOUT_S = 600.0
 
 
 def fusion_graph(
@@ -1243,6 +1246,9 @@ def fusion_graph(
                     **n.parameters,
                     'odom_yaw_rate_bias_deg_s': float(odom_yaw_rate_bias_deg_s),
                     'odom_yaw_rate_noise_deg_s': float(odom_yaw_rate_noise_deg_s),
+                    # every reader, the filters included, before the first frame: a cold numba
+                    # cache (a fresh install space) took an estimator 130 s to start under load
+                    'wait_timeout_s': FUSION_WAIT_TIMEOUT_S,
                 },
             )
         if n.executable == 'error_evaluator':

@@ -178,12 +178,13 @@ def test_moving_tf_frames_match_it_and_a_missing_or_stale_transform_is_a_counted
     A moving broadcaster with a gap, the mounting published late: no frame at a wrong attitude.
 
     clock_mode system (frames stamped with the wall clock, like a camera): the body turns at
-    20 deg/s from a TransformBroadcaster here at 50 Hz, frames at 2 Hz; the mounting (static_transform_publisher)
-    starts only after 1.5 s, and the broadcaster pauses for 1 s in the middle.
+    20 deg/s from a TransformBroadcaster here at 50 Hz, frames at 2 Hz; the mounting
+    (static_transform_publisher) starts only after 1.5 s, and the broadcaster pauses for 1 s in the
+    middle.
     """
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import TransformStamped
-    from polarization_compass.conventions import R_BODY_CAM_DEFAULT, rot_z
+    from polarization_compass.conventions import R_BODY_CAM_DEFAULT
     from sensor_msgs.msg import Image, Imu
     import tf2_ros
 
