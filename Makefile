@@ -24,11 +24,13 @@ sim: venv
 	$(PY) -m polarization_compass.cli sim
 
 # The suite, then the launch_testing tests with launch_test (tools/launch_tests.sh: skipped, and says
-# so, when the venv has no launch packages). launch_testing's pytest plugin does not load under
-# pytest >= 8, so it is switched off here; `colcon test` on a robot (pytest 7.4) loads it.
+# so, when the venv has no launch packages), both in a shell that sourced ../shared/ros-cpp's
+# setup.bash when it is installed in the venv (tools/ros_cpp_env.sh says which, in one line).
+# launch_testing's pytest plugin does not load under pytest >= 8, so it is switched off here;
+# `colcon test` on a robot (pytest 7.4) loads it.
 test: venv
-	$(PY) -m pytest -p no:launch_testing -p no:launch_ros
-	VENV=$(VENV) ./tools/launch_tests.sh
+	source tools/ros_cpp_env.sh $(VENV); \
+	$(PY) -m pytest -p no:launch_testing -p no:launch_ros && VENV=$(VENV) ./tools/launch_tests.sh
 
 # Style (docs/contributing.md): `make format` rewrites the code with ruff (ruff.toml: ament's 99
 # columns, single quotes, import order and docstring rules; safe fixes, idempotent; what it cannot

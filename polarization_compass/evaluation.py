@@ -58,6 +58,7 @@ __all__ = [
     'write_summary_csv',
     'plot_report',
     'STAT_FIELDS',
+    'YawTrack',
 ]
 
 STAT_FIELDS = ('count', 'mean', 'std', 'rms', 'p95', 'max')
@@ -476,6 +477,83 @@ class StampMatcher:
 # ------------------------------------------------------------------------------------------------
 # Report files
 # ------------------------------------------------------------------------------------------------
+class YawTrack:
+    """
+    Sample a filter's yaw output at the truth stamps, by linear interpolation.
+
+    A state estimator (robot_localization's ``/odometry/filtered``) publishes at its own rate and
+    stamps, not at the camera frames': each truth stamp is scored with the filter's yaw
+    interpolated between the two outputs around it (the shorter way round the circle).
+
+    Parameters
+    ----------
+    max_gap_ns : int, default 1_000_000_000
+        Outputs further apart than this [ns] are not interpolated across: the truth stamps
+        between them get no estimate (missed).
+
+    """
+
+    def __init__(self, max_gap_ns: int = 1_000_000_000):
+        self.max_gap_ns = int(max_gap_ns)
+        self._prev = None  # (stamp ns, yaw ENU rad, yaw variance rad^2)
+        self._waiting: list[int] = []
+
+    def add_truth(self, stamp_ns: int) -> None:
+        """
+        Queue a truth stamp to be sampled once the filter's output has passed it.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp [ns] of a truth frame.
+
+        """
+        self._waiting.append(int(stamp_ns))
+
+    def add_output(self, stamp_ns: int, yaw_enu_rad: float, yaw_variance_rad2: float) -> list:
+        """
+        Record one filter output and return the truth stamps it completes.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp [ns] of the output.
+        yaw_enu_rad : float
+            Its REP-103 yaw [rad] (ENU, counter-clockwise from East).
+        yaw_variance_rad2 : float
+            Its yaw variance [rad^2].
+
+        Returns
+        -------
+        list of tuple
+            ``(truth stamp ns, bearing_deg, sigma_deg)`` per truth stamp at or before this output
+            and after the previous one (the bearing of body +x clockwise from North, in [0, 360));
+            truth stamps before the previous output, or across a gap longer than ``max_gap_ns``,
+            are dropped.
+
+        """
+        t1, y1, v1 = int(stamp_ns), float(yaw_enu_rad), float(yaw_variance_rad2)
+        out, keep = [], []
+        for ts in self._waiting:
+            if ts > t1:
+                keep.append(ts)
+                continue
+            prev = self._prev
+            if ts == t1:
+                y, v = y1, v1
+            elif prev is None or ts < prev[0] or t1 - prev[0] > self.max_gap_ns:
+                continue
+            else:
+                f = (ts - prev[0]) / (t1 - prev[0])
+                dy = math.remainder(y1 - prev[1], 2.0 * math.pi)
+                y, v = prev[1] + f * dy, prev[2] + f * (v1 - prev[2])
+            bearing = (90.0 - math.degrees(y)) % 360.0
+            out.append((ts, bearing, math.sqrt(max(v, 0.0)) * 180.0 / math.pi))
+        self._waiting = keep
+        self._prev = (t1, y1, v1)
+        return out
+
+
 def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> Path:
     """
     Write one CSV row per matched estimate.

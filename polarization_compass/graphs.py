@@ -31,6 +31,9 @@ Graphs
              the input topics are launch arguments (remappings).
 ``replay``   ``ros2 bag play --clock`` of a recorded run: the sim graph without the simulator,
              ``use_sim_time`` on, the site from the bag's NavSatFix.
+``fusion``   the sim graph plus robot_localization's ``ekf_node`` configured from the shipped
+             ``config/ekf_heading_example.yaml``: the simulator's wheel odometry and a compass
+             heading fused; the evaluator scores ``/odometry/filtered`` too.
 
 Launch arguments are strings (as ``ros2 launch`` passes them); :func:`build` parses them with the
 types of :data:`ARGUMENTS`.
@@ -63,6 +66,8 @@ __all__ = [
     'sim_graph',
     'compass_graph',
     'replay_graph',
+    'fusion_graph',
+    'EKF_CONFIG',
     'share_dir',
     'GraphError',
     'parse_arg',
@@ -73,7 +78,7 @@ __all__ = [
 ]
 
 PACKAGE = 'polarization_compass'
-GRAPH_NAMES = ('sim', 'compass', 'replay')
+GRAPH_NAMES = ('sim', 'compass', 'replay', 'fusion')
 #: Fast DDS profile for full-resolution images on one machine (shared memory with a large segment):
 #: with the default transports, best-effort 10 MB images are lost in fragments. Used by
 #: ``polarization-compass sim`` and the tests; optional on a robot (docs/ros.md).
@@ -481,6 +486,47 @@ ARGUMENTS = {
         ),
         _COMMON[0],
     ),
+    'fusion': (
+        LaunchArg(
+            'methods',
+            'least_squares',
+            'paper methods: an estimator and a corrector each',
+            'list',
+            PAPER_METHODS,
+        ),
+        LaunchArg(
+            'tilt_aware',
+            'true',
+            'also run the tilt_aware estimator (IMU tilt, no corrector)',
+            'bool',
+        ),
+        LaunchArg(
+            'fuse',
+            'least_squares',
+            'headings robot_localization fuses, one ekf_node each '
+            "(config/ekf_heading_example.yaml with imu0 = that method's corrected heading, "
+            "tilt_aware's own): the first is "
+            'ekf_filter_node on /odometry/filtered, the others ekf_filter_node_<method> on '
+            "/odometry/filtered_<method>; 'none' = one fusing the wheel odometry alone",
+            'list',
+            tuple(ALL_METHODS) + ('none',),
+        ),
+        LaunchArg('turns', '1.0', 'full turns to simulate (0: until stopped)', 'float'),
+        LaunchArg('turn_rate_deg_s', '10.0', 'turn rate, deg/s', 'float'),
+        LaunchArg('pitch_deg', '-20.0', 'camera pitch during the turn', 'float'),
+        LaunchArg('roll_deg', '0.0', 'camera roll during the turn', 'float'),
+        LaunchArg(
+            'odom_yaw_rate_bias_deg_s',
+            '0.5',
+            "wheel odometry's yaw-rate bias (dead reckoning drifts by it)",
+            'float',
+        ),
+        LaunchArg(
+            'odom_yaw_rate_noise_deg_s', '0.2', "wheel odometry's yaw-rate noise, 1 sigma", 'float'
+        ),
+        LaunchArg('exit_when_done', 'true', 'stop the whole graph after the last frame', 'bool'),
+        *_COMMON,
+    ),
     'replay': (
         LaunchArg(
             'methods',
@@ -597,7 +643,12 @@ def build(name: str, args: dict | None = None) -> Graph:
             f'known: {", ".join(sorted(specs))}'
         )
     values = {k: parse_arg(a, args.get(k, a.default)) for k, a in specs.items()}
-    return {'sim': sim_graph, 'compass': compass_graph, 'replay': replay_graph}[name](**values)
+    return {
+        'sim': sim_graph,
+        'compass': compass_graph,
+        'replay': replay_graph,
+        'fusion': fusion_graph,
+    }[name](**values)
 
 
 def node_command(executable: str) -> list[str]:
@@ -1064,6 +1115,165 @@ def replay_graph(
         "a recorded run played with 'ros2 bag play --clock'",
         tuple(nodes),
         external_inputs=external,
+    )
+
+
+#: robot_localization's parameter file the fusion graph runs ekf_node with: the example users copy
+EKF_CONFIG = 'config/ekf_heading_example.yaml'
+#: ekf_node's name in EKF_CONFIG (the node the file's parameters are for)
+EKF_NODE = 'ekf_filter_node'
+#: How long the fusion graph's simulator waits for all its readers before the first frame [s]
+FUSION_WAIT_TIMEOUT_S = 600.0
+
+
+def fusion_graph(
+    methods=('least_squares',),
+    tilt_aware=True,
+    fuse=('least_squares',),
+    turns=1.0,
+    turn_rate_deg_s=10.0,
+    pitch_deg=-20.0,
+    roll_deg=0.0,
+    odom_yaw_rate_bias_deg_s=0.5,
+    odom_yaw_rate_noise_deg_s=0.2,
+    exit_when_done=True,
+    error_map='',
+    report_dir='out/fusion',
+) -> Graph:
+    """
+    Return the ``fusion`` graph: the sim graph plus robot_localization's ``ekf_node``.
+
+    Each fused heading gets an ``ekf_node`` with :data:`EKF_CONFIG`'s parameters, ``imu0`` pointed
+    at that method's corrected heading (a method that reads the tilt: its own), the simulator's
+    ``odometry/wheel`` as ``odom0`` and sim time. The first is :data:`EKF_NODE` (the file's node,
+    its own topic ``/odometry/filtered`` and TF); the others are ``ekf_filter_node_<method>`` on
+    ``/odometry/filtered_<method>`` without TF, and ``none`` fuses the odometry alone (the drift
+    the compass bounds). The evaluator scores each as stream ``<method>/fused`` (``none``:
+    ``odometry/fused``).
+
+    Parameters
+    ----------
+    methods : iterable of str
+        Paper methods: an estimator and a corrector each.
+    tilt_aware : bool
+        Also run every registered method that reads the IMU tilt (no corrector).
+    fuse : iterable of str
+        Methods whose heading is fused (each must run), or ``"none"``.
+    turns, turn_rate_deg_s, pitch_deg, roll_deg : float
+        The simulated motion (:func:`sim_graph`).
+    odom_yaw_rate_bias_deg_s, odom_yaw_rate_noise_deg_s : float
+        The simulated wheel odometry's yaw-rate bias and noise [deg/s].
+    exit_when_done : bool
+        Stop the whole graph after the last frame.
+    error_map : str
+        Tilt error map of the correctors ("" = the map shipped with the package).
+    report_dir : str
+        Where the error_evaluator writes its report.
+
+    Returns
+    -------
+    Graph
+        The graph.
+
+    Raises
+    ------
+    GraphError
+        Nothing to fuse, a fused method that does not run, or an unreadable :data:`EKF_CONFIG`.
+
+    """
+    sim = sim_graph(
+        methods=methods,
+        tilt_aware=tilt_aware,
+        turns=turns,
+        turn_rate_deg_s=turn_rate_deg_s,
+        pitch_deg=pitch_deg,
+        roll_deg=roll_deg,
+        exit_when_done=exit_when_done,
+        error_map=error_map,
+        report_dir=report_dir,
+    )
+    fuse = tuple(dict.fromkeys(fuse))
+    if not fuse:
+        raise GraphError('the fusion graph needs at least one heading to fuse (or none)')
+    running = {n.parameters['method']: n for n in sim.nodes if n.executable == 'heading_estimator'}
+    correctors = {n.parameters['method'] for n in sim.nodes if n.executable == 'tilt_corrector'}
+    missing = [m for m in fuse if m != 'none' and m not in running]
+    if missing:
+        raise GraphError(
+            f'fuse names {missing}, which the graph does not run (methods, tilt_aware)'
+        )
+    path = share_dir() / EKF_CONFIG
+    try:
+        base = yaml.safe_load(path.read_text())[EKF_NODE]['ros__parameters']
+    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
+        raise GraphError(f'cannot read {EKF_NODE} parameters from {path}: {exc}') from None
+    ekfs, scored = [], []
+    for i, m in enumerate(fuse):
+        topic = (
+            None
+            if m == 'none'
+            else '/' + T.method_topics(m)['heading' if m in correctors else 'heading_raw']
+        )
+        first = i == 0 and m != 'none'
+        name = EKF_NODE if first else f'{EKF_NODE}_{m}'
+        out = '/' + T.FILTERED if first else f'/{T.FILTERED}_{m}'
+        params = {} if first else {k: v for k, v in base.items() if not k.startswith('imu0')}
+        params.update(use_sim_time=True, odom0='/' + T.ODOM)
+        if topic is not None:
+            params.update(
+                {k: v for k, v in base.items() if k.startswith('imu0') and not first}, imu0=topic
+            )
+        if not first:
+            params['publish_tf'] = False
+        subs = [('/' + T.ODOM, T.T_ODOMETRY)] + ([] if topic is None else [(topic, T.T_IMU)])
+        ekfs.append(
+            NodeSpec(
+                'ekf_node',
+                name,
+                '',
+                (EKF_CONFIG,) if first else (),
+                params,
+                () if first else ((T.FILTERED, out),),
+                ((T.FILTERED, T.T_ODOMETRY),),
+                tuple(subs),
+                package='robot_localization',
+            )
+        )
+        scored.append(f'{"odometry" if m == "none" else m}={out}')
+    nodes = []
+    for n in sim.nodes:
+        if n.executable == 'sky_simulator':
+            n = dataclasses.replace(
+                n,
+                parameters={
+                    **n.parameters,
+                    'odom_yaw_rate_bias_deg_s': float(odom_yaw_rate_bias_deg_s),
+                    'odom_yaw_rate_noise_deg_s': float(odom_yaw_rate_noise_deg_s),
+                    # every reader, the filters included, before the first frame: a cold numba
+                    # cache (a fresh install space) took an estimator 130 s to start under load
+                    'wait_timeout_s': FUSION_WAIT_TIMEOUT_S,
+                },
+            )
+        if n.executable == 'error_evaluator':
+            pubs, subs = T.evaluator_topics(
+                T.evaluator_streams(
+                    n.parameters['methods'], direct_methods=n.parameters['direct_methods']
+                ),
+                fused=T.fused_streams(scored),
+            )
+            n = dataclasses.replace(
+                n, parameters={**n.parameters, 'fused_streams': scored}, subscribes=tuple(subs)
+            )
+        nodes.append(n)
+    nodes += ekfs
+    nodes[0] = dataclasses.replace(
+        nodes[0], parameters={**nodes[0].parameters, 'wait_for_downstream': _downstream(nodes)}
+    )
+    return Graph(
+        'fusion',
+        "the sim graph plus robot_localization's ekf_node fusing wheel odometry and the heading",
+        tuple(nodes),
+        shutdown_with=sim.shutdown_with,
     )
 
 

@@ -81,7 +81,7 @@ def ctx():
 #: proc_output/proc_info): run by launch_testing's pytest plugin where it loads (pytest 7.4,
 #: `colcon test` on a robot) and by `launch_test` (`make test`, where the plugin is switched off:
 #: it does not load under pytest >= 8).
-LAUNCH_TESTING_FILES = {'test_launch_files.py'}
+LAUNCH_TESTING_FILES = {'test_launch_files.py', 'test_fusion_launch.py'}
 
 
 def pytest_ignore_collect(collection_path, config):

@@ -161,3 +161,22 @@ def test_reports_are_written_and_read_back(tmp_path):
     png = plot_report(tmp_path / 'r.png', m.matches, 'test')
     assert png.is_file() and png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert plot_report(tmp_path / 'none.png', []) is None
+
+
+def test_yaw_track_interpolates_a_filter_output_at_the_truth_stamps():
+    from polarization_compass.evaluation import YawTrack
+
+    tr = YawTrack(max_gap_ns=500_000_000)
+    tr.add_truth(50)  # before the first output: nothing to interpolate from, dropped
+    assert tr.add_output(100, math.radians(179.0), 1e-4) == []
+    tr.add_truth(150)  # halfway to the next output, across the +-180 deg yaw wrap
+    tr.add_truth(200)  # exactly at it
+    tr.add_truth(250)  # after it: waits
+    got = tr.add_output(200, math.radians(-179.0), 3e-4)
+    assert [g[0] for g in got] == [150, 200]
+    # yaw 180 deg = bearing 270 deg; yaw -179 deg = bearing 269 deg (bearing = 90 - yaw)
+    assert got[0][1] == pytest.approx(270.0) and got[1][1] == pytest.approx(269.0)
+    assert got[0][2] == pytest.approx(math.degrees(math.sqrt(2e-4)))
+    assert got[1][2] == pytest.approx(math.degrees(math.sqrt(3e-4)))
+    # the next output is further than max_gap_ns: the stamp between is dropped, not interpolated
+    assert tr.add_output(900_000_000, 0.0, 1e-4) == []

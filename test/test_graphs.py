@@ -68,6 +68,7 @@ ARG_SETS = {
         },
     ],
     'replay': [{}, {'methods': 'sm_asm', 'tilt_aware': 'false', 'site_source': 'parameters'}],
+    'fusion': [{}, {'fuse': 'least_squares,tilt_aware,none', 'turns': '0.25'}],
 }
 
 
@@ -114,6 +115,8 @@ def test_graph_wiring_is_consistent(name, args, graph):
     assert graph.check() == []
     scripts = console_scripts()
     for n in graph.nodes:
+        if n.package != graphs.PACKAGE:  # robot_localization's ekf_node: test_fusion_graph_*
+            continue
         assert n.executable in scripts, f'{n.executable} is not a console script in setup.py'
         assert scripts[n.executable] == f'polarization_compass.nodes.{n.executable}:main'
         for f in n.param_files:
@@ -138,6 +141,8 @@ def test_every_console_script_module_has_main():
 )
 def test_every_parameter_is_declared_typed_and_in_range(name, args, graph):
     for n in graph.nodes:
+        if n.package != graphs.PACKAGE:  # robot_localization's ekf_node: test_fusion_graph_*
+            continue
         specs = declared_params(n)
         values = {}
         for f in n.param_files:
@@ -223,6 +228,47 @@ def test_default_graphs_connect_without_remapping():
     ).resolved_subscribes()
     assert g.shutdown_with == 'sky_simulator'
     assert len(g.nodes) == 1 + 5 + 4 + 1
+
+
+def test_fusion_graph_runs_ekf_node_from_the_shipped_config_on_the_graphs_topics():
+    cfg = yaml.safe_load((ROOT / graphs.EKF_CONFIG).read_text())['ekf_filter_node']
+    base = cfg['ros__parameters']
+    assert base['imu0_relative'] is False and base['imu0_config'][5] is True
+    assert any(fnmatch.fnmatch(graphs.EKF_CONFIG, g) for _, g in data_file_globs())
+    g = graphs.build('fusion', {'fuse': 'least_squares,tilt_aware,none'})
+    ekfs = [n for n in g.nodes if n.executable == 'ekf_node']
+    assert [n.package for n in ekfs] == ['robot_localization'] * 3
+    first, aware, none = ekfs
+    # the file's own node with the file, unchanged but for sim time and the simulator's odometry
+    assert (first.name, first.param_files) == ('ekf_filter_node', (graphs.EKF_CONFIG,))
+    assert first.parameters == {
+        'use_sim_time': True,
+        'odom0': '/odometry/wheel',
+        'imu0': '/compass/least_squares/heading',
+    }
+    assert base['imu0'] == first.parameters['imu0'] and base['odom0'] == '/odometry/wheel'
+    assert first.resolved(topics.FILTERED) == '/odometry/filtered'
+    # the others: the file's parameters inline, their own output, no TF
+    for n, imu0 in ((aware, '/compass/tilt_aware/heading_raw'), (none, None)):
+        assert n.param_files == () and n.parameters['publish_tf'] is False
+        assert n.parameters.get('imu0') == imu0
+        assert n.parameters['process_noise_covariance'] == base['process_noise_covariance']
+        assert n.resolved(topics.FILTERED) != '/odometry/filtered'
+    # every input is published by the graph; the simulator waits for the filters' subscriptions
+    pubs = g.published_topics()
+    for n in ekfs:
+        for t, ty in n.resolved_subscribes():
+            assert ty in pubs[t], (n.name, t)
+    wait = ';'.join(g.node('sky_simulator').parameters['wait_for_downstream'])
+    assert 'odometry/wheel=ekf_filter_node,ekf_filter_node_none,ekf_filter_node_tilt_aware' in wait
+    ev = g.node('error_evaluator').parameters['fused_streams']
+    assert ev == [
+        'least_squares=/odometry/filtered',
+        'tilt_aware=/odometry/filtered_tilt_aware',
+        'odometry=/odometry/filtered_none',
+    ]
+    with pytest.raises(graphs.GraphError, match='does not run'):
+        graphs.build('fusion', {'fuse': 'zenith'})
 
 
 def test_real_camera_graph_checks_against_the_whole_sky_by_default():

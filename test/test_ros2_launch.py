@@ -105,7 +105,7 @@ def ws(tmp_path_factory):
     ).stdout.decode()
     env = dict(kv.split('=', 1) for kv in dump.split('\0') if '=' in kv)
     env['PATH'] = f'{BIN}:{env["PATH"]}'
-    env['ROS_DOMAIN_ID'] = str(150 + os.getpid() % 50)
+    env['ROS_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID') or str(150 + os.getpid() % 50)
     env['ROS_LOG_DIR'] = str(ws / 'ros_log')
     env.pop('FASTDDS_DEFAULT_PROFILES_FILE', None)
     prefix = subprocess.run(

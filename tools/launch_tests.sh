@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The launch_testing tests (test/test_launch_files.py) with launch_testing's own runner `launch_test`,
+# The launch_testing tests (test/test_launch_files.py, and test/test_fusion_launch.py where
+# robot_localization is installed) with launch_testing's own runner `launch_test`,
 # against an install space built here with colcon (what `ros2 launch` on a robot uses). Called by
 # `make test` when the venv has launch, launch_ros and launch_testing (e.g. after
 # ../shared/ros-launch/install.sh .venv); says so and does nothing otherwise.
@@ -23,3 +24,13 @@ source "$ws/install/setup.bash"
 set -u
 export ROS_LOG_DIR="$ws/ros_log"
 launch_test test/test_launch_files.py
+# robot_localization's ekf_node fusing the heading (fusion.launch.py): where it is installed (a ROS
+# install; here ../shared/ros-cpp, whose setup.bash `make test` has sourced)
+if python -c "from ament_index_python.packages import get_package_prefix as g; g('robot_localization')" \
+    >/dev/null 2>&1; then
+  echo "make test: launch tests: launch_test test/test_fusion_launch.py (robot_localization's ekf_node)"
+  launch_test test/test_fusion_launch.py
+else
+  echo "make test: fusion launch test SKIPPED: robot_localization is not installed" \
+       "(a ROS install has it; here: ../shared/ros-cpp/install.sh $VENV --with-cv-bridge)"
+fi

@@ -21,6 +21,11 @@ all sensor_msgs/Imu. Estimates are paired with the truth by identical stamp
 (:class:`~polarization_compass.evaluation.StampMatcher`); the error is estimated minus true bearing
 (the paper's psi error), folded to (-90, 90] for ``axial_methods``.
 
+With ``fused_streams`` (``method=topic``) it also scores a state estimator's nav_msgs/Odometry
+(robot_localization's ``/odometry/filtered``) as stream ``<method>/fused``: the filter publishes at
+its own stamps, so its yaw is interpolated at each truth stamp
+(:class:`~polarization_compass.evaluation.YawTrack`); its sigma is the pose covariance's yaw.
+
 Publishes ``evaluation/summary`` (std_msgs/String, JSON: per stream count, mean, std, RMS, p95,
 max, missed frames, latency) and ``/diagnostics``. On shutdown (Ctrl-C, SIGTERM, end of the launch)
 it writes into ``report_dir``: ``evaluation_samples.csv`` (one row per estimate),
@@ -46,6 +51,7 @@ from pathlib import Path
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -54,11 +60,17 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
 from .diagnostics import Diagnostics
-from .msgs import bearing_from_imu, heading_from_imu
+from .msgs import bearing_from_imu, heading_from_imu, yaw_enu_from_quat
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import stamp_ns
-from ..evaluation import plot_report, StampMatcher, write_samples_csv, write_summary_csv
+from ..evaluation import (
+    plot_report,
+    StampMatcher,
+    write_samples_csv,
+    write_summary_csv,
+    YawTrack,
+)
 from ..specs import topics
 from ..specs.params import EVALUATOR
 
@@ -89,6 +101,11 @@ class ErrorEvaluatorNode(Node):
         for name, _ in self.streams:
             self.matcher.add_stream(name, name.split('/')[0] in self.axial)
             self.latency_ms[name] = []
+        self.fused = topics.fused_streams(p.strings('fused_streams'))
+        self.yaw_tracks = {name: YawTrack() for name, _ in self.fused}
+        for name, _ in self.fused:
+            self.matcher.add_stream(name, False)
+            self.latency_ms[name] = []
         self.diag = Diagnostics(self, 'error evaluator', period_s=1.0 / p['summary_rate_hz'])
         self._last_clock = None  # (sim ns, perf_counter) of the last /clock
         self._closed = False
@@ -102,6 +119,8 @@ class ErrorEvaluatorNode(Node):
         self.create_subscription(Imu, topics.TRUTH, self._on_truth, qos)
         for name, topic in self.streams:
             self.create_subscription(Imu, topic, lambda m, n=name: self._on_estimate(n, m), qos)
+        for name, topic in self.fused:
+            self.create_subscription(Odometry, topic, lambda m, n=name: self._on_fused(n, m), qos)
         # why frames were not published (estimator status, corrector status), per stream
         self.not_published: dict[str, dict] = {name: {} for name, _ in self.streams}
         for name, _ in self.streams:
@@ -187,7 +206,28 @@ class ErrorEvaluatorNode(Node):
         if b is None:
             return
         self.matcher.add_truth(stamp_ns(msg.header), b)
+        for track in self.yaw_tracks.values():
+            track.add_truth(stamp_ns(msg.header))
         self.diag.done(t_in, None)
+
+    def _on_fused(self, stream: str, msg):
+        """Score a state estimator's output: its yaw at the truth stamps it has passed."""
+        t_in = self.diag.input()
+        o = msg.pose.pose.orientation
+        var = float(msg.pose.covariance[35])
+        try:
+            yaw = yaw_enu_from_quat((o.x, o.y, o.z, o.w))
+        except (TypeError, ValueError):
+            yaw = math.nan
+        if not (math.isfinite(yaw) and math.isfinite(var) and var >= 0.0):
+            self.diag.reject('bad_odometry', stream)
+            return
+        t_ns = stamp_ns(msg.header)
+        for ts, bearing, sigma in self.yaw_tracks[stream].add_output(t_ns, yaw, var):
+            self.matcher.add_estimate(
+                stream, ts, bearing, extra={'latency_ms': '', 'sigma_deg': sigma}
+            )
+        self.diag.done(t_in, t_ns)
 
     def _on_diagnostics(self, msg):
         for st in msg.status:

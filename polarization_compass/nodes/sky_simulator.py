@@ -26,6 +26,13 @@ Publishes (relative names):
                             velocity of the turn, gravity; ``imu_rate_hz``
   ``ground_truth/heading``  sensor_msgs/Imu, the true heading in the estimator's form (yaw only)
   ``gps/fix``               sensor_msgs/NavSatFix of the site, 1 Hz
+  ``odometry/wheel``        nav_msgs/Odometry (attitude_source ``motion``), with every IMU sample:
+                            a wheel-odometry-like twist in ``imu_frame_id`` (yaw rate of the turn
+                            plus ``odom_yaw_rate_bias_deg_s`` and white noise
+                            ``odom_yaw_rate_noise_deg_s``, whose variance is the covariance
+                            reported; zero linear velocity) and its dead reckoning in ``odom``
+                            (starts at yaw 0, drifts with the bias); with ``odom_tf`` also the
+                            same ``odom -> imu_frame_id`` transform on ``/tf`` (tf2_ros)
   ``compass_array/intensities`` + ``compass_array/header``  with ``array_geometry`` (or a scene's
                             ``photodiode_array``): each frame's photodiode-array sample
                             (Float32MultiArray) and, published just before it, its std_msgs/Header
@@ -35,8 +42,13 @@ Publishes (relative names):
   ``/diagnostics``
 
 Attitude: ``motion`` (built-in turn + tilt schedule), ``topic`` (``sim/attitude``: sensor_msgs/Imu
-or geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (tf2 lookup
-of ``tf_world_frame`` -> ``tf_body_frame``; needs tf2_ros). The camera is mounted looking up with
+or geometry_msgs/QuaternionStamped, body orientation in ENU, sample-and-hold) or ``tf`` (needs
+tf2_ros): every frame and IMU sample looks up ``tf_world_frame`` -> ``tf_body_frame`` and
+``tf_world_frame`` -> ``camera_frame_id`` at its own stamp through a ``tf2_ros.Buffer`` (waiting up
+to ``tf_timeout_s``), so the camera's mounting comes from TF too (e.g. a static_transform_publisher
+``base_link`` -> ``camera_optical_frame``); a missing or stale transform skips that frame or sample
+(``rejected.tf_missing`` / ``rejected.tf_stale`` in /diagnostics, a throttled warning): nothing is
+rendered at another attitude. With ``motion`` and ``topic`` the camera is mounted looking up with
 its +y axis along body +x (conventions.R_BODY_CAM_DEFAULT).
 
 Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at
@@ -53,6 +65,7 @@ import math
 import time
 
 from geometry_msgs.msg import QuaternionStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, qos_profile_system_default, QoSProfile
@@ -78,6 +91,7 @@ from ..conventions import (
     camera_attitude_from_body_quat,
     matrix_to_quat,
     quat_to_matrix,
+    R_BODY_CAM_DEFAULT,
     R_enu_body_from_camera_attitude,
 )
 from ..errors import CompassError, MissingDependencyError
@@ -93,6 +107,10 @@ GRAVITY_M_S2 = 9.80665
 #: /clock goes out at clock_rate_hz, independently.
 SCHEDULER_HZ = 100.0
 TRUTH_YAW_VARIANCE_RAD2 = 1e-12
+#: frame_id of the simulated wheel odometry's dead reckoning (REP-105)
+ODOM_FRAME_ID = 'odom'
+#: reported variance of the odometry's zero linear velocity [(m/s)^2]: the turn is on the spot
+ODOM_LINEAR_VARIANCE_M2_S2 = 1e-4
 
 #: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
 mosaic_config = sensor_config_for_encoding
@@ -133,6 +151,7 @@ class SkySimulatorNode(Node):
         self.start_ns = ns_from_utc(parse_time_utc(p['start_time_utc']))
         self.attitude_source = p['attitude_source']
         self.R_enu_body_input = None  # topic / tf attitude (sample and hold)
+        self.R_body_cam = R_BODY_CAM_DEFAULT  # the mounting (from TF with attitude_source tf)
         self._tf = None
         if self.attitude_source == 'tf':
             self._setup_tf()
@@ -141,6 +160,7 @@ class SkySimulatorNode(Node):
         self._render_frame(self.start_ns, 0, np.eye(3))
         self.diag = Diagnostics(self, 'sky simulator', stale_after_s=1e9)
         self.frames = 0
+        self.frames_skipped = 0
         self.imu_samples = 0
         self.late_frames = 0
         self.lockstep_timeouts = 0
@@ -165,6 +185,15 @@ class SkySimulatorNode(Node):
         self.pub_imu = self.create_publisher(Imu, topics.IMU, qos_profile_system_default)
         self.pub_truth = self.create_publisher(Imu, topics.TRUTH, qos_profile_system_default)
         self.pub_fix = self.create_publisher(NavSatFix, topics.FIX, qos_profile_system_default)
+        self.pub_odom = (
+            self.create_publisher(Odometry, topics.ODOM, qos_profile_system_default)
+            if self.attitude_source == 'motion'
+            else None
+        )
+        self.odom_yaw_rad = 0.0  # dead reckoning of the odometry's yaw rate, in odom
+        self.odom_last_ns = None
+        self.rng_odom = np.random.default_rng([p['seed'], 11])
+        self.odom_tf = self._odom_tf_broadcaster() if self.pub_odom is not None else None
         self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
         self.pub_clock = (
             self.create_publisher(Clock, topics.CLOCK, QoSProfile(depth=10))
@@ -256,10 +285,39 @@ class SkySimulatorNode(Node):
                 'ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use '
                 'attitude_source motion|topic',
             ) from None
+        import rclpy
         from tf2_ros import Buffer, TransformListener
 
         self._tf = Buffer()
-        self._tf_listener = TransformListener(self._tf, self)
+        # a node and a thread of its own: a lookup waits for transforms while this node's callback
+        # runs (tf2_ros spins the node it is given in its thread: not this one)
+        self._tf_node = rclpy.create_node(
+            f'{self.get_name()}_tf_listener',
+            context=self.context,
+            start_parameter_services=False,
+            use_global_arguments=False,  # not renamed by the process's -r __node:=...
+        )
+        self._tf_listener = TransformListener(self._tf, self._tf_node, spin_thread=True)
+
+    def close(self) -> None:
+        """Stop the TF listener's thread and node (called once when the node stops)."""
+        listener = getattr(self, '_tf_listener', None)
+        if listener is None:
+            return
+        self._tf_listener = None
+        listener.executor.shutdown(timeout_sec=2.0)
+        listener.dedicated_listener_thread.join(timeout=5.0)
+        self._tf_node.destroy_node()
+
+    def _odom_tf_broadcaster(self):
+        if not self.params['odom_tf']:
+            return None
+        try:
+            from tf2_ros import TransformBroadcaster
+        except ImportError:
+            self.get_logger().info('odom_tf: tf2_ros is not installed: odometry/wheel only')
+            return None
+        return TransformBroadcaster(self)
 
     # attitude inputs ----------------------------------------------------------------------------
     def _on_attitude(self, msg):
@@ -273,16 +331,43 @@ class SkySimulatorNode(Node):
             return R_enu_body_from_camera_attitude(self.profile.attitude(t_rel_s))
         if self.attitude_source == 'topic':
             return self.R_enu_body_input
+        return self._tf_attitude(t_ns)
+
+    def _tf_attitude(self, t_ns: int):
+        """
+        Return R_enu_body at ``t_ns`` from TF and set the camera mounting, or None (counted).
+
+        Looks up ``tf_world_frame`` -> ``tf_body_frame`` and -> ``camera_frame_id`` at the stamp
+        itself (tf2 interpolates between samples, never extrapolates), waiting up to
+        ``tf_timeout_s``: a missing frame is ``tf_missing``, a transform not (yet, or no longer)
+        known at the stamp ``tf_stale``.
+        """
+        from rclpy.duration import Duration
         from rclpy.time import Time
+        from tf2_ros import ExtrapolationException
 
         p = self.params
+        when = Time(nanoseconds=int(t_ns), clock_type=self.get_clock().clock_type)
         try:
-            tr = self._tf.lookup_transform(p['tf_world_frame'], p['tf_body_frame'], Time())
-        except Exception as exc:  # noqa: BLE001 - tf2 raises several exception types
-            self.diag.reject('tf_lookup', str(exc))
+            body = self._tf.lookup_transform(
+                p['tf_world_frame'], p['tf_body_frame'], when, Duration(seconds=p['tf_timeout_s'])
+            )
+            cam = self._tf.lookup_transform(p['tf_world_frame'], p['camera_frame_id'], when)
+        except ExtrapolationException as exc:
+            self.diag.reject('tf_stale', f'no transform at {t_ns / 1e9:.3f} s: {exc}')
             return None
-        r = tr.transform.rotation
-        return quat_to_matrix([r.x, r.y, r.z, r.w])
+        except Exception as exc:  # noqa: BLE001 - tf2 raises several lookup exception types
+            reason = 'tf_stale' if 'extrapolat' in str(exc).lower() else 'tf_missing'
+            self.diag.reject(reason, f'at {t_ns / 1e9:.3f} s: {type(exc).__name__}: {exc}')
+            return None
+
+        def R(tr):
+            r = tr.transform.rotation
+            return quat_to_matrix([r.x, r.y, r.z, r.w])
+
+        R_enu_body = R(body)
+        self.R_body_cam = R_enu_body.T @ R(cam)
+        return R_enu_body
 
     # outputs ------------------------------------------------------------------------------------
     def _publish_imu(self, t_ns: int, R_enu_body) -> None:
@@ -304,6 +389,43 @@ class SkySimulatorNode(Node):
         g_body = R_enu_body.T @ np.array([0.0, 0.0, GRAVITY_M_S2])
         self.pub_imu.publish(attitude_imu(t_ns, p['imu_frame_id'], R, variances, w_body, g_body))
         self.imu_samples += 1
+        if self.pub_odom is not None:
+            self._publish_odometry(t_ns)
+
+    def _publish_odometry(self, t_ns: int) -> None:
+        """Publish the wheel odometry of the turn at ``t_ns`` (and its odom TF, see the module)."""
+        p = self.params
+        sigma = math.radians(p['odom_yaw_rate_noise_deg_s'])
+        w = (
+            self.profile.yaw_rate_enu_rad_s()
+            + math.radians(p['odom_yaw_rate_bias_deg_s'])
+            + sigma * float(self.rng_odom.standard_normal())
+        )
+        if self.odom_last_ns is not None:
+            self.odom_yaw_rad += w * (t_ns - self.odom_last_ns) * 1e-9
+        self.odom_last_ns = t_ns
+        m = Odometry()
+        m.header.stamp = time_msg(t_ns)
+        m.header.frame_id = ODOM_FRAME_ID
+        m.child_frame_id = p['imu_frame_id']
+        q = m.pose.pose.orientation
+        q.z, q.w = math.sin(self.odom_yaw_rad / 2.0), math.cos(self.odom_yaw_rad / 2.0)
+        m.pose.covariance = [1e3 if i % 7 == 0 else 0.0 for i in range(36)]  # not to be fused
+        m.twist.twist.angular.z = w
+        cov = [0.0] * 36
+        cov[0] = cov[7] = cov[14] = ODOM_LINEAR_VARIANCE_M2_S2
+        cov[21] = cov[28] = 1e3  # roll and pitch rates: not measured
+        cov[35] = max(sigma * sigma, 1e-12)
+        m.twist.covariance = cov
+        self.pub_odom.publish(m)
+        if self.odom_tf is not None:
+            from geometry_msgs.msg import TransformStamped
+
+            tf = TransformStamped()
+            tf.header = m.header
+            tf.child_frame_id = m.child_frame_id
+            tf.transform.rotation = m.pose.pose.orientation
+            self.odom_tf.sendTransform(tf)
 
     def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
         """
@@ -317,7 +439,7 @@ class SkySimulatorNode(Node):
 
         p = self.params
         t0 = time.perf_counter()
-        att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body))
+        att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body), self.R_body_cam)
         az, alt = self.sun.at_ns(t_ns)
         frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
         rng = np.random.default_rng([p['seed'], k_frame])
@@ -390,6 +512,7 @@ class SkySimulatorNode(Node):
         self.diag.extra = {
             'frames': self.frames,
             'frames_rendered_ahead': self.frames_ahead,
+            'frames_skipped': self.frames_skipped,
             'imu_samples': self.imu_samples,
             'late_frames': self.late_frames,
             'lockstep_timeouts': self.lockstep_timeouts,
@@ -405,6 +528,13 @@ class SkySimulatorNode(Node):
                 else f'/{int(math.ceil(self.total_s * p["rate_hz"] - 1e-9))}'
             )
             self.get_logger().info(f'frame {self.frames}{n}')
+
+    def _skip_frame(self) -> None:
+        """Count a frame without an attitude (tf: the lookup counted why)."""
+        if self.attitude_source != 'tf':
+            self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+        self.frames_skipped += 1
+        self.diag.extra = {**self.diag.extra, 'frames_skipped': self.frames_skipped}
 
     def _publish_clock(self, t_ns: int, force: bool = False) -> None:
         """
@@ -565,7 +695,7 @@ class SkySimulatorNode(Node):
                 self.k_imu += 1
                 continue
             if R is None:
-                self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+                self._skip_frame()
             else:
                 self._publish_frame(t, R)
             self.k_frame += 1
@@ -607,7 +737,7 @@ class SkySimulatorNode(Node):
             return
         R = self._attitude_at(t_ns, t_rel)
         if R is None:
-            self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
+            self._skip_frame()
             return
         self._publish_frame(t_ns, R)
         self.k_frame += 1

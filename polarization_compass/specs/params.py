@@ -456,6 +456,17 @@ SIMULATOR = (
     Param('tf_world_frame', 'map', 'ENU world frame for attitude_source tf'),
     Param('tf_body_frame', 'base_link', 'body frame (REP-103, z up) for attitude_source tf'),
     Param(
+        'tf_timeout_s',
+        0.2,
+        'attitude_source tf: how long (wall clock) a frame or IMU sample waits for the transforms '
+        'at its stamp; none by then (missing or stale TF): skipped, counted and logged, never '
+        'rendered at another attitude',
+        0.0,
+        10.0,
+        unit='s',
+        read_only=True,
+    ),
+    Param(
         'start_bearing_deg',
         0.0,
         'motion: initial true bearing of the camera +y axis (= body +x)',
@@ -594,6 +605,31 @@ SIMULATOR = (
         unit='deg',
     ),
     Param('imu_yaw_bias_deg', 5.0, 'simulated IMU: yaw bias', -90.0, 90.0, unit='deg'),
+    Param(
+        'odom_yaw_rate_noise_deg_s',
+        0.2,
+        'simulated wheel odometry (odometry/wheel, motion only): white noise on the yaw rate '
+        '(1 sigma per sample at imu_rate_hz; its variance is the twist covariance reported)',
+        0.0,
+        90.0,
+        unit='deg/s',
+    ),
+    Param(
+        'odom_yaw_rate_bias_deg_s',
+        0.5,
+        'simulated wheel odometry: yaw-rate bias, not in the reported covariance (dead '
+        'reckoning drifts by it, like a gyro)',
+        -90.0,
+        90.0,
+        unit='deg/s',
+    ),
+    Param(
+        'odom_tf',
+        True,
+        'also broadcast the dead-reckoned odom -> imu_frame_id transform on /tf, as a wheel '
+        'odometry driver does (needs tf2_ros; without it only the topic, logged once)',
+        read_only=True,
+    ),
     Param('camera_frame_id', 'camera_optical_frame', 'frame_id of the image and camera_info'),
     Param('imu_frame_id', 'base_link', 'frame_id of the simulated IMU (z up)', check=_not_optical),
     Param(
@@ -981,6 +1017,17 @@ EVALUATOR = (
         'methods without a corrector (only their raw topic is read)',
         choices=ALL_METHODS,
         read_only=True,
+    ),
+    Param(
+        'fused_streams',
+        [''],
+        "state estimator outputs to score too, 'method=topic' each (nav_msgs/Odometry, e.g. "
+        "least_squares=/odometry/filtered): stream '<method>/fused', its yaw interpolated at "
+        'each truth stamp',
+        read_only=True,
+        check=lambda v: next(
+            (f'fused_streams: {x!r} is not method=topic' for x in v if x and '=' not in x), None
+        ),
     ),
     Param('include_raw', True, 'evaluate compass/<m>/heading_raw', read_only=True),
     Param('include_corrected', True, 'evaluate compass/<m>/heading', read_only=True),

@@ -49,6 +49,7 @@ __all__ = [
     'corrector_topics',
     'evaluator_topics',
     'evaluator_streams',
+    'fused_streams',
     'T_IMAGE',
     'T_CAMERA_INFO',
     'T_IMU',
@@ -58,6 +59,9 @@ __all__ = [
     'T_STRING',
     'T_FLOAT64',
     'T_QUAT_STAMPED',
+    'T_ODOMETRY',
+    'ODOM',
+    'FILTERED',
 ]
 
 # message types (ROS interface names)
@@ -72,6 +76,7 @@ T_FLOAT64 = 'std_msgs/msg/Float64'
 T_QUAT_STAMPED = 'geometry_msgs/msg/QuaternionStamped'
 T_FLOAT32_MULTIARRAY = 'std_msgs/msg/Float32MultiArray'
 T_HEADER = 'std_msgs/msg/Header'
+T_ODOMETRY = 'nav_msgs/msg/Odometry'
 
 IMAGE = 'camera/image_raw'  # the polarization mosaic, as a camera driver publishes it
 CAMERA_INFO = 'camera/camera_info'
@@ -84,6 +89,12 @@ IMU = 'imu/data'  # attitude of base_link in ENU (roll/pitch used)
 TRUTH = 'ground_truth/heading'  # simulator only: true heading, same Imu form as the estimate
 FIX = 'gps/fix'  # site (latitude/longitude/altitude)
 ATTITUDE_IN = 'sim/attitude'  # simulator input when attitude_source = topic
+#: simulator (motion): wheel-odometry-like twist (yaw rate with noise and bias) and its dead
+#: reckoning, what config/ekf_heading_example.yaml fuses as odom0
+ODOM = 'odometry/wheel'
+#: robot_localization's output (ekf_node's default topic), scored by the evaluator in the fusion
+#: graph
+FILTERED = 'odometry/filtered'
 CLOCK = '/clock'
 DIAGNOSTICS = '/diagnostics'
 EVAL_SUMMARY = 'evaluation/summary'  # JSON running statistics per stream
@@ -136,7 +147,8 @@ def simulator_topics(
     Parameters
     ----------
     attitude_source : str, default "motion"
-        ``"topic"`` adds the attitude input subscription.
+        ``"motion"`` adds the wheel odometry it publishes, ``"topic"`` the attitude input
+        subscription.
     publish_clock : bool, default True
         Also publish ``/clock``.
     attitude_input_type : str, default "imu"
@@ -162,6 +174,8 @@ def simulator_topics(
     ]
     if array:
         pubs += [(ARRAY, T_FLOAT32_MULTIARRAY), (ARRAY_HEADER, T_HEADER)]
+    if attitude_source == 'motion':
+        pubs.append((ODOM, T_ODOMETRY))
     if publish_clock:
         pubs.append((CLOCK, T_CLOCK))
     subs = []
@@ -288,7 +302,30 @@ def evaluator_streams(
     return out
 
 
-def evaluator_topics(streams, latency_source: str = 'sim_frames'):
+def fused_streams(items) -> list[tuple[str, str]]:
+    """
+    Return the evaluator's state-estimator streams from its ``fused_streams`` parameter.
+
+    Parameters
+    ----------
+    items : iterable of str
+        ``"method=topic"`` each; empty items are ignored.
+
+    Returns
+    -------
+    list of tuple of str
+        ``("<method>/fused", topic)`` pairs.
+
+    """
+    out = []
+    for x in items:
+        if x:
+            method, topic = x.split('=', 1)
+            out.append((f'{method.strip()}/fused', topic.strip()))
+    return out
+
+
+def evaluator_topics(streams, latency_source: str = 'sim_frames', fused=()):
     """
     Return the topics the ``error_evaluator`` publishes and subscribes to.
 
@@ -298,6 +335,8 @@ def evaluator_topics(streams, latency_source: str = 'sim_frames'):
         ``(stream name, topic)`` pairs of :func:`evaluator_streams`.
     latency_source : str, default "sim_frames"
         ``"sim_frames"`` adds the simulator's frame-time subscription (wall-clock latency).
+    fused : list of tuple of str, default ()
+        ``(stream name, topic)`` pairs of :func:`fused_streams` (nav_msgs/Odometry).
 
     Returns
     -------
@@ -314,4 +353,5 @@ def evaluator_topics(streams, latency_source: str = 'sim_frames'):
         subs.append(
             (method_topics(method)['status' if kind == 'raw' else 'correction_status'], T_STRING)
         )
+    subs += [(topic, T_ODOMETRY) for _, topic in fused]
     return pubs, subs
