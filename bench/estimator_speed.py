@@ -15,8 +15,8 @@
 """
 Issue 3's speed targets, measured.
 
-Issue 3's speed targets, measured: each method at its default settings from a raw 2448 x 2048
-12-bit mosaic, demosaic included, on one core, level and tilted.
+Each method at its default settings from a raw 2448 x 2048 12-bit mosaic, demosaic included, on one
+core, level and tilted.
 
 The path is the heading-estimator node's own ROS-free front end
 (:class:`polarization_compass.pipeline.HeadingFrontEnd`: superpixel demosaic of only the pixels the
@@ -80,8 +80,8 @@ def measure_method(front, mosaics, camera, pitch, roll, repeats: int) -> dict:
     """
     Time ``repeats`` front-end calls (demosaic + estimate) after one warm-up.
 
-    Time ``repeats`` front-end calls (demosaic + estimate) cycling through ``mosaics`` after one
-    warm-up; returns timing statistics (total, demosaic, estimate) and the heading errors seen.
+    The calls cycle through ``mosaics``; returns timing statistics (total, demosaic, estimate) and
+    the heading errors seen.
     """
     from .accuracy import heading_error_deg
 
@@ -123,7 +123,7 @@ def judge(method: str, stats: dict, full_size: bool) -> dict:
     """
     Return the target and pass flags (median and p95) of one row.
 
-    Target and pass flags (median and p95) of one row; ``None`` flags when not the full sensor.
+    The flags are ``None`` when not the full sensor.
     """
     target = TARGETS_MS.get(method)
     med, p95 = stats['median_ms'], stats['p95_ms']

@@ -843,8 +843,7 @@ def load_camera_yaml(path) -> CameraFile:
     """
     Read a ROS ``camera_calibration`` YAML file plus the polarizer.
 
-    Read a ROS ``camera_calibration`` YAML file (what ``camera_info_url`` points at) plus the
-    polarizer.
+    The file is the one ``camera_info_url`` points at.
 
     Keys used: ``image_width``, ``image_height``, ``camera_matrix`` (``{rows, cols, data}`` or a
     list), ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default

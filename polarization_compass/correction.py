@@ -190,7 +190,7 @@ def _keys(t):
     """
     Return Keys (a = -1/2) cubic convolution weights of four nodes at fraction t.
 
-    Keys (a = -1/2) cubic convolution weights of nodes i-1, i, i+1, i+2 at fraction t in [0, 1].
+    The nodes are i-1, i, i+1, i+2; t is in [0, 1].
     """
     t2 = t * t
     t3 = t2 * t

@@ -732,11 +732,10 @@ def _downstream(nodes) -> list[str]:
     """
     Return ``topic=reader,reader`` for every topic these nodes publish to each other.
 
-    ``topic=reader,reader`` for every topic these nodes publish that other nodes of the list read:
-    the simulator waits for those subscriptions before its first frame, so that no early message is
-    lost to discovery (named nodes: a recorder outside the graph must not stand in for the
-    evaluator). Topics are compared after namespacing and remapping; a topic in the root namespace
-    is written relative, as before.
+    A topic counts when other nodes of the list read it: the simulator waits for those
+    subscriptions before its first frame, so that no early message is lost to discovery (named
+    nodes: a recorder outside the graph must not stand in for the evaluator). Topics are compared
+    after namespacing and remapping; a topic in the root namespace is written relative, as before.
     """
     out = []
     for n in nodes:
@@ -830,9 +829,8 @@ def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
     """
     Split ``methods`` into those with a corrector and the direct ones.
 
-    ``methods`` split into those with a corrector and the direct ones (their class ``needs_tilt``:
-    exact at any tilt, no corrector); ``tilt_aware`` adds every registered method that needs the
-    tilt.
+    The direct ones are those whose class ``needs_tilt`` (exact at any tilt, no corrector);
+    ``tilt_aware`` adds every registered method that needs the tilt.
     """
     listed = tuple(dict.fromkeys(methods))
     direct = tuple(m for m in listed if registry.get(m).needs_tilt)

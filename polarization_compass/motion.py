@@ -15,10 +15,9 @@
 """
 The simulator's built-in motion profile and simulated IMU (ROS-free).
 
-The simulator's built-in motion profile (ROS-free): a turn at a constant rate with a pitch/roll
-schedule, like the paper's field runs (Fig 17: a full turn at pitch -20 deg), and the simulated
-IMU's reading of the body attitude (:func:`imu_reading`). Shared by the ``sky_simulator`` node and
-``record-sim``.
+The profile is a turn at a constant rate with a pitch/roll schedule, like the paper's field runs
+(Fig 17: a full turn at pitch -20 deg); the IMU gives its reading of the body attitude
+(:func:`imu_reading`). Shared by the ``sky_simulator`` node and ``record-sim``.
 
 Camera attitude in the paper's terms (eq 21): ``bearing(t) = start + turn_rate * t`` (clockwise
 from North, wrapped to [0, 360)), ``pitch(t) = pitch + pitch_amplitude * sin(2 pi t / period)``,

@@ -131,8 +131,8 @@ def cluster_variance(influence, x_px, y_px, block_px: int, n_params: int = 2) ->
     """
     Return the cluster-robust sandwich variance of ``sum_i influence_i``.
 
-    Cluster-robust sandwich variance of ``sum_i influence_i`` (influence = sensitivity * residual)
-    over blocks of ``block_px`` sensor pixels, with the :func:`cr1_factor`.
+    The influence is sensitivity * residual; the clusters are blocks of ``block_px`` sensor pixels,
+    and the variance carries the :func:`cr1_factor`.
     """
     phi = np.asarray(influence, dtype=float)
     n = phi.size
@@ -304,8 +304,7 @@ def result_from(
     """
     Build the final result: axial unless ``resolved_by`` names what fixed the sun's side.
 
-    The final result: axial (status ambiguous) unless ``resolved_by`` names what fixed the sun's
-    side.
+    An axial result has the status ambiguous.
     """
     extras = dict(kw.pop('extras', {}))
     extras['ambiguity_resolved_by'] = resolved_by

@@ -193,9 +193,9 @@ def _lane_pixel(aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi):  # pragma: n
     """
     Load pixel i for a vectorised pass; an unusable pixel reads as zeros.
 
-    Pixel i for a vectorised pass: (usable, valid, valid but non-finite, unusable inside the disc
-    ring, p, rx, ry, rz, rho, cos 2a, sin 2a) from :func:`_pixel`; an unusable pixel reads as p = 0
-    on the ray (1, 0, 0), so that every value stays finite and its weight is 0 without a branch.
+    The values are (usable, valid, valid but non-finite, unusable inside the disc ring, p, rx, ry,
+    rz, rho, cos 2a, sin 2a) from :func:`_pixel`; an unusable pixel has p = 0 on the ray (1, 0, 0),
+    so that every value stays finite and its weight is 0 without a branch.
     """
     ok, fin, inr, a, p, rx, ry, rz, rho, c2a, s2a = _pixel(
         aop, dop, valid, rays, i, min_dop, rho_lo, rho_hi

@@ -75,8 +75,7 @@ def acc_brightness(tot, off, ival, rx, ry, rz):  # pragma: no cover - compiled
     """
     Accumulate the brightness sufficient statistics of one pixel.
 
-    Brightness sufficient statistics of one pixel into tot[off:off + N_STATS]: n, sum I, sum I^2,
-    sum r (3), sum I r (3), sum r r^T (6).
+    They go into tot[off:off + N_STATS]: n, sum I, sum I^2, sum r (3), sum I r (3), sum r r^T (6).
     """
     tot[off] += 1.0
     tot[off + 1] += ival
@@ -458,7 +457,7 @@ def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
     """
     Return the starts of the subsample's runs.
 
-    Starts of the subsample's runs: every pixel when n is small, else about sub_pixels / 64 runs at
+    The runs cover every pixel when n is small, else there are about sub_pixels / 64 runs at
     golden-ratio (low-discrepancy) positions, sorted. Evenly spaced runs would lock onto the image
     rows (a period that is a multiple of the row length samples one vertical strip).
     """
@@ -638,10 +637,9 @@ def block_indices(keys: tuple, block_px: int):
     """
     Return the block column of every column and the block row of every row of grids.
 
-    Block column of every column and block row of every row of regular grids with keys ``((x0, dx,
-    nx), (y0, dy, ny))`` (sensor pixels; blocks of ``block_px`` sensor pixels), numbered from 0
-    alike in every grid: (column indices per grid, row indices per grid, block columns K, block
-    rows R).
+    The grids are regular, with keys ``((x0, dx, nx), (y0, dy, ny))`` (sensor pixels; blocks of
+    ``block_px`` sensor pixels); the blocks are numbered from 0 alike in every grid. Returns
+    (column indices per grid, row indices per grid, block columns K, block rows R).
     """
     axes = [
         (k[0][0] + k[0][1] * np.arange(k[0][2]), k[1][0] + k[1][1] * np.arange(k[1][2]))

@@ -85,12 +85,12 @@ def _phase_balanced_indices(n: int, step: int, first_px: float = 1.0) -> np.ndar
     """
     Return indices along an axis, about ``step`` apart, that alternate in parity.
 
-    Indices along an axis of length n, on average ``step`` apart, that alternate in parity: those
-    whose sensor coordinate ``c`` (``first_px`` for index 0, 1-based) has ``(c - 1) mod 2 step`` in
-    ``{0, step - 1}`` (stride 2: c - 1 = 0, 1, 4, 5, 8, ...; stride 4: 0, 3, 8, 11, ...). For an
-    even step half are even and half odd. Anchored to sensor coordinates, so the close pairs (1 px
-    apart at stride 2, whose bilinear neighbourhoods overlap) never straddle a block of
-    ``block_px`` (a multiple of 2 step).
+    The axis has length n and ``step`` is the mean spacing. The indices are those whose sensor
+    coordinate ``c`` (``first_px`` for index 0, 1-based) has ``(c - 1) mod 2 step`` in ``{0, step -
+    1}`` (stride 2: c - 1 = 0, 1, 4, 5, 8, ...; stride 4: 0, 3, 8, 11, ...). For an even step half
+    are even and half odd. Anchored to sensor coordinates, so the close pairs (1 px apart at stride
+    2, whose bilinear neighbourhoods overlap) never straddle a block of ``block_px`` (a multiple of
+    2 step).
     """
     m = (np.arange(n) + int(round(first_px)) - 1) % (2 * step)
     return np.nonzero((m == 0) | (m == step - 1))[0]
@@ -304,7 +304,7 @@ def _strided_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> Pixel
     """
     Return the view of one regular grid.
 
-    The view of one regular grid (rows and columns arithmetic progressions): the arrays themselves
+    The grid's rows and columns are arithmetic progressions. The view holds the arrays themselves
     when every pixel is kept, else strided slices copied compactly once.
     """
     xs = np.asarray(obs.x_px)
@@ -347,8 +347,7 @@ def _list_view(obs: Observation, lims: list) -> PixelView:
     """
     Return the view of a pixel list: the pixels inside the rectangles ``lims``.
 
-    The view of a pixel list (or of a 2-D observation that is not a grid): flat, the pixels inside
-    the rectangles ``lims``.
+    Also used for a 2-D observation that is not a grid; the view is flat.
     """
     aop = np.asarray(obs.aop_rad)
     rays = np.asarray(obs.rays_cam)

@@ -15,9 +15,8 @@
 """
 The shared estimator interface: observation, result and the facts of each method.
 
-The shared estimator interface: what goes in (:class:`Observation`), what comes out
-(:class:`HeadingResult`), and the facts every method declares (:class:`Estimator`). The methods are
-listed by :mod:`.registry`.
+What goes in: :class:`Observation`; what comes out: :class:`HeadingResult`; the facts every method
+declares: :class:`Estimator`. The methods are listed by :mod:`.registry`.
 
 Angles follow :mod:`polarization_compass.conventions`. A result never carries NaN or inf: a value
 that does not exist is ``None`` and ``status``/``reason`` say why.
