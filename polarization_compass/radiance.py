@@ -365,12 +365,11 @@ class PreethamSky:
     """
     The Preetham, Shirley & Smits (1999) daylight luminance model.
 
-    Preetham, Shirley & Smits (1999), "A practical analytic model for daylight", SIGGRAPH, appendix
-    A.2: the Perez luminance distribution with coefficients linear in the turbidity T (2 <= T <=
-    10),
+    Appendix A.2 of the paper (see References): the Perez luminance distribution with coefficients
+    linear in the turbidity T (2 <= T <= 10),
 
-        Y / Y_z = F(theta, gamma) / F(0, theta_s),  F = (1 + A exp(B / cos theta)) (1 + C exp(D
-                                                    gamma) + E cos^2 gamma)
+        Y / Y_z = F(theta, gamma) / F(0, theta_s),
+        F = (1 + A exp(B / cos theta)) (1 + C exp(D gamma) + E cos^2 gamma)
         A = 0.1787 T - 1.4630, B = -0.3554 T + 0.4275, C = -0.0227 T + 5.3251,
         D = 0.1206 T - 2.5771, E = -0.0670 T + 0.3703
 

@@ -200,8 +200,7 @@ class Renderer:
         """
         Return the sun for this scene: fixed, or from the ephemeris.
 
-        The sun for this scene: fixed if the scene says so, else the ephemeris (batched ephemeris,
-        interpolated).
+        Fixed if the scene says so, else from the ephemeris (batched calls, interpolated).
 
         Parameters
         ----------
@@ -412,8 +411,7 @@ class Renderer:
         """
         Run the sky and radiance stages at the selected pixels.
 
-        The sky and radiance stages: flat (aop, dop, valid, intensity or None) at the selected
-        pixels.
+        Returns them flat: (aop, dop, valid, intensity or None).
         """
         with instr.stage('sky.' + self.sky.name):
             aop, dop, valid = self.sky.polarization(

@@ -222,9 +222,9 @@ def _malus_unit(a, dp, p, q, n0):  # pragma: no cover - compiled
 @njit(inline='always', fastmath=_FM, cache=True)
 def _malus_unit_er(a, dp, p, q, n0, d):  # pragma: no cover - compiled
     """
-    Return the same behind a polarizer of finite extinction ratio.
+    Return the mean electrons at S0 = 1 behind a polarizer of finite extinction ratio (float32).
 
-    The same behind a polarizer of efficiency d = (ER - 1) / (ER + 1): DoP is seen as d DoP.
+    The polarizer's efficiency is d = (ER - 1) / (ER + 1): DoP is seen as d DoP.
     """
     sa, ca = sincos32(a)
     one = np.float32(1.0)
@@ -592,8 +592,6 @@ def simulate_mosaic(
 ):
     """
     Return the raw image of a pixel block (electrons or DN).
-
-    The raw image of a pixel block: float32 electrons, or uint8/uint16 DN if quantised.
 
     ``aop_rad``/``dop``/``s0`` (or ``s0=None`` for S0 = 1): 2-D float arrays of the block;
     ``layout`` already shifted to the block's top-left pixel, ``block_origin`` that pixel's 0-based

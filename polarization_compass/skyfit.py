@@ -13,10 +13,7 @@
 # limitations under the License.
 
 """
-Whole-sky robust fit of the Rayleigh AoP pattern: a second opinion on real skies.
-
-Whole-sky robust fit of the single-scattering (Rayleigh) AoP pattern: a second opinion on real
-skies.
+Whole-sky robust fit of the single-scattering (Rayleigh) AoP: a second opinion on real skies.
 
 The estimators fit the sky each in their own way; on a real sky (clouds, lens flare, haze, a wrong
 polarizer convention) a fit can be precise and wrong. This module fits the one thing every method
@@ -72,8 +69,8 @@ class SkySample:
     """
     Usable sky pixels for the whole-sky fit.
 
-    Usable sky pixels for the fit: rays (3, N) camera frame, doubled-angle AoP (cos 2a, sin 2a),
-    weights in [0, 1] (DoP-based), intensity (or None), and the image azimuth of each ray (rad).
+    Rays (3, N) in the camera frame, doubled-angle AoP (cos 2a, sin 2a), weights in [0, 1]
+    (DoP-based), intensity (or None), and the image azimuth of each ray (rad).
     """
 
     rays: np.ndarray

@@ -86,8 +86,7 @@ def alt20(tmp_path_factory):
     """
     Record a 36-frame turn at pitch -20 with the sun 20 deg high.
 
-    A 36-frame turn at pitch -20 with the sun 20 deg high, starting at psi = 0, no IMU/reference
-    noise.
+    The turn starts at psi = 0, with no IMU/reference noise.
     """
     t, alt, az = _time_at_altitude(20.0)
     out = tmp_path_factory.mktemp('alt20')
@@ -207,9 +206,9 @@ def test_replay_reproduces_the_notes_tilt_error_curve(alt20):
 @pytest.fixture(scope='module')
 def small_map(tmp_path_factory):
     """
-    Build an error map of least squares around the alt20 run.
+    Build an error map of least squares for the test camera around the alt20 run.
 
-    An error map of least squares for the test camera around the alt20 run (errormap's own sweep).
+    The map comes from errormap's own sweep.
     """
     from polarization_compass.sweep import run_sweep, SweepSpec
 
@@ -518,8 +517,8 @@ def _copy_bag(src, dst, edit, storage='mcap', extra=()):
     """
     Copy a bag message by message through ``edit``.
 
-    Copy a bag message by message; ``edit(role, k, msg_or_raw, log_ns)`` returns a list of
-    (raw_bytes, log_ns) to write (empty: drop). ``k`` counts messages per role.
+    ``edit(role, k, msg_or_raw, log_ns)`` returns a list of (raw_bytes, log_ns) to write (empty:
+    drop). ``k`` counts messages per role.
     """
     tm = B.default_topic_map()
     counts = {}
@@ -778,7 +777,7 @@ def _cli_inproc(capsys, *args):
     """
     Run the same entry point in this process (no numba compile per call).
 
-    The same entry point in this process (no numba compile per call: keeps the suite fast).
+    Skipping the numba compile per call keeps the suite fast.
     """
     from polarization_compass.cli import main
 
@@ -1033,8 +1032,7 @@ def clean_chunked(tmp_path_factory):
     """
     Record an MCAP bag of several 1 MiB chunks.
 
-    An MCAP bag of several 1 MiB chunks (320 x 240 mono16 images: 3 MB), the clean bag's field of
-    view.
+    The images are 320 x 240 mono16 (3 MB), with the clean bag's field of view.
     """
     t, _, az = _time_at_altitude(30.0)
     out = tmp_path_factory.mktemp('clean_chunked') / 'bag'

@@ -333,7 +333,7 @@ def _ros2_param(ws, verb: str, *value):
     """
     Run ``ros2 param <verb>`` on the estimator, retried while discovery is not done.
 
-    ``ros2 param <verb>`` on the estimator without the daemon, retried while discovery is not done.
+    The daemon is not used (``--no-daemon``).
     """
     cmd = [
         'ros2',

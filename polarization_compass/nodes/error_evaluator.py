@@ -304,8 +304,8 @@ class ErrorEvaluatorNode(Node):
         """
         Write the report so far (CSV and JSON, the figure less often).
 
-        The report so far (timer, every REPORT_PERIOD_S): CSV and JSON when new estimates came in,
-        the figure too every FIGURE_PERIOD_S. A failure is logged and the node goes on.
+        Runs on a timer, every REPORT_PERIOD_S: CSV and JSON when new estimates came in, the
+        figure too every FIGURE_PERIOD_S. A failure is logged and the node goes on.
         """
         n = len(self.matcher.matches)
         if self._closed or n == self._reported[0]:

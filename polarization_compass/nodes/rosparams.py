@@ -13,10 +13,10 @@
 # limitations under the License.
 
 """
-Rclpy glue for :mod:`.params`: declared and validated parameters.
+ROS 2 (rclpy) glue for :mod:`.params`: declared and validated parameters.
 
-rclpy glue for :mod:`.params`: declare every parameter with a descriptor (description, range,
-read-only flag) and validate every change with a reason.
+Every parameter is declared with a descriptor (description, range, read-only flag) and every
+change is validated with a reason.
 
 Bad values are rejected twice over: rclpy enforces ``FloatingPointRange``/``IntegerRange`` and
 ``read_only`` itself, and the on-set-parameters callback checks choices, types and the extra rules
@@ -153,7 +153,6 @@ class ParameterSet:
         """
         Return a string-array parameter without the empty placeholder entries.
 
-        A string-array parameter without the empty placeholder entries (ROS has no typed empty
-        array).
+        The placeholders are there because ROS has no typed empty array.
         """
         return [s for s in self.values[name] if s]

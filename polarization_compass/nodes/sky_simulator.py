@@ -540,8 +540,8 @@ class SkySimulatorNode(Node):
         """
         Publish /clock, at most every 1 / clock_rate_hz wall seconds unless forced.
 
-        /clock at most every 1 / clock_rate_hz wall seconds (every node of the graph receives each
-        one), always when ``force``d (the first stamp, before anything else is sent).
+        Every node of the graph receives each one. ``force`` is for the first stamp, sent before
+        anything else.
         """
         if self.pub_clock is None:
             return

@@ -88,7 +88,7 @@ def load_corrector(path: str, method: str):
     """
     Return the TiltCorrector for ``method`` from ``path``.
 
-    The TiltCorrector for ``method`` from ``path`` ("" = the map shipped with the package).
+    An empty ``path`` ("") takes the map shipped with the package.
 
     Raises CompassError naming the file and how to make one when it is missing or unusable.
     """
@@ -230,7 +230,8 @@ class TiltCorrectorNode(Node):
         """
         Process waiting headings whose IMU is available.
 
-        Process waiting headings whose IMU is available (or whose wait is over when ``final``).
+        Also those whose wait (``imu_max_wait_s``) is over, on every call: ``final`` (passed by the
+        expiry timer) changes nothing.
         """
         import time
 

@@ -15,8 +15,7 @@
 """
 Which polarizer angle convention a photodiode array has, from its data.
 
-Which polarizer angle convention (``angle_zero`` x ``angle_sense``) a photodiode array has, from
-its data.
+A convention is one of the ``angle_zero`` x ``angle_sense`` pairs.
 
 The counterpart of the camera's polarizer-direction check: the four conventions map the same
 readings to four different sets of E-vectors; only the right one makes them consistent with one sun

@@ -245,11 +245,10 @@ class _FrameSync:
     """
     The state of :func:`iter_synced_frames`, one step per message read.
 
-    The state of :func:`iter_synced_frames`: the auxiliary streams buffered by header stamp, the
-    latest camera and site, and the images waiting inside the look-ahead. One step per message
-    read: :meth:`decode`, then :meth:`add_image` or :meth:`add_aux`, then :meth:`due` releases the
-    images the reader is ``lookahead_s`` past (:meth:`rest` at the end of the bag); :meth:`release`
-    pairs one.
+    It holds the auxiliary streams buffered by header stamp, the latest camera and site, and the
+    images waiting inside the look-ahead. A step: :meth:`decode`, then :meth:`add_image` or
+    :meth:`add_aux`, then :meth:`due` releases the images the reader is ``lookahead_s`` past
+    (:meth:`rest` at the end of the bag); :meth:`release` pairs one.
     """
 
     def __init__(self, topic_map: TopicMap, tally: Tally, plan: BagPlan, prior_max_age_s: float):

@@ -151,12 +151,12 @@ def _replay_threads(
     """
     Run every method group in this process, one thread per group.
 
-    Every method group in this process: the bag is read once, group 0 runs on this thread and each
-    other group on a thread of its own, fed the same frames through a bounded queue (a group never
-    lags more than ``_LAG`` frames). The compiled kernels release the GIL (``nogil``), so the
-    groups' pixel work runs in parallel; a group's frames stay in order on one thread, so its state
-    (the ``last`` prior) is the node's. Replaces one process per group, each reading the whole bag:
-    on 2 cores reading a 10 MB image took ~7 ms of each process's ~22 ms per frame.
+    The bag is read once; group 0 runs on this thread and each other group on a thread of its own,
+    fed the same frames through a bounded queue (a group never lags more than ``_LAG`` frames). The
+    compiled kernels release the GIL (``nogil``), so the groups' pixel work runs in parallel; a
+    group's frames stay in order on one thread, so its state (the ``last`` prior) is the node's.
+    Replaces one process per group, each reading the whole bag: on 2 cores reading a 10 MB image
+    took ~7 ms of each process's ~22 ms per frame.
     """
     import queue
 

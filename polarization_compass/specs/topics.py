@@ -15,8 +15,8 @@
 """
 Topic names and message types of every node, in one place.
 
-Topic names and message types of every node: the single source used by the nodes themselves, by
-:mod:`polarization_compass.graphs` (launch files, ``polarization-compass sim``) and by the tests.
+The single source used by the nodes themselves, by :mod:`polarization_compass.graphs` (launch
+files, ``polarization-compass sim``) and by the tests.
 
 All names are relative, so a namespace moves a whole graph and ``--ros-args -r old:=new`` remaps
 any of them; ``/diagnostics`` and ``/clock`` are absolute by ROS convention. Per-method topics live
