@@ -56,12 +56,15 @@ COMPLETED = (
     'estimators/sm_asm.py',
     'estimators/symmetry.py',
     'estimators/least_squares.py',
+    'estimators/sun_from_evectors.py',
+    'estimators/jackknife.py',
     'estimators/mosaic_input.py',
     'estimators/__init__.py',
     'errormap.py',
     'errormap_io.py',
     'sweep_cells.py',
     'frame_io.py',
+    'headings.py',
     'pipeline/__init__.py',
     'pipeline/attitude.py',
     'pipeline/camera_info.py',
@@ -503,67 +506,6 @@ def test_checker_fails_a_completed_module_with_a_planted_function():
 # Damage a former home-made formatter left (issue 23): a summary line repeated as the start of the
 # next paragraph, and sentences cut with one word left alone on a line.
 # ------------------------------------------------------------------------------------------------
-#: Files whose damaged docstrings are repaired on their owners' renovation branches (issue 23);
-#: each must still show damage here (a repaired one fails the test until it leaves this list).
-PENDING_REPAIR = (
-    'bench/estimator_speed.py',
-    'bench/replay_worker.py',
-    'bench/simulator.py',
-    'polarization_compass/atmosphere.py',
-    'polarization_compass/bag.py',
-    'polarization_compass/camera.py',
-    'polarization_compass/cli/_checks.py',
-    'polarization_compass/cli/cmd_allowable_tilt.py',
-    'polarization_compass/cli/cmd_budget.py',
-    'polarization_compass/cli/cmd_calibrate_array.py',
-    'polarization_compass/cli/cmd_errormap.py',
-    'polarization_compass/cli/cmd_estimate.py',
-    'polarization_compass/cli/cmd_estimate_array.py',
-    'polarization_compass/cli/cmd_record_sim.py',
-    'polarization_compass/cli/cmd_sun.py',
-    'polarization_compass/correction.py',
-    'polarization_compass/demosaic.py',
-    'polarization_compass/estimators/_common.py',
-    'polarization_compass/estimators/_disc.py',
-    'polarization_compass/estimators/_disc_estimator.py',
-    'polarization_compass/estimators/_kernels.py',
-    'polarization_compass/estimators/_mirror.py',
-    'polarization_compass/estimators/_sm_asm_kernels.py',
-    'polarization_compass/estimators/_symmetry_kernels.py',
-    'polarization_compass/estimators/base.py',
-    'polarization_compass/estimators/least_squares.py',
-    'polarization_compass/estimators/mosaic_input.py',
-    'polarization_compass/estimators/speed.py',
-    'polarization_compass/estimators/symmetry.py',
-    'polarization_compass/estimators/zenith.py',
-    'polarization_compass/frame_io.py',
-    'polarization_compass/graphs.py',
-    'polarization_compass/motion.py',
-    'polarization_compass/nodes/error_evaluator.py',
-    'polarization_compass/nodes/heading_estimator.py',
-    'polarization_compass/nodes/msgs.py',
-    'polarization_compass/nodes/rosparams.py',
-    'polarization_compass/nodes/sky_simulator.py',
-    'polarization_compass/nodes/tilt_corrector.py',
-    'polarization_compass/optics.py',
-    'polarization_compass/photodiode/__init__.py',
-    'polarization_compass/photodiode/heading.py',
-    'polarization_compass/photodiode/selfcheck.py',
-    'polarization_compass/pipeline.py',
-    'polarization_compass/polarizer_check.py',
-    'polarization_compass/radiance.py',
-    'polarization_compass/render.py',
-    'polarization_compass/replay/__init__.py',
-    'polarization_compass/replay/processing.py',
-    'polarization_compass/replay/sync.py',
-    'polarization_compass/replay/threads.py',
-    'polarization_compass/scene.py',
-    'polarization_compass/sensor.py',
-    'polarization_compass/skyfit.py',
-    'polarization_compass/specs/topics.py',
-    'test/test_replay.py',
-    'test/test_ros2_launch.py',
-)
 _WIDTH = 99
 _TABLE_RE = re.compile(r'\S {2,}\S')
 
@@ -662,17 +604,12 @@ def damaged_docstrings(source: str) -> list[tuple[int, str]]:
 def test_no_damaged_docstrings():
     """No docstring of the package, tests, benchmark or tools repeats its summary or cuts lines."""
     repo = ROOT.parent
-    found, still = [], set()
+    found = []
     for path in python_files([str(repo / p) for p in python_paths(str(repo))]):
         rel = str(Path(path).relative_to(repo))
         hits = damaged_docstrings(Path(path).read_text())
-        if rel in PENDING_REPAIR:
-            still.update([rel] if hits else [])
-            continue
         found += [f'{rel}:{line}: {what}' for line, what in hits]
     assert not found, '\n'.join(found)
-    repaired = sorted(set(PENDING_REPAIR) - still)
-    assert not repaired, f'repaired, remove from PENDING_REPAIR: {repaired}'
 
 
 DAMAGED = '''
