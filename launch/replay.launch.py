@@ -137,8 +137,17 @@ def _player(context):
         n.name: re.compile(rf'\[{n.name}\]: {READY_LINES[n.executable]}') for n in graph.nodes
     }
     player = ExecuteProcess(
-        cmd=['ros2', 'bag', 'play', bag, '--clock', '--rate', str(rate), '--start-paused',
-             '--disable-keyboard-controls'],
+        cmd=[
+            'ros2',
+            'bag',
+            'play',
+            bag,
+            '--clock',
+            '--rate',
+            str(rate),
+            '--start-paused',
+            '--disable-keyboard-controls',
+        ],
         name='ros2_bag_play',
         output='screen',
         sigterm_timeout='5',
@@ -163,8 +172,10 @@ def _player(context):
         if len(ready) < len(patterns):
             return None
         return [
-            LogInfo(msg=f'replay: all {len(patterns)} nodes ready; resuming the player in '
-                    f'{settle_s:g} s'),
+            LogInfo(
+                msg=f'replay: all {len(patterns)} nodes ready; resuming the player in '
+                f'{settle_s:g} s'
+            ),
             TimerAction(period=settle_s, actions=[resume]),
         ]
 

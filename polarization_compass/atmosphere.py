@@ -443,9 +443,7 @@ class Atmosphere:
     @property
     def stages(self) -> list[str]:
         """Return the names of the declared stages in the order they are applied."""
-        return [
-            n for n in ('haze', 'clouds', 'skyline', 'ground') if getattr(self, n) is not None
-        ]
+        return [n for n in ('haze', 'clouds', 'skyline', 'ground') if getattr(self, n) is not None]
 
     def params(self) -> dict:
         """

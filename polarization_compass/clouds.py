@@ -368,8 +368,8 @@ def _cloud_composite_grid_kernel(
         u1 = tu[rk1[i]]
         fy = rf[i]
         o = i * W
-        dp = dop[o:o + W]
-        it = inten[o:o + W]
+        dp = dop[o : o + W]
+        it = inten[o : o + W]
         if min_dop <= zero:
             # no pixel can fall below the minimum DoP: AoP and validity are not touched (a third
             # less memory traffic; the DoP of a valid pixel stays >= 0)
@@ -377,8 +377,8 @@ def _cloud_composite_grid_kernel(
                 t = cloud_transmission(u0[j], u1[j], fy)
                 dp[j], it[j] = cloud_over(it[j], t, dp[j], bright)
             continue
-        ap = aop[o:o + W]
-        vd = valid[o:o + W]
+        ap = aop[o : o + W]
+        vd = valid[o : o + W]
         for j in range(W):
             # branch-free (t = 1 leaves the pixel as it is); invalid pixels hold DoP 0, so "drop"
             # leaves them as they are; valid = valid and not drop as a comparison of bools (2x

@@ -275,9 +275,7 @@ def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int, deriv: bool = Fal
     return start[..., None] + np.arange(4), W, inside
 
 
-def _yaw_weights(
-    y0: float, step: float, n: int, psi: np.ndarray, order: int, deriv: bool = False
-):
+def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int, deriv: bool = False):
     """
     Return indices and weights on the periodic yaw axis ``y0 + step * k`` (n * step = 360).
 
@@ -677,7 +675,13 @@ class TiltCorrector:
         return -e_p / den, -e_r / den, ok
 
     def attitude_sigma_deg(
-        self, psi_deg, h_deg, pitch_deg, roll_deg, pitch_sigma_deg, roll_sigma_deg,
+        self,
+        psi_deg,
+        h_deg,
+        pitch_deg,
+        roll_deg,
+        pitch_sigma_deg,
+        roll_sigma_deg,
         mode: str = 'invert',
     ):
         """

@@ -848,9 +848,7 @@ def stokes_from_mosaic(
         ``ifov_k`` (:func:`check_ifov_k`).
 
     """
-    return _run(
-        mosaic, layout, pol45_toward, method, saturation_level, True, ifov_k, ifov_noise
-    )
+    return _run(mosaic, layout, pol45_toward, method, saturation_level, True, ifov_k, ifov_noise)
 
 
 def aop_dop_from_stokes(s0, s1, s2):
@@ -956,6 +954,4 @@ def polarization_from_mosaic(
        Polarized Skylight Orientation Determination" (the seed paper), eq 28.
 
     """
-    return _run(
-        mosaic, layout, pol45_toward, method, saturation_level, False, ifov_k, ifov_noise
-    )
+    return _run(mosaic, layout, pol45_toward, method, saturation_level, False, ifov_k, ifov_noise)

@@ -144,16 +144,12 @@ def _glare_angle_sq_f32(px, py, pz, sx, sy, sz):  # pragma: no cover - compiled
     z = a2 if near else (b2 if far else c * c)
     poly = (
         (
-            (
-                (np.float32(4.2163199048e-2) * z + np.float32(2.4181311049e-2)) * z
-                + np.float32(4.5470025998e-2)
-            )
-            * z
-            + np.float32(7.4953002686e-2)
+            (np.float32(4.2163199048e-2) * z + np.float32(2.4181311049e-2)) * z
+            + np.float32(4.5470025998e-2)
         )
         * z
-        + np.float32(1.6666752422e-1)
-    )
+        + np.float32(7.4953002686e-2)
+    ) * z + np.float32(1.6666752422e-1)
     f = one + z * poly  # asin(x) / x
     g_far = np.float32(math.pi) - np.float32(2.0) * math.sqrt(b2) * f
     g_mid = np.float32(math.pi / 2) - c * f
@@ -370,11 +366,11 @@ def _optics_block(rays, xcol, yrow, lens, square, dop, inten):  # pragma: no cov
         # per-row slices: with a flat index r * W + c LLVM kept this loop scalar (14x slower,
         # measured)
         o = r * W
-        rx = rays[0, o:o + W]
-        ry = rays[1, o:o + W]
-        rz = rays[2, o:o + W]
-        dp = dop[o:o + W]
-        it = inten[o:o + W]
+        rx = rays[0, o : o + W]
+        ry = rays[1, o : o + W]
+        rz = rays[2, o : o + W]
+        dp = dop[o : o + W]
+        it = inten[o : o + W]
         yi = yrow[r]
         for c in range(W):
             dp[c], it[c] = lens_over(it[c], dp[c], rx[c], ry[c], rz[c], xcol[c], yi, lens, square)

@@ -169,13 +169,13 @@ def _sky_effects_pass(
             u1 = tu[rk1[r] - k0] if clouds else tu[0]
             fy = rf[r] if clouds else np.float32(0.0)
             o = r * W
-            rx = rays[0, o:o + W]
-            ry = rays[1, o:o + W]
-            rz = rays[2, o:o + W]
-            ap = aop[o:o + W]
-            dp = dop[o:o + W]
-            vd = valid[o:o + W]
-            it = inten[o:o + W]
+            rx = rays[0, o : o + W]
+            ry = rays[1, o : o + W]
+            rz = rays[2, o : o + W]
+            ap = aop[o : o + W]
+            dp = dop[o : o + W]
+            vd = valid[o : o + W]
+            it = inten[o : o + W]
             yi = yrow[r]
             _sky_effects_row(
                 model, square, sp, lens, rx, ry, rz, u0, u1, fy, bright, min_dop, xcol, yi, ap,

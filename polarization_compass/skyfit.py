@@ -223,8 +223,8 @@ def _loss(sample: SkySample, sun_cam: np.ndarray, weight=None) -> np.ndarray:
 def _chunked_loss(sample, psi, alt, pitch, roll, weight=None, chunk=256):
     out = np.empty(psi.size)
     for i in range(0, psi.size, chunk):
-        out[i:i + chunk] = _loss(
-            sample, _sun_cam(psi[i:i + chunk], alt[i:i + chunk], pitch, roll), weight
+        out[i : i + chunk] = _loss(
+            sample, _sun_cam(psi[i : i + chunk], alt[i : i + chunk], pitch, roll), weight
         )
     return out
 

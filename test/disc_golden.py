@@ -141,11 +141,12 @@ def _mosaic_obs(stride):
 
 def _real_obs(stem):
     sys.path.insert(0, str(Path(__file__).parent))
-    import real_sky as R
+    import tempfile
+
     from polarization_compass.camera import load_camera_yaml
     from polarization_compass.headings import real_observation
     from polarization_compass.real_input import PolarizationInput
-    import tempfile
+    import real_sky as R
 
     i, q, u = R.read_quadrants(stem)
     with tempfile.TemporaryDirectory() as d:

@@ -66,7 +66,7 @@ def domain_points(n, seed, corner_fraction=0.3):
     b = rng.uniform(-1, 1, (n - k) * 3)
     keep = np.abs(a) + np.abs(b) <= 1
     p = np.concatenate([30 * a[keep][: n - k], rng.choice([-1, 1], k) * rng.uniform(25, 29.9, k)])
-    r_corner = rng.uniform(-1, 1, k) * (29.99 - np.abs(p[n - k:]))
+    r_corner = rng.uniform(-1, 1, k) * (29.99 - np.abs(p[n - k :]))
     r = np.concatenate([30 * b[keep][: n - k], r_corner])
     return psi, h, p, r
 

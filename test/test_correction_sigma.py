@@ -58,7 +58,13 @@ def smooth():
     A, Y, P, R = np.meshgrid(ALT, YAW, TILT, TILT, indexing='ij')
     e = smooth_error(A, Y, P, R)[None]
     m = ErrorMap(
-        e, np.zeros(e.shape, np.int8), ('least_squares',), ALT, YAW, TILT, TILT,
+        e,
+        np.zeros(e.shape, np.int8),
+        ('least_squares',),
+        ALT,
+        YAW,
+        TILT,
+        TILT,
         meta={'domain': {'full_domain': True}},
     )
     return TiltCorrector(m, 'least_squares')
@@ -67,7 +73,9 @@ def smooth():
 def _queries(n=60, seed=0):
     rng = np.random.default_rng(seed)
     return (
-        rng.uniform(-180, 180, n), rng.uniform(2, 48, n), rng.uniform(-25, 25, n),
+        rng.uniform(-180, 180, n),
+        rng.uniform(2, 48, n),
+        rng.uniform(-25, 25, n),
         rng.uniform(-25, 25, n),
     )
 
@@ -152,7 +160,10 @@ def test_tilt_aware_sensitivity_matches_re_estimating():
 
 def test_tilt_sigma_matches_the_spread_of_the_measured_tilt():
     me = MountingErrors(
-        noise_deg=0.3, pitch_bias_deg=0.2, boresight_roll_deg=0.4, time_offset_s=0.02,
+        noise_deg=0.3,
+        pitch_bias_deg=0.2,
+        boresight_roll_deg=0.4,
+        time_offset_s=0.02,
         tilt_rate_deg_s=25.0,
     )
     rng = np.random.default_rng(5)
@@ -167,7 +178,10 @@ def test_tilt_sigma_matches_the_spread_of_the_measured_tilt():
 
 def test_budget_sigma_calibration_is_one_under_a_known_imu_noise():
     cfg = BudgetConfig(
-        SMALL, samples=40, tilt_max_deg=8.0, imu=MountingErrors(noise_deg=1.0),
+        SMALL,
+        samples=40,
+        tilt_max_deg=8.0,
+        imu=MountingErrors(noise_deg=1.0),
         methods=('zenith', 'tilt_aware'),
     )
     r = run_budget(cfg)
@@ -185,7 +199,11 @@ def test_budget_sigma_calibration_is_one_under_a_known_imu_noise():
 
 def test_budget_flags_an_uncorrected_tilt_error_as_overconfident():
     cfg = BudgetConfig(
-        SMALL, samples=8, tilt_max_deg=8.0, methods=('zenith',), correction='none',
+        SMALL,
+        samples=8,
+        tilt_max_deg=8.0,
+        methods=('zenith',),
+        correction='none',
     )
     st = run_budget(cfg)['conditions']['all']['zenith']
     # the raw tilt error (degrees) against a statistical sigma: flagged, not hidden

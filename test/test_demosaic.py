@@ -252,7 +252,7 @@ def test_bilinear_is_exact_on_linear_fields(layout, pol, coef):
     yy, xx = np.mgrid[0:h, 0:w].astype(float)
     true = {}
     for n, ang in enumerate((0, 45, 90, 135)):
-        a, b, c = coef[3 * n:3 * n + 3]
+        a, b, c = coef[3 * n : 3 * n + 3]
         true[ang] = 500 + (60, 20, -60, 0)[n] + 10 * a + b * yy + c * xx
     m = np.empty((h, w))
     for r in range(2):
@@ -277,8 +277,8 @@ def test_shifted_layout_describes_a_cropped_mosaic(dy, dx):
     )
     # equal up to float32 rounding (vectorised and scalar loop tails may contract to FMA
     # differently)
-    assert ang_err_deg(a_crop[1:-1, 1:-1], a_full[dy + 1:-1, dx + 1:-1]).max() < 1e-5
-    np.testing.assert_allclose(d_crop[1:-1, 1:-1], d_full[dy + 1:-1, dx + 1:-1], rtol=1e-6)
+    assert ang_err_deg(a_crop[1:-1, 1:-1], a_full[dy + 1 : -1, dx + 1 : -1]).max() < 1e-5
+    np.testing.assert_allclose(d_crop[1:-1, 1:-1], d_full[dy + 1 : -1, dx + 1 : -1], rtol=1e-6)
 
 
 @pytest.mark.parametrize(

@@ -299,7 +299,7 @@ def test_superpixel_block_gather_matches_indexing(dtype, shape, k):
     want = np.empty((2 * rows.size, 2 * cols.size), dtype)
     for a, r in enumerate(rows):
         for b, c in enumerate(cols):
-            want[2 * a:2 * a + 2, 2 * b:2 * b + 2] = m[2 * r:2 * r + 2, 2 * c:2 * c + 2]
+            want[2 * a : 2 * a + 2, 2 * b : 2 * b + 2] = m[2 * r : 2 * r + 2, 2 * c : 2 * c + 2]
     assert got.dtype == m.dtype and got.flags.c_contiguous
     assert np.array_equal(got, want)
 

@@ -35,9 +35,7 @@ from test_estimators import _gauss_aop_noise, heading_error
 SCENE = Scene()
 
 
-def _z2(
-    name, n_trials, noise, seed, selection, scene=SCENE, tilt=True, sigma_of=None, **knobs
-):
+def _z2(name, n_trials, noise, seed, selection, scene=SCENE, tilt=True, sigma_of=None, **knobs):
     rng = np.random.default_rng(seed)
     est = make_estimator(name, **knobs)
     r = Renderer(scene, pixels=selection)

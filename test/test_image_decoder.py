@@ -107,7 +107,7 @@ def _rclpy_image(a: np.ndarray, big: bool, pad: int):
     enc = {np.dtype(np.uint8): 'mono8', np.dtype(np.uint16): 'mono16'}.get(a.dtype, '32FC1')
     row = a.shape[1] * a.itemsize
     raw = a.astype(a.dtype.newbyteorder('>' if big else '<')).tobytes()
-    data = b''.join(raw[r * row:(r + 1) * row] + b'\xee' * pad for r in range(a.shape[0]))
+    data = b''.join(raw[r * row : (r + 1) * row] + b'\xee' * pad for r in range(a.shape[0]))
     return Image(
         height=a.shape[0],
         width=a.shape[1],

@@ -40,7 +40,7 @@ def quoted_nodes(path: Path) -> list[str]:
     while i < len(lines) and lines[i].strip():  # the rest of the heading paragraph
         i += 1
     out = []
-    for line in lines[i + 1:]:
+    for line in lines[i + 1 :]:
         if not line.startswith('    '):
             break
         out.append(' '.join(line.split()))

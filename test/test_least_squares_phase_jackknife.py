@@ -92,8 +92,10 @@ def test_phase_jackknife_equals_brute_force_leave_one_phase_out(name, stride):
 
     cr = res.extras['sigma_cluster_deg']
     out = cr
-    for key, g in (('sigma_jackknife_deg', 'jackknife_groups'), ('sigma_phase_jackknife_deg',
-                                                                 'phase_jackknife_groups')):
+    for key, g in (
+        ('sigma_jackknife_deg', 'jackknife_groups'),
+        ('sigma_phase_jackknife_deg', 'phase_jackknife_groups'),
+    ):
         G = res.extras[g]
         q = chi2.ppf(0.95, G - 1) / (G - 1)
         s = res.extras[key]

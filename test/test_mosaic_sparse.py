@@ -257,9 +257,7 @@ def _compare_zenith(m, cam, sun_az, sun_alt, knobs, method='superpixel', **obs_k
     sat = 4095.0 if m.dtype == np.uint16 else None  # 12-bit data; float: no saturation
     ulp = 4 * (method == 'bilinear' and m.dtype.kind == 'f')  # see _assert_same_pixels
     for wi in (False, True):
-        dense = _dense(
-            m, cam, method, with_intensity=wi, sat=sat, sun=(sun_az, sun_alt), **obs_kw
-        )
+        dense = _dense(m, cam, method, with_intensity=wi, sat=sat, sun=(sun_az, sun_alt), **obs_kw)
         sparse = observation_from_mosaic(
             m,
             cam,

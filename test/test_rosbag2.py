@@ -63,18 +63,23 @@ def _skip_reason() -> str | None:
         import launch_ros  # noqa: F401
         import ros2cli  # noqa: F401
     except ImportError:
-        return ('the ROS 2 launch packages and the ros2 command are not installed (here: '
-                '../shared/ros-launch/install.sh .venv)')
+        return (
+            'the ROS 2 launch packages and the ros2 command are not installed (here: '
+            '../shared/ros-launch/install.sh .venv)'
+        )
     if shutil.which('ros2', path=f'{BIN}:{os.environ.get("PATH", "")}') is None:
         return 'no ros2 command'
     try:
         import ros2bag  # noqa: F401
+
         return None
     except ImportError:
         pass
     if not ROS_CPP_SETUP.is_file():
-        return ('rosbag2 (ros2 bag) is not installed: no ros2bag module and no '
-                f'{ROS_CPP_SETUP} (here: ../shared/ros-cpp/install.sh .venv)')
+        return (
+            'rosbag2 (ros2 bag) is not installed: no ros2bag module and no '
+            f'{ROS_CPP_SETUP} (here: ../shared/ros-cpp/install.sh .venv)'
+        )
     return None
 
 
@@ -95,7 +100,10 @@ PLAYER_RATE = 0.5  # the player's --rate: a loaded 2-core machine keeps up at ha
 
 def _sourced_env(script: Path, env: dict) -> dict:
     dump = subprocess.run(
-        ['bash', '-c', f'source {script} && env -0'], env=env, capture_output=True, timeout=60,
+        ['bash', '-c', f'source {script} && env -0'],
+        env=env,
+        capture_output=True,
+        timeout=60,
         check=True,
     ).stdout.decode()
     return dict(kv.split('=', 1) for kv in dump.split('\0') if '=' in kv)
@@ -113,10 +121,23 @@ def ws(tmp_path_factory):
         env = _sourced_env(ROS_CPP_SETUP, env)
     colcon = shutil.which('colcon', path=str(BIN)) or shutil.which('colcon')
     r = subprocess.run(
-        [colcon, 'build', '--packages-select', 'polarization_compass', '--build-base',
-         str(ws / 'build'), '--install-base', str(ws / 'install'), '--event-handlers',
-         'console_direct-'],
-        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300,
+        [
+            colcon,
+            'build',
+            '--packages-select',
+            'polarization_compass',
+            '--build-base',
+            str(ws / 'build'),
+            '--install-base',
+            str(ws / 'install'),
+            '--event-handlers',
+            'console_direct-',
+        ],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     env = _sourced_env(ws / 'install' / 'setup.bash', env)
@@ -131,8 +152,9 @@ def ws(tmp_path_factory):
     share = ws / 'install' / 'polarization_compass' / 'share' / 'polarization_compass'
     # every process of these tests on the shared-memory profile (the launch sets it for its own)
     env['FASTDDS_DEFAULT_PROFILES_FILE'] = str(share / 'config' / 'fastdds_large_images.xml')
-    r = subprocess.run(['ros2', 'bag', 'info', '--help'], env=env, capture_output=True, text=True,
-                       timeout=60)
+    r = subprocess.run(
+        ['ros2', 'bag', 'info', '--help'], env=env, capture_output=True, text=True, timeout=60
+    )
     assert r.returncode == 0, r.stderr
     return {'env': env, 'share': share, 'dir': ws}
 
@@ -143,8 +165,11 @@ def _record_small(d: Path, imu_rate_hz: float = 50.0):
     from polarization_compass.scene import load_scene
 
     camera = CameraModel(
-        width_px=WIDTH_PX, height_px=HEIGHT_PX, focal_length_mm=4.0,
-        pixel_pitch_x_um=2448 * 3.45 / WIDTH_PX, pixel_pitch_y_um=2048 * 3.45 / HEIGHT_PX,
+        width_px=WIDTH_PX,
+        height_px=HEIGHT_PX,
+        focal_length_mm=4.0,
+        pixel_pitch_x_um=2448 * 3.45 / WIDTH_PX,
+        pixel_pitch_y_um=2048 * 3.45 / HEIGHT_PX,
     )
     scene = load_scene(None).replace(camera=camera)
     spec = RecordSpec(duration_s=DURATION_S, rate_hz=RATE_HZ, turns=0.25, imu_rate_hz=imu_rate_hz)
@@ -172,21 +197,28 @@ def _bag_counts(path: Path) -> dict:
 
 def test_record_sim_bag_passes_ros2_bag_info(ws, small_bag):
     path, info = small_bag
-    r = subprocess.run(['ros2', 'bag', 'info', str(path)], env=ws['env'], capture_output=True,
-                       text=True, timeout=120)
+    r = subprocess.run(
+        ['ros2', 'bag', 'info', str(path)],
+        env=ws['env'],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     assert re.search(r'Storage id:\s+mcap', r.stdout), r.stdout
     shown = {
         m['topic']: (m['type'], int(m['count']))
         for m in re.finditer(
-            r'Topic: (?P<topic>\S+) \| Type: (?P<type>\S+) \| Count: (?P<count>\d+)', r.stdout)
+            r'Topic: (?P<topic>\S+) \| Type: (?P<type>\S+) \| Count: (?P<count>\d+)', r.stdout
+        )
     }
     assert shown == _bag_counts(path)
     n_images = round(DURATION_S * RATE_HZ)
     assert shown['/camera/image_raw'] == ('sensor_msgs/msg/Image', n_images)
     assert shown['/ground_truth/heading'] == ('sensor_msgs/msg/Imu', n_images)
     assert int(re.search(r'Messages:\s+(\d+)', r.stdout).group(1)) == sum(
-        n for _, n in shown.values())
+        n for _, n in shown.values()
+    )
 
 
 def _offline(bag: Path):
@@ -207,7 +239,10 @@ def _run_launch(ws, tmp_path, *args, timeout=420):
     with open(log, 'w') as f:
         p = subprocess.Popen(
             ['ros2', 'launch', 'polarization_compass', 'replay.launch.py', *args],
-            env=ws['env'], stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
+            env=ws['env'],
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
         )
     try:
         rc = p.wait(timeout=timeout)
@@ -220,8 +255,10 @@ def _run_launch(ws, tmp_path, *args, timeout=420):
 
 def _live_errors(report: Path) -> dict:
     with open(report / 'evaluation_samples.csv') as f:
-        return {(row['stream'], _ns(row['stamp_s'])): float(row['error_deg'])
-                for row in csv.DictReader(f)}
+        return {
+            (row['stream'], _ns(row['stamp_s'])): float(row['error_deg'])
+            for row in csv.DictReader(f)
+        }
 
 
 def _offline_errors(offline) -> dict:
@@ -235,7 +272,8 @@ def _offline_errors(offline) -> dict:
 
 
 def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
-        ws, small_bag, tmp_path):
+    ws, small_bag, tmp_path
+):
     bag, info = small_bag
     offline = _offline(bag)
     want = _offline_errors(offline)
@@ -245,8 +283,14 @@ def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
         assert sum(1 for s, _ in want if s == stream) >= n_images - 3, stream
     report = tmp_path / 'report'
     rc, text = _run_launch(
-        ws, tmp_path, f'bag:={bag}', 'methods:=least_squares', 'tilt_aware:=true',
-        f'report_dir:={report}', f'rate:={PLAYER_RATE}', 'drain_s:=3.0',
+        ws,
+        tmp_path,
+        f'bag:={bag}',
+        'methods:=least_squares',
+        'tilt_aware:=true',
+        f'report_dir:={report}',
+        f'rate:={PLAYER_RATE}',
+        'drain_s:=3.0',
     )
     _check_live_run(rc, text, report, want, n_images)
 
@@ -313,7 +357,8 @@ rclpy.shutdown()
 
 
 def test_a_paused_and_resumed_player_with_a_100_hz_imu_scores_like_the_offline_replay(
-        ws, tmp_path):
+    ws, tmp_path
+):
     """Camera at 10 Hz, IMU at 100 Hz, the player at 1x paused for 3 s mid-bag, then resumed."""
     bag, _ = _record_small(tmp_path, imu_rate_hz=100.0)
     assert _bag_counts(bag)['/imu/data'][1] > 90 * DURATION_S  # twice the default 50 Hz
@@ -322,22 +367,38 @@ def test_a_paused_and_resumed_player_with_a_100_hz_imu_scores_like_the_offline_r
     log = tmp_path / 'launch.log'
     with open(log, 'w') as f:
         p = subprocess.Popen(
-            ['ros2', 'launch', 'polarization_compass', 'replay.launch.py', f'bag:={bag}',
-             'methods:=least_squares', 'tilt_aware:=true', f'report_dir:={report}', 'rate:=1.0',
-             'drain_s:=3.0'],
-            env=ws['env'], stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
+            [
+                'ros2',
+                'launch',
+                'polarization_compass',
+                'replay.launch.py',
+                f'bag:={bag}',
+                'methods:=least_squares',
+                'tilt_aware:=true',
+                f'report_dir:={report}',
+                'rate:=1.0',
+                'drain_s:=3.0',
+            ],
+            env=ws['env'],
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
         )
     try:
-        r = subprocess.run([sys.executable, '-c', PAUSE_SCRIPT, '3.0'], env=ws['env'],
-                           capture_output=True, text=True, timeout=420)
+        r = subprocess.run(
+            [sys.executable, '-c', PAUSE_SCRIPT, '3.0'],
+            env=ws['env'],
+            capture_output=True,
+            text=True,
+            timeout=420,
+        )
         assert r.returncode == 0 and 'paused: True' in r.stdout, r.stdout + r.stderr
         rc = p.wait(timeout=300)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
             p.wait()
-    _check_live_run(rc, log.read_text(errors='replace'), report, want,
-                    round(DURATION_S * RATE_HZ))
+    _check_live_run(rc, log.read_text(errors='replace'), report, want, round(DURATION_S * RATE_HZ))
 
 
 def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws, tmp_path):
@@ -353,20 +414,47 @@ def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws
     out = tmp_path / 'rec'
     rec_log = open(tmp_path / 'record.log', 'w')
     recorder = subprocess.Popen(
-        ['ros2', 'bag', 'record', '-s', 'mcap', '-o', str(out), '--topics', '/camera/image_raw',
-         '/camera/camera_info', '/imu/data', '/ground_truth/heading', '/gps/fix'],
-        env=env, stdout=rec_log, stderr=subprocess.STDOUT, start_new_session=True,
+        [
+            'ros2',
+            'bag',
+            'record',
+            '-s',
+            'mcap',
+            '-o',
+            str(out),
+            '--topics',
+            '/camera/image_raw',
+            '/camera/camera_info',
+            '/imu/data',
+            '/ground_truth/heading',
+            '/gps/fix',
+        ],
+        env=env,
+        stdout=rec_log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
     )
     report = tmp_path / 'report'
     log = tmp_path / 'launch.log'
     try:
         with open(log, 'w') as f:
             sim = subprocess.run(
-                ['ros2', 'launch', 'polarization_compass', 'sim.launch.py',
-                 f'scene:={ROOT / "config" / "scenes" / "budget_small.yaml"}', 'turns:=0.05',
-                 'turn_rate_deg_s:=10.0', 'methods:=least_squares', 'tilt_aware:=false',
-                 f'report_dir:={report}'],
-                env=env, stdout=f, stderr=subprocess.STDOUT, timeout=420,
+                [
+                    'ros2',
+                    'launch',
+                    'polarization_compass',
+                    'sim.launch.py',
+                    f'scene:={ROOT / "config" / "scenes" / "budget_small.yaml"}',
+                    'turns:=0.05',
+                    'turn_rate_deg_s:=10.0',
+                    'methods:=least_squares',
+                    'tilt_aware:=false',
+                    f'report_dir:={report}',
+                ],
+                env=env,
+                stdout=f,
+                stderr=subprocess.STDOUT,
+                timeout=420,
             )
         assert sim.returncode == 0, log.read_text(errors='replace')[-3000:]
     finally:
@@ -385,8 +473,9 @@ def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws
     n_images = counts['/camera/image_raw'][1]
     assert counts['/camera/image_raw'][0] == 'sensor_msgs/msg/Image'
     assert n_images >= frames - 2, counts  # the recorder subscribes once it sees the publishers
-    offline = replay_bag(out, ReplayConfig(methods=('least_squares',),
-                                           error_map=default_error_map()))
+    offline = replay_bag(
+        out, ReplayConfig(methods=('least_squares',), error_map=default_error_map())
+    )
     want = _offline_errors(offline)
     assert len(want) == 2 * n_images  # every recorded image scored, raw and corrected
     assert set(want) <= set(sim_errors)

@@ -540,7 +540,7 @@ def test_each_effect_runs_its_kernel_only_when_declared(effect, kernels):
             if not has_effect
             else kernels.calls == expect_kernels
         )
-        assert {k[len('sensor.kernel.'):] for k in c if k.startswith('sensor.kernel.')} == set(
+        assert {k[len('sensor.kernel.') :] for k in c if k.startswith('sensor.kernel.')} == set(
             kernels.calls
         )
         key = int(np.random.default_rng(9).integers(0, 2**63, dtype=np.int64))

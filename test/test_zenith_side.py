@@ -45,7 +45,7 @@ def test_real_sunny_frame_side_from_the_whole_sky_not_the_flared_window(tmp_path
     # the premise: the zenith window is brighter AWAY from the visible sun (flare ghosts)
     cx, cy = R.CENTRE_PX
     (sx, sy), ref_sigma = R.FRAMES['sunny']
-    ys, xs = np.mgrid[0:i.shape[0], 0:i.shape[1]]
+    ys, xs = np.mgrid[0 : i.shape[0], 0 : i.shape[1]]
     win = (np.abs(xs - cx) <= 16) & (np.abs(ys - cy) <= 16)
     toward = (xs - cx) * (sx - cx) + (ys - cy) * (sy - cy) > 0
     assert i[win & ~toward].mean() > i[win & toward].mean() + 0.01

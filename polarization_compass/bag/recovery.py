@@ -137,7 +137,7 @@ class _PrefixWithTail:
         rest = k - len(out)
         if rest > 0:
             start = self._pos + len(out) - self._n
-            out += self._tail[start:start + rest]
+            out += self._tail[start : start + rest]
         self._pos += len(out)
         return out
 

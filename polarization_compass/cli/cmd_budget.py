@@ -167,9 +167,7 @@ def run(args) -> int:
             if st['sigma_band'] == 'overconfident'
         ]
         if bad:
-            print(
-                f'sigma too small (mean err^2/sigma^2 > {hi:g}) on "{cond}": ' + ', '.join(bad)
-            )
+            print(f'sigma too small (mean err^2/sigma^2 > {hi:g}) on "{cond}": ' + ', '.join(bad))
     corr = result['correction']
     if corr['methods']:
         same = corr['map_camera_is_scene_camera']

@@ -285,9 +285,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
             step,
             rss,
         )
-        return [
-            float(min(rss[2 * i], rss[2 * i + 1]) / max(rss[m], 1.0)) for i in range(m // 2)
-        ]
+        return [float(min(rss[2 * i], rss[2 * i + 1]) / max(rss[m], 1.0)) for i in range(m // 2)]
 
     def _solve_mirror(self, obs, view, data, rho_lo, rho_max, plain: AxisFit, extras: dict):
         """
@@ -571,8 +569,7 @@ class DiscEstimator(KnobbedEstimator, Estimator):
         ``MIRROR_RESIDUAL_SLACK_DEG``. Returns the failed result, or None when the axis passes.
         """
         limit = (
-            MAX_MIRROR_RESIDUAL_RATIO
-            * math.degrees(math.sqrt(ms_plain))
+            MAX_MIRROR_RESIDUAL_RATIO * math.degrees(math.sqrt(ms_plain))
             + MIRROR_RESIDUAL_SLACK_DEG
         )
         if rms_deg > limit:

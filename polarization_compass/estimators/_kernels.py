@@ -323,12 +323,12 @@ def _m_pass_grid(
             a7 = acc[7]
             # row slices, indexed by the loop counter: with a computed index (base + j) numba's
             # negative-index wrap-around made LLVM load every lane separately
-            ar = aop[base:base + nx]
-            pr = dop[base:base + nx]
-            vr = valid[base:base + nx]
-            xr = rays[0, base:base + nx]
-            yr = rays[1, base:base + nx]
-            zr = rays[2, base:base + nx]
+            ar = aop[base : base + nx]
+            pr = dop[base : base + nx]
+            vr = valid[base : base + nx]
+            xr = rays[0, base : base + nx]
+            yr = rays[1, base : base + nx]
+            zr = rays[2, base : base + nx]
             for j in range(nx):
                 v_in = vr[j]
                 w, ex, ey, ez, use, fin = _lift_pixel(

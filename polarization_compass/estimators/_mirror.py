@@ -265,7 +265,7 @@ def mirror_map(view, camera: CameraModel, rho_max: float, min_dop: float = 0.0) 
         )
     pad = (S.shape[0] - ny) // 2
     Q = np.zeros(S.shape)
-    Q[pad:pad + ny, pad:pad + nx] = dgrid
+    Q[pad : pad + ny, pad : pad + nx] = dgrid
     Q *= Sw
     return MirrorMap(S, Q, params, (float(x0), float(dx), float(y0), float(dy)), camera)
 
@@ -300,7 +300,7 @@ def _smooth_usability(
     full = _outside_disc(
         camera, x0 - pad * dx, dx, nx + 2 * pad, y0 - pad * dy, dy, ny + 2 * pad, float(rho_max)
     ).copy()
-    full[pad:pad + ny, pad:pad + nx] = usable
+    full[pad : pad + ny, pad : pad + nx] = usable
     import cv2
 
     cell = math.sqrt(dx * px * dy * py)

@@ -69,9 +69,7 @@ def _band_sums(
 
 
 @njit(cache=True, nogil=True)
-def band_pass1(
-    view, inten, has_i, ring, inv4tol2, out, cnt, stats
-):  # pragma: no cover - compiled
+def band_pass1(view, inten, has_i, ring, inv4tol2, out, cnt, stats):  # pragma: no cover - compiled
     """
     Run the SM-ASM first pass: the weighted sum Z of the pixels' z^2 and the counts.
 
@@ -206,9 +204,7 @@ def _band_terms(
 
 
 @njit(cache=True, nogil=True)
-def band_terms2(
-    view, ring, inv4tol2, mirror, Z, suns, t0, t1, rss
-):  # pragma: no cover - compiled
+def band_terms2(view, ring, inv4tol2, mirror, Z, suns, t0, t1, rss):  # pragma: no cover - compiled
     """
     Compute the per-pixel terms of the SM-ASM influence pass (before the block sums).
 

@@ -263,7 +263,7 @@ def _balanced_view(obs: Observation, rows: np.ndarray, cols: np.ndarray) -> Pixe
         off = 0
         for rr, cc in parts:
             n = rr.size * cc.size
-            dst = np.reshape(out[..., off:off + n], lead + (rr.size, cc.size), copy=False)
+            dst = np.reshape(out[..., off : off + n], lead + (rr.size, cc.size), copy=False)
             dst[...] = src[..., _slice_of(rr), _slice_of(cc)]
             off += n
         return out

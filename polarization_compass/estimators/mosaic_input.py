@@ -445,7 +445,7 @@ def _bilinear_planes(m, x0, y0, rect, lay, how):
     cy0 = max(y0, yl - margin)
     cx1 = min(x0 + W - 1, xh + margin)
     cy1 = min(y0 + H - 1, yh + margin)
-    sub = m[cy0 - y0:cy1 - y0 + 1, cx0 - x0:cx1 - x0 + 1]
+    sub = m[cy0 - y0 : cy1 - y0 + 1, cx0 - x0 : cx1 - x0 + 1]
     lay_sub = lay.shifted((cy0 - y0) % 2, (cx0 - x0) % 2)
     aop, dop, valid, inten = _demosaic(sub, lay_sub, *how)
     ys = np.arange(cy0, cy1 + 1)

@@ -322,9 +322,7 @@ class TiltCorrectorNode(Node):
                     c.psi_deg, alt, tilt.pitch_deg, tilt.roll_deg, s_tilt, s_tilt
                 )
                 s_att = float(sa[0]) if sa_ok[0] else 0.0
-            out_var = (
-                var + math.radians(p['correction_sigma_deg']) ** 2 + math.radians(s_att) ** 2
-            )
+            out_var = var + math.radians(p['correction_sigma_deg']) ** 2 + math.radians(s_att) ** 2
             st.update(
                 map_error_deg=c.error_deg,
                 attitude_sigma_deg=s_tilt,
