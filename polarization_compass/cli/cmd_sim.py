@@ -26,6 +26,14 @@ profile for full-resolution images (config/fastdds_large_images.xml) unless the 
 another profile. By default the simulator runs in lockstep (it waits for every estimator before the
 next frame), so every frame is processed however loaded the machine is; ``--realtime`` runs at the
 camera rate and reports dropped frames and latency instead (the speed benchmark).
+
+``--ekf`` runs the ``fusion`` graph instead (what ``ros2 launch polarization_compass
+fusion.launch.py`` starts): the sim graph plus robot_localization's ``ekf_node`` configured from
+``config/ekf_heading_example.yaml``, fusing the simulated wheel odometry and the heading(s) named
+by ``--fuse``; the table then has a ``fused`` row per filter (``odometry fused``: the odometry
+alone). ``ekf_node`` is found through the ament index (a sourced ROS install, or ``source
+.venv/opt/ros-cpp/setup.bash`` after ``../shared/ros-cpp/install.sh .venv``); without it the
+command says what to install and exits 2 before starting anything.
 """
 
 from __future__ import annotations
@@ -53,9 +61,10 @@ def register(sub):
 
     p.add_argument(
         '--methods',
-        default=','.join(registry.paper_methods()),
+        default=None,
         help='paper methods, comma separated (each gets an estimator and a corrector); '
-        'unavailable ones are skipped with a note',
+        'unavailable ones are skipped with a note (default: '
+        f'{",".join(registry.paper_methods())}; with --ekf least_squares)',
     )
     p.add_argument(
         '--no-tilt-aware',
@@ -92,7 +101,22 @@ def register(sub):
         help='error map for the correctors (default: the shipped map, else OUT/error_map.npz, '
         'built for this scenario when missing)',
     )
-    p.add_argument('--out', default='out/sim', help='report directory (default out/sim)')
+    p.add_argument(
+        '--ekf',
+        action='store_true',
+        help="run the fusion graph: also robot_localization's ekf_node (config/"
+        'ekf_heading_example.yaml) fusing the simulated wheel odometry and the --fuse heading(s); '
+        'needs ekf_node (ament index)',
+    )
+    p.add_argument(
+        '--fuse',
+        default='least_squares',
+        help="with --ekf: headings fused, one ekf_node each, comma separated ('none': the "
+        'odometry alone; default least_squares)',
+    )
+    p.add_argument(
+        '--out', default=None, help='report directory (default out/sim; with --ekf out/fusion)'
+    )
     p.add_argument(
         '--timeout', type=float, default=1800.0, help='give up after this many wall seconds'
     )
@@ -198,10 +222,84 @@ def ensure_error_map(
         )
 
 
+#: What --ekf needs and where it comes from (the one-line error of a missing ekf_node).
+EKF_MISSING = (
+    "--ekf needs robot_localization's ekf_node, which the ament index does not find: here run "
+    '../shared/ros-cpp/install.sh .venv and source .venv/opt/ros-cpp/setup.bash; on a robot apt '
+    'install ros-<distro>-robot-localization and source /opt/ros/<distro>/setup.bash'
+)
+
+#: The sim options the fusion graph does not take, with their defaults (refused with --ekf).
+_NOT_WITH_EKF = (
+    ('encoding', '--encoding', 'mono16'),
+    ('rate', '--rate', 10.0),
+    ('time_scale', '--time-scale', 1.0),
+    ('scene', '--scene', ''),
+    ('realtime', '--realtime', False),
+    ('array_geometry', '--array-geometry', ''),
+)
+
+
+def foreign_executable(package: str, executable: str) -> Path | None:
+    """
+    Return another ROS package's node executable, found through the ament index, or None.
+
+    Parameters
+    ----------
+    package : str
+        ROS package (e.g. ``"robot_localization"``).
+    executable : str
+        Executable in the package's ``lib/<package>`` (e.g. ``"ekf_node"``).
+
+    Returns
+    -------
+    pathlib.Path or None
+        The executable, or None when the package or the file is not there (nothing sourced).
+
+    """
+    try:
+        from ament_index_python.packages import get_package_prefix, PackageNotFoundError
+    except ImportError:
+        return None
+    try:
+        prefix = get_package_prefix(package)
+    except (PackageNotFoundError, LookupError, ValueError):
+        return None
+    exe = Path(prefix) / 'lib' / package / executable
+    return exe if exe.is_file() and os.access(exe, os.X_OK) else None
+
+
+def _node_command(n) -> list[str]:
+    """Return the argv prefix of graph node ``n`` (this package's scripts, or the ament index)."""
+    from .. import graphs
+
+    if n.package == graphs.PACKAGE:
+        return graphs.node_command(n.executable)
+    exe = foreign_executable(n.package, n.executable)
+    if exe is None:
+        raise CompassError(f'{n.package} {n.executable} is not found through the ament index')
+    return [str(exe)]
+
+
 # ------------------------------------------------------------------------------------------------
 def run(args) -> int:
     from .. import graphs
+    from ..estimators import registry
     from ..specs.params import PAPER_METHODS, TILT_METHODS
+
+    if args.ekf:
+        given = [flag for attr, flag, d in _NOT_WITH_EKF if getattr(args, attr) != d]
+        if given:
+            raise CompassError(
+                f'--ekf runs the fusion graph, which does not take {", ".join(given)} '
+                '(fusion.launch.py has no such arguments)'
+            )
+        if foreign_executable('robot_localization', 'ekf_node') is None:
+            raise CompassError(EKF_MISSING)  # before anything is built or started
+    if args.methods is None:
+        args.methods = 'least_squares' if args.ekf else ','.join(registry.paper_methods())
+    if args.out is None:
+        args.out = 'out/fusion' if args.ekf else 'out/sim'
 
     for name, v in (('rate', args.rate), ('turns', args.turns), ('time-scale', args.time_scale)):
         if not (math.isfinite(v) and v > 0):
@@ -274,7 +372,32 @@ def run(args) -> int:
         )
         if map_path != default_map_path():
             ensure_error_map(map_path, methods, args.pitch, args.roll, alts, env)
-    graph = graphs.build(
+    if args.ekf:
+        graph = graphs.build(
+            'fusion',
+            {
+                'methods': ','.join(methods),
+                'tilt_aware': str(tilt_aware).lower(),
+                'fuse': args.fuse,
+                'turns': repr(float(args.turns)),
+                'turn_rate_deg_s': repr(float(args.turn_rate)),
+                'pitch_deg': repr(float(args.pitch)),
+                'roll_deg': repr(float(args.roll)),
+                'exit_when_done': 'true',
+                'error_map': str(map_path),
+                'report_dir': str(out),
+            },
+        )
+    else:
+        graph = _sim_graph(graphs, args, methods, tilt_aware, map_path, out)
+    problems = graph.check()
+    if problems:
+        raise CompassError('inconsistent graph: ' + '; '.join(problems))
+    return _run_graph(graph, out, env, args)
+
+
+def _sim_graph(graphs, args, methods, tilt_aware, map_path, out):
+    return graphs.build(
         'sim',
         {
             'methods': ','.join(methods),
@@ -294,10 +417,6 @@ def run(args) -> int:
             'array_geometry': args.array_geometry,
         },
     )
-    problems = graph.check()
-    if problems:
-        raise CompassError('inconsistent graph: ' + '; '.join(problems))
-    return _run_graph(graph, out, env, args)
 
 
 def _sigterm_as_interrupt(signum, frame):
@@ -316,8 +435,6 @@ def _run_graph(graph, out: Path, env: dict, args) -> int:
 
 
 def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
-    from .. import graphs
-
     share = share_dir()
     logs = out / 'logs'
     logs.mkdir(parents=True, exist_ok=True)
@@ -336,7 +453,7 @@ def _run_graph_inner(graph, out: Path, env: dict, args, share_dir) -> int:
         for n in order:
             f = open(logs / f'{n.name}.log', 'w')
             files.append(f)
-            cmd = graphs.node_command(n.executable) + n.ros_arguments(share)
+            cmd = _node_command(n) + n.ros_arguments(share)
             procs[n.name] = subprocess.Popen(
                 cmd, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=os.getcwd()
             )
@@ -458,18 +575,25 @@ def format_table(summary: dict, realtime: bool = False) -> str:
         f'{"max":>8} {"lat p95 ms":>10}'
     )
     lines = [f'heading error = estimated - true bearing (deg), {n} frames', head, '-' * len(head)]
+    if any(k.endswith('/fused') for k in streams):
+        lines[0] += (
+            "; fused = robot_localization's filtered yaw at the truth stamps "
+            '(odometry fused: the wheel odometry alone)'
+        )
     for m in methods:
-        for kind in ('raw', 'corrected'):
+        for kind in ('raw', 'corrected', 'fused'):
             d = streams.get(f'{m}/{kind}')
             if d is None:
                 continue
             label = (
-                'tilt-aware' if m in registry.tilt_methods() else kind
+                'tilt-aware' if kind == 'raw' and m in registry.tilt_methods() else kind
             )  # its raw heading is final
+            # a filter's yaw is sampled at the truth stamps: no arrival latency of its own
+            lat = '-' if kind == 'fused' else f'{d.get("latency_ms_p95", 0.0):.1f}'
             lines.append(
                 f'{m:<14} {label:<10} {d["count"]:>7d} {d["missed"]:>6d} {d["mean"]:>8.3f} '
                 f'{d["rms"]:>8.3f} '
-                f'{d["p95"]:>8.3f} {d["max"]:>8.3f} {d.get("latency_ms_p95", 0.0):>10.1f}'
+                f'{d["p95"]:>8.3f} {d["max"]:>8.3f} {lat:>10}'
             )
     nodes = summary.get('nodes', {})
     if nodes:
