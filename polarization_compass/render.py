@@ -40,7 +40,6 @@ that runs is counted in :mod:`polarization_compass.instrumentation` (tests use t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import json
 import math
 
 import numpy as np
@@ -118,19 +117,6 @@ class Frame:
     def psi_deg(self) -> float:
         """Return the paper's yaw psi of this frame (truth), (-180, 180]."""
         return float(bearing_to_psi_deg(self.attitude.bearing_deg, self.sun.azimuth_deg))
-
-    def meta_json(self) -> str:
-        """
-        Return the frame's metadata as JSON text with sorted keys.
-
-        Returns
-        -------
-        str
-            ``json.dumps(self.meta, sort_keys=True)``: the scene, sun, attitude and stage
-            parameters :meth:`Renderer.render` recorded.
-
-        """
-        return json.dumps(self.meta, sort_keys=True)
 
 
 class Renderer:
