@@ -1190,6 +1190,28 @@ def fusion_graph(
         error_map=error_map,
         report_dir=report_dir,
     )
+    fuse, correctors = _fused_methods(sim, fuse)
+    base = _ekf_base_parameters()
+    ekfs, scored = _ekf_nodes(fuse, correctors, base)
+    nodes = _fusion_sim_nodes(sim, scored, odom_yaw_rate_bias_deg_s, odom_yaw_rate_noise_deg_s)
+    nodes += ekfs
+    nodes[0] = dataclasses.replace(
+        nodes[0], parameters={**nodes[0].parameters, 'wait_for_downstream': _downstream(nodes)}
+    )
+    return Graph(
+        'fusion',
+        "the sim graph plus robot_localization's ekf_node fusing wheel odometry and the heading",
+        tuple(nodes),
+        shutdown_with=sim.shutdown_with,
+    )
+
+
+def _fused_methods(sim: Graph, fuse) -> tuple[tuple, set]:
+    """
+    Check the fused methods against the sim graph: (fuse without repeats, corrected methods).
+
+    Raises GraphError when there is nothing to fuse or a fused method does not run.
+    """
     fuse = tuple(dict.fromkeys(fuse))
     if not fuse:
         raise GraphError('the fusion graph needs at least one heading to fuse (or none)')
@@ -1200,11 +1222,26 @@ def fusion_graph(
         raise GraphError(
             f'fuse names {missing}, which the graph does not run (methods, tilt_aware)'
         )
+    return fuse, correctors
+
+
+def _ekf_base_parameters() -> dict:
+    """Read :data:`EKF_NODE`'s parameters from :data:`EKF_CONFIG` (GraphError when unreadable)."""
     path = share_dir() / EKF_CONFIG
     try:
         base = yaml.safe_load(path.read_text())[EKF_NODE]['ros__parameters']
     except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
         raise GraphError(f'cannot read {EKF_NODE} parameters from {path}: {exc}') from None
+    return base
+
+
+def _ekf_nodes(fuse: tuple, correctors: set, base: dict) -> tuple[list, list]:
+    """
+    Build one ``ekf_node`` per fused method and the evaluator's fused streams (``<name>=<topic>``).
+
+    The first (unless ``none``) is :data:`EKF_NODE` with :data:`EKF_CONFIG` and TF; the others
+    carry the file's parameters (not its ``imu0``) and publish no TF.
+    """
     ekfs, scored = [], []
     for i, m in enumerate(fuse):
         topic = (
@@ -1238,6 +1275,18 @@ def fusion_graph(
             )
         )
         scored.append(f'{"odometry" if m == "none" else m}={out}')
+    return ekfs, scored
+
+
+def _fusion_sim_nodes(
+    sim: Graph, scored: list, odom_yaw_rate_bias_deg_s, odom_yaw_rate_noise_deg_s
+) -> list:
+    """
+    Return the sim graph's nodes as the fusion graph runs them.
+
+    The simulator with the odometry's bias and noise and a long wait for its readers; the evaluator
+    scoring the fused streams too.
+    """
     nodes = []
     for n in sim.nodes:
         if n.executable == 'sky_simulator':
@@ -1263,16 +1312,7 @@ def fusion_graph(
                 n, parameters={**n.parameters, 'fused_streams': scored}, subscribes=tuple(subs)
             )
         nodes.append(n)
-    nodes += ekfs
-    nodes[0] = dataclasses.replace(
-        nodes[0], parameters={**nodes[0].parameters, 'wait_for_downstream': _downstream(nodes)}
-    )
-    return Graph(
-        'fusion',
-        "the sim graph plus robot_localization's ekf_node fusing wheel odometry and the heading",
-        tuple(nodes),
-        shutdown_with=sim.shutdown_with,
-    )
+    return nodes
 
 
 # ------------------------------------------------------------------------------------------------

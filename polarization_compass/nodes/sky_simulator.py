@@ -122,9 +122,24 @@ class SkySimulatorNode(Node):
     def __init__(self, **kwargs):
         super().__init__('sky_simulator', **kwargs)
         self.params = ParameterSet(self, SIMULATOR, on_change=self._on_change)
+        self._setup_sky(self._load_scene())
+        self._setup_attitude()
+        # compile (or load) the render and sensor kernels and build the ray cache now, not at frame
+        # 0
+        self._render_frame(self.start_ns, 0, np.eye(3))
+        self.diag = Diagnostics(self, 'sky simulator', stale_after_s=1e9)
+        self._init_counters()
+        self._create_publishers()
+        self._create_subscriptions()
+        self._start_scheduler()
+        self.total_s = self._total_s()
+        self._log_start()
+
+    # configuration ------------------------------------------------------------------------------
+    def _load_scene(self):
+        """Load the scene parameter's scene, with array_geometry's photodiode array when set."""
         p = self.params
-        from ..render import Renderer
-        from ..scene import load_scene, parse_time_utc, SceneError
+        from ..scene import load_scene, SceneError
 
         try:
             scene = load_scene(p['scene'] or None)
@@ -142,6 +157,14 @@ class SkySimulatorNode(Node):
                 )
         except SceneError as exc:
             raise CompassError(str(exc)) from None
+        return scene
+
+    def _setup_sky(self, scene) -> None:
+        """Set up the camera, renderer, sensor, sun, motion and clock of the simulation."""
+        p = self.params
+        from ..render import Renderer
+        from ..scene import parse_time_utc
+
         self.camera = scene.camera
         self.renderer = Renderer(scene.replace(sensor={}), pixels=PixelSelection.full())
         self.sensor_cfg = sensor_config_for_encoding(scene.sensor, p['encoding'])
@@ -149,16 +172,18 @@ class SkySimulatorNode(Node):
         self.profile = self._profile()
         self.sim_mode = p['clock_mode'] == 'sim'
         self.start_ns = ns_from_utc(parse_time_utc(p['start_time_utc']))
-        self.attitude_source = p['attitude_source']
+
+    def _setup_attitude(self) -> None:
+        """Set up the attitude source's state (and the TF listener with attitude_source tf)."""
+        self.attitude_source = self.params['attitude_source']
         self.R_enu_body_input = None  # topic / tf attitude (sample and hold)
         self.R_body_cam = R_BODY_CAM_DEFAULT  # the mounting (from TF with attitude_source tf)
         self._tf = None
         if self.attitude_source == 'tf':
             self._setup_tf()
-        # compile (or load) the render and sensor kernels and build the ray cache now, not at frame
-        # 0
-        self._render_frame(self.start_ns, 0, np.eye(3))
-        self.diag = Diagnostics(self, 'sky simulator', stale_after_s=1e9)
+
+    def _init_counters(self) -> None:
+        """Zero the frame and sample counters of /diagnostics and the render-ahead state."""
         self.frames = 0
         self.frames_skipped = 0
         self.imu_samples = 0
@@ -169,6 +194,9 @@ class SkySimulatorNode(Node):
         self.last_frame_wall = None
         self.frames_ahead = 0
 
+    def _create_publishers(self) -> None:
+        """Create the camera, array, IMU, truth, GPS, odometry, frame and clock publishers."""
+        p = self.params
         img_qos = qos_profile_system_default
         self.pub_image = self.create_publisher(Image, topics.IMAGE, img_qos)
         self.pub_array = (
@@ -200,6 +228,10 @@ class SkySimulatorNode(Node):
             if self.sim_mode
             else None
         )
+
+    def _create_subscriptions(self) -> None:
+        """Subscribe to the attitude input (attitude_source topic) and the lockstep statuses."""
+        p = self.params
         if self.attitude_source == 'topic':
             t = Imu if p['attitude_topic_type'] == 'imu' else QuaternionStamped
             self.create_subscription(
@@ -212,6 +244,10 @@ class SkySimulatorNode(Node):
             self.create_subscription(
                 String, t, lambda m, tt=t: self._on_ack(tt, m), QoSProfile(depth=50)
             )
+
+    def _start_scheduler(self) -> None:
+        """Set up the scheduler's state and timers (sim: one wall-clock tick; system: two)."""
+        p = self.params
         self.waiting_for = None  # (stamp, wall start) while waiting in lockstep
         self.k_frame = 0
         self.k_imu = 0
@@ -231,12 +267,20 @@ class SkySimulatorNode(Node):
             self.t_first_ns = None
             self.create_timer(1.0 / p['rate_hz'], self._frame_system)
             self.create_timer(1.0 / p['imu_rate_hz'], self._imu_system)
-        total = (
+
+    def _total_s(self):
+        """Return the seconds to simulate: the motion's, duration_s, or None (until stopped)."""
+        p = self.params
+        return (
             self.profile.total_s()
             if self.attitude_source == 'motion'
             else (p['duration_s'] or None)
         )
-        self.total_s = total
+
+    def _log_start(self) -> None:
+        """Log what is simulated: encoding, image size, rate, attitude, clock and length."""
+        p = self.params
+        total = self.total_s
         self.get_logger().info(
             f'{p["encoding"]} {self.camera.width_px}x{self.camera.height_px} at {p["rate_hz"]:g} '
             'Hz, '
@@ -244,7 +288,6 @@ class SkySimulatorNode(Node):
             + (f', {total:g} s simulated' if total else ', until stopped')
         )
 
-    # configuration ------------------------------------------------------------------------------
     def _profile(self) -> MotionProfile:
         p = self.params.values
         return MotionProfile(

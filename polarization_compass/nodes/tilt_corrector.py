@@ -260,77 +260,111 @@ class TiltCorrectorNode(Node):
         }
         tilt = self.imu.camera_tilt(t_ns, tol_ns)
         if tilt is None:
-            newest = self.imu.newest_ns
-            why = (
-                ('no_imu', 'no IMU sample received')
-                if newest is None
-                else (
-                    'stale_imu',
-                    f'no IMU sample within {p["imu_tolerance_s"]:g} s of the heading '
-                    f'(nearest newest {abs(t_ns - newest) / 1e9:.3f} s away)',
-                )
-            )
-            self.counts['stale_imu'] += 1
-            st.update(status=why[0], reason=why[1], published=False)
-            self._status(st)
-            self.diag.extra = dict(self.counts)
-            self.diag.done(t_in, t_ns, f'{why[0]}: {why[1]}', ok=False)
+            self._reject_without_tilt(st, t_in, t_ns)
             return
         st.update(pitch_deg=tilt.pitch_deg, roll_deg=tilt.roll_deg, imu_gap_ms=tilt.gap_ns / 1e6)
         out_bearing = bearing
         out_var = var
         if self.corrector is not None:
-            if p['site_source'] == 'navsatfix' and self.site_from_fix is None:
-                self.counts['no_fix'] += 1
-                st.update(
-                    status='no_fix',
-                    reason="no NavSatFix received yet (site_source navsatfix): the sun's "
-                    'position is unknown',
-                    published=False,
-                )
-                self._status(st)
-                self.diag.extra = dict(self.counts)
-                self.diag.done(t_in, t_ns, 'no_fix: no NavSatFix received yet', ok=False)
+            corrected = self._correct(st, t_in, t_ns, bearing, var, tilt)
+            if corrected is None:
                 return
-            try:
-                az, alt = self.sun.at_ns(t_ns)
-            except CompassError as exc:
-                st.update(status='bad_input', reason=str(exc), published=False)
-                self._status(st)
-                self.diag.done(t_in, t_ns, str(exc), ok=False)
-                return
-            corrected, c = self.corrector.correct_bearing(
-                bearing, az, alt, tilt.pitch_deg, tilt.roll_deg
-            )
-            st.update(
-                sun_azimuth_deg=az, sun_altitude_deg=alt, status=c.status.value, reason=c.reason
-            )
-            if not c.ok:
-                self.counts[c.status.value] = self.counts.get(c.status.value, 0) + 1
-                st['published'] = False
-                self._status(st)
-                self.diag.extra = dict(self.counts)
-                self.diag.done(t_in, t_ns, f'{c.status.value}: {c.reason}', ok=False)
-                return
-            out_bearing = corrected
-            s_tilt, known = self.attitude_uncertainty.sigma_deg(
-                float(self.params['attitude_sigma_deg']), self.get_logger()
-            )
-            s_att = 0.0
-            if s_tilt > 0.0:
-                sa, sa_ok = self.corrector.attitude_sigma_deg(
-                    c.psi_deg, alt, tilt.pitch_deg, tilt.roll_deg, s_tilt, s_tilt
-                )
-                s_att = float(sa[0]) if sa_ok[0] else 0.0
-            out_var = var + math.radians(p['correction_sigma_deg']) ** 2 + math.radians(s_att) ** 2
-            st.update(
-                map_error_deg=c.error_deg,
-                attitude_sigma_deg=s_tilt,
-                attitude_covariance='imu' if known else 'unknown',
-                sigma_attitude_deg=s_att,
-            )
+            out_bearing, out_var = corrected
         else:
             st.update(status='ok', reason='pass-through')
+        self._publish_heading(st, t_in, t_ns, frame_id, bearing, out_bearing, out_var, rp_var)
+
+    def _reject_without_tilt(self, st: dict, t_in, t_ns: int) -> None:
+        """Publish and count a heading with no IMU sample near its stamp (none, or all stale)."""
+        p = self.params
+        newest = self.imu.newest_ns
+        why = (
+            ('no_imu', 'no IMU sample received')
+            if newest is None
+            else (
+                'stale_imu',
+                f'no IMU sample within {p["imu_tolerance_s"]:g} s of the heading '
+                f'(nearest newest {abs(t_ns - newest) / 1e9:.3f} s away)',
+            )
+        )
+        self.counts['stale_imu'] += 1
+        st.update(status=why[0], reason=why[1], published=False)
+        self._status(st)
+        self.diag.extra = dict(self.counts)
+        self.diag.done(t_in, t_ns, f'{why[0]}: {why[1]}', ok=False)
+
+    def _sun_at(self, st: dict, t_in, t_ns: int):
+        """Return the sun's (azimuth, altitude) at the stamp, or None (rejection published)."""
+        p = self.params
+        if p['site_source'] == 'navsatfix' and self.site_from_fix is None:
+            self.counts['no_fix'] += 1
+            st.update(
+                status='no_fix',
+                reason="no NavSatFix received yet (site_source navsatfix): the sun's "
+                'position is unknown',
+                published=False,
+            )
+            self._status(st)
+            self.diag.extra = dict(self.counts)
+            self.diag.done(t_in, t_ns, 'no_fix: no NavSatFix received yet', ok=False)
+            return None
+        try:
+            return self.sun.at_ns(t_ns)
+        except CompassError as exc:
+            st.update(status='bad_input', reason=str(exc), published=False)
+            self._status(st)
+            self.diag.done(t_in, t_ns, str(exc), ok=False)
+            return None
+
+    def _correct(self, st: dict, t_in, t_ns: int, bearing: float, var: float, tilt):
+        """
+        Return the error map's corrected bearing and its variance, or None (rejection published).
+
+        The sun's position comes first (no fix, bad input), then the map's correction (out of its
+        domain, no or several solutions).
+        """
+        sun = self._sun_at(st, t_in, t_ns)
+        if sun is None:
+            return None
+        az, alt = sun
+        corrected, c = self.corrector.correct_bearing(
+            bearing, az, alt, tilt.pitch_deg, tilt.roll_deg
+        )
+        st.update(sun_azimuth_deg=az, sun_altitude_deg=alt, status=c.status.value, reason=c.reason)
+        if not c.ok:
+            self.counts[c.status.value] = self.counts.get(c.status.value, 0) + 1
+            st['published'] = False
+            self._status(st)
+            self.diag.extra = dict(self.counts)
+            self.diag.done(t_in, t_ns, f'{c.status.value}: {c.reason}', ok=False)
+            return None
+        return corrected, self._corrected_variance(st, c, alt, tilt, var)
+
+    def _corrected_variance(self, st: dict, c, alt: float, tilt, var: float) -> float:
+        """Return the corrected yaw variance: raw + map (correction_sigma_deg) + attitude."""
+        p = self.params
+        s_tilt, known = self.attitude_uncertainty.sigma_deg(
+            float(self.params['attitude_sigma_deg']), self.get_logger()
+        )
+        s_att = 0.0
+        if s_tilt > 0.0:
+            sa, sa_ok = self.corrector.attitude_sigma_deg(
+                c.psi_deg, alt, tilt.pitch_deg, tilt.roll_deg, s_tilt, s_tilt
+            )
+            s_att = float(sa[0]) if sa_ok[0] else 0.0
+        out_var = var + math.radians(p['correction_sigma_deg']) ** 2 + math.radians(s_att) ** 2
+        st.update(
+            map_error_deg=c.error_deg,
+            attitude_sigma_deg=s_tilt,
+            attitude_covariance='imu' if known else 'unknown',
+            sigma_attitude_deg=s_att,
+        )
+        return out_var
+
+    def _publish_heading(
+        self, st: dict, t_in, t_ns: int, frame_id: str, bearing, out_bearing, out_var, rp_var
+    ) -> None:
+        """Publish the (corrected or passed-through) heading, its bearing and its status."""
         yaw = math.radians(90.0 - out_bearing)
         self.pub_heading.publish(
             heading_imu(
