@@ -54,9 +54,6 @@ The nodes, parameter files and remappings come from polarization_compass.graphs 
 description of each graph); launch and launch_ros are imported only when the launch runs.
 """
 
-import re
-import sys
-
 #: The last line each node logs at start-up (its subscriptions exist, its kernels are compiled):
 #: ``[<node name>]: <text>``. The player is resumed when every node of the graph has logged it.
 READY_LINES = {
@@ -108,6 +105,8 @@ def _positive(name: str, text: str, allow_zero: bool = False) -> float:
 def _player(context):
     """Return the player and the handlers that resume it and end the launch (bag given)."""
     from pathlib import Path
+    import re
+    import sys
 
     from launch.actions import (
         EmitEvent,
