@@ -24,7 +24,9 @@ finishes (exit_when_done).
 
 Lockstep by default (every frame processed: the README table on any machine); lockstep:=false runs
 in real time and measures drops and latency. Every node gets 20 s to stop after SIGINT before
-SIGTERM (graphs.STOP_TIMEOUT_S, see docs/ros.md "Starting and stopping").
+SIGTERM (graphs.STOP_TIMEOUT_S, see docs/ros.md "Starting and stopping"). attitude_source:=tf
+renders from TF (tf2_ros) with the simulated motion broadcast there, no wheel odometry (docs/ros.md
+"Attitude from TF"); the default, motion, renders frames ahead.
 
 Without ros2 launch (e.g. a pip-only install): `polarization-compass sim` starts the same graph.
 

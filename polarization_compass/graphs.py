@@ -92,6 +92,10 @@ STOP_TIMEOUT_S = 20.0
 SIGKILL_TIMEOUT_S = 5.0
 
 
+#: ``attitude_source`` of the sim graph (the simulator's ``topic`` needs a publisher outside it)
+SIM_ATTITUDE_SOURCES = ('motion', 'tf')
+
+
 class GraphError(CompassError):
     """Unknown graph, bad launch argument or an inconsistent graph."""
 
@@ -450,6 +454,16 @@ ARGUMENTS = {
             "least_squares/tilt_aware on it in namespace 'array' (not evaluated); '' = no array",
         ),
         LaunchArg('exit_when_done', 'true', 'stop the whole graph after the last frame', 'bool'),
+        LaunchArg(
+            'attitude_source',
+            'motion',
+            "where the simulator's attitude comes from: motion = the built-in turn (frames "
+            'rendered ahead); tf = looked up in TF (tf2_ros) at every stamp, the motion '
+            'broadcast there as a robot has it (map -> base_link, base_link -> '
+            'camera_optical_frame static), no wheel odometry',
+            'str',
+            SIM_ATTITUDE_SOURCES,
+        ),
         *_COMMON,
     ),
     'compass': (
@@ -839,6 +853,44 @@ def _split_direct(methods, tilt_aware: bool) -> tuple[tuple, tuple]:
     return tuple(m for m in listed if m not in direct), direct
 
 
+def _tf_attitude_params(attitude_source: str, turns: float, turn_rate_deg_s: float) -> dict:
+    """
+    Return the simulator parameters of the sim graph's ``attitude_source``.
+
+    ``tf``: the simulator looks the attitude up in TF and broadcasts its built-in motion there
+    (``motion_tf``): one source of attitude, exercised through the real tf2 path. Its run length
+    (``duration_s``) is then set from the turns, which a TF-driven simulator does not count. No
+    wheel odometry then, so no ``odom`` parent of ``base_link`` besides ``map``.
+
+    Parameters
+    ----------
+    attitude_source : {"motion", "tf"}
+        The launch argument.
+    turns, turn_rate_deg_s : float
+        The simulated motion (:func:`sim_graph`).
+
+    Returns
+    -------
+    dict
+        Inline parameters for the simulator (empty for ``motion``: its defaults).
+
+    Raises
+    ------
+    GraphError
+        An attitude source other than :data:`SIM_ATTITUDE_SOURCES`.
+
+    """
+    if attitude_source not in SIM_ATTITUDE_SOURCES:
+        raise GraphError(
+            f'attitude_source must be one of {", ".join(SIM_ATTITUDE_SOURCES)}, '
+            f'got {attitude_source!r}'
+        )
+    if attitude_source == 'motion':
+        return {}
+    duration = turns * 360.0 / abs(turn_rate_deg_s) if turns > 0 and turn_rate_deg_s else 0.0
+    return {'attitude_source': 'tf', 'motion_tf': True, 'duration_s': float(duration)}
+
+
 def sim_graph(
     methods=PAPER_METHODS,
     tilt_aware=True,
@@ -855,6 +907,7 @@ def sim_graph(
     error_map='',
     report_dir='out/sim',
     array_geometry='',
+    attitude_source='motion',
 ) -> Graph:
     """
     Return the ``sim`` graph: simulator, estimators, correctors and the evaluator on sim time.
@@ -891,6 +944,9 @@ def sim_graph(
     array_geometry : str
         Photodiode-array sensor YAML: also simulate the array and run its estimators in
         namespace ``array`` ("" = no array).
+    attitude_source : {"motion", "tf"}
+        ``motion``: the simulator renders the built-in motion. ``tf``: it looks every stamp's
+        attitude up in TF and broadcasts the motion there itself (:func:`_tf_attitude_params`).
 
     Returns
     -------
@@ -926,8 +982,11 @@ def sim_graph(
         'wait_for_subscribers': len(all_methods),
         # every estimator reads the IMU (prior or tilt) and so does every corrector
         'wait_for_imu_subscribers': len(all_methods) + len(methods),
+        **_tf_attitude_params(attitude_source, turns, turn_rate_deg_s),
     }
-    pubs, subs = T.simulator_topics('motion', publish_clock=True, array=bool(array_geometry))
+    pubs, subs = T.simulator_topics(
+        attitude_source, publish_clock=True, array=bool(array_geometry)
+    )
     if lockstep:
         subs = list(subs) + [(t, T.T_STRING) for t in lock_topics]
     nodes = [

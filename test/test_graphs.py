@@ -53,6 +53,7 @@ ARG_SETS = {
             'encoding': '32FC1',
         },
         {'methods': 'zenith,symmetry', 'rate_hz': '5', 'pitch_deg': '-10', 'roll_deg': '15'},
+        {'methods': 'least_squares', 'attitude_source': 'tf', 'turns': '0.5'},
     ],
     'compass': [
         {},
@@ -399,6 +400,28 @@ def test_a_broken_graph_is_reported():
     )
     problems = bad.check()
     assert any('compass/least_squares/heading_raw' in p for p in problems)
+
+
+def test_sim_graph_with_tf_attitude_renders_from_tf_it_broadcasts_without_odometry():
+    """attitude_source:=tf: one source of attitude (TF), fed by the simulator's motion."""
+    sim = graphs.build('sim').node('sky_simulator')
+    assert 'attitude_source' not in sim.parameters  # motion, the file's default
+    assert (topics.ODOM, topics.T_ODOMETRY) in sim.publishes
+    g = graphs.build('sim', {'attitude_source': 'tf', 'turns': '0.5', 'turn_rate_deg_s': '-20'})
+    assert g.check() == []
+    p = g.node('sky_simulator').parameters
+    assert p['attitude_source'] == 'tf' and p['motion_tf'] is True
+    assert p['duration_s'] == pytest.approx(9.0)  # the run's length: TF does not count turns
+    # no wheel odometry: its odom would be a second parent of base_link beside the TF's map
+    assert topics.ODOM not in {t for t, _ in g.node('sky_simulator').publishes}
+    assert [n.name for n in g.nodes] == [n.name for n in graphs.build('sim').nodes]
+    assert g.shutdown_with == 'sky_simulator'
+    until_stopped = graphs.build('sim', {'attitude_source': 'tf', 'turns': '0'})
+    assert until_stopped.node('sky_simulator').parameters['duration_s'] == 0.0
+    with pytest.raises(graphs.GraphError, match='attitude_source must be one of motion, tf'):
+        graphs.build('sim', {'attitude_source': 'topic'})
+    with pytest.raises(graphs.GraphError, match='attitude_source'):
+        graphs.sim_graph(attitude_source='topic')
 
 
 def test_bad_launch_arguments_are_refused():

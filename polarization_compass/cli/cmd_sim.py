@@ -91,6 +91,13 @@ def register(sub):
         "array (their headings are not in the evaluator's table)",
     )
     p.add_argument(
+        '--attitude-source',
+        default='motion',
+        choices=('motion', 'tf'),
+        help="the simulator's attitude: the built-in motion (default), or looked up in TF at "
+        'every stamp with the motion broadcast there (needs tf2_ros; docs/ros.md)',
+    )
+    p.add_argument(
         '--realtime',
         action='store_true',
         help='no lockstep: frames at the camera rate; measures drops and latency',
@@ -237,6 +244,7 @@ _NOT_WITH_EKF = (
     ('scene', '--scene', ''),
     ('realtime', '--realtime', False),
     ('array_geometry', '--array-geometry', ''),
+    ('attitude_source', '--attitude-source', 'motion'),
 )
 
 
@@ -415,6 +423,7 @@ def _sim_graph(graphs, args, methods, tilt_aware, map_path, out):
             'error_map': str(map_path),
             'report_dir': str(out),
             'array_geometry': args.array_geometry,
+            'attitude_source': args.attitude_source,
         },
     )
 

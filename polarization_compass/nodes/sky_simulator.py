@@ -48,8 +48,12 @@ tf2_ros): every frame and IMU sample looks up ``tf_world_frame`` -> ``tf_body_fr
 to ``tf_timeout_s``), so the camera's mounting comes from TF too (e.g. a static_transform_publisher
 ``base_link`` -> ``camera_optical_frame``); a missing or stale transform skips that frame or sample
 (``rejected.tf_missing`` / ``rejected.tf_stale`` in /diagnostics, a throttled warning): nothing is
-rendered at another attitude. With ``motion`` and ``topic`` the camera is mounted looking up with
-its +y axis along body +x (conventions.R_BODY_CAM_DEFAULT).
+rendered at another attitude. With ``motion_tf`` (the sim graph's ``attitude_source:=tf``) the
+node also broadcasts the built-in motion there, as a robot's TF would have it: ``tf_world_frame``
+-> ``tf_body_frame`` ahead of the frames and the default mounting on ``/tf_static``; no
+``odometry/wheel`` then (its ``odom`` would be a second parent of the body). With ``motion`` and
+``topic`` the camera is mounted looking up with its +y axis along body +x
+(conventions.R_BODY_CAM_DEFAULT).
 
 Time (clock_mode ``sim``): simulated UTC starts at ``start_time_utc`` and advances at
 ``time_scale`` times the wall clock; frames are stamped ``start + k / rate_hz`` and never skipped:
@@ -112,8 +116,26 @@ ODOM_FRAME_ID = 'odom'
 #: reported variance of the odometry's zero linear velocity [(m/s)^2]: the turn is on the spot
 ODOM_LINEAR_VARIANCE_M2_S2 = 1e-4
 
+#: motion_tf: how far ahead of the stamp looked up the motion is broadcast [simulated s], so that
+#: the transforms around a frame's stamp are in the TF buffer before the frame looks them up
+MOTION_TF_LEAD_S = 0.5
+
 #: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
 mosaic_config = sensor_config_for_encoding
+
+
+def _transform(t_ns: int, parent: str, child: str, R):
+    """Return the TransformStamped ``parent -> child`` at ``t_ns``: rotation ``R``, no offset."""
+    from geometry_msgs.msg import TransformStamped
+
+    tf = TransformStamped()
+    tf.header.stamp = time_msg(t_ns)
+    tf.header.frame_id = parent
+    tf.child_frame_id = child
+    q = matrix_to_quat(R)
+    r = tf.transform.rotation
+    r.x, r.y, r.z, r.w = (float(v) for v in q)
+    return tf
 
 
 class SkySimulatorNode(Node):
@@ -341,6 +363,52 @@ class SkySimulatorNode(Node):
             use_global_arguments=False,  # not renamed by the process's -r __node:=...
         )
         self._tf_listener = TransformListener(self._tf, self._tf_node, spin_thread=True)
+        if self.params['motion_tf']:
+            self._setup_motion_tf()
+
+    def _setup_motion_tf(self):
+        """
+        Broadcast the built-in motion on TF (``motion_tf``): the sim graph's ground truth.
+
+        The mounting (the default, as with ``motion``) goes out once on ``/tf_static``; the body's
+        attitude on ``/tf`` on the IMU's time grid, :data:`MOTION_TF_LEAD_S` ahead of the stamps
+        looked up (:meth:`_broadcast_motion`).
+        """
+        from tf2_ros import StaticTransformBroadcaster, TransformBroadcaster
+
+        self._motion_tf = TransformBroadcaster(self)
+        self._motion_tf_k = 0  # next sample of the grid start + k / imu_rate_hz
+        self._motion_tf_origin = self.start_ns if self.sim_mode else None
+        self._static_tf = StaticTransformBroadcaster(self)
+        p = self.params
+        self._static_tf.sendTransform(
+            _transform(self.start_ns, p['tf_body_frame'], p['camera_frame_id'], R_BODY_CAM_DEFAULT)
+        )
+
+    def _broadcast_motion(self, t_ns: int) -> None:
+        """Send the motion's transforms up to MOTION_TF_LEAD_S past ``t_ns`` (with motion_tf)."""
+        if getattr(self, '_motion_tf', None) is None:
+            return
+        p = self.params
+        if self._motion_tf_origin is None:  # clock_mode system: the motion starts now
+            self._motion_tf_origin = int(t_ns)
+        step = int(round(1e9 / p['imu_rate_hz']))
+        until = int(t_ns) + int(MOTION_TF_LEAD_S * 1e9)
+        out = []
+        while self._motion_tf_origin + self._motion_tf_k * step <= until:
+            t_rel = self._motion_tf_k * step / 1e9
+            R = R_enu_body_from_camera_attitude(self.profile.attitude(t_rel))
+            out.append(
+                _transform(
+                    self._motion_tf_origin + self._motion_tf_k * step,
+                    p['tf_world_frame'],
+                    p['tf_body_frame'],
+                    R,
+                )
+            )
+            self._motion_tf_k += 1
+        if out:
+            self._motion_tf.sendTransform(out)
 
     def close(self) -> None:
         """Stop the TF listener's thread and node (called once when the node stops)."""
@@ -390,6 +458,7 @@ class SkySimulatorNode(Node):
         from tf2_ros import ExtrapolationException
 
         p = self.params
+        self._broadcast_motion(t_ns)
         when = Time(nanoseconds=int(t_ns), clock_type=self.get_clock().clock_type)
         try:
             body = self._tf.lookup_transform(

@@ -467,6 +467,15 @@ SIMULATOR = (
         read_only=True,
     ),
     Param(
+        'motion_tf',
+        False,
+        'attitude_source tf: also broadcast the built-in motion (turn and tilt) on /tf as '
+        'tf_world_frame -> tf_body_frame, ahead of the frames, and the default camera mounting '
+        'tf_body_frame -> camera_frame_id on /tf_static: the ground truth of the sim graph '
+        "(attitude_source:=tf); false = the TF comes from elsewhere (a robot's)",
+        read_only=True,
+    ),
+    Param(
         'start_bearing_deg',
         0.0,
         'motion: initial true bearing of the camera +y axis (= body +x)',
