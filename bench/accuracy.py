@@ -536,78 +536,19 @@ def run(cfg) -> dict:
         cond_methods = condition_methods(cond, methods)
         if cond.correct:
             try:
-                optional_import('polarization_compass.correction')
-                map_path = error_map_path(cfg)
-                if not map_path.is_file():
-                    raise Unavailable(f'no error map at {map_path}')
+                map_path = _checked_map_path(cfg)
             except Unavailable as exc:
                 skipped.append({'condition': cond.name, 'reason': str(exc)})
                 continue
         try:
-            base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0).replace(**cond.scene)
-            if sensor:
-                from . import simulator
-
-                scfg = simulator.sensor_config(
-                    ALL_SENSOR_EFFECTS, 'superpixel', bits=cond.sensor_bits
-                )
-                if cond.calibration:
-                    scfg['calibration'] = dict(cond.calibration)
-                base_scene = base_scene.replace(sensor=scfg)
-                Renderer(base_scene)  # fails early if the sensor code is not there yet
+            base_scene = _base_scene(cond, camera, sensor)
         except Exception as exc:  # noqa: BLE001
             skipped.append({'condition': cond.name, 'reason': f'{type(exc).__name__}: {exc}'})
             continue
-        cond_cells = []
-        for m in cond_methods:
-            for label, knobs, dm in knob_sets(m, level, sensor):
-                if 'region' in knobs:
-                    knobs = dict(knobs, region=_centre_region(knobs['region'][2], camera))
-                for mode in ('invert', 'subtract') if cond.correct else (None,):
-                    c = _Cell(
-                        cond.name, m, label + (f', correction {mode}' if mode else ''), knobs, dm
-                    )
-                    try:
-                        c.estimator = est_mod.make_estimator(m, **knobs)
-                        if mode:
-                            c.corrector = _map_corrector(m, mode, map_path)
-                    # a knob this method does not have, no map entry
-                    except Exception as exc:  # noqa: BLE001
-                        c.status = f'unavailable: {type(exc).__name__}: {exc}'
-                        c.estimator = None
-                    cond_cells.append(c)
-                    cells.append(c)
-        renderers: dict = {}
+        cond_cells = _condition_cells(cond, cond_methods, est_mod, level, sensor, camera, map_path)
+        cells.extend(cond_cells)
         t_cond = time.perf_counter()
-        for k in range(int(cfg.scenes)):
-            s = sample_scene(cond, k)
-            frames: dict = {}
-            for c in cond_cells:
-                if c.estimator is None:
-                    continue
-                try:
-                    if sensor:
-                        key = ('full', c.demosaic)
-                        if key not in renderers:
-                            sc = base_scene.replace(
-                                sensor=dict(base_scene.sensor, demosaic=c.demosaic)
-                            )
-                            renderers[key] = Renderer(sc, pixels=PixelSelection.full())
-                    else:
-                        key = c.estimator.pixels_needed(camera)
-                        if key not in renderers:
-                            renderers[key] = Renderer(base_scene, pixels=key)
-                    if key not in frames:
-                        frames[key] = renderers[key].render(
-                            attitude=s['attitude'], sun=s['sun'], seed=s['noise_seed']
-                        )
-                    frame = frames[key]
-                    _run_cell(c, frame, s, cond, camera, Observation, cfg)
-                # one broken method must not stop the suite
-                except Exception as exc:  # noqa: BLE001
-                    c.status = f'failed: {type(exc).__name__}: {exc}'
-                    c.estimator = None
-                    c.traceback = traceback.format_exc(limit=3)
+        _run_scenes(cfg, cond, cond_cells, base_scene, camera, sensor, Observation)
         if not cfg.tiny:
             print(
                 f'    accuracy: {cond.name}: {len(cond_cells)} configurations x {cfg.scenes} '
@@ -616,6 +557,94 @@ def run(cfg) -> dict:
                 file=sys.stderr,
                 flush=True,
             )
+    return _result(cfg, conds, skipped, camera, cells, t_start)
+
+
+def _checked_map_path(cfg):
+    """Return the error map of a corrected condition, or raise Unavailable without one."""
+    optional_import('polarization_compass.correction')
+    map_path = error_map_path(cfg)
+    if not map_path.is_file():
+        raise Unavailable(f'no error map at {map_path}')
+    return map_path
+
+
+def _base_scene(cond: Condition, camera: CameraModel, sensor: bool):
+    """Return the scene of ``cond`` before sampling (with its sensor model, if any)."""
+    base_scene = Scene(camera=camera, sky=dict(cond.sky), seed=0).replace(**cond.scene)
+    if sensor:
+        from . import simulator
+
+        scfg = simulator.sensor_config(ALL_SENSOR_EFFECTS, 'superpixel', bits=cond.sensor_bits)
+        if cond.calibration:
+            scfg['calibration'] = dict(cond.calibration)
+        base_scene = base_scene.replace(sensor=scfg)
+        Renderer(base_scene)  # fails early if the sensor code is not there yet
+    return base_scene
+
+
+def _condition_cells(cond, cond_methods, est_mod, level, sensor, camera, map_path) -> list[_Cell]:
+    """Return the cells of ``cond``: one per method, knob set and correction mode."""
+    cond_cells = []
+    for m in cond_methods:
+        for label, knobs, dm in knob_sets(m, level, sensor):
+            if 'region' in knobs:
+                knobs = dict(knobs, region=_centre_region(knobs['region'][2], camera))
+            for mode in ('invert', 'subtract') if cond.correct else (None,):
+                c = _Cell(
+                    cond.name, m, label + (f', correction {mode}' if mode else ''), knobs, dm
+                )
+                try:
+                    c.estimator = est_mod.make_estimator(m, **knobs)
+                    if mode:
+                        c.corrector = _map_corrector(m, mode, map_path)
+                # a knob this method does not have, no map entry
+                except Exception as exc:  # noqa: BLE001
+                    c.status = f'unavailable: {type(exc).__name__}: {exc}'
+                    c.estimator = None
+                cond_cells.append(c)
+    return cond_cells
+
+
+def _run_scenes(cfg, cond, cond_cells, base_scene, camera, sensor, Observation):
+    """Render the sampled scenes of ``cond`` and run every live cell on each."""
+    renderers: dict = {}
+    for k in range(int(cfg.scenes)):
+        s = sample_scene(cond, k)
+        frames: dict = {}
+        for c in cond_cells:
+            if c.estimator is None:
+                continue
+            try:
+                frame = _frame_for(c, s, sensor, base_scene, camera, renderers, frames)
+                _run_cell(c, frame, s, cond, camera, Observation, cfg)
+            # one broken method must not stop the suite
+            except Exception as exc:  # noqa: BLE001
+                c.status = f'failed: {type(exc).__name__}: {exc}'
+                c.estimator = None
+                c.traceback = traceback.format_exc(limit=3)
+
+
+def _frame_for(c: _Cell, s, sensor, base_scene, camera, renderers: dict, frames: dict):
+    """Return the frame of scene ``s`` that cell ``c`` needs, rendering it once per scene."""
+    if sensor:
+        key = ('full', c.demosaic)
+        if key not in renderers:
+            sc = base_scene.replace(sensor=dict(base_scene.sensor, demosaic=c.demosaic))
+            renderers[key] = Renderer(sc, pixels=PixelSelection.full())
+    else:
+        key = c.estimator.pixels_needed(camera)
+        if key not in renderers:
+            renderers[key] = Renderer(base_scene, pixels=key)
+    if key not in frames:
+        frames[key] = renderers[key].render(
+            attitude=s['attitude'], sun=s['sun'], seed=s['noise_seed']
+        )
+    return frames[key]
+
+
+def _result(cfg, conds, skipped, camera: CameraModel, cells: list[_Cell], t_start: float) -> dict:
+    """Return the group's JSON: the set-up, the skipped conditions and the cells."""
     return {
         'conditions': {c.name: c.description for c in conds},
         'skipped_conditions': skipped,

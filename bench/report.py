@@ -672,6 +672,16 @@ def _errormap_section(em) -> list[str]:
             '`python -m bench.run --only errormap`.',
             '',
         ]
+    lines += _errormap_target_lines(r)
+    b = r.get('backends')
+    if b:
+        lines += _errormap_backend_lines(b)
+    return lines
+
+
+def _errormap_target_lines(r) -> list[str]:
+    """Return the measured throughput against the target sweep, with the knobs and the note."""
+    lines = []
     t, smp = r['target'], r['sample']
     lines += [
         f'Target: a pitch-only sweep of {t["cells"]} cells (sun {t["sun_altitude_deg"]}, yaw '
@@ -720,54 +730,58 @@ def _errormap_section(em) -> list[str]:
         f'{r["note"]}.',
         '',
     ]
-    b = r.get('backends')
-    if b:
-        smp = b['sample']
-        lines += [
-            f'Backends (issue 17) on a sub-grid of {smp["cells"]} cells in {smp["chunks"]} chunks '
-            f'({len(smp["sun_altitude_deg"])} sun altitudes x {len(smp["pitch_deg"])} pitches x '
-            f'{smp["yaw_count"]} yaws), load average {_f(b["load_average_before"][0])} -> '
-            f'{_f(b["load_average_after"][0])}; maps identical to the in-process one: '
-            f'{"yes" if b["identical_maps"] else "NO"}.',
-            '',
-        ]
-        lines += _table(
+    return lines
+
+
+def _errormap_backend_lines(b) -> list[str]:
+    """Return the comparison of the sweep backends (issue 17) and their projection."""
+    lines = []
+    smp = b['sample']
+    lines += [
+        f'Backends (issue 17) on a sub-grid of {smp["cells"]} cells in {smp["chunks"]} chunks '
+        f'({len(smp["sun_altitude_deg"])} sun altitudes x {len(smp["pitch_deg"])} pitches x '
+        f'{smp["yaw_count"]} yaws), load average {_f(b["load_average_before"][0])} -> '
+        f'{_f(b["load_average_after"][0])}; maps identical to the in-process one: '
+        f'{"yes" if b["identical_maps"] else "NO"}.',
+        '',
+    ]
+    lines += _table(
+        [
+            'backend',
+            'workers',
+            'start-up (s)',
+            'compute (s)',
+            'cells/s',
+            'tasks/s',
+            'overhead share',
+            'CPU ms per estimate',
+        ],
+        [
             [
-                'backend',
-                'workers',
-                'start-up (s)',
-                'compute (s)',
-                'cells/s',
-                'tasks/s',
-                'overhead share',
-                'CPU ms per estimate',
-            ],
-            [
-                [
-                    x['backend'],
-                    x['workers'],
-                    _f(x['startup_s']),
-                    _f(x['compute_s']),
-                    _f(x['cells_per_s']),
-                    _f(x['tasks_per_s']),
-                    _f(x['overhead_share']),
-                    _f(x['cpu_ms_per_estimate']),
-                ]
-                for x in b['rows']
-            ],
-        )
-        proj = ', '.join(
-            f'{n} workers {_f(v / 3600)} h' for n, v in b['projection_1e8_estimates_s'].items()
-        )
-        lines += [
-            '',
-            'Scaling 1 -> 2 workers (LocalCluster): efficiency '
-            f'{_f(b["scaling_efficiency_1_to_2"])}; '
-            'one LocalCluster worker / in process: '
-            f'{_f(b["localcluster_per_worker_vs_in_process"])}. '
-            f'Projected 10^8-estimate map: {proj}. {b["note"]}.',
-            '',
-        ]
+                x['backend'],
+                x['workers'],
+                _f(x['startup_s']),
+                _f(x['compute_s']),
+                _f(x['cells_per_s']),
+                _f(x['tasks_per_s']),
+                _f(x['overhead_share']),
+                _f(x['cpu_ms_per_estimate']),
+            ]
+            for x in b['rows']
+        ],
+    )
+    proj = ', '.join(
+        f'{n} workers {_f(v / 3600)} h' for n, v in b['projection_1e8_estimates_s'].items()
+    )
+    lines += [
+        '',
+        'Scaling 1 -> 2 workers (LocalCluster): efficiency '
+        f'{_f(b["scaling_efficiency_1_to_2"])}; '
+        'one LocalCluster worker / in process: '
+        f'{_f(b["localcluster_per_worker_vs_in_process"])}. '
+        f'Projected 10^8-estimate map: {proj}. {b["note"]}.',
+        '',
+    ]
     return lines
 
 

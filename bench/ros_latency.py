@@ -39,33 +39,12 @@ def main(argv) -> int:
     frames = int(cfg.get('frames', 10))
     method = str(cfg.get('method', 'least_squares'))
     tiny = bool(cfg.get('tiny', False))
-    import numpy as np
-    from polarization_compass.camera import CameraModel
-    from polarization_compass.conventions import CameraAttitude
     from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
-    from polarization_compass.nodes.msgs import image_msg
-    from polarization_compass.render import Renderer
-    from polarization_compass.scene import default_scene
-    from polarization_compass.specs import topics
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
-    from rclpy.qos import qos_profile_system_default, QoSProfile
-    from std_msgs.msg import String
 
-    from .simulator import ALL_EFFECTS, sensor_config
-
-    cam = CameraModel(width_px=192, height_px=160) if tiny else CameraModel()
-    scene = default_scene().replace(camera=cam, sensor=sensor_config(ALL_EFFECTS, 'superpixel'))
-    renderer = Renderer(scene)
-    time_utc = '2019-11-15T06:00:00Z'
-    sun = renderer.sun_at(time_utc)
-    mosaics = [
-        renderer.render(
-            attitude=CameraAttitude(37.0 * k % 360.0, 0.0, 0.0), sun=sun, seed=k
-        ).mosaic
-        for k in range(min(frames, 4))
-    ]
+    cam, time_utc, mosaics = _render_mosaics(frames, tiny)
     rclpy.init(args=[])
     out = {
         'status': 'ok',
@@ -84,53 +63,15 @@ def main(argv) -> int:
                 Parameter('publish_ambiguous', value=True),
             ]
         )
-        probe = rclpy.create_node('bench_probe')
-        pub = probe.create_publisher(
-            type(image_msg(mosaics[0], 0, 'camera_link')), topics.IMAGE, qos_profile_system_default
-        )
-        got = []
-        probe.create_subscription(
-            String,
-            topics.method_topics(method)['status'],
-            lambda m: got.append((time.perf_counter(), json.loads(m.data))),
-            QoSProfile(depth=50),
-        )
+        probe, pub, got = _probe_node(method, mosaics[0])
         ex = SingleThreadedExecutor()
         ex.add_node(est)
         ex.add_node(probe)
-        # discovery: wait until the estimator subscribes to the image topic
-        t_end = time.perf_counter() + 20.0
-        while pub.get_subscription_count() < 1 and time.perf_counter() < t_end:
-            ex.spin_once(timeout_sec=0.05)
-        if pub.get_subscription_count() < 1:
+        if not _wait_for_subscriber(ex, pub):
             out['status'] = 'failed: the estimator never subscribed (discovery)'
             return _print(out)
-        lat, est_ms, lost = [], [], 0
-        for k in range(frames + 1):
-            msg = image_msg(mosaics[k % len(mosaics)], 1_000_000_000 * (k + 1), 'camera_link')
-            n0 = len(got)
-            t0 = time.perf_counter()
-            pub.publish(msg)
-            t_end = t0 + 10.0
-            while len(got) == n0 and time.perf_counter() < t_end:
-                ex.spin_once(timeout_sec=0.01)
-            if len(got) == n0:
-                lost += 1
-                continue
-            if k == 0:
-                continue  # first frame: caches
-            lat.append(got[-1][0] - t0)
-            if 'estimate_ms' in got[-1][1]:
-                est_ms.append(got[-1][1]['estimate_ms'])
-        s = np.asarray(lat) * 1e3
-        out.update(
-            n=int(s.size),
-            lost=lost,
-            median_ms=float(np.median(s)) if s.size else None,
-            p95_ms=float(np.percentile(s, 95)) if s.size else None,
-            node_estimate_median_ms=float(np.median(est_ms)) if est_ms else None,
-            last_status=got[-1][1].get('status') if got else None,
-        )
+        lat, est_ms, lost = _measure(ex, pub, got, mosaics, frames)
+        out.update(_latency_stats(lat, est_ms, lost, got))
         est.destroy_node()
         probe.destroy_node()
     except Exception as exc:  # noqa: BLE001 - reported to the parent as JSON
@@ -138,6 +79,98 @@ def main(argv) -> int:
     finally:
         rclpy.try_shutdown()
     return _print(out)
+
+
+def _render_mosaics(frames: int, tiny: bool):
+    """Render up to four 12-bit mosaics (bearings 37 deg apart) and return the camera and time."""
+    from polarization_compass.camera import CameraModel
+    from polarization_compass.conventions import CameraAttitude
+    from polarization_compass.render import Renderer
+    from polarization_compass.scene import default_scene
+
+    from .simulator import ALL_EFFECTS, sensor_config
+
+    cam = CameraModel(width_px=192, height_px=160) if tiny else CameraModel()
+    scene = default_scene().replace(camera=cam, sensor=sensor_config(ALL_EFFECTS, 'superpixel'))
+    renderer = Renderer(scene)
+    time_utc = '2019-11-15T06:00:00Z'
+    sun = renderer.sun_at(time_utc)
+    mosaics = [
+        renderer.render(
+            attitude=CameraAttitude(37.0 * k % 360.0, 0.0, 0.0), sun=sun, seed=k
+        ).mosaic
+        for k in range(min(frames, 4))
+    ]
+    return cam, time_utc, mosaics
+
+
+def _probe_node(method: str, mosaic):
+    """Create the probe node: the image publisher and a status subscriber recording arrivals."""
+    from polarization_compass.nodes.msgs import image_msg
+    from polarization_compass.specs import topics
+    import rclpy
+    from rclpy.qos import qos_profile_system_default, QoSProfile
+    from std_msgs.msg import String
+
+    probe = rclpy.create_node('bench_probe')
+    pub = probe.create_publisher(
+        type(image_msg(mosaic, 0, 'camera_link')), topics.IMAGE, qos_profile_system_default
+    )
+    got = []
+    probe.create_subscription(
+        String,
+        topics.method_topics(method)['status'],
+        lambda m: got.append((time.perf_counter(), json.loads(m.data))),
+        QoSProfile(depth=50),
+    )
+    return probe, pub, got
+
+
+def _wait_for_subscriber(ex, pub) -> bool:
+    """Spin until the estimator subscribes to the image topic (discovery), at most 20 s."""
+    t_end = time.perf_counter() + 20.0
+    while pub.get_subscription_count() < 1 and time.perf_counter() < t_end:
+        ex.spin_once(timeout_sec=0.05)
+    return not pub.get_subscription_count() < 1
+
+
+def _measure(ex, pub, got: list, mosaics: list, frames: int):
+    """Publish ``frames`` + 1 images one at a time and time each until its status arrives."""
+    from polarization_compass.nodes.msgs import image_msg
+
+    lat, est_ms, lost = [], [], 0
+    for k in range(frames + 1):
+        msg = image_msg(mosaics[k % len(mosaics)], 1_000_000_000 * (k + 1), 'camera_link')
+        n0 = len(got)
+        t0 = time.perf_counter()
+        pub.publish(msg)
+        t_end = t0 + 10.0
+        while len(got) == n0 and time.perf_counter() < t_end:
+            ex.spin_once(timeout_sec=0.01)
+        if len(got) == n0:
+            lost += 1
+            continue
+        if k == 0:
+            continue  # first frame: caches
+        lat.append(got[-1][0] - t0)
+        if 'estimate_ms' in got[-1][1]:
+            est_ms.append(got[-1][1]['estimate_ms'])
+    return lat, est_ms, lost
+
+
+def _latency_stats(lat: list, est_ms: list, lost: int, got: list) -> dict:
+    """Return the latency statistics [ms], the frames lost and the last status received."""
+    import numpy as np
+
+    s = np.asarray(lat) * 1e3
+    return {
+        'n': int(s.size),
+        'lost': lost,
+        'median_ms': float(np.median(s)) if s.size else None,
+        'p95_ms': float(np.percentile(s, 95)) if s.size else None,
+        'node_estimate_median_ms': float(np.median(est_ms)) if est_ms else None,
+        'last_status': got[-1][1].get('status') if got else None,
+    }
 
 
 def _print(out) -> int:

@@ -454,6 +454,40 @@ def run_sweep(
        errors over sun altitude, yaw, pitch and roll).
 
     """
+    out_path, in_process = _check_sweep_args(out, workers, scheduler, in_process)
+    store = None
+    if out_path is not None:
+        from .errormap_store import SweepStore
+
+        store = SweepStore.open(store_path_for(out_path), spec, restart=not resume)
+    sw = _SweepRun(spec, store, progress)
+    todo = store.scan(spec.chunks(), sw.err, sw.status) if store is not None else spec.chunks()
+    mask = spec.tilt_mask()
+    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
+    run = todo[:limit]
+    sw.plan(run, mask)
+    t0 = time.perf_counter()
+    sampling = _compute_chunks(spec, run, sw, in_process, scheduler, workers)
+    sw.close_bar()
+    sw.info['wall_s'] = time.perf_counter() - t0
+    if stats is not None:
+        stats.update(sw.info)
+    _warn_estimator_errors(sw.errors)
+    if limit < len(todo):
+        return None
+    return _finish_map(spec, sw, sampling, out_path, float32)
+
+
+def _check_sweep_args(out, workers, scheduler, in_process):
+    """
+    Check the output suffix and the backend choice of :func:`run_sweep`.
+
+    Returns
+    -------
+    tuple
+        The output path (or None) and whether to run in this process.
+
+    """
     out_path = Path(out) if out is not None else None
     if out_path is not None and out_path.suffix not in OUTPUT_SUFFIXES:
         raise ErrorMapError(
@@ -463,44 +497,50 @@ def run_sweep(
         in_process = scheduler is None and workers == 1
     elif in_process and scheduler is not None:
         raise ErrorMapError('in_process and scheduler exclude each other')
-    store = None
-    if out_path is not None:
-        from .errormap_store import SweepStore
+    return out_path, in_process
 
-        store = SweepStore.open(store_path_for(out_path), spec, restart=not resume)
-    M, A, Y, P, R = spec.shape
-    err = np.zeros(spec.shape, dtype=float)
-    status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
-    todo = store.scan(spec.chunks(), err, status) if store is not None else spec.chunks()
-    mask = spec.tilt_mask()
-    limit = len(todo) if max_chunks is None else min(len(todo), int(max_chunks))
-    run = todo[:limit]
-    total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
-    errors: list[str] = []
-    info = {
-        'tasks': 0,
-        'dask_tasks': 0,
-        'task_s': 0.0,
-        'task_cpu_s': 0.0,
-        'setup_cpu_s': 0.0,
-        'estimates': total,
-        'startup_s': 0.0,
-        'workers': 1,
-        'compute_s': 0.0,
-    }
-    t_up = time.perf_counter()
-    t0 = time.perf_counter()
-    bar = None
 
-    def on_start(n_workers: int, where: str, startup_s: float):
-        nonlocal bar, t_up
+class _SweepRun:
+    """Hold one sweep's arrays, measurements and progress bar while its chunks arrive."""
+
+    def __init__(self, spec: SweepSpec, store, progress: bool):
+        """Allocate the error and status arrays of ``spec`` (nothing computed yet)."""
+        self.shape = spec.shape
+        self.store = store
+        self.progress = progress
+        self.err = np.zeros(spec.shape, dtype=float)
+        self.status = np.full(spec.shape, STATUS_NOT_COMPUTED, dtype=np.int8)
+        self.errors: list[str] = []
+        self.bar = None
+
+    def plan(self, run: list, mask: np.ndarray):
+        """Count the estimates of the chunks ``run`` and start the clock."""
+        M, A, Y, P, R = self.shape
+        self.mask = mask
+        self.total = int(sum(M * Y * int(mask[ip].sum()) for _, ip in run))
+        self.info = {
+            'tasks': 0,
+            'dask_tasks': 0,
+            'task_s': 0.0,
+            'task_cpu_s': 0.0,
+            'setup_cpu_s': 0.0,
+            'estimates': self.total,
+            'startup_s': 0.0,
+            'workers': 1,
+            'compute_s': 0.0,
+        }
+        self.t_up = time.perf_counter()
+
+    def on_start(self, n_workers: int, where: str, startup_s: float):
+        """Record the backend being up and open the progress bar."""
+        info = self.info
         info['workers'], info['startup_s'] = n_workers, startup_s
-        t_up = time.perf_counter()
-        if progress:
+        self.t_up = time.perf_counter()
+        if self.progress:
             from tqdm import tqdm
 
-            bar = tqdm(
-                total=total,
+            self.bar = tqdm(
+                total=self.total,
                 unit=' estimates',
                 file=sys.stderr,
                 dynamic_ncols=True,
@@ -508,20 +548,39 @@ def run_sweep(
                 desc=f'errormap ({where}, {n_workers} worker{"s" if n_workers != 1 else ""})',
             )
 
-    def accept(ia, ip, e, s, errs, task_s, task_cpu_s, setup_cpu_s=0.0):
-        err[:, ia, :, ip, :] = e
-        status[:, ia, :, ip, :] = s
-        if store is not None:
-            store.write_chunk(ia, ip, e, s)
-        errors.extend(errs)
+    def accept(self, ia, ip, e, s, errs, task_s, task_cpu_s, setup_cpu_s=0.0):
+        """Take one finished chunk into the arrays, the store and the measurements."""
+        M, A, Y, P, R = self.shape
+        info = self.info
+        self.err[:, ia, :, ip, :] = e
+        self.status[:, ia, :, ip, :] = s
+        if self.store is not None:
+            self.store.write_chunk(ia, ip, e, s)
+        self.errors.extend(errs)
         info['tasks'] += 1
         info['task_s'] += task_s
         info['task_cpu_s'] += task_cpu_s
         info['setup_cpu_s'] += setup_cpu_s
-        info['compute_s'] = time.perf_counter() - t_up
-        if bar is not None:
-            bar.update(M * Y * int(mask[ip].sum()))
+        info['compute_s'] = time.perf_counter() - self.t_up
+        if self.bar is not None:
+            self.bar.update(M * Y * int(self.mask[ip].sum()))
 
+    def close_bar(self):
+        """Close the progress bar, if one is open."""
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _compute_chunks(spec: SweepSpec, run: list, sw: _SweepRun, in_process, scheduler, workers):
+    """
+    Compute the chunks ``run`` in this process or on Dask, each into ``sw`` as it arrives.
+
+    Returns
+    -------
+    dict
+        The sampling of the sweep's evaluator (for the map's meta).
+
+    """
     try:
         ev = CellEvaluator(
             spec
@@ -530,51 +589,63 @@ def run_sweep(
         if in_process or not run:
             from .runtime import single_threaded_kernels
 
-            on_start(1, 'in process', 0.0)
+            sw.on_start(1, 'in process', 0.0)
             for ia, ip in run:
                 t1, c1 = time.perf_counter(), time.thread_time()
                 with single_threaded_kernels():  # as on a worker: the same bits everywhere
                     e, s = ev.chunk(ia, ip)
-                accept(ia, ip, e, s, ev.errors, time.perf_counter() - t1, time.thread_time() - c1)
+                sw.accept(
+                    ia, ip, e, s, ev.errors, time.perf_counter() - t1, time.thread_time() - c1
+                )
                 ev.errors = []
         else:
             from .sweep_dask import run_chunks
 
-            info['dask_tasks'] = run_chunks(
-                spec, run, accept, on_start, scheduler=scheduler, workers=workers
+            sw.info['dask_tasks'] = run_chunks(
+                spec, run, sw.accept, sw.on_start, scheduler=scheduler, workers=workers
             )
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close()
-        if store is not None:
+        sw.close_bar()
+        if sw.store is not None:
             print(
-                f'errormap: interrupted after {info["tasks"]} new chunk(s); finished chunks are '
-                'kept in '
-                f'{store.path}; rerun the same command to resume',
+                f'errormap: interrupted after {sw.info["tasks"]} new chunk(s); finished chunks '
+                'are kept in '
+                f'{sw.store.path}; rerun the same command to resume',
                 file=sys.stderr,
             )
         raise
-    if bar is not None:
-        bar.close()
-    info['wall_s'] = time.perf_counter() - t0
-    if stats is not None:
-        stats.update(info)
+    return sampling
+
+
+def _warn_estimator_errors(errors: list[str]):
+    """Warn on stderr of the estimator exceptions of a sweep, the first three named."""
     if errors:
         print(
             f'errormap: warning: estimator exceptions (status {STATUS_ESTIMATOR_ERROR}), first: '
             + '; '.join(errors[:3]),
             file=sys.stderr,
         )
-    if limit < len(todo):
-        return None
+
+
+def _finish_map(spec: SweepSpec, sw: _SweepRun, sampling, out_path, float32: bool) -> ErrorMap:
+    """
+    Validate the complete map and export it to ``out_path`` (removing a ``.partial.zarr`` store).
+
+    Returns
+    -------
+    ErrorMap
+        The validated map.
+
+    """
+    store = sw.store
     meta = spec.to_meta()
     meta['sampling'] = sampling
     meta['cells_estimated'] = spec.cell_count()
-    meta['elapsed_s_last_run'] = round(info['wall_s'], 3)
-    meta['workers'] = info['workers']
+    meta['elapsed_s_last_run'] = round(sw.info['wall_s'], 3)
+    meta['workers'] = sw.info['workers']
     m = ErrorMap(
-        err,
-        status,
+        sw.err,
+        sw.status,
         spec.methods,
         spec.sun_altitude_deg,
         spec.yaw_deg,
