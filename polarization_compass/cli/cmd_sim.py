@@ -271,7 +271,7 @@ def foreign_executable(package: str, executable: str) -> Path | None:
         return None
     try:
         prefix = get_package_prefix(package)
-    except (PackageNotFoundError, LookupError, ValueError):
+    except (PackageNotFoundError, LookupError, ValueError, OSError):  # OSError: nothing sourced
         return None
     exe = Path(prefix) / 'lib' / package / executable
     return exe if exe.is_file() and os.access(exe, os.X_OK) else None
@@ -292,8 +292,36 @@ def _node_command(n) -> list[str]:
 # ------------------------------------------------------------------------------------------------
 def run(args) -> int:
     from .. import graphs
+
+    _check_ekf_options(args)
+    _check_numbers(args)
+    methods, tilt_aware = _selected_methods(args)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in (
+        'evaluation_summary.json',
+        'evaluation_summary.csv',
+        'evaluation_samples.csv',
+        'evaluation.png',
+    ):
+        (out / old).unlink(missing_ok=True)
+    env = _child_env(out)
+    map_path = _error_map_path(args, out)
+    if methods:
+        _ensure_map(args, methods, map_path, env)
+    if args.ekf:
+        graph = _fusion_graph(graphs, args, methods, tilt_aware, map_path, out)
+    else:
+        graph = _sim_graph(graphs, args, methods, tilt_aware, map_path, out)
+    problems = graph.check()
+    if problems:
+        raise CompassError('inconsistent graph: ' + '; '.join(problems))
+    return _run_graph(graph, out, env, args)
+
+
+def _check_ekf_options(args) -> None:
+    """Refuse options the fusion graph lacks and a missing ekf_node; fill the defaults."""
     from ..estimators import registry
-    from ..specs.params import PAPER_METHODS, TILT_METHODS
 
     if args.ekf:
         given = [flag for attr, flag, d in _NOT_WITH_EKF if getattr(args, attr) != d]
@@ -309,6 +337,9 @@ def run(args) -> int:
     if args.out is None:
         args.out = 'out/fusion' if args.ekf else 'out/sim'
 
+
+def _check_numbers(args) -> None:
+    """Refuse non-finite or out-of-range numbers and a bad scene before anything starts."""
     for name, v in (('rate', args.rate), ('turns', args.turns), ('time-scale', args.time_scale)):
         if not (math.isfinite(v) and v > 0):
             raise CompassError(f'--{name} must be a positive number, got {v}')
@@ -328,6 +359,12 @@ def run(args) -> int:
         from ..scene import load_scene
 
         load_scene(args.scene)  # a bad scene is refused here, not 15 s into the run
+
+
+def _selected_methods(args) -> tuple[list, bool]:
+    """Return the available paper methods to run and whether tilt_aware runs."""
+    from ..specs.params import PAPER_METHODS, TILT_METHODS
+
     wanted = [m.strip() for m in args.methods.split(',') if m.strip()]
     bad = [m for m in wanted if m not in PAPER_METHODS]
     if bad:
@@ -344,17 +381,11 @@ def run(args) -> int:
         )
     if not methods and not tilt_aware:
         raise CompassError('no heading method is available')
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for old in (
-        'evaluation_summary.json',
-        'evaluation_summary.csv',
-        'evaluation_samples.csv',
-        'evaluation.png',
-    ):
-        (out / old).unlink(missing_ok=True)
-    env = _child_env(out)
+    return methods, tilt_aware
 
+
+def _error_map_path(args, out: Path) -> Path:
+    """Return the error map the correctors load: given (checked), shipped, or one to compute."""
     from ..correction import default_map_path
 
     if args.error_map:
@@ -366,42 +397,42 @@ def run(args) -> int:
             map_path, CompassError, '--error-map'
         )  # missing, a directory, a FIFO, a device
         load_error_map(map_path)  # a bad map is refused here, before the nodes start
-    elif default_map_path().is_file():
-        map_path = default_map_path()
-    else:
-        map_path = out / 'error_map.npz'
-    if methods:
-        from ..specs.params import defaults, SIMULATOR
+        return map_path
+    if default_map_path().is_file():
+        return default_map_path()
+    return out / 'error_map.npz'
 
-        d = defaults(SIMULATOR)
-        duration = args.turns * 360.0 / abs(args.turn_rate)
-        alts = scenario_sun_altitudes(
-            d['start_time_utc'], duration, (d['latitude_deg'], d['longitude_deg'], d['altitude_m'])
-        )
-        if map_path != default_map_path():
-            ensure_error_map(map_path, methods, args.pitch, args.roll, alts, env)
-    if args.ekf:
-        graph = graphs.build(
-            'fusion',
-            {
-                'methods': ','.join(methods),
-                'tilt_aware': str(tilt_aware).lower(),
-                'fuse': args.fuse,
-                'turns': repr(float(args.turns)),
-                'turn_rate_deg_s': repr(float(args.turn_rate)),
-                'pitch_deg': repr(float(args.pitch)),
-                'roll_deg': repr(float(args.roll)),
-                'exit_when_done': 'true',
-                'error_map': str(map_path),
-                'report_dir': str(out),
-            },
-        )
-    else:
-        graph = _sim_graph(graphs, args, methods, tilt_aware, map_path, out)
-    problems = graph.check()
-    if problems:
-        raise CompassError('inconsistent graph: ' + '; '.join(problems))
-    return _run_graph(graph, out, env, args)
+
+def _ensure_map(args, methods, map_path: Path, env) -> None:
+    """Compute the error map for the run's tilt and sun altitudes unless it is the shipped one."""
+    from ..correction import default_map_path
+    from ..specs.params import defaults, SIMULATOR
+
+    d = defaults(SIMULATOR)
+    duration = args.turns * 360.0 / abs(args.turn_rate)
+    alts = scenario_sun_altitudes(
+        d['start_time_utc'], duration, (d['latitude_deg'], d['longitude_deg'], d['altitude_m'])
+    )
+    if map_path != default_map_path():
+        ensure_error_map(map_path, methods, args.pitch, args.roll, alts, env)
+
+
+def _fusion_graph(graphs, args, methods, tilt_aware, map_path, out):
+    return graphs.build(
+        'fusion',
+        {
+            'methods': ','.join(methods),
+            'tilt_aware': str(tilt_aware).lower(),
+            'fuse': args.fuse,
+            'turns': repr(float(args.turns)),
+            'turn_rate_deg_s': repr(float(args.turn_rate)),
+            'pitch_deg': repr(float(args.pitch)),
+            'roll_deg': repr(float(args.roll)),
+            'exit_when_done': 'true',
+            'error_map': str(map_path),
+            'report_dir': str(out),
+        },
+    )
 
 
 def _sim_graph(graphs, args, methods, tilt_aware, map_path, out):
