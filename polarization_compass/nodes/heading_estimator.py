@@ -139,9 +139,12 @@ class HeadingEstimatorNode(HeadingNodeBase):
     def _subscribe_camera(self, small, images) -> None:
         """Subscribe to camera_info (small inputs) and the images."""
         p = self.params
-        image_qos = (
-            qos_profile_sensor_data if p['image_qos'] == 'sensor_data' else QoSProfile(depth=5)
-        )
+        image_qos = {
+            'sensor_data': qos_profile_sensor_data,
+            'reliable': QoSProfile(depth=5),
+            # a played bag (the player publishes reliably): queue, never drop, behind a slow node
+            'replay': QoSProfile(depth=topics.REPLAY_IMAGE_DEPTH),
+        }[p['image_qos']]
         self.create_subscription(
             CameraInfo,
             topics.CAMERA_INFO,
