@@ -19,12 +19,15 @@ Live replay of a recorded run: every estimator, corrector and the evaluator on s
 
 starts the graph and the real ``ros2 bag play RUN_BAG --clock`` (paused), resumes the player once
 every node of the graph has said it is ready (a node's last start-up log line: kernels compiled,
-subscriptions made), and ends the launch ``drain_s`` seconds after the bag has played; the
-evaluator then writes its report (``evaluation_summary.json`` & co) into ``report_dir``. The
+subscriptions made), and ends the launch once the bag has played and the evaluator's current
+report has not changed for ``drain_s`` seconds, 10 s at least (the estimators' image queues are
+done); the evaluator then writes its report (``evaluation_summary.json`` & co) into
+``report_dir``. The
 player gets the launch's environment, so the shared-memory Fast DDS profile of
 ``large_image_transport`` (full-resolution images are lost in fragments without it, and every
-local participant discovers every other through it). ``rate:=0.5`` plays slower (a machine that
-cannot keep up at 1x loses frames: they are counted as missed in the report).
+local participant discovers every other through it). The estimators read the image reliably and
+300 deep (``image_qos: replay``): an estimator slower than the player works through a queue instead
+of losing frames (frames lost anyway are counted as ``not_received`` in the report).
 
 Without ``bag`` the graph waits for a player started by hand, with the same profile, bag path
 first (``--clock`` takes an optional rate and would swallow a path after it):
@@ -84,10 +87,16 @@ sys.exit(code)
 #: Launch arguments of the player (added to the replay graph's own, polarization_compass.graphs).
 PLAYER_ARGUMENTS = (
     ('bag', '', "rosbag2 to play with 'ros2 bag play BAG --clock' ('' = none: play it by hand)"),
-    ('rate', '1.0', "the player's --rate (0.5 = half speed: for a machine that loses frames)"),
+    ('rate', '1.0', "the player's --rate (0.5 = half speed, 2 = twice real time)"),
     ('settle_s', '1.0', 'wall seconds between the last node ready and resuming the player'),
-    ('drain_s', '10.0', 'wall seconds after the last message before the launch ends (report)'),
+    (
+        'drain_s',
+        '10.0',
+        'after the bag has played, the launch ends once the report has not changed for this [s]',
+    ),
 )
+#: Longest wait after the bag has played for the estimators' queues to drain [s]
+DRAIN_LIMIT_S = 1800.0
 
 
 def _positive(name: str, text: str, allow_zero: bool = False) -> float:
@@ -112,6 +121,7 @@ def _player(context):
         EmitEvent,
         ExecuteProcess,
         LogInfo,
+        OpaqueFunction,
         RegisterEventHandler,
         TimerAction,
     )
@@ -178,12 +188,41 @@ def _player(context):
             TimerAction(period=settle_s, actions=[resume]),
         ]
 
+    from polarization_compass.nodes.error_evaluator import REPORT_PERIOD_S
+
+    summary = Path(arg('report_dir')) / 'evaluation_summary.json'  # the evaluator's current one
+    # the current report is rewritten at most every REPORT_PERIOD_S: quiet for two periods at least
+    quiet_s = max(drain_s, 2.0 * REPORT_PERIOD_S)
+    last = {'stamp': None, 'since': 0.0, 'waited': 0.0}
+
+    def drained(_context):
+        # the estimators may still be working through their image queues (image_qos replay):
+        # stop once the evaluator's current report has not changed for quiet_s
+        try:
+            st = summary.stat()
+            stamp = (st.st_mtime_ns, st.st_size)
+        except OSError:
+            stamp = None
+        if stamp != last['stamp']:
+            last['stamp'], last['since'] = stamp, 0.0
+        if last['since'] >= quiet_s or last['waited'] >= DRAIN_LIMIT_S:
+            return [
+                LogInfo(msg=f'replay: no new result for {last["since"]:g} s; stopping'),
+                EmitEvent(event=Shutdown(reason='bag played')),
+            ]
+        last['since'] += 1.0
+        last['waited'] += 1.0
+        return [TimerAction(period=1.0, actions=[OpaqueFunction(function=drained)])]
+
     def on_player_exit(event, _context):
         if event.returncode != 0:
             return [EmitEvent(event=Shutdown(reason=f'ros2 bag play failed ({event.returncode})'))]
         return [
-            LogInfo(msg=f'replay: the bag has played; stopping in {drain_s:g} s (drain_s)'),
-            TimerAction(period=drain_s, actions=[EmitEvent(event=Shutdown(reason='bag played'))]),
+            LogInfo(
+                msg=f'replay: the bag has played; stopping when the report has not changed for '
+                f'{quiet_s:g} s (drain_s, at least two report periods)'
+            ),
+            OpaqueFunction(function=drained),
         ]
 
     def on_resume_exit(event, _context):

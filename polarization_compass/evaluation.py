@@ -59,6 +59,7 @@ __all__ = [
     'plot_report',
     'STAT_FIELDS',
     'YawTrack',
+    'not_received',
 ]
 
 STAT_FIELDS = ('count', 'mean', 'std', 'rms', 'p95', 'max')
@@ -472,6 +473,38 @@ class StampMatcher:
             )
             out[name] = d
         return out
+
+
+def not_received(streams: dict, name: str) -> int:
+    """
+    Return the missed frames of a stream that no node declined: lost on the way.
+
+    A truth frame is missed on a stream when no estimate came for it; a node that declines a
+    frame says so on its status topic (the evaluator's ``not_published`` reasons). The rest never
+    reached a node, or its output never reached the evaluator (transport loss, e.g. best-effort
+    images dropped behind a slow estimator). For ``<m>/corrected`` the estimator's reasons count
+    too: a heading the estimator declined never reaches the corrector.
+
+    Parameters
+    ----------
+    streams : dict
+        The evaluator's summary ``streams``: ``{stream: {missed, not_published, ...}}``.
+    name : str
+        The stream.
+
+    Returns
+    -------
+    int
+        Missed minus the declined frames, at least 0 (a declined frame without a truth frame is
+        not among the missed).
+
+    """
+    d = streams[name]
+    declined = sum(d.get('not_published', {}).values())
+    method, _, kind = name.partition('/')
+    if kind == 'corrected':
+        declined += sum(streams.get(f'{method}/raw', {}).get('not_published', {}).values())
+    return max(0, int(d['missed']) - declined)
 
 
 # ------------------------------------------------------------------------------------------------

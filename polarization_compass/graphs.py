@@ -1156,7 +1156,12 @@ def replay_graph(
     methods, direct = _split_direct(methods, tilt_aware)
     all_methods = methods + direct
     common = {'use_sim_time': True}
-    nodes = [_estimator(m, {**common, 'site_source': site_source}) for m in all_methods]
+    # the player publishes reliably: images queue behind an estimator slower than the player
+    # instead of being dropped (every frame of the bag scored, as offline)
+    nodes = [
+        _estimator(m, {**common, 'site_source': site_source, 'image_qos': 'replay'})
+        for m in all_methods
+    ]
     nodes += [
         _corrector(m, {**common, 'site_source': site_source, 'error_map': error_map})
         for m in methods

@@ -180,3 +180,18 @@ def test_yaw_track_interpolates_a_filter_output_at_the_truth_stamps():
     assert got[1][2] == pytest.approx(math.degrees(math.sqrt(3e-4)))
     # the next output is further than max_gap_ns: the stamp between is dropped, not interpolated
     assert tr.add_output(900_000_000, 0.0, 1e-4) == []
+
+
+def test_not_received_is_missed_minus_the_frames_a_node_declined():
+    from polarization_compass.evaluation import not_received
+
+    streams = {
+        'a/raw': {'missed': 5, 'not_published': {'ambiguous': 1, 'prior_disagrees': 1}},
+        'a/corrected': {'missed': 7, 'not_published': {'no_solution': 2}},
+        'b/raw': {'missed': 1, 'not_published': {'bad_input': 3}},
+        'c/corrected': {'missed': 4},  # no raw stream evaluated: nothing else to subtract
+    }
+    assert not_received(streams, 'a/raw') == 3
+    assert not_received(streams, 'a/corrected') == 3  # the estimator's 2 never reached it
+    assert not_received(streams, 'b/raw') == 0  # never negative
+    assert not_received(streams, 'c/corrected') == 4

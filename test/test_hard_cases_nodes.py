@@ -41,6 +41,7 @@ from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer
 import pytest
 from rclpy.parameter import Parameter
+from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import Image, Imu
 
 T0 = 1_573_797_600_000_000_000  # 2019-11-15T06:00:00Z, the paper's experiment (sun ~30 deg up)
@@ -804,6 +805,38 @@ def test_estimator_counts_images_dropped_from_a_full_queue(estimator):
     estimator._drain()
     done = [s['stamp_ns'] for s in estimator.statuses[n_status:]]
     assert done == [t + (k + 1) * 5 * 10**5 for k in range(3, n)]  # the newest, in order
+
+
+def test_estimator_with_the_replay_qos_queues_a_played_bag_instead_of_dropping(ctx):
+    """image_qos replay (the replay graph): REPLAY_IMAGE_DEPTH images wait, none is dropped."""
+    from polarization_compass.nodes.heading_estimator import (
+        HeadingEstimatorNode,
+        MAX_PENDING_IMAGES,
+    )
+    from polarization_compass.specs.topics import REPLAY_IMAGE_DEPTH
+
+    node = HeadingEstimatorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('method', value='least_squares'),
+            Parameter('site_source', value='navsatfix'),
+            Parameter('image_qos', value='replay'),
+        ],
+    )
+    try:
+        assert node.max_pending == REPLAY_IMAGE_DEPTH > 4 * MAX_PENDING_IMAGES
+        sub = next(s for s in node.subscriptions if s.topic_name.endswith('camera/image_raw'))
+        assert sub.qos_profile.depth == REPLAY_IMAGE_DEPTH
+        assert sub.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        node._on_camera_info(M.camera_info_msg(CAM, T0, 'camera_optical_frame'))
+        img = ideal_mosaic(40.0, -10.0, 5.0, *_sun_at(T0))
+        n = 4 * MAX_PENDING_IMAGES
+        for k in range(n):  # received while nothing is processed
+            node._receive_image(M.image_msg(img, T0 + k * 10**8, 'camera_optical_frame'))
+        assert len(node.pending) == n
+        assert 'image_queue_full' not in rejected(node)
+    finally:
+        node.destroy_node()
 
 
 def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):

@@ -293,6 +293,67 @@ def test_evaluator_summary_rate_hz_applies_at_run_time(ctx, evaluator):
     assert len(calls) >= 8, calls  # 1 Hz would give at most 2 in 1.5 s
 
 
+def _status_msg(status, published):
+    import json
+
+    from std_msgs.msg import String
+
+    return String(data=json.dumps({'status': status, 'published': published}))
+
+
+def test_evaluator_separates_declined_frames_from_frames_lost_on_the_way(evaluator):
+    """not_received = missed - not_published (the estimator's reasons count for corrected too)."""
+    for k in range(6):
+        evaluator._on_truth(_truth(T0 + k * 100_000_000))
+    evaluator._on_estimate('least_squares/raw', heading_msg(T0, 30.2))
+    evaluator._on_estimate('least_squares/corrected', heading_msg(T0, 30.1))
+    # frame 1: declined by the estimator (so the corrector never saw it); frame 2: declined by
+    # the corrector; frames 3-5: no status, no estimate (lost in transport)
+    evaluator._on_status('least_squares/raw', _status_msg('ambiguous', False))
+    evaluator._on_estimate('least_squares/raw', heading_msg(T0 + 200_000_000, 30.2))
+    evaluator._on_status('least_squares/raw', _status_msg('ok', True))
+    evaluator._on_status('least_squares/corrected', _status_msg('no_solution', False))
+    s = evaluator.summary()['streams']
+    raw, cor = s['least_squares/raw'], s['least_squares/corrected']
+    assert (raw['count'], raw['missed'], raw['not_published']) == (2, 4, {'ambiguous': 1})
+    assert raw['not_received'] == 3
+    assert (cor['count'], cor['missed'], cor['not_published']) == (1, 5, {'no_solution': 1})
+    assert cor['not_received'] == 3
+    evaluator.publish_summary()
+    assert evaluator.diag.extra['least_squares/corrected.not_received'] == 3
+    # never negative: a declined frame whose truth never came is not among the missed
+    for _ in range(5):
+        evaluator._on_status('least_squares/raw', _status_msg('bad_input', False))
+    assert evaluator.summary()['streams']['least_squares/raw']['not_received'] == 0
+
+
+def test_evaluator_reads_the_players_best_effort_clock(ctx, tmp_path):
+    """ros2 bag play --clock publishes /clock best effort: a reliable reader would get nothing."""
+    from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
+    from rclpy.qos import ReliabilityPolicy
+
+    node = ErrorEvaluatorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('report_dir', value=str(tmp_path)),
+            Parameter('methods', value=['least_squares']),
+            Parameter('direct_methods', value=['']),
+            Parameter('latency_source', value='clock'),
+            Parameter('use_sim_time', value=True),
+        ],
+    )
+    try:
+        own = [
+            sub
+            for sub in node.subscriptions
+            if sub.topic_name == '/clock' and sub.callback == node._on_clock
+        ]
+        assert len(own) == 1
+        assert own[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+    finally:
+        node.destroy_node()
+
+
 # --------------------------------------------------------------------------------------------
 # sky_simulator: run-time changes that would break a running camera are refused; time_scale applies
 # --------------------------------------------------------------------------------------------

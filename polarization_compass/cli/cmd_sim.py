@@ -605,13 +605,14 @@ def format_table(summary: dict, realtime: bool = False) -> str:
     """
     streams = summary.get('streams', {})
     from ..estimators import registry
+    from ..evaluation import not_received
 
     order = list(registry.names())
     methods = sorted({k.split('/')[0] for k in streams}, key=lambda m: (order + [m]).index(m))
     n = summary.get('truth_frames', 0)
     head = (
-        f'{"method":<14} {"kind":<10} {"frames":>7} {"missed":>6} {"mean":>8} {"rms":>8} '
-        f'{"p95":>8} '
+        f'{"method":<14} {"kind":<10} {"frames":>7} {"missed":>6} {"not_received":>12} '
+        f'{"mean":>8} {"rms":>8} {"p95":>8} '
         f'{"max":>8} {"lat p95 ms":>10}'
     )
     lines = [f'heading error = estimated - true bearing (deg), {n} frames', head, '-' * len(head)]
@@ -631,8 +632,9 @@ def format_table(summary: dict, realtime: bool = False) -> str:
             # a filter's yaw is sampled at the truth stamps: no arrival latency of its own
             lat = '-' if kind == 'fused' else f'{d.get("latency_ms_p95", 0.0):.1f}'
             lines.append(
-                f'{m:<14} {label:<10} {d["count"]:>7d} {d["missed"]:>6d} {d["mean"]:>8.3f} '
-                f'{d["rms"]:>8.3f} '
+                f'{m:<14} {label:<10} {d["count"]:>7d} {d["missed"]:>6d} '
+                f'{d.get("not_received", not_received(streams, f"{m}/{kind}")):>12d} '
+                f'{d["mean"]:>8.3f} {d["rms"]:>8.3f} '
                 f'{d["p95"]:>8.3f} {d["max"]:>8.3f} {lat:>10}'
             )
     nodes = summary.get('nodes', {})
@@ -657,6 +659,11 @@ def format_table(summary: dict, realtime: bool = False) -> str:
         if d.get('not_published'):
             why = ', '.join(f'{k} x{v}' for k, v in sorted(d['not_published'].items()))
             lines.append(f'note: {name}: frames not published: {why}')
+    if any(d.get('missed') for d in streams.values()):
+        lines.append(
+            'missed: truth frames without an estimate; not_received: those that no node declined '
+            '(lost on the way, e.g. images dropped by best-effort transport)'
+        )
     if not realtime:
         lines.append(
             '(lockstep run: latency includes waiting for the slowest node; use --realtime to '

@@ -27,10 +27,13 @@ its own stamps, so its yaw is interpolated at each truth stamp
 (:class:`~polarization_compass.evaluation.YawTrack`); its sigma is the pose covariance's yaw.
 
 Publishes ``evaluation/summary`` (std_msgs/String, JSON: per stream count, mean, std, RMS, p95,
-max, missed frames, latency) and ``/diagnostics``. On shutdown (Ctrl-C, SIGTERM, end of the launch)
-it writes into ``report_dir``: ``evaluation_samples.csv`` (one row per estimate),
-``evaluation_summary.csv`` and ``.json`` (one row per stream) and ``evaluation.png`` (error against
-true bearing per method, raw and corrected, like the paper's Fig 17). While it runs it keeps a
+max, missed frames, latency; among the missed, ``not_published``: the reasons the estimator or the
+corrector gave for frames it declined, and ``not_received``: the rest, frames that never reached
+a node or whose output was lost on the way, :func:`~polarization_compass.evaluation.not_received`)
+and ``/diagnostics``. On shutdown (Ctrl-C, SIGTERM, end of the launch) it writes into
+``report_dir``: ``evaluation_samples.csv`` (one row per estimate), ``evaluation_summary.csv`` and
+``.json`` (one row per stream) and ``evaluation.png`` (error against true bearing per method, raw
+and corrected, like the paper's Fig 17). While it runs it keeps a
 current report there (CSV and JSON every ``REPORT_PERIOD_S``, the figure every ``FIGURE_PERIOD_S``
 wall seconds when new estimates came in; the JSON's ``complete`` is false until the final one), so
 that not even a SIGKILL loses the run. Every file is written to a temporary name and renamed into
@@ -54,7 +57,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
@@ -65,6 +68,7 @@ from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import stamp_ns
 from ..evaluation import (
+    not_received,
     plot_report,
     StampMatcher,
     write_samples_csv,
@@ -115,7 +119,15 @@ class ErrorEvaluatorNode(Node):
         if p['latency_source'] == 'sim_frames':
             self.create_subscription(String, topics.FRAMES, self._on_frame_time, qos)
         elif self.get_parameter('use_sim_time').value:
-            self.create_subscription(Clock, topics.CLOCK, self._on_clock, QoSProfile(depth=10))
+            # best effort: ``ros2 bag play --clock`` publishes /clock best effort (rclcpp's
+            # ClockQoS), and a reliable reader of a best-effort writer gets nothing ("incompatible
+            # QoS"); a best-effort reader also takes the simulator's reliable /clock
+            self.create_subscription(
+                Clock,
+                topics.CLOCK,
+                self._on_clock,
+                QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
+            )
         self.create_subscription(Imu, topics.TRUTH, self._on_truth, qos)
         for name, topic in self.streams:
             self.create_subscription(Imu, topic, lambda m, n=name: self._on_estimate(n, m), qos)
@@ -279,6 +291,8 @@ class ErrorEvaluatorNode(Node):
             d['latency_ms_p95'] = float(np.percentile(lat, 95)) if lat.size else 0.0
             d['latency_ms_max'] = float(lat.max()) if lat.size else 0.0
             d['not_published'] = dict(self.not_published.get(name, {}))
+        for name, d in s.items():
+            d['not_received'] = not_received(s, name)
         return {
             'truth_frames': self.matcher.truth_count,
             'streams': s,
@@ -296,6 +310,7 @@ class ErrorEvaluatorNode(Node):
             flat[f'{name}.rms_deg'] = d['rms']
             flat[f'{name}.max_deg'] = d['max']
             flat[f'{name}.missed'] = d['missed']
+            flat[f'{name}.not_received'] = d['not_received']
             flat[f'{name}.latency_ms_p95'] = d['latency_ms_p95']
         self.diag.extra = flat
         self.diag.last_status = f'{s["truth_frames"]} truth frame(s)'

@@ -99,6 +99,10 @@ class HeadingEstimatorNode(HeadingNodeBase):
         # drops the oldest image when full and counts it (rejected.image_queue_full in
         # /diagnostics). With the Python executors, two threads: images in one group, the small
         # inputs (IMU, camera_info, fix) in another.
+        # (image_qos replay: a played bag's images queue here, none dropped below that depth)
+        self.max_pending = (
+            topics.REPLAY_IMAGE_DEPTH if p['image_qos'] == 'replay' else MAX_PENDING_IMAGES
+        )
         self.executor_threads = 2
         small, images = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
         self._work_cv = threading.Condition()
@@ -139,9 +143,12 @@ class HeadingEstimatorNode(HeadingNodeBase):
     def _subscribe_camera(self, small, images) -> None:
         """Subscribe to camera_info (small inputs) and the images."""
         p = self.params
-        image_qos = (
-            qos_profile_sensor_data if p['image_qos'] == 'sensor_data' else QoSProfile(depth=5)
-        )
+        image_qos = {
+            'sensor_data': qos_profile_sensor_data,
+            'reliable': QoSProfile(depth=5),
+            # a played bag (the player publishes reliably): queue, never drop, behind a slow node
+            'replay': QoSProfile(depth=topics.REPLAY_IMAGE_DEPTH),
+        }[p['image_qos']]
         self.create_subscription(
             CameraInfo,
             topics.CAMERA_INFO,
@@ -301,12 +308,12 @@ class HeadingEstimatorNode(HeadingNodeBase):
             None,
         )
         with self._pending_lock:
-            dropped = self.pending.popleft() if len(self.pending) >= MAX_PENDING_IMAGES else None
+            dropped = self.pending.popleft() if len(self.pending) >= self.max_pending else None
             self.pending.append(item)
         if dropped is not None:
             self.diag.reject(
                 'image_queue_full',
-                f'frame {dropped[0] / 1e9:.3f} s dropped: {MAX_PENDING_IMAGES} '
+                f'frame {dropped[0] / 1e9:.3f} s dropped: {self.max_pending} '
                 'images were waiting (processing slower than the image rate)',
             )
         with self._work_cv:

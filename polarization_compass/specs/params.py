@@ -856,8 +856,10 @@ ESTIMATOR = (
     Param(
         'image_qos',
         'sensor_data',
-        'subscription QoS of the image: sensor_data (REP-2003, best effort) or reliable',
-        choices=('sensor_data', 'reliable'),
+        'subscription QoS of the image: sensor_data (REP-2003, best effort), reliable (5 deep) or '
+        'replay (reliable, 300 deep: the images of a played bag queue behind a slow estimator, '
+        'none dropped; the replay graph)',
+        choices=('sensor_data', 'reliable', 'replay'),
         read_only=True,
     ),
 )

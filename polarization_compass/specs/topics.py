@@ -105,6 +105,10 @@ FRAMES = 'sim/frames'  # simulator: JSON {stamp_ns, wall_ns} per image (wall-clo
 #: reliable ones) and deep enough for 2 s of a 100 Hz IMU, so that samples arriving while a long
 #: callback runs are kept.
 IMU_DEPTH = 200
+#: History depth of the estimator's image subscription with ``image_qos: replay`` (reliable): a
+#: played bag's images queue there behind an estimator slower than the player instead of being
+#: dropped (30 s of a 10 Hz camera; a full-resolution mosaic is 10 MB).
+REPLAY_IMAGE_DEPTH = 300
 
 
 def method_topics(method: str) -> dict:
