@@ -204,7 +204,9 @@ def test_table_prints_the_fused_rows():
         ['tilt_aware', 'fused'],
         ['odometry', 'fused'],
     ]
-    assert body[2][5] == '0.054' and body[2][-1] == '-'  # a filter has no arrival latency
+    # method, kind, frames, missed, not_received, mean, rms, p95, max, latency
+    assert body[2][6] == '0.054' and body[2][-1] == '-'  # a filter has no arrival latency
+    assert body[2][4] == '0'
     assert body[0][-1] == '12.0'
     assert "robot_localization's filtered yaw" in lines[0]
     assert (
