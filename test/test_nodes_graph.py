@@ -132,7 +132,9 @@ def test_sim_graph_on_dds(ros_env, tmp_path):
         for topic, ty in ((T.IMAGE, Image), (T.CAMERA_INFO, CameraInfo), (T.IMU, Imu)):
             rec.sub(ty, topic, depth=5)
         # every node's actual topics equal graphs.py's declaration (ROS built-ins aside)
-        builtin = {'/rosout', '/parameter_events', '/clock'}
+        # TF is broadcast through tf2_ros where it is installed (the simulator's odom_tf), like
+        # /rosout an infrastructure topic outside the graph's declared data flow
+        builtin = {'/rosout', '/parameter_events', '/clock', '/tf', '/tf_static'}
         for spec in expected.nodes:
             pubs, subs = rec.node_topics(spec.name)
             want_pubs = {t: (ty,) for t, ty in spec.resolved_publishes() if t not in builtin}
