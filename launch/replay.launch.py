@@ -123,7 +123,6 @@ def _player(context):
         LogInfo,
         OpaqueFunction,
         RegisterEventHandler,
-        TimerAction,
     )
     from launch.event_handlers import OnProcessExit, OnProcessIO
     from launch.events import Shutdown
@@ -166,53 +165,8 @@ def _player(context):
         name='resume_player',
         output='screen',
     )
-    ready: set = set()
-    tails: dict = {}
-
-    def on_output(event):
-        if len(ready) == len(patterns):
-            return None
-        key = id(event.action)  # a line may arrive in two pieces: search a short tail
-        text = (tails.get(key, '') + event.text.decode(errors='replace'))[-4096:]
-        tails[key] = text
-        for name, pat in patterns.items():
-            if name not in ready and pat.search(text):
-                ready.add(name)
-        if len(ready) < len(patterns):
-            return None
-        return [
-            LogInfo(
-                msg=f'replay: all {len(patterns)} nodes ready; resuming the player in '
-                f'{settle_s:g} s'
-            ),
-            TimerAction(period=settle_s, actions=[resume]),
-        ]
-
-    from polarization_compass.nodes.error_evaluator import REPORT_PERIOD_S
-
-    summary = Path(arg('report_dir')) / 'evaluation_summary.json'  # the evaluator's current one
-    # the current report is rewritten at most every REPORT_PERIOD_S: quiet for two periods at least
-    quiet_s = max(drain_s, 2.0 * REPORT_PERIOD_S)
-    last = {'stamp': None, 'since': 0.0, 'waited': 0.0}
-
-    def drained(_context):
-        # the estimators may still be working through their image queues (image_qos replay):
-        # stop once the evaluator's current report has not changed for quiet_s
-        try:
-            st = summary.stat()
-            stamp = (st.st_mtime_ns, st.st_size)
-        except OSError:
-            stamp = None
-        if stamp != last['stamp']:
-            last['stamp'], last['since'] = stamp, 0.0
-        if last['since'] >= quiet_s or last['waited'] >= DRAIN_LIMIT_S:
-            return [
-                LogInfo(msg=f'replay: no new result for {last["since"]:g} s; stopping'),
-                EmitEvent(event=Shutdown(reason='bag played')),
-            ]
-        last['since'] += 1.0
-        last['waited'] += 1.0
-        return [TimerAction(period=1.0, actions=[OpaqueFunction(function=drained)])]
+    on_output = _ready_watcher(patterns, settle_s, resume)
+    quiet_s, drained = _drain_watcher(Path(arg('report_dir')), drain_s)
 
     def on_player_exit(event, _context):
         if event.returncode != 0:
@@ -236,6 +190,68 @@ def _player(context):
         RegisterEventHandler(OnProcessExit(target_action=player, on_exit=on_player_exit)),
         player,
     ]
+
+
+def _ready_watcher(patterns, settle_s, resume):
+    """Return the output handler that resumes the player once every node logged ready."""
+    from launch.actions import LogInfo, TimerAction
+
+    ready: set = set()
+    tails: dict = {}
+
+    def on_output(event):
+        if len(ready) == len(patterns):
+            return None
+        key = id(event.action)  # a line may arrive in two pieces: search a short tail
+        text = (tails.get(key, '') + event.text.decode(errors='replace'))[-4096:]
+        tails[key] = text
+        for name, pat in patterns.items():
+            if name not in ready and pat.search(text):
+                ready.add(name)
+        if len(ready) < len(patterns):
+            return None
+        return [
+            LogInfo(
+                msg=f'replay: all {len(patterns)} nodes ready; resuming the player in '
+                f'{settle_s:g} s'
+            ),
+            TimerAction(period=settle_s, actions=[resume]),
+        ]
+
+    return on_output
+
+
+def _drain_watcher(report_dir, drain_s):
+    """Return the quiet time and the check that ends the launch once the report settles."""
+    from launch.actions import EmitEvent, LogInfo, OpaqueFunction, TimerAction
+    from launch.events import Shutdown
+    from polarization_compass.nodes.error_evaluator import REPORT_PERIOD_S
+
+    summary = report_dir / 'evaluation_summary.json'  # the evaluator's current one
+    # the current report is rewritten at most every REPORT_PERIOD_S: quiet for two periods at least
+    quiet_s = max(drain_s, 2.0 * REPORT_PERIOD_S)
+    last = {'stamp': None, 'since': 0.0, 'waited': 0.0}
+
+    def drained(_context):
+        # the estimators may still be working through their image queues (image_qos replay):
+        # stop once the evaluator's current report has not changed for quiet_s
+        try:
+            st = summary.stat()
+            stamp = (st.st_mtime_ns, st.st_size)
+        except OSError:
+            stamp = None
+        if stamp != last['stamp']:
+            last['stamp'], last['since'] = stamp, 0.0
+        if last['since'] >= quiet_s or last['waited'] >= DRAIN_LIMIT_S:
+            return [
+                LogInfo(msg=f'replay: no new result for {last["since"]:g} s; stopping'),
+                EmitEvent(event=Shutdown(reason='bag played')),
+            ]
+        last['since'] += 1.0
+        last['waited'] += 1.0
+        return [TimerAction(period=1.0, actions=[OpaqueFunction(function=drained)])]
+
+    return quiet_s, drained
 
 
 def generate_launch_description():
