@@ -32,12 +32,12 @@ import json
 import os
 from pathlib import Path
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import time
 
+from colcon_ws import colcon_install, sourced_env
 import pytest
 
 try:
@@ -74,36 +74,9 @@ FAILURE_MARKS = (
 def ws(tmp_path_factory):
     """Build a colcon install space of this package and an environment that has sourced it."""
     ws = tmp_path_factory.mktemp('ws')
-    colcon = shutil.which('colcon', path=str(BIN)) or shutil.which('colcon')
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-    r = subprocess.run(
-        [
-            colcon,
-            'build',
-            '--packages-select',
-            'polarization_compass',
-            '--build-base',
-            str(ws / 'build'),
-            '--install-base',
-            str(ws / 'install'),
-            '--event-handlers',
-            'console_direct-',
-        ],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    dump = subprocess.run(
-        ['bash', '-c', f'source {ws}/install/setup.bash && env -0'],
-        env=env,
-        capture_output=True,
-        timeout=60,
-        check=True,
-    ).stdout.decode()
-    env = dict(kv.split('=', 1) for kv in dump.split('\0') if '=' in kv)
+    colcon_install(ws, env)
+    env = sourced_env(ws / 'install' / 'setup.bash', env)
     env['PATH'] = f'{BIN}:{env["PATH"]}'
     env['ROS_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID') or str(150 + os.getpid() % 50)
     env['ROS_LOG_DIR'] = str(ws / 'ros_log')

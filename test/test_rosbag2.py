@@ -49,6 +49,7 @@ import signal
 import subprocess
 import sys
 
+from colcon_ws import colcon_install, sourced_env
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,17 +100,6 @@ RATE_HZ = 10.0
 PLAYER_RATE = 1.0  # the player's --rate: images queue behind a slower estimator (image_qos replay)
 
 
-def _sourced_env(script: Path, env: dict) -> dict:
-    dump = subprocess.run(
-        ['bash', '-c', f'source {script} && env -0'],
-        env=env,
-        capture_output=True,
-        timeout=60,
-        check=True,
-    ).stdout.decode()
-    return dict(kv.split('=', 1) for kv in dump.split('\0') if '=' in kv)
-
-
 @pytest.fixture(scope='module')
 def ws(tmp_path_factory):
     """Build a colcon install space of this package; an environment with rosbag2 and it sourced."""
@@ -119,29 +109,9 @@ def ws(tmp_path_factory):
     try:
         import ros2bag  # noqa: F401
     except ImportError:
-        env = _sourced_env(ROS_CPP_SETUP, env)
-    colcon = shutil.which('colcon', path=str(BIN)) or shutil.which('colcon')
-    r = subprocess.run(
-        [
-            colcon,
-            'build',
-            '--packages-select',
-            'polarization_compass',
-            '--build-base',
-            str(ws / 'build'),
-            '--install-base',
-            str(ws / 'install'),
-            '--event-handlers',
-            'console_direct-',
-        ],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    env = _sourced_env(ws / 'install' / 'setup.bash', env)
+        env = sourced_env(ROS_CPP_SETUP, env)
+    colcon_install(ws, env)
+    env = sourced_env(ws / 'install' / 'setup.bash', env)
     env['PATH'] = f'{BIN}:{env["PATH"]}'
     # the launch file and the executables come from the install space, the modules from this tree:
     # numba caches the kernels by source path, and a fresh install space recompiles them in every
