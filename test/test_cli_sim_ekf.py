@@ -24,12 +24,14 @@ one short run (a quarter turn, 90 frames, about 75 s on 2 cores) goes through th
 what the filter does in detail is ``fusion.launch.py``'s launch test (test_fusion_launch.py).
 """
 
+import csv
 import json
 import os
 from pathlib import Path
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from test_cli_bad_input import assert_user_error, run
 
@@ -266,6 +268,17 @@ def test_sim_ekf_runs_the_real_ekf_node_and_prints_its_row(ros_env, tmp_path):
     fused = streams['least_squares/fused']
     # the filter's yaw at the truth stamps; the last stamp may lie after its last output
     assert fused['count'] >= 85 and fused['missed'] <= 5, fused
-    assert fused['rms'] < 0.5, fused  # 0.053 deg by hand; the odometry alone drifts degrees
+    # Under load the filter may publish before its first compass heading: its yaw is then the
+    # initial 0 (ENU) with the initial sigma (sqrt(10 rad^2) = 181 deg), 90 deg off a North start
+    # (seen once in CI). Such a sample is wrong within its sigma; every other is within 0.5 deg.
+    with (out / 'evaluation_samples.csv').open() as f:
+        rows_f = [r for r in csv.DictReader(f) if r['stream'] == 'least_squares/fused']
+    err = np.array([float(r['error_deg']) for r in rows_f])
+    sig = np.array([float(r['sigma_deg']) for r in rows_f])
+    assert len(err) == fused['count'], (len(err), fused)
+    assert np.all(np.abs(err) <= 3.0 * sig + 0.05), (err, sig)
+    unconverged = sig > 90.0
+    assert unconverged.sum() <= 2 and not unconverged[2:].any(), sig
+    assert np.max(np.abs(err[~unconverged])) < 0.5, err  # 0.08 deg by hand; odometry drifts degrees
     assert streams['least_squares/corrected']['count'] == 90
     assert (out / 'logs' / 'ekf_filter_node.log').is_file()
