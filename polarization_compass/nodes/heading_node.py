@@ -98,6 +98,10 @@ class HeadingNodeBase(Node):
             # bag players alike (a reliable reader never connects to a best-effort writer); deep
             # for fast IMUs
             imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+            if p.values.get('image_qos') == 'replay':
+                # a played bag's IMU reliably (the player publishes reliably): a best-effort
+                # sample lost under the image flood leaves tilt_aware's frame without attitude
+                imu_qos = QoSProfile(depth=topics.IMU_DEPTH)
             self.create_subscription(
                 Imu, topics.IMU, self._on_imu, imu_qos, callback_group=small_group
             )

@@ -37,6 +37,7 @@ __all__ = [
     'ESTIMATOR',
     'CORRECTOR',
     'EVALUATOR',
+    'PLAYER_FLOW',
     'SPECS',
     'spec_by_name',
     'defaults',
@@ -857,8 +858,8 @@ ESTIMATOR = (
         'image_qos',
         'sensor_data',
         'subscription QoS of the image: sensor_data (REP-2003, best effort), reliable (5 deep) or '
-        'replay (reliable, 300 deep: the images of a played bag queue behind a slow estimator, '
-        'none dropped; the replay graph)',
+        'replay (reliable, 32 deep: the images of a played bag queue behind a slow estimator, '
+        "which replay.launch.py's player_flow keeps short; the replay graph)",
         choices=('sensor_data', 'reliable', 'replay'),
         read_only=True,
     ),
@@ -1084,12 +1085,55 @@ EVALUATOR = (
     ),
 )
 
+PLAYER_FLOW = (
+    Param(
+        'status_topics',
+        [''],
+        "the estimators' status topics (compass/<method>/status): one answer per image each",
+        read_only=True,
+    ),
+    Param(
+        'camera_info_topic',
+        'camera/camera_info',
+        "the player's camera_info: one per image, the frames it has published",
+        read_only=True,
+    ),
+    Param(
+        'player', '/rosbag2_player', 'the player node (its pause/resume services)', read_only=True
+    ),
+    Param(
+        'high_water',
+        6,
+        'pause the player when an estimator is this many frames behind',
+        lo=1,
+        hi=1000,
+        unit='frames',
+    ),
+    Param(
+        'low_water',
+        2,
+        'resume it when every estimator is within this many frames (less than high_water)',
+        lo=0,
+        hi=999,
+        unit='frames',
+    ),
+    Param(
+        'max_pause_s',
+        120.0,
+        'longest pause without an answer from the estimators before resuming for good',
+        lo=1.0,
+        hi=3600.0,
+        unit='s',
+    ),
+)
+
 SPECS = {
     'sky_simulator': SIMULATOR,
     'heading_estimator': ESTIMATOR,
     'array_heading_estimator': ARRAY_ESTIMATOR,
     'tilt_corrector': CORRECTOR,
     'error_evaluator': EVALUATOR,
+    'player_flow': PLAYER_FLOW,
 }
 
 
