@@ -29,7 +29,8 @@ YAML (in an array geometry or a ``CAMERA.yaml``)::
       roll_deg: -2.0         # paper's beta
       pitch_sigma_deg: 0.3   # optional, written by calibrate-mount
       roll_sigma_deg: 0.3
-      turns: 12              # optional record of the calibration (free-form numbers)
+      turns: 12              # optional record of the calibration: turns, samples,
+                             # residual_before_deg, residual_after_deg, sigma_widened_by, method
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ _RECORD_KEYS = (
     'residual_before_deg',
     'residual_after_deg',
     'yaw_offsets_deg',
+    'sigma_widened_by',
     'method',
 )
 

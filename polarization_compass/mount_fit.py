@@ -40,7 +40,17 @@ from .conventions import fold_axial_rad, unit_angle_from_evector_body_rad, unit_
 from .errors import CompassError
 from .mount import Mount, sun_sensor
 
-__all__ = ['MountFitError', 'TurnSamples', 'MountFit', 'turn_samples', 'fit_mount']
+__all__ = [
+    'MountFitError',
+    'TurnSamples',
+    'MountFit',
+    'turn_samples',
+    'concat',
+    'predicted_aop_rad',
+    'fit_mount',
+    'fit_mount_recordings',
+    'heading_scatter_deg',
+]
 
 #: soft-L1 scale of the angle residuals [deg]
 ROBUST_SCALE_DEG = 10.0
@@ -72,7 +82,12 @@ class TurnSamples:
 
 @dataclass
 class MountFit:
-    """The fitted mount (sigmas set) and the per-turn IMU offsets [deg] with the residuals."""
+    """
+    The fitted mount (sigmas set) and the per-turn IMU offsets [deg] with the residuals.
+
+    ``spread``: the factors the recordings' disagreement widened the mount's sigmas by (pitch,
+    roll; :func:`fit_mount_recordings`).
+    """
 
     mount: Mount
     yaw_offsets_deg: np.ndarray
@@ -81,6 +96,7 @@ class MountFit:
     samples: int
     angle_rms_before_deg: float
     angle_rms_after_deg: float
+    spread: tuple = (1.0, 1.0)
 
 
 def turn_samples(
@@ -380,3 +396,64 @@ def heading_scatter_deg(bearing_deg, imu_yaw_rad, turn, ok) -> tuple:
         return math.nan, 0
     d = np.concatenate(dev)
     return float(np.sqrt(np.mean(d**2))), int(d.size)
+
+
+def fit_mount_recordings(geometry, parts: list, **limits) -> MountFit:
+    """
+    Fit the mount from several recordings, widening its sigmas by how much they disagree.
+
+    The recordings are fitted together (:func:`fit_mount`) and, from two on, each alone; the
+    sigmas are multiplied by the Birge ratio ``sqrt(chi2 / (n - 1))`` of the single fits about the
+    joint one when it exceeds 1 (a sky that is not clear biases a recording's mount beyond its own
+    sigma). A widened sigma above ``max_sigma_deg`` is refused, naming each recording's mount.
+
+    Parameters
+    ----------
+    geometry : ArrayGeometry
+        The sensor description.
+    parts : list of TurnSamples
+        One per recording, turn labels distinct across them.
+    **limits
+        The limits of :func:`fit_mount`.
+
+    Returns
+    -------
+    MountFit
+        The joint fit, sigmas widened; ``spread`` the Birge ratios (pitch, roll).
+
+    Raises
+    ------
+    MountFitError
+        The joint fit refused, or the recordings disagree beyond ``max_sigma_deg``.
+
+    """
+    fit = fit_mount(geometry, concat(parts), **limits)
+    singles = []
+    for i, p in enumerate(parts):
+        try:
+            singles.append((i, fit_mount(geometry, p, **{**limits, 'max_sigma_deg': 90.0})))
+        except MountFitError:
+            continue  # a recording that cannot determine the mount alone still counts jointly
+    if len(singles) < 2:
+        return fit
+    m = fit.mount
+    ratios = []
+    for key in ('pitch', 'roll'):
+        x = np.array([getattr(s.mount, f'{key}_deg') for _, s in singles])
+        sx = np.array([getattr(s.mount, f'{key}_sigma_deg') for _, s in singles])
+        chi2 = float(np.sum(((x - getattr(m, f'{key}_deg')) / sx) ** 2)) / (len(singles) - 1)
+        ratios.append(max(1.0, math.sqrt(chi2)))
+    sig = (m.pitch_sigma_deg * ratios[0], m.roll_sigma_deg * ratios[1])
+    if max(sig) > limits.get('max_sigma_deg', 3.0):
+        each = '; '.join(
+            f'recording {i + 1}: pitch {s.mount.pitch_deg:.1f} +- {s.mount.pitch_sigma_deg:.1f}, '
+            f'roll {s.mount.roll_deg:.1f} +- {s.mount.roll_sigma_deg:.1f}'
+            for i, s in singles
+        )
+        raise MountFitError(
+            f'cannot calibrate the mount: the recordings disagree ({each} deg); calibrate from '
+            'turns under a clear, open sky (trees and clouds bias the fit)'
+        )
+    fit.mount = Mount(m.pitch_deg, m.roll_deg, sig[0], sig[1])
+    fit.spread = (ratios[0], ratios[1])
+    return fit

@@ -30,6 +30,7 @@ from polarization_compass.mount import Mount, R_body_sensor
 from polarization_compass.mount_fit import (
     concat,
     fit_mount,
+    fit_mount_recordings,
     heading_scatter_deg,
     MountFitError,
     turn_samples,
@@ -59,10 +60,10 @@ OFFSETS = (10.0, 13.5, 200.0)  # IMU zero of each turn: bearing = offset - degre
 N = 72  # samples per turn
 
 
-def _turns(sun_alt=SUN_ALT, span_deg=360.0, noise=0.02, seed=0, offsets=OFFSETS):
+def _turns(sun_alt=SUN_ALT, span_deg=360.0, noise=0.02, seed=0, offsets=OFFSETS, mount=TRUE):
     """Simulate turns in place of the mounted sensor: (readings, imu yaw, turn) per turn."""
     rng = np.random.default_rng(seed)
-    gm = geom().with_mount(TRUE)
+    gm = geom().with_mount(mount)
     out = []
     for k, off in enumerate(offsets):
         yaw = np.radians(np.linspace(0.0, span_deg, N, endpoint=False))
@@ -181,6 +182,19 @@ def test_refuses_an_undetermined_mount():
         fit_mount(geom(), d, max_sigma_deg=0.5 * sig)
 
 
+def test_recordings_that_disagree_widen_the_sigma_or_are_refused():
+    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
+    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    b.turn = b.turn + 10
+    joint = fit_mount_recordings(geom(), [a, b])
+    assert max(joint.spread) < 3.0  # same mount: the sigma barely moves
+    assert abs(joint.mount.pitch_deg - TRUE.pitch_deg) < 4 * joint.mount.pitch_sigma_deg
+    c = _samples(_turns(seed=3, offsets=(90.0, 120.0), mount=Mount(4.0, 2.0)))
+    c.turn = c.turn + 10
+    with pytest.raises(MountFitError, match=r'recordings disagree.*recording 2: pitch [34]\.'):
+        fit_mount_recordings(geom(), [a, c])
+
+
 def test_recording_per_sample_imu_yaw_and_turn_index_round_trip(tmp_path):
     inten = np.arange(2 * 8 * 4, dtype=float).reshape(2, 8, 4)
     for ext, save in (('npz', save_array_recording_npz), ('csv', save_array_recording_csv)):
@@ -239,3 +253,4 @@ def test_cli_calibrate_mount_writes_the_mount_section(tmp_path, capsys):
     args[1] = str(tmp_path / 'no_imu.npz')
     assert main(args + ['--lon', str(lon), '--time', time_iso, '--out', str(out)]) == 2
     assert 'no imu_yaw_rad' in capsys.readouterr().err
+

@@ -36,9 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from polarization_compass.conventions import wrap_180_deg  # noqa: E402
 from polarization_compass.estimators.base import Status  # noqa: E402
 from polarization_compass.mount_fit import (  # noqa: E402
-    concat,
-    fit_mount,
+    fit_mount_recordings,
     heading_scatter_deg,
+    MountFitError,
     turn_samples,
 )
 from polarization_compass.photodiode.geometry import geometry_from_dict  # noqa: E402
@@ -101,15 +101,20 @@ def leave_one_out(sessions, geometry, sources=None) -> list:
         parts = [o['fit'] for o in src]
         for j, p in enumerate(parts):  # distinct turn labels per session
             p.turn = p.turn % 1000 + 1000 * j
-        fit = fit_mount(geometry, concat(parts))
+        try:
+            mount, refused = fit_mount_recordings(geometry, parts).mount, ''
+        except MountFitError as exc:
+            mount, refused = None, str(exc)
+        before = evaluate(s, geometry)
         rows.append(
             {
                 'session': s['session'],
                 'from': ' + '.join(o['session'][:5] for o in src),
                 'sun_alt': float(np.mean(s['alt'])),
-                'mount': fit.mount,
-                'before': evaluate(s, geometry),
-                'after': evaluate(s, geometry.with_mount(fit.mount)),
+                'mount': mount,
+                'refused': refused,
+                'before': before,
+                'after': before if mount is None else evaluate(s, geometry.with_mount(mount)),
             }
         )
     return rows
@@ -124,10 +129,15 @@ def table(rows) -> str:
     ]
     for r in rows:
         m, b, a = r['mount'], r['before'], r['after']
+        mount = (
+            'refused: the recordings disagree'
+            if m is None
+            else f'{m.pitch_deg:.1f} +- {m.pitch_sigma_deg:.1f}, {m.roll_deg:.1f} +- '
+            f'{m.roll_sigma_deg:.1f}'
+        )
         out.append(
-            f'| {r["session"]} | {r["sun_alt"]:.0f} | {r["from"]} | '
-            f'{m.pitch_deg:.1f} +- {m.pitch_sigma_deg:.1f}, {m.roll_deg:.1f} +- '
-            f'{m.roll_sigma_deg:.1f} | {b["scatter_deg"]:.2f} -> {a["scatter_deg"]:.2f} | '
+            f'| {r["session"]} | {r["sun_alt"]:.0f} | {r["from"]} | {mount} | '
+            f'{b["scatter_deg"]:.2f} -> {a["scatter_deg"]:.2f} | '
             f'{b["rms_deg"]:.1f} -> {a["rms_deg"]:.1f} | {b["off90"]} -> {a["off90"]} |'
         )
     return '\n'.join(out)
@@ -179,6 +189,9 @@ def main() -> int:
     other_clear = [[o for o in clear if o is not s] if s in clear else [] for s in sessions]
     rows += leave_one_out(sessions, g, other_clear)
     print(table(rows))
+    for r in rows:
+        if r['refused']:
+            print(f'{r["session"]} from {r["from"]}: {r["refused"]}')
     if args.plot:
         plot([rows[0], rows[3], rows[4]], sessions, args.plot)  # mounts from clear skies only
     return 0

@@ -55,7 +55,7 @@ def _samples(args, geometry):
     """Read the recordings into the fit's samples and what the scatter check needs."""
     from .cmd_estimate_array import sun_per_sample
     from ..errors import CompassError
-    from ..mount_fit import concat, turn_samples
+    from ..mount_fit import turn_samples
     from ..photodiode.readings import load_array_recording
     from ..photodiode.stokes import fit_stokes
 
@@ -73,7 +73,7 @@ def _samples(args, geometry):
             turn_samples(st, geometry, rec.imu_yaw_rad, turn, az, alt, args.pitch, args.roll)
         )
         recs.append((rec, az, alt, turn))
-    return concat(parts), recs
+    return parts, recs
 
 
 def _scatter(geometry, recs, pitch, roll) -> tuple:
@@ -99,7 +99,7 @@ def run(args) -> int:
     from ._checks import check_range
     from ..errors import CompassError
     from ..mount import Mount
-    from ..mount_fit import fit_mount
+    from ..mount_fit import fit_mount_recordings
     from ..photodiode.geometry import geometry_to_dict, load_array_geometry
 
     check_range('lat', args.lat, -90, 90)
@@ -112,8 +112,8 @@ def run(args) -> int:
             'recording, or one for all'
         )
     g0 = load_array_geometry(args.geometry).with_mount(None)
-    d, recs = _samples(args, g0)
-    fit = fit_mount(g0, d)
+    parts, recs = _samples(args, g0)
+    fit = fit_mount_recordings(g0, parts)
     m = fit.mount
     before = _scatter(g0, recs, args.pitch, args.roll)
     after = _scatter(g0.with_mount(m), recs, args.pitch, args.roll)
@@ -122,6 +122,7 @@ def run(args) -> int:
         'samples': fit.samples,
         'residual_before_deg': round(before[0], 3),
         'residual_after_deg': round(after[0], 3),
+        'sigma_widened_by': [round(float(v), 2) for v in fit.spread],
         'method': 'calibrate-mount: within-turn rms of tilt_aware bearing + IMU yaw',
     }
     mount = Mount(m.pitch_deg, m.roll_deg, m.pitch_sigma_deg, m.roll_sigma_deg, record)
