@@ -254,3 +254,18 @@ def test_cli_calibrate_mount_writes_the_mount_section(tmp_path, capsys):
     assert main(args + ['--lon', str(lon), '--time', time_iso, '--out', str(out)]) == 2
     assert 'no imu_yaw_rad' in capsys.readouterr().err
 
+
+def test_camera_yaml_mount_section_is_parsed(tmp_path):
+    from polarization_compass.camera import CameraError, load_camera_yaml
+
+    base = 'image_width: 10\nimage_height: 10\ncamera_matrix: [1, 0, 5, 0, 1, 5, 0, 0, 1]\n'
+    p = tmp_path / 'cam.yaml'
+    p.write_text(base)
+    assert load_camera_yaml(p).mount is None
+    p.write_text(base + 'mount: {pitch_deg: -3.5, roll_deg: 1.25, pitch_sigma_deg: 0.2}\n')
+    m = load_camera_yaml(p).mount
+    assert (m.pitch_deg, m.roll_deg) == (-3.5, 1.25)
+    assert (m.pitch_sigma_deg, m.roll_sigma_deg) == (0.2, None)
+    p.write_text(base + 'mount: {pitch_deg: -3.5}\n')
+    with pytest.raises(CameraError, match='mount: missing roll_deg'):
+        load_camera_yaml(p)
