@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Mount calibration of a photodiode array from turns in place with an IMU (issue 28).
+Mount calibration of a photodiode array or a camera from turns in place with an IMU (issue 28).
 
 Through a turn in place the sun's azimuth in the body frame turns exactly with the IMU's yaw: the
 body's bearing is ``c_k - degrees(imu_yaw)`` with one unknown offset ``c_k`` per turn (an IMU is
@@ -21,8 +21,9 @@ re-zeroed between turns). The mount pitch and roll (:mod:`.mount`), shared by al
 offsets are the parameters under which every unit's measured angle of polarization fits the
 single-scattering sky of the ephemeris sun (eq 18, ``E = S x P``, read as the unit reads it: the
 forward model of :func:`~.conventions.unit_angle_from_evector_body_rad` on the sensor frame of
-:func:`~.mount.sun_sensor`). A robust (soft L1) least-squares fit with DoP^2 weights, the
-estimators' weighting; its 1-sigmas are the larger of the Gauss-Newton covariance scaled by the
+:func:`~.mount.sun_sensor`; for a camera, :class:`CameraRays`, the eq 28 AoP of fixed pixel
+rays). A robust (soft L1) least-squares fit with DoP^2 weights, the estimators' weighting; its
+1-sigmas are the larger of the Gauss-Newton covariance scaled by the
 residuals and, with 4 turns or more, the same covariance clustered by turn (residuals of one turn
 share the sky's misfit). The fit refuses, in one line naming what is missing, turns that cannot
 determine the mount: too few usable samples, too little rotation, the sun too low, or sigmas
@@ -36,15 +37,23 @@ import math
 
 import numpy as np
 
-from .conventions import fold_axial_rad, unit_angle_from_evector_body_rad, unit_axis_body
+from .conventions import (
+    aop_from_evector_cam_rad,
+    enu_direction,
+    fold_axial_rad,
+    unit_angle_from_evector_body_rad,
+    unit_axis_body,
+)
 from .errors import CompassError
-from .mount import Mount, sun_sensor
+from .mount import Mount, R_enu_sensor_cam, sun_sensor
 
 __all__ = [
     'MountFitError',
     'TurnSamples',
     'MountFit',
     'turn_samples',
+    'camera_samples',
+    'CameraRays',
     'concat',
     'predicted_aop_rad',
     'fit_mount',
@@ -195,11 +204,89 @@ def predicted_aop_rad(geometry, d: TurnSamples, bearing_deg, mount: Mount | None
     return unit_angle_from_evector_body_rad(e, az, el, geometry.angle_zero, geometry.angle_sense)
 
 
+@dataclass(frozen=True)
+class CameraRays:
+    """
+    The pixel rays of a camera whose angles of polarization (eq 28) the fit reads.
+
+    ``rays_cam`` (P, 3) unit rays in the camera frame (``SelectedPixels.rays_cam.T``).
+    """
+
+    rays_cam: np.ndarray
+
+    def predict_aop_rad(self, d: TurnSamples, bearing_deg, mount: Mount | None) -> np.ndarray:
+        """
+        Return the eq 28 AoP of each ray under a Rayleigh sky for given body bearings and mount.
+
+        Parameters
+        ----------
+        d : TurnSamples
+            Sun and body pitch/roll per frame.
+        bearing_deg : array_like
+            (S,) true bearing of the body's front [deg] (camera +y on a level mount).
+        mount : Mount or None
+            The camera's mount, composed with the body attitude (:func:`.mount.R_enu_sensor_cam`).
+
+        Returns
+        -------
+        numpy.ndarray
+            (S, P) AoP [rad].
+
+        """
+        R = R_enu_sensor_cam(bearing_deg, d.pitch_deg, d.roll_deg, mount)
+        s_cam = np.einsum('sji,sj->si', R, enu_direction(d.sun_azimuth_deg, d.sun_altitude_deg))
+        e = np.cross(s_cam[:, None, :], np.asarray(self.rays_cam)[None, :, :])
+        return aop_from_evector_cam_rad(e)
+
+
+def camera_samples(
+    aop_rad, dop, valid, imu_yaw_rad, turn, sun_az_deg, sun_alt_deg, pitch_deg=0.0, roll_deg=0.0,
+    min_dop: float = 0.02,
+) -> TurnSamples:
+    """
+    Collect the fit's inputs from camera frames sampled at fixed pixels.
+
+    Parameters
+    ----------
+    aop_rad, dop, valid : array_like
+        (S, P) the frames' AoP [rad, eq 28], DoP and validity at the rays of :class:`CameraRays`.
+    imu_yaw_rad, turn, sun_az_deg, sun_alt_deg : array_like
+        (S,) IMU yaw [rad, counter-clockwise], turn label, ephemeris sun [deg].
+    pitch_deg, roll_deg : float or array_like, optional
+        The body's pitch and roll [deg].
+    min_dop : float, optional
+        Pixels with a lower DoP are not used.
+
+    Returns
+    -------
+    TurnSamples
+        The samples, weights ``min(DoP, 1)^2`` on usable pixels.
+
+    """
+    aop = np.asarray(aop_rad, dtype=float)
+    dop = np.asarray(dop, dtype=float)
+    ok = np.asarray(valid, dtype=bool) & np.isfinite(aop) & np.isfinite(dop) & (dop >= min_dop)
+    S = aop.shape[0]
+
+    def per(v):
+        return np.broadcast_to(np.asarray(v, dtype=float), (S,)).copy()
+
+    return TurnSamples(
+        np.where(ok, aop, 0.0), np.where(ok, np.minimum(np.nan_to_num(dop), 1.0) ** 2, 0.0),
+        per(imu_yaw_rad), per(sun_az_deg), per(sun_alt_deg), per(pitch_deg), per(roll_deg),
+        np.asarray(turn, dtype=np.int64),
+    )
+
+
 class _Problem:
     """The residual function of the fit: x = (mount pitch, mount roll, c_0 .. c_K-1) [deg]."""
 
     def __init__(self, geometry, d: TurnSamples):
         self.geometry, self.d = geometry, d
+        if isinstance(geometry, CameraRays):
+            self.predict = geometry.predict_aop_rad
+        else:
+            self.predict = lambda d_, b, m: predicted_aop_rad(geometry, d_, b, m)
         self.labels, self.k = np.unique(d.turn, return_inverse=True)
         self.sqrt_w = np.sqrt(d.w)
         self.use = d.w > 0  # (S, U)
@@ -210,7 +297,7 @@ class _Problem:
     def angle_residuals_rad(self, x) -> np.ndarray:
         """Return the (S, U) folded angle residuals [rad] (0 where a unit is not usable)."""
         m = Mount(float(x[0]), float(x[1]))
-        pred = predicted_aop_rad(self.geometry, self.d, self.bearings(x[2:]), m)
+        pred = self.predict(self.d, self.bearings(x[2:]), m)
         return np.where(self.use, fold_axial_rad(self.d.aop_rad - pred), 0.0)
 
     def __call__(self, x) -> np.ndarray:
@@ -313,10 +400,11 @@ def fit_mount(
 
     Parameters
     ----------
-    geometry : ArrayGeometry
-        The sensor description (its own mount, if any, is not used: the fit starts level).
+    geometry : ArrayGeometry or CameraRays
+        The sensor: an array's description (its own mount, if any, is not used: the fit starts
+        level) or a camera's pixel rays.
     d : TurnSamples
-        The turns' samples (:func:`turn_samples`, :func:`concat`).
+        The turns' samples (:func:`turn_samples`, :func:`camera_samples`, :func:`concat`).
     min_samples : int, optional
         Samples with 3 or more usable units needed.
     min_rotation_deg : float, optional
