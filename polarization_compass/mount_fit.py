@@ -109,7 +109,14 @@ class MountFit:
 
 
 def turn_samples(
-    stokes, geometry, imu_yaw_rad, turn, sun_az_deg, sun_alt_deg, pitch_deg=0.0, roll_deg=0.0,
+    stokes,
+    geometry,
+    imu_yaw_rad,
+    turn,
+    sun_az_deg,
+    sun_alt_deg,
+    pitch_deg=0.0,
+    roll_deg=0.0,
     min_dop: float = 0.02,
 ) -> TurnSamples:
     """
@@ -145,8 +152,14 @@ def turn_samples(
         return np.broadcast_to(np.asarray(v, dtype=float), (S,)).copy()
 
     return TurnSamples(
-        np.where(ok, stokes.aop_rad, 0.0), w, per(imu_yaw_rad), per(sun_az_deg),
-        per(sun_alt_deg), per(pitch_deg), per(roll_deg), np.asarray(turn, dtype=np.int64),
+        np.where(ok, stokes.aop_rad, 0.0),
+        w,
+        per(imu_yaw_rad),
+        per(sun_az_deg),
+        per(sun_alt_deg),
+        per(pitch_deg),
+        per(roll_deg),
+        np.asarray(turn, dtype=np.int64),
     )
 
 
@@ -165,9 +178,21 @@ def concat(parts: list) -> TurnSamples:
         All samples.
 
     """
-    return TurnSamples(*(np.concatenate([getattr(p, f) for p in parts]) for f in (
-        'aop_rad', 'w', 'imu_yaw_rad', 'sun_azimuth_deg', 'sun_altitude_deg', 'pitch_deg',
-        'roll_deg', 'turn')))
+    return TurnSamples(
+        *(
+            np.concatenate([getattr(p, f) for p in parts])
+            for f in (
+                'aop_rad',
+                'w',
+                'imu_yaw_rad',
+                'sun_azimuth_deg',
+                'sun_altitude_deg',
+                'pitch_deg',
+                'roll_deg',
+                'turn',
+            )
+        )
+    )
 
 
 def predicted_aop_rad(geometry, d: TurnSamples, bearing_deg, mount: Mount | None) -> np.ndarray:
@@ -240,7 +265,15 @@ class CameraRays:
 
 
 def camera_samples(
-    aop_rad, dop, valid, imu_yaw_rad, turn, sun_az_deg, sun_alt_deg, pitch_deg=0.0, roll_deg=0.0,
+    aop_rad,
+    dop,
+    valid,
+    imu_yaw_rad,
+    turn,
+    sun_az_deg,
+    sun_alt_deg,
+    pitch_deg=0.0,
+    roll_deg=0.0,
     min_dop: float = 0.02,
 ) -> TurnSamples:
     """
@@ -272,8 +305,13 @@ def camera_samples(
         return np.broadcast_to(np.asarray(v, dtype=float), (S,)).copy()
 
     return TurnSamples(
-        np.where(ok, aop, 0.0), np.where(ok, np.minimum(np.nan_to_num(dop), 1.0) ** 2, 0.0),
-        per(imu_yaw_rad), per(sun_az_deg), per(sun_alt_deg), per(pitch_deg), per(roll_deg),
+        np.where(ok, aop, 0.0),
+        np.where(ok, np.minimum(np.nan_to_num(dop), 1.0) ** 2, 0.0),
+        per(imu_yaw_rad),
+        per(sun_az_deg),
+        per(sun_alt_deg),
+        per(pitch_deg),
+        per(roll_deg),
         np.asarray(turn, dtype=np.int64),
     )
 
@@ -317,8 +355,9 @@ class _Problem:
         return math.degrees(math.sqrt(float(np.sum(self.d.w * r**2)) / float(np.sum(self.d.w))))
 
 
-def _check_observable(d: TurnSamples, min_samples: int, min_rotation_deg: float,
-                      min_sun_altitude_deg: float) -> None:
+def _check_observable(
+    d: TurnSamples, min_samples: int, min_rotation_deg: float, min_sun_altitude_deg: float
+) -> None:
     """Refuse (one line, what is missing) turns that cannot determine the mount."""
     used = np.sum(d.w > 0, axis=1) >= 3
     n = int(used.sum())
@@ -431,12 +470,19 @@ def fit_mount(
     prob = _Problem(geometry, d)
     x0 = np.r_[0.0, 0.0, _initial_offsets(prob)]
     level = least_squares(
-        lambda c: prob(np.r_[0.0, 0.0, c]), x0[2:], loss='soft_l1',
-        f_scale=math.radians(ROBUST_SCALE_DEG), jac_sparsity=prob.sparsity()[:, 2:],
+        lambda c: prob(np.r_[0.0, 0.0, c]),
+        x0[2:],
+        loss='soft_l1',
+        f_scale=math.radians(ROBUST_SCALE_DEG),
+        jac_sparsity=prob.sparsity()[:, 2:],
     )
     sol = least_squares(
-        prob, np.r_[0.0, 0.0, level.x], loss='soft_l1', f_scale=math.radians(ROBUST_SCALE_DEG),
-        jac_sparsity=prob.sparsity(), x_scale=1.0,
+        prob,
+        np.r_[0.0, 0.0, level.x],
+        loss='soft_l1',
+        f_scale=math.radians(ROBUST_SCALE_DEG),
+        jac_sparsity=prob.sparsity(),
+        x_scale=1.0,
     )
     sig = _sigmas_deg(prob, sol)
     if max(sig[0], sig[1]) > max_sigma_deg:
@@ -447,9 +493,13 @@ def fit_mount(
         )
     m = Mount(float(sol.x[0]), float(sol.x[1]), float(sig[0]), float(sig[1]))
     return MountFit(
-        m, np.asarray(sol.x[2:]) % 360.0, sig[2:], int(prob.labels.size),
+        m,
+        np.asarray(sol.x[2:]) % 360.0,
+        sig[2:],
+        int(prob.labels.size),
         int(np.sum(np.sum(d.w > 0, axis=1) >= 3)),
-        prob.rms_deg(np.r_[0.0, 0.0, level.x]), prob.rms_deg(sol.x),
+        prob.rms_deg(np.r_[0.0, 0.0, level.x]),
+        prob.rms_deg(sol.x),
     )
 
 

@@ -282,9 +282,11 @@ def save_array_recording_csv(path, intensities, t_offset_s=None, **per_sample) -
     a = np.asarray(intensities, dtype=np.float64)
     S, U, C = a.shape
     extra = {k: np.asarray(v, dtype=float) for k, v in per_sample.items() if v is not None}
-    header = (['t_offset_s'] if t_offset_s is not None else []) + list(extra) + [
-        f'u{u}_c{c}' for u in range(U) for c in range(C)
-    ]
+    header = (
+        (['t_offset_s'] if t_offset_s is not None else [])
+        + list(extra)
+        + [f'u{u}_c{c}' for u in range(U) for c in range(C)]
+    )
     with open(path, 'w', newline='', encoding='utf-8') as fh:
         w = csv.writer(fh)
         w.writerow(header)
