@@ -20,6 +20,7 @@ The truth is the simulator's: a sensor tilted on its mount (composed with the bo
 whose zero is a known offset per turn.
 """
 
+import csv
 import math
 
 import numpy as np
@@ -248,6 +249,23 @@ def test_cli_calibrate_mount_writes_the_mount_section(tmp_path, capsys):
     assert abs(m.roll_deg - TRUE.roll_deg) < 4 * m.roll_sigma_deg + 0.05
     assert m.record['turns'] == 2 and m.record['samples'] == 2 * N
     assert m.record['residual_after_deg'] < 0.3 * m.record['residual_before_deg']
+    # estimate-array reads the mount from the written geometry: the sun-relative curve goes
+    yaw = load_array_recording(rec).imu_yaw_rad
+    truth = np.where(np.arange(2 * N) < N, 20.0, 23.0) - np.degrees(yaw)
+    rms = {}
+    for name, g in (('level', gpath), ('mounted', out)):
+        est_out = tmp_path / f'h_{name}.csv'
+        est = ['estimate-array', str(rec), '--geometry', str(g), '--lat', str(lat), '--lon']
+        est += [str(lon), '--time', time_iso, '--method', 'tilt_aware', '--pitch', '0']
+        assert main(est + ['--roll', '0', '--out', str(est_out)]) == 0
+        with est_out.open(encoding='utf-8') as fh:
+            rows = [r for r in csv.DictReader(fh) if r['status'] == 'ok']
+        assert len(rows) > 0.9 * 2 * N
+        got = np.array([float(r['bearing_deg']) for r in rows])
+        err = wrap_180_deg(got - truth[[int(r['sample']) for r in rows]])
+        rms[name] = float(np.sqrt(np.mean(err**2)))
+    assert rms['mounted'] < 2.0 and rms['mounted'] < 0.4 * rms['level'], rms
+    capsys.readouterr()
     # a recording without IMU yaw: one line, what is missing
     save_array_recording_npz(tmp_path / 'no_imu.npz', np.ones((5, 8, 4)))
     args[1] = str(tmp_path / 'no_imu.npz')
