@@ -815,13 +815,15 @@ class CameraFile:
 
     ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the
     top-left block; ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False
-    when the file had no ``polarizer:`` section (the IMX250MZR defaults were used).
+    when the file had no ``polarizer:`` section (the IMX250MZR defaults were used); ``mount`` the
+    camera's tilt on the body (:class:`~.mount.Mount`, from a ``mount:`` section) or None.
     """
 
     camera: CameraModel
     layout: tuple
     pol45_toward: str
     layout_given: bool
+    mount: object = None
 
 
 def _matrix_field(doc: dict, key: str, size: int | None, path: str):
@@ -906,4 +908,14 @@ def load_camera_yaml(path) -> CameraFile:
         )
     except (SensorError, CameraError, TypeError, ValueError) as exc:
         raise CameraError(f'{p}: {exc}') from None
-    return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol))
+    return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol), _mount(doc, p))
+
+
+def _mount(doc: dict, path: str):
+    """Return the file's ``mount:`` section (:mod:`.mount`), or None without one."""
+    from .mount import mount_from_dict, MountError
+
+    try:
+        return mount_from_dict(doc['mount'], f'{path}: mount') if 'mount' in doc else None
+    except MountError as exc:
+        raise CameraError(str(exc)) from None
