@@ -20,10 +20,11 @@ Live replay of a recorded run: every estimator, corrector and the evaluator on s
 starts the graph and the real ``ros2 bag play RUN_BAG --clock`` (paused), resumes the player once
 every node of the graph has said it is ready (a node's last start-up log line: kernels compiled,
 subscriptions made), and ends the launch once the bag has played and the evaluator's current
-report has not changed for ``drain_s`` seconds, 10 s at least; the evaluator then writes its report
-(``evaluation_summary.json`` & co) into ``report_dir``. The player gets the launch's environment, so
-the shared-memory Fast DDS profile of ``large_image_transport`` (full-resolution images are lost in
-fragments without it, and every local participant discovers every other through it).
+report has not changed for ``drain_s`` seconds, 10 s at least; the evaluator then writes its
+report (``evaluation_summary.json`` & co) into ``report_dir``. The player gets the launch's
+environment, so the shared-memory Fast DDS profile of ``large_image_transport`` (full-resolution
+images are lost in fragments without it, and every local participant discovers every other
+through it).
 
 Flow control: the ``player_flow`` node pauses the player while an estimator is ``high_water``
 frames behind and resumes it once all are within ``low_water`` (the player's own pause and resume
@@ -126,8 +127,9 @@ def _player(context):
     """
     Return the graph's player actions: resume once ready, flow control, the player (bag given).
 
-    Without ``bag``, a player started by hand (``--start-paused``, before or after the launch) is
-    resumed once the graph is ready and flow-controlled the same way; the launch runs until stopped.
+    Without ``bag``, a player started by hand (``--start-paused``, before or after the launch)
+    is resumed once the graph is ready and flow-controlled the same way; the launch runs until
+    stopped.
     """
     from pathlib import Path
     import re

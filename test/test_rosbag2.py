@@ -423,7 +423,7 @@ def _wait_for_report(report: Path, n_images: int, timeout_s: float) -> None:
 def test_a_player_started_by_hand_before_the_graph_is_resumed_once_it_is_ready(
     ws, small_bag, tmp_path
 ):
-    """The two-terminal way: ``ros2 bag play BAG --clock --start-paused`` first, then the launch."""
+    """Two terminals: ``ros2 bag play BAG --clock --start-paused`` first, the launch next."""
     bag, _ = small_bag
     offline = _offline(bag)
     n_images = round(DURATION_S * RATE_HZ)

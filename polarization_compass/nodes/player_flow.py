@@ -15,16 +15,16 @@
 """
 The ``player_flow`` node: pause ``ros2 bag play`` while an estimator is behind, resume it after.
 
-``ros2 bag play`` publishes at the recorded rate whatever its readers do; a heading estimator slower
-than the camera then holds every waiting full-resolution image (10 MB each) in memory, and the
+``ros2 bag play`` publishes at the recorded rate whatever its readers do; a heading estimator
+slower than the camera then holds every waiting full-resolution image (10 MB each) in memory, the
 middleware loses frames once its queues are full (a 12 s full-resolution bag at 1x on 2 cores: 21
 of 120 frames lost). This node gives the replay flow control with the player's own services
 (``rosbag2_interfaces`` ``Pause``/``Resume``/``IsPaused``): it counts, per estimator, the
 camera_info stamps the player has published that are newer than the newest frame the estimator
 has answered on its ``status`` topic (one message per image, failures included). When one
 estimator is ``high_water`` frames behind, the player is paused (its ``/clock`` stops with it);
-once every estimator is back within ``low_water`` frames it is resumed. A frame lost on the way does
-not hold the player: the next answered frame moves the count past it.
+once every estimator is back within ``low_water`` frames it is resumed. A frame lost on the way
+does not hold the player: the next answered frame moves the count past it.
 
 It only resumes a pause it made (a player paused by hand or by the launch's start-up stays
 paused), and it never holds the player longer than ``max_pause_s`` without an answer from the
@@ -74,12 +74,12 @@ class Backlog:
         self._published: deque = deque()  # published stamps, ascending, not yet answered by all
 
     def published(self, stamp_ns: int) -> None:
-        """Record one frame the player published (its camera_info stamp [ns])."""
+        """Count one frame the player has sent out, by its camera_info stamp [ns]."""
         if not self._published or stamp_ns > self._published[-1]:
             self._published.append(int(stamp_ns))
 
     def answered(self, name: str, stamp_ns: int) -> None:
-        """Record one frame an estimator answered (its status stamp [ns])."""
+        """Count one frame an estimator has answered, by its status stamp [ns]."""
         prev = self.done_ns.get(name)
         if name in self.done_ns and (prev is None or stamp_ns > prev):
             self.done_ns[name] = int(stamp_ns)
