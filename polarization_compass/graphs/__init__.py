@@ -38,23 +38,32 @@ Graphs
 Launch arguments are strings (as ``ros2 launch`` passes them); :func:`build` parses them with the
 types of :data:`ARGUMENTS`.
 
+The package holds the description types (:mod:`.spec`), the launch arguments (:mod:`.arguments`),
+the node specifications the graphs share (:mod:`.node_specs`), one module per graph (:mod:`.sim`,
+:mod:`.compass`, :mod:`.replay`, :mod:`.fusion`), :func:`build` (:mod:`.build`), where the files
+and executables are (:mod:`.paths`) and the ``ros2 launch`` description (:mod:`.ros_launch`); the
+names below are its documented surface.
 """
 
-from __future__ import annotations
-
-import dataclasses
-from dataclasses import dataclass, field
-import os
-from pathlib import Path
-import shutil
-import sys
-
-import yaml
-
-from .errors import CompassError
-from .estimators import registry
-from .specs import topics as T
-from .specs.params import ALL_METHODS, PAPER_METHODS, SUN_PARAMS
+from .arguments import ARGUMENTS, parse_arg
+from .build import build, node_lines
+from .compass import compass_graph
+from .fusion import EKF_CONFIG, EKF_NODE, fusion_graph
+from .paths import node_command, share_dir
+from .replay import replay_graph
+from .ros_launch import launch_description
+from .sim import sim_graph
+from .spec import (
+    FASTDDS_PROFILE,
+    Graph,
+    GRAPH_NAMES,
+    GraphError,
+    LaunchArg,
+    NodeSpec,
+    PACKAGE,
+    SIGKILL_TIMEOUT_S,
+    STOP_TIMEOUT_S,
+)
 
 __all__ = [
     'PACKAGE',
@@ -75,5 +84,8 @@ __all__ = [
     'FASTDDS_PROFILE',
     'STOP_TIMEOUT_S',
     'SIGKILL_TIMEOUT_S',
+    'EKF_NODE',
+    'node_command',
+    'node_lines',
+    'launch_description',
 ]
-

@@ -12,10 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The launch arguments of each graph (:data:`ARGUMENTS`) and how their text is read."""
 
-# ------------------------------------------------------------------------------------------------
-# Launch arguments
-# ------------------------------------------------------------------------------------------------
+from __future__ import annotations
+
+from .spec import GraphError, LaunchArg, SIM_ATTITUDE_SOURCES
+from ..specs import topics as T
+from ..specs.params import ALL_METHODS, PAPER_METHODS
+
 _COMMON = (
     LaunchArg(
         'error_map',

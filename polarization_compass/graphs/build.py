@@ -12,6 +12,17 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""A graph by name from launch-argument strings (:func:`build`), and the nodes it starts."""
+
+from __future__ import annotations
+
+from .arguments import ARGUMENTS, parse_arg
+from .compass import compass_graph
+from .fusion import fusion_graph
+from .replay import replay_graph
+from .sim import sim_graph
+from .spec import Graph, GRAPH_NAMES, GraphError
+
 
 def build(name: str, args: dict | None = None) -> Graph:
     """

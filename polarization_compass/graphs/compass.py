@@ -12,6 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The ``compass`` graph: a real camera and IMU, one estimator and its corrector."""
+
+from __future__ import annotations
+
+from .node_specs import _corrector, _estimator
+from .spec import Graph, NodeSpec
+from ..estimators import registry
+from ..specs import topics as T
+
 
 def compass_graph(
     method='least_squares',
@@ -104,4 +113,3 @@ def compass_graph(
         tuple(nodes),
         external_inputs=external,
     )
-

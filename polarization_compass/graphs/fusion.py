@@ -12,6 +12,19 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The ``fusion`` graph: the sim graph plus robot_localization's ``ekf_node``."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import yaml
+
+from .node_specs import _downstream
+from .paths import share_dir
+from .sim import sim_graph
+from .spec import Graph, GraphError, NodeSpec
+from ..specs import topics as T
 
 #: robot_localization's parameter file the fusion graph runs ekf_node with: the example users copy
 EKF_CONFIG = 'config/ekf_heading_example.yaml'

@@ -12,10 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The node specifications the graphs are built from: estimators, correctors, the evaluator."""
 
-# ------------------------------------------------------------------------------------------------
-# The graphs
-# ------------------------------------------------------------------------------------------------
+from __future__ import annotations
+
+from .spec import NodeSpec
+from ..estimators import registry
+from ..specs import topics as T
+
+
 def _used(remappings, pubs, subs) -> tuple:
     """Only the remappings of topics the node uses."""
     used = {t for t, _ in pubs} | {t for t, _ in subs}
@@ -29,7 +34,7 @@ GRAPH_KNOBS = {'knob.stride': 8}
 
 
 def _knob_names(method: str) -> set:
-    from .specs.params import knob_params
+    from ..specs.params import knob_params
 
     return {p.name for p in knob_params(method)}
 

@@ -12,6 +12,17 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""Where a graph's files and executables are: the share directory and the node commands."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import shutil
+import sys
+
+from .spec import GraphError, PACKAGE
+
 
 def node_command(executable: str) -> list[str]:
     """
@@ -66,7 +77,7 @@ def share_dir() -> Path:
     env = os.environ.get('POLARIZATION_COMPASS_SHARE')
     if env:
         return Path(env)
-    src = Path(__file__).resolve().parent.parent
+    src = Path(__file__).resolve().parents[2]
     if (src / 'config').is_dir() and (src / 'setup.py').is_file():
         return src  # a source checkout (or an editable install of one)
     try:
@@ -82,4 +93,3 @@ def share_dir() -> Path:
         'cannot find the polarization_compass share directory (config/, launch/): install the '
         'package with colcon or set POLARIZATION_COMPASS_SHARE'
     )
-

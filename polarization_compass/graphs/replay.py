@@ -12,6 +12,16 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The ``replay`` graph: the sim graph's estimators and evaluator on a recorded bag."""
+
+from __future__ import annotations
+
+from .node_specs import _corrector, _estimator, _evaluator, _split_direct
+from .spec import Graph
+from ..specs import topics as T
+from ..specs.params import PAPER_METHODS
+
+
 def replay_graph(
     methods=PAPER_METHODS,
     tilt_aware=True,

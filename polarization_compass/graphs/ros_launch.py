@@ -12,9 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-# ------------------------------------------------------------------------------------------------
-# ros2 launch
-# ------------------------------------------------------------------------------------------------
+"""The ``ros2 launch`` description of each graph (``launch/<name>.launch.py``)."""
+
+from __future__ import annotations
+
+import os
+
+from .arguments import ARGUMENTS, parse_arg
+from .build import build
+from .paths import share_dir
+from .spec import (
+    FASTDDS_PROFILE,
+    GRAPH_NAMES,
+    GraphError,
+    LaunchArg,
+    SIGKILL_TIMEOUT_S,
+    STOP_TIMEOUT_S,
+)
+
+
 def launch_description(name: str):
     """
     Return the LaunchDescription of graph ``name`` (used by ``launch/<name>.launch.py``).
@@ -51,7 +67,7 @@ def launch_description(name: str):
         Unknown graph; when the launch runs, a bad argument or an inconsistent graph (one line).
 
     """
-    from .errors import MissingDependencyError
+    from ..errors import MissingDependencyError
 
     try:
         from launch import LaunchDescription

@@ -12,6 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The ``sim`` graph: the sky simulator, the estimators, their correctors and the evaluator."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .node_specs import (
+    _array_estimator,
+    _corrector,
+    _downstream,
+    _estimator,
+    _evaluator,
+    _split_direct,
+)
+from .spec import Graph, GraphError, NodeSpec, SIM_ATTITUDE_SOURCES
+from ..estimators import registry
+from ..specs import topics as T
+from ..specs.params import PAPER_METHODS
+
 
 def _tf_attitude_params(attitude_source: str, turns: float, turn_rate_deg_s: float) -> dict:
     """

@@ -11,6 +11,25 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+
+"""
+The types that describe a node graph: :class:`LaunchArg`, :class:`NodeSpec`, :class:`Graph`.
+
+Also the constants every graph and its runners share: the package name, the graph names, the Fast
+DDS profile and the stop timeouts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ..errors import CompassError
+from ..specs import topics as T
+from ..specs.params import SUN_PARAMS
+
 PACKAGE = 'polarization_compass'
 GRAPH_NAMES = ('sim', 'compass', 'replay', 'fusion')
 #: Fast DDS profile for full-resolution images on one machine (shared memory with a large segment):
