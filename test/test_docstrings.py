@@ -49,7 +49,12 @@ ROOT = Path(__file__).resolve().parents[1] / 'polarization_compass'
 
 #: Modules whose public functions and methods are documented in full (paths under the package).
 COMPLETED = (
-    'conventions.py',
+    'conventions/__init__.py',
+    'conventions/angles.py',
+    'conventions/directions.py',
+    'conventions/evectors.py',
+    'conventions/quaternions.py',
+    'conventions/rotations.py',
     'estimators/base.py',
     'estimators/registry.py',
     'estimators/zenith.py',

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Frames and angle conventions. This is the only module that defines them; everything else imports.
+Frames and angle conventions: the only place that defines them; everything else imports them.
 
 Frames
 ------
@@ -47,16 +47,62 @@ Wrapping: ``wrap_180`` -> (-180, 180], ``wrap_360`` -> [0, 360), ``fold_axial`` 
 axial errors, and AoP images are folded to [-pi/2, pi/2) (``fold_aop_rad``). The ``*_float`` forms
 take one finite float without numpy (per-estimate code, numba kernels) and give the same bits.
 
+Modules: :mod:`.angles` (wrapping, axial angles), :mod:`.rotations` (elementary rotations,
+eq 21, :class:`CameraAttitude`), :mod:`.directions` (ENU directions, bearing, psi, yaw),
+:mod:`.quaternions` (ROS quaternions, the body-camera mounting) and :mod:`.evectors` (AoP and
+E-vectors, photodiode-array units); the names below are the package's documented surface.
 """
 
-from __future__ import annotations
-
-from dataclasses import dataclass
-import math
-
-import numpy as np
-
-from .errors import CompassError
+from .angles import (
+    axial_difference_deg,
+    axial_mean_rad,
+    fold_aop_rad,
+    fold_axial_deg,
+    fold_axial_rad,
+    fold_axial_rad_float,
+    wrap_180_deg,
+    wrap_180_deg_float,
+    wrap_360_deg,
+    wrap_360_deg_float,
+)
+from .directions import (
+    azimuth_altitude_from_enu,
+    bearing_to_psi_deg,
+    bearing_to_yaw_enu_deg,
+    enu_direction,
+    psi_to_bearing_deg,
+    yaw_enu_to_bearing_deg,
+)
+from .evectors import (
+    ANGLE_SENSES,
+    ANGLE_ZEROS,
+    aop_from_evector_cam_rad,
+    evector_cam_from_aop,
+    unit_angle_from_evector_body_rad,
+    unit_axis_body,
+    unit_evector_body,
+    unit_polarizer_frame_body,
+)
+from .quaternions import (
+    body_quat_from_camera_attitude,
+    camera_attitude_from_body_quat,
+    matrix_to_quat,
+    quat_to_matrix,
+    QuaternionError,
+    R_BODY_CAM_DEFAULT,
+    R_enu_body_from_camera_attitude,
+    validate_quaternion,
+    yaw_enu_quaternion,
+)
+from .rotations import (
+    attitude_from_R_enu_cam,
+    CameraAttitude,
+    R_enu_cam_from_attitude,
+    R_sun_cam_from_attitude,
+    rot_x,
+    rot_y,
+    rot_z,
+)
 
 __all__ = [
     'wrap_180_deg',
@@ -98,4 +144,5 @@ __all__ = [
     'unit_angle_from_evector_body_rad',
     'ANGLE_ZEROS',
     'ANGLE_SENSES',
+    'yaw_enu_quaternion',
 ]

@@ -12,10 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""Angle wrapping and axial (mod 180 deg) angles: array forms and one-float ``*_float`` forms."""
 
-# --------------------------------------------------------------------------------------------
-# Wrapping
-# --------------------------------------------------------------------------------------------
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
 def wrap_180_deg(angle_deg):
     """
     Wrap angles in degrees to (-180, 180].

@@ -12,10 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""Directions and headings: ENU unit vectors from azimuth and altitude, bearing, psi and yaw."""
 
-# --------------------------------------------------------------------------------------------
-# Directions and headings
-# --------------------------------------------------------------------------------------------
+from __future__ import annotations
+
+import numpy as np
+
+from .angles import wrap_180_deg, wrap_360_deg
+
+
 def enu_direction(azimuth_deg, altitude_deg):
     """
     Compute ENU unit vector(s) of an azimuth and altitude.

@@ -12,10 +12,20 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+Angle of polarization and E-vectors.
 
-# --------------------------------------------------------------------------------------------
-# Angle of polarization <-> E-vector (camera frame)
-# --------------------------------------------------------------------------------------------
+The camera frame's AoP <-> E-vector, and the photodiode-array units (POL-OP): viewing direction and
+polarizer angles -> body frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .angles import fold_aop_rad
+
+
 def aop_from_evector_cam_rad(e_cam):
     """
     Compute the AoP ``atan2(E_x, E_y)`` of camera-frame E-vector(s), eq 28.

@@ -12,10 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+Quaternions (ROS order x, y, z, w; active rotation child -> parent) and the body-camera mounting.
 
-# --------------------------------------------------------------------------------------------
-# Quaternions (ROS order x, y, z, w; active rotation child -> parent)
-# --------------------------------------------------------------------------------------------
+Body <-> camera attitude: ``R_enu_cam = R_enu_body @ R_body_cam`` (:data:`R_BODY_CAM_DEFAULT`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .rotations import attitude_from_R_enu_cam, CameraAttitude, R_enu_cam_from_attitude
+from ..errors import CompassError
+
+
 class QuaternionError(CompassError):
     """A quaternion that cannot be used (NaN/inf, zero, or not unit within tolerance)."""
 

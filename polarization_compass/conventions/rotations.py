@@ -12,10 +12,23 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+Rotations: standard right-handed elementary rotations (vectorised over angle arrays), eq 21.
 
-# --------------------------------------------------------------------------------------------
-# Rotations (standard right-handed elementary rotations, vectorised over angle arrays)
-# --------------------------------------------------------------------------------------------
+The camera attitude (bearing or psi, pitch, roll) to ``R_sun_cam``/``R_enu_cam`` and back
+(:class:`CameraAttitude`, flagged at gimbal lock).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from .angles import wrap_360_deg
+
+
 def _rot(theta_rad, axis):
     if isinstance(theta_rad, (float, int)) and not isinstance(theta_rad, bool):
         c, s = (
