@@ -40,23 +40,19 @@ domain; and every node the interpolation reads holds a valid estimate. The map's
 cover a full turn with a uniform step (it is periodic).
 
 Angles in degrees; psi is the paper's yaw (bearing minus sun azimuth), (-180, 180].
+
+Modules: :mod:`.corrector` (:class:`TiltCorrector`, the shipped map), :mod:`.results` (what a
+correction returns), :mod:`.weights` (interpolation weights) and :mod:`.kernels` (the compiled
+curve and inversion); the names below are the package's documented surface.
 """
 
-from __future__ import annotations
-
-from dataclasses import dataclass
-from enum import Enum
-from importlib import resources
-import math
-from pathlib import Path
-from typing import NamedTuple
-
-from numba import njit
-import numpy as np
-
-from .conventions import psi_to_bearing_deg, wrap_180_deg, wrap_180_deg_float
-from .errormap import ErrorMap, ErrorMapError
-from .errormap_io import load_error_map
+from .corrector import (
+    DEFAULT_MAP_NAME,
+    default_map_path,
+    REGENERATE_DEFAULT_MAP,
+    TiltCorrector,
+)
+from .results import BearingCorrections, Correction, CorrectionStatus, STATUS_INT
 
 __all__ = [
     'TiltCorrector',
@@ -66,4 +62,5 @@ __all__ = [
     'default_map_path',
     'DEFAULT_MAP_NAME',
     'REGENERATE_DEFAULT_MAP',
+    'BearingCorrections',
 ]

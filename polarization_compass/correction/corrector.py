@@ -12,6 +12,23 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""The tilt corrector of one method: :class:`TiltCorrector` and the shipped map's location."""
+
+from __future__ import annotations
+
+from importlib import resources
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .kernels import _accumulate_curves, _invert_kernel
+from .results import _FROM_INT, BearingCorrections, Correction, CorrectionStatus, STATUS_INT
+from .weights import _axis_weights, _is_uniform, _yaw_weights
+from ..conventions import psi_to_bearing_deg, wrap_180_deg
+from ..errormap import ErrorMap, ErrorMapError
+from ..errormap_io import load_error_map
+
 DEFAULT_MAP_NAME = 'tilt_error_map.npz'
 #: The command that regenerates the shipped map (documented in docs/error-maps.md).
 REGENERATE_DEFAULT_MAP = (
@@ -19,6 +36,12 @@ REGENERATE_DEFAULT_MAP = (
     '--sun-altitude 0:50:5 --yaw -180:175:5 --pitch -30:30:5 --roll -30:30:5 '
     '--float32 --out polarization_compass/data/tilt_error_map.npz'
 )
+
+#: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
+_MAX_ROOTS = 16
+#: Floor of |1 + de/dpsi| in :meth:`TiltCorrector.heading_sensitivity` (a slope that small means
+#: roots about to coalesce: the inversion's status already says ``multiple_solutions``).
+_MIN_SLOPE = 0.05
 
 
 def default_map_path() -> Path:

@@ -12,6 +12,20 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+Compiled kernels of the corrector: per query, the error curve over the yaw nodes and its inversion.
+
+One heading in numpy cost ~8 ms of call overhead (60 bisection steps, 64 stencil terms); the same
+algorithm compiled costs microseconds, which matters for a node correcting every frame.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+import numpy as np
+
+from ..conventions import wrap_180_deg_float
+
 
 # --------------------------------------------------------------------------------------------
 # Compiled kernels: per query, the error curve over the yaw nodes and the 1-D inversion. One

@@ -12,6 +12,16 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""What a tilt correction returns: :class:`CorrectionStatus`, :class:`Correction`, bearings."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import NamedTuple
+
+import numpy as np
+
 
 class CorrectionStatus(str, Enum):
     """
@@ -28,12 +38,6 @@ class CorrectionStatus(str, Enum):
 
 
 #: int8 codes of :meth:`TiltCorrector.correct_many`.
-#: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
-_MAX_ROOTS = 16
-#: Floor of |1 + de/dpsi| in :meth:`TiltCorrector.heading_sensitivity` (a slope that small means
-#: roots about to coalesce: the inversion's status already says ``multiple_solutions``).
-_MIN_SLOPE = 0.05
-
 STATUS_INT = {
     CorrectionStatus.OK: 0,
     CorrectionStatus.OUT_OF_DOMAIN: 1,

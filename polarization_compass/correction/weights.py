@@ -12,10 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+Interpolation weights along one axis of the error map.
 
-# --------------------------------------------------------------------------------------------
-# Interpolation weights along one axis
-# --------------------------------------------------------------------------------------------
+Keys' cubic convolution (a = -1/2) with its cubic boundary rule, multilinear on non-uniform or
+short axes, and the periodic yaw axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
 def _is_uniform(axis: np.ndarray) -> bool:
     if axis.size < 3:
         return True
