@@ -16,16 +16,25 @@
 Builds ``summary.md``, ``pareto.png`` and ``pareto_conditions.png`` from the group JSON files.
 
 Only reads ``<dir>/*.json``; a group that is missing, unavailable or failed is listed as such.
+One module per kind of section (:mod:`.accuracy`, :mod:`.simulation`, :mod:`.errormaps`,
+:mod:`.speed`, :mod:`.ros`), the plots (:mod:`.plots`) and what they share (:mod:`.formatting`).
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-from polarization_compass.estimators import registry
+from .accuracy import accuracy_section, crb_section
+from .errormaps import errormap_sampling_section, errormap_section
+from .formatting import fmt, load_groups, method_colour, ok_cells, PRIMARY_CONDITIONS
+from .plots import pareto_front, plot_conditions, plot_pareto
+from .ros import graph_section, peers_section, replay_section
+from .simulation import simulator_section, solar_section
+from .speed import estimator_speed_section, pipeline_section
 
-from .common import read_json
+__all__ = ['build', 'method_colour', 'pareto_front']
+
+
 # ------------------------------------------------------------------------------------------------
 def _header(groups) -> list[str]:
     anyg = next(iter(groups.values()))
@@ -58,23 +67,21 @@ def _header(groups) -> list[str]:
         la = g.get('load_average', {})
         s, e = (la.get('start') or [None])[0], (la.get('end') or [None])[0]
         lines.append(
-            f'| {name} | {g["mode"]} | {g["status"][:80]} | {_f(g.get("elapsed_s"))} | {s} -> {e} '
-            '|'
+            f'| {name} | {g["mode"]} | {g["status"][:80]} | {fmt(g.get("elapsed_s"))} '
+            f'| {s} -> {e} |'
         )
     return lines + ['']
 
 
-
-
 def build(out_dir) -> list[Path]:
     d = Path(out_dir)
-    groups = _load(d)
+    groups = load_groups(d)
     if not groups:
         return []
     paths = []
     acc = groups.get('accuracy')
     crb = groups.get('crb')
-    cells = _ok_cells(acc)
+    cells = ok_cells(acc)
     conds = {c['condition'] for c in cells}
     primary = next((c for c in PRIMARY_CONDITIONS if c in conds), next(iter(conds), None))
     if primary:
@@ -87,17 +94,17 @@ def build(out_dir) -> list[Path]:
     lines = _header(groups)
     if paths:
         lines += [f'![Pareto plot]({paths[0].name})', '']
-    lines += _accuracy_section(acc, crb)
-    lines += _crb_section(crb)
-    lines += _simulator_section(groups.get('simulator'))
-    lines += _solar_section(groups.get('solar'))
-    lines += _errormap_section(groups.get('errormap'))
-    lines += _errormap_sampling_section(groups.get('errormap_sampling'))
-    lines += _pipeline_section(groups.get('pipeline'))
-    lines += _estimator_speed_section(groups.get('estimator_speed'))
-    lines += _replay_section(groups.get('replay'))
-    lines += _graph_section(groups.get('graph'))
-    lines += _peers_section(groups.get('peers'))
+    lines += accuracy_section(acc, crb)
+    lines += crb_section(crb)
+    lines += simulator_section(groups.get('simulator'))
+    lines += solar_section(groups.get('solar'))
+    lines += errormap_section(groups.get('errormap'))
+    lines += errormap_sampling_section(groups.get('errormap_sampling'))
+    lines += pipeline_section(groups.get('pipeline'))
+    lines += estimator_speed_section(groups.get('estimator_speed'))
+    lines += replay_section(groups.get('replay'))
+    lines += graph_section(groups.get('graph'))
+    lines += peers_section(groups.get('peers'))
     md = d / 'summary.md'
     md.write_text('\n'.join(lines).rstrip() + '\n')
     return [md] + paths

@@ -11,9 +11,18 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-def _accuracy_section(acc, crb) -> list[str]:
+
+"""The accuracy sections: what accuracy costs in time, the headline table, the Cramer-Rao bound."""
+
+from __future__ import annotations
+
+from .formatting import fmt, md_table, ok_cells, section, windowed
+from .plots import pareto_front
+
+
+def accuracy_section(acc, crb) -> list[str]:
     lines = ['## What accuracy costs in time', '']
-    cells = _ok_cells(acc)
+    cells = ok_cells(acc)
     if not cells:
         st = acc['status'] if acc else 'not run'
         bad = (
@@ -68,21 +77,21 @@ def _accuracy_section(acc, crb) -> list[str]:
                 [
                     c['method'],
                     c['knobs_label'],
-                    _f(c.get('pixels_used_median')),
-                    _f(c['error']['rms_deg']),
-                    _f(c['error']['p95_deg']),
-                    _f(c['error']['max_deg']),
-                    _f(c['time']['median_ms']),
-                    _f(c['time']['p95_ms']),
-                    _f(mem.get('resident_peak_mib')),
-                    _f(c.get('crb_rms_deg')),
-                    _f(c.get('rms_over_crb')),
-                    _f(c.get('sigma_calibration')),
-                    _f(c.get('beyond_5_sigma')),
+                    fmt(c.get('pixels_used_median')),
+                    fmt(c['error']['rms_deg']),
+                    fmt(c['error']['p95_deg']),
+                    fmt(c['error']['max_deg']),
+                    fmt(c['time']['median_ms']),
+                    fmt(c['time']['p95_ms']),
+                    fmt(mem.get('resident_peak_mib')),
+                    fmt(c.get('crb_rms_deg')),
+                    fmt(c.get('rms_over_crb')),
+                    fmt(c.get('sigma_calibration')),
+                    fmt(c.get('beyond_5_sigma')),
                     c['error']['failures'],
                 ]
             )
-        lines += _table(header, rows) + ['']
+        lines += md_table(header, rows) + ['']
     bad = [c for c in r['cells'] if c['status'] != 'ok']
     if bad:
         lines += [
@@ -103,13 +112,13 @@ def _accuracy_section(acc, crb) -> list[str]:
 REFERENCE_KNOBS = {'window': ('window 33 px',), 'stride': ('stride 8', 'stride 16')}
 
 
-def _reference_cell(cells, method, condition):
+def reference_cell(cells, method, condition):
     """
     Return the cell with a method's reference knobs in a condition.
 
     With a sensor, the cell with the superpixel demosaic; None when there is no such cell.
     """
-    labels = REFERENCE_KNOBS['window' if _windowed(method) else 'stride']
+    labels = REFERENCE_KNOBS['window' if windowed(method) else 'stride']
     for lab in labels:
         for c in cells:
             if (
@@ -146,11 +155,11 @@ def _headline(cells, r) -> list[str]:
                     [
                         m,
                         c['knobs_label'],
-                        _f(c['time']['median_ms']),
-                        _f(c['error']['rms_deg']),
-                        _f(c['error']['max_deg']),
-                        _f(c.get('crb_rms_deg')),
-                        _f(c.get('rms_over_crb')),
+                        fmt(c['time']['median_ms']),
+                        fmt(c['error']['rms_deg']),
+                        fmt(c['error']['max_deg']),
+                        fmt(c.get('crb_rms_deg')),
+                        fmt(c.get('rms_over_crb')),
                     ]
                 )
         lines += [
@@ -160,7 +169,7 @@ def _headline(cells, r) -> list[str]:
             'least_squares):',
             '',
         ]
-        lines += _table(
+        lines += md_table(
             ['method', 'knobs', 'ms', 'RMS (deg)', 'max (deg)', 'CRB (deg)', 'RMS/CRB'], rows
         ) + ['']
     conds = list(dict.fromkeys(c['condition'] for c in cells))
@@ -169,9 +178,11 @@ def _headline(cells, r) -> list[str]:
     for m in methods:
         row = [m]
         for cond in conds:
-            c = _reference_cell(cells, m, cond)
+            c = reference_cell(cells, m, cond)
             row.append(
-                '-' if c is None else f'{_f(c["error"]["rms_deg"])} ({_f(c["error"]["max_deg"])})'
+                '-'
+                if c is None
+                else f'{fmt(c["error"]["rms_deg"])} ({fmt(c["error"]["max_deg"])})'
             )
         rows.append(row)
     lines += [
@@ -181,15 +192,15 @@ def _headline(cells, r) -> list[str]:
         'correction):',
         '',
     ]
-    lines += _table(['method'] + conds, rows) + ['']
+    lines += md_table(['method'] + conds, rows) + ['']
     rows = []
     for m in methods:
         row = [m]
         for cond in conds:
-            c = _reference_cell(cells, m, cond)
+            c = reference_cell(cells, m, cond)
             cal = None if c is None else c.get('sigma_calibration')
             row.append(
-                '-' if cal is None else f'{_f(cal)} ({c.get("beyond_5_sigma")}/{c["error"]["n"]})'
+                '-' if cal is None else f'{fmt(cal)} ({c.get("beyond_5_sigma")}/{c["error"]["n"]})'
             )
         rows.append(row)
     lines += [
@@ -198,12 +209,12 @@ def _headline(cells, r) -> list[str]:
         'the floor), and (ok results more than 5 sigma off / ok results), same settings:',
         '',
     ]
-    lines += _table(['method'] + conds, rows) + ['']
+    lines += md_table(['method'] + conds, rows) + ['']
     return lines
 
 
-def _crb_section(crb) -> list[str]:
-    lines, r = _section('Cramer-Rao bound', crb)
+def crb_section(crb) -> list[str]:
+    lines, r = section('Cramer-Rao bound', crb)
     if r is None:
         return lines
     lines += [
@@ -212,13 +223,13 @@ def _crb_section(crb) -> list[str]:
         'N = 5000 e-, DoP_max 0.7, level camera, superpixels.',
         '',
     ]
-    lines += _table(
+    lines += md_table(
         ['sun altitude (deg)', 'CRB, AoP only (deg)', 'CRB, AoP + DoP (deg)', 'superpixels'],
         [
             [
-                _f(x['sun_altitude_deg']),
-                _f(x['crb_deg']),
-                _f(x.get('crb_with_dop_deg')),
+                fmt(x['sun_altitude_deg']),
+                fmt(x['crb_deg']),
+                fmt(x.get('crb_with_dop_deg')),
                 x['superpixels'],
             ]
             for x in r['reference_fisheye']['rows']
@@ -239,10 +250,8 @@ def _crb_section(crb) -> list[str]:
     ]
     rows = r['paper_imager_budgets']
     keys = [k for k in rows[0] if k.startswith('crb_deg_sun_')]
-    lines += _table(
+    lines += md_table(
         ['pixel stride', 'samples'] + [k.replace('crb_deg_sun_', 'sun ') + ' deg' for k in keys],
-        [[x['pixel_stride'], x['samples']] + [_f(x[k]) for k in keys] for x in rows],
+        [[x['pixel_stride'], x['samples']] + [fmt(x[k]) for k in keys] for x in rows],
     )
     return lines + ['']
-
-

@@ -11,8 +11,16 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-def _errormap_section(em) -> list[str]:
-    lines, r = _section("Error map throughput against issue 4's target", em)
+
+"""The error-map sections: sweep throughput against issue 4's target and the sampling check."""
+
+from __future__ import annotations
+
+from .formatting import fmt, md_table, pass_fail, section
+
+
+def errormap_section(em) -> list[str]:
+    lines, r = section("Error map throughput against issue 4's target", em)
     if r is None:
         return lines
     if 'rows' in r:  # written before the target sweep was measured
@@ -37,17 +45,17 @@ def _errormap_target_lines(r) -> list[str]:
         f'{t["yaw_deg"]}, '
         f'pitch {t["pitch_deg"]}, roll {t["roll_deg"]} deg) x {len(r["methods"])} methods = '
         f'{t["estimates"]} '
-        f'estimates in <= {_f(t["limit_s"])} s on all cores. Measured: the engine on a sub-grid '
+        f'estimates in <= {fmt(t["limit_s"])} s on all cores. Measured: the engine on a sub-grid '
         'of the same '
         f'domain ({len(smp["sun_altitude_deg"])} sun altitudes x {len(smp["pitch_deg"])} pitches '
         'x '
         f'{smp["yaw_count"]} yaws = {smp["cells"]} cells, {smp["estimates"]} estimates), '
         f'{r["workers"]} '
-        f'workers, load average {_f(r["load_average_before"][0])} -> '
-        f'{_f(r["load_average_after"][0])}.',
+        f'workers, load average {fmt(r["load_average_before"][0])} -> '
+        f'{fmt(r["load_average_after"][0])}.',
         '',
     ]
-    lines += _table(
+    lines += md_table(
         [
             'workers',
             'start-up (s)',
@@ -56,18 +64,18 @@ def _errormap_target_lines(r) -> list[str]:
             'estimates/s',
             'CPU ms per cell',
             f'projected {t["cells"]}-cell sweep (s)',
-            f'<= {_f(t["limit_s"])} s',
+            f'<= {fmt(t["limit_s"])} s',
         ],
         [
             [
                 r['workers'],
-                _f(r['startup_s']),
-                _f(r['wall_s']),
-                _f(r['cells_per_s']),
-                _f(r['estimates_per_s']),
-                _f(r['cpu_ms_per_cell']),
-                _f(r['projected_target_sweep_s']),
-                _pass(r['pass']),
+                fmt(r['startup_s']),
+                fmt(r['wall_s']),
+                fmt(r['cells_per_s']),
+                fmt(r['estimates_per_s']),
+                fmt(r['cpu_ms_per_cell']),
+                fmt(r['projected_target_sweep_s']),
+                pass_fail(r['pass']),
             ]
         ],
     )
@@ -89,12 +97,12 @@ def _errormap_backend_lines(b) -> list[str]:
     lines += [
         f'Backends (issue 17) on a sub-grid of {smp["cells"]} cells in {smp["chunks"]} chunks '
         f'({len(smp["sun_altitude_deg"])} sun altitudes x {len(smp["pitch_deg"])} pitches x '
-        f'{smp["yaw_count"]} yaws), load average {_f(b["load_average_before"][0])} -> '
-        f'{_f(b["load_average_after"][0])}; maps identical to the in-process one: '
+        f'{smp["yaw_count"]} yaws), load average {fmt(b["load_average_before"][0])} -> '
+        f'{fmt(b["load_average_after"][0])}; maps identical to the in-process one: '
         f'{"yes" if b["identical_maps"] else "NO"}.',
         '',
     ]
-    lines += _table(
+    lines += md_table(
         [
             'backend',
             'workers',
@@ -109,40 +117,40 @@ def _errormap_backend_lines(b) -> list[str]:
             [
                 x['backend'],
                 x['workers'],
-                _f(x['startup_s']),
-                _f(x['compute_s']),
-                _f(x['cells_per_s']),
-                _f(x['tasks_per_s']),
-                _f(x['overhead_share']),
-                _f(x['cpu_ms_per_estimate']),
+                fmt(x['startup_s']),
+                fmt(x['compute_s']),
+                fmt(x['cells_per_s']),
+                fmt(x['tasks_per_s']),
+                fmt(x['overhead_share']),
+                fmt(x['cpu_ms_per_estimate']),
             ]
             for x in b['rows']
         ],
     )
     proj = ', '.join(
-        f'{n} workers {_f(v / 3600)} h' for n, v in b['projection_1e8_estimates_s'].items()
+        f'{n} workers {fmt(v / 3600)} h' for n, v in b['projection_1e8_estimates_s'].items()
     )
     lines += [
         '',
         'Scaling 1 -> 2 workers (LocalCluster): efficiency '
-        f'{_f(b["scaling_efficiency_1_to_2"])}; '
+        f'{fmt(b["scaling_efficiency_1_to_2"])}; '
         'one LocalCluster worker / in process: '
-        f'{_f(b["localcluster_per_worker_vs_in_process"])}. '
+        f'{fmt(b["localcluster_per_worker_vs_in_process"])}. '
         f'Projected 10^8-estimate map: {proj}. {b["note"]}.',
         '',
     ]
     return lines
 
 
-def _errormap_sampling_section(es) -> list[str]:
-    lines, r = _section('Error map sampling against full resolution (issue 4)', es)
+def errormap_sampling_section(es) -> list[str]:
+    lines, r = section('Error map sampling against full resolution (issue 4)', es)
     if r is None:
         return lines
     lines += [
         f'{r["cells"]} random cells ({r["domain"]}; seed {r["seed"]}, camera {r["camera"]}): the '
         'error a map '
         'stores at the default sweep sampling against full resolution; target < '
-        f'{_f(r["target_deg"])} deg.',
+        f'{fmt(r["target_deg"])} deg.',
         '',
     ]
     rows = [
@@ -150,15 +158,15 @@ def _errormap_sampling_section(es) -> list[str]:
             m,
             f'{v["knobs_default"]} ({v["pixels_default"]} px)',
             f'{v["knobs_full"]} ({v["pixels_full"]} px)',
-            _f(v['max_abs_diff_deg']),
-            _f(v['mean_abs_diff_deg']),
+            fmt(v['max_abs_diff_deg']),
+            fmt(v['mean_abs_diff_deg']),
             f'{v["cells_compared"]} / {r["cells"]}',
             v['status_differs'],
-            _pass(v['pass']),
+            pass_fail(v['pass']),
         ]
         for m, v in r['per_method'].items()
     ]
-    lines += _table(
+    lines += md_table(
         [
             'method',
             'default sampling',
@@ -167,10 +175,8 @@ def _errormap_sampling_section(es) -> list[str]:
             'mean abs diff (deg)',
             'cells compared',
             'status differs',
-            f'< {_f(r["target_deg"])} deg',
+            f'< {fmt(r["target_deg"])} deg',
         ],
         rows,
     )
     return lines + ['', f'{r["note"]}.', '']
-
-

@@ -12,10 +12,24 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+"""
+What every section of the summary uses: number and table formatting, the group JSON files.
+
+Also a method's colour and place in the plots (from the registry) and the sections' common heading.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from polarization_compass.estimators import registry
+
+from ..common import read_json
+
 PRIMARY_CONDITIONS = ('noise_imx250', 'ideal_level')
 #: Errors below this (deg) are drawn at it (log axes; noise-free Rayleigh errors are ~1e-6 deg).
 ERROR_FLOOR_DEG = 1e-7
-
 
 
 def method_colour(method: str) -> str:
@@ -24,18 +38,18 @@ def method_colour(method: str) -> str:
     return style[0] if style else 'k'
 
 
-def _method_rank(method: str) -> int:
+def method_rank(method: str) -> int:
     """Return a method's place in the plots: the registry's order, unknown methods last."""
     names = registry.names()
     return names.index(method) if method in names else len(names)
 
 
-def _windowed(method: str) -> bool:
+def windowed(method: str) -> bool:
     """Tell whether a method reads a window (``window_px``) instead of a strided pixel set."""
     return registry.find(method) is not None and 'window_px' in registry.knob_names(method)
 
 
-def _load(d: Path) -> dict:
+def load_groups(d: Path) -> dict:
     out = {}
     for p in sorted(Path(d).glob('*.json')):
         try:
@@ -47,7 +61,7 @@ def _load(d: Path) -> dict:
     return out
 
 
-def _f(x, digits=3, unit=''):
+def fmt(x, digits=3, unit=''):
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return '-'
     if isinstance(x, (int,)) and not isinstance(x, bool):
@@ -62,19 +76,19 @@ def _f(x, digits=3, unit=''):
     return f'{x:.{digits}g}{unit}' if ax < 1 else f'{x:.{digits - 1}f}{unit}'
 
 
-def _table(header, rows) -> list[str]:
+def md_table(header, rows) -> list[str]:
     out = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
     out += ['| ' + ' | '.join(str(c) for c in r) + ' |' for r in rows]
     return out
 
 
-def _ok_cells(acc):
+def ok_cells(acc):
     if not acc or acc.get('status') != 'ok' or not acc.get('results'):
         return []
     return [c for c in acc['results']['cells'] if c['status'] == 'ok' and c['error']['n']]
 
 
-def _section(title: str, group) -> tuple[list[str], dict | None]:
+def section(title: str, group) -> tuple[list[str], dict | None]:
     """
     Return a section's heading and its group's results.
 
@@ -86,7 +100,5 @@ def _section(title: str, group) -> tuple[list[str], dict | None]:
     return lines, group['results']
 
 
-
-
-def _pass(flag) -> str:
+def pass_fail(flag) -> str:
     return 'n/a' if flag is None else ('pass' if flag else '**FAIL**')

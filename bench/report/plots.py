@@ -11,6 +11,17 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+
+"""The Pareto plots of the summary: error against time per method and knob set."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .formatting import ERROR_FLOOR_DEG, method_colour, method_rank
+
+
 def _log_axes(ax, ys=()):
     """Log-log axes without minor tick labels, and at least one decade of error range."""
     from matplotlib.ticker import NullFormatter
@@ -25,6 +36,7 @@ def _log_axes(ax, ys=()):
         if hi / lo < 10.0:
             mid = math.sqrt(lo * hi)
             ax.set_ylim(mid / 10**0.6, mid * 10**0.6)
+
 
 # ------------------------------------------------------------------------------------------------
 def pareto_front(points):
@@ -54,7 +66,7 @@ def plot_pareto(acc_cells, crb_json, condition, out_path: Path):
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), dpi=110)
     methods = sorted(
         {c['method'] for c in cells},
-        key=_method_rank,
+        key=method_rank,
     )
     crb_drawn = False
     for m in methods:
@@ -178,5 +190,3 @@ def plot_conditions(acc_cells, out_path: Path):
     fig.savefig(out_path)
     plt.close(fig)
     return out_path
-
-

@@ -11,43 +11,51 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-def _replay_section(rp) -> list[str]:
-    lines, r = _section('Offline replay speed (issue 6)', rp)
+
+"""The sections of the runs through ROS and the peers: offline replay, the ROS graph, peers."""
+
+from __future__ import annotations
+
+from .formatting import fmt, md_table, pass_fail, section
+
+
+def replay_section(rp) -> list[str]:
+    lines, r = section('Offline replay speed (issue 6)', rp)
     if r is None:
         return lines
     tgt = f'>= {r["target_x_real_time"]:g}x'
     lines += [
-        f'`{r["record_command"]}` ({r["frames"]} frames, {_f(r.get("bag_mib"))} MiB, recorded in '
-        f'{_f(r.get("record_s"))} s), then `{r["replay_command"]}` at its default knobs (the '
+        f'`{r["record_command"]}` ({r["frames"]} frames, {fmt(r.get("bag_mib"))} MiB, recorded in '
+        f'{fmt(r.get("record_s"))} s), then `{r["replay_command"]}` at its default knobs (the '
         'shipped '
         'error map, figures written).',
         '',
     ]
     rows = [
         [
-            f'whole command ({_f(r["bag_duration_s"])} s recording)',
-            f'{_f(r["whole_command_s"])} s',
-            f'{_f(r["whole_command_x_real_time"])}x',
+            f'whole command ({fmt(r["bag_duration_s"])} s recording)',
+            f'{fmt(r["whole_command_s"])} s',
+            f'{fmt(r["whole_command_x_real_time"])}x',
             tgt,
-            _pass(r['pass_whole_command']),
+            pass_fail(r['pass_whole_command']),
         ],
         [
             f'per frame after start-up (frames {r.get("skipped_frames")}..{r["frames"]})',
-            f'{_f(r.get("per_frame_ms"))} ms (median {_f(r.get("per_frame_ms_median"))}, '
-            f'p95 {_f(r.get("per_frame_ms_p95"))})',
-            f'{_f(r.get("per_frame_x_real_time"))}x',
+            f'{fmt(r.get("per_frame_ms"))} ms (median {fmt(r.get("per_frame_ms_median"))}, '
+            f'p95 {fmt(r.get("per_frame_ms_p95"))})',
+            f'{fmt(r.get("per_frame_x_real_time"))}x',
             tgt,
-            _pass(r.get('pass_per_frame')),
+            pass_fail(r.get('pass_per_frame')),
         ],
         [
             '10-minute run (extrapolated: overhead + per-frame)',
-            f'overhead {_f(r.get("overhead_s"))} s',
-            f'{_f(r.get("long_run_x_real_time"))}x',
+            f'overhead {fmt(r.get("overhead_s"))} s',
+            f'{fmt(r.get("long_run_x_real_time"))}x',
             tgt,
-            _pass(r.get('pass_long_run')),
+            pass_fail(r.get('pass_long_run')),
         ],
     ]
-    lines += _table(['measure', 'time', 'x real time', 'target', 'pass'], rows)
+    lines += md_table(['measure', 'time', 'x real time', 'target', 'pass'], rows)
     runs = r.get('runs') or []
     if len(runs) > 1:
         lines += [
@@ -56,7 +64,7 @@ def _replay_section(rp) -> list[str]:
             'frame in '
             'each: '
             + ', '.join(
-                f'{_f(x.get("per_frame_ms"))} ms ({_f(x.get("per_frame_x_real_time"))}x)'
+                f'{fmt(x.get("per_frame_ms"))} ms ({fmt(x.get("per_frame_x_real_time"))}x)'
                 for x in runs
             )
             + '.',
@@ -67,29 +75,30 @@ def _replay_section(rp) -> list[str]:
             '',
             "The command's default method set (the four plus tilt_aware, "
             f'`{al["replay_command"]}`), '
-            f'replayed interleaved with the runs above: per frame {_f(al.get("per_frame_ms"))} ms '
-            f'({_f(al.get("per_frame_x_real_time"))}x; runs: '
-            + ', '.join(f'{_f(x.get("per_frame_x_real_time"))}x' for x in al.get('runs') or [])
-            + f'), whole command {_f(al.get("whole_command_x_real_time"))}x, 10-minute run '
-            f'{_f(al.get("long_run_x_real_time"))}x.',
+            'replayed interleaved with the runs above: per frame '
+            f'{fmt(al.get("per_frame_ms"))} ms '
+            f'({fmt(al.get("per_frame_x_real_time"))}x; runs: '
+            + ', '.join(f'{fmt(x.get("per_frame_x_real_time"))}x' for x in al.get('runs') or [])
+            + f'), whole command {fmt(al.get("whole_command_x_real_time"))}x, 10-minute run '
+            f'{fmt(al.get("long_run_x_real_time"))}x.',
         ]
     st = r.get('stage_ms_median') or {}
     lines += [
         '',
-        f'Replay loop alone {_f(r.get("replay_loop_s"))} s '
-        f'({_f(r.get("replay_loop_x_real_time"))}x); '
-        f'CPU {_f(r.get("cpu_s"))} s ({_f(r.get("cpu_x_real_time"))}x on an idle core). Median '
-        'per frame: ' + ', '.join(f'{k} {_f(v)} ms' for k, v in st.items()) + '.',
+        f'Replay loop alone {fmt(r.get("replay_loop_s"))} s '
+        f'({fmt(r.get("replay_loop_x_real_time"))}x); '
+        f'CPU {fmt(r.get("cpu_s"))} s ({fmt(r.get("cpu_x_real_time"))}x on an idle core). Median '
+        'per frame: ' + ', '.join(f'{k} {fmt(v)} ms' for k, v in st.items()) + '.',
     ]
     return lines + ['']
 
 
-def _graph_section(gr) -> list[str]:
-    lines, r = _section('ROS graph at 10 Hz (issue 5)', gr)
+def graph_section(gr) -> list[str]:
+    lines, r = section('ROS graph at 10 Hz (issue 5)', gr)
     if r is None:
         return lines
     lines += [
-        f'`polarization-compass sim --realtime` at {_f(r["rate_hz"])} Hz, {r["resolution"]}, '
+        f'`polarization-compass sim --realtime` at {fmt(r["rate_hz"])} Hz, {r["resolution"]}, '
         f'{r["expected_frames"]} frames ({r["turns"]:g} turn at {r["turn_rate_deg_s"]:g} deg/s). '
         'Sustained rate: '
         "the slowest estimator/corrector node's processed inputs per second (its last 100); "
@@ -108,15 +117,16 @@ def _graph_section(gr) -> list[str]:
         rows.append(
             [
                 run['graph'],
-                f'{sim["frames"]}/{run["expected_frames"]} ({_pass(ch["all_frames_published"])})',
-                f'{sim["late_frames"]} (target 0: {_pass(ch["no_late_frames"])})',
-                f'{run["missed_total"]} (target 0: {_pass(ch["no_missed_frames"])})',
-                f'{_f(run["sustained_rate_hz"])} Hz, {run.get("slowest_node")} (target 10: '
-                f'{_pass(ch["sustained_rate"])})',
-                _f(sim.get('publish_rate_hz')),
-                f'{_f(lat["p50"])} / {_f(lat["p95"])} (target p95 <= {_f(lat["target_p95"])}: '
-                f'{_pass(ch["least_squares_latency_p95"])})',
-                _pass(run['pass']),
+                f'{sim["frames"]}/{run["expected_frames"]} '
+                f'({pass_fail(ch["all_frames_published"])})',
+                f'{sim["late_frames"]} (target 0: {pass_fail(ch["no_late_frames"])})',
+                f'{run["missed_total"]} (target 0: {pass_fail(ch["no_missed_frames"])})',
+                f'{fmt(run["sustained_rate_hz"])} Hz, {run.get("slowest_node")} (target 10: '
+                f'{pass_fail(ch["sustained_rate"])})',
+                fmt(sim.get('publish_rate_hz')),
+                f'{fmt(lat["p50"])} / {fmt(lat["p95"])} (target p95 <= {fmt(lat["target_p95"])}: '
+                f'{pass_fail(ch["least_squares_latency_p95"])})',
+                pass_fail(run['pass']),
             ]
         )
         for name, d in run['streams'].items():
@@ -126,12 +136,12 @@ def _graph_section(gr) -> list[str]:
                     name,
                     d['count'],
                     d['missed'],
-                    _f(d['latency_ms_p50']),
-                    _f(d['latency_ms_p95']),
-                    _f(d['latency_ms_max']),
+                    fmt(d['latency_ms_p50']),
+                    fmt(d['latency_ms_p95']),
+                    fmt(d['latency_ms_max']),
                 ]
             )
-    lines += _table(
+    lines += md_table(
         [
             'graph',
             'frames published',
@@ -154,15 +164,15 @@ def _graph_section(gr) -> list[str]:
             ]
     if detail:
         lines += ['', 'Per stream:', '']
-        lines += _table(
+        lines += md_table(
             ['graph', 'stream', 'frames', 'missed', 'latency p50 (ms)', 'p95 (ms)', 'max (ms)'],
             detail,
         )
     return lines + ['']
 
 
-def _peers_section(pe) -> list[str]:
-    lines, r = _section('Peers', pe)
+def peers_section(pe) -> list[str]:
+    lines, r = section('Peers', pe)
     if r is None:
         return lines
     for peer in ('pyskylumos', 'polanalyser'):
@@ -178,10 +188,10 @@ def _peers_section(pe) -> list[str]:
         )
     lines.append('')
     if r['ratios']:
-        lines += _table(
+        lines += md_table(
             ['comparison', 'peer (ms)', 'ours (ms)', 'peer / ours'],
             [
-                [k, _f(v['peer_ms']), _f(v['ours_ms']), _f(v['peer_over_ours'])]
+                [k, fmt(v['peer_ms']), fmt(v['ours_ms']), fmt(v['peer_over_ours'])]
                 for k, v in r['ratios'].items()
             ],
         )

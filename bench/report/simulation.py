@@ -11,8 +11,16 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-def _simulator_section(sim) -> list[str]:
-    lines, r = _section('Simulator', sim)
+
+"""The simulator and solar-position sections."""
+
+from __future__ import annotations
+
+from .formatting import fmt, md_table, pass_fail, section
+
+
+def simulator_section(sim) -> list[str]:
+    lines, r = section('Simulator', sim)
     if r is None:
         return lines
     lines += [
@@ -31,13 +39,13 @@ def _simulator_section(sim) -> list[str]:
             [
                 x['name'],
                 x['pixels'],
-                _f(x['single_thread']['median_ms']),
-                _f(x['all_threads']['median_ms']),
-                _f(x.get('relative_to_full', {}).get('single_thread')),
+                fmt(x['single_thread']['median_ms']),
+                fmt(x['all_threads']['median_ms']),
+                fmt(x.get('relative_to_full', {}).get('single_thread')),
                 ', '.join(x['stages']),
             ]
         )
-    lines += _table(
+    lines += md_table(
         [
             'configuration',
             'pixels',
@@ -57,7 +65,7 @@ def _simulator_section(sim) -> list[str]:
             'and `demosaic.polarization_from_mosaic` timed on their own):',
             '',
         ]
-        lines += _table(
+        lines += md_table(
             [
                 'target',
                 'target (ms)',
@@ -69,11 +77,11 @@ def _simulator_section(sim) -> list[str]:
             [
                 [
                     t['target'],
-                    f'<= {_f(t["target_ms"])}',
-                    _f(t['single_thread_median_ms']),
-                    _pass(t['pass_single_thread']),
-                    _f(t['all_threads_median_ms']),
-                    _pass(t['pass_all_threads']),
+                    f'<= {fmt(t["target_ms"])}',
+                    fmt(t['single_thread_median_ms']),
+                    pass_fail(t['pass_single_thread']),
+                    fmt(t['all_threads_median_ms']),
+                    pass_fail(t['pass_all_threads']),
                 ]
                 for t in s['targets']
             ],
@@ -84,11 +92,11 @@ def _simulator_section(sim) -> list[str]:
             '',
             'Stride 8 against full, paired (blocks of both renders within the same second, each '
             'in its '
-            f'steady state): {_f(s["stride8_speedup_single_thread"])}x faster on one thread '
+            f'steady state): {fmt(s["stride8_speedup_single_thread"])}x faster on one thread '
             f'(target >= 30x: {s["stride8_at_least_30x_single_thread"]}), '
-            f'{_f(s.get("stride8_speedup_all_threads"))}x on all threads'
+            f'{fmt(s.get("stride8_speedup_all_threads"))}x on all threads'
             + (
-                f"; from the two rows' medians above, timed apart: {_f(unpaired)}x."
+                f"; from the two rows' medians above, timed apart: {fmt(unpaired)}x."
                 if unpaired
                 else '.'
             ),
@@ -96,8 +104,8 @@ def _simulator_section(sim) -> list[str]:
     return lines + ['']
 
 
-def _solar_section(sol) -> list[str]:
-    lines, r = _section('Solar position', sol)
+def solar_section(sol) -> list[str]:
+    lines, r = section('Solar position', sol)
     if r is None:
         return lines
     rows = []
@@ -105,13 +113,13 @@ def _solar_section(sol) -> list[str]:
         rows.append(
             [
                 model,
-                _f(x['batch']['positions_per_s']),
-                _f(x['per_call']['median_ms']),
-                _f(x.get('cache_per_frame', {}).get('median_ms')),
-                _f(x.get('cache_per_frame', {}).get('speedup_vs_per_call')),
+                fmt(x['batch']['positions_per_s']),
+                fmt(x['per_call']['median_ms']),
+                fmt(x.get('cache_per_frame', {}).get('median_ms')),
+                fmt(x.get('cache_per_frame', {}).get('speedup_vs_per_call')),
             ]
         )
-    lines += _table(
+    lines += md_table(
         [
             'model',
             f'batch ({r["batch_size"]} times), positions/s',
@@ -124,9 +132,7 @@ def _solar_section(sol) -> list[str]:
     g = r.get('paper_vs_spa_great_circle_deg', {})
     lines += [
         '',
-        f'`paper` against `spa` over the batch (sun up): mean {_f(g.get("mean"))} deg, '
-        f'max {_f(g.get("max"))} deg great-circle.',
+        f'`paper` against `spa` over the batch (sun up): mean {fmt(g.get("mean"))} deg, '
+        f'max {fmt(g.get("max"))} deg great-circle.',
     ]
     return lines + ['']
-
-

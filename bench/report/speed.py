@@ -11,35 +11,44 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-def _pipeline_section(pl) -> list[str]:
-    lines, r = _section('Node pipeline latency', pl)
+
+"""The node pipeline latency and estimator speed sections."""
+
+from __future__ import annotations
+
+from .formatting import fmt, md_table, pass_fail, section, windowed
+
+
+def pipeline_section(pl) -> list[str]:
+    lines, r = section('Node pipeline latency', pl)
     if r is None:
         return lines
     rows = [
-        [k, _f(v.get('median_ms')), _f(v.get('p95_ms'))] for k, v in r.get('stages', {}).items()
+        [k, fmt(v.get('median_ms')), fmt(v.get('p95_ms'))] for k, v in r.get('stages', {}).items()
     ]
-    lines += _table(['stage', 'ms median', 'ms p95'], rows)
+    lines += md_table(['stage', 'ms median', 'ms p95'], rows)
     if r.get('end_to_end'):
         e = r['end_to_end']
         lines += [
             '',
             f'End to end (image published -> heading received, rclpy, loopback): '
-            f'{e.get("status")}, median {_f(e.get("median_ms"))} ms, p95 {_f(e.get("p95_ms"))} ms '
+            f'{e.get("status")}, median {fmt(e.get("median_ms"))} ms, '
+            f'p95 {fmt(e.get("p95_ms"))} ms '
             f'over {e.get("n")} frames.',
         ]
     return lines + ['']
 
 
-def _knobs_label(method: str, knobs: dict) -> str:
-    if _windowed(method):
+def knobs_label(method: str, knobs: dict) -> str:
+    if windowed(method):
         return f'window {knobs.get("window_px")} px'
     st = knobs.get('stride')
     label = 'all superpixels' if st in (None, 1) else f'stride {st}'
     return label + (f', region {knobs["region"]}' if knobs.get('region') else '')
 
 
-def _estimator_speed_section(es) -> list[str]:
-    lines, r = _section("Estimator speed against issue 3's targets", es)
+def estimator_speed_section(es) -> list[str]:
+    lines, r = section("Estimator speed against issue 3's targets", es)
     if r is None:
         return lines
     cam = r['camera']
@@ -63,18 +72,18 @@ def _estimator_speed_section(es) -> list[str]:
             [
                 x['method'],
                 x['attitude'],
-                _knobs_label(x['method'], x['knobs']),
+                knobs_label(x['method'], x['knobs']),
                 x['pixels'],
-                _f(x['demosaic']['median_ms']),
-                _f(tt['median_ms']),
-                _f(tt['p95_ms']),
-                f'<= {_f(x["target_ms"])}' if x.get('target_ms') is not None else '-',
-                _pass(x['pass_median']),
-                _pass(x['pass_p95']),
-                _f(x.get('abs_error_max_deg')),
+                fmt(x['demosaic']['median_ms']),
+                fmt(tt['median_ms']),
+                fmt(tt['p95_ms']),
+                f'<= {fmt(x["target_ms"])}' if x.get('target_ms') is not None else '-',
+                pass_fail(x['pass_median']),
+                pass_fail(x['pass_p95']),
+                fmt(x.get('abs_error_max_deg')),
             ]
         )
-    lines += _table(
+    lines += md_table(
         [
             'method',
             'attitude',
@@ -93,5 +102,3 @@ def _estimator_speed_section(es) -> list[str]:
     if r.get('methods_missing'):
         lines += ['', f'Methods not available: {", ".join(r["methods_missing"])}.']
     return lines + ['']
-
-
