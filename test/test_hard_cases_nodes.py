@@ -428,7 +428,7 @@ def test_corrector_imu_older_than_the_heading_is_stale(corrector):
     t = T0 + 20_000_000_000
     corrector._on_imu(imu_msg(t - 2_000_000_000, body_quat(30.0, 0.0, 0.0)))
     corrector._on_heading(heading_msg(t, 30.0))
-    corrector._drain(final=True)
+    corrector._drain()
     assert corrector.statuses[-1]['status'] == 'stale_imu'
 
 
