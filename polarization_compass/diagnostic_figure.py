@@ -263,7 +263,8 @@ def _sun_arrows(ax, view) -> None:
             arrowprops={'arrowstyle': '->', 'color': c, 'lw': 1.8, 'ls': ls},
         )
         ax.plot([], [], color=c, ls=ls, label=f'{r.method} sun azimuth')
-    ax.legend(fontsize=6, loc='lower left', framealpha=0.7)
+    if view.sun_dir_img:
+        ax.legend(fontsize=6, loc='lower left', framealpha=0.7)
 
 
 def _compass_panel(ax, view) -> None:

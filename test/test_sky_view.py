@@ -1,0 +1,170 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The diagnostic figure's layers (issue 25), checked against independent computations.
+
+A small level pinhole camera sees a Rayleigh sky written here from the sun's direction by hand
+(E ~ s x v, AoP = atan2(E_x, E_y)); a user mask and saturated pixels are placed where we say. The
+rendered figure must colour those pixels with their class's colour (read back from the RGB array
+at the data position), and draw the sun where the pinhole formula puts the result's sun.
+"""
+
+import math
+
+import numpy as np
+from polarization_compass.camera import CameraModel
+from polarization_compass.diagnostic_figure import CLASS_COLOURS, make_figure
+from polarization_compass.estimators import HeadingResult, Observation, Status
+from polarization_compass.sky_view import build_view, CLASSES, project_sun
+import pytest
+
+PSI_DEG, ALT_DEG = 35.0, 70.0
+W, H = 120, 100
+
+
+def _camera():
+    return CameraModel(
+        width_px=W, height_px=H, focal_length_mm=4.0, pixel_pitch_x_um=60.0, pixel_pitch_y_um=60.0
+    )
+
+
+def _sun_cam(psi_deg, alt_deg):
+    """Level camera: the sun lies -psi clockwise from camera +y (z up, x = +y turned clockwise)."""
+    p, a = math.radians(psi_deg), math.radians(alt_deg)
+    return np.array([-math.cos(a) * math.sin(p), math.cos(a) * math.cos(p), math.sin(a)])
+
+
+def _observation():
+    cam = _camera()
+    x, y = np.meshgrid(np.arange(1, W + 1, dtype=float), np.arange(1, H + 1, dtype=float))
+    pitch_mm = 60.0e-3
+    rays = np.stack(
+        [(x - cam.cx_px) * pitch_mm, (y - cam.cy_px) * pitch_mm, np.full(x.shape, 4.0)]
+    )
+    rays /= np.linalg.norm(rays, axis=0)
+    s = _sun_cam(PSI_DEG, ALT_DEG)
+    e = np.cross(s, rays.reshape(3, -1).T)
+    aop = np.arctan2(e[:, 0], e[:, 1]).reshape(x.shape)
+    aop = (aop + np.pi / 2) % np.pi - np.pi / 2
+    dop = np.full(x.shape, 0.5, np.float32)
+    valid = np.ones(x.shape, bool)
+    valid[5:9, 100:110] = False  # no measurement
+    return Observation(
+        aop.astype(np.float32),
+        dop,
+        valid,
+        rays.reshape(3, -1).astype(np.float32),
+        x,
+        y,
+        cam,
+        0.0,
+        ALT_DEG,
+        None,
+        0.0,
+        0.0,
+    )
+
+
+def _result(psi=PSI_DEG, status=Status.OK):
+    return HeadingResult(
+        'least_squares',
+        status,
+        'test',
+        psi_deg=psi,
+        bearing_deg=psi % 360,
+        yaw_enu_deg=90 - psi,
+        sigma_deg=1.0,
+        pixels=W * H,
+        quality=1.0,
+    )
+
+
+def _view(results=None):
+    user = np.zeros((H, W), bool)
+    user[60:80, 10:30] = True
+    glare = np.zeros((H, W), bool)
+    glare[20:30, 40:50] = True
+    reasons = {CLASSES.index('user mask'): user, CLASSES.index('saturated sun + glare'): glare}
+    return (
+        build_view(_observation(), reasons, results or [_result()], max_side_px=400),
+        user,
+        glare,
+    )
+
+
+def _colour_at(fig, ax, x_px, y_px):
+    fig.canvas.draw()
+    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+    dx, dy = ax.transData.transform((x_px, y_px))
+    return rgb[int(round(rgb.shape[0] - dy)), int(round(dx))] / 255.0
+
+
+def test_counts_are_the_masks_sizes():
+    view, user, glare = _view()
+    assert view.counts[CLASSES.index('user mask')] == user.sum()
+    assert view.counts[CLASSES.index('saturated sun + glare')] == glare.sum()
+    assert view.counts[CLASSES.index('no measurement (dark, S1 = S2 = 0)')] == 40
+    # the sky is the fitted one: nothing off the fit, every other pixel used
+    assert (
+        view.counts[CLASSES.index('off the fitted sky > 15 deg (noise, cloud, flare ghost)')] == 0
+    )
+    assert view.counts[0] == W * H - user.sum() - glare.sum() - 40
+
+
+def test_masked_pixels_have_their_colour_in_the_picture():
+    view, _, _ = _view()
+    fig = make_figure(view, dpi=100)
+    ax = fig.axes[[a.get_title() for a in fig.axes].index('pixels used and masked (legend below)')]
+    # centres of the masked blocks (1-based pixel = index + 1) and a used pixel
+    for (x, y), name in [
+        ((20.5, 70.5), 'user mask'),
+        ((45.5, 25.5), 'saturated sun + glare'),
+        ((105.5, 7.5), 'no measurement (dark, S1 = S2 = 0)'),
+        ((90.5, 90.5), 'used'),
+    ]:
+        got = _colour_at(fig, ax, x, y)
+        assert np.allclose(got, CLASS_COLOURS[CLASSES.index(name)], atol=0.02), (name, got)
+
+
+def test_residual_flags_a_wrong_sky():
+    """A fit 40 deg off: its residual is large where the pattern differs, near 0 for the true one."""
+    good, _, _ = _view()
+    assert np.nanmax(np.abs(good.residual_deg)) < 1e-3
+    bad, _, _ = _view([_result(PSI_DEG + 40.0)])
+    assert bad.counts[CLASSES.index('off the fitted sky > 15 deg (noise, cloud, flare ghost)')] > 0
+
+
+def test_sun_drawn_where_the_pinhole_puts_it():
+    cam = _camera()
+    s = _sun_cam(PSI_DEG, ALT_DEG)
+    x_exp = 4.0 * s[0] / s[2] / 60e-3 + cam.cx_px
+    y_exp = 4.0 * s[1] / s[2] / 60e-3 + cam.cy_px
+    sun, anti = project_sun(cam, PSI_DEG, ALT_DEG)
+    assert sun == pytest.approx((x_exp, y_exp), abs=1e-6)
+    assert anti is None  # below the horizon: behind a camera looking up
+    view, _, _ = _view()
+    fig = make_figure(view)
+    stars = [ln for ax in fig.axes for ln in ax.lines if ln.get_marker() == '*']
+    assert stars, 'no sun drawn'
+    for ln in stars:
+        assert (ln.get_xdata()[0], ln.get_ydata()[0]) == pytest.approx((x_exp, y_exp), abs=1e-6)
+
+
+def test_no_fit_no_residual_and_title_says_why():
+    r = HeadingResult.failed('zenith', Status.TOO_FEW_PIXELS, 'only 3 pixels')
+    view, _, _ = _view([r])
+    assert view.residual_deg is None and view.sun_px is None
+    fig = make_figure(view)
+    assert 'only 3 pixels' in fig._suptitle.get_text()
