@@ -43,6 +43,7 @@ __all__ = [
     'MIN_DOP',
     'SkyView',
     'USED',
+    'aop_residual_deg',
     'build_view',
     'fit_result',
     'project_sun',
@@ -215,14 +216,35 @@ def _fold_deg(a):
     return (np.asarray(a) + 90.0) % 180.0 - 90.0
 
 
-def _residual_deg(aop_rad, rays, valid, fit, sun_alt_deg, pitch_deg, roll_deg):
-    """Measured minus fitted AoP [deg, folded to [-90, 90)], NaN where not valid."""
+def aop_residual_deg(aop_rad, rays_cam, valid, psi_deg, sun_altitude_deg, pitch_deg, roll_deg):
+    """
+    Return the measured minus the single-scattering AoP of a sun (seed paper eqs 18, 28, 21).
+
+    Parameters
+    ----------
+    aop_rad : numpy.ndarray
+        Measured AoP [rad] (eq 28), any shape.
+    rays_cam : array_like, shape (3, N)
+        Unit camera-frame rays in the order of ``aop_rad.reshape(-1)``.
+    valid : numpy.ndarray of bool
+        Pixels with a measurement, ``aop_rad``'s shape.
+    psi_deg, sun_altitude_deg : float
+        The sun: the paper's yaw and the altitude [deg].
+    pitch_deg, roll_deg : float
+        Camera tilt [deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        Residual [deg] folded to [-90, 90), NaN where not valid.
+
+    """
     from .conventions import aop_from_evector_cam_rad
 
-    h, z = _sun_frame(fit.psi_deg, pitch_deg, roll_deg)
-    a = math.radians(sun_alt_deg)
+    h, z = _sun_frame(psi_deg, pitch_deg, roll_deg)
+    a = math.radians(sun_altitude_deg)
     s = math.cos(a) * h + math.sin(a) * z
-    r = np.asarray(rays, np.float64).reshape(3, -1)
+    r = np.asarray(rays_cam, np.float64).reshape(3, -1)
     e = np.cross(s[None, :], r.T)  # Rayleigh: E ~ s x v (seed paper eq 18)
     pred = aop_from_evector_cam_rad(e).reshape(np.shape(aop_rad))
     res = _fold_deg(np.degrees(np.asarray(aop_rad, np.float64) - pred))
@@ -281,7 +303,9 @@ def build_view(
     codes[valid & (dop < MIN_DOP)] = _LOW_DOP
     residual = None
     if fit is not None:
-        residual = _residual_deg(aop, obs.rays_cam, valid, fit, alt, *_tilt_of(fit, obs))
+        residual = aop_residual_deg(
+            aop, obs.rays_cam, valid, fit.psi_deg, alt, *_tilt_of(fit, obs)
+        )
         from .skyfit import OUTLIER_DEG
 
         off = valid & (dop >= MIN_DOP) & (np.abs(np.nan_to_num(residual)) > OUTLIER_DEG)
