@@ -178,7 +178,7 @@ def _p99(a) -> float:
 def _class_panel(ax, view) -> None:
     rgb = np.asarray(CLASS_COLOURS)[view.classes]
     _image(ax, view, rgb)
-    ax.set_title('pixels used and masked (legend below)', fontsize=9)
+    ax.set_title(f'pixels used and masked (1 cell = {view.step} x {view.step})', fontsize=9)
     _geometry(ax, view, arrows=False)
 
 
@@ -204,7 +204,8 @@ def _class_legend(ax, view) -> int:
 
 
 def _residual_panel(ax, view) -> None:
-    ax.set_title('AoP minus fitted sky [deg]', fontsize=9)
+    who = '' if view.fit is None else f' (sun of {view.fit.method})'
+    ax.set_title(f'AoP minus fitted sky{who} [deg]', fontsize=9)
     if view.residual_deg is None:
         _image(ax, view, np.full(view.classes.shape, np.nan))
         ax.text(
@@ -300,20 +301,22 @@ def _text_panel(ax, view) -> None:
     ax.axis('off')
     rows = _class_legend(ax, view)
     lines = []
+    reason_lines = 2 if len(view.results) <= 3 else 1
     for r in view.results:
         b = '--' if r.bearing_deg is None else f'{r.bearing_deg:.1f}'
         s = '' if r.sigma_deg is None else f' +- {r.sigma_deg:.2g}'
         lines.append(f'{r.method}: {r.status.value}, bearing {b}{s} deg, {r.pixels} px')
         lines += textwrap.wrap(
-            str(r.reason or ''), 54, initial_indent='   ', subsequent_indent='   ', max_lines=3
+            str(r.reason or ''),
+            56,
+            initial_indent='   ',
+            subsequent_indent='   ',
+            max_lines=reason_lines,
         )
-    fit = view.fit
-    if fit is not None:
-        lines.append('')
-        lines.append(f'fitted sky: sun of {fit.method} (psi {fit.psi_deg:.1f} deg)')
-        if view.sun_px is None:
-            lines.append('   fitted sun outside the image (arrows point to it)')
-    lines.append(f"view: every {view.step}th cell of the estimators' grid")
+    lines.append('')
+    lines.append('white in the maps: no measurement or masked')
+    if view.fit is not None and view.sun_px is None:
+        lines.append('the fitted sun is outside the image')
     ax.text(
         0.0,
         1.0 - 0.068 * rows,
