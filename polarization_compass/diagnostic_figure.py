@@ -20,7 +20,9 @@ no display, safe in a node's thread): the AoP on a cyclic colour map with the fi
 and solar meridian and each method's sun azimuth (+- sigma); the DoP; the pixels used and each
 mask by reason (own colour, legend with counts); the residual against the fitted sky; a compass
 with each method's bearing and sigma; the status and reason of every method. :func:`save_figure`
-writes a PNG, :func:`figure_rgb` returns the picture as an RGB array (the node's debug image).
+writes a PNG (``estimate --plot``), :func:`figure_rgb` returns the picture as an RGB array. The
+node's debug image and ``replay --plots-every`` use the fast renderer of the same layers,
+:func:`polarization_compass.diagnostic_rgb.quick_rgb`.
 """
 
 from __future__ import annotations
@@ -37,8 +39,8 @@ __all__ = ['CLASS_COLOURS', 'figure_rgb', 'make_figure', 'save_figure']
 CLASS_COLOURS = (
     (0.55, 0.85, 0.45),  # used: green
     (0.80, 0.80, 0.80),  # not read: light grey
-    (0.35, 0.55, 0.95),  # low DoP: blue
     (0.95, 0.55, 0.10),  # off the fitted sky: orange
+    (0.35, 0.55, 0.95),  # low DoP: blue
     (0.35, 0.35, 0.35),  # no measurement: dark grey
     (0.85, 0.10, 0.75),  # IFOV: magenta
     (1.00, 0.90, 0.00),  # saturated sun + glare: yellow

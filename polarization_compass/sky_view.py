@@ -16,16 +16,18 @@
 What the estimators saw, as layers for a picture (issue 25); no plotting here.
 
 A :class:`SkyView` holds, on a downscaled grid of the image: the AoP and DoP the estimators read,
-one class per pixel (used, or the first reason it was not: outside the lens, the user's mask, the
-saturated sun and its glare, the IFOV check, no measurement, not read by any method, DoP below
+one class per pixel (used, or the first reason it was not, in this order: outside the lens, the
+user's mask, the saturated sun and its glare, the IFOV check, no measurement, DoP below
 :data:`MIN_DOP`, off the fitted sky by more than :data:`polarization_compass.skyfit.OUTLIER_DEG`
--- how clouds and flare ghosts show, since nothing masks them before the fit), the residual against
-the fitted single-scattering sky (seed paper eqs 18 and 28), and where the fitted sun, the
-anti-sun and the solar meridian project. :mod:`polarization_compass.diagnostic_figure` draws it.
+-- how clouds and flare ghosts show, since nothing masks them before the fit -- and not read by
+any method), the residual against the fitted single-scattering sky (seed paper eqs 18 and 28),
+and where the fitted sun, the anti-sun and the solar meridian project.
+:mod:`polarization_compass.diagnostic_figure` draws it.
 
 The fitted sky is the sun of one result (:func:`fit_result`: the usable result of least sigma,
-else any with a psi), at the result's own sun altitude when it has one (least squares) or the
-observation's (ephemeris), with the observation's known tilt (0 when unknown).
+else the least sigma of those with a psi), at the result's own sun altitude when it has one
+(least squares) or the observation's (ephemeris), with the known tilt for the methods that read
+it (level for the others, whose psi assumes a level camera).
 
 Sources: :func:`view_from_seen` (what :func:`polarization_compass.headings.estimate_file` saw:
 frame files, raw mosaics, Stokes planes) and :func:`view_from_mosaic` (a node's raw mosaic).
@@ -61,15 +63,15 @@ USED = 0
 CLASSES = (
     'used',
     'not read by the methods',
-    f'DoP < {MIN_DOP:g} (cloud, haze)',
     'off the fitted sky > 15 deg (noise, cloud, flare ghost)',
+    f'DoP < {MIN_DOP:g} (cloud, haze)',
     'no measurement (dark, S1 = S2 = 0)',
     'IFOV check',
     'saturated sun + glare',
     'user mask',
     'outside the lens / no sky',
 )
-_NOT_READ, _LOW_DOP, _OFF_FIT, _NO_DATA, _IFOV, _GLARE, _USER, _OUTSIDE = range(1, 9)
+_NOT_READ, _OFF_FIT, _LOW_DOP, _NO_DATA, _IFOV, _GLARE, _USER, _OUTSIDE = range(1, 9)
 
 
 @dataclass
@@ -107,8 +109,8 @@ def fit_result(results, tilt_known: bool = False):
     """
     Pick the result whose sun draws the fitted sky.
 
-    The usable results (with a known tilt, those of the methods that read it first), least sigma
-    first; else any result with a psi.
+    The usable result of least sigma (with a known tilt, among the methods that read it); else the
+    result of least sigma among those with a psi (``poor_fit``, ``inconsistent``).
 
     Parameters
     ----------
@@ -127,9 +129,10 @@ def fit_result(results, tilt_known: bool = False):
     usable = [r for r in with_psi if r.ok]
     if tilt_known and any(_reads_tilt(r.method) for r in usable):
         usable = [r for r in usable if _reads_tilt(r.method)]
-    if usable:
-        return min(usable, key=lambda r: r.sigma_deg if r.sigma_deg is not None else math.inf)
-    return with_psi[0] if with_psi else None
+    pool = usable or with_psi
+    if not pool:
+        return None
+    return min(pool, key=lambda r: r.sigma_deg if r.sigma_deg is not None else math.inf)
 
 
 def _reads_tilt(method: str) -> bool:
@@ -205,15 +208,11 @@ def _project(camera, rays):
 
 
 def _meridian(camera, psi_deg, pitch_deg, roll_deg, n=181):
-    """Project the solar meridian: (2, n) [px], elevation 0 at the sun's azimuth to 180 (anti-sun)."""
+    """Project the solar meridian, (2, n) [px]: elevation 0 at the sun's azimuth to 180."""
     h, z = _sun_frame(psi_deg, pitch_deg, roll_deg)
     e = np.radians(np.linspace(0.0, 180.0, n))
     rays = np.outer(h, np.cos(e)) + np.outer(z, np.sin(e))
     return np.vstack(_project(camera, rays))
-
-
-def _fold_deg(a):
-    return (np.asarray(a) + 90.0) % 180.0 - 90.0
 
 
 def aop_residual_deg(aop_rad, rays_cam, valid, psi_deg, sun_altitude_deg, pitch_deg, roll_deg):
@@ -239,16 +238,16 @@ def aop_residual_deg(aop_rad, rays_cam, valid, psi_deg, sun_altitude_deg, pitch_
         Residual [deg] folded to [-90, 90), NaN where not valid.
 
     """
-    from .conventions import aop_from_evector_cam_rad
-
     h, z = _sun_frame(psi_deg, pitch_deg, roll_deg)
     a = math.radians(sun_altitude_deg)
-    s = math.cos(a) * h + math.sin(a) * z
-    r = np.asarray(rays_cam, np.float64).reshape(3, -1)
-    e = np.cross(s[None, :], r.T)  # Rayleigh: E ~ s x v (seed paper eq 18)
-    pred = aop_from_evector_cam_rad(e).reshape(np.shape(aop_rad))
-    res = _fold_deg(np.degrees(np.asarray(aop_rad, np.float64) - pred))
-    return np.where(valid, res, np.nan)
+    sx, sy, sz = (np.float32(v) for v in math.cos(a) * h + math.sin(a) * z)
+    r = np.asarray(rays_cam, np.float32).reshape(3, -1)
+    ex = sy * r[2] - sz * r[1]  # Rayleigh: E ~ s x v (seed paper eq 18), float32 for speed
+    ey = sz * r[0] - sx * r[2]
+    pred = np.arctan2(ex, ey).reshape(np.shape(aop_rad))  # eq 28: from +y_cam towards +x_cam
+    d = np.degrees(np.asarray(aop_rad, np.float32) - pred)
+    res = (d + np.float32(90.0)) % np.float32(180.0) - np.float32(90.0)
+    return np.where(valid, res, np.float32(np.nan))
 
 
 def _block_max(codes, step):

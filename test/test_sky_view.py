@@ -139,7 +139,7 @@ def test_masked_pixels_have_their_colour_in_the_picture():
 
 
 def test_residual_flags_a_wrong_sky():
-    """A fit 40 deg off: its residual is large where the pattern differs, near 0 for the true one."""
+    """A fit 40 deg off has large residuals; the true one has none."""
     good, _, _ = _view()
     assert np.nanmax(np.abs(good.residual_deg)) < 1e-3
     bad, _, _ = _view([_result(PSI_DEG + 40.0)])
@@ -168,3 +168,28 @@ def test_no_fit_no_residual_and_title_says_why():
     assert view.residual_deg is None and view.sun_px is None
     fig = make_figure(view)
     assert 'only 3 pixels' in fig._suptitle.get_text()
+
+
+def test_quick_picture_has_the_same_layers():
+    """The fast renderer (debug image, replay): mask colours and the sun read back from the array."""
+    from polarization_compass.diagnostic_rgb import panel_origin_px, quick_rgb, to_panel_px
+
+    view, _, _ = _view()
+    width = 640
+    img = quick_rgb(view, width)
+    c0, r0 = panel_origin_px(view, width, 'classes')
+    for (x, y), name in [
+        ((20.5, 70.5), 'user mask'),
+        ((45.5, 25.5), 'saturated sun + glare'),
+        ((90.5, 90.5), 'used'),
+    ]:
+        px, py = to_panel_px(view, width, x, y)
+        got = img[int(r0 + py), int(c0 + px)] / 255.0
+        assert np.allclose(got, CLASS_COLOURS[CLASSES.index(name)], atol=0.01), (name, got)
+    cam = _camera()
+    s = _sun_cam(PSI_DEG, ALT_DEG)
+    sx, sy = to_panel_px(
+        view, width, 4.0 * s[0] / s[2] / 60e-3 + cam.cx_px, 4.0 * s[1] / s[2] / 60e-3 + cam.cy_px
+    )
+    c0, r0 = panel_origin_px(view, width, 'dop')
+    assert tuple(img[int(round(r0 + sy)), int(round(c0 + sx))]) == (255, 200, 0)

@@ -416,7 +416,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
 
     def _debug_rgb(self, camera, mosaic, result, sun, inp):
         """Render the diagnostic figure of one image (~/debug_image; the estimate's layers)."""
-        from ..diagnostic_figure import figure_rgb
+        from ..diagnostic_rgb import quick_rgb
         from ..headings import Sun
         from ..sky_view import view_from_mosaic
 
@@ -434,7 +434,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
             max_side_px=256,
             label=f'heading_estimator ({self.method})',
         )
-        return figure_rgb(view, int(self.params['debug_width_px']))
+        return quick_rgb(view, int(self.params['debug_width_px']))
 
     def _after_estimate(self, camera, mosaic, sun_alt, inp, status: dict) -> None:
         """Check the polarizer convention every ``polarizer_check_every``-th image."""
