@@ -18,8 +18,8 @@ The diagnostic figure's layers drawn straight into an RGB array, fast (issue 25)
 For every frame of a replay (``replay --plots-every``) and the node's ``~/debug_image``, where
 matplotlib's figure (:mod:`polarization_compass.diagnostic_figure`, ~1 s) is too slow: numpy
 colour look-ups and OpenCV drawing, a few ms. Four panels of a
-:class:`polarization_compass.sky_view.SkyView` -- AoP (twilight) with the solar meridian, the fitted
-sun and each method's sun azimuth; the pixels used and masked (the figure's colours); the residual
+:class:`polarization_compass.sky_view.SkyView` -- AoP (twilight) with the solar meridian, the
+fitted sun and each method's sun azimuth; the pixels used and masked (the figure's colours); the residual
 against the fitted sky (coolwarm, +-30 deg); the DoP (viridis) -- under two lines of status, over a
 legend of the classes with their counts. :func:`panel_origin_px` says where a panel lies, so a
 test can read a pixel back.
@@ -68,7 +68,7 @@ def panel_size_px(view, width_px: int) -> tuple:
 
 
 def panel_origin_px(view, width_px: int, name: str) -> tuple:
-    """Return the (column, row) [px] of a panel's top-left corner in :func:`quick_rgb`'s picture."""
+    """Return the (column, row) [px] of a panel's top-left corner in :func:`quick_rgb`."""
     pw, ph = panel_size_px(view, width_px)
     k = PANELS.index(name)
     return (k % 2) * pw, _HEAD_PX + (k // 2) * ph
@@ -201,12 +201,14 @@ def _legend(img, view, rows, top, col_px) -> None:
         cv2.rectangle(img, (x, y + 2), (x + 10, y + 11), colour, -1)
         cv2.rectangle(img, (x, y + 2), (x + 10, y + 11), (0, 0, 0), 1)
         text = f'{CLASSES[i]}: {view.counts[i]}'
+        if view.counted_every_px > 1 and k == 0:
+            text += f' (every {view.counted_every_px}th px)'
         cv2.putText(
             img,
-            text[: max(10, col_px // 6)],
+            text[: max(10, col_px // 5)],
             (x + 14, y + 11),
             cv2.FONT_HERSHEY_SIMPLEX,
-            0.33,
+            0.3,
             (0, 0, 0),
             1,
             cv2.LINE_AA,

@@ -17,9 +17,9 @@ The diagnostic figure of every N-th frame of a replayed bag (``replay --plots-ev
 
 After :func:`polarization_compass.replay.replay_bag`, the bag is read once more; every N-th
 synchronised image (counting from the first) is drawn with what each method answered on it (the
-replay's rows at that stamp) by :func:`polarization_compass.sky_view.view_from_mosaic` and the fast renderer
-(:func:`polarization_compass.diagnostic_rgb.quick_rgb`: the figure's layers in tens of ms, where
-matplotlib takes ~1 s), as ``frame_<index>_<stamp>.png``.
+replay's rows at that stamp) by :func:`polarization_compass.sky_view.view_from_mosaic` and the
+fast renderer (:func:`polarization_compass.diagnostic_rgb.quick_rgb`: the figure's layers in tens
+of ms, where matplotlib takes ~1 s), as ``frame_<index>_<stamp>.png``.
 """
 
 from __future__ import annotations
@@ -124,6 +124,7 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
                 r0.pitch_deg,
                 r0.roll_deg,
                 max_side_px=256,
+                sampled=True,
                 label=f'{Path(bag_path).name} frame {k}, stamp {frame.stamp_ns / 1e9:.3f} s',
             )
             path = folder / f'frame_{k:05d}_{frame.stamp_ns}.png'

@@ -103,6 +103,7 @@ class SkyView:
     sun_dir_img: dict = field(default_factory=dict)
     label: str = ''
     step: int = 1
+    counted_every_px: int = 1
 
 
 def fit_result(results, tilt_known: bool = False):
@@ -420,11 +421,28 @@ def _read_by(whole, observations):
 
 
 def _mosaic_reasons(
-    mosaic, camera, sun, method, layout, pol45, sat_level, ifov_k, pitch, roll, origin_px=(1, 1)
+    mosaic,
+    camera,
+    sun,
+    method,
+    layout,
+    pol45,
+    sat_level,
+    ifov_k,
+    pitch,
+    roll,
+    origin_px=(1, 1),
+    stride_px=None,
 ):
-    """Whole-frame observation of a raw mosaic and its reasons: outside, saturated, IFOV."""
+    """
+    Whole-frame observation of a raw mosaic and its reasons: outside, saturated, IFOV.
+
+    ``stride_px``: every N-th sensor pixel only (a sparse demosaic with the full frame's values).
+    """
+    from .camera import PixelSelection
     from .estimators.mosaic_input import observation_from_mosaic
-    from .polarizer_check import saturated_blocks
+
+    selection = None if not stride_px else PixelSelection.strided(stride_px)
 
     def obs_with(k):
         return observation_from_mosaic(
@@ -440,21 +458,42 @@ def _mosaic_reasons(
             pitch_deg=pitch,
             roll_deg=roll,
             ifov_k=k,
+            selection=selection,
         )
 
     obs = obs_with(ifov_k)
     shape = np.shape(obs.aop_rad)
-    _, has_ray = camera.rays_from_pixels(obs.x_px, obs.y_px)
+    if camera.model == 'pinhole' and not camera.distorted:
+        has_ray = np.ones(shape, bool)  # every pixel of an ideal pinhole has a ray
+    else:
+        has_ray = np.asarray(camera.rays_from_pixels(obs.x_px, obs.y_px)[1], bool)
     if sat_level is None:
         m = np.asarray(mosaic)
         sat_level = np.iinfo(m.dtype).max if m.dtype.kind in 'ui' else None
     reasons = {
-        _OUTSIDE: ~np.asarray(has_ray, bool).reshape(shape),
-        _GLARE: saturated_blocks(mosaic, sat_level, shape),
+        _OUTSIDE: ~has_ray.reshape(shape),
+        _GLARE: _saturated_at(mosaic, sat_level, obs, method, origin_px),
     }
     if ifov_k:
         reasons[_IFOV] = np.asarray(obs_with(0.0).valid, bool) & ~np.asarray(obs.valid, bool)
     return obs, reasons
+
+
+def _saturated_at(mosaic, sat_level, obs, method, origin_px) -> np.ndarray:
+    """Mark the observation's pixels whose raw samples (2 x 2 block for superpixels) saturate."""
+    if sat_level is None:
+        return np.zeros(np.shape(obs.aop_rad), bool)
+    m = np.asarray(mosaic)
+    base = (-0.5, 0.5) if method == 'superpixel' else (0.0,)  # the block's samples
+    x = np.asarray(obs.x_px, float) - origin_px[0]  # 0-based mosaic column of the pixel's centre
+    y = np.asarray(obs.y_px, float) - origin_px[1]
+    sat = np.zeros(x.shape, bool)
+    for dx in base:
+        c = np.clip(np.rint(x + dx), 0, m.shape[1] - 1).astype(np.int64)
+        for dy in base:
+            r = np.clip(np.rint(y + dy), 0, m.shape[0] - 1).astype(np.int64)
+            sat |= m[r, c] >= sat_level
+    return sat
 
 
 def _real_reasons(seen, demosaic):
@@ -494,6 +533,7 @@ def view_from_mosaic(
     ifov_k=None,
     max_side_px=400,
     label='',
+    sampled: bool = False,
 ):
     """
     Make the layers of a raw mosaic as a node's front end reads it (whole frame).
@@ -522,6 +562,10 @@ def view_from_mosaic(
         Longest side of the view [cells].
     label : str, default ''
         What the image is.
+    sampled : bool, default False
+        Demosaic only every N-th sensor pixel (N = longest side / ``max_side_px``, the values the
+        full frame would give), for speed: the counts are then of those pixels
+        (``counted_every_px``).
 
     Returns
     -------
@@ -532,7 +576,20 @@ def view_from_mosaic(
     from .demosaic import IFOV_K_DEFAULT
 
     k = IFOV_K_DEFAULT if ifov_k is None else ifov_k
+    stride = max(2, -(-max(camera.shape) // int(max_side_px))) if sampled else None
     obs, reasons = _mosaic_reasons(
-        mosaic, camera, sun, demosaic, layout, pol45_toward, None, k, pitch_deg, roll_deg
+        mosaic,
+        camera,
+        sun,
+        demosaic,
+        layout,
+        pol45_toward,
+        None,
+        k,
+        pitch_deg,
+        roll_deg,
+        stride_px=stride,
     )
-    return build_view(obs, reasons, results, max_side_px, label)
+    view = build_view(obs, reasons, results, max_side_px, label)
+    view.counted_every_px = stride or 1
+    return view

@@ -171,7 +171,7 @@ def test_no_fit_no_residual_and_title_says_why():
 
 
 def test_quick_picture_has_the_same_layers():
-    """The fast renderer (debug image, replay): mask colours and the sun read back from the array."""
+    """The fast renderer (debug image, replay): mask colours and the sun read back."""
     from polarization_compass.diagnostic_rgb import panel_origin_px, quick_rgb, to_panel_px
 
     view, _, _ = _view()
@@ -193,3 +193,60 @@ def test_quick_picture_has_the_same_layers():
     )
     c0, r0 = panel_origin_px(view, width, 'dop')
     assert tuple(img[int(round(r0 + sy)), int(round(c0 + sx))]) == (255, 200, 0)
+
+
+def test_mosaic_reasons_where_the_mosaic_says():
+    """A raw mosaic: saturated samples and the fisheye's edge land in their classes, sampled too."""
+    from polarization_compass.camera import PixelSelection
+    from polarization_compass.conventions import CameraAttitude
+    from polarization_compass.headings import Sun
+    from polarization_compass.render import Renderer, SunDirection
+    from polarization_compass.scene import Scene
+    from polarization_compass.sky_view import view_from_mosaic
+
+    n = 128
+    f_px = (n / 2) / (math.pi / 2)
+    cam = CameraModel(
+        model='fisheye_equidistant',
+        width_px=n,
+        height_px=n,
+        focal_length_mm=f_px * 3.45e-3,
+        max_field_angle_deg=80.0,
+    )
+    scene = Scene(
+        camera=cam,
+        pixels=PixelSelection.full(),
+        sky={'model': 'rayleigh', 'dop_max': 0.7},
+        sensor={'mosaic': {}, 'quantization': {'bits': 12}},
+    )
+    frame = Renderer(scene).render(
+        attitude=CameraAttitude(0.0, 0.0, 0.0), sun=SunDirection(30.0, 50.0), seed=2
+    )
+    m = np.array(frame.mosaic, dtype=np.uint16)
+    top = np.iinfo(m.dtype).max
+    m[40:50, 60:70] = top  # superpixel rows 20-24, columns 30-34
+    glare = CLASSES.index('saturated sun + glare')
+    outside = CLASSES.index('outside the lens / no sky')
+    for sampled in (False, True):
+        view = view_from_mosaic(
+            m,
+            cam,
+            Sun(30.0, 50.0, 'test'),
+            [],
+            [[90, 45], [135, 0]],
+            '+x-y',
+            max_side_px=64 if sampled else 400,
+            sampled=sampled,
+        )
+        c = view.classes
+        if not sampled:
+            assert view.counts[glare] == 25 and (c[20:25, 30:35] == glare).all()
+        # independent: the superpixel centre's angle off-axis (equidistant) beyond 80 deg
+        step = view.counted_every_px
+        x0, x1, y1, y0 = view.extent
+        xs = np.linspace(x0, x1, c.shape[1] + 1)[:-1] + (x1 - x0) / c.shape[1] / 2
+        ys = np.linspace(y0, y1, c.shape[0] + 1)[:-1] + (y1 - y0) / c.shape[0] / 2
+        xg, yg = np.meshgrid(xs, ys)
+        theta = np.degrees(np.hypot(xg - cam.cx_px, yg - cam.cy_px) / f_px)
+        far, near = theta > 82.0, theta < 78.0  # away from the edge's discretisation
+        assert (c[far] == outside).all() and not (c[near] == outside).any(), step

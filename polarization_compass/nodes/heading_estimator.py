@@ -432,6 +432,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
             inp.pitch_deg,
             inp.roll_deg,
             max_side_px=256,
+            sampled=True,
             label=f'heading_estimator ({self.method})',
         )
         return quick_rgb(view, int(self.params['debug_width_px']))

@@ -22,8 +22,9 @@ queue of stamped inputs waiting for their IMU sample (:meth:`HeadingNodeBase._dr
 outputs: the heading Imu and bearing of a resolved result, one JSON status per input, failures
 included, ``/diagnostics``, the heading as a ``visualization_msgs/Marker`` (``~/heading_marker``)
 and a diagnostic picture (``~/debug_image``, rgb8, rendered only while someone subscribes and at
-most ``debug_rate_hz``; a sensor that has a picture implements :meth:`HeadingNodeBase._debug_rgb`). Each node subscribes to its own sensor and turns one queued input
-into a :class:`~polarization_compass.estimators.base.HeadingResult`
+most ``debug_rate_hz``; a sensor that has a picture implements
+:meth:`HeadingNodeBase._debug_rgb`). Each node subscribes to its own sensor and turns one queued
+input into a :class:`~polarization_compass.estimators.base.HeadingResult`
 (:meth:`HeadingNodeBase._estimate`).
 """
 
