@@ -26,11 +26,9 @@ import time
 from types import SimpleNamespace
 
 import numpy as np
+from polarization_compass.estimators import HeadingResult, Status
 import pytest
-
-rclpy = pytest.importorskip('rclpy')
-
-from polarization_compass.estimators import HeadingResult, Status  # noqa: E402
+import rclpy
 
 
 def _probe(ctx, rate_hz):
@@ -38,6 +36,8 @@ def _probe(ctx, rate_hz):
     from rclpy.node import Node
 
     class Probe(HeadingNodeBase):
+        """A heading node's debug outputs, its picture counted."""
+
         def __init__(self):
             Node.__init__(self, 'debug_probe', context=ctx)
             values = {'publish_marker': True, 'debug_rate_hz': rate_hz, 'frame_id': 'base_link'}
@@ -54,6 +54,8 @@ def _probe(ctx, rate_hz):
 
 
 class _Params(dict):
+    """Parameter values as a node's ParameterSet gives them."""
+
     @property
     def values(self):
         return self
