@@ -87,14 +87,9 @@ def save_polarizer_figure(
         for j, h in enumerate(hyps):
             ax = fig.add_subplot(n, m, i * m + j + 1)
             row = rows.get(_key(h.describe()), {})
-            res = _residual(
-                cf.camera, inp, h, row.get('frames', [{}])[i], mask, pitch_deg, roll_deg
-            )
-            if res is not None:
-                im = ax.imshow(res, cmap='coolwarm', vmin=-30, vmax=30, interpolation='nearest')
-            ax.set_xticks([])
-            ax.set_yticks([])
-            ax.set_title(_panel_title(h, row, i, report, j == 0), fontsize=7)
+            frame = row.get('frames', [{}])[i]
+            res = _residual(cf.camera, inp, h, frame, mask, pitch_deg, roll_deg)
+            im = _panel(ax, res, _panel_title(h, row, i, report, j == 0)) or im
             if j == 0:
                 ax.set_ylabel(str(paths[i]).rsplit('/', 1)[-1], fontsize=7)
     if im is not None:
@@ -103,6 +98,17 @@ def save_polarizer_figure(
     fig.subplots_adjust(left=0.04, right=0.86, bottom=0.03, top=1 - head_in / fig.get_figheight())
     fig.suptitle(title, fontsize=8)
     fig.savefig(out_path, format='png')
+
+
+def _panel(ax, res, title: str):
+    """Draw one residual map (or nothing) with its title; return the image or None."""
+    im = None
+    if res is not None:
+        im = ax.imshow(res, cmap='coolwarm', vmin=-30, vmax=30, interpolation='nearest')
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title(title, fontsize=7)
+    return im
 
 
 def _residual(camera, inp, hyp, frame: dict, mask, pitch_deg, roll_deg):
