@@ -117,3 +117,49 @@ def test_debug_image_only_while_subscribed(ctx):
     assert arrow.header.frame_id == 'base_link'
     listener.destroy_node()
     probe.destroy_node()
+
+
+class _Sink:
+    """A publisher stand-in with one subscriber that keeps what is published."""
+
+    def __init__(self):
+        self.msgs = []
+
+    def get_subscription_count(self):
+        return 1
+
+    def publish(self, msg):
+        self.msgs.append(msg)
+
+
+def test_heading_estimator_sends_its_picture_and_marker(ctx):
+    """The real node on a good frame: one rgb8 picture of debug_width_px, an arrow along the yaw."""
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+    from rclpy.parameter import Parameter
+    import test_hard_cases_nodes as H
+    from visualization_msgs.msg import Marker
+
+    node = HeadingEstimatorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('method', value='tilt_aware'),
+            Parameter('site_source', value='navsatfix'),
+            Parameter('debug_width_px', value=320),
+        ],
+    )
+    try:
+        node.statuses = []
+        node._publish_status = node.statuses.append
+        node.pub_debug, node.pub_marker = _Sink(), _Sink()
+        st = H.feed_good_frame(node, H.T0)
+        assert st['ok'], st
+        (img,) = node.pub_debug.msgs
+        assert (img.encoding, img.width, img.step) == ('rgb8', 320, 960)
+        pix = np.frombuffer(bytes(img.data), np.uint8).reshape(img.height, img.width, 3)
+        assert pix.std() > 20  # a picture, not a blank
+        arrow = next(m for m in node.pub_marker.msgs if m.type == Marker.ARROW)
+        q = arrow.pose.orientation
+        yaw = math.degrees(2 * math.atan2(q.z, q.w))
+        assert abs(math.remainder(yaw - (90.0 - 40.0), 360.0)) < 0.5  # REP-103 of bearing 40
+    finally:
+        node.destroy_node()
