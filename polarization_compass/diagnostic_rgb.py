@@ -19,10 +19,10 @@ For every frame of a replay (``replay --plots-every``) and the node's ``~/debug_
 matplotlib's figure (:mod:`polarization_compass.diagnostic_figure`, ~1 s) is too slow: numpy
 colour look-ups and OpenCV drawing, a few ms. Four panels of a
 :class:`polarization_compass.sky_view.SkyView` -- AoP (twilight) with the solar meridian, the
-fitted sun and each method's sun azimuth; the pixels used and masked (the figure's colours); the residual
-against the fitted sky (coolwarm, +-30 deg); the DoP (viridis) -- under two lines of status, over a
-legend of the classes with their counts. :func:`panel_origin_px` says where a panel lies, so a
-test can read a pixel back.
+fitted sun and each method's sun azimuth; the pixels used and masked (the figure's colours); the
+residual against the fitted sky (coolwarm, +-30 deg); the DoP (viridis) -- under two lines of
+status, over a legend of the classes with their counts. :func:`panel_origin_px` says where a
+panel lies, so a test can read a pixel back.
 """
 
 from __future__ import annotations

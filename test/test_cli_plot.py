@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-``estimate --plot`` on the three kinds of input (issue 25): a frame file, a raw mosaic, Stokes planes.
+``estimate --plot`` on the three kinds of input (issue 25): frame file, raw mosaic, Stokes planes.
 
 Each writes a PNG, and the JSON answer is the same with and without ``--plot`` (the figure only
 looks; the one road computes). A file that cannot be written is one line and exit 2.

@@ -133,7 +133,7 @@ class _Sink:
 
 
 def test_heading_estimator_sends_its_picture_and_marker(ctx):
-    """The real node on a good frame: one rgb8 picture of debug_width_px, an arrow along the yaw."""
+    """The real node on a good frame: one rgb8 picture, debug_width_px wide; the yaw's arrow."""
     from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
     from rclpy.parameter import Parameter
     import test_hard_cases_nodes as H
