@@ -107,7 +107,7 @@ class EstimateOptions:
     use_stored: bool = False
 
 
-def estimate_file(path, options: EstimateOptions) -> list[dict]:
+def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> list[dict]:
     """
     Turn an input file into one result dict per method: THE road from a file to headings.
 
@@ -118,6 +118,13 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
         Stokes planes (.npz with s0, s1, s2, or a 3-page .tif).
     options : EstimateOptions
         Methods, knobs, the sun, the tilt and the input's settings.
+    seen : dict, optional
+        Filled, when given, with what the estimators saw (for the diagnostic figure,
+        :mod:`polarization_compass.sky_view`): ``kind`` ('frame' or the real input's kind),
+        ``sun``, ``results`` (the :class:`HeadingResult` of each method), ``observations``
+        (method name to its observation), and ``frame`` and ``plan`` (a frame file; ``plan``
+        None for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask``
+        (a real image).
 
     Returns
     -------
@@ -142,7 +149,7 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
         from .frame_io import load_frame_npz
 
         frame = load_frame_npz(path)
-        return frame_headings(frame, options, _options_sun(frame.meta, options))
+        return frame_headings(frame, options, _options_sun(frame.meta, options), seen)
     if not options.camera_yaml:
         raise CompassError(
             f'{path}: a real image needs --camera CAMERA.yaml (ROS camera_calibration format)'
@@ -158,7 +165,7 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
     if options.mask_path:
         shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
-    return real_headings(inp, cam_file, options, sun, mask)
+    return real_headings(inp, cam_file, options, sun, mask, seen)
 
 
 def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
@@ -400,7 +407,9 @@ class _MosaicPlan:
     source: dict
 
 
-def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
+def frame_headings(
+    frame, options: EstimateOptions, sun: Sun, seen: dict | None = None
+) -> list[dict]:
     """
     Estimate the heading of a frame file with every selected method.
 
@@ -417,6 +426,8 @@ def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
         Methods, knobs, stride, tilt, prior, ``use_stored`` and ``ifov_k``.
     sun : Sun
         Where the sun was (:func:`resolve_sun`).
+    seen : dict, optional
+        Filled with what the estimators saw (:func:`estimate_file`).
 
     Returns
     -------
@@ -454,6 +465,11 @@ def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
         res = est.estimate(obs)
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
+        if seen is not None:
+            seen.setdefault('results', []).append(res)
+            seen.setdefault('observations', {})[_name] = obs
+    if seen is not None:
+        seen.update(kind='frame', sun=sun, frame=frame, plan=plan)
     return out
 
 
@@ -588,7 +604,9 @@ def _sensor_meta(meta: dict):
 # --------------------------------------------------------------------------------------------
 # Real images (raw mosaic or Stokes planes, with a camera file)
 # --------------------------------------------------------------------------------------------
-def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) -> list[dict]:
+def real_headings(
+    inp, cam_file, options: EstimateOptions, sun: Sun, mask=None, seen: dict | None = None
+) -> list[dict]:
     """
     Estimate the heading of a real image with every selected method, checked against the sky.
 
@@ -609,6 +627,8 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
         Where the sun was.
     mask : numpy.ndarray of bool, optional
         True = sky (:func:`polarization_compass.real_input.load_mask`).
+    seen : dict, optional
+        Filled with what the estimators saw (:func:`estimate_file`).
 
     Returns
     -------
@@ -619,7 +639,7 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
     from .skyfit import assess_result, mark_inconsistent, sample_sky
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
-    obs, _ = real_observation(
+    obs, keep = real_observation(
         inp,
         cam_file,
         sun.azimuth_deg,
@@ -663,6 +683,10 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
+    if seen is not None:
+        seen.update(kind=inp.kind, sun=sun, results=list(results), input=inp, mask=mask)
+        seen.update(camera_file=cam_file, data_mask=keep)
+        seen['observations'] = {name: obs for name, _, _ in estimators}
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
 
 

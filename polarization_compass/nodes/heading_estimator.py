@@ -414,6 +414,29 @@ class HeadingEstimatorNode(HeadingNodeBase):
         result = self._with_attitude_sigma(result, pitch, roll, status)
         return self.tilt_prior.checked(result, inp)  # heading vs. the IMU prior (a named step)
 
+    def _debug_rgb(self, camera, mosaic, result, sun, inp):
+        """Render the diagnostic figure of one image (~/debug_image; the estimate's layers)."""
+        from ..diagnostic_rgb import quick_rgb
+        from ..headings import Sun
+        from ..sky_view import view_from_mosaic
+
+        layout = self.front.layout
+        view = view_from_mosaic(
+            mosaic,
+            camera,
+            Sun(sun[0], sun[1], 'node'),
+            [result],
+            layout.angles_deg,
+            layout.pol45_toward,
+            self.front.demosaic,
+            inp.pitch_deg,
+            inp.roll_deg,
+            max_side_px=256,
+            sampled=True,
+            label=f'heading_estimator ({self.method})',
+        )
+        return quick_rgb(view, int(self.params['debug_width_px']))
+
     def _after_estimate(self, camera, mosaic, sun_alt, inp, status: dict) -> None:
         """Check the polarizer convention every ``polarizer_check_every``-th image."""
         self._check_polarizer(mosaic, camera, sun_alt, inp.pitch_deg, inp.roll_deg, status)

@@ -722,6 +722,30 @@ ESTIMATOR = (
         'whole sky, status poor_fit when no single sun fits (~15-30 ms per image)',
     ),
     Param(
+        'debug_rate_hz',
+        1.0,
+        'most diagnostic images per second on ~/debug_image (rgb8: AoP, DoP, pixels used and '
+        'masked, residual, fitted sun, heading; README "What the compass sees"), rendered only '
+        'while someone subscribes (0 = never)',
+        0.0,
+        30.0,
+        unit='Hz',
+    ),
+    Param(
+        'debug_width_px',
+        640,
+        'width of the ~/debug_image picture',
+        200,
+        2600,
+        unit='px',
+    ),
+    Param(
+        'publish_marker',
+        True,
+        'publish the heading as a visualization_msgs/Marker arrow (id 0) and its +-sigma sector '
+        '(id 1) on ~/heading_marker, in frame_id (as the heading Imu)',
+    ),
+    Param(
         'use_intensity',
         False,
         'also compute S0 so that a method can resolve the 180 deg ambiguity from '
