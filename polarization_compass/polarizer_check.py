@@ -33,6 +33,7 @@ sky).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -47,6 +48,7 @@ __all__ = [
     'check_polarizer_files',
     'plane_rays',
     'saturated_blocks',
+    'decimated_blocks',
     'DECISIVE_MARGIN',
 ]
 
@@ -144,6 +146,32 @@ def saturated_blocks(mosaic, saturation_level, shape) -> np.ndarray:
         return sat
     h, w = shape
     return sat[: 2 * h, : 2 * w].reshape(h, 2, w, 2).any(axis=(1, 3))
+
+
+def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
+    """
+    Keep every k-th 2 x 2 block of a mosaic, as one smaller mosaic with the same 2 x 2 phase.
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (H, W).
+    max_blocks : int
+        At most this many blocks are kept (k the smallest step that achieves it).
+
+    Returns
+    -------
+    tuple
+        ``(small, k, nx, ny)``: the (2 ny, 2 nx) mosaic whose block (j, i) is centred at 1-based
+        sensor pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``, the step k and the block counts.
+
+    """
+    H, W = mosaic.shape
+    by, bx = H // 2, W // 2
+    k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
+    ny, nx = (by + k - 1) // k, (bx + k - 1) // k
+    blocks = mosaic[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
+    return np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx), k, nx, ny
 
 
 def _aop_for(kind: str, data, hyp: Hypothesis, saturation_level):
