@@ -619,7 +619,7 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
     from .skyfit import assess_result, mark_inconsistent, sample_sky
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
-    obs, _ = real_observation(
+    obs, keep = real_observation(
         inp,
         cam_file,
         sun.azimuth_deg,
@@ -663,7 +663,43 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
+    results = _polarizer_gated(results, inp, cam_file, sun, options, keep, source)
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
+
+
+def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: dict) -> list:
+    """
+    Check the frame against the polarizer hypotheses; a contradicted convention is never ``ok``.
+
+    :func:`polarization_compass.polarizer_check.check_frame` at the known sun altitude and tilt,
+    on the pixels the methods may use (``keep``); its verdict goes into ``source`` and a
+    ``contradicted`` one turns every heading into ``poor_fit`` naming the fix
+    (:func:`~polarization_compass.polarizer_check.gate_result`).
+    """
+    from .polarizer_check import check_frame, gate_result
+
+    t0 = time.perf_counter()
+    data = inp.stokes if inp.kind == 'stokes' else inp.mosaic
+    sat = inp.saturation_level if inp.kind == 'mosaic' else None
+    rep = check_frame(
+        inp.kind,
+        data,
+        sat,
+        cam_file.camera,
+        cam_file.layout,
+        cam_file.pol45_toward,
+        sun.altitude_deg,
+        options.pitch_deg,
+        options.roll_deg,
+        keep,
+    )
+    source['polarizer_check'] = {
+        'verdict': rep['verdict'],
+        'margin': rep['margin'],
+        'best': rep['best'],
+        'ms': round((time.perf_counter() - t0) * 1e3, 1),
+    }
+    return [gate_result(r, rep) for r in results]
 
 
 def real_observation(
