@@ -392,9 +392,12 @@ class CameraModel:
 #: a calibration: square-pixel sensors calibrate to within a few 1e-3.
 MAX_PIXEL_ASPECT_DEVIATION = 0.05
 #: Largest distance of the principal point from the image centre, as a fraction of the width (x) or
-#: the height (y): calibrated lenses sit within a few percent; a K from another resolution or
-#: binning puts it near a corner (2x: exactly at the far edge).
-MAX_PRINCIPAL_OFFSET_FRACTION = 0.25
+#: the height (y). A lens is centred on its sensor to a few tenths of a millimetre (a few percent
+#: of a 2/3" sensor's 8.4 x 7.1 mm; the real fisheye of ``test/data/real-sky``: 2.6 % and 1.1 %),
+#: so 10 % leaves room for a decentred mount while refusing what the old 25 % let through: a K
+#: calibrated 2x binned and used at full resolution puts the principal point 25 % off (24.96 % on
+#: a 2448 x 2048 sensor: ``ok`` 23 deg off); 20-24 % offsets gave ``ok`` 14-45 deg off (issue 24).
+MAX_PRINCIPAL_OFFSET_FRACTION = 0.10
 
 
 def check_intrinsics(
@@ -863,7 +866,9 @@ def load_camera_yaml(path) -> CameraFile:
     Raises
     ------
     CameraError
-        Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
+        Unreadable file, not YAML, missing or unusable keys, implausible intrinsics
+        (:func:`check_intrinsics`: principal point more than 10 % off the image centre, fx/fy
+        beyond 5 %); one-line reason naming the file.
 
     """
     from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
@@ -904,6 +909,7 @@ def load_camera_yaml(path) -> CameraFile:
             float(doc.get('pixel_pitch_um', 3.45)),
             float(doc.get('max_field_angle_deg', 90.0)),
         )
+        check_intrinsics(cam)  # as for a camera_info: a K from another mode is refused
     except (SensorError, CameraError, TypeError, ValueError) as exc:
         raise CameraError(f'{p}: {exc}') from None
     return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol))
