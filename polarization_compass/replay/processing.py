@@ -252,8 +252,8 @@ class FramePipeline:
         self.polarizer = PolarizerMonitor(config.polarizer_check_every)  # one per frame stream
         self.sun = None
         self.corrector = None
-        if config.error_map:
-            self.corrector = _make_corrector(config)
+        if config.error_map:  # (replay_bag checked the map against all the methods)
+            self.corrector = _make_corrector(config, check_methods=False)
         self.timing_ms: dict = {m: [] for m in self.methods}
         self.timing_ms['observation'] = []
 
@@ -409,10 +409,20 @@ def default_error_map() -> str | None:
     return str(p) if p.is_file() else None
 
 
-def _make_corrector(config: ReplayConfig):
-    """Return the ``tilt_corrector`` node's correction as a :class:`_Corrector`."""
+def _make_corrector(config: ReplayConfig, check_methods: bool = True):
+    """
+    Return the ``tilt_corrector`` node's correction as a :class:`_Corrector`, map checked now.
+
+    Every documented format loads (``.npz``, NetCDF, a Zarr store directory). A map that cannot be
+    read, or (``check_methods``: the whole replay's configuration, not one worker group's) that
+    corrects none of the selected methods, is a :class:`ReplayError` (exit 2 with the reason)
+    before any frame is read, never an empty corrected stream.
+    """
+    from ..errormap import ErrorMapError
+    from ..errormap_io import load_error_map
+
     path = Path(config.error_map)
-    if not path.is_file():
+    if not path.exists():
         raise ReplayError(
             f'error map {str(path)!r} does not exist: make one with `polarization-compass '
             'errormap '
@@ -420,7 +430,22 @@ def _make_corrector(config: ReplayConfig):
             '-180:175:5 '
             '--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`'
         )
-    return _Corrector(path)
+    try:
+        emap = load_error_map(path)
+    except ErrorMapError as exc:
+        raise ReplayError(f'--error-map: {exc}') from None
+    cor = _Corrector(path, emap)
+    if not check_methods:
+        return cor
+    wanted = [m for m in config.method_list() if m not in config.direct_methods]
+    reasons = {m: cor._get(m) for m in wanted}
+    reasons = {m: r for m, r in reasons.items() if isinstance(r, str)}
+    if wanted and len(reasons) == len(wanted):
+        raise ReplayError(
+            f'--error-map {str(path)!r} corrects none of the methods '
+            f'{", ".join(wanted)}: ' + '; '.join(f'{m}: {r}' for m, r in reasons.items())
+        )
+    return cor
 
 
 class _Corrector:
@@ -439,9 +464,9 @@ class _Corrector:
 
     PENDING = 'pending'
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, error_map=None):
         self.path = path
-        self._map = None
+        self._map = error_map  # loaded on first use when not given
         self.correctors: dict = {}
         self.defer = False
         self.queue: list = []  # (row, method, raw, sun_az, sun_alt, pitch, roll)
