@@ -158,7 +158,27 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
     if options.mask_path:
         shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
+    if cam_file.readout_flip:  # the camera model is the sensor's: read the image as it sees it
+        inp, mask = _unflipped(inp, mask, cam_file.readout_flip)
     return real_headings(inp, cam_file, options, sun, mask)
+
+
+def _unflipped(inp, mask, readout_flip: str):
+    """Return the input and mask with a mirrored readout undone (:func:`camera.unflip`)."""
+    import dataclasses
+
+    import numpy as np
+
+    from .camera import unflip
+
+    def un(a):
+        return np.ascontiguousarray(unflip(a, readout_flip))
+
+    if inp.kind == 'mosaic':
+        inp = dataclasses.replace(inp, mosaic=un(inp.mosaic))
+    else:
+        inp = dataclasses.replace(inp, stokes=tuple(un(a) for a in inp.stokes))
+    return inp, None if mask is None else un(mask)
 
 
 def _options_sun(meta: dict, options: EstimateOptions) -> Sun:

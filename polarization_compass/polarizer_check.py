@@ -553,6 +553,19 @@ def _contradiction(best: dict, conf: dict) -> tuple:
         f'"{",".join(str(v) for r in b["layout"] for v in r)}", '
         f'pol45_toward: "{b["pol45_toward"]}")'
     )
+    if b['pol45_toward'] != conf['hypothesis']['pol45_toward']:  # a mirror: maybe the readout's
+        fix += (
+            '; but if the camera mirrors its readout (GenICam ReverseX/ReverseY), a layout '
+            'cannot undo the mirrored geometry (headings would be mirrored): keep the '
+            "sensor's polarizer and set readout_flip: x, y or xy in CAMERA.yaml instead "
+            '(docs/real-cameras.md)'
+        )
+    elif b['layout'] != conf['hypothesis']['layout']:  # a phase: maybe a 180 deg readout
+        fix += (
+            '; but if the camera rotates its readout by 180 deg (ReverseX and ReverseY), keep '
+            "the sensor's layout and set readout_flip: xy in CAMERA.yaml instead (the layout "
+            'alone leaves every heading 180 deg off; docs/real-cameras.md)'
+        )
     return reason, fix
 
 
@@ -641,6 +654,8 @@ def check_polarizer_files(
     cam = cf.camera
     inputs, shapes = _read_inputs(paths, bits, cam.shape)
     masks = None if not mask_path else _masks(mask_path, inputs, shapes, cam.shape)
+    if cf.readout_flip:  # the camera and polarizer are the sensor's: read the images as it sees
+        inputs, masks = _unflipped(inputs, masks, cf.readout_flip)
     rep = check_polarizer(
         inputs,
         cam,
@@ -655,6 +670,19 @@ def check_polarizer_files(
     rep['camera_file'] = camera_yaml
     rep['configured_in_file'] = cf.layout_given
     return rep
+
+
+def _unflipped(inputs, masks, readout_flip: str):
+    """Undo a mirrored readout on every input and mask (:func:`camera.unflip`)."""
+    from .camera import unflip
+
+    def un(a):
+        return np.ascontiguousarray(unflip(a, readout_flip))
+
+    out = [
+        (k, un(d) if k == 'mosaic' else tuple(un(a) for a in d), sat) for k, d, sat in inputs
+    ]
+    return out, None if masks is None else [None if m is None else un(m) for m in masks]
 
 
 def _read_inputs(paths, bits, sensor_shape):
