@@ -144,7 +144,16 @@ class PolarizerMonitor:
         self._against = None
 
     def due(self) -> bool:
-        """Return whether the next frame is checked (and count it)."""
+        """
+        Count a frame and say whether it is checked.
+
+        Returns
+        -------
+        bool
+            True for every frame until the sky supports the configuration (and while it
+            contradicts it), then for every ``every_n``-th; never with ``every_n`` 0.
+
+        """
         if self.every_n <= 0:
             return False
         self.count += 1
