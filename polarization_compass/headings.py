@@ -165,7 +165,27 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
     if options.mask_path:
         shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
+    if cam_file.readout_flip:  # the camera model is the sensor's: read the image as it sees it
+        inp, mask = _unflipped(inp, mask, cam_file.readout_flip)
     return real_headings(inp, cam_file, options, sun, mask, seen)
+
+
+def _unflipped(inp, mask, readout_flip: str):
+    """Return the input and mask with a mirrored readout undone (:func:`camera.unflip`)."""
+    import dataclasses
+
+    import numpy as np
+
+    from .camera import unflip
+
+    def un(a):
+        return np.ascontiguousarray(unflip(a, readout_flip))
+
+    if inp.kind == 'mosaic':
+        inp = dataclasses.replace(inp, mosaic=un(inp.mosaic))
+    else:
+        inp = dataclasses.replace(inp, stokes=tuple(un(a) for a in inp.stokes))
+    return inp, None if mask is None else un(mask)
 
 
 def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
@@ -683,11 +703,47 @@ def real_headings(
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
+    results = _polarizer_gated(results, inp, cam_file, sun, options, keep, source)
     if seen is not None:
         seen.update(kind=inp.kind, sun=sun, results=list(results), input=inp, mask=mask)
         seen.update(camera_file=cam_file, data_mask=keep)
         seen['observations'] = {name: obs for name, _, _ in estimators}
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
+
+
+def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: dict) -> list:
+    """
+    Check the frame against the polarizer hypotheses; a contradicted convention is never ``ok``.
+
+    :func:`polarization_compass.polarizer_check.check_frame` at the known sun altitude and tilt,
+    on the pixels the methods may use (``keep``); its verdict goes into ``source`` and a
+    ``contradicted`` one turns every heading into ``poor_fit`` naming the fix
+    (:func:`~polarization_compass.polarizer_check.gate_result`).
+    """
+    from .polarizer_check import check_frame, gate_result
+
+    t0 = time.perf_counter()
+    data = inp.stokes if inp.kind == 'stokes' else inp.mosaic
+    sat = inp.saturation_level if inp.kind == 'mosaic' else None
+    rep = check_frame(
+        inp.kind,
+        data,
+        sat,
+        cam_file.camera,
+        cam_file.layout,
+        cam_file.pol45_toward,
+        sun.altitude_deg,
+        options.pitch_deg,
+        options.roll_deg,
+        keep,
+    )
+    source['polarizer_check'] = {
+        'verdict': rep['verdict'],
+        'margin': rep['margin'],
+        'best': rep['best'],
+        'ms': round((time.perf_counter() - t0) * 1e3, 1),
+    }
+    return [gate_result(r, rep) for r in results]
 
 
 def real_observation(

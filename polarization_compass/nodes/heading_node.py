@@ -223,7 +223,6 @@ class HeadingNodeBase(Node):
             t0 = time.perf_counter()
             result = self._estimate(prepared, data, sun_az, sun_alt, inp, status)
             status['estimate_ms'] = round((time.perf_counter() - t0) * 1e3, 3)
-            self._after_estimate(prepared, data, sun_alt, inp, status)
         except (PipelineError, CompassError) as exc:
             self.get_logger().warning(
                 f'frame {t_ns / 1e9:.3f} s: {exc}', throttle_duration_sec=5.0
@@ -244,9 +243,6 @@ class HeadingNodeBase(Node):
             return
         self._publish_result(t_ns, t_in, result, status, sun_az, sun_alt, inp, frame_id)
         self._publish_debug(t_ns, result, prepared, data, (sun_az, sun_alt), inp, frame_id)
-
-    def _after_estimate(self, prepared, data, sun_alt, inp, status: dict) -> None:
-        """Run a check after a successful estimate (the camera node: its polarizer check)."""
 
     def _publish_result(self, t_ns, t_in, result, status, sun_az, sun_alt, inp, frame_id):
         """Publish a resolved heading (Imu and bearing), the status and the diagnostics."""

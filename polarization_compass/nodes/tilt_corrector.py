@@ -96,7 +96,7 @@ def load_corrector(path: str, method: str):
     from ..errormap import ErrorMapError
 
     p = Path(path) if path else default_map_path()
-    if not p.is_file():
+    if not p.exists():  # a file (.npz, NetCDF) or a Zarr store directory
         raise CompassError(
             f'error map {str(p)!r} does not exist: ' + MAP_HELP.format(method=method, path=p)
         )
