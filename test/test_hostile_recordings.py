@@ -84,3 +84,22 @@ def test_a_csv_line_longer_than_its_columns_allow_is_refused(tmp_path):
     p.write_text('u0_c0,u0_c1\n' + ','.join(['1'] * 5000) + '\n')
     with pytest.raises(ArrayRecordingError, match='a line longer than'):
         load_array_recording(p)
+
+
+def test_a_long_recording_reports_progress_and_the_same_headings():
+    from polarization_compass.photodiode.geometry import geometry_from_dict
+    from polarization_compass.photodiode.heading import estimate_recording, make_array_estimator
+    from polarization_compass.photodiode.simulate import simulate_readings
+
+    unit = {'elevation_deg': 45, 'channels_deg': [135, 45, 90, 0], 'acceptance_deg': 30}
+    units = [{'azimuth_deg': a, **unit} for a in (0, 90, 180, 270, 45, 135, 225, 315)]
+    g = geometry_from_dict({'angle_zero': 'horizontal', 'angle_sense': 'ccw', 'units': units})
+    x = simulate_readings(g, 210.0, 35.0, np.linspace(0.0, 359.0, 2500))
+    est = make_array_estimator('least_squares', g)
+    seen = []
+    res = estimate_recording(
+        est, x, 210.0, 35.0, 0.0, 0.0, progress=lambda k, n: seen.append((k, n))
+    )
+    assert seen == [(1000, 2500), (2000, 2500), (2500, 2500)]
+    plain = estimate_recording(est, x, 210.0, 35.0, 0.0, 0.0)
+    assert [(r.status, r.bearing_deg) for r in res] == [(r.status, r.bearing_deg) for r in plain]
