@@ -551,7 +551,8 @@ class SweepStore:
         Raises
         ------
         _DamagedChunk
-            When the chunk was written but its checksum or data cannot be read or do not match.
+            When the chunk was written but its checksum or data cannot be read or do not match, or
+        it holds values no sweep writes (unknown status codes, errors not finite or not folded).
 
         """
         try:
@@ -568,6 +569,9 @@ class SweepStore:
             raise _DamagedChunk(f'its data cannot be read ({type(exc).__name__}: {exc})') from None
         if chunk_checksum(err, status) != want:
             raise _DamagedChunk('its data do not match its checksum')
+        problem = _chunk_problem(err, status)
+        if problem:
+            raise _DamagedChunk(problem)
         return err, status
 
     def chunk_name(self, ia: int, ip: int) -> str:
@@ -624,7 +628,7 @@ class SweepStore:
             except _DamagedChunk as exc:
                 print(
                     f'errormap: {self.path}: {self.chunk_name(ia, ip)} is damaged ({exc}); '
-                    'recomputing it',
+                    'recomputing it (--restart recomputes the whole sweep)',
                     file=log,
                 )
                 got = None
@@ -649,6 +653,19 @@ class SweepStore:
 
 class _DamagedChunk(Exception):
     pass
+
+
+def _chunk_problem(err: np.ndarray, status: np.ndarray) -> str:
+    """Return what no sweep writes in a chunk (a map would fail to validate), or ''."""
+    from .errormap import STATUS_CODES, STATUS_ESTIMATOR_ERROR, STATUS_NOT_COMPUTED, STATUS_OTHER
+
+    known = [*STATUS_CODES.values(), STATUS_NOT_COMPUTED, STATUS_ESTIMATOR_ERROR, STATUS_OTHER]
+    unknown = np.setdiff1d(np.unique(status), known)
+    if unknown.size:
+        return f'its status holds unknown code(s) {unknown[:5].tolist()}'
+    if not np.all(np.isfinite(err)) or np.any(np.abs(err) > 90.0 + 1e-9):
+        return 'its errors are not finite or not folded to (-90, 90]'
+    return ''
 
 
 def read_store_map(path) -> ErrorMap:

@@ -165,3 +165,26 @@ def test_nested_netcdf_meta_json_is_a_user_error(tmp_path):
     ds.to_netcdf(tmp_path / 'deep.nc', engine='scipy', format='NETCDF3_64BIT')
     with pytest.raises(ErrorMapError, match='nested too deeply'):
         load_error_map(tmp_path / 'deep.nc')
+
+
+def test_a_stored_chunk_with_an_unknown_status_is_named_and_recomputed(tmp_path, capsys):
+    from polarization_compass.sweep import run_sweep
+
+    spec = SweepSpec(['zenith'], [30.0], [0.0, 90.0], [0.0, 10.0], [0.0])
+    path = tmp_path / 's.zarr'
+    assert run_sweep(spec, out=path, workers=1, progress=False, max_chunks=1) is None
+    store = SweepStore.open(path, spec)
+    done = [(0, ip) for ip in range(2) if store.read_chunk(0, ip) is not None]
+    assert len(done) == 1
+    ia, ip = done[0]
+    err, status = store.read_chunk(ia, ip)
+    bad = status.copy()
+    bad[0, 0, 0] = 99  # with a matching checksum: written so, not damaged on disk
+    store.write_chunk(ia, ip, err, bad)
+    capsys.readouterr()
+    m = run_sweep(spec, out=path, workers=1, progress=False)
+    log = capsys.readouterr().err
+    assert f'{path}: chunk (sun altitude 30 deg, pitch {spec.pitch_deg[ip]:g} deg)' in log
+    assert 'unknown code(s) [99]' in log and '--restart' in log
+    np.testing.assert_array_equal(m.status[:, ia, :, ip, :], status)
+    np.testing.assert_array_equal(load_error_map(path).status, m.status)
