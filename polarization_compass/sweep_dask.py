@@ -119,10 +119,18 @@ def _connect(distributed, address: str, timeout_s: float):
 
     try:
         reply = asyncio.run(_identity(address, timeout_s))
-    except Exception as exc:  # noqa: BLE001 - timeouts, refusals, garbage, missing transports
+    except (asyncio.TimeoutError, TimeoutError):
+        raise ErrorMapError(
+            f'{address} does not answer as a Dask scheduler within {timeout_s:g} s'
+        ) from None
+    except (MemoryError, ValueError, TypeError, EOFError) as exc:  # a reply Dask cannot parse
+        raise ErrorMapError(
+            f'{address} answers, but not as a Dask scheduler ({type(exc).__name__})'
+        ) from None
+    except Exception as exc:  # noqa: BLE001 - refusals, unreachable hosts, missing transports
         why = f'{type(exc).__name__}: {exc}' if str(exc) else type(exc).__name__
         raise ErrorMapError(
-            f'cannot reach a Dask scheduler at {address} within {timeout_s:g} s ({_short(why)})'
+            f'cannot reach a Dask scheduler at {address} ({_short(why)})'
         ) from None
     if not isinstance(reply, dict) or reply.get('type') != 'Scheduler':
         raise ErrorMapError(f'{address} answers, but not as a Dask scheduler')
