@@ -28,8 +28,12 @@ Accepted files (what :func:`load_polarization_input` returns as ``kind``):
 ``frame``   this package's own frame ``.npz`` (``polarization-compass render``): read with
             :mod:`frame_io`.
 
-Files are size-checked before decoding (at most :data:`MAX_PIXELS` per plane). Errors raise
-:class:`RealInputError` with a one-line reason.
+Files are bounded before decoding: a regular file of at most 1 GiB, and for PNG/PGM/TIFF the size,
+channels and page count their headers declare (:mod:`~polarization_compass.image_header`; at most
+:data:`MAX_PIXELS` per plane, one grey channel, 3 pages) -- OpenCV decodes a whole file, every
+page, before anything can be checked. What the native decoders print (libpng, libtiff) is kept off
+the terminal and folded into the error. Errors raise :class:`RealInputError` with a one-line
+reason.
 """
 
 from __future__ import annotations
@@ -217,8 +221,8 @@ def load_polarization_input(path, bits: int | None = None) -> PolarizationInput:
     The kind is decided by the suffix and content (module docstring): ``.npz`` with ``s0``, ``s1``,
     ``s2`` (Stokes) or ``aop_rad`` and ``meta`` (this package's frame file, read later with
     :mod:`frame_io`); ``.npy`` (mosaic); ``.png``/``.tif``/``.tiff``/``.pgm`` with one page
-    (mosaic) or three (Stokes, read with OpenCV unchanged). The file is size-checked before it is
-    decoded.
+    (mosaic) or three (Stokes, read with OpenCV unchanged). The file's size and, for images, the
+    pixels, channels and pages its header declares are checked before it is decoded.
 
     Parameters
     ----------
