@@ -64,6 +64,7 @@ __all__ = [
     'SIGMA_BAND',
     'declared_sources',
     'run_budget',
+    'check_config',
     'parse_imu',
     'plot_budget',
 ]
@@ -523,6 +524,58 @@ def _run_conditions_on_dask(conds, samples, methods, scheduler, workers, progres
     return out
 
 
+#: Largest camera a budget renders: 2^25 pixels per frame, as a frame file
+#: (:data:`~polarization_compass.frame_io.MAX_FRAME_PIXELS`).
+MAX_BUDGET_PIXELS = 1 << 25
+
+
+def check_config(cfg: BudgetConfig) -> list:
+    """
+    Check a budget's configuration before anything is computed; return its methods.
+
+    Parameters
+    ----------
+    cfg : BudgetConfig
+        The configuration.
+
+    Returns
+    -------
+    list of str
+        The methods to run (all registered ones when ``cfg.methods`` is empty).
+
+    Raises
+    ------
+    BudgetError
+        No samples, an unknown method or correction, a negative or non-finite sigma, negative IMU
+        noise, or a camera of more than :data:`MAX_BUDGET_PIXELS` pixels (a frame of it would take
+        gigabytes).
+
+    """
+    from .estimators import registry
+
+    if cfg.samples < 1:
+        raise BudgetError('samples must be >= 1')
+    methods = list(cfg.methods) or list(registry.names())
+    unknown = [m for m in methods if m not in registry.names()]
+    if unknown:
+        raise BudgetError(f'unknown method(s) {unknown}; known: {", ".join(registry.names())}')
+    if cfg.correction not in ('error_map', 'none'):
+        raise BudgetError(f"correction must be 'error_map' or 'none', got {cfg.correction!r}")
+    if not (math.isfinite(cfg.correction_sigma_deg) and cfg.correction_sigma_deg >= 0.0):
+        raise BudgetError(f'correction_sigma_deg must be >= 0, got {cfg.correction_sigma_deg}')
+    if not (math.isfinite(cfg.sigma_floor_deg) and cfg.sigma_floor_deg >= 0.0):
+        raise BudgetError(f'sigma_floor_deg must be >= 0, got {cfg.sigma_floor_deg}')
+    if cfg.imu.noise_deg < 0.0:
+        raise BudgetError(f'--imu: noise_deg is a 1-sigma, >= 0; got {cfg.imu.noise_deg}')
+    cam = cfg.scene.camera
+    if int(cam.width_px) * int(cam.height_px) > MAX_BUDGET_PIXELS:
+        raise BudgetError(
+            f'the scene camera has {cam.width_px} x {cam.height_px} pixels, more than the '
+            f'{MAX_BUDGET_PIXELS} a budget renders; use a smaller (binned) camera'
+        )
+    return methods
+
+
 def run_budget(
     cfg: BudgetConfig, progress=None, workers: int | None = 1, scheduler: str | None = None
 ) -> dict:
@@ -571,20 +624,7 @@ def run_budget(
         When a Dask run cannot start (Dask missing, scheduler unreachable).
 
     """
-    from .estimators import registry
-
-    if cfg.samples < 1:
-        raise BudgetError('samples must be >= 1')
-    methods = list(cfg.methods) or list(registry.names())
-    unknown = [m for m in methods if m not in registry.names()]
-    if unknown:
-        raise BudgetError(f'unknown method(s) {unknown}; known: {", ".join(registry.names())}')
-    if cfg.correction not in ('error_map', 'none'):
-        raise BudgetError(f"correction must be 'error_map' or 'none', got {cfg.correction!r}")
-    if not (math.isfinite(cfg.correction_sigma_deg) and cfg.correction_sigma_deg >= 0.0):
-        raise BudgetError(f'correction_sigma_deg must be >= 0, got {cfg.correction_sigma_deg}')
-    if not (math.isfinite(cfg.sigma_floor_deg) and cfg.sigma_floor_deg >= 0.0):
-        raise BudgetError(f'sigma_floor_deg must be >= 0, got {cfg.sigma_floor_deg}')
+    methods = check_config(cfg)
     fixed = corrected_methods(cfg, methods)
     samples = _samples(cfg)
     sources = declared_sources(cfg)

@@ -40,8 +40,10 @@ sweep, unreadable metadata) is refused with :class:`ErrorMapError`.
 Exports: :func:`export_netcdf` writes one NetCDF **3** file (classic 64-bit offset format, through
 xarray's scipy engine: no HDF5/netCDF4 library needed); :meth:`ErrorMap.save` writes today's
 ``.npz``. :func:`read_netcdf_map` reads such a file with ``scipy.io.netcdf_file`` only (no xarray,
-no pickle) and validates it like the ``.npz`` loader (names, shapes, axes, finiteness, folding,
-status codes).
+no pickle), checks the digest of its content (attribute :data:`DIGEST_ATTR`; an ``.npz`` has its
+zip CRCs) and validates it like the ``.npz`` loader (names, shapes, axes, finiteness, folding,
+status codes). Reading a store is bounded (:mod:`~polarization_compass.map_bounds`): regular files
+only, shapes declared by the metadata checked against the axes before any chunk is decoded.
 
 xarray, zarr and dask are the optional extra ``sweep`` (``pip install
 polarization_compass[sweep]``); the NetCDF reader needs only numpy and scipy.
@@ -59,6 +61,8 @@ import sys
 import numpy as np
 
 from .errormap import AXES, ErrorMap, ErrorMapError
+from .map_bounds import check_store_files, check_store_shapes, map_digest
+from .safe_load import load_json, regular_file
 
 __all__ = [
     'SweepStore',
@@ -79,6 +83,10 @@ STORE_FORMAT_VERSION = 1
 DIMS = ('method', 'sun_altitude', 'yaw', 'pitch', 'roll')
 _AXIS_DIM = dict(zip(AXES, DIMS[1:]))
 _NETCDF_MAGIC = (b'CDF\x01', b'CDF\x02')
+#: NetCDF attribute holding the digest of the map's content (integrity, as an .npz's zip CRCs).
+DIGEST_ATTR = 'content_blake2b'
+#: Largest NetCDF map file: 1 GiB (as an .npz map).
+MAX_NETCDF_BYTES = 1 << 30
 
 
 def require_sweep_extra(what: str = 'this'):
@@ -212,9 +220,10 @@ def export_netcdf(m: ErrorMap, path) -> Path:
     """
     Write the map as one NetCDF 3 file, atomically.
 
-    The Dataset of :func:`map_to_dataset`, written in the classic 64-bit offset format with
-    xarray's scipy engine to ``<path>.tmp`` and then renamed over ``path``; parent directories are
-    created.
+    The Dataset of :func:`map_to_dataset` plus the digest of its content (attribute
+    :data:`DIGEST_ATTR`, :func:`~polarization_compass.map_bounds.map_digest`), written in the
+    classic 64-bit offset format with xarray's scipy engine to ``<path>.tmp`` and then renamed over
+    ``path``; parent directories are created.
 
     Parameters
     ----------
@@ -237,7 +246,11 @@ def export_netcdf(m: ErrorMap, path) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + '.tmp')
-    map_to_dataset(m).to_netcdf(tmp, engine='scipy', format='NETCDF3_64BIT')
+    ds = map_to_dataset(m)
+    ds.attrs[DIGEST_ATTR] = map_digest(
+        m.error_deg, m.status, m.methods, m.axes(), ds.attrs['meta_json']
+    )
+    ds.to_netcdf(tmp, engine='scipy', format='NETCDF3_64BIT')
     os.replace(tmp, p)
     return p
 
@@ -256,9 +269,10 @@ def read_netcdf_map(path) -> ErrorMap:
     """
     Load and validate a map written by :func:`export_netcdf`.
 
-    Read with ``scipy.io.netcdf_file`` only (no xarray, no pickle), after checking the NetCDF 3
-    magic bytes and that the header's shapes fit the file's size; then validated like the ``.npz``
-    loader (:meth:`ErrorMap.validate`).
+    Read with ``scipy.io.netcdf_file`` only (no xarray, no pickle), after checking that it is a
+    regular file of at most :data:`MAX_NETCDF_BYTES`, the NetCDF 3 magic bytes and that the
+    header's shapes fit the file's size; its content must match its digest (:data:`DIGEST_ATTR`),
+    then it is validated like the ``.npz`` loader (:meth:`ErrorMap.validate`).
 
     Parameters
     ----------
@@ -274,18 +288,42 @@ def read_netcdf_map(path) -> ErrorMap:
     ------
     ErrorMapError
         Naming the file and the reason: missing, not NetCDF 3, truncated, missing variables, wrong
-        dims, corrupt, ``meta_json`` not a JSON object, non-float errors, or a map that does not
-        validate.
+        dims, corrupt, no digest or content not matching it, ``meta_json`` not a JSON object (or
+        nested too deeply), non-float errors, or a map that does not validate.
 
     """
-    from scipy.io import netcdf_file
-
-    p = Path(path)
-    if not p.is_file():
-        raise ErrorMapError(f'error map {str(p)!r} does not exist')
+    p = regular_file(path, ErrorMapError, 'error map', MAX_NETCDF_BYTES)
     with open(p, 'rb') as fh:
         if fh.read(4) not in _NETCDF_MAGIC:
             raise ErrorMapError(f'{p}: not a NetCDF 3 file')
+    methods, axes, err, status, meta_raw, digest = _read_netcdf_arrays(p)
+    if isinstance(meta_raw, bytes):
+        try:
+            meta_raw = meta_raw.decode('utf-8')
+        except UnicodeDecodeError as exc:
+            raise ErrorMapError(f'{p}: meta_json is not valid JSON ({exc})') from None
+    if err.dtype.kind != 'f':
+        raise ErrorMapError(f'{p}: error_deg must be floating point, got {err.dtype}')
+    if digest is None:
+        raise ErrorMapError(
+            f'{p}: no {DIGEST_ATTR} attribute (written by an older version?); export it again'
+        )
+    if map_digest(err, status, methods, axes, str(meta_raw)) != digest:
+        raise ErrorMapError(f'{p}: its content does not match its digest (damaged or edited)')
+    meta = load_json(str(meta_raw), f'{p}: meta_json', ErrorMapError)
+    if not isinstance(meta, dict):
+        raise ErrorMapError(f'{p}: meta_json is not valid JSON (not an object)')
+    m = ErrorMap(err.astype(float), status, tuple(methods), *axes, meta=meta)
+    try:
+        return m.validate()
+    except ErrorMapError as exc:
+        raise ErrorMapError(f'{p}: {exc}') from None
+
+
+def _read_netcdf_arrays(p: Path):
+    """Return methods, axes, errors, statuses, the meta text and the digest of a NetCDF map."""
+    from scipy.io import netcdf_file
+
     size = p.stat().st_size
     try:
         with netcdf_file(p, 'r', mmap=False) as nc:
@@ -296,9 +334,7 @@ def read_netcdf_map(path) -> ErrorMap:
             if tuple(v['error_deg'].dimensions) != DIMS or tuple(v['status'].dimensions) != DIMS:
                 raise ErrorMapError(f'{p}: error_deg/status must have dims {DIMS}')
             n = int(np.prod(v['error_deg'].shape, dtype=np.int64))
-            if n * 9 > 64 * size + (
-                1 << 20
-            ):  # the header claims far more data than the file holds
+            if n * 9 > size:  # the header claims more data than the file holds
                 raise ErrorMapError(
                     f"{p}: truncated (the header's shapes need more bytes than the file has)"
                 )
@@ -306,8 +342,9 @@ def read_netcdf_map(path) -> ErrorMap:
             axes = [np.array(v[_AXIS_DIM[k]].data, dtype=float) for k in AXES]
             err = np.array(v['error_deg'].data)
             status = np.array(v['status'].data)
-            # scipy keeps global attrs here
-            meta_raw = nc._attributes.get('meta_json', b'{}')  # noqa: SLF001
+            attrs = nc._attributes  # noqa: SLF001 - scipy keeps the global attributes here
+            meta_raw = attrs.get('meta_json', b'{}')
+            digest = attrs.get(DIGEST_ATTR)
     except ErrorMapError:
         raise
     # scipy raises many types on a malformed file; all mean "corrupt"
@@ -315,21 +352,9 @@ def read_netcdf_map(path) -> ErrorMap:
         raise ErrorMapError(
             f'{p}: corrupt or not a NetCDF error map ({type(exc).__name__}: {exc})'
         ) from None
-    try:
-        meta = json.loads(
-            meta_raw.decode('utf-8') if isinstance(meta_raw, bytes) else str(meta_raw)
-        )
-        if not isinstance(meta, dict):
-            raise ValueError('meta_json is not a JSON object')
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ErrorMapError(f'{p}: meta_json is not valid JSON ({exc})') from None
-    if err.dtype.kind != 'f':
-        raise ErrorMapError(f'{p}: error_deg must be floating point, got {err.dtype}')
-    m = ErrorMap(err.astype(float), status, tuple(methods), *axes, meta=meta)
-    try:
-        return m.validate()
-    except ErrorMapError as exc:
-        raise ErrorMapError(f'{p}: {exc}') from None
+    if isinstance(digest, bytes):
+        digest = digest.decode('ascii', 'replace')
+    return methods, axes, err, status, meta_raw, digest
 
 
 # --------------------------------------------------------------------------------------------
@@ -392,6 +417,7 @@ class SweepStore:
     def _check_existing(p: Path, spec, zarr, allow_other_sweep: bool = False):
         if not p.is_dir():
             raise ErrorMapError(f'{p} exists and is not a directory: not an error-map sweep store')
+        check_store_files(p)  # no FIFO, device or symlink: reading one could block or never end
         try:
             group = zarr.open_group(str(p), mode='r+')
             attrs = dict(group.attrs)
@@ -525,7 +551,8 @@ class SweepStore:
         Raises
         ------
         _DamagedChunk
-            When the chunk was written but its checksum or data cannot be read or do not match.
+            When the chunk was written but its checksum or data cannot be read or do not match, or
+        it holds values no sweep writes (unknown status codes, errors not finite or not folded).
 
         """
         try:
@@ -542,6 +569,9 @@ class SweepStore:
             raise _DamagedChunk(f'its data cannot be read ({type(exc).__name__}: {exc})') from None
         if chunk_checksum(err, status) != want:
             raise _DamagedChunk('its data do not match its checksum')
+        problem = _chunk_problem(err, status)
+        if problem:
+            raise _DamagedChunk(problem)
         return err, status
 
     def chunk_name(self, ia: int, ip: int) -> str:
@@ -598,7 +628,7 @@ class SweepStore:
             except _DamagedChunk as exc:
                 print(
                     f'errormap: {self.path}: {self.chunk_name(ia, ip)} is damaged ({exc}); '
-                    'recomputing it',
+                    'recomputing it (--restart recomputes the whole sweep)',
                     file=log,
                 )
                 got = None
@@ -625,12 +655,29 @@ class _DamagedChunk(Exception):
     pass
 
 
+def _chunk_problem(err: np.ndarray, status: np.ndarray) -> str:
+    """Return what no sweep writes in a chunk (a map would fail to validate), or ''."""
+    from .errormap import STATUS_CODES, STATUS_ESTIMATOR_ERROR, STATUS_NOT_COMPUTED, STATUS_OTHER
+
+    known = [*STATUS_CODES.values(), STATUS_NOT_COMPUTED, STATUS_ESTIMATOR_ERROR, STATUS_OTHER]
+    unknown = np.setdiff1d(np.unique(status), known)
+    if unknown.size:
+        return f'its status holds unknown code(s) {unknown[:5].tolist()}'
+    if not np.all(np.isfinite(err)) or np.any(np.abs(err) > 90.0 + 1e-9):
+        return 'its errors are not finite or not folded to (-90, 90]'
+    return ''
+
+
 def read_store_map(path) -> ErrorMap:
     """
     Load and validate the map of a complete sweep store.
 
-    Every written chunk must match its checksum, every unwritten one must be all "not computed"
-    (status -1); the map is then validated (:meth:`ErrorMap.validate`).
+    Bounded: the store may hold only regular files and directories
+    (:func:`~polarization_compass.map_bounds.check_store_files`) and the shapes its metadata
+    declare must be those of its axes, within the map bounds, before any chunk is decoded
+    (:func:`~polarization_compass.map_bounds.check_store_shapes`). Every written chunk must match
+    its checksum, every unwritten one must be all "not computed" (status -1); the map is then
+    validated (:meth:`ErrorMap.validate`).
 
     Parameters
     ----------
@@ -646,11 +693,14 @@ def read_store_map(path) -> ErrorMap:
     ------
     ErrorMapError
         When xarray/zarr are missing, or the store is unreadable, foreign, unfinished, corrupt,
-        damaged (a chunk not matching its checksum), or its map does not validate.
+        holds a special file or a symlink, declares shapes beyond its axes or the bounds, has
+        nested or invalid meta JSON, is damaged (a chunk not matching its checksum), or its map
+        does not validate.
 
     """
     _, zarr = require_sweep_extra('reading a Zarr error map')
     p = Path(path)
+    check_store_files(p)  # no FIFO, device or symlink: reading one could block or never end
     try:
         g = zarr.open_group(str(p), mode='r')
         attrs = dict(g.attrs)
@@ -664,8 +714,9 @@ def read_store_map(path) -> ErrorMap:
         )
     if not attrs.get('complete'):
         raise ErrorMapError(f'{p} is an unfinished sweep; rerun the sweep to complete it')
+    check_store_shapes(g, p, ('method', *DIMS[1:]))  # before any chunk is decoded
+    meta = load_json(str(attrs.get('meta_json', '{}')), f'{p}: meta_json', ErrorMapError)
     try:
-        meta = json.loads(attrs['meta_json'])
         methods = tuple(str(x) for x in np.asarray(g['method'][:]).tolist())
         axes = [np.asarray(g[_AXIS_DIM[k]][:], dtype=float) for k in AXES]
         err = np.asarray(g['error_deg'][:])

@@ -28,14 +28,21 @@ Accepted files (what :func:`load_polarization_input` returns as ``kind``):
 ``frame``   this package's own frame ``.npz`` (``polarization-compass render``): read with
             :mod:`frame_io`.
 
-Files are size-checked before decoding (at most :data:`MAX_PIXELS` per plane). Errors raise
-:class:`RealInputError` with a one-line reason.
+Files are bounded before decoding: a regular file of at most 1 GiB, and for PNG/PGM/TIFF the size,
+channels and page count their headers declare (:mod:`~polarization_compass.image_header`; at most
+:data:`MAX_PIXELS` per plane, one grey channel, 3 pages) -- OpenCV decodes a whole file, every
+page, before anything can be checked. What the native decoders print (libpng, libtiff) is kept off
+the terminal and folded into the error. Errors raise :class:`RealInputError` with a one-line
+reason.
 """
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
+import os
 from pathlib import Path
+import sys
 
 import numpy as np
 
@@ -91,10 +98,7 @@ def _check_plane(a: np.ndarray, what: str, p: Path) -> np.ndarray:
         raise RealInputError(
             f'{p}: {what} has {a.size} pixels, more than the {MAX_PIXELS} accepted'
         )
-    if (
-        not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating))
-        or a.dtype == np.bool_
-    ):
+    if a.dtype.kind not in 'iuf':  # not bool, timedelta64 (an integer subtype), ...
         raise RealInputError(f'{p}: {what} must hold integers or floats, got {a.dtype}')
     return a
 
@@ -118,15 +122,82 @@ def _saturation(m: np.ndarray, bits: int | None, p: Path) -> float | None:
     return None
 
 
-def _read_images(p: Path) -> list:
+def _check_header(p: Path, max_pages: int, first_only: bool = False) -> int:
+    """
+    Check the pages a PNG/PGM/TIFF declares before anything is decoded; return their count.
+
+    At most ``max_pages`` pages (``first_only``: only the first is looked at and read) of one grey
+    channel and :data:`MAX_PIXELS` each (a file of a few MB can declare gigabytes, and OpenCV
+    decodes every page before returning).
+    """
+    from .image_header import ImageHeaderError, read_image_pages
+
+    try:
+        pages, more = read_image_pages(p, max_pages)
+    except (ImageHeaderError, OSError) as exc:
+        raise RealInputError(f'{p}: not a readable PNG/PGM/TIFF image ({exc})') from None
+    if first_only:
+        pages = pages[:1]
+    elif more:
+        raise RealInputError(
+            f'{p}: more than {max_pages} pages; a raw mosaic has 1, Stokes planes have 3 '
+            '(S0, S1, S2) (refused before decoding)'
+        )
+    for i, page in enumerate(pages):
+        if page.pixels > MAX_PIXELS:
+            raise RealInputError(
+                f'{p}: page {i} declares {page.width_px} x {page.height_px} pixels, more than the '
+                f'{MAX_PIXELS} accepted (refused before decoding)'
+            )
+        if page.channels != 1:
+            raise RealInputError(
+                f'{p}: a raw mosaic or Stokes plane is one grey channel, this image has '
+                f'{page.channels} (save the raw mono8/mono16 data, not a colour rendering)'
+            )
+    return len(pages)
+
+
+@contextmanager
+def _native_stderr_folded(p: Path):
+    """
+    Keep what the native decoders print (libpng, libtiff warnings) off the terminal.
+
+    File descriptor 2 is redirected to a temporary file while OpenCV decodes; on a failed decode
+    its first line is folded into the one-line error (:class:`RealInputError`).
+    """
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        except RealInputError as exc:
+            os.dup2(saved, 2)
+            sink.seek(0)
+            said = sink.read(400).decode('utf-8', 'replace').strip().splitlines()
+            raise RealInputError(f'{exc}: {said[0]}' if said else str(exc)) from None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def _read_images(p: Path, first_only: bool = False) -> list:
     import cv2
 
-    ok, pages = cv2.imreadmulti(str(p), flags=cv2.IMREAD_UNCHANGED)
-    if not ok or not pages:
-        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if img is None:
+    n = _check_header(p, 3, first_only)
+    with _native_stderr_folded(p):
+        try:
+            if n > 1:
+                ok, pages = cv2.imreadmulti(str(p), flags=cv2.IMREAD_UNCHANGED)
+            else:
+                img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+                ok, pages = img is not None, [img]
+        except cv2.error as exc:
+            raise RealInputError(f'{p}: OpenCV cannot decode this image ({_first(exc)})') from None
+        if not ok or not pages or any(img is None for img in pages):
             raise RealInputError(f'{p}: OpenCV cannot decode this image')
-        pages = [img]
     out = []
     for img in pages:
         if img.ndim == 3:
@@ -138,6 +209,11 @@ def _read_images(p: Path) -> list:
     return out
 
 
+def _first(exc: Exception) -> str:
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    return lines[-1][:160] if lines else type(exc).__name__
+
+
 def load_polarization_input(path, bits: int | None = None) -> PolarizationInput:
     """
     Read a raw mosaic, Stokes planes or a frame file.
@@ -145,8 +221,8 @@ def load_polarization_input(path, bits: int | None = None) -> PolarizationInput:
     The kind is decided by the suffix and content (module docstring): ``.npz`` with ``s0``, ``s1``,
     ``s2`` (Stokes) or ``aop_rad`` and ``meta`` (this package's frame file, read later with
     :mod:`frame_io`); ``.npy`` (mosaic); ``.png``/``.tif``/``.tiff``/``.pgm`` with one page
-    (mosaic) or three (Stokes, read with OpenCV unchanged). The file is size-checked before it is
-    decoded.
+    (mosaic) or three (Stokes, read with OpenCV unchanged). The file's size and, for images, the
+    pixels, channels and pages its header declares are checked before it is decoded.
 
     Parameters
     ----------
@@ -263,14 +339,15 @@ def load_mask(path, shape, sensor_shape=None) -> np.ndarray:
     _check_size(p)
     if p.suffix.lower() == '.npy':
         try:
-            a = np.load(p, allow_pickle=False)
+            a = np.load(p, allow_pickle=False, mmap_mode='r')  # shape known, nothing read
         except (ValueError, OSError, EOFError) as exc:
             raise RealInputError(
                 f'{p}: not a readable .npy mask ({str(exc).splitlines()[0]})'
             ) from None
+        if a.dtype.kind not in 'biuf':
+            raise RealInputError(f'{p}: a mask holds bool, integer or float values, not {a.dtype}')
     else:
-        pages = _read_images(p)
-        a = pages[0]
+        a = _read_images(p, first_only=True)[0]
     a = np.asarray(a)
     if a.shape != tuple(shape) and (sensor_shape is None or a.shape != tuple(sensor_shape)):
         raise RealInputError(

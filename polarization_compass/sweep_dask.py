@@ -87,6 +87,70 @@ def _require_distributed():
     return distributed
 
 
+#: How long an existing scheduler may take to answer, and then to have a worker [s].
+SCHEDULER_TIMEOUT_S = 20.0
+
+
+async def _identity(address: str, timeout_s: float):
+    """Ask a scheduler who it is, every step bounded (Dask's own handshake may wait forever)."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    comm = await asyncio.wait_for(connect(address, timeout=timeout_s), timeout_s)
+    try:
+        await asyncio.wait_for(comm.write({'op': 'identity'}), timeout_s)
+        return await asyncio.wait_for(comm.read(), timeout_s)
+    finally:
+        comm.abort()
+
+
+def _connect(distributed, address: str, timeout_s: float):
+    """
+    Return a client on the scheduler at ``address``, checked first within ``timeout_s``.
+
+    The scheduler is asked for its identity on a connection of its own, every step bounded, before
+    a client is made: a listener that never answers, a service that is not Dask (whose reply Dask
+    would read as a frame length of exabytes), a transport not installed here (``ucx://``) or an
+    address of another process (``inproc://``) fail in bounded time with one line. A scheduler
+    without workers is refused after ``timeout_s`` too, instead of waiting forever.
+    """
+    import asyncio
+
+    try:
+        reply = asyncio.run(_identity(address, timeout_s))
+    except (asyncio.TimeoutError, TimeoutError):
+        raise ErrorMapError(
+            f'{address} does not answer as a Dask scheduler within {timeout_s:g} s'
+        ) from None
+    except (MemoryError, ValueError, TypeError, EOFError) as exc:  # a reply Dask cannot parse
+        raise ErrorMapError(
+            f'{address} answers, but not as a Dask scheduler ({type(exc).__name__})'
+        ) from None
+    except Exception as exc:  # noqa: BLE001 - refusals, unreachable hosts, missing transports
+        why = f'{type(exc).__name__}: {exc}' if str(exc) else type(exc).__name__
+        raise ErrorMapError(
+            f'cannot reach a Dask scheduler at {address} ({_short(why)})'
+        ) from None
+    if not isinstance(reply, dict) or reply.get('type') != 'Scheduler':
+        raise ErrorMapError(f'{address} answers, but not as a Dask scheduler')
+    client = distributed.Client(address, timeout=f'{timeout_s}s', set_as_default=False)
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except TimeoutError:
+        client.close()
+        raise ErrorMapError(
+            f'the Dask scheduler at {address} has no worker after {timeout_s:g} s; start one with '
+            f'`dask worker {address}`'
+        ) from None
+    return client
+
+
+def _short(text: str) -> str:
+    text = ' '.join(text.split())
+    return text if len(text) <= 160 else text[:157] + '...'
+
+
 def start(scheduler: str | None, workers: int | None):
     """
     Return a Dask client on a scheduler or on a new LocalCluster.
@@ -113,20 +177,17 @@ def start(scheduler: str | None, workers: int | None):
     Raises
     ------
     ErrorMapError
-        When Dask's ``distributed`` is not installed (the ``sweep`` extra) or the scheduler cannot
-        be reached within 20 s.
+        When Dask's ``distributed`` is not installed (the ``sweep`` extra), or the scheduler does
+        not answer as a Dask scheduler or has no worker within :data:`SCHEDULER_TIMEOUT_S` (a
+        listener that never answers, another service, an address of a transport not available
+        here: :func:`_connect`).
 
     """
     import logging
 
     distributed = _require_distributed()
     if scheduler:
-        try:
-            return distributed.Client(scheduler, timeout='20s', set_as_default=False), None
-        except (OSError, TimeoutError) as exc:
-            raise ErrorMapError(
-                f'cannot reach the Dask scheduler at {scheduler} ({exc})'
-            ) from None
+        return _connect(distributed, scheduler, SCHEDULER_TIMEOUT_S), None
     n = max(1, int(workers or os.cpu_count() or 1))
     saved = {k: os.environ.get(k) for k in _THREAD_VARS}
     os.environ.update(dict.fromkeys(_THREAD_VARS, '1'))  # inherited by the worker processes only

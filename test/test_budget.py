@@ -210,3 +210,39 @@ def test_sigma_calibration_uses_the_published_floor_and_keeps_the_raw_figure():
     assert raw['sigma_calibration'] == raw['sigma_calibration_raw'] and raw['sigma_band'] == (
         'overconfident'
     )
+
+
+@pytest.fixture
+def no_computation(monkeypatch):
+    """Make the budget's computation fail the test: refusals must come before it."""
+    from polarization_compass import budget
+
+    def boom(*args, **kwargs):
+        raise AssertionError('computed before the input was checked')
+
+    monkeypatch.setattr(budget, '_samples', boom)
+
+
+@pytest.mark.parametrize(
+    'camera, extra, words',
+    [
+        ('{width_px: 20000, height_px: 20000}', [], '20000 x 20000 pixels'),
+        ('{width_px: 64, height_px: 48}', ['--imu', 'noise_deg=-0.5'], 'noise_deg is a 1-sigma'),
+        ('{width_px: 64, height_px: 48}', ['--out', '{file}'], 'is not a directory'),
+        ('{width_px: 64, height_px: 48}', ['--out', '{file}/sub'], 'cannot be created'),
+    ],
+    ids=['huge-camera', 'negative-imu-noise', 'out-is-a-file', 'out-under-a-file'],
+)
+def test_cli_budget_refuses_before_computing(
+    tmp_path, capsys, no_computation, camera, extra, words
+):
+    scene = tmp_path / 's.yaml'
+    scene.write_text(f'camera: {camera}\nsun: {{azimuth_deg: 90, altitude_deg: 30}}\n')
+    (tmp_path / 'file').write_text('x')
+    extra = [a.replace('{file}', str(tmp_path / 'file')) for a in extra]
+    if '--out' not in extra:
+        extra += ['--out', str(tmp_path / 'out')]
+    code = main(['budget', '--scene', str(scene), '--samples', '2', *extra])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count('\n') == 1 and words in err

@@ -42,6 +42,7 @@ from polarization_compass.errormap_store import (  # noqa: E402
     read_netcdf_map,
     SweepStore,
 )
+from polarization_compass.map_bounds import map_digest  # noqa: E402
 from polarization_compass.sweep import run_sweep, SweepSpec  # noqa: E402
 import xarray as xr  # noqa: E402
 import zarr  # noqa: E402
@@ -133,8 +134,12 @@ def test_a_damaged_netcdf_map_is_refused(tmp_path, damage, words):
 
 
 def test_netcdf_values_outside_the_map_ranges_are_refused(tmp_path):
-    ds = map_to_dataset(_map())
+    m = _map()
+    ds = map_to_dataset(m)
     ds['error_deg'][0, 0, 0, 0, 0] = 120.0  # not folded to (-90, 90]
+    ds.attrs['content_blake2b'] = map_digest(  # intact: written so by a buggy writer
+        ds['error_deg'].values, m.status, m.methods, m.axes(), ds.attrs['meta_json']
+    )
     ds.to_netcdf(tmp_path / 'bad.nc', engine='scipy', format='NETCDF3_64BIT')
     with pytest.raises(ErrorMapError, match='folded'):
         read_netcdf_map(tmp_path / 'bad.nc')

@@ -19,17 +19,23 @@ Each subcommand lives in its own module ``cli/cmd_<name>.py`` exposing ``registe
 which adds a parser and sets ``func`` (taking the parsed args, returning an exit code). Add a new
 command by adding its module name to ``COMMANDS``.
 
-Errors meant for users (:class:`~polarization_compass.errors.CompassError`, bad files) print one
-line and exit 2; an unexpected exception prints one line naming it and exits 70 (``--debug``
-shows the traceback). No traceback reaches a user by default.
+Errors meant for users (:class:`~polarization_compass.errors.CompassError`, bad files, and what an
+input causes: a RecursionError, a MemoryError, an OpenCV error) print one line and exit 2; an
+unexpected exception prints one line naming it and exits 70 (``--debug`` shows the traceback).
+Ctrl-C prints one line and exits 130, SIGTERM the same (exit 143), both unwinding the command so
+its files are closed (``record-sim`` writes the bag's metadata). Python warnings are one line each.
+No traceback reaches a user by default.
 """
 
 from __future__ import annotations
 
 import argparse
+from contextlib import contextmanager
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from ..errors import CompassError
 
@@ -78,6 +84,45 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command is so that it unwinds (closes its files) as on Ctrl-C."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated
+
+
+@contextmanager
+def _one_line_process(command: str):
+    """
+    Run a command with SIGTERM unwinding like SIGINT and third-party noise folded or silenced.
+
+    Python warnings (numpy's RuntimeWarnings with their source paths) become one line each, once;
+    asyncio's "Task was destroyed" at exit (a Dask client's leftovers) is silenced.
+    """
+    import logging
+    import warnings
+
+    logging.getLogger('asyncio').setLevel(logging.CRITICAL)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _raise_terminated) if main_thread else None
+    seen = set()
+
+    def one_line(message, category, *_args, **_kw):
+        text = f'{category.__name__}: {" ".join(str(message).split())}'
+        if text not in seen:
+            seen.add(text)
+            print(f'polarization-compass {command}: warning: {text}', file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = one_line
+        try:
+            yield
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -85,7 +130,8 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _one_line_process(args.command):
+            return int(args.func(args) or 0)
     except CompassError as exc:
         print(f'polarization-compass {args.command}: error: {exc}', file=sys.stderr)
         return 2
@@ -107,11 +153,31 @@ def main(argv=None) -> int:
             )
             return 2
         return _internal_error(args, exc)
+    except _Terminated:
+        print(f'polarization-compass {args.command}: terminated', file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f'polarization-compass {args.command}: interrupted', file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - last line of defence: no traceback for users
+        return _input_error(args, exc)
+
+
+def _input_error(args, exc) -> int:
+    """Report what the input caused (too deep, too large, undecodable) as a user error, exit 2."""
+    if isinstance(exc, RecursionError):
+        why = 'the input is nested too deeply to read (RecursionError)'
+    elif isinstance(exc, MemoryError):
+        why = 'not enough memory for this input (MemoryError); is it the right file?'
+    elif type(exc).__module__.startswith('cv2') and type(exc).__name__ == 'error':
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        why = f'OpenCV cannot process the input ({lines[-1][:200] if lines else "cv2.error"})'
+    else:
         return _internal_error(args, exc)
+    if args.debug or os.environ.get('POLARIZATION_COMPASS_DEBUG'):
+        raise exc
+    print(f'polarization-compass {args.command}: error: {why}', file=sys.stderr)
+    return 2
 
 
 def _internal_error(args, exc) -> int:

@@ -21,6 +21,7 @@ The budget is given per method and by source.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 import sys
 
@@ -91,10 +92,26 @@ def register(sub):
     p.set_defaults(func=run)
 
 
+def _writable_dir(out: Path) -> Path:
+    """Create ``out`` (and its parents) and check that files can be written into it."""
+    from ..budget import BudgetError
+
+    if out.exists() and not out.is_dir():
+        raise BudgetError(f'--out {str(out)!r} exists and is not a directory')
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BudgetError(f'--out {str(out)!r} cannot be created: {exc.strerror or exc}') from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise BudgetError(f'--out {str(out)!r} is not writable')
+    return out
+
+
 def run(args) -> int:
     from ..budget import (
         BudgetConfig,
         BudgetError,
+        check_config,
         parse_imu,
         plot_budget,
         run_budget,
@@ -134,14 +151,14 @@ def run(args) -> int:
         correction_sigma_deg=float(args.correction_sigma),
         **extra,
     )
+    check_config(cfg)
+    out = _writable_dir(Path(args.out))  # before the computation, not after it
     result = run_budget(
         cfg,
         progress=lambda name: print(f'budget: {name} ...', file=sys.stderr, flush=True),
         workers=args.workers,
         scheduler=args.scheduler,
     )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     (out / 'budget.json').write_text(json.dumps(result, indent=1, sort_keys=True))
     plot_budget(result, out / 'budget.png')
     fmt = lambda v, f='{:.3f}': '-' if v is None else f.format(v)  # noqa: E731

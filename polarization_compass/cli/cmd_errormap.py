@@ -219,11 +219,11 @@ def _check_options(args, methods) -> None:
         raise CompassError(f'--tilt-limit must be in [0, 180], got {args.tilt_limit}')
     if not str(args.out).endswith(OUTPUT_SUFFIXES):
         raise CompassError(f'--out must name a {", ".join(OUTPUT_SUFFIXES)} map, got {args.out!r}')
-    if args.scheduler is not None and not re.match(
-        r'^(tcp|tls|inproc|ucx|ws|wss)://\S+$', args.scheduler
-    ):
+    if args.scheduler is not None and not re.match(r'^(tcp|tls|ws|wss)://\S+$', args.scheduler):
         raise CompassError(
-            f'--scheduler must be an address like tcp://HOST:PORT, got {args.scheduler!r}'
+            f'--scheduler must be a network address like tcp://HOST:PORT (or tls://, ws://, '
+            f'wss://), got {args.scheduler!r}; inproc:// lives inside one process and ucx:// '
+            'needs UCX-Py'
         )
 
 

@@ -25,6 +25,7 @@ import math
 import sys
 
 from ._checks import check_range, check_together
+from ._progress import advance_to, progress_bar
 
 
 def register(sub):
@@ -101,9 +102,17 @@ def run(args) -> int:
     rec = load_array_recording(args.recording)
     rec.check_against(geometry)
     az, alt = sun_per_sample(args.time, rec.t_offset_s, rec.n_samples, args.lat, args.lon)
-    results = estimate_recording(
-        est, rec.intensities, az, alt, args.pitch, args.roll, args.prior_bearing
-    )
+    with progress_bar('estimate-array', ' samples', rec.n_samples) as bar:
+        results = estimate_recording(
+            est,
+            rec.intensities,
+            az,
+            alt,
+            args.pitch,
+            args.roll,
+            args.prior_bearing,
+            progress=lambda k, n: advance_to(bar, k, n),
+        )
     fh = sys.stdout if args.out == '-' else open(args.out, 'w', newline='', encoding='utf-8')
     try:
         w = csv.writer(fh)

@@ -207,10 +207,11 @@ class HeadingEstimatorNode(HeadingNodeBase):
         lost on the way (``image_lost``, :class:`ImageLossWatch`).
         """
         try:
-            lost = self.loss.camera_info(stamp_ns(msg.header))
+            stamp = stamp_ns(msg.header)
+            lost = self.loss.camera_info(stamp)
         # a header that cannot be read is counted by the decoder below
         except Exception:  # noqa: BLE001
-            lost = 0
+            stamp, lost = None, 0
         for _ in range(lost):
             self.diag.reject(
                 'image_lost',
@@ -221,9 +222,9 @@ class HeadingEstimatorNode(HeadingNodeBase):
             cam = decode_camera_info(msg, self.params['pixel_pitch_um'])
         except MessageError as exc:
             self.diag.reject(f'camera_info_{exc.reason}', str(exc))
-            self.camera_info.reject(str(exc))
+            self.camera_info.reject(str(exc), stamp)
             return
-        self.camera_info.accept(cam)
+        self.camera_info.accept(cam, stamp)
 
     def _on_imu_extra(self, msg) -> None:
         """Keep the latest IMU's tilt variance (tilt_aware's attitude sigma)."""
@@ -253,11 +254,11 @@ class HeadingEstimatorNode(HeadingNodeBase):
         except CameraError:
             return None
 
-    def _camera_for(self, width: int, height: int) -> CameraModel:
+    def _camera_for(self, width: int, height: int, t_ns: int | None = None) -> CameraModel:
         p = self.params
         cam = (
-            self.camera_info.camera() if p['camera_info_source'] == 'topic' else None
-        )  # raises after a rejection
+            self.camera_info.camera(t_ns) if p['camera_info_source'] == 'topic' else None
+        )  # the image's own camera_info (by stamp), else the latest; raises after a rejection
         if cam is None and p['camera_info_source'] == 'topic':
             self.get_logger().warning(
                 f'no camera_info on {topics.CAMERA_INFO} yet: using the fallback intrinsics '
@@ -402,9 +403,9 @@ class HeadingEstimatorNode(HeadingNodeBase):
             },
         )
 
-    def _prepare(self, mosaic, width, height) -> CameraModel:
-        """Return the camera of an image of this size (camera_info or the fallback parameters)."""
-        return self._camera_for(width, height)
+    def _prepare(self, mosaic, width, height, t_ns=None) -> CameraModel:
+        """Return the camera of an image of this size and stamp (camera_info or the fallback)."""
+        return self._camera_for(width, height, t_ns)
 
     def _estimate(self, camera, mosaic, sun_az, sun_alt, inp, status: dict):
         """Return the heading of one image: the front end, then the IMU tilt's uncertainty."""

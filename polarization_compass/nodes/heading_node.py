@@ -203,7 +203,7 @@ class HeadingNodeBase(Node):
             )
         return inp
 
-    def _prepare(self, data, width, height):
+    def _prepare(self, data, width, height, t_ns=None):
         """Return what the sensor needs besides the data (the camera node: its camera model)."""
         return None
 
@@ -217,7 +217,7 @@ class HeadingNodeBase(Node):
         """Estimate one queued input and publish its heading and status (failures included)."""
         status = {'stamp_ns': t_ns, 'method': self.method}
         try:
-            prepared = self._prepare(data, width, height)
+            prepared = self._prepare(data, width, height, t_ns=t_ns)
             sun_az, sun_alt = self._sun_at(t_ns)
             inp = self._tilt_and_prior(t_ns)
             t0 = time.perf_counter()

@@ -463,6 +463,7 @@ def estimate_recording(
     pitch_deg=None,
     roll_deg=None,
     prior_bearing_deg=None,
+    progress=None,
 ) -> list:
     """
     Estimate a heading for every sample of a recording.
@@ -483,6 +484,8 @@ def estimate_recording(
         Known roll [deg], scalar or (S,).
     prior_bearing_deg : float or array_like, optional
         Prior bearing of the front [deg], scalar or (S,).
+    progress : callable, optional
+        ``progress(samples_done, samples_total)`` every 1000 samples and after the last.
 
     Returns
     -------
@@ -506,9 +509,13 @@ def estimate_recording(
         per(roll_deg),
         per(prior_bearing_deg),
     )
-    return [
-        estimator.estimate(
-            st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i]
+    out = []
+    for i in range(S):
+        out.append(
+            estimator.estimate(
+                st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i]
+            )
         )
-        for i in range(S)
-    ]
+        if progress is not None and ((i + 1) % 1000 == 0 or i + 1 == S):
+            progress(i + 1, S)
+    return out

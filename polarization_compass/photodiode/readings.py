@@ -32,14 +32,13 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
-import io
 import math
 import re
 
 import numpy as np
 
 from ..errors import CompassError
-from ..safe_load import open_npz, read_text
+from ..safe_load import open_npz
 
 __all__ = [
     'ArrayRecording',
@@ -52,7 +51,6 @@ __all__ = [
 ]
 
 MAX_SAMPLES = 1_000_000
-_MAX_CSV_CHARS = 200_000_000
 _COL = re.compile(r'^u(\d+)_c(\d+)$')
 _SAMPLE_KEYS = ('t_offset_s', 'imu_yaw_rad', 'turn_index')
 
@@ -143,17 +141,12 @@ def _per_sample(where: str, name: str, v, S: int):
     return v.astype(np.float64)
 
 
-def _load_csv(path) -> ArrayRecording:
-    text = read_text(path, ArrayRecordingError, 'array recording')
-    if len(text) > _MAX_CSV_CHARS:
-        raise ArrayRecordingError(f'{path}: more than {_MAX_CSV_CHARS} characters')
-    reader = csv.reader(io.StringIO(text))
-    try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise ArrayRecordingError(
-            f'{path}: empty CSV (expected a header with u<unit>_c<channel> columns)'
-        ) from None
+#: Longest CSV field read (a number printed with repr() has at most 24 characters).
+_MAX_CSV_FIELD_CHARS = 40
+
+
+def _csv_columns(path, header: list) -> tuple:
+    """Return ({(unit, channel): column}, the t_offset_s column or None, units, channels)."""
     cols = {}
     named = {}  # per-sample columns: t_offset_s, imu_yaw_rad, turn_index
     for j, h in enumerate(header):
@@ -181,23 +174,74 @@ def _load_csv(path) -> ArrayRecording:
     missing = [u for u in range(U) if not any(k[0] == u for k in cols)]
     if missing:
         raise ArrayRecordingError(f'{path}: no columns for unit(s) {missing}')
-    rows = []
+    return cols, t_col, U, C
+
+
+def _bounded_lines(path, fh, max_chars: int):
+    """Yield the lines of ``fh``, refusing one longer than ``max_chars``."""
+    for line in fh:
+        if len(line) > max_chars:
+            raise ArrayRecordingError(f'{path}: a line longer than {max_chars} characters')
+        yield line
+
+
+def _csv_values(path, reader, n_cols: int) -> np.ndarray:
+    """Read the data rows into a (samples, columns) float64 array."""
+    from array import array
+
+    flat = array('d')
+    n = 0
     for line_no, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
-        if len(row) != len(header):
+        if len(row) != n_cols:
             raise ArrayRecordingError(
-                f'{path}: line {line_no} has {len(row)} fields, the header {len(header)}'
+                f'{path}: line {line_no} has {len(row)} fields, the header {n_cols}'
             )
         try:
-            rows.append([float(c) if c.strip() else math.nan for c in row])
+            flat.extend(float(c) if c.strip() else math.nan for c in row)
         except ValueError:
             raise ArrayRecordingError(f'{path}: line {line_no}: not a number') from None
-        if len(rows) > MAX_SAMPLES:
+        n += 1
+        if n > MAX_SAMPLES:
             raise ArrayRecordingError(f'{path}: more than {MAX_SAMPLES} samples')
-    if not rows:
+    if not n:
         raise ArrayRecordingError(f'{path}: no samples')
-    a = np.asarray(rows, dtype=np.float64)
+    return np.frombuffer(flat, dtype=np.float64).reshape(n, n_cols)
+
+
+def _load_csv(path) -> ArrayRecording:
+    """
+    Read a CSV recording, streamed, bounded by rows x columns from its header.
+
+    At most :data:`MAX_SAMPLES` rows of the header's columns, each at most
+    :data:`_MAX_CSV_FIELD_CHARS` characters: a recording of the documented maximum (1e6 samples)
+    is read, a file beyond that bound is refused without being read whole.
+    """
+    from ..safe_load import regular_file
+
+    p = regular_file(path, ArrayRecordingError, 'array recording')
+    try:
+        with open(p, encoding='utf-8', newline='') as fh:
+            first = fh.readline(1 << 16)
+            header = [h.strip() for h in next(csv.reader([first]), [])]
+            if not header:
+                raise ArrayRecordingError(
+                    f'{path}: empty CSV (expected a header with u<unit>_c<channel> columns)'
+                )
+            cols, t_col, U, C = _csv_columns(path, header)
+            line_chars = len(header) * _MAX_CSV_FIELD_CHARS
+            if p.stat().st_size > len(first.encode()) + MAX_SAMPLES * line_chars:
+                raise ArrayRecordingError(
+                    f'{path}: larger than {MAX_SAMPLES} samples of {len(header)} columns can be '
+                    '(refused before reading)'
+                )
+            reader = csv.reader(_bounded_lines(path, fh, line_chars))
+            a = _csv_values(path, reader, len(header))
+    except UnicodeDecodeError as exc:
+        raise ArrayRecordingError(f'{path}: not UTF-8 text (byte {exc.start})') from None
+    except csv.Error as exc:
+        raise ArrayRecordingError(f'{path}: not a readable CSV ({exc})') from None
     inten = np.zeros((a.shape[0], U, C))
     for (u, c), j in cols.items():
         inten[:, u, c] = a[:, j]
@@ -205,6 +249,25 @@ def _load_csv(path) -> ArrayRecording:
     if t is not None and not np.all(np.isfinite(t)):
         raise ArrayRecordingError(f'{path}: t_offset_s has empty or non-finite values')
     return _validated(inten, t, str(path), imu, turn)
+
+
+def _check_npz_headers(p: str, h: dict) -> None:
+    """Refuse the shapes an .npz recording declares before anything is decompressed."""
+    if 'intensities' not in h:
+        raise ArrayRecordingError(
+            f"{p}: no 'intensities' array (has: {', '.join(sorted(h)) or 'nothing'})"
+        )
+    shape = h['intensities'].shape
+    S, U, C = shape if len(shape) == 3 else (0, 0, 0)
+    if not (1 <= S <= MAX_SAMPLES) or not (1 <= U <= 64) or not (2 <= C <= 4):
+        raise ArrayRecordingError(
+            f'{p}: intensities declares shape {shape}; a recording is (samples, units, channels) '
+            f'with 1-{MAX_SAMPLES} samples, 1-64 units, 2-4 channels (refused before reading)'
+        )
+    if 't_offset_s' in h and h['t_offset_s'].shape != (S,):
+        raise ArrayRecordingError(
+            f"{p}: t_offset_s declares shape {h['t_offset_s'].shape}, one per sample ({S})"
+        )
 
 
 def load_array_recording(path) -> ArrayRecording:
@@ -230,11 +293,9 @@ def load_array_recording(path) -> ArrayRecording:
     p = str(path)
     if p.lower().endswith('.csv'):
         return _load_csv(path)
-    with open_npz(path, ArrayRecordingError, 'array recording') as z:
-        if 'intensities' not in z.files:
-            raise ArrayRecordingError(
-                f"{p}: no 'intensities' array (has: {', '.join(sorted(z.files)) or 'nothing'})"
-            )
+    with open_npz(
+        path, ArrayRecordingError, 'array recording', check=lambda h: _check_npz_headers(p, h)
+    ) as z:
         inten = z['intensities']
         t, imu, turn = (z[k] if k in z.files else None for k in _SAMPLE_KEYS)
     return _validated(inten, t, p, imu, turn)

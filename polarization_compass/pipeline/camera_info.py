@@ -16,6 +16,8 @@
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 from .errors import PipelineError
 
 __all__ = [
@@ -38,13 +40,17 @@ class CameraInfoState:
     fallback applies), or raises :class:`PipelineError`.
     """
 
+    #: camera_info messages remembered by stamp, to pair an image with its own (issue 24).
+    STAMPS_KEPT = 64
+
     def __init__(self):
+        self._by_stamp: OrderedDict = OrderedDict()  # stamp ns -> (camera, rejection reason)
         self._camera = None
         self.rejected_reason: str | None = None
         self.accepted = 0
         self.rejected = 0
 
-    def accept(self, camera) -> None:
+    def accept(self, camera, stamp_ns: int | None = None) -> None:
         """
         Use a camera from now on.
 
@@ -52,13 +58,16 @@ class CameraInfoState:
         ----------
         camera : CameraModel
             Decoded and validated (:func:`~polarization_compass.camera.check_intrinsics`).
+        stamp_ns : int, optional
+            The message's header stamp [ns]: the image of this stamp gets this camera.
 
         """
         self._camera = camera
         self.rejected_reason = None
         self.accepted += 1
+        self._remember(stamp_ns, camera, None)
 
-    def reject(self, reason: str) -> None:
+    def reject(self, reason: str, stamp_ns: int | None = None) -> None:
         """
         Record a rejected camera_info; the camera in use is withdrawn.
 
@@ -66,19 +75,39 @@ class CameraInfoState:
         ----------
         reason : str
             Why it was rejected (one line).
+        stamp_ns : int, optional
+            The message's header stamp [ns]: the image of this stamp gets no camera.
 
         """
         self.rejected_reason = str(reason)
         self.rejected += 1
+        self._remember(stamp_ns, None, self.rejected_reason)
+
+    def _remember(self, stamp_ns, camera, reason) -> None:
+        if stamp_ns is None:
+            return
+        self._by_stamp[int(stamp_ns)] = (camera, reason)
+        self._by_stamp.move_to_end(int(stamp_ns))
+        while len(self._by_stamp) > self.STAMPS_KEPT:
+            self._by_stamp.popitem(last=False)
 
     @property
     def received_any(self) -> bool:
         """Whether any camera_info arrived (accepted or rejected)."""
         return self.accepted + self.rejected > 0
 
-    def camera(self):
+    def camera(self, stamp_ns: int | None = None):
         """
-        Return the camera to use.
+        Return the camera to use for an image: its own camera_info's, else the latest.
+
+        An image is paired with the camera_info of its stamp when one of the last
+        :attr:`STAMPS_KEPT` had it, so a hostile camera_info arriving between a good one and its
+        image does not spoil that image; otherwise the latest camera_info decides.
+
+        Parameters
+        ----------
+        stamp_ns : int, optional
+            The image's header stamp [ns]; None: the latest camera_info.
 
         Returns
         -------
@@ -88,9 +117,14 @@ class CameraInfoState:
         Raises
         ------
         PipelineError
-            The latest camera_info was rejected (its reason).
+            The image's own camera_info, or without one the latest, was rejected (its reason).
 
         """
+        if stamp_ns is not None and int(stamp_ns) in self._by_stamp:
+            camera, reason = self._by_stamp[int(stamp_ns)]
+            if reason is not None:
+                raise PipelineError(f"this image's camera_info was rejected ({reason})")
+            return camera
         if self.rejected_reason is not None:
             raise PipelineError(
                 f'the latest camera_info was rejected ({self.rejected_reason}); no intrinsics '
