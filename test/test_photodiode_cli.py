@@ -111,6 +111,8 @@ def test_estimate_array(capsys, files, name):
         'units_used',
         'misfit_rms_deg',
         'reason',
+        'side_by',
+        'units_unusable',
     ]
     for r, b in zip(rows, bearings):
         assert r['status'] == 'ok', r['reason']

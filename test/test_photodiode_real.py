@@ -88,3 +88,28 @@ def test_clear_sky_heading_error_against_the_reference(session):
     # ~5 deg
     assert rms < 12.0 and p95 < 25.0, (rms, p95)
     assert np.mean(e < 2 * s) > 0.75  # sigma of the right size (0.99 / 0.99 measured)
+
+
+def test_all_units_enabled_the_faulty_ones_are_found_not_trusted():
+    """
+    A user who enables every unit (units 5 and 7 included) gets no wrong ok headings.
+
+    At noon unit 7 sits at the 16-bit limit in ~39 % of the samples and reads two channel pairs
+    twice; unit 5 has a channel ~3x too bright. Before the readings checks this session gave 745
+    ok results more than 90 deg off (194 more than 150; tools/polop_quality.py --enable-all).
+    """
+    row = next(r for r in pj.sessions() if r['session'] == '12-02__Thursday_12-05-22')
+    g = geometry_from_dict({**pj.geometry_dict(disabled=()), 'saturation': [-32768, 32767]})
+    est = make_array_estimator('tilt_aware', g)
+    errs, reasons = [], {}
+    for turn in pj.load_session(row)[::3]:
+        az, alt = _sun(row, turn)
+        res = estimate_recording(est, turn.intensities[::STEP], az, alt, 0.0, 0.0)
+        for r, ref in zip(res, turn.reference_bearing_deg[::STEP]):
+            for k, v in r.extras.get('units_unusable', {}).items():
+                reasons[k] = reasons.get(k, 0) + v
+            if r.status == Status.OK:
+                errs.append(abs(wrap_180_deg(r.bearing_deg - ref)))
+    assert len(errs) > 0.9 * sum(len(t.intensities[::STEP]) for t in pj.load_session(row)[::3])
+    assert max(errs) < 45.0
+    assert {'saturated', 'duplicated_channels', 'channel_misfit'} <= set(reasons), reasons

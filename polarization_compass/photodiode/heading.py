@@ -46,6 +46,7 @@ an image, and :func:`make_array_estimator` refuses them with that reason.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import math
 
@@ -201,6 +202,7 @@ class ArrayHeadingEstimator:
         pitch_deg: float | None = None,
         roll_deg: float | None = None,
         prior_bearing_deg: float | None = None,
+        unusable: dict | None = None,
     ) -> HeadingResult:
         """
         Estimate one heading from one sample of per-unit angles of polarization.
@@ -227,6 +229,10 @@ class ArrayHeadingEstimator:
         prior_bearing_deg : float, optional
             Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else
             does.
+        unusable : dict, optional
+            Units whose readings were not measurements in this sample, per reason
+            (:meth:`~.stokes.UnitStokes.unusable_counts`): reported in ``extras['units_unusable']``
+            and the reason, whatever the status.
 
         Returns
         -------
@@ -241,8 +247,13 @@ class ArrayHeadingEstimator:
         Robot. Auton. Syst. 30 (POL-OP units).
 
         """
-        k = self.knobs
         sky = _Sky(sun_azimuth_deg, sun_altitude_deg, prior_bearing_deg)
+        res = self._estimate(aop_rad, dop, s0, valid, sky, pitch_deg, roll_deg)
+        return _with_unusable(res, unusable)
+
+    def _estimate(self, aop_rad, dop, s0, valid, sky, pitch_deg, roll_deg) -> HeadingResult:
+        """Estimate one heading (:meth:`estimate`), before the unusable units are reported."""
+        k = self.knobs
         bad = check_sun(self.name, sky, k)
         if bad is not None:
             return bad
@@ -254,33 +265,10 @@ class ArrayHeadingEstimator:
         u = self._usable_units(aop_rad, dop, s0, valid)
         if isinstance(u, HeadingResult):
             return u
-        zero = np.zeros((3, 3))
-        sol = solve_checked(
-            self.name, u.M, zero, zero, False, k['min_eigen_gap'], u.n, "the units' E-vectors"
-        )
-        if isinstance(sol, HeadingResult):
-            return sol
-        lam, U, _ = sol
-        f = sun_frames(self.name, U, R_lev, self.level_with_tilt, k['max_sun_altitude_deg'], u.n)
-        if isinstance(f, HeadingResult):
-            return f
-        resid_rad = self._residuals_rad(u, f.s)
-        misfit_deg = math.degrees(
-            math.sqrt(float(np.sum(u.w * resid_rad**2)) / float(np.sum(u.w)))
-        )
-        sigma_psi, sigma_el = self._sigmas_rad(u, f, lam, U, resid_rad)
-        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k['sigma_floor_deg']), 1e-9)
-        extras = {
-            'units_used': u.n,
-            'misfit_rms_deg': misfit_deg,
-            'unit_residuals_deg': [float(v) for v in np.degrees(resid_rad)],
-            'eigenvalues': [float(v) for v in lam / float(np.trace(u.M))],
-            'sigma_sun_elevation_deg': math.degrees(sigma_el),
-            'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
-        }
-        poor = self._poor_fit(misfit_deg, f.elevation_deg, float(sun_altitude_deg), u.n, extras)
-        if poor is not None:
-            return poor
+        fit = self._fit(u, R_lev, float(sky.sun_altitude_deg))
+        if isinstance(fit, HeadingResult):
+            return fit
+        f, lam, sigma_deg, sigma_el, extras = fit
         pick, by, reason = pick_side(
             self.name,
             f,
@@ -305,6 +293,43 @@ class ArrayHeadingEstimator:
             sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
             extras=extras,
         )
+
+    def _fit(self, u: '_Units', R_lev, sun_altitude_deg: float):
+        """
+        Fit the sun to the usable units; check the fit.
+
+        Returns ``(frames, eigenvalues, sigma_deg, sigma_el_rad, extras)`` or a failed result
+        (``degenerate``, ``sun_near_zenith``, ``poor_fit``).
+        """
+        k = self.knobs
+        zero = np.zeros((3, 3))
+        sol = solve_checked(
+            self.name, u.M, zero, zero, False, k['min_eigen_gap'], u.n, "the units' E-vectors"
+        )
+        if isinstance(sol, HeadingResult):
+            return sol
+        lam, U, _ = sol
+        f = sun_frames(self.name, U, R_lev, self.level_with_tilt, k['max_sun_altitude_deg'], u.n)
+        if isinstance(f, HeadingResult):
+            return f
+        resid_rad = self._residuals_rad(u, f.s)
+        misfit_deg = math.degrees(
+            math.sqrt(float(np.sum(u.w * resid_rad**2)) / float(np.sum(u.w)))
+        )
+        sigma_psi, sigma_el = self._sigmas_rad(u, f, lam, U, resid_rad)
+        sigma_deg = max(math.hypot(math.degrees(sigma_psi), k['sigma_floor_deg']), 1e-9)
+        extras = {
+            'units_used': u.n,
+            'misfit_rms_deg': misfit_deg,
+            'unit_residuals_deg': [float(v) for v in np.degrees(resid_rad)],
+            'eigenvalues': [float(v) for v in lam / float(np.trace(u.M))],
+            'sigma_sun_elevation_deg': math.degrees(sigma_el),
+            'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
+        }
+        poor = self._poor_fit(misfit_deg, f.elevation_deg, sun_altitude_deg, u.n, extras)
+        if poor is not None:
+            return poor
+        return f, lam, sigma_deg, sigma_el, extras
 
     def _usable_units(self, aop_rad, dop, s0, valid):
         """
@@ -508,7 +533,30 @@ def estimate_recording(
     )
     return [
         estimator.estimate(
-            st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i]
+            st.aop_rad[i],
+            st.dop[i],
+            st.s0[i],
+            st.valid[i],
+            az[i],
+            alt[i],
+            p[i],
+            r[i],
+            pr[i],
+            st.unusable_counts(i),
         )
         for i in range(S)
     ]
+
+
+def _with_unusable(res: HeadingResult, unusable: dict | None) -> HeadingResult:
+    """Report the units that were not measurements in a result's extras and reason."""
+    if not unusable:
+        return res
+    counts = {str(k): int(v) for k, v in unusable.items() if v}
+    if not counts:
+        return res
+    note = 'units not measuring: ' + ', '.join(f'{k} {v}' for k, v in counts.items())
+    extras = dict(res.extras)
+    extras['units_unusable'] = counts
+    reason = f'{res.reason}; {note}' if res.reason else note
+    return dataclasses.replace(res, reason=reason, extras=extras)

@@ -47,11 +47,21 @@ __all__ = [
     'save_array_recording_csv',
     'array_sample_from_flat',
     'MAX_SAMPLES',
+    'READING_REASONS',
+    'reading_flags',
 ]
 
 MAX_SAMPLES = 1_000_000
 _MAX_CSV_CHARS = 200_000_000
 _COL = re.compile(r'^u(\d+)_c(\d+)$')
+
+
+#: Why a unit's readings are not a measurement in one sample (:func:`reading_flags`), plus
+#: ``dop_above_1`` (:func:`~.stokes.fit_stokes`).
+READING_REASONS = ('bad_value', 'saturated', 'zero_channel', 'duplicated_channels')
+#: A channel pair equal in more than this share of a recording's samples is one signal read twice.
+_DUPLICATE_SHARE = 0.5
+_DUPLICATE_MIN_SAMPLES = 10
 
 
 class ArrayRecordingError(CompassError):
@@ -317,3 +327,57 @@ def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.nd
     if not np.all(np.isfinite(out)):
         raise ArrayRecordingError('readings contain NaN or inf')
     return out
+
+
+def reading_flags(intensities, geometry) -> dict:
+    """
+    Flag, per sample and unit, readings that are not measurements of the sky.
+
+    ``bad_value``: a channel is NaN or negative. ``saturated``: a channel at or beyond the
+    geometry's ``saturation`` limits (none without the key). ``zero_channel``: a channel reads
+    exactly 0 while another channel of the unit does not (a dropped or dead reading). ``duplicated_
+    channels``: in a recording of at least 10 samples, two channels of a unit read exactly the same
+    value in more than half of the samples (one signal wired twice); the unit is flagged in every
+    sample. Raw readings are checked, before dark offsets and gains.
+
+    Parameters
+    ----------
+    intensities : array_like
+        (S, U, C) raw readings.
+    geometry : ArrayGeometry
+        Channels per unit and the ``saturation`` limits.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        For each of :data:`READING_REASONS`, a bool array (S, U); a unit can have several.
+
+    """
+    x = np.asarray(intensities, dtype=np.float64)
+    S, U, _ = x.shape
+    flags = {k: np.zeros((S, U), dtype=bool) for k in READING_REASONS}
+    sat = geometry.saturation
+    for u, unit in enumerate(geometry.units):
+        y = x[:, u, : unit.n_channels]
+        finite = np.isfinite(y)
+        flags['bad_value'][:, u] = np.any(~finite | (np.where(finite, y, 0.0) < 0.0), axis=1)
+        yf = np.where(finite, y, 1.0)
+        if sat is not None:
+            flags['saturated'][:, u] = np.any((yf <= sat[0]) | (yf >= sat[1]), axis=1)
+        zero = finite & (y == 0.0)
+        flags['zero_channel'][:, u] = np.any(zero, axis=1) & np.any(finite & (y != 0.0), axis=1)
+        flags['duplicated_channels'][:, u] = _duplicated(yf, finite)
+    return flags
+
+
+def _duplicated(y: np.ndarray, finite: np.ndarray) -> bool:
+    """Return whether two channels of one unit (readings (S, C)) are one signal read twice."""
+    S, C = y.shape
+    if S < _DUPLICATE_MIN_SAMPLES:
+        return False
+    for j in range(C):
+        for k in range(j + 1, C):
+            same = (y[:, j] == y[:, k]) & finite[:, j] & finite[:, k] & (y[:, j] != 0.0)
+            if np.mean(same) > _DUPLICATE_SHARE:
+                return True
+    return False
