@@ -52,6 +52,7 @@ import math
 
 import numpy as np
 
+from .side import pick_array_side
 from .stokes import fit_stokes
 from ..conventions import fold_axial_rad, R_BODY_CAM_DEFAULT, unit_angle_from_evector_body_rad
 from ..errors import CompassError
@@ -61,11 +62,9 @@ from ..estimators.base import HeadingResult, Status
 from ..estimators.sun_from_evectors import (
     fit_quality,
     levelling_rotation,
-    pick_side,
     sensitivity_vectors,
     solve_checked,
     sun_frames,
-    unit_brightness_stats,
 )
 
 __all__ = [
@@ -131,11 +130,22 @@ ARRAY_KNOBS = {
     'sign_margin_sigma': Knob(
         3.0, 'float', 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"
     ),
+    'side_elevation_sigma_deg': Knob(
+        3.0,
+        'float',
+        0.0,
+        45.0,
+        doc="1-sigma of the levelled frame's elevation (tilt, mount, time) for the sun's side",
+    ),
     'max_tilt_deg': Knob(
         30.0, 'float', 0.0, 89.0, doc='least_squares: assumed tilt bound for the sign rule'
     ),
     'brightness_min_t': Knob(
-        4.0, 'float', 1.0, 1e6, doc='|t| of the unit brightness gradient that fixes the side'
+        4.0,
+        'float',
+        1.0,
+        1e6,
+        doc='normal-equivalent |t| (n - 2 dof) of the units brightness gradient that fixes the side',
     ),
     'prior_max_diff_deg': Knob(
         60.0, 'float', 1.0, 90.0, doc='a prior bearing within this picks the side'
@@ -269,16 +279,10 @@ class ArrayHeadingEstimator:
         if isinstance(fit, HeadingResult):
             return fit
         f, lam, sigma_deg, sigma_el, extras = fit
-        pick, by, reason = pick_side(
-            self.name,
-            f,
-            sigma_el,
-            unit_brightness_stats(u.s0, u.axes_cam),
-            sky,
-            k,
-            'body-frame',
-            min_brightness_samples=3,
+        pick, by, reason, evidence = pick_array_side(
+            self.name, f, sigma_el, u.s0, u.axes_cam, sky, k
         )
+        extras.update(evidence)
         extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
         return result_from(
             self.name,
