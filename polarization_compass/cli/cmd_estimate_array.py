@@ -38,7 +38,9 @@ def register(sub):
         'sigma_deg, status, units_used, misfit_rms_deg, reason, side_by (what decided the '
         '180 deg side: sun_elevation, brightness, prior or empty), units_unusable (units whose '
         'readings were not measurements in that sample, per reason: saturated, zero_channel, '
-        'dop_above_1, ...).',
+        'dop_above_1, ...). When the readings fit a common wiring mistake (another polarizer '
+        'convention, azimuths counted the other way, units one position out of order) clearly '
+        'better than the geometry, no sample keeps a heading (poor_fit, the mistake named).',
     )
     p.add_argument('recording', metavar='RECORDING', help='.npz or .csv recording')
     p.add_argument('--geometry', required=True, help='sensor description YAML')
@@ -137,8 +139,9 @@ def _summary(results) -> str:
 def run(args) -> int:
     from .cmd_estimate import parse_knobs
     from ..photodiode.geometry import load_array_geometry
-    from ..photodiode.heading import estimate_recording, make_array_estimator
+    from ..photodiode.heading import make_array_estimator
     from ..photodiode.readings import load_array_recording
+    from ..photodiode.selfcheck import estimate_recording_checked
 
     check_range('lat', args.lat, -90, 90)
     check_range('lon', args.lon, -180, 180)
@@ -151,7 +154,7 @@ def run(args) -> int:
     rec = load_array_recording(args.recording)
     rec.check_against(geometry)
     az, alt = sun_per_sample(args.time, rec.t_offset_s, rec.n_samples, args.lat, args.lon)
-    results = estimate_recording(
+    results = estimate_recording_checked(
         est, rec.intensities, az, alt, args.pitch, args.roll, args.prior_bearing
     )
     fh = sys.stdout if args.out == '-' else open(args.out, 'w', newline='', encoding='utf-8')

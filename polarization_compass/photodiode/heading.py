@@ -73,6 +73,7 @@ __all__ = [
     'ArrayHeadingEstimator',
     'make_array_estimator',
     'ARRAY_KNOBS',
+    'axes_spread_deg',
     'estimate_recording',
 ]
 
@@ -126,6 +127,13 @@ ARRAY_KNOBS = {
     ),
     'min_eigen_gap': Knob(
         1e-9, 'float', 0.0, 1.0, doc='(lambda2 - lambda1) / lambda3 below this: degenerate'
+    ),
+    'min_axes_spread_deg': Knob(
+        10.0,
+        'float',
+        0.0,
+        60.0,
+        doc="spread of the used units' view axes below this: degenerate (they look one way)",
     ),
     'sign_margin_sigma': Knob(
         3.0, 'float', 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"
@@ -275,6 +283,15 @@ class ArrayHeadingEstimator:
         u = self._usable_units(aop_rad, dop, s0, valid)
         if isinstance(u, HeadingResult):
             return u
+        spread = axes_spread_deg(u.axes_cam)
+        if spread < k['min_axes_spread_deg']:
+            return HeadingResult.failed(
+                self.name,
+                Status.DEGENERATE,
+                f"the {u.n} units' view axes spread only {spread:.1f} deg (< min_axes_spread_deg "
+                f"{k['min_axes_spread_deg']:g}): units looking one way cannot fix the sun",
+                pixels=u.n,
+            )
         fit = self._fit(u, R_lev, float(sky.sun_altitude_deg))
         if isinstance(fit, HeadingResult):
             return fit
@@ -550,6 +567,28 @@ def estimate_recording(
         )
         for i in range(S)
     ]
+
+
+def axes_spread_deg(axes) -> float:
+    """
+    Return how widely a set of view axes spreads: asin of the root of the scatter's middle eigenvalue.
+
+    Parameters
+    ----------
+    axes : array_like
+        (n, 3) unit view axes.
+
+    Returns
+    -------
+    float
+        [deg]: 0 when every axis is the same (the E-vectors then all lie in one plane and its
+        normal, the common axis, is the "sun" whatever the sky), about 45 for two axes at right
+        angles, 30 for the 8-unit POL-OP ring at 45 deg elevation.
+
+    """
+    p = np.asarray(axes, dtype=float)
+    lam = np.linalg.eigvalsh(p.T @ p / max(len(p), 1))
+    return math.degrees(math.asin(math.sqrt(min(max(float(lam[1]), 0.0), 1.0))))
 
 
 def _with_unusable(res: HeadingResult, unusable: dict | None) -> HeadingResult:
