@@ -34,7 +34,7 @@ that are not measurements (:func:`~.readings.reading_flags`) are left out.
 When not to use the gains: they remove the part of each unit's channel misfit that a gain error
 explains, and change the unit's angle by ``angle_change_deg``. That helps only when gain errors
 dominate the angle errors. On a sensor whose units' angle residuals against the sky are far larger
-than that change (the real POL-OP sensor: changes of 0.5-2 deg against residuals of 12-30 deg), the
+than that change (the real POL-OP sensor: changes of 2-4 deg against residuals of 12-30 deg), the
 new gains mostly fit other defects and made the heading worse (docs/photodiode-arrays.md).
 """
 
@@ -62,8 +62,8 @@ class GainCalibration:
 
     Per unit: ``gains`` (C,), ``gains_sigma`` (C,) (None: not estimated), ``condition`` (ratio of
     the two smallest singular values, > ~3 is well identified), ``note`` (why not estimated /
-    warnings), ``angle_change_deg`` (rms change of the unit's angle of polarization the new gains
-    make over the samples, None when not calibrated). ``notes`` holds notes on the recordings
+    warnings), ``angle_change_deg`` (DoP^2-weighted rms change of the unit's angle of polarization
+    the new gains make over the samples, None when not calibrated). ``notes`` holds notes on the recordings
     (repeated recordings counted once).
     """
 
@@ -123,14 +123,21 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def _angle_change_deg(x: np.ndarray, channels_deg, g_old, g_new) -> float:
-    """Return the rms change [deg] of a unit's angle (readings (S, C)) from old to new gains."""
+    """
+    Return how much new gains turn a unit's angle [deg] (readings (S, C)).
+
+    The rms over the samples weighted by DoP^2 (the weight a unit's angle has in the heading), so
+    that nearly unpolarized samples, whose angle any change turns, do not dominate.
+    """
     P = np.linalg.pinv(design_matrix(channels_deg))
-    a = [
-        0.5 * np.arctan2(*((x / np.asarray(g, dtype=float)) @ P[[2, 1]].T).T)
-        for g in (g_old, g_new)
-    ]
+    st = [(x / np.asarray(g, dtype=float)) @ P.T for g in (g_old, g_new)]
+    a = [0.5 * np.arctan2(v[:, 2], v[:, 1]) for v in st]
+    s0 = st[0][:, 0]
+    w = np.where(s0 > 0, np.hypot(st[0][:, 1], st[0][:, 2]) / np.where(s0 > 0, s0, 1.0), 0.0) ** 2
     d = (a[1] - a[0] + np.pi / 2) % np.pi - np.pi / 2
-    return float(np.degrees(np.sqrt(np.mean(d**2)))) if d.size else 0.0
+    if not np.sum(w) > 0:
+        return 0.0
+    return float(np.degrees(np.sqrt(np.sum(w * d**2) / np.sum(w))))
 
 
 def _calibrate_unit(parts, unit, min_condition: float):
