@@ -43,10 +43,8 @@ from polarization_compass.photodiode.geometry import (  # noqa: E402
     geometry_to_dict,
     load_array_geometry,
 )
-from polarization_compass.photodiode.heading import (  # noqa: E402
-    estimate_recording,
-    make_array_estimator,
-)
+from polarization_compass.photodiode.heading import make_array_estimator  # noqa: E402
+from polarization_compass.photodiode.selfcheck import estimate_recording_checked  # noqa: E402
 from polarization_compass.solar import sun_position  # noqa: E402
 import polop_json as pj  # noqa: E402
 
@@ -63,7 +61,7 @@ def session_quality(row, geometry, knobs) -> dict:
     for turn in pj.load_session(row):
         az, alt = sun_of(row, turn)
         for r, ref in zip(
-            estimate_recording(est, turn.intensities, az, alt, 0.0, 0.0),
+            estimate_recording_checked(est, turn.intensities, az, alt, 0.0, 0.0),
             turn.reference_bearing_deg,
         ):
             status[r.status.value] = status.get(r.status.value, 0) + 1
