@@ -20,8 +20,8 @@ Quality of the array headings on the real POL-OP sessions: wrong sides, outliers
 Reads ../shared/data/real-polop in place (GPL-3.0; see test/polop_json.py), runs what
 ``estimate-array --method tilt_aware --pitch 0 --roll 0 --geometry G`` runs on every sample of
 every turn, and prints per session: the statuses, the RMS error of the ok results, how many ok
-results are more than 90 deg (a wrong side) or 150 deg off, how many lie beyond 3 sigma, the 2-sigma
-coverage, what decided the side, and the units found unusable per reason.
+results are more than 90 deg (a wrong side) or 150 deg off, how many lie beyond 3 sigma, the
+2-sigma coverage, what decided the side, and the units found unusable per reason.
 
 Usage: python tools/polop_quality.py [--geometry config/arrays/pol_op_8unit.yaml] [--enable-all]
 [--knob NAME=VALUE ...] [--json out.json]

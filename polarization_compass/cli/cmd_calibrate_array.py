@@ -100,7 +100,7 @@ def run(args) -> int:
 
 
 _ADVICE = (
-    'use these gains only if the angle changes above are comparable to the units\' angle '
+    "use these gains only if the angle changes above are comparable to the units' angle "
     'residuals against the sky (estimate-array on a turn with a reference, before/after); where '
     'the residuals are much larger (the real 8-unit POL-OP sensor: 12-30 deg against 2-4 deg) '
     'the gains fit other defects and make the heading worse: keep the old geometry '

@@ -13,10 +13,9 @@
 # limitations under the License.
 
 """
-`polarization-compass check-array`: a photodiode array's polarizer angle convention.
+`polarization-compass check-array`: a photodiode array's polarizer angle convention and wiring.
 
-`polarization-compass check-array`: which polarizer angle convention a photodiode array has, from
-its data.
+Both are read from the data: the ephemeris' sun is the only reference needed.
 """
 
 from __future__ import annotations

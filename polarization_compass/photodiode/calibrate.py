@@ -63,8 +63,8 @@ class GainCalibration:
     Per unit: ``gains`` (C,), ``gains_sigma`` (C,) (None: not estimated), ``condition`` (ratio of
     the two smallest singular values, > ~3 is well identified), ``note`` (why not estimated /
     warnings), ``angle_change_deg`` (DoP^2-weighted rms change of the unit's angle of polarization
-    the new gains make over the samples, None when not calibrated). ``notes`` holds notes on the recordings
-    (repeated recordings counted once).
+    the new gains make over the samples, None when not calibrated). ``notes`` holds notes on the
+    recordings (repeated recordings counted once).
     """
 
     gains: list
@@ -178,7 +178,8 @@ def _calibrate_unit(parts, unit, min_condition: float):
     if len(jk) >= 2:
         jk = np.array(jk)
         m = len(jk)
-        sig = [float(v) for v in np.sqrt((m - 1) / m * np.sum((jk - jk.mean(axis=0)) ** 2, axis=0))]
+        var = (m - 1) / m * np.sum((jk - jk.mean(axis=0)) ** 2, axis=0)
+        sig = [float(v) for v in np.sqrt(var)]
     change = _angle_change_deg(allx, unit.channels_deg, unit.gains, g)
     return [float(v) for v in g], sig, cond, '', change
 

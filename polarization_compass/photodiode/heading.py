@@ -153,7 +153,7 @@ ARRAY_KNOBS = {
         'float',
         1.0,
         1e6,
-        doc='normal-equivalent |t| (n - 2 dof) of the units brightness gradient that fixes the side',
+        doc="normal-equivalent |t| (n - 2 dof) of the units' brightness gradient fixing the side",
     ),
     'prior_max_diff_deg': Knob(
         60.0, 'float', 1.0, 90.0, doc='a prior bearing within this picks the side'
@@ -245,8 +245,8 @@ class ArrayHeadingEstimator:
         roll_deg : float, optional
             Known roll [deg] (paper's beta, about body front).
         prior_bearing_deg : float, optional
-            Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else
-            does.
+            Prior bearing of the front [deg]: it resolves the 180 deg ambiguity when nothing
+            else does.
         unusable : dict, optional
             Units whose readings were not measurements in this sample, per reason
             (:meth:`~.stokes.UnitStokes.unusable_counts`): reported in ``extras['units_unusable']``
@@ -256,8 +256,8 @@ class ArrayHeadingEstimator:
         -------
         HeadingResult
             psi, bearing and REP-103 yaw of the body front, sigma [deg], status with the reason;
-            ``pixels`` is the number of units used. Never NaN: a case without an answer is a
-            status.
+            ``pixels`` is the number of units used. Never NaN: a case without an answer gets a
+            status instead.
 
         References
         ----------
@@ -571,7 +571,7 @@ def estimate_recording(
 
 def axes_spread_deg(axes) -> float:
     """
-    Return how widely a set of view axes spreads: asin of the root of the scatter's middle eigenvalue.
+    Return how widely view axes spread: asin of the root of their scatter's middle eigenvalue.
 
     Parameters
     ----------

@@ -15,15 +15,13 @@
 """
 Photodiode-array recordings: intensities and optional per-sample times.
 
-Photodiode-array recordings: ``intensities`` (samples x units x channels) and optional per-sample
-times.
-
 ``.npz``: ``intensities`` float array (S, U, C) and optional ``t_offset_s`` (S,) seconds after a
 reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>``
 (0-based, channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Units
 with fewer channels than the widest one leave the extra columns out (they read as 0 and are never
 used). Readings are intensities (>= 0); negative values and NaN are kept for the estimator to
-reject per sample (a sample is never dropped silently), but inf is refused.
+reject per sample (a sample is never dropped silently), but inf is refused. Readings that are not
+measurements (saturated, lone zeros, duplicated channels) are flagged by :func:`reading_flags`.
 """
 
 from __future__ import annotations

@@ -13,14 +13,15 @@
 # limitations under the License.
 
 """
-Which polarizer angle convention a photodiode array has, from its data.
+Which polarizer angle convention and wiring a photodiode array has, from its data.
 
-A convention is one of the ``angle_zero`` x ``angle_sense`` pairs.
-
-The counterpart of the camera's polarizer-direction check: the four conventions map the same
-readings to four different sets of E-vectors; only the right one makes them consistent with one sun
-(a small least-squares misfit) at the ephemeris' elevation. No reference heading is needed. With a
-reference bearing per sample the heading error of each convention is reported too.
+A convention is one of the ``angle_zero`` x ``angle_sense`` pairs. The counterpart of the camera's
+polarizer-direction check: the four conventions map the same readings to four different sets of
+E-vectors; only the right one makes them consistent with one sun (a small least-squares misfit) at
+the ephemeris' elevation. No reference heading is needed. With a reference bearing per sample the
+heading error of each convention is reported too. The same score catches common wiring mistakes
+(:func:`wiring_hypotheses`), and :func:`estimate_recording_checked` withholds every heading when
+one of them fits the readings clearly better than the geometry.
 """
 
 from __future__ import annotations
@@ -221,7 +222,7 @@ def estimate_recording_checked(
     prior_bearing_deg=None,
 ) -> list:
     """
-    Estimate every sample (:func:`~.heading.estimate_recording`), unless the wiring is contradicted.
+    Estimate every sample (:func:`~.heading.estimate_recording`) unless the wiring is wrong.
 
     When the readings fit a common configuration mistake (:func:`contradicting_hypothesis`)
     clearly better than the geometry, no sample keeps a heading: each result becomes ``poor_fit``
@@ -266,7 +267,7 @@ def estimate_recording_checked(
         f'{bad[2]:.1f} deg): check the geometry with check-array'
     )
     return [
-        r if not r.ok else HeadingResult.failed(r.method, Status.POOR_FIT, why, r.pixels, **r.extras)
+        HeadingResult.failed(r.method, Status.POOR_FIT, why, r.pixels, **r.extras) if r.ok else r
         for r in res
     ]
 

@@ -110,8 +110,8 @@ def brightness_evidence(s0, axes_cam, direction_cam) -> tuple[float | None, int]
     -------
     tuple
         ``(z, dof)``: z signed like the slope's t statistic, with the same two-sided p under a t
-        distribution of ``dof = n - 2`` degrees of freedom; None with fewer than 3 units or no
-        spread.
+        distribution of ``dof = n - 2`` degrees of freedom; z is None with fewer than 3 units or
+        without spread.
 
     """
     n = int(np.asarray(s0).size)

@@ -31,11 +31,11 @@ import math
 
 import numpy as np
 
-from .readings import READING_REASONS, reading_flags
+from .readings import reading_flags, READING_REASONS
 
 __all__ = ['UnitStokes', 'fit_stokes', 'design_matrix', 'FIT_REASONS']
 
-#: Why a unit's fit is not a measurement in one sample (besides :data:`~.readings.READING_REASONS`).
+#: Why a unit's fit is not a measurement in a sample (besides :data:`~.readings.READING_REASONS`).
 FIT_REASONS = ('dop_above_1', 'channel_misfit')
 
 
@@ -126,9 +126,9 @@ def fit_stokes(intensities, geometry) -> UnitStokes:
     saturated, a lone zero channel, duplicated channels), a DoP above 1 by more than
     ``DOP_EXCESS_SIGMAS`` of its noise, and four channels that do not fit one Stokes vector
     (misfit above ``MAX_CHANNEL_MISFIT``) make the unit unusable in that sample, recorded per
-    reason in ``unusable``. The noise of the DoP is ``sqrt(2) sigma / S0`` for channel noise sigma; with
-    four channels ``sigma / S0 = 2 misfit`` (the one redundant combination), floored at
-    ``DOP_NOISE_FLOOR``.
+    reason in ``unusable``. The noise of the DoP is ``sqrt(2) sigma / S0`` for channel noise
+    sigma; with four channels ``sigma / S0 = 2 misfit`` (the one redundant combination), floored
+    at ``DOP_NOISE_FLOOR``.
 
     Parameters
     ----------
