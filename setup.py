@@ -59,6 +59,7 @@ setup(
             'array_heading_estimator = polarization_compass.nodes.array_heading_estimator:main',
             'tilt_corrector = polarization_compass.nodes.tilt_corrector:main',
             'error_evaluator = polarization_compass.nodes.error_evaluator:main',
+            'player_flow = polarization_compass.nodes.player_flow:main',
         ],
     },
 )

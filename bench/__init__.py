@@ -44,6 +44,7 @@ GROUPS = {
     'pipeline': 'pipeline',
     'estimator_speed': 'estimator_speed',
     'sky_check': 'sky_check',
+    'debug_image': 'debug_image',
     'replay': 'replay_bench',
     'graph': 'graph_bench',
     'peers': 'peers',

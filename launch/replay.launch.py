@@ -20,22 +20,28 @@ Live replay of a recorded run: every estimator, corrector and the evaluator on s
 starts the graph and the real ``ros2 bag play RUN_BAG --clock`` (paused), resumes the player once
 every node of the graph has said it is ready (a node's last start-up log line: kernels compiled,
 subscriptions made), and ends the launch once the bag has played and the evaluator's current
-report has not changed for ``drain_s`` seconds, 10 s at least (the estimators' image queues are
-done); the evaluator then writes its report (``evaluation_summary.json`` & co) into
-``report_dir``. The
-player gets the launch's environment, so the shared-memory Fast DDS profile of
-``large_image_transport`` (full-resolution images are lost in fragments without it, and every
-local participant discovers every other through it). The estimators read the image reliably and
-300 deep (``image_qos: replay``): an estimator slower than the player works through a queue instead
-of losing frames (frames lost anyway are counted as ``not_received`` in the report).
+report has not changed for ``drain_s`` seconds, 10 s at least; the evaluator then writes its
+report (``evaluation_summary.json`` & co) into ``report_dir``. The player gets the launch's
+environment, so the shared-memory Fast DDS profile of ``large_image_transport`` (full-resolution
+images are lost in fragments without it, and every local participant discovers every other
+through it).
 
-Without ``bag`` the graph waits for a player started by hand, with the same profile, bag path
-first (``--clock`` takes an optional rate and would swallow a path after it):
+Flow control: the ``player_flow`` node pauses the player while an estimator is ``high_water``
+frames behind and resumes it once all are within ``low_water`` (the player's own pause and resume
+services; its ``/clock`` stops with it). A slow estimator therefore holds a few images, not the
+whole bag, and loses none: a 12 s full-resolution bag (120 images of 10 MB) at ``rate:=1`` and
+``rate:=2`` on 2 cores scored 120 of 120 frames in every stream (21 lost without it). Frames lost
+anyway are counted as ``not_received`` in the report.
+
+Without ``bag`` the graph waits for a player started by hand, before or after the launch, with the
+same profile, bag path first (``--clock`` takes an optional rate and would swallow a path after
+it), and paused: the launch resumes it once the graph is ready and flow-controls it the same way
+(a player that is not paused publishes its first frames before anyone listens):
 
     ros2 launch polarization_compass replay.launch.py report_dir:=out/replay
     SHARE=$(ros2 pkg prefix polarization_compass)/share/polarization_compass
     export FASTDDS_DEFAULT_PROFILES_FILE=$SHARE/config/fastdds_large_images.xml
-    ros2 bag play RUN_BAG --clock        # in a second terminal, once the nodes are up
+    ros2 bag play RUN_BAG --clock --start-paused     # in a second terminal, before or after
 
 The offline equivalent (no ROS install needed): `polarization-compass replay RUN_BAG`.
 
@@ -90,6 +96,12 @@ PLAYER_ARGUMENTS = (
     ('rate', '1.0', "the player's --rate (0.5 = half speed, 2 = twice real time)"),
     ('settle_s', '1.0', 'wall seconds between the last node ready and resuming the player'),
     (
+        'high_water',
+        '6',
+        'player_flow pauses the player when an estimator is this many frames behind',
+    ),
+    ('low_water', '2', 'and resumes it when every estimator is within this many frames'),
+    (
         'drain_s',
         '10.0',
         'after the bag has played, the launch ends once the report has not changed for this [s]',
@@ -112,20 +124,16 @@ def _positive(name: str, text: str, allow_zero: bool = False) -> float:
 
 
 def _player(context):
-    """Return the player and the handlers that resume it and end the launch (bag given)."""
+    """
+    Return the graph's player actions: resume once ready, flow control, the player (bag given).
+
+    Without ``bag``, a player started by hand (``--start-paused``, before or after the launch)
+    is resumed once the graph is ready and flow-controlled the same way; the launch runs until
+    stopped.
+    """
     from pathlib import Path
     import re
-    import sys
 
-    from launch.actions import (
-        EmitEvent,
-        ExecuteProcess,
-        LogInfo,
-        OpaqueFunction,
-        RegisterEventHandler,
-    )
-    from launch.event_handlers import OnProcessExit, OnProcessIO
-    from launch.events import Shutdown
     from launch.substitutions import LaunchConfiguration
     from polarization_compass.graphs import ARGUMENTS, build, GraphError
 
@@ -133,17 +141,60 @@ def _player(context):
         return LaunchConfiguration(name).perform(context)
 
     bag = arg('bag').strip()
-    if not bag:
-        return []
-    if not (Path(bag) / 'metadata.yaml').is_file() and not Path(bag).is_file():
+    if bag and not (Path(bag) / 'metadata.yaml').is_file() and not Path(bag).is_file():
         raise GraphError(f'launch argument bag: {bag!r} is not a rosbag2 (no metadata.yaml)')
-    rate = _positive('rate', arg('rate'))
     settle_s = _positive('settle_s', arg('settle_s'), allow_zero=True)
-    drain_s = _positive('drain_s', arg('drain_s'), allow_zero=True)
     graph = build('replay', {a.name: arg(a.name) for a in ARGUMENTS['replay']})
     patterns = {
         n.name: re.compile(rf'\[{n.name}\]: {READY_LINES[n.executable]}') for n in graph.nodes
     }
+    water = {k: int(_positive(k, arg(k), allow_zero=True)) for k in ('high_water', 'low_water')}
+    actions = _resume_when_ready(patterns, settle_s) + [_flow_control(graph, **water)]
+    if not bag:
+        return actions
+    rate = _positive('rate', arg('rate'))
+    drain_s = _positive('drain_s', arg('drain_s'), allow_zero=True)
+    return actions + _play(bag, rate, Path(arg('report_dir')), drain_s)
+
+
+def _resume_when_ready(patterns, settle_s) -> list:
+    """Return the actions that resume the player once every node of the graph has logged ready."""
+    import sys
+
+    from launch.actions import EmitEvent, ExecuteProcess, RegisterEventHandler
+    from launch.event_handlers import OnProcessExit, OnProcessIO
+    from launch.events import Shutdown
+
+    resume = ExecuteProcess(
+        cmd=[sys.executable, '-c', RESUME_SCRIPT, f'{PLAYER_NODE}/resume'],
+        name='resume_player',
+        output='screen',
+    )
+    on_output = _ready_watcher(patterns, settle_s, resume)
+
+    def on_resume_exit(event, _context):
+        if event.returncode != 0:
+            return [EmitEvent(event=Shutdown(reason='the player could not be resumed'))]
+        return None
+
+    return [
+        RegisterEventHandler(OnProcessIO(on_stdout=on_output, on_stderr=on_output)),
+        RegisterEventHandler(OnProcessExit(target_action=resume, on_exit=on_resume_exit)),
+    ]
+
+
+def _play(bag: str, rate: float, report_dir, drain_s: float) -> list:
+    """Return the paused player of ``bag`` and the handler that ends the launch after it."""
+    from launch.actions import (
+        EmitEvent,
+        ExecuteProcess,
+        LogInfo,
+        OpaqueFunction,
+        RegisterEventHandler,
+    )
+    from launch.event_handlers import OnProcessExit
+    from launch.events import Shutdown
+
     player = ExecuteProcess(
         cmd=[
             'ros2',
@@ -160,13 +211,7 @@ def _player(context):
         output='screen',
         sigterm_timeout='5',
     )
-    resume = ExecuteProcess(
-        cmd=[sys.executable, '-c', RESUME_SCRIPT, f'{PLAYER_NODE}/resume'],
-        name='resume_player',
-        output='screen',
-    )
-    on_output = _ready_watcher(patterns, settle_s, resume)
-    quiet_s, drained = _drain_watcher(Path(arg('report_dir')), drain_s)
+    quiet_s, drained = _drain_watcher(report_dir, drain_s)
 
     def on_player_exit(event, _context):
         if event.returncode != 0:
@@ -179,17 +224,37 @@ def _player(context):
             OpaqueFunction(function=drained),
         ]
 
-    def on_resume_exit(event, _context):
-        if event.returncode != 0:
-            return [EmitEvent(event=Shutdown(reason='the player could not be resumed'))]
-        return None
-
     return [
-        RegisterEventHandler(OnProcessIO(on_stdout=on_output, on_stderr=on_output)),
-        RegisterEventHandler(OnProcessExit(target_action=resume, on_exit=on_resume_exit)),
         RegisterEventHandler(OnProcessExit(target_action=player, on_exit=on_player_exit)),
         player,
     ]
+
+
+def _flow_control(graph, high_water: int, low_water: int):
+    """Return the ``player_flow`` node that pauses the player while an estimator is behind."""
+    from launch_ros.actions import Node
+    from polarization_compass.specs import topics
+
+    status = [
+        topics.method_topics(n.parameters['method'])['status']
+        for n in graph.nodes
+        if n.executable == 'heading_estimator'
+    ]
+    return Node(
+        package='polarization_compass',
+        executable='player_flow',
+        name='player_flow',
+        parameters=[
+            {
+                'status_topics': status,
+                'player': PLAYER_NODE,
+                'high_water': high_water,
+                'low_water': low_water,
+            }
+        ],
+        output='screen',
+        sigterm_timeout='5',
+    )
 
 
 def _ready_watcher(patterns, settle_s, resume):

@@ -59,6 +59,8 @@ __all__ = [
     'camera_from_intrinsics',
     'load_camera_yaml',
     'CameraFile',
+    'READOUT_FLIPS',
+    'unflip',
     'DISTORTION_MODELS',
     'check_intrinsics',
     'MAX_PIXEL_ASPECT_DEVIATION',
@@ -392,9 +394,12 @@ class CameraModel:
 #: a calibration: square-pixel sensors calibrate to within a few 1e-3.
 MAX_PIXEL_ASPECT_DEVIATION = 0.05
 #: Largest distance of the principal point from the image centre, as a fraction of the width (x) or
-#: the height (y): calibrated lenses sit within a few percent; a K from another resolution or
-#: binning puts it near a corner (2x: exactly at the far edge).
-MAX_PRINCIPAL_OFFSET_FRACTION = 0.25
+#: the height (y). A lens is centred on its sensor to a few tenths of a millimetre (a few percent
+#: of a 2/3" sensor's 8.4 x 7.1 mm; the real fisheye of ``test/data/real-sky``: 2.6 % and 1.1 %),
+#: so 10 % leaves room for a decentred mount while refusing what the old 25 % let through: a K
+#: calibrated 2x binned and used at full resolution puts the principal point 25 % off (24.96 % on
+#: a 2448 x 2048 sensor: ``ok`` 23 deg off); 20-24 % offsets gave ``ok`` 14-45 deg off (issue 24).
+MAX_PRINCIPAL_OFFSET_FRACTION = 0.10
 
 
 def check_intrinsics(
@@ -815,13 +820,73 @@ class CameraFile:
 
     ``camera`` the :class:`CameraModel`; ``layout`` the 2 x 2 polarizer angles [deg] of the
     top-left block; ``pol45_toward`` the 45 deg polarizer's image direction; ``layout_given`` False
-    when the file had no ``polarizer:`` section (the IMX250MZR defaults were used).
+    when the file had no ``polarizer:`` section (the IMX250MZR defaults were used); ``mount`` the
+    camera's tilt on the body (:class:`~.mount.Mount`, from a ``mount:`` section) or None;
+    ``readout_flip`` the axes the camera mirrors on readout (:data:`READOUT_FLIPS`): then
+    ``camera`` and the polarizer describe the *sensor* (the image after :func:`unflip`), the file's
+    K having been calibrated on the delivered, mirrored images.
     """
 
     camera: CameraModel
     layout: tuple
     pol45_toward: str
     layout_given: bool
+    mount: object = None
+    readout_flip: str = ''
+
+
+#: ``readout_flip`` values of a CAMERA.yaml: the image axes the camera mirrors on readout (GenICam
+#: ``ReverseX`` = "x", ``ReverseY`` = "y", both = "xy", a 180 deg rotation)
+READOUT_FLIPS = ('', 'x', 'y', 'xy')
+
+
+def unflip(image, readout_flip: str):
+    """
+    Undo a camera's mirrored readout: the image as the sensor itself sees it.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        A delivered image (raw mosaic, a Stokes plane or a mask), rows x columns.
+    readout_flip : {"", "x", "y", "xy"}
+        The axes the readout mirrors (:data:`READOUT_FLIPS`).
+
+    Returns
+    -------
+    numpy.ndarray
+        A view with the columns (x) and/or rows (y) reversed back.
+
+    """
+    a = image
+    if 'x' in readout_flip:
+        a = a[:, ::-1]
+    if 'y' in readout_flip:
+        a = a[::-1, :]
+    return a
+
+
+def _sensor_camera(cam: CameraModel, readout_flip: str) -> CameraModel:
+    """
+    Return the lens model of the unflipped image from a calibration of the delivered one.
+
+    A mirror of the image axis maps pixel u to W + 1 - u (1-based), so the principal point
+    mirrors too, and the tangential coefficient of that axis changes sign (p2 for x, p1 for y;
+    radial terms are symmetric): the projection is the calibrated one with x -> -x (or y -> -y).
+    """
+    import dataclasses
+
+    if not readout_flip:
+        return cam
+    cx, cy, d = cam.cx_px, cam.cy_px, list(cam.distortion)
+    if 'x' in readout_flip:
+        cx = cam.width_px + 1.0 - cx
+        if cam.model == 'pinhole' and len(d) >= 4:
+            d[3] = -d[3]
+    if 'y' in readout_flip:
+        cy = cam.height_px + 1.0 - cy
+        if cam.model == 'pinhole' and len(d) >= 4:
+            d[2] = -d[2]
+    return dataclasses.replace(cam, principal_x_px=cx, principal_y_px=cy, distortion=tuple(d))
 
 
 def _matrix_field(doc: dict, key: str, size: int | None, path: str):
@@ -847,8 +912,10 @@ def load_camera_yaml(path) -> CameraFile:
 
     Keys used: ``image_width``, ``image_height``, ``camera_matrix`` (``{rows, cols, data}`` or a
     list), ``distortion_model``, ``distortion_coefficients``; optional ``pixel_pitch_um`` (default
-    3.45), ``max_field_angle_deg`` (fisheye, default 90) and ``polarizer: {layout: [[90, 45], [135,
-    0]], pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`).
+    3.45), ``max_field_angle_deg`` (fisheye, default 90), ``polarizer: {layout: [[90, 45], [135,
+    0]], pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`)
+    and ``readout_flip`` (none | x | y | xy: the camera's ReverseX/ReverseY; the polarizer is then
+    the sensor's own, and the images are read through :func:`unflip`).
 
     Parameters
     ----------
@@ -863,7 +930,9 @@ def load_camera_yaml(path) -> CameraFile:
     Raises
     ------
     CameraError
-        Unreadable file, not YAML, missing or unusable keys (one-line reason naming the file).
+        Unreadable file, not YAML, missing or unusable keys, implausible intrinsics
+        (:func:`check_intrinsics`: principal point more than 10 % off the image centre, fx/fy
+        beyond 5 %); one-line reason naming the file.
 
     """
     from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
@@ -904,6 +973,29 @@ def load_camera_yaml(path) -> CameraFile:
             float(doc.get('pixel_pitch_um', 3.45)),
             float(doc.get('max_field_angle_deg', 90.0)),
         )
+        check_intrinsics(cam)  # as for a camera_info: a K from another mode is refused
+        flip = _readout_flip(doc.get('readout_flip', ''))
     except (SensorError, CameraError, TypeError, ValueError) as exc:
         raise CameraError(f'{p}: {exc}') from None
-    return CameraFile(cam, lay.angles_deg, lay.pol45_toward, bool(pol))
+    cam = _sensor_camera(cam, flip)
+    return CameraFile(
+        cam, lay.angles_deg, lay.pol45_toward, bool(pol), _mount(doc, p), readout_flip=flip
+    )
+
+
+def _readout_flip(value) -> str:
+    """Read ``readout_flip``: "", "none", "x", "y", "xy" (or "yx"); CameraError otherwise."""
+    v = '' if value in (None, False, 'none') else value
+    if isinstance(v, str) and ''.join(sorted(v.lower())) in READOUT_FLIPS:
+        return ''.join(sorted(v.lower()))
+    raise CameraError(f'readout_flip must be one of none, x, y, xy, got {value!r}')
+
+
+def _mount(doc: dict, path: str):
+    """Return the file's ``mount:`` section (:mod:`.mount`), or None without one."""
+    from .mount import mount_from_dict, MountError
+
+    try:
+        return mount_from_dict(doc['mount'], f'{path}: mount') if 'mount' in doc else None
+    except MountError as exc:
+        raise CameraError(str(exc)) from None

@@ -50,6 +50,7 @@ from .fastmath import exp_nonpos
 
 __all__ = [
     'CloudGrid',
+    'CloudParams',
     'CloudLayer',
     'cloud_light',
     'cloud_transmission_at',
@@ -118,25 +119,46 @@ def _noise_at(x, y, seed, out):  # pragma: no cover - compiled
         out[i] = _fbm(x[i], y[i], seed)
 
 
+class CloudParams(NamedTuple):
+    """
+    Hold the cloud layer's parameters for one frame, as the kernels read them.
+
+    Built by :meth:`CloudLayer.frame_params`.
+
+    Attributes
+    ----------
+    height_over_scale : float
+        Cloud height over the feature size.
+    off_x, off_y : float
+        Wind offset east and north since the scene's time [feature sizes].
+    seed : int
+        Noise seed.
+    threshold : float
+        Noise threshold of a cloud.
+    inv_softness : float
+        1 / softness of the cloud edges.
+    overcast : bool
+        Whether the sky is covered everywhere (coverage 1).
+    tau_max : float
+        Optical thickness of a cloud.
+
+    """
+
+    height_over_scale: float
+    off_x: float
+    off_y: float
+    seed: int
+    threshold: float
+    inv_softness: float
+    overcast: bool
+    tau_max: float
+
+
 @njit(parallel=True, cache=True)
-def _cloud_kernel(
-    rays,
-    R,
-    height_over_scale,
-    off_x,
-    off_y,
-    seed,
-    thr,
-    inv_soft,
-    overcast,
-    tau_max,
-    bright,
-    aop,
-    dop,
-    inten,
-    min_dop,
-    valid,
-):  # pragma: no cover - compiled
+def _cloud_kernel(rays, R, cp, bright, aop, dop, inten, min_dop, valid):  # pragma: no cover
+    """Composite the clouds over rays ``rays`` (any selection), ``cp`` a :class:`CloudParams`."""
+    height_over_scale, off_x, off_y, seed = cp.height_over_scale, cp.off_x, cp.off_y, cp.seed
+    thr, inv_soft, overcast, tau_max = cp.threshold, cp.inv_softness, cp.overcast, cp.tau_max
     n = rays.shape[1]
     for i in prange(n):
         px = rays[0, i]
@@ -182,9 +204,8 @@ def cloud_transmission_at(px, py, pz, R, cp):  # pragma: no cover - compiled
         Unit viewing ray in the camera frame.
     R : numpy.ndarray, shape (3, 3), float64
         Rotation from the camera frame to ENU.
-    cp : tuple
-        (height / scale, wind offset x and y [feature sizes], seed, noise threshold,
-        1 / softness, overcast, optical thickness) from :meth:`CloudLayer.grid`.
+    cp : CloudParams
+        The layer's parameters for the frame (:meth:`CloudLayer.frame_params`).
 
     Returns
     -------
@@ -192,14 +213,13 @@ def cloud_transmission_at(px, py, pz, R, cp):  # pragma: no cover - compiled
         T in (0, 1].
 
     """
-    height_over_scale, off_x, off_y, seed, thr, inv_soft, overcast, tau_max = cp
     u = R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
     e = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
     nn = R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
-    k = height_over_scale / max(u, 0.02)
-    v = _fbm(e * k - off_x, nn * k - off_y, seed)
-    d = 1.0 if overcast else min(max((v - thr) * inv_soft, 0.0), 1.0)
-    t = exp_nonpos(-tau_max * d)
+    k = cp.height_over_scale / max(u, 0.02)
+    v = _fbm(e * k - cp.off_x, nn * k - cp.off_y, cp.seed)
+    d = 1.0 if cp.overcast else min(max((v - cp.threshold) * cp.inv_softness, 0.0), 1.0)
+    t = exp_nonpos(-cp.tau_max * d)
     return t if u > 0.0 else 1.0
 
 
@@ -417,8 +437,6 @@ class CloudGrid(NamedTuple):
         Camera-frame rays of the grid points, row-major.
     R : numpy.ndarray, shape (3, 3), float64
         Rotation from the camera frame to ENU.
-    cp : tuple
-        The layer's parameters for :func:`cloud_transmission_at`.
     rk, rk1 : numpy.ndarray, shape (H,), int64
         The grid rows below and above each pixel row.
     rf : numpy.ndarray, shape (H,), float32
@@ -432,7 +450,6 @@ class CloudGrid(NamedTuple):
 
     grays: np.ndarray
     R: np.ndarray
-    cp: tuple
     rk: np.ndarray
     rk1: np.ndarray
     rf: np.ndarray
@@ -593,7 +610,7 @@ class CloudLayer:
 
     def grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
         """
-        Return the interpolation grid of a pixel block and the layer's parameters, or None.
+        Return the interpolation grid of a pixel block, or None.
 
         With ``block_shape`` (H, W) of a contiguous pixel block (full frame or a stride-1 region,
         both sides longer than ``2 GRID_STEP``) T = exp(-tau) is evaluated on every
@@ -615,8 +632,8 @@ class CloudLayer:
         Returns
         -------
         CloudGrid or None
-            The grid's rays, the rotation, the layer's parameters and the interpolation indices
-            and fractions, or None.
+            The grid's rays, the rotation and the interpolation indices and fractions, or None;
+            the layer's parameters for the frame are :meth:`frame_params`.
 
         """
         if block_shape is None or min(block_shape) <= 2 * GRID_STEP:
@@ -633,7 +650,25 @@ class CloudLayer:
             self._grid_key = key
             self._grid_rays = rays_cam  # keep it alive so that its id stays its own
         grays, rk, rk1, rf, cols, cf = self._grid
-        cp = (
+        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        return CloudGrid(grays, R, rk, rk1, rf, cols, cf)
+
+    def frame_params(self, dt_s: float) -> CloudParams:
+        """
+        Return the layer's parameters for a frame, as the kernels read them.
+
+        Parameters
+        ----------
+        dt_s : float
+            Time since the scene's ``time_utc`` [s] (moves the clouds with the wind).
+
+        Returns
+        -------
+        CloudParams
+            Height, wind offsets, seed, threshold, softness, overcast and thickness.
+
+        """
+        return CloudParams(
             self.height_m / self.scale_m,
             self.wind_mps[0] * dt_s / self.scale_m,
             self.wind_mps[1] * dt_s / self.scale_m,
@@ -643,8 +678,6 @@ class CloudLayer:
             self.overcast,
             self.optical_thickness,
         )
-        R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        return CloudGrid(grays, R, cp, rk, rk1, rf, cols, cf)
 
     def transmission_grid(self, R_enu_cam, rays_cam, dt_s: float, block_shape):
         """
@@ -674,9 +707,9 @@ class CloudLayer:
         g = self.grid(R_enu_cam, rays_cam, dt_s, block_shape)
         if g is None:
             return None
-        grays, R, cp, rk, rk1, rf, cols, cf = g
+        grays, R, rk, rk1, rf, cols, cf = g
         tu = np.empty((int(rk1[-1]) + 1, block_shape[1]), np.float32)
-        _cloud_transmission_grid_kernel(grays, R, cp, cols, cf, tu)
+        _cloud_transmission_grid_kernel(grays, R, self.frame_params(dt_s), cols, cf, tu)
         return tu, rk, rk1, rf
 
     def apply(
@@ -739,19 +772,10 @@ class CloudLayer:
             )
             return
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
-        off_x = self.wind_mps[0] * dt_s / self.scale_m
-        off_y = self.wind_mps[1] * dt_s / self.scale_m
         _cloud_kernel(
             rays_cam,
             R,
-            self.height_m / self.scale_m,
-            off_x,
-            off_y,
-            self.seed,
-            self.threshold,
-            1.0 / self.softness,
-            self.overcast,
-            self.optical_thickness,
+            self.frame_params(dt_s),
             self.brightness,
             aop,
             dop,

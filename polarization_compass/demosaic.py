@@ -397,15 +397,18 @@ def _superpixel_stokes_kernel(m, w, sat, lim, s0o, s1o, s2o):  # pragma: no cove
 
 
 @njit(inline='always', fastmath=_FM, cache=True)
-def _bilinear_pixel(
-    m, i, im, ip, j, jm, jp, w0, w1, w2, w3, v0, v1, v2, v3, sat
-):  # pragma: no cover
+def _bilinear_pixel(m, rows, cols, w, v, sat):  # pragma: no cover - compiled
     """
-    Stokes at (i, j) from its 3 x 3 neighbourhood.
+    Return the Stokes vector at (i, j) from its 3 x 3 neighbourhood (compiled, inlined).
 
-    (w0..w3) / (v0..v3): S1 / S2 weights of the
-    channels at the centre, the horizontal pair, the vertical pair and the diagonal four.
+    ``rows`` = (i - 1, i, i + 1) and ``cols`` = (j - 1, j, j + 1), mirrored at the edges; ``w``
+    and ``v`` (4-tuples): the S1 and S2 weights of the channels at the centre, the horizontal
+    pair, the vertical pair and the diagonal four.
     """
+    im, i, ip = rows
+    jm, j, jp = cols
+    w0, w1, w2, w3 = w
+    v0, v1, v2, v3 = v
     vc = np.float32(m[i, j])
     a = np.float32(m[i, jm])
     b = np.float32(m[i, jp])
@@ -445,24 +448,9 @@ def _bilinear_at(m, i, im, ip, j, W, r, rw, sat):  # pragma: no cover - compiled
     jm = j - 1 if j > 0 else 1
     jp = j + 1 if j < W - 1 else W - 2
     q = j & 1
-    return _bilinear_pixel(
-        m,
-        i,
-        im,
-        ip,
-        j,
-        jm,
-        jp,
-        rw[r, q, 0],
-        rw[r, q, 1],
-        rw[r, q, 2],
-        rw[r, q, 3],
-        rw[r, q, 4],
-        rw[r, q, 5],
-        rw[r, q, 6],
-        rw[r, q, 7],
-        sat,
-    )
+    w = (rw[r, q, 0], rw[r, q, 1], rw[r, q, 2], rw[r, q, 3])
+    v = (rw[r, q, 4], rw[r, q, 5], rw[r, q, 6], rw[r, q, 7])
+    return _bilinear_pixel(m, (im, i, ip), (jm, j, jp), w, v, sat)
 
 
 @njit(parallel=True, fastmath=_FM, cache=True, nogil=True)
@@ -485,24 +473,9 @@ def _bilinear_kernel(m, rw, sat, lim, aop, dop, valid):  # pragma: no cover - co
         p0, p1, p2, p3 = rw[r, 1, 4], rw[r, 1, 5], rw[r, 1, 6], rw[r, 1, 7]
         for j in range(1, W - 1):
             odd = (j & 1) == 1
-            s0, s1, s2, ok, rd = _bilinear_pixel(
-                m,
-                i,
-                im,
-                ip,
-                j,
-                j - 1,
-                j + 1,
-                o0 if odd else e0,
-                o1 if odd else e1,
-                o2 if odd else e2,
-                o3 if odd else e3,
-                p0 if odd else f0,
-                p1 if odd else f1,
-                p2 if odd else f2,
-                p3 if odd else f3,
-                sat,
-            )
+            w = (o0 if odd else e0, o1 if odd else e1, o2 if odd else e2, o3 if odd else e3)
+            v = (p0 if odd else f0, p1 if odd else f1, p2 if odd else f2, p3 if odd else f3)
+            s0, s1, s2, ok, rd = _bilinear_pixel(m, (im, i, ip), (j - 1, j, j + 1), w, v, sat)
             ok = _consistent(ok, s0, rd, lim)
             aop[i, j], dop[i, j], valid[i, j] = _finish(s0, s1, s2, ok)
         for j in (0, W - 1):

@@ -107,7 +107,7 @@ class EstimateOptions:
     use_stored: bool = False
 
 
-def estimate_file(path, options: EstimateOptions) -> list[dict]:
+def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> list[dict]:
     """
     Turn an input file into one result dict per method: THE road from a file to headings.
 
@@ -118,6 +118,13 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
         Stokes planes (.npz with s0, s1, s2, or a 3-page .tif).
     options : EstimateOptions
         Methods, knobs, the sun, the tilt and the input's settings.
+    seen : dict, optional
+        Filled, when given, with what the estimators saw (for the diagnostic figure,
+        :mod:`polarization_compass.sky_view`): ``kind`` ('frame' or the real input's kind),
+        ``sun``, ``results`` (the :class:`HeadingResult` of each method), ``observations``
+        (method name to its observation), and ``frame`` and ``plan`` (a frame file; ``plan``
+        None for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask``
+        (a real image).
 
     Returns
     -------
@@ -142,7 +149,7 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
         from .frame_io import load_frame_npz
 
         frame = load_frame_npz(path)
-        return frame_headings(frame, options, _options_sun(frame.meta, options))
+        return frame_headings(frame, options, _options_sun(frame.meta, options), seen)
     if not options.camera_yaml:
         raise CompassError(
             f'{path}: a real image needs --camera CAMERA.yaml (ROS camera_calibration format)'
@@ -158,7 +165,27 @@ def estimate_file(path, options: EstimateOptions) -> list[dict]:
     if options.mask_path:
         shape = inp.stokes[0].shape if inp.kind == 'stokes' else inp.mosaic.shape
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
-    return real_headings(inp, cam_file, options, sun, mask)
+    if cam_file.readout_flip:  # the camera model is the sensor's: read the image as it sees it
+        inp, mask = _unflipped(inp, mask, cam_file.readout_flip)
+    return real_headings(inp, cam_file, options, sun, mask, seen)
+
+
+def _unflipped(inp, mask, readout_flip: str):
+    """Return the input and mask with a mirrored readout undone (:func:`camera.unflip`)."""
+    import dataclasses
+
+    import numpy as np
+
+    from .camera import unflip
+
+    def un(a):
+        return np.ascontiguousarray(unflip(a, readout_flip))
+
+    if inp.kind == 'mosaic':
+        inp = dataclasses.replace(inp, mosaic=un(inp.mosaic))
+    else:
+        inp = dataclasses.replace(inp, stokes=tuple(un(a) for a in inp.stokes))
+    return inp, None if mask is None else un(mask)
 
 
 def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
@@ -400,7 +427,9 @@ class _MosaicPlan:
     source: dict
 
 
-def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
+def frame_headings(
+    frame, options: EstimateOptions, sun: Sun, seen: dict | None = None
+) -> list[dict]:
     """
     Estimate the heading of a frame file with every selected method.
 
@@ -417,6 +446,8 @@ def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
         Methods, knobs, stride, tilt, prior, ``use_stored`` and ``ifov_k``.
     sun : Sun
         Where the sun was (:func:`resolve_sun`).
+    seen : dict, optional
+        Filled with what the estimators saw (:func:`estimate_file`).
 
     Returns
     -------
@@ -454,6 +485,11 @@ def frame_headings(frame, options: EstimateOptions, sun: Sun) -> list[dict]:
         res = est.estimate(obs)
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
+        if seen is not None:
+            seen.setdefault('results', []).append(res)
+            seen.setdefault('observations', {})[_name] = obs
+    if seen is not None:
+        seen.update(kind='frame', sun=sun, frame=frame, plan=plan)
     return out
 
 
@@ -588,7 +624,9 @@ def _sensor_meta(meta: dict):
 # --------------------------------------------------------------------------------------------
 # Real images (raw mosaic or Stokes planes, with a camera file)
 # --------------------------------------------------------------------------------------------
-def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) -> list[dict]:
+def real_headings(
+    inp, cam_file, options: EstimateOptions, sun: Sun, mask=None, seen: dict | None = None
+) -> list[dict]:
     """
     Estimate the heading of a real image with every selected method, checked against the sky.
 
@@ -609,6 +647,8 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
         Where the sun was.
     mask : numpy.ndarray of bool, optional
         True = sky (:func:`polarization_compass.real_input.load_mask`).
+    seen : dict, optional
+        Filled with what the estimators saw (:func:`estimate_file`).
 
     Returns
     -------
@@ -619,7 +659,7 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
     from .skyfit import assess_result, mark_inconsistent, sample_sky
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
-    obs, _ = real_observation(
+    obs, keep = real_observation(
         inp,
         cam_file,
         sun.azimuth_deg,
@@ -663,7 +703,47 @@ def real_headings(inp, cam_file, options: EstimateOptions, sun: Sun, mask=None) 
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
+    results = _polarizer_gated(results, inp, cam_file, sun, options, keep, source)
+    if seen is not None:
+        seen.update(kind=inp.kind, sun=sun, results=list(results), input=inp, mask=mask)
+        seen.update(camera_file=cam_file, data_mask=keep)
+        seen['observations'] = {name: obs for name, _, _ in estimators}
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
+
+
+def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: dict) -> list:
+    """
+    Check the frame against the polarizer hypotheses; a contradicted convention is never ``ok``.
+
+    :func:`polarization_compass.polarizer_check.check_frame` at the known sun altitude and tilt,
+    on the pixels the methods may use (``keep``); its verdict goes into ``source`` and a
+    ``contradicted`` one turns every heading into ``poor_fit`` naming the fix
+    (:func:`~polarization_compass.polarizer_check.gate_result`).
+    """
+    from .polarizer_check import check_frame, gate_result
+
+    t0 = time.perf_counter()
+    data = inp.stokes if inp.kind == 'stokes' else inp.mosaic
+    sat = inp.saturation_level if inp.kind == 'mosaic' else None
+    rep = check_frame(
+        inp.kind,
+        data,
+        sat,
+        cam_file.camera,
+        cam_file.layout,
+        cam_file.pol45_toward,
+        sun.altitude_deg,
+        options.pitch_deg,
+        options.roll_deg,
+        keep,
+    )
+    source['polarizer_check'] = {
+        'verdict': rep['verdict'],
+        'margin': rep['margin'],
+        'best': rep['best'],
+        'ms': round((time.perf_counter() - t0) * 1e3, 1),
+    }
+    return [gate_result(r, rep) for r in results]
 
 
 def real_observation(

@@ -43,6 +43,7 @@ custom ``{model: cie_standard, a: ..., b: ..., c: ..., d: ..., e: ...}``.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit, prange
 import numpy as np
@@ -132,11 +133,64 @@ MODEL_NAMES = ('cie_clear', 'cie_standard', 'preetham')
 _MIN_COS_Z = 1e-4  # b / cos Z with cos Z >= 1e-4: exp underflows to 0 cleanly for b < 0, never inf
 
 
+class PerezParams(NamedTuple):
+    """
+    Hold one frame's float32 parameters of the Perez-form luminance kernel (CIE and Preetham).
+
+    Parameters
+    ----------
+    sx, sy, sz, zx, zy, zz : numpy.float32
+        Unit sun and zenith (ENU up) vectors in the camera frame.
+    a, b : numpy.float32
+        Gradation coefficients.
+    c, d, e : numpy.float32
+        Indicatrix coefficients.
+    exp_d_half_pi : numpy.float32
+        The indicatrix's ``exp(d pi / 2)`` term (0 for Preetham's form).
+    inv_norm : numpy.float32
+        1 / the zenith normaliser, so that the zenith's luminance is 1.
+
+    """
+
+    sx: np.float32
+    sy: np.float32
+    sz: np.float32
+    zx: np.float32
+    zy: np.float32
+    zz: np.float32
+    a: np.float32
+    b: np.float32
+    c: np.float32
+    d: np.float32
+    e: np.float32
+    exp_d_half_pi: np.float32
+    inv_norm: np.float32
+
+
+def _perez_params(s, z, coefficients, exp_d_half_pi, inv_norm) -> PerezParams:
+    """Return :class:`PerezParams` from the sun and zenith, (a, b, c, d, e) and the two terms."""
+    f32 = np.float32
+    a, b, c, d, e = coefficients
+    return PerezParams(
+        f32(s[0]),
+        f32(s[1]),
+        f32(s[2]),
+        f32(z[0]),
+        f32(z[1]),
+        f32(z[2]),
+        f32(a),
+        f32(b),
+        f32(c),
+        f32(d),
+        f32(e),
+        f32(exp_d_half_pi),
+        f32(inv_norm),
+    )
+
+
 @njit(parallel=True, cache=True, fastmath=True)
-def _cie_kernel(
-    rays, sx, sy, sz, zx, zy, zz, a, b, c, d, e, exp_d_half_pi, inv_norm, out
-):  # pragma: no cover
-    """L/L_z = f(chi) phi(Z) * inv_norm, inv_norm = 1 / (f(Z_s) phi(0))."""
+def _cie_kernel(rays, p, out):  # pragma: no cover
+    """L/L_z = f(chi) phi(Z) * inv_norm, inv_norm = 1 / (f(Z_s) phi(0)); ``p`` a PerezParams."""
     n = rays.shape[1]
     one = np.float32(1.0)
     min_cz = np.float32(_MIN_COS_Z)
@@ -144,16 +198,16 @@ def _cie_kernel(
         px = rays[0, i]
         py = rays[1, i]
         pz = rays[2, i]
-        cz = zx * px + zy * py + zz * pz
-        cchi = sx * px + sy * py + sz * pz
+        cz = p.zx * px + p.zy * py + p.zz * pz
+        cchi = p.sx * px + p.sy * py + p.sz * pz
         cchi = min(max(cchi, -one), one)
         chi = math.acos(cchi)
         # cos Z clamped to 1e-4: below the horizon exp(b / 1e-4) underflows to 0 for b < 0 (phi =
         # 1, the horizon value) and is 1 for b = 0 (phi = 1 + a, constant): the horizon value
         # continued, no inf
-        phi = one + a * math.exp(b / max(cz, min_cz))
-        f = one + c * (math.exp(d * chi) - exp_d_half_pi) + e * cchi * cchi
-        out[i] = f * phi * inv_norm
+        phi = one + p.a * math.exp(p.b / max(cz, min_cz))
+        f = one + p.c * (math.exp(p.d * chi) - p.exp_d_half_pi) + p.e * cchi * cchi
+        out[i] = f * phi * p.inv_norm
 
 
 def _gradation(cos_z, a, b):
@@ -340,24 +394,9 @@ class CIEStandardSky:
         zs = math.acos(min(1.0, max(-1.0, float(np.dot(s, z)))))
         inv_norm = 1.0 / self.zenith_normaliser(zs)
         out = np.empty(rays.shape[1], np.float32)
-        f32 = np.float32
-        _cie_kernel(
-            rays,
-            f32(s[0]),
-            f32(s[1]),
-            f32(s[2]),
-            f32(z[0]),
-            f32(z[1]),
-            f32(z[2]),
-            f32(self.a),
-            f32(self.b),
-            f32(self.c),
-            f32(self.d),
-            f32(self.e),
-            f32(math.exp(self.d * math.pi / 2)),
-            f32(inv_norm),
-            out,
-        )
+        coefficients = (self.a, self.b, self.c, self.d, self.e)
+        exp_d_half_pi = math.exp(self.d * math.pi / 2)
+        _cie_kernel(rays, _perez_params(s, z, coefficients, exp_d_half_pi, inv_norm), out)
         return out
 
 
@@ -496,24 +535,9 @@ class PreethamSky:
         z = z / np.linalg.norm(z)
         zs = math.acos(min(1.0, max(-1.0, float(np.dot(s, z)))))
         out = np.empty(rays.shape[1], np.float32)
-        f32 = np.float32
-        _cie_kernel(
-            rays,
-            f32(s[0]),
-            f32(s[1]),
-            f32(s[2]),
-            f32(z[0]),
-            f32(z[1]),
-            f32(z[2]),
-            f32(self.a),
-            f32(self.b),
-            f32(self.c),
-            f32(self.d),
-            f32(self.e),
-            f32(0.0),
-            f32(1.0 / self.zenith_normaliser(zs)),
-            out,
-        )
+        coefficients = (self.a, self.b, self.c, self.d, self.e)
+        inv_norm = 1.0 / self.zenith_normaliser(zs)
+        _cie_kernel(rays, _perez_params(s, z, coefficients, 0.0, inv_norm), out)
         return out
 
 

@@ -36,6 +36,7 @@ The models by name, and building one from a scene's ``sky`` mapping, are
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit, prange
 import numpy as np
@@ -44,6 +45,7 @@ from .errors import CompassError
 from .fastmath import axial_atan2_f32, FM
 
 __all__ = [
+    'RayleighParams',
     'RayleighSky',
     'SkyModelError',
     'rayleigh_pixel',
@@ -62,10 +64,37 @@ def _check_dop_max(dop_max) -> float:
     return d
 
 
+class RayleighParams(NamedTuple):
+    """
+    Hold one frame's float32 parameters of :func:`rayleigh_pixel` (a named tuple numba reads).
+
+    Parameters
+    ----------
+    sx, sy, sz : numpy.float32
+        Unit sun vector in the camera frame.
+    zx, zy, zz : numpy.float32
+        Unit zenith (ENU up) vector in the camera frame.
+    dop_max : numpy.float32
+        Maximum DoP.
+    cos_sun_excl, sin_min_alt, min_dop : numpy.float32
+        The validity limits (see :meth:`RayleighSky.polarization`).
+
+    """
+
+    sx: np.float32
+    sy: np.float32
+    sz: np.float32
+    zx: np.float32
+    zy: np.float32
+    zz: np.float32
+    dop_max: np.float32
+    cos_sun_excl: np.float32
+    sin_min_alt: np.float32
+    min_dop: np.float32
+
+
 @njit(inline='always', cache=True, fastmath=FM)
-def rayleigh_pixel(
-    rx, ry, rz, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop
-):  # pragma: no cover - compiled
+def rayleigh_pixel(rx, ry, rz, p):  # pragma: no cover - compiled
     """
     Return the Rayleigh AoP, DoP and validity of one unit ray (float32, compiled, inlined).
 
@@ -79,10 +108,8 @@ def rayleigh_pixel(
     ----------
     rx, ry, rz : float32
         Unit viewing ray in the camera frame.
-    sx, sy, sz, zx, zy, zz : float32
-        Unit sun and zenith (ENU up) vectors in the camera frame.
-    dop_max, cos_sun_excl, sin_min_alt, min_dop : float32
-        Maximum DoP and the validity limits (see :meth:`RayleighSky.polarization`).
+    p : RayleighParams
+        The frame's sun and zenith vectors, maximum DoP and validity limits.
 
     Returns
     -------
@@ -101,38 +128,23 @@ def rayleigh_pixel(
     """
     one = np.float32(1.0)
     zero = np.float32(0.0)
-    ex = sy * rz - sz * ry  # E = S x P (camera frame)
-    ey = sz * rx - sx * rz
-    c = sx * rx + sy * ry + sz * rz  # cos(scattering angle)
+    ex = p.sy * rz - p.sz * ry  # E = S x P (camera frame)
+    ey = p.sz * rx - p.sx * rz
+    c = p.sx * rx + p.sy * ry + p.sz * rz  # cos(scattering angle)
     c2 = c * c
-    d = dop_max * (one - c2) / (one + c2)
-    ok = (c <= cos_sun_excl) & (zx * rx + zy * ry + zz * rz >= sin_min_alt) & (d >= min_dop)
+    d = p.dop_max * (one - c2) / (one + c2)
+    above = p.zx * rx + p.zy * ry + p.zz * rz >= p.sin_min_alt
+    ok = (c <= p.cos_sun_excl) & above & (d >= p.min_dop)
     a = axial_atan2_f32(ex, ey)
     return (a if ok else zero), (d if ok else zero), ok
 
 
 @njit(parallel=True, cache=True, fastmath=FM)
-def _rayleigh_kernel(
-    rays, sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop, aop, dop, valid
-):  # pragma: no cover - compiled
-    """Fused Rayleigh AoP/DoP and validity. Invalid pixels get aop = dop = 0."""
+def _rayleigh_kernel(rays, p, aop, dop, valid):  # pragma: no cover - compiled
+    """Fused Rayleigh AoP/DoP and validity (``p`` a :class:`RayleighParams`); invalid: 0, 0."""
     n = rays.shape[1]
     for i in prange(n):
-        a, d, ok = rayleigh_pixel(
-            rays[0, i],
-            rays[1, i],
-            rays[2, i],
-            sx,
-            sy,
-            sz,
-            zx,
-            zy,
-            zz,
-            dop_max,
-            cos_sun_excl,
-            sin_min_alt,
-            min_dop,
-        )
+        a, d, ok = rayleigh_pixel(rays[0, i], rays[1, i], rays[2, i], p)
         valid[i] = ok
         aop[i] = a
         dop[i] = d
@@ -219,10 +231,10 @@ class RayleighSky:
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)
         valid = np.empty(n, np.bool_)
-        _rayleigh_kernel(rays, *self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
+        _rayleigh_kernel(rays, self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
         return aop, dop, valid
 
-    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> tuple:
+    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> RayleighParams:
         """
         Return the float32 parameters of :func:`rayleigh_pixel` after the ray, for one frame.
 
@@ -235,14 +247,14 @@ class RayleighSky:
 
         Returns
         -------
-        tuple of numpy.float32
-            (sx, sy, sz, zx, zy, zz, dop_max, cos_sun_excl, sin_min_alt, min_dop).
+        RayleighParams
+            The sun and zenith vectors, ``dop_max`` and the limits, as float32.
 
         """
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
         z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         f32 = np.float32
-        return (
+        return RayleighParams(
             f32(s[0]),
             f32(s[1]),
             f32(s[2]),

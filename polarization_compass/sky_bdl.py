@@ -79,6 +79,7 @@ choice.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit, prange
 import numpy as np
@@ -86,7 +87,7 @@ import numpy as np
 from .fastmath import axial_atan2_f32, FM
 from .sky import _check_dop_max, SkyModelError
 
-__all__ = ['BerryDennisLeeSky', 'bdl_pixel', 'neutral_points', 'SEPARATION_RANGE_DEG']
+__all__ = ['BdlParams', 'BerryDennisLeeSky', 'bdl_pixel', 'neutral_points', 'SEPARATION_RANGE_DEG']
 
 #: Allowed neutral-point separation (deg from the sun / anti-sun).
 SEPARATION_RANGE_DEG = (0.0, 40.0)
@@ -140,28 +141,47 @@ def neutral_points(sun, zenith, separation_deg: float) -> dict:
     return {'babinet': babinet, 'brewster': brewster, 'arago': -brewster, 'fourth': -babinet}
 
 
+class BdlParams(NamedTuple):
+    """
+    Hold one frame's float32 parameters of :func:`bdl_pixel` (a named tuple numba reads).
+
+    Parameters
+    ----------
+    bx, by, bz : numpy.float32
+        Unit Babinet neutral point in the camera frame.
+    rx, ry, rz : numpy.float32
+        Unit Brewster neutral point in the camera frame.
+    sx, sy, sz : numpy.float32
+        Unit sun vector in the camera frame.
+    zx, zy, zz : numpy.float32
+        Unit zenith (ENU up) vector in the camera frame.
+    dop_max : numpy.float32
+        Maximum DoP.
+    cos_sun_excl, sin_min_alt, min_dop : numpy.float32
+        The validity limits (see :meth:`BerryDennisLeeSky.polarization`).
+
+    """
+
+    bx: np.float32
+    by: np.float32
+    bz: np.float32
+    rx: np.float32
+    ry: np.float32
+    rz: np.float32
+    sx: np.float32
+    sy: np.float32
+    sz: np.float32
+    zx: np.float32
+    zy: np.float32
+    zz: np.float32
+    dop_max: np.float32
+    cos_sun_excl: np.float32
+    sin_min_alt: np.float32
+    min_dop: np.float32
+
+
 @njit(inline='always', cache=True, fastmath=FM)
-def bdl_pixel(
-    px,
-    py,
-    pz,
-    bx,
-    by,
-    bz,
-    rx_,
-    ry_,
-    rz_,
-    sx,
-    sy,
-    sz,
-    zx,
-    zy,
-    zz,
-    dop_max,
-    cos_sun_excl,
-    sin_min_alt,
-    min_dop,
-):  # pragma: no cover - compiled
+def bdl_pixel(px, py, pz, q):  # pragma: no cover - compiled
     """
     Return the BDL AoP, DoP and validity of one unit ray (float32, compiled, inlined).
 
@@ -172,12 +192,8 @@ def bdl_pixel(
     ----------
     px, py, pz : float32
         Unit viewing ray in the camera frame.
-    bx, by, bz, rx_, ry_, rz_ : float32
-        Unit Babinet and Brewster neutral points in the camera frame.
-    sx, sy, sz, zx, zy, zz : float32
-        Unit sun and zenith (ENU up) vectors in the camera frame.
-    dop_max, cos_sun_excl, sin_min_alt, min_dop : float32
-        Maximum DoP and the validity limits (see :meth:`BerryDennisLeeSky.polarization`).
+    q : BdlParams
+        The frame's neutral points, sun and zenith vectors, maximum DoP and validity limits.
 
     Returns
     -------
@@ -198,14 +214,14 @@ def bdl_pixel(
     two = np.float32(2.0)
     zero = np.float32(0.0)
     # tangent-plane components of Babinet (a) and Brewster (b) at P
-    pb = bx * px + by * py + bz * pz
-    ax = bx - pb * px
-    ay = by - pb * py
-    az = bz - pb * pz
-    pr = rx_ * px + ry_ * py + rz_ * pz
-    cx = rx_ - pr * px
-    cy = ry_ - pr * py
-    cz = rz_ - pr * pz
+    pb = q.bx * px + q.by * py + q.bz * pz
+    ax = q.bx - pb * px
+    ay = q.by - pb * py
+    az = q.bz - pb * pz
+    pr = q.rx * px + q.ry * py + q.rz * pz
+    cx = q.rx - pr * px
+    cy = q.ry - pr * py
+    cz = q.rz - pr * pz
     la = math.sqrt(ax * ax + ay * ay + az * az)
     lb = math.sqrt(cx * cx + cy * cy + cz * cz)
     # bisector s and its perpendicular d (both scaled by la * lb)
@@ -221,65 +237,20 @@ def bdl_pixel(
     w = la * lb
     if w > one:
         w = one
-    dv = dop_max * w / (two - w)
-    c = sx * px + sy * py + sz * pz
-    ok = (c <= cos_sun_excl) & (zx * px + zy * py + zz * pz >= sin_min_alt) & (dv >= min_dop)
+    dv = q.dop_max * w / (two - w)
+    c = q.sx * px + q.sy * py + q.sz * pz
+    above = q.zx * px + q.zy * py + q.zz * pz >= q.sin_min_alt
+    ok = (c <= q.cos_sun_excl) & above & (dv >= q.min_dop)
     a = axial_atan2_f32(ex, ey)
     return (a if ok else zero), (dv if ok else zero), ok
 
 
 @njit(parallel=True, cache=True, fastmath=FM)
-def _bdl_kernel(
-    rays,
-    bx,
-    by,
-    bz,
-    rx_,
-    ry_,
-    rz_,
-    sx,
-    sy,
-    sz,
-    zx,
-    zy,
-    zz,
-    dop_max,
-    cos_sun_excl,
-    sin_min_alt,
-    min_dop,
-    aop,
-    dop,
-    valid,
-):  # pragma: no cover - compiled
-    """
-    Fused BDL AoP/DoP and validity (see the module docstring, steps 3-4).
-
-    Invalid: aop = dop =
-    0.
-    """
+def _bdl_kernel(rays, q, aop, dop, valid):  # pragma: no cover - compiled
+    """Fused BDL AoP/DoP and validity (module docstring, steps 3-4); invalid: aop = dop = 0."""
     n = rays.shape[1]
     for i in prange(n):
-        a, d, ok = bdl_pixel(
-            rays[0, i],
-            rays[1, i],
-            rays[2, i],
-            bx,
-            by,
-            bz,
-            rx_,
-            ry_,
-            rz_,
-            sx,
-            sy,
-            sz,
-            zx,
-            zy,
-            zz,
-            dop_max,
-            cos_sun_excl,
-            sin_min_alt,
-            min_dop,
-        )
+        a, d, ok = bdl_pixel(rays[0, i], rays[1, i], rays[2, i], q)
         valid[i] = ok
         aop[i] = a
         dop[i] = d
@@ -406,10 +377,10 @@ class BerryDennisLeeSky:
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)
         valid = np.empty(n, np.bool_)
-        _bdl_kernel(rays, *self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
+        _bdl_kernel(rays, self.pixel_params(sun_cam, zenith_cam, limits), aop, dop, valid)
         return aop, dop, valid
 
-    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> tuple:
+    def pixel_params(self, sun_cam, zenith_cam, limits=(1.0, -1.0, 0.0)) -> BdlParams:
         """
         Return the float32 parameters of :func:`bdl_pixel` after the ray, for one frame.
 
@@ -422,9 +393,9 @@ class BerryDennisLeeSky:
 
         Returns
         -------
-        tuple of numpy.float32
-            (Babinet xyz, Brewster xyz, sun xyz, zenith xyz, dop_max, cos_sun_excl, sin_min_alt,
-            min_dop).
+        BdlParams
+            The Babinet and Brewster points, the sun and zenith vectors, ``dop_max`` and the
+            limits, as float32.
 
         """
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
@@ -432,7 +403,7 @@ class BerryDennisLeeSky:
         npts = neutral_points(s, z, self.separation_deg)
         b, r = npts['babinet'], npts['brewster']
         f32 = np.float32
-        return (
+        return BdlParams(
             f32(b[0]),
             f32(b[1]),
             f32(b[2]),

@@ -54,6 +54,7 @@ from .clouds import (
     cloud_transmission,
     cloud_transmission_at,
     CloudGrid,
+    CloudParams,
     grid_row_to_columns,
 )
 from .fastmath import FM
@@ -65,8 +66,6 @@ __all__ = ['SkyEffects']
 
 #: Sky models the pass evaluates, by class: the ``model`` number of :func:`_sky_effects_row`.
 _MODELS = {RayleighSky: 0, BerryDennisLeeSky: 1}
-#: Length of the float32 sky-parameter tuple (the longest model's; shorter ones are padded).
-_SKY_PARAMS = 16
 #: Pixel rows per band of the pass (8 cloud-grid intervals: 9 grid rows, one shared with the next
 #: band, evaluated by both).
 _BAND = 64
@@ -80,7 +79,9 @@ def _sky_effects_row(
     Evaluate the sky, the clouds and the lens over one pixel row, writing each output once.
 
     ``model`` (0 Rayleigh, 1 BDL) and ``square`` (glare exponent 2) must be constants at the call
-    site, so that each variant is a plain loop that vectorises. Without clouds the transmission
+    site, so that each variant is a plain loop that vectorises (the other model's branch is pruned
+    before typing: ``sp`` is that model's :class:`~polarization_compass.sky.RayleighParams` or
+    :class:`~polarization_compass.sky_bdl.BdlParams`). Without clouds the transmission
     rows ``u0``, ``u1`` are 1 (radiance 1 and T = 1 leave the DoP as it is); without lens effects
     the lens parameters switch vignetting and the sun off (V = 1, G = 0).
     """
@@ -88,15 +89,9 @@ def _sky_effects_row(
     zero = np.float32(0.0)
     for c in range(rx.size):
         if model == 0:
-            a, d, ok = rayleigh_pixel(
-                rx[c], ry[c], rz[c], sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6], sp[7],
-                sp[8], sp[9],
-            )  # fmt: skip
+            a, d, ok = rayleigh_pixel(rx[c], ry[c], rz[c], sp)
         else:
-            a, d, ok = bdl_pixel(
-                rx[c], ry[c], rz[c], sp[0], sp[1], sp[2], sp[3], sp[4], sp[5], sp[6], sp[7],
-                sp[8], sp[9], sp[10], sp[11], sp[12], sp[13], sp[14], sp[15],
-            )  # fmt: skip
+            a, d, ok = bdl_pixel(rx[c], ry[c], rz[c], sp)
         # clouds over a clear sky of radiance 1 (W transmitted, I1 in all), the minimum DoP on the
         # DoP under the clouds, d W / I1 (as a product: invalid pixels hold DoP 0, so the cut
         # leaves them as they are; valid = valid and not drop as a comparison of bools)
@@ -124,7 +119,7 @@ def _sky_effects_row(
 
 @njit(inline='always', cache=True, fastmath=FM, error_model='numpy')
 def _sky_effects_pass(
-    model, square, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+    model, square, sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """
     Render a row-major pixel block: cloud grid, sky, clouds and lens per band of rows, one launch.
@@ -137,12 +132,15 @@ def _sky_effects_pass(
     parallel region for the whole frame: on a shared machine each extra one waits for its slowest
     thread. Without clouds the band's T rows are 1. ``model`` and ``square`` are constants: each
     of :data:`_KERNELS` inlines this body with its own pair, so that the row loops vectorise.
-    ``grid`` is a :class:`~polarization_compass.clouds.CloudGrid`, ``lens`` a
+    ``grid`` is a :class:`~polarization_compass.clouds.CloudGrid` (``cp`` the layer's
+    :class:`~polarization_compass.clouds.CloudParams`: an argument of its own, as numba's parallel
+    lowering finds a named tuple used in a ``prange`` body only from an argument or a constructor
+    call, not from a field of another tuple), ``lens`` a
     :class:`~polarization_compass.optics.LensParams` and ``out`` the (aop, dop, valid, intensity)
     arrays, written.
     """
     aop, dop, valid, inten = out
-    grays, R, cp, rk, rk1, rf, cols, cf = grid
+    grays, R, rk, rk1, rf, cols, cf = grid
     W = xcol.size
     H = yrow.size
     one = np.float32(1.0)
@@ -188,34 +186,34 @@ def _sky_effects_pass(
 # (~0.1 s, measured); run-time flags leave branches in the row loops.
 @njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
 def _rayleigh_square_kernel(
-    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+    sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """Run :func:`_sky_effects_pass` for a Rayleigh sky and the exponent-2 glare."""
-    _sky_effects_pass(0, True, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+    _sky_effects_pass(0, True, sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out)
 
 
 @njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
 def _rayleigh_power_kernel(
-    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+    sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """Run :func:`_sky_effects_pass` for a Rayleigh sky and another glare exponent."""
-    _sky_effects_pass(0, False, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+    _sky_effects_pass(0, False, sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out)
 
 
 @njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
 def _bdl_square_kernel(
-    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+    sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """Run :func:`_sky_effects_pass` for a Berry-Dennis-Lee sky and the exponent-2 glare."""
-    _sky_effects_pass(1, True, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+    _sky_effects_pass(1, True, sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out)
 
 
 @njit(parallel=True, cache=True, fastmath=FM, error_model='numpy')
 def _bdl_power_kernel(
-    sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out
+    sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out
 ):  # pragma: no cover - compiled
     """Run :func:`_sky_effects_pass` for a Berry-Dennis-Lee sky and another glare exponent."""
-    _sky_effects_pass(1, False, sp, rays, clouds, grid, bright, min_dop, xcol, yrow, lens, out)
+    _sky_effects_pass(1, False, sp, rays, clouds, grid, cp, bright, min_dop, xcol, yrow, lens, out)
 
 
 #: The pass's kernel by (sky ``model`` number, glare exponent is 2).
@@ -284,13 +282,13 @@ class SkyEffects:
         self._no_clouds = CloudGrid(
             np.zeros((3, 1), np.float32),
             np.eye(3),
-            (1.0, 0.0, 0.0, 0, 0.0, 1.0, False, 0.0),
             z64,
             z64,
             z32,
             z64,
             z32,
         )
+        self._no_cloud_params = CloudParams(1.0, 0.0, 0.0, 0, 0.0, 1.0, False, 0.0)
 
     @classmethod
     def for_renderer(cls, renderer) -> 'SkyEffects | None':
@@ -364,12 +362,12 @@ class SkyEffects:
         f32 = np.float32
         instr.count('sky.' + self.sky.name)
         sp = self.sky.pixel_params(sun_cam, zenith_cam, limits)
-        sp = sp + (f32(0.0),) * (_SKY_PARAMS - len(sp))
-        grid = self._no_clouds
+        grid, cp = self._no_clouds, self._no_cloud_params
         bright = f32(1.0)
         if self.clouds is not None:
             instr.count('atmosphere.clouds')
             grid = self.clouds.grid(R_enu_cam, self.rays, dt_s, self.pixels.shape)
+            cp = self.clouds.frame_params(dt_s)
             bright = f32(self.clouds.brightness)
         lens, square, ghosts = self._no_lens, True, None
         if self.optics is not None:
@@ -385,6 +383,7 @@ class SkyEffects:
                 self.rays,
                 self.clouds is not None,
                 grid,
+                cp,
                 bright,
                 f32(limits[2]),
                 self.xcol,

@@ -15,7 +15,7 @@
 """
 Every name each launch file uses exists and is consistent.
 
-Every executable, parameter file, parameter and remapping each launch file names (via graphs.py)
+Every executable, parameter file, parameter and remapping each launch file names (via graphs/)
 exists and is consistent, checked without running anything. Independent sources: setup.py's
 console_scripts (parsed as text), the YAML files on disk, the node parameter specifications, and
 the launch files' own source.

@@ -263,6 +263,10 @@ FX = F_MM / (PITCH * 1e-3)
         ),  # K scaled 2x (another resolution or binning)
         (FX, FX, 10000.0, -5000.0, 'outside'),  # issue 18
         (FX, 1.2 * FX, 305.5, 255.5, 'fx/fy'),
+        # issue 24: a K calibrated 2x binned on full-resolution images (24.96 % off passed 25 %)
+        (FX / 2, FX / 2, (W / 2 - 1) / 2, (H / 2 - 1) / 2, 'from the centre'),
+        (FX, FX, 305.5 + 0.20 * W, 255.5, 'from the centre'),  # 20 %: ok 14 deg off before
+        (FX, FX, 305.5, 255.5 - 0.11 * H, 'from the centre'),
     ],
 )
 def test_implausible_intrinsics_are_refused(fx, fy, cx, cy, words):
@@ -275,7 +279,7 @@ def test_implausible_intrinsics_are_refused(fx, fy, cx, cy, words):
     [
         (FX, FX, 305.5, 255.5),
         (FX, 1.01 * FX, 320.0, 240.0),
-        (FX, FX, 305.5 + 0.24 * W, 255.5 - 0.24 * H),
+        (FX, FX, 305.5 + 0.09 * W, 255.5 - 0.09 * H),
     ],
 )
 def test_plausible_intrinsics_pass(fx, fy, cx, cy):

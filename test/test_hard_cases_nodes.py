@@ -428,7 +428,7 @@ def test_corrector_imu_older_than_the_heading_is_stale(corrector):
     t = T0 + 20_000_000_000
     corrector._on_imu(imu_msg(t - 2_000_000_000, body_quat(30.0, 0.0, 0.0)))
     corrector._on_heading(heading_msg(t, 30.0))
-    corrector._drain(final=True)
+    corrector._drain()
     assert corrector.statuses[-1]['status'] == 'stale_imu'
 
 
@@ -824,10 +824,13 @@ def test_estimator_with_the_replay_qos_queues_a_played_bag_instead_of_dropping(c
         ],
     )
     try:
-        assert node.max_pending == REPLAY_IMAGE_DEPTH > 4 * MAX_PENDING_IMAGES
+        assert node.max_pending == REPLAY_IMAGE_DEPTH >= 4 * MAX_PENDING_IMAGES
         sub = next(s for s in node.subscriptions if s.topic_name.endswith('camera/image_raw'))
         assert sub.qos_profile.depth == REPLAY_IMAGE_DEPTH
         assert sub.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        # the played IMU reliably too (a best-effort sample lost under the image flood is lost)
+        imu = next(s for s in node.subscriptions if s.topic_name.endswith('imu/data'))
+        assert imu.qos_profile.reliability == ReliabilityPolicy.RELIABLE
         node._on_camera_info(M.camera_info_msg(CAM, T0, 'camera_optical_frame'))
         img = ideal_mosaic(40.0, -10.0, 5.0, *_sun_at(T0))
         n = 4 * MAX_PENDING_IMAGES
@@ -841,11 +844,12 @@ def test_estimator_with_the_replay_qos_queues_a_played_bag_instead_of_dropping(c
 
 def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
     """
-    The estimator reports a polarizer convention the sky contradicts.
+    The estimator refuses headings under a polarizer convention the sky contradicts.
 
-    The images follow the IMX250MZR as delivered (+x-y); a node configured +x+y must say so as a
-    diagnostics ERROR naming the fix, keep processing frames, and clear the error once
-    reconfigured.
+    The images follow the IMX250MZR as delivered (+x-y); a node configured +x+y must check from
+    the first frame on, publish no ``ok`` heading (status ``poor_fit`` naming the fix, issue 24
+    item 3), say so as a diagnostics ERROR, keep processing frames, and clear the error once
+    reconfigured; once the sky supports the configuration it checks every N-th frame only.
     """
     from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
 
@@ -861,24 +865,21 @@ def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
     node.statuses = []
     node._publish_status = node.statuses.append
     try:
-        st = feed_good_frame(node, T0 - 10**9, bearing=65.0, pitch=0.0, roll=0.0)
-        assert (
-            'polarizer_check' not in st and node.diag.error is None
-        )  # the first check is on frame N
-        st = feed_good_frame(node, T0, bearing=65.0, pitch=0.0, roll=0.0)
-        assert st['polarizer_check']['verdict'] == 'contradicted'
+        for t in (T0 - 10**9, T0):  # every frame is checked while the sky contradicts
+            st = feed_good_frame(node, t, bearing=65.0, pitch=0.0, roll=0.0)
+            assert st['polarizer_check']['verdict'] == 'contradicted'
+            assert st['status'] == 'poor_fit' and not st['ok'], st
+            assert "pol45_toward: '+x-y'" in st['reason']
         assert node.diag.error and "pol45_toward: '+x-y'" in node.diag.error
         from diagnostic_msgs.msg import DiagnosticStatus
 
         assert node.diag.level_and_message()[0] == DiagnosticStatus.ERROR
-        st = feed_good_frame(node, T0 + 10**9, bearing=65.0, pitch=0.0, roll=0.0)
-        assert (
-            'polarizer_check' not in st and st['status']
-        )  # every 2nd frame only; frames still processed
         node.set_parameters([Parameter('pol45_toward', value='+x-y')])
+        st = feed_good_frame(node, T0 + 10**9, bearing=65.0, pitch=0.0, roll=0.0)
+        assert st['polarizer_check']['verdict'] == 'supported'
+        assert st['status'] == 'ok' and node.diag.error is None
         feed_good_frame(node, T0 + 2 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
         st = feed_good_frame(node, T0 + 3 * 10**9, bearing=65.0, pitch=0.0, roll=0.0)
-        assert st['polarizer_check']['verdict'] == 'supported'
-        assert node.diag.error is None
+        assert 'polarizer_check' not in st and st['status'] == 'ok'  # every 2nd frame now
     finally:
         node.destroy_node()

@@ -95,7 +95,7 @@ def _frame(est, corr, t_ns):
     """Feed one level frame at ``t_ns`` (the corrector: its IMU); return the estimator status."""
     corr._on_imu(imu_msg(t_ns, body_quat(BEARING, 0.0, 0.0)))
     st = feed_good_frame(est, t_ns, bearing=BEARING, pitch=0.0, roll=0.0)
-    corr._drain(final=True)
+    corr._drain()
     assert st['stamp_ns'] == t_ns
     return st
 

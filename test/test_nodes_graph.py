@@ -15,10 +15,10 @@
 """
 The sim graph on real DDS (loopback only), started as `make sim` does.
 
-Started by `polarization-compass sim` (graphs.py -> console scripts with the shipped parameter
+Started by `polarization-compass sim` (graphs/ -> console scripts with the shipped parameter
 files), with a recording node in this process on the same domain.
 
-Checks: each node's actual topics equal graphs.py's declaration; the heading's form (ENU yaw = 90
+Checks: each node's actual topics equal the graphs/ declaration; the heading's form (ENU yaw = 90
 deg
 - bearing, unit yaw-only quaternion, covariance layout, -1 markers, frame, stamps = image stamps);
   no
@@ -131,7 +131,7 @@ def test_sim_graph_on_dds(ros_env, tmp_path):
         assert proc.poll() is None, proc.communicate()
         for topic, ty in ((T.IMAGE, Image), (T.CAMERA_INFO, CameraInfo), (T.IMU, Imu)):
             rec.sub(ty, topic, depth=5)
-        # every node's actual topics equal graphs.py's declaration (ROS built-ins aside)
+        # every node's actual topics equal the graphs/ declaration (ROS built-ins aside)
         # TF is broadcast through tf2_ros where it is installed (the simulator's odom_tf), like
         # /rosout an infrastructure topic outside the graph's declared data flow
         builtin = {'/rosout', '/parameter_events', '/clock', '/tf', '/tf_static'}

@@ -224,7 +224,7 @@ def test_corrector_imu_buffer_s_applies_at_run_time(ctx):
         node._on_imu(imu_msg(T0 + 2_100_000_000, q))  # the next sample trims to 0.5 s behind it
         assert len(node.imu) == 6  # 1.6 .. 2.1 s
         node._on_heading(heading_msg(T0 + 1_000_000_000, 30.0))
-        node._drain(final=True)
+        node._drain()
         assert (
             node.statuses[-1]['status'] == 'stale_imu' and node.statuses[-1]['published'] is False
         )

@@ -335,6 +335,8 @@ def test_toy_in_the_bench(toys):
     """The benchmark sweeps a new method's declared knobs and draws it in its registry colour."""
     from bench import report
     from bench.accuracy import condition_methods, CONDITIONS, knob_sets
+    from bench.report import accuracy as report_accuracy
+    from bench.report import formatting, speed
 
     # the toy declares one knob, stride: strided sets only (no window, region or disc sets)
     assert knob_sets(TOY, 'quick', False) == [
@@ -365,12 +367,12 @@ def test_toy_in_the_bench(toys):
     assert report.method_colour(TOY) == 'tab:brown'
     assert report.method_colour(TOY_TILT) == 'tab:olive'
     assert report.method_colour('zenith') == 'tab:blue' and report.method_colour('gone') == 'k'
-    ranked = sorted([TOY, 'gone', 'zenith', TOY_TILT, 'tilt_aware'], key=report._method_rank)
+    ranked = sorted([TOY, 'gone', 'zenith', TOY_TILT, 'tilt_aware'], key=formatting.method_rank)
     assert ranked == ['zenith', 'tilt_aware', TOY, TOY_TILT, 'gone']
-    assert report._knobs_label(TOY, {'stride': 8}) == 'stride 8'
-    assert report._knobs_label('zenith', {'window_px': 33}) == 'window 33 px'
+    assert speed.knobs_label(TOY, {'stride': 8}) == 'stride 8'
+    assert speed.knobs_label('zenith', {'window_px': 33}) == 'window 33 px'
     cells = [
         {'method': TOY, 'condition': 'ideal_level', 'knobs_label': label}
         for label in ('stride 4', 'stride 8')
     ]
-    assert report._reference_cell(cells, TOY, 'ideal_level') is cells[1]
+    assert report_accuracy.reference_cell(cells, TOY, 'ideal_level') is cells[1]

@@ -22,13 +22,16 @@ launch packages (../shared/ros-launch); skipped otherwise with the reason, and t
 * ``record-sim`` bags pass ``ros2 bag info``: storage, topics, types and counts as recorded.
 * ``ros2 launch polarization_compass replay.launch.py bag:=BAG`` starts the real player (paused,
   resumed once every node is ready), ends by itself after the bag, every process cleanly, with the
-  evaluator's complete report; the player at 1x scores every frame the offline
+  evaluator's complete report; the player at 2x, flow-controlled at every frame (``high_water:=1``:
+  ``player_flow`` pauses it while an estimator is behind), scores every frame the offline
   ``polarization-compass replay`` scores, with its error (to the 1e-6 deg of the evaluator's CSV),
-  none lost on the way (``not_received`` 0: the replay graph's image subscriptions are reliable and
-  300 deep, so images queue behind a slower estimator), and the frames the estimator declined are
-  the offline replay's, with the same statuses.
+  none lost on the way (``not_received`` 0), and the frames the estimator declined are the offline
+  replay's, with the same statuses.
 * The same with the camera at 10 Hz, the IMU at 100 Hz and the player at 1x, paused for 3 s half a
   second after the launch resumed it and resumed again (the player's services).
+* The two-terminal way: a player started by hand (``--start-paused``) before the launch is resumed
+  by it once the graph is ready and scores like the offline replay; Ctrl-C ends the launch with the
+  final report.
 * A ``ros2 bag record`` of the live sim graph (camera, IMU, reference, fix) is read by the offline
   replay: every recorded image is scored, with the sim evaluator's own errors.
 
@@ -48,6 +51,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 
 from colcon_ws import colcon_install, sourced_env
 import pytest
@@ -97,7 +101,7 @@ WIDTH_PX, HEIGHT_PX = 192, 160
 METHODS = ('least_squares', 'tilt_aware')
 DURATION_S = 3.0
 RATE_HZ = 10.0
-PLAYER_RATE = 1.0  # the player's --rate: images queue behind a slower estimator (image_qos replay)
+PLAYER_RATE = 2.0  # the player's --rate: twice real time, flow-controlled (player_flow)
 
 
 @pytest.fixture(scope='module')
@@ -271,8 +275,11 @@ def test_launch_with_the_real_player_scores_the_bag_like_the_offline_replay(
         f'report_dir:={report}',
         f'rate:={PLAYER_RATE}',
         'drain_s:=3.0',
+        'high_water:=1',  # flow control at every frame: the player pauses while one is behind
+        'low_water:=0',
     )
     _check_live_run(rc, text, report, want, _offline_declined(offline), n_images)
+    assert 'player paused' in text, text[-4000:]
 
 
 def _check_live_run(rc, text, report, want, declined, n_images) -> dict:
@@ -281,7 +288,13 @@ def _check_live_run(rc, text, report, want, declined, n_images) -> dict:
     assert 'all 4 nodes ready' in text and 'the bag has played' in text, text[-4000:]
     started = set(re.findall(r'\[INFO\] \[([\w-]+)\]: process started', text))
     clean = set(re.findall(r'\[INFO\] \[([\w-]+)\]: process has finished cleanly', text))
-    assert clean == started and len(started) == 6, text[-4000:]  # 4 nodes, player, resume
+    # 4 nodes, player_flow, the player, resume
+    assert clean == started and len(started) == 7, text[-4000:]
+    return _check_report(report, want, declined, n_images)
+
+
+def _check_report(report, want, declined, n_images) -> dict:
+    """Check a live replay's final report against the offline replay's errors; return it."""
     s = json.loads((report / 'evaluation_summary.json').read_text())
     assert s['complete'] is True and s['truth_frames'] == n_images
     live = _live_errors(report)
@@ -391,6 +404,76 @@ def test_a_paused_and_resumed_player_with_a_100_hz_imu_scores_like_the_offline_r
         _offline_declined(offline),
         round(DURATION_S * RATE_HZ),
     )
+
+
+def _wait_for_report(report: Path, n_images: int, timeout_s: float) -> None:
+    """Wait until every stream of the evaluator's current report accounts for every frame."""
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        try:
+            streams = json.loads((report / 'evaluation_summary.json').read_text())['streams']
+        except (OSError, ValueError, KeyError):
+            streams = {}
+        if streams and all(d['count'] + d['missed'] >= n_images for d in streams.values()):
+            if all(d['missed'] == sum(d['not_published'].values()) for d in streams.values()):
+                return
+        time.sleep(1.0)
+
+
+def test_a_player_started_by_hand_before_the_graph_is_resumed_once_it_is_ready(
+    ws, small_bag, tmp_path
+):
+    """Two terminals: ``ros2 bag play BAG --clock --start-paused`` first, the launch next."""
+    bag, _ = small_bag
+    offline = _offline(bag)
+    n_images = round(DURATION_S * RATE_HZ)
+    report = tmp_path / 'report'
+    player = subprocess.Popen(
+        [
+            'ros2',
+            'bag',
+            'play',
+            str(bag),
+            '--clock',
+            '--start-paused',
+            '--disable-keyboard-controls',
+        ],
+        env=ws['env'],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
+    log = tmp_path / 'launch.log'
+    with open(log, 'w') as f:
+        launch = subprocess.Popen(
+            [
+                'ros2',
+                'launch',
+                'polarization_compass',
+                'replay.launch.py',
+                'methods:=least_squares',
+                'tilt_aware:=true',
+                f'report_dir:={report}',
+            ],
+            env=ws['env'],
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+    try:
+        assert player.wait(timeout=420) == 0  # resumed by the launch, played to the end
+        _wait_for_report(report, n_images, timeout_s=60.0)
+        os.killpg(launch.pid, signal.SIGINT)  # Ctrl-C: the evaluator writes its final report
+        rc = launch.wait(timeout=60)
+    finally:
+        for proc in (player, launch):
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    text = log.read_text(errors='replace')
+    assert rc == 0 and 'all 4 nodes ready' in text and 'player resumed' in text, text[-4000:]
+    _check_report(report, _offline_errors(offline), _offline_declined(offline), n_images)
 
 
 def test_ros2_bag_record_of_the_live_sim_graph_is_scored_offline_like_the_sim(ws, tmp_path):

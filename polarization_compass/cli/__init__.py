@@ -45,6 +45,7 @@ COMMANDS = [
     'replay',
     'estimate_array',
     'calibrate_array',
+    'calibrate_mount',
     'check_array',
     'budget',
     'check_polarizer',

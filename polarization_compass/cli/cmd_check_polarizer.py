@@ -61,6 +61,12 @@ def register(sub):
     p.add_argument('--pitch', type=float, help='known camera pitch, deg (default level)')
     p.add_argument('--roll', type=float, help='known camera roll, deg')
     p.add_argument('--indent', type=int, default=None, help='pretty-print the JSON')
+    p.add_argument(
+        '--plot',
+        metavar='OUT.png',
+        help='also write every hypothesis side by side: the AoP under it minus its fitted sky '
+        '(the right convention is the nearly white panel)',
+    )
     p.set_defaults(func=run)
 
 
@@ -82,6 +88,25 @@ def run(args) -> int:
         args.pitch or 0.0,
         args.roll or 0.0,
     )
+    if args.plot:
+        from ..errors import CompassError
+        from ..polarizer_figure import save_polarizer_figure
+
+        try:
+            save_polarizer_figure(
+                rep,
+                args.inputs,
+                args.camera,
+                args.plot,
+                args.bits,
+                args.mask,
+                args.pitch or 0.0,
+                args.roll or 0.0,
+            )
+        except OSError as exc:
+            raise CompassError(
+                f'--plot: cannot write {args.plot}: {exc.strerror or exc}'
+            ) from None
     json.dump(
         rep,
         sys.stdout,

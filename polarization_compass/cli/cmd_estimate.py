@@ -56,6 +56,13 @@ def register(sub):
     _add_sun_options(p)
     _add_method_options(p)
     p.add_argument('--indent', type=int, default=None, help='pretty-print the JSON')
+    p.add_argument(
+        '--plot',
+        metavar='OUT.png',
+        help='also write the diagnostic figure: AoP, DoP, pixels used and masked by reason, '
+        'residual against the fitted sky, fitted sun and solar meridian, each heading with its '
+        'sigma (README "What the compass sees")',
+    )
     p.set_defaults(func=run)
 
 
@@ -229,10 +236,46 @@ def run(args) -> int:
         sky_check=not args.no_sky_check,
         use_stored=args.use_stored,
     )
-    out = estimate_file(args.frame, options)
+    seen = {} if args.plot else None
+    out = estimate_file(args.frame, options, seen)
+    if args.plot:
+        write_plot(seen, args.plot, args.frame, options)
     json.dump(out, sys.stdout, indent=args.indent, default=_jsonable)
     sys.stdout.write('\n')
     return 0
+
+
+def write_plot(seen: dict, out_path, input_path, options) -> None:
+    """
+    Write the diagnostic figure of what ``estimate_file`` saw.
+
+    Parameters
+    ----------
+    seen : dict
+        Filled by :func:`polarization_compass.headings.estimate_file`.
+    out_path : str
+        The PNG to write.
+    input_path : str
+        The input (its name titles the figure).
+    options : EstimateOptions
+        The options it was read with (demosaic, IFOV check).
+
+    Raises
+    ------
+    CompassError
+        The figure cannot be written there.
+
+    """
+    from pathlib import Path
+
+    from ..diagnostic_figure import save_figure
+    from ..sky_view import view_from_seen
+
+    view = view_from_seen(seen, options.demosaic, options.ifov_k, label=Path(input_path).name)
+    try:
+        save_figure(view, out_path)
+    except OSError as exc:
+        raise CompassError(f'--plot: cannot write {out_path}: {exc.strerror or exc}') from None
 
 
 def _check_ranges(args) -> None:

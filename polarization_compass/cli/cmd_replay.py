@@ -70,6 +70,14 @@ def register(sub):
     )
     p.add_argument('--no-plots', action='store_true', help='CSV and summary only')
     p.add_argument(
+        '--plots-every',
+        type=int,
+        default=0,
+        metavar='N',
+        help='also write the diagnostic figure (as estimate --plot) of every N-th frame to '
+        'OUT/frames/ (0 = none, the default)',
+    )
+    p.add_argument(
         '--sky-check',
         action='store_true',
         help='check every result against the whole sky, as estimate does on real images (sigma '
@@ -125,6 +133,8 @@ def run(args) -> int:
         from ..headings import check_stride
 
         check_stride(args.stride, ())
+    if args.plots_every < 0:
+        raise CompassError(f'--plots-every must be >= 0, got {args.plots_every}')
     if args.workers is not None and not 1 <= args.workers <= 64:
         raise CompassError(f'--workers must be in [1, 64], got {args.workers}')
     methods = (
@@ -155,6 +165,11 @@ def run(args) -> int:
             args.bag, config, tm, lambda k: advance_to(bar, k), workers=args.workers
         )
     paths = write_outputs(result, args.out, args.bag, plots=not args.no_plots)
+    if args.plots_every:
+        from ..replay_figures import write_frame_figures
+
+        figs = write_frame_figures(args.bag, result, tm, config, args.plots_every, args.out)
+        paths['frame_figures'] = f'{len(figs)} in {args.out}/frames'
     print(
         f'{args.bag}: {result.frames} frames, {result.bag_duration_s:.1f} s of recording in '
         f'{result.wall_s:.1f} s '

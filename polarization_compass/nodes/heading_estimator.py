@@ -58,6 +58,7 @@ from ..camera import CameraError, CameraModel
 from ..errors import CompassError
 from ..estimators import registry
 from ..pipeline import (
+    apply_rules,
     CameraInfoState,
     HeadingFrontEnd,
     ImageLossWatch,
@@ -170,14 +171,14 @@ class HeadingEstimatorNode(HeadingNodeBase):
                 self.front.set_layout(
                     layout_from_text(merged['polarizer_layout']), merged['pol45_toward']
                 )
-                self.polarizer.count = 0  # check the new convention N frames from now
+                self.polarizer.reset()  # check the new convention from the next image on
             if 'demosaic' in changed:
                 self.front.demosaic = merged['demosaic']
             if 'sky_check' in changed:
                 self.front.sky_check = bool(merged['sky_check'])
             if 'polarizer_check_every' in changed:
                 self.polarizer.every_n = int(merged['polarizer_check_every'])
-                self.polarizer.count = 0
+                self.polarizer.reset()
             if 'use_intensity' in changed:
                 self.front.intensity = bool(merged['use_intensity'])
             self._update_common(changed, merged)
@@ -412,19 +413,41 @@ class HeadingEstimatorNode(HeadingNodeBase):
             mosaic, camera, sun_az, sun_alt, pitch, roll, inp.prior_bearing_deg
         )
         result = self._with_attitude_sigma(result, pitch, roll, status)
-        return self.tilt_prior.checked(result, inp)  # heading vs. the IMU prior (a named step)
+        self._check_polarizer(mosaic, camera, sun_alt, pitch, roll, status)
+        # the polarizer gate, then the heading vs. the IMU prior: replay applies the same rules
+        return apply_rules(result, inp, self.tilt_prior, self.polarizer)
 
-    def _after_estimate(self, camera, mosaic, sun_alt, inp, status: dict) -> None:
-        """Check the polarizer convention every ``polarizer_check_every``-th image."""
-        self._check_polarizer(mosaic, camera, sun_alt, inp.pitch_deg, inp.roll_deg, status)
+    def _debug_rgb(self, camera, mosaic, result, sun, inp):
+        """Render the diagnostic figure of one image (~/debug_image; the estimate's layers)."""
+        from ..diagnostic_rgb import quick_rgb
+        from ..headings import Sun
+        from ..sky_view import view_from_mosaic
+
+        layout = self.front.layout
+        view = view_from_mosaic(
+            mosaic,
+            camera,
+            Sun(sun[0], sun[1], 'node'),
+            [result],
+            layout.angles_deg,
+            layout.pol45_toward,
+            self.front.demosaic,
+            inp.pitch_deg,
+            inp.roll_deg,
+            max_side_px=256,
+            sampled=True,
+            label=f'heading_estimator ({self.method})',
+        )
+        return quick_rgb(view, int(self.params['debug_width_px']))
 
     def _check_polarizer(self, mosaic, camera, sun_alt, pitch, roll, status: dict) -> None:
         """
-        Check every ``polarizer_check_every``-th image against the polarizer convention.
+        Check the image against the polarizer convention when the monitor says it is due.
 
-        Every polarizer_check_every-th image: does the sky support the configured polarizer
-        convention? A contradiction is a diagnostics ERROR naming the fix (until a later check
-        supports the configuration); a failing check is logged and never stops the frame.
+        Every image until the sky supports the configuration, then every
+        ``polarizer_check_every``-th (:class:`PolarizerMonitor`). A contradiction is a diagnostics
+        ERROR naming the fix (until a later check supports the configuration) and the results are
+        gated (:func:`apply_rules`); a failing check is logged and never stops the frame.
         """
         had_error = self.polarizer.error
         try:

@@ -20,8 +20,11 @@ What the camera and the photodiode-array heading nodes share: sun, IMU, queue an
 (site and time parameters, or a NavSatFix), the IMU buffer for the tilt and the 180 deg prior, the
 queue of stamped inputs waiting for their IMU sample (:meth:`HeadingNodeBase._drain`), and the
 outputs: the heading Imu and bearing of a resolved result, one JSON status per input, failures
-included, and ``/diagnostics``. Each node subscribes to its own sensor and turns one queued input
-into a :class:`~polarization_compass.estimators.base.HeadingResult`
+included, ``/diagnostics``, the heading as a ``visualization_msgs/Marker`` (``~/heading_marker``)
+and a diagnostic picture (``~/debug_image``, rgb8, rendered only while someone subscribes and at
+most ``debug_rate_hz``; a sensor that has a picture implements
+:meth:`HeadingNodeBase._debug_rgb`). Each node subscribes to its own sensor and turns one queued
+input into a :class:`~polarization_compass.estimators.base.HeadingResult`
 (:meth:`HeadingNodeBase._estimate`).
 """
 
@@ -93,11 +96,16 @@ class HeadingNodeBase(Node):
             Float64, t['bearing_raw'], qos_profile_system_default
         )
         self.pub_status = self.create_publisher(String, t['status'], QoSProfile(depth=50))
+        self._start_debug(p)
         if self.tilt_prior.needs_imu:
             # best effort (REP-2003 sensor data): matches reliable and best-effort IMU drivers and
             # bag players alike (a reliable reader never connects to a best-effort writer); deep
             # for fast IMUs
             imu_qos = QoSProfile(depth=topics.IMU_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+            if p.values.get('image_qos') == 'replay':
+                # a played bag's IMU reliably (the player publishes reliably): a best-effort
+                # sample lost under the image flood leaves tilt_aware's frame without attitude
+                imu_qos = QoSProfile(depth=topics.IMU_DEPTH)
             self.create_subscription(
                 Imu, topics.IMU, self._on_imu, imu_qos, callback_group=small_group
             )
@@ -215,7 +223,6 @@ class HeadingNodeBase(Node):
             t0 = time.perf_counter()
             result = self._estimate(prepared, data, sun_az, sun_alt, inp, status)
             status['estimate_ms'] = round((time.perf_counter() - t0) * 1e3, 3)
-            self._after_estimate(prepared, data, sun_alt, inp, status)
         except (PipelineError, CompassError) as exc:
             self.get_logger().warning(
                 f'frame {t_ns / 1e9:.3f} s: {exc}', throttle_duration_sec=5.0
@@ -235,9 +242,7 @@ class HeadingNodeBase(Node):
             self._publish_status(status)
             return
         self._publish_result(t_ns, t_in, result, status, sun_az, sun_alt, inp, frame_id)
-
-    def _after_estimate(self, prepared, data, sun_alt, inp, status: dict) -> None:
-        """Run a check after a successful estimate (the camera node: its polarizer check)."""
+        self._publish_debug(t_ns, result, prepared, data, (sun_az, sun_alt), inp, frame_id)
 
     def _publish_result(self, t_ns, t_in, result, status, sun_az, sun_alt, inp, frame_id):
         """Publish a resolved heading (Imu and bearing), the status and the diagnostics."""
@@ -298,6 +303,57 @@ class HeadingNodeBase(Node):
             'sun_altitude_deg': sun_alt,
         }
         self.diag.done(t_in, t_ns, text, ok=published)
+
+    # what the compass sees: marker and debug image --------------------------------------------
+    def _start_debug(self, p) -> None:
+        """Create the marker and debug-image publishers the parameters ask for."""
+        from sensor_msgs.msg import Image
+
+        vals = p.values
+        self.pub_marker = self.pub_debug = None
+        self._debug_last = -math.inf
+        if vals.get('publish_marker', False):
+            from visualization_msgs.msg import Marker
+
+            self.pub_marker = self.create_publisher(Marker, '~/heading_marker', 10)
+        if vals.get('debug_rate_hz', 0.0) > 0.0:
+            self.pub_debug = self.create_publisher(Image, '~/debug_image', 1)
+
+    def _debug_wanted(self) -> bool:
+        """Return whether a debug image is due: a subscriber, and the rate allows one now."""
+        pub = self.pub_debug
+        if pub is None or pub.get_subscription_count() == 0:
+            return False
+        rate = self.params['debug_rate_hz']
+        now = time.monotonic()
+        if rate <= 0.0 or now - self._debug_last < 1.0 / rate:
+            return False
+        self._debug_last = now
+        return True
+
+    def _publish_debug(self, t_ns, result, prepared, data, sun, inp, frame_id) -> None:
+        """Publish the heading marker and, when due (:meth:`_debug_wanted`), the debug image."""
+        frame = frame_id or self.params['frame_id']
+        if self.pub_marker is not None and result.ok and result.yaw_enu_deg is not None:
+            from .debug_msgs import heading_markers
+
+            for m in heading_markers(t_ns, frame, result.yaw_enu_deg, result.sigma_deg):
+                self.pub_marker.publish(m)
+        if not self._debug_wanted():
+            return
+        try:
+            rgb = self._debug_rgb(prepared, data, result, sun, inp)
+        except Exception as exc:  # noqa: BLE001 - a picture must never stop the compass
+            self.diag.reject('debug_image_failed', f'{type(exc).__name__}: {exc}')
+            return
+        if rgb is not None:
+            from .debug_msgs import rgb_image_msg
+
+            self.pub_debug.publish(rgb_image_msg(rgb, t_ns, frame))
+
+    def _debug_rgb(self, prepared, data, result, sun, inp):
+        """Return the debug picture of one input (uint8 (H, W, 3)), or None (no picture)."""
+        return None
 
     def _newest_imu_text(self) -> str:
         n = self.imu.newest_ns

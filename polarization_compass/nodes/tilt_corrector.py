@@ -96,7 +96,7 @@ def load_corrector(path: str, method: str):
     from ..errormap import ErrorMapError
 
     p = Path(path) if path else default_map_path()
-    if not p.is_file():
+    if not p.exists():  # a file (.npz, NetCDF) or a Zarr store directory
         raise CompassError(
             f'error map {str(p)!r} does not exist: ' + MAP_HELP.format(method=method, path=p)
         )
@@ -192,7 +192,7 @@ class TiltCorrectorNode(Node):
             return
         self.imu.add(stamp_ns(msg.header), q)
         self.attitude_uncertainty.update(msg.orientation_covariance)
-        self._drain(final=False)
+        self._drain()
 
     def _on_fix(self, msg):
         site = apply_fix(self.sun, self.diag, msg)
@@ -220,19 +220,14 @@ class TiltCorrectorNode(Node):
                 rp_var,
             )
         )
-        self._drain(final=False)
+        self._drain()
 
     def _expire(self):
-        self._drain(final=True)
+        self._drain()
 
     # pairing and correction ---------------------------------------------------------------------
-    def _drain(self, final: bool) -> None:
-        """
-        Process waiting headings whose IMU is available.
-
-        Also those whose wait (``imu_max_wait_s``) is over, on every call: ``final`` (passed by the
-        expiry timer) changes nothing.
-        """
+    def _drain(self) -> None:
+        """Process the waiting headings whose IMU is available or whose wait is over."""
         import time
 
         tol_ns = int(self.params['imu_tolerance_s'] * 1e9)

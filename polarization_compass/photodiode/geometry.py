@@ -29,21 +29,27 @@ Format (one YAML mapping)::
         enabled: true             # optional; false: the unit is never used for a heading
         dark_offset: [0, 0, 0, 0] # optional reading of each channel in the dark (subtracted)
     saturation: [-32768, 32767]   # optional readings at or beyond these limits are saturated
+    mount:                        # optional: the sensor's tilt on the body (:mod:`..mount`)
+      pitch_deg: -4.1
+      roll_deg: -2.0
 
+With a ``mount``, :meth:`ArrayGeometry.axes_body` and :meth:`ArrayGeometry.evectors_body` are in
+the body frame (the units' own description is the sensor's), so every estimator reads the body's
+heading and levels with the body's pitch and roll.
 The frame conventions (body frame, angle zero and sense) are :mod:`..conventions`'.
 Every problem is a one-line :class:`ArrayGeometryError` naming the key.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
 
 from ..conventions import ANGLE_SENSES, ANGLE_ZEROS, unit_axis_body, unit_evector_body
 from ..errors import CompassError
+from ..mount import Mount, mount_from_dict, mount_to_dict, MountError, R_body_sensor
 from ..safe_load import load_yaml, read_text
 
 __all__ = [
@@ -94,6 +100,7 @@ class ArrayGeometry:
     angle_zero: str = 'meridian'
     angle_sense: str = 'cw'
     extra: dict = field(default_factory=dict)
+    mount: Mount | None = None
 
     @property
     def n_units(self) -> int:
@@ -118,12 +125,51 @@ class ArrayGeometry:
         Returns
         -------
         numpy.ndarray
-            (U, 3) unit vectors (:func:`~polarization_compass.conventions.unit_axis_body`).
+            (U, 3) unit vectors (:func:`~polarization_compass.conventions.unit_axis_body`, turned
+            by the mount).
 
         """
-        return unit_axis_body(
-            [u.azimuth_deg for u in self.units], [u.elevation_deg for u in self.units]
+        return self.body_from_sensor(
+            unit_axis_body(
+                [u.azimuth_deg for u in self.units], [u.elevation_deg for u in self.units]
+            )
         )
+
+    def body_from_sensor(self, v_sensor) -> np.ndarray:
+        """
+        Turn vectors from the sensor's frame (the units' description) into the body frame.
+
+        Parameters
+        ----------
+        v_sensor : array_like
+            (..., 3) vectors in the sensor's frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) the same vectors in the body frame (unchanged without a mount).
+
+        """
+        v = np.asarray(v_sensor, dtype=float)
+        return v if self.mount is None else v @ R_body_sensor(self.mount).T
+
+    def sensor_from_body(self, v_body) -> np.ndarray:
+        """
+        Turn body-frame vectors into the sensor's frame (the inverse of :meth:`body_from_sensor`).
+
+        Parameters
+        ----------
+        v_body : array_like
+            (..., 3) vectors in the body frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) the same vectors in the sensor's frame.
+
+        """
+        v = np.asarray(v_body, dtype=float)
+        return v if self.mount is None else v @ R_body_sensor(self.mount)
 
     def evectors_body(self, angle_rad) -> np.ndarray:
         """
@@ -139,12 +185,14 @@ class ArrayGeometry:
         -------
         numpy.ndarray
             (..., U, 3) unit E-vectors in the body frame
-            (:func:`~polarization_compass.conventions.unit_evector_body`).
+            (:func:`~polarization_compass.conventions.unit_evector_body`, turned by the mount).
 
         """
         az = np.array([u.azimuth_deg for u in self.units])
         el = np.array([u.elevation_deg for u in self.units])
-        return unit_evector_body(angle_rad, az, el, self.angle_zero, self.angle_sense)
+        return self.body_from_sensor(
+            unit_evector_body(angle_rad, az, el, self.angle_zero, self.angle_sense)
+        )
 
     def with_convention(self, angle_zero: str, angle_sense: str) -> 'ArrayGeometry':
         """
@@ -163,7 +211,24 @@ class ArrayGeometry:
             The same units with the given convention.
 
         """
-        return ArrayGeometry(self.units, angle_zero, angle_sense, dict(self.extra))
+        return replace(self, angle_zero=angle_zero, angle_sense=angle_sense)
+
+    def with_mount(self, mount: Mount | None) -> 'ArrayGeometry':
+        """
+        Return a copy with another mount.
+
+        Parameters
+        ----------
+        mount : Mount or None
+            The sensor's tilt on the body (None: level).
+
+        Returns
+        -------
+        ArrayGeometry
+            The same units and convention on this mount.
+
+        """
+        return replace(self, mount=mount)
 
     def with_gains(self, gains, gains_sigma=None) -> 'ArrayGeometry':
         """
@@ -186,8 +251,8 @@ class ArrayGeometry:
         for i, u in enumerate(self.units):
             g = tuple(float(v) for v in gains[i])
             gs = None if gains_sigma is None else tuple(float(v) for v in gains_sigma[i])
-            units.append(dataclasses.replace(u, gains=g, gains_sigma=gs))
-        return ArrayGeometry(tuple(units), self.angle_zero, self.angle_sense, dict(self.extra))
+            units.append(replace(u, gains=g, gains_sigma=gs))
+        return replace(self, units=tuple(units))
 
 
 def _number(where: str, v, lo: float, hi: float) -> float:
@@ -218,7 +283,7 @@ _UNIT_KEYS = {
     'name',
     'dark_offset',
 }
-_TOP_KEYS = {'units', 'angle_zero', 'angle_sense', 'name', 'notes', 'saturation'}
+_TOP_KEYS = {'units', 'angle_zero', 'angle_sense', 'name', 'notes', 'mount', 'saturation'}
 
 
 def _unit(i: int, d) -> UnitGeometry:
@@ -337,7 +402,11 @@ def geometry_from_dict(d, where: str = 'array geometry') -> ArrayGeometry:
     extra = {k: d[k] for k in ('name', 'notes') if k in d}
     if d.get('saturation') is not None:
         extra['saturation'] = _saturation(where, d['saturation'])
-    return ArrayGeometry(parsed, d['angle_zero'], d['angle_sense'], extra)
+    try:
+        mount = mount_from_dict(d['mount'], f'{where}: mount') if 'mount' in d else None
+    except MountError as exc:
+        raise ArrayGeometryError(str(exc)) from None
+    return ArrayGeometry(parsed, d['angle_zero'], d['angle_sense'], extra, mount)
 
 
 def load_array_geometry(path) -> ArrayGeometry:
@@ -381,7 +450,7 @@ def geometry_to_dict(g: ArrayGeometry) -> dict:
     -------
     dict
         ``angle_zero``, ``angle_sense``, ``units`` (with gains, and gains_sigma / enabled when
-        set).
+        set), ``mount`` when there is one.
 
     """
     units = []
@@ -402,4 +471,6 @@ def geometry_to_dict(g: ArrayGeometry) -> dict:
         units.append(d)
     out = dict(g.extra)
     out.update({'angle_zero': g.angle_zero, 'angle_sense': g.angle_sense, 'units': units})
+    if g.mount is not None:
+        out['mount'] = mount_to_dict(g.mount)
     return out

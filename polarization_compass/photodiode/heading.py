@@ -395,7 +395,7 @@ class ArrayHeadingEstimator:
         """
         s_body = R_BODY_CAM_DEFAULT @ s
         pred = unit_angle_from_evector_body_rad(
-            np.cross(s_body, self.geometry.axes_body()[u.use]),
+            self.geometry.sensor_from_body(np.cross(s_body, self.geometry.axes_body()[u.use])),
             self._az[u.use],
             self._el[u.use],
             self.geometry.angle_zero,

@@ -17,7 +17,9 @@ Photodiode-array recordings: intensities and optional per-sample times.
 
 ``.npz``: ``intensities`` float array (S, U, C) and optional ``t_offset_s`` (S,) seconds after a
 reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>``
-(0-based, channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Units
+(0-based, channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Both
+layouts may add, per sample, ``imu_yaw_rad`` (the IMU's yaw, counter-clockwise, any zero) and
+``turn_index`` (an integer >= 0 marking the turns in place of a recording; calibrate-mount). Units
 with fewer channels than the widest one leave the extra columns out (they read as 0 and are never
 used). Readings are intensities (>= 0); negative values and NaN are kept for the estimator to
 reject per sample (a sample is never dropped silently), but inf is refused. Readings that are not
@@ -52,6 +54,7 @@ __all__ = [
 MAX_SAMPLES = 1_000_000
 _MAX_CSV_CHARS = 200_000_000
 _COL = re.compile(r'^u(\d+)_c(\d+)$')
+_SAMPLE_KEYS = ('t_offset_s', 'imu_yaw_rad', 'turn_index')
 
 
 #: Why a unit's readings are not a measurement in one sample (:func:`reading_flags`), plus
@@ -72,6 +75,8 @@ class ArrayRecording:
 
     intensities: np.ndarray
     t_offset_s: np.ndarray | None = None
+    imu_yaw_rad: np.ndarray | None = None
+    turn_index: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -105,7 +110,7 @@ class ArrayRecording:
             )
 
 
-def _validated(inten, t, where: str) -> ArrayRecording:
+def _validated(inten, t, where: str, imu=None, turn=None) -> ArrayRecording:
     inten = np.asarray(inten)
     if inten.dtype.kind not in 'fiu' or inten.ndim != 3:
         raise ArrayRecordingError(
@@ -130,7 +135,20 @@ def _validated(inten, t, where: str) -> ArrayRecording:
         t = t.astype(np.float64)
         if not np.all(np.isfinite(t)) or np.any(np.abs(t) > 1e9):
             raise ArrayRecordingError(f'{where}: t_offset_s must be finite seconds within +-1e9')
-    return ArrayRecording(inten, t)
+    imu, turn = (_per_sample(where, k, v, S) for k, v in zip(_SAMPLE_KEYS[1:], (imu, turn)))
+    return ArrayRecording(inten, t, imu, None if turn is None else turn.astype(np.int64))
+
+
+def _per_sample(where: str, name: str, v, S: int):
+    """Check an optional per-sample column: finite numbers (turn_index: integers 0..1e6)."""
+    if v is None:
+        return None
+    v = np.asarray(v)
+    if v.dtype.kind not in 'fiu' or v.shape != (S,) or not np.all(np.isfinite(v)):
+        raise ArrayRecordingError(f'{where}: {name} must be finite numbers, one per sample ({S})')
+    if name == 'turn_index' and np.any((v != np.round(v)) | (v < 0) | (v > 1e6)):
+        raise ArrayRecordingError(f'{where}: turn_index must be integers in 0..1000000')
+    return v.astype(np.float64)
 
 
 def _load_csv(path) -> ArrayRecording:
@@ -145,15 +163,16 @@ def _load_csv(path) -> ArrayRecording:
             f'{path}: empty CSV (expected a header with u<unit>_c<channel> columns)'
         ) from None
     cols = {}
-    t_col = None
+    named = {}  # per-sample columns: t_offset_s, imu_yaw_rad, turn_index
     for j, h in enumerate(header):
-        if h == 't_offset_s':
-            t_col = j
+        if h in ('t_offset_s', 'imu_yaw_rad', 'turn_index'):
+            named[h] = j
             continue
         m = _COL.match(h)
         if not m:
             raise ArrayRecordingError(
-                f'{path}: unknown column {h!r} (expected u<unit>_c<channel> or t_offset_s)'
+                f'{path}: unknown column {h!r} (expected u<unit>_c<channel>, t_offset_s, '
+                'imu_yaw_rad or turn_index)'
             )
         key = (int(m.group(1)), int(m.group(2)))
         if key in cols:
@@ -190,10 +209,10 @@ def _load_csv(path) -> ArrayRecording:
     inten = np.zeros((a.shape[0], U, C))
     for (u, c), j in cols.items():
         inten[:, u, c] = a[:, j]
-    t = a[:, t_col] if t_col is not None else None
+    t, imu, turn = (a[:, named[k]] if k in named else None for k in _SAMPLE_KEYS)
     if t is not None and not np.all(np.isfinite(t)):
         raise ArrayRecordingError(f'{path}: t_offset_s has empty or non-finite values')
-    return _validated(inten, t, str(path))
+    return _validated(inten, t, str(path), imu, turn)
 
 
 def load_array_recording(path) -> ArrayRecording:
@@ -225,11 +244,11 @@ def load_array_recording(path) -> ArrayRecording:
                 f"{p}: no 'intensities' array (has: {', '.join(sorted(z.files)) or 'nothing'})"
             )
         inten = z['intensities']
-        t = z['t_offset_s'] if 't_offset_s' in z.files else None
-    return _validated(inten, t, p)
+        t, imu, turn = (z[k] if k in z.files else None for k in _SAMPLE_KEYS)
+    return _validated(inten, t, p, imu, turn)
 
 
-def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
+def save_array_recording_npz(path, intensities, t_offset_s=None, **per_sample) -> None:
     """
     Write the ``.npz`` layout :func:`load_array_recording` reads.
 
@@ -241,15 +260,18 @@ def save_array_recording_npz(path, intensities, t_offset_s=None) -> None:
         (S, U, C) readings.
     t_offset_s : array_like, optional
         (S,) seconds after the reference time.
+    **per_sample : array_like
+        Optional (S,) ``imu_yaw_rad`` and ``turn_index``.
 
     """
     arrays = {'intensities': np.asarray(intensities, dtype=np.float64)}
     if t_offset_s is not None:
         arrays['t_offset_s'] = np.asarray(t_offset_s, dtype=np.float64)
+    arrays.update({k: np.asarray(v) for k, v in per_sample.items() if v is not None})
     np.savez(path, **arrays)
 
 
-def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
+def save_array_recording_csv(path, intensities, t_offset_s=None, **per_sample) -> None:
     """
     Write the CSV layout :func:`load_array_recording` reads.
 
@@ -261,19 +283,24 @@ def save_array_recording_csv(path, intensities, t_offset_s=None) -> None:
         (S, U, C) readings.
     t_offset_s : array_like, optional
         (S,) seconds after the reference time.
+    **per_sample : array_like
+        Optional (S,) ``imu_yaw_rad`` and ``turn_index``.
 
     """
     a = np.asarray(intensities, dtype=np.float64)
     S, U, C = a.shape
-    header = (['t_offset_s'] if t_offset_s is not None else []) + [
-        f'u{u}_c{c}' for u in range(U) for c in range(C)
-    ]
+    extra = {k: np.asarray(v, dtype=float) for k, v in per_sample.items() if v is not None}
+    header = (
+        (['t_offset_s'] if t_offset_s is not None else [])
+        + list(extra)
+        + [f'u{u}_c{c}' for u in range(U) for c in range(C)]
+    )
     with open(path, 'w', newline='', encoding='utf-8') as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i in range(S):
             row = ([repr(float(t_offset_s[i]))] if t_offset_s is not None else []) + [
-                repr(float(v)) for v in a[i].ravel()
+                repr(float(v)) for v in [*(x[i] for x in extra.values()), *a[i].ravel()]
             ]
             w.writerow(row)
 

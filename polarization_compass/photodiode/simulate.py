@@ -31,13 +31,11 @@ import numpy as np
 
 from .stokes import design_matrix
 from ..conventions import (
-    CameraAttitude,
-    enu_direction,
-    R_enu_body_from_camera_attitude,
     unit_angle_from_evector_body_rad,
     unit_axis_body,
     unit_polarizer_frame_body,
 )
+from ..mount import sun_sensor
 
 __all__ = ['sun_body', 'simulate_unit_stokes', 'simulate_readings', 'ArraySensor']
 
@@ -67,10 +65,8 @@ def sun_body(
         (3,) unit sun vector in the REP-103 body frame.
 
     """
-    R_enu_body = R_enu_body_from_camera_attitude(
-        CameraAttitude(float(bearing_deg), float(pitch_deg), float(roll_deg))
-    )
-    return R_enu_body.T @ enu_direction(sun_azimuth_deg, sun_altitude_deg)
+    b, p, r = float(bearing_deg), float(pitch_deg), float(roll_deg)
+    return sun_sensor(sun_azimuth_deg, sun_altitude_deg, b, p, r, None)
 
 
 def _cone_quadrature(acceptance_deg: float, rings: int = 6, per_ring: int = 24):
@@ -94,7 +90,8 @@ def simulate_unit_stokes(
     geometry : ArrayGeometry
         Units (axes, acceptance cones) and convention.
     s_body : array_like
-        (3,) sun direction in the body frame.
+        (3,) sun direction in the sensor's frame (the units' description; the body frame when the
+        geometry has no mount).
     dop_max : float, optional
         Rayleigh maximum degree of polarization.
     integrate : bool, optional
@@ -173,11 +170,11 @@ def simulate_readings(
     sun_altitude_deg : float
         Sun altitude [deg].
     bearings_deg : array_like
-        (S,) true bearings of the front [deg].
+        (S,) true bearings of the body's front [deg].
     pitch_deg : float or array_like, optional
-        Pitch [deg], scalar or (S,).
+        The body's pitch [deg], scalar or (S,) (the geometry's mount is composed with it).
     roll_deg : float or array_like, optional
-        Roll [deg], scalar or (S,).
+        The body's roll [deg], scalar or (S,).
     dop_max : float, optional
         Rayleigh maximum degree of polarization.
     brightness : float, optional
@@ -203,7 +200,7 @@ def simulate_readings(
     for i in range(b.size):
         st = simulate_unit_stokes(
             geometry,
-            sun_body(sun_azimuth_deg, sun_altitude_deg, b[i], p[i], r[i]),
+            sun_sensor(sun_azimuth_deg, sun_altitude_deg, b[i], p[i], r[i], geometry.mount),
             dop_max,
             integrate,
         )
@@ -346,7 +343,9 @@ class ArraySensor:
             (U, C) readings.
 
         """
-        st = simulate_unit_stokes(self.geometry, s_body, dop_max, self.integrate)
+        st = simulate_unit_stokes(
+            self.geometry, self.geometry.sensor_from_body(s_body), dop_max, self.integrate
+        )
         out = np.zeros((self.geometry.n_units, self.geometry.n_channels))
         for u, unit in enumerate(self.geometry.units):
             out[u, : unit.n_channels] = (

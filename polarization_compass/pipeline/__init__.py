@@ -17,7 +17,8 @@ Per-frame processing behind the nodes, ROS-free.
 
 Mosaic -> observation -> heading (:mod:`.front_end`), the IMU history the tilt and the ambiguity
 prior come from (:mod:`.attitude`, :mod:`.prior`), the sun per stamp (:mod:`.sun`), the camera
-intrinsics in use (:mod:`.camera_info`) and the watches on the live stream (:mod:`.monitors`).
+intrinsics in use (:mod:`.camera_info`), the watches on the live stream (:mod:`.monitors`) and
+the rules every result passes before it is published (:mod:`.rules`, node and replay alike).
 
 The node classes in :mod:`polarization_compass.nodes` only move messages in and out of these
 objects, so the same code runs wherever frames come from (a live camera, a bag, a test).
@@ -34,6 +35,7 @@ from .errors import PipelineError
 from .front_end import HeadingFrontEnd, warm_up
 from .monitors import ImageLossWatch, PolarizerMonitor
 from .prior import check_prior_agreement, FrameInputs, PRIOR_DISAGREES_N_SIGMA, TiltAndPrior
+from .rules import apply_rules
 from .sampling import decimated_blocks, whole_sky_sample
 from .sun import SunSource
 
@@ -51,6 +53,7 @@ __all__ = [
     'PRIOR_DISAGREES_N_SIGMA',
     'ImageLossWatch',
     'PolarizerMonitor',
+    'apply_rules',
     'decimated_blocks',
     'whole_sky_sample',
 ]

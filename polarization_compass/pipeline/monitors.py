@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sampling import decimated_blocks
 from ..camera import CameraModel
 
 __all__ = [
@@ -107,16 +106,21 @@ class ImageLossWatch:
 # ------------------------------------------------------------------------------------------------
 class PolarizerMonitor:
     """
-    Watch the polarizer convention on live frames.
+    Watch the polarizer convention on live frames, and refuse headings the sky contradicts.
 
-    Runs :func:`polarization_compass.polarizer_check.check_polarizer` on every ``every_n``-th
-    mosaic (0 = never; the first check is on frame ``every_n``), on a decimated superpixel grid (at
-    most ``max_blocks`` 2 x 2 blocks, block-aligned so the layout's phase is kept), and remembers
-    the last decisive verdict.
+    Runs :func:`polarization_compass.polarizer_check.check_frame` (at most ``max_blocks`` 2 x 2
+    blocks, block-aligned so the layout's phase is kept) on **every** frame until the sky supports
+    the configured convention, and while it contradicts it; once supported, on every
+    ``every_n``-th frame (the convention is the camera's, not the frame's). ``every_n`` 0 turns
+    the check off.
 
-    :attr:`error` is the text a node publishes as a diagnostics ERROR while the last decisive check
-    contradicts the configured layout (it names the fix); ``cannot_tell`` keeps the previous
-    verdict.
+    :meth:`gate` turns a heading into ``poor_fit`` naming the fix while the last check
+    contradicts (or clearly disfavours) the configuration
+    (:func:`~polarization_compass.polarizer_check.gate_result`); :attr:`error` is the same text,
+    which a node publishes as a diagnostics ERROR. ``cannot_tell`` keeps the previous verdict.
+    Measured (10 000 blocks, eight hypotheses, one loaded core): 60-170 ms per check at the known
+    sun altitude, 0.5-2 s when it disfavours the configuration (then refitted with the altitude
+    free).
     """
 
     def __init__(self, every_n: int = 100, max_blocks: int = 10000):
@@ -125,6 +129,35 @@ class PolarizerMonitor:
         self.count = 0
         self.last: dict | None = None
         self.error: str | None = None
+        self.supported = False  # the last decisive check supported the configuration
+        self._against: dict | None = None  # the last report that disfavours the configuration
+
+    def reset(self) -> None:
+        """
+        Forget the verdicts (a new polarizer configuration): check from the next frame on.
+
+        :attr:`error` stays until the next decisive check, so a node can clear the diagnostics
+        ERROR it raised.
+        """
+        self.count = 0
+        self.supported = False
+        self._against = None
+
+    def due(self) -> bool:
+        """
+        Count a frame and say whether it is checked.
+
+        Returns
+        -------
+        bool
+            True for every frame until the sky supports the configuration (and while it
+            contradicts it), then for every ``every_n``-th; never with ``every_n`` 0.
+
+        """
+        if self.every_n <= 0:
+            return False
+        self.count += 1
+        return not self.supported or self.count % self.every_n == 0
 
     def feed(
         self,
@@ -136,7 +169,7 @@ class PolarizerMonitor:
         roll_deg=None,
     ) -> dict | None:
         """
-        Count a frame and, on every ``every_n``-th, check the polarizer convention.
+        Count a frame and, when :meth:`due`, check the polarizer convention on it.
 
         Parameters
         ----------
@@ -158,38 +191,48 @@ class PolarizerMonitor:
             frame, else None.
 
         """
-        if self.every_n <= 0:
+        if not self.due():
             return None
-        self.count += 1
-        if self.count % self.every_n:  # the every_n-th frame, not the first: start-up stays fast
-            return None
-        from ..estimators.mosaic_input import _grid_rays
-        from ..polarizer_check import check_polarizer
+        from ..polarizer_check import check_frame, contradiction_text, disfavoured
 
         m = np.asarray(mosaic)
-        small, k, nx, ny = decimated_blocks(m, self.max_blocks)
-
-        def rays_for_shape(shape):
-            _, _, rays, ok = _grid_rays(camera, (1.5, 2.0 * k, nx), (1.5, 2.0 * k, ny))
-            return rays, ok
-
         sat = float(np.iinfo(m.dtype).max) if np.issubdtype(m.dtype, np.integer) else None
-        rep = check_polarizer(
-            [('mosaic', small, sat)],
+        rep = check_frame(
+            'mosaic',
+            m,
+            sat,
             camera,
             layout.angles_deg,
             layout.pol45_toward,
-            rays_for_shape,
             sun_altitude_deg,
-            pitch_deg or 0.0,
-            roll_deg or 0.0,
+            pitch_deg,
+            roll_deg,
+            max_samples=self.max_blocks,
         )
         self.last = rep
-        if rep['verdict'] == 'contradicted':
-            self.error = (
-                f'polarizer convention contradicted by the sky (margin {rep["margin"]:.2f}): '
-                f'{rep.get("fix", "")}'
-            )
+        if disfavoured(rep):
+            self._against, self.supported = rep, False
+            self.error = contradiction_text(rep)
         elif rep['verdict'] == 'supported':
-            self.error = None
+            self._against, self.supported, self.error = None, True, None
         return rep
+
+    def gate(self, result):
+        """
+        Refuse a heading while the last check disfavours the configuration.
+
+        Parameters
+        ----------
+        result : HeadingResult
+            A method's result on the frame.
+
+        Returns
+        -------
+        HeadingResult
+            ``result``, or ``poor_fit`` naming the fix
+            (:func:`~polarization_compass.polarizer_check.gate_result`).
+
+        """
+        from ..polarizer_check import gate_result
+
+        return gate_result(result, self._against)

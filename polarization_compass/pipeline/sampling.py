@@ -16,42 +16,15 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..camera import CameraModel
+from ..polarizer_check import decimated_blocks
 
 __all__ = [
     'decimated_blocks',
     'whole_sky_sample',
 ]
-
-
-def decimated_blocks(mosaic: np.ndarray, max_blocks: int):
-    """
-    Keep every k-th 2 x 2 block of a mosaic, as one smaller mosaic with the same 2 x 2 phase.
-
-    Parameters
-    ----------
-    mosaic : numpy.ndarray
-        Raw DoFP image (H, W).
-    max_blocks : int
-        At most this many blocks are kept (k the smallest step that achieves it).
-
-    Returns
-    -------
-    tuple
-        ``(small, k, nx, ny)``: the (2 ny, 2 nx) mosaic whose block (j, i) is centred at 1-based
-        sensor pixel ``(1.5 + 2 k i, 1.5 + 2 k j)``, the step k and the block counts.
-
-    """
-    H, W = mosaic.shape
-    by, bx = H // 2, W // 2
-    k = max(1, int(math.ceil(math.sqrt(by * bx / max(int(max_blocks), 1)))))
-    ny, nx = (by + k - 1) // k, (bx + k - 1) // k
-    blocks = mosaic[: 2 * by, : 2 * bx].reshape(by, 2, bx, 2)[::k, :, ::k, :]
-    return np.ascontiguousarray(blocks).reshape(2 * ny, 2 * nx), k, nx, ny
 
 
 def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000):

@@ -51,8 +51,10 @@ class ReplayConfig:
     no stride, so ``--methods zenith`` runs alone). ``prior_source``: imu | last | none
     (heading_estimator ``prior_source``). ``error_map``: .npz from ``polarization-compass
     errormap`` for the tilt correction (None: no corrected headings; see
-    :func:`default_error_map`). ``direct_methods``: methods the corrector does not touch (default:
-    those whose estimator class ``needs_tilt``, e.g. tilt_aware).
+    :func:`default_error_map`). ``prior_sigma_deg`` and ``polarizer_check_every``: the
+    heading_estimator's parameters of those names (the IMU-prior check and the polarizer gate,
+    :func:`~polarization_compass.pipeline.apply_rules`). ``direct_methods``: methods the corrector
+    does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
     """
 
     methods: tuple = ()
@@ -63,6 +65,8 @@ class ReplayConfig:
     sky_check: bool = False
     prior_source: str = 'imu'
     prior_max_age_s: float = 2.0
+    prior_sigma_deg: float = 15.0
+    polarizer_check_every: int = 100
     sun_model: str = 'spa'
     error_map: str | None = None
     correction_sigma_deg: float = 0.1
@@ -223,6 +227,7 @@ class FramePipeline:
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
         from ..demosaic import layout_from_mapping
         from ..pipeline.front_end import HeadingFrontEnd
+        from ..pipeline.monitors import PolarizerMonitor
         from ..pipeline.prior import TiltAndPrior
 
         layout = layout_from_mapping(topic_map.mosaic)
@@ -241,12 +246,14 @@ class FramePipeline:
             for m in self.methods
         }
         self.tilt_prior = {
-            m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s) for m in self.methods
+            m: TiltAndPrior(m, config.prior_source, config.prior_max_age_s, config.prior_sigma_deg)
+            for m in self.methods
         }
+        self.polarizer = PolarizerMonitor(config.polarizer_check_every)  # one per frame stream
         self.sun = None
         self.corrector = None
-        if config.error_map:
-            self.corrector = _make_corrector(config)
+        if config.error_map:  # (replay_bag checked the map against all the methods)
+            self.corrector = _make_corrector(config, check_methods=False)
         self.timing_ms: dict = {m: [] for m in self.methods}
         self.timing_ms['observation'] = []
 
@@ -294,13 +301,24 @@ class FramePipeline:
                 for m in self.methods
             ]
         obs_cache: dict = {}  # one observation per demosaic front, one whole-sky sample
+        self._check_polarizer(frame, sun_alt)
         return [
             self._method_row(m, front, frame, sun_az, sun_alt, obs_cache)
             for m, front in self.fronts.items()
         ]
 
+    def _check_polarizer(self, frame: SyncedFrame, sun_alt: float) -> None:
+        """Feed the frame to the polarizer check as the node does (level); never fatal."""
+        layout = next(iter(self.fronts.values())).layout
+        try:
+            self.polarizer.feed(frame.mosaic, frame.camera, layout, sun_alt)
+        except CompassError:  # the node logs a failing check and goes on; so does replay
+            pass
+
     def _method_row(self, m, front, frame, sun_az, sun_alt, obs_cache: dict) -> MethodRow:
-        """Run method ``m`` on the frame: its prior and tilt, the estimate, the tilt correction."""
+        """Run method ``m`` on the frame: prior, tilt, estimate, the node's rules, correction."""
+        from ..pipeline.rules import apply_rules
+
         c = self.config
         t_ns, tilt = frame.stamp_ns, frame.tilt
         inp = self.tilt_prior[m].inputs(t_ns, tilt, frame.imu_near)
@@ -323,6 +341,7 @@ class FramePipeline:
         t0 = time.perf_counter()
         try:
             result, t0 = self._estimate(front, frame, inp, key, sun_az, sun_alt, obs_cache, t0)
+            result = apply_rules(result, inp, self.tilt_prior[m], self.polarizer)  # the node's
         except CompassError as exc:
             return MethodRow(
                 status='bad_input', reason=str(exc), pitch_deg=pitch, roll_deg=roll, **common
@@ -390,10 +409,20 @@ def default_error_map() -> str | None:
     return str(p) if p.is_file() else None
 
 
-def _make_corrector(config: ReplayConfig):
-    """Return the ``tilt_corrector`` node's correction as a :class:`_Corrector`."""
+def _make_corrector(config: ReplayConfig, check_methods: bool = True):
+    """
+    Return the ``tilt_corrector`` node's correction as a :class:`_Corrector`, map checked now.
+
+    Every documented format loads (``.npz``, NetCDF, a Zarr store directory). A map that cannot be
+    read, or (``check_methods``: the whole replay's configuration, not one worker group's) that
+    corrects none of the selected methods, is a :class:`ReplayError` (exit 2 with the reason)
+    before any frame is read, never an empty corrected stream.
+    """
+    from ..errormap import ErrorMapError
+    from ..errormap_io import load_error_map
+
     path = Path(config.error_map)
-    if not path.is_file():
+    if not path.exists():
         raise ReplayError(
             f'error map {str(path)!r} does not exist: make one with `polarization-compass '
             'errormap '
@@ -401,7 +430,22 @@ def _make_corrector(config: ReplayConfig):
             '-180:175:5 '
             '--pitch -30:30:5 --roll -30:30:5 --out MAP.npz`'
         )
-    return _Corrector(path)
+    try:
+        emap = load_error_map(path)
+    except ErrorMapError as exc:
+        raise ReplayError(f'--error-map: {exc}') from None
+    cor = _Corrector(path, emap)
+    if not check_methods:
+        return cor
+    wanted = [m for m in config.method_list() if m not in config.direct_methods]
+    reasons = {m: cor._get(m) for m in wanted}
+    reasons = {m: r for m, r in reasons.items() if isinstance(r, str)}
+    if wanted and len(reasons) == len(wanted):
+        raise ReplayError(
+            f'--error-map {str(path)!r} corrects none of the methods '
+            f'{", ".join(wanted)}: ' + '; '.join(f'{m}: {r}' for m, r in reasons.items())
+        )
+    return cor
 
 
 class _Corrector:
@@ -420,9 +464,9 @@ class _Corrector:
 
     PENDING = 'pending'
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, error_map=None):
         self.path = path
-        self._map = None
+        self._map = error_map  # loaded on first use when not given
         self.correctors: dict = {}
         self.defer = False
         self.queue: list = []  # (row, method, raw, sun_az, sun_alt, pitch, roll)

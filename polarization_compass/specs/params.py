@@ -37,6 +37,7 @@ __all__ = [
     'ESTIMATOR',
     'CORRECTOR',
     'EVALUATOR',
+    'PLAYER_FLOW',
     'SPECS',
     'spec_by_name',
     'defaults',
@@ -721,6 +722,30 @@ ESTIMATOR = (
         'whole sky, status poor_fit when no single sun fits (~15-30 ms per image)',
     ),
     Param(
+        'debug_rate_hz',
+        1.0,
+        'most diagnostic images per second on ~/debug_image (rgb8: AoP, DoP, pixels used and '
+        'masked, residual, fitted sun, heading; README "What the compass sees"), rendered only '
+        'while someone subscribes (0 = never)',
+        0.0,
+        30.0,
+        unit='Hz',
+    ),
+    Param(
+        'debug_width_px',
+        640,
+        'width of the ~/debug_image picture',
+        200,
+        2600,
+        unit='px',
+    ),
+    Param(
+        'publish_marker',
+        True,
+        'publish the heading as a visualization_msgs/Marker arrow (id 0) and its +-sigma sector '
+        '(id 1) on ~/heading_marker, in frame_id (as the heading Imu)',
+    ),
+    Param(
         'use_intensity',
         False,
         'also compute S0 so that a method can resolve the 180 deg ambiguity from '
@@ -857,8 +882,8 @@ ESTIMATOR = (
         'image_qos',
         'sensor_data',
         'subscription QoS of the image: sensor_data (REP-2003, best effort), reliable (5 deep) or '
-        'replay (reliable, 300 deep: the images of a played bag queue behind a slow estimator, '
-        'none dropped; the replay graph)',
+        'replay (reliable, 32 deep: the images of a played bag queue behind a slow estimator, '
+        "which replay.launch.py's player_flow keeps short; the replay graph)",
         choices=('sensor_data', 'reliable', 'replay'),
         read_only=True,
     ),
@@ -1084,12 +1109,55 @@ EVALUATOR = (
     ),
 )
 
+PLAYER_FLOW = (
+    Param(
+        'status_topics',
+        [''],
+        "the estimators' status topics (compass/<method>/status): one answer per image each",
+        read_only=True,
+    ),
+    Param(
+        'camera_info_topic',
+        'camera/camera_info',
+        "the player's camera_info: one per image, the frames it has published",
+        read_only=True,
+    ),
+    Param(
+        'player', '/rosbag2_player', 'the player node (its pause/resume services)', read_only=True
+    ),
+    Param(
+        'high_water',
+        6,
+        'pause the player when an estimator is this many frames behind',
+        lo=1,
+        hi=1000,
+        unit='frames',
+    ),
+    Param(
+        'low_water',
+        2,
+        'resume it when every estimator is within this many frames (less than high_water)',
+        lo=0,
+        hi=999,
+        unit='frames',
+    ),
+    Param(
+        'max_pause_s',
+        120.0,
+        'longest pause without an answer from the estimators before resuming for good',
+        lo=1.0,
+        hi=3600.0,
+        unit='s',
+    ),
+)
+
 SPECS = {
     'sky_simulator': SIMULATOR,
     'heading_estimator': ESTIMATOR,
     'array_heading_estimator': ARRAY_ESTIMATOR,
     'tilt_corrector': CORRECTOR,
     'error_evaluator': EVALUATOR,
+    'player_flow': PLAYER_FLOW,
 }
 
 

@@ -105,10 +105,12 @@ FRAMES = 'sim/frames'  # simulator: JSON {stamp_ns, wall_ns} per image (wall-clo
 #: reliable ones) and deep enough for 2 s of a 100 Hz IMU, so that samples arriving while a long
 #: callback runs are kept.
 IMU_DEPTH = 200
-#: History depth of the estimator's image subscription with ``image_qos: replay`` (reliable): a
-#: played bag's images queue there behind an estimator slower than the player instead of being
-#: dropped (30 s of a 10 Hz camera; a full-resolution mosaic is 10 MB).
-REPLAY_IMAGE_DEPTH = 300
+#: History depth of the estimator's image subscription and queue with ``image_qos: replay``
+#: (reliable): a played bag's images wait there behind an estimator slower than the player. The
+#: replay's ``player_flow`` pauses the player long before (at ``high_water`` frames); the depth is
+#: the memory bound (32 full-resolution mosaics of 10 MB), beyond which the oldest is dropped and
+#: counted (``image_queue_full``).
+REPLAY_IMAGE_DEPTH = 32
 
 
 def method_topics(method: str) -> dict:

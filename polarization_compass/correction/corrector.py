@@ -12,61 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Tilt correction from an error map (paper, section 3.4, done properly).
-
-A tilted camera makes a classical method report ``psi_meas = psi + e(psi, h, pitch, roll)``, where
-the error ``e`` (an :class:`~polarization_compass.errormap.ErrorMap`) is a function of the *true*
-yaw psi, which the corrector does not know. Two corrections are offered:
-
-``invert`` (default)  solve ``psi + e(psi, h, pitch, roll) = psi_meas`` for psi: a 1-D search over
-                      a +-90 deg window of yaw around the measurement (the map's errors are folded
-                      to (-90, 90]), bracketing sign changes on a sub-grid of the yaw axis, then
-                      bisection to 1e-9 deg. Several roots: status ``multiple_solutions`` (the
-                      heading returned is the root nearest the ``subtract`` estimate; all roots are
-                      listed); none: ``no_solution``.
-``subtract``          the paper's reading: ``psi = psi_meas - e(psi_meas, ...)``, i.e. the error
-                      looked up at the measured yaw. Wrong by about ``e * de/dpsi``: several
-                      degrees at large tilt and high sun (docs/error-maps.md gives the numbers).
-
-Interpolation: tensor-product cubic convolution (Keys, a = -1/2; periodic along yaw, Keys' cubic
-boundary rule at the ends of the other axes) on uniform axes, multilinear on non-uniform or short
-(< 4 nodes) axes; where a cubic stencil touches a node without a valid estimate the point falls
-back to multilinear in its grid cell. ``order=1`` forces multilinear everywhere.
-
-Domain (status ``out_of_domain``, never silent extrapolation): sun altitude, pitch and roll inside
-the map's axes; |pitch| + |roll| <= the map's tilt limit unless the map was computed on the full
-domain; and every node the interpolation reads holds a valid estimate. The map's yaw axis must
-cover a full turn with a uniform step (it is periodic).
-
-Angles in degrees; psi is the paper's yaw (bearing minus sun azimuth), (-180, 180].
-"""
+"""The tilt corrector of one method: :class:`TiltCorrector` and the shipped map's location."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from enum import Enum
 from importlib import resources
 import math
 from pathlib import Path
-from typing import NamedTuple
 
-from numba import njit
 import numpy as np
 
-from .conventions import psi_to_bearing_deg, wrap_180_deg, wrap_180_deg_float
-from .errormap import ErrorMap, ErrorMapError
-from .errormap_io import load_error_map
-
-__all__ = [
-    'TiltCorrector',
-    'Correction',
-    'CorrectionStatus',
-    'STATUS_INT',
-    'default_map_path',
-    'DEFAULT_MAP_NAME',
-    'REGENERATE_DEFAULT_MAP',
-]
+from .kernels import _accumulate_curves, _invert_kernel
+from .results import _FROM_INT, BearingCorrections, Correction, CorrectionStatus, STATUS_INT
+from .weights import _axis_weights, _is_uniform, _yaw_weights
+from ..conventions import psi_to_bearing_deg, wrap_180_deg
+from ..errormap import ErrorMap, ErrorMapError
+from ..errormap_io import load_error_map
 
 DEFAULT_MAP_NAME = 'tilt_error_map.npz'
 #: The command that regenerates the shipped map (documented in docs/error-maps.md).
@@ -76,91 +37,11 @@ REGENERATE_DEFAULT_MAP = (
     '--float32 --out polarization_compass/data/tilt_error_map.npz'
 )
 
-
-class CorrectionStatus(str, Enum):
-    """
-    Outcome of one tilt correction (values are strings).
-
-    ``ok``; ``out_of_domain`` (outside the map's axes or tilt limit, or an invalid node is needed);
-    ``multiple_solutions`` (several yaws predict the measurement); ``no_solution`` (none does).
-    """
-
-    OK = 'ok'
-    OUT_OF_DOMAIN = 'out_of_domain'
-    MULTIPLE_SOLUTIONS = 'multiple_solutions'
-    NO_SOLUTION = 'no_solution'
-
-
-#: int8 codes of :meth:`TiltCorrector.correct_many`.
 #: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
 _MAX_ROOTS = 16
 #: Floor of |1 + de/dpsi| in :meth:`TiltCorrector.heading_sensitivity` (a slope that small means
 #: roots about to coalesce: the inversion's status already says ``multiple_solutions``).
 _MIN_SLOPE = 0.05
-
-STATUS_INT = {
-    CorrectionStatus.OK: 0,
-    CorrectionStatus.OUT_OF_DOMAIN: 1,
-    CorrectionStatus.MULTIPLE_SOLUTIONS: 2,
-    CorrectionStatus.NO_SOLUTION: 3,
-}
-_FROM_INT = {v: k for k, v in STATUS_INT.items()}
-
-
-class BearingCorrections(NamedTuple):
-    """
-    Hold the corrected bearings of :meth:`TiltCorrector.correct_bearings`, all finite.
-
-    Parameters
-    ----------
-    bearing_deg : numpy.ndarray
-        Corrected bearings of camera +y [deg] in [0, 360), clockwise from North, shape (N,);
-        0.0 where ``ok`` is False (no heading there: read ``status``, never this value).
-    ok : numpy.ndarray
-        bool (N,): True where the correction succeeded (status ``ok``).
-    status : list of str
-        :class:`CorrectionStatus` value per heading, the reason there is no heading when not ok.
-
-    """
-
-    bearing_deg: np.ndarray
-    ok: np.ndarray
-    status: list
-
-
-@dataclass(frozen=True)
-class Correction:
-    """
-    Hold one corrected heading; ``psi_deg`` is None when there is none (status says why).
-
-    Parameters
-    ----------
-    status : CorrectionStatus
-        Outcome.
-    psi_deg : float or None
-        Corrected yaw psi [deg] (eq 21), (-180, 180].
-    error_deg : float or None
-        The map's error at the corrected yaw, ``psi_meas - psi`` [deg].
-    candidates_deg : tuple of float
-        Every root of the inversion [deg].
-    mode : str
-        ``invert`` or ``subtract``.
-    reason : str
-        Why the status is not ``ok`` (or how a root was chosen).
-
-    """
-
-    status: CorrectionStatus
-    psi_deg: float | None = None
-    error_deg: float | None = None
-    candidates_deg: tuple = ()
-    mode: str = 'invert'
-    reason: str = ''
-
-    @property
-    def ok(self) -> bool:
-        """Whether a corrected heading exists (status ``ok``)."""
-        return self.status == CorrectionStatus.OK
 
 
 def default_map_path() -> Path:
@@ -174,238 +55,6 @@ def default_map_path() -> Path:
 
     """
     return Path(str(resources.files('polarization_compass').joinpath('data/' + DEFAULT_MAP_NAME)))
-
-
-# --------------------------------------------------------------------------------------------
-# Interpolation weights along one axis
-# --------------------------------------------------------------------------------------------
-def _is_uniform(axis: np.ndarray) -> bool:
-    if axis.size < 3:
-        return True
-    d = np.diff(axis)
-    return bool(np.all(np.abs(d - d[0]) <= 1e-9 * max(1.0, abs(d[0]))))
-
-
-def _keys(t):
-    """
-    Return Keys (a = -1/2) cubic convolution weights of four nodes at fraction t.
-
-    The nodes are i-1, i, i+1, i+2; t is in [0, 1].
-    """
-    t2 = t * t
-    t3 = t2 * t
-    return np.stack(
-        [
-            -0.5 * t3 + t2 - 0.5 * t,
-            1.5 * t3 - 2.5 * t2 + 1.0,
-            -1.5 * t3 + 2.0 * t2 + 0.5 * t,
-            0.5 * t3 - 0.5 * t2,
-        ],
-        -1,
-    )
-
-
-def _keys_dt(t):
-    """Return the derivatives d/dt of the Keys (a = -1/2) weights of :func:`_keys` at t."""
-    t2 = t * t
-    return np.stack(
-        [
-            -1.5 * t2 + 2.0 * t - 0.5,
-            4.5 * t2 - 5.0 * t,
-            -4.5 * t2 + 4.0 * t + 0.5,
-            1.5 * t2 - t,
-        ],
-        -1,
-    )
-
-
-#: How the four Keys weights of stencil nodes i-1..i+2 land on the 4-node window
-#: ``start..start+3``: inside the axis the window is the stencil (identity); at the low end (window
-#: shifted up by one) the ghost node f(-1) = 3 f(0) - 3 f(1) + f(2) (Keys' cubic boundary rule);
-#: mirrored at the high end.
-_KEYS_BOUNDARY = np.array(
-    [
-        [
-            [3.0, -3.0, 1.0, 0.0],
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-        ],  # off = -1
-        np.eye(4),  # off = 0
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [0.0, 1.0, -3.0, 3.0],
-        ],  # off = +1
-    ]
-)
-
-
-def _axis_weights(axis: np.ndarray, x: np.ndarray, order: int, deriv: bool = False):
-    """
-    Return node indices and weights of points on a non-periodic axis.
-
-    Node indices (N, k) and weights (N, k) of points x on a non-periodic axis, and inside (N,)
-    bool. With ``deriv`` the weights are their derivatives d/dx [1/axis unit], so that the sum of
-    weights times node values is the interpolant's derivative (0 on a one-node axis).
-
-    Outside the axis the indices are clipped and ``inside`` is False (the caller rejects the
-    point).
-    """
-    x = np.asarray(x, dtype=float)
-    n = axis.size
-    tol = 1e-9 * max(1.0, float(np.max(np.abs(axis))))
-    inside = (x >= axis[0] - tol) & (x <= axis[-1] + tol)
-    if n == 1:
-        w1 = np.zeros(x.shape + (1,)) if deriv else np.ones(x.shape + (1,))
-        return np.zeros(x.shape + (1,), dtype=np.intp), w1, inside
-    xc = np.clip(x, axis[0], axis[-1])
-    i = np.clip(np.searchsorted(axis, xc, side='right') - 1, 0, n - 2)
-    h = axis[i + 1] - axis[i]
-    t = np.clip((xc - axis[i]) / h, 0.0, 1.0)
-    if order == 1 or n < 4 or not _is_uniform(axis):
-        if deriv:
-            return np.stack([i, i + 1], -1), np.stack([-1.0 / h, 1.0 / h], -1), inside
-        return np.stack([i, i + 1], -1), np.stack([1.0 - t, t], -1), inside
-    w = _keys_dt(t) / h[..., None] if deriv else _keys(t)
-    start = np.clip(i - 1, 0, n - 4)
-    off = (i - 1) - start  # -1 at the low end, +1 at the high end, else 0
-    W = np.einsum('...k,...kj->...j', w, _KEYS_BOUNDARY[off + 1])
-    return start[..., None] + np.arange(4), W, inside
-
-
-def _yaw_weights(y0: float, step: float, n: int, psi: np.ndarray, order: int, deriv: bool = False):
-    """
-    Return indices and weights on the periodic yaw axis ``y0 + step * k`` (n * step = 360).
-
-    With ``deriv`` the weights are their derivatives d/dpsi [1/deg].
-    """
-    u = np.mod(np.asarray(psi, dtype=float) - y0, 360.0) / step
-    i = np.floor(u).astype(np.intp)
-    t = np.clip(u - i, 0.0, 1.0)
-    i = np.mod(i, n)
-    if order == 1 or n < 4:
-        if deriv:
-            d = np.full(t.shape, 1.0 / step)
-            return np.stack([i, (i + 1) % n], -1), np.stack([-d, d], -1)
-        return np.stack([i, (i + 1) % n], -1), np.stack([1.0 - t, t], -1)
-    w = _keys_dt(t) / step if deriv else _keys(t)
-    return np.mod(np.stack([i - 1, i, i + 1, i + 2], -1), n), w
-
-
-# --------------------------------------------------------------------------------------------
-# Compiled kernels: per query, the error curve over the yaw nodes and the 1-D inversion. One
-# heading in numpy cost ~8 ms of call overhead (60 bisection steps, 64 stencil terms); the same
-# algorithm compiled costs microseconds, which matters for a node correcting every frame.
-# --------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
-def _accumulate_curves(E, V, ia, wa, ip, wp, ir, wr, ok):  # pragma: no cover - compiled
-    """
-    Tensor-product interpolation of the error curves: out[q, y] = sum w_a w_p w_r E[a, y, p, r].
-
-    A node without a valid estimate (any yaw) and a non-zero weight makes query q not ok (in
-    place).
-    """
-    N = ia.shape[0]
-    Y = E.shape[1]
-    out = np.zeros((N, Y))
-    for q in range(N):
-        for a in range(ia.shape[1]):
-            for b in range(ip.shape[1]):
-                for c in range(ir.shape[1]):
-                    w = wa[q, a] * wp[q, b] * wr[q, c]
-                    A, P, R = ia[q, a], ip[q, b], ir[q, c]
-                    good = True
-                    for y in range(Y):
-                        if not V[A, y, P, R]:
-                            good = False
-                        v = E[A, y, P, R]
-                        if np.isfinite(v):
-                            out[q, y] += w * v
-                    if not good and w != 0.0:
-                        ok[q] = False
-    return out
-
-
-#: :func:`~polarization_compass.conventions.wrap_180_deg_float` compiled for the kernels below.
-_wrap180 = njit(inline='always', cache=True)(wrap_180_deg_float)
-
-
-@njit(inline='always', cache=True)
-def _curve_at(curve, q, psi, yaw0, step, n, cubic):  # pragma: no cover - compiled
-    """
-    Return the error curve of query q at yaw psi (periodic).
-
-    Keys cubic or linear interpolation, as :func:`_yaw_weights`.
-    """
-    u = np.mod(psi - yaw0, 360.0) / step
-    i = int(np.floor(u))
-    t = min(max(u - i, 0.0), 1.0)
-    i = i % n
-    if not cubic:
-        return curve[q, i] * (1.0 - t) + curve[q, (i + 1) % n] * t
-    t2 = t * t
-    t3 = t2 * t
-    return (
-        curve[q, (i - 1) % n] * (-0.5 * t3 + t2 - 0.5 * t)
-        + curve[q, i] * (1.5 * t3 - 2.5 * t2 + 1.0)
-        + curve[q, (i + 1) % n] * (-1.5 * t3 + 2.0 * t2 + 0.5 * t)
-        + curve[q, (i + 2) % n] * (0.5 * t3 - 0.5 * t2)
-    )
-
-
-@njit(cache=True, nogil=True)
-def _invert_kernel(
-    curve, ok, meas, yaw0, step, n, cubic, u, max_roots, invert
-):  # pragma: no cover - compiled
-    """
-    Invert the error curve per query: subtract estimate and refined roots.
-
-    Per query: ``sub`` (the subtract estimate), the roots of f(u) = u + e(meas + u) on the sample
-    grid ``u`` (sign changes, exact zeros), each refined by 60 bisection steps, as yaws wrapped to
-    (-180, 180] (``cand``, NaN-padded, first ``max_roots``), their count, and the root nearest
-    ``sub`` (``psi``). With ``invert`` False only ``sub`` is computed.
-    """
-    N = meas.shape[0]
-    S = u.shape[0]
-    sub = np.zeros(N)
-    psi = np.zeros(N)
-    n_roots = np.zeros(N, dtype=np.int64)
-    cand = np.full((N, max_roots), np.nan)
-    f = np.empty(S)
-    for q in range(N):
-        sub[q] = _wrap180(meas[q] - _curve_at(curve, q, meas[q], yaw0, step, n, cubic))
-        if not (ok[q] and invert):
-            continue
-        for k in range(S):
-            f[k] = u[k] + _curve_at(curve, q, meas[q] + u[k], yaw0, step, n, cubic)
-        best = np.inf
-        for k in range(S - 1):
-            zero = f[k] == 0.0
-            if not (zero or np.sign(f[k]) * np.sign(f[k + 1]) < 0):
-                continue
-            if zero:
-                root = u[k]
-            else:
-                lo, hi, flo = u[k], u[k + 1], f[k]
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    fm = mid + _curve_at(curve, q, meas[q] + mid, yaw0, step, n, cubic)
-                    if np.sign(fm) == np.sign(flo):
-                        lo, flo = mid, fm
-                    else:
-                        hi = mid
-                root = 0.5 * (lo + hi)
-            c = _wrap180(meas[q] + root)
-            if n_roots[q] < max_roots:
-                cand[q, n_roots[q]] = c
-            n_roots[q] += 1
-            d = abs(_wrap180(c - sub[q]))
-            if d < best:
-                best = d
-                psi[q] = c
-    return sub, psi, n_roots, cand
 
 
 # --------------------------------------------------------------------------------------------
