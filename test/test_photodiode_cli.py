@@ -24,7 +24,11 @@ import io
 import numpy as np
 from polarization_compass.cli import main
 from polarization_compass.conventions import wrap_180_deg
-from polarization_compass.photodiode.geometry import geometry_to_dict, load_array_geometry
+from polarization_compass.photodiode.geometry import (
+    geometry_from_dict,
+    geometry_to_dict,
+    load_array_geometry,
+)
 from polarization_compass.photodiode.readings import (
     save_array_recording_csv,
     save_array_recording_npz,
@@ -111,6 +115,8 @@ def test_estimate_array(capsys, files, name):
         'units_used',
         'misfit_rms_deg',
         'reason',
+        'side_by',
+        'units_unusable',
     ]
     for r, b in zip(rows, bearings):
         assert r['status'] == 'ok', r['reason']
@@ -217,7 +223,38 @@ def test_calibrate_array(capsys, files, tmp_path):
     g = load_array_geometry(out)
     np.testing.assert_allclose([u.gains for u in g.units], gains, atol=1e-6)
     assert all(u.gains_sigma is not None for u in g.units)
-    assert err.count('unit ') == 8
+    lines = [ln for ln in err.splitlines() if ln.startswith('unit ')]
+    assert len(lines) == 8 and all('angle change' in ln for ln in lines)
+    assert 'keep the old geometry' in err  # when not to use them, in the output
+
+
+def test_calibrate_array_names_only_enabled_units_and_repeats_count_once(capsys, files, tmp_path):
+    d, _, gains, _ = files
+    gd = geometry_to_dict(geom(gains=gains))
+    gd['units'][3]['enabled'] = False
+    truth = geometry_from_dict(gd)
+    rng = np.random.default_rng(7)
+    x = simulate_readings(truth, 120.0, 40.0, np.linspace(0, 360, 200), noise_rel=0.003, rng=rng)
+    save_array_recording_npz(tmp_path / 'noisy.npz', x)
+    raw = dict(gd)
+    raw['units'] = [{k: v for k, v in u.items() if k != 'gains'} for u in gd['units']]
+    (tmp_path / 'raw.yaml').write_text(yaml.safe_dump(raw))
+    out = tmp_path / 'cal.yaml'
+    rec = str(tmp_path / 'noisy.npz')
+    geo = str(tmp_path / 'raw.yaml')
+    code = main(['calibrate-array', rec, rec, rec, '--geometry', geo, '--out', str(out)])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    named = [int(ln.split()[1].rstrip(':')) for ln in err.splitlines() if ln.startswith('unit ')]
+    assert named == [0, 1, 2, 4, 5, 6, 7]
+    assert 'recording 1 repeats recording 0' in err and 'recording 2 repeats recording 0' in err
+    g = load_array_geometry(out)
+    assert g.units[3].gains_sigma is None and g.units[3].gains == (1.0,) * 4
+    for u in (0, 1, 2, 4, 5, 6, 7):
+        sig = np.array(g.units[u].gains_sigma)
+        assert np.all(sig > 1e-5), sig  # one recording's 8 blocks, not three identical groups
+        # and the gains are within a few sigma of the truth
+        assert np.all(np.abs(np.array(g.units[u].gains) - gains[u]) < 5 * sig + 1e-3)
 
 
 def test_check_array(capsys, files):

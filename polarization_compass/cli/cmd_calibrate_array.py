@@ -33,7 +33,9 @@ def register(sub):
         'uncertainty from one or more recordings of full turns (no rig: the readings of an '
         'ideal polarizer set must be consistent with one Stokes vector) and write the '
         "geometry with 'gains' and 'gains_sigma'. Units with fewer than 4 channels or too "
-        'little polarization variation keep their gains (reported).',
+        'little polarization variation keep their gains (reported); disabled units are left '
+        'alone. Check the result with estimate-array before keeping it: on sensors whose angle '
+        'errors are not gain errors the gains make the heading worse (docs/photodiode-arrays.md).',
     )
     p.add_argument(
         'recordings',
@@ -78,14 +80,29 @@ def run(args) -> int:
     with open(args.out, 'w', encoding='utf-8') as fh:
         fh.write('# written by polarization-compass calibrate-array\n')
         yaml.safe_dump(d, fh, sort_keys=False)
-    for i, (gains, s, c, note) in enumerate(
-        zip(cal.gains, cal.gains_sigma, cal.condition, cal.note)
+    for note in cal.notes:
+        print(note, file=sys.stderr)
+    for i, (gains, s, c, note, change) in enumerate(
+        zip(cal.gains, cal.gains_sigma, cal.condition, cal.note, cal.angle_change_deg)
     ):
+        if not g.units[i].enabled:
+            continue
         gs = ' '.join(f'{v:.4f}' for v in gains)
         ss = ' '.join(f'{v:.4f}' for v in s) if s is not None else '-'
+        ch = f'  angle change {change:.2f} deg rms' if change is not None else ''
         print(
-            f'unit {i}: gains {gs}  sigma {ss}  condition {c:.2f}'
+            f'unit {i}: gains {gs}  sigma {ss}  condition {c:.2f}{ch}'
             + (f'  ({note})' if note else ''),
             file=sys.stderr,
         )
+    print(_ADVICE, file=sys.stderr)
     return 0
+
+
+_ADVICE = (
+    "use these gains only if the angle changes above are comparable to the units' angle "
+    'residuals against the sky (estimate-array on a turn with a reference, before/after); where '
+    'the residuals are much larger (the real 8-unit POL-OP sensor: 12-30 deg against 2-4 deg) '
+    'the gains fit other defects and make the heading worse: keep the old geometry '
+    '(docs/photodiode-arrays.md)'
+)

@@ -13,10 +13,9 @@
 # limitations under the License.
 
 """
-`polarization-compass check-array`: a photodiode array's polarizer angle convention.
+`polarization-compass check-array`: a photodiode array's polarizer angle convention and wiring.
 
-`polarization-compass check-array`: which polarizer angle convention a photodiode array has, from
-its data.
+Both are read from the data: the ephemeris' sun is the only reference needed.
 """
 
 from __future__ import annotations
@@ -32,8 +31,10 @@ def register(sub):
         help="detect a photodiode array's angle_zero / angle_sense from a recording",
         description='Scores the four polarizer conventions (angle_zero meridian|horizontal x '
         "angle_sense cw|ccw) by how well each makes the units' E-vectors agree with one "
-        "sun at the ephemeris' elevation (no reference heading needed); best first. Exit 0 "
-        "when the geometry's convention is the clear winner, 1 otherwise.",
+        "sun at the ephemeris' elevation (no reference heading needed); best first. Then the "
+        'wiring mistakes (azimuths counted the other way, units one position out of order). '
+        "Exit 0 when the geometry's convention is the clear winner and no mistake fits the "
+        'readings clearly better, 1 otherwise.',
     )
     p.add_argument('recording', metavar='RECORDING', help='.npz or .csv recording')
     p.add_argument('--geometry', required=True, help='sensor description YAML')
@@ -51,7 +52,7 @@ def run(args) -> int:
     from .cmd_estimate_array import sun_per_sample
     from ..photodiode.geometry import load_array_geometry
     from ..photodiode.readings import load_array_recording
-    from ..photodiode.selfcheck import check_convention
+    from ..photodiode.selfcheck import check_convention, contradicting_hypothesis
 
     check_range('lat', args.lat, -90, 90)
     check_range('lon', args.lon, -180, 180)
@@ -88,4 +89,12 @@ def run(args) -> int:
             f'the geometry says angle_zero {g.angle_zero}, angle_sense {g.angle_sense}',
             file=sys.stderr,
         )
-    return 0 if ok else 1
+    bad = contradicting_hypothesis(rec.intensities, g, az, alt, pitch, roll, max_samples=400)
+    if bad is None:
+        print('wiring: no common mistake fits the readings clearly better than the geometry')
+    else:
+        print(
+            f'WIRING: the readings fit "{bad[0]}" better than the geometry (median misfit '
+            f'{bad[1]:.1f} vs {bad[2]:.1f} deg)'
+        )
+    return 0 if ok and bad is None else 1

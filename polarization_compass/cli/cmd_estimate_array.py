@@ -36,7 +36,12 @@ def register(sub):
         "'intensities' samples x units x channels and optional 't_offset_s', or CSV with "
         'u<unit>_c<channel> columns and optional t_offset_s). Rows: sample, t_offset_s, '
         'bearing_deg (body front, clockwise from true North), yaw_enu_deg (REP-103), '
-        'sigma_deg, status, units_used, misfit_rms_deg, reason.',
+        'sigma_deg, status, units_used, misfit_rms_deg, reason, side_by (what decided the '
+        '180 deg side: sun_elevation, brightness, prior or empty), units_unusable (units whose '
+        'readings were not measurements in that sample, per reason: saturated, zero_channel, '
+        'dop_above_1, ...). When the readings fit a common wiring mistake (another polarizer '
+        'convention, azimuths counted the other way, units one position out of order) clearly '
+        'better than the geometry, no sample keeps a heading (poor_fit, the mistake named).',
     )
     p.add_argument('recording', metavar='RECORDING', help='.npz or .csv recording')
     p.add_argument('--geometry', required=True, help='sensor description YAML')
@@ -85,11 +90,59 @@ def _fmt(v, digits=4):
     return '' if v is None or not math.isfinite(v) else f'{v:.{digits}f}'
 
 
+_COLUMNS = (
+    'sample',
+    't_offset_s',
+    'bearing_deg',
+    'yaw_enu_deg',
+    'sigma_deg',
+    'status',
+    'units_used',
+    'misfit_rms_deg',
+    'reason',
+    'side_by',
+    'units_unusable',
+)
+
+
+def _row(i: int, t: float, r) -> list:
+    heading = r.ok
+    unusable = r.extras.get('units_unusable') or {}
+    return [
+        i,
+        _fmt(t, 6),
+        _fmt(r.bearing_deg) if heading else '',
+        _fmt(r.yaw_enu_deg) if heading else '',
+        _fmt(r.sigma_deg) if heading else '',
+        r.status.value,
+        r.pixels,
+        _fmt(r.extras.get('misfit_rms_deg'), 3),
+        r.reason,
+        r.extras.get('ambiguity_resolved_by') or '',
+        ';'.join(f'{k}={v}' for k, v in unusable.items()),
+    ]
+
+
+def _summary(results) -> str:
+    counts, unusable = {}, {}
+    for r in results:
+        counts[r.status.value] = counts.get(r.status.value, 0) + 1
+        for k, v in (r.extras.get('units_unusable') or {}).items():
+            unusable[k] = unusable.get(k, 0) + int(v)
+    line = f'{len(results)} sample(s): ' + ', '.join(f'{k} {v}' for k, v in sorted(counts.items()))
+    if unusable:
+        line += '; unit-samples not measuring: ' + ', '.join(
+            f'{k} {v}' for k, v in sorted(unusable.items())
+        )
+    return line
+
+
 def run(args) -> int:
     from .cmd_estimate import parse_knobs
     from ..photodiode.geometry import load_array_geometry
-    from ..photodiode.heading import estimate_recording, make_array_estimator
+    from ..photodiode.heading import make_array_estimator
     from ..photodiode.readings import load_array_recording
+    from ..photodiode.selfcheck import estimate_recording_checked
 
     check_range('lat', args.lat, -90, 90)
     check_range('lon', args.lon, -180, 180)
@@ -103,7 +156,7 @@ def run(args) -> int:
     rec.check_against(geometry)
     az, alt = sun_per_sample(args.time, rec.t_offset_s, rec.n_samples, args.lat, args.lon)
     with progress_bar('estimate-array', ' samples', rec.n_samples) as bar:
-        results = estimate_recording(
+        results = estimate_recording_checked(
             est,
             rec.intensities,
             az,
@@ -116,43 +169,12 @@ def run(args) -> int:
     fh = sys.stdout if args.out == '-' else open(args.out, 'w', newline='', encoding='utf-8')
     try:
         w = csv.writer(fh)
-        w.writerow(
-            [
-                'sample',
-                't_offset_s',
-                'bearing_deg',
-                'yaw_enu_deg',
-                'sigma_deg',
-                'status',
-                'units_used',
-                'misfit_rms_deg',
-                'reason',
-            ]
-        )
+        w.writerow(_COLUMNS)
         for i, r in enumerate(results):
             t = 0.0 if rec.t_offset_s is None else float(rec.t_offset_s[i])
-            heading = r.ok
-            w.writerow(
-                [
-                    i,
-                    _fmt(t, 6),
-                    _fmt(r.bearing_deg) if heading else '',
-                    _fmt(r.yaw_enu_deg) if heading else '',
-                    _fmt(r.sigma_deg) if heading else '',
-                    r.status.value,
-                    r.pixels,
-                    _fmt(r.extras.get('misfit_rms_deg'), 3),
-                    r.reason,
-                ]
-            )
+            w.writerow(_row(i, t, r))
     finally:
         if fh is not sys.stdout:
             fh.close()
-    counts = {}
-    for r in results:
-        counts[r.status.value] = counts.get(r.status.value, 0) + 1
-    print(
-        f'{len(results)} sample(s): ' + ', '.join(f'{k} {v}' for k, v in sorted(counts.items())),
-        file=sys.stderr,
-    )
+    print(_summary(results), file=sys.stderr)
     return 0

@@ -27,6 +27,8 @@ Format (one YAML mapping)::
         gains: [1, 1, 1, 1]       # optional relative channel gains (default 1)
         gains_sigma: [0, 0, 0, 0] # optional 1-sigma of the gains (written by calibrate-array)
         enabled: true             # optional; false: the unit is never used for a heading
+        dark_offset: [0, 0, 0, 0] # optional reading of each channel in the dark (subtracted)
+    saturation: [-32768, 32767]   # optional readings at or beyond these limits are saturated
     mount:                        # optional: the sensor's tilt on the body (:mod:`..mount`)
       pitch_deg: -4.1
       roll_deg: -2.0
@@ -82,6 +84,7 @@ class UnitGeometry:
     gains: tuple
     gains_sigma: tuple | None = None
     enabled: bool = True
+    dark_offset: tuple | None = None
 
     @property
     def n_channels(self) -> int:
@@ -103,6 +106,12 @@ class ArrayGeometry:
     def n_units(self) -> int:
         """Return the number of units."""
         return len(self.units)
+
+    @property
+    def saturation(self) -> tuple | None:
+        """Return the (low, high) reading limits (at or beyond: saturated), None without."""
+        s = self.extra.get('saturation')
+        return None if s is None else (float(s[0]), float(s[1]))
 
     @property
     def n_channels(self) -> int:
@@ -242,17 +251,7 @@ class ArrayGeometry:
         for i, u in enumerate(self.units):
             g = tuple(float(v) for v in gains[i])
             gs = None if gains_sigma is None else tuple(float(v) for v in gains_sigma[i])
-            units.append(
-                UnitGeometry(
-                    u.azimuth_deg,
-                    u.elevation_deg,
-                    u.channels_deg,
-                    u.acceptance_deg,
-                    g,
-                    gs,
-                    u.enabled,
-                )
-            )
+            units.append(replace(u, gains=g, gains_sigma=gs))
         return replace(self, units=tuple(units))
 
 
@@ -282,8 +281,9 @@ _UNIT_KEYS = {
     'gains_sigma',
     'enabled',
     'name',
+    'dark_offset',
 }
-_TOP_KEYS = {'units', 'angle_zero', 'angle_sense', 'name', 'notes', 'mount'}
+_TOP_KEYS = {'units', 'angle_zero', 'angle_sense', 'name', 'notes', 'mount', 'saturation'}
 
 
 def _unit(i: int, d) -> UnitGeometry:
@@ -329,7 +329,26 @@ def _unit(i: int, d) -> UnitGeometry:
     enabled = d.get('enabled', True)
     if not isinstance(enabled, bool):
         raise ArrayGeometryError(f'{where}.enabled must be true or false, got {enabled!r}')
-    return UnitGeometry(az, el, chans, acc, gains, gs, enabled)
+    dark = (
+        _numbers(f'{where}.dark_offset', d['dark_offset'], len(chans), -1e9, 1e9)
+        if d.get('dark_offset') is not None
+        else None
+    )
+    return UnitGeometry(az, el, chans, acc, gains, gs, enabled, dark)
+
+
+def _saturation(where: str, v) -> list:
+    """Validate ``saturation``: one number h (limits -h, h) or [low, high]."""
+    if isinstance(v, (list, tuple)):
+        if len(v) != 2:
+            raise ArrayGeometryError(f'{where}: saturation must be one number or [low, high]')
+        lo, hi = _numbers(f'{where}: saturation', v, None, -1e12, 1e12)
+    else:
+        hi = _number(f'{where}: saturation', v, 1e-12, 1e12)
+        lo = -hi
+    if not lo < hi:
+        raise ArrayGeometryError(f'{where}: saturation must be [low, high] with low < high')
+    return [lo, hi]
 
 
 def geometry_from_dict(d, where: str = 'array geometry') -> ArrayGeometry:
@@ -381,6 +400,8 @@ def geometry_from_dict(d, where: str = 'array geometry') -> ArrayGeometry:
         raise ArrayGeometryError(f'{where}: units must be a list of 1-{MAX_UNITS} units, got {n}')
     parsed = tuple(_unit(i, u) for i, u in enumerate(units))
     extra = {k: d[k] for k in ('name', 'notes') if k in d}
+    if d.get('saturation') is not None:
+        extra['saturation'] = _saturation(where, d['saturation'])
     try:
         mount = mount_from_dict(d['mount'], f'{where}: mount') if 'mount' in d else None
     except MountError as exc:
@@ -445,6 +466,8 @@ def geometry_to_dict(g: ArrayGeometry) -> dict:
             d['gains_sigma'] = [float(v) for v in u.gains_sigma]
         if not u.enabled:
             d['enabled'] = False
+        if u.dark_offset is not None:
+            d['dark_offset'] = [float(v) for v in u.dark_offset]
         units.append(d)
     out = dict(g.extra)
     out.update({'angle_zero': g.angle_zero, 'angle_sense': g.angle_sense, 'units': units})

@@ -46,11 +46,13 @@ an image, and :func:`make_array_estimator` refuses them with that reason.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import math
 
 import numpy as np
 
+from .side import pick_array_side
 from .stokes import fit_stokes
 from ..conventions import fold_axial_rad, R_BODY_CAM_DEFAULT, unit_angle_from_evector_body_rad
 from ..errors import CompassError
@@ -60,11 +62,9 @@ from ..estimators.base import HeadingResult, Status
 from ..estimators.sun_from_evectors import (
     fit_quality,
     levelling_rotation,
-    pick_side,
     sensitivity_vectors,
     solve_checked,
     sun_frames,
-    unit_brightness_stats,
 )
 
 __all__ = [
@@ -73,6 +73,7 @@ __all__ = [
     'ArrayHeadingEstimator',
     'make_array_estimator',
     'ARRAY_KNOBS',
+    'axes_spread_deg',
     'estimate_recording',
 ]
 
@@ -127,14 +128,32 @@ ARRAY_KNOBS = {
     'min_eigen_gap': Knob(
         1e-9, 'float', 0.0, 1.0, doc='(lambda2 - lambda1) / lambda3 below this: degenerate'
     ),
+    'min_axes_spread_deg': Knob(
+        10.0,
+        'float',
+        0.0,
+        60.0,
+        doc="spread of the used units' view axes below this: degenerate (they look one way)",
+    ),
     'sign_margin_sigma': Knob(
         3.0, 'float', 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"
+    ),
+    'side_elevation_sigma_deg': Knob(
+        3.0,
+        'float',
+        0.0,
+        45.0,
+        doc="1-sigma of the levelled frame's elevation (tilt, mount, time) for the sun's side",
     ),
     'max_tilt_deg': Knob(
         30.0, 'float', 0.0, 89.0, doc='least_squares: assumed tilt bound for the sign rule'
     ),
     'brightness_min_t': Knob(
-        4.0, 'float', 1.0, 1e6, doc='|t| of the unit brightness gradient that fixes the side'
+        4.0,
+        'float',
+        1.0,
+        1e6,
+        doc="normal-equivalent |t| (n - 2 dof) of the units' brightness gradient fixing the side",
     ),
     'prior_max_diff_deg': Knob(
         60.0, 'float', 1.0, 90.0, doc='a prior bearing within this picks the side'
@@ -201,6 +220,7 @@ class ArrayHeadingEstimator:
         pitch_deg: float | None = None,
         roll_deg: float | None = None,
         prior_bearing_deg: float | None = None,
+        unusable: dict | None = None,
     ) -> HeadingResult:
         """
         Estimate one heading from one sample of per-unit angles of polarization.
@@ -225,15 +245,19 @@ class ArrayHeadingEstimator:
         roll_deg : float, optional
             Known roll [deg] (paper's beta, about body front).
         prior_bearing_deg : float, optional
-            Prior bearing of the front [deg], resolves the 180 deg ambiguity when nothing else
-            does.
+            Prior bearing of the front [deg]: it resolves the 180 deg ambiguity when nothing
+            else does.
+        unusable : dict, optional
+            Units whose readings were not measurements in this sample, per reason
+            (:meth:`~.stokes.UnitStokes.unusable_counts`): reported in ``extras['units_unusable']``
+            and the reason, whatever the status.
 
         Returns
         -------
         HeadingResult
             psi, bearing and REP-103 yaw of the body front, sigma [deg], status with the reason;
-            ``pixels`` is the number of units used. Never NaN: a case without an answer is a
-            status.
+            ``pixels`` is the number of units used. Never NaN: a case without an answer gets a
+            status instead.
 
         References
         ----------
@@ -241,8 +265,13 @@ class ArrayHeadingEstimator:
         Robot. Auton. Syst. 30 (POL-OP units).
 
         """
-        k = self.knobs
         sky = _Sky(sun_azimuth_deg, sun_altitude_deg, prior_bearing_deg)
+        res = self._estimate(aop_rad, dop, s0, valid, sky, pitch_deg, roll_deg)
+        return _with_unusable(res, unusable)
+
+    def _estimate(self, aop_rad, dop, s0, valid, sky, pitch_deg, roll_deg) -> HeadingResult:
+        """Estimate one heading (:meth:`estimate`), before the unusable units are reported."""
+        k = self.knobs
         bad = check_sun(self.name, sky, k)
         if bad is not None:
             return bad
@@ -254,6 +283,46 @@ class ArrayHeadingEstimator:
         u = self._usable_units(aop_rad, dop, s0, valid)
         if isinstance(u, HeadingResult):
             return u
+        spread = axes_spread_deg(u.axes_cam)
+        if spread < k['min_axes_spread_deg']:
+            return HeadingResult.failed(
+                self.name,
+                Status.DEGENERATE,
+                f"the {u.n} units' view axes spread only {spread:.1f} deg (< min_axes_spread_deg "
+                f'{k["min_axes_spread_deg"]:g}): units looking one way cannot fix the sun',
+                pixels=u.n,
+            )
+        fit = self._fit(u, R_lev, float(sky.sun_altitude_deg))
+        if isinstance(fit, HeadingResult):
+            return fit
+        f, lam, sigma_deg, sigma_el, extras = fit
+        pick, by, reason, evidence = pick_array_side(
+            self.name, f, sigma_el, u.s0, u.axes_cam, sky, k
+        )
+        extras.update(evidence)
+        extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
+        return result_from(
+            self.name,
+            pick,
+            by,
+            reason,
+            sky,
+            sigma_deg,
+            u.n,
+            0,
+            fit_quality(lam),
+            sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
+            extras=extras,
+        )
+
+    def _fit(self, u: '_Units', R_lev, sun_altitude_deg: float):
+        """
+        Fit the sun to the usable units; check the fit.
+
+        Returns ``(frames, eigenvalues, sigma_deg, sigma_el_rad, extras)`` or a failed result
+        (``degenerate``, ``sun_near_zenith``, ``poor_fit``).
+        """
+        k = self.knobs
         zero = np.zeros((3, 3))
         sol = solve_checked(
             self.name, u.M, zero, zero, False, k['min_eigen_gap'], u.n, "the units' E-vectors"
@@ -278,33 +347,10 @@ class ArrayHeadingEstimator:
             'sigma_sun_elevation_deg': math.degrees(sigma_el),
             'sun_altitude_ephemeris_deg': float(sun_altitude_deg),
         }
-        poor = self._poor_fit(misfit_deg, f.elevation_deg, float(sun_altitude_deg), u.n, extras)
+        poor = self._poor_fit(misfit_deg, f.elevation_deg, sun_altitude_deg, u.n, extras)
         if poor is not None:
             return poor
-        pick, by, reason = pick_side(
-            self.name,
-            f,
-            sigma_el,
-            unit_brightness_stats(u.s0, u.axes_cam),
-            sky,
-            k,
-            'body-frame',
-            min_brightness_samples=3,
-        )
-        extras['sun_body'] = [float(v) for v in R_BODY_CAM_DEFAULT @ pick.sun_cam]
-        return result_from(
-            self.name,
-            pick,
-            by,
-            reason,
-            sky,
-            sigma_deg,
-            u.n,
-            0,
-            fit_quality(lam),
-            sun_altitude_deg=f.implied_altitude_deg(pick.sun_cam),
-            extras=extras,
-        )
+        return f, lam, sigma_deg, sigma_el, extras
 
     def _usable_units(self, aop_rad, dop, s0, valid):
         """
@@ -513,9 +559,54 @@ def estimate_recording(
     for i in range(S):
         out.append(
             estimator.estimate(
-                st.aop_rad[i], st.dop[i], st.s0[i], st.valid[i], az[i], alt[i], p[i], r[i], pr[i]
+                st.aop_rad[i],
+                st.dop[i],
+                st.s0[i],
+                st.valid[i],
+                az[i],
+                alt[i],
+                p[i],
+                r[i],
+                pr[i],
+                st.unusable_counts(i),
             )
         )
         if progress is not None and ((i + 1) % 1000 == 0 or i + 1 == S):
             progress(i + 1, S)
     return out
+
+
+def axes_spread_deg(axes) -> float:
+    """
+    Return how widely view axes spread: asin of the root of their scatter's middle eigenvalue.
+
+    Parameters
+    ----------
+    axes : array_like
+        (n, 3) unit view axes.
+
+    Returns
+    -------
+    float
+        [deg]: 0 when every axis is the same (the E-vectors then all lie in one plane and its
+        normal, the common axis, is the "sun" whatever the sky), about 45 for two axes at right
+        angles, 30 for the 8-unit POL-OP ring at 45 deg elevation.
+
+    """
+    p = np.asarray(axes, dtype=float)
+    lam = np.linalg.eigvalsh(p.T @ p / max(len(p), 1))
+    return math.degrees(math.asin(math.sqrt(min(max(float(lam[1]), 0.0), 1.0))))
+
+
+def _with_unusable(res: HeadingResult, unusable: dict | None) -> HeadingResult:
+    """Report the units that were not measurements in a result's extras and reason."""
+    if not unusable:
+        return res
+    counts = {str(k): int(v) for k, v in unusable.items() if v}
+    if not counts:
+        return res
+    note = 'units not measuring: ' + ', '.join(f'{k} {v}' for k, v in counts.items())
+    extras = dict(res.extras)
+    extras['units_unusable'] = counts
+    reason = f'{res.reason}; {note}' if res.reason else note
+    return dataclasses.replace(res, reason=reason, extras=extras)

@@ -15,9 +15,6 @@
 """
 Photodiode-array recordings: intensities and optional per-sample times.
 
-Photodiode-array recordings: ``intensities`` (samples x units x channels) and optional per-sample
-times.
-
 ``.npz``: ``intensities`` float array (S, U, C) and optional ``t_offset_s`` (S,) seconds after a
 reference time. CSV: a header line, then one row per sample; columns ``u<unit>_c<channel>``
 (0-based, channels in the geometry's ``channels_deg`` order) and optionally ``t_offset_s``. Both
@@ -25,7 +22,8 @@ layouts may add, per sample, ``imu_yaw_rad`` (the IMU's yaw, counter-clockwise, 
 ``turn_index`` (an integer >= 0 marking the turns in place of a recording; calibrate-mount). Units
 with fewer channels than the widest one leave the extra columns out (they read as 0 and are never
 used). Readings are intensities (>= 0); negative values and NaN are kept for the estimator to
-reject per sample (a sample is never dropped silently), but inf is refused.
+reject per sample (a sample is never dropped silently), but inf is refused. Readings that are not
+measurements (saturated, lone zeros, duplicated channels) are flagged by :func:`reading_flags`.
 """
 
 from __future__ import annotations
@@ -48,11 +46,21 @@ __all__ = [
     'save_array_recording_csv',
     'array_sample_from_flat',
     'MAX_SAMPLES',
+    'READING_REASONS',
+    'reading_flags',
 ]
 
 MAX_SAMPLES = 1_000_000
 _COL = re.compile(r'^u(\d+)_c(\d+)$')
 _SAMPLE_KEYS = ('t_offset_s', 'imu_yaw_rad', 'turn_index')
+
+
+#: Why a unit's readings are not a measurement in one sample (:func:`reading_flags`), plus
+#: ``dop_above_1`` (:func:`~.stokes.fit_stokes`).
+READING_REASONS = ('bad_value', 'saturated', 'zero_channel', 'duplicated_channels')
+#: A channel pair equal in more than this share of a recording's samples is one signal read twice.
+_DUPLICATE_SHARE = 0.5
+_DUPLICATE_MIN_SAMPLES = 10
 
 
 class ArrayRecordingError(CompassError):
@@ -266,7 +274,7 @@ def _check_npz_headers(p: str, h: dict) -> None:
         )
     if 't_offset_s' in h and h['t_offset_s'].shape != (S,):
         raise ArrayRecordingError(
-            f"{p}: t_offset_s declares shape {h['t_offset_s'].shape}, one per sample ({S})"
+            f'{p}: t_offset_s declares shape {h["t_offset_s"].shape}, one per sample ({S})'
         )
 
 
@@ -405,3 +413,57 @@ def array_sample_from_flat(data, dim_sizes, data_offset: int, geometry) -> np.nd
     if not np.all(np.isfinite(out)):
         raise ArrayRecordingError('readings contain NaN or inf')
     return out
+
+
+def reading_flags(intensities, geometry) -> dict:
+    """
+    Flag, per sample and unit, readings that are not measurements of the sky.
+
+    ``bad_value``: a channel is NaN or negative. ``saturated``: a channel at or beyond the
+    geometry's ``saturation`` limits (none without the key). ``zero_channel``: a channel reads
+    exactly 0 while another channel of the unit does not (a dropped or dead reading). ``duplicated_
+    channels``: in a recording of at least 10 samples, two channels of a unit read exactly the same
+    value in more than half of the samples (one signal wired twice); the unit is flagged in every
+    sample. Raw readings are checked, before dark offsets and gains.
+
+    Parameters
+    ----------
+    intensities : array_like
+        (S, U, C) raw readings.
+    geometry : ArrayGeometry
+        Channels per unit and the ``saturation`` limits.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        For each of :data:`READING_REASONS`, a bool array (S, U); a unit can have several.
+
+    """
+    x = np.asarray(intensities, dtype=np.float64)
+    S, U, _ = x.shape
+    flags = {k: np.zeros((S, U), dtype=bool) for k in READING_REASONS}
+    sat = geometry.saturation
+    for u, unit in enumerate(geometry.units):
+        y = x[:, u, : unit.n_channels]
+        finite = np.isfinite(y)
+        flags['bad_value'][:, u] = np.any(~finite | (np.where(finite, y, 0.0) < 0.0), axis=1)
+        yf = np.where(finite, y, 1.0)
+        if sat is not None:
+            flags['saturated'][:, u] = np.any((yf <= sat[0]) | (yf >= sat[1]), axis=1)
+        zero = finite & (y == 0.0)
+        flags['zero_channel'][:, u] = np.any(zero, axis=1) & np.any(finite & (y != 0.0), axis=1)
+        flags['duplicated_channels'][:, u] = _duplicated(yf, finite)
+    return flags
+
+
+def _duplicated(y: np.ndarray, finite: np.ndarray) -> bool:
+    """Return whether two channels of one unit (readings (S, C)) are one signal read twice."""
+    S, C = y.shape
+    if S < _DUPLICATE_MIN_SAMPLES:
+        return False
+    for j in range(C):
+        for k in range(j + 1, C):
+            same = (y[:, j] == y[:, k]) & finite[:, j] & finite[:, k] & (y[:, j] != 0.0)
+            if np.mean(same) > _DUPLICATE_SHARE:
+                return True
+    return False
