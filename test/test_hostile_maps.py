@@ -154,8 +154,8 @@ def test_a_netcdf_map_without_its_digest_is_refused(tmp_path):
 
 
 def test_nested_netcdf_meta_json_is_a_user_error(tmp_path):
-    from polarization_compass.map_bounds import map_digest
     from polarization_compass.errormap_store import map_to_dataset
+    from polarization_compass.map_bounds import map_digest
 
     m = _map()
     ds = map_to_dataset(m)

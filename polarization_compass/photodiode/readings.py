@@ -154,7 +154,7 @@ _MAX_CSV_FIELD_CHARS = 40
 
 
 def _csv_columns(path, header: list) -> tuple:
-    """Return ({(unit, channel): column}, the t_offset_s column or None, units, channels)."""
+    """Return ({(unit, channel): column}, {per-sample key: column}, units, channels)."""
     cols = {}
     named = {}  # per-sample columns: t_offset_s, imu_yaw_rad, turn_index
     for j, h in enumerate(header):
@@ -182,7 +182,7 @@ def _csv_columns(path, header: list) -> tuple:
     missing = [u for u in range(U) if not any(k[0] == u for k in cols)]
     if missing:
         raise ArrayRecordingError(f'{path}: no columns for unit(s) {missing}')
-    return cols, t_col, U, C
+    return cols, named, U, C
 
 
 def _bounded_lines(path, fh, max_chars: int):
@@ -237,7 +237,7 @@ def _load_csv(path) -> ArrayRecording:
                 raise ArrayRecordingError(
                     f'{path}: empty CSV (expected a header with u<unit>_c<channel> columns)'
                 )
-            cols, t_col, U, C = _csv_columns(path, header)
+            cols, named, U, C = _csv_columns(path, header)
             line_chars = len(header) * _MAX_CSV_FIELD_CHARS
             if p.stat().st_size > len(first.encode()) + MAX_SAMPLES * line_chars:
                 raise ArrayRecordingError(
