@@ -45,6 +45,7 @@ GROUPS = {
     'estimator_speed': 'estimator_speed',
     'sky_check': 'sky_check',
     'debug_image': 'debug_image',
+    'photodiode': 'photodiode_bench',
     'replay': 'replay_bench',
     'graph': 'graph_bench',
     'peers': 'peers',

@@ -29,6 +29,7 @@ from .errormaps import errormap_sampling_section, errormap_section
 from .formatting import fmt, load_groups, method_colour, ok_cells, PRIMARY_CONDITIONS
 from .plots import pareto_front, plot_conditions, plot_pareto
 from .ros import graph_section, peers_section, replay_section
+from .sensors import photodiode_section
 from .simulation import simulator_section, solar_section
 from .speed import estimator_speed_section, pipeline_section
 
@@ -105,6 +106,7 @@ def build(out_dir) -> list[Path]:
     lines += replay_section(groups.get('replay'))
     lines += graph_section(groups.get('graph'))
     lines += peers_section(groups.get('peers'))
+    lines += photodiode_section(groups.get('photodiode'))
     md = d / 'summary.md'
     md.write_text('\n'.join(lines).rstrip() + '\n')
     return [md] + paths
