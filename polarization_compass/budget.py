@@ -97,7 +97,7 @@ class BudgetError(CompassError):
 
 def published_sigma_floor_deg() -> float:
     """
-    Return heading_estimator's default ``sigma_floor_deg`` (specs/params.py).
+    Return heading_estimator's default ``sigma_floor_deg`` (specs/params/).
 
     Returns
     -------

@@ -20,15 +20,23 @@ may change while the node runs. The nodes declare them from here (:mod:`.rospara
 ``ParameterDescriptor`` s with ``FloatingPointRange`` / ``IntegerRange`` and validates every change
 in an on-set-parameters callback); the graph test checks every shipped parameter file against them;
 ``docs/ros.md`` lists them.
+
+The package: :mod:`.spec` (the :class:`Param` type and its checks), :mod:`.site_sun` (site and
+sun), :mod:`.methods` (method choices), one module per node family (:mod:`.simulator`,
+:mod:`.estimator`, :mod:`.downstream`); here the index of every node's table, the method knobs and
+the docs' tables.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import math
-from typing import Callable
 
-from ..estimators.registry import MethodNames
+from .downstream import CORRECTOR, EVALUATOR, PLAYER_FLOW
+from .estimator import ARRAY_ESTIMATOR, ESTIMATOR
+from .methods import ALL_METHODS, PAPER_METHODS, TILT_METHODS
+from .simulator import SIMULATOR
+from .site_sun import apply_fix, SITE_SOURCE, SUN_PARAMS, sun_source
+from .spec import layout_from_text, Param, parse_downstream, validate_value
 
 __all__ = [
     'Param',
@@ -38,6 +46,11 @@ __all__ = [
     'CORRECTOR',
     'EVALUATOR',
     'PLAYER_FLOW',
+    'ARRAY_ESTIMATOR',
+    'ALL_METHODS',
+    'PAPER_METHODS',
+    'TILT_METHODS',
+    'parse_downstream',
     'SPECS',
     'spec_by_name',
     'defaults',
@@ -123,7 +136,7 @@ def knob_params(method: str, specs: dict | None = None) -> tuple:
         One parameter per knob, sorted by name, not read-only.
 
     """
-    from ..estimators import registry
+    from ...estimators import registry
 
     specs = registry.get(method).knob_specs() if specs is None else specs
     out = []
@@ -196,7 +209,7 @@ def knob_values(method: str, values: dict, specs: dict | None = None) -> dict:
         ``{knob name: value}`` for the estimator's constructor.
 
     """
-    from ..estimators import registry
+    from ...estimators import registry
 
     specs = registry.get(method).knob_specs() if specs is None else specs
     out = {}

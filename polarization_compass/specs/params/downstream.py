@@ -11,6 +11,12 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""Parameters of the nodes after the estimators: tilt_corrector, error_evaluator, player_flow."""
+
+from .methods import ALL_METHODS, PAPER_METHODS, TILT_METHODS
+from .site_sun import SITE, SITE_SOURCE
+from .spec import Param
+
 CORRECTOR = (
     Param(
         'method',

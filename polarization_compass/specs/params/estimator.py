@@ -11,6 +11,12 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""The heading estimators' parameters: ``heading_estimator`` and ``array_heading_estimator``."""
+
+from .methods import ALL_METHODS
+from .site_sun import SITE, SITE_SOURCE
+from .spec import _iso_or_empty, _layout_problem, _not_optical, Param
+
 ESTIMATOR = (
     Param(
         'method',

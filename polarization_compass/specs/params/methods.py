@@ -11,6 +11,10 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""Live views of the estimator registry that the node tables take their method choices from."""
+
+from ...estimators.registry import MethodNames
+
 # Live views of the estimator registry: choices see a method registered after this module was
 # imported.
 PAPER_METHODS = MethodNames(paper=True)

@@ -11,6 +11,11 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""The ``sky_simulator`` node's parameters."""
+
+from .site_sun import SITE
+from .spec import _downstream_problem, _iso_or_empty, _not_optical, Param
+
 SIMULATOR = (
     Param(
         'scene',

@@ -11,6 +11,21 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""
+The parameter type of every node and the checks its values go through (ROS-free).
+
+One :class:`Param` per ROS parameter: name, default, description, range or choices, and whether it
+may change while the node runs; :func:`validate_value` checks a value against it, the helpers the
+checks of the node tables use (downstream lists, optical frame ids, ISO times, polarizer layouts).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Callable
+
+
 @dataclass(frozen=True)
 class Param:
     """
@@ -180,7 +195,7 @@ def _not_optical(frame_id: str):
 def _iso_or_empty(text: str):
     if text == '':
         return None
-    from ..scene import parse_time_utc, SceneError
+    from ...scene import parse_time_utc, SceneError
 
     try:
         parse_time_utc(text)

@@ -11,6 +11,12 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
+"""Where the site and the sun come from: the parameters of every node that computes the sun."""
+
+from __future__ import annotations
+
+from .spec import Param
+
 SITE = (
     Param(
         'latitude_deg', 32.026778, 'site latitude, north positive (WGS84)', -90.0, 90.0, unit='deg'
@@ -47,7 +53,7 @@ def sun_source(values):
         The sun's position source at that site.
 
     """
-    from ..pipeline import SunSource
+    from ...pipeline import SunSource
 
     return SunSource(*(values[k] for k in SUN_PARAMS))
 
@@ -90,8 +96,8 @@ def apply_fix(sun, diag, msg):
         The site ``(latitude_deg, longitude_deg, altitude_m)``, or None when the fix was rejected.
 
     """
-    from ..bag import decode_navsatfix
-    from ..errors import CompassError
+    from ...bag import decode_navsatfix
+    from ...errors import CompassError
 
     site = diag.decoded('fix', decode_navsatfix, msg)
     if site is None:
