@@ -61,6 +61,7 @@ __all__ = [
     'CameraFile',
     'READOUT_FLIPS',
     'unflip',
+    'unflipped_camera',
     'DISTORTION_MODELS',
     'check_intrinsics',
     'MAX_PIXEL_ASPECT_DEVIATION',
@@ -865,13 +866,26 @@ def unflip(image, readout_flip: str):
     return a
 
 
-def _sensor_camera(cam: CameraModel, readout_flip: str) -> CameraModel:
+def unflipped_camera(cam: CameraModel, readout_flip: str) -> CameraModel:
     """
     Return the lens model of the unflipped image from a calibration of the delivered one.
 
     A mirror of the image axis maps pixel u to W + 1 - u (1-based), so the principal point
     mirrors too, and the tangential coefficient of that axis changes sign (p2 for x, p1 for y;
     radial terms are symmetric): the projection is the calibrated one with x -> -x (or y -> -y).
+
+    Parameters
+    ----------
+    cam : CameraModel
+        The intrinsics calibrated on the delivered (mirrored) images.
+    readout_flip : {"", "x", "y", "xy"}
+        The axes the readout mirrors (:data:`READOUT_FLIPS`).
+
+    Returns
+    -------
+    CameraModel
+        The intrinsics of the image after :func:`unflip` (``cam`` itself without a flip).
+
     """
     import dataclasses
 
@@ -977,7 +991,7 @@ def load_camera_yaml(path) -> CameraFile:
         flip = _readout_flip(doc.get('readout_flip', ''))
     except (SensorError, CameraError, TypeError, ValueError) as exc:
         raise CameraError(f'{p}: {exc}') from None
-    cam = _sensor_camera(cam, flip)
+    cam = unflipped_camera(cam, flip)
     return CameraFile(
         cam, lay.angles_deg, lay.pol45_toward, bool(pol), _mount(doc, p), readout_flip=flip
     )

@@ -883,3 +883,41 @@ def test_estimator_reports_a_polarizer_convention_the_sky_contradicts(ctx):
         assert 'polarizer_check' not in st and st['status'] == 'ok'  # every 2nd frame now
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('readout_flip', ['none', 'x'])
+def test_estimator_reads_a_mirrored_readout_back_with_readout_flip(ctx, readout_flip):
+    """
+    A camera that mirrors its readout in x (GenICam ReverseX) with ``readout_flip: x``.
+
+    The node reads the image back as the sensor sees it and mirrors the camera_info's K with it:
+    the true heading, ``ok``, as from the unmirrored camera. Configured without it, the same images
+    never give an ``ok`` at the true heading (a layout cannot undo a mirrored geometry).
+    """
+    from polarization_compass.nodes.heading_estimator import HeadingEstimatorNode
+
+    node = HeadingEstimatorNode(
+        context=ctx,
+        parameter_overrides=[
+            Parameter('method', value='tilt_aware'),
+            Parameter('site_source', value='navsatfix'),
+            Parameter('readout_flip', value=readout_flip),
+        ],
+    )
+    node.statuses = []
+    node._publish_status = node.statuses.append
+    bearing, pitch, roll = 40.0, -10.0, 5.0
+    try:
+        node._on_camera_info(M.camera_info_msg(CAM, T0, 'camera_optical_frame'))
+        node._on_fix(M.navsatfix_msg(*SITE, T0, 'gps'))
+        q = body_quat(bearing, pitch, roll)
+        node._on_imu(imu_msg(T0 - 10_000_000, q))
+        node._on_imu(imu_msg(T0 + 10_000_000, q))
+        sensor = ideal_mosaic(bearing, pitch, roll, *_sun_at(T0))
+        delivered = np.ascontiguousarray(sensor[:, ::-1])  # the readout mirrors x
+        node._on_image(M.image_msg(delivered, T0, 'camera_optical_frame'))
+        st = node.statuses[-1]
+        right = st['ok'] and abs(math.remainder(st['bearing_deg'] - bearing, 360.0)) < 0.5
+        assert right == (readout_flip == 'x'), st
+    finally:
+        node.destroy_node()

@@ -45,6 +45,7 @@ import math
 import threading
 import time
 
+import numpy as np
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
@@ -54,7 +55,7 @@ from .msgs import AttitudeUncertainty, decode_image
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, MessageError, stamp_ns
-from ..camera import CameraError, CameraModel
+from ..camera import CameraError, CameraModel, unflip, unflipped_camera
 from ..errors import CompassError
 from ..estimators import registry
 from ..pipeline import (
@@ -93,6 +94,9 @@ class HeadingEstimatorNode(HeadingNodeBase):
         self.attitude_uncertainty = AttitudeUncertainty()  # the latest IMU's tilt variance
         self._make_diagnostics(f'heading estimator ({self.method})')
         self.polarizer = PolarizerMonitor(p['polarizer_check_every'])
+        # a mirrored readout (readout_flip): images read back as the sensor sees them, K mirrored
+        self.readout_flip = '' if p['readout_flip'] == 'none' else p['readout_flip']
+        self._unflipped = None  # (camera_info's camera, the sensor's)
         # Images are received (decoded and queued) in the executor and processed in this node's own
         # worker thread (:meth:`_work`), whatever the executor (the default EventsExecutor is
         # single-threaded): a long estimate never blocks reception, so the middleware's 5-deep
@@ -283,7 +287,15 @@ class HeadingEstimatorNode(HeadingNodeBase):
             raise PipelineError(
                 f'image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}'
             )
-        return cam
+        return self._sensor_camera(cam)
+
+    def _sensor_camera(self, cam: CameraModel) -> CameraModel:
+        """Return the intrinsics of the sensor's own image (``readout_flip``; kept per K)."""
+        if not self.readout_flip:
+            return cam
+        if self._unflipped is None or self._unflipped[0] != cam:
+            self._unflipped = (cam, unflipped_camera(cam, self.readout_flip))
+        return self._unflipped[1]
 
     def _receive_image(self, msg) -> bool:
         """
@@ -298,6 +310,8 @@ class HeadingEstimatorNode(HeadingNodeBase):
         except Exception:  # noqa: BLE001 - the decoder counts a broken header
             pass
         mosaic = self.diag.decoded('', decode_image, msg)
+        if mosaic is not None and self.readout_flip:  # read as the sensor sees it
+            mosaic = np.ascontiguousarray(unflip(mosaic, self.readout_flip))
         if mosaic is None:
             return False
         item = (

@@ -40,11 +40,21 @@ ESTIMATOR = (
         check=lambda v: _layout_problem(v),
     ),
     Param(
+        'readout_flip',
+        'none',
+        'image axes the camera mirrors on readout (GenICam ReverseX = x, ReverseY = y, both = '
+        'xy): the image is read back as the sensor sees it and the camera_info K mirrored with '
+        "it; the layout then describes the sensor (check with 'polarization-compass "
+        "check-polarizer')",
+        choices=('none', 'x', 'y', 'xy'),
+        read_only=True,
+    ),
+    Param(
         'pol45_toward',
         '+x-y',
-        'image direction of the 45 deg polarizer: +x-y (up and right on the '
-        'displayed image: the IMX250MZR as delivered) or +x+y (a readout '
-        "flipped in x or y); check with 'polarization-compass check-polarizer'",
+        'image direction of the 45 deg polarizer on the sensor: +x-y (up and right on the '
+        'displayed image: the IMX250MZR as delivered) or +x+y; a mirrored readout is '
+        "readout_flip, not this; check with 'polarization-compass check-polarizer'",
         choices=('+x+y', '+x-y'),
     ),
     Param(
