@@ -905,6 +905,11 @@ def _hostile_cases():
         recording = '{%s}' % bad if bad != 'deep_yaml' else '{map_bomb}'
         cases += [
             (['calibrate-array', recording, '--geometry', geometry, '--out', '{out}/g.yaml'], ''),
+            (
+                ['calibrate-mount', recording, '--geometry', geometry, '--out', '{out}/m.yaml']
+                + site,
+                '',
+            ),
             (['check-array', recording, '--geometry', geometry] + site, ''),
             (
                 ['estimate-array', recording, '--geometry', geometry, '--out', '{out}/h.csv']

@@ -428,3 +428,28 @@ def test_knob_parameters_convert_back_to_estimator_knobs():
     )
     assert k == {'stride': 8, 'region': (1, 1, 100, 50), 'weighting': 'uniform'}
     assert knob_values('least_squares', {'knob.region': ''}) == {'region': None}
+
+
+def test_rejections_are_logged_once_per_reason_per_period(ctx, monkeypatch):
+    """A flood of one rejection reason never hides the first warning of another."""
+    from polarization_compass.nodes import diagnostics as D
+    import rclpy
+
+    node = rclpy.create_node('diag_throttle_probe', context=ctx)
+    lines = []
+    monkeypatch.setattr(node.get_logger(), 'warning', lambda msg, **kw: lines.append(msg))
+    try:
+        diag = D.Diagnostics(node, 'probe')
+        for _ in range(50):
+            diag.reject('tf_missing', 'no transform')
+        diag.reject('tf_stale', 'too old')
+        assert [ln.split(':')[0] for ln in lines] == [
+            'dropped an input (tf_missing)',
+            'dropped an input (tf_stale)',
+        ]
+        assert diag.rejected == {'tf_missing': 50, 'tf_stale': 1}
+        monkeypatch.setattr(D.time, 'monotonic', lambda: 1e12)  # a period later
+        diag.reject('tf_missing')
+        assert lines[-1] == 'dropped an input (tf_missing)'
+    finally:
+        node.destroy_node()

@@ -19,6 +19,7 @@ from __future__ import annotations
 from .spec import NodeSpec
 from ..estimators import registry
 from ..specs import topics as T
+from ..specs.params import defaults, ESTIMATOR
 
 
 def _used(remappings, pubs, subs) -> tuple:
@@ -70,8 +71,14 @@ def _estimator(method: str, params: dict, remappings=(), namespace='') -> NodeSp
     params = {**{k: v for k, v in GRAPH_KNOBS.items() if k in _knob_names(method)}, **params}
     site_source = params.get('site_source', 'parameters')
     prior = params.get('prior_source', 'imu')
+    shown = {**defaults(ESTIMATOR), **params}
     pubs, subs = T.estimator_topics(
-        method, site_source, needs_tilt=registry.get(method).needs_tilt, prior_source=prior
+        method,
+        site_source,
+        needs_tilt=registry.get(method).needs_tilt,
+        prior_source=prior,
+        debug_image=shown['debug_rate_hz'] > 0,
+        marker=bool(shown['publish_marker']),
     )
     return NodeSpec(
         'heading_estimator',

@@ -156,6 +156,8 @@ class NodeSpec:
         if t.startswith('/'):
             return t
         ns = self.namespace.strip('/')
+        if t.startswith('~/'):  # node-private: under the node's own name
+            t = f'{self.name}/{t[2:]}'
         return f'/{ns}/{t}' if ns else f'/{t}'
 
     def resolved_publishes(self) -> list[tuple[str, str]]:

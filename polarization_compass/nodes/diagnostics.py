@@ -33,6 +33,7 @@ period, the last result was not usable, or no input arrived for ``stale_after_s`
 from __future__ import annotations
 
 from collections import Counter, deque
+import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -42,6 +43,9 @@ from rclpy.qos import QoSProfile
 from .msgs import kv
 from ..bag import MessageError
 from ..specs import topics
+
+#: Seconds between two warning lines of the same rejection reason.
+REJECT_LOG_PERIOD_S = 5.0
 
 __all__ = ['Diagnostics']
 
@@ -62,6 +66,7 @@ class Diagnostics:
         self.received = 0
         self.processed = 0
         self.rejected = Counter()
+        self._logged_at: dict = {}  # reason -> monotonic time of its last warning line
         self._rejected_at_last_publish = 0
         self.last_status = 'waiting for input'
         self.last_ok = True
@@ -99,11 +104,18 @@ class Diagnostics:
             self.last_ok = bool(ok)
 
     def reject(self, reason: str, detail: str = '') -> None:
-        """Count a dropped input and log it (throttled to one line per 5 s per node)."""
+        """
+        Count a dropped input and log it: one line per reason per 5 s.
+
+        Throttled per reason, so that a flood of one kind never hides the first of another.
+        """
         self.rejected[reason] += 1
+        now = time.monotonic()
+        if now - self._logged_at.get(reason, -math.inf) < REJECT_LOG_PERIOD_S:
+            return
+        self._logged_at[reason] = now
         self.node.get_logger().warning(
-            f'dropped an input ({reason}): {detail}' if detail else f'dropped an input ({reason})',
-            throttle_duration_sec=5.0,
+            f'dropped an input ({reason}): {detail}' if detail else f'dropped an input ({reason})'
         )
 
     def decoded(self, what: str, decode, msg, context: str = ''):

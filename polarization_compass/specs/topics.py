@@ -51,6 +51,9 @@ __all__ = [
     'evaluator_streams',
     'fused_streams',
     'T_IMAGE',
+    'T_MARKER',
+    'DEBUG_IMAGE',
+    'HEADING_MARKER',
     'T_CAMERA_INFO',
     'T_IMU',
     'T_FIX',
@@ -66,6 +69,7 @@ __all__ = [
 
 # message types (ROS interface names)
 T_IMAGE = 'sensor_msgs/msg/Image'
+T_MARKER = 'visualization_msgs/msg/Marker'
 T_CAMERA_INFO = 'sensor_msgs/msg/CameraInfo'
 T_IMU = 'sensor_msgs/msg/Imu'
 T_FIX = 'sensor_msgs/msg/NavSatFix'
@@ -97,6 +101,9 @@ ODOM = 'odometry/wheel'
 FILTERED = 'odometry/filtered'
 CLOCK = '/clock'
 DIAGNOSTICS = '/diagnostics'
+#: a heading estimator's own (node-private) topics: its diagnostic picture and heading marker
+DEBUG_IMAGE = '~/debug_image'
+HEADING_MARKER = '~/heading_marker'
 EVAL_SUMMARY = 'evaluation/summary'  # JSON running statistics per stream
 FRAMES = 'sim/frames'  # simulator: JSON {stamp_ns, wall_ns} per image (wall-clock latency)
 
@@ -197,6 +204,8 @@ def estimator_topics(
     prior_source: str = 'none',
     input_kind: str = 'image',
     array_stamp: str = 'header',
+    debug_image: bool = False,
+    marker: bool = False,
 ):
     """
     Return the topics a ``heading_estimator`` publishes and subscribes to.
@@ -215,6 +224,9 @@ def estimator_topics(
         Camera image and camera_info, or a photodiode array's readings.
     array_stamp : {"header", "arrival"}, default "header"
         With an array input, ``"header"`` adds the companion header subscription.
+    debug_image, marker : bool, default False
+        The node publishes its diagnostic picture (a camera's ``debug_rate_hz`` > 0) and its
+        heading marker (``publish_marker``), on its private topics.
 
     Returns
     -------
@@ -229,6 +241,8 @@ def estimator_topics(
         (t['status'], T_STRING),
         (DIAGNOSTICS, T_DIAG),
     ]
+    pubs += [(DEBUG_IMAGE, T_IMAGE)] if debug_image and input_kind == 'image' else []
+    pubs += [(HEADING_MARKER, T_MARKER)] if marker else []
     if input_kind == 'array':
         subs = [(ARRAY, T_FLOAT32_MULTIARRAY)] + (
             [(ARRAY_HEADER, T_HEADER)] if array_stamp == 'header' else []
