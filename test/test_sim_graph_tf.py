@@ -28,7 +28,6 @@ sources): skipped with that message otherwise.
 """
 
 import json
-import os
 import subprocess
 import sys
 
@@ -54,7 +53,6 @@ FRAMES = 18  # 0.05 turn at 10 deg/s = 1.8 s at 10 Hz
 def test_sim_graph_from_tf_scores_every_frame_with_errors_near_zero(ros_env, tmp_path):
     out = tmp_path / 'sim_tf'
     env = dict(ros_env)
-    env['ROS_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID', env['ROS_DOMAIN_ID'])
     env.pop('POLARIZATION_COMPASS_DEBUG', None)
     p = subprocess.run(
         [

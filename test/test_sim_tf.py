@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import importlib.util
 import math
-import os
 from pathlib import Path
 import subprocess
 
@@ -99,7 +98,6 @@ def _stop(*procs):
 @pytest.fixture
 def tf_env(ros_env):
     env = node_env(ros_env)
-    env['ROS_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID', env['ROS_DOMAIN_ID'])
     return env
 
 
