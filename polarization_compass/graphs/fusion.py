@@ -30,8 +30,6 @@ from ..specs import topics as T
 EKF_CONFIG = 'config/ekf_heading_example.yaml'
 #: ekf_node's name in EKF_CONFIG (the node the file's parameters are for)
 EKF_NODE = 'ekf_filter_node'
-#: How long the fusion graph's simulator waits for all its readers before the first frame [s]
-FUSION_WAIT_TIMEOUT_S = 600.0
 
 
 def fusion_graph(
@@ -206,9 +204,6 @@ def _fusion_sim_nodes(
                     **n.parameters,
                     'odom_yaw_rate_bias_deg_s': float(odom_yaw_rate_bias_deg_s),
                     'odom_yaw_rate_noise_deg_s': float(odom_yaw_rate_noise_deg_s),
-                    # every reader, the filters included, before the first frame: a cold numba
-                    # cache (a fresh install space) took an estimator 130 s to start under load
-                    'wait_timeout_s': FUSION_WAIT_TIMEOUT_S,
                 },
             )
         if n.executable == 'error_evaluator':

@@ -31,6 +31,11 @@ from ..estimators import registry
 from ..specs import topics as T
 from ..specs.params import PAPER_METHODS
 
+#: How long the simulator waits for all its readers before the first frame [s]: with a cold numba
+#: cache (a fresh install, or the first `make sim` after a change) five estimators compiling at
+#: once took 60-130 s to start on 2 cores, and 60 s lost the first frame of the slowest
+READERS_WAIT_TIMEOUT_S = 600.0
+
 
 def _tf_attitude_params(attitude_source: str, turns: float, turn_rate_deg_s: float) -> dict:
     """
@@ -159,6 +164,7 @@ def sim_graph(
         'lockstep': bool(lockstep),
         'lockstep_topics': lock_topics,
         'wait_for_subscribers': len(all_methods),
+        'wait_timeout_s': READERS_WAIT_TIMEOUT_S,
         # every estimator reads the IMU (prior or tilt) and so does every corrector
         'wait_for_imu_subscribers': len(all_methods) + len(methods),
         **_tf_attitude_params(attitude_source, turns, turn_rate_deg_s),
