@@ -209,16 +209,21 @@ def _ns(text: str) -> int:
     return (ns + 500) // 1000 * 1000
 
 
-def _run_launch(ws, tmp_path, *args, timeout=420):
-    log = tmp_path / 'launch.log'
+def _start_launch(ws, log: Path, *args) -> subprocess.Popen:
+    """Start ``ros2 launch polarization_compass replay.launch.py ARGS``, output into ``log``."""
     with open(log, 'w') as f:
-        p = subprocess.Popen(
+        return subprocess.Popen(
             ['ros2', 'launch', 'polarization_compass', 'replay.launch.py', *args],
             env=ws['env'],
             stdout=f,
             stderr=subprocess.STDOUT,
             start_new_session=True,
         )
+
+
+def _run_launch(ws, tmp_path, *args, timeout=420):
+    log = tmp_path / 'launch.log'
+    p = _start_launch(ws, log, *args)
     try:
         rc = p.wait(timeout=timeout)
     finally:
@@ -363,25 +368,16 @@ def test_a_paused_and_resumed_player_with_a_100_hz_imu_scores_like_the_offline_r
     want = _offline_errors(offline)
     report = tmp_path / 'report'
     log = tmp_path / 'launch.log'
-    with open(log, 'w') as f:
-        p = subprocess.Popen(
-            [
-                'ros2',
-                'launch',
-                'polarization_compass',
-                'replay.launch.py',
-                f'bag:={bag}',
-                'methods:=least_squares',
-                'tilt_aware:=true',
-                f'report_dir:={report}',
-                'rate:=1.0',
-                'drain_s:=3.0',
-            ],
-            env=ws['env'],
-            stdout=f,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+    p = _start_launch(
+        ws,
+        log,
+        f'bag:={bag}',
+        'methods:=least_squares',
+        'tilt_aware:=true',
+        f'report_dir:={report}',
+        'rate:=1.0',
+        'drain_s:=3.0',
+    )
     try:
         r = subprocess.run(
             [sys.executable, '-c', PAUSE_SCRIPT, '3.0'],
@@ -445,22 +441,9 @@ def test_a_player_started_by_hand_before_the_graph_is_resumed_once_it_is_ready(
         start_new_session=True,
     )
     log = tmp_path / 'launch.log'
-    with open(log, 'w') as f:
-        launch = subprocess.Popen(
-            [
-                'ros2',
-                'launch',
-                'polarization_compass',
-                'replay.launch.py',
-                'methods:=least_squares',
-                'tilt_aware:=true',
-                f'report_dir:={report}',
-            ],
-            env=ws['env'],
-            stdout=f,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+    launch = _start_launch(
+        ws, log, 'methods:=least_squares', 'tilt_aware:=true', f'report_dir:={report}'
+    )
     try:
         assert player.wait(timeout=420) == 0  # resumed by the launch, played to the end
         _wait_for_report(report, n_images, timeout_s=60.0)
