@@ -147,7 +147,8 @@ class PlayerFlowNode(Node):
         except (ValueError, TypeError, KeyError):
             return  # a status without a stamp says nothing about the backlog
         self.backlog.answered(name, t_ns)
-        self.paused_at = time.monotonic() if self.we_paused else self.paused_at
+        if self.we_paused:  # progress while paused: the stall clock starts again
+            self.paused_at = time.monotonic()
         self._check()
 
     def _call(self, name: str, then) -> None:
