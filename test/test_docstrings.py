@@ -61,6 +61,8 @@ COMPLETED = (
     'estimators/sm_asm.py',
     'estimators/symmetry.py',
     'estimators/least_squares.py',
+    'estimators/_ls_sigma.py',
+    'estimators/_outlier_trim.py',
     'estimators/sun_from_evectors.py',
     'estimators/jackknife.py',
     'estimators/mosaic_input.py',
