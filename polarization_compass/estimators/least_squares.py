@@ -62,6 +62,7 @@ import math
 
 import numpy as np
 
+from ._block_layout import grid_parities
 from ._common import (
     _BadInput,
     check_sun,
@@ -74,7 +75,7 @@ from ._common import (
     view_grid_layout,
     view_segments,
 )
-from ._kernels import full_pass, grid_parities, sub_pass
+from ._kernels import full_pass, sub_pass
 from ._ls_sigma import _attitude_sigma_deg, _block_sigmas
 from ._outlier_trim import _consensus_sun, _trim_outliers
 from .base import Estimator, HeadingResult, Observation, Status
