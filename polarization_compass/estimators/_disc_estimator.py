@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from ._axis_solve import AxisFit, MIN_CONDITIONING, refine_axis, solve_axes
 from ._common import (
     brightness_t_from_stats,
     Candidate,
@@ -37,15 +38,7 @@ from ._common import (
 )
 from ._disc import _block_sums, disc_radius, disc_selection, level_rss_many
 from ._knobs import Knob, KnobbedEstimator
-from ._mirror import (
-    AxisFit,
-    MIN_CONDITIONING,
-    mirror_map,
-    MirrorMap,
-    refine_axis,
-    solve_axes,
-    view_covers_disc,
-)
+from ._mirror import mirror_map, MirrorMap, view_covers_disc
 from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
@@ -76,7 +69,7 @@ DISC_KNOBS = {
 }
 
 #: Pixel subsampling of the coarse scan for self-consistent axes (``scan_at`` of
-#: :func:`._mirror.solve_axes`).
+#: :func:`._axis_solve.solve_axes`).
 SCAN_STEP = 8
 #: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this
 #: factor times the plain (occlusion-biased) fit's rms residual, plus MIRROR_RESIDUAL_SLACK_DEG, is
