@@ -86,6 +86,7 @@ COMPLETED = (
     'allowable.py',
     'correction/__init__.py',
     'correction/corrector.py',
+    'correction/sensitivity.py',
     'correction/kernels.py',
     'correction/results.py',
     'correction/weights.py',
@@ -169,6 +170,7 @@ COMPLETED = (
 INHERITED_FROM = (
     ('estimators/least_squares.py', '_LSBase'),
     ('estimators/_disc_estimator.py', 'DiscEstimator'),
+    ('correction/sensitivity.py', '_AttitudeSensitivity'),
 )
 
 _SECTIONS = (
