@@ -94,6 +94,7 @@ COMPLETED = (
     'photodiode/readings.py',
     'photodiode/stokes.py',
     'photodiode/heading.py',
+    'photodiode/knobs.py',
     'photodiode/calibrate.py',
     'photodiode/selfcheck.py',
     'photodiode/simulate.py',
