@@ -56,9 +56,9 @@ def grid_segments(x_key: tuple, y_key: tuple, block_px: int):
     """
     Return the segments of a row-major 2-D grid, one run per (row, block column).
 
-    Segments of a row-major 2-D grid whose column coordinates are ``x0 + dx * arange(nx)`` and row
-    coordinates ``y0 + dy * arange(ny)`` (keys ``(x0, dx, nx)``, sensor pixels): one run per (row,
-    block column). Cached (a camera that does not change costs nothing).
+    The grid's column coordinates are ``x0 + dx * arange(nx)`` and its row coordinates ``y0 + dy *
+    arange(ny)`` (keys ``(x0, dx, nx)``, sensor pixels). Cached (a camera that does not change
+    costs nothing).
     """
     x0, dx, nx = x_key
     y0, dy, ny = y_key
@@ -106,14 +106,13 @@ def block_indices(keys: tuple, block_px: int):
 @lru_cache(maxsize=64)
 def grid_layout(keys: tuple, block_px: int) -> tuple:
     """
-    Lay out regular grids stored one after the other for :func:`_m_pass_grid`.
+    Lay out regular grids stored one after the other for :func:`._kernels._m_pass_grid`.
 
-    Regular grids stored one after the other (row-major, keys ``((x0, dx, nx), (y0, dy, ny))`` in
-    sensor pixels) for :func:`_m_pass_grid`: ``(pieces, n_blocks)`` with ``(offset, col_block,
-    row_block, n_block_cols)`` per grid, blocks of ``block_px`` sensor pixels numbered ``row *
-    n_block_cols + col`` alike in every grid (the same partition as :func:`grid_segments` and
-    ``subgrid_segments``; numbers may skip blocks no pixel falls in). None when a grid's rows are
-    not in block-row order. Cached.
+    The grids are row-major, with keys ``((x0, dx, nx), (y0, dy, ny))`` in sensor pixels. Returns
+    ``(pieces, n_blocks)`` with ``(offset, col_block, row_block, n_block_cols)`` per grid, blocks
+    of ``block_px`` sensor pixels numbered ``row * n_block_cols + col`` alike in every grid (the
+    same partition as :func:`grid_segments` and ``subgrid_segments``; numbers may skip blocks no
+    pixel falls in). None when a grid's rows are not in block-row order. Cached.
     """
     bcs, brs, K, R = block_indices(keys, block_px)
     out, off = [], 0
@@ -131,7 +130,8 @@ def list_segments(x_px, y_px, block_px: int):
     """
     Return the pixel order and segments for a pixel list, sorted by block.
 
-    Order and segments for a pixel list: returns (order, segments) with pixels sorted by block.
+    Returns ``(order, segments)``: ``order`` sorts the pixels by block, the segments are runs of one
+    block in that order, as :func:`grid_segments` gives them.
     """
     bx = np.floor((np.asarray(x_px, dtype=float) - 0.5) / block_px).astype(np.int64)
     by = np.floor((np.asarray(y_px, dtype=float) - 0.5) / block_px).astype(np.int64)

@@ -416,8 +416,8 @@ def _mirror_consts(mp):  # pragma: no cover - compiled
     """
     Return the mirror constants of mp (angle, pixel scales, principal point).
 
-    (sin theta, cos theta, grid columns per mm, grid rows per mm, grid column and row of the
-    principal point) of mp.
+    In order: sin theta, cos theta, grid columns per mm, grid rows per mm, and the grid column and
+    row of the principal point.
     """
     return (
         mp[MP_SIN],
@@ -458,9 +458,8 @@ def _pair_weights(mg, mq, mp, xs, ys):  # pragma: no cover - compiled
     """
     Return the pair weights Q(p) Q(p') of every pixel, or ones without a mirror map.
 
-    Q(p) Q(p') of every pixel, Q bilinear at the pixel and at its mirror image
-    (:func:`_mirror_pos`), or ones without a mirror map (``mg`` empty; the passes then weight a
-    pixel by its own DoP^2).
+    Q is bilinear at the pixel and at its mirror image (:func:`_mirror_pos`); without a mirror map
+    (``mg`` empty) the passes weight a pixel by its own DoP^2.
     """
     out = np.ones(xs.size)
     if mg.shape[0]:
