@@ -459,9 +459,10 @@ def disfavoured(report: dict) -> bool:
     """
     if report.get('verdict') == 'contradicted':
         return True
-    return report.get('best') not in (None, report['configured']) and (
-        report.get('configured_deficit') or 0.0
-    ) >= GATE_MARGIN
+    return (
+        report.get('best') not in (None, report['configured'])
+        and (report.get('configured_deficit') or 0.0) >= GATE_MARGIN
+    )
 
 
 def _fit_hypothesis(h, inputs, alts, rays_for_shape, masks, pitch_deg, roll_deg) -> dict:

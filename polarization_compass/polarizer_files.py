@@ -140,9 +140,7 @@ def _unflipped(inputs, masks, readout_flip: str):
     def un(a):
         return np.ascontiguousarray(unflip(a, readout_flip))
 
-    out = [
-        (k, un(d) if k == 'mosaic' else tuple(un(a) for a in d), sat) for k, d, sat in inputs
-    ]
+    out = [(k, un(d) if k == 'mosaic' else tuple(un(a) for a in d), sat) for k, d, sat in inputs]
     return out, None if masks is None else [None if m is None else un(m) for m in masks]
 
 
