@@ -130,8 +130,8 @@ def list_segments(x_px, y_px, block_px: int):
     """
     Return the pixel order and segments for a pixel list, sorted by block.
 
-    Returns ``(order, segments)``: ``order`` sorts the pixels by block, the segments are runs of one
-    block in that order, as :func:`grid_segments` gives them.
+    Returns ``(order, segments)``: ``order`` sorts the pixels by block, the segments are runs of
+    one block in that order, as :func:`grid_segments` gives them.
     """
     bx = np.floor((np.asarray(x_px, dtype=float) - 0.5) / block_px).astype(np.int64)
     by = np.floor((np.asarray(y_px, dtype=float) - 0.5) / block_px).astype(np.int64)

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The least-squares sun's analytic sigmas: cluster-robust over the pass's blocks, and the known tilt's.
+The least-squares sun's analytic sigmas: cluster-robust over the pass's blocks, the known tilt's.
 
 :func:`_block_sigmas` propagates first-order sensitivities of the sun (psi, its elevation) over
 the block sums of the pixel pass (the cluster-robust sandwich with the CR1 factor);

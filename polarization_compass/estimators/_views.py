@@ -460,8 +460,8 @@ def view_grid_layout(view: PixelView, block_px: int):
     """
     Return the view's pixels as regular grids for the row-wise compiled pass.
 
-    :func:`polarization_compass.estimators._block_layout.grid_layout` of the view, or None for a pixel
-    list.
+    :func:`polarization_compass.estimators._block_layout.grid_layout` of the view, or None for a
+    pixel list.
     """
     from ._block_layout import grid_layout
 
