@@ -61,6 +61,8 @@ COMPLETED = (
     'estimators/sm_asm.py',
     'estimators/symmetry.py',
     'estimators/least_squares.py',
+    'estimators/_ls_sigma.py',
+    'estimators/_outlier_trim.py',
     'estimators/sun_from_evectors.py',
     'estimators/jackknife.py',
     'estimators/mosaic_input.py',
@@ -84,6 +86,7 @@ COMPLETED = (
     'allowable.py',
     'correction/__init__.py',
     'correction/corrector.py',
+    'correction/sensitivity.py',
     'correction/kernels.py',
     'correction/results.py',
     'correction/weights.py',
@@ -91,6 +94,7 @@ COMPLETED = (
     'photodiode/readings.py',
     'photodiode/stokes.py',
     'photodiode/heading.py',
+    'photodiode/knobs.py',
     'photodiode/calibrate.py',
     'photodiode/selfcheck.py',
     'photodiode/simulate.py',
@@ -167,6 +171,7 @@ COMPLETED = (
 INHERITED_FROM = (
     ('estimators/least_squares.py', '_LSBase'),
     ('estimators/_disc_estimator.py', 'DiscEstimator'),
+    ('correction/sensitivity.py', '_AttitudeSensitivity'),
 )
 
 _SECTIONS = (
