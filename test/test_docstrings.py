@@ -129,7 +129,7 @@ COMPLETED = (
     'graphs/ros_launch.py',
     'graphs/sim.py',
     'graphs/spec.py',
-    'figures.py',
+    'figures/__init__.py',
     'plotting.py',
     'replay/__init__.py',
     'replay/outputs.py',

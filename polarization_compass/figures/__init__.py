@@ -40,9 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import wrap_180_deg
-from .errormap import ErrorMap, ErrorMapError
-from .estimators import registry
+from ..conventions import wrap_180_deg
+from ..errormap import ErrorMap, ErrorMapError
+from ..estimators import registry
 
 __all__ = ['FIGURES', 'draw_figure', 'save_figure', 'save_all']
 
