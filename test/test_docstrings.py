@@ -100,6 +100,8 @@ COMPLETED = (
     'safe_load.py',
     'errors.py',
     'evaluation.py',
+    'evaluation_report.py',
+    'evaluation_stats.py',
     'motion.py',
     'recording.py',
     'bag/__init__.py',
