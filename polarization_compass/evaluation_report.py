@@ -13,10 +13,11 @@
 # limitations under the License.
 
 """
-The evaluator's report files: matched samples and summary as CSV, and the error plot.
+The evaluator's reports: matched samples and summary as CSV, the error plot, the text table.
 
 Written by the ``error_evaluator`` node and the replay from the matches and summary of
-:class:`~polarization_compass.evaluation.StampMatcher`.
+:class:`~polarization_compass.evaluation.StampMatcher`; the table is what ``polarization-compass
+sim`` prints from the summary.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from .evaluation import Match
 from .evaluation_stats import STAT_FIELDS
 
 __all__ = [
+    'format_table',
     'plot_report',
     'write_samples_csv',
     'write_summary_csv',
@@ -199,3 +201,78 @@ def plot_report(path, matches: list[Match], title: str = '') -> Path | None:
     fig.savefig(p)
     plt.close(fig)
     return p
+
+
+def format_table(summary: dict, realtime: bool = False) -> str:
+    """
+    Format the per-method table of error statistics, frames and latency.
+
+    The per-method table: raw and corrected error statistics (deg), frames and latency.
+    """
+    streams = summary.get('streams', {})
+    from .estimators import registry
+    from .evaluation import not_received
+
+    order = list(registry.names())
+    methods = sorted({k.split('/')[0] for k in streams}, key=lambda m: (order + [m]).index(m))
+    n = summary.get('truth_frames', 0)
+    head = (
+        f'{"method":<14} {"kind":<10} {"frames":>7} {"missed":>6} {"not_received":>12} '
+        f'{"mean":>8} {"rms":>8} {"p95":>8} '
+        f'{"max":>8} {"lat p95 ms":>10}'
+    )
+    lines = [f'heading error = estimated - true bearing (deg), {n} frames', head, '-' * len(head)]
+    if any(k.endswith('/fused') for k in streams):
+        lines[0] += (
+            "; fused = robot_localization's filtered yaw at the truth stamps "
+            '(odometry fused: the wheel odometry alone)'
+        )
+    for m in methods:
+        for kind in ('raw', 'corrected', 'fused'):
+            d = streams.get(f'{m}/{kind}')
+            if d is None:
+                continue
+            label = (
+                'tilt-aware' if kind == 'raw' and m in registry.tilt_methods() else kind
+            )  # its raw heading is final
+            # a filter's yaw is sampled at the truth stamps: no arrival latency of its own
+            lat = '-' if kind == 'fused' else f'{d.get("latency_ms_p95", 0.0):.1f}'
+            lines.append(
+                f'{m:<14} {label:<10} {d["count"]:>7d} {d["missed"]:>6d} '
+                f'{d.get("not_received", not_received(streams, f"{m}/{kind}")):>12d} '
+                f'{d["mean"]:>8.3f} {d["rms"]:>8.3f} '
+                f'{d["p95"]:>8.3f} {d["max"]:>8.3f} {lat:>10}'
+            )
+    nodes = summary.get('nodes', {})
+    if nodes:
+        lines.append(
+            'per node (wall ms from input to output, p50/p95; rate over the last 100 inputs):'
+        )
+        for name, v in nodes.items():
+            if 'processing_ms_p50' in v:
+                lines.append(
+                    f'  {name:<34} {float(v["processing_ms_p50"]):8.1f} '
+                    f'{float(v["processing_ms_p95"]):8.1f} ms '
+                    f'{float(v.get("rate_hz", 0)):6.1f} Hz  rejected {v.get("rejected", "0")}'
+                )
+            elif 'frame_ms_p95' in v:
+                lines.append(
+                    f'  {name:<34} frame p95 {float(v["frame_ms_p95"]):.1f} ms, {v.get("frames")} '
+                    'frames, '
+                    f'{v.get("late_frames")} late'
+                )
+    for name, d in streams.items():
+        if d.get('not_published'):
+            why = ', '.join(f'{k} x{v}' for k, v in sorted(d['not_published'].items()))
+            lines.append(f'note: {name}: frames not published: {why}')
+    if any(d.get('missed') for d in streams.values()):
+        lines.append(
+            'missed: truth frames without an estimate; not_received: those that no node declined '
+            '(lost on the way, e.g. images dropped by best-effort transport)'
+        )
+    if not realtime:
+        lines.append(
+            '(lockstep run: latency includes waiting for the slowest node; use --realtime to '
+            'measure it)'
+        )
+    return '\n'.join(lines)

@@ -123,6 +123,7 @@ COMPLETED = (
     'graphs/__init__.py',
     'graphs/arguments.py',
     'graphs/build.py',
+    'graphs/processes.py',
     'graphs/compass.py',
     'graphs/fusion.py',
     'graphs/node_specs.py',
