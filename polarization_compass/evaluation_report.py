@@ -207,7 +207,24 @@ def format_table(summary: dict, realtime: bool = False) -> str:
     """
     Format the per-method table of error statistics, frames and latency.
 
-    The per-method table: raw and corrected error statistics (deg), frames and latency.
+    One row per method and stream kind (raw, corrected, fused): frames, missed, not received,
+    mean, RMS, p95 and max error [deg] and the p95 latency [ms]; then the nodes' processing times
+    and notes on frames not published or missed.
+
+    Parameters
+    ----------
+    summary : dict
+        The evaluator's summary (``evaluation_summary.json``): ``truth_frames``, ``streams``
+        (:meth:`~polarization_compass.evaluation.StampMatcher.summary`) and optionally ``nodes``.
+    realtime : bool, default False
+        Whether the run was at the camera rate; a lockstep run gets a note that its latency
+        includes waiting for the slowest node.
+
+    Returns
+    -------
+    str
+        The table, lines joined with newlines.
+
     """
     streams = summary.get('streams', {})
     from .estimators import registry
