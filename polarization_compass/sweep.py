@@ -654,7 +654,7 @@ def _finish_map(spec: SweepSpec, sw: _SweepRun, sampling, out_path, float32: boo
         meta,
     ).validate()
     if store is not None:
-        from .errormap_store import export_netcdf
+        from .errormap_netcdf import export_netcdf
 
         store.finish(meta)
         if out_path.suffix == '.npz':

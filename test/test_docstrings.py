@@ -153,6 +153,8 @@ COMPLETED = (
     'scene.py',
     'real_input.py',
     'errormap_store.py',
+    'errormap_dataset.py',
+    'errormap_netcdf.py',
     'sensor.py',
     'sensor_config.py',
     'rng.py',
