@@ -144,6 +144,7 @@ COMPLETED = (
     'replay/sync.py',
     'replay/threads.py',
     'sweep.py',
+    'sweep_spec.py',
     'skyfit.py',
     'polarizer_check.py',
     'sky.py',

@@ -38,7 +38,8 @@ from polarization_compass.errormap_io import load_error_map  # noqa: E402
 from polarization_compass.errormap_netcdf import export_netcdf, read_netcdf_map  # noqa: E402
 from polarization_compass.errormap_store import chunk_checksum, SweepStore  # noqa: E402
 from polarization_compass.map_bounds import map_digest  # noqa: E402
-from polarization_compass.sweep import run_sweep, SweepSpec  # noqa: E402
+from polarization_compass.sweep import run_sweep  # noqa: E402
+from polarization_compass.sweep_spec import SweepSpec  # noqa: E402
 import xarray as xr  # noqa: E402
 import zarr  # noqa: E402
 

@@ -42,7 +42,8 @@ pytest.importorskip(
 )
 
 # after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
-from polarization_compass.sweep import parse_range, run_sweep, SweepSpec  # noqa: E402, I100
+from polarization_compass.sweep import run_sweep  # noqa: E402, I100
+from polarization_compass.sweep_spec import parse_range, SweepSpec  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 # small, but a few seconds of work, in 8 chunks of a few tenths of a second each
