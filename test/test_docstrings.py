@@ -104,6 +104,7 @@ COMPLETED = (
     'evaluation_stats.py',
     'motion.py',
     'recording.py',
+    'simulated_sensors.py',
     'bag/__init__.py',
     'bag/codec.py',
     'bag/errors.py',

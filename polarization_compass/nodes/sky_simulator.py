@@ -101,6 +101,7 @@ from ..conventions import (
 from ..errors import CompassError
 from ..motion import frame_times_ns, imu_reading, MotionProfile
 from ..sensor import sensor_config_for_encoding
+from ..simulated_sensors import frame_mosaic, simulation_scene, WheelOdometry
 from ..specs import topics
 from ..specs.params import SIMULATOR, SUN_PARAMS, sun_source
 
@@ -142,26 +143,7 @@ class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
     # configuration ------------------------------------------------------------------------------
     def _load_scene(self):
         """Load the scene parameter's scene, with array_geometry's photodiode array when set."""
-        p = self.params
-        from ..scene import load_scene, SceneError
-
-        try:
-            scene = load_scene(p['scene'] or None)
-            if p['array_geometry']:  # also simulate a photodiode-array compass with this geometry
-                from ..scene import scene_from_dict
-
-                scene = scene_from_dict(
-                    {
-                        **scene.to_dict(),
-                        'photodiode_array': {
-                            **(scene.photodiode_array or {}),
-                            'geometry': p['array_geometry'],
-                        },
-                    }
-                )
-        except SceneError as exc:
-            raise CompassError(str(exc)) from None
-        return scene
+        return simulation_scene(self.params['scene'], self.params['array_geometry'])
 
     def _setup_sky(self, scene) -> None:
         """Set up the camera, renderer, sensor, sun, motion and clock of the simulation."""
@@ -222,8 +204,7 @@ class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
             if self.attitude_source == 'motion'
             else None
         )
-        self.odom_yaw_rad = 0.0  # dead reckoning of the odometry's yaw rate, in odom
-        self.odom_last_ns = None
+        self.odom = WheelOdometry()  # dead reckoning of the odometry's yaw rate, in odom
         self.rng_odom = np.random.default_rng([p['seed'], 11])
         self.odom_tf = self._odom_tf_broadcaster() if self.pub_odom is not None else None
         self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
@@ -355,15 +336,13 @@ class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
             + math.radians(p['odom_yaw_rate_bias_deg_s'])
             + sigma * float(self.rng_odom.standard_normal())
         )
-        if self.odom_last_ns is not None:
-            self.odom_yaw_rad += w * (t_ns - self.odom_last_ns) * 1e-9
-        self.odom_last_ns = t_ns
+        yaw_rad = self.odom.step(t_ns, w)
         m = Odometry()
         m.header.stamp = time_msg(t_ns)
         m.header.frame_id = ODOM_FRAME_ID
         m.child_frame_id = p['imu_frame_id']
         q = m.pose.pose.orientation
-        q.z, q.w = math.sin(self.odom_yaw_rad / 2.0), math.cos(self.odom_yaw_rad / 2.0)
+        q.z, q.w = math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)
         m.pose.covariance = [1e3 if i % 7 == 0 else 0.0 for i in range(36)]  # not to be fused
         m.twist.twist.angular.z = w
         cov = [0.0] * 36
@@ -388,23 +367,17 @@ class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
         The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude
         and the sun's altitude, and the CPU-side wall time it took (ms).
         """
-        from ..render import SunDirection
-        from ..sensor import simulate_mosaic
-
         p = self.params
         t0 = time.perf_counter()
         att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body), self.R_body_cam)
         az, alt = self.sun.at_ns(t_ns)
-        frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
         rng = np.random.default_rng([p['seed'], k_frame])
-        mosaic = simulate_mosaic(
-            frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout, rng
+        mosaic, array_intensities = frame_mosaic(
+            self.renderer, self.sensor_cfg, p['encoding'], att, (az, alt), rng
         )
-        if p['encoding'] == '32FC1':
-            mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
         msg = (
             image_msg(mosaic, t_ns, p['camera_frame_id']),
-            None if frame.array_intensities is None else array_msg(frame.array_intensities),
+            None if array_intensities is None else array_msg(array_intensities),
         )
         return msg, att, alt, (time.perf_counter() - t0) * 1e3
 
