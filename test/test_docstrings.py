@@ -167,6 +167,7 @@ COMPLETED = (
     'clouds.py',
     'sweep_dask.py',
     'budget.py',
+    'budget_config.py',
     'stamp_pairing.py',
     'estimators/speed.py',
     'optics.py',

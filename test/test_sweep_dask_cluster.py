@@ -297,7 +297,8 @@ def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
     The Monte Carlo budget's (condition, block of samples) tasks on the loopback cluster give the
     same statistics as the in-process run on one numba thread (blocks joined in sample order).
     """
-    from polarization_compass.budget import BudgetConfig, run_budget
+    from polarization_compass.budget import run_budget
+    from polarization_compass.budget_config import BudgetConfig
     from polarization_compass.camera import CameraModel, PixelSelection
     from polarization_compass.motion import MountingErrors
     from polarization_compass.runtime import single_threaded_kernels
