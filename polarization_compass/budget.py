@@ -13,10 +13,7 @@
 # limitations under the License.
 
 """
-The error budget: heading accuracy per method and the cost of each declared effect.
-
-The error budget: what heading accuracy a scene gives, per method, and what each declared effect
-costs.
+The error budget: what heading accuracy a scene gives, per method, and what each effect costs.
 
 A Monte Carlo over ``samples`` frames of a scene (its site, time/sun, camera, sky, atmosphere,
 optics and sensor as declared), each with a random bearing (uniform), a random tilt (``|pitch| +
@@ -42,6 +39,9 @@ quantisation), ``calibration`` (DoFP calibration errors), ``clouds``, ``haze``, 
 ``optics`` (sun glare, flare, vignetting), ``sky_model`` (a non-Rayleigh sky against the Rayleigh
 one the estimators assume, same DoP_max), ``tilt`` (the camera level instead), ``imu`` (noise,
 bias, time offset) and ``boresight``.
+
+The configuration (:class:`~polarization_compass.budget_config.BudgetConfig`), the sources and
+their switches are :mod:`polarization_compass.budget_config`'s.
 """
 
 from __future__ import annotations
@@ -70,9 +70,10 @@ SIGMA_BAND = (0.3, 3.0)
 
 def _samples(cfg: BudgetConfig):
     """
-    Draw the seeded per-sample attitudes, scene seeds and IMU normals.
+    Draw each sample's (bearing, pitch, roll, scene seed, IMU normals), seeded by the scene only.
 
-    Seeded (bearing, pitch, roll, scene seed, IMU normals) per sample, from the scene's seed only.
+    Pitch and roll are drawn with ``|pitch| + |roll| <= 1``; the condition scales them by
+    ``tilt_max_deg``.
     """
     out = []
     for i in range(cfg.samples):
@@ -125,9 +126,9 @@ def _run_condition(cfg: BudgetConfig, samples, methods) -> dict:
 
 def _budget_task(cfg: BudgetConfig, samples, methods) -> dict:
     """
-    Run some samples of one condition on a Dask worker (numba on one thread).
+    Return the raw results of some samples of one condition, run on a Dask worker.
 
-    Run on a Dask worker: the raw results of some samples of one condition, numba on one thread.
+    numba runs on one thread there, so the results equal an in-process run's.
     """
     from .runtime import keep_large_buffers_in_heap, single_threaded_kernels
 

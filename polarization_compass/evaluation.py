@@ -13,26 +13,16 @@
 # limitations under the License.
 
 """
-Running heading-error statistics and the stamp matching behind ``error_evaluator`` (ROS-free).
-
-Error convention (the paper's): ``error_deg = estimated bearing - true bearing``, which equals
-``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg
-ambiguity, folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an
-axial one, where a heading and its opposite are the same measurement. Statistics of a stream:
-
-``count``   matched estimates
-``mean``    mean signed error (deg)              ``std``  its standard deviation (deg)
-``rms``     sqrt(mean(error^2)) (deg)            ``p95``  95th percentile of |error| (deg)
-``max``     max |error| (deg)
-
-Every sample is kept up to ``max_samples`` (default 2 million, 16 MB), so ``p95`` is exact for any
-run this project simulates; beyond that, percentiles come from a uniform reservoir sample of that
-size (deterministic seed) while count, mean, RMS, std and max stay exact.
+The stamp matching behind ``error_evaluator``: estimates paired with the truth (ROS-free).
 
 :class:`StampMatcher` pairs estimates with the ground truth by identical stamp (the estimator
 stamps its output with the image's stamp, and the simulator stamps the truth with the same stamp):
 an estimate that arrives before its truth waits (bounded), a truth frame without an estimate on a
 stream after ``horizon_ns`` counts as *missed* for that stream.
+
+Each stream's errors accumulate in a :class:`~polarization_compass.evaluation_stats.RunningStats`
+(:mod:`polarization_compass.evaluation_stats`, which also holds the error convention); the report
+files are :mod:`polarization_compass.evaluation_report`'s.
 """
 
 from __future__ import annotations

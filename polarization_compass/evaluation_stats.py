@@ -17,9 +17,19 @@ Heading errors and their running statistics (ROS-free): what the evaluator measu
 
 Error convention (the paper's): ``error_deg = estimated bearing - true bearing``, which equals
 ``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg
-ambiguity, folded to (-90, 90] for an axial one (:func:`heading_error_deg`). A stream's statistics
-(:data:`STAT_FIELDS`) accumulate one sample at a time in :class:`RunningStats`; the stamp matching
-that feeds them is :mod:`polarization_compass.evaluation`.
+ambiguity, folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an
+axial one, where a heading and its opposite are the same measurement. Statistics of a stream:
+
+``count``   matched estimates
+``mean``    mean signed error (deg)              ``std``  its standard deviation (deg)
+``rms``     sqrt(mean(error^2)) (deg)            ``p95``  95th percentile of |error| (deg)
+``max``     max |error| (deg)
+
+Every sample is kept up to ``max_samples`` (default 2 million, 16 MB), so ``p95`` is exact for any
+run this project simulates; beyond that, percentiles come from a uniform reservoir sample of that
+size (deterministic seed) while count, mean, RMS, std and max stay exact.
+
+The stamp matching that feeds them is :mod:`polarization_compass.evaluation`.
 """
 
 from __future__ import annotations

@@ -158,8 +158,8 @@ def ensure_error_map(
     """
     Build a small error map around the scenario when ``path`` does not exist.
 
-    Build a small map around the scenario (sun altitude, pitch, roll; every yaw) with the errormap
-    command when ``path`` does not exist. Cubic interpolation needs 4 nodes per axis.
+    The map covers the run's sun altitudes, pitch and roll (every yaw), computed by the errormap
+    command. Cubic interpolation needs 4 nodes per axis.
     """
     if path.is_file():
         return

@@ -203,10 +203,9 @@ def _progress(log: Path) -> str:
 
 def _stop_all(procs: dict) -> dict:
     """
-    Stop every running node: SIGINT, then SIGTERM / SIGKILL for stragglers.
+    Stop every running node: SIGINT, then SIGTERM / SIGKILL for stragglers; return exit codes.
 
-    SIGINT every running node, then SIGTERM / SIGKILL stragglers after the launch files' timeouts
-    (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S). Returns exit codes.
+    Stragglers get the launch files' timeouts (graphs.STOP_TIMEOUT_S, SIGKILL_TIMEOUT_S).
     """
     from ..graphs import SIGKILL_TIMEOUT_S, STOP_TIMEOUT_S
 

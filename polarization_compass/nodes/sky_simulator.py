@@ -362,10 +362,10 @@ class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
 
     def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
         """
-        Render frame ``k_frame`` into an image message and time it.
+        Render frame ``k_frame`` at ``t_ns`` into its messages and time it.
 
-        The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude
-        and the sun's altitude, and the CPU-side wall time it took (ms).
+        Returns the (image, array sample or None) messages, the camera attitude, the sun's
+        altitude [deg] and the CPU-side wall time it took [ms].
         """
         p = self.params
         t0 = time.perf_counter()

@@ -67,10 +67,9 @@ class SimulatorClock:
     # the sim clock ------------------------------------------------------------------------------
     def _missing_downstream(self) -> list[tuple[str, list]]:
         """
-        Return the expected downstream subscriptions not seen yet.
+        Return the (topic, node names) of ``wait_for_downstream`` whose subscriptions are unseen.
 
-        (topic, node names) of ``wait_for_downstream`` whose subscription this node has not seen
-        yet.
+        A name is missing while this node has not seen its subscription to the topic.
         """
         out = []
         for topic, names in parse_downstream(self.params['wait_for_downstream']):
