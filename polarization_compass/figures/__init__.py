@@ -37,24 +37,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import curves, surfaces, tilts
 from .axes import _plt
-from .curves import fig8, fig9, fig12, fig13
-from .surfaces import fig7, fig10, fig11
-from .tilts import fig14
 from ..errormap import ErrorMap, ErrorMapError
 
 __all__ = ['FIGURES', 'draw_figure', 'save_figure', 'save_all']
 
 
 FIGURES = {
-    'fig7': fig7,
-    'fig8': fig8,
-    'fig9': fig9,
-    'fig10': fig10,
-    'fig11': fig11,
-    'fig12': fig12,
-    'fig13': fig13,
-    'fig14': fig14,
+    'fig7': surfaces.fig7,
+    'fig8': curves.fig8,
+    'fig9': curves.fig9,
+    'fig10': surfaces.fig10,
+    'fig11': surfaces.fig11,
+    'fig12': curves.fig12,
+    'fig13': curves.fig13,
+    'fig14': tilts.fig14,
 }
 
 
