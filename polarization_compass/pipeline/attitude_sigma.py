@@ -24,7 +24,12 @@ from __future__ import annotations
 
 import math
 
-__all__ = ['imu_tilt_variance_deg2', 'AttitudeUncertainty']
+__all__ = [
+    'imu_tilt_variance_deg2',
+    'AttitudeUncertainty',
+    'tilt_sigma_deg',
+    'with_attitude_sigma',
+]
 
 
 def imu_tilt_variance_deg2(cov) -> float | None:
@@ -89,4 +94,82 @@ class AttitudeUncertainty:
                 'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
                 'propagated into the heading sigma; set attitude_sigma_deg to state one'
             )
-        return math.sqrt((v or 0.0) + extra_deg * extra_deg), v is not None
+        return tilt_sigma_deg(v, extra_deg), v is not None
+
+
+def tilt_sigma_deg(var_deg2: float | None, extra_deg: float) -> float:
+    """
+    Return the camera pitch/roll 1-sigma [deg]: ``sqrt(var + extra^2)``.
+
+    Parameters
+    ----------
+    var_deg2 : float or None
+        The IMU's tilt variance [deg^2] (:func:`imu_tilt_variance_deg2`); None: unknown (0).
+    extra_deg : float
+        The stated 1-sigma [deg] the covariance does not hold (``attitude_sigma_deg``).
+
+    Returns
+    -------
+    float
+        The isotropic tilt 1-sigma [deg].
+
+    """
+    return math.sqrt((var_deg2 or 0.0) + extra_deg * extra_deg)
+
+
+def with_attitude_sigma(
+    result, method: str, pitch_deg, roll_deg, tilt_sigma: tuple, notes: dict | None = None
+):
+    """
+    Add the IMU tilt's uncertainty to a tilt-reading method's sigma: ``J Sigma_att J^T``.
+
+    ``Sigma_att`` is isotropic with the 1-sigma of ``tilt_sigma``; ``J`` comes from the method
+    (:meth:`~polarization_compass.estimators.base.Estimator.tilt_sensitivity`). Only an ``ok``
+    result with a sigma, estimated with a known pitch and roll, by a method that reads the tilt.
+
+    Parameters
+    ----------
+    result : HeadingResult
+        The method's result.
+    method : str
+        The method's registered name.
+    pitch_deg, roll_deg : float or None
+        The camera pitch and roll [deg] the result was estimated with.
+    tilt_sigma : tuple of (float, bool)
+        The tilt 1-sigma [deg] (:func:`tilt_sigma_deg`) and whether the IMU stated a covariance.
+    notes : dict, optional
+        Filled, when the sigma is propagated, with ``attitude_sigma_deg`` (the tilt 1-sigma),
+        ``attitude_covariance`` (``imu`` or ``unknown``) and ``sigma_attitude_deg`` (the
+        heading's share) [deg].
+
+    Returns
+    -------
+    HeadingResult
+        ``result``, or a copy whose ``sigma_deg`` is ``hypot(sigma, sigma_attitude)`` and whose
+        extras keep ``sigma_fit_deg`` and ``sigma_attitude_deg``.
+
+    """
+    import dataclasses
+
+    from ..estimators import registry
+
+    if not (result.ok and result.sigma_deg is not None) or pitch_deg is None or roll_deg is None:
+        return result
+    j = registry.get(method).tilt_sensitivity(result, pitch_deg, roll_deg)
+    if j is None:
+        return result
+    s_tilt, known = tilt_sigma
+    s_att = math.hypot(j[0] * s_tilt, j[1] * s_tilt)
+    if notes is not None:
+        notes.update(
+            attitude_sigma_deg=s_tilt,
+            attitude_covariance='imu' if known else 'unknown',
+            sigma_attitude_deg=s_att,
+        )
+    if s_att == 0.0:
+        return result
+    return dataclasses.replace(
+        result,
+        sigma_deg=math.hypot(result.sigma_deg, s_att),
+        extras={**result.extras, 'sigma_fit_deg': result.sigma_deg, 'sigma_attitude_deg': s_att},
+    )
