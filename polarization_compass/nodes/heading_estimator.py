@@ -300,6 +300,21 @@ class HeadingEstimatorNode(HeadingNodeBase):
         mosaic = self.diag.decoded('', decode_image, msg)
         if mosaic is None:
             return False
+        t_ns = stamp_ns(msg.header)
+        why = self._size_mismatch(t_ns, int(msg.width), int(msg.height))
+        if why is not None:  # its bad_input status now: queued, it would evict a good frame
+            self._publish_status(
+                {
+                    'stamp_ns': t_ns,
+                    'method': self.method,
+                    'status': 'bad_input',
+                    'reason': why,
+                    'ok': False,
+                    'published': False,
+                }
+            )
+            self.diag.done(t_in, t_ns, f'bad_input: {why}', ok=False)
+            return False
         mosaic = self.readout.image(mosaic)  # read as the sensor sees it (readout_flip)
         item = (
             stamp_ns(msg.header),
@@ -322,6 +337,27 @@ class HeadingEstimatorNode(HeadingNodeBase):
         with self._work_cv:
             self._work_cv.notify()
         return True
+
+    def _size_mismatch(self, t_ns: int, width: int, height: int) -> str | None:
+        """
+        Say why an image cannot match the camera_info it will be paired with, or None.
+
+        Checked on reception, before the image is queued (its ``bad_input`` status is published at
+        once): a burst of well-formed images of another size used to fill the worker's queue and
+        push out the good frames waiting there (``image_queue_full``), only to fail one by one in
+        the worker. The camera is the image's
+        own camera_info (by stamp), else the latest; none yet, or a rejected one: the worker
+        decides as before.
+        """
+        if self.params['camera_info_source'] != 'topic':
+            return None
+        try:
+            cam = self.camera_info.camera(t_ns)
+        except PipelineError:
+            return None
+        if cam is None or (cam.width_px, cam.height_px) == (width, height):
+            return None
+        return f'image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}'
 
     def _on_image_msg(self, msg) -> None:
         """Queue an image for the worker thread (started with the first image)."""
