@@ -164,3 +164,80 @@ def test_imu_buffer_gives_the_mounted_camera_attitude():
     plain.add(1_000, q)
     got = plain.camera_tilt(1_000, 10)
     np.testing.assert_allclose((got.pitch_deg, got.roll_deg), BODY[1:], atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------
+# calibrate-mount --camera: simulated turns in place through the estimate road
+# ------------------------------------------------------------------------------------------------
+LAT, LON, TIME = 40.0, 0.0, '2026-06-21T10:00:00Z'
+TURN_OFFSETS = (30.0, 34.0)  # IMU zero of each turn: bearing = offset - degrees(imu yaw)
+PER_TURN = 24
+
+
+@pytest.fixture(scope='module')
+def turns(tmp_path_factory):
+    """Render two turns in place of the mounted camera; write the frames and a turn list."""
+    from polarization_compass.cli.cmd_estimate_array import sun_per_sample
+
+    d = tmp_path_factory.mktemp('mturn')
+    az, alt = sun_per_sample(TIME, None, 1, LAT, LON)
+    scene = Scene(
+        camera=CAM,
+        pixels=PixelSelection.full(),
+        sky={'model': 'rayleigh', 'dop_max': 0.7},
+        sensor={
+            'mosaic': {},
+            'exposure': {'full_well_e': 10500, 'fill': 0.45},
+            'shot_noise': {},
+            'quantization': {'bits': 12},
+            'demosaic': 'superpixel',
+        },
+    )
+    r = Renderer(scene)
+    rows = ['path,imu_yaw_rad,turn_index']
+    for k, off in enumerate(TURN_OFFSETS):
+        yaw = np.radians(np.linspace(0.0, 360.0, PER_TURN, endpoint=False) + 3.0 * k)
+        for j, y in enumerate(yaw):
+            att = _attitude_scipy(_R_enu_cam_scipy(off - math.degrees(y), 0.0, 0.0, MOUNT))
+            f = r.render(attitude=att, sun=SunDirection(az[0], alt[0]), seed=100 * k + j)
+            m = f.mosaic.astype(np.uint16)
+            s0, s1, s2 = stokes_from_mosaic(m, [[90, 45], [135, 0]], '+x-y', 'superpixel', 4095)
+            name = f'f{k}_{j:02d}.npz'
+            np.savez(d / name, s0=s0, s1=s1, s2=-s2)
+            rows.append(f'{name},{float(y)!r},{k}')
+    (d / 'turns.csv').write_text('\n'.join(rows) + '\n')
+    (d / 'camera.yaml').write_text(_yaml(None))
+    return d, float(alt[0])
+
+
+def test_calibrate_mount_camera_recovers_the_mount_and_removes_the_curve(turns, capsys):
+    import yaml
+
+    d, alt = turns
+    assert alt > 50.0  # a sun high enough for the tilt to show
+    capsys.readouterr()
+    argv = ['calibrate-mount', str(d / 'turns.csv'), '--camera', str(d / 'camera.yaml')]
+    argv += ['--lat', str(LAT), '--lon', str(LON), '--time', TIME, '--out', str(d / 'out.yaml')]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    m = yaml.safe_load((d / 'out.yaml').read_text())['mount']
+    for key, want in (('pitch', MOUNT[0]), ('roll', MOUNT[1])):
+        sigma = m[f'{key}_sigma_deg']
+        assert 0.0 < sigma < 0.5, (m, err)
+        assert abs(m[f'{key}_deg'] - want) < 3.0 * sigma + 0.05, (m, err)
+    # the within-turn scatter of tilt_aware's bearing + IMU yaw: the sun-relative curve of a level
+    # camera file, gone with the kept one (estimate reads the written mount)
+    assert m['residual_before_deg'] > 1.0, (m, err)
+    assert m['residual_after_deg'] < m['residual_before_deg'] / 3.0, (m, err)
+    from polarization_compass.camera import load_camera_yaml
+
+    assert load_camera_yaml(d / 'out.yaml').mount.pitch_deg == m['pitch_deg']
+
+
+def test_calibrate_mount_camera_refuses_a_list_without_imu_yaw(tmp_path, capsys):
+    (tmp_path / 'camera.yaml').write_text(_yaml(None))
+    (tmp_path / 'turns.csv').write_text('path,turn_index\nf.npz,0\n')
+    argv = ['calibrate-mount', str(tmp_path / 'turns.csv'), '--camera']
+    argv += [str(tmp_path / 'camera.yaml'), '--lat', '40', '--lon', '0', '--time', TIME]
+    assert main(argv + ['--out', str(tmp_path / 'o.yaml')]) != 0
+    assert 'needs a header with path and imu_yaw_rad' in capsys.readouterr().err
