@@ -204,6 +204,8 @@ def _run_camera(args) -> int:
 
 def _report(fit, before, after) -> None:
     m = fit.mount
+    if fit.warning:
+        print(fit.warning, file=sys.stderr)
     print(
         f'mount pitch {m.pitch_deg:.2f} +- {m.pitch_sigma_deg:.2f} deg, roll {m.roll_deg:.2f} '
         f'+- {m.roll_sigma_deg:.2f} deg from {fit.turns} turn(s), {fit.samples} samples; '
