@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
+import io
 from pathlib import Path
 import tempfile
 
@@ -37,6 +38,7 @@ import yaml
 from .errors import CompassError
 from .mount import Mount, mount_to_dict
 from .mount_fit import camera_samples, CameraRays, TurnSamples
+from .safe_load import read_text
 
 __all__ = [
     'TurnList',
@@ -101,10 +103,10 @@ def read_turn_list(path) -> TurnList:
 
     """
     p = Path(path)
+    text = read_text(p, CompassError, 'turn list')  # bounded; no FIFO, device or directory
     try:
-        with open(p, newline='', encoding='utf-8') as fh:
-            rows = list(csv.DictReader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        rows = list(csv.DictReader(io.StringIO(text, newline='')))
+    except csv.Error as exc:
         raise CompassError(f'{p}: cannot read the turn list ({exc})') from None
     if not rows or not {'path', 'imu_yaw_rad'} <= set(rows[0]):
         raise CompassError(f'{p}: a turn list needs a header with path and imu_yaw_rad columns')
@@ -137,7 +139,7 @@ def camera_yaml_with_mount(src, mount: Mount | None, dst) -> None:
         The mount to write.
 
     """
-    doc = yaml.safe_load(Path(src).read_text(encoding='utf-8'))
+    doc = yaml.safe_load(read_text(src, CompassError, 'camera file'))
     doc.pop('mount', None)
     if mount is not None:
         doc['mount'] = mount_to_dict(mount)

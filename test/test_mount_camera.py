@@ -25,6 +25,7 @@ camera's least_squares does not level and is unchanged); the IMU path of the nod
 
 import json
 import math
+import os
 
 import numpy as np
 from polarization_compass.camera import CameraModel, PixelSelection
@@ -241,3 +242,7 @@ def test_calibrate_mount_camera_refuses_a_list_without_imu_yaw(tmp_path, capsys)
     argv += [str(tmp_path / 'camera.yaml'), '--lat', '40', '--lon', '0', '--time', TIME]
     assert main(argv + ['--out', str(tmp_path / 'o.yaml')]) != 0
     assert 'needs a header with path and imu_yaw_rad' in capsys.readouterr().err
+    os.mkfifo(tmp_path / 'fifo.csv')  # a special file is refused before it is opened
+    argv[1] = str(tmp_path / 'fifo.csv')
+    assert main(argv + ['--out', str(tmp_path / 'o.yaml')]) == 2
+    assert 'FIFO' in capsys.readouterr().err
