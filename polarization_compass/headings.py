@@ -167,6 +167,10 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
     if cam_file.readout_flip:  # the camera model is the sensor's: read the image as it sees it
         inp, mask = _unflipped(inp, mask, cam_file.readout_flip)
+    from .mount import camera_tilt_deg  # the body's --pitch/--roll composed with the mount
+
+    tilt = camera_tilt_deg(options.pitch_deg, options.roll_deg, cam_file.mount)
+    options = EstimateOptions(**{**vars(options), 'pitch_deg': tilt[0], 'roll_deg': tilt[1]})
     return real_headings(inp, cam_file, options, sun, mask, seen)
 
 

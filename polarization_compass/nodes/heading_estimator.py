@@ -54,6 +54,7 @@ from .runner import run_node
 from ..bag import decode_camera_info, MessageError, stamp_ns
 from ..camera import CameraError, CameraModel
 from ..errors import CompassError
+from ..mount import Mount
 from ..pipeline import (
     apply_rules,
     CameraInfoState,
@@ -110,6 +111,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
         self._worker = None
         self._stop = False
         self._start_common(p, small)
+        self.imu.mount = Mount(p['mount_pitch_deg'], p['mount_roll_deg'])  # camera_tilt composes
         self._subscribe_camera(small, images)
         self.get_logger().info(
             f'method {self.method}: {topics.method_topics(self.method)["heading_raw"]} from '
