@@ -28,14 +28,8 @@ from polarization_compass.cli import main
 from polarization_compass.conventions import rot_x, rot_y, wrap_180_deg
 from polarization_compass.estimators.base import Status
 from polarization_compass.mount import Mount, R_body_sensor
-from polarization_compass.mount_fit import (
-    concat,
-    fit_mount,
-    fit_mount_recordings,
-    heading_scatter_deg,
-    MountFitError,
-    turn_samples,
-)
+from polarization_compass.mount_fit import concat, fit_mount, MountFitError, turn_samples
+from polarization_compass.mount_recordings import fit_mount_recordings, heading_scatter_deg
 from polarization_compass.photodiode.geometry import (
     ArrayGeometryError,
     geometry_from_dict,

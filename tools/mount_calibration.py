@@ -35,11 +35,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from polarization_compass.conventions import wrap_180_deg  # noqa: E402
 from polarization_compass.estimators.base import Status  # noqa: E402
-from polarization_compass.mount_fit import (  # noqa: E402
+from polarization_compass.mount_fit import MountFitError, turn_samples  # noqa: E402
+from polarization_compass.mount_recordings import (  # noqa: E402
     fit_mount_recordings,
     heading_scatter_deg,
-    MountFitError,
-    turn_samples,
 )
 from polarization_compass.photodiode.geometry import geometry_from_dict  # noqa: E402
 from polarization_compass.photodiode.heading import (  # noqa: E402

@@ -93,7 +93,7 @@ def _scatter(geometry, recs, pitch, roll) -> tuple:
     import numpy as np
 
     from ..estimators.base import Status
-    from ..mount_fit import heading_scatter_deg
+    from ..mount_recordings import heading_scatter_deg
     from ..photodiode.heading import estimate_recording, make_array_estimator
 
     est = make_array_estimator('tilt_aware', geometry)
@@ -111,7 +111,7 @@ def run(args) -> int:
     from ._checks import check_range
     from ..errors import CompassError
     from ..mount import Mount
-    from ..mount_fit import fit_mount_recordings
+    from ..mount_recordings import fit_mount_recordings
     from ..photodiode.geometry import geometry_to_dict, load_array_geometry
 
     check_range('lat', args.lat, -90, 90)
@@ -155,7 +155,7 @@ def _run_camera(args) -> int:
     from ..camera import load_camera_yaml
     from ..camera_turns import camera_turns, camera_yaml_with_mount, read_turn_list, turn_headings
     from ..mount import Mount
-    from ..mount_fit import fit_mount_recordings, heading_scatter_deg
+    from ..mount_recordings import fit_mount_recordings, heading_scatter_deg
 
     load_camera_yaml(args.camera)  # a camera file estimate accepts, checked first
     parts, turns, suns = [], [], []
