@@ -99,7 +99,7 @@ def _camera_file(R, step: int):
     """Read the frames' camera file, for planes decimated by ``step`` (the same lens, scaled)."""
     import tempfile
 
-    from polarization_compass.camera import load_camera_yaml
+    from polarization_compass.camera_file import load_camera_yaml
 
     with tempfile.TemporaryDirectory() as d:
         y = Path(d) / 'cam.yaml'

@@ -156,7 +156,7 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         )
     if options.use_stored:
         raise CompassError('--use-stored applies to frame files')
-    from .camera import load_camera_yaml
+    from .camera_file import load_camera_yaml
     from .real_input import load_mask
 
     cam_file = load_camera_yaml(options.camera_yaml)
@@ -176,7 +176,7 @@ def _unflipped(inp, mask, readout_flip: str):
 
     import numpy as np
 
-    from .camera import unflip
+    from .camera_file import unflip
 
     def un(a):
         return np.ascontiguousarray(unflip(a, readout_flip))

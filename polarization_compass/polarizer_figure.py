@@ -66,7 +66,7 @@ def save_polarizer_figure(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .camera import load_camera_yaml
+    from .camera_file import load_camera_yaml
     from .polarizer_check import _masks, _read_inputs, polarizer_hypotheses
 
     cf = load_camera_yaml(camera_yaml)

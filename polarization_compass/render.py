@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from . import instrumentation as instr
-from .camera import PixelSelection, select_pixels, SelectedPixels
+from .camera_pixels import PixelSelection, select_pixels, SelectedPixels
 from .conventions import (
     bearing_to_psi_deg,
     CameraAttitude,

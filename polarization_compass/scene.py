@@ -52,7 +52,8 @@ from importlib import resources
 import math
 from pathlib import Path
 
-from .camera import CameraError, CameraModel, PixelSelection
+from .camera import CameraError, CameraModel
+from .camera_pixels import PixelSelection
 from .conventions import CameraAttitude
 from .errors import CompassError
 from .safe_load import load_yaml, read_text

@@ -126,7 +126,8 @@ from numba import njit, prange
 import numpy as np
 
 from . import instrumentation as instr
-from .camera import CameraModel, SelectedPixels
+from .camera import CameraModel
+from .camera_pixels import SelectedPixels
 from .demosaic import _finish, MosaicLayout, polarization_from_mosaic, SensorError
 from .fastmath import sincos32
 from .rng import (

@@ -143,7 +143,7 @@ def _real_obs(stem):
     sys.path.insert(0, str(Path(__file__).parent))
     import tempfile
 
-    from polarization_compass.camera import load_camera_yaml
+    from polarization_compass.camera_file import load_camera_yaml
     from polarization_compass.headings import real_observation
     from polarization_compass.real_input import PolarizationInput
     import real_sky as R

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import PixelSelection
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.estimators import make_estimator
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic

@@ -30,7 +30,8 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
 from polarization_compass.budget import BudgetConfig, declared_sources, SOURCES, without
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.ground import (
     brewster_angle_deg,
     fresnel_amplitudes,

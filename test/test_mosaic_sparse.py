@@ -28,7 +28,9 @@ frames.
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, load_camera_yaml, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_file import load_camera_yaml
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
     IFOV_K_DEFAULT,

@@ -24,7 +24,8 @@ import math
 
 from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout
 from polarization_compass.estimators.mosaic_input import _grid_rays

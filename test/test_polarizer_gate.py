@@ -24,7 +24,8 @@ fix, while the right configuration keeps ``ok`` and the true heading.
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.demosaic import IMX250MZR_LAYOUT, parse_layout
 from polarization_compass.headings import estimate_file, EstimateOptions

@@ -29,7 +29,8 @@ import json
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.estimators import Knob, make_estimator, registry
 from polarization_compass.estimators.base import Estimator, EstimatorError, HeadingResult, Status
 import pytest

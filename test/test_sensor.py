@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 from polarization_compass import instrumentation as instr
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_rad
 from polarization_compass.demosaic import IMX250MZR_POL45, polarization_from_mosaic
 from polarization_compass.render import Renderer, SunDirection

@@ -23,7 +23,7 @@ tied to the sensor's pixels.
 
 import numpy as np
 from polarization_compass import instrumentation as instr
-from polarization_compass.camera import PixelSelection
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.demosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection

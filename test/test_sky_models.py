@@ -28,7 +28,8 @@ from pathlib import Path
 from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import (
     CameraAttitude,
     enu_direction,

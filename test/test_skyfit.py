@@ -24,7 +24,8 @@ the node front end applies the same check.
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.demosaic import parse_layout
 from polarization_compass.estimators.base import HeadingResult, Status

@@ -20,7 +20,7 @@ import json
 import sys
 
 from ._checks import check_range, check_together
-from ..camera import PixelSelection
+from ..camera_pixels import PixelSelection
 from ..conventions import CameraAttitude
 from ..errors import CompassError
 

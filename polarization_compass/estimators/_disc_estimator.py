@@ -48,7 +48,8 @@ from ._mirror import (
 )
 from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 from ..conventions import fold_axial_rad_float
 
 __all__ = ['DISC_KNOBS', 'DiscEstimator', 'cr1_sigma']

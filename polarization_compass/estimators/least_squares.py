@@ -96,7 +96,8 @@ from .sun_from_evectors import (
     SunFrames,
     tilt_sensitivity,
 )
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 from ..fastmath import sincos32_folded as _sincos32
 
 __all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']

@@ -54,7 +54,8 @@ import math
 import numpy as np
 
 from .base import Observation
-from ..camera import CameraError, CameraModel, PixelSelection, select_pixels
+from ..camera import CameraError, CameraModel
+from ..camera_pixels import PixelSelection, select_pixels
 from ..demosaic import (
     aop_dop_from_stokes,
     check_ifov_k,

@@ -71,7 +71,8 @@ from ._kernels import acc_brightness, acc_sym, N_STATS
 from ._knobs import Knob, KnobbedEstimator
 from ._views import _BadInput, check_sun, samples_from_view, select_view
 from .base import Estimator, HeadingResult, Observation, Status
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 
 __all__ = ['ZenithEstimator', 'zenith_window']
 

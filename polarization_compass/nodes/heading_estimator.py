@@ -55,7 +55,8 @@ from .msgs import AttitudeUncertainty, decode_image
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, MessageError, stamp_ns
-from ..camera import CameraError, CameraModel, unflip, unflipped_camera
+from ..camera import CameraError, CameraModel
+from ..camera_file import unflip, unflipped_camera
 from ..errors import CompassError
 from ..estimators import registry
 from ..pipeline import (

@@ -90,7 +90,7 @@ from .msgs import (
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_orientation, ns_from_utc
-from ..camera import PixelSelection
+from ..camera_pixels import PixelSelection
 from ..conventions import (
     camera_attitude_from_body_quat,
     matrix_to_quat,
