@@ -394,18 +394,19 @@ ALL_KERNELS = set().union(*EFFECT_KERNELS.values())
 
 
 def test_kernel_table_matches_the_code():
-    from polarization_compass import sensor
+    from polarization_compass import sensor_kernels
 
-    assert set(sensor._IMPLEMENTS) == ALL_KERNELS
+    assert set(sensor_kernels._IMPLEMENTS) == ALL_KERNELS
     for effect, kernels in EFFECT_KERNELS.items():
-        assert {k for k, effects in sensor._IMPLEMENTS.items() if effect in effects} == kernels, (
-            effect
-        )
+        assert {
+            k for k, effects in sensor_kernels._IMPLEMENTS.items() if effect in effects
+        } == kernels, effect
     # the effect-free variants do not even take the effect's parameter
     import inspect
 
     params = {
-        k: set(inspect.signature(getattr(sensor, k).py_func).parameters) for k in ALL_KERNELS
+        k: set(inspect.signature(getattr(sensor_kernels, k).py_func).parameters)
+        for k in ALL_KERNELS
     }
     assert (
         'd' not in params['_mean_electrons_kernel'] and 'd' in params['_mean_electrons_er_kernel']

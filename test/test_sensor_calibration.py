@@ -28,7 +28,8 @@ from polarization_compass.conventions import CameraAttitude
 from polarization_compass.demosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, scene_from_dict, SceneError
-from polarization_compass.sensor import calibration_maps, parse_sensor_config, simulate_mosaic
+from polarization_compass.sensor import parse_sensor_config, simulate_mosaic
+from polarization_compass.sensor_calibration import calibration_maps
 import pytest
 
 N0 = 5250.0  # default fill 0.5 x full well 10 500 e-
