@@ -159,7 +159,7 @@ def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
 def _monitor(cfg, repeats) -> dict:
     from polarization_compass.camera import CameraModel
     from polarization_compass.conventions import CameraAttitude
-    from polarization_compass.demosaic import parse_layout
+    from polarization_compass.mosaic import parse_layout
     from polarization_compass.pipeline import PolarizerMonitor
     from polarization_compass.render import Renderer, SunDirection
     from polarization_compass.scene import load_scene

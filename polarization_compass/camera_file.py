@@ -164,7 +164,7 @@ def load_camera_yaml(path) -> CameraFile:
         beyond 5 %); one-line reason naming the file.
 
     """
-    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
+    from .mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
     from .safe_load import load_yaml, read_text
 
     p = str(path)

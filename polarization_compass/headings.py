@@ -495,7 +495,7 @@ def frame_headings(
 
 def _mosaic_plan(frame) -> _MosaicPlan:
     """Read from a frame's meta how to demosaic its mosaic; CompassError if it cannot be."""
-    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+    from .mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
     _sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
     layout, pol45 = mos.get('layout'), mos.get('pol45_toward')

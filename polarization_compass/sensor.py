@@ -127,8 +127,10 @@ import numpy as np
 from . import instrumentation as instr
 from .camera import CameraModel
 from .camera_pixels import SelectedPixels
-from .demosaic import _finish, MosaicLayout, polarization_from_mosaic, SensorError
+from .demosaic import polarization_from_mosaic
+from .demosaic_kernels import _finish
 from .fastmath import sincos32
+from .mosaic import MosaicLayout, SensorError
 from .rng import standard_normal_f32
 from .sensor_calibration import calibration_maps
 from .sensor_config import (

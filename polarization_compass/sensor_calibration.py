@@ -27,7 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .demosaic import MosaicLayout
+from .mosaic import MosaicLayout
 from .sensor_config import SensorConfig
 
 _CAL_TILE = 64

@@ -29,10 +29,10 @@ from polarization_compass.demosaic import (
     IFOV_K_DEFAULT,
     polarization_from_mosaic,
     redundancy_noise,
-    SensorError,
     stokes_from_mosaic,
 )
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+from polarization_compass.mosaic import SensorError
 from polarization_compass.sensor import parse_sensor_config
 import pytest
 

@@ -34,13 +34,13 @@ from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
     IFOV_K_DEFAULT,
-    parse_layout,
     polarization_from_mosaic,
     redundancy_noise,
     stokes_from_mosaic,
 )
 from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+from polarization_compass.mosaic import parse_layout
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import load_scene
 import pytest

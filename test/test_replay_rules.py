@@ -26,7 +26,7 @@ import numpy as np
 from polarization_compass.bag.topic_map import default_topic_map
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import body_quat_from_camera_attitude, CameraAttitude
-from polarization_compass.demosaic import IMX250MZR_POL45
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer, SunSource
 from polarization_compass.replay.processing import FramePipeline, ReplayConfig

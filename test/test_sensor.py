@@ -29,7 +29,8 @@ from polarization_compass import instrumentation as instr
 from polarization_compass.camera import CameraModel
 from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_rad
-from polarization_compass.demosaic import IMX250MZR_POL45, polarization_from_mosaic
+from polarization_compass.demosaic import polarization_from_mosaic
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import load_scene, Scene, scene_from_dict, SceneError
 from polarization_compass.sensor import (

@@ -27,8 +27,8 @@ import numpy as np
 from polarization_compass.camera import CameraModel
 from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
-from polarization_compass.demosaic import parse_layout
 from polarization_compass.estimators.base import HeadingResult, Status
+from polarization_compass.mosaic import parse_layout
 from polarization_compass.pipeline import HeadingFrontEnd
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene

@@ -60,15 +60,12 @@ from ..demosaic import (
     aop_dop_from_stokes,
     check_ifov_k,
     IFOV_K_DEFAULT,
-    IMX250MZR_LAYOUT,
-    IMX250MZR_POL45,
-    parse_layout,
     polarization_from_mosaic,
     redundancy_noise,
-    SensorError,
     stokes_from_mosaic,
 )
 from ..errors import CompassError
+from ..mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
 
 __all__ = ['observation_from_mosaic', 'MosaicInputError']
 

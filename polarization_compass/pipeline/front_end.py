@@ -21,7 +21,7 @@ import numpy as np
 from .errors import PipelineError
 from .sampling import whole_sky_sample
 from ..camera import CameraModel
-from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+from ..mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
 __all__ = ['HeadingFrontEnd', 'warm_up']
 
@@ -73,8 +73,8 @@ class HeadingFrontEnd:
         intensity: bool = False,
         sky_check: bool = False,
     ):
-        from ..demosaic import parse_layout
         from ..estimators import make_estimator
+        from ..mosaic import parse_layout
 
         self.method = method
         self.estimator = make_estimator(method, **(knobs or {}))
@@ -115,7 +115,7 @@ class HeadingFrontEnd:
             Image direction of the 45 deg polarizer.
 
         """
-        from ..demosaic import parse_layout
+        from ..mosaic import parse_layout
 
         self.layout = parse_layout(layout, pol45_toward)
 

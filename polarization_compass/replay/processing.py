@@ -225,7 +225,7 @@ class FramePipeline:
     """The nodes' per-frame chain for several methods at once (see the module docstring)."""
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
-        from ..demosaic import layout_from_mapping
+        from ..mosaic import layout_from_mapping
         from ..pipeline.front_end import HeadingFrontEnd
         from ..pipeline.monitors import PolarizerMonitor
         from ..pipeline.prior import TiltAndPrior
