@@ -656,7 +656,8 @@ def real_headings(
         One dict per method (:func:`result_row`).
 
     """
-    from .skyfit import assess_result, mark_inconsistent, sample_sky
+    from .skyfit import sample_sky
+    from .skyfit_assess import assess_result, mark_inconsistent
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
     obs, keep = real_observation(

@@ -33,15 +33,13 @@ from polarization_compass.pipeline import HeadingFrontEnd
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 from polarization_compass.skyfit import (
-    assess_result,
     data_mask,
     fit_sky,
     jackknife_sigma_deg,
-    mark_inconsistent,
     misfit_at,
     sample_sky,
-    side_preference,
 )
+from polarization_compass.skyfit_assess import assess_result, mark_inconsistent, side_preference
 import pytest
 
 N = 160

@@ -295,7 +295,7 @@ def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dic
     grid: all votes for one candidate decide; no vote, disagreeing votes or too little sky leave it
     open. The votes go to ``extras["side_votes"]``.
     """
-    from ..skyfit import side_votes
+    from ..skyfit_assess import side_votes
 
     if side_grid <= 0:
         return None, 'no whole-sky side grid (side_grid 0)'

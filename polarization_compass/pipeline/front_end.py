@@ -272,7 +272,7 @@ class HeadingFrontEnd:
         )
         res = est.estimate(obs)
         if self.sky_check:
-            from ..skyfit import assess_result
+            from ..skyfit_assess import assess_result
 
             sample = whole_sky_sample(mosaic, camera, layout)
             res = assess_result(

@@ -385,7 +385,7 @@ class FramePipeline:
         )
         if self.config.sky_check:  # the whole-sky check of real skies (skyfit), one per frame
             from ..pipeline.sampling import whole_sky_sample
-            from ..skyfit import assess_result
+            from ..skyfit_assess import assess_result
 
             if 'sky' not in obs_cache:
                 obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
