@@ -162,7 +162,7 @@ def _monitor(cfg, repeats) -> dict:
     from polarization_compass.mosaic import parse_layout
     from polarization_compass.pipeline import PolarizerMonitor
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(str(ROOT / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'))
     if cfg.tiny:

@@ -609,6 +609,6 @@ def render(scene: Scene | None = None, **kwargs) -> Frame:
         When the scene's sensor effects need a contiguous pixel block it does not select.
 
     """
-    from .scene import default_scene
+    from .scene_load import default_scene
 
     return Renderer(scene or default_scene()).render(**kwargs)

@@ -31,7 +31,8 @@ from polarization_compass.camera import CameraModel
 from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.radiance import make_radiance_model
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene, scene_from_dict, SceneError
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import scene_from_dict
 import pytest
 
 GRID = PixelSelection.grid(64, 56)

@@ -188,7 +188,7 @@ def test_a_cloudy_sky_least_squares_sigma_is_honest_with_the_check():
     from polarization_compass.estimators import registry
     from polarization_compass.estimators.base import Observation
     from polarization_compass.render import Renderer
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     base = load_scene(ROOT / 'config' / 'scenes' / 'budget_small.yaml')
     plain = {

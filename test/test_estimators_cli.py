@@ -25,7 +25,8 @@ from polarization_compass.estimators import make_estimator
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
 from polarization_compass.frame_io import save_frame_npz
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, Scene
+from polarization_compass.scene import Scene
+from polarization_compass.scene_load import load_scene
 import pytest
 
 KEYS = {

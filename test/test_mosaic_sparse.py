@@ -42,7 +42,7 @@ from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
 from polarization_compass.mosaic import parse_layout
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 import real_sky as R
 

@@ -297,7 +297,7 @@ def _camera_turns(seed, offsets=(30.0, 34.0), n=36, noise_deg=3.0):
     from polarization_compass.mount import R_enu_sensor_cam
     from polarization_compass.mount_fit import camera_samples, CameraRays
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
 
     r = Renderer(default_scene(), PixelSelection(mode='grid', nx=12, ny=12))
     rng = np.random.default_rng(seed)

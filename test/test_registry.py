@@ -289,7 +289,7 @@ def test_toy_in_the_figures(toy_map):
 def test_toy_in_the_replay(toys, tmp_path):
     from polarization_compass.recording import record_sim, RecordSpec
     from polarization_compass.replay import method_groups, replay_bag, ReplayConfig
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     # cost: the toy (100) outweighs every built-in together, the tilt toy (0.01) joins the lightest
     # group

@@ -32,7 +32,8 @@ from polarization_compass.conventions import CameraAttitude, fold_axial_rad
 from polarization_compass.demosaic import polarization_from_mosaic
 from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, Scene, scene_from_dict, SceneError
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import load_scene, scene_from_dict
 from polarization_compass.sensor import (
     parse_sensor_config,
     SensorError,

@@ -43,7 +43,8 @@ from polarization_compass.radiance import (
     RadianceError,
 )
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, scene_from_dict, SceneError
+from polarization_compass.scene import SceneError
+from polarization_compass.scene_load import load_scene, scene_from_dict
 from polarization_compass.sky import RayleighSky, SkyModelError
 from polarization_compass.sky_bdl import BerryDennisLeeSky
 from polarization_compass.sky_models import make_sky_model

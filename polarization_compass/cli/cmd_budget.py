@@ -117,7 +117,7 @@ def run(args) -> int:
         run_budget,
         SIGMA_BAND,
     )
-    from ..scene import load_scene
+    from ..scene_load import load_scene
 
     if args.samples < 1 or args.samples > 100000:
         raise BudgetError(f'--samples must be in [1, 100000], got {args.samples}')

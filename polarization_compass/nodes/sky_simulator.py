@@ -161,12 +161,13 @@ class SkySimulatorNode(Node):
     def _load_scene(self):
         """Load the scene parameter's scene, with array_geometry's photodiode array when set."""
         p = self.params
-        from ..scene import load_scene, SceneError
+        from ..scene import SceneError
+        from ..scene_load import load_scene
 
         try:
             scene = load_scene(p['scene'] or None)
             if p['array_geometry']:  # also simulate a photodiode-array compass with this geometry
-                from ..scene import scene_from_dict
+                from ..scene_load import scene_from_dict
 
                 scene = scene_from_dict(
                     {

@@ -311,7 +311,7 @@ def warm_up(
 
     from ..conventions import CameraAttitude
     from ..render import Renderer, SunDirection
-    from ..scene import default_scene
+    from ..scene_load import default_scene
     from ..sensor import sensor_config_for_encoding, simulate_mosaic
 
     t0 = time.perf_counter()
