@@ -58,7 +58,7 @@ from .clouds import (
     grid_row_to_columns,
 )
 from .fastmath import FM
-from .optics import lens_light, LensParams
+from .optics_kernels import lens_light, LensParams
 from .sky import rayleigh_pixel, RayleighSky
 from .sky_bdl import bdl_pixel, BerryDennisLeeSky
 
