@@ -49,11 +49,11 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .clouds import (
+from .clouds import CloudGrid
+from .clouds_kernels import (
     cloud_light,
     cloud_transmission,
     cloud_transmission_at,
-    CloudGrid,
     CloudParams,
     grid_row_to_columns,
 )
@@ -323,7 +323,7 @@ class SkyEffects:
         if sel.mode not in ('full', 'region') or sel.stride != 1 or len(px.shape) != 2:
             return None
         if clouds is not None:
-            from .clouds import GRID_STEP
+            from .clouds_kernels import GRID_STEP
 
             if min(px.shape) <= 2 * GRID_STEP:
                 return None
