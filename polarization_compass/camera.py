@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Camera models and pixel selections; unit viewing rays in the camera optical frame, cached.
+Camera models: unit viewing rays in the camera optical frame, from ROS intrinsics.
 
 Pixel coordinates follow eq 20: ``x_px`` is the 1-based column, ``y_px`` the 1-based row; the
 principal point defaults to the image centre ``((eta_x + 1) / 2, (eta_y + 1) / 2)``.
@@ -31,11 +31,12 @@ OpenCV's fisheye model theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8)) on t
 Rays of a distorted lens come from OpenCV's undistortion (``cv2.undistortPoints``,
 ``cv2.fisheye.undistortPoints``), the inverse from ``cv2.projectPoints`` /
 ``cv2.fisheye.projectPoints``; all-zero coefficients are the ideal models above.
-:func:`camera_from_intrinsics` builds a model from ROS K/D, :func:`load_camera_yaml` from a
-``camera_calibration`` YAML file.
+:func:`camera_from_intrinsics` builds a model from ROS K/D, :func:`.camera_file.load_camera_yaml`
+from a ``camera_calibration`` YAML file.
 
-Rays are returned as a (3, N) float32 array (structure of arrays, what the render kernels want)
-and cached per (camera, selection): a camera that does not change costs nothing per frame.
+Rays are returned as a (3, N) float32 array (structure of arrays, what the render kernels want);
+:func:`.camera_pixels.select_pixels` caches them per (camera, selection): a camera that does not
+change costs nothing per frame.
 
 """
 

@@ -27,9 +27,9 @@ whole usable sky with a robust (Cauchy) loss, and measures how well the frame ag
 - :func:`jackknife_sigma_deg`: the heading's spread when each of K sky sectors is left out in turn
 (delete-a-group jackknife, Efron 1982, ch. 2): the misfit of a real sky to the model is spatially
 correlated, so it is the sectors, not the pixels, that are the independent samples;
-- :func:`side_preference`: which end of an axial heading the whole sky supports, from the AoP
-  pattern at the known sun altitude and from the brightness of the two half-skies (never a small
-  window).
+- :func:`.skyfit_assess.side_preference`: which end of an axial heading the whole sky supports,
+  from the AoP pattern at the known sun altitude and from the brightness of the two half-skies
+  (never a small window).
 
 Residuals are axial angle differences computed from doubled angles (no angle subtraction and wrap).
 Cost: a few thousand sampled pixels, a few 10 ms per fit (numpy, float32).
@@ -131,7 +131,7 @@ def sample_sky(
         Unit viewing rays in the camera frame, in the order of ``aop_rad.reshape(-1)``.
     intensity : array_like of float, optional
         Intensity of each pixel (any linear unit), same shape as ``aop_rad``; used by
-        :func:`side_preference`.
+        :func:`.skyfit_assess.side_preference`.
     max_pixels : int, default 4000
         Most pixels kept.
     min_dop : float, default 0.02

@@ -15,8 +15,7 @@
 """
 Solar position: azimuth and altitude of the sun for a UTC time and a site.
 
-Solar position: azimuth (clockwise from true North) and altitude of the sun for a UTC time and a
-site.
+Azimuth is clockwise from true North.
 
 Two models
 ----------
