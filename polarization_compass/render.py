@@ -592,7 +592,7 @@ def render(scene: Scene | None = None, **kwargs) -> Frame:
     Parameters
     ----------
     scene : Scene, optional
-        The scene; default :func:`scene.default_scene`.
+        The scene; default :func:`scene_load.default_scene`.
     **kwargs
         ``attitude``, ``sun``, ``time_utc`` and ``seed``, passed to :meth:`Renderer.render`.
 

@@ -281,7 +281,7 @@ def observation_from_mosaic(
         Demosaicing.
     layout : str or sequence, default IMX250MZR_LAYOUT
         The sensor's 2 x 2 polarizer angles [deg]
-        (:func:`~polarization_compass.demosaic.parse_layout`).
+        (:func:`~polarization_compass.mosaic.parse_layout`).
     pol45_toward : str, default "+x+y"
         Image direction of the 45 deg polarizer.
     saturation_level : float, optional
