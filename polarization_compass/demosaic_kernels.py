@@ -85,7 +85,7 @@ def _superpixel_pixel(m, i, j, w, sat):  # pragma: no cover - compiled
     """
     Compute the Stokes vector of the 2 x 2 block whose top-left sample is (i, j).
 
-    Stokes of the 2 x 2 block whose top-left sample is (i, j); ``w`` (2, 2, 2) Stokes weights.
+    ``w``: the (2, 2, 2) Stokes weights.
     """
     a = np.float32(m[i, j])
     b = np.float32(m[i, j + 1])

@@ -210,9 +210,8 @@ def _bilinear_weights(layout: MosaicLayout) -> np.ndarray:
     """
     Return the (2, 2, 8) float32 bilinear S1, S2 weights per pixel parity.
 
-    (2, 2, 8) float32: for a pixel of parity (r, c), the S1 then S2 weights of the channel at the
-    centre (r, c), the horizontal neighbours (r, 1-c), the vertical (1-r, c) and the diagonal (1-r,
-    1-c).
+    For a pixel of parity (r, c), the S1 then S2 weights of the channel at the centre (r, c), the
+    horizontal neighbours (r, 1-c), the vertical (1-r, c) and the diagonal (1-r, 1-c).
     """
     w = layout.stokes_weights()
     out = np.zeros((2, 2, 8), np.float32)

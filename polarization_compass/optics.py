@@ -115,8 +115,7 @@ def _block_axes(x_px, y_px):
     """
     Return the (columns, rows) whose product the pixel coordinates are, else None.
 
-    (columns, rows) float32 when the pixel coordinates are their product (x_px[r, c] = columns[c],
-    y_px[r, c] = rows[r], both increasing), else None.
+    float32, when ``x_px[r, c] = columns[c]`` and ``y_px[r, c] = rows[r]``, both increasing.
     """
     if x_px.ndim != 2 or y_px.shape != x_px.shape or x_px.size == 0:
         return None

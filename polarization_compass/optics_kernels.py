@@ -320,10 +320,9 @@ def _flare_box_kernel(boxes, xcol, yrow, ghosts, dop, inten):  # pragma: no cove
     """
     Add each lens-flare ghost inside its disk, visiting only its bounding box.
 
-    Each ghost (unpolarized ``ghosts.radiance``) is added inside its disk, visiting only its
-    bounding box ``boxes[k] = (row0, row1, col0, col1)`` (half-open) of the block; DoP scaled by I
-    / (I + radiance), which composes with the sun's light added before to the one-step ``DoP I_sky
-    / (I_sky + G_sun + G_ghosts)``.
+    A ghost is unpolarized light of ``ghosts.radiance``; its box is ``boxes[k] = (row0, row1, col0,
+    col1)`` (half-open) of the block; DoP scaled by I / (I + radiance), which composes with the
+    sun's light added before to the one-step ``DoP I_sky / (I_sky + G_sun + G_ghosts)``.
     """
     W = xcol.size
     gx, gy, r2, grad = ghosts.gx, ghosts.gy, ghosts.r2, ghosts.radiance

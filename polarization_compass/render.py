@@ -492,11 +492,10 @@ class Renderer:
         """
         Render a scene without sensor effects at the selected pixels, and nothing else.
 
-        What :meth:`render` computes for a scene without sensor effects, and nothing else: flat
-        (N,) aop, dop, valid and intensity (None without a radiance model) in the selection's pixel
-        order, for the sun and the zenith already in the camera frame (``R.T @ s_enu`` and ``R[2]``
-        for the camera-to-ENU rotation ``R = conventions.R_enu_cam_from_attitude(...)``, as
-        :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
+        Flat (N,) aop, dop, valid and intensity (None without a radiance model) in the selection's
+        pixel order, for the sun and the zenith already in the camera frame (``R.T @ s_enu`` and
+        ``R[2]`` for the camera-to-ENU rotation ``R = conventions.R_enu_cam_from_attitude(...)``,
+        as :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
         sweeps, which render 1e5 frames and compute the rotations of a whole chunk at once. A scene
         with sensor effects is refused (its frames need :meth:`render`).
 

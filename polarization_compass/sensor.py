@@ -476,13 +476,12 @@ class SensorPipeline:
 
     def apply(self, frame, rng: np.random.Generator) -> None:
         """
-        Apply the mosaic, noise, quantisation and demosaic to a frame in place.
+        Apply the mosaic, the declared noise and quantisation, and the demosaic to a frame.
 
-        Mosaic, declared noise/quantisation, demosaic: replaces the frame's AoP/DoP/valid in place.
-
-        The noise-free values move to ``aop_ideal_rad``/``dop_ideal`` and the raw image to
-        ``mosaic``; with the superpixel demosaic the frame's pixels become the 2 x 2 block
-        centres (see the module docstring).
+        In place: the frame's AoP, DoP and validity become the measured ones, the noise-free values
+        move to ``aop_ideal_rad``/``dop_ideal`` and the raw image to ``mosaic``; with the
+        superpixel demosaic the frame's pixels become the 2 x 2 block centres (see the module
+        docstring).
 
         Parameters
         ----------

@@ -47,8 +47,8 @@ def _calibration_pattern(
     """
     Return the fixed calibration pattern of a sensor block.
 
-    The fixed pattern of the block (row0, col0, height, width) of the sensor: angle error (rad), ER
-    factor and gain maps (float32/float64), or None for a component of zero spread. Drawn per 64 x
+    For the block (row0, col0, height, width): angle error (rad), ER factor and gain maps
+    (float32/float64), or None for a component of zero spread. Drawn per 64 x
     64 tile of the sensor keyed by (seed, tile row, tile column), so a pixel's errors do not depend
     on the block that contains it. Cached per block.
     """
@@ -83,9 +83,8 @@ def calibration_maps(
     """
     Return per-pixel polarizer angle, efficiency and gain maps of a sensor block.
 
-    Per-pixel (polarizer angle phi (rad), efficiency d, gain) float32 maps of the block of
-    ``shape`` whose top-left pixel is (row0, col0) (0-based) of the full sensor, for
-    ``cfg.calibration``; ``layout`` is the block's (already shifted) layout.
+    float32 maps of the block of ``shape`` whose top-left pixel is (row0, col0) (0-based) of the
+    full sensor, for ``cfg.calibration``; ``layout`` is the block's (already shifted) layout.
 
     Parameters
     ----------

@@ -81,9 +81,8 @@ def _count(name: str) -> None:
     """
     Count the sensor stages of kernel ``name`` just before it runs.
 
-    Count ``sensor.<effect>`` for each effect the kernel ``name`` implements and
-    ``sensor.kernel.<name>`` (called just before that kernel runs): one dict increment per stage
-    per frame.
+    ``sensor.<effect>`` for each effect the kernel implements, and ``sensor.kernel.<name>``: one
+    dict increment per stage per frame.
     """
     for effect in _IMPLEMENTS[name]:
         instr.count('sensor.' + effect)
@@ -95,8 +94,7 @@ def _malus_unit(a, dp, p, q, n0):  # pragma: no cover - compiled
     """
     Return the mean electrons at S0 = 1 behind an ideal polarizer (float32).
 
-    Mean electrons at S0 = 1 behind an ideal polarizer: N0 (1 - DoP (p cos 2a - q sin 2a)),
-    float32.
+    ``N0 (1 - DoP (p cos 2a - q sin 2a))``.
     """
     sa, ca = sincos32(a)
     one = np.float32(1.0)

@@ -53,8 +53,7 @@ def _gregorian_leap_days_since_1985(y):
     """
     Count the leap days in the years 1985 .. y-1 (Gregorian rules).
 
-    Leap days in the years 1985 .. y-1 (negative before 1985), Gregorian rules (1900, 2100 are not
-    leap).
+    Negative before 1985; 1900 and 2100 are not leap years.
     """
 
     def before(yy):
