@@ -66,7 +66,8 @@ import traceback
 
 import numpy as np
 from polarization_compass.budget_config import published_sigma_floor_deg
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
 from polarization_compass.estimators import registry
 from polarization_compass.render import Renderer, SunDirection
@@ -738,7 +739,7 @@ def _run_cell(c: _Cell, frame, s, cond, camera, Observation, cfg):
         min_dop = float(eff.get('min_dop', 0.0) or 0.0)
         extra = None
         if min_dop > 0:
-            from polarization_compass.camera import select_pixels
+            from polarization_compass.camera_pixels import select_pixels
 
             from .crb import aop_and_derivative
 

@@ -58,7 +58,8 @@ import math
 import time
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import enu_direction, R_enu_cam_from_attitude
 
 __all__ = [

@@ -136,7 +136,7 @@ def _render_costs(cfg, repeats: int) -> dict:
     from polarization_compass.estimators import HeadingResult, Status
     from polarization_compass.headings import Sun
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
     from polarization_compass.sky_view import view_from_mosaic
 
     scene = load_scene(str(ROOT / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'))

@@ -341,7 +341,7 @@ def run(cfg) -> dict:
     target_cells = alt.size * yaw.size * pitch.size
     if cfg.tiny:  # smoke test: a small camera and a few cells
         from polarization_compass.camera import CameraModel
-        from polarization_compass.scene import default_scene
+        from polarization_compass.scene_load import default_scene
 
         scene = default_scene().replace(camera=CameraModel(width_px=192, height_px=160))
         s_alt, s_yaw, s_pitch = alt[[10, 40]], yaw[::15], pitch[[5, 25]]

@@ -148,7 +148,7 @@ def run(cfg) -> dict:
     scene = None
     if cfg.tiny:
         from polarization_compass.camera import CameraModel
-        from polarization_compass.scene import default_scene
+        from polarization_compass.scene_load import default_scene
 
         scene = default_scene().replace(camera=CameraModel(width_px=192, height_px=160))
     n = 2 if cfg.tiny else (24 if cfg.mode == 'full' else 3)

@@ -140,7 +140,7 @@ def run(cfg) -> dict:
     from polarization_compass.camera import CameraModel
     from polarization_compass.estimators import estimator_names
     from polarization_compass.pipeline import HeadingFrontEnd
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(str(SCENE))
     if cfg.tiny:

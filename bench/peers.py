@@ -31,7 +31,8 @@ from pathlib import Path
 import subprocess
 import sys
 
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene

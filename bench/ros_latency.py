@@ -86,7 +86,7 @@ def _render_mosaics(frames: int, tiny: bool):
     from polarization_compass.camera import CameraModel
     from polarization_compass.conventions import CameraAttitude
     from polarization_compass.render import Renderer
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
 
     from .simulator import ALL_EFFECTS, sensor_config
 

@@ -34,7 +34,8 @@ from __future__ import annotations
 import time
 
 from polarization_compass import instrumentation as instr
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene

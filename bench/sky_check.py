@@ -99,7 +99,7 @@ def _camera_file(R, step: int):
     """Read the frames' camera file, for planes decimated by ``step`` (the same lens, scaled)."""
     import tempfile
 
-    from polarization_compass.camera import load_camera_yaml
+    from polarization_compass.camera_file import load_camera_yaml
 
     with tempfile.TemporaryDirectory() as d:
         y = Path(d) / 'cam.yaml'
@@ -124,7 +124,7 @@ def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
     """Time one method: its estimate, its whole-sky check and, if it has one, its robust refit."""
     from polarization_compass.estimators import make_estimator
     from polarization_compass.headings import REAL_SKY_KNOBS
-    from polarization_compass.skyfit import assess_result
+    from polarization_compass.skyfit_assess import assess_result
 
     est = make_estimator(m)
     assess_result(est.estimate(obs), sample, alt, 0.0, 0.0)  # warm-up
@@ -159,10 +159,10 @@ def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
 def _monitor(cfg, repeats) -> dict:
     from polarization_compass.camera import CameraModel
     from polarization_compass.conventions import CameraAttitude
-    from polarization_compass.demosaic import parse_layout
+    from polarization_compass.mosaic import parse_layout
     from polarization_compass.pipeline import PolarizerMonitor
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(str(ROOT / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'))
     if cfg.tiny:

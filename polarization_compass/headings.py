@@ -156,7 +156,7 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         )
     if options.use_stored:
         raise CompassError('--use-stored applies to frame files')
-    from .camera import load_camera_yaml
+    from .camera_file import load_camera_yaml
     from .real_input import load_mask
 
     cam_file = load_camera_yaml(options.camera_yaml)
@@ -180,7 +180,7 @@ def _unflipped(inp, mask, readout_flip: str):
 
     import numpy as np
 
-    from .camera import unflip
+    from .camera_file import unflip
 
     def un(a):
         return np.ascontiguousarray(unflip(a, readout_flip))
@@ -499,7 +499,7 @@ def frame_headings(
 
 def _mosaic_plan(frame) -> _MosaicPlan:
     """Read from a frame's meta how to demosaic its mosaic; CompassError if it cannot be."""
-    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+    from .mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
     _sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
     layout, pol45 = mos.get('layout'), mos.get('pol45_toward')
@@ -660,7 +660,8 @@ def real_headings(
         One dict per method (:func:`result_row`).
 
     """
-    from .skyfit import assess_result, mark_inconsistent, sample_sky
+    from .skyfit import sample_sky
+    from .skyfit_assess import assess_result, mark_inconsistent
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
     obs, keep = real_observation(

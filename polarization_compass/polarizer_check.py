@@ -37,8 +37,9 @@ import math
 
 import numpy as np
 
-from .demosaic import aop_dop_from_stokes, parse_layout, stokes_from_mosaic
+from .demosaic import aop_dop_from_stokes, stokes_from_mosaic
 from .errors import CompassError
+from .mosaic import parse_layout
 from .skyfit import data_mask, fit_sky, sample_sky
 
 __all__ = [

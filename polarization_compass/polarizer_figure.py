@@ -66,7 +66,7 @@ def save_polarizer_figure(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .camera import load_camera_yaml
+    from .camera_file import load_camera_yaml
     from .polarizer_check import polarizer_hypotheses
     from .polarizer_files import _masks, _read_inputs
 

@@ -52,7 +52,7 @@ def plane_rays(camera, shape):
         Planes of any other size.
 
     """
-    from .camera import PixelSelection, select_pixels
+    from .camera_pixels import PixelSelection, select_pixels
     from .estimators.mosaic_input import _grid_rays
 
     H, W = camera.shape
@@ -109,7 +109,7 @@ def check_polarizer_files(
         A frame file, an input that does not fit the camera, or mosaics and Stokes planes mixed.
 
     """
-    from .camera import load_camera_yaml
+    from .camera_file import load_camera_yaml
 
     cf = load_camera_yaml(camera_yaml)
     cam = cf.camera
@@ -135,7 +135,7 @@ def check_polarizer_files(
 
 def _unflipped(inputs, masks, readout_flip: str):
     """Undo a mirrored readout on every input and mask (:func:`camera.unflip`)."""
-    from .camera import unflip
+    from .camera_file import unflip
 
     def un(a):
         return np.ascontiguousarray(unflip(a, readout_flip))

@@ -314,7 +314,7 @@ class _Recorder:
     """Encode each scheduled message of the run; images rendered with their own noise stream."""
 
     def __init__(self, scene, spec: RecordSpec, profile, start_ns: int, rng):
-        from .camera import PixelSelection
+        from .camera_pixels import PixelSelection
         from .pipeline import SunSource
         from .render import Renderer
         from .sensor import sensor_config_for_encoding

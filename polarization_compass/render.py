@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from . import instrumentation as instr
-from .camera import PixelSelection, select_pixels, SelectedPixels
+from .camera_pixels import PixelSelection, select_pixels, SelectedPixels
 from .conventions import (
     bearing_to_psi_deg,
     CameraAttitude,
@@ -492,11 +492,10 @@ class Renderer:
         """
         Render a scene without sensor effects at the selected pixels, and nothing else.
 
-        What :meth:`render` computes for a scene without sensor effects, and nothing else: flat
-        (N,) aop, dop, valid and intensity (None without a radiance model) in the selection's pixel
-        order, for the sun and the zenith already in the camera frame (``R.T @ s_enu`` and ``R[2]``
-        for the camera-to-ENU rotation ``R = conventions.R_enu_cam_from_attitude(...)``, as
-        :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
+        Flat (N,) aop, dop, valid and intensity (None without a radiance model) in the selection's
+        pixel order, for the sun and the zenith already in the camera frame (``R.T @ s_enu`` and
+        ``R[2]`` for the camera-to-ENU rotation ``R = conventions.R_enu_cam_from_attitude(...)``,
+        as :meth:`render` computes them). No Frame, no metadata, no geometry stage: for error-map
         sweeps, which render 1e5 frames and compute the rotations of a whole chunk at once. A scene
         with sensor effects is refused (its frames need :meth:`render`).
 
@@ -592,7 +591,7 @@ def render(scene: Scene | None = None, **kwargs) -> Frame:
     Parameters
     ----------
     scene : Scene, optional
-        The scene; default :func:`scene.default_scene`.
+        The scene; default :func:`scene_load.default_scene`.
     **kwargs
         ``attitude``, ``sun``, ``time_utc`` and ``seed``, passed to :meth:`Renderer.render`.
 
@@ -609,6 +608,6 @@ def render(scene: Scene | None = None, **kwargs) -> Frame:
         When the scene's sensor effects need a contiguous pixel block it does not select.
 
     """
-    from .scene import default_scene
+    from .scene_load import default_scene
 
     return Renderer(scene or default_scene()).render(**kwargs)

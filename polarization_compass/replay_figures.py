@@ -94,9 +94,9 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
     import cv2
 
     from .bag.reader import BagReader, Tally
-    from .demosaic import layout_from_mapping
     from .diagnostic_rgb import quick_rgb
     from .headings import Sun
+    from .mosaic import layout_from_mapping
     from .pipeline.rules import SensorReadout
     from .replay.sync import iter_synced_frames
     from .sky_view import view_from_mosaic

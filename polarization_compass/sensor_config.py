@@ -27,15 +27,9 @@ import math
 
 import numpy as np
 
-from .demosaic import (
-    check_ifov_k,
-    DEMOSAIC_METHODS,
-    IFOV_K_DEFAULT,
-    layout_from_mapping,
-    MosaicLayout,
-    SensorError,
-)
+from .demosaic import check_ifov_k, DEMOSAIC_METHODS, IFOV_K_DEFAULT
 from .errors import CompassError
+from .mosaic import layout_from_mapping, MosaicLayout, SensorError
 
 __all__ = [
     'EFFECTS',

@@ -54,12 +54,13 @@ def simulation_scene(scene_file: str, array_geometry: str = ''):
         The scene cannot be loaded or is invalid.
 
     """
-    from .scene import load_scene, SceneError
+    from .scene import SceneError
+    from .scene_load import load_scene
 
     try:
         scene = load_scene(scene_file or None)
         if array_geometry:  # also simulate a photodiode-array compass with this geometry
-            from .scene import scene_from_dict
+            from .scene_load import scene_from_dict
 
             scene = scene_from_dict(
                 {

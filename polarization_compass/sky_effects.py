@@ -27,14 +27,14 @@ boxes only.
 
 The per-pixel formulas are the stages' own, inlined (:func:`~polarization_compass.sky.
 rayleigh_pixel`, :func:`~polarization_compass.sky_bdl.bdl_pixel`, :func:`~polarization_compass.
-clouds.cloud_transmission`, :func:`~polarization_compass.clouds.cloud_light`,
-:func:`~polarization_compass.optics.lens_light`), applied in the stages' order (sky, clouds with
-the minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own ratio)
-share one division. A frame equals the staged one up to float32 rounding (a few 1e-7, relative),
-and its AoP equals the ideal render's bit for bit: the sky kernels and this pass are compiled with
-the project's fast-math flags :data:`~polarization_compass.fastmath.FM` (no reciprocal estimates),
-so a pixel gets the same bits in a vectorised loop body and in a scalar remainder. The float64
-references of ``test/test_sky_effects_reference.py`` check both paths.
+clouds_kernels.cloud_transmission`, :func:`~polarization_compass.clouds_kernels.cloud_light`,
+:func:`~polarization_compass.optics_kernels.lens_light`), applied in the stages' order (sky, clouds
+with the minimum-DoP cut, lens); the DoP factors of the clouds and the lens (and the glare's own
+ratio) share one division. A frame equals the staged one up to float32 rounding (a few 1e-7,
+relative), and its AoP equals the ideal render's bit for bit: the sky kernels and this pass are
+compiled with the project's fast-math flags :data:`~polarization_compass.fastmath.FM` (no
+reciprocal estimates), so a pixel gets the same bits in a vectorised loop body and in a scalar
+remainder. The float64 references of ``test/test_sky_effects_reference.py`` check both paths.
 
 The renderer uses the pass when the scene declares clouds or lens effects and nothing the pass
 does not evaluate (a radiance model, haze, a skyline, another sky model, a scattered or strided
@@ -49,16 +49,16 @@ from __future__ import annotations
 from numba import njit, prange
 import numpy as np
 
-from .clouds import (
+from .clouds import CloudGrid
+from .clouds_kernels import (
     cloud_light,
     cloud_transmission,
     cloud_transmission_at,
-    CloudGrid,
     CloudParams,
     grid_row_to_columns,
 )
 from .fastmath import FM
-from .optics import lens_light, LensParams
+from .optics_kernels import lens_light, LensParams
 from .sky import rayleigh_pixel, RayleighSky
 from .sky_bdl import bdl_pixel, BerryDennisLeeSky
 
@@ -125,19 +125,19 @@ def _sky_effects_pass(
     Render a row-major pixel block: cloud grid, sky, clouds and lens per band of rows, one launch.
 
     Each band of ``_BAND`` pixel rows first evaluates the cloud layer on the grid rows it lies
-    between (:func:`~polarization_compass.clouds.cloud_transmission_at`, the grid row shared
-    by two bands evaluated by both) and interpolates them to every pixel column, into a buffer
-    that stays in the cache; then :func:`_sky_effects_row` runs over each row's slices of the rays
-    and the outputs (per-row slices: a flat index r * W + c kept such loops scalar, measured). One
-    parallel region for the whole frame: on a shared machine each extra one waits for its slowest
-    thread. Without clouds the band's T rows are 1. ``model`` and ``square`` are constants: each
-    of :data:`_KERNELS` inlines this body with its own pair, so that the row loops vectorise.
-    ``grid`` is a :class:`~polarization_compass.clouds.CloudGrid` (``cp`` the layer's
-    :class:`~polarization_compass.clouds.CloudParams`: an argument of its own, as numba's parallel
-    lowering finds a named tuple used in a ``prange`` body only from an argument or a constructor
-    call, not from a field of another tuple), ``lens`` a
-    :class:`~polarization_compass.optics.LensParams` and ``out`` the (aop, dop, valid, intensity)
-    arrays, written.
+    between (:func:`~polarization_compass.clouds_kernels.cloud_transmission_at`, the grid row
+    shared by two bands evaluated by both) and interpolates them to every pixel column, into a
+    buffer that stays in the cache; then :func:`_sky_effects_row` runs over each row's slices of
+    the rays and the outputs (per-row slices: a flat index r * W + c kept such loops scalar,
+    measured). One parallel region for the whole frame: on a shared machine each extra one waits
+    for its slowest thread. Without clouds the band's T rows are 1. ``model`` and ``square`` are
+    constants: each of :data:`_KERNELS` inlines this body with its own pair, so that the row loops
+    vectorise. ``grid`` is a :class:`~polarization_compass.clouds.CloudGrid` (``cp`` the layer's
+    :class:`~polarization_compass.clouds_kernels.CloudParams`: an argument of its own, as numba's
+    parallel lowering finds a named tuple used in a ``prange`` body only from an argument or a
+    constructor call, not from a field of another tuple), ``lens`` a
+    :class:`~polarization_compass.optics_kernels.LensParams` and ``out`` the (aop, dop, valid,
+    intensity) arrays, written.
     """
     aop, dop, valid, inten = out
     grays, R, rk, rk1, rf, cols, cf = grid
@@ -323,7 +323,7 @@ class SkyEffects:
         if sel.mode not in ('full', 'region') or sel.stride != 1 or len(px.shape) != 2:
             return None
         if clouds is not None:
-            from .clouds import GRID_STEP
+            from .clouds_kernels import GRID_STEP
 
             if min(px.shape) <= 2 * GRID_STEP:
                 return None

@@ -439,7 +439,7 @@ def _mosaic_reasons(
 
     ``stride_px``: every N-th sensor pixel only (a sparse demosaic with the full frame's values).
     """
-    from .camera import PixelSelection
+    from .camera_pixels import PixelSelection
     from .estimators.mosaic_input import observation_from_mosaic
 
     selection = None if not stride_px else PixelSelection.strided(stride_px)

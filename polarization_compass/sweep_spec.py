@@ -158,7 +158,7 @@ class SweepSpec:
     array: bool = False  # sweep the scene's photodiode_array instead of its camera
 
     def __post_init__(self):
-        from .scene import default_scene
+        from .scene_load import default_scene
 
         if self.scene is None:
             self.scene = default_scene()

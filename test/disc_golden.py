@@ -61,7 +61,7 @@ def _render_obs(est, scene, bearing, pitch=0.0, roll=0.0, sun=(160.0, 35.0)):
 
 
 def _scene(coverage=None, thickness=3.0, seed=0):
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
 
     atm = {}
     if coverage is not None:
@@ -118,7 +118,7 @@ def _mosaic_obs(stride):
     from polarization_compass.estimators import make_estimator
     from polarization_compass.estimators.mosaic_input import observation_from_mosaic
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     cfg = Path(__file__).resolve().parents[1] / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'
     scene = load_scene(str(cfg))
@@ -143,7 +143,7 @@ def _real_obs(stem):
     sys.path.insert(0, str(Path(__file__).parent))
     import tempfile
 
-    from polarization_compass.camera import load_camera_yaml
+    from polarization_compass.camera_file import load_camera_yaml
     from polarization_compass.headings import real_observation
     from polarization_compass.real_input import PolarizationInput
     import real_sky as R

@@ -27,10 +27,12 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
 from polarization_compass.atmosphere import Atmosphere, AtmosphereError, CloudLayer
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.radiance import make_radiance_model
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene, scene_from_dict, SceneError
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import scene_from_dict
 import pytest
 
 GRID = PixelSelection.grid(64, 56)

@@ -35,7 +35,8 @@ from bench.common import peak_memory
 import numba
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 from polarization_compass.sky import rayleigh_reference

@@ -32,7 +32,8 @@ from polarization_compass.budget_config import (
     declared_sources,
     parse_imu,
 )
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.motion import MountingErrors

@@ -17,7 +17,8 @@
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraError, CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraError, CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 import pytest
 
 

@@ -24,12 +24,8 @@ import math
 
 import cv2
 import numpy as np
-from polarization_compass.camera import (
-    camera_from_intrinsics,
-    CameraError,
-    CameraModel,
-    load_camera_yaml,
-)
+from polarization_compass.camera import camera_from_intrinsics, CameraError, CameraModel
+from polarization_compass.camera_file import load_camera_yaml
 import pytest
 
 K = [[1200.0, 0.0, 1230.5], [0.0, 1195.0, 1010.25], [0.0, 0.0, 1.0]]

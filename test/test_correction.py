@@ -38,7 +38,7 @@ from polarization_compass.errormap_io import load_error_map
 from polarization_compass.estimators import make_estimator, registry
 from polarization_compass.estimators.base import Observation
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import default_scene
+from polarization_compass.scene_load import default_scene
 from polarization_compass.sweep import run_sweep, SweepSpec
 import pytest
 from test_errormap import level_assumption_error_deg

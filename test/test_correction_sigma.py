@@ -26,7 +26,8 @@ import math
 import numpy as np
 from polarization_compass.budget import run_budget
 from polarization_compass.budget_config import BudgetConfig
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.correction import TiltCorrector
 from polarization_compass.errormap import ErrorMap

@@ -30,13 +30,15 @@ import numpy as np
 from polarization_compass.conventions import fold_axial_rad
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
+    polarization_from_mosaic,
+    stokes_from_mosaic,
+)
+from polarization_compass.mosaic import (
     IMX250MZR_LAYOUT,
     IMX250MZR_POL45,
     MosaicLayout,
     parse_layout,
-    polarization_from_mosaic,
     SensorError,
-    stokes_from_mosaic,
 )
 import pytest
 

@@ -29,10 +29,10 @@ from polarization_compass.demosaic import (
     IFOV_K_DEFAULT,
     polarization_from_mosaic,
     redundancy_noise,
-    SensorError,
     stokes_from_mosaic,
 )
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+from polarization_compass.mosaic import SensorError
 from polarization_compass.sensor import parse_sensor_config
 import pytest
 
@@ -188,7 +188,7 @@ def test_a_cloudy_sky_least_squares_sigma_is_honest_with_the_check():
     from polarization_compass.estimators import registry
     from polarization_compass.estimators.base import Observation
     from polarization_compass.render import Renderer
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     base = load_scene(ROOT / 'config' / 'scenes' / 'budget_small.yaml')
     plain = {

@@ -31,7 +31,7 @@ from polarization_compass.conventions import CameraAttitude, fold_axial_deg
 from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators._mirror import _pair_weights, mirror_map
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import default_scene
+from polarization_compass.scene_load import default_scene
 import pytest
 
 METHODS = ['sm_asm', 'symmetry']

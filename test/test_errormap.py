@@ -325,7 +325,7 @@ def _scene(name):
     from pathlib import Path
 
     from polarization_compass.camera import CameraModel
-    from polarization_compass.scene import default_scene, load_scene
+    from polarization_compass.scene_load import default_scene, load_scene
 
     if name == 'ideal':
         return default_scene()
@@ -435,7 +435,7 @@ def _noisy_scene():
     from pathlib import Path
 
     from polarization_compass.camera import CameraModel
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(
         Path(__file__).resolve().parents[1] / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'
@@ -815,7 +815,7 @@ def test_noisy_scene_sweeps_are_reproducible_and_resumable(tmp_path):
     from pathlib import Path
 
     from polarization_compass.camera import CameraModel
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(
         Path(__file__).resolve().parents[1] / 'config' / 'scenes' / 'imx250mzr_noisy.yaml'

@@ -28,7 +28,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.estimators import (
     estimator_names,
     EstimatorError,

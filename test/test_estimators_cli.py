@@ -19,13 +19,14 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import PixelSelection
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.estimators import make_estimator
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
 from polarization_compass.frame_io import save_frame_npz
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, Scene
+from polarization_compass.scene import Scene
+from polarization_compass.scene_load import load_scene
 import pytest
 
 KEYS = {

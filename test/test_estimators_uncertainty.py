@@ -25,7 +25,8 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.estimators import make_estimator, Observation, Status
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
@@ -72,7 +73,7 @@ def test_uncertainty_calibrated_sensor_noise(name, tilt):
     quantisation, superpixel demosaic) on a 640 x 640 pixel block. Quantisation makes exact ties S1
     = 0 common, which once exposed a demosaic fold error (AoP -45 instead of +45 deg).
     """
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene('config/scenes/imx250mzr_noisy.yaml')
     assert 'quantization' in scene.sensor
@@ -170,7 +171,7 @@ def test_even_stride_reads_every_mosaic_phase_equally():
 #: (fill of a 10.5 ke- well), shot noise, 2.3 e- read noise, extinction ratio 100, 12 or 8 bit;
 #: Rayleigh sky, DoP_max 0.7.
 def _imx_scene(bits):
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     sc = load_scene('config/scenes/imx250mzr_noisy.yaml')
     sensor = dict(

@@ -30,7 +30,8 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
 from polarization_compass.budget_config import BudgetConfig, declared_sources, SOURCES, without
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.ground import (
     brewster_angle_deg,
     fresnel_amplitudes,
@@ -38,7 +39,8 @@ from polarization_compass.ground import (
 )
 from polarization_compass.radiance import make_radiance_model
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene, scene_from_dict, SceneError
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import scene_from_dict
 import pytest
 
 SUN = SunDirection(40.0, 35.0)
@@ -430,7 +432,7 @@ def test_bad_ground_is_a_one_line_scene_error(ground, word):
 def test_the_example_lake_scene_shows_polarized_water_below_the_tree_line():
     from pathlib import Path
 
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config/scenes/lake_fisheye.yaml')
     f = Renderer(scene.replace(pixels=PixelSelection.grid(160, 128))).render()

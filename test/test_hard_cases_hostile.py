@@ -175,7 +175,8 @@ def test_scene_and_topic_map_loaders_refuse_special_and_huge_files(special_files
     A FIFO would block, /dev/zero grow without bound (issue 18): refused from a stat, never opened.
     """
     from polarization_compass.bag import BagError, load_topic_map
-    from polarization_compass.scene import load_scene, SceneError
+    from polarization_compass.scene import SceneError
+    from polarization_compass.scene_load import load_scene
 
     with pytest.raises(SceneError, match=words):
         load_scene(special_files[kind])
@@ -200,7 +201,8 @@ def test_npz_loaders_refuse_special_files(special_files):
     ],
 )
 def test_yaml_recursion_and_bad_dates_are_scene_errors(tmp_path, text, words):
-    from polarization_compass.scene import load_scene, SceneError
+    from polarization_compass.scene import SceneError
+    from polarization_compass.scene_load import load_scene
 
     p = tmp_path / 's.yaml'
     p.write_text(text)

@@ -33,7 +33,8 @@ import numpy as np
 from polarization_compass import bag as B
 from polarization_compass.errors import CompassError
 from polarization_compass.frame_io import FrameFileError, load_frame_npz
-from polarization_compass.scene import load_scene, SceneError
+from polarization_compass.scene import SceneError
+from polarization_compass.scene_load import load_scene
 import pytest
 
 

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
-from polarization_compass.demosaic import IMX250MZR_POL45
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer
 import pytest

@@ -27,10 +27,12 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.fastmath import axial_atan2_array
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene, scene_from_dict, SceneError, Validity
+from polarization_compass.scene import Scene, SceneError, Validity
+from polarization_compass.scene_load import scene_from_dict
 import pytest
 
 FISHEYE = CameraModel('fisheye_equidistant', 41, 31, 0.1, 3.45, 3.45, max_field_angle_deg=85.0)

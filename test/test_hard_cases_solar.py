@@ -300,7 +300,7 @@ def test_paper_leap_day_count_is_eq_6_between_1901_and_2100_and_gregorian_outsid
     """
     import calendar
 
-    from polarization_compass.solar import _gregorian_leap_days_since_1985 as leaps
+    from polarization_compass.solar_paper import _gregorian_leap_days_since_1985 as leaps
 
     for y in range(1901, 2101):
         assert leaps(float(y)) == math.floor((y - 1985) / 4), y

@@ -32,7 +32,7 @@ from polarization_compass.estimators import jackknife as jk
 from polarization_compass.estimators import least_squares as ls
 from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.render import Renderer
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 
 SCENE = 'config/scenes/budget_small.yaml'

@@ -28,19 +28,21 @@ frames.
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, load_camera_yaml, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_file import load_camera_yaml
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
     IFOV_K_DEFAULT,
-    parse_layout,
     polarization_from_mosaic,
     redundancy_noise,
     stokes_from_mosaic,
 )
 from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+from polarization_compass.mosaic import parse_layout
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 import real_sky as R
 

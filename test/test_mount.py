@@ -288,7 +288,8 @@ def test_cli_calibrate_mount_writes_the_mount_section(tmp_path, capsys):
 
 
 def test_camera_yaml_mount_section_is_parsed(tmp_path):
-    from polarization_compass.camera import CameraError, load_camera_yaml
+    from polarization_compass.camera import CameraError
+    from polarization_compass.camera_file import load_camera_yaml
 
     base = 'image_width: 10\nimage_height: 10\ncamera_matrix: [1, 0, 5, 0, 1, 5, 0, 0, 1]\n'
     p = tmp_path / 'cam.yaml'
@@ -305,12 +306,12 @@ def test_camera_yaml_mount_section_is_parsed(tmp_path):
 
 def _camera_turns(seed, offsets=(30.0, 34.0), n=36, noise_deg=3.0):
     """Render a mounted camera (the default scene's, 12 x 12 pixels) through turns in place."""
-    from polarization_compass.camera import PixelSelection
+    from polarization_compass.camera_pixels import PixelSelection
     from polarization_compass.conventions import attitude_from_R_enu_cam, fold_aop_rad
     from polarization_compass.mount import R_enu_sensor_cam
     from polarization_compass.mount_fit import camera_samples, CameraRays
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
 
     r = Renderer(default_scene(), PixelSelection(mode='grid', nx=12, ny=12))
     rng = np.random.default_rng(seed)

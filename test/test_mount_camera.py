@@ -28,7 +28,8 @@ import math
 import os
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.demosaic import stokes_from_mosaic
@@ -230,7 +231,7 @@ def test_calibrate_mount_camera_recovers_the_mount_and_removes_the_curve(turns, 
     # camera file, gone with the kept one (estimate reads the written mount)
     assert m['residual_before_deg'] > 1.0, (m, err)
     assert m['residual_after_deg'] < m['residual_before_deg'] / 3.0, (m, err)
-    from polarization_compass.camera import load_camera_yaml
+    from polarization_compass.camera_file import load_camera_yaml
 
     assert load_camera_yaml(d / 'out.yaml').mount.pitch_deg == m['pitch_deg']
 

@@ -48,7 +48,7 @@ RATE_DEG_S, N_FRAMES = 36.0, 10  # --turns 0.1 at 36 deg/s and 10 Hz: bearings 0
 
 
 def _tiny_map(path, scene_file):
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
     from polarization_compass.sweep import run_sweep, SweepSpec
 
     # the run: sun 30.6 deg, pitch -20, roll 0 (+ IMU noise): three nodes per tilt axis, 30 deg of

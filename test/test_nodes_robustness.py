@@ -56,7 +56,7 @@ def _good_frame(bearing: float, t_ns: int) -> np.ndarray:
     from polarization_compass.conventions import CameraAttitude
     from polarization_compass.nodes.sky_simulator import mosaic_config
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
     from polarization_compass.sensor import simulate_mosaic
     from polarization_compass.solar import sun_position
 

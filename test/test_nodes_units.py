@@ -320,7 +320,7 @@ def _ideal_mosaic(
 ):
     from polarization_compass.nodes.sky_simulator import mosaic_config
     from polarization_compass.render import Renderer, SunDirection
-    from polarization_compass.scene import default_scene
+    from polarization_compass.scene_load import default_scene
     from polarization_compass.sensor import simulate_mosaic
 
     frame = Renderer(default_scene().replace(camera=cam)).render(

@@ -21,7 +21,7 @@ import numpy as np
 from polarization_compass.cli import main
 from polarization_compass.errormap_io import load_error_map
 from polarization_compass.errors import CompassError
-from polarization_compass.scene import scene_from_dict
+from polarization_compass.scene_load import scene_from_dict
 from polarization_compass.sweep import run_sweep, SweepSpec
 import pytest
 

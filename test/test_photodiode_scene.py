@@ -24,7 +24,8 @@ from polarization_compass.estimators.base import Status
 from polarization_compass.photodiode.geometry import geometry_from_dict
 from polarization_compass.photodiode.heading import estimate_recording, make_array_estimator
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, scene_from_dict, SceneError
+from polarization_compass.scene import SceneError
+from polarization_compass.scene_load import load_scene, scene_from_dict
 import pytest
 
 GEOM = {

@@ -24,10 +24,11 @@ import math
 
 from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import CameraAttitude
-from polarization_compass.demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout
 from polarization_compass.estimators.mosaic_input import _grid_rays
+from polarization_compass.mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout
 from polarization_compass.polarizer_check import check_polarizer, polarizer_hypotheses
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene

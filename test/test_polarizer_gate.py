@@ -24,10 +24,11 @@ fix, while the right configuration keeps ``ok`` and the true heading.
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
-from polarization_compass.demosaic import IMX250MZR_LAYOUT, parse_layout
 from polarization_compass.headings import estimate_file, EstimateOptions
+from polarization_compass.mosaic import IMX250MZR_LAYOUT, parse_layout
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 import pytest

@@ -36,12 +36,10 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass.demosaic import (
     aop_dop_from_stokes,
-    IMX250MZR_LAYOUT,
-    IMX250MZR_POL45,
     polarization_from_mosaic,
-    SensorError,
     stokes_from_mosaic,
 )
+from polarization_compass.mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, SensorError
 import pytest
 
 METHODS = ('superpixel', 'bilinear')

@@ -29,7 +29,8 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, Validity
 

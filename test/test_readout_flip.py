@@ -27,7 +27,8 @@ import json
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.headings import estimate_file, EstimateOptions

@@ -26,7 +26,8 @@ import math
 
 import cv2
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
 from polarization_compass.demosaic import stokes_from_mosaic

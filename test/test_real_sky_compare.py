@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 from polarization_compass.render import Renderer
-from polarization_compass.scene import scene_from_dict
+from polarization_compass.scene_load import scene_from_dict
 import pytest
 
 CX, CY, RADIUS = 1076.3, 1000.9, 1382.0  # 0-based image-circle centre and 90-deg radius (px)

@@ -29,7 +29,8 @@ import json
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.estimators import Knob, make_estimator, registry
 from polarization_compass.estimators.base import Estimator, EstimatorError, HeadingResult, Status
 import pytest
@@ -288,7 +289,7 @@ def test_toy_in_the_figures(toy_map):
 def test_toy_in_the_replay(toys, tmp_path):
     from polarization_compass.recording import record_sim, RecordSpec
     from polarization_compass.replay import method_groups, replay_bag, ReplayConfig
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     # cost: the toy (100) outweighs every built-in together, the tilt toy (0.01) joins the lightest
     # group

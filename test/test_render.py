@@ -25,7 +25,8 @@ from hypothesis import strategies as st
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.fastmath import axial_atan2_array
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
@@ -230,7 +231,7 @@ def test_sun_below_horizon_and_at_zenith_render_finite():
 def test_sensor_noise_differs_between_frames_but_is_reproducible():
     from pathlib import Path
 
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config/scenes/imx250mzr_noisy.yaml')
     scene = scene.replace(camera=CameraModel(width_px=64, height_px=48))

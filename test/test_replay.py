@@ -41,7 +41,7 @@ from polarization_compass.replay import (
     replay_bag,
     ReplayConfig,
 )
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -30,7 +30,7 @@ from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.recording import record_sim, RecordSpec
 from polarization_compass.replay import replay_bag, ReplayConfig
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -33,7 +33,7 @@ from polarization_compass.conventions import CameraAttitude
 from polarization_compass.graphs import node_command
 from polarization_compass.recording import record_sim, RecordSpec
 from polarization_compass.replay import replay_bag, ReplayConfig
-from polarization_compass.scene import load_scene
+from polarization_compass.scene_load import load_scene
 import pytest
 from test_nodes_helpers import stop_process
 

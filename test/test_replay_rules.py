@@ -27,12 +27,11 @@ mirrors its readout (``readout_flip``, which replay did not have).
 import dataclasses
 import math
 
-
 import numpy as np
 from polarization_compass.bag.topic_map import default_topic_map
 from polarization_compass.camera import CameraModel
 from polarization_compass.conventions import body_quat_from_camera_attitude, CameraAttitude
-from polarization_compass.demosaic import IMX250MZR_POL45
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.nodes import msgs as M
 from polarization_compass.pipeline import AttitudeBuffer, SunSource
 from polarization_compass.replay.processing import FramePipeline, ReplayConfig
@@ -205,7 +204,7 @@ def test_replay_reads_a_mirrored_readout_back_as_the_node(ctx, flip):
     flip set, both give the rendered bearings (40 and 200 deg) ``ok``; without it, replay gives no
     ``ok`` at the rendered heading.
     """
-    from polarization_compass.camera import unflipped_camera
+    from polarization_compass.camera_file import unflipped_camera
 
     sensor = CameraModel(
         'pinhole', 96, 80, 0.12, 3.45, 3.45, principal_x_px=44.0, principal_y_px=43.0

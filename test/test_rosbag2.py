@@ -137,7 +137,7 @@ def ws(tmp_path_factory):
 def _record_small(d: Path, imu_rate_hz: float = 50.0):
     from polarization_compass.camera import CameraModel
     from polarization_compass.recording import record_sim, RecordSpec
-    from polarization_compass.scene import load_scene
+    from polarization_compass.scene_load import load_scene
 
     camera = CameraModel(
         width_px=WIDTH_PX,

@@ -16,13 +16,8 @@
 
 from pathlib import Path
 
-from polarization_compass.scene import (
-    default_scene,
-    load_scene,
-    parse_time_utc,
-    scene_from_dict,
-    SceneError,
-)
+from polarization_compass.scene import parse_time_utc, SceneError
+from polarization_compass.scene_load import default_scene, load_scene, scene_from_dict
 import pytest
 import yaml
 

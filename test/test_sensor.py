@@ -26,11 +26,14 @@ from pathlib import Path
 
 import numpy as np
 from polarization_compass import instrumentation as instr
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_rad
-from polarization_compass.demosaic import IMX250MZR_POL45, polarization_from_mosaic
+from polarization_compass.demosaic import polarization_from_mosaic
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, Scene, scene_from_dict, SceneError
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import load_scene, scene_from_dict
 from polarization_compass.sensor import (
     parse_sensor_config,
     SensorError,
@@ -393,18 +396,19 @@ ALL_KERNELS = set().union(*EFFECT_KERNELS.values())
 
 
 def test_kernel_table_matches_the_code():
-    from polarization_compass import sensor
+    from polarization_compass import sensor_kernels
 
-    assert set(sensor._IMPLEMENTS) == ALL_KERNELS
+    assert set(sensor_kernels._IMPLEMENTS) == ALL_KERNELS
     for effect, kernels in EFFECT_KERNELS.items():
-        assert {k for k, effects in sensor._IMPLEMENTS.items() if effect in effects} == kernels, (
-            effect
-        )
+        assert {
+            k for k, effects in sensor_kernels._IMPLEMENTS.items() if effect in effects
+        } == kernels, effect
     # the effect-free variants do not even take the effect's parameter
     import inspect
 
     params = {
-        k: set(inspect.signature(getattr(sensor, k).py_func).parameters) for k in ALL_KERNELS
+        k: set(inspect.signature(getattr(sensor_kernels, k).py_func).parameters)
+        for k in ALL_KERNELS
     }
     assert (
         'd' not in params['_mean_electrons_kernel'] and 'd' in params['_mean_electrons_er_kernel']

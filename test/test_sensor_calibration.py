@@ -23,12 +23,14 @@ tied to the sensor's pixels.
 
 import numpy as np
 from polarization_compass import instrumentation as instr
-from polarization_compass.camera import PixelSelection
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.conventions import CameraAttitude
-from polarization_compass.demosaic import IMX250MZR_POL45
+from polarization_compass.mosaic import IMX250MZR_POL45
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene, scene_from_dict, SceneError
-from polarization_compass.sensor import calibration_maps, parse_sensor_config, simulate_mosaic
+from polarization_compass.scene import Scene, SceneError
+from polarization_compass.scene_load import scene_from_dict
+from polarization_compass.sensor import parse_sensor_config, simulate_mosaic
+from polarization_compass.sensor_calibration import calibration_maps
 import pytest
 
 N0 = 5250.0  # default fill 0.5 x full well 10 500 e-

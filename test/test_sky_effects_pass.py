@@ -24,7 +24,8 @@ import numba
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
-from polarization_compass.camera import CameraModel, PixelSelection
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, Validity
 import pytest

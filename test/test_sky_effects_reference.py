@@ -30,8 +30,10 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.camera import CameraModel, PixelSelection
-from polarization_compass.optics import _glare_angle_sq_f32, ghost_centres_px, SUN_SEMIDIAMETER_DEG
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection
+from polarization_compass.optics import ghost_centres_px, SUN_SEMIDIAMETER_DEG
+from polarization_compass.optics_kernels import _glare_angle_sq_f32
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene, Validity
 import pytest

@@ -28,7 +28,8 @@ from pathlib import Path
 from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import (
     CameraAttitude,
     enu_direction,
@@ -42,7 +43,8 @@ from polarization_compass.radiance import (
     RadianceError,
 )
 from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import load_scene, scene_from_dict, SceneError
+from polarization_compass.scene import SceneError
+from polarization_compass.scene_load import load_scene, scene_from_dict
 from polarization_compass.sky import RayleighSky, SkyModelError
 from polarization_compass.sky_bdl import BerryDennisLeeSky
 from polarization_compass.sky_models import make_sky_model

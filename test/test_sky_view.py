@@ -197,7 +197,7 @@ def test_quick_picture_has_the_same_layers():
 
 def test_mosaic_reasons_where_the_mosaic_says():
     """Raw mosaic: saturated samples and the fisheye's edge land in their classes, sampled too."""
-    from polarization_compass.camera import PixelSelection
+    from polarization_compass.camera_pixels import PixelSelection
     from polarization_compass.conventions import CameraAttitude
     from polarization_compass.headings import Sun
     from polarization_compass.render import Renderer, SunDirection

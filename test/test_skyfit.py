@@ -24,23 +24,22 @@ the node front end applies the same check.
 import math
 
 import numpy as np
-from polarization_compass.camera import CameraModel, PixelSelection, select_pixels
+from polarization_compass.camera import CameraModel
+from polarization_compass.camera_pixels import PixelSelection, select_pixels
 from polarization_compass.conventions import CameraAttitude, wrap_180_deg
-from polarization_compass.demosaic import parse_layout
 from polarization_compass.estimators.base import HeadingResult, Status
+from polarization_compass.mosaic import parse_layout
 from polarization_compass.pipeline import HeadingFrontEnd
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 from polarization_compass.skyfit import (
-    assess_result,
     data_mask,
     fit_sky,
     jackknife_sigma_deg,
-    mark_inconsistent,
     misfit_at,
     sample_sky,
-    side_preference,
 )
+from polarization_compass.skyfit_assess import assess_result, mark_inconsistent, side_preference
 import pytest
 
 N = 160

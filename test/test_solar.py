@@ -28,14 +28,12 @@ from hypothesis import strategies as st
 import numpy as np
 from polarization_compass.cli import main
 from polarization_compass.errors import CompassError
-from polarization_compass.solar import (
+from polarization_compass.solar import SolarError, sun_position, SunCache
+from polarization_compass.solar_paper import (
     azimuth_altitude_from_equatorial,
     paper_declination_deg,
     paper_equation_of_time_min,
     paper_hour_angle_deg,
-    SolarError,
-    sun_position,
-    SunCache,
 )
 import pytest
 

@@ -299,7 +299,8 @@ def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
     """
     from polarization_compass.budget import run_budget
     from polarization_compass.budget_config import BudgetConfig
-    from polarization_compass.camera import CameraModel, PixelSelection
+    from polarization_compass.camera import CameraModel
+    from polarization_compass.camera_pixels import PixelSelection
     from polarization_compass.motion import MountingErrors
     from polarization_compass.runtime import single_threaded_kernels
     from polarization_compass.scene import Scene

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import BagError
-from ..camera import CameraError, CameraModel, READOUT_FLIPS
+from ..camera import CameraError, CameraModel
+from ..camera_file import READOUT_FLIPS
 from ..conventions import R_BODY_CAM_DEFAULT
 
 __all__ = [

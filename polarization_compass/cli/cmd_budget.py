@@ -110,7 +110,7 @@ def _writable_dir(out: Path) -> Path:
 def run(args) -> int:
     from ..budget import plot_budget, run_budget, SIGMA_BAND
     from ..budget_config import BudgetConfig, BudgetError, check_config, parse_imu
-    from ..scene import load_scene
+    from ..scene_load import load_scene
 
     if args.samples < 1 or args.samples > 100000:
         raise BudgetError(f'--samples must be in [1, 100000], got {args.samples}')

@@ -152,7 +152,7 @@ def _run_camera(args) -> int:
     import numpy as np
 
     from .cmd_estimate_array import sun_per_sample
-    from ..camera import load_camera_yaml
+    from ..camera_file import load_camera_yaml
     from ..camera_turns import camera_turns, camera_yaml_with_mount, read_turn_list, turn_headings
     from ..mount import Mount
     from ..mount_recordings import fit_mount_recordings, heading_scatter_deg

@@ -230,12 +230,12 @@ def _check_options(args, methods) -> None:
 
 def _scene(args):
     """Load the scene; with ``--array-geometry`` its photodiode array takes that geometry."""
-    from ..scene import load_scene
+    from ..scene_load import load_scene
 
     scene = load_scene(args.scene)
     if not args.array_geometry:
         return scene
-    from ..scene import scene_from_dict
+    from ..scene_load import scene_from_dict
 
     if args.stride:
         raise CompassError('--stride has no meaning for a photodiode array')

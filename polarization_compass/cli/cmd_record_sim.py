@@ -113,7 +113,7 @@ def _add_sensor_options(p) -> None:
 def run(args) -> int:
     from ..bag import load_topic_map
     from ..recording import record_sim, RecordSpec
-    from ..scene import load_scene
+    from ..scene_load import load_scene
 
     if args.seed < 0:
         raise CompassError(f'--seed must be >= 0, got {args.seed}')

@@ -20,7 +20,7 @@ import json
 import sys
 
 from ._checks import check_range, check_together
-from ..camera import PixelSelection
+from ..camera_pixels import PixelSelection
 from ..conventions import CameraAttitude
 from ..errors import CompassError
 
@@ -66,7 +66,8 @@ def register(sub):
 def run(args) -> int:
     from ..frame_io import save_frame_npz
     from ..render import Renderer, SunDirection
-    from ..scene import load_scene, parse_time_utc
+    from ..scene import parse_time_utc
+    from ..scene_load import load_scene
 
     check_range('yaw', args.yaw, -360, 720)
     check_range('pitch', args.pitch, -90, 90)

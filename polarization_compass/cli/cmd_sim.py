@@ -291,7 +291,7 @@ def _check_numbers(args) -> None:
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise CompassError(f'--timeout must be a positive number of seconds, got {args.timeout}')
     if args.scene:
-        from ..scene import load_scene
+        from ..scene_load import load_scene
 
         load_scene(args.scene)  # a bad scene is refused here, not 15 s into the run
 

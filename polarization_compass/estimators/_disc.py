@@ -44,7 +44,8 @@ import numpy as np
 
 from ._common import axial_residual_rad
 from ._kernels import acc_brightness
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 from ..fastmath import atan2, sincos_folded
 from ..fastmath import FM as _FMV
 

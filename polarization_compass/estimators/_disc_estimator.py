@@ -47,7 +47,8 @@ from ._knobs import Knob, KnobbedEstimator
 from ._mirror import mirror_map, MirrorMap, view_covers_disc
 from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 from ..conventions import fold_axial_rad_float
 
 __all__ = ['DISC_KNOBS', 'DiscEstimator']

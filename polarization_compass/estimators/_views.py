@@ -34,7 +34,8 @@ import math
 import numpy as np
 
 from .base import HeadingResult, Observation, Status
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 
 __all__ = [
     'Samples',

@@ -30,7 +30,8 @@ import math
 
 import numpy as np
 
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 from ..conventions import psi_to_bearing_deg, wrap_180_deg_float, wrap_360_deg_float
 from ..errors import CompassError
 

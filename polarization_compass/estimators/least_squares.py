@@ -97,7 +97,8 @@ from .sun_from_evectors import (
     SunFrames,
     tilt_sensitivity,
 )
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 
 __all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']
 

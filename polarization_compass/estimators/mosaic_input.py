@@ -54,20 +54,18 @@ import math
 import numpy as np
 
 from .base import Observation
-from ..camera import CameraError, CameraModel, PixelSelection, select_pixels
+from ..camera import CameraError, CameraModel
+from ..camera_pixels import PixelSelection, select_pixels
 from ..demosaic import (
     aop_dop_from_stokes,
     check_ifov_k,
     IFOV_K_DEFAULT,
-    IMX250MZR_LAYOUT,
-    IMX250MZR_POL45,
-    parse_layout,
     polarization_from_mosaic,
     redundancy_noise,
-    SensorError,
     stokes_from_mosaic,
 )
 from ..errors import CompassError
+from ..mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout, SensorError
 
 __all__ = ['observation_from_mosaic', 'MosaicInputError']
 
@@ -283,7 +281,7 @@ def observation_from_mosaic(
         Demosaicing.
     layout : str or sequence, default IMX250MZR_LAYOUT
         The sensor's 2 x 2 polarizer angles [deg]
-        (:func:`~polarization_compass.demosaic.parse_layout`).
+        (:func:`~polarization_compass.mosaic.parse_layout`).
     pol45_toward : str, default "+x+y"
         Image direction of the 45 deg polarizer.
     saturation_level : float, optional

@@ -83,7 +83,7 @@ def measure(repeat: int = 15, threads: int = 1, settings=SETTINGS) -> list[dict]
     from .mosaic_input import observation_from_mosaic
     from ..conventions import CameraAttitude
     from ..render import Renderer, SunDirection
-    from ..scene import load_scene
+    from ..scene_load import load_scene
 
     numba.set_num_threads(threads)
     from pathlib import Path

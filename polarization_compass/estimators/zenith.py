@@ -71,7 +71,8 @@ from ._kernels import acc_brightness, acc_sym, N_STATS
 from ._knobs import Knob, KnobbedEstimator
 from ._views import _BadInput, check_sun, samples_from_view, select_view
 from .base import Estimator, HeadingResult, Observation, Status
-from ..camera import CameraModel, PixelSelection
+from ..camera import CameraModel
+from ..camera_pixels import PixelSelection
 
 __all__ = ['ZenithEstimator', 'zenith_window']
 
@@ -294,7 +295,7 @@ def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dic
     grid: all votes for one candidate decide; no vote, disagreeing votes or too little sky leave it
     open. The votes go to ``extras["side_votes"]``.
     """
-    from ..skyfit import side_votes
+    from ..skyfit_assess import side_votes
 
     if side_grid <= 0:
         return None, 'no whole-sky side grid (side_grid 0)'

@@ -239,7 +239,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
         The size is 2448 x 2048 (the IMX250MZR's and the simulator's), so that the first image of
         such a camera finds its caches built.
         """
-        from ..scene import default_scene
+        from ..scene_load import default_scene
 
         p = self.params
         size = default_scene().camera

@@ -92,7 +92,7 @@ from .runner import run_node
 from .sky_simulator_attitude import SimulatorAttitude
 from .sky_simulator_clock import SimulatorClock
 from ..bag import ns_from_utc
-from ..camera import PixelSelection
+from ..camera_pixels import PixelSelection
 from ..conventions import (
     camera_attitude_from_body_quat,
     matrix_to_quat,

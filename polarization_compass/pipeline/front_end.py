@@ -21,7 +21,7 @@ import numpy as np
 from .errors import PipelineError
 from .sampling import whole_sky_sample
 from ..camera import CameraModel
-from ..demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+from ..mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
 __all__ = ['HeadingFrontEnd', 'warm_up']
 
@@ -73,8 +73,8 @@ class HeadingFrontEnd:
         intensity: bool = False,
         sky_check: bool = False,
     ):
-        from ..demosaic import parse_layout
         from ..estimators import make_estimator
+        from ..mosaic import parse_layout
 
         self.method = method
         self.estimator = make_estimator(method, **(knobs or {}))
@@ -115,7 +115,7 @@ class HeadingFrontEnd:
             Image direction of the 45 deg polarizer.
 
         """
-        from ..demosaic import parse_layout
+        from ..mosaic import parse_layout
 
         self.layout = parse_layout(layout, pol45_toward)
 
@@ -272,7 +272,7 @@ class HeadingFrontEnd:
         )
         res = est.estimate(obs)
         if self.sky_check:
-            from ..skyfit import assess_result
+            from ..skyfit_assess import assess_result
 
             sample = whole_sky_sample(mosaic, camera, layout)
             res = assess_result(
@@ -311,7 +311,7 @@ def warm_up(
 
     from ..conventions import CameraAttitude
     from ..render import Renderer, SunDirection
-    from ..scene import default_scene
+    from ..scene_load import default_scene
     from ..sensor import sensor_config_for_encoding, simulate_mosaic
 
     t0 = time.perf_counter()

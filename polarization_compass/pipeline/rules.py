@@ -31,7 +31,7 @@ import numpy as np
 from .attitude_sigma import with_attitude_sigma
 from .monitors import PolarizerMonitor
 from .prior import FrameInputs, TiltAndPrior
-from ..camera import READOUT_FLIPS, unflip, unflipped_camera
+from ..camera_file import READOUT_FLIPS, unflip, unflipped_camera
 
 __all__ = ['apply_rules', 'SensorReadout']
 

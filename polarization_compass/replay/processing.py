@@ -229,7 +229,7 @@ class FramePipeline:
     """The nodes' per-frame chain for several methods at once (see the module docstring)."""
 
     def __init__(self, config: ReplayConfig, topic_map: TopicMap):
-        from ..demosaic import layout_from_mapping
+        from ..mosaic import layout_from_mapping
         from ..pipeline.front_end import HeadingFrontEnd
         from ..pipeline.monitors import PolarizerMonitor
         from ..pipeline.prior import TiltAndPrior
@@ -399,7 +399,7 @@ class FramePipeline:
         )
         if self.config.sky_check:  # the whole-sky check of real skies (skyfit), one per frame
             from ..pipeline.sampling import whole_sky_sample
-            from ..skyfit import assess_result
+            from ..skyfit_assess import assess_result
 
             if 'sky' not in obs_cache:
                 obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
