@@ -23,7 +23,8 @@ The one road from an input file to headings: frame file, Stokes planes or raw mo
    (:func:`polarization_compass.real_input.load_polarization_input`): a frame file written by
    ``render`` goes to :func:`frame_headings`, a real image (raw mosaic or Stokes planes, with a
    camera file) to :func:`real_headings`.
-2. :func:`resolve_sun` says where the sun was: given, from the frame's meta, or from the ephemeris.
+2. :func:`polarization_compass.pipeline.sun.resolve_sun` says where the sun was: given, from the
+   frame's meta, or from the ephemeris.
 3. :func:`make_estimators` makes one estimator per method with the knobs each method declares
    (``knob_specs``: names and ranges are checked there, nowhere else).
 4. The observation: a frame's raw mosaic demosaiced for each method's pixels
@@ -40,12 +41,12 @@ import math
 import time
 
 from .errors import CompassError
+from .pipeline.sun import resolve_sun, Sun
 
 __all__ = [
     'EstimateOptions',
     'REAL_SKY_KNOBS',
     'REAL_SKY_OUTLIER_DEG',
-    'Sun',
     'estimate_file',
     'frame_headings',
     'check_stride',
@@ -53,7 +54,6 @@ __all__ = [
     'method_list',
     'real_headings',
     'real_observation',
-    'resolve_sun',
     'result_row',
 ]
 
@@ -64,15 +64,6 @@ REAL_SKY_OUTLIER_DEG = 15.0
 #: real images: knob defaults for the methods with the robust refit (``outlier_deg``), unless the
 #: user sets ``outlier_deg``: consensus over candidate suns, outliers beyond 15 deg dropped
 REAL_SKY_KNOBS = {'outlier_deg': REAL_SKY_OUTLIER_DEG, 'max_aop_noise_deg': 90.0}
-
-
-@dataclass(frozen=True)
-class Sun:
-    """Where the sun was: azimuth [deg, clockwise from North], altitude [deg] and whence."""
-
-    azimuth_deg: float
-    altitude_deg: float
-    source: str
 
 
 @dataclass
@@ -196,63 +187,6 @@ def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
         options.lat_deg,
         options.lon_deg,
         options.time_utc,
-    )
-
-
-def resolve_sun(
-    meta: dict,
-    azimuth_deg: float | None = None,
-    altitude_deg: float | None = None,
-    lat_deg: float | None = None,
-    lon_deg: float | None = None,
-    time_utc: str | None = None,
-) -> Sun:
-    """
-    Say where the sun was: given, else from a frame's meta, else from the ephemeris.
-
-    Parameters
-    ----------
-    meta : dict
-        A frame's meta (``sun_azimuth_deg``, ``sun_altitude_deg``); ``{}`` for a real image.
-    azimuth_deg, altitude_deg : float, optional
-        The given sun [deg]; both or neither (the caller checks their ranges).
-    lat_deg, lon_deg : float, optional
-        The site [deg], for the ephemeris.
-    time_utc : str, optional
-        UTC time, ISO 8601, for the ephemeris.
-
-    Returns
-    -------
-    Sun
-        Azimuth, altitude and where they came from.
-
-    Raises
-    ------
-    CompassError
-        Nothing says where the sun was.
-
-    """
-    if azimuth_deg is not None or altitude_deg is not None:
-        return Sun(float(azimuth_deg), float(altitude_deg), 'given (--sun-azimuth/--sun-altitude)')
-    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
-    ok = all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        for v in (az, alt)
-    )
-    if ok:
-        return Sun(float(az), float(alt), 'frame meta')
-    if lat_deg is None or lon_deg is None or time_utc is None:
-        raise CompassError(
-            'the input does not say where the sun was: give --lat, --lon and --time, or '
-            '--sun-azimuth and --sun-altitude'
-        )
-    from .solar import sun_position
-
-    pos = sun_position(time_utc, lat_deg, lon_deg, 0.0)
-    return Sun(
-        float(pos.azimuth_deg),
-        float(pos.altitude_deg),
-        'ephemeris (SPA) for --lat/--lon/--time',
     )
 
 
@@ -445,7 +379,7 @@ def frame_headings(
     options : EstimateOptions
         Methods, knobs, stride, tilt, prior, ``use_stored`` and ``ifov_k``.
     sun : Sun
-        Where the sun was (:func:`resolve_sun`).
+        Where the sun was (:func:`~polarization_compass.pipeline.sun.resolve_sun`).
     seen : dict, optional
         Filled with what the estimators saw (:func:`estimate_file`).
 
