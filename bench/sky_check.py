@@ -123,7 +123,7 @@ def _camera_file(R, step: int):
 def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
     """Time one method: its estimate, its whole-sky check and, if it has one, its robust refit."""
     from polarization_compass.estimators import make_estimator
-    from polarization_compass.headings import REAL_SKY_KNOBS
+    from polarization_compass.pipeline.methods import REAL_SKY_KNOBS
     from polarization_compass.skyfit import assess_result
 
     est = make_estimator(m)
