@@ -24,8 +24,9 @@ side vote; plus one shared ``sample_sky`` per frame); and the polarizer check
 ``polarizer_check_every``-th image) on a full-size raw mosaic.
 
 Frames: the real ``sunny.jpg`` (test/data/real-sky, 2048 x 2048 Stokes planes, fisheye) through
-``estimate``'s own observation builder (:func:`polarization_compass.headings.real_observation`),
-and a simulated ``imx250mzr_noisy`` mosaic for the monitor.
+``estimate``'s own observation builder
+(:func:`polarization_compass.pipeline.real_image.real_observation`), and a simulated
+``imx250mzr_noisy`` mosaic for the monitor.
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ def _real_sky():
 def run(cfg) -> dict:
     optional_import('polarization_compass.skyfit')
     from polarization_compass.estimators import estimator_names
-    from polarization_compass.headings import real_observation
+    from polarization_compass.pipeline.real_image import real_observation
     from polarization_compass.real_input import PolarizationInput
     from polarization_compass.skyfit import sample_sky
 
