@@ -13,28 +13,34 @@
 # limitations under the License.
 
 """
-The one road from an input file to headings: frame file, Stokes planes or raw mosaic.
+The file entry of the one road: frame file, Stokes planes or raw mosaic -> headings.
 
-``polarization-compass estimate``, the bench and the tests turn an input file into headings here
-(the nodes and the replay feed a live mosaic to
-:class:`polarization_compass.pipeline.HeadingFrontEnd` instead). The steps, in order:
+``polarization-compass estimate``, the bench and the tests turn an input file into headings here;
+the nodes and the replay feed live mosaics to
+:class:`polarization_compass.pipeline.HeadingFrontEnd`. Both take the same steps, each written
+once in :mod:`polarization_compass.pipeline`:
 
 1. :func:`estimate_file` reads the input
    (:func:`polarization_compass.real_input.load_polarization_input`): a frame file written by
    ``render`` goes to :func:`frame_headings`, a real image (raw mosaic or Stokes planes, with a
    camera file) to :func:`real_headings`.
-2. :func:`polarization_compass.pipeline.sun.resolve_sun` says where the sun was: given, from the
-   frame's meta, or from the ephemeris.
-3. :func:`polarization_compass.pipeline.methods.make_estimators` makes one estimator per method
-   with the knobs each method declares (``knob_specs``: names and ranges are checked there,
-   nowhere else).
-4. The observation: a frame's raw mosaic demosaiced for each method's pixels
-   (:func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`) or its stored
-   AoP/DoP; a real image's whole sky by
+2. Where the sun was: :func:`polarization_compass.pipeline.sun.resolve_sun` (given, from the
+   frame's meta, or from the ephemeris); the camera's pitch and roll: :func:`camera_tilt`.
+3. One estimator per method with the knobs each method declares
+   (:func:`polarization_compass.pipeline.methods.make_estimators`; ``knob_specs``: names and
+   ranges are checked there, nowhere else).
+4. The observation: a frame's raw mosaic demosaiced for each method's pixels by
+   :func:`polarization_compass.pipeline.front_end.mosaic_observation` (the front end's own step),
+   or its stored AoP/DoP; a real image's whole sky by
    :func:`polarization_compass.pipeline.real_image.real_observation`.
-5. Each result as a JSON-ready dict (:func:`~polarization_compass.pipeline.methods.result_row`);
-   on real images checked against the whole sky first
-   (:func:`polarization_compass.skyfit.assess_result`, ``inconsistent`` across methods).
+5. The estimate, checked against the whole sky on real images
+   (:func:`polarization_compass.pipeline.front_end.estimate_checked` on
+   :func:`polarization_compass.pipeline.sampling.observation_sky_sample`, as the front end does on
+   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), ``inconsistent`` across
+   methods, then the polarizer gate (:func:`polarization_compass.polarizer_check.check_frame` and
+   :func:`~polarization_compass.polarizer_check.gate_result`, as the node's
+   :class:`~polarization_compass.pipeline.monitors.PolarizerMonitor`).
+6. Each result as a JSON-ready dict (:func:`polarization_compass.pipeline.methods.result_row`).
 """
 
 from __future__ import annotations
@@ -44,12 +50,15 @@ import math
 import time
 
 from .errors import CompassError
+from .pipeline.front_end import estimate_checked, mosaic_observation, MosaicReading
 from .pipeline.methods import make_estimators, REAL_SKY_KNOBS, result_row
 from .pipeline.real_image import real_observation
+from .pipeline.sampling import observation_sky_sample
 from .pipeline.sun import resolve_sun, Sun
 
 __all__ = [
     'EstimateOptions',
+    'camera_tilt',
     'estimate_file',
     'frame_headings',
     'real_headings',
@@ -104,8 +113,9 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         :mod:`polarization_compass.sky_view`): ``kind`` ('frame' or the real input's kind),
         ``sun``, ``results`` (the :class:`HeadingResult` of each method), ``observations``
         (method name to its observation), and ``frame`` and ``plan`` (a frame file; ``plan``
-        None for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask``
-        (a real image).
+        the :class:`~polarization_compass.pipeline.front_end.MosaicReading` of its mosaic, None
+        for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask`` (a real
+        image).
 
     Returns
     -------
@@ -182,21 +192,34 @@ def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
     )
 
 
+def camera_tilt(options: EstimateOptions, camera_file=None) -> tuple:
+    """
+    Resolve the camera pitch and roll [deg] the estimators use for an input file.
+
+    The one place where the body attitude given for a frame becomes the camera's: the
+    observation, the whole-sky check and the polarizer check all read what this returns. Today
+    the given ``pitch_deg``/``roll_deg`` are the camera's own; a camera file's ``mount:``
+    (``camera_file.mount``, issue 28) composes with them here.
+
+    Parameters
+    ----------
+    options : EstimateOptions
+        ``pitch_deg`` and ``roll_deg`` as given (None: unknown).
+    camera_file : CameraFile, optional
+        The real image's camera file; None for a frame file (its camera is the rendered one).
+
+    Returns
+    -------
+    tuple
+        (pitch_deg, roll_deg) of the camera [deg, eq 21], each None when unknown.
+
+    """
+    return options.pitch_deg, options.roll_deg
+
+
 # --------------------------------------------------------------------------------------------
 # Frame files (written by ``render``)
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _MosaicPlan:
-    """How a frame's raw mosaic is demosaiced: where it starts, how, and what was assumed."""
-
-    origin_px: tuple
-    method: str
-    layout: list
-    pol45_toward: str
-    saturation_level: float | None
-    source: dict
-
-
 def frame_headings(
     frame, options: EstimateOptions, sun: Sun, seen: dict | None = None
 ) -> list[dict]:
@@ -231,11 +254,11 @@ def frame_headings(
 
     """
     estimators = make_estimators(options.methods, options.knobs, options.stride)
+    pitch, roll = camera_tilt(options)
     source = {'sun': sun.source}
     plan = None
     if frame.mosaic is not None and not options.use_stored:
-        plan = _mosaic_plan(frame)
-        source['input'] = plan.source
+        plan, source['input'] = _mosaic_plan(frame, options.ifov_k)
     else:
         source['input'] = 'stored AoP/DoP' + (
             ' (--use-stored)' if frame.mosaic is not None else ''
@@ -247,12 +270,24 @@ def frame_headings(
     for _name, est, kn in estimators:
         t0 = time.perf_counter()
         if plan is not None:
-            obs = _mosaic_observation(frame, plan, est, sun, options)
+            obs = mosaic_observation(
+                frame.mosaic,
+                frame.camera,
+                sun.azimuth_deg,
+                sun.altitude_deg,
+                plan,
+                est.pixels_needed(frame.camera),
+                pitch,
+                roll,
+                options.prior_bearing_deg,
+            )
         else:
             if stored_obs is None:
-                stored_obs = _stored_observation(frame, sun, options)
+                stored_obs = _stored_observation(
+                    frame, sun, pitch, roll, options.prior_bearing_deg
+                )
             obs = stored_obs
-        res = est.estimate(obs)
+        res = estimate_checked(est, obs)
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
         if seen is not None:
@@ -263,9 +298,14 @@ def frame_headings(
     return out
 
 
-def _mosaic_plan(frame) -> _MosaicPlan:
-    """Read from a frame's meta how to demosaic its mosaic; CompassError if it cannot be."""
-    from .demosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
+def _mosaic_plan(frame, ifov_k: float | None) -> tuple:
+    """
+    Read from a frame's meta how to read its mosaic; CompassError if it cannot be.
+
+    Returns the :class:`~polarization_compass.pipeline.front_end.MosaicReading` (IFOV check
+    ``ifov_k``, None its default) and what the output says of it (``source['input']``).
+    """
+    from .demosaic import IFOV_K_DEFAULT, IMX250MZR_LAYOUT, IMX250MZR_POL45
 
     _sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
     layout, pol45 = mos.get('layout'), mos.get('pol45_toward')
@@ -299,34 +339,19 @@ def _mosaic_plan(frame) -> _MosaicPlan:
         'saturation_level': sat,
     }
     origin = (int(round(origin[0])), int(round(origin[1])))
-    return _MosaicPlan(origin, method, layout, pol45, sat, source)
-
-
-def _mosaic_observation(frame, plan: _MosaicPlan, est, sun: Sun, options: EstimateOptions):
-    """Demosaic, from the frame's mosaic, the observation of the pixels ``est`` reads."""
-    from .demosaic import IFOV_K_DEFAULT
-    from .estimators.mosaic_input import observation_from_mosaic
-
-    return observation_from_mosaic(
-        frame.mosaic,
-        frame.camera,
-        sun.azimuth_deg,
-        sun.altitude_deg,
-        origin_px=plan.origin_px,
-        method=plan.method,
-        layout=plan.layout,
-        pol45_toward=plan.pol45_toward,
-        saturation_level=plan.saturation_level,
-        selection=est.pixels_needed(frame.camera),
-        with_intensity=frame.intensity is not None,
-        pitch_deg=options.pitch_deg,
-        roll_deg=options.roll_deg,
-        prior_bearing_deg=options.prior_bearing_deg,
-        ifov_k=IFOV_K_DEFAULT if options.ifov_k is None else options.ifov_k,
+    reading = MosaicReading(
+        layout,
+        pol45,
+        method,
+        origin,
+        sat,
+        IFOV_K_DEFAULT if ifov_k is None else ifov_k,
+        frame.intensity is not None,
     )
+    return reading, source
 
 
-def _stored_observation(frame, sun: Sun, options: EstimateOptions):
+def _stored_observation(frame, sun: Sun, pitch, roll, prior):
     """Build the observation of the frame's stored AoP/DoP (every method reads the same one)."""
     from .estimators import Observation
 
@@ -341,9 +366,9 @@ def _stored_observation(frame, sun: Sun, options: EstimateOptions):
         sun.azimuth_deg,
         sun.altitude_deg,
         frame.intensity,
-        options.pitch_deg,
-        options.roll_deg,
-        options.prior_bearing_deg,
+        pitch,
+        roll,
+        prior,
     )
 
 
@@ -427,9 +452,10 @@ def real_headings(
         One dict per method (:func:`~polarization_compass.pipeline.methods.result_row`).
 
     """
-    from .skyfit import assess_result, mark_inconsistent, sample_sky
+    from .skyfit import mark_inconsistent
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
+    pitch, roll = camera_tilt(options, cam_file)
     obs, keep = real_observation(
         inp,
         cam_file,
@@ -437,15 +463,13 @@ def real_headings(
         sun.altitude_deg,
         mask,
         options.demosaic,
-        options.pitch_deg,
-        options.roll_deg,
+        pitch,
+        roll,
         options.prior_bearing_deg,
         options.ifov_k,
     )
     check = options.sky_check
-    sample = (
-        sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity) if check else None
-    )
+    sample = observation_sky_sample(obs) if check else None
     source = {
         'sun': sun.source,
         'input': {
@@ -460,21 +484,12 @@ def real_headings(
     results, times = [], []
     for _name, est, _kn in estimators:
         t0 = time.perf_counter()
-        res = est.estimate(obs)
-        if check:
-            res = assess_result(
-                res,
-                sample,
-                sun.altitude_deg,
-                options.pitch_deg,
-                options.roll_deg,
-                options.prior_bearing_deg,
-            )
+        res = estimate_checked(est, obs, check, sample)
         times.append((time.perf_counter() - t0) * 1e3)
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
-    results = _polarizer_gated(results, inp, cam_file, sun, options, keep, source)
+    results = _polarizer_gated(results, inp, cam_file, sun, (pitch, roll), keep, source)
     if seen is not None:
         seen.update(kind=inp.kind, sun=sun, results=list(results), input=inp, mask=mask)
         seen.update(camera_file=cam_file, data_mask=keep)
@@ -482,7 +497,7 @@ def real_headings(
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
 
 
-def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: dict) -> list:
+def _polarizer_gated(results, inp, cam_file, sun: Sun, tilt: tuple, keep, source: dict) -> list:
     """
     Check the frame against the polarizer hypotheses; a contradicted convention is never ``ok``.
 
@@ -504,8 +519,7 @@ def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: di
         cam_file.layout,
         cam_file.pol45_toward,
         sun.altitude_deg,
-        options.pitch_deg,
-        options.roll_deg,
+        *tilt,
         keep,
     )
     source['polarizer_check'] = {

@@ -393,7 +393,7 @@ def view_from_seen(
             frame.mosaic,
             frame.camera,
             sun,
-            plan.method,
+            plan.demosaic,
             plan.layout,
             plan.pol45_toward,
             plan.saturation_level,
