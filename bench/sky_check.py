@@ -55,8 +55,8 @@ def run(cfg) -> dict:
     optional_import('polarization_compass.skyfit')
     from polarization_compass.estimators import estimator_names
     from polarization_compass.pipeline.real_image import real_observation
+    from polarization_compass.pipeline.sampling import observation_sky_sample
     from polarization_compass.real_input import PolarizationInput
-    from polarization_compass.skyfit import sample_sky
 
     R = _real_sky()
     i, q, u = R.read_quadrants('sunny')
@@ -72,7 +72,7 @@ def run(cfg) -> dict:
         t_sample = []
         for _ in range(repeats + 1):
             t0 = time.perf_counter()
-            sample = sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
+            sample = observation_sky_sample(obs)
             t_sample.append(time.perf_counter() - t0)
         rows = [
             _method_row(m, obs, sample, alt, repeats)
