@@ -545,7 +545,8 @@ def view_from_mosaic(
     camera : CameraModel
         The camera.
     sun : Sun
-        Where the sun was (:class:`polarization_compass.pipeline.sun.Sun`: azimuth, altitude [deg]).
+        Where the sun was (:class:`polarization_compass.pipeline.sun.Sun`: azimuth, altitude
+        [deg]).
     results : list of HeadingResult
         The results to draw.
     layout : sequence
