@@ -65,7 +65,7 @@ import time
 import traceback
 
 import numpy as np
-from polarization_compass.budget import published_sigma_floor_deg
+from polarization_compass.budget_config import published_sigma_floor_deg
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude, fold_axial_deg, wrap_180_deg
 from polarization_compass.estimators import registry

@@ -74,7 +74,7 @@ def load_error_map(path) -> ErrorMap:
     with open(p, 'rb') as fh:
         head = fh.read(4)
     if head[:3] == b'CDF':
-        from .errormap_store import read_netcdf_map
+        from .errormap_netcdf import read_netcdf_map
 
         return read_netcdf_map(p)
     return read_npz_map(p)

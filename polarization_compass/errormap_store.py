@@ -13,19 +13,7 @@
 # limitations under the License.
 
 """
-Error maps as labelled arrays: xarray Dataset, Zarr sweep store, NetCDF export.
-
-The xarray Dataset, the Zarr store a sweep writes into, and the NetCDF export.
-
-The Dataset of a map (:func:`map_to_dataset`) has
-
-``error_deg``  float64 (method, sun_altitude, yaw, pitch, roll): fold_axial(estimated psi - true
-               psi), deg
-``status``     int8, same dims: the codes of :data:`~polarization_compass.errormap.STATUS_CODES`
-coordinates    ``method`` (names) and ``sun_altitude``, ``yaw``, ``pitch``, ``roll`` in degrees
-               (attribute ``units: deg``)
-attributes     ``meta_json`` (the map's whole ``meta``, JSON), and, for a reader that does not
-               parse it, ``camera``, ``sky``, ``sampling`` (JSON) and ``package_version``.
+The Zarr store a sweep writes into, chunk by checksummed chunk, and its reader.
 
 A sweep writes into a :class:`SweepStore`, a Zarr (format 3) directory holding that Dataset plus
 the bookkeeping variable ``chunk_checksum`` (sun_altitude, pitch), uint64. The Zarr chunks of
@@ -37,23 +25,15 @@ checksum; a chunk that does not (a kill between the two writes, a damaged file) 
 and recomputed, never used. A directory that is not such a store (another program's Zarr, another
 sweep, unreadable metadata) is refused with :class:`ErrorMapError`.
 
-Exports: :func:`export_netcdf` writes one NetCDF **3** file (classic 64-bit offset format, through
-xarray's scipy engine: no HDF5/netCDF4 library needed); :meth:`ErrorMap.save` writes today's
-``.npz``. :func:`read_netcdf_map` reads such a file with ``scipy.io.netcdf_file`` only (no xarray,
-no pickle), checks the digest of its content (attribute :data:`DIGEST_ATTR`; an ``.npz`` has its
-zip CRCs) and validates it like the ``.npz`` loader (names, shapes, axes, finiteness, folding,
-status codes). Reading a store is bounded (:mod:`~polarization_compass.map_bounds`): regular files
-only, shapes declared by the metadata checked against the axes before any chunk is decoded.
-
-xarray, zarr and dask are the optional extra ``sweep`` (``pip install
-polarization_compass[sweep]``); the NetCDF reader needs only numpy and scipy.
+Reading a store is bounded (:mod:`~polarization_compass.map_bounds`): regular files only, shapes
+declared by the metadata checked against the axes before any chunk is decoded. The Dataset is
+:mod:`polarization_compass.errormap_dataset`'s; the NetCDF export
+:mod:`polarization_compass.errormap_netcdf`.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
-import os
 from pathlib import Path
 import shutil
 import sys
@@ -61,65 +41,20 @@ import sys
 import numpy as np
 
 from .errormap import AXES, ErrorMap, ErrorMapError
-from .map_bounds import check_store_files, check_store_shapes, map_digest
-from .safe_load import load_json, regular_file
+from .errormap_dataset import _attrs_from_meta, _AXIS_DIM, _coords, DIMS, require_sweep_extra
+from .map_bounds import check_store_files, check_store_shapes
+from .safe_load import load_json
 
 __all__ = [
     'SweepStore',
-    'map_to_dataset',
-    'export_netcdf',
-    'read_netcdf_map',
     'read_store_map',
     'chunk_checksum',
     'STORE_KIND',
     'STORE_FORMAT_VERSION',
-    'DIMS',
-    'require_sweep_extra',
 ]
 
 STORE_KIND = 'polarization_compass.errormap.sweep'
 STORE_FORMAT_VERSION = 1
-#: Dataset dimension of each ErrorMap axis.
-DIMS = ('method', 'sun_altitude', 'yaw', 'pitch', 'roll')
-_AXIS_DIM = dict(zip(AXES, DIMS[1:]))
-_NETCDF_MAGIC = (b'CDF\x01', b'CDF\x02')
-#: NetCDF attribute holding the digest of the map's content (integrity, as an .npz's zip CRCs).
-DIGEST_ATTR = 'content_blake2b'
-#: Largest NetCDF map file: 1 GiB (as an .npz map).
-MAX_NETCDF_BYTES = 1 << 30
-
-
-def require_sweep_extra(what: str = 'this'):
-    """
-    Import and return (xarray, zarr), naming the extra when they are missing.
-
-    Parameters
-    ----------
-    what : str, default "this"
-        What needs them, for the error message.
-
-    Returns
-    -------
-    xarray : module
-        The imported ``xarray``.
-    zarr : module
-        The imported ``zarr``.
-
-    Raises
-    ------
-    ErrorMapError
-        When either cannot be imported; the message names the optional extra ``sweep``.
-
-    """
-    try:
-        import xarray
-        import zarr
-    except ImportError as exc:
-        raise ErrorMapError(
-            f"{what} needs the optional extra 'sweep' (pip install polarization_compass[sweep], "
-            f'installed by make): {exc}'
-        ) from None
-    return xarray, zarr
 
 
 def chunk_checksum(err: np.ndarray, status: np.ndarray) -> int:
@@ -148,218 +83,6 @@ def chunk_checksum(err: np.ndarray, status: np.ndarray) -> int:
     return int.from_bytes(h.digest(), 'little') or 1
 
 
-def _attrs_from_meta(meta: dict) -> dict:
-    scene = meta.get('scene') or {}
-    return {
-        'meta_json': json.dumps(meta, sort_keys=True),
-        'camera': json.dumps(scene.get('camera'), sort_keys=True),
-        'sky': json.dumps(scene.get('sky'), sort_keys=True),
-        'sampling': json.dumps(meta.get('sampling'), sort_keys=True),
-        'package_version': str(meta.get('package_version', '')),
-    }
-
-
-def _coords(methods, axes) -> dict:
-    coords = {
-        'method': ('method', np.array(list(methods), dtype=object))
-    }  # variable-length UTF-8 in Zarr 3
-    for name, a in zip(AXES, axes):
-        coords[_AXIS_DIM[name]] = (_AXIS_DIM[name], np.asarray(a, dtype=float), {'units': 'deg'})
-    return coords
-
-
-def map_to_dataset(m: ErrorMap):
-    """
-    Return the map as an ``xarray.Dataset``.
-
-    The map is validated first. Variables ``error_deg`` [deg] and ``status`` (int8) over the dims
-    :data:`DIMS`, coordinates ``method`` and the four axes [deg], and the map's meta in the
-    attributes (module docstring).
-
-    Parameters
-    ----------
-    m : ErrorMap
-        The error map.
-
-    Returns
-    -------
-    xarray.Dataset
-        The labelled map.
-
-    Raises
-    ------
-    ErrorMapError
-        When xarray/zarr are missing (:func:`require_sweep_extra`) or the map does not validate.
-
-    """
-    xr, _ = require_sweep_extra('an xarray Dataset of a map')
-    m.validate()
-    ds = xr.Dataset(
-        {
-            'error_deg': (
-                DIMS,
-                m.error_deg,
-                {
-                    'units': 'deg',
-                    'long_name': 'fold_axial(estimated psi - true psi), in (-90, 90]',
-                },
-            ),
-            'status': (
-                DIMS,
-                m.status.astype(np.int8),
-                {'long_name': 'status code, see meta_json'},
-            ),
-        },
-        coords=_coords(m.methods, m.axes()),
-        attrs=_attrs_from_meta(m.meta),
-    )
-    return ds
-
-
-def export_netcdf(m: ErrorMap, path) -> Path:
-    """
-    Write the map as one NetCDF 3 file, atomically.
-
-    The Dataset of :func:`map_to_dataset` plus the digest of its content (attribute
-    :data:`DIGEST_ATTR`, :func:`~polarization_compass.map_bounds.map_digest`), written in the
-    classic 64-bit offset format with xarray's scipy engine to ``<path>.tmp`` and then renamed over
-    ``path``; parent directories are created.
-
-    Parameters
-    ----------
-    m : ErrorMap
-        The error map.
-    path : str or os.PathLike
-        The output file.
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-
-    Raises
-    ------
-    ErrorMapError
-        When xarray/zarr are missing or the map does not validate (:func:`map_to_dataset`).
-
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + '.tmp')
-    ds = map_to_dataset(m)
-    ds.attrs[DIGEST_ATTR] = map_digest(
-        m.error_deg, m.status, m.methods, m.axes(), ds.attrs['meta_json']
-    )
-    ds.to_netcdf(tmp, engine='scipy', format='NETCDF3_64BIT')
-    os.replace(tmp, p)
-    return p
-
-
-def _char_rows(a: np.ndarray) -> list[str]:
-    """Names stored as a NetCDF 3 char array (rows of bytes) -> str."""
-    a = np.asarray(a)
-    if a.dtype.kind == 'S' and a.ndim == 2:
-        return [b''.join(row).decode('utf-8').rstrip('\x00') for row in a]
-    if a.dtype.kind in 'SU' and a.ndim == 1:
-        return [x.decode('utf-8') if isinstance(x, bytes) else str(x) for x in a]
-    raise ValueError(f'method names must be a char array, got {a.dtype} {a.shape}')
-
-
-def read_netcdf_map(path) -> ErrorMap:
-    """
-    Load and validate a map written by :func:`export_netcdf`.
-
-    Read with ``scipy.io.netcdf_file`` only (no xarray, no pickle), after checking that it is a
-    regular file of at most :data:`MAX_NETCDF_BYTES`, the NetCDF 3 magic bytes and that the
-    header's shapes fit the file's size; its content must match its digest (:data:`DIGEST_ATTR`),
-    then it is validated like the ``.npz`` loader (:meth:`ErrorMap.validate`).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The NetCDF file.
-
-    Returns
-    -------
-    ErrorMap
-        The validated map with its meta.
-
-    Raises
-    ------
-    ErrorMapError
-        Naming the file and the reason: missing, not NetCDF 3, truncated, missing variables, wrong
-        dims, corrupt, no digest or content not matching it, ``meta_json`` not a JSON object (or
-        nested too deeply), non-float errors, or a map that does not validate.
-
-    """
-    p = regular_file(path, ErrorMapError, 'error map', MAX_NETCDF_BYTES)
-    with open(p, 'rb') as fh:
-        if fh.read(4) not in _NETCDF_MAGIC:
-            raise ErrorMapError(f'{p}: not a NetCDF 3 file')
-    methods, axes, err, status, meta_raw, digest = _read_netcdf_arrays(p)
-    if isinstance(meta_raw, bytes):
-        try:
-            meta_raw = meta_raw.decode('utf-8')
-        except UnicodeDecodeError as exc:
-            raise ErrorMapError(f'{p}: meta_json is not valid JSON ({exc})') from None
-    if err.dtype.kind != 'f':
-        raise ErrorMapError(f'{p}: error_deg must be floating point, got {err.dtype}')
-    if digest is None:
-        raise ErrorMapError(
-            f'{p}: no {DIGEST_ATTR} attribute (written by an older version?); export it again'
-        )
-    if map_digest(err, status, methods, axes, str(meta_raw)) != digest:
-        raise ErrorMapError(f'{p}: its content does not match its digest (damaged or edited)')
-    meta = load_json(str(meta_raw), f'{p}: meta_json', ErrorMapError)
-    if not isinstance(meta, dict):
-        raise ErrorMapError(f'{p}: meta_json is not valid JSON (not an object)')
-    m = ErrorMap(err.astype(float), status, tuple(methods), *axes, meta=meta)
-    try:
-        return m.validate()
-    except ErrorMapError as exc:
-        raise ErrorMapError(f'{p}: {exc}') from None
-
-
-def _read_netcdf_arrays(p: Path):
-    """Return methods, axes, errors, statuses, the meta text and the digest of a NetCDF map."""
-    from scipy.io import netcdf_file
-
-    size = p.stat().st_size
-    try:
-        with netcdf_file(p, 'r', mmap=False) as nc:
-            v = nc.variables
-            missing = [k for k in ('error_deg', 'status', *DIMS) if k not in v]
-            if missing:
-                raise ErrorMapError(f'{p}: not an error map (missing {", ".join(missing)})')
-            if tuple(v['error_deg'].dimensions) != DIMS or tuple(v['status'].dimensions) != DIMS:
-                raise ErrorMapError(f'{p}: error_deg/status must have dims {DIMS}')
-            n = int(np.prod(v['error_deg'].shape, dtype=np.int64))
-            if n * 9 > size:  # the header claims more data than the file holds
-                raise ErrorMapError(
-                    f"{p}: truncated (the header's shapes need more bytes than the file has)"
-                )
-            methods = _char_rows(v['method'].data)
-            axes = [np.array(v[_AXIS_DIM[k]].data, dtype=float) for k in AXES]
-            err = np.array(v['error_deg'].data)
-            status = np.array(v['status'].data)
-            attrs = nc._attributes  # noqa: SLF001 - scipy keeps the global attributes here
-            meta_raw = attrs.get('meta_json', b'{}')
-            digest = attrs.get(DIGEST_ATTR)
-    except ErrorMapError:
-        raise
-    # scipy raises many types on a malformed file; all mean "corrupt"
-    except Exception as exc:  # noqa: BLE001
-        raise ErrorMapError(
-            f'{p}: corrupt or not a NetCDF error map ({type(exc).__name__}: {exc})'
-        ) from None
-    if isinstance(digest, bytes):
-        digest = digest.decode('ascii', 'replace')
-    return methods, axes, err, status, meta_raw, digest
-
-
-# --------------------------------------------------------------------------------------------
-# The Zarr store a sweep writes into
-# --------------------------------------------------------------------------------------------
 class SweepStore:
     """The Zarr store of one sweep (see the module docstring). Open with :meth:`open`."""
 

@@ -13,207 +13,32 @@
 # limitations under the License.
 
 """
-Running heading-error statistics and the stamp matching behind ``error_evaluator`` (ROS-free).
-
-Error convention (the paper's): ``error_deg = estimated bearing - true bearing``, which equals
-``estimated psi - true psi``; wrapped to (-180, 180] for a method that resolves the 180 deg
-ambiguity, folded to (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`) for an
-axial one, where a heading and its opposite are the same measurement. Statistics of a stream:
-
-``count``   matched estimates
-``mean``    mean signed error (deg)              ``std``  its standard deviation (deg)
-``rms``     sqrt(mean(error^2)) (deg)            ``p95``  95th percentile of |error| (deg)
-``max``     max |error| (deg)
-
-Every sample is kept up to ``max_samples`` (default 2 million, 16 MB), so ``p95`` is exact for any
-run this project simulates; beyond that, percentiles come from a uniform reservoir sample of that
-size (deterministic seed) while count, mean, RMS, std and max stay exact.
+The stamp matching behind ``error_evaluator``: estimates paired with the truth (ROS-free).
 
 :class:`StampMatcher` pairs estimates with the ground truth by identical stamp (the estimator
 stamps its output with the image's stamp, and the simulator stamps the truth with the same stamp):
 an estimate that arrives before its truth waits (bounded), a truth frame without an estimate on a
 stream after ``horizon_ns`` counts as *missed* for that stream.
+
+Each stream's errors accumulate in a :class:`~polarization_compass.evaluation_stats.RunningStats`
+(:mod:`polarization_compass.evaluation_stats`, which also holds the error convention); the report
+files are :mod:`polarization_compass.evaluation_report`'s.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
-import csv
 from dataclasses import dataclass, field
 import math
-from pathlib import Path
 
-import numpy as np
-
-from .conventions import fold_axial_deg, wrap_180_deg
-from .errors import CompassError
+from .evaluation_stats import EvaluationError, heading_error_deg, RunningStats
 
 __all__ = [
-    'RunningStats',
-    'heading_error_deg',
     'StampMatcher',
     'Match',
-    'EvaluationError',
-    'write_samples_csv',
-    'write_summary_csv',
-    'plot_report',
-    'STAT_FIELDS',
     'YawTrack',
     'not_received',
 ]
-
-STAT_FIELDS = ('count', 'mean', 'std', 'rms', 'p95', 'max')
-
-
-class EvaluationError(CompassError):
-    """Bad evaluator input (non-finite angle, unknown stream)."""
-
-
-def heading_error_deg(estimated_bearing_deg, true_bearing_deg, axial: bool):
-    """
-    Return the estimated minus the true bearing, wrapped or folded.
-
-    Parameters
-    ----------
-    estimated_bearing_deg : float or array_like
-        Estimated bearing of camera +y [deg], clockwise from North.
-    true_bearing_deg : float or array_like
-        True bearing [deg], same frame; broadcast with the estimate.
-    axial : bool
-        True for a method that does not resolve the 180 deg ambiguity: the error is folded to
-        (-90, 90] (:func:`~polarization_compass.conventions.fold_axial_deg`); else wrapped to
-        (-180, 180].
-
-    Returns
-    -------
-    float or numpy.ndarray
-        Signed heading error [deg].
-
-    References
-    ----------
-    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
-       Polarized Skylight Orientation Determination" (the seed paper), section 4 and
-       Figs 17-19 (orientation error against the heading).
-
-    """
-    d = np.asarray(estimated_bearing_deg, dtype=float) - np.asarray(true_bearing_deg, dtype=float)
-    return fold_axial_deg(d) if axial else wrap_180_deg(d)
-
-
-class RunningStats:
-    """
-    Accumulate mean, std, RMS, p95 and max of signed errors (deg), one sample at a time.
-
-    Sums are accumulated with Welford's update (mean and variance) so that long runs do not lose
-    precision; ``max`` and the sample store are updated in O(1) amortised time. Beyond
-    ``max_samples`` the percentiles come from a uniform reservoir sample (Vitter's algorithm R).
-
-    Parameters
-    ----------
-    max_samples : int, default 2_000_000
-        Samples kept for the percentiles (8 bytes each); >= 1, else :class:`EvaluationError`.
-    seed : int, default 0
-        Seed of the reservoir sampling (deterministic summaries).
-
-    """
-
-    def __init__(self, max_samples: int = 2_000_000, seed: int = 0):
-        if max_samples < 1:
-            raise EvaluationError('max_samples must be >= 1')
-        self.max_samples = int(max_samples)
-        self.count = 0
-        self._mean = 0.0
-        self._m2 = 0.0  # sum of squared deviations from the mean (Welford)
-        self._sumsq = 0.0
-        self._max_abs = 0.0
-        self._buf = np.empty(min(1024, self.max_samples), dtype=float)
-        self._stored = 0
-        self._rng = np.random.default_rng(seed)
-
-    def add(self, error_deg: float) -> None:
-        """
-        Add one signed error.
-
-        Parameters
-        ----------
-        error_deg : float
-            Signed heading error [deg] (see :func:`heading_error_deg`).
-
-        Raises
-        ------
-        EvaluationError
-            The error is NaN or infinite (nothing is recorded).
-
-        """
-        e = float(error_deg)
-        if not math.isfinite(e):
-            raise EvaluationError(f'non-finite error {error_deg!r}')
-        self.count += 1
-        delta = e - self._mean
-        self._mean += delta / self.count
-        self._m2 += delta * (e - self._mean)
-        self._sumsq += e * e
-        self._max_abs = max(self._max_abs, abs(e))
-        if self._stored < self.max_samples:
-            if self._stored == self._buf.size:
-                grown = np.empty(min(self.max_samples, 2 * self._buf.size), dtype=float)
-                grown[: self._stored] = self._buf[: self._stored]
-                self._buf = grown
-            self._buf[self._stored] = e
-            self._stored += 1
-        else:  # reservoir sampling (Vitter's algorithm R)
-            j = int(self._rng.integers(0, self.count))
-            if j < self.max_samples:
-                self._buf[j] = e
-
-    def extend(self, errors_deg) -> None:
-        """
-        Add every error of an array, in order, as :meth:`add` does.
-
-        Parameters
-        ----------
-        errors_deg : array_like
-            Signed heading errors [deg], any shape (read flattened).
-
-        """
-        for e in np.asarray(errors_deg, dtype=float).reshape(-1):
-            self.add(e)
-
-    @property
-    def samples(self) -> np.ndarray:
-        """Read-only view of the stored errors [deg]: all of them while count <= max_samples."""
-        v = self._buf[: self._stored]
-        v.setflags(write=False)
-        return v
-
-    @property
-    def exact_percentiles(self) -> bool:
-        """Whether ``p95`` is exact (every sample kept) rather than from the reservoir."""
-        return self.count <= self.max_samples
-
-    def summary(self) -> dict:
-        """
-        Return the statistics of the errors added so far.
-
-        Returns
-        -------
-        dict
-            ``{"count": int, "mean", "std", "rms", "p95", "max": float [deg]}`` (``std`` is
-            the population standard deviation, ``p95`` and ``max`` of |error|); zeros, never
-            NaN, for an empty stream.
-
-        """
-        if self.count == 0:
-            return {k: 0 if k == 'count' else 0.0 for k in STAT_FIELDS}
-        p95 = float(np.percentile(np.abs(self._buf[: self._stored]), 95.0))
-        return {
-            'count': self.count,
-            'mean': self._mean,
-            'std': math.sqrt(max(self._m2, 0.0) / self.count),
-            'rms': math.sqrt(self._sumsq / self.count),
-            'p95': p95,
-            'max': self._max_abs,
-        }
 
 
 @dataclass
@@ -507,9 +332,6 @@ def not_received(streams: dict, name: str) -> int:
     return max(0, int(d['missed']) - declined)
 
 
-# ------------------------------------------------------------------------------------------------
-# Report files
-# ------------------------------------------------------------------------------------------------
 class YawTrack:
     """
     Sample a filter's yaw output at the truth stamps, by linear interpolation.
@@ -585,167 +407,3 @@ class YawTrack:
         self._waiting = keep
         self._prev = (t1, y1, v1)
         return out
-
-
-def write_samples_csv(path, matches: list[Match], extra_fields: tuple = ()) -> Path:
-    """
-    Write one CSV row per matched estimate.
-
-    Columns: ``stamp_s`` [s], ``stream``, ``true_bearing_deg``, ``estimated_bearing_deg``,
-    ``error_deg`` [deg], ``axial`` (0/1), then ``extra_fields``.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Output file; its directory is created.
-    matches : list of Match
-        The matches, in the order to write.
-    extra_fields : tuple of str, default ()
-        Keys of :attr:`Match.extra` to add as columns (empty where a match lacks one).
-
-    Returns
-    -------
-    pathlib.Path
-        The file written.
-
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open('w', newline='') as f:
-        w = csv.writer(f)
-        w.writerow(
-            [
-                'stamp_s',
-                'stream',
-                'true_bearing_deg',
-                'estimated_bearing_deg',
-                'error_deg',
-                'axial',
-                *extra_fields,
-            ]
-        )
-        for m in matches:
-            w.writerow(
-                [
-                    f'{m.stamp_ns / 1e9:.9f}',
-                    m.stream,
-                    f'{m.true_bearing_deg:.6f}',
-                    f'{m.estimated_bearing_deg:.6f}',
-                    f'{m.error_deg:.6f}',
-                    int(m.axial),
-                    *[m.extra.get(k, '') for k in extra_fields],
-                ]
-            )
-    return p
-
-
-def write_summary_csv(path, summary: dict, extra: dict | None = None) -> Path:
-    """
-    Write one CSV row per stream with its :meth:`StampMatcher.summary` fields.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Output file; its directory is created.
-    summary : dict
-        ``{stream: fields}`` as :meth:`StampMatcher.summary` returns.
-    extra : dict, optional
-        ``{stream: {column: value}}``: more columns (sorted by name), empty where missing.
-
-    Returns
-    -------
-    pathlib.Path
-        The file written.
-
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    extra = extra or {}
-    extra_cols = sorted({k for v in extra.values() for k in v})
-    cols = [
-        'stream',
-        *STAT_FIELDS,
-        'received',
-        'matched',
-        'missed',
-        'unmatched',
-        'axial',
-        *extra_cols,
-    ]
-    with p.open('w', newline='') as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for name, d in summary.items():
-            row = [name]
-            for c in cols[1:]:
-                v = d.get(c, extra.get(name, {}).get(c, ''))
-                row.append(
-                    f'{v:.6f}' if isinstance(v, float) else (int(v) if isinstance(v, bool) else v)
-                )
-            w.writerow(row)
-    return p
-
-
-def plot_report(path, matches: list[Match], title: str = '') -> Path | None:
-    """
-    Plot the error against the true bearing per stream, one panel per method.
-
-    Like the paper's Fig 17. Streams named ``<method>/raw`` and ``<method>/corrected`` share a
-    panel; each legend entry gives the stream's RMS error [deg].
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Output image (format from the suffix, e.g. ``.png``); its directory is created.
-    matches : list of Match
-        The matched estimates.
-    title : str, default ""
-        Figure title, none when empty.
-
-    Returns
-    -------
-    pathlib.Path or None
-        The file written, or None when there is nothing to plot.
-
-    References
-    ----------
-    .. [1] H. Liang, H. Bai, T. Zhou and K. Shen, "Influence of Sensor Tilts on Bio-inspired
-       Polarized Skylight Orientation Determination" (the seed paper), section 4 and
-       Figs 17-19 (orientation error against the heading).
-
-    """
-    if not matches:
-        return None
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    by_stream: dict[str, list[Match]] = {}
-    for m in matches:
-        by_stream.setdefault(m.stream, []).append(m)
-    methods = sorted({s.split('/')[0] for s in by_stream})
-    n = len(methods)
-    fig, axes = plt.subplots(
-        n, 1, figsize=(8.0, 2.4 * n + 0.6), dpi=100, sharex=True, squeeze=False
-    )
-    for ax, method in zip(axes[:, 0], methods):
-        for name in sorted(s for s in by_stream if s.split('/')[0] == method):
-            ms = sorted(by_stream[name], key=lambda m: m.stamp_ns)
-            x = np.array([m.true_bearing_deg for m in ms])
-            y = np.array([m.error_deg for m in ms])
-            label = name.split('/', 1)[1] if '/' in name else name
-            ax.plot(x, y, '.', ms=3, label=f'{label} (rms {math.sqrt(float(np.mean(y * y))):.2f})')
-        ax.axhline(0.0, color='0.5', lw=0.6)
-        ax.set_ylabel(f'{method}\nerror, deg')
-        ax.legend(loc='upper right', fontsize=7)
-        ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel('true bearing of camera +y, deg clockwise from North')
-    if title:
-        fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(p)
-    plt.close(fig)
-    return p

@@ -48,7 +48,7 @@ def save_polarizer_figure(
     Parameters
     ----------
     report : dict
-        :func:`polarization_compass.polarizer_check.check_polarizer_files`'s report.
+        :func:`polarization_compass.polarizer_files.check_polarizer_files`'s report.
     paths : sequence of str
         The inputs it was run on.
     camera_yaml : str
@@ -67,7 +67,8 @@ def save_polarizer_figure(
     from matplotlib.figure import Figure
 
     from .camera import load_camera_yaml
-    from .polarizer_check import _masks, _read_inputs, polarizer_hypotheses
+    from .polarizer_check import polarizer_hypotheses
+    from .polarizer_files import _masks, _read_inputs
 
     cf = load_camera_yaml(camera_yaml)
     inputs, shapes = _read_inputs(paths, bits, cf.camera.shape)
@@ -113,7 +114,8 @@ def _panel(ax, res, title: str):
 
 def _residual(camera, inp, hyp, frame: dict, mask, pitch_deg, roll_deg):
     """Return one input's residual map under one hypothesis, downscaled; None without a fit."""
-    from .polarizer_check import _aop_for, plane_rays
+    from .polarizer_check import _aop_for
+    from .polarizer_files import plane_rays
     from .sky_view import aop_residual_deg
     from .skyfit import data_mask
 

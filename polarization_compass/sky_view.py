@@ -500,7 +500,7 @@ def _real_reasons(seen, demosaic):
     """Return the real image's observation and its reasons: lens, user mask, glare, IFOV."""
     from .demosaic import aop_dop_from_stokes
     from .pipeline import real_image
-    from .polarizer_check import plane_rays
+    from .polarizer_files import plane_rays
 
     inp, cam_file, keep = seen['input'], seen['camera_file'], np.asarray(seen['data_mask'], bool)
     obs = next(iter(seen['observations'].values()))

@@ -18,7 +18,8 @@ Per-process evaluation of error-map sweep cells, shared by every sweep backend.
 :class:`CellEvaluator` holds one estimator per method and one renderer per distinct pixel
 selection; the in-process driver (:mod:`polarization_compass.sweep`) and the Dask workers
 (:mod:`polarization_compass.sweep_dask`) both build it from a
-:class:`~polarization_compass.sweep.SweepSpec`, so the two cannot differ in what a cell computes.
+:class:`~polarization_compass.sweep_spec.SweepSpec`, so the two cannot differ in what a cell
+computes.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ class CellEvaluator:
     sigma=False)``): a map stores psi's error and the status only.
     """
 
-    def __init__(self, spec):  # a sweep.SweepSpec (not imported: sweep imports this module)
+    def __init__(self, spec):  # a sweep_spec.SweepSpec
         from .estimators import make_estimator
         from .render import Renderer
 

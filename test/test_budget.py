@@ -25,12 +25,12 @@ import json
 import math
 
 import numpy as np
-from polarization_compass.budget import (
+from polarization_compass.budget import run_budget
+from polarization_compass.budget_config import (
     BudgetConfig,
     BudgetError,
     declared_sources,
     parse_imu,
-    run_budget,
 )
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.cli import main
@@ -197,7 +197,8 @@ def test_sigma_calibration_uses_the_published_floor_and_keeps_the_raw_figure():
     Hand-computed: errors 0.002 and 0.03 deg with sigmas 1e-4 and 0.02 deg give a raw
     mean((e/s)^2) = (20^2 + 1.5^2) / 2 and, with the 0.01 deg floor, (0.2^2 + 1.5^2) / 2.
     """
-    from polarization_compass.budget import _stats, BudgetConfig, published_sigma_floor_deg
+    from polarization_compass.budget import _stats
+    from polarization_compass.budget_config import BudgetConfig, published_sigma_floor_deg
     from polarization_compass.specs.params import defaults, ESTIMATOR
 
     assert published_sigma_floor_deg() == defaults(ESTIMATOR)['sigma_floor_deg'] == 0.01

@@ -108,13 +108,15 @@ def test_ekf_refuses_the_sim_options_the_fusion_graph_lacks(started, argv, flag,
 
 def _fake_ekf(monkeypatch, tmp_path):
     from polarization_compass.cli import cmd_sim
+    from polarization_compass.graphs import processes
 
     exe = tmp_path / 'lib' / 'robot_localization' / 'ekf_node'
-    monkeypatch.setattr(
-        cmd_sim,
-        'foreign_executable',
-        lambda pkg, name: exe if (pkg, name) == ('robot_localization', 'ekf_node') else None,
-    )
+    for module in (cmd_sim, processes):  # the option check and the graph runner
+        monkeypatch.setattr(
+            module,
+            'foreign_executable',
+            lambda pkg, name: exe if (pkg, name) == ('robot_localization', 'ekf_node') else None,
+        )
     return exe
 
 
@@ -123,6 +125,7 @@ def test_ekf_runs_the_fusion_graph_with_ekf_node_from_the_ament_index(
 ):
     from polarization_compass import graphs
     from polarization_compass.cli import cmd_sim
+    from polarization_compass.graphs import processes
 
     exe = _fake_ekf(monkeypatch, tmp_path)
     out = tmp_path / 'fusion'
@@ -139,9 +142,9 @@ def test_ekf_runs_the_fusion_graph_with_ekf_node_from_the_ament_index(
         'least_squares=/odometry/filtered',
         'odometry=/odometry/filtered_none',
     ]
-    assert cmd_sim._node_command(ekfs[0]) == [str(exe)]
+    assert processes._node_command(ekfs[0]) == [str(exe)]
     est = next(n for n in graph.nodes if n.executable == 'heading_estimator')
-    assert cmd_sim._node_command(est) == graphs.node_command('heading_estimator')
+    assert processes._node_command(est) == graphs.node_command('heading_estimator')
     # without --ekf: the sim graph, no filter, every paper method
     with pytest.raises(_Started):
         cmd_sim.run(_args(['sim', '--out', str(tmp_path / 'sim')]))
@@ -167,7 +170,7 @@ def _args(argv):
 
 
 def test_table_prints_the_fused_rows():
-    from polarization_compass.cli.cmd_sim import format_table
+    from polarization_compass.evaluation_report import format_table
 
     def row(rms, lat=12.0):
         return {
@@ -226,7 +229,7 @@ def test_the_share_dir_holds_the_ekf_config():
 
 
 def _ekf_node_installed() -> bool:
-    from polarization_compass.cli.cmd_sim import foreign_executable
+    from polarization_compass.graphs.processes import foreign_executable
 
     return foreign_executable('robot_localization', 'ekf_node') is not None
 

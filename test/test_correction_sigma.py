@@ -24,7 +24,8 @@ against the spread of its draws; and the budget's sigma calibration with a known
 import math
 
 import numpy as np
-from polarization_compass.budget import BudgetConfig, run_budget
+from polarization_compass.budget import run_budget
+from polarization_compass.budget_config import BudgetConfig
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.correction import TiltCorrector

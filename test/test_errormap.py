@@ -35,7 +35,8 @@ from polarization_compass.errormap import (
 )
 from polarization_compass.errormap_io import load_error_map
 from polarization_compass.estimators import estimator_names, registry
-from polarization_compass.sweep import parse_range, run_sweep, SweepSpec
+from polarization_compass.sweep import run_sweep
+from polarization_compass.sweep_spec import parse_range, SweepSpec
 import pytest
 
 PAPER_METHODS = registry.paper_methods()  # the class facts, as the sweep reads them

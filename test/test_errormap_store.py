@@ -33,17 +33,13 @@ pytest.importorskip(
 # after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
 from polarization_compass.cli import main  # noqa: E402, I100
 from polarization_compass.errormap import ErrorMap, ErrorMapError  # noqa: E402
+from polarization_compass.errormap_dataset import DIMS, map_to_dataset  # noqa: E402
 from polarization_compass.errormap_io import load_error_map  # noqa: E402
-from polarization_compass.errormap_store import (  # noqa: E402
-    chunk_checksum,
-    DIMS,
-    export_netcdf,
-    map_to_dataset,
-    read_netcdf_map,
-    SweepStore,
-)
+from polarization_compass.errormap_netcdf import export_netcdf, read_netcdf_map  # noqa: E402
+from polarization_compass.errormap_store import chunk_checksum, SweepStore  # noqa: E402
 from polarization_compass.map_bounds import map_digest  # noqa: E402
-from polarization_compass.sweep import run_sweep, SweepSpec  # noqa: E402
+from polarization_compass.sweep import run_sweep  # noqa: E402
+from polarization_compass.sweep_spec import SweepSpec  # noqa: E402
 import xarray as xr  # noqa: E402
 import zarr  # noqa: E402
 

@@ -166,7 +166,8 @@ def _random_pixels(rng, n: int, dop_lo: float):
 
 
 def test_compiled_lift_matches_conventions():
-    from polarization_compass.estimators._kernels import full_pass, grid_segments
+    from polarization_compass.estimators._block_layout import grid_segments
+    from polarization_compass.estimators._kernels import full_pass
 
     aop, dop, rays, valid = _random_pixels(np.random.default_rng(2), 40 * 30, dop_lo=0.05)
     segs = grid_segments((1.0, 1.0, 40), (1.0, 1.0, 30), 8)
@@ -197,7 +198,8 @@ def test_row_wise_pass_matches_numpy_per_block(keys):
     valid and non-finite counts, with NaN/inf planted in valid and invalid pixels and a min_dop
     cut.
     """
-    from polarization_compass.estimators._kernels import full_pass, grid_layout
+    from polarization_compass.estimators._block_layout import grid_layout
+    from polarization_compass.estimators._kernels import full_pass
 
     rng = np.random.default_rng(5)
     xs, ys = [], []
@@ -230,7 +232,7 @@ def test_row_wise_pass_matches_numpy_per_block(keys):
     assert acc['considered'] == int(valid.sum())
     assert acc['nonfinite'] == int((valid & ~finite).sum()) > 0
     # the per-segment kernel (pixel lists) on the same pixels: the same blocks and counts
-    from polarization_compass.estimators._kernels import list_segments
+    from polarization_compass.estimators._block_layout import list_segments
 
     order, segs = list_segments(x, y, 8)
     acc2 = full_pass(

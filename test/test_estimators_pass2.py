@@ -27,7 +27,7 @@ import math
 import numpy as np
 from polarization_compass.estimators._common import axial_residual_rad, rayleigh_aop_rad
 from polarization_compass.estimators._disc import DiscRing, taper
-from polarization_compass.estimators._disc_estimator import _blocks
+from polarization_compass.estimators._disc_sigma import _blocks
 from polarization_compass.estimators._mirror import NO_MIRROR
 from polarization_compass.estimators._sm_asm_kernels import band_terms2
 from polarization_compass.estimators._symmetry_kernels import ring_pass1, ring_terms2

@@ -322,8 +322,8 @@ def test_disc_and_least_squares_sigmas_use_the_same_cr1_factor():
     The compiled least-squares block sigma and the disc methods' block sigma agree with a plain
     sandwich times the factor, for the same block sums (n = 40 pixels, 3 blocks).
     """
-    from polarization_compass.estimators._disc_estimator import cr1_sigma
-    from polarization_compass.estimators.least_squares import _block_sigmas
+    from polarization_compass.estimators._disc_sigma import cr1_sigma
+    from polarization_compass.estimators._ls_sigma import _block_sigmas
 
     b = np.array([0.3, -0.1, 0.25])
     want = math.sqrt(float(b @ b) * (3 / 2) * (39 / 38))

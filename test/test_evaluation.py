@@ -20,15 +20,13 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
-from polarization_compass.evaluation import (
-    EvaluationError,
-    heading_error_deg,
+from polarization_compass.evaluation import StampMatcher
+from polarization_compass.evaluation_report import (
     plot_report,
-    RunningStats,
-    StampMatcher,
     write_samples_csv,
     write_summary_csv,
 )
+from polarization_compass.evaluation_stats import EvaluationError, heading_error_deg, RunningStats
 import pytest
 
 

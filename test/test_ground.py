@@ -29,7 +29,7 @@ import math
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import instrumentation
-from polarization_compass.budget import BudgetConfig, declared_sources, SOURCES, without
+from polarization_compass.budget_config import BudgetConfig, declared_sources, SOURCES, without
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.ground import (
     brewster_angle_deg,

@@ -35,7 +35,8 @@ pytest.importorskip('xarray', reason="the 'sweep' extra (installed by make) is n
 from polarization_compass.cli import main  # noqa: E402, I100
 from polarization_compass.errormap import ErrorMap, ErrorMapError  # noqa: E402
 from polarization_compass.errormap_io import load_error_map  # noqa: E402
-from polarization_compass.errormap_store import export_netcdf, SweepStore  # noqa: E402
+from polarization_compass.errormap_netcdf import export_netcdf  # noqa: E402
+from polarization_compass.errormap_store import SweepStore  # noqa: E402
 from polarization_compass.sweep import SweepSpec  # noqa: E402
 
 
@@ -154,7 +155,7 @@ def test_a_netcdf_map_without_its_digest_is_refused(tmp_path):
 
 
 def test_nested_netcdf_meta_json_is_a_user_error(tmp_path):
-    from polarization_compass.errormap_store import map_to_dataset
+    from polarization_compass.errormap_dataset import map_to_dataset
     from polarization_compass.map_bounds import map_digest
 
     m = _map()

@@ -25,7 +25,8 @@ import math
 
 import numpy as np
 from polarization_compass import conventions as cv
-from polarization_compass.budget import _samples, BudgetConfig, without
+from polarization_compass.budget import _samples
+from polarization_compass.budget_config import BudgetConfig, without
 from polarization_compass.estimators import _kernels as kern
 from polarization_compass.estimators import jackknife as jk
 from polarization_compass.estimators import make_estimator, Observation

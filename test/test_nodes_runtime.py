@@ -359,12 +359,13 @@ def test_evaluator_reads_the_players_best_effort_clock(ctx, tmp_path):
 # --------------------------------------------------------------------------------------------
 def fake_wall_clock(monkeypatch, start: float):
     """
-    Replace the simulator module's ``time`` with a fake monotonic clock.
+    Replace the simulator modules' ``time`` with a fake monotonic clock.
 
     Its monotonic() is ``wall[0]`` (returned: the caller advances it); perf_counter and time_ns
-    stay real.
+    stay real. The node's module and its scheduler's (``sky_simulator_clock``) both read it.
     """
     from polarization_compass.nodes import sky_simulator as S
+    from polarization_compass.nodes import sky_simulator_clock as C
 
     wall = [start]
 
@@ -379,6 +380,7 @@ def fake_wall_clock(monkeypatch, start: float):
         time_ns = staticmethod(time.time_ns)
 
     monkeypatch.setattr(S, 'time', FakeTime)
+    monkeypatch.setattr(C, 'time', FakeTime)
     return wall
 
 

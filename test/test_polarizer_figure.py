@@ -27,8 +27,9 @@ import numpy as np
 from polarization_compass.camera import CameraModel, PixelSelection
 from polarization_compass.conventions import CameraAttitude
 from polarization_compass.demosaic import IMX250MZR_LAYOUT, parse_layout
-from polarization_compass.polarizer_check import check_polarizer_files, polarizer_hypotheses
+from polarization_compass.polarizer_check import polarizer_hypotheses
 from polarization_compass.polarizer_figure import _residual, save_polarizer_figure
+from polarization_compass.polarizer_files import check_polarizer_files
 from polarization_compass.render import Renderer, SunDirection
 from polarization_compass.scene import Scene
 

@@ -194,7 +194,7 @@ def test_toy_in_the_cli(toys, tmp_path, capsys):
 
 
 def test_toy_in_the_node_params_and_pipeline(toys):
-    from polarization_compass.cli.cmd_sim import format_table
+    from polarization_compass.evaluation_report import format_table
     from polarization_compass.pipeline import TiltAndPrior
     from polarization_compass.specs import params as P
 

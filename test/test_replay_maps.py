@@ -31,7 +31,7 @@ pytest.importorskip('xarray', reason="the 'sweep' extra (installed by make) is n
 
 from polarization_compass.bag.topic_map import default_topic_map  # noqa: E402, I100
 from polarization_compass.correction import TiltCorrector  # noqa: E402
-from polarization_compass.errormap_store import export_netcdf  # noqa: E402
+from polarization_compass.errormap_netcdf import export_netcdf  # noqa: E402
 from polarization_compass.nodes.tilt_corrector import load_corrector  # noqa: E402
 from polarization_compass.replay import (  # noqa: E402
     FramePipeline,

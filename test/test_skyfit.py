@@ -268,7 +268,7 @@ def test_outlier_trim_pass_matches_an_independent_aop_residual():
     """
     import dataclasses
 
-    from polarization_compass.estimators.least_squares import _trim_outliers
+    from polarization_compass.estimators._outlier_trim import _trim_outliers
 
     rng = np.random.default_rng(3)
     n = 20000

@@ -42,7 +42,8 @@ pytest.importorskip(
 )
 
 # after the importorskip / skip above, hence E402 (not at the top) and I100 (after pytest)
-from polarization_compass.sweep import parse_range, run_sweep, SweepSpec  # noqa: E402, I100
+from polarization_compass.sweep import run_sweep  # noqa: E402, I100
+from polarization_compass.sweep_spec import parse_range, SweepSpec  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 # small, but a few seconds of work, in 8 chunks of a few tenths of a second each
@@ -296,7 +297,8 @@ def test_an_error_budget_on_the_cluster_equals_the_in_process_one(cluster):
     The Monte Carlo budget's (condition, block of samples) tasks on the loopback cluster give the
     same statistics as the in-process run on one numba thread (blocks joined in sample order).
     """
-    from polarization_compass.budget import BudgetConfig, run_budget
+    from polarization_compass.budget import run_budget
+    from polarization_compass.budget_config import BudgetConfig
     from polarization_compass.camera import CameraModel, PixelSelection
     from polarization_compass.motion import MountingErrors
     from polarization_compass.runtime import single_threaded_kernels

@@ -94,7 +94,7 @@ def register(sub):
 
 def _writable_dir(out: Path) -> Path:
     """Create ``out`` (and its parents) and check that files can be written into it."""
-    from ..budget import BudgetError
+    from ..budget_config import BudgetError
 
     if out.exists() and not out.is_dir():
         raise BudgetError(f'--out {str(out)!r} exists and is not a directory')
@@ -108,15 +108,8 @@ def _writable_dir(out: Path) -> Path:
 
 
 def run(args) -> int:
-    from ..budget import (
-        BudgetConfig,
-        BudgetError,
-        check_config,
-        parse_imu,
-        plot_budget,
-        run_budget,
-        SIGMA_BAND,
-    )
+    from ..budget import plot_budget, run_budget, SIGMA_BAND
+    from ..budget_config import BudgetConfig, BudgetError, check_config, parse_imu
     from ..scene import load_scene
 
     if args.samples < 1 or args.samples > 100000:

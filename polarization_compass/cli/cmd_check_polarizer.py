@@ -73,7 +73,7 @@ def register(sub):
 def run(args) -> int:
     import numpy as np
 
-    from ..polarizer_check import check_polarizer_files
+    from ..polarizer_files import check_polarizer_files
 
     check_range('sun-altitude', args.sun_altitude, -90, 90)
     check_range('pitch', args.pitch, -89.999, 89.999)

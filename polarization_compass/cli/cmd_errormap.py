@@ -155,7 +155,8 @@ def parse_methods(text: str) -> list[str]:
 
 
 def run(args) -> int:
-    from ..sweep import parse_range, run_sweep, SweepSpec
+    from ..sweep import run_sweep
+    from ..sweep_spec import parse_range, SweepSpec
 
     methods = _selected_methods(args)
     axes = {

@@ -41,9 +41,10 @@ cover a full turn with a uniform step (it is periodic).
 
 Angles in degrees; psi is the paper's yaw (bearing minus sun azimuth), (-180, 180].
 
-Modules: :mod:`.corrector` (:class:`TiltCorrector`, the shipped map), :mod:`.results` (what a
-correction returns), :mod:`.weights` (interpolation weights) and :mod:`.kernels` (the compiled
-curve and inversion); the names below are the package's documented surface.
+Modules: :mod:`.corrector` (:class:`TiltCorrector`, the shipped map), :mod:`.sensitivity` (its
+derivatives with respect to the attitude), :mod:`.results` (what a correction returns),
+:mod:`.weights` (interpolation weights) and :mod:`.kernels` (the compiled curve and inversion); the
+names below are the package's documented surface.
 """
 
 from .corrector import (

@@ -12,7 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The tilt corrector of one method: :class:`TiltCorrector` and the shipped map's location."""
+"""
+The tilt corrector of one method: :class:`TiltCorrector` and the shipped map's location.
+
+Its derivatives with respect to the attitude (``error_gradient``, ``heading_sensitivity``,
+``attitude_sigma_deg``) are inherited from :mod:`.sensitivity`.
+"""
 
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ import numpy as np
 
 from .kernels import _accumulate_curves, _invert_kernel
 from .results import _FROM_INT, BearingCorrections, Correction, CorrectionStatus, STATUS_INT
+from .sensitivity import _AttitudeSensitivity
 from .weights import _axis_weights, _is_uniform, _yaw_weights
 from ..conventions import psi_to_bearing_deg, wrap_180_deg
 from ..errormap import ErrorMap, ErrorMapError
@@ -39,9 +45,6 @@ REGENERATE_DEFAULT_MAP = (
 
 #: Roots listed per query (a yaw search window of 180 deg holds a handful at most).
 _MAX_ROOTS = 16
-#: Floor of |1 + de/dpsi| in :meth:`TiltCorrector.heading_sensitivity` (a slope that small means
-#: roots about to coalesce: the inversion's status already says ``multiple_solutions``).
-_MIN_SLOPE = 0.05
 
 
 def default_map_path() -> Path:
@@ -60,7 +63,7 @@ def default_map_path() -> Path:
 # --------------------------------------------------------------------------------------------
 # The corrector
 # --------------------------------------------------------------------------------------------
-class TiltCorrector:
+class TiltCorrector(_AttitudeSensitivity):
     """
     Correct one method's headings with a tilt error map.
 
@@ -216,151 +219,6 @@ class TiltCorrector:
     def _eval_on_curve(self, curve, rows, psi, deriv: bool = False):
         idx, w = _yaw_weights(self.yaw0, self.yaw_step, self.n_yaw, psi, self.order, deriv)
         return np.sum(curve[rows[..., None], idx] * w, axis=-1)
-
-    def _tilt_grad_curves(self, h, p, r, order):
-        """d(curve)/d(pitch) and d(curve)/d(roll) over the yaw nodes (N, Y) at ``order``."""
-        (ia, wa), (ip, wp), (ir, wr), inside = self._tilt_weights(h, p, r, order)
-        _, dwp, _ = _axis_weights(self.pitch, p, order, deriv=True)
-        _, dwr, _ = _axis_weights(self.roll, r, order, deriv=True)
-        ok = inside.copy()
-        c = np.ascontiguousarray
-        gp = _accumulate_curves(self.E, self.V, c(ia), c(wa), c(ip), c(dwp), c(ir), c(wr), ok)
-        gr = _accumulate_curves(self.E, self.V, c(ia), c(wa), c(ip), c(wp), c(ir), c(dwr), ok)
-        return gp, gr, ok, inside
-
-    def error_gradient(self, psi_deg, h_deg, pitch_deg, roll_deg):
-        """
-        Differentiate the interpolated error map at given yaws, as :meth:`predicted_error` reads.
-
-        The derivatives of the interpolant itself (Keys' cubic convolution is C1; multilinear cells
-        have one-sided derivatives at nodes), with the same cubic/multilinear choice per point as
-        :meth:`curves`.
-
-        Parameters
-        ----------
-        psi_deg : float or array_like
-            Yaw psi [deg] (eq 21).
-        h_deg : float or array_like
-            Sun altitude [deg].
-        pitch_deg, roll_deg : float or array_like
-            Camera pitch alpha and roll beta [deg] (eq 21), broadcast together.
-
-        Returns
-        -------
-        de_dpsi, de_dpitch, de_droll : numpy.ndarray
-            Partial derivatives of the error ``e(psi, h, pitch, roll)`` [deg/deg], shape (N,); 0
-            where not ok.
-        ok : numpy.ndarray
-            bool (N,), as :meth:`predicted_error`.
-
-        References
-        ----------
-        .. [1] R. Keys, "Cubic convolution interpolation for digital image processing", IEEE
-           Transactions on Acoustics, Speech, and Signal Processing 29(6): 1153-1160, 1981.
-
-        """
-        psi, h, p, r = (
-            np.atleast_1d(np.asarray(v, dtype=float))
-            for v in np.broadcast_arrays(psi_deg, h_deg, pitch_deg, roll_deg)
-        )
-        curve, ok = self.curves(h, p, r)
-        gp, gr, _, inside = self._tilt_grad_curves(h, p, r, self.order)
-        if self.order == 3:
-            _, ok3, _ = self._curves_order(h, p, r, 3)
-            bad = ~ok3 & inside
-            if bad.any():  # the points :meth:`curves` read multilinearly
-                gp1, gr1, _, _ = self._tilt_grad_curves(h[bad], p[bad], r[bad], 1)
-                gp[bad], gr[bad] = gp1, gr1
-        rows = np.arange(psi.size)
-        out = (
-            self._eval_on_curve(curve, rows, psi, deriv=True),
-            self._eval_on_curve(gp, rows, psi),
-            self._eval_on_curve(gr, rows, psi),
-        )
-        return tuple(np.where(ok, v, 0.0) for v in out) + (ok,)
-
-    def heading_sensitivity(self, psi_deg, h_deg, pitch_deg, roll_deg, mode: str = 'invert'):
-        """
-        Return how the corrected yaw moves with the pitch and roll the correction is given.
-
-        ``invert`` solves ``psi + e(psi, pitch, roll) = psi_meas``, so by the implicit function
-        theorem ``d psi / d pitch = -(de/dpitch) / (1 + de/dpsi)`` at the corrected ``psi`` (the
-        denominator's magnitude floored at 0.05: where it vanishes the inversion has coalescing
-        roots and the status is already ``multiple_solutions``); ``subtract`` computes ``psi =
-        psi_meas - e(psi_meas, pitch, roll)``, so ``-de/dpitch`` at the measured yaw. The
-        attitude's share of the corrected heading's variance is then ``J Sigma_att J^T``.
-
-        Parameters
-        ----------
-        psi_deg : float or array_like
-            The corrected yaw psi [deg] for ``invert``, the measured one for ``subtract``.
-        h_deg : float or array_like
-            Sun altitude [deg].
-        pitch_deg, roll_deg : float or array_like
-            Camera pitch alpha and roll beta [deg] (eq 21) the correction used, broadcast together.
-        mode : {"invert", "subtract"}, default "invert"
-            The correction's mode.
-
-        Returns
-        -------
-        dpsi_dpitch, dpsi_droll : numpy.ndarray
-            [deg/deg], shape (N,); 0 where not ok.
-        ok : numpy.ndarray
-            bool (N,), as :meth:`predicted_error`.
-
-        Raises
-        ------
-        ErrorMapError
-            Unknown ``mode``.
-
-        """
-        if mode not in ('invert', 'subtract'):
-            raise ErrorMapError(f"correction mode must be 'invert' or 'subtract', got {mode!r}")
-        e_psi, e_p, e_r, ok = self.error_gradient(psi_deg, h_deg, pitch_deg, roll_deg)
-        if mode == 'subtract':
-            return -e_p, -e_r, ok
-        den = 1.0 + e_psi
-        den = np.where(np.abs(den) < _MIN_SLOPE, np.copysign(_MIN_SLOPE, den), den)
-        return -e_p / den, -e_r / den, ok
-
-    def attitude_sigma_deg(
-        self,
-        psi_deg,
-        h_deg,
-        pitch_deg,
-        roll_deg,
-        pitch_sigma_deg,
-        roll_sigma_deg,
-        mode: str = 'invert',
-    ):
-        """
-        Propagate the attitude's uncertainty into the corrected yaw: ``sqrt(J Sigma_att J^T)``.
-
-        ``J`` is :meth:`heading_sensitivity`; ``Sigma_att = diag(pitch_sigma^2, roll_sigma^2)``
-        (pitch and roll errors taken as uncorrelated).
-
-        Parameters
-        ----------
-        psi_deg, h_deg, pitch_deg, roll_deg : float or array_like
-            As :meth:`heading_sensitivity` [deg].
-        pitch_sigma_deg, roll_sigma_deg : float or array_like
-            1-sigma uncertainty of the pitch and roll the correction was given [deg].
-        mode : {"invert", "subtract"}, default "invert"
-            The correction's mode.
-
-        Returns
-        -------
-        sigma_deg : numpy.ndarray
-            1-sigma of the corrected yaw due to the attitude [deg], shape (N,); 0 where not ok.
-        ok : numpy.ndarray
-            bool (N,).
-
-        """
-        jp, jr, ok = self.heading_sensitivity(psi_deg, h_deg, pitch_deg, roll_deg, mode)
-        sp, sr = np.broadcast_arrays(
-            np.asarray(pitch_sigma_deg, dtype=float), np.asarray(roll_sigma_deg, dtype=float)
-        )
-        return np.where(ok, np.hypot(jp * sp, jr * sr), 0.0), ok
 
     def predicted_error(self, psi_true_deg, h_deg, pitch_deg, roll_deg):
         """

@@ -72,6 +72,7 @@ __all__ = [
     'resolve_ambiguity',
     'psi_from_sun_rad',
     'level_sun_candidates',
+    'sun_side_candidates',
     'rayleigh_aop_rad',
 ]
 
@@ -287,6 +288,31 @@ def level_sun_candidates(psi_rad: float, altitude_deg: float) -> tuple[Candidate
         Candidate(psi_rad, sun_from_psi_level(psi_rad, h)),
         Candidate(other, sun_from_psi_level(other, h)),
     )
+
+
+def sun_side_candidates(f) -> tuple[Candidate, Candidate]:
+    """
+    Return the two headings of a sun known up to sign, the upper one first.
+
+    The headings of ``+s`` and ``-s`` (psi of the levelled sun ``s_h`` and of ``-s_h``), ordered by
+    the sign of the side frame's elevation (``s_sign[2] >= 0`` first): the pair that the sun's side
+    rules of the camera methods and of the photodiode arrays choose between.
+
+    Parameters
+    ----------
+    f : SunFrames
+        The fitted sun's frames (:func:`.sun_from_evectors.sun_frames`): ``s``, ``s_h`` and
+        ``s_sign`` are read.
+
+    Returns
+    -------
+    tuple of Candidate
+        ``(upper, lower)``: the candidate with the sun above the side frame's horizon, the other.
+
+    """
+    s, s_h = f.s, f.s_h
+    cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
+    return cands if f.s_sign[2] >= 0 else cands[::-1]
 
 
 def result_from(

@@ -26,32 +26,31 @@ import math
 
 import numpy as np
 
+from ._axis_solve import AxisFit, MIN_CONDITIONING, refine_axis, solve_axes
 from ._common import (
     brightness_t_from_stats,
     Candidate,
-    cr1_factor,
     finish_sigma_deg,
     level_sun_candidates,
     resolve_ambiguity,
     result_from,
 )
-from ._disc import _block_sums, disc_radius, disc_selection, level_rss_many
-from ._knobs import Knob, KnobbedEstimator
-from ._mirror import (
-    AxisFit,
-    MIN_CONDITIONING,
-    mirror_map,
-    MirrorMap,
-    refine_axis,
-    solve_axes,
-    view_covers_disc,
+from ._disc import disc_radius, disc_selection, level_rss_many
+from ._disc_sigma import (
+    _blocks,
+    COARSE_CLUSTER_FACTOR,
+    COARSE_MIN_COVERAGE,
+    cr1_sigma,
+    MIN_COARSE_CLUSTERS,
 )
+from ._knobs import Knob, KnobbedEstimator
+from ._mirror import mirror_map, MirrorMap, view_covers_disc
 from ._views import _BadInput, check_sun, select_view, selection_for, view_segments
 from .base import Estimator, HeadingResult, Observation, Status
 from ..camera import CameraModel, PixelSelection
 from ..conventions import fold_axial_rad_float
 
-__all__ = ['DISC_KNOBS', 'DiscEstimator', 'cr1_sigma']
+__all__ = ['DISC_KNOBS', 'DiscEstimator']
 
 DISC_KNOBS = {
     'disc_fraction': Knob(
@@ -76,7 +75,7 @@ DISC_KNOBS = {
 }
 
 #: Pixel subsampling of the coarse scan for self-consistent axes (``scan_at`` of
-#: :func:`._mirror.solve_axes`).
+#: :func:`._axis_solve.solve_axes`).
 SCAN_STEP = 8
 #: A self-consistent axis whose level Rayleigh pattern misses the usable pixels by more than this
 #: factor times the plain (occlusion-biased) fit's rms residual, plus MIRROR_RESIDUAL_SLACK_DEG, is
@@ -91,21 +90,6 @@ MIRROR_RESIDUAL_SLACK_DEG = 0.1
 #: at most this far (deg; clouds moved the occlusion-only roots by up to ~20 deg at 70 % cover),
 #: else it is dropped.
 MAX_REFINE_MOVE_DEG = 30.0
-#: The cluster-robust sigma is also taken over blocks this many times ``block_px`` a side (if the
-#: view has at least ``MIN_COARSE_CLUSTERS`` of them), and the larger of the two is used: under
-#: broken clouds seen by an IMX250MZR-like sensor (superpixel demosaic) the AoP errors are
-#: correlated across cloud edges, beyond the default 32 px blocks (2 x 2 pixels at stride 16): mean
-#: err^2/sigma^2 3.6 / 3.1 (sm_asm / symmetry, clouds 30 %, 12 scenes) with the fine blocks alone,
-#: 2.5 / 2.3 with 2x, 1.9 with 4x, 1.3 / 1.9 with 8x coarser blocks; but coarse blocks also sum
-#: smooth residual structure whose effects cancel (uniform overcast, sm_asm: 0.46 fine, 0.22 at 2x,
-#: 0.04 at 8x), so 2x.
-COARSE_CLUSTER_FACTOR = 2
-MIN_COARSE_CLUSTERS = 12
-#: ... and only where this share of the disc is paired (clouds with an IMX250-like sensor:
-#: 0.83-0.85; half the disc occluded: at most 0.5): on a wedge of pairs the influence has large
-#: lobes of both signs, and coarse blocks would count the residual of the fitted axis itself many
-#: times over (3.7x sigma under independent noise).
-COARSE_MIN_COVERAGE = 0.6
 #: Pixel subsampling of the coarse fit whose difference from the full one measures the lattice
 #: error (:meth:`DiscEstimator._lattice_rad`).
 LATTICE_STEP = 4
@@ -117,29 +101,6 @@ LATTICE_STEP = 4
 LATTICE_RATIO = 6.0
 #: Pixel subsampling of the residual passes that compare self-consistent axes.
 RESIDUAL_STEP = 3
-
-
-def cr1_sigma(block_sum, n: int) -> float:
-    """
-    Return the cluster-robust sigma (rad) from the block sums of the influence.
-
-    ``block_sum``: the influence (rad) summed over each block, ``n`` pixels in all; the blocks
-    with a non-zero sum are the clusters; small-sample factor :func:`._common.cr1_factor`
-    with two parameters (as the other methods).
-    """
-    b = np.asarray(block_sum, dtype=float)
-    b = b[b != 0.0]
-    G = b.size
-    if G == 0:
-        return 0.0
-    return math.sqrt(float(np.dot(b, b)) * cr1_factor(G, n, 2))
-
-
-def _blocks(t0, t1, segs) -> np.ndarray:
-    """Return the block sums (2, n_blocks) of the per-pixel terms t0, t1 over the segments."""
-    block_sum = np.zeros((2, segs[3]))
-    _block_sums(t0, t1, segs[0], segs[1], segs[2], block_sum)
-    return block_sum
 
 
 class DiscEstimator(KnobbedEstimator, Estimator):

@@ -429,7 +429,7 @@ def view_segments(view: PixelView, block_px: int):
     compiled passes: ((aop, dop, valid, rays, x_px, y_px, intensity), (start, end, block,
     n_blocks)).
     """
-    from ._kernels import grid_segments, list_segments
+    from ._block_layout import grid_segments, list_segments
 
     if view.grid is not None:
         return (
@@ -460,10 +460,10 @@ def view_grid_layout(view: PixelView, block_px: int):
     """
     Return the view's pixels as regular grids for the row-wise compiled pass.
 
-    :func:`polarization_compass.estimators._kernels.grid_layout` of the view, or None for a pixel
-    list.
+    :func:`polarization_compass.estimators._block_layout.grid_layout` of the view, or None for a
+    pixel list.
     """
-    from ._kernels import grid_layout
+    from ._block_layout import grid_layout
 
     keys = (view.grid,) if view.grid is not None else view.subgrids
     return None if keys is None else grid_layout(tuple(keys), int(block_px))
@@ -478,7 +478,7 @@ def subgrid_segments(keys: tuple, block_px: int):
     row-major with key ((x0, dx, nx), (y0, dy, ny)) (sensor pixels): one run per (grid, row, block
     column), blocks of ``block_px`` sensor pixels numbered alike in every grid. Cached.
     """
-    from ._kernels import block_indices
+    from ._block_layout import block_indices
 
     bcs, brs, K, R = block_indices(keys, block_px)
     starts, ends, blks = [], [], []

@@ -32,7 +32,7 @@ import math
 from numba import njit
 import numpy as np
 
-from ._kernels import block_indices
+from ._block_layout import block_indices
 from ..conventions import wrap_180_deg_float
 
 __all__ = [

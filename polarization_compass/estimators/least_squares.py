@@ -60,13 +60,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from numba import njit
 import numpy as np
 
+from ._block_layout import grid_parities
 from ._common import (
     _BadInput,
     check_sun,
-    cr1_factor,
     finish_sigma_deg,
     Knob,
     KnobbedEstimator,
@@ -76,7 +75,9 @@ from ._common import (
     view_grid_layout,
     view_segments,
 )
-from ._kernels import _FM, full_pass, grid_parities, sub_pass
+from ._kernels import full_pass, sub_pass
+from ._ls_sigma import _attitude_sigma_deg, _block_sigmas
+from ._outlier_trim import _consensus_sun, _trim_outliers
 from .base import Estimator, HeadingResult, Observation, Status
 from .jackknife import (
     _block_centres_px,
@@ -97,15 +98,11 @@ from .sun_from_evectors import (
     tilt_sensitivity,
 )
 from ..camera import CameraModel, PixelSelection
-from ..fastmath import sincos32_folded as _sincos32
 
 __all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']
 
 _NEEDS_TILT = 'tilt_aware needs the camera pitch and roll (Observation.pitch_deg/roll_deg)'
 
-
-#: :func:`._common.cr1_factor` compiled for :func:`_block_sigmas`.
-_cr1_factor = njit(inline='always', cache=True)(cr1_factor)
 
 _FIRST_LOOK = 4096  # pixels of the first, noise-scale subsample
 
@@ -127,139 +124,6 @@ def _noise_scale_sq(sub, bias_correction: bool) -> float:
         den = float(s @ sub['C'] @ s)
         s0sq = float(s @ sub['M'] @ s) / den if den > 0 else 0.0
     return max(s0sq, 0.0)
-
-
-@njit(cache=True, nogil=True)
-def _block_sigmas(block_m, block_w, n, s, cs):  # pragma: no cover - compiled
-    """
-    Return the cluster-robust sigma for each row c of ``cs`` (CR1 factor).
-
-    The sigma of ``sum_i -s^T (w_i e_i e_i^T) c`` over the blocks: block sums centred by weight
-    share (the debiased solution leaves a small O(sigma^2) mean), CR1 small-sample factor
-    (:func:`._common.cr1_factor`).
-    """
-    K = cs.shape[0]
-    G = block_m.shape[0]
-    out = np.zeros(K)
-    W = 0.0
-    used = 0
-    for g in range(G):
-        if block_w[g] > 0:
-            W += block_w[g]
-            used += 1
-    if used == 0 or not W > 0:
-        return out
-    corr = _cr1_factor(used, n, 2)
-    sums = np.zeros(G)
-    for k in range(K):
-        total = 0.0
-        for g in range(G):
-            if block_w[g] > 0:
-                v = 0.0
-                for a in range(3):
-                    for b in range(3):
-                        v -= s[a] * block_m[g, a, b] * cs[k, b]
-                sums[g] = v
-                total += v
-        ss = 0.0
-        for g in range(G):
-            if block_w[g] > 0:
-                d = sums[g] - total * block_w[g] / W
-                ss += d * d
-        out[k] = math.sqrt(max(ss * corr, 0.0))
-    return out
-
-
-def _consensus_sun(view, obs):
-    """
-    Return the camera-frame sun of the robust whole-view fit, or None with too few pixels.
-
-    The fit is :func:`polarization_compass.skyfit.fit_sky` at the ephemeris altitude and the known
-    tilt (level when unknown).
-
-    The fit reads at most 2000 pixels spread evenly over the view; the view is thinned to about
-    20000 first (a regular step through its pixels) so that picking them does not scan a
-    multi-megapixel frame.
-    """
-    from ..skyfit import _sun_cam, fit_sky, sample_sky
-
-    n = int(np.size(view.aop))
-    step = max(1, n // 20000)
-    sample = sample_sky(
-        np.ravel(view.aop)[::step],
-        np.ravel(view.dop)[::step],
-        np.ravel(view.valid)[::step],
-        np.asarray(view.rays).reshape(3, -1)[:, ::step],
-        max_pixels=2000,
-    )
-    if sample is None:
-        return None
-    p = float(obs.pitch_deg) if obs.pitch_deg is not None else 0.0
-    r = float(obs.roll_deg) if obs.roll_deg is not None else 0.0
-    f = fit_sky(sample, float(obs.sun_altitude_deg), p, r)
-    return _sun_cam([f.psi_deg], [f.sun_altitude_deg], p, r)[0]
-
-
-@njit(fastmath=_FM, cache=True, nogil=True, error_model='numpy')
-def _outlier_pass(aop, valid, rays, s0, s1, s2, cos_lim, keep):  # pragma: no cover - compiled
-    """
-    Mark the valid pixels whose AoP is within the limit of the Rayleigh AoP of the sun.
-
-    One pass: ``keep[i] = valid[i]`` unless pixel i's AoP is further than the limit from the
-    Rayleigh AoP of the sun ``(s0, s1, s2)``: ``cos 2(a - m) < cos_lim`` with ``m`` the eq 28 angle
-    of ``E = S x P`` (eq 18), from doubled angles (no angle subtraction). float32, branch-free with
-    the vectorising ``sincos32_folded`` (a non-finite AoP compares false and is kept, as the fit's
-    own pass decides about it). Returns how many valid pixels were dropped.
-    """
-    f2 = np.float32(2.0)
-    t0, t1, t2 = np.float32(s0), np.float32(s1), np.float32(s2)
-    lim = np.float32(cos_lim)
-    tiny = np.float32(1e-24)
-    dropped = 0.0
-    for i in range(aop.size):
-        px, py, pz = rays[0, i], rays[1, i], rays[2, i]
-        ex = t1 * pz - t2 * py
-        ey = t2 * px - t0 * pz
-        n2 = ex * ex + ey * ey
-        sa, ca = _sincos32(np.float32(aop[i]))
-        num = (ca * ca - sa * sa) * (
-            ey * ey - ex * ex
-        ) + f2 * sa * ca * f2 * ex * ey  # cos 2(a - m) * n2
-        drop = valid[i] and n2 > tiny and num < lim * n2
-        keep[i] = valid[i] and not drop
-        x = 1.0 if drop else 0.0
-        dropped += x
-    return int(dropped)
-
-
-def _trim_outliers(view, sun_cam, outlier_deg: float):
-    """
-    Drop the view's pixels whose AoP is more than ``outlier_deg`` from the Rayleigh AoP of a sun.
-
-    The sun is ``sun_cam`` (camera frame); the model AoP of a pixel is eq 28 of ``E = S x P`` (eq
-    18); the residual is the axial difference, computed from doubled angles. Returns the view with
-    those pixels invalid and how many were dropped (of the valid ones). This is the consensus step
-    of the robust refit (``outlier_deg`` knob): a fit that clouds, flare ghosts or an obstacle
-    pulled is refitted on the pixels that agree with it. One compiled pass over the pixels the
-    estimator already reads, no temporaries (:func:`_outlier_pass`).
-    """
-    from dataclasses import replace
-
-    valid = np.asarray(view.valid, dtype=bool)
-    keep = np.empty(valid.shape, dtype=bool)
-    s = np.asarray(sun_cam, dtype=np.float64)
-    rays = np.asarray(view.rays)
-    dropped = _outlier_pass(
-        np.ravel(view.aop),
-        np.ravel(valid),
-        rays.reshape(3, -1),
-        float(s[0]),
-        float(s[1]),
-        float(s[2]),
-        math.cos(math.radians(2.0 * outlier_deg)),
-        keep.reshape(-1),
-    )
-    return replace(view, valid=keep), int(dropped)
 
 
 class _LSBase(KnobbedEstimator, Estimator):
@@ -634,25 +498,6 @@ class _Fit:
     def wsum(self) -> float:
         """Return the total weight, the trace of ``M``."""
         return float(np.trace(self.M))
-
-
-def _attitude_sigma_deg(obs: Observation, s_cam):
-    """
-    Return the heading's 1-sigma due to the known tilt's uncertainty [deg], or None.
-
-    ``sqrt(J diag(sigma_pitch^2, sigma_roll^2) J^T)`` with ``J`` of :func:`tilt_sensitivity`;
-    None when the observation states no attitude uncertainty.
-    """
-    a = obs.attitude_sigma_deg
-    if a is None:
-        return None
-    sp, sr = float(a[0]), float(a[1])
-    if not (math.isfinite(sp) and math.isfinite(sr) and sp >= 0.0 and sr >= 0.0):
-        return None  # not a usable uncertainty: the tilt is taken as exact
-    if sp == 0.0 and sr == 0.0:
-        return None
-    jp, jr = tilt_sensitivity(s_cam, float(obs.pitch_deg), float(obs.roll_deg))
-    return math.hypot(jp * sp, jr * sr)
 
 
 class LeastSquaresEstimator(_LSBase):

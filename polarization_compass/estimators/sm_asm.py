@@ -50,11 +50,11 @@ import math
 
 import numpy as np
 
+from ._axis_solve import AxisFit
 from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._knobs import Knob
-from ._mirror import AxisFit
 from ._sm_asm_kernels import band_fit, band_gather, band_pass1, band_terms2
 from .base import HeadingResult, Status
 

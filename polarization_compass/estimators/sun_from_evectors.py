@@ -47,8 +47,8 @@ import numpy as np
 from ._common import (
     brightness_t_from_stats,
     Candidate,
-    psi_from_sun_rad,
     resolve_ambiguity,
+    sun_side_candidates,
 )
 from .base import HeadingResult, Observation, Status
 from ..conventions import rot_x, rot_y
@@ -515,9 +515,10 @@ def pick_side(
     Pick the sun's side: its elevation, else the brightness gradient, else a prior bearing.
 
     The two candidates are the headings of ``+s`` and ``-s``; ``first`` has the sun above the side
-    frame's horizon. :func:`sign_rule` decides when the elevation is clear; else the t statistic
-    of brightness against ``r . (s_first - s_second)`` (:func:`._common.brightness_t_from_stats`),
-    else the prior (:func:`._common.resolve_ambiguity`).
+    frame's horizon (:func:`._common.sun_side_candidates`). :func:`sign_rule` decides when the
+    elevation is clear; else the t statistic of brightness against ``r . (s_first - s_second)``
+    (:func:`._common.brightness_t_from_stats`), else the prior
+    (:func:`._common.resolve_ambiguity`).
 
     Parameters
     ----------
@@ -546,9 +547,7 @@ def pick_side(
         ``(Candidate, resolved_by or None, reason)`` as :func:`._common.resolve_ambiguity`.
 
     """
-    s, s_h = f.s, f.s_h
-    cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-    first, second = cands if f.s_sign[2] >= 0 else cands[::-1]
+    first, second = sun_side_candidates(f)
     sun_rule = sign_rule(first, f, sigma_el, knobs, frame)
     bt = brightness_t_from_stats(
         brightness_stats, first.sun_cam - second.sun_cam, min_brightness_samples

@@ -60,11 +60,11 @@ import math
 from numba import njit
 import numpy as np
 
+from ._axis_solve import AxisFit
 from ._disc import disc_cells, DiscRing
 from ._disc_estimator import DISC_KNOBS, DiscEstimator
 from ._kernels import N_STATS
 from ._knobs import Knob
-from ._mirror import AxisFit
 from ._symmetry_kernels import ring_fit, ring_gather, ring_pass1, ring_terms2
 from .base import HeadingResult, Status
 

@@ -29,7 +29,7 @@ Publishes, stamped with the sample's stamp: ``compass/<method>/heading_raw`` (se
 ``compass/<method>/bearing_raw_deg`` (std_msgs/Float64, true bearing of the body front),
 ``compass/<method>/status`` (std_msgs/String, JSON, one per sample) and ``/diagnostics``, as
 ``heading_estimator`` does for a camera (:class:`~.heading_node.HeadingNodeBase`). Its ``knob.*``
-parameters are the array knobs (:data:`~polarization_compass.photodiode.heading.ARRAY_KNOBS`).
+parameters are the array knobs (:data:`~polarization_compass.photodiode.knobs.ARRAY_KNOBS`).
 """
 
 from __future__ import annotations
@@ -47,7 +47,8 @@ from .runner import run_node
 from ..bag import MessageError, stamp_ns
 from ..errors import CompassError
 from ..photodiode.geometry import load_array_geometry
-from ..photodiode.heading import ARRAY_KNOBS, estimate_recording, make_array_estimator
+from ..photodiode.heading import estimate_recording, make_array_estimator
+from ..photodiode.knobs import ARRAY_KNOBS
 from ..photodiode.readings import array_sample_from_flat, ArrayRecordingError
 from ..specs import topics
 from ..specs.params import ARRAY_ESTIMATOR, knob_params, knob_values

@@ -67,14 +67,8 @@ from .msgs import bearing_from_imu, heading_from_imu, yaw_enu_from_quat
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import stamp_ns
-from ..evaluation import (
-    not_received,
-    plot_report,
-    StampMatcher,
-    write_samples_csv,
-    write_summary_csv,
-    YawTrack,
-)
+from ..evaluation import not_received, StampMatcher, YawTrack
+from ..evaluation_report import plot_report, write_samples_csv, write_summary_csv
 from ..specs import topics
 from ..specs.params import EVALUATOR
 

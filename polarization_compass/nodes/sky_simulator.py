@@ -89,20 +89,21 @@ from .msgs import (
 )
 from .rosparams import ParameterSet
 from .runner import run_node
-from ..bag import decode_orientation, ns_from_utc
+from .sky_simulator_attitude import SimulatorAttitude
+from .sky_simulator_clock import SimulatorClock
+from ..bag import ns_from_utc
 from ..camera import PixelSelection
 from ..conventions import (
     camera_attitude_from_body_quat,
     matrix_to_quat,
-    quat_to_matrix,
     R_BODY_CAM_DEFAULT,
-    R_enu_body_from_camera_attitude,
 )
-from ..errors import CompassError, MissingDependencyError
+from ..errors import CompassError
 from ..motion import frame_times_ns, imu_reading, MotionProfile
 from ..sensor import sensor_config_for_encoding
+from ..simulated_sensors import frame_mosaic, simulation_scene, WheelOdometry
 from ..specs import topics
-from ..specs.params import parse_downstream, SIMULATOR, SUN_PARAMS, sun_source
+from ..specs.params import SIMULATOR, SUN_PARAMS, sun_source
 
 __all__ = ['SkySimulatorNode', 'main', 'mosaic_config']
 
@@ -116,29 +117,11 @@ ODOM_FRAME_ID = 'odom'
 #: reported variance of the odometry's zero linear velocity [(m/s)^2]: the turn is on the spot
 ODOM_LINEAR_VARIANCE_M2_S2 = 1e-4
 
-#: motion_tf: how far ahead of the stamp looked up the motion is broadcast [simulated s], so that
-#: the transforms around a frame's stamp are in the TF buffer before the frame looks them up
-MOTION_TF_LEAD_S = 0.5
-
 #: The SensorConfig for an image encoding; the rule is shared with record-sim (sensor.py).
 mosaic_config = sensor_config_for_encoding
 
 
-def _transform(t_ns: int, parent: str, child: str, R):
-    """Return the TransformStamped ``parent -> child`` at ``t_ns``: rotation ``R``, no offset."""
-    from geometry_msgs.msg import TransformStamped
-
-    tf = TransformStamped()
-    tf.header.stamp = time_msg(t_ns)
-    tf.header.frame_id = parent
-    tf.child_frame_id = child
-    q = matrix_to_quat(R)
-    r = tf.transform.rotation
-    r.x, r.y, r.z, r.w = (float(v) for v in q)
-    return tf
-
-
-class SkySimulatorNode(Node):
+class SkySimulatorNode(SimulatorAttitude, SimulatorClock, Node):
     """The ``sky_simulator`` node (see the module docstring)."""
 
     def __init__(self, **kwargs):
@@ -160,26 +143,7 @@ class SkySimulatorNode(Node):
     # configuration ------------------------------------------------------------------------------
     def _load_scene(self):
         """Load the scene parameter's scene, with array_geometry's photodiode array when set."""
-        p = self.params
-        from ..scene import load_scene, SceneError
-
-        try:
-            scene = load_scene(p['scene'] or None)
-            if p['array_geometry']:  # also simulate a photodiode-array compass with this geometry
-                from ..scene import scene_from_dict
-
-                scene = scene_from_dict(
-                    {
-                        **scene.to_dict(),
-                        'photodiode_array': {
-                            **(scene.photodiode_array or {}),
-                            'geometry': p['array_geometry'],
-                        },
-                    }
-                )
-        except SceneError as exc:
-            raise CompassError(str(exc)) from None
-        return scene
+        return simulation_scene(self.params['scene'], self.params['array_geometry'])
 
     def _setup_sky(self, scene) -> None:
         """Set up the camera, renderer, sensor, sun, motion and clock of the simulation."""
@@ -240,8 +204,7 @@ class SkySimulatorNode(Node):
             if self.attitude_source == 'motion'
             else None
         )
-        self.odom_yaw_rad = 0.0  # dead reckoning of the odometry's yaw rate, in odom
-        self.odom_last_ns = None
+        self.odom = WheelOdometry()  # dead reckoning of the odometry's yaw rate, in odom
         self.rng_odom = np.random.default_rng([p['seed'], 11])
         self.odom_tf = self._odom_tf_broadcaster() if self.pub_odom is not None else None
         self.pub_frames = self.create_publisher(String, topics.FRAMES, QoSProfile(depth=50))
@@ -341,146 +304,6 @@ class SkySimulatorNode(Node):
         self.profile = self._profile()
         return None
 
-    def _setup_tf(self):
-        try:
-            import tf2_ros  # noqa: F401
-        except ImportError:
-            raise MissingDependencyError(
-                'attitude_source tf (tf2_ros)',
-                'ros-<distro>-tf2-ros (e.g. sudo apt install ros-jazzy-tf2-ros), or use '
-                'attitude_source motion|topic',
-            ) from None
-        import rclpy
-        from tf2_ros import Buffer, TransformListener
-
-        self._tf = Buffer()
-        # a node and a thread of its own: a lookup waits for transforms while this node's callback
-        # runs (tf2_ros spins the node it is given in its thread: not this one)
-        self._tf_node = rclpy.create_node(
-            f'{self.get_name()}_tf_listener',
-            context=self.context,
-            start_parameter_services=False,
-            use_global_arguments=False,  # not renamed by the process's -r __node:=...
-        )
-        self._tf_listener = TransformListener(self._tf, self._tf_node, spin_thread=True)
-        if self.params['motion_tf']:
-            self._setup_motion_tf()
-
-    def _setup_motion_tf(self):
-        """
-        Broadcast the built-in motion on TF (``motion_tf``): the sim graph's ground truth.
-
-        The mounting (the default, as with ``motion``) goes out once on ``/tf_static``; the body's
-        attitude on ``/tf`` on the IMU's time grid, :data:`MOTION_TF_LEAD_S` ahead of the stamps
-        looked up (:meth:`_broadcast_motion`).
-        """
-        from tf2_ros import StaticTransformBroadcaster, TransformBroadcaster
-
-        self._motion_tf = TransformBroadcaster(self)
-        self._motion_tf_k = 0  # next sample of the grid start + k / imu_rate_hz
-        self._motion_tf_origin = self.start_ns if self.sim_mode else None
-        self._static_tf = StaticTransformBroadcaster(self)
-        p = self.params
-        self._static_tf.sendTransform(
-            _transform(self.start_ns, p['tf_body_frame'], p['camera_frame_id'], R_BODY_CAM_DEFAULT)
-        )
-
-    def _broadcast_motion(self, t_ns: int) -> None:
-        """Send the motion's transforms up to MOTION_TF_LEAD_S past ``t_ns`` (with motion_tf)."""
-        if getattr(self, '_motion_tf', None) is None:
-            return
-        p = self.params
-        if self._motion_tf_origin is None:  # clock_mode system: the motion starts now
-            self._motion_tf_origin = int(t_ns)
-        step = int(round(1e9 / p['imu_rate_hz']))
-        until = int(t_ns) + int(MOTION_TF_LEAD_S * 1e9)
-        out = []
-        while self._motion_tf_origin + self._motion_tf_k * step <= until:
-            t_rel = self._motion_tf_k * step / 1e9
-            R = R_enu_body_from_camera_attitude(self.profile.attitude(t_rel))
-            out.append(
-                _transform(
-                    self._motion_tf_origin + self._motion_tf_k * step,
-                    p['tf_world_frame'],
-                    p['tf_body_frame'],
-                    R,
-                )
-            )
-            self._motion_tf_k += 1
-        if out:
-            self._motion_tf.sendTransform(out)
-
-    def close(self) -> None:
-        """Stop the TF listener's thread and node (called once when the node stops)."""
-        listener = getattr(self, '_tf_listener', None)
-        if listener is None:
-            return
-        self._tf_listener = None
-        listener.executor.shutdown(timeout_sec=2.0)
-        listener.dedicated_listener_thread.join(timeout=5.0)
-        self._tf_node.destroy_node()
-
-    def _odom_tf_broadcaster(self):
-        if not self.params['odom_tf']:
-            return None
-        try:
-            from tf2_ros import TransformBroadcaster
-        except ImportError:
-            self.get_logger().info('odom_tf: tf2_ros is not installed: odometry/wheel only')
-            return None
-        return TransformBroadcaster(self)
-
-    # attitude inputs ----------------------------------------------------------------------------
-    def _on_attitude(self, msg):
-        q = self.diag.decoded('attitude', decode_orientation, msg)
-        if q is not None:
-            self.R_enu_body_input = quat_to_matrix(q)
-
-    def _attitude_at(self, t_ns: int, t_rel_s: float):
-        """R_enu_body at a stamp, or None when the attitude source has nothing yet."""
-        if self.attitude_source == 'motion':
-            return R_enu_body_from_camera_attitude(self.profile.attitude(t_rel_s))
-        if self.attitude_source == 'topic':
-            return self.R_enu_body_input
-        return self._tf_attitude(t_ns)
-
-    def _tf_attitude(self, t_ns: int):
-        """
-        Return R_enu_body at ``t_ns`` from TF and set the camera mounting, or None (counted).
-
-        Looks up ``tf_world_frame`` -> ``tf_body_frame`` and -> ``camera_frame_id`` at the stamp
-        itself (tf2 interpolates between samples, never extrapolates), waiting up to
-        ``tf_timeout_s``: a missing frame is ``tf_missing``, a transform not (yet, or no longer)
-        known at the stamp ``tf_stale``.
-        """
-        from rclpy.duration import Duration
-        from rclpy.time import Time
-        from tf2_ros import ExtrapolationException
-
-        p = self.params
-        self._broadcast_motion(t_ns)
-        when = Time(nanoseconds=int(t_ns), clock_type=self.get_clock().clock_type)
-        try:
-            body = self._tf.lookup_transform(
-                p['tf_world_frame'], p['tf_body_frame'], when, Duration(seconds=p['tf_timeout_s'])
-            )
-            cam = self._tf.lookup_transform(p['tf_world_frame'], p['camera_frame_id'], when)
-        except ExtrapolationException as exc:
-            self.diag.reject('tf_stale', f'no transform at {t_ns / 1e9:.3f} s: {exc}')
-            return None
-        except Exception as exc:  # noqa: BLE001 - tf2 raises several lookup exception types
-            reason = 'tf_stale' if 'extrapolat' in str(exc).lower() else 'tf_missing'
-            self.diag.reject(reason, f'at {t_ns / 1e9:.3f} s: {type(exc).__name__}: {exc}')
-            return None
-
-        def R(tr):
-            r = tr.transform.rotation
-            return quat_to_matrix([r.x, r.y, r.z, r.w])
-
-        R_enu_body = R(body)
-        self.R_body_cam = R_enu_body.T @ R(cam)
-        return R_enu_body
-
     # outputs ------------------------------------------------------------------------------------
     def _publish_imu(self, t_ns: int, R_enu_body) -> None:
         p = self.params
@@ -513,15 +336,13 @@ class SkySimulatorNode(Node):
             + math.radians(p['odom_yaw_rate_bias_deg_s'])
             + sigma * float(self.rng_odom.standard_normal())
         )
-        if self.odom_last_ns is not None:
-            self.odom_yaw_rad += w * (t_ns - self.odom_last_ns) * 1e-9
-        self.odom_last_ns = t_ns
+        yaw_rad = self.odom.step(t_ns, w)
         m = Odometry()
         m.header.stamp = time_msg(t_ns)
         m.header.frame_id = ODOM_FRAME_ID
         m.child_frame_id = p['imu_frame_id']
         q = m.pose.pose.orientation
-        q.z, q.w = math.sin(self.odom_yaw_rad / 2.0), math.cos(self.odom_yaw_rad / 2.0)
+        q.z, q.w = math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)
         m.pose.covariance = [1e3 if i % 7 == 0 else 0.0 for i in range(36)]  # not to be fused
         m.twist.twist.angular.z = w
         cov = [0.0] * 36
@@ -541,28 +362,22 @@ class SkySimulatorNode(Node):
 
     def _render_frame(self, t_ns: int, k_frame: int, R_enu_body):
         """
-        Render frame ``k_frame`` into an image message and time it.
+        Render frame ``k_frame`` at ``t_ns`` into its messages and time it.
 
-        The image message of frame ``k_frame`` at ``t_ns`` (render, sensor, message), its attitude
-        and the sun's altitude, and the CPU-side wall time it took (ms).
+        Returns the (image, array sample or None) messages, the camera attitude, the sun's
+        altitude [deg] and the CPU-side wall time it took [ms].
         """
-        from ..render import SunDirection
-        from ..sensor import simulate_mosaic
-
         p = self.params
         t0 = time.perf_counter()
         att = camera_attitude_from_body_quat(matrix_to_quat(R_enu_body), self.R_body_cam)
         az, alt = self.sun.at_ns(t_ns)
-        frame = self.renderer.render(attitude=att, sun=SunDirection(az, alt))
         rng = np.random.default_rng([p['seed'], k_frame])
-        mosaic = simulate_mosaic(
-            frame.aop_rad, frame.dop, frame.intensity, self.sensor_cfg, self.sensor_cfg.layout, rng
+        mosaic, array_intensities = frame_mosaic(
+            self.renderer, self.sensor_cfg, p['encoding'], att, (az, alt), rng
         )
-        if p['encoding'] == '32FC1':
-            mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
         msg = (
             image_msg(mosaic, t_ns, p['camera_frame_id']),
-            None if frame.array_intensities is None else array_msg(frame.array_intensities),
+            None if array_intensities is None else array_msg(array_intensities),
         )
         return msg, att, alt, (time.perf_counter() - t0) * 1e3
 
@@ -647,219 +462,6 @@ class SkySimulatorNode(Node):
             self.diag.reject('no_attitude', 'no attitude received yet: frame skipped')
         self.frames_skipped += 1
         self.diag.extra = {**self.diag.extra, 'frames_skipped': self.frames_skipped}
-
-    def _publish_clock(self, t_ns: int, force: bool = False) -> None:
-        """
-        Publish /clock, at most every 1 / clock_rate_hz wall seconds unless forced.
-
-        Every node of the graph receives each one. ``force`` is for the first stamp, sent before
-        anything else.
-        """
-        if self.pub_clock is None:
-            return
-        now = time.monotonic()
-        if force or now - self.last_clock_wall >= 1.0 / self.params['clock_rate_hz']:
-            self.pub_clock.publish(Clock(clock=time_msg(t_ns)))
-            self.last_clock_wall = now
-
-    # lockstep -----------------------------------------------------------------------------------
-    def _on_ack(self, topic: str, msg):
-        try:
-            st = int(json.loads(msg.data).get('stamp_ns', -1))
-        except (ValueError, TypeError, AttributeError):
-            self.diag.reject('lockstep_bad_status', topic)
-            return
-        self.acks[topic] = max(self.acks[topic], st)
-
-    def _acked(self, t_ns: int) -> bool:
-        return all(v >= t_ns for v in self.acks.values())
-
-    # the sim clock ------------------------------------------------------------------------------
-    def _missing_downstream(self) -> list[tuple[str, list]]:
-        """
-        Return the expected downstream subscriptions not seen yet.
-
-        (topic, node names) of ``wait_for_downstream`` whose subscription this node has not seen
-        yet.
-        """
-        out = []
-        for topic, names in parse_downstream(self.params['wait_for_downstream']):
-            seen = {
-                i.node_name
-                for i in self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))
-            }
-            if not names <= seen:
-                out.append((topic, sorted(names - seen)))
-        return out
-
-    def _ready(self, now: float) -> bool:
-        """
-        Wait for the expected subscribers, then send the set-up messages.
-
-        Before the first frame: wait for the expected subscribers (image and camera_info:
-        ``wait_for_subscribers``; IMU: ``wait_for_imu_subscribers``; truth: one when either is
-        set), then send camera_info, the fix and the first IMU sample, and give them
-        ``wait_settle_s`` to arrive (and discovery to settle between the other nodes), so that
-        frame 0 is processed with the right intrinsics, site and tilt and its results reach every
-        reader.
-        """
-        if self.started:
-            return True
-        p = self.params
-        if self.t_primed is None:
-            need, need_imu = p['wait_for_subscribers'], p['wait_for_imu_subscribers']
-            ok = (
-                self.pub_image.get_subscription_count() >= need
-                and self.pub_info.get_subscription_count() >= need
-                and self.pub_imu.get_subscription_count() >= need_imu
-                and (need + need_imu == 0 or self.pub_truth.get_subscription_count() >= 1)
-                and not self._missing_downstream()
-            )
-            if not ok and now - self.t_wait0 <= p['wait_timeout_s']:
-                return False
-            if not ok:
-                self.get_logger().warning(
-                    f'starting after {p["wait_timeout_s"]:g} s with '
-                    f'{self.pub_image.get_subscription_count()} image, '
-                    f'{self.pub_imu.get_subscription_count()} IMU and '
-                    f'{self.pub_truth.get_subscription_count()} truth '
-                    'subscriber(s)'
-                    + ''.join(
-                        f'; {t} not read by {", ".join(sorted(n))} yet'
-                        for t, n in self._missing_downstream()
-                    )
-                )
-            t0 = self.start_ns if self.sim_mode else self.get_clock().now().nanoseconds
-            self._publish_clock(t0, force=True)
-            self.pub_info.publish(camera_info_msg(self.camera, t0, p['camera_frame_id']))
-            self.pub_fix.publish(
-                navsatfix_msg(p['latitude_deg'], p['longitude_deg'], p['altitude_m'], t0, 'gps')
-            )
-            R = self._attitude_at(t0, 0.0)
-            if R is not None and self.sim_mode:
-                self._publish_imu(t0, R)
-                self.k_imu = 1
-            self.t_primed = now
-            return False
-        if now - self.t_primed < p['wait_settle_s']:
-            return False
-        self.started = True
-        return True
-
-    def _tick_sim(self) -> None:
-        now = time.monotonic()
-        if not self._ready(now):
-            self._publish_clock(self.sim_cursor)
-            return
-        p = self.params
-        period_ns = int(round(1e9 / p['rate_hz']))
-        imu_period_ns = int(round(1e9 / p['imu_rate_hz']))
-        if self.base is None:
-            self.base = (self.sim_cursor, now)
-        if self.waiting_for is not None:
-            stamp, since = self.waiting_for
-            limit = (
-                max(p['lockstep_timeout_s'], 60.0) if self.frames <= 1 else p['lockstep_timeout_s']
-            )
-            if self._acked(stamp) or now - since > limit:
-                if not self._acked(stamp):
-                    self.lockstep_timeouts += 1
-                    self.get_logger().warning(
-                        f'lockstep: no answer for frame {stamp / 1e9:.3f} s after {limit:g} s',
-                        throttle_duration_sec=5.0,
-                    )
-                self.waiting_for = None
-                self.base = (self.sim_cursor, now)
-            else:
-                self._publish_clock(self.sim_cursor)
-                return
-        desired = self.base[0] + int((now - self.base[1]) * p['time_scale'] * 1e9)
-        next_frame = frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame)
-        if next_frame is not None and next_frame < desired - period_ns:
-            self.late_frames += 1
-            self.get_logger().warning(
-                f'frame {self.k_frame} is late: simulated time is '
-                f'{(desired - next_frame) / 1e6:.0f} ms past it '
-                f'(more than one frame period); time resumes from it',
-                throttle_duration_sec=1.0,
-            )
-            self.base = (next_frame, now)
-            desired = next_frame
-        while True:
-            next_frame = frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame)
-            next_imu = self.start_ns + self.k_imu * imu_period_ns
-            if (
-                next_frame is None
-                and self.total_s is not None
-                and next_imu - self.start_ns >= self.total_s * 1e9
-            ):
-                next_imu = None
-            cands = [t for t in (next_imu, next_frame) if t is not None]
-            if not cands or min(cands) > desired:
-                break
-            t = min(cands)
-            self.sim_cursor = max(self.sim_cursor, t)
-            t_rel = (t - self.start_ns) / 1e9
-            R = self._attitude_at(t, t_rel)
-            if next_imu is not None and next_imu == t:  # IMU first at equal stamps
-                if R is not None:
-                    self._publish_imu(t, R)
-                self.k_imu += 1
-                continue
-            if R is None:
-                self._skip_frame()
-            else:
-                self._publish_frame(t, R)
-            self.k_frame += 1
-            if self.lock_topics and R is not None:
-                self.waiting_for = (t, time.monotonic())
-                return
-        if desired > self.sim_cursor:
-            self.sim_cursor = desired
-        self._publish_clock(self.sim_cursor)
-        self._prepare_next_frame(now)
-        if (
-            self.total_s is not None
-            and self.waiting_for is None
-            and frame_times_ns(self.start_ns, p['rate_hz'], self.total_s, self.k_frame) is None
-        ):
-            self._maybe_finish(now)
-
-    def _maybe_finish(self, now: float) -> None:
-        """Handle the last frame: log once, and exit after linger_s when exit_when_done."""
-        if self.done_wall is None:
-            self.done_wall = now
-            self.get_logger().info(
-                f'run complete: {self.frames} frames, {self.late_frames} late, '
-                f'{self.lockstep_timeouts} lockstep timeouts'
-            )
-            self.diag.last_status = f'done: {self.frames} frames'
-        if self.params['exit_when_done'] and now - self.done_wall >= self.params['linger_s']:
-            self.diag.publish()
-            self.exit_code = 0  # run_node ends the spin (nodes.runner)
-
-    # clock_mode system --------------------------------------------------------------------------
-    def _frame_system(self) -> None:
-        t_ns = self.get_clock().now().nanoseconds
-        if self.t_first_ns is None:
-            self.t_first_ns = t_ns
-        t_rel = (t_ns - self.t_first_ns) / 1e9
-        if self.total_s is not None and t_rel >= self.total_s:
-            self._maybe_finish(time.monotonic())
-            return
-        R = self._attitude_at(t_ns, t_rel)
-        if R is None:
-            self._skip_frame()
-            return
-        self._publish_frame(t_ns, R)
-        self.k_frame += 1
-
-    def _imu_system(self) -> None:
-        t_ns = self.get_clock().now().nanoseconds
-        t_rel = 0.0 if self.t_first_ns is None else (t_ns - self.t_first_ns) / 1e9
-        R = self._attitude_at(t_ns, t_rel)
-        if R is not None:
-            self._publish_imu(t_ns, R)
 
 
 def main(argv=None) -> int:

@@ -52,12 +52,13 @@ import math
 
 import numpy as np
 
+from .knobs import ARRAY_KNOBS
 from .side import pick_array_side
 from .stokes import fit_stokes
 from ..conventions import fold_axial_rad, R_BODY_CAM_DEFAULT, unit_angle_from_evector_body_rad
 from ..errors import CompassError
 from ..estimators import registry
-from ..estimators._common import check_sun, Knob, result_from
+from ..estimators._common import check_sun, result_from
 from ..estimators.base import HeadingResult, Status
 from ..estimators.sun_from_evectors import (
     fit_quality,
@@ -72,7 +73,6 @@ __all__ = [
     'ArrayMethodError',
     'ArrayHeadingEstimator',
     'make_array_estimator',
-    'ARRAY_KNOBS',
     'axes_spread_deg',
     'estimate_recording',
 ]
@@ -89,76 +89,6 @@ def array_methods() -> tuple[str, ...]:
 
     """
     return tuple(n for n in registry.names() if registry.get(n).accepts_units)
-
-
-ARRAY_KNOBS = {
-    'min_units': Knob(
-        3, 'int', 2, 64, doc='usable units needed (2 fix the sun exactly, with no misfit check)'
-    ),
-    'min_dop': Knob(0.02, 'float', 0.0, 1.0, doc='units seeing a lower DoP are not used'),
-    'weighting': Knob(
-        'dop2',
-        'choice',
-        choices=('dop2', 'uniform'),
-        doc='unit weights: DoP^2 (AoP noise ~ 1/DoP) or equal',
-    ),
-    'max_misfit_deg': Knob(
-        30.0, 'float', 0.1, 90.0, doc='rms angle residual above this: status poor_fit'
-    ),
-    'max_sun_elevation_diff_deg': Knob(
-        35.0,
-        'float',
-        0.1,
-        180.0,
-        doc='fitted vs ephemeris sun elevation above this: status poor_fit',
-    ),
-    'aop_noise_prior_deg': Knob(
-        10.0, 'float', 0.0, 90.0, doc='prior AoP noise (model misfit) per unit, pooled into sigma'
-    ),
-    'prior_dof': Knob(
-        4.0, 'float', 0.0, 1e6, doc='degrees of freedom the prior AoP noise is worth'
-    ),
-    'sigma_floor_deg': Knob(0.0, 'float', 0.0, 90.0, doc='added in quadrature to sigma'),
-    'max_sun_altitude_deg': Knob(
-        85.0, 'float', 1.0, 90.0, doc='ephemeris sun above this: sun_near_zenith'
-    ),
-    'min_sun_altitude_deg': Knob(
-        0.0, 'float', -10.0, 10.0, doc='ephemeris sun below this: sun_below_horizon'
-    ),
-    'min_eigen_gap': Knob(
-        1e-9, 'float', 0.0, 1.0, doc='(lambda2 - lambda1) / lambda3 below this: degenerate'
-    ),
-    'min_axes_spread_deg': Knob(
-        10.0,
-        'float',
-        0.0,
-        60.0,
-        doc="spread of the used units' view axes below this: degenerate (they look one way)",
-    ),
-    'sign_margin_sigma': Knob(
-        3.0, 'float', 0.0, 100.0, doc="elevation margin, in sigmas, for the sun's side"
-    ),
-    'side_elevation_sigma_deg': Knob(
-        3.0,
-        'float',
-        0.0,
-        45.0,
-        doc="1-sigma of the levelled frame's elevation (tilt, mount, time) for the sun's side",
-    ),
-    'max_tilt_deg': Knob(
-        30.0, 'float', 0.0, 89.0, doc='least_squares: assumed tilt bound for the sign rule'
-    ),
-    'brightness_min_t': Knob(
-        4.0,
-        'float',
-        1.0,
-        1e6,
-        doc="normal-equivalent |t| (n - 2 dof) of the units' brightness gradient fixing the side",
-    ),
-    'prior_max_diff_deg': Knob(
-        60.0, 'float', 1.0, 90.0, doc='a prior bearing within this picks the side'
-    ),
-}
 
 
 _NEEDS_TILT = 'tilt_aware needs the pitch and roll'

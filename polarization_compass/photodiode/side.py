@@ -47,9 +47,8 @@ from scipy.special import ndtri, stdtr
 
 from ..estimators._common import (
     brightness_t_from_stats,
-    Candidate,
-    psi_from_sun_rad,
     resolve_ambiguity,
+    sun_side_candidates,
 )
 from ..estimators.sun_from_evectors import unit_brightness_stats
 
@@ -155,9 +154,7 @@ def pick_array_side(name, f, sigma_el_rad, s0, axes_cam, sky, knobs):
         numbers (``side_elevation_z``, ``brightness_z``, ``brightness_dof``).
 
     """
-    s, s_h = f.s, f.s_h
-    cands = (Candidate(psi_from_sun_rad(s_h), s), Candidate(psi_from_sun_rad(-s_h), -s))
-    upper, lower = cands if f.s_sign[2] >= 0 else cands[::-1]
+    upper, lower = sun_side_candidates(f)
     el, alt = f.elevation_deg, float(sky.sun_altitude_deg)
     band = 0.0 if f.levelled else knobs['max_tilt_deg']
     z_up, z_lo = elevation_evidence(

@@ -79,7 +79,7 @@ def real_observation(
     """
     from ..demosaic import aop_dop_from_stokes
     from ..estimators import Observation
-    from ..polarizer_check import plane_rays
+    from ..polarizer_files import plane_rays
 
     cam = cam_file.camera
     s0, s1, s2, saturated = _camera_stokes(inp, cam_file, demosaic, ifov_k)

@@ -63,7 +63,7 @@ def write_outputs(result: ReplayResult, out_dir, bag_path: str = '', plots: bool
         ``{"csv", "summary_csv", "summary_json"[, figure keys]: pathlib.Path}``.
 
     """
-    from ..evaluation import write_summary_csv
+    from ..evaluation_report import write_summary_csv
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -167,7 +167,7 @@ def plot_replay(result: ReplayResult, out_dir) -> dict:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from ..evaluation import plot_report
+    from ..evaluation_report import plot_report
 
     out = Path(out_dir)
     paths = {}
