@@ -197,9 +197,10 @@ def camera_tilt(options: EstimateOptions, camera_file=None) -> tuple:
     Resolve the camera pitch and roll [deg] the estimators use for an input file.
 
     The one place where the body attitude given for a frame becomes the camera's: the
-    observation, the whole-sky check and the polarizer check all read what this returns. Today
-    the given ``pitch_deg``/``roll_deg`` are the camera's own; a camera file's ``mount:``
-    (``camera_file.mount``, issue 28) composes with them here.
+    observation, the whole-sky check and the polarizer check all read what this returns. A real
+    image's camera file composes its ``mount:`` with the given body ``pitch_deg``/``roll_deg``
+    (:func:`polarization_compass.mount.camera_tilt_deg`, issue 28); a frame file's tilt is its
+    rendered camera's, as given.
 
     Parameters
     ----------
@@ -211,10 +212,14 @@ def camera_tilt(options: EstimateOptions, camera_file=None) -> tuple:
     Returns
     -------
     tuple
-        (pitch_deg, roll_deg) of the camera [deg, eq 21], each None when unknown.
+        (pitch_deg, roll_deg) of the camera [deg, eq 21]; None when unknown.
 
     """
-    return options.pitch_deg, options.roll_deg
+    if camera_file is None:
+        return options.pitch_deg, options.roll_deg
+    from .mount import camera_tilt_deg  # the body's --pitch/--roll composed with the mount
+
+    return camera_tilt_deg(options.pitch_deg, options.roll_deg, camera_file.mount)
 
 
 # --------------------------------------------------------------------------------------------

@@ -40,7 +40,15 @@ import math
 
 import numpy as np
 
-from .conventions import enu_direction, R_BODY_CAM_DEFAULT, R_enu_cam_from_attitude, rot_x, rot_y
+from .conventions import (
+    attitude_from_R_enu_cam,
+    CameraAttitude,
+    enu_direction,
+    R_BODY_CAM_DEFAULT,
+    R_enu_cam_from_attitude,
+    rot_x,
+    rot_y,
+)
 from .errors import CompassError
 
 __all__ = [
@@ -50,6 +58,8 @@ __all__ = [
     'mount_to_dict',
     'R_body_sensor',
     'R_enu_sensor_cam',
+    'mounted_attitude',
+    'camera_tilt_deg',
     'sun_sensor',
     'MAX_MOUNT_TILT_DEG',
 ]
@@ -226,6 +236,62 @@ def R_enu_sensor_cam(bearing_deg, pitch_deg, roll_deg, mount: Mount | None) -> n
     if mount is None or mount.is_level:
         return R
     return R @ _R_cam_sensor(mount.pitch_deg, mount.roll_deg)
+
+
+def mounted_attitude(bearing_deg, pitch_deg, roll_deg, mount: Mount | None) -> CameraAttitude:
+    """
+    Return the eq 21 attitude of a mounted camera from its body's (a camera estimator's tilt).
+
+    The decomposition of :func:`R_enu_sensor_cam`: the attitude a camera estimator needs is the
+    camera's, the body's composed with the ``mount:`` of its ``CAMERA.yaml``. The pitch and roll do
+    not depend on the bearing (``Rz(-bearing)`` multiplies from the left); the bearing of camera +y
+    differs from the body's by a second-order amount (0.3 deg for 4 deg of body and of mount
+    pitch and roll alike).
+
+    Parameters
+    ----------
+    bearing_deg : float
+        True bearing of the body's front [deg] (0 when only the tilt is wanted).
+    pitch_deg, roll_deg : float
+        The body's pitch and roll [deg] (paper's alpha, beta: the IMU's, ``--pitch/--roll``).
+    mount : Mount or None
+        The camera's mount (None or level: the body's attitude is returned unchanged).
+
+    Returns
+    -------
+    CameraAttitude
+        Bearing of camera +y, pitch and roll [deg] of the mounted camera (eq 21).
+
+    """
+    if mount is None or mount.is_level:
+        return CameraAttitude(float(bearing_deg), float(pitch_deg), float(roll_deg))
+    return attitude_from_R_enu_cam(R_enu_sensor_cam(bearing_deg, pitch_deg, roll_deg, mount))
+
+
+def camera_tilt_deg(pitch_deg, roll_deg, mount: Mount | None) -> tuple:
+    """
+    Return a mounted camera's pitch and roll from its body's, when the body's are known.
+
+    :func:`mounted_attitude` for callers that hold only the tilt (``estimate --pitch/--roll``).
+
+    Parameters
+    ----------
+    pitch_deg, roll_deg : float or None
+        The body's pitch and roll [deg]; None: not known.
+    mount : Mount or None
+        The camera's mount.
+
+    Returns
+    -------
+    tuple
+        ``(pitch_deg, roll_deg)`` of the camera [deg]; ``(None, None)`` when the body's tilt is not
+        known (a mount alone does not give the camera's tilt), the inputs without a mount.
+
+    """
+    if pitch_deg is None or roll_deg is None:
+        return None, None
+    att = mounted_attitude(0.0, pitch_deg, roll_deg, mount)
+    return att.pitch_deg, att.roll_deg
 
 
 def sun_sensor(

@@ -57,8 +57,6 @@ __all__ = [
     'concat',
     'predicted_aop_rad',
     'fit_mount',
-    'fit_mount_recordings',
-    'heading_scatter_deg',
 ]
 
 #: soft-L1 scale of the angle residuals [deg]
@@ -95,7 +93,7 @@ class MountFit:
     The fitted mount (sigmas set) and the per-turn IMU offsets [deg] with the residuals.
 
     ``spread``: the factors the recordings' disagreement widened the mount's sigmas by (pitch,
-    roll; :func:`fit_mount_recordings`).
+    roll; :func:`fit_mount_recordings`); ``warning`` one line when they disagree ('' otherwise).
     """
 
     mount: Mount
@@ -106,6 +104,7 @@ class MountFit:
     angle_rms_before_deg: float
     angle_rms_after_deg: float
     spread: tuple = (1.0, 1.0)
+    warning: str = ''
 
 
 def turn_samples(
@@ -501,97 +500,3 @@ def fit_mount(
         prob.rms_deg(np.r_[0.0, 0.0, level.x]),
         prob.rms_deg(sol.x),
     )
-
-
-def heading_scatter_deg(bearing_deg, imu_yaw_rad, turn, ok) -> tuple:
-    """
-    Return the within-turn scatter of ``bearing + degrees(imu_yaw)`` (constant in a perfect turn).
-
-    Parameters
-    ----------
-    bearing_deg, imu_yaw_rad, turn, ok : array_like
-        (S,) estimated bearings [deg], IMU yaw [rad], turn labels, and which estimates count.
-
-    Returns
-    -------
-    tuple
-        ``(rms_deg, n)``: the rms over counted samples of their deviation from their turn's
-        circular mean (turns with fewer than 3 counted samples left out), and how many counted.
-
-    """
-    b = np.asarray(bearing_deg, dtype=float)
-    ok = np.asarray(ok, dtype=bool) & np.isfinite(b)
-    c = np.radians(b + np.degrees(np.asarray(imu_yaw_rad, dtype=float)))
-    turn = np.asarray(turn)
-    dev = []
-    for t in np.unique(turn[ok]):
-        sel = ok & (turn == t)
-        if sel.sum() < 3:
-            continue
-        mean = math.atan2(float(np.mean(np.sin(c[sel]))), float(np.mean(np.cos(c[sel]))))
-        dev.append(np.degrees(np.angle(np.exp(1j * (c[sel] - mean)))))
-    if not dev:
-        return math.nan, 0
-    d = np.concatenate(dev)
-    return float(np.sqrt(np.mean(d**2))), int(d.size)
-
-
-def fit_mount_recordings(geometry, parts: list, **limits) -> MountFit:
-    """
-    Fit the mount from several recordings, widening its sigmas by how much they disagree.
-
-    The recordings are fitted together (:func:`fit_mount`) and, from two on, each alone; the
-    sigmas are multiplied by the Birge ratio ``sqrt(chi2 / (n - 1))`` of the single fits about the
-    joint one when it exceeds 1 (a sky that is not clear biases a recording's mount beyond its own
-    sigma). A widened sigma above ``max_sigma_deg`` is refused, naming each recording's mount.
-
-    Parameters
-    ----------
-    geometry : ArrayGeometry
-        The sensor description.
-    parts : list of TurnSamples
-        One per recording, turn labels distinct across them.
-    **limits
-        The limits of :func:`fit_mount`.
-
-    Returns
-    -------
-    MountFit
-        The joint fit, sigmas widened; ``spread`` the Birge ratios (pitch, roll).
-
-    Raises
-    ------
-    MountFitError
-        The joint fit refused, or the recordings disagree beyond ``max_sigma_deg``.
-
-    """
-    fit = fit_mount(geometry, concat(parts), **limits)
-    singles = []
-    for i, p in enumerate(parts):
-        try:
-            singles.append((i, fit_mount(geometry, p, **{**limits, 'max_sigma_deg': 90.0})))
-        except MountFitError:
-            continue  # a recording that cannot determine the mount alone still counts jointly
-    if len(singles) < 2:
-        return fit
-    m = fit.mount
-    ratios = []
-    for key in ('pitch', 'roll'):
-        x = np.array([getattr(s.mount, f'{key}_deg') for _, s in singles])
-        sx = np.array([getattr(s.mount, f'{key}_sigma_deg') for _, s in singles])
-        chi2 = float(np.sum(((x - getattr(m, f'{key}_deg')) / sx) ** 2)) / (len(singles) - 1)
-        ratios.append(max(1.0, math.sqrt(chi2)))
-    sig = (m.pitch_sigma_deg * ratios[0], m.roll_sigma_deg * ratios[1])
-    if max(sig) > limits.get('max_sigma_deg', 3.0):
-        each = '; '.join(
-            f'recording {i + 1}: pitch {s.mount.pitch_deg:.1f} +- {s.mount.pitch_sigma_deg:.1f}, '
-            f'roll {s.mount.roll_deg:.1f} +- {s.mount.roll_sigma_deg:.1f}'
-            for i, s in singles
-        )
-        raise MountFitError(
-            f'cannot calibrate the mount: the recordings disagree ({each} deg); calibrate from '
-            'turns under a clear, open sky (trees and clouds bias the fit)'
-        )
-    fit.mount = Mount(m.pitch_deg, m.roll_deg, sig[0], sig[1])
-    fit.spread = (ratios[0], ratios[1])
-    return fit

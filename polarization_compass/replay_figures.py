@@ -96,6 +96,7 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
     from .bag.reader import BagReader, Tally
     from .demosaic import layout_from_mapping
     from .diagnostic_rgb import quick_rgb
+    from .pipeline.rules import SensorReadout
     from .pipeline.sun import Sun
     from .replay.sync import iter_synced_frames
     from .sky_view import view_from_mosaic
@@ -104,6 +105,7 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
     for row in result.rows:
         by_stamp.setdefault(row.stamp_ns, []).append(row)
     layout = layout_from_mapping(topic_map.mosaic)
+    readout = SensorReadout(topic_map.readout_flip)  # the image as the replay read it
     folder = Path(out_dir) / 'frames'
     folder.mkdir(parents=True, exist_ok=True)
     written = []
@@ -114,8 +116,8 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
                 continue
             r0 = rows[0]
             view = view_from_mosaic(
-                frame.mosaic,
-                frame.camera,
+                readout.image(frame.mosaic),
+                readout.camera(frame.camera),
                 Sun(r0.sun_azimuth_deg, r0.sun_altitude_deg, 'replay'),
                 results_of_rows(rows),
                 layout.angles_deg,

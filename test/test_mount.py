@@ -28,14 +28,8 @@ from polarization_compass.cli import main
 from polarization_compass.conventions import rot_x, rot_y, wrap_180_deg
 from polarization_compass.estimators.base import Status
 from polarization_compass.mount import Mount, R_body_sensor
-from polarization_compass.mount_fit import (
-    concat,
-    fit_mount,
-    fit_mount_recordings,
-    heading_scatter_deg,
-    MountFitError,
-    turn_samples,
-)
+from polarization_compass.mount_fit import concat, fit_mount, MountFitError, turn_samples
+from polarization_compass.mount_recordings import fit_mount_recordings, heading_scatter_deg
 from polarization_compass.photodiode.geometry import (
     ArrayGeometryError,
     geometry_from_dict,
@@ -194,6 +188,26 @@ def test_recordings_that_disagree_widen_the_sigma_or_are_refused():
     c.turn = c.turn + 10
     with pytest.raises(MountFitError, match=r'recordings disagree.*recording 2: pitch [34]\.'):
         fit_mount_recordings(geom(), [a, c])
+
+
+def test_recordings_that_disagree_within_the_bound_are_fitted_with_a_warning():
+    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
+    c = _samples(_turns(seed=3, offsets=(90.0, 120.0), mount=Mount(-1.0, -2.5)))
+    c.turn = c.turn + 10
+    fit = fit_mount_recordings(geom(), [a, c])  # 3 deg apart in pitch: many sigmas, < 5 deg
+    assert 'warning: the recordings disagree' in fit.warning
+    assert 'recording 2: pitch -1.' in fit.warning
+    # the widened sigma covers both recordings' mounts (about half their 3 deg difference), and
+    # no more: the Birge scale of the weighted mean's sigma, not of a sigma already widened
+    assert fit.spread[0] > 3.0
+    assert 1.0 < fit.mount.pitch_sigma_deg < 2.5, fit.mount
+    assert abs(fit.mount.pitch_deg - (-4.0)) < 2.0 * fit.mount.pitch_sigma_deg
+    assert abs(fit.mount.pitch_deg - (-1.0)) < 2.0 * fit.mount.pitch_sigma_deg
+    with pytest.raises(MountFitError, match=r'disagree by [23]\.\d deg > 2 '):
+        fit_mount_recordings(geom(), [a, c], max_disagreement_deg=2.0)
+    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    b.turn = b.turn + 10
+    assert fit_mount_recordings(geom(), [a, b]).warning == ''
 
 
 def test_recording_per_sample_imu_yaw_and_turn_index_round_trip(tmp_path):

@@ -35,11 +35,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from polarization_compass.conventions import wrap_180_deg  # noqa: E402
 from polarization_compass.estimators.base import Status  # noqa: E402
-from polarization_compass.mount_fit import (  # noqa: E402
+from polarization_compass.mount_fit import MountFitError, turn_samples  # noqa: E402
+from polarization_compass.mount_recordings import (  # noqa: E402
     fit_mount_recordings,
     heading_scatter_deg,
-    MountFitError,
-    turn_samples,
 )
 from polarization_compass.photodiode.geometry import geometry_from_dict  # noqa: E402
 from polarization_compass.photodiode.heading import (  # noqa: E402
@@ -102,9 +101,10 @@ def leave_one_out(sessions, geometry, sources=None) -> list:
         for j, p in enumerate(parts):  # distinct turn labels per session
             p.turn = p.turn % 1000 + 1000 * j
         try:
-            mount, refused = fit_mount_recordings(geometry, parts).mount, ''
+            fit = fit_mount_recordings(geometry, parts)
+            mount, refused, warning = fit.mount, '', fit.warning
         except MountFitError as exc:
-            mount, refused = None, str(exc)
+            mount, refused, warning = None, str(exc), ''
         before = evaluate(s, geometry)
         rows.append(
             {
@@ -113,6 +113,7 @@ def leave_one_out(sessions, geometry, sources=None) -> list:
                 'sun_alt': float(np.mean(s['alt'])),
                 'mount': mount,
                 'refused': refused,
+                'warning': warning,
                 'before': before,
                 'after': before if mount is None else evaluate(s, geometry.with_mount(mount)),
             }
@@ -133,7 +134,7 @@ def table(rows) -> str:
             'refused: the recordings disagree'
             if m is None
             else f'{m.pitch_deg:.1f} +- {m.pitch_sigma_deg:.1f}, {m.roll_deg:.1f} +- '
-            f'{m.roll_sigma_deg:.1f}'
+            f'{m.roll_sigma_deg:.1f}' + (' (disagree: widened)' if r.get('warning') else '')
         )
         out.append(
             f'| {r["session"]} | {r["sun_alt"]:.0f} | {r["from"]} | {mount} | '
@@ -190,8 +191,8 @@ def main() -> int:
     rows += leave_one_out(sessions, g, other_clear)
     print(table(rows))
     for r in rows:
-        if r['refused']:
-            print(f'{r["session"]} from {r["from"]}: {r["refused"]}')
+        if r['refused'] or r['warning']:
+            print(f'{r["session"]} from {r["from"]}: {r["refused"] or r["warning"]}')
     if args.plot:
         plot([rows[0], rows[3], rows[4]], sessions, args.plot)  # mounts from clear skies only
     return 0

@@ -25,7 +25,7 @@ from collections import Counter
 from pathlib import Path
 
 from .errors import _one_line, BagError
-from .recovery import _recovered_storage
+from .recovery import _recovered_storage, _skip_damaged_chunks
 
 __all__ = [
     'Tally',
@@ -212,9 +212,11 @@ class BagReader:
             )
             self.recovered = self._reader.note
             return
+        self._damaged_chunks: dict = {}  # {"file byte offset": why}: skipped, each noted once
         try:
             self._reader = Reader(p)
             self._reader.open()
+            _skip_damaged_chunks(self._reader, self._chunk_damaged)
         except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
             first = f'{str(p)!r} is not a readable rosbag2: {_one_line(exc)}'
             if len(storage) != 1:
@@ -224,6 +226,15 @@ class BagReader:
             except Exception:  # noqa: BLE001 - not recoverable either: the first error says why
                 raise BagError(first) from None
             self.recovered = self._reader.note
+
+    def _chunk_damaged(self, where: str, exc: Exception) -> None:
+        """Note a damaged MCAP chunk (skipped; the next chunks are read), once per chunk."""
+        self._damaged_chunks.setdefault(where, _one_line(exc))
+        n = len(self._damaged_chunks)
+        where = '; '.join(f'{w}: {why}' for w, why in self._damaged_chunks.items())
+        self.damage = (
+            f'{n} damaged MCAP chunk{"s" if n > 1 else ""} skipped, the rest read ({where})'
+        )
 
     def __enter__(self):
         return self

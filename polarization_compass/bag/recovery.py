@@ -13,10 +13,12 @@
 # limitations under the License.
 
 """
-Truncated-bag recovery: a damaged bag's single storage file read up to the damage.
+Damaged-bag recovery: a truncated storage file read up to the damage, a damaged chunk skipped.
 
 An MCAP file cut short is read with rosbags' own MCAP reader up to its last complete record; a
-truncated sqlite3 file through a copy whose header counts the pages present.
+truncated sqlite3 file through a copy whose header counts the pages present. In an indexed MCAP
+file a chunk that fails its CRC (or cannot be decompressed) is skipped and the next chunks are read
+(:func:`_skip_damaged_chunks`).
 """
 
 from __future__ import annotations
@@ -211,6 +213,79 @@ class _RecoveredSqlite:
             self._db.close()
         finally:
             self._tmp.cleanup()
+
+
+class _ChunkSkippingMessages:
+    """
+    ``McapReader.messages`` of one indexed MCAP storage, a damaged chunk skipped.
+
+    rosbags merges one generator per chunk of the summary's chunk index (``msgsrc``); a chunk
+    whose CRC or decompression fails raises, which ended the whole merge, so every later chunk was
+    lost too. Here each chunk's generator ends at its damage instead (a chunk is decompressed and
+    checked whole before any of its messages is yielded, so a damaged chunk yields none) and
+    ``on_damage(where, exc)`` is told (``where``: the file and the chunk's byte offset). An
+    unindexed file keeps rosbags' scan.
+    """
+
+    def __init__(self, storage, on_damage):
+        self.storage, self.on_damage = storage, on_damage
+
+    def __call__(self, connections, start=None, stop=None):
+        import heapq
+
+        from rosbags.rosbag2.storage_mcap import McapReader, msgsrc
+
+        st = self.storage
+        if not st.chunks:
+            yield from McapReader.messages(st, connections, start, stop)
+            return
+        channel_map = {conn.id: conn for conn in connections}
+        chunks = [
+            self._checked(
+                msgsrc(
+                    x,
+                    channel_map,
+                    x.message_start_time if start is None else start,
+                    x.message_end_time + 1 if stop is None else stop,
+                    st.bio,
+                ),
+                x.chunk_start_offset,
+            )
+            for x in st.chunks
+            if (start is None or start < x.message_end_time + 1)
+            and (stop is None or x.message_start_time < stop)
+            and (any(x.channel_count.get(cid, 0) for cid in channel_map))
+        ]
+        for timestamp, offset, connection, data in heapq.merge(*chunks):
+            if offset:  # (0: a chunk's start marker)
+                yield connection, timestamp, data
+
+    def _checked(self, source, offset: int):
+        try:
+            yield from source
+        except Exception as exc:  # noqa: BLE001 - CRC, decompression, a cut record: damage
+            self.on_damage(f'{self.storage.path.name} byte {offset}', exc)
+
+
+def _skip_damaged_chunks(reader, on_damage) -> None:
+    """
+    Make every indexed MCAP storage of an open rosbags ``Reader`` skip its damaged chunks.
+
+    Parameters
+    ----------
+    reader : rosbags.rosbag2.Reader
+        The open reader (its ``storages``).
+    on_damage : callable
+        ``on_damage(where, exception)`` for each damaged chunk met while reading (``where``: the
+        storage file's name and the chunk's byte offset).
+
+    """
+    from rosbags.rosbag2.storage_mcap import McapReader
+
+    directory = getattr(reader, 'storage', reader)  # rosbags' DirectoryReader behind Reader
+    for storage in getattr(directory, 'storages', None) or getattr(reader, 'storages', ()):
+        if isinstance(storage, McapReader):
+            storage.messages = _ChunkSkippingMessages(storage, on_damage)
 
 
 def _announced_counts(directory: Path) -> dict | None:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import BagError
-from ..camera import CameraError, CameraModel
+from ..camera import CameraError, CameraModel, READOUT_FLIPS
 from ..conventions import R_BODY_CAM_DEFAULT
 
 __all__ = [
@@ -103,6 +103,10 @@ class TopicMap:
         used with it (the site is the latest NavSatFix, as on the nodes).
     lookahead_s : float, default 0.5
         How far [s of bag receive time] the reader looks past an image before processing it.
+    readout_flip : {"", "x", "y", "xy"}, default ""
+        The image axes the camera mirrors on readout (the node's ``readout_flip``, CAMERA.yaml's):
+        images and camera_info are read back as the sensor sees them, and ``mosaic`` describes the
+        sensor.
 
     """
 
@@ -114,6 +118,7 @@ class TopicMap:
     site: dict | None = None
     max_gap_s: dict = field(default_factory=lambda: {'imu': 0.05, 'reference': 0.25})
     lookahead_s: float = 0.5
+    readout_flip: str = ''
 
     def __hash__(self):
         return id(self)
@@ -168,7 +173,7 @@ class TopicMap:
         -------
         dict
             ``topics``, ``mosaic``, ``pixel_pitch_um``, ``mounting.R_body_cam``, ``camera``,
-            ``site``, ``max_gap_s`` and ``lookahead_s``.
+            ``site``, ``max_gap_s``, ``lookahead_s`` and ``readout_flip``.
 
         """
         return {
@@ -180,6 +185,7 @@ class TopicMap:
             'site': self.site,
             'max_gap_s': dict(self.max_gap_s),
             'lookahead_s': self.lookahead_s,
+            'readout_flip': self.readout_flip or 'none',
         }
 
 
@@ -197,7 +203,18 @@ def _topic_map_from_dict(d, where: str) -> TopicMap:
     site = _checked_site(d.get('site'), where)
     gaps = _gaps_from_dict(d.get('max_gap_s') or {}, base, where)
     look = _pos(d.get('lookahead_s', base['lookahead_s']), f'{where}: lookahead_s')
-    return TopicMap(topics, dict(mosaic), pitch, tuple(map(tuple, R)), camera, site, gaps, look)
+    flip = _readout_flip(d.get('readout_flip', base['readout_flip']), where)
+    return TopicMap(
+        topics, dict(mosaic), pitch, tuple(map(tuple, R)), camera, site, gaps, look, flip
+    )
+
+
+def _readout_flip(value, where: str) -> str:
+    """Read ``readout_flip``: none (or null), x, y, xy (or yx); BagError otherwise."""
+    v = '' if value in (None, 'none') else value
+    if isinstance(v, str) and ''.join(sorted(v.lower())) in READOUT_FLIPS:
+        return ''.join(sorted(v.lower()))
+    raise BagError(f'{where}: readout_flip must be one of none, x, y, xy, got {value!r}')
 
 
 def _check_keys(d, where: str) -> None:
@@ -213,6 +230,7 @@ def _check_keys(d, where: str) -> None:
         'site',
         'max_gap_s',
         'lookahead_s',
+        'readout_flip',
     }
     unknown = set(d) - allowed
     if unknown:
@@ -357,6 +375,7 @@ BUILTIN_TOPIC_MAP = {
     'site': None,
     'max_gap_s': {'imu': 0.05, 'reference': 0.25},
     'lookahead_s': 0.5,
+    'readout_flip': 'none',
 }
 
 

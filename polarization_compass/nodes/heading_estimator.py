@@ -40,12 +40,9 @@ Headings known only modulo 180 deg are not published on the Imu/Float64 topics u
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import threading
 import time
 
-import numpy as np
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
@@ -55,9 +52,9 @@ from .msgs import AttitudeUncertainty, decode_image
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, MessageError, stamp_ns
-from ..camera import CameraError, CameraModel, unflip, unflipped_camera
+from ..camera import CameraError, CameraModel
 from ..errors import CompassError
-from ..estimators import registry
+from ..mount import Mount
 from ..pipeline import (
     apply_rules,
     CameraInfoState,
@@ -65,6 +62,7 @@ from ..pipeline import (
     ImageLossWatch,
     PipelineError,
     PolarizerMonitor,
+    SensorReadout,
     warm_up,
 )
 from ..specs import topics
@@ -95,8 +93,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
         self._make_diagnostics(f'heading estimator ({self.method})')
         self.polarizer = PolarizerMonitor(p['polarizer_check_every'])
         # a mirrored readout (readout_flip): images read back as the sensor sees them, K mirrored
-        self.readout_flip = '' if p['readout_flip'] == 'none' else p['readout_flip']
-        self._unflipped = None  # (camera_info's camera, the sensor's)
+        self.readout = SensorReadout(p['readout_flip'])
         # Images are received (decoded and queued) in the executor and processed in this node's own
         # worker thread (:meth:`_work`), whatever the executor (the default EventsExecutor is
         # single-threaded): a long estimate never blocks reception, so the middleware's 5-deep
@@ -114,6 +111,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
         self._worker = None
         self._stop = False
         self._start_common(p, small)
+        self.imu.mount = Mount(p['mount_pitch_deg'], p['mount_roll_deg'])  # camera_tilt composes
         self._subscribe_camera(small, images)
         self.get_logger().info(
             f'method {self.method}: {topics.method_topics(self.method)["heading_raw"]} from '
@@ -287,15 +285,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
             raise PipelineError(
                 f'image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}'
             )
-        return self._sensor_camera(cam)
-
-    def _sensor_camera(self, cam: CameraModel) -> CameraModel:
-        """Return the intrinsics of the sensor's own image (``readout_flip``; kept per K)."""
-        if not self.readout_flip:
-            return cam
-        if self._unflipped is None or self._unflipped[0] != cam:
-            self._unflipped = (cam, unflipped_camera(cam, self.readout_flip))
-        return self._unflipped[1]
+        return self.readout.camera(cam)  # the sensor's own image's (readout_flip)
 
     def _receive_image(self, msg) -> bool:
         """
@@ -310,10 +300,24 @@ class HeadingEstimatorNode(HeadingNodeBase):
         except Exception:  # noqa: BLE001 - the decoder counts a broken header
             pass
         mosaic = self.diag.decoded('', decode_image, msg)
-        if mosaic is not None and self.readout_flip:  # read as the sensor sees it
-            mosaic = np.ascontiguousarray(unflip(mosaic, self.readout_flip))
         if mosaic is None:
             return False
+        t_ns = stamp_ns(msg.header)
+        why = self._size_mismatch(t_ns, int(msg.width), int(msg.height))
+        if why is not None:  # its bad_input status now: queued, it would evict a good frame
+            self._publish_status(
+                {
+                    'stamp_ns': t_ns,
+                    'method': self.method,
+                    'status': 'bad_input',
+                    'reason': why,
+                    'ok': False,
+                    'published': False,
+                }
+            )
+            self.diag.done(t_in, t_ns, f'bad_input: {why}', ok=False)
+            return False
+        mosaic = self.readout.image(mosaic)  # read as the sensor sees it (readout_flip)
         item = (
             stamp_ns(msg.header),
             mosaic,
@@ -335,6 +339,27 @@ class HeadingEstimatorNode(HeadingNodeBase):
         with self._work_cv:
             self._work_cv.notify()
         return True
+
+    def _size_mismatch(self, t_ns: int, width: int, height: int) -> str | None:
+        """
+        Say why an image cannot match the camera_info it will be paired with, or None.
+
+        Checked on reception, before the image is queued (its ``bad_input`` status is published at
+        once): a burst of well-formed images of another size used to fill the worker's queue and
+        push out the good frames waiting there (``image_queue_full``), only to fail one by one in
+        the worker. The camera is the image's
+        own camera_info (by stamp), else the latest; none yet, or a rejected one: the worker
+        decides as before.
+        """
+        if self.params['camera_info_source'] != 'topic':
+            return None
+        try:
+            cam = self.camera_info.camera(t_ns)
+        except PipelineError:
+            return None
+        if cam is None or (cam.width_px, cam.height_px) == (width, height):
+            return None
+        return f'image is {width}x{height} but camera_info says {cam.width_px}x{cam.height_px}'
 
     def _on_image_msg(self, msg) -> None:
         """Queue an image for the worker thread (started with the first image)."""
@@ -381,42 +406,6 @@ class HeadingEstimatorNode(HeadingNodeBase):
         if self._receive_image(msg):
             self._drain()
 
-    def _with_attitude_sigma(self, result, pitch, roll, status: dict):
-        """
-        Add the IMU tilt's uncertainty to a tilt-reading method's sigma: ``J Sigma_att J^T``.
-
-        ``Sigma_att`` as the ``tilt_corrector``'s (docs/ros.md): the larger of the latest IMU
-        message's roll/pitch variances plus ``attitude_sigma_deg``^2, isotropic; ``J`` from the
-        method (:meth:`~polarization_compass.estimators.base.Estimator.tilt_sensitivity`).
-        """
-        if not (self.needs_tilt and result.ok and result.sigma_deg is not None):
-            return result
-        if pitch is None or roll is None:
-            return result
-        j = registry.get(self.method).tilt_sensitivity(result, pitch, roll)
-        if j is None:
-            return result
-        s_tilt, known = self.attitude_uncertainty.sigma_deg(
-            float(self.params['attitude_sigma_deg']), self.get_logger()
-        )
-        s_att = math.hypot(j[0] * s_tilt, j[1] * s_tilt)
-        status.update(
-            attitude_sigma_deg=s_tilt,
-            attitude_covariance='imu' if known else 'unknown',
-            sigma_attitude_deg=s_att,
-        )
-        if s_att == 0.0:
-            return result
-        return dataclasses.replace(
-            result,
-            sigma_deg=math.hypot(result.sigma_deg, s_att),
-            extras={
-                **result.extras,
-                'sigma_fit_deg': result.sigma_deg,
-                'sigma_attitude_deg': s_att,
-            },
-        )
-
     def _prepare(self, mosaic, width, height, t_ns=None) -> CameraModel:
         """Return the camera of an image of this size and stamp (camera_info or the fallback)."""
         return self._camera_for(width, height, t_ns)
@@ -427,10 +416,18 @@ class HeadingEstimatorNode(HeadingNodeBase):
         result = self.front.estimate(
             mosaic, camera, sun_az, sun_alt, pitch, roll, inp.prior_bearing_deg
         )
-        result = self._with_attitude_sigma(result, pitch, roll, status)
         self._check_polarizer(mosaic, camera, sun_alt, pitch, roll, status)
-        # the polarizer gate, then the heading vs. the IMU prior: replay applies the same rules
-        return apply_rules(result, inp, self.tilt_prior, self.polarizer)
+        # the IMU tilt's share of the sigma (Sigma_att: the latest IMU's covariance plus
+        # attitude_sigma_deg), the polarizer gate, the heading vs. the IMU prior: replay applies
+        # the same rules
+        tilt_sigma = (
+            self.attitude_uncertainty.sigma_deg(
+                float(self.params['attitude_sigma_deg']), self.get_logger()
+            )
+            if self.needs_tilt
+            else None
+        )
+        return apply_rules(result, inp, self.tilt_prior, self.polarizer, tilt_sigma, status)
 
     def _debug_rgb(self, camera, mosaic, result, sun, inp):
         """Render the diagnostic figure of one image (~/debug_image; the estimate's layers)."""

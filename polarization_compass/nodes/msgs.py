@@ -42,6 +42,7 @@ from ..bag.errors import MessageError
 from ..bag.image import decode_mosaic, image_decoder
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
+from ..pipeline.attitude_sigma import AttitudeUncertainty, imu_tilt_variance_deg2  # noqa: F401
 
 __all__ = [
     'MessageError',
@@ -258,68 +259,3 @@ def kv(key: str, value) -> KeyValue:
     if isinstance(value, float):
         value = f'{value:.6g}'
     return KeyValue(key=str(key), value=str(value))
-
-
-def imu_tilt_variance_deg2(cov) -> float | None:
-    """
-    Return the tilt variance [deg^2] a sensor_msgs/Imu orientation covariance states, or None.
-
-    The larger of the roll and pitch variances (elements 0 and 4, rad^2, body axes), so that it
-    bounds the camera's pitch and roll whatever the mounting; None for an all-zero matrix
-    ("covariance unknown", sensor_msgs/Imu) or unusable (non-finite, negative) diagonal elements.
-    (Element 0 = -1, "no orientation", is rejected before: ``decode_orientation``.)
-
-    Parameters
-    ----------
-    cov : sequence of float
-        The 9 row-major elements of ``orientation_covariance`` [rad^2].
-
-    Returns
-    -------
-    float or None
-        Variance [deg^2].
-
-    """
-    c = [float(x) for x in cov]
-    if len(c) != 9 or all(x == 0.0 for x in c):
-        return None
-    d = (c[0], c[4])
-    if not all(math.isfinite(x) and x >= 0.0 for x in d):
-        return None
-    return math.degrees(math.sqrt(max(d))) ** 2
-
-
-class AttitudeUncertainty:
-    """
-    The latest IMU's tilt uncertainty and a stated extra, as both tilt-reading nodes propagate it.
-
-    ``heading_estimator`` (tilt_aware) and ``tilt_corrector`` grow the heading sigma by
-    ``J Sigma_att J^T`` (docs/ros.md); this holds ``Sigma_att``'s source: the latest IMU message's
-    tilt variance (:func:`imu_tilt_variance_deg2`; None for an all-zero, i.e. unknown, covariance)
-    and warns once when nothing states an uncertainty.
-    """
-
-    def __init__(self):
-        self.var_deg2 = None
-        self._warned_unknown = False
-
-    def update(self, cov) -> None:
-        """Take the tilt variance of an Imu message's ``orientation_covariance``."""
-        self.var_deg2 = imu_tilt_variance_deg2(cov)
-
-    def sigma_deg(self, extra_deg: float, logger) -> tuple[float, bool]:
-        """
-        Return the camera pitch/roll 1-sigma [deg] and whether the IMU covariance is known.
-
-        ``sqrt(var + extra^2)`` with ``extra_deg`` the node's ``attitude_sigma_deg`` (what the
-        covariance does not hold: boresight, time offset x tilt rate); the first call with neither
-        logs a warning through ``logger``.
-        """
-        v = self.var_deg2
-        if v is None and extra_deg == 0.0 and not self._warned_unknown:
-            self._warned_unknown = True
-            logger.warning(
-                'IMU orientation_covariance is all zeros (unknown): no attitude uncertainty is '
-                'propagated into the heading sigma; set attitude_sigma_deg to state one'
-            )
-        return math.sqrt((v or 0.0) + extra_deg * extra_deg), v is not None

@@ -35,7 +35,7 @@ from .errors import PipelineError
 from .front_end import HeadingFrontEnd, warm_up
 from .monitors import ImageLossWatch, PolarizerMonitor
 from .prior import check_prior_agreement, FrameInputs, PRIOR_DISAGREES_N_SIGMA, TiltAndPrior
-from .rules import apply_rules
+from .rules import apply_rules, SensorReadout
 from .sampling import decimated_blocks, whole_sky_sample
 from .sun import SunSource
 
@@ -54,6 +54,7 @@ __all__ = [
     'ImageLossWatch',
     'PolarizerMonitor',
     'apply_rules',
+    'SensorReadout',
     'decimated_blocks',
     'whole_sky_sample',
 ]

@@ -12,7 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The IMU attitude history (samples by stamp, interpolated) and the camera tilt at a stamp."""
+"""
+The IMU attitude history (samples by stamp, interpolated) and the camera tilt at a stamp.
+
+The camera's tilt on the body (the ``mount:`` of its ``CAMERA.yaml``, :mod:`~..mount`) is composed
+here, in :meth:`AttitudeBuffer.camera_tilt`, for every camera estimator fed by an IMU (the
+``heading_estimator`` node, replay): the one place the body attitude meets the camera's mount.
+"""
 
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..conventions import camera_attitude_from_body_quat, R_BODY_CAM_DEFAULT
+from ..mount import mounted_attitude
 
 __all__ = [
     'CameraTilt',
@@ -78,13 +85,17 @@ class AttitudeBuffer:
     ----------
     keep_ns : int, default 10 s
         History kept behind the newest sample [ns].
+    mount : Mount or None, optional
+        The camera's tilt on the body (``CAMERA.yaml``'s ``mount:``), composed with the body's
+        attitude by :meth:`camera_tilt`; None: the camera sits as ``R_body_cam`` says.
 
     """
 
-    def __init__(self, keep_ns: int = 10_000_000_000):
+    def __init__(self, keep_ns: int = 10_000_000_000, mount=None):
         import threading
 
         self.keep_ns = int(keep_ns)
+        self.mount = mount
         self._lock = threading.Lock()  # nodes add from one thread and look up from another
         self._t: list[int] = []
         self._q: list[np.ndarray] = []
@@ -249,8 +260,9 @@ class AttitudeBuffer:
         Returns
         -------
         CameraTilt or None
-            Bearing, pitch and roll [deg] of ``R_enu_body @ R_body_cam``; None when no sample is
-            within ``tol_ns``.
+            Bearing, pitch and roll [deg] of ``R_enu_body @ R_body_cam`` composed with the
+            buffer's ``mount`` (:func:`~..mount.mounted_attitude`); None when no sample is within
+            ``tol_ns``.
 
         References
         ----------
@@ -263,4 +275,6 @@ class AttitudeBuffer:
             return None
         q, gap, interp = hit
         att = camera_attitude_from_body_quat(q, R_body_cam)
+        if self.mount is not None:
+            att = mounted_attitude(att.bearing_deg, att.pitch_deg, att.roll_deg, self.mount)
         return CameraTilt(att.bearing_deg, att.pitch_deg, att.roll_deg, gap, interp)

@@ -91,6 +91,7 @@ class TiltAndPrior:
         from ..estimators import registry
 
         cls = registry.find(method)
+        self.method = method
         self.needs_tilt = bool(cls is not None and cls.needs_tilt)
         self.prior_source = prior_source
         self.prior_max_age_s = float(prior_max_age_s)

@@ -53,8 +53,11 @@ class ReplayConfig:
     errormap`` for the tilt correction (None: no corrected headings; see
     :func:`default_error_map`). ``prior_sigma_deg`` and ``polarizer_check_every``: the
     heading_estimator's parameters of those names (the IMU-prior check and the polarizer gate,
-    :func:`~polarization_compass.pipeline.apply_rules`). ``direct_methods``: methods the corrector
-    does not touch (default: those whose estimator class ``needs_tilt``, e.g. tilt_aware).
+    :func:`~polarization_compass.pipeline.apply_rules`). ``attitude_sigma_deg``: the
+    heading_estimator's parameter (the tilt 1-sigma [deg] the IMU covariance does not hold; with
+    the bag's IMU covariance it grows tilt_aware's sigma as on the node). ``direct_methods``:
+    methods the corrector does not touch (default: those whose estimator class ``needs_tilt``,
+    e.g. tilt_aware).
     """
 
     methods: tuple = ()
@@ -67,6 +70,7 @@ class ReplayConfig:
     prior_max_age_s: float = 2.0
     prior_sigma_deg: float = 15.0
     polarizer_check_every: int = 100
+    attitude_sigma_deg: float = 0.0
     sun_model: str = 'spa'
     error_map: str | None = None
     correction_sigma_deg: float = 0.1
@@ -229,7 +233,9 @@ class FramePipeline:
         from ..pipeline.front_end import HeadingFrontEnd
         from ..pipeline.monitors import PolarizerMonitor
         from ..pipeline.prior import TiltAndPrior
+        from ..pipeline.rules import SensorReadout
 
+        self.readout = SensorReadout(topic_map.readout_flip)  # the node's readout_flip
         layout = layout_from_mapping(topic_map.mosaic)
         self.config = config
         config.check_knobs()
@@ -301,6 +307,9 @@ class FramePipeline:
                 for m in self.methods
             ]
         obs_cache: dict = {}  # one observation per demosaic front, one whole-sky sample
+        # a mirrored readout read back as the sensor sees it, K mirrored with it (the node's)
+        mosaic, camera = self.readout.image(frame.mosaic), self.readout.camera(frame.camera)
+        frame = dataclasses.replace(frame, mosaic=mosaic, camera=camera)
         self._check_polarizer(frame, sun_alt)
         return [
             self._method_row(m, front, frame, sun_az, sun_alt, obs_cache)
@@ -317,6 +326,7 @@ class FramePipeline:
 
     def _method_row(self, m, front, frame, sun_az, sun_alt, obs_cache: dict) -> MethodRow:
         """Run method ``m`` on the frame: prior, tilt, estimate, the node's rules, correction."""
+        from ..pipeline.attitude_sigma import tilt_sigma_deg
         from ..pipeline.rules import apply_rules
 
         c = self.config
@@ -341,7 +351,11 @@ class FramePipeline:
         t0 = time.perf_counter()
         try:
             result, t0 = self._estimate(front, frame, inp, key, sun_az, sun_alt, obs_cache, t0)
-            result = apply_rules(result, inp, self.tilt_prior[m], self.polarizer)  # the node's
+            tilt_sigma = (  # the latest IMU's covariance plus attitude_sigma_deg, as the node's
+                tilt_sigma_deg(frame.imu_tilt_var_deg2, c.attitude_sigma_deg),
+                frame.imu_tilt_var_deg2 is not None,
+            )
+            result = apply_rules(result, inp, self.tilt_prior[m], self.polarizer, tilt_sigma)
         except CompassError as exc:
             return MethodRow(
                 status='bad_input', reason=str(exc), pitch_deg=pitch, roll_deg=roll, **common

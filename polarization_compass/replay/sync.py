@@ -38,6 +38,7 @@ from ..bag.image import decode_mosaic
 from ..bag.reader import BagReader, Tally
 from ..bag.topic_map import TopicMap
 from ..conventions import camera_attitude_from_body_quat, wrap_360_deg
+from ..pipeline.attitude_sigma import imu_tilt_variance_deg2
 
 __all__ = ['BagPlan', 'plan_bag', 'SyncedFrame', 'prefetched', 'iter_synced_frames']
 
@@ -160,7 +161,10 @@ class SyncedFrame:
     ``max_gap_s.imu`` of the stamp (the nodes' ``imu_tolerance_s``), or None; ``imu_near``: the
     same within ``prior_max_age_s`` (its bearing, the IMU's coarse yaw, is the ``imu`` prior), or
     None. ``true_bearing_deg``: reference bearing of camera +y, [0, 360), or None. ``site``:
-    (latitude_deg, longitude_deg, altitude_m). ``camera``: CameraModel.
+    (latitude_deg, longitude_deg, altitude_m). ``camera``: CameraModel. ``imu_tilt_var_deg2``:
+    the tilt variance [deg^2] the latest IMU message read states
+    (:func:`~polarization_compass.pipeline.attitude_sigma.imu_tilt_variance_deg2`; None: unknown),
+    as the node holds it.
     """
 
     stamp_ns: int
@@ -171,6 +175,7 @@ class SyncedFrame:
     tilt: object
     true_bearing_deg: float | None
     imu_near: object = None
+    imu_tilt_var_deg2: float | None = None
 
 
 def prefetched(iterable, depth: int = 8):
@@ -272,6 +277,7 @@ class _FrameSync:
         self.newest_image = self.newest_fix = self.newest_info = None
         self.camera = CameraModel(**topic_map.camera) if topic_map.camera is not None else None
         self.site = None
+        self.imu_var = None  # the latest IMU message's tilt variance [deg^2] (None: unknown)
         if topic_map.site is not None:
             s = topic_map.site
             self.site = (
@@ -298,7 +304,11 @@ class _FrameSync:
             t = stamp_ns(msg.header)
             if role == 'image':
                 value = decode_mosaic(msg)
-            elif role in ('imu', 'reference'):
+            elif role == 'imu':  # the attitude and the tilt variance its covariance states
+                value = decode_orientation(msg), imu_tilt_variance_deg2(
+                    getattr(msg, 'orientation_covariance', ())
+                )
+            elif role == 'reference':
                 value = decode_orientation(msg)
             elif role == 'navsatfix':
                 value = decode_navsatfix(msg)
@@ -333,6 +343,8 @@ class _FrameSync:
         )
         if newest is not None and t < newest:
             self.tally.note(topic, 'out_of_order')
+        if role == 'imu':
+            value, self.imu_var = value
         if buf is not None:
             buf.add(t, value)
         elif role == 'navsatfix':
@@ -407,7 +419,7 @@ class _FrameSync:
         else:
             tally.note(self.image_topic, 'no_reference_near_stamp')
         tally.used[self.image_topic] += 1
-        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing, near)
+        return SyncedFrame(t, log_ns, mosaic, cam, where, tilt, true_bearing, near, self.imu_var)
 
 
 def iter_synced_frames(

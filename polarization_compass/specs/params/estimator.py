@@ -209,6 +209,26 @@ ESTIMATOR = (
         unit='deg',
     ),
     Param(
+        'mount_pitch_deg',
+        0.0,
+        "the camera's pitch on the body (CAMERA.yaml mount: pitch_deg, written by "
+        "'polarization-compass calibrate-mount'): composed with the IMU's attitude for the "
+        'methods that read the tilt',
+        -45.0,
+        45.0,
+        unit='deg',
+        read_only=True,
+    ),
+    Param(
+        'mount_roll_deg',
+        0.0,
+        "the camera's roll on the body (CAMERA.yaml mount: roll_deg), as mount_pitch_deg",
+        -45.0,
+        45.0,
+        unit='deg',
+        read_only=True,
+    ),
+    Param(
         'publish_ambiguous',
         False,
         'also publish headings known only modulo 180 deg on the Imu topics '

@@ -1,0 +1,153 @@
+# Copyright 2026 polarization_compass developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Mount calibration from several recordings, and the within-turn scatter that judges it (issue 28).
+
+:func:`fit_mount_recordings` fits the mount of :mod:`.mount_fit` from several recordings at once
+and widens its sigmas by how much the recordings' own mounts disagree (a sky that is not clear
+biases one recording); :func:`heading_scatter_deg` is the before/after measure of a calibration:
+how much ``bearing + imu_yaw`` moves within a turn in place.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .mount import Mount
+from .mount_fit import concat, fit_mount, MountFit, MountFitError
+
+__all__ = ['MAX_DISAGREEMENT_DEG', 'fit_mount_recordings', 'heading_scatter_deg']
+
+#: recordings whose own mounts lie within this of each other (per axis, deg) are fitted together
+#: with Birge-widened sigmas and a warning; further apart they are refused (a sky that is not
+#: clear moved one recording's fit by 4.6 deg of pitch on the real sessions, docs)
+MAX_DISAGREEMENT_DEG = 5.0
+
+
+def heading_scatter_deg(bearing_deg, imu_yaw_rad, turn, ok) -> tuple:
+    """
+    Return the within-turn scatter of ``bearing + degrees(imu_yaw)`` (constant in a perfect turn).
+
+    Parameters
+    ----------
+    bearing_deg, imu_yaw_rad, turn, ok : array_like
+        (S,) estimated bearings [deg], IMU yaw [rad], turn labels, and which estimates count.
+
+    Returns
+    -------
+    tuple
+        ``(rms_deg, n)``: the rms over counted samples of their deviation from their turn's
+        circular mean (turns with fewer than 3 counted samples left out), and how many counted.
+
+    """
+    b = np.asarray(bearing_deg, dtype=float)
+    ok = np.asarray(ok, dtype=bool) & np.isfinite(b)
+    c = np.radians(b + np.degrees(np.asarray(imu_yaw_rad, dtype=float)))
+    turn = np.asarray(turn)
+    dev = []
+    for t in np.unique(turn[ok]):
+        sel = ok & (turn == t)
+        if sel.sum() < 3:
+            continue
+        mean = math.atan2(float(np.mean(np.sin(c[sel]))), float(np.mean(np.cos(c[sel]))))
+        dev.append(np.degrees(np.angle(np.exp(1j * (c[sel] - mean)))))
+    if not dev:
+        return math.nan, 0
+    d = np.concatenate(dev)
+    return float(np.sqrt(np.mean(d**2))), int(d.size)
+
+
+def fit_mount_recordings(
+    geometry, parts: list, max_disagreement_deg: float = MAX_DISAGREEMENT_DEG, **limits
+) -> MountFit:
+    """
+    Fit the mount from several recordings, widening its sigmas by how much they disagree.
+
+    The recordings are fitted together (:func:`fit_mount`) and, from two on, each alone; a
+    sigma is the larger of the joint fit's and the Birge-scaled sigma of the single fits' weighted
+    mean, ``sqrt(chi2 / (n - 1)) / sqrt(sum 1 / sigma_i^2)`` with chi2 of the single fits about
+    the joint one (a sky that is not clear biases a recording's mount beyond its own sigma). When
+    the single mounts differ by more than 3 of their combined sigmas on an axis but by at most
+    ``max_disagreement_deg``, the joint fit is kept with the widened sigmas and ``warning`` names
+    each recording's mount; further apart, the recordings are refused.
+
+    Parameters
+    ----------
+    geometry : ArrayGeometry or CameraRays
+        The sensor description.
+    parts : list of TurnSamples
+        One per recording, turn labels distinct across them.
+    max_disagreement_deg : float, optional
+        Largest difference [deg] of two recordings' own pitch (or roll) fitted together.
+    **limits
+        The limits of :func:`fit_mount`.
+
+    Returns
+    -------
+    MountFit
+        The joint fit, sigmas widened; ``spread`` the Birge ratios (pitch, roll).
+
+    Raises
+    ------
+    MountFitError
+        The joint fit refused, or the recordings disagree by more than ``max_disagreement_deg``.
+
+    """
+    fit = fit_mount(geometry, concat(parts), **limits)
+    singles = []
+    for i, p in enumerate(parts):
+        try:
+            singles.append((i, fit_mount(geometry, p, **{**limits, 'max_sigma_deg': 90.0})))
+        except MountFitError:
+            continue  # a recording that cannot determine the mount alone still counts jointly
+    if len(singles) < 2:
+        return fit
+    m = fit.mount
+    ratios, gaps, combined, tense = [], [], [], False
+    for key in ('pitch', 'roll'):
+        x = np.array([getattr(s.mount, f'{key}_deg') for _, s in singles])
+        sx = np.array([getattr(s.mount, f'{key}_sigma_deg') for _, s in singles])
+        chi2 = float(np.sum(((x - getattr(m, f'{key}_deg')) / sx) ** 2)) / (len(singles) - 1)
+        ratios.append(max(1.0, math.sqrt(chi2)))
+        gaps.append(float(np.ptp(x)))
+        combined.append(sx)
+        i, j = int(np.argmin(x)), int(np.argmax(x))
+        tense |= x[j] - x[i] > 3.0 * math.hypot(sx[i], sx[j])
+    each = '; '.join(
+        f'recording {i + 1}: pitch {s.mount.pitch_deg:.1f} +- {s.mount.pitch_sigma_deg:.1f}, '
+        f'roll {s.mount.roll_deg:.1f} +- {s.mount.roll_sigma_deg:.1f}'
+        for i, s in singles
+    )
+    if max(gaps) > max_disagreement_deg:
+        raise MountFitError(
+            f'cannot calibrate the mount: the recordings disagree by {max(gaps):.1f} deg > '
+            f'{max_disagreement_deg:g} ({each} deg); calibrate from turns under a clear, open sky '
+            '(trees and clouds bias the fit)'
+        )
+    sig = [
+        max(getattr(m, f'{key}_sigma_deg'), r / math.sqrt(float(np.sum(1.0 / sx**2))))
+        for key, r, sx in zip(('pitch', 'roll'), ratios, combined)
+    ]
+    fit.mount = Mount(m.pitch_deg, m.roll_deg, sig[0], sig[1])
+    fit.spread = (ratios[0], ratios[1])
+    if tense:
+        fit.warning = (
+            f'warning: the recordings disagree ({each} deg): the sigmas are widened by '
+            f'{ratios[0]:.1f} (pitch) and {ratios[1]:.1f} (roll); a mount from turns under a '
+            'clear, open sky alone is better'
+        )
+    return fit
