@@ -134,7 +134,7 @@ def _render_costs(cfg, repeats: int) -> dict:
     from polarization_compass.diagnostic_figure import figure_rgb, save_figure
     from polarization_compass.diagnostic_rgb import quick_rgb
     from polarization_compass.estimators import HeadingResult, Status
-    from polarization_compass.headings import Sun
+    from polarization_compass.pipeline.sun import Sun
     from polarization_compass.render import Renderer, SunDirection
     from polarization_compass.scene_load import load_scene
     from polarization_compass.sky_view import view_from_mosaic

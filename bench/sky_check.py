@@ -24,8 +24,9 @@ side vote; plus one shared ``sample_sky`` per frame); and the polarizer check
 ``polarizer_check_every``-th image) on a full-size raw mosaic.
 
 Frames: the real ``sunny.jpg`` (test/data/real-sky, 2048 x 2048 Stokes planes, fisheye) through
-``estimate``'s own observation builder (:func:`polarization_compass.headings.real_observation`),
-and a simulated ``imx250mzr_noisy`` mosaic for the monitor.
+``estimate``'s own observation builder
+(:func:`polarization_compass.pipeline.real_image.real_observation`), and a simulated
+``imx250mzr_noisy`` mosaic for the monitor.
 """
 
 from __future__ import annotations
@@ -53,9 +54,9 @@ def _real_sky():
 def run(cfg) -> dict:
     optional_import('polarization_compass.skyfit')
     from polarization_compass.estimators import estimator_names
-    from polarization_compass.headings import real_observation
+    from polarization_compass.pipeline.real_image import real_observation
+    from polarization_compass.pipeline.sampling import observation_sky_sample
     from polarization_compass.real_input import PolarizationInput
-    from polarization_compass.skyfit import sample_sky
 
     R = _real_sky()
     i, q, u = R.read_quadrants('sunny')
@@ -71,7 +72,7 @@ def run(cfg) -> dict:
         t_sample = []
         for _ in range(repeats + 1):
             t0 = time.perf_counter()
-            sample = sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)
+            sample = observation_sky_sample(obs)
             t_sample.append(time.perf_counter() - t0)
         rows = [
             _method_row(m, obs, sample, alt, repeats)
@@ -123,7 +124,7 @@ def _camera_file(R, step: int):
 def _method_row(m: str, obs, sample, alt: float, repeats: int) -> dict:
     """Time one method: its estimate, its whole-sky check and, if it has one, its robust refit."""
     from polarization_compass.estimators import make_estimator
-    from polarization_compass.headings import REAL_SKY_KNOBS
+    from polarization_compass.pipeline.methods import REAL_SKY_KNOBS
     from polarization_compass.skyfit_assess import assess_result
 
     est = make_estimator(m)

@@ -13,24 +13,34 @@
 # limitations under the License.
 
 """
-The one road from an input file to headings: frame file, Stokes planes or raw mosaic.
+The file entry of the one road: frame file, Stokes planes or raw mosaic -> headings.
 
-``polarization-compass estimate``, the bench and the tests turn an input file into headings here
-(the nodes and the replay feed a live mosaic to
-:class:`polarization_compass.pipeline.HeadingFrontEnd` instead). The steps, in order:
+``polarization-compass estimate``, the bench and the tests turn an input file into headings here;
+the nodes and the replay feed live mosaics to
+:class:`polarization_compass.pipeline.HeadingFrontEnd`. Both take the same steps, each written
+once in :mod:`polarization_compass.pipeline`:
 
 1. :func:`estimate_file` reads the input
    (:func:`polarization_compass.real_input.load_polarization_input`): a frame file written by
    ``render`` goes to :func:`frame_headings`, a real image (raw mosaic or Stokes planes, with a
    camera file) to :func:`real_headings`.
-2. :func:`resolve_sun` says where the sun was: given, from the frame's meta, or from the ephemeris.
-3. :func:`make_estimators` makes one estimator per method with the knobs each method declares
-   (``knob_specs``: names and ranges are checked there, nowhere else).
-4. The observation: a frame's raw mosaic demosaiced for each method's pixels
-   (:func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`) or its stored
-   AoP/DoP; a real image's whole sky by :func:`real_observation`.
-5. Each result as a JSON-ready dict (:func:`result_row`); on real images checked against the whole
-   sky first (:func:`polarization_compass.skyfit.assess_result`, ``inconsistent`` across methods).
+2. Where the sun was: :func:`polarization_compass.pipeline.sun.resolve_sun` (given, from the
+   frame's meta, or from the ephemeris); the camera's pitch and roll: :func:`camera_tilt`.
+3. One estimator per method with the knobs each method declares
+   (:func:`polarization_compass.pipeline.methods.make_estimators`; ``knob_specs``: names and
+   ranges are checked there, nowhere else).
+4. The observation: a frame's raw mosaic demosaiced for each method's pixels by
+   :func:`polarization_compass.pipeline.front_end.mosaic_observation` (the front end's own step),
+   or its stored AoP/DoP; a real image's whole sky by
+   :func:`polarization_compass.pipeline.real_image.real_observation`.
+5. The estimate, checked against the whole sky on real images
+   (:func:`polarization_compass.pipeline.front_end.estimate_checked` on
+   :func:`polarization_compass.pipeline.sampling.observation_sky_sample`, as the front end does on
+   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), ``inconsistent`` across
+   methods, then the polarizer gate (:func:`polarization_compass.polarizer_check.check_frame` and
+   :func:`~polarization_compass.polarizer_check.gate_result`, as the node's
+   :class:`~polarization_compass.pipeline.monitors.PolarizerMonitor`).
+6. Each result as a JSON-ready dict (:func:`polarization_compass.pipeline.methods.result_row`).
 """
 
 from __future__ import annotations
@@ -40,39 +50,19 @@ import math
 import time
 
 from .errors import CompassError
+from .pipeline.front_end import estimate_checked, mosaic_observation, MosaicReading
+from .pipeline.methods import make_estimators, REAL_SKY_KNOBS, result_row
+from .pipeline.real_image import real_observation
+from .pipeline.sampling import observation_sky_sample
+from .pipeline.sun import resolve_sun, Sun
 
 __all__ = [
     'EstimateOptions',
-    'REAL_SKY_KNOBS',
-    'REAL_SKY_OUTLIER_DEG',
-    'Sun',
+    'camera_tilt',
     'estimate_file',
     'frame_headings',
-    'check_stride',
-    'make_estimators',
-    'method_list',
     'real_headings',
-    'real_observation',
-    'resolve_sun',
-    'result_row',
 ]
-
-#: real images: the robust refit's outlier threshold for the methods that have the knob
-#: (``outlier_deg``)
-REAL_SKY_OUTLIER_DEG = 15.0
-
-#: real images: knob defaults for the methods with the robust refit (``outlier_deg``), unless the
-#: user sets ``outlier_deg``: consensus over candidate suns, outliers beyond 15 deg dropped
-REAL_SKY_KNOBS = {'outlier_deg': REAL_SKY_OUTLIER_DEG, 'max_aop_noise_deg': 90.0}
-
-
-@dataclass(frozen=True)
-class Sun:
-    """Where the sun was: azimuth [deg, clockwise from North], altitude [deg] and whence."""
-
-    azimuth_deg: float
-    altitude_deg: float
-    source: str
 
 
 @dataclass
@@ -123,13 +113,16 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         :mod:`polarization_compass.sky_view`): ``kind`` ('frame' or the real input's kind),
         ``sun``, ``results`` (the :class:`HeadingResult` of each method), ``observations``
         (method name to its observation), and ``frame`` and ``plan`` (a frame file; ``plan``
-        None for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask``
-        (a real image).
+        the :class:`~polarization_compass.pipeline.front_end.MosaicReading` of its mosaic, None
+        for stored AoP/DoP) or ``input``, ``camera_file``, ``mask`` and ``data_mask`` (a real
+        image).
 
     Returns
     -------
     list of dict
-        One JSON-ready dict per method (:func:`result_row`), in the order of ``options.methods``.
+        One JSON-ready dict per method
+        (:func:`~polarization_compass.pipeline.methods.result_row`), in the order of
+        ``options.methods``.
 
     Raises
     ------
@@ -167,10 +160,6 @@ def estimate_file(path, options: EstimateOptions, seen: dict | None = None) -> l
         mask = load_mask(options.mask_path, shape, cam_file.camera.shape)
     if cam_file.readout_flip:  # the camera model is the sensor's: read the image as it sees it
         inp, mask = _unflipped(inp, mask, cam_file.readout_flip)
-    from .mount import camera_tilt_deg  # the body's --pitch/--roll composed with the mount
-
-    tilt = camera_tilt_deg(options.pitch_deg, options.roll_deg, cam_file.mount)
-    options = EstimateOptions(**{**vars(options), 'pitch_deg': tilt[0], 'roll_deg': tilt[1]})
     return real_headings(inp, cam_file, options, sun, mask, seen)
 
 
@@ -203,234 +192,39 @@ def _options_sun(meta: dict, options: EstimateOptions) -> Sun:
     )
 
 
-def resolve_sun(
-    meta: dict,
-    azimuth_deg: float | None = None,
-    altitude_deg: float | None = None,
-    lat_deg: float | None = None,
-    lon_deg: float | None = None,
-    time_utc: str | None = None,
-) -> Sun:
+def camera_tilt(options: EstimateOptions, camera_file=None) -> tuple:
     """
-    Say where the sun was: given, else from a frame's meta, else from the ephemeris.
+    Resolve the camera pitch and roll [deg] the estimators use for an input file.
+
+    The one place where the body attitude given for a frame becomes the camera's: the
+    observation, the whole-sky check and the polarizer check all read what this returns. A real
+    image's camera file composes its ``mount:`` with the given body ``pitch_deg``/``roll_deg``
+    (:func:`polarization_compass.mount.camera_tilt_deg`, issue 28); a frame file's tilt is its
+    rendered camera's, as given.
 
     Parameters
     ----------
-    meta : dict
-        A frame's meta (``sun_azimuth_deg``, ``sun_altitude_deg``); ``{}`` for a real image.
-    azimuth_deg, altitude_deg : float, optional
-        The given sun [deg]; both or neither (the caller checks their ranges).
-    lat_deg, lon_deg : float, optional
-        The site [deg], for the ephemeris.
-    time_utc : str, optional
-        UTC time, ISO 8601, for the ephemeris.
+    options : EstimateOptions
+        ``pitch_deg`` and ``roll_deg`` as given (None: unknown).
+    camera_file : CameraFile, optional
+        The real image's camera file; None for a frame file (its camera is the rendered one).
 
     Returns
     -------
-    Sun
-        Azimuth, altitude and where they came from.
-
-    Raises
-    ------
-    CompassError
-        Nothing says where the sun was.
+    tuple
+        (pitch_deg, roll_deg) of the camera [deg, eq 21]; None when unknown.
 
     """
-    if azimuth_deg is not None or altitude_deg is not None:
-        return Sun(float(azimuth_deg), float(altitude_deg), 'given (--sun-azimuth/--sun-altitude)')
-    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
-    ok = all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        for v in (az, alt)
-    )
-    if ok:
-        return Sun(float(az), float(alt), 'frame meta')
-    if lat_deg is None or lon_deg is None or time_utc is None:
-        raise CompassError(
-            'the input does not say where the sun was: give --lat, --lon and --time, or '
-            '--sun-azimuth and --sun-altitude'
-        )
-    from .solar import sun_position
+    if camera_file is None:
+        return options.pitch_deg, options.roll_deg
+    from .mount import camera_tilt_deg  # the body's --pitch/--roll composed with the mount
 
-    pos = sun_position(time_utc, lat_deg, lon_deg, 0.0)
-    return Sun(
-        float(pos.azimuth_deg),
-        float(pos.altitude_deg),
-        'ephemeris (SPA) for --lat/--lon/--time',
-    )
-
-
-def method_list(text: str) -> list[str]:
-    """
-    Read a method selection: ``all`` or a comma-separated list of registered methods.
-
-    Parameters
-    ----------
-    text : str
-        ``all`` or e.g. ``zenith,sm_asm``.
-
-    Returns
-    -------
-    list of str
-        The method names, in the registry's order for ``all``, else as given.
-
-    Raises
-    ------
-    CompassError
-        An unknown method or an empty list.
-
-    """
-    from .estimators import estimator_names
-
-    names = estimator_names()
-    if text == 'all':
-        return names
-    wanted = [t.strip() for t in text.split(',') if t.strip()]
-    bad = [w for w in wanted if w not in names]
-    if bad or not wanted:
-        raise CompassError(
-            f'--method: unknown {", ".join(bad) or repr(text)}; known: {", ".join(names)} or all'
-        )
-    return wanted
-
-
-def make_estimators(methods, knobs: dict, stride: int | None = None, defaults=None) -> list:
-    """
-    Make one estimator per method, each with the knobs it declares.
-
-    Names and ranges are checked by the knobs' own declarations (``knob_specs``, through
-    :func:`polarization_compass.estimators.make_estimator`).
-
-    Parameters
-    ----------
-    methods : sequence of str
-        Registered method names.
-    knobs : dict
-        Knob name to value, applied to every method that has the knob; each must be some
-        selected method's.
-    stride : int, optional
-        Every N-th sensor pixel, for the methods with a ``stride`` knob (checked against the
-        declared range even when none of the selected methods has one).
-    defaults : dict, optional
-        Knob defaults for the methods with the robust refit (``outlier_deg``) unless ``knobs``
-        sets ``outlier_deg`` (:data:`REAL_SKY_KNOBS` on real images).
-
-    Returns
-    -------
-    list of tuple
-        (name, estimator, the knobs it was given) per method.
-
-    Raises
-    ------
-    CompassError
-        A knob no selected method has; a bad knob value (an
-        :class:`~polarization_compass.estimators.EstimatorError`).
-
-    """
-    from .estimators import make_estimator, registry
-
-    if stride is not None:
-        check_stride(stride, methods)
-    estimators, used = [], set()
-    for name in methods:
-        specs = registry.get(name).knob_specs()
-        kn = {k: v for k, v in knobs.items() if k in specs}
-        if defaults and 'outlier_deg' in specs and 'outlier_deg' not in knobs:
-            for k, v in defaults.items():
-                if k in specs and k not in knobs:
-                    kn[k] = v
-        used.update(kn)
-        if stride is not None and 'stride' in specs:
-            kn['stride'] = stride
-        estimators.append((name, make_estimator(name, **kn), kn))
-    unused = sorted(set(knobs) - used)
-    if unused:
-        raise CompassError(f'--knob {", ".join(unused)}: no selected method has that knob')
-    return estimators
-
-
-def check_stride(stride, methods) -> None:
-    """
-    Check a stride against the ``stride`` knob as the methods declare it.
-
-    The declarations of the selected methods that have the knob, else that of any registered
-    method (so a bad value is refused even when no selected method reads it).
-
-    Parameters
-    ----------
-    stride : int
-        Every N-th sensor pixel.
-    methods : sequence of str
-        The selected methods.
-
-    Raises
-    ------
-    EstimatorError
-        The value is outside the declared range or not an integer.
-
-    """
-    from .estimators import registry
-
-    def holders(names):
-        specs = (registry.get(n).knob_specs() for n in names)
-        return [s['stride'] for s in specs if 'stride' in s]
-
-    for spec in holders(methods) or holders(registry.names())[:1]:
-        spec.check('stride', stride)
-
-
-def result_row(res, time_ms: float, knobs: dict, source: dict, truth_psi_deg=None) -> dict:
-    """
-    Give one method's result as the JSON-ready dict ``estimate`` prints.
-
-    Parameters
-    ----------
-    res : HeadingResult
-        The result.
-    time_ms : float
-        Time it took [ms] (rounded to microseconds here).
-    knobs : dict
-        The knobs the method was given.
-    source : dict
-        Where the sun and the input came from.
-    truth_psi_deg : float, optional
-        The true psi [deg] of a simulated frame: adds ``truth_psi_deg`` and ``error_deg``
-        (axially folded for an axial result) when the result has a psi.
-
-    Returns
-    -------
-    dict
-        ``res.to_json_dict()`` plus ``time_ms``, ``knobs``, the truth and error, and ``source``.
-
-    """
-    from .conventions import fold_axial_deg, wrap_180_deg
-
-    d = res.to_json_dict()
-    d['time_ms'] = round(time_ms, 3)
-    d['knobs'] = knobs
-    if res.psi_deg is not None and truth_psi_deg is not None:
-        err = res.psi_deg - truth_psi_deg
-        d['truth_psi_deg'] = truth_psi_deg
-        d['error_deg'] = float(fold_axial_deg(err) if res.axial else wrap_180_deg(err))
-    d['source'] = source
-    return d
+    return camera_tilt_deg(options.pitch_deg, options.roll_deg, camera_file.mount)
 
 
 # --------------------------------------------------------------------------------------------
 # Frame files (written by ``render``)
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _MosaicPlan:
-    """How a frame's raw mosaic is demosaiced: where it starts, how, and what was assumed."""
-
-    origin_px: tuple
-    method: str
-    layout: list
-    pol45_toward: str
-    saturation_level: float | None
-    source: dict
-
-
 def frame_headings(
     frame, options: EstimateOptions, sun: Sun, seen: dict | None = None
 ) -> list[dict]:
@@ -449,14 +243,14 @@ def frame_headings(
     options : EstimateOptions
         Methods, knobs, stride, tilt, prior, ``use_stored`` and ``ifov_k``.
     sun : Sun
-        Where the sun was (:func:`resolve_sun`).
+        Where the sun was (:func:`~polarization_compass.pipeline.sun.resolve_sun`).
     seen : dict, optional
         Filled with what the estimators saw (:func:`estimate_file`).
 
     Returns
     -------
     list of dict
-        One dict per method (:func:`result_row`).
+        One dict per method (:func:`~polarization_compass.pipeline.methods.result_row`).
 
     Raises
     ------
@@ -465,11 +259,11 @@ def frame_headings(
 
     """
     estimators = make_estimators(options.methods, options.knobs, options.stride)
+    pitch, roll = camera_tilt(options)
     source = {'sun': sun.source}
     plan = None
     if frame.mosaic is not None and not options.use_stored:
-        plan = _mosaic_plan(frame)
-        source['input'] = plan.source
+        plan, source['input'] = _mosaic_plan(frame, options.ifov_k)
     else:
         source['input'] = 'stored AoP/DoP' + (
             ' (--use-stored)' if frame.mosaic is not None else ''
@@ -481,12 +275,24 @@ def frame_headings(
     for _name, est, kn in estimators:
         t0 = time.perf_counter()
         if plan is not None:
-            obs = _mosaic_observation(frame, plan, est, sun, options)
+            obs = mosaic_observation(
+                frame.mosaic,
+                frame.camera,
+                sun.azimuth_deg,
+                sun.altitude_deg,
+                plan,
+                est.pixels_needed(frame.camera),
+                pitch,
+                roll,
+                options.prior_bearing_deg,
+            )
         else:
             if stored_obs is None:
-                stored_obs = _stored_observation(frame, sun, options)
+                stored_obs = _stored_observation(
+                    frame, sun, pitch, roll, options.prior_bearing_deg
+                )
             obs = stored_obs
-        res = est.estimate(obs)
+        res = estimate_checked(est, obs)
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
         if seen is not None:
@@ -497,8 +303,14 @@ def frame_headings(
     return out
 
 
-def _mosaic_plan(frame) -> _MosaicPlan:
-    """Read from a frame's meta how to demosaic its mosaic; CompassError if it cannot be."""
+def _mosaic_plan(frame, ifov_k: float | None) -> tuple:
+    """
+    Read from a frame's meta how to read its mosaic; CompassError if it cannot be.
+
+    Returns the :class:`~polarization_compass.pipeline.front_end.MosaicReading` (IFOV check
+    ``ifov_k``, None its default) and what the output says of it (``source['input']``).
+    """
+    from .demosaic import IFOV_K_DEFAULT
     from .mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
     _sensor, mos, method, bits, full_well = _sensor_meta(frame.meta)
@@ -533,34 +345,19 @@ def _mosaic_plan(frame) -> _MosaicPlan:
         'saturation_level': sat,
     }
     origin = (int(round(origin[0])), int(round(origin[1])))
-    return _MosaicPlan(origin, method, layout, pol45, sat, source)
-
-
-def _mosaic_observation(frame, plan: _MosaicPlan, est, sun: Sun, options: EstimateOptions):
-    """Demosaic, from the frame's mosaic, the observation of the pixels ``est`` reads."""
-    from .demosaic import IFOV_K_DEFAULT
-    from .estimators.mosaic_input import observation_from_mosaic
-
-    return observation_from_mosaic(
-        frame.mosaic,
-        frame.camera,
-        sun.azimuth_deg,
-        sun.altitude_deg,
-        origin_px=plan.origin_px,
-        method=plan.method,
-        layout=plan.layout,
-        pol45_toward=plan.pol45_toward,
-        saturation_level=plan.saturation_level,
-        selection=est.pixels_needed(frame.camera),
-        with_intensity=frame.intensity is not None,
-        pitch_deg=options.pitch_deg,
-        roll_deg=options.roll_deg,
-        prior_bearing_deg=options.prior_bearing_deg,
-        ifov_k=IFOV_K_DEFAULT if options.ifov_k is None else options.ifov_k,
+    reading = MosaicReading(
+        layout,
+        pol45,
+        method,
+        origin,
+        sat,
+        IFOV_K_DEFAULT if ifov_k is None else ifov_k,
+        frame.intensity is not None,
     )
+    return reading, source
 
 
-def _stored_observation(frame, sun: Sun, options: EstimateOptions):
+def _stored_observation(frame, sun: Sun, pitch, roll, prior):
     """Build the observation of the frame's stored AoP/DoP (every method reads the same one)."""
     from .estimators import Observation
 
@@ -575,9 +372,9 @@ def _stored_observation(frame, sun: Sun, options: EstimateOptions):
         sun.azimuth_deg,
         sun.altitude_deg,
         frame.intensity,
-        options.pitch_deg,
-        options.roll_deg,
-        options.prior_bearing_deg,
+        pitch,
+        roll,
+        prior,
     )
 
 
@@ -634,7 +431,8 @@ def real_headings(
     """
     Estimate the heading of a real image with every selected method, checked against the sky.
 
-    The methods with the robust refit get :data:`REAL_SKY_KNOBS` unless the user set
+    The methods with the robust refit get
+    :data:`~polarization_compass.pipeline.methods.REAL_SKY_KNOBS` unless the user set
     ``outlier_deg``. With ``options.sky_check`` every result is checked against the whole sky
     (:func:`polarization_compass.skyfit.assess_result`: misfit sigma, 180 deg side,
     ``poor_fit``) and, with several methods, against each other (``inconsistent``).
@@ -657,13 +455,13 @@ def real_headings(
     Returns
     -------
     list of dict
-        One dict per method (:func:`result_row`).
+        One dict per method (:func:`~polarization_compass.pipeline.methods.result_row`).
 
     """
-    from .skyfit import sample_sky
-    from .skyfit_assess import assess_result, mark_inconsistent
+    from .skyfit_assess import mark_inconsistent
 
     estimators = make_estimators(options.methods, options.knobs, options.stride, REAL_SKY_KNOBS)
+    pitch, roll = camera_tilt(options, cam_file)
     obs, keep = real_observation(
         inp,
         cam_file,
@@ -671,15 +469,13 @@ def real_headings(
         sun.altitude_deg,
         mask,
         options.demosaic,
-        options.pitch_deg,
-        options.roll_deg,
+        pitch,
+        roll,
         options.prior_bearing_deg,
         options.ifov_k,
     )
     check = options.sky_check
-    sample = (
-        sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity) if check else None
-    )
+    sample = observation_sky_sample(obs) if check else None
     source = {
         'sun': sun.source,
         'input': {
@@ -694,21 +490,12 @@ def real_headings(
     results, times = [], []
     for _name, est, _kn in estimators:
         t0 = time.perf_counter()
-        res = est.estimate(obs)
-        if check:
-            res = assess_result(
-                res,
-                sample,
-                sun.altitude_deg,
-                options.pitch_deg,
-                options.roll_deg,
-                options.prior_bearing_deg,
-            )
+        res = estimate_checked(est, obs, check, sample)
         times.append((time.perf_counter() - t0) * 1e3)
         results.append(res)
     if check and len(results) > 1:
         results = mark_inconsistent(results)
-    results = _polarizer_gated(results, inp, cam_file, sun, options, keep, source)
+    results = _polarizer_gated(results, inp, cam_file, sun, (pitch, roll), keep, source)
     if seen is not None:
         seen.update(kind=inp.kind, sun=sun, results=list(results), input=inp, mask=mask)
         seen.update(camera_file=cam_file, data_mask=keep)
@@ -716,7 +503,7 @@ def real_headings(
     return [result_row(r, dt, kn, source) for r, dt, (_, _, kn) in zip(results, times, estimators)]
 
 
-def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: dict) -> list:
+def _polarizer_gated(results, inp, cam_file, sun: Sun, tilt: tuple, keep, source: dict) -> list:
     """
     Check the frame against the polarizer hypotheses; a contradicted convention is never ``ok``.
 
@@ -738,8 +525,7 @@ def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: di
         cam_file.layout,
         cam_file.pol45_toward,
         sun.altitude_deg,
-        options.pitch_deg,
-        options.roll_deg,
+        *tilt,
         keep,
     )
     source['polarizer_check'] = {
@@ -749,123 +535,3 @@ def _polarizer_gated(results, inp, cam_file, sun: Sun, options, keep, source: di
         'ms': round((time.perf_counter() - t0) * 1e3, 1),
     }
     return [gate_result(r, rep) for r in results]
-
-
-def real_observation(
-    inp,
-    cam_file,
-    sun_az,
-    sun_alt,
-    mask=None,
-    demosaic='superpixel',
-    pitch=None,
-    roll=None,
-    prior=None,
-    ifov_k=None,
-):
-    """
-    Build the observation of a whole real image and its data mask.
-
-    Stokes planes are turned into camera-frame Stokes (S2 changes sign when the 45 deg polarizer
-    points towards +x-y, see :mod:`polarization_compass.demosaic`); a raw mosaic is demosaiced with
-    the camera file's layout. Invalid: outside the lens, saturated (+ glare), masked, and for a raw
-    mosaic the IFOV check's rejections.
-
-    Parameters
-    ----------
-    inp : PolarizationInput
-        The image (:func:`polarization_compass.real_input.load_polarization_input`).
-    cam_file : CameraFile
-        The camera and its polarizer.
-    sun_az, sun_alt : float
-        Sun azimuth [deg, clockwise from North] and altitude [deg].
-    mask : numpy.ndarray of bool, optional
-        True = sky; the input's size or the sensor's.
-    demosaic : {"superpixel", "bilinear"}, default "superpixel"
-        Demosaic of a raw mosaic.
-    pitch, roll : float, optional
-        Known camera pitch and roll [deg].
-    prior : float, optional
-        Prior bearing of camera +y [deg].
-    ifov_k : float, optional
-        IFOV check threshold [noise sigmas] (default ``demosaic.IFOV_K_DEFAULT``; 0 = off).
-
-    Returns
-    -------
-    tuple
-        (Observation of the whole image, data mask as bool array of the planes' shape).
-
-    Raises
-    ------
-    CompassError
-        The input, the camera file and the mask do not agree in size.
-
-    """
-    from .demosaic import aop_dop_from_stokes
-    from .estimators import Observation
-    from .polarizer_files import plane_rays
-
-    cam = cam_file.camera
-    s0, s1, s2, saturated = _camera_stokes(inp, cam_file, demosaic, ifov_k)
-    xg, yg, rays, has_ray = plane_rays(cam, s0.shape)
-    aop, dop, valid = aop_dop_from_stokes(s0, s1, s2)
-    keep = _sky_mask(s0, has_ray, saturated, mask, xg, yg, cam.shape)
-    valid = valid & keep
-    obs = Observation(aop, dop, valid, rays, xg, yg, cam, sun_az, sun_alt, s0, pitch, roll, prior)
-    return obs, keep
-
-
-def _camera_stokes(inp, cam_file, demosaic, ifov_k):
-    """Camera-frame (S0, S1, S2) of a real input and, for a raw mosaic, its saturated blocks."""
-    from .demosaic import IFOV_K_DEFAULT, stokes_from_mosaic
-
-    H, W = cam_file.camera.shape
-    if inp.kind == 'stokes':
-        s0, s1, s2 = inp.stokes
-        if cam_file.pol45_toward == '+x-y':
-            s2 = -s2
-        return s0, s1, s2, None
-    if inp.mosaic.shape != (H, W):
-        raise CompassError(
-            f'the mosaic is {inp.mosaic.shape[1]} x {inp.mosaic.shape[0]} but the camera file '
-            'says '
-            f'{W} x {H}'
-        )
-    s0, s1, s2 = stokes_from_mosaic(
-        inp.mosaic,
-        cam_file.layout,
-        cam_file.pol45_toward,
-        demosaic,
-        inp.saturation_level,
-        IFOV_K_DEFAULT if ifov_k is None else ifov_k,
-    )
-    from .polarizer_check import saturated_blocks
-
-    return s0, s1, s2, saturated_blocks(inp.mosaic, inp.saturation_level, s0.shape)
-
-
-def _sky_mask(s0, has_ray, saturated, mask, xg, yg, sensor_shape):
-    """Pixels to use: in the lens, not glare (saturated samples grown), not masked."""
-    import numpy as np
-
-    from .skyfit import data_mask
-
-    H, W = sensor_shape
-    shp = s0.shape
-    if saturated is None:
-        keep = data_mask(s0, has_ray)
-    else:  # saturated raw samples: grow those into the glare mask
-        keep = data_mask(np.where(saturated, np.float32(np.inf), s0), has_ray, float('inf'))
-    if mask is not None:
-        if mask.shape == shp:
-            keep &= mask
-        elif mask.shape == (H, W):
-            keep &= mask[
-                np.clip(np.rint(yg).astype(int) - 1, 0, H - 1),
-                np.clip(np.rint(xg).astype(int) - 1, 0, W - 1),
-            ]
-        else:
-            raise CompassError(
-                f'--mask is {mask.shape[1]} x {mask.shape[0]}; the input is {shp[1]} x {shp[0]}'
-            )
-    return keep

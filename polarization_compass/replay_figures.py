@@ -95,9 +95,9 @@ def write_frame_figures(bag_path, result, topic_map, config, every: int, out_dir
 
     from .bag.reader import BagReader, Tally
     from .diagnostic_rgb import quick_rgb
-    from .headings import Sun
     from .mosaic import layout_from_mapping
     from .pipeline.rules import SensorReadout
+    from .pipeline.sun import Sun
     from .replay.sync import iter_synced_frames
     from .sky_view import view_from_mosaic
 

@@ -393,7 +393,7 @@ def view_from_seen(
             frame.mosaic,
             frame.camera,
             sun,
-            plan.method,
+            plan.demosaic,
             plan.layout,
             plan.pol45_toward,
             plan.saturation_level,
@@ -498,17 +498,17 @@ def _saturated_at(mosaic, sat_level, obs, method, origin_px) -> np.ndarray:
 
 def _real_reasons(seen, demosaic):
     """Return the real image's observation and its reasons: lens, user mask, glare, IFOV."""
-    from . import headings
     from .demosaic import aop_dop_from_stokes
+    from .pipeline import real_image
     from .polarizer_files import plane_rays
 
     inp, cam_file, keep = seen['input'], seen['camera_file'], np.asarray(seen['data_mask'], bool)
     obs = next(iter(seen['observations'].values()))
     cam = cam_file.camera
-    s0, s1, s2, saturated = headings._camera_stokes(inp, cam_file, demosaic, 0.0)
+    s0, s1, s2, saturated = real_image._camera_stokes(inp, cam_file, demosaic, 0.0)
     xg, yg, _, has_ray = plane_rays(cam, s0.shape)
     has_ray = np.asarray(has_ray, bool).reshape(s0.shape)
-    unmasked = headings._sky_mask(s0, has_ray, saturated, None, xg, yg, cam.shape)
+    unmasked = real_image._sky_mask(s0, has_ray, saturated, None, xg, yg, cam.shape)
     reasons = {
         _OUTSIDE: ~has_ray,
         _USER: unmasked & ~keep,
@@ -545,7 +545,8 @@ def view_from_mosaic(
     camera : CameraModel
         The camera.
     sun : Sun
-        Where the sun was (:class:`polarization_compass.headings.Sun`: azimuth, altitude [deg]).
+        Where the sun was (:class:`polarization_compass.pipeline.sun.Sun`: azimuth, altitude
+        [deg]).
     results : list of HeadingResult
         The results to draw.
     layout : sequence

@@ -144,7 +144,7 @@ def _real_obs(stem):
     import tempfile
 
     from polarization_compass.camera_file import load_camera_yaml
-    from polarization_compass.headings import real_observation
+    from polarization_compass.pipeline.real_image import real_observation
     from polarization_compass.real_input import PolarizationInput
     import real_sky as R
 

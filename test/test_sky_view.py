@@ -199,7 +199,7 @@ def test_mosaic_reasons_where_the_mosaic_says():
     """Raw mosaic: saturated samples and the fisheye's edge land in their classes, sampled too."""
     from polarization_compass.camera_pixels import PixelSelection
     from polarization_compass.conventions import CameraAttitude
-    from polarization_compass.headings import Sun
+    from polarization_compass.pipeline.sun import Sun
     from polarization_compass.render import Renderer, SunDirection
     from polarization_compass.scene import Scene
     from polarization_compass.sky_view import view_from_mosaic

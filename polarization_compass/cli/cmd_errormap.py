@@ -211,7 +211,7 @@ def _check_options(args, methods) -> None:
     from ..sweep import OUTPUT_SUFFIXES
 
     if args.stride is not None:
-        from ..headings import check_stride
+        from ..pipeline.methods import check_stride
 
         check_stride(args.stride, () if args.array_geometry else methods)
     if args.workers is not None and not (1 <= args.workers <= 256):

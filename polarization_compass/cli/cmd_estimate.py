@@ -213,7 +213,8 @@ def _ifov_k(args):
 
 
 def run(args) -> int:
-    from ..headings import estimate_file, EstimateOptions, method_list
+    from ..headings import estimate_file, EstimateOptions
+    from ..pipeline.methods import method_list
 
     _check_ranges(args)
     options = EstimateOptions(

@@ -130,7 +130,7 @@ def run(args) -> int:
     from ..replay import default_error_map, replay_bag, ReplayConfig, write_outputs
 
     if args.stride is not None:  # as the knob declares it, before the bag is read
-        from ..headings import check_stride
+        from ..pipeline.methods import check_stride
 
         check_stride(args.stride, ())
     if args.plots_every < 0:

@@ -432,7 +432,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
     def _debug_rgb(self, camera, mosaic, result, sun, inp):
         """Render the diagnostic figure of one image (~/debug_image; the estimate's layers)."""
         from ..diagnostic_rgb import quick_rgb
-        from ..headings import Sun
+        from ..pipeline.sun import Sun
         from ..sky_view import view_from_mosaic
 
         layout = self.front.layout

@@ -12,22 +12,188 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Mosaic -> observation -> heading: one method's front end, as the nodes and the replay run it."""
+"""
+Mosaic -> observation -> heading: the steps every road takes, and the nodes' front end.
+
+Two steps, each written once: :func:`mosaic_observation` demosaics, from a raw mosaic read as a
+:class:`MosaicReading` says, the pixels one method reads; :func:`estimate_checked` runs the method
+on an observation and, when asked, checks the result against the whole sky
+(:func:`polarization_compass.skyfit.assess_result`). :class:`HeadingFrontEnd` (the nodes and the
+replay, one method on live mosaics) and :mod:`polarization_compass.headings` (``estimate``, the
+bench and the tests, on files) both call them.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import PipelineError
 from .sampling import whole_sky_sample
 from ..camera import CameraModel
+from ..demosaic import IFOV_K_DEFAULT
 from ..mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45
 
-__all__ = ['HeadingFrontEnd', 'warm_up']
+__all__ = [
+    'HeadingFrontEnd',
+    'MosaicReading',
+    'estimate_checked',
+    'mosaic_observation',
+    'warm_up',
+]
 
 
 # ------------------------------------------------------------------------------------------------
-# Mosaic -> observation -> heading
+# The steps: a mosaic's observation, a checked estimate
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MosaicReading:
+    """
+    How a raw mosaic is read: its polarizer layout, the demosaic, and where it sits on the sensor.
+
+    Parameters
+    ----------
+    layout : str or sequence
+        The sensor's 2 x 2 polarizer angles [deg]
+        (:func:`~polarization_compass.demosaic.parse_layout`).
+    pol45_toward : str
+        Image direction of the 45 deg polarizer.
+    demosaic : {"superpixel", "bilinear"}, default "superpixel"
+        Demosaicing.
+    origin_px : tuple of int, default (1, 1)
+        1-based sensor (x, y) of the mosaic's top-left sample (a full-sensor mosaic: (1, 1)).
+    saturation_level : float, optional
+        Samples at or above this are saturated; None: the dtype's maximum.
+    ifov_k : float, default IFOV_K_DEFAULT
+        IFOV check threshold [noise sigmas] (0 = off).
+    intensity : bool, default False
+        Also compute S0 as the observation's intensity.
+
+    """
+
+    layout: object
+    pol45_toward: str
+    demosaic: str = 'superpixel'
+    origin_px: tuple = (1, 1)
+    saturation_level: float | None = None
+    ifov_k: float = IFOV_K_DEFAULT
+    intensity: bool = False
+
+
+def mosaic_observation(
+    mosaic,
+    camera: CameraModel,
+    sun_azimuth_deg: float,
+    sun_altitude_deg: float,
+    reading: MosaicReading,
+    selection,
+    pitch_deg=None,
+    roll_deg=None,
+    prior_bearing_deg=None,
+):
+    """
+    Demosaic, from a raw mosaic, the observation of the pixels one method reads.
+
+    The one mosaic -> observation step of the live front end and of frame files:
+    :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic` on the method's
+    ``pixels_needed`` (strided superpixels, a region, or the zenith window and its whole-sky side
+    grid, demosaiced sparsely).
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray
+        Raw DoFP image (uint8, uint16 or float), 2-D.
+    camera : CameraModel
+        The camera whose sensor the mosaic is (part of).
+    sun_azimuth_deg : float
+        Sun azimuth [deg], clockwise from North.
+    sun_altitude_deg : float
+        Sun altitude [deg].
+    reading : MosaicReading
+        The layout, demosaic, origin, saturation, IFOV check and intensity.
+    selection : PixelSelection
+        The pixels the method reads (its estimator's ``pixels_needed(camera)``).
+    pitch_deg, roll_deg : float, optional
+        Known camera pitch and roll [deg] (eq 21).
+    prior_bearing_deg : float, optional
+        Prior bearing of camera +y [deg, clockwise from North].
+
+    Returns
+    -------
+    Observation
+        AoP [rad, eq 28], DoP, rays and the sun, tilt and prior.
+
+    Raises
+    ------
+    MosaicInputError
+        The mosaic cannot be demosaiced as the reading says.
+
+    """
+    from ..estimators.mosaic_input import observation_from_mosaic
+
+    return observation_from_mosaic(
+        mosaic,
+        camera,
+        sun_azimuth_deg,
+        sun_altitude_deg,
+        origin_px=reading.origin_px,
+        method=reading.demosaic,
+        layout=reading.layout,
+        pol45_toward=reading.pol45_toward,
+        saturation_level=reading.saturation_level,
+        selection=selection,
+        with_intensity=reading.intensity,
+        pitch_deg=pitch_deg,
+        roll_deg=roll_deg,
+        prior_bearing_deg=prior_bearing_deg,
+        ifov_k=reading.ifov_k,
+    )
+
+
+def estimate_checked(estimator, obs, sky_check: bool = False, sample=None):
+    """
+    Estimate one method's heading and, with ``sky_check``, check it against the whole sky.
+
+    The check is :func:`polarization_compass.skyfit.assess_result` (misfit sigma, 180 deg side,
+    ``poor_fit``) at the observation's own sun altitude, tilt and prior.
+
+    Parameters
+    ----------
+    estimator : Estimator
+        The method's estimator.
+    obs : Observation
+        What it reads.
+    sky_check : bool, default False
+        Check the result against ``sample``.
+    sample : SkySample, optional
+        The whole-sky sample of the same frame (:func:`.sampling.whole_sky_sample` of a mosaic,
+        :func:`.sampling.observation_sky_sample` of a whole image); None when too little sky is
+        usable.
+
+    Returns
+    -------
+    HeadingResult
+        The method's result, checked when asked.
+
+    """
+    res = estimator.estimate(obs)
+    if sky_check:
+        from ..skyfit_assess import assess_result
+
+        res = assess_result(
+            res,
+            sample,
+            obs.sun_altitude_deg,
+            obs.pitch_deg,
+            obs.roll_deg,
+            obs.prior_bearing_deg,
+        )
+    return res
+
+
+# ------------------------------------------------------------------------------------------------
+# The nodes' front end: one method on live mosaics
 # ------------------------------------------------------------------------------------------------
 class HeadingFrontEnd:
     """
@@ -156,7 +322,8 @@ class HeadingFrontEnd:
 
         Only the pixels the method reads (its ``pixels_needed``: strided superpixels, a region, or
         the zenith window and its whole-sky side grid, demosaiced sparsely) are demosaiced, by
-        :func:`polarization_compass.estimators.mosaic_input.observation_from_mosaic`.
+        :func:`mosaic_observation` (the step frame files take too) with this front end's layout,
+        demosaic and intensity.
 
         Parameters
         ----------
@@ -186,7 +353,7 @@ class HeadingFrontEnd:
             The mosaic does not match the camera or cannot be demosaiced.
 
         """
-        from ..estimators.mosaic_input import MosaicInputError, observation_from_mosaic
+        from ..estimators.mosaic_input import MosaicInputError
 
         # one consistent configuration for the whole frame (a node may change knobs from another
         # thread)
@@ -202,20 +369,20 @@ class HeadingFrontEnd:
                 f'mosaic is {m.shape[1]}x{m.shape[0]}, the camera is '
                 f'{camera.width_px}x{camera.height_px}'
             )
+        reading = MosaicReading(
+            layout.angles_deg, layout.pol45_toward, demosaic, intensity=intensity
+        )
         try:
-            return observation_from_mosaic(
+            return mosaic_observation(
                 m,
                 camera,
                 sun_azimuth_deg,
                 sun_altitude_deg,
-                method=demosaic,
-                layout=layout.angles_deg,
-                pol45_toward=layout.pol45_toward,
-                selection=est.pixels_needed(camera),
-                with_intensity=intensity,
-                pitch_deg=pitch_deg,
-                roll_deg=roll_deg,
-                prior_bearing_deg=prior_bearing_deg,
+                reading,
+                est.pixels_needed(camera),
+                pitch_deg,
+                roll_deg,
+                prior_bearing_deg,
             )
         except MosaicInputError as exc:
             raise PipelineError(str(exc)) from None
@@ -232,6 +399,9 @@ class HeadingFrontEnd:
     ):
         """
         Estimate the heading of one full-sensor mosaic.
+
+        :meth:`observation`, then :func:`estimate_checked` (with :attr:`sky_check`, on the
+        mosaic's :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`).
 
         Parameters
         ----------
@@ -259,7 +429,7 @@ class HeadingFrontEnd:
             The mosaic does not match the camera or cannot be demosaiced.
 
         """
-        est, layout = self.estimator, self.layout
+        est, layout, sky_check = self.estimator, self.layout, self.sky_check
         obs = self.observation(
             mosaic,
             camera,
@@ -270,15 +440,8 @@ class HeadingFrontEnd:
             prior_bearing_deg,
             est,
         )
-        res = est.estimate(obs)
-        if self.sky_check:
-            from ..skyfit_assess import assess_result
-
-            sample = whole_sky_sample(mosaic, camera, layout)
-            res = assess_result(
-                res, sample, sun_altitude_deg, pitch_deg, roll_deg, prior_bearing_deg
-            )
-        return res
+        sample = whole_sky_sample(mosaic, camera, layout) if sky_check else None
+        return estimate_checked(est, obs, sky_check, sample)
 
 
 def warm_up(

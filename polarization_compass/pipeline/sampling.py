@@ -12,7 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Sparse samples of a mosaic for the whole-sky checks: every k-th 2 x 2 block and its sky rays."""
+"""
+Whole-sky samples for the whole-sky check: of a live mosaic, or of a whole image's observation.
+
+:func:`whole_sky_sample` reads every k-th 2 x 2 block of a full-sensor mosaic and its sky rays
+(the nodes and the replay); :func:`observation_sky_sample` samples the observation of a whole
+image (``estimate`` on real images).
+"""
 
 from __future__ import annotations
 
@@ -23,6 +29,7 @@ from ..polarizer_check import decimated_blocks
 
 __all__ = [
     'decimated_blocks',
+    'observation_sky_sample',
     'whole_sky_sample',
 ]
 
@@ -67,3 +74,23 @@ def whole_sky_sample(mosaic, camera: CameraModel, layout, max_blocks: int = 8000
     bright = np.where(saturated_blocks(small, sat, s0.shape), np.float32(np.inf), s0)
     keep = data_mask(bright, has_ray, float('inf'))
     return sample_sky(aop, dop, valid & keep, rays, s0)
+
+
+def observation_sky_sample(obs):
+    """
+    Sample the usable sky of an observation of a whole image.
+
+    Parameters
+    ----------
+    obs : Observation
+        The whole image's observation (:func:`.real_image.real_observation`), intensity included.
+
+    Returns
+    -------
+    SkySample or None
+        The :class:`~polarization_compass.skyfit.SkySample`, None when too little sky is usable.
+
+    """
+    from ..skyfit import sample_sky
+
+    return sample_sky(obs.aop_rad, obs.dop, obs.valid, obs.rays_cam, obs.intensity)

@@ -12,16 +12,28 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The sun's azimuth and altitude per image stamp, for the current site."""
+"""
+Where the sun was: per image stamp for the current site (live), or once for an input file.
+
+:class:`SunSource` gives the nodes and the replay the sun at each image stamp;
+:func:`resolve_sun` says where the sun was for an input file (given, from a frame's meta, or from
+the ephemeris) as a :class:`Sun`.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from .errors import PipelineError
+from ..errors import CompassError
 
 __all__ = [
+    'Sun',
     'SunSource',
+    'resolve_sun',
 ]
 
 
@@ -123,3 +135,72 @@ class SunSource:
         except SolarError as exc:
             raise PipelineError(f'sun position at stamp {t_ns / 1e9:.3f} s: {exc}') from None
         return float(p.azimuth_deg), float(p.altitude_deg)
+
+
+# ------------------------------------------------------------------------------------------------
+# The sun of an input file
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Sun:
+    """Where the sun was: azimuth [deg, clockwise from North], altitude [deg] and whence."""
+
+    azimuth_deg: float
+    altitude_deg: float
+    source: str
+
+
+def resolve_sun(
+    meta: dict,
+    azimuth_deg: float | None = None,
+    altitude_deg: float | None = None,
+    lat_deg: float | None = None,
+    lon_deg: float | None = None,
+    time_utc: str | None = None,
+) -> Sun:
+    """
+    Say where the sun was: given, else from a frame's meta, else from the ephemeris.
+
+    Parameters
+    ----------
+    meta : dict
+        A frame's meta (``sun_azimuth_deg``, ``sun_altitude_deg``); ``{}`` for a real image.
+    azimuth_deg, altitude_deg : float, optional
+        The given sun [deg]; both or neither (the caller checks their ranges).
+    lat_deg, lon_deg : float, optional
+        The site [deg], for the ephemeris.
+    time_utc : str, optional
+        UTC time, ISO 8601, for the ephemeris.
+
+    Returns
+    -------
+    Sun
+        Azimuth, altitude and where they came from.
+
+    Raises
+    ------
+    CompassError
+        Nothing says where the sun was.
+
+    """
+    if azimuth_deg is not None or altitude_deg is not None:
+        return Sun(float(azimuth_deg), float(altitude_deg), 'given (--sun-azimuth/--sun-altitude)')
+    az, alt = meta.get('sun_azimuth_deg'), meta.get('sun_altitude_deg')
+    ok = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        for v in (az, alt)
+    )
+    if ok:
+        return Sun(float(az), float(alt), 'frame meta')
+    if lat_deg is None or lon_deg is None or time_utc is None:
+        raise CompassError(
+            'the input does not say where the sun was: give --lat, --lon and --time, or '
+            '--sun-azimuth and --sun-altitude'
+        )
+    from ..solar import sun_position
+
+    pos = sun_position(time_utc, lat_deg, lon_deg, 0.0)
+    return Sun(
+        float(pos.azimuth_deg),
+        float(pos.altitude_deg),
+        'ephemeris (SPA) for --lat/--lon/--time',
+    )

@@ -393,18 +393,16 @@ class FramePipeline:
             obs_cache[key] = obs
             self.timing_ms['observation'].append((time.perf_counter() - t0) * 1e3)
             t0 = time.perf_counter()
-        pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
-        result = front.estimator.estimate(
-            dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll, prior_bearing_deg=prior)
-        )
-        if self.config.sky_check:  # the whole-sky check of real skies (skyfit), one per frame
-            from ..pipeline.sampling import whole_sky_sample
-            from ..skyfit_assess import assess_result
+        from ..pipeline.front_end import estimate_checked
 
-            if 'sky' not in obs_cache:
-                obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
-            result = assess_result(result, obs_cache['sky'], sun_alt, pitch, roll, prior)
-        return result, t0
+        pitch, roll, prior = inp.pitch_deg, inp.roll_deg, inp.prior_bearing_deg
+        obs = dataclasses.replace(obs, pitch_deg=pitch, roll_deg=roll, prior_bearing_deg=prior)
+        check = self.config.sky_check
+        if check and 'sky' not in obs_cache:  # the whole-sky check's sample, one per frame
+            from ..pipeline.sampling import whole_sky_sample
+
+            obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
+        return estimate_checked(front.estimator, obs, check, obs_cache.get('sky')), t0
 
 
 def default_error_map() -> str | None:
