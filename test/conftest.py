@@ -15,12 +15,21 @@
 """
 Test-wide settings: strict numpy, deterministic hypothesis, loopback-only ROS.
 
-Test-wide settings: numpy floating-point errors raise, hypothesis is deterministic and bounded, and
-every ROS process stays on loopback with a domain id of its own.
+Numpy floating-point errors raise, hypothesis is deterministic and bounded, and every ROS process
+stays on loopback with a domain id of its own.
+
+ROS domain ids come from one pool, ``POLARIZATION_COMPASS_TEST_DOMAINS`` (default ``1-100``: below
+101 Fast DDS's ports stay under Linux's ephemeral range; e.g. ``118-140`` or ``1-50,200-230``),
+less the caller's ``ROS_DOMAIN_ID``. Under pytest-xdist each worker takes its own slice of the pool:
+the first id of the slice becomes the worker's ``ROS_DOMAIN_ID`` (in-process nodes, the ``ctx``
+fixture), and :func:`next_ros_domain` (the ``ros_env`` and ``ros_domain`` fixtures) hands out the
+others in turn, starting at a place drawn from the process id, so that two tests of one run never
+share a domain at the same time, and two runs on one machine seldom do (give each its own pool).
 """
 
 import os
 import random
+import re
 
 from hypothesis import HealthCheck, settings
 import numpy as np
@@ -40,19 +49,120 @@ settings.register_profile(
 settings.register_profile('thorough', max_examples=1000, deadline=None)
 settings.load_profile(os.environ.get('HYPOTHESIS_PROFILE', 'ci'))
 
+DOMAINS_VARIABLE = 'POLARIZATION_COMPASS_TEST_DOMAINS'
+
+
+def parse_domains(text: str) -> list[int]:
+    """
+    Return the ROS domain ids of a pool written as ``'1-100'`` or ``'118-140,200,210-215'``.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated ids and inclusive ranges ``lo-hi``, each within 0-232 (Fast DDS's limit).
+
+    Returns
+    -------
+    list of int
+        The ids in the order written, without repeats.
+
+    """
+    out = []
+    for part in text.split(','):
+        m = re.fullmatch(r'\s*(\d+)\s*(?:-\s*(\d+)\s*)?', part)
+        if m is None:
+            raise pytest.UsageError(f'{DOMAINS_VARIABLE}={text!r}: {part!r} is not N or N-M')
+        lo, hi = int(m.group(1)), int(m.group(2) or m.group(1))
+        if not 0 <= lo <= hi <= 232:
+            raise pytest.UsageError(f'{DOMAINS_VARIABLE}={text!r}: {part!r} is not within 0-232')
+        out += [d for d in range(lo, hi + 1) if d not in out]
+    return out
+
+
+def worker_domains(pool: list[int], worker: str, count: int) -> list[int]:
+    """
+    Return the slice of ``pool`` that belongs to pytest-xdist worker ``worker`` of ``count``.
+
+    Parameters
+    ----------
+    pool : list of int
+        Every domain id this run may use.
+    worker : str
+        ``PYTEST_XDIST_WORKER`` (``'gw0'``, ``'gw1'``, ...); ``''`` without xdist (the whole pool).
+    count : int
+        ``PYTEST_XDIST_WORKER_COUNT`` (1 without xdist).
+
+    Returns
+    -------
+    list of int
+        At least two ids, disjoint from every other worker's slice.
+
+    """
+    index = int(worker[2:]) if worker.startswith('gw') else 0
+    size = len(pool) // count
+    if size < 2:
+        raise pytest.UsageError(
+            f'{len(pool)} ROS domain ids ({DOMAINS_VARIABLE}) for {count} pytest workers: each '
+            'needs two at least (one for its in-process nodes, one for each test graph)'
+        )
+    return pool[index * size : (index + 1) * size]
+
+
+_CALLER_DOMAIN = os.environ.get('ROS_DOMAIN_ID')
+_POOL = [
+    d for d in parse_domains(os.environ.get(DOMAINS_VARIABLE, '1-100')) if str(d) != _CALLER_DOMAIN
+]
+_MINE = worker_domains(
+    _POOL,
+    os.environ.get('PYTEST_XDIST_WORKER', ''),
+    int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1')),
+)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(100, 200)))
+if 'PYTEST_XDIST_WORKER' in os.environ or _CALLER_DOMAIN is None:
+    # every worker inherits the run's ROS_DOMAIN_ID (the Makefile's 73): each takes its own instead
+    os.environ['ROS_DOMAIN_ID'] = str(_MINE[0])
+_FRESH = _MINE[1:]
+_next_fresh = random.Random(os.getpid()).randrange(len(_FRESH))
+
+
+def next_ros_domain() -> int:
+    """
+    Return a ROS domain id for one test's graph: this worker's next, never the run's.
+
+    Returns
+    -------
+    int
+        The next id of this worker's slice (without its first, the worker's ``ROS_DOMAIN_ID``), in
+        turn: a test's graph never hears another worker's, nor what the previous tests of this
+        worker may have left running.
+
+    """
+    global _next_fresh
+    domain = _FRESH[_next_fresh % len(_FRESH)]
+    _next_fresh += 1
+    return domain
 
 
 @pytest.fixture
-def ros_env(tmp_path):
+def ros_domain() -> int:
+    """Return a ROS domain id of this test's own (:func:`next_ros_domain`)."""
+    return next_ros_domain()
+
+
+@pytest.fixture(scope='session')
+def ros_domains():
+    """Return :func:`next_ros_domain`, for module-scoped fixtures that start ROS graphs."""
+    return next_ros_domain
+
+
+@pytest.fixture
+def ros_env(tmp_path, ros_domain):
     """Environment for ROS subprocesses: loopback discovery, a fresh domain id, logs in tmp."""
     env = dict(os.environ)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    # a domain of its own: not the one the Makefile exports for the whole run (73), which other
-    # tests' graphs use, so that nothing left of another test is ever heard here
-    taken = os.environ.get('ROS_DOMAIN_ID')
-    env['ROS_DOMAIN_ID'] = str(random.choice([d for d in range(1, 101) if str(d) != taken]))
+    # a domain of its own: not the worker's ROS_DOMAIN_ID, which in-process nodes use, nor one
+    # that another worker or the previous test uses, so that nothing of theirs is ever heard here
+    env['ROS_DOMAIN_ID'] = str(ros_domain)
     env['ROS_LOG_DIR'] = str(tmp_path / 'ros_log')
     env['PYTHONUNBUFFERED'] = '1'
     return env
@@ -93,3 +203,4 @@ def pytest_ignore_collect(collection_path, config):
     ):
         return True
     return None
+
