@@ -30,6 +30,8 @@ share a domain at the same time, and two runs on one machine seldom do (give eac
 import os
 import random
 import re
+import subprocess
+import sys
 
 from hypothesis import HealthCheck, settings
 import numpy as np
@@ -166,6 +168,31 @@ def ros_env(tmp_path, ros_domain):
     env['ROS_LOG_DIR'] = str(tmp_path / 'ros_log')
     env['PYTHONUNBUFFERED'] = '1'
     return env
+
+
+@pytest.fixture
+def sim_cli(ros_env, tmp_path):
+    """
+    Return ``run(*args, env=None, timeout=450)``: ``polarization-compass sim ARGS`` as a user runs it.
+
+    ``python -m polarization_compass.cli sim ARGS`` in a process of its own, in ``tmp_path``, with
+    ``ros_env`` (a fresh domain) or ``env``, without ``POLARIZATION_COMPASS_DEBUG`` (a user sees
+    one-line errors, not tracebacks); ``run`` returns the completed process, output captured.
+    """
+
+    def run(*args, env=None, timeout=450.0):
+        env = dict(ros_env if env is None else env)
+        env.pop('POLARIZATION_COMPASS_DEBUG', None)
+        return subprocess.run(
+            [sys.executable, '-m', 'polarization_compass.cli', 'sim', *map(str, args)],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=tmp_path,
+            timeout=timeout,
+        )
+
+    return run
 
 
 @pytest.fixture(scope='module')
