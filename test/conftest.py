@@ -195,6 +195,128 @@ def sim_cli(ros_env, tmp_path):
     return run
 
 
+class FisheyeSky:
+    """
+    Simulated raw frames of a level fisheye camera under a Rayleigh sky, and its CAMERA.yaml.
+
+    What the polarizer-convention tests (test_polarizer_gate, test_readout_flip,
+    test_polarizer_check) feed the road: an equidistant fisheye (85 deg at the image's half
+    width), the sky at DoP 0.7, a sensor of a given 2 x 2 layout and +45 deg direction. Those
+    modules import it (``from conftest import FisheyeSky``): their cameras are module constants
+    and one test is a hypothesis test, where a fixture cannot reach.
+    """
+
+    @staticmethod
+    def camera(n_px: int, principal_px=None):
+        """
+        Return the n x n equidistant fisheye, 90 deg at half the width, its field cut at 85 deg.
+
+        Parameters
+        ----------
+        n_px : int
+            Width and height [px].
+        principal_px : tuple of float, optional
+            The principal point (1-based column, row) [px]; default the image centre.
+
+        Returns
+        -------
+        polarization_compass.camera.CameraModel
+            The camera.
+
+        """
+        import math
+
+        from polarization_compass.camera import CameraModel
+
+        kw = {}
+        if principal_px is not None:
+            kw = {'principal_x_px': principal_px[0], 'principal_y_px': principal_px[1]}
+        return CameraModel(
+            model='fisheye_equidistant',
+            width_px=n_px,
+            height_px=n_px,
+            focal_length_mm=(n_px / 2) * 3.45e-3 / (math.pi / 2),
+            max_field_angle_deg=85.0,
+            **kw,
+        )
+
+    @staticmethod
+    def mosaic(camera, layout, pol45_toward, bearing_deg, sun_azimuth_deg, sun_altitude_deg, seed):
+        """
+        Render the raw mosaic of a level camera at ``bearing_deg`` (float32, noise-free sensor).
+
+        Parameters
+        ----------
+        camera : polarization_compass.camera.CameraModel
+            The camera (every pixel is rendered).
+        layout : sequence of sequence of float
+            The sensor's 2 x 2 polarizer angles [deg], as the sensor labels them.
+        pol45_toward : str
+            The sensor's +45 deg direction in the image, ``'+x+y'`` or ``'+x-y'``.
+        bearing_deg : float
+            The camera's bearing [deg] (pitch and roll 0).
+        sun_azimuth_deg, sun_altitude_deg : float
+            The sun [deg].
+        seed : int
+            The render's seed.
+
+        Returns
+        -------
+        numpy.ndarray
+            The mosaic, float32, the camera's shape.
+
+        """
+        import numpy as np
+        from polarization_compass.camera import PixelSelection
+        from polarization_compass.conventions import CameraAttitude
+        from polarization_compass.render import Renderer, SunDirection
+        from polarization_compass.scene import Scene
+
+        scene = Scene(
+            camera=camera,
+            pixels=PixelSelection.full(),
+            sky={'model': 'rayleigh', 'dop_max': 0.7},
+            sensor={'mosaic': {'layout': [list(r) for r in layout], 'pol45_toward': pol45_toward}},
+        )
+        f = Renderer(scene).render(
+            attitude=CameraAttitude(bearing_deg, 0.0, 0.0),
+            sun=SunDirection(sun_azimuth_deg, sun_altitude_deg),
+            seed=seed,
+        )
+        return np.asarray(f.mosaic, np.float32)
+
+    @staticmethod
+    def camera_yaml(n_px: int, K, extra: str = '') -> str:
+        """
+        Return the CAMERA.yaml text of an n x n equidistant fisheye with matrix ``K``.
+
+        Parameters
+        ----------
+        n_px : int
+            Width and height [px].
+        K : array_like
+            The 3 x 3 camera matrix (0-based principal point) [px].
+        extra : str
+            Lines appended as they are (``polarizer:``, ``readout_flip:``).
+
+        Returns
+        -------
+        str
+            The file's text (no distortion, the field cut at 85 deg).
+
+        """
+        import numpy as np
+
+        data = [float(v) for v in np.asarray(K, float).reshape(-1)]
+        return (
+            f'image_width: {n_px}\nimage_height: {n_px}\n'
+            f'camera_matrix: {{rows: 3, cols: 3, data: {data}}}\n'
+            'distortion_model: equidistant\n'
+            'distortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n'
+            'max_field_angle_deg: 85\n' + extra
+        )
+
+
 @pytest.fixture(scope='module')
 def ctx():
     """
