@@ -18,13 +18,14 @@ Test-wide settings: strict numpy, deterministic hypothesis, loopback-only ROS.
 Numpy floating-point errors raise, hypothesis is deterministic and bounded, and every ROS process
 stays on loopback with a domain id of its own.
 
-ROS domain ids come from one pool, ``POLARIZATION_COMPASS_TEST_DOMAINS`` (default ``1-100``: below
-101 Fast DDS's ports stay under Linux's ephemeral range; e.g. ``118-140`` or ``1-50,200-230``),
-less the caller's ``ROS_DOMAIN_ID``. Under pytest-xdist each worker takes its own slice of the pool:
-the first id of the slice becomes the worker's ``ROS_DOMAIN_ID`` (in-process nodes, the ``ctx``
-fixture), and :func:`next_ros_domain` (the ``ros_env`` and ``ros_domain`` fixtures) hands out the
-others in turn, starting at a place drawn from the process id, so that two tests of one run never
-share a domain at the same time, and two runs on one machine seldom do (give each its own pool).
+ROS domain ids come from one pool, ``POLARIZATION_COMPASS_TEST_DOMAINS`` (default ``1-100``:
+below 101 Fast DDS's ports stay under Linux's ephemeral range; e.g. ``118-140`` or
+``1-50,200-230``), less the caller's ``ROS_DOMAIN_ID``. Under pytest-xdist each worker takes its
+own slice of the pool: the first id of the slice becomes the worker's ``ROS_DOMAIN_ID``
+(in-process nodes, the ``ctx`` fixture), and :func:`next_ros_domain` (the ``ros_env`` and
+``ros_domain`` fixtures) hands out the others in turn, starting at a place drawn from the process
+id, so that two tests of one run never share a domain at the same time, and two runs on one
+machine seldom do (give each its own pool).
 """
 
 import os
@@ -173,7 +174,7 @@ def ros_env(tmp_path, ros_domain):
 @pytest.fixture
 def sim_cli(ros_env, tmp_path):
     """
-    Return ``run(*args, env=None, timeout=450)``: ``polarization-compass sim ARGS`` as a user runs it.
+    Return ``run(*args, env=None, timeout=450)``: ``polarization-compass sim ARGS``, as a user.
 
     ``python -m polarization_compass.cli sim ARGS`` in a process of its own, in ``tmp_path``, with
     ``ros_env`` (a fresh domain) or ``env``, without ``POLARIZATION_COMPASS_DEBUG`` (a user sees
@@ -352,4 +353,3 @@ def pytest_ignore_collect(collection_path, config):
     ):
         return True
     return None
-
