@@ -28,9 +28,17 @@ sim: venv
 # setup.bash when it is installed in the venv (tools/ros_cpp_env.sh says which, in one line).
 # launch_testing's pytest plugin does not load under pytest >= 8, so it is switched off here;
 # `colcon test` on a robot (pytest 7.4) loads it.
+# The suite runs on TEST_WORKERS pytest-xdist workers (`make test TEST_WORKERS=0`: in this process):
+# many ROS tests wait (discovery, node start) more than they compute, so 3 fit 2 cores. Each worker
+# has ROS domain ids of its own (test/conftest.py); a file's tests stay on one worker, so that its
+# module-scoped fixtures (a colcon install space, the tiny benchmark run) are built once
+# (--dist loadfile; loadgroup's xdist_group marks are lost under pytest 9: xdist 3.8 renames
+# item._nodeid, which pytest 9 no longer reads).
+TEST_WORKERS ?= 3
 test: venv
 	source tools/ros_cpp_env.sh $(VENV); \
-	$(PY) -m pytest -p no:launch_testing -p no:launch_ros && VENV=$(VENV) ./tools/launch_tests.sh
+	$(PY) -m pytest -p no:launch_testing -p no:launch_ros -n $(TEST_WORKERS) --dist loadfile \
+	  && VENV=$(VENV) ./tools/launch_tests.sh
 
 # Style (docs/contributing.md): `make format` rewrites the code with ruff (ruff.toml: ament's 99
 # columns, single quotes, import order and docstring rules; safe fixes, idempotent; what it cannot

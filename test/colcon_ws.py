@@ -68,6 +68,9 @@ def colcon_install(ws: Path, env: dict) -> None:
     r = subprocess.run(
         [
             colcon,
+            # its log in the workspace, not in the tree's log/ that another test's build may use
+            '--log-base',
+            str(ws / 'log'),
             'build',
             '--packages-select',
             'polarization_compass',

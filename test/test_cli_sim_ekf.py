@@ -28,8 +28,6 @@ import csv
 import json
 import os
 from pathlib import Path
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -69,24 +67,9 @@ def test_ekf_without_ekf_node_says_what_to_install_and_starts_nothing(
     assert started == [] and not out.exists()
 
 
-def test_ekf_without_ekf_node_through_the_console_entry_point(tmp_path):
+def test_ekf_without_ekf_node_through_the_console_entry_point(sim_cli, tmp_path):
     env = dict(os.environ, AMENT_PREFIX_PATH=str(tmp_path))
-    env.pop('POLARIZATION_COMPASS_DEBUG', None)
-    p = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'polarization_compass.cli',
-            'sim',
-            '--ekf',
-            '--out',
-            str(tmp_path / 'fusion'),
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    p = sim_cli('--ekf', '--out', tmp_path / 'fusion', env=env, timeout=120)
     assert_user_error(p.returncode, p.stdout, p.stderr, *EKF_WORDS)
     assert p.stderr.startswith('polarization-compass sim: error: --ekf needs')
 
@@ -240,30 +223,9 @@ def _ekf_node_installed() -> bool:
     reason='robot_localization is not installed (a ROS install has it: '
     'ros-<distro>-robot-localization; here ../shared/ros-cpp/install.sh .venv)',
 )
-def test_sim_ekf_runs_the_real_ekf_node_and_prints_its_row(ros_env, tmp_path):
+def test_sim_ekf_runs_the_real_ekf_node_and_prints_its_row(sim_cli, tmp_path):
     out = tmp_path / 'fusion'
-    env = dict(ros_env)
-    env.pop('POLARIZATION_COMPASS_DEBUG', None)
-    p = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'polarization_compass.cli',
-            'sim',
-            '--ekf',
-            '--turns',
-            '0.25',
-            '--out',
-            str(out),
-            '--timeout',
-            '400',
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-        timeout=450,
-    )
+    p = sim_cli('--ekf', '--turns', '0.25', '--out', out, '--timeout', '400')
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     rows = {tuple(ln.split()[:2]): ln.split() for ln in p.stdout.splitlines() if ln.strip()}
     assert ('least_squares', 'fused') in rows, p.stdout

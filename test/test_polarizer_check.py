@@ -20,27 +20,16 @@ the configured one supported or contradicted), and a sun on an image axis -- whe
 pattern is itself a valid sky -- is never mis-decided.
 """
 
-import math
-
+from conftest import FisheyeSky
 from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
-from polarization_compass.camera import CameraModel
 from polarization_compass.camera_pixels import PixelSelection, select_pixels
-from polarization_compass.conventions import CameraAttitude
 from polarization_compass.estimators.mosaic_input import _grid_rays
 from polarization_compass.mosaic import IMX250MZR_LAYOUT, IMX250MZR_POL45, parse_layout
 from polarization_compass.polarizer_check import check_polarizer, polarizer_hypotheses
-from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene
 
 N = 128
-CAM = CameraModel(
-    model='fisheye_equidistant',
-    width_px=N,
-    height_px=N,
-    focal_length_mm=(N / 2) * 3.45e-3 / (math.pi / 2),
-    max_field_angle_deg=85.0,
-)
+CAM = FisheyeSky.camera(N)
 
 
 def rays_for_shape(shape):
@@ -52,18 +41,7 @@ def rays_for_shape(shape):
 
 
 def simulate(layout, pol45, psi_deg, sun_alt_deg):
-    scene = Scene(
-        camera=CAM,
-        pixels=PixelSelection.full(),
-        sky={'model': 'rayleigh', 'dop_max': 0.7},
-        sensor={'mosaic': {'layout': [list(r) for r in layout], 'pol45_toward': pol45}},
-    )
-    f = Renderer(scene).render(
-        attitude=CameraAttitude(psi_deg + 40.0, 0.0, 0.0),
-        sun=SunDirection(40.0, sun_alt_deg),
-        seed=1,
-    )
-    return f.mosaic
+    return FisheyeSky.mosaic(CAM, layout, pol45, psi_deg + 40.0, 40.0, sun_alt_deg, 1)
 
 
 def test_there_are_eight_distinct_hypotheses_for_a_mosaic_and_two_for_stokes():

@@ -21,57 +21,31 @@ A ``+x+y`` sensor read with the default ``+x-y`` configuration mirrors every AoP
 fix, while the right configuration keeps ``ok`` and the true heading.
 """
 
-import math
-
+from conftest import FisheyeSky
 import numpy as np
-from polarization_compass.camera import CameraModel
-from polarization_compass.camera_pixels import PixelSelection
-from polarization_compass.conventions import CameraAttitude, wrap_180_deg
+from polarization_compass.conventions import wrap_180_deg
 from polarization_compass.headings import estimate_file, EstimateOptions
 from polarization_compass.mosaic import IMX250MZR_LAYOUT, parse_layout
-from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene
 import pytest
 
 N = 160
-CAM = CameraModel(
-    model='fisheye_equidistant',
-    width_px=N,
-    height_px=N,
-    focal_length_mm=(N / 2) * 3.45e-3 / (math.pi / 2),
-    max_field_angle_deg=85.0,
-)
+CAM = FisheyeSky.camera(N)
 METHODS = ['zenith', 'sm_asm', 'symmetry', 'least_squares']
 
 
 def camera_yaml(path, pol45=None):
     """Write the CAMERA.yaml of ``CAM``; without ``pol45`` the package default (+x-y)."""
-    K = [float(v) for v in CAM.K_matrix().reshape(-1)]
-    text = (
-        f'image_width: {N}\nimage_height: {N}\ncamera_matrix: {{rows: 3, cols: 3, data: {K}}}\n'
-        'distortion_model: equidistant\n'
-        'distortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n'
-        'max_field_angle_deg: 85\n'
-    )
+    extra = ''
     if pol45:
-        text += f"polarizer: {{layout: [[90, 45], [135, 0]], pol45_toward: '{pol45}'}}\n"
-    path.write_text(text)
+        extra = f"polarizer: {{layout: [[90, 45], [135, 0]], pol45_toward: '{pol45}'}}\n"
+    path.write_text(FisheyeSky.camera_yaml(N, CAM.K_matrix(), extra))
     return str(path)
 
 
 def mosaic_file(path, pol45, psi_deg, sun_alt_deg):
     """Render a raw mosaic of a sensor whose +45 deg polarizer points towards ``pol45``."""
     lay = parse_layout(IMX250MZR_LAYOUT, pol45)
-    scene = Scene(
-        camera=CAM,
-        pixels=PixelSelection.full(),
-        sky={'model': 'rayleigh', 'dop_max': 0.7},
-        sensor={'mosaic': {'layout': [list(r) for r in lay.angles_deg], 'pol45_toward': pol45}},
-    )
-    f = Renderer(scene).render(
-        attitude=CameraAttitude(psi_deg, 0.0, 0.0), sun=SunDirection(0.0, sun_alt_deg), seed=3
-    )
-    np.save(path, np.asarray(f.mosaic, np.float32))
+    np.save(path, FisheyeSky.mosaic(CAM, lay.angles_deg, pol45, psi_deg, 0.0, sun_alt_deg, 3))
     return str(path)
 
 

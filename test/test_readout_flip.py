@@ -24,44 +24,23 @@ as the fix for a mirror it sees.
 """
 
 import json
-import math
 
+from conftest import FisheyeSky
 import numpy as np
-from polarization_compass.camera import CameraModel
-from polarization_compass.camera_pixels import PixelSelection
 from polarization_compass.cli import main
-from polarization_compass.conventions import CameraAttitude, wrap_180_deg
+from polarization_compass.conventions import wrap_180_deg
 from polarization_compass.headings import estimate_file, EstimateOptions
-from polarization_compass.render import Renderer, SunDirection
-from polarization_compass.scene import Scene
 import pytest
 
 N = 160
 CX, CY = (N + 1) / 2 + 8.0, (N + 1) / 2 - 5.0  # 1-based, off-centre so a mirror matters
-CAM = CameraModel(
-    model='fisheye_equidistant',
-    width_px=N,
-    height_px=N,
-    focal_length_mm=(N / 2) * 3.45e-3 / (math.pi / 2),
-    max_field_angle_deg=85.0,
-    principal_x_px=CX,
-    principal_y_px=CY,
-)
+CAM = FisheyeSky.camera(N, (CX, CY))
 PSI, SUN_ALT = 35.0, 30.0
 
 
 def delivered(flip):
     """Render the sensor (IMX250MZR as delivered, native) and mirror it as the readout does."""
-    scene = Scene(
-        camera=CAM,
-        pixels=PixelSelection.full(),
-        sky={'model': 'rayleigh', 'dop_max': 0.7},
-        sensor={'mosaic': {'layout': [[90, 45], [135, 0]], 'pol45_toward': '+x-y'}},
-    )
-    f = Renderer(scene).render(
-        attitude=CameraAttitude(PSI, 0.0, 0.0), sun=SunDirection(0.0, SUN_ALT), seed=2
-    )
-    m = np.asarray(f.mosaic, np.float32)
+    m = FisheyeSky.mosaic(CAM, [[90, 45], [135, 0]], '+x-y', PSI, 0.0, SUN_ALT, 2)
     if 'x' in flip:
         m = m[:, ::-1]
     if 'y' in flip:
@@ -77,13 +56,7 @@ def yaml_text(flip, extra=''):
     if 'y' in flip:
         cy0 = N - 1 - cy0
     f = CAM.K_matrix()[0, 0]
-    return (
-        f'image_width: {N}\nimage_height: {N}\n'
-        f'camera_matrix: {{rows: 3, cols: 3, data: [{f}, 0, {cx0}, 0, {f}, {cy0}, 0, 0, 1]}}\n'
-        'distortion_model: equidistant\n'
-        'distortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n'
-        'max_field_angle_deg: 85\n' + extra
-    )
+    return FisheyeSky.camera_yaml(N, [[f, 0, cx0], [0, f, cy0], [0, 0, 1]], extra)
 
 
 @pytest.mark.parametrize('flip', ['x', 'y', 'xy'])

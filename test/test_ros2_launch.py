@@ -71,14 +71,14 @@ FAILURE_MARKS = (
 
 
 @pytest.fixture(scope='module')
-def ws(tmp_path_factory):
+def ws(tmp_path_factory, ros_domains):
     """Build a colcon install space of this package and an environment that has sourced it."""
     ws = tmp_path_factory.mktemp('ws')
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
     colcon_install(ws, env)
     env = sourced_env(ws / 'install' / 'setup.bash', env)
     env['PATH'] = f'{BIN}:{env["PATH"]}'
-    env['ROS_DOMAIN_ID'] = os.environ.get('ROS_DOMAIN_ID') or str(150 + os.getpid() % 50)
+    env['ROS_DOMAIN_ID'] = str(ros_domains())  # this module's own (conftest)
     env['ROS_LOG_DIR'] = str(ws / 'ros_log')
     env.pop('FASTDDS_DEFAULT_PROFILES_FILE', None)
     prefix = subprocess.run(

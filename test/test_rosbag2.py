@@ -105,7 +105,7 @@ PLAYER_RATE = 2.0  # the player's --rate: twice real time, flow-controlled (play
 
 
 @pytest.fixture(scope='module')
-def ws(tmp_path_factory):
+def ws(tmp_path_factory, ros_domains):
     """Build a colcon install space of this package; an environment with rosbag2 and it sourced."""
     ws = tmp_path_factory.mktemp('ws')
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
@@ -121,7 +121,7 @@ def ws(tmp_path_factory):
     # numba caches the kernels by source path, and a fresh install space recompiles them in every
     # node (145 s per estimator measured on this loaded 2-core machine)
     env['PYTHONPATH'] = f'{ROOT}:{env.get("PYTHONPATH", "")}'
-    env['ROS_DOMAIN_ID'] = str(200 + os.getpid() % 30)
+    env['ROS_DOMAIN_ID'] = str(ros_domains())  # this module's own (conftest)
     env['ROS_LOG_DIR'] = str(ws / 'ros_log')
     env['NUMBA_NUM_THREADS'] = '1'
     share = ws / 'install' / 'polarization_compass' / 'share' / 'polarization_compass'

@@ -28,8 +28,6 @@ sources): skipped with that message otherwise.
 """
 
 import json
-import subprocess
-import sys
 
 import pytest
 
@@ -50,33 +48,12 @@ FRAMES = 18  # 0.05 turn at 10 deg/s = 1.8 s at 10 Hz
     reason='tf2_ros is not installed (a ROS install has it: ros-<distro>-tf2-ros; here '
     '../shared/ros-cpp/install.sh .venv and source .venv/opt/ros-cpp/setup.bash)',
 )
-def test_sim_graph_from_tf_scores_every_frame_with_errors_near_zero(ros_env, tmp_path):
+def test_sim_graph_from_tf_scores_every_frame_with_errors_near_zero(sim_cli, tmp_path):
     out = tmp_path / 'sim_tf'
-    env = dict(ros_env)
-    env.pop('POLARIZATION_COMPASS_DEBUG', None)
-    p = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'polarization_compass.cli',
-            'sim',
-            '--attitude-source',
-            'tf',
-            '--methods',
-            'least_squares',
-            '--turns',
-            '0.05',
-            '--out',
-            str(out),
-            '--timeout',
-            '400',
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-        timeout=450,
-    )
+    p = sim_cli(
+        '--attitude-source', 'tf', '--methods', 'least_squares', '--turns', '0.05',
+        '--out', out, '--timeout', '400',
+    )  # fmt: skip
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     log = (out / 'logs' / 'sky_simulator.log').read_text()
     assert 'attitude tf' in log and f'run complete: {FRAMES} frames' in log, log[-2000:]
