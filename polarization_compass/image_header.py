@@ -159,7 +159,7 @@ def _tiff_ifd(fh, order: str, big: bool):
     (next_offset,) = struct.unpack(order + off_fmt, _read(fh, struct.calcsize(off_fmt)))
     tags = {}
     for i in range(n):
-        e = raw[i * entry_size:(i + 1) * entry_size]
+        e = raw[i * entry_size : (i + 1) * entry_size]
         tag, typ = struct.unpack(order + 'HH', e[:4])
         (count,) = struct.unpack(order + ('Q' if big else 'I'), e[4:12] if big else e[4:8])
         value = e[12:] if big else e[8:]

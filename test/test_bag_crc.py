@@ -44,7 +44,7 @@ def _chunks(path):
         if op == 0x06:
             _, _, size, crc, clen = struct.unpack_from('<QQQII', data, body)
             rec = body + 32 + clen + 8
-            out.append((body + 24, crc, zlib.crc32(data[rec:rec + size]), rec, size))
+            out.append((body + 24, crc, zlib.crc32(data[rec : rec + size]), rec, size))
         pos = body + n
     return out
 

@@ -147,9 +147,7 @@ def test_injected_faults_are_counted_per_sample(seed, n_sat, n_zero, sun_alt):
     rng = np.random.default_rng(seed)
     g = geom()
     bearings = rng.uniform(0.0, 360.0, 6)
-    x = simulate_readings(
-        g, 150.0, sun_alt, bearings, brightness=3000.0, noise_rel=0.002, rng=rng
-    )
+    x = simulate_readings(g, 150.0, sun_alt, bearings, brightness=3000.0, noise_rel=0.002, rng=rng)
     x = np.abs(x)
     cells = rng.choice(6 * 8, size=n_sat + n_zero, replace=False)
     sat = np.zeros((6, 8), dtype=bool)

@@ -113,12 +113,12 @@ def main() -> int:
         out[row['session']] = q
         sp = q['status_pct']
         print(
-            f"{row['session']:<26} n {q['samples']} ok {sp.get('ok', 0):.1f}% amb "
-            f"{sp.get('ambiguous', 0):.1f}% poor {sp.get('poor_fit', 0):.1f}% "
-            f"rms {q['rms_deg'] or float('nan'):.2f} >90 {q['ok_off_90']} >150 "
-            f"{q['ok_off_150']} >3sig {q['ok_beyond_3sigma']} cov2 {q['cov2'] or float('nan'):.3f}"
+            f'{row["session"]:<26} n {q["samples"]} ok {sp.get("ok", 0):.1f}% amb '
+            f'{sp.get("ambiguous", 0):.1f}% poor {sp.get("poor_fit", 0):.1f}% '
+            f'rms {q["rms_deg"] or float("nan"):.2f} >90 {q["ok_off_90"]} >150 '
+            f'{q["ok_off_150"]} >3sig {q["ok_beyond_3sigma"]} cov2 {q["cov2"] or float("nan"):.3f}'
         )
-        print(f"    statuses {sp}  side by {q['side_by']}  unusable {q['units_unusable']}")
+        print(f'    statuses {sp}  side by {q["side_by"]}  unusable {q["units_unusable"]}')
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))
     return 0

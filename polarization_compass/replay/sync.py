@@ -305,8 +305,9 @@ class _FrameSync:
             if role == 'image':
                 value = decode_mosaic(msg)
             elif role == 'imu':  # the attitude and the tilt variance its covariance states
-                value = decode_orientation(msg), imu_tilt_variance_deg2(
-                    getattr(msg, 'orientation_covariance', ())
+                value = (
+                    decode_orientation(msg),
+                    imu_tilt_variance_deg2(getattr(msg, 'orientation_covariance', ())),
                 )
             elif role == 'reference':
                 value = decode_orientation(msg)
