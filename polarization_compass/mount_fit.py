@@ -94,6 +94,10 @@ class MountFit:
 
     ``spread``: the factors the recordings' disagreement widened the mount's sigmas by (pitch,
     roll; :func:`fit_mount_recordings`); ``warning`` one line when they disagree ('' otherwise).
+    ``sky_misfit_deg``: the median over samples of each sample's DoP^2-weighted rms unit-angle
+    residual at the fitted mount (how well the sky fits the single-scattering model).
+    ``used``, ``left_out``: the recordings (1-based) fitted and left out by the sky gate of
+    :func:`~.mount_recordings.fit_mount_recordings` (empty for :func:`fit_mount` alone).
     """
 
     mount: Mount
@@ -105,6 +109,9 @@ class MountFit:
     angle_rms_after_deg: float
     spread: tuple = (1.0, 1.0)
     warning: str = ''
+    sky_misfit_deg: float = math.nan
+    used: tuple = ()
+    left_out: tuple = ()
 
 
 def turn_samples(
@@ -349,6 +356,13 @@ class _Problem:
         J[np.arange(rows.size), 2 + self.k[rows]] = 1
         return J
 
+    def sample_misfit_deg(self, x) -> np.ndarray:
+        """Return each sample's DoP^2-weighted rms angle residual [deg] (3+ usable units)."""
+        r = self.angle_residuals_rad(x)
+        rows = np.sum(self.use, axis=1) >= 3
+        w = self.d.w[rows]
+        return np.degrees(np.sqrt(np.sum(w * r[rows] ** 2, axis=1) / np.sum(w, axis=1)))
+
     def rms_deg(self, x) -> float:
         r = self.angle_residuals_rad(x)
         return math.degrees(math.sqrt(float(np.sum(self.d.w * r**2)) / float(np.sum(self.d.w))))
@@ -499,4 +513,5 @@ def fit_mount(
         int(np.sum(np.sum(d.w > 0, axis=1) >= 3)),
         prob.rms_deg(np.r_[0.0, 0.0, level.x]),
         prob.rms_deg(sol.x),
+        sky_misfit_deg=float(np.median(prob.sample_misfit_deg(sol.x))),
     )
