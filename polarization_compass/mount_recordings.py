@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .mount import Mount
-from .mount_fit import concat, fit_mount, MountFit, MountFitError, ROBUST_SCALE_DEG
+from .mount_fit import concat, fit_mount, MountFit, MountFitError
 
 __all__ = [
     'MAX_DISAGREEMENT_DEG',
@@ -42,14 +42,16 @@ __all__ = [
 #: clear moved one recording's fit by 4.6 deg of pitch on the real sessions, docs)
 MAX_DISAGREEMENT_DEG = 5.0
 
-#: a recording whose sky misfit (median over samples of the DoP^2-weighted rms unit-angle residual
-#: at its own best mount, ``MountFit.sky_misfit_deg``) exceeds this [deg] is left out of the mount:
-#: its sky does not fit the single-scattering model. The units' angle noise is 0.3-1 deg on the
-#: real sessions (successive differences of the residuals) and the clear skies misfit by 2.8 (sun
-#: 64 deg) and 6.3 deg (sun 26 deg), the model's own floor; the bound lies above every clear sky
-#: measured, at the fit's robust scale: beyond it most samples sit in the soft-L1 loss's linear
-#: tail, and the fit is no longer one of the model (docs/photodiode-arrays.md)
-MAX_SKY_MISFIT_DEG = ROBUST_SCALE_DEG
+#: a recording whose sky misfit (``MountFit.sky_misfit_deg``: the median rms angle residual, at its
+#: own best mount, of the units viewing the sky 60-120 deg from the sun, where a clear sky's angle
+#: of polarization is the single-scattering one) exceeds this [deg] is left out of the mount: its
+#: sky is not the model's (trees, clouds). A tilt of the mount moves the units' angles by about its
+#: own size, and the tilts looked for are a few degrees (recordings further apart than 5 deg are
+#: refused, MAX_DISAGREEMENT_DEG): a sky that misfits by more hides the tilt the fit is for. Below
+#: it lie the units' angle noise (0.3-1 deg on the real sessions, from successive differences of the
+#: residuals) and both clear real skies (2.1 deg at sun 64 deg, 3.8 at sun 26, uncalibrated
+#: polarizer offsets included); the session under trees misfits by 7.7 (docs/photodiode-arrays.md)
+MAX_SKY_MISFIT_DEG = 5.0
 
 
 def heading_scatter_deg(bearing_deg, imu_yaw_rad, turn, ok) -> tuple:

@@ -230,7 +230,7 @@ def test_a_recording_whose_sky_misfits_is_left_out_and_the_clean_mount_recovered
     c.turn = c.turn + 20
     # the disturbance misfits far above the bound; the clean recordings far below it
     assert fit_mount(geom(), c).sky_misfit_deg > 1.5 * MAX_SKY_MISFIT_DEG
-    assert fit_mount(geom(), a).sky_misfit_deg < 0.3 * MAX_SKY_MISFIT_DEG
+    assert fit_mount(geom(), a).sky_misfit_deg < 0.5 * MAX_SKY_MISFIT_DEG
     fit = fit_mount_recordings(geom(), [a, c, b])
     assert fit.used == (1, 3) and fit.left_out == (2,)
     assert fit.warning.startswith('recording 2: the sky misfit ')
