@@ -46,8 +46,9 @@ MAX_DISAGREEMENT_DEG = 5.0
 #: own best mount, of the units viewing the sky 60-120 deg from the sun, where a clear sky's angle
 #: of polarization is the single-scattering one) exceeds this [deg] is left out of the mount: its
 #: sky is not the model's (trees, clouds). A tilt of the mount moves the units' angles by about its
-#: own size, and the tilts looked for are a few degrees (recordings further apart than 5 deg are
-#: refused, MAX_DISAGREEMENT_DEG): a sky that misfits by more hides the tilt the fit is for. Below
+#: own size (3 deg of pitch: 2.1-3.5 deg rms with the sun at 26-64 deg, the 8-unit array), and the
+#: tilts looked for are a few degrees (recordings further apart than 5 deg are refused,
+#: MAX_DISAGREEMENT_DEG): a sky that misfits by more hides the tilt the fit is for. Below
 #: it lie the units' angle noise (0.3-1 deg on the real sessions, from successive differences of the
 #: residuals) and both clear real skies (2.1 deg at sun 64 deg, 3.8 at sun 26, uncalibrated
 #: polarizer offsets included); the session under trees misfits by 7.7 (docs/photodiode-arrays.md)
