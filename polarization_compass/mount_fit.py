@@ -381,7 +381,7 @@ class _Problem:
         return np.degrees(np.arccos(np.clip(s @ view.T, -1.0, 1.0)))
 
     def sky_misfit_deg(self, x) -> float:
-        """Return the median over samples of the rms residual [deg] of units in ``SKY_BAND_DEG``."""
+        """Return the median over samples of the rms residual [deg] of units in the sky band."""
         lo, hi = SKY_BAND_DEG
         gamma = self.scattering_angle_deg(x)
         w = np.where((gamma >= lo) & (gamma <= hi), self.d.w, 0.0)

@@ -15,8 +15,9 @@
 """
 Mount calibration from several recordings, and the within-turn scatter that judges it (issue 28).
 
-:func:`fit_mount_recordings` fits the mount of :mod:`.mount_fit` from several recordings at once
-and widens its sigmas by how much the recordings' own mounts disagree (a sky that is not clear
+:func:`fit_mount_recordings` fits the mount of :mod:`.mount_fit` from several recordings at once,
+leaving out those whose sky misfits the single-scattering model (:data:`MAX_SKY_MISFIT_DEG`), and
+widens its sigmas by how much the kept recordings' own mounts disagree (a sky that is not clear
 biases one recording); :func:`heading_scatter_deg` is the before/after measure of a calibration:
 how much ``bearing + imu_yaw`` moves within a turn in place.
 """
@@ -49,8 +50,8 @@ MAX_DISAGREEMENT_DEG = 5.0
 #: own size (3 deg of pitch: 2.1-3.5 deg rms with the sun at 26-64 deg, the 8-unit array), and the
 #: tilts looked for are a few degrees (recordings further apart than 5 deg are refused,
 #: MAX_DISAGREEMENT_DEG): a sky that misfits by more hides the tilt the fit is for. Below
-#: it lie the units' angle noise (0.3-1 deg on the real sessions, from successive differences of the
-#: residuals) and both clear real skies (2.1 deg at sun 64 deg, 3.8 at sun 26, uncalibrated
+#: it lie the units' angle noise (0.3-1 deg on the real sessions, from successive differences of
+#: the residuals) and both clear real skies (2.1 deg at sun 64 deg, 3.8 at sun 26, uncalibrated
 #: polarizer offsets included); the session under trees misfits by 7.7 (docs/photodiode-arrays.md)
 MAX_SKY_MISFIT_DEG = 5.0
 
@@ -86,6 +87,46 @@ def heading_scatter_deg(bearing_deg, imu_yaw_rad, turn, ok) -> tuple:
         return math.nan, 0
     d = np.concatenate(dev)
     return float(np.sqrt(np.mean(d**2))), int(d.size)
+
+
+def _sky_gate(singles: list, n: int, max_sky_misfit_deg: float) -> tuple:
+    """
+    Return the recordings whose sky misfits, and one line for each.
+
+    Parameters
+    ----------
+    singles : list of (int, MountFit)
+        Each recording's own fit, by its index (those that determine a mount alone).
+    n : int
+        How many recordings there are.
+    max_sky_misfit_deg : float
+        The bound [deg] on ``MountFit.sky_misfit_deg``.
+
+    Returns
+    -------
+    tuple
+        ``(out, notes)``: the set of indices left out and their lines.
+
+    Raises
+    ------
+    MountFitError
+        Every recording left out.
+
+    """
+    out = {i for i, s in singles if s.sky_misfit_deg > max_sky_misfit_deg}
+    notes = [
+        f'recording {i + 1}: the sky misfit {s.sky_misfit_deg:.1f} deg (median) > '
+        f'{max_sky_misfit_deg:g}: under trees or clouds; left out of the mount'
+        for i, s in singles
+        if i in out
+    ]
+    if len(out) == n:
+        raise MountFitError(
+            'cannot calibrate the mount: the sky of every recording misfits the single-scattering '
+            f'model (median > {max_sky_misfit_deg:g} deg: trees or clouds); calibrate from turns '
+            'under a clear, open sky'
+        )
+    return out, notes
 
 
 def fit_mount_recordings(
@@ -135,25 +176,13 @@ def fit_mount_recordings(
         more than ``max_disagreement_deg``.
 
     """
-    singles, notes = [], []
+    singles = []
     for i, p in enumerate(parts):
         try:
             singles.append((i, fit_mount(geometry, p, **{**limits, 'max_sigma_deg': 90.0})))
         except MountFitError:
             continue  # a recording that cannot determine the mount alone still counts jointly
-    out = {i for i, s in singles if s.sky_misfit_deg > max_sky_misfit_deg}
-    for i, s in singles:
-        if i in out:
-            notes.append(
-                f'recording {i + 1}: the sky misfit {s.sky_misfit_deg:.1f} deg (median) > '
-                f'{max_sky_misfit_deg:g}: under trees or clouds; left out of the mount'
-            )
-    if len(out) == len(parts):
-        raise MountFitError(
-            f'cannot calibrate the mount: every recording\'s sky misfits the single-scattering '
-            f'model (median > {max_sky_misfit_deg:g} deg: trees or clouds); calibrate from turns '
-            'under a clear, open sky'
-        )
+    out, notes = _sky_gate(singles, len(parts), max_sky_misfit_deg)
     kept = [i for i in range(len(parts)) if i not in out]
     singles = [(i, s) for i, s in singles if i not in out]
     fit = fit_mount(geometry, concat([parts[i] for i in kept]), **limits)

@@ -262,7 +262,7 @@ def test_the_sky_gate_leaves_a_clean_set_unchanged_and_refuses_when_all_misfit()
     np.testing.assert_array_equal(gated.yaw_offsets_deg, ungated.yaw_offsets_deg)
     # a bound below the clean skies' own misfit leaves both out: refused with one line
     low = 0.5 * min(fit_mount(geom(), p).sky_misfit_deg for p in (a, b))
-    with pytest.raises(MountFitError, match=r'^cannot calibrate the mount: every recording'):
+    with pytest.raises(MountFitError, match=r'^cannot calibrate the mount: the sky of every '):
         fit_mount_recordings(geom(), [a, b], max_sky_misfit_deg=low)
 
 
