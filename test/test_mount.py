@@ -266,6 +266,41 @@ def test_the_sky_gate_leaves_a_clean_set_unchanged_and_refuses_when_all_misfit()
         fit_mount_recordings(geom(), [a, b], max_sky_misfit_deg=low)
 
 
+def test_the_sky_misfit_is_read_away_from_the_sun_only():
+    # independent geometry: a level body with its front at bearing B sees a unit along compass
+    # azimuth B + az at the unit's elevation; the scattering angle is that view's angle to the sun
+    # (the 4.7 deg mount tilt moves it by less than the 15 deg margins below)
+    alt, offsets = 30.0, (10.0, 50.0)
+    turns = _turns(sun_alt=alt, seed=4, offsets=offsets)
+    g = geom()
+    az = np.radians([u.azimuth_deg for u in g.units])
+    el = np.radians([u.elevation_deg for u in g.units])
+    gamma = []
+    for (_, yaw, t), off in zip(turns, offsets):
+        bearing = np.radians(off) - yaw
+        rel = bearing[:, None] + az[None, :] - math.radians(SUN_AZ)
+        sa, ca = math.sin(math.radians(alt)), math.cos(math.radians(alt))
+        cos_g = np.sin(el) * sa + np.cos(el) * ca * np.cos(rel)
+        gamma.append(np.degrees(np.arccos(np.clip(cos_g, -1.0, 1.0))))
+    gamma = np.concatenate(gamma)
+    wave = np.radians(40.0) * np.sin(3.0 * np.arange(gamma.shape[0]))[:, None]
+    near_sun = _samples(turns, alt)
+    near_sun.aop_rad = near_sun.aop_rad + np.where(gamma < 45.0, wave, 0.0)
+    in_band = _samples(turns, alt)
+    in_band.aop_rad = in_band.aop_rad + np.where((gamma > 85.0) & (gamma < 95.0), wave, 0.0)
+    for d in (near_sun, in_band):  # equal weights: real readings near the sun are not low in DoP
+        d.w = np.where(d.w > 0, 0.1, 0.0)
+    assert np.any((gamma < 45.0) & (near_sun.w > 0)) and np.any((gamma > 85.0) & (in_band.w > 0))
+    # the neutral points' region does not count: the recording is kept; a disturbance at 90 deg
+    # from the sun does, and the recording is left out
+    assert fit_mount(g, near_sun).sky_misfit_deg < 0.5 * MAX_SKY_MISFIT_DEG
+    assert fit_mount(g, in_band).sky_misfit_deg > MAX_SKY_MISFIT_DEG
+    clean = _samples(_turns(sun_alt=alt, seed=5, offsets=(90.0, 120.0)), alt)
+    clean.turn = clean.turn + 10
+    assert fit_mount_recordings(g, [near_sun, clean]).left_out == ()
+    assert fit_mount_recordings(g, [in_band, clean]).left_out == (1,)
+
+
 def test_recording_per_sample_imu_yaw_and_turn_index_round_trip(tmp_path):
     inten = np.arange(2 * 8 * 4, dtype=float).reshape(2, 8, 4)
     for ext, save in (('npz', save_array_recording_npz), ('csv', save_array_recording_csv)):
