@@ -30,7 +30,8 @@ YAML (in an array geometry or a ``CAMERA.yaml``)::
       pitch_sigma_deg: 0.3   # optional, written by calibrate-mount
       roll_sigma_deg: 0.3
       turns: 12              # optional record of the calibration: turns, samples,
-                             # residual_before_deg, residual_after_deg, sigma_widened_by, method
+                             # residual_before_deg, residual_after_deg, sigma_widened_by,
+                             # recordings_used, recordings_left_out, method
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ _RECORD_KEYS = (
     'residual_after_deg',
     'yaw_offsets_deg',
     'sigma_widened_by',
+    'recordings_used',
+    'recordings_left_out',
     'method',
 )
 

@@ -62,6 +62,11 @@ __all__ = [
 #: soft-L1 scale of the angle residuals [deg]
 ROBUST_SCALE_DEG = 10.0
 
+#: scattering angles [deg] (sun to a unit's view) where a clear sky's angle of polarization is the
+#: single-scattering one: the neutral points (Arago, Babinet, Brewster) and the low degree of
+#: polarization lie within about 30 deg of the sun and the antisun; the sky misfit is read here
+SKY_BAND_DEG = (60.0, 120.0)
+
 
 class MountFitError(CompassError):
     """Turns that cannot determine the mount (the message says what is missing)."""
@@ -94,6 +99,11 @@ class MountFit:
 
     ``spread``: the factors the recordings' disagreement widened the mount's sigmas by (pitch,
     roll; :func:`fit_mount_recordings`); ``warning`` one line when they disagree ('' otherwise).
+    ``sky_misfit_deg``: how well the sky fits the single-scattering model: the median over
+    samples of each sample's DoP^2-weighted rms angle residual at the fitted mount, over the units
+    viewing the sky 60-120 deg from the sun (``SKY_BAND_DEG``; nan when none does).
+    ``used``, ``left_out``: the recordings (1-based) fitted and left out by the sky gate of
+    :func:`~.mount_recordings.fit_mount_recordings` (empty for :func:`fit_mount` alone).
     """
 
     mount: Mount
@@ -105,6 +115,9 @@ class MountFit:
     angle_rms_after_deg: float
     spread: tuple = (1.0, 1.0)
     warning: str = ''
+    sky_misfit_deg: float = math.nan
+    used: tuple = ()
+    left_out: tuple = ()
 
 
 def turn_samples(
@@ -349,6 +362,36 @@ class _Problem:
         J[np.arange(rows.size), 2 + self.k[rows]] = 1
         return J
 
+    def scattering_angle_deg(self, x) -> np.ndarray:
+        """Return the (S, U) angle [deg] between the sun and each unit's (or ray's) view."""
+        b, m = self.bearings(x[2:]), Mount(float(x[0]), float(x[1]))
+        if isinstance(self.geometry, CameraRays):
+            R = R_enu_sensor_cam(b, self.d.pitch_deg, self.d.roll_deg, m)
+            sun = enu_direction(self.d.sun_azimuth_deg, self.d.sun_altitude_deg)
+            s = np.einsum('sji,sj->si', R, sun)
+            view = np.asarray(self.geometry.rays_cam)
+        else:
+            s = sun_sensor(
+                self.d.sun_azimuth_deg, self.d.sun_altitude_deg, b, self.d.pitch_deg,
+                self.d.roll_deg, m,
+            )
+            az = np.array([u.azimuth_deg for u in self.geometry.units])
+            el = np.array([u.elevation_deg for u in self.geometry.units])
+            view = unit_axis_body(az, el)
+        return np.degrees(np.arccos(np.clip(s @ view.T, -1.0, 1.0)))
+
+    def sky_misfit_deg(self, x) -> float:
+        """Return the median over samples of the rms residual [deg] of units in the sky band."""
+        lo, hi = SKY_BAND_DEG
+        gamma = self.scattering_angle_deg(x)
+        w = np.where((gamma >= lo) & (gamma <= hi), self.d.w, 0.0)
+        rows = np.sum(w > 0, axis=1) >= 1
+        if not rows.any():
+            return math.nan
+        r2 = self.angle_residuals_rad(x)[rows] ** 2
+        w = w[rows]
+        return math.degrees(float(np.median(np.sqrt(np.sum(w * r2, axis=1) / np.sum(w, axis=1)))))
+
     def rms_deg(self, x) -> float:
         r = self.angle_residuals_rad(x)
         return math.degrees(math.sqrt(float(np.sum(self.d.w * r**2)) / float(np.sum(self.d.w))))
@@ -499,4 +542,5 @@ def fit_mount(
         int(np.sum(np.sum(d.w > 0, axis=1) >= 3)),
         prob.rms_deg(np.r_[0.0, 0.0, level.x]),
         prob.rms_deg(sol.x),
+        sky_misfit_deg=prob.sky_misfit_deg(sol.x),
     )

@@ -29,7 +29,11 @@ from polarization_compass.conventions import rot_x, rot_y, wrap_180_deg
 from polarization_compass.estimators.base import Status
 from polarization_compass.mount import Mount, R_body_sensor
 from polarization_compass.mount_fit import concat, fit_mount, MountFitError, turn_samples
-from polarization_compass.mount_recordings import fit_mount_recordings, heading_scatter_deg
+from polarization_compass.mount_recordings import (
+    fit_mount_recordings,
+    heading_scatter_deg,
+    MAX_SKY_MISFIT_DEG,
+)
 from polarization_compass.photodiode.geometry import (
     ArrayGeometryError,
     geometry_from_dict,
@@ -210,6 +214,93 @@ def test_recordings_that_disagree_within_the_bound_are_fitted_with_a_warning():
     assert fit_mount_recordings(geom(), [a, b]).warning == ''
 
 
+def _disturbed(d, amplitude_deg=25.0):
+    """Add a structured sky error to the unit angles: a wave in heading, phase by unit."""
+    U = d.aop_rad.shape[1]
+    phase = 2.0 * np.pi * np.arange(U) / U
+    d.aop_rad = d.aop_rad + np.radians(amplitude_deg) * np.sin(d.imu_yaw_rad[:, None] + phase)
+    return d
+
+
+def test_a_recording_whose_sky_misfits_is_left_out_and_the_clean_mount_recovered():
+    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
+    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    b.turn = b.turn + 10
+    c = _disturbed(_samples(_turns(seed=3, offsets=(200.0, 250.0))))
+    c.turn = c.turn + 20
+    # the disturbance misfits far above the bound; the clean recordings far below it
+    assert fit_mount(geom(), c).sky_misfit_deg > 1.5 * MAX_SKY_MISFIT_DEG
+    assert fit_mount(geom(), a).sky_misfit_deg < 0.5 * MAX_SKY_MISFIT_DEG
+    fit = fit_mount_recordings(geom(), [a, c, b])
+    assert fit.used == (1, 3) and fit.left_out == (2,)
+    assert fit.warning.startswith('recording 2: the sky misfit ')
+    assert 'under trees or clouds; left out of the mount' in fit.warning
+    m = fit.mount
+    assert abs(m.pitch_deg - TRUE.pitch_deg) < 3.0 * m.pitch_sigma_deg, m
+    assert abs(m.roll_deg - TRUE.roll_deg) < 3.0 * m.roll_sigma_deg, m
+    assert fit.samples == 4 * N  # the clean recordings' samples only
+    # the same as fitting the clean recordings alone: the left-out one has no say
+    clean = fit_mount_recordings(geom(), [a, b])
+    assert (m.pitch_deg, m.roll_deg) == (clean.mount.pitch_deg, clean.mount.roll_deg)
+    # without the gate the disturbed recording pulls the mount beyond 3 of the gated sigmas
+    ungated = fit_mount_recordings(geom(), [a, c, b], max_sky_misfit_deg=math.inf)
+    assert ungated.left_out == () and ungated.used == (1, 2, 3)
+    assert max(
+        abs(ungated.mount.pitch_deg - TRUE.pitch_deg) / m.pitch_sigma_deg,
+        abs(ungated.mount.roll_deg - TRUE.roll_deg) / m.roll_sigma_deg,
+    ) > 3.0, ungated.mount
+
+
+def test_the_sky_gate_leaves_a_clean_set_unchanged_and_refuses_when_all_misfit():
+    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
+    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    b.turn = b.turn + 10
+    gated = fit_mount_recordings(geom(), [a, b])
+    ungated = fit_mount_recordings(geom(), [a, b], max_sky_misfit_deg=math.inf)
+    assert gated.used == (1, 2) and gated.left_out == () and gated.warning == ''
+    assert gated.mount == ungated.mount and gated.spread == ungated.spread
+    np.testing.assert_array_equal(gated.yaw_offsets_deg, ungated.yaw_offsets_deg)
+    # a bound below the clean skies' own misfit leaves both out: refused with one line
+    low = 0.5 * min(fit_mount(geom(), p).sky_misfit_deg for p in (a, b))
+    with pytest.raises(MountFitError, match=r'^cannot calibrate the mount: the sky of every '):
+        fit_mount_recordings(geom(), [a, b], max_sky_misfit_deg=low)
+
+
+def test_the_sky_misfit_is_read_away_from_the_sun_only():
+    # independent geometry: a level body with its front at bearing B sees a unit along compass
+    # azimuth B + az at the unit's elevation; the scattering angle is that view's angle to the sun
+    # (the 4.7 deg mount tilt moves it by less than the 15 deg margins below)
+    alt, offsets = 30.0, (10.0, 50.0)
+    turns = _turns(sun_alt=alt, seed=4, offsets=offsets)
+    g = geom()
+    az = np.radians([u.azimuth_deg for u in g.units])
+    el = np.radians([u.elevation_deg for u in g.units])
+    gamma = []
+    for (_, yaw, t), off in zip(turns, offsets):
+        bearing = np.radians(off) - yaw
+        rel = bearing[:, None] + az[None, :] - math.radians(SUN_AZ)
+        sa, ca = math.sin(math.radians(alt)), math.cos(math.radians(alt))
+        cos_g = np.sin(el) * sa + np.cos(el) * ca * np.cos(rel)
+        gamma.append(np.degrees(np.arccos(np.clip(cos_g, -1.0, 1.0))))
+    gamma = np.concatenate(gamma)
+    wave = np.radians(40.0) * np.sin(3.0 * np.arange(gamma.shape[0]))[:, None]
+    near_sun = _samples(turns, alt)
+    near_sun.aop_rad = near_sun.aop_rad + np.where(gamma < 45.0, wave, 0.0)
+    in_band = _samples(turns, alt)
+    in_band.aop_rad = in_band.aop_rad + np.where((gamma > 85.0) & (gamma < 95.0), wave, 0.0)
+    for d in (near_sun, in_band):  # equal weights: real readings near the sun are not low in DoP
+        d.w = np.where(d.w > 0, 0.1, 0.0)
+    assert np.any((gamma < 45.0) & (near_sun.w > 0)) and np.any((gamma > 85.0) & (in_band.w > 0))
+    # the neutral points' region does not count: the recording is kept; a disturbance at 90 deg
+    # from the sun does, and the recording is left out
+    assert fit_mount(g, near_sun).sky_misfit_deg < 0.5 * MAX_SKY_MISFIT_DEG
+    assert fit_mount(g, in_band).sky_misfit_deg > MAX_SKY_MISFIT_DEG
+    clean = _samples(_turns(sun_alt=alt, seed=5, offsets=(90.0, 120.0)), alt)
+    clean.turn = clean.turn + 10
+    assert fit_mount_recordings(g, [near_sun, clean]).left_out == ()
+    assert fit_mount_recordings(g, [in_band, clean]).left_out == (1,)
+
+
 def test_recording_per_sample_imu_yaw_and_turn_index_round_trip(tmp_path):
     inten = np.arange(2 * 8 * 4, dtype=float).reshape(2, 8, 4)
     for ext, save in (('npz', save_array_recording_npz), ('csv', save_array_recording_csv)):
@@ -262,6 +353,7 @@ def test_cli_calibrate_mount_writes_the_mount_section(tmp_path, capsys):
     assert abs(m.pitch_deg - TRUE.pitch_deg) < 4 * m.pitch_sigma_deg + 0.05
     assert abs(m.roll_deg - TRUE.roll_deg) < 4 * m.roll_sigma_deg + 0.05
     assert m.record['turns'] == 2 and m.record['samples'] == 2 * N
+    assert m.record['recordings_used'] == [1] and m.record['recordings_left_out'] == []
     assert m.record['residual_after_deg'] < 0.3 * m.record['residual_before_deg']
     # estimate-array reads the mount from the written geometry: the sun-relative curve goes
     yaw = load_array_recording(rec).imu_yaw_rad

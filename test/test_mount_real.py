@@ -32,6 +32,7 @@ pytestmark = [
 ]
 HIGH_SUN = '12-02__Thursday_12-05-22'
 OTHER_CLEAR = '08-30__Saturday_14-05-22'
+TREES = '16-33__Thursday_19-05-22'
 
 
 @pytest.fixture(scope='module')
@@ -40,7 +41,7 @@ def sessions():
     from polarization_compass.photodiode.geometry import geometry_from_dict
 
     g = geometry_from_dict(pj.geometry_dict())
-    rows = [r for r in pj.sessions() if r['session'] in (HIGH_SUN, OTHER_CLEAR)]
+    rows = [r for r in pj.sessions() if r['session'] in (HIGH_SUN, OTHER_CLEAR, TREES)]
     return g, {r['session']: mc.load(r, g) for r in rows}
 
 
@@ -57,3 +58,22 @@ def test_mount_from_the_other_clear_session_cuts_the_high_sun_scatter_by_a_third
     (back,) = mc.leave_one_out([s[OTHER_CLEAR]], g, [[s[HIGH_SUN]]])
     assert abs(back['mount'].pitch_deg - row['mount'].pitch_deg) < 1.0
     assert abs(back['mount'].roll_deg - row['mount'].roll_deg) < 1.0
+
+
+def test_mount_from_both_other_sessions_leaves_the_trees_out_and_cuts_the_scatter(sessions):
+    import mount_calibration as mc
+    from polarization_compass.mount_fit import fit_mount
+    from polarization_compass.mount_recordings import MAX_SKY_MISFIT_DEG
+
+    g, s = sessions
+    # the gate's reading: the clear skies fit the single-scattering model, the canopy does not
+    assert fit_mount(g, s[TREES]['fit']).sky_misfit_deg > MAX_SKY_MISFIT_DEG
+    assert fit_mount(g, s[OTHER_CLEAR]['fit']).sky_misfit_deg < MAX_SKY_MISFIT_DEG
+    (row,) = mc.leave_one_out([s[HIGH_SUN]], g, [[s[TREES], s[OTHER_CLEAR]]])
+    assert row['used'] == OTHER_CLEAR[:5], row['used']
+    assert 'recording 1: the sky misfit' in row['warning']
+    assert 'left out of the mount' in row['warning']
+    before, after = row['before'], row['after']
+    assert after['scatter_deg'] <= (2.0 / 3.0) * before['scatter_deg'], (before, after)
+    assert after['off90'] == 0 and before['off90'] == 0
+    assert after['ok'] >= 0.95 * before['ok']

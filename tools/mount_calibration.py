@@ -18,8 +18,9 @@ Mount calibration on the real POL-OP sessions, leave one out (docs/photodiode-ar
 The mount is fitted (:func:`polarization_compass.mount_fit.fit_mount`) from the turns of the other
 sessions and applied to the held-out one (``tilt_aware``, body level): within-turn scatter of the
 bearing plus IMU yaw, RMS error against the reference and ok results off by more than 90 deg,
-before and after. Also from the other clear-sky session alone. The data are
-../shared/data/real-polop (GPL-3.0, read in place).
+before and after (the sky gate of ``fit_mount_recordings`` names the sessions it used). Also
+from the other clear-sky session alone. The data are ../shared/data/real-polop (GPL-3.0, read in
+place).
 
 Usage: python tools/mount_calibration.py [--plot docs/figures/mount_calibration.png]
 """
@@ -103,13 +104,15 @@ def leave_one_out(sessions, geometry, sources=None) -> list:
         try:
             fit = fit_mount_recordings(geometry, parts)
             mount, refused, warning = fit.mount, '', fit.warning
+            used = [src[i - 1]['session'][:5] for i in fit.used]
         except MountFitError as exc:
-            mount, refused, warning = None, str(exc), ''
+            mount, refused, warning, used = None, str(exc), '', []
         before = evaluate(s, geometry)
         rows.append(
             {
                 'session': s['session'],
                 'from': ' + '.join(o['session'][:5] for o in src),
+                'used': ' + '.join(used),
                 'sun_alt': float(np.mean(s['alt'])),
                 'mount': mount,
                 'refused': refused,
@@ -124,20 +127,22 @@ def leave_one_out(sessions, geometry, sources=None) -> list:
 def table(rows) -> str:
     """Return the markdown table of :func:`leave_one_out` rows."""
     out = [
-        '| held out | sun | mount from | pitch, roll (deg) | within-turn scatter (deg) | '
-        'RMS vs reference (deg) | ok off > 90 deg |',
-        '|---|---|---|---|---|---|---|',
+        '| held out | sun | mount from | used (sky gate) | pitch, roll (deg) | '
+        'within-turn scatter (deg) | RMS vs reference (deg) | ok off > 90 deg |',
+        '|---|---|---|---|---|---|---|---|',
     ]
     for r in rows:
         m, b, a = r['mount'], r['before'], r['after']
         mount = (
-            'refused: the recordings disagree'
+            'refused: ' + r['refused'].split(': ', 1)[-1][:40]
             if m is None
             else f'{m.pitch_deg:.1f} +- {m.pitch_sigma_deg:.1f}, {m.roll_deg:.1f} +- '
-            f'{m.roll_sigma_deg:.1f}' + (' (disagree: widened)' if r.get('warning') else '')
+            f'{m.roll_sigma_deg:.1f}'
+            + (' (disagree: widened)' if 'disagree' in r.get('warning', '') else '')
         )
         out.append(
-            f'| {r["session"]} | {r["sun_alt"]:.0f} | {r["from"]} | {mount} | '
+            f'| {r["session"]} | {r["sun_alt"]:.0f} | {r["from"]} | {r["used"] or "-"} | '
+            f'{mount} | '
             f'{b["scatter_deg"]:.2f} -> {a["scatter_deg"]:.2f} | '
             f'{b["rms_deg"]:.1f} -> {a["rms_deg"]:.1f} | {b["off90"]} -> {a["off90"]} |'
         )

@@ -137,6 +137,8 @@ def run(args) -> int:
         'residual_before_deg': round(before[0], 3),
         'residual_after_deg': round(after[0], 3),
         'sigma_widened_by': [round(float(v), 2) for v in fit.spread],
+        'recordings_used': list(fit.used),
+        'recordings_left_out': list(fit.left_out),
         'method': 'calibrate-mount: within-turn rms of tilt_aware bearing + IMU yaw',
     }
     mount = Mount(m.pitch_deg, m.roll_deg, m.pitch_sigma_deg, m.roll_sigma_deg, record)
@@ -191,6 +193,8 @@ def _run_camera(args) -> int:
         'residual_before_deg': round(before[0], 3),
         'residual_after_deg': round(after[0], 3),
         'sigma_widened_by': [round(float(v), 2) for v in fit.spread],
+        'recordings_used': list(fit.used),
+        'recordings_left_out': list(fit.left_out),
         'method': 'calibrate-mount: within-turn rms of tilt_aware bearing + IMU yaw',
     }
     camera_yaml_with_mount(
