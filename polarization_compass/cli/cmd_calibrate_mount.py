@@ -110,7 +110,6 @@ def _scatter(geometry, recs, pitch, roll) -> tuple:
 def run(args) -> int:
     from ._checks import check_range
     from ..errors import CompassError
-    from ..mount import Mount
     from ..mount_recordings import fit_mount_recordings
     from ..photodiode.geometry import geometry_to_dict, load_array_geometry
 
@@ -131,17 +130,7 @@ def run(args) -> int:
     m = fit.mount
     before = _scatter(g0, recs, args.pitch, args.roll)
     after = _scatter(g0.with_mount(m), recs, args.pitch, args.roll)
-    record = {
-        'turns': fit.turns,
-        'samples': fit.samples,
-        'residual_before_deg': round(before[0], 3),
-        'residual_after_deg': round(after[0], 3),
-        'sigma_widened_by': [round(float(v), 2) for v in fit.spread],
-        'recordings_used': list(fit.used),
-        'recordings_left_out': list(fit.left_out),
-        'method': 'calibrate-mount: within-turn rms of tilt_aware bearing + IMU yaw',
-    }
-    mount = Mount(m.pitch_deg, m.roll_deg, m.pitch_sigma_deg, m.roll_sigma_deg, record)
+    mount = _mount_record(fit, before, after)
     with open(args.out, 'w', encoding='utf-8') as fh:
         fh.write('# written by polarization-compass calibrate-mount\n')
         yaml.safe_dump(geometry_to_dict(g0.with_mount(mount)), fh, sort_keys=False)
@@ -187,6 +176,20 @@ def _run_camera(args) -> int:
         b.append(bt)
         ok.append(okt)
     after = heading_scatter_deg(np.concatenate(b), yaw, turn, np.concatenate(ok))
+    camera_yaml_with_mount(
+        args.camera,
+        _mount_record(fit, before, after),
+        args.out,
+    )
+    _report(fit, before, after)
+    return 0
+
+
+def _mount_record(fit, before, after):
+    """Return the fitted Mount with what the YAML says of its calibration (arrays and cameras)."""
+    from ..mount import Mount
+
+    m = fit.mount
     record = {
         'turns': fit.turns,
         'samples': fit.samples,
@@ -197,13 +200,7 @@ def _run_camera(args) -> int:
         'recordings_left_out': list(fit.left_out),
         'method': 'calibrate-mount: within-turn rms of tilt_aware bearing + IMU yaw',
     }
-    camera_yaml_with_mount(
-        args.camera,
-        Mount(m.pitch_deg, m.roll_deg, m.pitch_sigma_deg, m.roll_sigma_deg, record),
-        args.out,
-    )
-    _report(fit, before, after)
-    return 0
+    return Mount(m.pitch_deg, m.roll_deg, m.pitch_sigma_deg, m.roll_sigma_deg, record)
 
 
 def _report(fit, before, after) -> None:
