@@ -27,9 +27,9 @@ import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass.budget import _samples
 from polarization_compass.budget_config import BudgetConfig, without
+from polarization_compass.estimators import _block_layout, make_estimator, Observation
 from polarization_compass.estimators import _kernels as kern
 from polarization_compass.estimators import jackknife as jk
-from polarization_compass.estimators import make_estimator, Observation
 from polarization_compass.estimators._common import select_view, view_grid_layout, view_segments
 from polarization_compass.render import Renderer
 from polarization_compass.scene_load import load_scene
@@ -111,7 +111,7 @@ def _pass(obs, parities):
     v = select_view(obs, est.knobs, balance_phases=True)
     flat, segs = view_segments(v, est.knobs['block_px'])
     keys = (v.grid,) if v.grid is not None else v.subgrids
-    par = kern.grid_parities(tuple(keys)) if parities else None
+    par = _block_layout.grid_parities(tuple(keys)) if parities else None
     acc = kern.full_pass(*flat[:4], segs, 0.02, 1, view_grid_layout(v, est.knobs['block_px']), par)
     return v, acc
 
