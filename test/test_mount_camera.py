@@ -54,6 +54,7 @@ CAM = CameraModel(
 SUN_AZ, SUN_ALT = 135.0, 62.0
 BODY = (200.0, 2.0, -1.5)  # bearing of the body's front, pitch, roll [deg]
 MOUNT = (-4.0, -2.5)  # the camera's pitch and roll on the body [deg]
+T_IMU_NS = 1_573_797_600_000_000_000  # 2019-11-15T06:00:00Z, the nodes' default start
 
 
 def _R_enu_cam_scipy(bearing, pitch, roll, mount=(0.0, 0.0)):
@@ -166,6 +167,45 @@ def test_imu_buffer_gives_the_mounted_camera_attitude():
     plain.add(1_000, q)
     got = plain.camera_tilt(1_000, 10)
     np.testing.assert_allclose((got.pitch_deg, got.roll_deg), BODY[1:], atol=1e-9)
+
+
+@pytest.mark.parametrize('mount', [MOUNT, (0.0, 0.0)])
+def test_tilt_corrector_reads_the_error_map_at_the_mounted_camera_tilt(ctx, mount):
+    # the node's mount parameters reach the tilt it corrects with: its status reports the pitch
+    # and roll it looked the map up at, against the scipy composition of the body and the mount
+    from polarization_compass.conventions import R_BODY_CAM_DEFAULT
+    from polarization_compass.nodes import msgs
+    from polarization_compass.nodes.tilt_corrector import TiltCorrectorNode
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import Imu
+
+    R_enu_body = _R_enu_cam_scipy(*BODY).as_matrix() @ R_BODY_CAM_DEFAULT.T
+    imu = Imu()
+    imu.header.stamp = msgs.time_msg(T_IMU_NS)
+    imu.header.frame_id = 'base_link'
+    q = Rotation.from_matrix(R_enu_body).as_quat()  # x, y, z, w
+    imu.orientation.x, imu.orientation.y, imu.orientation.z, imu.orientation.w = map(float, q)
+    imu.orientation_covariance = [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1.0]
+    over = [
+        Parameter('imu_max_wait_s', value=0.0),
+        Parameter('mount_pitch_deg', value=mount[0]),
+        Parameter('mount_roll_deg', value=mount[1]),
+    ]
+    node = TiltCorrectorNode(context=ctx, parameter_overrides=over)
+    statuses = []
+    node._status = statuses.append  # the status dicts, without DDS
+    try:
+        node._on_imu(imu)
+        node._on_heading(
+            msgs.heading_imu(T_IMU_NS, 'base_link', math.radians(90.0 - BODY[0]), 1e-4, 1e3)
+        )
+        node._drain()
+    finally:
+        node.destroy_node()
+    want = _attitude_scipy(_R_enu_cam_scipy(*BODY, mount))
+    st = statuses[-1]
+    assert st['status'] == 'ok', st
+    np.testing.assert_allclose((st['pitch_deg'], st['roll_deg']), (want.pitch_deg, want.roll_deg))
 
 
 # ------------------------------------------------------------------------------------------------

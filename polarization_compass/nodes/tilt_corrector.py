@@ -70,6 +70,7 @@ from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_orientation, stamp_ns
 from ..errors import CompassError
+from ..mount import Mount
 from ..pipeline import AttitudeBuffer
 from ..specs import topics
 from ..specs.params import apply_fix, CORRECTOR, SUN_PARAMS, sun_source
@@ -132,6 +133,7 @@ class TiltCorrectorNode(Node):
             None  # (lat, lon, alt) of the latest usable NavSatFix (site_source navsatfix)
         )
         self.imu = AttitudeBuffer(keep_ns=int(p['imu_buffer_s'] * 1e9))
+        self.imu.mount = Mount(p['mount_pitch_deg'], p['mount_roll_deg'])  # camera_tilt composes
         self.attitude_uncertainty = AttitudeUncertainty()  # the latest IMU's tilt variance
         self.pending: deque = (
             deque()

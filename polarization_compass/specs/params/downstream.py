@@ -13,6 +13,7 @@
 # limitations under the License.
 """Parameters of the nodes after the estimators: tilt_corrector, error_evaluator, player_flow."""
 
+from .estimator import MOUNT
 from .methods import ALL_METHODS, PAPER_METHODS, TILT_METHODS
 from .site_sun import SITE, SITE_SOURCE
 from .spec import Param
@@ -63,6 +64,7 @@ CORRECTOR = (
         600.0,
         unit='s',
     ),
+    *MOUNT,
     Param(
         'correction_sigma_deg',
         0.1,

@@ -17,6 +17,31 @@ from .methods import ALL_METHODS
 from .site_sun import SITE, SITE_SOURCE
 from .spec import _iso_or_empty, _layout_problem, _not_optical, Param
 
+#: the camera's tilt on the body, composed with the IMU's attitude wherever the camera's tilt is
+#: read (heading_estimator, tilt_corrector)
+MOUNT = (
+    Param(
+        'mount_pitch_deg',
+        0.0,
+        "the camera's pitch on the body (CAMERA.yaml mount: pitch_deg, written by "
+        "'polarization-compass calibrate-mount'): composed with the IMU's attitude wherever the "
+        "camera's tilt is read (tilt_aware's levelling, the tilt corrector's error map)",
+        -45.0,
+        45.0,
+        unit='deg',
+        read_only=True,
+    ),
+    Param(
+        'mount_roll_deg',
+        0.0,
+        "the camera's roll on the body (CAMERA.yaml mount: roll_deg), as mount_pitch_deg",
+        -45.0,
+        45.0,
+        unit='deg',
+        read_only=True,
+    ),
+)
+
 ESTIMATOR = (
     Param(
         'method',
@@ -208,26 +233,7 @@ ESTIMATOR = (
         30.0,
         unit='deg',
     ),
-    Param(
-        'mount_pitch_deg',
-        0.0,
-        "the camera's pitch on the body (CAMERA.yaml mount: pitch_deg, written by "
-        "'polarization-compass calibrate-mount'): composed with the IMU's attitude for the "
-        'methods that read the tilt',
-        -45.0,
-        45.0,
-        unit='deg',
-        read_only=True,
-    ),
-    Param(
-        'mount_roll_deg',
-        0.0,
-        "the camera's roll on the body (CAMERA.yaml mount: roll_deg), as mount_pitch_deg",
-        -45.0,
-        45.0,
-        unit='deg',
-        read_only=True,
-    ),
+    *MOUNT,
     Param(
         'publish_ambiguous',
         False,
