@@ -434,7 +434,7 @@ def real_headings(
     The methods with the robust refit get
     :data:`~polarization_compass.pipeline.methods.REAL_SKY_KNOBS` unless the user set
     ``outlier_deg``. With ``options.sky_check`` every result is checked against the whole sky
-    (:func:`polarization_compass.skyfit.assess_result`: misfit sigma, 180 deg side,
+    (:func:`polarization_compass.skyfit_assess.assess_result`: misfit sigma, 180 deg side,
     ``poor_fit``) and, with several methods, against each other (``inconsistent``).
 
     Parameters
@@ -442,7 +442,7 @@ def real_headings(
     inp : PolarizationInput
         The image (:func:`polarization_compass.real_input.load_polarization_input`).
     cam_file : CameraFile
-        The camera and its polarizer (:func:`polarization_compass.camera.load_camera_yaml`).
+        The camera and its polarizer (:func:`polarization_compass.camera_file.load_camera_yaml`).
     options : EstimateOptions
         Methods, knobs, stride, demosaic, IFOV check, tilt, prior and ``sky_check``.
     sun : Sun

@@ -37,7 +37,7 @@ def simulation_scene(scene_file: str, array_geometry: str = ''):
     Parameters
     ----------
     scene_file : str
-        A scene YAML file or name (:func:`~polarization_compass.scene.load_scene`); empty for
+        A scene YAML file or name (:func:`~polarization_compass.scene_load.load_scene`); empty for
         the default scene.
     array_geometry : str, default ""
         When set, the scene also simulates a photodiode-array compass of this geometry (its

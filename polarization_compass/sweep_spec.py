@@ -118,7 +118,7 @@ class SweepSpec:
         eq 21 (the sun azimuth is 0, so bearing == psi).
     scene : Scene, optional
         :class:`~polarization_compass.scene.Scene` (its attitude, sun and pixel selection are
-        overridden per cell); default :func:`~polarization_compass.scene.default_scene`.
+        overridden per cell); default :func:`~polarization_compass.scene_load.default_scene`.
     knobs : dict, default {}
         ``{method: knobs}``; absent: the estimator class's ``sweep_knobs``, chosen so that errors
         change by < 0.05 deg against full resolution (docs/error-maps.md).

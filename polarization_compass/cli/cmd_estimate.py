@@ -22,8 +22,8 @@ Real images (:mod:`polarization_compass.real_input`: a raw mosaic PNG/TIFF/.npy,
 or 3-page TIFF) need ``--camera CAMERA.yaml`` (ROS camera_calibration plus ``polarizer:``) and the
 sun (``--lat --lon --time`` or ``--sun-azimuth --sun-altitude``); ``--mask`` excludes obstructions.
 Every usable result is then checked against the whole sky
-(:func:`polarization_compass.skyfit.assess_result`: misfit sigma, 180 deg side, ``poor_fit``) and,
-with several methods, against each other (``inconsistent``).
+(:func:`polarization_compass.skyfit_assess.assess_result`: misfit sigma, 180 deg side,
+``poor_fit``) and, with several methods, against each other (``inconsistent``).
 
 Reads a ``render`` output (.npz). When it holds the raw mosaic, the mosaic is demosaiced (the
 scene's demosaic method and polarizer layout from the frame's meta, else superpixel and the

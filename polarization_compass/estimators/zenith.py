@@ -37,11 +37,12 @@ fixes the meridian only together with the sun's altitude. Step 3 is where the al
 
 The result is axial (the zenith E-vector does not say which end of the meridian holds the sun)
 unless the whole sky (a sparse grid of pixels over the sensor: the AoP pattern at the sun's
-altitude and the half-sky brightness, :func:`polarization_compass.skyfit.side_votes`) or a prior
-bearing resolves it -- never the window's own brightness gradient, which lens-flare ghosts opposite
-the sun can dominate (a real frame gave 177 deg error that way). Uncertainty: to first order ``d
-psi = -sum_i w_i da_i / sum w``; ``da_i`` is the residual against the Rayleigh AoP of the fitted
-sun; cluster-robust over blocks of ``block_px`` (default 4 sensor pixels: the window is small).
+altitude and the half-sky brightness, :func:`polarization_compass.skyfit_assess.side_votes`) or a
+prior bearing resolves it -- never the window's own brightness gradient, which lens-flare ghosts
+opposite the sun can dominate (a real frame gave 177 deg error that way). Uncertainty: to first
+order ``d psi = -sum_i w_i da_i / sum w``; ``da_i`` is the residual against the Rayleigh AoP of the
+fitted sun; cluster-robust over blocks of ``block_px`` (default 4 sensor pixels: the window is
+small).
 
 Speed: one compiled pass over the window (:func:`_window_sums`) masks the pixels and accumulates
 ``M``, the counts, the axial resultant and the brightness statistics without copying; the per-pixel
@@ -290,10 +291,10 @@ def _whole_sky_side(obs: Observation, side_grid: int, first, second, extras: dic
     """
     Decide the 180 deg side from the whole sky: (candidate or None, reason).
 
-    The votes of :func:`polarization_compass.skyfit.side_votes` (the AoP pattern at the ephemeris
-    sun altitude, and the brightness of the half-sky towards each candidate sun) over the side
-    grid: all votes for one candidate decide; no vote, disagreeing votes or too little sky leave it
-    open. The votes go to ``extras["side_votes"]``.
+    The votes of :func:`polarization_compass.skyfit_assess.side_votes` (the AoP pattern at the
+    ephemeris sun altitude, and the brightness of the half-sky towards each candidate sun) over the
+    side grid: all votes for one candidate decide; no vote, disagreeing votes or too little sky
+    leave it open. The votes go to ``extras["side_votes"]``.
     """
     from ..skyfit_assess import side_votes
 

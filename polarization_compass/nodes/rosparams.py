@@ -13,14 +13,15 @@
 # limitations under the License.
 
 """
-ROS 2 (rclpy) glue for :mod:`.params`: declared and validated parameters.
+ROS 2 (rclpy) glue for :mod:`polarization_compass.specs.params`: declared and validated parameters.
 
 Every parameter is declared with a descriptor (description, range, read-only flag) and every
 change is validated with a reason.
 
 Bad values are rejected twice over: rclpy enforces ``FloatingPointRange``/``IntegerRange`` and
 ``read_only`` itself, and the on-set-parameters callback checks choices, types and the extra rules
-of :class:`~.params.Param` (the reason comes back to ``ros2 param set`` as the failure message).
+of :class:`~polarization_compass.specs.params.Param` (the reason comes back to ``ros2 param set``
+as the failure message).
 Any exception of the node's ``on_change`` (a file the new value names that cannot be read, ...)
 refuses the change with its reason and keeps the old value: a parameter set never ends a node. A
 bad value in a parameter file stops the node at start with a one-line :class:`ParameterError`.

@@ -18,9 +18,9 @@ Mosaic -> observation -> heading: the steps every road takes, and the nodes' fro
 Two steps, each written once: :func:`mosaic_observation` demosaics, from a raw mosaic read as a
 :class:`MosaicReading` says, the pixels one method reads; :func:`estimate_checked` runs the method
 on an observation and, when asked, checks the result against the whole sky
-(:func:`polarization_compass.skyfit.assess_result`). :class:`HeadingFrontEnd` (the nodes and the
-replay, one method on live mosaics) and :mod:`polarization_compass.headings` (``estimate``, the
-bench and the tests, on files) both call them.
+(:func:`polarization_compass.skyfit_assess.assess_result`). :class:`HeadingFrontEnd` (the nodes
+and the replay, one method on live mosaics) and :mod:`polarization_compass.headings`
+(``estimate``, the bench and the tests, on files) both call them.
 """
 
 from __future__ import annotations
@@ -155,8 +155,8 @@ def estimate_checked(estimator, obs, sky_check: bool = False, sample=None):
     """
     Estimate one method's heading and, with ``sky_check``, check it against the whole sky.
 
-    The check is :func:`polarization_compass.skyfit.assess_result` (misfit sigma, 180 deg side,
-    ``poor_fit``) at the observation's own sun altitude, tilt and prior.
+    The check is :func:`polarization_compass.skyfit_assess.assess_result` (misfit sigma, 180 deg
+    side, ``poor_fit``) at the observation's own sun altitude, tilt and prior.
 
     Parameters
     ----------
@@ -218,9 +218,10 @@ class HeadingFrontEnd:
         Also compute S0 and pass it as the observation's intensity (lets a method resolve the 180
         deg ambiguity from the sky's brightness gradient).
     sky_check : bool, default False
-        Check each result against the whole sky (:func:`~polarization_compass.skyfit.assess_result`
-        on :func:`whole_sky_sample`: misfit sigma, 180 deg side, ``poor_fit``; ~15-30 ms per
-        frame), as ``estimate`` does on real images.
+        Check each result against the whole sky
+        (:func:`~polarization_compass.skyfit_assess.assess_result` on :func:`whole_sky_sample`:
+        misfit sigma, 180 deg side, ``poor_fit``; ~15-30 ms per frame), as ``estimate`` does on
+        real images.
 
     Raises
     ------

@@ -87,9 +87,9 @@ class SensorReadout:
     A camera's mirrored readout undone: images and intrinsics as the sensor itself sees them.
 
     The node's ``readout_flip`` parameter and replay's topic-mapping key ``readout_flip``: each
-    image is read back (:func:`~polarization_compass.camera.unflip`) and the camera_info's K
-    mirrored with it (:func:`~polarization_compass.camera.unflipped_camera`, kept per K), so that
-    the polarizer layout describes the sensor.
+    image is read back (:func:`~polarization_compass.camera_file.unflip`) and the camera_info's K
+    mirrored with it (:func:`~polarization_compass.camera_file.unflipped_camera`, kept per K), so
+    that the polarizer layout describes the sensor.
 
     Parameters
     ----------

@@ -16,9 +16,10 @@
 Declarative parameter specifications of every node (ROS-free).
 
 One :class:`Param` per ROS parameter: name, default, description, range or choices, and whether it
-may change while the node runs. The nodes declare them from here (:mod:`.rosparams` turns them into
-``ParameterDescriptor`` s with ``FloatingPointRange`` / ``IntegerRange`` and validates every change
-in an on-set-parameters callback); the graph test checks every shipped parameter file against them;
+may change while the node runs. The nodes declare them from here
+(:mod:`polarization_compass.nodes.rosparams` turns them into ``ParameterDescriptor`` s with
+``FloatingPointRange`` / ``IntegerRange`` and validates every change in an on-set-parameters
+callback); the graph test checks every shipped parameter file against them;
 ``docs/ros.md`` lists them.
 
 The package: :mod:`.spec` (the :class:`Param` type and its checks), :mod:`.site_sun` (site and
