@@ -24,31 +24,16 @@ set +u
 source "$ws/install/setup.bash"
 set -u
 export ROS_LOG_DIR="$ws/ros_log"
+launch_test test/test_launch_files.py
 # robot_localization's ekf_node fusing the heading (fusion.launch.py): where it is installed (a ROS
-# install; here ../shared/ros-cpp, whose setup.bash `make test` has sourced). It runs beside
-# test_launch_files.py (they mostly wait for their graphs), in the next ROS domain, so that neither
-# hears the other; each one's output is shown when both have ended.
-domain="${ROS_DOMAIN_ID:-73}"
-other=$((domain < 232 ? domain + 1 : domain - 1))  # Fast DDS ids end at 232
-fusion=0
+# install; here ../shared/ros-cpp, whose setup.bash `make test` has sourced). After the launch-file
+# tests, not beside them: side by side on two cores the sim graph's evaluator lost 3 of its 5 truth
+# frames (clean-clone run, 2026-11-29 00:22), and the two runs together save only about a minute.
 if python -c "from ament_index_python.packages import get_package_prefix as g; g('robot_localization')" \
     >/dev/null 2>&1; then
-  fusion=1
-  echo "make test: launch tests: launch_test test/test_fusion_launch.py (robot_localization's ekf_node)," \
-       "beside it in ROS domain $other"
-  ROS_DOMAIN_ID=$other launch_test test/test_fusion_launch.py >"$ws/fusion.log" 2>&1 &
-  fusion_pid=$!
-fi
-rc=0
-ROS_DOMAIN_ID=$domain launch_test test/test_launch_files.py || rc=$?
-if [ "$fusion" = 1 ]; then
-  fusion_rc=0
-  wait "$fusion_pid" || fusion_rc=$?
-  echo "make test: launch tests: test/test_fusion_launch.py (exit $fusion_rc):"
-  cat "$ws/fusion.log"
-  [ "$fusion_rc" = 0 ] || rc=$fusion_rc
+  echo "make test: launch tests: launch_test test/test_fusion_launch.py (robot_localization's ekf_node)"
+  launch_test test/test_fusion_launch.py
 else
   echo "make test: fusion launch test SKIPPED: robot_localization is not installed" \
        "(a ROS install has it; here: ../shared/ros-cpp/install.sh $VENV --with-cv-bridge)"
 fi
-exit "$rc"
