@@ -48,7 +48,7 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
 
 from .heading_node import HeadingNodeBase
-from .msgs import AttitudeUncertainty, decode_image
+from .msgs import decode_image
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_camera_info, MessageError, stamp_ns
@@ -65,6 +65,7 @@ from ..pipeline import (
     SensorReadout,
     warm_up,
 )
+from ..pipeline.attitude_sigma import AttitudeUncertainty
 from ..specs import topics
 from ..specs.params import ESTIMATOR, knob_params, knob_values, layout_from_text
 

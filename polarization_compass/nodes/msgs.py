@@ -42,7 +42,6 @@ from ..bag.errors import MessageError
 from ..bag.image import decode_mosaic, image_decoder
 from ..camera import CameraModel
 from ..conventions import matrix_to_quat, wrap_360_deg, yaw_enu_quaternion
-from ..pipeline.attitude_sigma import AttitudeUncertainty, imu_tilt_variance_deg2  # noqa: F401
 
 __all__ = [
     'MessageError',
@@ -60,7 +59,6 @@ __all__ = [
     'kv',
     'IMAGE_ENCODINGS',
     'image_decoder',
-    'imu_tilt_variance_deg2',
 ]
 
 IMAGE_ENCODINGS = ('mono8', 'mono16', '32FC1')

@@ -65,13 +65,14 @@ from sensor_msgs.msg import Imu, NavSatFix
 from std_msgs.msg import Float64, String
 
 from .diagnostics import _wall_clock, Diagnostics
-from .msgs import AttitudeUncertainty, heading_from_imu, heading_imu
+from .msgs import heading_from_imu, heading_imu
 from .rosparams import ParameterSet
 from .runner import run_node
 from ..bag import decode_orientation, stamp_ns
 from ..errors import CompassError
 from ..mount import Mount
 from ..pipeline import AttitudeBuffer
+from ..pipeline.attitude_sigma import AttitudeUncertainty
 from ..specs import topics
 from ..specs.params import apply_fix, CORRECTOR, SUN_PARAMS, sun_source
 
