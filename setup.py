@@ -53,7 +53,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'polarization-compass = polarization_compass.cli:main',
+            'polarization-compass = polarization_compass.cli:entry',
             'sky_simulator = polarization_compass.nodes.sky_simulator:main',
             'heading_estimator = polarization_compass.nodes.heading_estimator:main',
             'array_heading_estimator = polarization_compass.nodes.array_heading_estimator:main',

@@ -388,3 +388,61 @@ def test_two_sigints_end_an_embedded_cluster_sweep_quietly(tmp_path):
             ['ps', '-o', 'pid,args', '-g', str(p.pid)], capture_output=True, text=True
         )
         raise AssertionError(f'processes of the interrupted sweep still running:\n{left.stdout}')
+
+
+class _ClosingParty:
+    """
+    Stand for a client or cluster: ``close`` records its call.
+
+    With ``interrupt``, ``close`` also sends this process a SIGINT, as a second Ctrl-C landing
+    inside the close does.
+    """
+
+    def __init__(self, log: list, name: str, interrupt: bool):
+        self.log, self.name, self.interrupt = log, name, interrupt
+
+    def close(self, timeout=None):
+        if self.interrupt:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the signal is delivered while close is still running
+        self.log.append((self.name, timeout))
+
+
+def test_a_ctrl_c_inside_the_close_is_held_until_client_and_cluster_are_closed():
+    """
+    A SIGINT that arrives while the client closes neither stops the cluster's close nor is lost.
+
+    CI hung more than 60 s after two SIGINTs 0.2 s apart: the second one interrupted
+    ``client.close()`` and left the embedded LocalCluster half closed. Here the SIGINT lands inside
+    the client's close; both closes must still run, bounded, and the interrupt be reported after.
+    """
+    from polarization_compass.sweep_dask import _close, CLOSE_TIMEOUT_S
+
+    log: list = []
+    handler = signal.getsignal(signal.SIGINT)
+    assert _close(_ClosingParty(log, 'client', True), _ClosingParty(log, 'cluster', False))
+    assert log == [('client', CLOSE_TIMEOUT_S), ('cluster', CLOSE_TIMEOUT_S)]
+    assert signal.getsignal(signal.SIGINT) is handler  # Ctrl-C reaches the caller again
+    log.clear()
+    assert not _close(_ClosingParty(log, 'client', False), None)  # an existing scheduler's client
+    assert log == [('client', CLOSE_TIMEOUT_S)]
+
+
+def test_after_an_interrupt_the_console_command_ignores_a_further_ctrl_c(monkeypatch):
+    """
+    Keep exit 130 once the interrupt was reported.
+
+    A second Ctrl-C during Python's shutdown must not end the process by SIGINT (exit -2 in runs
+    with two SIGINTs 0.05-0.2 s apart, before the fix).
+    """
+    import polarization_compass.cli as cli
+
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        for status, ignored in ((0, False), (2, False), (130, True), (143, True)):
+            signal.signal(signal.SIGINT, handler)
+            monkeypatch.setattr(cli, 'main', lambda status=status: status)
+            assert cli.entry() == status
+            assert (signal.getsignal(signal.SIGINT) is signal.SIG_IGN) is ignored, status
+    finally:
+        signal.signal(signal.SIGINT, handler)

@@ -163,6 +163,22 @@ def main(argv=None) -> int:
         return _input_error(args, exc)
 
 
+def entry() -> int:
+    """
+    Run the console command: :func:`main`, then no second Ctrl-C during the interpreter's shutdown.
+
+    Once an interrupt or SIGTERM has been reported (exit 130 or 143), the process is on its way
+    out; a further Ctrl-C (a terminal's repeated key, a supervisor signalling the process group)
+    would otherwise land in Python's shutdown and end the process by SIGINT instead of the exit
+    status just reported. :func:`main` itself leaves signal handlers alone (tests call it in
+    process).
+    """
+    status = main()
+    if status in (130, 143) and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return status
+
+
 def _input_error(args, exc) -> int:
     """Report what the input caused (too deep, too large, undecodable) as a user error, exit 2."""
     if isinstance(exc, RecursionError):

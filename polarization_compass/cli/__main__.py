@@ -14,6 +14,6 @@
 
 import sys
 
-from . import main
+from . import entry
 
-sys.exit(main())
+sys.exit(entry())
