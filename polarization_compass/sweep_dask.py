@@ -358,6 +358,8 @@ def run_tasks(
     ------
     ErrorMapError
         When Dask is missing or the scheduler cannot be reached (:func:`start`).
+    KeyboardInterrupt
+        On Ctrl-C, also one that arrived while the client and cluster closed (:func:`_close`).
 
     """
     t0 = time.perf_counter()
