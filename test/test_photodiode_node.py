@@ -453,8 +453,10 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
                 '-p',
                 'pitch_deg:=0.0',
                 '-p',
+                # the recorder reads the header, not the intensities: naming it for both made
+                # the simulator wait its full 60 s for a reader that never comes
                 'wait_for_downstream:=['
-                "'compass_array/intensities=heading_estimator_array,test_recorder',"
+                "'compass_array/intensities=heading_estimator_array',"
                 "'compass_array/header=heading_estimator_array,test_recorder']",
             ],
             env,
