@@ -292,7 +292,7 @@ def frame_headings(
                     frame, sun, pitch, roll, options.prior_bearing_deg
                 )
             obs = stored_obs
-        res = estimate_checked(est, obs)
+        res = estimate_checked(est, obs, principal_point_sigma_px=0.0)  # the rendered camera
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
         if seen is not None:
@@ -490,7 +490,7 @@ def real_headings(
     results, times = [], []
     for _name, est, _kn in estimators:
         t0 = time.perf_counter()
-        res = estimate_checked(est, obs, check, sample)
+        res = estimate_checked(est, obs, check, sample, cam_file.principal_point_sigma_px)
         times.append((time.perf_counter() - t0) * 1e3)
         results.append(res)
     if check and len(results) > 1:
