@@ -36,8 +36,10 @@ once in :mod:`polarization_compass.pipeline`:
 5. The estimate, checked against the whole sky on real images
    (:func:`polarization_compass.pipeline.front_end.estimate_checked` on
    :func:`polarization_compass.pipeline.sampling.observation_sky_sample`, as the front end does on
-   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), ``inconsistent`` across
-   methods, then the polarizer gate (:func:`polarization_compass.polarizer_check.check_frame` and
+   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), its sigma grown by the
+   camera file's principal point uncertainty (a frame file's rendered camera is exact),
+   ``inconsistent`` across methods, then the polarizer gate
+   (:func:`polarization_compass.polarizer_check.check_frame` and
    :func:`~polarization_compass.polarizer_check.gate_result`, as the node's
    :class:`~polarization_compass.pipeline.monitors.PolarizerMonitor`).
 6. Each result as a JSON-ready dict (:func:`polarization_compass.pipeline.methods.result_row`).

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The principal point's uncertainty in the heading sigma (issue 24: the sky against the optical centre).
+The principal point's uncertainty in the heading sigma (issue 24: the sky and the optical centre).
 
 A principal point ``d`` px off is, to first order, a camera tilt of ``atan(d / f)``; across the
 sun's image direction the sky cannot see it (docs/real-cameras.md, "Limits"), so the stated
@@ -68,7 +68,7 @@ def _camera_yaml(path, cx0_px, cy0_px, f_px, w_px, h_px, pol45, sigma_px=None):
         f'camera_matrix: {{rows: 3, cols: 3, data: [{f_px}, 0, {cx0_px}, 0, {f_px}, {cy0_px}, 0, '
         '0, 1]}\ndistortion_model: equidistant\n'
         'distortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n'
-        f"max_field_angle_deg: 85\npolarizer: {{layout: [[90, 45], [135, 0]], pol45_toward: "
+        'max_field_angle_deg: 85\npolarizer: {layout: [[90, 45], [135, 0]], pol45_toward: '
         f"'{pol45}'}}\n"
     )
     if sigma_px is not None:
@@ -78,7 +78,7 @@ def _camera_yaml(path, cx0_px, cy0_px, f_px, w_px, h_px, pol45, sigma_px=None):
 
 
 def _level_share_deg(sun_alt_deg, sigma_px, f_px):
-    """A level camera's sun azimuth moves by tan(h) per unit of tilt; the tilt is atan(s / f)."""
+    """Return tan(h) atan(s / f) [deg]: a level camera's sun azimuth moves by tan(h) per tilt."""
     return math.tan(math.radians(sun_alt_deg)) * math.degrees(math.atan(sigma_px / f_px))
 
 
@@ -250,8 +250,9 @@ def test_real_sky_centre_off_across_the_sun_is_covered_when_stated(sunny, capsys
 # ------------------------------------------------------------------------------------------------
 def test_estimate_node_and_replay_take_the_same_share(ctx, tmp_path):
     """
-    The same frames through the node and replay: equal sigmas; all three roads' share is the level
-    camera's ``tan(h) atan(sigma / f)``.
+    The same frames through the node and replay give equal sigmas.
+
+    And all three roads' share is the level camera's ``tan(h) atan(sigma / f)``.
     """
     import test_replay_rules as RR
 

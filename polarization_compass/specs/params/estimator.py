@@ -238,7 +238,7 @@ ESTIMATOR = (
         -1.0,
         "the camera calibration's 1-sigma of the principal point (camera_info states none); "
         "negative: 0.5 % of the focal length, a calibration's typical one. As the camera tilt it "
-        'is equivalent to, atan(sigma / f), it grows every heading\'s sigma (the sky cannot see a '
+        "is equivalent to, atan(sigma / f), it grows every heading's sigma (the sky cannot see a "
         "principal point off across the sun's image direction); 0 for exact intrinsics",
         -1.0,
         2000.0,
