@@ -288,3 +288,108 @@ def test_estimate_node_and_replay_take_the_same_share(ctx, tmp_path):
     )
     (d,) = estimate_file(tmp_path / 'm.npy', opts)
     assert d['extras']['sigma_principal_point_deg'] == pytest.approx(share, rel=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------
+# A turn in place: calibrate-mount --camera sees the centre as a mount tilt and says so
+# ------------------------------------------------------------------------------------------------
+PP_OFF_PX = (4.0, -3.0)  # the rendered lens centre from the camera file's (x, y)
+TURN_TIME = '2026-06-21T08:30:00Z'  # the sun 43 deg up at test_mount_camera's site
+
+
+def _mount_of_centre_offset_deg(cam, off_px):
+    """
+    Return the eq 21 mount (pitch, roll) [deg] a principal point ``off_px`` off is to first order.
+
+    The mount that turns the nominal centre's ray (0, 0, 1) onto the ray the offset lens gives
+    that pixel: ``Rx(p) Ry(r) z = (sin r, -sin p cos r, cos p cos r)``, with the lens' own
+    ``rays_from_pixels`` and the conventions' ``rot_x``, ``rot_y`` as the check.
+    """
+    from polarization_compass.conventions import rot_x, rot_y
+
+    shifted = dataclasses.replace(
+        cam, principal_x_px=cam.cx_px + off_px[0], principal_y_px=cam.cy_px + off_px[1]
+    )
+    rays, ok = shifted.rays_from_pixels([cam.cx_px], [cam.cy_px])
+    v = rays[:, 0]
+    roll, pitch = math.asin(v[0]), math.atan2(-v[1], v[2])
+    np.testing.assert_allclose(rot_x(pitch) @ rot_y(roll) @ [0.0, 0.0, 1.0], v, atol=1e-12)
+    return math.degrees(pitch), math.degrees(roll)
+
+
+def test_a_turn_shows_the_optical_centre_as_a_mount_tilt(tmp_path, capsys):
+    """
+    A turn rendered with the lens centre (+4, -3) px off, calibrated with the nominal camera file.
+
+    The camera file states a level mount (0.2 deg) and the principal point to 0.5 px: the fitted
+    mount has the centre's axes and signs (centre +x: roll -, centre -y: pitch -, from the
+    conventions), the report gives the centre offset it is equivalent to and says that the optical
+    centre or the mount disagrees with the sky. The fitted mount does not make the turn right: the
+    heading error over the yaw shrinks but stays (docs/real-cameras.md, "Limits": a fisheye's
+    centre offset is not a rigid turn).
+    """
+    import test_mount_camera as MC
+    import yaml
+
+    cam = dataclasses.replace(
+        MC.CAM,
+        principal_x_px=MC.CAM.cx_px + PP_OFF_PX[0],
+        principal_y_px=MC.CAM.cy_px + PP_OFF_PX[1],
+    )
+    alt = MC.render_turns(tmp_path, camera=cam, mount=(0.0, 0.0), time=TURN_TIME, per_turn=12)
+    assert 40.0 < alt < 46.0
+    (tmp_path / 'camera.yaml').write_text(
+        MC._yaml(None) + 'mount: {pitch_deg: 0.0, roll_deg: 0.0, pitch_sigma_deg: 0.2, '
+        'roll_sigma_deg: 0.2}\nprincipal_point_sigma_px: 0.5\n'
+    )
+    argv = ['calibrate-mount', str(tmp_path / 'turns.csv'), '--camera']
+    argv += [str(tmp_path / 'camera.yaml'), '--lat', str(MC.LAT), '--lon', str(MC.LON)]
+    argv += ['--time', TURN_TIME, '--out', str(tmp_path / 'out.yaml')]
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    m = yaml.safe_load((tmp_path / 'out.yaml').read_text())['mount']
+    want = _mount_of_centre_offset_deg(MC.CAM, PP_OFF_PX)
+    assert want[0] < -2.0 and want[1] < -3.0  # +x -> roll -, -y -> pitch - (eq 21 and the lens)
+    for got, w in ((m['pitch_deg'], want[0]), (m['roll_deg'], want[1])):
+        # same sign, the size within the measured 0.46-1.40 of atan(d / f) (sun 43 deg: 1.03-1.07)
+        assert 0.7 * abs(w) < got * math.copysign(1.0, w) < 1.4 * abs(w), (m, want, err)
+    f_px = focal_length_px(MC.CAM)
+    eq_x = -f_px * math.tan(math.radians(m['roll_deg']))
+    eq_y = f_px * math.tan(math.radians(m['pitch_deg']))
+    assert f'principal point {eq_x:+.1f} px in x and {eq_y:+.1f} px in y off' in err, err
+    assert "the camera's optical centre or mount disagrees with the sky" in err, err
+    assert 'calibrate its intrinsics' in err, err
+    # the fitted mount is not the fix: a true mount's scatter falls 40-60 fold
+    # (test_mount_camera), a centre's 1.6-2.9 fold (docs)
+    assert m['residual_before_deg'] > 3.0, m
+    assert m['residual_after_deg'] > m['residual_before_deg'] / 5.0, m
+
+
+def test_a_mount_within_its_stated_uncertainty_is_not_an_optical_centre():
+    from polarization_compass.mount import Mount
+    from polarization_compass.pipeline.optical_centre import (
+        mount_against_optical_centre,
+        MOUNT_PER_CENTRE_TILT_MAX,
+        principal_point_tilt_sigma_deg,
+    )
+
+    cam = _fisheye()
+    fitted = Mount(-4.1, -2.45, 0.03, 0.04)
+    # no mount stated: the fit is the mount's calibration, reported as a centre too, not judged
+    out = mount_against_optical_centre(cam, 0.5, None, fitted)
+    assert out['allowed_deg'] is None and not out['disagrees']
+    assert out['principal_point_equivalent_px'] == pytest.approx(
+        (-F_PX * math.tan(math.radians(-2.45)), F_PX * math.tan(math.radians(-4.1)))
+    )
+    # stated: 3 sigma of the fit, the stated mount and the principal point (as a tilt, x 1.4)
+    pp = MOUNT_PER_CENTRE_TILT_MAX * principal_point_tilt_sigma_deg(cam, 0.5)
+    stated = Mount(-4.0, -2.5, 0.1, 0.1)
+    out = mount_against_optical_centre(cam, 0.5, stated, fitted)
+    assert out['allowed_deg'] == pytest.approx(
+        (3 * math.sqrt(0.03**2 + 0.1**2 + pp**2), 3 * math.sqrt(0.04**2 + 0.1**2 + pp**2))
+    )
+    assert not out['disagrees'] and len(out['lines']) == 1
+    tilted = Mount(-4.0 + 1.1 * out['allowed_deg'][0], -2.5, 0.03, 0.04)
+    out = mount_against_optical_centre(cam, 0.5, stated, tilted)
+    assert out['disagrees'] and 'disagrees with the sky' in out['lines'][-1]

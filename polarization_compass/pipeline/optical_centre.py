@@ -31,6 +31,14 @@ a camera tilt at the known sun (:func:`~..estimators.sun_from_evectors.tilt_sens
 
 :func:`~.front_end.estimate_checked` calls it on every result, so ``estimate``, the
 ``heading_estimator`` node and ``replay`` take the same share.
+
+Over a turn in place the offset does show: a fixed one is along the sun's image direction at some
+yaws and across it at others, and ``calibrate-mount --camera`` fits it as a mount tilt of the same
+axis and sign, though on a wide fisheye not of the same size (0.46-1.40 times ``atan(d / f)``, with
+the sun; docs/real-cameras.md, "Limits"). :func:`mount_against_optical_centre` says so in that
+command's report, and when the fitted mount leaves the camera file's stated one by more than the
+mount's and the principal point's uncertainties allow, that the optical centre or the mount
+disagrees with the sky.
 """
 
 from __future__ import annotations
@@ -40,6 +48,8 @@ import math
 __all__ = [
     'DEFAULT_PRINCIPAL_POINT_SIGMA_F',
     'focal_length_px',
+    'MOUNT_PER_CENTRE_TILT_MAX',
+    'mount_against_optical_centre',
     'principal_point_sigma_px',
     'principal_point_tilt_sigma_deg',
     'with_principal_point_sigma',
@@ -51,6 +61,11 @@ __all__ = [
 #: first example; cc +- [22, 15] px at fc 2100 px from 27 views in a user's report), and a repeated
 #: calibration moves the principal point by more than its formal sigma; 0.5 % covers the upper end.
 DEFAULT_PRINCIPAL_POINT_SIGMA_F = 0.005
+
+#: the mount ``calibrate-mount --camera`` fits to a principal point ``d`` px off, as a multiple of
+#: ``atan(d / f)``, at most: measured 0.46-1.40 on an equidistant fisheye of 80 deg field with the
+#: sun 20-60 deg up, 0.81-1.03 with 40 deg of field (docs/real-cameras.md, "Limits")
+MOUNT_PER_CENTRE_TILT_MAX = 1.4
 
 
 def focal_length_px(camera) -> float:
@@ -187,3 +202,83 @@ def with_principal_point_sigma(
             'principal_point_sigma_source': source,
         },
     )
+
+
+def mount_against_optical_centre(camera, stated_pp_px, stated_mount, fitted_mount) -> dict:
+    """
+    Compare a mount fitted from turns in place with the camera file's, as a tilt or a centre.
+
+    To first order a mount of pitch ``p`` and roll ``r`` (eq 21: ``Rx(p) Ry(r)``) turns the nominal
+    centre's ray onto the one a principal point ``(dx, dy) = (-f tan r, f tan p)`` px off would
+    give it (``f`` :func:`focal_length_px`; in the sensor's image, after any readout flip). The
+    fitted mount minus the stated one (level when none is stated) is reported as both. With a
+    stated mount the difference is allowed, per axis, 3 sigma of the fit's, the stated mount's (0
+    when not stated) and the principal point's (:func:`principal_point_sigma_px`, as a tilt,
+    times :data:`MOUNT_PER_CENTRE_TILT_MAX`); beyond it the optical centre or the mount
+    disagrees with the sky. Without a stated mount the fit is the mount's calibration and nothing
+    is judged.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The camera of the camera file.
+    stated_pp_px : float or None
+        The principal point 1-sigma the camera file states [px]; None: the default.
+    stated_mount : Mount or None
+        The camera file's ``mount:`` (None: none stated).
+    fitted_mount : Mount
+        The fitted mount, with its sigmas.
+
+    Returns
+    -------
+    dict
+        ``tilt_deg`` (pitch, roll) the fitted minus the stated mount [deg];
+        ``principal_point_equivalent_px`` (x, y) the centre offset it is equivalent to [px];
+        ``allowed_deg`` (pitch, roll) what the uncertainties allow [deg], None without a stated
+        mount; ``disagrees`` bool; ``lines`` the report's lines.
+
+    """
+    f_px = focal_length_px(camera)
+    p0 = 0.0 if stated_mount is None else float(stated_mount.pitch_deg)
+    r0 = 0.0 if stated_mount is None else float(stated_mount.roll_deg)
+    dp = float(fitted_mount.pitch_deg) - p0
+    dr = float(fitted_mount.roll_deg) - r0
+    dx_px = -f_px * math.tan(math.radians(dr))
+    dy_px = f_px * math.tan(math.radians(dp))
+    lines = [
+        f'the fitted tilt is also an optical centre off: a mount {dp:+.2f} deg of pitch and '
+        f'{dr:+.2f} deg of roll from the stated one is to first order the principal point '
+        f'{dx_px:+.1f} px in x and {dy_px:+.1f} px in y off (f {f_px:.1f} px; on a wide fisheye a '
+        f'centre d px off gives 0.5-{MOUNT_PER_CENTRE_TILT_MAX:g} times atan(d / f) of mount, '
+        'and the mount removes only part of its heading error: docs/real-cameras.md, "Limits")'
+    ]
+    out = {
+        'tilt_deg': (dp, dr),
+        'principal_point_equivalent_px': (dx_px, dy_px),
+        'allowed_deg': None,
+        'disagrees': False,
+        'lines': lines,
+    }
+    if stated_mount is None:
+        return out
+    sigma_px, source = principal_point_sigma_px(camera, stated_pp_px)
+    pp_deg = MOUNT_PER_CENTRE_TILT_MAX * principal_point_tilt_sigma_deg(camera, sigma_px)
+    allowed = tuple(
+        3.0 * math.hypot(fit or 0.0, stated or 0.0, pp_deg)
+        for fit, stated in (
+            (fitted_mount.pitch_sigma_deg, stated_mount.pitch_sigma_deg),
+            (fitted_mount.roll_sigma_deg, stated_mount.roll_sigma_deg),
+        )
+    )
+    out['allowed_deg'] = allowed
+    if abs(dp) > allowed[0] or abs(dr) > allowed[1]:
+        out['disagrees'] = True
+        lines.append(
+            "the camera's optical centre or mount disagrees with the sky: the fitted mount "
+            f'(pitch {fitted_mount.pitch_deg:.2f}, roll {fitted_mount.roll_deg:.2f} deg) is '
+            f"{dp:+.2f}, {dr:+.2f} deg from the camera file's ({p0:.2f}, {r0:.2f} deg), beyond "
+            f'the {allowed[0]:.2f}, {allowed[1]:.2f} deg its mount, principal point ({source} '
+            f'sigma {sigma_px:.2f} px) and fit allow (3 sigma). If the camera sits as stated, '
+            'calibrate its intrinsics (the principal point); if not, keep the fitted mount'
+        )
+    return out
