@@ -23,6 +23,7 @@ readout (:func:`unflip`, :func:`unflipped_camera`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -40,7 +41,9 @@ class CameraFile:
     camera's tilt on the body (:class:`~.mount.Mount`, from a ``mount:`` section) or None;
     ``readout_flip`` the axes the camera mirrors on readout (:data:`READOUT_FLIPS`): then
     ``camera`` and the polarizer describe the *sensor* (the image after :func:`unflip`), the file's
-    K having been calibrated on the delivered, mirrored images.
+    K having been calibrated on the delivered, mirrored images; ``principal_point_sigma_px`` the
+    principal point's 1-sigma [px] the calibration states, or None (not stated: the heading's sigma
+    takes a calibration's typical one, :mod:`~.pipeline.optical_centre`).
     """
 
     camera: CameraModel
@@ -49,6 +52,7 @@ class CameraFile:
     layout_given: bool
     mount: object = None
     readout_flip: str = ''
+    principal_point_sigma_px: float | None = None
 
 
 #: ``readout_flip`` values of a CAMERA.yaml: the image axes the camera mirrors on readout (GenICam
@@ -144,7 +148,9 @@ def load_camera_yaml(path) -> CameraFile:
     3.45), ``max_field_angle_deg`` (fisheye, default 90), ``polarizer: {layout: [[90, 45], [135,
     0]], pol45_toward: "+x-y"}`` (default: the Sony IMX250MZR as delivered, see :mod:`demosaic`)
     and ``readout_flip`` (none | x | y | xy: the camera's ReverseX/ReverseY; the polarizer is then
-    the sensor's own, and the images are read through :func:`unflip`).
+    the sensor's own, and the images are read through :func:`unflip`) and
+    ``principal_point_sigma_px`` (the calibration's 1-sigma of cx, cy [px]; default a calibration's
+    typical one, :mod:`~.pipeline.optical_centre`).
 
     Parameters
     ----------
@@ -204,12 +210,41 @@ def load_camera_yaml(path) -> CameraFile:
         )
         check_intrinsics(cam)  # as for a camera_info: a K from another mode is refused
         flip = _readout_flip(doc.get('readout_flip', ''))
+        pp_sigma = _principal_point_sigma(doc.get('principal_point_sigma_px'), w, h)
     except (SensorError, CameraError, TypeError, ValueError) as exc:
         raise CameraError(f'{p}: {exc}') from None
     cam = unflipped_camera(cam, flip)
     return CameraFile(
-        cam, lay.angles_deg, lay.pol45_toward, bool(pol), _mount(doc, p), readout_flip=flip
+        cam,
+        lay.angles_deg,
+        lay.pol45_toward,
+        bool(pol),
+        _mount(doc, p),
+        readout_flip=flip,
+        principal_point_sigma_px=pp_sigma,
     )
+
+
+def _principal_point_sigma(value, width_px: int, height_px: int) -> float | None:
+    """
+    Read ``principal_point_sigma_px``: None, or a number in [0, 10 % of the larger image side].
+
+    The bound is the principal point's own (:func:`check_intrinsics`); CameraError otherwise.
+    """
+    if value is None:
+        return None
+    limit = 0.1 * max(width_px, height_px)
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not 0.0 <= value <= limit
+    ):
+        raise CameraError(
+            f'principal_point_sigma_px must be a number of pixels in [0, {limit:g}] (the '
+            f"calibration's 1-sigma of cx, cy), got {value!r}"
+        )
+    return float(value)
 
 
 def _readout_flip(value) -> str:

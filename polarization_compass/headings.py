@@ -36,8 +36,10 @@ once in :mod:`polarization_compass.pipeline`:
 5. The estimate, checked against the whole sky on real images
    (:func:`polarization_compass.pipeline.front_end.estimate_checked` on
    :func:`polarization_compass.pipeline.sampling.observation_sky_sample`, as the front end does on
-   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), ``inconsistent`` across
-   methods, then the polarizer gate (:func:`polarization_compass.polarizer_check.check_frame` and
+   :func:`~polarization_compass.pipeline.sampling.whole_sky_sample`), its sigma grown by the
+   camera file's principal point uncertainty (a frame file's rendered camera is exact),
+   ``inconsistent`` across methods, then the polarizer gate
+   (:func:`polarization_compass.polarizer_check.check_frame` and
    :func:`~polarization_compass.polarizer_check.gate_result`, as the node's
    :class:`~polarization_compass.pipeline.monitors.PolarizerMonitor`).
 6. Each result as a JSON-ready dict (:func:`polarization_compass.pipeline.methods.result_row`).
@@ -292,7 +294,7 @@ def frame_headings(
                     frame, sun, pitch, roll, options.prior_bearing_deg
                 )
             obs = stored_obs
-        res = estimate_checked(est, obs)
+        res = estimate_checked(est, obs, principal_point_sigma_px=0.0)  # the rendered camera
         dt = (time.perf_counter() - t0) * 1e3
         out.append(result_row(res, dt, kn, source, None if truth is None else float(truth)))
         if seen is not None:
@@ -490,7 +492,7 @@ def real_headings(
     results, times = [], []
     for _name, est, _kn in estimators:
         t0 = time.perf_counter()
-        res = estimate_checked(est, obs, check, sample)
+        res = estimate_checked(est, obs, check, sample, cam_file.principal_point_sigma_px)
         times.append((time.perf_counter() - t0) * 1e3)
         results.append(res)
     if check and len(results) > 1:

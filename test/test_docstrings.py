@@ -78,6 +78,7 @@ COMPLETED = (
     'pipeline/errors.py',
     'pipeline/front_end.py',
     'pipeline/methods.py',
+    'pipeline/optical_centre.py',
     'pipeline/monitors.py',
     'pipeline/prior.py',
     'pipeline/real_image.py',

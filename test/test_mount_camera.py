@@ -216,15 +216,17 @@ TURN_OFFSETS = (30.0, 34.0)  # IMU zero of each turn: bearing = offset - degrees
 PER_TURN = 24
 
 
-@pytest.fixture(scope='module')
-def turns(tmp_path_factory):
-    """Render two turns in place of the mounted camera; write the frames and a turn list."""
+def render_turns(d, camera=CAM, mount=MOUNT, time=TIME, per_turn=PER_TURN) -> float:
+    """
+    Render two turns in place of a mounted camera into ``d``: the frames and ``turns.csv``.
+
+    Returns the sun's altitude [deg] at ``time`` (at LAT, LON).
+    """
     from polarization_compass.cli.cmd_estimate_array import sun_per_sample
 
-    d = tmp_path_factory.mktemp('mturn')
-    az, alt = sun_per_sample(TIME, None, 1, LAT, LON)
+    az, alt = sun_per_sample(time, None, 1, LAT, LON)
     scene = Scene(
-        camera=CAM,
+        camera=camera,
         pixels=PixelSelection.full(),
         sky={'model': 'rayleigh', 'dop_max': 0.7},
         sensor={
@@ -238,9 +240,9 @@ def turns(tmp_path_factory):
     r = Renderer(scene)
     rows = ['path,imu_yaw_rad,turn_index']
     for k, off in enumerate(TURN_OFFSETS):
-        yaw = np.radians(np.linspace(0.0, 360.0, PER_TURN, endpoint=False) + 3.0 * k)
+        yaw = np.radians(np.linspace(0.0, 360.0, per_turn, endpoint=False) + 3.0 * k)
         for j, y in enumerate(yaw):
-            att = _attitude_scipy(_R_enu_cam_scipy(off - math.degrees(y), 0.0, 0.0, MOUNT))
+            att = _attitude_scipy(_R_enu_cam_scipy(off - math.degrees(y), 0.0, 0.0, mount))
             f = r.render(attitude=att, sun=SunDirection(az[0], alt[0]), seed=100 * k + j)
             m = f.mosaic.astype(np.uint16)
             s0, s1, s2 = stokes_from_mosaic(m, [[90, 45], [135, 0]], '+x-y', 'superpixel', 4095)
@@ -248,8 +250,16 @@ def turns(tmp_path_factory):
             np.savez(d / name, s0=s0, s1=s1, s2=-s2)
             rows.append(f'{name},{float(y)!r},{k}')
     (d / 'turns.csv').write_text('\n'.join(rows) + '\n')
+    return float(alt[0])
+
+
+@pytest.fixture(scope='module')
+def turns(tmp_path_factory):
+    """Render two turns in place of the mounted camera; write the frames and a turn list."""
+    d = tmp_path_factory.mktemp('mturn')
+    alt = render_turns(d)
     (d / 'camera.yaml').write_text(_yaml(None))
-    return d, float(alt[0])
+    return d, alt
 
 
 def test_calibrate_mount_camera_recovers_the_mount_and_removes_the_curve(turns, capsys):

@@ -147,8 +147,9 @@ def _run_camera(args) -> int:
     from ..camera_turns import camera_turns, camera_yaml_with_mount, read_turn_list, turn_headings
     from ..mount import Mount
     from ..mount_recordings import fit_mount_recordings, heading_scatter_deg
+    from ..pipeline.optical_centre import mount_against_optical_centre
 
-    load_camera_yaml(args.camera)  # a camera file estimate accepts, checked first
+    cf = load_camera_yaml(args.camera)  # a camera file estimate accepts, checked first
     parts, turns, suns = [], [], []
     for i, path in enumerate(args.recordings):
         tl = read_turn_list(path)
@@ -182,6 +183,9 @@ def _run_camera(args) -> int:
         args.out,
     )
     _report(fit, before, after)
+    check = mount_against_optical_centre(cf.camera, cf.principal_point_sigma_px, cf.mount, m)
+    for line in check['lines']:
+        print(line, file=sys.stderr)
     return 0
 
 

@@ -85,6 +85,16 @@ def register(sub):
         "the frame's misfit, 180 deg side, poor_fit; ~15-30 ms per frame)",
     )
     p.add_argument(
+        '--principal-point-sigma-px',
+        type=float,
+        default=None,
+        metavar='PX',
+        help="the camera calibration's 1-sigma of the principal point [px], as the "
+        "heading_estimator's principal_point_sigma_px (default: 0.5 %% of the focal length, a "
+        "calibration's typical one); grows every heading's sigma by the camera tilt it is "
+        'equivalent to',
+    )
+    p.add_argument(
         '--workers',
         type=int,
         default=None,
@@ -158,6 +168,7 @@ def run(args) -> int:
         prior_source=args.prior,
         error_map=error_map,
         sky_check=args.sky_check,
+        principal_point_sigma_px=args.principal_point_sigma_px,
     )
     tm = load_topic_map(args.topics)
     with progress_bar('replay', ' frames') as bar:

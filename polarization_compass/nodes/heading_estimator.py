@@ -135,6 +135,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
             p['demosaic'],
             p['use_intensity'],
             p['sky_check'],
+            p['principal_point_sigma_px'],
         )
         try:
             dt = warm_up(self.front, camera=self._fallback_camera_or_none())

@@ -262,6 +262,7 @@ class HeadingNodeBase(Node):
             sun_altitude_deg=sun_alt,
             prior_bearing_deg=inp.prior_bearing_deg,
             resolved_by=result.extras.get('ambiguity_resolved_by'),
+            sigma_principal_point_deg=result.extras.get('sigma_principal_point_deg'),
         )
         published = False
         if result.ok and (not result.axial or p['publish_ambiguous']):

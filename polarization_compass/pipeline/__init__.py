@@ -18,7 +18,8 @@ Per-frame processing behind the nodes, ROS-free.
 Mosaic -> observation -> heading (:mod:`.front_end`), the IMU history the tilt and the ambiguity
 prior come from (:mod:`.attitude`, :mod:`.prior`), the sun per stamp (:mod:`.sun`), the camera
 intrinsics in use (:mod:`.camera_info`), the watches on the live stream (:mod:`.monitors`) and
-the rules every result passes before it is published (:mod:`.rules`, node and replay alike).
+the rules every result passes before it is published (:mod:`.rules`, node and replay alike); the
+principal point's uncertainty in every heading's sigma (:mod:`.optical_centre`).
 
 The node classes in :mod:`polarization_compass.nodes` only move messages in and out of these
 objects, so the same code runs wherever frames come from (a live camera, a bag, a test).

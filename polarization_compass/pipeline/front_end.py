@@ -151,12 +151,17 @@ def mosaic_observation(
     )
 
 
-def estimate_checked(estimator, obs, sky_check: bool = False, sample=None):
+def estimate_checked(
+    estimator, obs, sky_check: bool = False, sample=None, principal_point_sigma_px=None
+):
     """
     Estimate one method's heading and, with ``sky_check``, check it against the whole sky.
 
     The check is :func:`polarization_compass.skyfit_assess.assess_result` (misfit sigma, 180 deg
-    side, ``poor_fit``) at the observation's own sun altitude, tilt and prior.
+    side, ``poor_fit``) at the observation's own sun altitude, tilt and prior. Then the principal
+    point's uncertainty, as the camera tilt it is equivalent to, grows the sigma
+    (:func:`.optical_centre.with_principal_point_sigma`): the sky cannot see a principal point
+    off across the sun's image direction, so only its stated uncertainty can cover it.
 
     Parameters
     ----------
@@ -170,13 +175,19 @@ def estimate_checked(estimator, obs, sky_check: bool = False, sample=None):
         The whole-sky sample of the same frame (:func:`.sampling.whole_sky_sample` of a mosaic,
         :func:`.sampling.observation_sky_sample` of a whole image); None when too little sky is
         usable.
+    principal_point_sigma_px : float, optional
+        The principal point's 1-sigma [px] the calibration states; None or negative: a
+        calibration's typical one (:data:`.optical_centre.DEFAULT_PRINCIPAL_POINT_SIGMA_F` of the
+        focal length); 0: exact (a rendered frame's own camera).
 
     Returns
     -------
     HeadingResult
-        The method's result, checked when asked.
+        The method's result, checked when asked, its sigma grown by the principal point's share.
 
     """
+    from .optical_centre import with_principal_point_sigma
+
     res = estimator.estimate(obs)
     if sky_check:
         from ..skyfit_assess import assess_result
@@ -189,7 +200,10 @@ def estimate_checked(estimator, obs, sky_check: bool = False, sample=None):
             obs.roll_deg,
             obs.prior_bearing_deg,
         )
-    return res
+    pp_sigma = principal_point_sigma_px
+    return with_principal_point_sigma(
+        res, obs.camera, pp_sigma, obs.sun_altitude_deg, obs.pitch_deg, obs.roll_deg
+    )
 
 
 # ------------------------------------------------------------------------------------------------
@@ -222,6 +236,11 @@ class HeadingFrontEnd:
         (:func:`~polarization_compass.skyfit_assess.assess_result` on :func:`whole_sky_sample`:
         misfit sigma, 180 deg side, ``poor_fit``; ~15-30 ms per frame), as ``estimate`` does on
         real images.
+    principal_point_sigma_px : float, optional
+        The principal point's 1-sigma [px] the calibration states (the node's parameter of that
+        name); None or negative: a calibration's typical one
+        (:func:`~.optical_centre.principal_point_sigma_px`). Grows every heading's sigma
+        (:func:`estimate_checked`).
 
     Raises
     ------
@@ -239,10 +258,12 @@ class HeadingFrontEnd:
         demosaic: str = 'superpixel',
         intensity: bool = False,
         sky_check: bool = False,
+        principal_point_sigma_px: float | None = None,
     ):
         from ..estimators import make_estimator
         from ..mosaic import parse_layout
 
+        self.principal_point_sigma_px = principal_point_sigma_px
         self.method = method
         self.estimator = make_estimator(method, **(knobs or {}))
         self.layout = parse_layout(layout, pol45_toward)
@@ -442,7 +463,7 @@ class HeadingFrontEnd:
             est,
         )
         sample = whole_sky_sample(mosaic, camera, layout) if sky_check else None
-        return estimate_checked(est, obs, sky_check, sample)
+        return estimate_checked(est, obs, sky_check, sample, self.principal_point_sigma_px)
 
 
 def warm_up(

@@ -55,7 +55,10 @@ class ReplayConfig:
     heading_estimator's parameters of those names (the IMU-prior check and the polarizer gate,
     :func:`~polarization_compass.pipeline.apply_rules`). ``attitude_sigma_deg``: the
     heading_estimator's parameter (the tilt 1-sigma [deg] the IMU covariance does not hold; with
-    the bag's IMU covariance it grows tilt_aware's sigma as on the node). ``direct_methods``:
+    the bag's IMU covariance it grows tilt_aware's sigma as on the node).
+    ``principal_point_sigma_px``: the heading_estimator's parameter (the camera's principal point
+    1-sigma [px]; None: a calibration's typical one, :mod:`~..pipeline.optical_centre`), which
+    grows every heading's sigma as on the node. ``direct_methods``:
     methods the corrector does not touch (default: those whose estimator class ``needs_tilt``,
     e.g. tilt_aware).
     """
@@ -71,6 +74,7 @@ class ReplayConfig:
     prior_sigma_deg: float = 15.0
     polarizer_check_every: int = 100
     attitude_sigma_deg: float = 0.0
+    principal_point_sigma_px: float | None = None
     sun_model: str = 'spa'
     error_map: str | None = None
     correction_sigma_deg: float = 0.1
@@ -248,6 +252,7 @@ class FramePipeline:
                 layout.pol45_toward,
                 config.demosaic,
                 config.use_intensity,
+                principal_point_sigma_px=config.principal_point_sigma_px,
             )
             for m in self.methods
         }
@@ -402,7 +407,10 @@ class FramePipeline:
             from ..pipeline.sampling import whole_sky_sample
 
             obs_cache['sky'] = whole_sky_sample(frame.mosaic, frame.camera, front.layout)
-        return estimate_checked(front.estimator, obs, check, obs_cache.get('sky')), t0
+        res = estimate_checked(
+            front.estimator, obs, check, obs_cache.get('sky'), front.principal_point_sigma_px
+        )
+        return res, t0
 
 
 def default_error_map() -> str | None:

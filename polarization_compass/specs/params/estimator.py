@@ -233,6 +233,18 @@ ESTIMATOR = (
         30.0,
         unit='deg',
     ),
+    Param(
+        'principal_point_sigma_px',
+        -1.0,
+        "the camera calibration's 1-sigma of the principal point (camera_info states none); "
+        "negative: 0.5 % of the focal length, a calibration's typical one. As the camera tilt it "
+        "is equivalent to, atan(sigma / f), it grows every heading's sigma (the sky cannot see a "
+        "principal point off across the sun's image direction); 0 for exact intrinsics",
+        -1.0,
+        2000.0,
+        unit='px',
+        read_only=True,
+    ),
     *MOUNT,
     Param(
         'publish_ambiguous',
