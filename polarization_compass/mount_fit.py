@@ -372,8 +372,12 @@ class _Problem:
             view = np.asarray(self.geometry.rays_cam)
         else:
             s = sun_sensor(
-                self.d.sun_azimuth_deg, self.d.sun_altitude_deg, b, self.d.pitch_deg,
-                self.d.roll_deg, m,
+                self.d.sun_azimuth_deg,
+                self.d.sun_altitude_deg,
+                b,
+                self.d.pitch_deg,
+                self.d.roll_deg,
+                m,
             )
             az = np.array([u.azimuth_deg for u in self.geometry.units])
             el = np.array([u.elevation_deg for u in self.geometry.units])

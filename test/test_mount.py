@@ -245,10 +245,13 @@ def test_a_recording_whose_sky_misfits_is_left_out_and_the_clean_mount_recovered
     # without the gate the disturbed recording pulls the mount beyond 3 of the gated sigmas
     ungated = fit_mount_recordings(geom(), [a, c, b], max_sky_misfit_deg=math.inf)
     assert ungated.left_out == () and ungated.used == (1, 2, 3)
-    assert max(
-        abs(ungated.mount.pitch_deg - TRUE.pitch_deg) / m.pitch_sigma_deg,
-        abs(ungated.mount.roll_deg - TRUE.roll_deg) / m.roll_sigma_deg,
-    ) > 3.0, ungated.mount
+    assert (
+        max(
+            abs(ungated.mount.pitch_deg - TRUE.pitch_deg) / m.pitch_sigma_deg,
+            abs(ungated.mount.roll_deg - TRUE.roll_deg) / m.roll_sigma_deg,
+        )
+        > 3.0
+    ), ungated.mount
 
 
 def test_the_sky_gate_leaves_a_clean_set_unchanged_and_refuses_when_all_misfit():
