@@ -63,6 +63,14 @@ def read_quadrants(stem: str):
     return i, q, u
 
 
+def write_stokes_npz(directory: Path, stem: str) -> Path:
+    """Write one frame's (I, Q, U) as ``<directory>/<stem>.npz`` (s0, s1, s2); return its path."""
+    i, q, u = read_quadrants(stem)
+    path = Path(directory) / f'{stem}.npz'
+    np.savez(path, s0=i, s1=q, s2=u)
+    return path
+
+
 def camera_yaml_text(pol45_toward: str = '+x-y') -> str:
     """
     Return a ROS camera_calibration file for the frames.

@@ -23,7 +23,6 @@ tighter 10 % bound; the right file still gives the headings.
 
 import math
 
-import numpy as np
 from polarization_compass.cli import main
 import pytest
 import real_sky as R
@@ -43,8 +42,7 @@ def _yaml(cx, cy, f=None, w=2048, h=2048):
 @pytest.fixture(scope='module')
 def sunny(tmp_path_factory):
     d = tmp_path_factory.mktemp('sunny')
-    i, q, u = R.read_quadrants('sunny')
-    np.savez(d / 'sunny.npz', s0=i, s1=q, s2=u)
+    R.write_stokes_npz(d, 'sunny')
     return d
 
 

@@ -206,8 +206,7 @@ def test_the_true_centre_stays_ok_and_right(offset_frames, tmp_path):
 @pytest.fixture(scope='module')
 def sunny(tmp_path_factory):
     d = tmp_path_factory.mktemp('sunny')
-    i, q, u = R.read_quadrants('sunny')
-    np.savez(d / 'sunny.npz', s0=i, s1=q, s2=u)
+    R.write_stokes_npz(d, 'sunny')
     return d
 
 

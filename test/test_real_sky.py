@@ -40,9 +40,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp('real')
     out = {}
     for stem in R.FRAMES:
-        i, q, u = R.read_quadrants(stem)
-        np.savez(d / f'{stem}.npz', s0=i, s1=q, s2=u)
-        out[stem] = d / f'{stem}.npz'
+        out[stem] = R.write_stokes_npz(d, stem)
     for pol in ('+x-y', '+x+y'):
         (d / f'cam{pol}.yaml').write_text(R.camera_yaml_text(pol))
         out[pol] = d / f'cam{pol}.yaml'
