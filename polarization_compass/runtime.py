@@ -20,11 +20,15 @@ Performance plumbing of the process (ROS-free), kept out of the physics modules.
   offline replay (:func:`polarization_compass.replay.replay_bag`), which read 10 MB image messages.
 - :class:`single_threaded_kernels`: numba and BLAS on the calling thread only, for the replay's
   method threads and the error-map sweep's workers (BLAS through ``threadpoolctl``).
+- :func:`kernel_array`: an input array in the one form (C-contiguous, read-only) the compiled
+  estimator kernels are compiled for.
 """
 
 from __future__ import annotations
 
-__all__ = ['keep_large_buffers_in_heap', 'single_threaded_kernels']
+__all__ = ['keep_large_buffers_in_heap', 'kernel_array', 'single_threaded_kernels']
+
+import numpy as np
 
 #: glibc ``mallopt`` parameters (malloc.h) and the values the nodes use.
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
@@ -102,3 +106,37 @@ class single_threaded_kernels:
 
 # ------------------------------------------------------------------------------------------------
 # The whole bag
+
+
+def kernel_array(a, dtype=None) -> np.ndarray:
+    """
+    Return an array as the compiled kernels read it: C-contiguous and read-only.
+
+    numba compiles a kernel once per argument type, and an array's type includes its layout
+    (C/F/A) and whether it is writeable: the same kernel fed a C writeable, a C read-only and an F
+    array is compiled three times (5-30 s each), also in a node whose warm-up compiled one of them
+    when its first message brings another. The inputs the estimators pass (rays, pixel
+    coordinates, block indices) are therefore all given in one form, read-only because the
+    camera's cached rays and coordinates (the node's full-frame path) already are: a writeable
+    C-contiguous array becomes a read-only view of itself (no copy); only another layout or dtype
+    is copied.
+
+    Parameters
+    ----------
+    a : array_like
+        The array.
+    dtype : numpy.dtype or None
+        The dtype to convert to (copying only if it differs); None keeps the array's own.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``a`` (itself when it is already C-contiguous and read-only), else a read-only
+        C-contiguous view or copy of it.
+
+    """
+    out = np.ascontiguousarray(a, dtype=dtype)
+    if out.flags.writeable:
+        out = out.view()
+        out.flags.writeable = False
+    return out

@@ -53,3 +53,88 @@ def test_kernels_run_single_threaded_during_replay_and_settings_come_back():
             assert all(t == (1, 1) for t in blas_threads()), blas_threads()
         assert numba.get_num_threads() == before
         assert all(t == (2, 2) for t in blas_threads()), blas_threads()
+
+
+def test_kernel_array_is_c_contiguous_read_only_and_copies_only_another_layout():
+    """
+    Every layout and writeability comes out as one form; a C array is viewed, not copied.
+
+    Independent checks with numpy's own flags and ``np.shares_memory``; the numba type of the
+    result (which is what decides a kernel's compiled signature) is read with ``numba.typeof``.
+    """
+    import numba
+    import numpy as np
+    from polarization_compass.runtime import kernel_array
+
+    base = np.arange(12, dtype=np.float32).reshape(3, 4)
+    ro = base.copy()
+    ro.setflags(write=False)
+    fortran = np.asfortranarray(base)
+    strided = np.arange(24, dtype=np.float32).reshape(3, 8)[:, ::2]
+    types = set()
+    for a in (base, ro, fortran, strided):
+        out = kernel_array(a)
+        assert out.flags.c_contiguous and not out.flags.writeable
+        np.testing.assert_array_equal(out, a)
+        types.add(numba.typeof(out))
+    assert len(types) == 1
+    assert base.flags.writeable  # the caller's array stays writeable
+    assert np.shares_memory(kernel_array(base), base)  # a view: no copy on the hot path
+    assert kernel_array(ro) is ro
+    assert not np.shares_memory(kernel_array(fortran), fortran)
+    idx = kernel_array([1, 2, 3], np.int64)
+    assert idx.dtype == np.int64 and not idx.flags.writeable
+
+
+def test_pixel_views_hand_the_kernels_one_form_of_rays_and_coordinates():
+    """
+    The full frame, a stride, a region, a pixel list and F-ordered rays give one numba type each.
+
+    The view's rays and pixel coordinates are the kernels' inputs whose layout and writeability
+    varied by path (each variant a separate 5-30 s compilation).
+    """
+    import dataclasses
+
+    import numba
+    import numpy as np
+    from polarization_compass.estimators._views import select_view, view_segments
+
+    h, w = 12, 16
+    y, x = np.mgrid[1 : h + 1, 1 : w + 1].astype(np.float64)
+    rays = np.stack([x - 8.0, y - 6.0, np.full_like(x, 10.0)]).reshape(3, -1).astype(np.float32)
+    rays /= np.linalg.norm(rays, axis=0)
+    rays.setflags(write=False)  # as the camera's cached rays
+    x.setflags(write=False)
+    y.setflags(write=False)
+    obs = dataclasses.make_dataclass(
+        'Obs', ['aop_rad', 'dop', 'valid', 'rays_cam', 'x_px', 'y_px', 'intensity']
+    )
+    full = obs(
+        np.zeros((h, w), np.float32),
+        np.ones((h, w), np.float32),
+        np.ones((h, w), bool),
+        rays,
+        x,
+        y,
+        None,
+    )
+    fl = obs(
+        *(np.asarray(a).reshape(-1)[::3] for a in (full.aop_rad, full.dop, full.valid)),
+        rays[:, ::3],
+        x.reshape(-1)[::3],
+        y.reshape(-1)[::3],
+        None,
+    )
+    cases = [
+        (full, {'stride': 1}),
+        (full, {'stride': 2}),
+        (full, {'stride': 1, 'region': (3, 2, 8, 6)}),
+        (dataclasses.replace(full, rays_cam=np.asfortranarray(rays)), {'stride': 1}),
+        (fl, {'stride': 1}),
+    ]
+    types = set()
+    for o, knobs in cases:
+        v = select_view(o, dict({'region': None}, **knobs))
+        arrays, _ = view_segments(v, 4)
+        types.add(tuple(numba.typeof(a) for a in (v.rays, v.x_px, v.y_px, *arrays[3:6])))
+    assert len(types) == 1, types

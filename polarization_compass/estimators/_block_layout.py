@@ -146,4 +146,7 @@ def list_segments(x_px, y_px, block_px: int):
     start = np.concatenate([[0], change]).astype(np.int64)
     end = np.concatenate([change, [ks.size]]).astype(np.int64)
     uniq, blk = np.unique(ks[start], return_inverse=True)
-    return order, (start, end, blk.astype(np.int64), int(uniq.size))
+    blk = blk.astype(np.int64)
+    for a in (start, end, blk):
+        a.setflags(write=False)  # read-only like grid_segments': one argument type of the kernels
+    return order, (start, end, blk, int(uniq.size))

@@ -39,6 +39,7 @@ from numba import njit
 import numpy as np
 
 from ..fastmath import sincos32_folded as _sincos32
+from ..runtime import kernel_array
 
 __all__ = [
     'sub_pass',
@@ -457,11 +458,12 @@ def _run_starts(n: int, sub_pixels: int) -> np.ndarray:
     rows (a period that is a multiple of the row length samples one vertical strip).
     """
     if _reads_every_pixel(n, sub_pixels):
-        return np.arange(0, n, _RUN, dtype=np.int64)
-    k = max(1, sub_pixels // _RUN)
-    frac = np.mod(0.5 + np.arange(k) * 0.6180339887498949, 1.0)
-    out = np.unique(np.floor(frac * (n - _RUN)).astype(np.int64))
-    out.setflags(write=False)
+        out = np.arange(0, n, _RUN, dtype=np.int64)
+    else:
+        k = max(1, sub_pixels // _RUN)
+        frac = np.mod(0.5 + np.arange(k) * 0.6180339887498949, 1.0)
+        out = np.unique(np.floor(frac * (n - _RUN)).astype(np.int64))
+    out.setflags(write=False)  # cached, and one argument type of _bc_pass either way
     return out
 
 
@@ -493,7 +495,7 @@ def sub_pass(
         aop,
         dop,
         valid,
-        rays,
+        kernel_array(rays),
         inten,
         has_i,
         _run_starts(n, int(sub_pixels)),
@@ -528,6 +530,7 @@ def full_pass(
     None.
     """
     start, end, block, n_blocks = segments
+    rays = kernel_array(rays)  # the kernels' one form of it (a free view when C-contiguous)
     if grids is not None:
         grids, n_blocks = grids
     block_m = np.zeros((n_blocks, 6))
@@ -538,8 +541,9 @@ def full_pass(
             if parities is not None:
                 col_par, row_par = parities[gi]
             else:
-                col_par = np.zeros(col_block.size, np.int64)
-                row_par = np.zeros(row_block.size, np.int64)
+                # read-only like grid_parities': one argument type of the kernel
+                col_par = kernel_array(np.zeros(col_block.size, np.int64))
+                row_par = kernel_array(np.zeros(row_block.size, np.int64))
             _m_pass_grid(
                 aop,
                 dop,
@@ -565,7 +569,16 @@ def full_pass(
     else:
         _count_pass(aop, dop, valid, rays, float(min_dop), counts)
         _m_pass(
-            aop, dop, valid, rays, start, end, block, float(min_dop), bool(weight_mode), block_m
+            aop,
+            dop,
+            valid,
+            rays,
+            kernel_array(start, np.int64),
+            kernel_array(end, np.int64),
+            kernel_array(block, np.int64),
+            float(min_dop),
+            bool(weight_mode),
+            block_m,
         )
     return {
         'block_m': sym3(block_m),

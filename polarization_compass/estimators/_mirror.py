@@ -134,6 +134,7 @@ class MirrorMap:
         p = self.params.copy()
         p[MP_SIN] = math.sin(theta_rad)
         p[MP_COS] = math.cos(theta_rad)
+        p.setflags(write=False)  # the kernels' one argument type: read-only like grid and weight
         return self.grid, self.weight, p
 
     def occlusion_at(self, theta_rad: float) -> tuple:
@@ -252,6 +253,7 @@ def mirror_map(view, camera: CameraModel, rho_max: float, min_dop: float = 0.0) 
     Q = np.zeros(S.shape)
     Q[pad : pad + ny, pad : pad + nx] = dgrid
     Q *= Sw
+    Q.setflags(write=False)  # read-only like S: one argument type of the kernels
     return MirrorMap(S, Q, params, (float(x0), float(dx), float(y0), float(dy)), camera)
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from .base import HeadingResult, Observation, Status
 from ..camera import CameraModel
 from ..camera_pixels import PixelSelection
+from ..runtime import kernel_array
 
 __all__ = [
     'Samples',
@@ -123,6 +124,12 @@ class PixelView:
     pixels), else None. ``subgrids``: a tuple of such keys when the pixels are several regular
     grids one after the other, each row-major (the phase-balanced stride of :func:`select_view`),
     else None. Neither: a pixel list. ``rays`` is (3, n).
+
+    ``rays``, ``x_px`` and ``y_px`` are held C-contiguous and read-only (:func:`kernel_array`: a
+    free view, or a copy of another layout), the form of the camera's cached rays and
+    coordinates, so that every path (full frame, stride, region, pixel list) hands the compiled
+    kernels one argument type. ``aop``, ``dop`` and ``valid`` are computed per frame and arrive
+    C-contiguous and writeable on every path; they are kept as they are.
     """
 
     aop: np.ndarray
@@ -134,6 +141,11 @@ class PixelView:
     intensity: np.ndarray | None
     grid: tuple | None
     subgrids: tuple | None = None
+
+    def __post_init__(self):
+        self.rays = kernel_array(self.rays)
+        self.x_px = kernel_array(self.x_px)
+        self.y_px = kernel_array(self.y_px)
 
 
 def _check_shapes(obs: Observation):
@@ -448,9 +460,9 @@ def view_segments(view: PixelView, block_px: int):
             view.aop[order],
             view.dop[order],
             view.valid[order],
-            view.rays[:, order],
-            view.x_px[order],
-            view.y_px[order],
+            kernel_array(view.rays[:, order]),
+            kernel_array(view.x_px[order]),
+            kernel_array(view.y_px[order]),
             None if view.intensity is None else view.intensity[order],
         ),
         segs,

@@ -34,6 +34,7 @@ import numpy as np
 
 from ._block_layout import block_indices
 from ..conventions import wrap_180_deg_float
+from ..runtime import kernel_array
 
 __all__ = [
     'JACKKNIFE_GROUPS',
@@ -162,8 +163,8 @@ def jackknife_groups(xc_px, yc_px, block_w, n_groups: int = JACKKNIFE_GROUPS) ->
     w = np.ascontiguousarray(block_w, dtype=np.float64)
     out = np.full(w.size, -1, dtype=np.int64)
     _sectors(
-        np.ascontiguousarray(xc_px, dtype=np.float64),
-        np.ascontiguousarray(yc_px, dtype=np.float64),
+        kernel_array(xc_px, np.float64),
+        kernel_array(yc_px, np.float64),
         w,
         int(n_groups),
         out,

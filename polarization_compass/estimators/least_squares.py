@@ -99,6 +99,7 @@ from .sun_from_evectors import (
 )
 from ..camera import CameraModel
 from ..camera_pixels import PixelSelection
+from ..runtime import kernel_array
 
 __all__ = ['LeastSquaresEstimator', 'TiltAwareEstimator']
 
@@ -478,7 +479,13 @@ class _LSBase(KnobbedEstimator, Estimator):
         c_el, c_psi = sensitivity_vectors(f, fit.lam, fit.U)
         cs = np.stack([c_el, c_psi]) if with_psi else c_el[None, :]
         acc = fit.acc
-        return _block_sigmas(acc['block_m'], acc['block_w'], fit.n, f.s, np.ascontiguousarray(cs))
+        return _block_sigmas(
+            kernel_array(acc['block_m'], np.float64),
+            kernel_array(acc['block_w'], np.float64),
+            fit.n,
+            kernel_array(f.s, np.float64),
+            kernel_array(cs, np.float64),
+        )
 
 
 @dataclass
