@@ -491,3 +491,57 @@ def test_dds_heading_carries_the_simulated_header_stamp(ros_env, tmp_path):
     ]
     keys = {kv.key: kv.value for kv in diag[-1].values}
     assert keys['rejected'] == '0', keys
+
+
+@pytest.mark.parametrize('array_qos', ['reliable', 'sensor_data'])
+def test_dds_burst_of_samples_is_not_lost(ros_env, tmp_path, array_qos):
+    """
+    A burst of samples that arrives while the estimator is busy is not lost.
+
+    An array_heading_estimator process is sent 30 samples (header, then array) back to back, as a
+    driver's backlog reaches a node whose first estimate loads or compiles its kernels: every one
+    gets its status, with its header's stamp (the subscriptions' history held 5 samples and
+    silently dropped the older ones of a burst, counted nowhere).
+    """
+    from polarization_compass.specs import topics as T
+    from std_msgs.msg import String
+    from test_nodes_helpers import node_env, Proc, Recorder
+
+    env = node_env(ros_env)
+    t = T.method_topics('least_squares')
+    est = Proc(
+        'heading_estimator_array',
+        'array_heading_estimator',
+        [
+            *('-p', 'method:=least_squares', '-p', f'array_geometry:={GEOMETRY}'),
+            *('-p', 'prior_source:=none', '-p', f'array_qos:={array_qos}'),
+            *('-p', 'time_source:=parameter', '-p', f'time_utc:={TIME}'),
+        ],
+        env,
+        tmp_path / 'logs',
+    )
+    rec = Recorder(int(env['ROS_DOMAIN_ID']))
+    n, start_ns = 30, 1_573_797_600_000_000_000
+    try:
+        rec.sub(String, t['status'])
+        pub_h, pub_a = rec.pub(Header, T.ARRAY_HEADER), rec.pub(Float32MultiArray, T.ARRAY)
+        assert rec.spin_until(
+            lambda: pub_h.get_subscription_count() and pub_a.get_subscription_count(), 60, [est]
+        ), est.stderr[-2000:]
+        rec.spin_for(1.0)  # the estimator's side of the match too
+        g = load_array_geometry(GEOMETRY)
+        az, alt = _sun()
+        msg = array_msg(simulate_readings(g, az, alt, [120.0])[0])
+        grid = [start_ns + k * 100_000_000 for k in range(n)]
+        for s in grid:  # back to back: the burst reaches the node while it estimates the first
+            pub_h.publish(Header(stamp=M.time_msg(s), frame_id='base_link'))
+            pub_a.publish(msg)
+        rec.spin_until(lambda: len(rec.msgs[t['status']]) >= n, 60, [est])
+        rec.spin_for(0.5)  # none more
+    finally:
+        code = est.stop()
+        rec.close()
+    assert code == 0, est.stderr[-2000:]
+    statuses = rec.statuses(t['status'])
+    assert [s['stamp_ns'] for s in statuses] == grid, (len(statuses), est.stderr[-2000:])
+    assert all(s['status'] == 'ok' for s in statuses)

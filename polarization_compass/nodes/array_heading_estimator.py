@@ -37,7 +37,7 @@ from __future__ import annotations
 import time
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float32MultiArray, Header
 
 from .diagnostics import _wall_clock
@@ -55,6 +55,11 @@ from ..specs.params import ARRAY_ESTIMATOR, knob_params, knob_values
 from ..stamp_pairing import StampPairer
 
 __all__ = ['ArrayHeadingEstimatorNode', 'main']
+
+#: History depth [messages] of the sample and header subscriptions: 10 s of a 10 Hz driver, kept
+#: while the first estimate compiles its kernels (a reliable reader with a short history loses
+#: what it cannot take in time, as a best-effort one does).
+ARRAY_DEPTH = 100
 
 
 class ArrayHeadingEstimatorNode(HeadingNodeBase):
@@ -91,7 +96,15 @@ class ArrayHeadingEstimatorNode(HeadingNodeBase):
     def _subscribe_array(self, samples) -> None:
         """Subscribe to the samples (and their headers); time the waits of the queue."""
         p = self.params
-        qos = qos_profile_sensor_data if p['array_qos'] == 'sensor_data' else QoSProfile(depth=5)
+        # deep queues: a sample waits in its reader's history while an estimate (the first one
+        # compiles or loads its kernels, seconds) or a busy CPU holds the callbacks, and a history
+        # of 5 silently replaced the older ones (counted nowhere, not even as received)
+        reliability = (
+            ReliabilityPolicy.BEST_EFFORT
+            if p['array_qos'] == 'sensor_data'
+            else ReliabilityPolicy.RELIABLE
+        )
+        qos = QoSProfile(depth=ARRAY_DEPTH, reliability=reliability)
         self.create_subscription(
             Float32MultiArray, topics.ARRAY, self._on_array, qos, callback_group=samples
         )
