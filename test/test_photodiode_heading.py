@@ -25,9 +25,11 @@ from polarization_compass.estimators.base import Status
 from polarization_compass.photodiode.calibrate import calibrate_gains
 from polarization_compass.photodiode.geometry import geometry_from_dict
 from polarization_compass.photodiode.heading import (
+    array_methods,
     ArrayMethodError,
     estimate_recording,
     make_array_estimator,
+    warm_up_array,
 )
 from polarization_compass.photodiode.selfcheck import check_convention
 from polarization_compass.photodiode.simulate import (
@@ -113,6 +115,27 @@ def test_tilt_aware_exact_under_tilt_and_least_squares_is_not():
     assert max(err_ta) < 1e-7
     assert max(err_ls) > 3.0  # the level assumption fails under a 14 deg tilt
     assert all(r.status == Status.OK for r in ta + ls)
+
+
+@pytest.mark.parametrize('method', array_methods())
+def test_the_warm_up_runs_every_method_and_leaves_no_trace(method):
+    """
+    The node's start-up warm-up runs every array method and changes none of its answers.
+
+    After :func:`warm_up_array`, a recording gives the same headings, sigmas and statuses as on an
+    estimator that never ran (the warm-up only compiles or loads kernels; no state is kept).
+    """
+    g = geom()
+    x = simulate_readings(g, 200.0, 40.0, BEARINGS, noise_rel=0.01, rng=np.random.default_rng(3))
+    fresh = estimate_recording(make_array_estimator(method, g), x, 200.0, 40.0, 0.0, 0.0)
+    warmed = make_array_estimator(method, g)
+    dt = warm_up_array(warmed)
+    assert np.isfinite(dt) and dt > 0.0
+    again = estimate_recording(warmed, x, 200.0, 40.0, 0.0, 0.0)
+    assert [(r.status, r.psi_deg, r.sigma_deg) for r in again] == [
+        (r.status, r.psi_deg, r.sigma_deg) for r in fresh
+    ]
+    assert all(r.status == Status.OK for r in fresh), [r.status for r in fresh]
 
 
 def test_ambiguity_like_cameras():

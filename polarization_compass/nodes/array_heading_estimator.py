@@ -47,7 +47,7 @@ from .runner import run_node
 from ..bag import MessageError, stamp_ns
 from ..errors import CompassError
 from ..photodiode.geometry import load_array_geometry
-from ..photodiode.heading import estimate_recording, make_array_estimator
+from ..photodiode.heading import estimate_recording, make_array_estimator, warm_up_array
 from ..photodiode.knobs import ARRAY_KNOBS
 from ..photodiode.readings import array_sample_from_flat, ArrayRecordingError
 from ..specs import topics
@@ -82,6 +82,8 @@ class ArrayHeadingEstimatorNode(HeadingNodeBase):
             raise CompassError(f'method {self.method!r}: {exc}') from None
         self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
         self.array = self._make_array(self.knob_set.values)
+        dt = warm_up_array(self.array)
+        self.get_logger().info(f'warm-up (kernel compilation or cache load) took {dt:.2f} s')
         self._make_diagnostics(f'array heading estimator ({self.method})')
         self.pairer = None  # array_stamp header: pairs each sample with its header
         self.executor_threads = 2

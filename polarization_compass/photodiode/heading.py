@@ -75,6 +75,7 @@ __all__ = [
     'make_array_estimator',
     'axes_spread_deg',
     'estimate_recording',
+    'warm_up_array',
 ]
 
 
@@ -504,6 +505,36 @@ def estimate_recording(
         if progress is not None and ((i + 1) % 1000 == 0 or i + 1 == S):
             progress(i + 1, S)
     return out
+
+
+def warm_up_array(estimator: ArrayHeadingEstimator) -> float:
+    """
+    Estimate one simulated sample so that the estimator's numba kernels are compiled (or loaded).
+
+    The camera node's :func:`~polarization_compass.pipeline.front_end.warm_up` for arrays: without
+    it the first real sample waits for the compilation (about 3 s on an empty cache) while the
+    samples behind it pile up in the node's readers.
+
+    Parameters
+    ----------
+    estimator : ArrayHeadingEstimator
+        The estimator, with its geometry.
+
+    Returns
+    -------
+    float
+        Seconds it took.
+
+    """
+    import time
+
+    from .simulate import simulate_readings
+
+    t0 = time.perf_counter()
+    # a level body facing 30 deg under a sun at 180 deg, 35 deg up: a sample every method reads
+    x = simulate_readings(estimator.geometry, 180.0, 35.0, [30.0])
+    estimate_recording(estimator, x, 180.0, 35.0, 0.0, 0.0)
+    return time.perf_counter() - t0
 
 
 def axes_spread_deg(axes) -> float:
