@@ -347,7 +347,8 @@ ARRAY_ESTIMATOR = (
     Param(
         'array_qos',
         'sensor_data',
-        'subscription QoS of the samples: sensor_data (REP-2003, best effort) or reliable',
+        'subscription QoS of the samples: sensor_data (REP-2003, best effort) or reliable; '
+        'either keeps 100 samples waiting (a slow first estimate loses none)',
         choices=('sensor_data', 'reliable'),
         read_only=True,
     ),
