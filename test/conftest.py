@@ -319,6 +319,21 @@ class FisheyeSky:
 
 
 @pytest.fixture(scope='module')
+def sunny(tmp_path_factory):
+    """
+    Return a directory of this module's own holding the real ``sunny`` frame as ``sunny.npz``.
+
+    The Stokes planes ``estimate`` reads (:func:`real_sky.write_stokes_npz`); a test may write its
+    camera files beside it.
+    """
+    import real_sky
+
+    d = tmp_path_factory.mktemp('sunny')
+    real_sky.write_stokes_npz(d, 'sunny')
+    return d
+
+
+@pytest.fixture(scope='module')
 def ctx():
     """
     Return a private rclpy context per test module, for nodes built in-process.

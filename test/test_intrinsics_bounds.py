@@ -39,13 +39,6 @@ def _yaml(cx, cy, f=None, w=2048, h=2048):
     )
 
 
-@pytest.fixture(scope='module')
-def sunny(tmp_path_factory):
-    d = tmp_path_factory.mktemp('sunny')
-    R.write_stokes_npz(d, 'sunny')
-    return d
-
-
 def _estimate(path, cam, capsys):
     capsys.readouterr()
     rc = main(

@@ -203,13 +203,6 @@ def test_the_true_centre_stays_ok_and_right(offset_frames, tmp_path):
 # ------------------------------------------------------------------------------------------------
 # The real sunny frame, its lens centre moved by 5 % of the width across the sun
 # ------------------------------------------------------------------------------------------------
-@pytest.fixture(scope='module')
-def sunny(tmp_path_factory):
-    d = tmp_path_factory.mktemp('sunny')
-    R.write_stokes_npz(d, 'sunny')
-    return d
-
-
 def _sunny_yaml(d, dx_px, sigma_px):
     f = R.RADIUS_90_PX / (math.pi / 2)
     cx, cy = R.CENTRE_PX
