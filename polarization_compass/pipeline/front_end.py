@@ -200,9 +200,13 @@ def estimate_checked(
             obs.roll_deg,
             obs.prior_bearing_deg,
         )
-    pp_sigma = principal_point_sigma_px
     return with_principal_point_sigma(
-        res, obs.camera, pp_sigma, obs.sun_altitude_deg, obs.pitch_deg, obs.roll_deg
+        res,
+        obs.camera,
+        principal_point_sigma_px,
+        obs.sun_altitude_deg,
+        obs.pitch_deg,
+        obs.roll_deg,
     )
 
 

@@ -83,10 +83,11 @@ def focal_length_px(camera) -> float:
     Returns
     -------
     float
-        ``min(fx, fy)`` [px].
+        ``min(fx, fy)`` [px] of the camera's K (:meth:`~..camera.CameraModel.K_matrix`).
 
     """
-    return camera.focal_length_mm * 1e3 / max(camera.pixel_pitch_x_um, camera.pixel_pitch_y_um)
+    K = camera.K_matrix()
+    return float(min(K[0, 0], K[1, 1]))
 
 
 def principal_point_sigma_px(camera, stated_px=None) -> tuple[float, str]:
