@@ -100,10 +100,16 @@ class TestGraphStops(unittest.TestCase):
             return
         with open(os.path.join(REPORT, 'evaluation_summary.json')) as f:
             s = json.load(f)
-        self.assertTrue(s['complete'])
-        self.assertEqual(s['truth_frames'], 5)
+        # on a failure, which frames were scored tells a loss at the start (discovery) from one
+        # at the end (the stop)
+        with open(os.path.join(REPORT, 'evaluation_samples.csv')) as f:
+            seen = f.read()
+        why = json.dumps(s['streams'], sort_keys=True) + '\nsamples:\n' + seen
+        self.assertTrue(s['complete'], why)
+        self.assertEqual(s['truth_frames'], 5, why)
         self.assertEqual(
             (s['streams']['tilt_aware/raw']['count'], s['streams']['tilt_aware/raw']['missed']),
             (5, 0),
+            why,
         )
         self.assertGreater(os.path.getsize(os.path.join(REPORT, 'evaluation.png')), 0)

@@ -83,6 +83,11 @@ FIGURE_PERIOD_S = 30.0
 class ErrorEvaluatorNode(Node):
     """The ``error_evaluator`` node (see the module docstring)."""
 
+    #: On a stop signal, first handle what the readers already hold, for at most this long
+    #: [wall s] (:func:`~polarization_compass.nodes.runner.drain_inputs`): the report must not miss
+    #: frames that arrived before the signal.
+    drain_on_stop_s = 2.0
+
     def __init__(self, **kwargs):
         super().__init__('error_evaluator', **kwargs)
         self.params = ParameterSet(self, EVALUATOR, on_change=self._on_change)
@@ -374,6 +379,10 @@ class ErrorEvaluatorNode(Node):
             )
         return written
 
+    def inputs_handled(self) -> int:
+        """Return how many truth, heading and odometry messages reached a callback so far."""
+        return self.diag.received
+
     def close(self) -> None:
         """Write the final report (called once when the node stops)."""
         if self._closed:
@@ -381,8 +390,14 @@ class ErrorEvaluatorNode(Node):
         self._closed = True
         self.matcher.finish()
         out = Path(self.params['report_dir'])
-        written = self._write_report(self.summary(), complete=True)
-        print(f'error_evaluator: report written to {out}: {", ".join(written)}', flush=True)
+        s = self.summary()
+        written = self._write_report(s, complete=True)
+        counts = ', '.join(f'{n} {d["count"]}' for n, d in s['streams'].items())
+        print(
+            f'error_evaluator: report written to {out}: {", ".join(written)} '
+            f'({s["truth_frames"]} truth frames; estimates: {counts or "none"})',
+            flush=True,
+        )
 
 
 def main(argv=None) -> int:
