@@ -105,11 +105,14 @@ def test_truth_waiting_in_the_reader_at_a_stop_is_counted(graph):
     assert (s['truth_frames'], s['complete']) == (N, True)
 
 
-def test_the_drain_is_bounded_while_data_keeps_coming(graph):
-    from polarization_compass.nodes.runner import drain_inputs
+def test_the_drain_is_bounded_while_data_keeps_coming(graph, monkeypatch):
+    from polarization_compass.nodes import runner
 
     ev, executor, pub = graph
     ev.drain_on_stop_s = 0.5
+    # the queues never count as empty here: only the budget can end the drain (a live stream
+    # keeps them busy; on a loaded machine a gap in it could end the drain early and prove nothing)
+    monkeypatch.setattr(runner, 'DRAIN_QUIET_S', 30.0)
     stop = threading.Event()
 
     def stream():
@@ -124,13 +127,14 @@ def test_the_drain_is_bounded_while_data_keeps_coming(graph):
     try:
         time.sleep(0.3)
         t0 = time.monotonic()
-        handled = drain_inputs(executor, ev)
+        handled = runner.drain_inputs(executor, ev)
         took = time.monotonic() - t0
     finally:
         stop.set()
         t.join()
-    assert handled > 10  # it did take the live inputs ...
-    assert took < 0.5 + 0.3  # ... and stopped at its budget (one spin period of slack)
+    assert handled >= 1  # it did take the live inputs ...
+    # ... and stopped at its budget, not at the 30-s quiet period (slack for a loaded machine)
+    assert 0.5 <= took < 0.5 + 3.0
 
 
 def test_a_node_without_the_opt_in_is_not_drained(graph):
