@@ -33,7 +33,7 @@ import time
 from polarization_compass.nodes import msgs as M
 import pytest
 from rclpy.duration import Duration
-from rclpy.parameter import Parameter
+from test_nodes_helpers import zenith_evaluator
 
 T0 = 1_700_000_000_000_000_000
 N = 20
@@ -42,7 +42,6 @@ N = 20
 @pytest.fixture
 def graph(tmp_path, ros_domain):
     """Return (evaluator, its executor, a truth publisher) on a context of their own."""
-    from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
     from polarization_compass.nodes.runner import make_executor
     from polarization_compass.specs import topics
     import rclpy
@@ -52,15 +51,7 @@ def graph(tmp_path, ros_domain):
 
     c = Context()
     rclpy.init(context=c, domain_id=ros_domain)
-    ev = ErrorEvaluatorNode(
-        context=c,
-        parameter_overrides=[
-            Parameter('report_dir', value=str(tmp_path)),
-            Parameter('methods', value=['zenith']),
-            Parameter('direct_methods', value=['']),
-            Parameter('include_corrected', value=False),
-        ],
-    )
+    ev = zenith_evaluator(c, tmp_path)
     executor = make_executor(ev)
     executor.add_node(ev)
     src = rclpy.create_node('truth_source', context=c)

@@ -188,3 +188,19 @@ def stamp(m) -> int:
 
 def no_traceback(text: str) -> bool:
     return 'Traceback' not in text
+
+
+def zenith_evaluator(context, report_dir):
+    """Return an in-process ``error_evaluator`` scoring only ``zenith/raw``, on ``context``."""
+    from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
+    from rclpy.parameter import Parameter
+
+    return ErrorEvaluatorNode(
+        context=context,
+        parameter_overrides=[
+            Parameter('report_dir', value=str(report_dir)),
+            Parameter('methods', value=['zenith']),
+            Parameter('direct_methods', value=['']),
+            Parameter('include_corrected', value=False),
+        ],
+    )

@@ -31,8 +31,7 @@ import time
 
 from polarization_compass.nodes import msgs as M
 import pytest
-from rclpy.parameter import Parameter
-from test_nodes_helpers import node_env, Proc, SMALL_SCENE
+from test_nodes_helpers import node_env, Proc, SMALL_SCENE, zenith_evaluator
 
 T0 = 1_700_000_000_000_000_000
 FAILURE_MARKS = (
@@ -54,17 +53,7 @@ def _heading(t_ns, bearing):
 # ------------------------------------------------------------------------------------------------
 @pytest.fixture
 def evaluator(ctx, tmp_path):
-    from polarization_compass.nodes.error_evaluator import ErrorEvaluatorNode
-
-    node = ErrorEvaluatorNode(
-        context=ctx,
-        parameter_overrides=[
-            Parameter('report_dir', value=str(tmp_path)),
-            Parameter('methods', value=['zenith']),
-            Parameter('direct_methods', value=['']),
-            Parameter('include_corrected', value=False),
-        ],
-    )
+    node = zenith_evaluator(ctx, tmp_path)
     yield node
     node.destroy_node()
 
