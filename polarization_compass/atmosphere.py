@@ -78,6 +78,7 @@ import numpy as np
 
 from .atmosphere_checks import _keys, _num, AtmosphereError
 from .clouds import CloudLayer
+from .runtime import kernel_array
 
 __all__ = [
     'AtmosphereError',
@@ -364,6 +365,7 @@ class Skyline:
 
         """
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
+        rays_cam = kernel_array(rays_cam)  # one argument type: the kernels compile once
         flag = np.empty(rays_cam.shape[1], np.bool_)
         _skyline_candidates_kernel(
             rays_cam,

@@ -53,6 +53,7 @@ from .clouds_kernels import (
     CloudParams,
     GRID_STEP,
 )
+from .runtime import kernel_array
 
 __all__ = [
     'CloudGrid',
@@ -418,7 +419,7 @@ class CloudLayer:
             return
         R = np.ascontiguousarray(R_enu_cam, dtype=np.float64)
         _cloud_kernel(
-            rays_cam,
+            kernel_array(rays_cam),  # one argument type: the kernel compiles once
             R,
             self.frame_params(dt_s),
             self.brightness,

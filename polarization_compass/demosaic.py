@@ -415,7 +415,8 @@ def aop_dop_from_stokes(s0, s1, s2):
     aop = np.empty(a0.shape, np.float32)
     dop = np.empty(a0.shape, np.float32)
     valid = np.empty(a0.shape, np.bool_)
-    _stokes_to_aop_kernel(a0, a1, a2, aop, dop, valid)
+    # flat views (the kernel reads them flat): one argument type for any image shape
+    _stokes_to_aop_kernel(*(a.reshape(-1) for a in (a0, a1, a2, aop, dop, valid)))
     return aop, dop, valid
 
 

@@ -49,6 +49,7 @@ from numba import njit, prange
 import numpy as np
 
 from .errors import CompassError
+from .runtime import kernel_array
 
 __all__ = [
     'RadianceError',
@@ -386,7 +387,7 @@ class CIEStandardSky:
            general sky", Table 1.
 
         """
-        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        rays = kernel_array(rays_cam, np.float32)  # one argument type: the kernel compiles once
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
         z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         s = s / np.linalg.norm(s)
@@ -528,7 +529,7 @@ class PreethamSky:
            SIGGRAPH 1999, appendix A.2.
 
         """
-        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        rays = kernel_array(rays_cam, np.float32)  # one argument type: the kernel compiles once
         s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
         z = np.asarray(zenith_cam, dtype=np.float64).reshape(3)
         s = s / np.linalg.norm(s)

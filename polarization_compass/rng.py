@@ -211,5 +211,5 @@ def standard_normal_f32(key: int, shape) -> np.ndarray:
 
     """
     out = np.empty(shape, np.float32)
-    _normal_kernel(np.uint64(key), out)
+    _normal_kernel(np.uint64(key), out.reshape(-1))  # flat: one argument type for any shape
     return out

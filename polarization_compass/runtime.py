@@ -21,7 +21,7 @@ Performance plumbing of the process (ROS-free), kept out of the physics modules.
 - :class:`single_threaded_kernels`: numba and BLAS on the calling thread only, for the replay's
   method threads and the error-map sweep's workers (BLAS through ``threadpoolctl``).
 - :func:`kernel_array`: an input array in the one form (C-contiguous, read-only) the compiled
-  estimator kernels are compiled for.
+  estimator kernels and the render's sky, radiance, cloud and skyline kernels are compiled for.
 """
 
 from __future__ import annotations
@@ -116,10 +116,11 @@ def kernel_array(a, dtype=None) -> np.ndarray:
     (C/F/A) and whether it is writeable: the same kernel fed a C writeable, a C read-only and an F
     array is compiled three times (5-30 s each), also in a node whose warm-up compiled one of them
     when its first message brings another. The inputs the estimators pass (rays, pixel
-    coordinates, block indices) are therefore all given in one form, read-only because the
-    camera's cached rays and coordinates (the node's full-frame path) already are: a writeable
-    C-contiguous array becomes a read-only view of itself (no copy); only another layout or dtype
-    is copied.
+    coordinates, block indices) and the rays of the render's per-pixel kernels (the renderer's
+    cached rays, the ground's mirror rays, a caller's own) are therefore all given in one form,
+    read-only because the camera's cached rays and coordinates (the node's full-frame path)
+    already are: a writeable C-contiguous array becomes a read-only view of itself (no copy); only
+    another layout or dtype is copied.
 
     Parameters
     ----------

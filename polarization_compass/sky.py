@@ -43,6 +43,7 @@ import numpy as np
 
 from .errors import CompassError
 from .fastmath import axial_atan2_f32, FM
+from .runtime import kernel_array
 
 __all__ = [
     'RayleighParams',
@@ -206,7 +207,8 @@ class RayleighSky:
         zenith_cam : array_like, shape (3,)
             Unit zenith (ENU up) vector in the camera frame.
         rays_cam : array_like, shape (3, N)
-            Unit viewing rays in the camera frame (converted to contiguous float32).
+            Unit viewing rays in the camera frame (converted to read-only contiguous float32,
+            :func:`~polarization_compass.runtime.kernel_array`).
         limits : tuple of float, default (1.0, -1.0, 0.0)
             (cosine of the sun-exclusion radius, sine of the minimum altitude, minimum DoP); the
             default accepts every pixel.
@@ -226,7 +228,7 @@ class RayleighSky:
            Polarized Skylight Orientation Determination" (the seed paper), eqs 11, 19 and 28.
 
         """
-        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        rays = kernel_array(rays_cam, np.float32)  # one argument type: the kernel compiles once
         n = rays.shape[1]
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)

@@ -85,6 +85,7 @@ from numba import njit, prange
 import numpy as np
 
 from .fastmath import axial_atan2_f32, FM
+from .runtime import kernel_array
 from .sky import _check_dop_max, SkyModelError
 
 __all__ = ['BdlParams', 'BerryDennisLeeSky', 'bdl_pixel', 'neutral_points', 'SEPARATION_RANGE_DEG']
@@ -372,7 +373,7 @@ class BerryDennisLeeSky:
            Polarized Skylight Orientation Determination" (the seed paper), eq 28.
 
         """
-        rays = np.ascontiguousarray(rays_cam, dtype=np.float32)
+        rays = kernel_array(rays_cam, np.float32)  # one argument type: the kernel compiles once
         n = rays.shape[1]
         aop = np.empty(n, np.float32)
         dop = np.empty(n, np.float32)

@@ -138,3 +138,63 @@ def test_pixel_views_hand_the_kernels_one_form_of_rays_and_coordinates():
         arrays, _ = view_segments(v, 4)
         types.add(tuple(numba.typeof(a) for a in (v.rays, v.x_px, v.y_px, *arrays[3:6])))
     assert len(types) == 1, types
+
+
+def test_sky_kernel_compiles_once_for_the_renderer_and_a_direct_call():
+    """
+    The Rayleigh kernel gets one argument type from the renderer and from a caller's own rays.
+
+    The renderer hands the sky the camera's cached rays (read-only); a caller of
+    :meth:`RayleighSky.polarization` (or the ground's mirror rays) hands fresh writeable ones, here
+    even F-ordered float64: each form was a separate compilation of the parallel kernel. Both calls
+    must give the same bits for the same rays (the conversion is exact).
+    """
+    import numpy as np
+    from polarization_compass import conventions as cv
+    from polarization_compass.camera import CameraModel
+    from polarization_compass.render import Renderer, SunDirection
+    from polarization_compass.scene import Scene
+    from polarization_compass.sky import _rayleigh_kernel, RayleighSky
+
+    cam = CameraModel(
+        model='fisheye_equidistant',
+        width_px=40,
+        height_px=36,
+        focal_length_mm=1.0,
+        pixel_pitch_x_um=60.0,
+        pixel_pitch_y_um=60.0,
+    )
+    r = Renderer(Scene(camera=cam, sky={'model': 'rayleigh', 'dop_max': 0.8}))
+    r.render(attitude=cv.CameraAttitude(10.0, 5.0, -3.0), sun=SunDirection(200.0, 55.0))
+    rays_ro = np.asarray(r.pixels.rays_cam, np.float32)
+    assert not rays_ro.flags.writeable  # the renderer's path: the camera's cached rays
+    sun, zen = np.array([0.3, -0.2, 0.9]), np.array([0.0, 0.6, 0.8])
+    sun /= np.linalg.norm(sun)
+    zen /= np.linalg.norm(zen)
+    sky = RayleighSky(0.8)
+    mine = np.asfortranarray(rays_ro.astype(np.float64))  # writeable, another layout and dtype
+    for a, b in zip(sky.polarization(sun, zen, rays_ro), sky.polarization(sun, zen, mine)):
+        np.testing.assert_array_equal(a, b)
+    assert len(_rayleigh_kernel.signatures) == 1, _rayleigh_kernel.signatures
+
+
+def test_stokes_kernel_compiles_once_for_images_and_pixel_lists():
+    """:func:`demosaic.aop_dop_from_stokes` of an image and of a flat pixel list: one signature."""
+    import numpy as np
+    from polarization_compass.demosaic import aop_dop_from_stokes
+    from polarization_compass.demosaic_kernels import _stokes_to_aop_kernel
+
+    rng = np.random.default_rng(3)
+    s0 = rng.uniform(1.0, 2.0, (6, 8))
+    s1, s2 = rng.uniform(-0.5, 0.5, (2, 6, 8))
+    img = aop_dop_from_stokes(s0, s1, s2)
+    flat = aop_dop_from_stokes(s0.ravel(), s1.ravel(), s2.ravel())
+    for a, b in zip(img, flat):
+        assert a.shape == (6, 8) and b.shape == (48,)
+        np.testing.assert_array_equal(a.ravel(), b)
+    # independent: AoP = atan2(S2, -S1) / 2 modulo pi, DoP = hypot(S1, S2) / S0 (float32 rounding)
+    assert img[2].all()
+    d_aop = np.angle(np.exp(2j * (img[0] - 0.5 * np.arctan2(s2, -s1))))
+    np.testing.assert_allclose(d_aop, 0.0, atol=1e-5)
+    np.testing.assert_allclose(img[1], np.hypot(s1, s2) / s0, rtol=1e-5)
+    assert len(_stokes_to_aop_kernel.signatures) == 1, _stokes_to_aop_kernel.signatures
