@@ -37,30 +37,12 @@ TREES = '16-33__Thursday_19-05-22'
 
 @pytest.fixture(scope='module')
 def sessions():
-    """
-    Yield the geometry and the three sessions, loaded once.
-
-    The sessions' evaluation under the geometry as given (no mount: the 'before' column of both
-    tests) is computed once per session; evaluations under a fitted mount are not kept.
-    """
     import mount_calibration as mc
     from polarization_compass.photodiode.geometry import geometry_from_dict
 
     g = geometry_from_dict(pj.geometry_dict())
     rows = [r for r in pj.sessions() if r['session'] in (HIGH_SUN, OTHER_CLEAR, TREES)]
-    loaded = {r['session']: mc.load(r, g) for r in rows}
-    evaluate, before = mc.evaluate, {}
-
-    def evaluate_once_before(s, geometry):
-        if geometry is not g:
-            return evaluate(s, geometry)
-        if s['session'] not in before:
-            before[s['session']] = evaluate(s, geometry)
-        return before[s['session']]
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(mc, 'evaluate', evaluate_once_before)
-        yield g, loaded
+    return g, {r['session']: mc.load(r, g) for r in rows}
 
 
 def test_mount_from_the_other_clear_session_cuts_the_high_sun_scatter_by_a_third(sessions):
