@@ -40,10 +40,11 @@ ROOT = Path(__file__).resolve().parent.parent
 def run(cfg) -> dict:
     optional_import('rclpy')
     optional_import('visualization_msgs.msg')
-    calls = 200 if cfg.mode == 'quick' else 2000
+    # tiny (the smoke test): one repeat (matplotlib's figure and PNG take ~2 s a repeat)
+    calls = 2000 if cfg.mode == 'full' else 200
     with single_core():
         out = {'publish_per_image_us': _publish_costs(calls)}
-        out.update(_render_costs(cfg, 2 if cfg.mode == 'quick' else 5))
+        out.update(_render_costs(cfg, {'full': 5, 'quick': 2}.get(cfg.mode, 1)))
     out['notes'] = (
         'per image: _publish_debug with the debug image on and no subscriber (no render), the '
         'marker alone, both off; render: view_from_mosaic + quick_rgb, only while subscribed and '

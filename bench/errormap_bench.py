@@ -335,7 +335,9 @@ def run(cfg) -> dict:
     methods = list(est.registry.paper_methods())
     if not methods:
         raise Unavailable("the paper's four estimators are not registered yet")
-    workers = max(1, os.cpu_count() or 1)
+    # tiny (the smoke test): in this process; the LocalCluster path is run_backends' (two cluster
+    # starts and worker imports less, ~10 s)
+    workers = 1 if cfg.tiny else max(1, os.cpu_count() or 1)
     scene = None
     alt, yaw, pitch = TARGET_AXES
     target_cells = alt.size * yaw.size * pitch.size

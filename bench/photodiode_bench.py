@@ -43,7 +43,7 @@ SUN_AZ_DEG, SUN_ALT_DEG = 135.0, 60.0
 SAMPLES_PER_TURN = 72
 
 
-def _turns(geometry, rng):
+def _turns(geometry, rng, samples_per_turn=SAMPLES_PER_TURN):
     """Return readings, IMU yaw [rad] and turn label of three simulated turns (mounted sensor)."""
     from polarization_compass.mount import Mount
     from polarization_compass.photodiode.simulate import simulate_readings
@@ -51,12 +51,12 @@ def _turns(geometry, rng):
     mounted = geometry.with_mount(Mount(*TRUE_MOUNT_DEG))
     out = []
     for k, offset_deg in enumerate((10.0, 13.5, 200.0)):
-        yaw = np.radians(np.linspace(0.0, 360.0, SAMPLES_PER_TURN, endpoint=False))
+        yaw = np.radians(np.linspace(0.0, 360.0, samples_per_turn, endpoint=False))
         bearing = offset_deg - np.degrees(yaw)
         inten = simulate_readings(
             mounted, SUN_AZ_DEG, SUN_ALT_DEG, bearing, noise_rel=0.02, rng=rng
         )
-        out.append((inten, yaw, np.full(SAMPLES_PER_TURN, k)))
+        out.append((inten, yaw, np.full(samples_per_turn, k)))
     return out
 
 
@@ -114,12 +114,14 @@ def run(cfg) -> dict:
     from polarization_compass.photodiode.geometry import load_array_geometry
 
     geometry = load_array_geometry(ROOT / 'config' / 'arrays' / 'pol_op_8unit.yaml')
-    turns = _turns(geometry, np.random.default_rng(7))
+    # tiny (the smoke test): 24 samples a turn, enough to determine the mount
+    n = 24 if cfg.mode == 'tiny' else SAMPLES_PER_TURN
+    turns = _turns(geometry, np.random.default_rng(7), n)
     with single_core():
-        out = {'estimate': _estimate_costs(geometry, turns, 2 if cfg.mode == 'quick' else 5)}
+        out = {'estimate': _estimate_costs(geometry, turns, 5 if cfg.mode == 'full' else 2)}
         out['mount'] = _mount_costs(geometry, turns)
     out['notes'] = (
-        f'3 simulated turns x {SAMPLES_PER_TURN} samples of the shipped 8-unit geometry mounted '
+        f'3 simulated turns x {n} samples of the shipped 8-unit geometry mounted '
         f'at pitch {TRUE_MOUNT_DEG[0]}, roll {TRUE_MOUNT_DEG[1]} deg, sun {SUN_ALT_DEG} deg, 2 % '
         'noise; one core'
     )

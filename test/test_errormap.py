@@ -27,6 +27,7 @@ import sys
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import sweep_cells
+from polarization_compass.cli import main as cli_main
 from polarization_compass.errormap import (
     ErrorMapError,
     STATUS_CODES,
@@ -739,12 +740,16 @@ def test_map_file_round_trip_and_corrupt_files(tmp_path):
         load_error_map(tmp_path / 'none.npz')
 
 
-def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path):
+def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path, capsys):
+    """
+    The errormap command writes its contract; bad arguments and files are one line, exit 2.
+
+    The good run goes through the console entry point in a subprocess (stdout is the JSON summary);
+    the refusals run in this process (``main``: the same one line and exit status, without
+    importing the package anew for each).
+    """
     out = tmp_path / 'cli.npz'
-    cmd = [
-        sys.executable,
-        '-m',
-        'polarization_compass.cli',
+    args = [
         'errormap',
         '--methods',
         'least_squares',
@@ -762,6 +767,7 @@ def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path):
         '--out',
         str(out),
     ]
+    cmd = [sys.executable, '-m', 'polarization_compass.cli'] + args
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
@@ -771,38 +777,32 @@ def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path):
     np.testing.assert_allclose(m.yaw_deg, [-180, -90, 0, 90, 180])
     assert m.meta['sampling']['least_squares']['pixels'].startswith('stride')
     assert m.meta['package_version'] and m.meta['scene']['sky']['model'] == 'rayleigh'
+
+    def refused(argv):
+        try:
+            rc = cli_main(argv)
+        except SystemExit as exc:  # argparse
+            rc = exc.code
+        err = capsys.readouterr().err
+        assert rc == 2, (argv, err)
+        assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err, (argv, err)
+
+    capsys.readouterr()
     for bad in (
         ['--yaw', '0:10'],
         ['--methods', 'nope'],
         ['--pitch', '10:-10:5'],
         ['--stride', '0'],
     ):
-        args = list(cmd)
-        if bad[0] in args:
-            args[args.index(bad[0]) + 1] = bad[1]
+        argv = list(args)
+        if bad[0] in argv:
+            argv[argv.index(bad[0]) + 1] = bad[1]
         else:
-            args += bad
-        r = subprocess.run(args, capture_output=True, text=True, timeout=120)
-        assert r.returncode == 2, (bad, r.stderr)
-        assert len(r.stderr.strip().splitlines()) == 1 and 'Traceback' not in r.stderr
+            argv += bad
+        refused(argv)
     junk = tmp_path / 'junk.npz'
     junk.write_text('nonsense')
-    r = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'polarization_compass.cli',
-            'allowable-tilt',
-            '--max-error',
-            '1',
-            '--map',
-            str(junk),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    refused(['allowable-tilt', '--max-error', '1', '--map', str(junk)])
 
 
 def test_noisy_scene_sweeps_are_reproducible_and_resumable(tmp_path):

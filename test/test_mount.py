@@ -21,6 +21,7 @@ whose zero is a known offset per turn.
 """
 
 import csv
+import functools
 import math
 
 import numpy as np
@@ -77,6 +78,21 @@ def _samples(turns, sun_alt=SUN_ALT):
     return concat(
         [turn_samples(fit_stokes(inten, g), g, y, t, SUN_AZ, sun_alt) for inten, y, t in turns]
     )
+
+
+@functools.lru_cache(maxsize=None)
+def _simulated_recording(seed, offsets):
+    return _samples(_turns(seed=seed, offsets=offsets))
+
+
+def _recording(seed, offsets):
+    """
+    Return the samples of ``_turns(seed=seed, offsets=offsets)`` at the true mount.
+
+    Simulated once per module (the recordings 1 and 2 below serve four tests); each call returns a
+    copy, as the tests relabel and disturb their samples.
+    """
+    return concat([_simulated_recording(seed, offsets)])
 
 
 def test_mount_rotation_is_the_paper_pitch_and_roll_of_the_default_camera():
@@ -182,8 +198,8 @@ def test_refuses_an_undetermined_mount():
 
 
 def test_recordings_that_disagree_widen_the_sigma_or_are_refused():
-    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
-    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    a = _recording(1, (10.0, 50.0))
+    b = _recording(2, (90.0, 120.0))
     b.turn = b.turn + 10
     joint = fit_mount_recordings(geom(), [a, b])
     assert max(joint.spread) < 3.0  # same mount: the sigma barely moves
@@ -195,7 +211,7 @@ def test_recordings_that_disagree_widen_the_sigma_or_are_refused():
 
 
 def test_recordings_that_disagree_within_the_bound_are_fitted_with_a_warning():
-    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
+    a = _recording(1, (10.0, 50.0))
     c = _samples(_turns(seed=3, offsets=(90.0, 120.0), mount=Mount(-1.0, -2.5)))
     c.turn = c.turn + 10
     fit = fit_mount_recordings(geom(), [a, c])  # 3 deg apart in pitch: many sigmas, < 5 deg
@@ -209,7 +225,7 @@ def test_recordings_that_disagree_within_the_bound_are_fitted_with_a_warning():
     assert abs(fit.mount.pitch_deg - (-1.0)) < 2.0 * fit.mount.pitch_sigma_deg
     with pytest.raises(MountFitError, match=r'disagree by [23]\.\d deg > 2 '):
         fit_mount_recordings(geom(), [a, c], max_disagreement_deg=2.0)
-    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    b = _recording(2, (90.0, 120.0))
     b.turn = b.turn + 10
     assert fit_mount_recordings(geom(), [a, b]).warning == ''
 
@@ -223,8 +239,8 @@ def _disturbed(d, amplitude_deg=25.0):
 
 
 def test_a_recording_whose_sky_misfits_is_left_out_and_the_clean_mount_recovered():
-    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
-    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    a = _recording(1, (10.0, 50.0))
+    b = _recording(2, (90.0, 120.0))
     b.turn = b.turn + 10
     c = _disturbed(_samples(_turns(seed=3, offsets=(200.0, 250.0))))
     c.turn = c.turn + 20
@@ -255,8 +271,8 @@ def test_a_recording_whose_sky_misfits_is_left_out_and_the_clean_mount_recovered
 
 
 def test_the_sky_gate_leaves_a_clean_set_unchanged_and_refuses_when_all_misfit():
-    a = _samples(_turns(seed=1, offsets=(10.0, 50.0)))
-    b = _samples(_turns(seed=2, offsets=(90.0, 120.0)))
+    a = _recording(1, (10.0, 50.0))
+    b = _recording(2, (90.0, 120.0))
     b.turn = b.turn + 10
     gated = fit_mount_recordings(geom(), [a, b])
     ungated = fit_mount_recordings(geom(), [a, b], max_sky_misfit_deg=math.inf)

@@ -27,8 +27,6 @@ import json
 import math
 from pathlib import Path
 import re
-import subprocess
-import sys
 
 import numpy as np
 from polarization_compass import bag as B
@@ -755,17 +753,6 @@ def test_wrong_type_on_a_mapped_topic_is_reported_and_counted(clean, tmp_path):
 # ------------------------------------------------------------------------------------------------
 # command line
 # ------------------------------------------------------------------------------------------------
-def _cli(*args, cwd=None):
-    """Run the real command in a fresh process (what a user runs)."""
-    return subprocess.run(
-        [sys.executable, '-m', 'polarization_compass.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=cwd,
-    )
-
-
 class _Run:
     """A subprocess.CompletedProcess stand-in."""
 
@@ -835,7 +822,7 @@ def test_cli_record_sim_then_replay_writes_csv_summary_and_figures(tmp_path, cap
 
 
 @pytest.mark.parametrize('kind', ['missing', 'text_file', 'no_images'])
-def test_cli_replay_of_a_non_bag_is_one_line_exit_2(tmp_path, clean, kind):
+def test_cli_replay_of_a_non_bag_is_one_line_exit_2(tmp_path, clean, kind, capsys):
     if kind == 'missing':
         p = tmp_path / 'nope'
     elif kind == 'text_file':
@@ -844,7 +831,7 @@ def test_cli_replay_of_a_non_bag_is_one_line_exit_2(tmp_path, clean, kind):
     else:
         p = tmp_path / 'noimg'
         _copy_bag(clean, p, lambda role, k, mt, raw, t: [] if role == 'image' else [(raw, t)])
-    r = _cli('replay', p, '--out', tmp_path / 'o')
+    r = _cli_inproc(capsys, 'replay', p, '--out', tmp_path / 'o')
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith(
         'polarization-compass replay: error:'
