@@ -453,3 +453,41 @@ def test_rejections_are_logged_once_per_reason_per_period(ctx, monkeypatch):
         assert lines[-1] == 'dropped an input (tf_missing)'
     finally:
         node.destroy_node()
+
+
+class _Log:
+    """A logger that keeps its lines."""
+
+    def __init__(self):
+        self.lines = []
+
+    def info(self, text):
+        self.lines.append(('info', text))
+
+    def warning(self, text):
+        self.lines.append(('warning', text))
+
+
+def test_a_failing_warm_up_only_warns_in_both_heading_nodes():
+    """
+    The camera and the array heading nodes' warm-up: its time logged, a failure only a warning.
+
+    One step serves both nodes; a failure never leaves start-up as an exception (the first input
+    then waits for the compilation).
+    """
+    from types import SimpleNamespace
+
+    from polarization_compass.nodes.heading_node import HeadingNodeBase
+
+    log = _Log()
+    node = SimpleNamespace(get_logger=lambda: log)
+    HeadingNodeBase._warm_up(node, lambda: 1.5, 'image')
+
+    def boom():
+        raise RuntimeError('no kernels')
+
+    HeadingNodeBase._warm_up(node, boom, 'sample')
+    assert log.lines == [
+        ('info', 'warm-up (kernel compilation or cache load) took 1.50 s'),
+        ('warning', 'warm-up failed (RuntimeError: no kernels); the first sample will be slow'),
+    ]

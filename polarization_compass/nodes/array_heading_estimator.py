@@ -82,8 +82,7 @@ class ArrayHeadingEstimatorNode(HeadingNodeBase):
             raise CompassError(f'method {self.method!r}: {exc}') from None
         self.knob_set = ParameterSet(self, knobs, on_change=self._on_knob_change)
         self.array = self._make_array(self.knob_set.values)
-        dt = warm_up_array(self.array)
-        self.get_logger().info(f'warm-up (kernel compilation or cache load) took {dt:.2f} s')
+        self._warm_up(lambda: warm_up_array(self.array), 'sample')
         self._make_diagnostics(f'array heading estimator ({self.method})')
         self.pairer = None  # array_stamp header: pairs each sample with its header
         self.executor_threads = 2

@@ -137,13 +137,7 @@ class HeadingEstimatorNode(HeadingNodeBase):
             p['sky_check'],
             p['principal_point_sigma_px'],
         )
-        try:
-            dt = warm_up(self.front, camera=self._fallback_camera_or_none())
-            self.get_logger().info(f'warm-up (kernel compilation or cache load) took {dt:.2f} s')
-        except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
-            self.get_logger().warning(
-                f'warm-up failed ({type(exc).__name__}: {exc}); the first image will be slow'
-            )
+        self._warm_up(lambda: warm_up(self.front, camera=self._fallback_camera_or_none()), 'image')
 
     def _subscribe_camera(self, small, images) -> None:
         """Subscribe to camera_info (small inputs) and the images."""

@@ -122,6 +122,23 @@ class HeadingNodeBase(Node):
         """Create the node's ``/diagnostics`` reporter, titled ``label``."""
         self.diag = Diagnostics(self, label)
 
+    def _warm_up(self, run, first: str) -> None:
+        """
+        Run the method's start-up warm-up and log how long it took.
+
+        ``run()`` compiles or loads the kernels and returns its seconds. The warm-up is an
+        optimisation, never fatal: a failure is logged as a warning, and then the ``first``
+        input (an image, a sample) waits for the compilation instead.
+        """
+        try:
+            dt = run()
+        except Exception as exc:  # noqa: BLE001 - warm-up is an optimisation, never fatal
+            self.get_logger().warning(
+                f'warm-up failed ({type(exc).__name__}: {exc}); the first {first} will be slow'
+            )
+            return
+        self.get_logger().info(f'warm-up (kernel compilation or cache load) took {dt:.2f} s')
+
     # parameters ---------------------------------------------------------------------------------
     def _update_common(self, changed: dict, merged: dict) -> None:
         """Apply run-time changes of the prior and sun parameters (``merged``: all values)."""
