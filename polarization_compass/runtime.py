@@ -105,7 +105,7 @@ class single_threaded_kernels:
 
 
 # ------------------------------------------------------------------------------------------------
-# The whole bag
+# Arguments of the compiled kernels
 
 
 def kernel_array(a, dtype=None) -> np.ndarray:
