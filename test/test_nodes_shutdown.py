@@ -259,3 +259,46 @@ def test_stop_signals_interrupt_a_start_up_once(own_handlers):
     os.kill(own_handlers, signal.SIGINT)  # while that interrupt unwinds: recorded only
     time.sleep(0.01)
     assert stop.received == [signal.SIGTERM, signal.SIGINT]
+
+
+def test_a_start_up_interrupt_inside_a_c_callback_prints_no_traceback(own_handlers, monkeypatch):
+    """
+    A start-up interrupt that lands in a ctypes callback is recorded, and not reported.
+
+    numba's compilation calls back into Python from C (llvmlite's object cache); an exception
+    raised there cannot propagate, and Python handed it to ``sys.unraisablehook``, whose default
+    printed "Exception ignored ... Traceback" (one Ctrl-C during a sim graph's cold start). A real
+    ctypes callback here; the hook that was there before records what reaches it. Any other
+    unraisable exception still reaches it.
+    """
+    import ctypes
+    import os
+    import sys
+
+    from polarization_compass.nodes.runner import StopSignals
+
+    reported = []
+    monkeypatch.setattr(sys, 'unraisablehook', lambda info: reported.append(info.exc_type))
+    before = sys.unraisablehook
+    stop = StopSignals().install()
+    stop.interrupt_now = True
+
+    @ctypes.CFUNCTYPE(None)
+    def interrupted():
+        os.kill(own_handlers, signal.SIGINT)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2.0:  # the handler raises at a bytecode boundary in here
+            pass
+
+    @ctypes.CFUNCTYPE(None)
+    def failing():
+        raise ValueError('not ours')
+
+    try:
+        interrupted()  # through libffi: Python -> C -> the Python callback
+        failing()
+    finally:
+        stop.restore()
+    assert stop.received == [signal.SIGINT]
+    assert reported == [ValueError]
+    assert sys.unraisablehook is before

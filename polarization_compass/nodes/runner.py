@@ -147,6 +147,14 @@ class StopSignals:
     node is being built: pure Python and numba compilation, no executor calling back into Python),
     the first signal raises :class:`KeyboardInterrupt` so that a long warm-up does not delay the
     stop.
+
+    That interrupt can land inside a callback from C (llvmlite calls numba's object cache
+    through ctypes while it compiles), where Python cannot raise it: it printed "Exception ignored
+    on calling ctypes callback function" with a traceback, and the compilation then failed on its
+    own. Seen with one Ctrl-C while a sim graph's estimators compiled on an empty cache. The stop
+    is recorded all the same, so such an unraisable ``KeyboardInterrupt`` is dropped silently
+    (``sys.unraisablehook``, while installed); any other unraisable exception still goes to the
+    previous hook.
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -155,10 +163,13 @@ class StopSignals:
         self.received: list[int] = []
         self.interrupt_now = False
         self._previous: dict = {}
+        self._previous_unraisable = None
 
     def install(self) -> 'StopSignals':
         for s in self.SIGNALS:
             self._previous[s] = signal.signal(s, self._handler)
+        self._previous_unraisable = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         return self
 
     def restore(self) -> None:
@@ -166,6 +177,14 @@ class StopSignals:
         for s, h in self._previous.items():
             signal.signal(s, h)
         self._previous.clear()
+        if self._previous_unraisable is not None:
+            sys.unraisablehook = self._previous_unraisable
+            self._previous_unraisable = None
+
+    def _unraisable(self, info) -> None:
+        if isinstance(info.exc_value, KeyboardInterrupt) and self.requested:
+            return  # our own start-up interrupt, raised where it cannot propagate: recorded
+        (self._previous_unraisable or sys.__unraisablehook__)(info)
 
     @property
     def requested(self) -> bool:
