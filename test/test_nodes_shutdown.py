@@ -302,3 +302,34 @@ def test_a_start_up_interrupt_inside_a_c_callback_prints_no_traceback(own_handle
     assert stop.received == [signal.SIGINT]
     assert reported == [ValueError]
     assert sys.unraisablehook is before
+
+
+def test_a_start_up_that_fails_of_its_interrupt_ends_as_a_stop(own_handlers, capsys):
+    """
+    A node whose start-up fails because a stop signal interrupted it exits 0, no traceback.
+
+    The interrupt lands in a C callback of numba's compiler (recorded, not raised there) and the
+    compilation then fails with a RuntimeError ("no compiled object yet", seen in a tilt_corrector
+    stopped during a sim graph's cold start: exit 1 with a traceback). Here the same sequence in a
+    real ctypes callback, through :func:`run_node` in this process.
+    """
+    import ctypes
+    import os
+
+    from polarization_compass.nodes.runner import run_node
+
+    @ctypes.CFUNCTYPE(None)
+    def interrupted():
+        os.kill(own_handlers, signal.SIGINT)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2.0:
+            pass
+
+    def factory():
+        interrupted()
+        raise RuntimeError('no compiled object yet for <Library>')
+
+    capsys.readouterr()
+    assert run_node(factory, 'test_node', argv=['test_node'], exit_process=False) == 0
+    err = capsys.readouterr().err
+    assert 'Traceback' not in err and 'error' not in err, err

@@ -254,6 +254,13 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
         stop.interrupt_now = True
         try:
             node = factory()
+        except Exception:
+            if stop.requested:
+                # the start-up interrupt landed where it could not propagate (a C callback of
+                # numba's compiler) and the start-up then failed of it: that is the stop, not an
+                # error of the node
+                raise KeyboardInterrupt from None
+            raise
         finally:
             stop.interrupt_now = False
         executor = make_executor(node)
