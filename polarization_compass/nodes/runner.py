@@ -58,6 +58,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 import time
 
 from ..errors import CompassError
@@ -71,6 +72,7 @@ __all__ = [
     'make_executor',
     'SPIN_PERIOD_S',
     'DRAIN_QUIET_S',
+    'START_UP_DEADLINE_S',
     'drain_inputs',
 ]
 
@@ -104,6 +106,11 @@ def make_executor(node):
 #: Longest wait in one ``spin_once``: how late a stop request is seen at most (between two
 #: callbacks).
 SPIN_PERIOD_S = 0.1
+
+#: After a stop signal during start-up, the longest the start-up may still take before the
+#: process ends at once [wall s] (:class:`StopSignals`); well within ``ros2 launch``'s SIGTERM
+#: timeout (``graphs.STOP_TIMEOUT_S``, 20 s).
+START_UP_DEADLINE_S = 5.0
 
 #: While draining (:func:`drain_inputs`): the input queues count as empty after this many wall
 #: seconds without a new input handled.
@@ -146,7 +153,11 @@ class StopSignals:
     ``received`` lists the signal numbers in arrival order. While ``interrupt_now`` is true (the
     node is being built: pure Python and numba compilation, no executor calling back into Python),
     the first signal raises :class:`KeyboardInterrupt` so that a long warm-up does not delay the
-    stop.
+    stop. The interrupt cannot reach Python while numba's compiler runs in C, and inside its C
+    callbacks it is lost (below), so the compilation may go on for tens of seconds past
+    ``ros2 launch``'s SIGTERM and SIGKILL: with ``start_up_deadline_s`` (a console script's
+    process), a start-up still running that long after the first signal ends the process at once
+    (exit 0; there is no node yet, nothing to publish or save).
 
     That interrupt can land inside a callback from C (llvmlite calls numba's object cache
     through ctypes while it compiles), where Python cannot raise it: it printed "Exception ignored
@@ -159,9 +170,12 @@ class StopSignals:
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self):
+    def __init__(self, name: str = 'node', start_up_deadline_s: float | None = None):
         self.received: list[int] = []
         self.interrupt_now = False
+        self.name = name
+        self.start_up_deadline_s = start_up_deadline_s
+        self._deadline = None
         self._previous: dict = {}
         self._previous_unraisable = None
 
@@ -195,8 +209,32 @@ class StopSignals:
 
     def _handler(self, signum, frame):
         self.received.append(int(signum))
+        if self.interrupt_now and self.start_up_deadline_s is not None and self._deadline is None:
+            self._deadline = threading.Timer(self.start_up_deadline_s, self._start_up_overdue)
+            self._deadline.daemon = True
+            self._deadline.start()
         if self.interrupt_now and len(self.received) == 1:
             raise KeyboardInterrupt
+
+    def end_start_up(self) -> None:
+        """Mark the start-up over: no more interrupts, and no deadline."""
+        self.interrupt_now = False
+        if self._deadline is not None:
+            self._deadline.cancel()
+
+    def _start_up_overdue(self) -> None:
+        """End the process: a stop came during start-up, and the start-up has not ended since."""
+        if not self.interrupt_now:
+            return
+        print(
+            f'{self.name}: stopped during start-up ({self.names()}); exiting without waiting '
+            'for the compilation',
+            flush=True,
+        )
+        try:
+            sys.stderr.flush()
+        finally:
+            os._exit(0)
 
 
 def run_node(factory, name: str, argv=None, exit_process: bool | None = None) -> int:
@@ -213,9 +251,8 @@ def run_node(factory, name: str, argv=None, exit_process: bool | None = None) ->
     """
     if exit_process is None:
         exit_process = argv is None
-    stop = (
-        StopSignals().install()
-    )  # before anything slow: no signal is lost or raised from here on
+    # before anything slow: no signal is lost or raised from here on
+    stop = StopSignals(name, START_UP_DEADLINE_S if exit_process else None).install()
     try:
         code = _run(factory, name, argv, stop)
     finally:
@@ -262,7 +299,7 @@ def _run(factory, name: str, argv, stop: StopSignals) -> int:
                 raise KeyboardInterrupt from None
             raise
         finally:
-            stop.interrupt_now = False
+            stop.end_start_up()
         executor = make_executor(node)
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
