@@ -28,7 +28,9 @@
   after shutdown. Further signals during that sequence are recorded and change nothing. Before
   ``close()``, a node whose output is a report of what it received (the evaluator) handles the
   inputs already waiting in its readers (:func:`drain_inputs`, bounded). A signal while the node
-  is being built (imports done, warm-up running) ends the start-up at once, also with exit 0.
+  is being built (imports done, warm-up running) ends the start-up at once, also with exit 0;
+  if the start-up goes on anyway (numba compiling in C), the process ends 5 s later
+  (:class:`StopSignals`).
 * The process then ends with ``os._exit`` once stdout/stderr are flushed and rclpy's context (its
   DDS participant, the ROS log files) is shut down and destroyed: Python's own finalisation took
   1.9 s per node alone on this machine (5 s and more with ten nodes on two cores, past ``ros2
