@@ -24,10 +24,10 @@ import json
 import subprocess
 import sys
 
-from cli_calls import assert_user_error, run
 import numpy as np
 from polarization_compass import conventions as cv
 from polarization_compass import sweep_cells
+from polarization_compass.cli import main as cli_main
 from polarization_compass.errormap import (
     ErrorMapError,
     STATUS_CODES,
@@ -778,6 +778,15 @@ def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path, caps
     assert m.meta['sampling']['least_squares']['pixels'].startswith('stride')
     assert m.meta['package_version'] and m.meta['scene']['sky']['model'] == 'rayleigh'
 
+    def refused(argv):
+        try:
+            rc = cli_main(argv)
+        except SystemExit as exc:  # argparse
+            rc = exc.code
+        err = capsys.readouterr().err
+        assert rc == 2, (argv, err)
+        assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err, (argv, err)
+
     capsys.readouterr()
     for bad in (
         ['--yaw', '0:10'],
@@ -790,10 +799,10 @@ def test_errormap_cli_writes_the_contract_and_errors_are_one_line(tmp_path, caps
             argv[argv.index(bad[0]) + 1] = bad[1]
         else:
             argv += bad
-        assert_user_error(*run(argv, capsys))
+        refused(argv)
     junk = tmp_path / 'junk.npz'
     junk.write_text('nonsense')
-    assert_user_error(*run(['allowable-tilt', '--max-error', '1', '--map', str(junk)], capsys))
+    refused(['allowable-tilt', '--max-error', '1', '--map', str(junk)])
 
 
 def test_noisy_scene_sweeps_are_reproducible_and_resumable(tmp_path):
