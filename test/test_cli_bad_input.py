@@ -30,12 +30,37 @@ import os
 import subprocess
 import sys
 
-from cli_calls import assert_user_error, run
 import numpy as np
-from polarization_compass.cli import build_parser
+from polarization_compass.cli import build_parser, main
 import pytest
 
 GOOD_TIME = '2024-01-01T00:00:00Z'
+
+
+def run(argv, capsys):
+    """
+    Run one in-process CLI call and return (exit status, stdout, stderr).
+
+    (exit status, stdout, stderr) of one in-process CLI call; argparse's SystemExit is an exit
+    status.
+    """
+    try:
+        rc = main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def assert_user_error(rc, out, err, *words):
+    assert 'Traceback' not in err and 'internal error' not in err, err
+    assert rc == 2, (rc, err)
+    assert out == ''
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert 'error' in lines[0]
+    for w in words:
+        assert w.lower() in lines[0].lower(), (w, lines[0])
 
 
 @pytest.fixture
