@@ -372,6 +372,7 @@ def test_a_start_up_that_goes_on_after_a_stop_ends_the_process(ros_env, tmp_path
     )
     try:
         assert p.stdout.readline().strip() == 'building'
+        time.sleep(0.5)  # into its loop: a signal before the try would simply stop it
         t0 = time.monotonic()
         p.send_signal(signal.SIGINT)
         out, err = p.communicate(timeout=60)
